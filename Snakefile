@@ -1,0 +1,27 @@
+# straylight: CSST stray-light and sky-background pipeline.
+# Run:  snakemake --cores 2            (default campaign: config/config.yaml)
+#       snakemake --cores 2 --configfile my_campaign.yaml
+from snakemake.utils import min_version, validate
+
+min_version("8.0")
+
+
+configfile: "config/config.yaml"
+
+
+validate(config, "config/schema/config.schema.yaml")
+
+
+include: "workflow/rules/common.smk"
+include: "workflow/rules/ephemeris.smk"
+include: "workflow/rules/footprint.smk"
+include: "workflow/rules/observability.smk"
+
+
+rule all:
+    default_target: True
+    input:
+        f"{RESULTS}/ephemeris.zarr",
+        f"{RESULTS}/footprint.fits",
+        f"{RESULTS}/plan.json",
+        f"{RESULTS}/observability.zarr",

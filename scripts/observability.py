@@ -1,0 +1,23 @@
+"""Snakemake adapter: rule `observability` -> observability.zarr."""
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821 - injected by Snakemake
+from _common import campaign, setup_logging  # noqa: E402
+
+import xarray as xr  # noqa: E402
+
+from straylight.io import write_zarr_atomic  # noqa: E402
+from straylight.products import footprint_products, observability_dataset  # noqa: E402
+
+log = setup_logging(snakemake)  # noqa: F821
+t0 = time.perf_counter()
+c = campaign(snakemake)  # noqa: F821
+fp, _ = footprint_products(c)
+with xr.open_zarr(snakemake.input.ephemeris) as ephem:  # noqa: F821
+    ds = observability_dataset(c, ephem.load(), fp)
+write_zarr_atomic(ds, snakemake.output[0])  # noqa: F821
+frac = float(ds["observable"].mean())
+log.info("observability: %d times x %d pixels, observable fraction %.3f, %.2f s",
+         ds.sizes["time"], ds.sizes["pixel"], frac, time.perf_counter() - t0)

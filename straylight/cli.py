@@ -1,0 +1,172 @@
+"""Command-line interface: ``straylight <command> --help``.
+
+User mistakes (bad config, time out of range, NaN coordinates) print one clear line on stderr
+and exit with status 2; no traceback.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+
+import numpy as np
+
+from .errors import InputError, StraylightError
+
+
+def _finite_float(name):
+    def conv(text):
+        try:
+            v = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be a number, got {text!r}") from None
+        if not math.isfinite(v):
+            raise argparse.ArgumentTypeError(f"{name} must be finite, got {text!r}")
+        return v
+
+    return conv
+
+
+def _json_default(o):
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    raise TypeError(type(o))
+
+
+def _print_json(obj) -> None:
+    json.dump(obj, sys.stdout, indent=2, default=_json_default)
+    sys.stdout.write("\n")
+
+
+# -- commands ---------------------------------------------------------------------------------
+def cmd_ephem(args) -> int:
+    from .ephemeris import BODIES, default_ephemeris, radec_distance
+    from .timeutil import parse_utc
+
+    bodies = [b.strip().lower() for b in args.bodies.split(",") if b.strip()] if args.bodies else list(BODIES)
+    unknown = [b for b in bodies if b not in BODIES]
+    if unknown:
+        raise InputError(f"--bodies: unknown body {unknown[0]!r}; known: {', '.join(BODIES)}")
+    t = parse_utc(args.time, "--time")
+    pos = default_ephemeris().positions(t, bodies)
+    out = {"time": t.isot, "frame": "ICRS", "origin": "geocentre", "kind": "geometric", "bodies": {}}
+    for b in bodies:
+        p = pos[b]
+        ra, dec, dist = radec_distance(p)
+        out["bodies"][b] = {
+            "x_km": float(p[0]), "y_km": float(p[1]), "z_km": float(p[2]),
+            "ra_deg": float(ra), "dec_deg": float(dec), "distance_km": float(dist),
+        }
+    if args.json:
+        _print_json(out)
+    else:
+        print(f"{out['time']} UTC, geocentric geometric ICRS")
+        for b, v in out["bodies"].items():
+            print(f"{b:8s} RA {v['ra_deg']:10.5f}  Dec {v['dec_deg']:+9.5f}  d {v['distance_km']:.6e} km")
+    return 0
+
+
+def sky_record(campaign, time, ra_deg: float, dec_deg: float) -> dict:
+    """The ``straylight sky`` JSON record for one time and pointing (grows with the physics)."""
+    from .ephemeris import PLANETS
+    from .geometry import violation_names
+    from .sky import sample_geometry, scene
+
+    sc = scene(campaign, time)
+    g = sample_geometry(campaign, sc, np.array([ra_deg]), np.array([dec_deg]), grid=False)
+    v = {k: np.asarray(a).ravel()[0] for k, a in g.items()}
+    door = float(v["door_opening_deg"])
+    return {
+        "time": sc.times[0].isot,
+        "ra_deg": ra_deg,
+        "dec_deg": dec_deg,
+        "satellite_gcrs_km": [float(x) for x in sc.satellite_km[0]],
+        "geometry": {
+            "sun_angle_deg": float(v["sun_angle_deg"]),
+            "moon_angle_deg": float(v["moon_angle_deg"]),
+            "moon_phase_angle_deg": float(v["moon_phase_angle_deg"]),
+            "moon_illuminated_fraction": float(v["moon_illuminated_fraction"]),
+            "earth_limb_angle_deg": float(v["earth_limb_angle_deg"]),
+            "limb_is_bright": bool(v["limb_is_bright"]),
+            "bright_limb_angle_deg": float(v["bright_limb_angle_deg"]),
+            "dark_limb_angle_deg": float(v["dark_limb_angle_deg"]),
+            "zenith_angle_deg": float(v["zenith_angle_deg"]),
+            "door_opening_deg": door if door > 0 else None,
+            "sun_phi_deg": float(v["sun_phi_deg"]),
+            "moon_phi_deg": float(v["moon_phi_deg"]),
+            "moon_earth_blocked": bool(v["moon_earth_blocked"]),
+            "planet_angles_deg": {p: float(v[f"{p}_angle_deg"]) for p in PLANETS},
+        },
+        "observable": bool(v["observable"]),
+        "violations": violation_names(int(v["violations"])) + ([] if door > 0 else ["door"]),
+    }
+
+
+def cmd_sky(args) -> int:
+    from .config import load_campaign
+
+    campaign = load_campaign(args.config)
+    if not -90.0 <= args.dec <= 90.0:
+        raise InputError(f"--dec: must be within [-90, 90] deg, got {args.dec}")
+    rec = sky_record(campaign, args.time, args.ra % 360.0, args.dec)
+    if args.json:
+        _print_json(rec)
+    else:
+        g = rec["geometry"]
+        print(f"{rec['time']}  RA {rec['ra_deg']:.4f}  Dec {rec['dec_deg']:+.4f}")
+        for k, val in g.items():
+            if k != "planet_angles_deg":
+                print(f"  {k:28s} {val}")
+        print(f"  observable: {rec['observable']}  violations: {', '.join(rec['violations']) or 'none'}")
+    return 0
+
+
+def cmd_footprint(args) -> int:
+    from .config import load_campaign
+    from .footprint import footprint_from_config
+
+    campaign = load_campaign(args.config)
+    fp = footprint_from_config(campaign.config["footprint"], campaign.path.parent)
+    print(f"footprint: {fp.pixels.size} pixels at nside {fp.nside} ({fp.ordering}), {fp.area_deg2:.0f} deg2")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="straylight", description="CSST stray-light and sky-background pipeline")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    e = sub.add_parser("ephem", help="geocentric DE405 positions of the Sun, Moon and planets")
+    e.add_argument("--time", required=True, help="UTC time, ISO 8601 (e.g. 2026-01-01T00:50:00)")
+    e.add_argument("--bodies", default=None, help="comma-separated bodies (default: all)")
+    e.add_argument("--json", action="store_true", help="print JSON")
+    e.set_defaults(func=cmd_ephem)
+
+    s = sub.add_parser("sky", help="geometry and observability of one pointing at one time")
+    s.add_argument("--time", required=True, help="UTC time, ISO 8601")
+    s.add_argument("--ra", required=True, type=_finite_float("--ra"), help="ICRS right ascension, deg")
+    s.add_argument("--dec", required=True, type=_finite_float("--dec"), help="ICRS declination, deg")
+    s.add_argument("--config", default=None, help="campaign config (default: config/config.yaml)")
+    s.add_argument("--json", action="store_true", help="print JSON")
+    s.set_defaults(func=cmd_sky)
+
+    f = sub.add_parser("footprint", help="print the survey footprint of a campaign")
+    f.add_argument("--config", default=None, help="campaign config (default: config/config.yaml)")
+    f.set_defaults(func=cmd_footprint)
+    return p
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except StraylightError as exc:
+        print(f"straylight: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,257 @@
+"""Campaign and instrument configuration: load, validate against the JSON schemas, resolve.
+
+The schemas in ``config/schema/`` are the single definition of what a config may hold; the
+Snakefile validates with Snakemake's ``validate`` against the same files.  Errors name the
+file, the key path, the value and what is allowed, e.g.::
+
+    config/config.yaml: campaign.cadence_s = -5: must be > 0
+"""
+from __future__ import annotations
+
+import copy
+import os
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from .errors import ConfigError, StraylightError
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+CONFIG_DIR = REPO_ROOT / "config"
+SCHEMA_DIR = CONFIG_DIR / "schema"
+CAMPAIGN_SCHEMA = SCHEMA_DIR / "config.schema.yaml"
+INSTRUMENT_SCHEMA = SCHEMA_DIR / "instrument.schema.yaml"
+DEFAULT_CONFIG = CONFIG_DIR / "config.yaml"
+
+
+def _read_yaml(path: Path, what: str) -> Any:
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read {what}: {exc.strerror or exc}") from exc
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{path}: not valid YAML: {exc}") from exc
+
+
+def load_schema(path: Path) -> dict:
+    return _read_yaml(path, "schema")
+
+
+def _key(path_parts) -> str:
+    parts = [str(p) if not isinstance(p, int) else f"[{p}]" for p in path_parts]
+    return ".".join(parts).replace(".[", "[") or "<top level>"
+
+
+def _describe_error(err) -> str:
+    """One line per jsonschema error: key, value, what is allowed."""
+    key = _key(err.absolute_path)
+    v = err.validator
+    if v == "additionalProperties":
+        allowed = sorted((err.schema.get("properties") or {}).keys())
+        extra = sorted(set(err.instance) - set(allowed))
+        base = _key(err.absolute_path)
+        keys = ", ".join(f"{base + '.' if err.absolute_path else ''}{k}" for k in extra)
+        hint = f"allowed keys: {', '.join(allowed)}" if allowed else "no keys allowed here"
+        return f"unknown key {keys} ({hint})"
+    if v == "required":
+        missing = err.message.split("'")[1] if "'" in err.message else err.message
+        where = f"{key}." if err.absolute_path else ""
+        return f"missing required key {where}{missing}"
+    value = f"{err.instance!r}"
+    if v == "type":
+        return f"{key} = {value}: expected {err.validator_value}"
+    if v == "enum":
+        return f"{key} = {value}: must be one of {err.validator_value}"
+    if v in ("minimum", "maximum", "exclusiveMinimum", "exclusiveMaximum"):
+        op = {"minimum": ">=", "maximum": "<=", "exclusiveMinimum": ">", "exclusiveMaximum": "<"}[v]
+        return f"{key} = {value}: must be {op} {err.validator_value}"
+    return f"{key} = {value}: {err.message}"
+
+
+def validate(document: Any, schema: dict, source: str) -> None:
+    """Validate a loaded document against a JSON schema; raise ConfigError listing all faults."""
+    import jsonschema
+
+    cls = jsonschema.validators.validator_for(schema)
+    validator = cls(schema)
+    errors = sorted(validator.iter_errors(document), key=lambda e: list(map(str, e.absolute_path)))
+    if errors:
+        # allOf/$ref produce nested copies of the same fault; keep the most specific message
+        lines = []
+        for err in errors:
+            leaf = err
+            while leaf.context:
+                leaf = sorted(leaf.context, key=lambda e: len(e.absolute_path))[-1]
+            msg = _describe_error(leaf)
+            if msg not in lines:
+                lines.append(msg)
+        raise ConfigError(f"{source}: " + "; ".join(lines))
+
+
+def apply_defaults(document: dict, schema: dict) -> dict:
+    """Fill in the schema's ``default`` values for missing optional keys (recursively)."""
+    out = copy.deepcopy(document)
+
+    def fill(node, sch):
+        if not isinstance(node, dict) or not isinstance(sch, dict):
+            return
+        for name, sub in (sch.get("properties") or {}).items():
+            if name not in node and "default" in sub:
+                node[name] = copy.deepcopy(sub["default"])
+            if name in node:
+                fill(node[name], sub)
+
+    fill(out, schema)
+    return out
+
+
+@dataclass
+class Campaign:
+    """A validated campaign: the raw config, the instrument and the derived models."""
+
+    config: dict
+    instrument: dict
+    path: Path
+    instrument_path: Path
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def name(self) -> str:
+        return self.config["campaign"]["name"]
+
+    @cached_property
+    def earth(self):
+        from .orbit import EarthModel
+
+        e = self.config["earth"]
+        return EarthModel(radius_km=float(e["radius_km"]), gm_km3_s2=float(e["gm_km3_s2"]), j2=float(e["j2"]))
+
+    @cached_property
+    def orbit(self):
+        from .orbit import orbit_from_config
+
+        orbit_cfg = copy.deepcopy(self.config["orbit"])
+        tle = orbit_cfg.get("tle") or {}
+        if "file" in tle and not os.path.isabs(tle["file"]):
+            tle["file"] = str(self.path.parent / tle["file"])
+        return orbit_from_config(orbit_cfg, self.earth)
+
+    @cached_property
+    def constraints(self):
+        from .geometry import Constraints, DoorState
+
+        av = self.instrument["avoidance"]
+        states = tuple(
+            DoorState(float(s["opening_deg"]), float(s["sun_angle_min_deg"]), bool(s["min_inclusive"]))
+            for s in self.instrument["door"]["states"]
+        )
+        return Constraints(
+            sun_min_deg=float(av["sun_min_deg"]["value"]),
+            moon_min_deg=float(av["moon_min_deg"]["value"]),
+            bright_limb_min_deg=float(av["bright_limb_min_deg"]["value"]),
+            dark_limb_min_deg=float(av["dark_limb_min_deg"]["value"]),
+            door_states=states,
+        )
+
+    @property
+    def bands(self) -> list[str]:
+        return list(self.instrument["bands"])
+
+    @cached_property
+    def times(self):
+        """The campaign's UTC sample times (astropy Time, 1-D)."""
+        from .timegrid import campaign_times
+
+        c = self.config["campaign"]
+        return campaign_times(c["start"], c["end"], float(c["cadence_s"]))
+
+    def instrument_value(self, section: str, key: str) -> float:
+        return float(self.instrument[section][key]["value"])
+
+
+def _check_campaign(cfg: dict, source: str) -> None:
+    from .ephemeris import default_ephemeris
+    from .timeutil import parse_utc
+
+    c = cfg["campaign"]
+    start = parse_utc(c["start"], f"{source}: campaign.start")
+    end = parse_utc(c["end"], f"{source}: campaign.end")
+    if not end > start:
+        raise ConfigError(f"{source}: campaign.end = {c['end']!r} must be after campaign.start = {c['start']!r}")
+    eph = default_ephemeris()
+    for key, t in (("start", start), ("end", end)):
+        jd = float(t.tdb.jd)
+        if not eph.jd_start <= jd <= eph.jd_end:
+            raise ConfigError(
+                f"{source}: campaign.{key} = {c[key]!r} is outside the DE405 range (1600-12-21 to 2200-02-02)"
+            )
+    if cfg["orbit"]["model"] == "circular" and "circular" not in cfg["orbit"]:
+        raise ConfigError(f"{source}: orbit.model is 'circular' but orbit.circular is missing")
+    if cfg["orbit"]["model"] == "tle" and not cfg["orbit"].get("tle"):
+        raise ConfigError(f"{source}: orbit.model is 'tle' but orbit.tle is missing")
+
+
+def _check_instrument(inst: dict, source: str) -> None:
+    for band, b in inst["bands"].items():
+        if not b["wavelength_min_nm"] < b["wavelength_max_nm"]:
+            raise ConfigError(
+                f"{source}: bands.{band}: wavelength_min_nm = {b['wavelength_min_nm']} must be below "
+                f"wavelength_max_nm = {b['wavelength_max_nm']}"
+            )
+
+
+def load_instrument(path: str | os.PathLike) -> dict:
+    path = Path(path)
+    inst = _read_yaml(path, "instrument file")
+    if not isinstance(inst, dict):
+        raise ConfigError(f"{path}: instrument file must be a mapping, got {type(inst).__name__}")
+    validate(inst, load_schema(INSTRUMENT_SCHEMA), str(path))
+    _check_instrument(inst, str(path))
+    return inst
+
+
+def load_campaign(path: str | os.PathLike | None = None, overrides: dict | None = None) -> Campaign:
+    """Load, validate and resolve a campaign config (default: ``config/config.yaml``).
+
+    ``overrides`` is merged (recursively) over the file's content before validation.
+    """
+    path = Path(path) if path is not None else DEFAULT_CONFIG
+    raw = _read_yaml(path, "campaign config")
+    if not isinstance(raw, dict):
+        raise ConfigError(f"{path}: campaign config must be a mapping, got {type(raw).__name__}")
+    if overrides:
+        raw = deep_merge(raw, overrides)
+    return campaign_from_dict(raw, path)
+
+
+def campaign_from_dict(raw: dict, path: str | os.PathLike) -> Campaign:
+    """Validate an already-loaded config dict (as Snakemake holds it); ``path`` locates files."""
+    path = Path(path)
+    schema = load_schema(CAMPAIGN_SCHEMA)
+    validate(raw, schema, str(path))
+    cfg = apply_defaults(raw, schema)
+    _check_campaign(cfg, str(path))
+    inst_path = Path(cfg["instrument"])
+    if not inst_path.is_absolute():
+        inst_path = path.parent / inst_path
+    instrument = load_instrument(inst_path)
+    return Campaign(config=cfg, instrument=instrument, path=path, instrument_path=inst_path)
+
+
+def deep_merge(base: dict, over: dict) -> dict:
+    out = copy.deepcopy(base)
+    for k, v in over.items():
+        if isinstance(v, dict) and isinstance(out.get(k), dict):
+            out[k] = deep_merge(out[k], v)
+        else:
+            out[k] = copy.deepcopy(v)
+    return out
+
+
+__all__ = ["Campaign", "load_campaign", "campaign_from_dict", "load_instrument", "validate", "StraylightError"]

@@ -1,0 +1,359 @@
+"""Observing geometry, vectorised over (time, pointing).
+
+All functions take Cartesian vectors in GCRS/ICRS axes with the last axis of length 3 and
+broadcast over the leading axes, so a (T, 1, 3) satellite position against (1, P, 3) pointing
+vectors gives (T, P) results, and (N, 3) against (N, 3) gives N paired samples.
+
+Conventions (the paper, sections 2.3 and 3.1):
+
+* Angles between vectors use ``atan2(|a x b|, a . b)``, accurate at 0 and 180 deg.
+* Earth limb angle: angle of the line of sight (LOS) above the Earth's limb as seen from the
+  satellite, negative when the LOS hits the Earth (spherical Earth of radius ``earth_radius_km``).
+* Telescope frame: +Z along the LOS; +X towards the Sun's projection on the focal plane,
+  which is where the aperture door stands ("opens ... aligned with the solar azimuth"); the
+  spacecraft rolls to keep it so.  Any direction has off-axis angle theta in [0, 180] and
+  azimuth phi in [0, 360) from +X towards +Y = Z x X.  The Sun is always at phi = 0.
+* Earth blockage of a source (paper, section 3.1): blocked when both (1) the angle between the
+  source direction and the satellite's position vector exceeds 90 deg and (2) the ray from the
+  satellite towards the source passes closer than one Earth radius to the Earth's centre.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import InputError
+
+#: Violation bit flags, in the order of :data:`VIOLATION_NAMES`.
+VIOLATION_NAMES = ("sun", "moon", "bright_limb", "dark_limb", "earth_occultation")
+VIOLATION_BITS = {name: 1 << i for i, name in enumerate(VIOLATION_NAMES)}
+
+_EPS = 1e-12
+
+
+# -- vector helpers ---------------------------------------------------------------------------
+def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Dot product over the last axis, broadcasting."""
+    return np.einsum("...i,...i->...", *np.broadcast_arrays(a, b))
+
+
+def norm(a: np.ndarray) -> np.ndarray:
+    return np.sqrt(dot(a, a))
+
+
+def unit(a: np.ndarray) -> np.ndarray:
+    """Unit vectors along the last axis (a zero vector stays zero)."""
+    n = norm(a)[..., None]
+    return np.divide(a, n, out=np.zeros(np.broadcast(a, n).shape), where=n > 0)
+
+
+def angle_between_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Angle in degrees between vectors a and b (any lengths), stable at 0 and 180 deg."""
+    a, b = np.broadcast_arrays(a, b)
+    return np.degrees(np.arctan2(norm(np.cross(a, b)), dot(a, b)))
+
+
+def radec_to_unit(ra_deg, dec_deg, field: str = "pointing") -> np.ndarray:
+    """Unit vectors (..., 3) for RA/Dec in degrees; NaN or |Dec| > 90 raise InputError."""
+    ra = np.asarray(ra_deg, dtype=float)
+    dec = np.asarray(dec_deg, dtype=float)
+    if not np.all(np.isfinite(ra)):
+        raise InputError(f"{field}: RA must be finite, got {ra_deg!r}")
+    if not np.all(np.isfinite(dec)) or np.any(np.abs(dec) > 90.0):
+        raise InputError(f"{field}: Dec must be finite and within [-90, 90] deg, got {dec_deg!r}")
+    ra_r, dec_r = np.radians(ra), np.radians(dec)
+    cd = np.cos(dec_r)
+    return np.stack([cd * np.cos(ra_r), cd * np.sin(ra_r), np.sin(dec_r)], axis=-1)
+
+
+def _any_perpendicular(v: np.ndarray) -> np.ndarray:
+    """A unit vector perpendicular to each v (celestial north projected, else +X projected)."""
+    north = np.array([0.0, 0.0, 1.0])
+    p = north - dot(v, north)[..., None] * v
+    alt = np.array([1.0, 0.0, 0.0]) - v[..., :1] * v
+    use_alt = (norm(p) < 1e-6)[..., None]
+    return unit(np.where(use_alt, alt, p))
+
+
+def perpendicular_towards(v: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Unit vector perpendicular to unit v pointing towards target's projection.
+
+    Where target is (anti)parallel to v the projection vanishes and a fixed perpendicular
+    (celestial north projected) is used instead, so the result is always finite.
+    """
+    v, target = np.broadcast_arrays(v, unit(target))
+    p = target - dot(target, v)[..., None] * v
+    ok = (norm(p) > 1e-9)[..., None]
+    return np.where(ok, unit(p), _any_perpendicular(v))
+
+
+# -- Earth ------------------------------------------------------------------------------------
+def earth_blocks(satellite_km: np.ndarray, direction: np.ndarray, earth_radius_km: float) -> np.ndarray:
+    """The paper's two-condition Earth-blockage test (section 3.1).
+
+    Parameters
+    ----------
+    satellite_km : satellite position, km, (..., 3), geocentric.
+    direction : direction towards the source (any length), (..., 3).
+    earth_radius_km : radius of the spherical Earth, km.
+
+    Returns
+    -------
+    bool array: True where the Earth hides the source.
+    """
+    u = unit(direction)
+    behind = dot(u, satellite_km) < 0.0  # angle to the position vector > 90 deg
+    miss_distance = norm(np.cross(np.broadcast_to(satellite_km, u.shape), u))
+    return behind & (miss_distance < earth_radius_km)
+
+
+@dataclass
+class LimbGeometry:
+    """Earth-limb quantities for each sample (degrees unless stated)."""
+
+    earth_limb_angle_deg: np.ndarray  # LOS elevation above the limb; < 0 when the LOS hits the Earth
+    zenith_angle_deg: np.ndarray  # angle between LOS and local zenith at the satellite
+    earth_angular_radius_deg: np.ndarray  # angular radius of the Earth's disc seen from the satellite
+    limb_is_bright: np.ndarray  # nearest limb point sunlit
+    bright_limb_angle_deg: np.ndarray  # angle LOS -> nearest sunlit limb point (180 if none)
+    dark_limb_angle_deg: np.ndarray  # angle LOS -> nearest dark limb point (180 if none)
+
+
+def limb_geometry(
+    satellite_km: np.ndarray, los: np.ndarray, sun_km: np.ndarray, earth_radius_km: float
+) -> LimbGeometry:
+    """Earth limb geometry for lines of sight ``los`` from ``satellite_km``.
+
+    The limb is the circle of tangent points; seen from the satellite it lies at angle
+    rho = arcsin(Re / |r|) from nadir.  A limb point P is sunlit when P . (S - P) > 0, S the
+    geocentric Sun.  Along the limb, parametrised by the azimuth psi about nadir measured from
+    the LOS side, P . S - Re^2 = A + B cos(psi - psi_s), so the sunlit arc is found in closed
+    form and the nearest sunlit and dark limb points follow from the arc ends (the angle from
+    the LOS to a limb point grows monotonically with |psi|).
+
+    Validity: spherical Earth, no atmosphere (refraction and the ~100 km airglow layer are not
+    modelled).  When the satellite is below the surface, InputError.
+    """
+    r = np.asarray(satellite_km, dtype=float)
+    los = unit(np.asarray(los, dtype=float))
+    r, los, sun = np.broadcast_arrays(r, los, np.asarray(sun_km, dtype=float))
+    dist = norm(r)
+    if np.any(dist <= earth_radius_km):
+        raise InputError(
+            f"satellite position is inside the Earth (|r| = {float(dist.min()):.1f} km "
+            f"<= Earth radius {earth_radius_km} km)"
+        )
+    nadir = -r / dist[..., None]
+    rho = np.arcsin(earth_radius_km / dist)
+    gamma_deg = angle_between_deg(los, nadir)
+    limb_angle = gamma_deg - np.degrees(rho)
+    zenith = 180.0 - gamma_deg
+
+    e1 = perpendicular_towards(nadir, np.where((norm(np.cross(los, nadir)) > 1e-12)[..., None], los, sun))
+    e2 = np.cross(nadir, e1)
+    tangent_len = np.sqrt(np.maximum(dist**2 - earth_radius_km**2, 0.0))
+    cr, sr = np.cos(rho), np.sin(rho)
+    a_term = dot(r, sun) + tangent_len * cr * dot(nadir, sun) - earth_radius_km**2
+    s1, s2 = dot(e1, sun), dot(e2, sun)
+    b_term = tangent_len * sr * np.hypot(s1, s2)
+    psi_sun = np.arctan2(s2, s1)
+    lit_nearest = a_term + b_term * np.cos(psi_sun) > 0.0
+
+    with np.errstate(divide="ignore", invalid="ignore"):
+        c = np.where(b_term > 0, -a_term / np.where(b_term > 0, b_term, 1.0), np.sign(-a_term) * 2.0)
+    all_lit = c <= -1.0
+    none_lit = c >= 1.0
+    half_width = np.arccos(np.clip(c, -1.0, 1.0))
+    # the two terminator points on the limb, as |psi| from the LOS side, wrapped to [0, pi]
+    ends = np.stack([psi_sun - half_width, psi_sun + half_width], axis=-1)
+    ends = np.abs((ends + np.pi) % (2 * np.pi) - np.pi)
+    psi_end = ends.min(axis=-1)
+
+    g = np.radians(gamma_deg)
+
+    def angle_to_limb_point(psi):
+        cosang = cr * np.cos(g) + sr * np.sin(g) * np.cos(psi)
+        return np.degrees(np.arccos(np.clip(cosang, -1.0, 1.0)))
+
+    nearest = np.abs(limb_angle)
+    to_end = angle_to_limb_point(psi_end)
+    bright = np.where(lit_nearest, nearest, np.where(none_lit, 180.0, to_end))
+    dark = np.where(~lit_nearest, nearest, np.where(all_lit, 180.0, to_end))
+    return LimbGeometry(
+        earth_limb_angle_deg=limb_angle,
+        zenith_angle_deg=zenith,
+        earth_angular_radius_deg=np.degrees(rho) * np.ones_like(limb_angle),
+        limb_is_bright=lit_nearest,
+        bright_limb_angle_deg=bright,
+        dark_limb_angle_deg=dark,
+    )
+
+
+# -- telescope frame --------------------------------------------------------------------------
+@dataclass
+class TelescopeFrame:
+    """Orthonormal axes (..., 3) of the telescope: z = LOS, x towards the Sun (door side)."""
+
+    x: np.ndarray
+    y: np.ndarray
+    z: np.ndarray
+
+    def theta_phi_deg(self, direction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Off-axis angle theta in [0, 180] and azimuth phi in [0, 360) of a direction, deg."""
+        d = np.asarray(direction, dtype=float)
+        dx, dy, dz = dot(d, self.x), dot(d, self.y), dot(d, self.z)
+        theta = np.degrees(np.arctan2(np.hypot(dx, dy), dz))
+        phi = np.degrees(np.arctan2(dy, dx))
+        phi = np.where(phi < 0.0, phi + 360.0, phi)
+        phi = np.where(phi >= 360.0, 0.0, phi)  # -1e-15 + 360 rounds to 360.0
+        return theta, phi
+
+
+def telescope_frame(los: np.ndarray, sun_direction: np.ndarray) -> TelescopeFrame:
+    """Telescope frame with the roll set by the Sun (door facing it).
+
+    With the Sun exactly on or opposite the LOS the roll is undefined; the +X axis then falls
+    back to celestial north projected on the focal plane, so the frame is always finite.
+    """
+    z = unit(np.asarray(los, dtype=float))
+    x = perpendicular_towards(z, sun_direction)
+    z, x = np.broadcast_arrays(z, x)
+    y = np.cross(z, x)
+    return TelescopeFrame(x=x, y=y, z=z)
+
+
+# -- constraints ------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class DoorState:
+    opening_deg: float
+    sun_angle_min_deg: float
+    min_inclusive: bool
+
+
+@dataclass(frozen=True)
+class Constraints:
+    """Avoidance angles (deg) and door rules from the instrument config."""
+
+    sun_min_deg: float
+    moon_min_deg: float
+    bright_limb_min_deg: float
+    dark_limb_min_deg: float
+    door_states: tuple[DoorState, ...]
+
+    def door_opening_deg(self, sun_angle_deg: np.ndarray) -> np.ndarray:
+        """Door opening angle for the Sun's off-axis angle; 0 where no state is allowed.
+
+        States are tried from the widest opening down; a state is allowed when the Sun is
+        beyond its minimum angle (``>`` or ``>=`` as the state says).
+        """
+        s = np.asarray(sun_angle_deg, dtype=float)
+        out = np.zeros_like(s)
+        for state in sorted(self.door_states, key=lambda d: d.opening_deg):  # widest last wins
+            ok = s >= state.sun_angle_min_deg if state.min_inclusive else s > state.sun_angle_min_deg
+            out = np.where(ok, state.opening_deg, out)
+        return out
+
+    def violations(
+        self,
+        sun_angle_deg,
+        moon_angle_deg,
+        bright_limb_angle_deg,
+        dark_limb_angle_deg,
+        earth_limb_angle_deg,
+    ) -> np.ndarray:
+        """Bit mask of violated constraints (see :data:`VIOLATION_BITS`); 0 = observable.
+
+        Each constraint is violated strictly below its threshold: a pointing exactly at the
+        avoidance angle is allowed (the paper gives minimum angles).
+        """
+        flags = np.zeros(np.broadcast(sun_angle_deg, moon_angle_deg).shape, dtype=np.uint8)
+        flags |= np.where(np.asarray(sun_angle_deg) < self.sun_min_deg, VIOLATION_BITS["sun"], 0).astype(np.uint8)
+        flags |= np.where(np.asarray(moon_angle_deg) < self.moon_min_deg, VIOLATION_BITS["moon"], 0).astype(np.uint8)
+        flags |= np.where(
+            np.asarray(bright_limb_angle_deg) < self.bright_limb_min_deg, VIOLATION_BITS["bright_limb"], 0
+        ).astype(np.uint8)
+        flags |= np.where(
+            np.asarray(dark_limb_angle_deg) < self.dark_limb_min_deg, VIOLATION_BITS["dark_limb"], 0
+        ).astype(np.uint8)
+        flags |= np.where(
+            np.asarray(earth_limb_angle_deg) <= 0.0, VIOLATION_BITS["earth_occultation"], 0
+        ).astype(np.uint8)
+        return flags
+
+
+def violation_names(flags: int) -> list[str]:
+    """Names of the constraints set in one violation bit mask."""
+    return [name for name in VIOLATION_NAMES if int(flags) & VIOLATION_BITS[name]]
+
+
+# -- the whole geometry of a sample ------------------------------------------------------------
+def moon_phase(sun_km: np.ndarray, moon_km: np.ndarray, observer_km: np.ndarray):
+    """Lunar phase angle (Sun-Moon-observer, deg; 0 = full) and illuminated fraction.
+
+    The illuminated fraction of the disc is k = (1 + cos(alpha)) / 2 (Meeus 1998, eq. 48.1).
+    Also returns the elongation Sun-observer-Moon (deg; 180 at full Moon, the paper's "phase").
+    """
+    alpha = angle_between_deg(sun_km - moon_km, observer_km - moon_km)
+    fraction = 0.5 * (1.0 + np.cos(np.radians(alpha)))
+    elongation = angle_between_deg(sun_km - observer_km, moon_km - observer_km)
+    return alpha, fraction, elongation
+
+
+def observing_geometry(
+    satellite_km: np.ndarray,
+    bodies_km: dict[str, np.ndarray],
+    los: np.ndarray,
+    earth_radius_km: float,
+    constraints: Constraints,
+) -> dict[str, np.ndarray]:
+    """Every geometric quantity the stray-light physics needs, for broadcastable samples.
+
+    Parameters
+    ----------
+    satellite_km : (..., 3) geocentric satellite position, km.
+    bodies_km : body name -> (..., 3) geocentric position, km (must include 'sun' and 'moon').
+    los : (..., 3) unit line-of-sight vectors.
+    earth_radius_km : spherical Earth radius, km.
+    constraints : avoidance angles and door rules.
+
+    Returns
+    -------
+    dict of arrays of the broadcast sample shape: angles in deg (``*_deg``), booleans, the
+    door opening (deg, 0 = not allowed), the violation bit mask and ``observable``.
+    For every body: ``<body>_angle_deg`` (from the LOS, = the off-axis angle theta),
+    ``<body>_phi_deg`` (azimuth in the telescope frame) and ``<body>_earth_blocked``.
+    """
+    sat = np.asarray(satellite_km, dtype=float)
+    sun, moon = bodies_km["sun"], bodies_km["moon"]
+    sun_dir = sun - sat
+    frame = telescope_frame(los, sun_dir)
+    limb = limb_geometry(sat, frame.z, sun, earth_radius_km)
+    out: dict[str, np.ndarray] = {}
+    for name, pos in bodies_km.items():
+        d = pos - sat
+        theta, phi = frame.theta_phi_deg(unit(d))
+        out[f"{name}_angle_deg"] = theta  # = off-axis angle theta in the telescope frame
+        out[f"{name}_phi_deg"] = phi
+        out[f"{name}_earth_blocked"] = earth_blocks(sat, d, earth_radius_km) & np.ones(theta.shape, bool)
+    alpha, fraction, elongation = moon_phase(sun, moon, sat)
+    shape = out["sun_angle_deg"].shape
+    out["moon_phase_angle_deg"] = np.broadcast_to(alpha, shape)
+    out["moon_illuminated_fraction"] = np.broadcast_to(fraction, shape)
+    out["moon_elongation_deg"] = np.broadcast_to(elongation, shape)
+    out["earth_limb_angle_deg"] = limb.earth_limb_angle_deg
+    out["zenith_angle_deg"] = limb.zenith_angle_deg
+    out["limb_is_bright"] = limb.limb_is_bright
+    out["bright_limb_angle_deg"] = limb.bright_limb_angle_deg
+    out["dark_limb_angle_deg"] = limb.dark_limb_angle_deg
+    out["door_opening_deg"] = constraints.door_opening_deg(out["sun_angle_deg"])
+    flags = constraints.violations(
+        out["sun_angle_deg"],
+        out["moon_angle_deg"],
+        limb.bright_limb_angle_deg,
+        limb.dark_limb_angle_deg,
+        limb.earth_limb_angle_deg,
+    )
+    out["violations"] = flags
+    out["observable"] = (flags == 0) & (out["door_opening_deg"] > 0)
+    return out

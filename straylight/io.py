@@ -1,0 +1,42 @@
+"""Writing products safely: a product appears complete or not at all.
+
+Every writer goes to a temporary sibling path and is renamed into place, so a crash (or a full
+disk) never leaves a half-written product under the final name, and a re-run simply redoes it.
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+from contextlib import contextmanager
+from pathlib import Path
+
+
+@contextmanager
+def atomic_path(final: str | os.PathLike):
+    """Yield a temporary path next to ``final``; on success move it into place."""
+    final = Path(final)
+    final.parent.mkdir(parents=True, exist_ok=True)
+    tmpdir = Path(tempfile.mkdtemp(prefix=f".{final.name}.", dir=final.parent))
+    tmp = tmpdir / final.name
+    try:
+        yield tmp
+        if final.is_dir() and not final.is_symlink():
+            shutil.rmtree(final)
+        elif final.exists():
+            final.unlink()
+        os.replace(tmp, final)
+    finally:
+        shutil.rmtree(tmpdir, ignore_errors=True)
+
+
+def write_zarr_atomic(dataset, path: str | os.PathLike) -> None:
+    """Write an xarray Dataset to a Zarr store at ``path`` atomically (consolidated metadata)."""
+    with atomic_path(path) as tmp:
+        dataset.to_zarr(tmp, mode="w", consolidated=True)
+
+
+def write_json_atomic(obj, path: str | os.PathLike) -> None:
+    with atomic_path(path) as tmp:
+        tmp.write_text(json.dumps(obj, indent=2, sort_keys=False) + "\n", encoding="utf-8")

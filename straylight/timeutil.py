@@ -1,0 +1,75 @@
+"""Time handling: UTC input, TDB for the ephemeris, never a network access.
+
+astropy normally fetches fresh IERS tables when its bundled ones look stale.  The pipeline must
+run on machines without internet, so :func:`configure_offline` turns downloads off and lets
+astropy use its bundled tables (``astropy-iers-data``), warning instead of failing where they
+do not reach.  The UTC->TT step only needs the leap-second table; TT->TDB is the analytic
+series of ERFA (geocentric), so no Earth-orientation data enter the ephemeris path.
+"""
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+from astropy.time import Time
+from astropy.utils import iers
+
+from .errors import InputError
+
+_CONFIGURED = False
+
+
+def configure_offline() -> None:
+    """Make astropy work from its bundled IERS and leap-second tables, with no download."""
+    global _CONFIGURED
+    if _CONFIGURED:
+        return
+    iers.conf.auto_download = False
+    iers.conf.auto_max_age = None
+    iers.conf.iers_degraded_accuracy = "warn"
+    warnings.filterwarnings("ignore", category=iers.IERSStaleWarning)
+    _CONFIGURED = True
+
+
+def parse_utc(times, field: str = "time") -> Time:
+    """Parse ISO strings, a :class:`~astropy.time.Time`, or UTC Julian dates into a UTC Time.
+
+    Parameters
+    ----------
+    times : str, sequence of str, Time, or float array (taken as UTC Julian dates)
+    field : name used in error messages (e.g. ``"--time"`` or ``"campaign.start"``).
+
+    Raises
+    ------
+    InputError
+        When the value cannot be parsed as a time or is not finite.
+    """
+    configure_offline()
+    if isinstance(times, Time):
+        t = times.utc
+    else:
+        try:
+            arr = np.asarray(times)
+            if arr.dtype.kind in "fi":
+                if not np.all(np.isfinite(arr)):
+                    raise InputError(f"{field}: times must be finite, got {times!r}")
+                t = Time(arr, format="jd", scale="utc")
+            else:
+                t = Time(times, scale="utc")
+        except InputError:
+            raise
+        except Exception as exc:  # astropy raises ValueError with a long message
+            raise InputError(
+                f"{field}: cannot parse {times!r} as a UTC time "
+                "(expected ISO 8601, e.g. 2026-01-01T00:50:00)"
+            ) from exc
+    return t
+
+
+def utc_to_tdb_jd(times, field: str = "time") -> tuple[np.ndarray, np.ndarray]:
+    """Return the TDB Julian date as a two-part (jd1, jd2) pair of float64 arrays.
+
+    Two parts keep sub-microsecond precision over the whole DE405 range.
+    """
+    t = parse_utc(times, field).tdb
+    return np.asarray(t.jd1, dtype=float), np.asarray(t.jd2, dtype=float)
