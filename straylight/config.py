@@ -180,8 +180,13 @@ def _check_campaign(cfg: dict, source: str) -> None:
     from .timeutil import parse_utc
 
     c = cfg["campaign"]
-    start = parse_utc(c["start"], f"{source}: campaign.start")
-    end = parse_utc(c["end"], f"{source}: campaign.end")
+    try:
+        start = parse_utc(c["start"], f"{source}: campaign.start")
+        end = parse_utc(c["end"], f"{source}: campaign.end")
+        if cfg["orbit"]["model"] == "circular" and "circular" in cfg["orbit"]:
+            parse_utc(cfg["orbit"]["circular"]["epoch"], f"{source}: orbit.circular.epoch")
+    except StraylightError as exc:
+        raise ConfigError(str(exc)) from exc
     if not end > start:
         raise ConfigError(f"{source}: campaign.end = {c['end']!r} must be after campaign.start = {c['start']!r}")
     eph = default_ephemeris()

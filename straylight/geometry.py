@@ -160,7 +160,7 @@ def limb_geometry(
     psi_sun = np.arctan2(s2, s1)
     lit_nearest = a_term + b_term * np.cos(psi_sun) > 0.0
 
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         c = np.where(b_term > 0, -a_term / np.where(b_term > 0, b_term, 1.0), np.sign(-a_term) * 2.0)
     all_lit = c <= -1.0
     none_lit = c >= 1.0

@@ -1,0 +1,100 @@
+"""Config validation: wrong keys, types and values are refused with key, value and what's allowed."""
+import copy
+
+import pytest
+import yaml
+
+from conftest import REPO
+from straylight.config import load_campaign, load_instrument
+from straylight.errors import ConfigError
+
+BASE = yaml.safe_load((REPO / "config" / "config.yaml").read_text())
+
+
+def write(tmp_path, cfg, name="c.yaml"):
+    cfg = copy.deepcopy(cfg)
+    cfg["instrument"] = str(REPO / "config" / "instruments" / "csst.yaml")
+    p = tmp_path / name
+    p.write_text(yaml.safe_dump(cfg))
+    return p
+
+
+def test_default_config_loads(campaign):
+    assert campaign.name == "default"
+    assert campaign.bands == ["NUV", "u", "g", "r", "i", "z", "y"]
+    assert len(campaign.times) == 288  # one day at 300 s
+    assert campaign.constraints.sun_min_deg == 50.0
+    assert campaign.instrument_value("telescope", "focal_length_m") == 28.0
+
+
+@pytest.mark.parametrize("mutate,expected", [
+    (lambda c: c["campaign"].update(colour="red"), "unknown key campaign.colour"),
+    (lambda c: c.update(extra=1), "unknown key extra"),
+    (lambda c: c["campaign"].update(cadence_s="fast"), "campaign.cadence_s = 'fast': expected number"),
+    (lambda c: c["campaign"].update(cadence_s=-5), "campaign.cadence_s = -5: must be > 0"),
+    (lambda c: c["footprint"].update(nside=17), "footprint.nside = 17: must be one of"),
+    (lambda c: c["orbit"].update(model="kepler"), "orbit.model = 'kepler': must be one of"),
+    (lambda c: c["earth"].update(radius_km=1.0), "earth.radius_km = 1.0: must be >= 6300"),
+    (lambda c: c["campaign"].pop("start"), "missing required key campaign.start"),
+    (lambda c: c["campaign"].update(start="2500-01-01T00:00:00", end="2500-01-02T00:00:00"),
+     "outside the DE405 range"),
+    (lambda c: c["campaign"].update(end="2025-01-01T00:00:00"), "must be after campaign.start"),
+    (lambda c: c["campaign"].update(start="yesterday"), "cannot parse 'yesterday'"),
+    (lambda c: c["campaign"].update(name="bad/name"), "campaign.name = 'bad/name'"),
+])
+def test_bad_campaign_configs(tmp_path, mutate, expected):
+    cfg = copy.deepcopy(BASE)
+    mutate(cfg)
+    p = write(tmp_path, cfg)
+    with pytest.raises(ConfigError) as err:
+        load_campaign(p)
+    assert expected in str(err.value)
+    assert str(p) in str(err.value)  # names the file
+
+
+def test_instrument_entries_need_a_source(tmp_path):
+    inst = yaml.safe_load((REPO / "config" / "instruments" / "csst.yaml").read_text())
+    del inst["telescope"]["focal_length_m"]["source"]
+    p = tmp_path / "inst.yaml"
+    p.write_text(yaml.safe_dump(inst))
+    with pytest.raises(ConfigError, match="telescope.focal_length_m"):
+        load_instrument(p)
+
+
+def test_instrument_band_edges_must_be_ordered(tmp_path):
+    inst = yaml.safe_load((REPO / "config" / "instruments" / "csst.yaml").read_text())
+    inst["bands"]["g"]["wavelength_min_nm"] = 600
+    p = tmp_path / "inst.yaml"
+    p.write_text(yaml.safe_dump(inst))
+    with pytest.raises(ConfigError, match="bands.g: wavelength_min_nm = 600"):
+        load_instrument(p)
+
+
+def test_instrument_values_match_the_paper():
+    inst = load_instrument(REPO / "config" / "instruments" / "csst.yaml")
+    assert inst["telescope"]["aperture_diameter_m"]["value"] == 2.0
+    edges = {b: (v["wavelength_min_nm"], v["wavelength_max_nm"]) for b, v in inst["bands"].items()}
+    assert edges == {"NUV": (255, 320), "u": (320, 400), "g": (400, 550), "r": (550, 690),
+                     "i": (690, 820), "z": (820, 1000), "y": (940, 1000)}
+    assert {b: v["n_exposures"] for b, v in inst["bands"].items()} == \
+        {"NUV": 4, "u": 2, "g": 2, "r": 2, "i": 2, "z": 2, "y": 4}
+    # pixel scale = pixel / focal length
+    assert inst["detector"]["pixel_scale_arcsec"]["value"] == pytest.approx(10e-6 / 28.0 * 206264.8, abs=0.001)
+
+
+def test_missing_config_file_is_clear(tmp_path):
+    with pytest.raises(ConfigError, match="cannot read campaign config"):
+        load_campaign(tmp_path / "nope.yaml")
+
+
+def test_tle_orbit_from_config(tmp_path):
+    from test_orbit import ISS_L1, ISS_L2
+
+    (tmp_path / "iss.tle").write_text(f"ISS\n{ISS_L1}\n{ISS_L2}\n")
+    cfg = copy.deepcopy(BASE)
+    cfg["orbit"] = {"model": "tle", "tle": {"file": "iss.tle"}}
+    c = load_campaign(write(tmp_path, cfg))
+    import numpy as np
+
+    r = np.linalg.norm(c.orbit.position_gcrs_km("2008-09-20T12:00:00"))
+    assert 6600 < r < 6800
