@@ -7,8 +7,9 @@ geocentric, every other body barycentric, and the Earth follows from the Earth-M
 and the Earth/Moon mass ratio EMRAT:  r_earth = r_emb - r_moon / (1 + EMRAT).
 
 :class:`DE405` evaluates any number of times at once: the granule index and the Chebyshev
-polynomials are computed for the whole time array (Clenshaw recurrence over the few
-coefficients), so there is no Python loop over times.
+polynomials are computed for the whole time array, so there is no Python loop over times:
+sorted time grids (the pipeline's case) take one small matrix product per 4-32 day granule;
+unsorted times gather each time's coefficients and use the Clenshaw recurrence.
 """
 from __future__ import annotations
 
@@ -94,15 +95,32 @@ class DE405:
         index = np.clip(index, 0, n_sets - 1)  # the very last instant belongs to the last set
         offset = elapsed - index * days_per_set
         x = 2.0 * offset / days_per_set - 1.0  # in [-1, 1]
-        c = np.asarray(coeffs[index.ravel()])  # (N, 3, n_coeff)
-        xr = x.ravel()[:, None]
-        # Clenshaw recurrence for sum_k c_k T_k(x)
-        b1 = np.zeros((xr.shape[0], 3))
-        b2 = np.zeros_like(b1)
-        two_x = 2.0 * xr
-        for k in range(n_coeff - 1, 0, -1):
-            b1, b2 = c[:, :, k] + two_x * b1 - b2, b1
-        value = c[:, :, 0] + xr * b1 - b2
+        idx = index.ravel()
+        xr = x.ravel()
+        steps = np.flatnonzero(np.diff(idx))
+        if idx.size > 64 and np.all(np.diff(idx) >= 0) and steps.size < idx.size // 64:
+            # Sorted times spanning few granules (a campaign grid): Chebyshev table T_k(x),
+            # then one small matrix product per granule instead of a per-time gather.
+            cheb = np.empty((xr.size, n_coeff))
+            cheb[:, 0] = 1.0
+            if n_coeff > 1:
+                cheb[:, 1] = xr
+            for k in range(2, n_coeff):
+                cheb[:, k] = 2.0 * xr * cheb[:, k - 1] - cheb[:, k - 2]
+            value = np.empty((xr.size, 3))
+            bounds = np.concatenate([[0], steps + 1, [idx.size]])
+            for lo, hi in zip(bounds[:-1], bounds[1:]):
+                value[lo:hi] = cheb[lo:hi] @ np.asarray(coeffs[idx[lo]]).T
+        else:
+            c = np.asarray(coeffs[idx])  # (N, 3, n_coeff)
+            xc = xr[:, None]
+            # Clenshaw recurrence for sum_k c_k T_k(x)
+            b1 = np.zeros((xc.shape[0], 3))
+            b2 = np.zeros_like(b1)
+            two_x = 2.0 * xc
+            for k in range(n_coeff - 1, 0, -1):
+                b1, b2 = c[:, :, k] + two_x * b1 - b2, b1
+            value = c[:, :, 0] + xc * b1 - b2
         return value.reshape(np.shape(x) + (3,))
 
     # -- positions --------------------------------------------------------------------------
