@@ -69,17 +69,19 @@ def cmd_ephem(args) -> int:
     return 0
 
 
-def sky_record(campaign, time, ra_deg: float, dec_deg: float) -> dict:
+def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None) -> dict:
     """The ``straylight sky`` JSON record for one time and pointing (grows with the physics)."""
+    from .bandpass import load_band
     from .ephemeris import PLANETS
-    from .geometry import violation_names
+    from .geometry import radec_to_unit, unit, violation_names
     from .sky import sample_geometry, scene
+    from .zodiacal import zodiacal_model_from_instrument
 
     sc = scene(campaign, time)
     g = sample_geometry(campaign, sc, np.array([ra_deg]), np.array([dec_deg]), grid=False)
     v = {k: np.asarray(a).ravel()[0] for k, a in g.items()}
     door = float(v["door_opening_deg"])
-    return {
+    record = {
         "time": sc.times[0].isot,
         "ra_deg": ra_deg,
         "dec_deg": dec_deg,
@@ -102,7 +104,22 @@ def sky_record(campaign, time, ra_deg: float, dec_deg: float) -> dict:
         },
         "observable": bool(v["observable"]),
         "violations": violation_names(int(v["violations"])) + ([] if door > 0 else ["door"]),
+        "bands": {},
     }
+    zodi = zodiacal_model_from_instrument(campaign.instrument, campaign.config["models"]["zodiacal_spectrum"])
+    los = radec_to_unit(ra_deg, dec_deg)
+    sun_dir = unit(sc.bodies_km["sun"][0] - sc.satellite_km[0])
+    for name in bands or campaign.bands:
+        band = load_band(campaign.instrument, name, campaign.instrument_path.parent)
+        z = zodi.evaluate(band, los, sun_dir)
+        record["bands"][name] = {
+            "zodiacal": {
+                "e_per_s_per_pix": float(np.ravel(z["e_per_s_per_pix"])[0]),
+                "mag_per_arcsec2": float(np.ravel(z["mag_per_arcsec2"])[0]),
+                "no_data_near_sun": bool(np.ravel(z["no_data"])[0]),
+            }
+        }
+    return record
 
 
 def cmd_sky(args) -> int:
@@ -111,7 +128,8 @@ def cmd_sky(args) -> int:
     campaign = load_campaign(args.config)
     if not -90.0 <= args.dec <= 90.0:
         raise InputError(f"--dec: must be within [-90, 90] deg, got {args.dec}")
-    rec = sky_record(campaign, args.time, args.ra % 360.0, args.dec)
+    bands = [b.strip() for b in args.bands.split(",") if b.strip()] if args.bands else None
+    rec = sky_record(campaign, args.time, args.ra % 360.0, args.dec, bands)
     if args.json:
         _print_json(rec)
     else:
@@ -121,6 +139,50 @@ def cmd_sky(args) -> int:
             if k != "planet_angles_deg":
                 print(f"  {k:28s} {val}")
         print(f"  observable: {rec['observable']}  violations: {', '.join(rec['violations']) or 'none'}")
+        for name, comp in rec["bands"].items():
+            z = comp["zodiacal"]
+            print(f"  {name:4s} zodiacal {z['e_per_s_per_pix']:.4g} e-/s/pix  {z['mag_per_arcsec2']:.2f} mag/arcsec2")
+    return 0
+
+
+def cmd_image(args) -> int:
+    from .bandpass import load_band
+    from .config import load_campaign
+    from .ghosts import ghost_model_from_instrument
+    from .image import (RenderSettings, focal_plane_from_instrument, read_star_table, render_detector,
+                        star_fluxes_e_per_s, sun_direction_at, write_fits)
+    from .scatter import scatter_model_from_instrument
+    from .timeutil import parse_utc
+
+    campaign = load_campaign(args.config)
+    inst = campaign.instrument
+    if args.band not in campaign.bands:
+        raise InputError(f"--band: {args.band!r} is not one of {', '.join(campaign.bands)}")
+    if not -90.0 <= args.dec <= 90.0:
+        raise InputError(f"--dec: must be within [-90, 90] deg, got {args.dec}")
+    t = parse_utc(args.time, "--time")
+    band = load_band(inst, args.band, campaign.instrument_path.parent)
+    ra, dec, mag = read_star_table(args.catalog, args.band)
+    flux = star_fluxes_e_per_s(mag, band, campaign.instrument_value("telescope", "aperture_diameter_m"))
+    fp = focal_plane_from_instrument(inst)
+    settings = RenderSettings(far_bin=args.far_bin, margin_arcsec=args.margin_arcsec,
+                              paint_ghosts=not args.no_ghosts)
+    result = render_detector(
+        args.ra % 360.0, args.dec, ra, dec, flux, sun_direction_at(campaign, t), fp, args.detector,
+        scatter_model_from_instrument(inst), ghost_model_from_instrument(inst, args.band),
+        float(inst["ghosts"]["chief_ray_angle_deg"]["value"]), settings,
+    )
+    from . import __version__
+
+    write_fits(result, args.out, {
+        "DATE-OBS": t.isot, "RA_PNT": args.ra % 360.0, "DEC_PNT": args.dec, "BAND": args.band,
+        "DETECTOR": args.detector, "CATALOG": str(args.catalog)[-60:], "SLVERS": __version__,
+        "CONFIG": str(campaign.path)[-60:], "TPUTSRC": band.origin[:60],
+    })
+    img = result.image_e_per_s_per_pix
+    print(f"{args.out}: {img.shape[1]} x {img.shape[0]} px, {len(result.stars['x_pix'])} stars, "
+          f"{len(result.ghosts['x_pix'])} ghost discs, max {img.max():.4g} e-/s/pix, "
+          f"median {np.median(img):.4g} e-/s/pix")
     return 0
 
 
@@ -149,8 +211,24 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--ra", required=True, type=_finite_float("--ra"), help="ICRS right ascension, deg")
     s.add_argument("--dec", required=True, type=_finite_float("--dec"), help="ICRS declination, deg")
     s.add_argument("--config", default=None, help="campaign config (default: config/config.yaml)")
+    s.add_argument("--bands", default=None,
+                   help="comma-separated bands (default: the instrument's); 'V' = Bessell V diagnostic")
     s.add_argument("--json", action="store_true", help="print JSON")
     s.set_defaults(func=cmd_sky)
+
+    im = sub.add_parser("image", help="in-field stray-light image of one detector (FITS, e-/s/pixel)")
+    im.add_argument("--time", required=True, help="UTC time, ISO 8601 (sets the roll)")
+    im.add_argument("--ra", required=True, type=_finite_float("--ra"), help="pointing RA, deg")
+    im.add_argument("--dec", required=True, type=_finite_float("--dec"), help="pointing Dec, deg")
+    im.add_argument("--band", required=True, help="band (NUV u g r i z y)")
+    im.add_argument("--detector", type=int, default=12, help="detector index 0..29 (row-major; default 12)")
+    im.add_argument("--catalog", required=True, help="star table with ra, dec, mag_<band> (Parquet/FITS/CSV/ECSV)")
+    im.add_argument("--out", required=True, help="output FITS file")
+    im.add_argument("--far-bin", type=int, default=8, help="binning of the far-field halo convolution (1 = exact)")
+    im.add_argument("--margin-arcsec", type=float, default=600.0, help="stars this far off the chip still count")
+    im.add_argument("--no-ghosts", action="store_true", help="list ghost discs but do not paint them")
+    im.add_argument("--config", default=None, help="campaign config (default: config/config.yaml)")
+    im.set_defaults(func=cmd_image)
 
     f = sub.add_parser("footprint", help="print the survey footprint of a campaign")
     f.add_argument("--config", default=None, help="campaign config (default: config/config.yaml)")
