@@ -11,6 +11,10 @@ star map (e-/s) convolved with the star image (:class:`~straylight.scatter.Scatt
   (FFT, ``fftconvolve``) and interpolated back bilinearly.  ``far_bin = 1`` is the exact
   reference; the error of larger bins is measured in tests and bench/image.py.
 
+A star off the chip is kept when its halo still exceeds ``halo_floor_e_per_s_per_pix`` somewhere
+on the chip (bright stars reach far, faint ones not at all), up to ``margin_arcsec``; the binned
+grid extends only as far as the kept stars need.
+
 Ghost discs (:mod:`straylight.ghosts`) are returned as a table and, optionally, painted in as
 uniform discs holding exactly each ghost's energy.
 
@@ -22,7 +26,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import ndimage, signal
+from scipy import signal
 
 from .bandpass import Band
 from .errors import InputError
@@ -99,6 +103,41 @@ def star_fluxes_e_per_s(mag_ab, band: Band, aperture_diameter_m: float) -> np.nd
     return 10.0 ** (-0.4 * m) * band.ab_zero_point_photons_s_m2 * area
 
 
+def _profile_table(fn, r_max_px: float, p_m: float):
+    """fn(r_m) tabulated on a log-spaced radius grid (px) for fast interpolation."""
+    r = np.concatenate([[0.0], np.geomspace(0.01, max(r_max_px, 1.0) * 1.5, 4000)])
+    return r, fn(r * p_m)
+
+
+def _interp_profile(table, r_px):
+    r, v = table
+    return np.interp(r_px, r, v)
+
+
+def _reach_px(table, flux_e_per_s, floor, p_m):
+    """Distance (px) beyond which a star's halo per pixel falls below ``floor``."""
+    r, v = table
+    per_pix = v * p_m * p_m  # fraction per pixel, decreasing with r beyond the core
+    out = np.zeros_like(flux_e_per_s)
+    for i, f in enumerate(flux_e_per_s):
+        above = np.flatnonzero(f * per_pix >= floor)
+        out[i] = r[above[-1]] if above.size else 0.0
+    return out
+
+
+def _linear_upsample_matrix(n_fine: int, n_coarse: int, offset: float, b: int):
+    """Sparse (n_fine x n_coarse) bilinear weights; fine pixel i sits at coarse (i + offset + 0.5) / b - 0.5."""
+    from scipy import sparse
+
+    pos = (np.arange(n_fine) + offset + 0.5) / b - 0.5
+    j0 = np.clip(np.floor(pos).astype(int), 0, n_coarse - 2)
+    w1 = np.clip(pos - j0, 0.0, 1.0)
+    rows = np.repeat(np.arange(n_fine), 2)
+    cols = np.stack([j0, j0 + 1], axis=1).ravel()
+    vals = np.stack([1.0 - w1, w1], axis=1).ravel()
+    return sparse.csr_matrix((vals, (rows, cols)), shape=(n_fine, n_coarse))
+
+
 def _radial_grid(half: int, step_px: float = 1.0) -> np.ndarray:
     y, x = np.mgrid[-half:half + 1, -half:half + 1].astype(float) * step_px
     return np.hypot(x, y)
@@ -125,9 +164,10 @@ def _deposit(shape, x, y, w) -> np.ndarray:
 class RenderSettings:
     """Approximation knobs of the renderer (each has a measured error, see bench/image.py)."""
 
-    near_radius_px: int = 64
+    near_radius_px: int = 128
     far_bin: int = 8
-    margin_arcsec: float = 600.0
+    margin_arcsec: float = 1800.0  # hard cap on how far off the chip a star may sit
+    halo_floor_e_per_s_per_pix: float = 1e-4  # a star counts where its halo exceeds this
     paint_ghosts: bool = True
     ghost_min_e_per_s_per_pix: float = 0.0
 
@@ -178,29 +218,44 @@ def render_detector(
     inside = (x > -margin_px) & (x < nx - 1 + margin_px) & (y > -margin_px) & (y < ny - 1 + margin_px)
     idx, x, y = idx[inside], x[inside], y[inside]
     f = flux[idx]
+    # a star off the chip counts only where its halo still exceeds the floor on the chip
+    halo_tab = _profile_table(scatter.halo_profile, np.hypot(nx, ny) + margin_px, p_m)
+    reach = np.minimum(_reach_px(halo_tab, f, s.halo_floor_e_per_s_per_pix, p_m), margin_px)
+    dx = np.maximum(np.maximum(-x, x - (nx - 1)), 0.0)
+    dy = np.maximum(np.maximum(-y, y - (ny - 1)), 0.0)
+    keep = np.hypot(dx, dy) <= np.maximum(reach, s.near_radius_px)
+    idx, x, y, f = idx[keep], x[keep], y[keep], f[keep]
+    used_margin_px = float(np.max(np.hypot(dx, dy)[keep], initial=0.0)) + s.near_radius_px
 
     # near field, full resolution
     rn = s.near_radius_px
     r_px = _radial_grid(rn)
+    # float64: the core's peak is ~1e7 x the kernel's tail, beyond float32 FFT round-off
     k_near = scatter.profile(r_px * p_m) * p_m * p_m * (1.0 - _taper_up(r_px, rn / 2, rn))
     pad = rn
     star_map = _deposit((ny + 2 * pad, nx + 2 * pad), x + pad, y + pad, f)
-    image = signal.oaconvolve(star_map, k_near, mode="same")[pad:pad + ny, pad:pad + nx]
+    image = signal.oaconvolve(star_map, k_near, mode="same")[pad:pad + ny, pad:pad + nx].astype(np.float32)
+    del star_map
 
-    # far field, binned grid covering detector + margin
+    # far field, binned grid covering detector + the margin the kept stars need
     b = s.far_bin
-    mpx = int(np.ceil(margin_px))
-    cny, cnx = int(np.ceil((ny + 2 * mpx) / b)), int(np.ceil((nx + 2 * mpx) / b))
-    coarse_map = _deposit((cny, cnx), (x + mpx) / b - 0.5 + 0.5 / b, (y + mpx) / b - 0.5 + 0.5 / b, f)
-    half = int(np.ceil((max(nx, ny) + mpx) / b))
-    rc = _radial_grid(half, step_px=b)
-    k_far = scatter.halo_profile(rc * p_m) * (b * p_m) ** 2 * _taper_up(rc, rn / 2, rn)
+    mpx = int(np.ceil(used_margin_px))
+    cny, cnx = int(np.ceil((ny + 2 * mpx) / b)) + 1, int(np.ceil((nx + 2 * mpx) / b)) + 1
+    coarse_map = _deposit((cny, cnx), (x + mpx + 0.5) / b - 0.5, (y + mpx + 0.5) / b - 0.5, f)
+    half_y = int(np.ceil((ny + mpx) / b)) + 1
+    half_x = int(np.ceil((nx + mpx) / b)) + 1
+    yk, xk = np.mgrid[-half_y:half_y + 1, -half_x:half_x + 1].astype(float) * b
+    rc = np.hypot(xk, yk)
+    del xk, yk
+    k_far = _interp_profile(halo_tab, rc) * (b * p_m) ** 2 * _taper_up(rc, rn / 2, rn)
+    del rc
     far_coarse = signal.fftconvolve(coarse_map, k_far, mode="same") / (b * b)  # per fine pixel
-    # coarse cell centre j sits at fine coordinate (j + 0.5) * b - 0.5 - mpx
-    yy = (np.arange(ny) + mpx + 0.5) / b - 0.5
-    xx = (np.arange(nx) + mpx + 0.5) / b - 0.5
-    far = ndimage.map_coordinates(far_coarse, np.meshgrid(yy, xx, indexing="ij"), order=1, mode="nearest")
-    image = image + far
+    del k_far, coarse_map
+    wy = _linear_upsample_matrix(ny, cny, mpx, b)
+    wx = _linear_upsample_matrix(nx, cnx, mpx, b)
+    far = (wx @ (wy @ far_coarse).T).T
+    image = image + far.astype(np.float32)
+    del far, far_coarse
 
     # ghosts
     gtab = {k: np.zeros(0) for k in ("star_index", "path", "x_pix", "y_pix", "radius_pix", "e_per_s_per_pix", "energy_e_per_s")}
@@ -227,7 +282,8 @@ def render_detector(
 
     stars = {"catalog_index": idx, "x_pix": x, "y_pix": y, "flux_e_per_s": f}
     return DetectorImage(image.astype(np.float32), gtab, stars, wcs,
-                         meta={"far_bin": b, "near_radius_px": rn, "margin_arcsec": s.margin_arcsec})
+                         meta={"far_bin": b, "near_radius_px": rn, "margin_arcsec": s.margin_arcsec,
+                               "halo_floor": s.halo_floor_e_per_s_per_pix})
 
 
 def _paint_discs(ny, nx, g, min_irr) -> np.ndarray:

@@ -1,0 +1,148 @@
+"""Detector stray-light images: accuracy of the fast renderer, energy, WCS, CLI."""
+import numpy as np
+import pytest
+
+from conftest import run_cli
+from straylight.errors import InputError
+from straylight.ghosts import ghost_model_from_instrument
+from straylight.image import FocalPlane, RenderSettings, focal_plane_from_instrument, pointing_wcs, render_detector
+from straylight.scatter import scatter_model_from_instrument
+
+SUN = np.array([1.0, 0.0, 0.0])
+N = 768
+
+
+@pytest.fixture(scope="module")
+def parts(campaign):
+    fp = focal_plane_from_instrument(campaign.instrument)
+    small = FocalPlane(N, N, fp.pixel_scale_arcsec, fp.pixel_size_mm, fp.columns, fp.rows, fp.gap_px)
+    return (fp, small, scatter_model_from_instrument(campaign.instrument),
+            ghost_model_from_instrument(campaign.instrument, "g"))
+
+
+def _render(parts, xy, flux, **kw):
+    fp, small, sc, gh = parts
+    w = pointing_wcs(150.0, 30.0, SUN, small, 12)
+    ra, dec = w.pixel_to_world_values(np.asarray(xy)[:, 0], np.asarray(xy)[:, 1])
+    ghosts = kw.pop("ghosts", None)
+    return render_detector(150.0, 30.0, ra, dec, flux, SUN, fp, 12, sc, ghosts, 3.9, RenderSettings(**kw),
+                           size_override=(N, N))
+
+
+def test_one_star_matches_direct_evaluation(parts):
+    """FFT image of one star against the profile evaluated directly at every pixel centre."""
+    sc = parts[2]
+    res = _render(parts, [[400.0, 300.0]], [1e6], margin_arcsec=10.0)
+    y, x = np.mgrid[0:N, 0:N]
+    d = np.hypot(x - 400.0, y - 300.0) * 10e-6
+    direct = sc.profile(d) * 1e-10 * 1e6
+    im = res.image_e_per_s_per_pix.astype(float)
+    assert im.sum() == pytest.approx(direct.sum(), rel=1e-4)
+    far = d > 150 * 10e-6
+    rel = np.abs(im[far] - direct[far]) / direct[far]
+    print(f"far-field (>150 px) max rel error at far_bin 8: {rel.max():.3e}")
+    assert rel.max() < 0.02
+
+
+def test_energy_of_scatter_and_ghosts(parts):
+    """Star at the centre of the image: painted ghosts hold exactly sum Phi_k, and core+halo
+    inside the image equals 1 - halo power outside it (analytic) within 1 %."""
+    sc, gh = parts[2], parts[3]
+    flux = 1e6
+    res = _render(parts, [[N / 2, N / 2]], [flux], ghosts=gh, margin_arcsec=10.0)
+    ghost_energy = res.ghosts["energy_e_per_s"].sum()
+    assert ghost_energy == pytest.approx(flux * gh.energy_fractions().sum(), rel=1e-12)
+    no_ghost = _render(parts, [[N / 2, N / 2]], [flux], margin_arcsec=10.0).image_e_per_s_per_pix.astype(float)
+    assert res.image_e_per_s_per_pix.astype(float).sum() - no_ghost.sum() == pytest.approx(ghost_energy, rel=1e-3)
+    # halo inside the inscribed circle (radius N/2) vs analytic; image square holds a bit more
+    y, x = np.mgrid[0:N, 0:N]
+    inside = np.hypot(x - N / 2, y - N / 2) <= N / 2 - 1
+    captured = no_ghost[inside].sum() / flux
+    expected = (1 - sc.halo_power) + sc.halo_energy_within((N / 2 - 1) * 10e-6)
+    assert captured == pytest.approx(expected, rel=0.01)
+
+
+def test_star_just_off_the_chip_still_scatters(parts):
+    res = _render(parts, [[N + 200.0, N / 2]], [1e9], margin_arcsec=100.0)
+    assert len(res.stars["x_pix"]) == 1
+    assert res.image_e_per_s_per_pix.max() > 0
+    assert res.image_e_per_s_per_pix[:, -1].mean() > res.image_e_per_s_per_pix[:, 0].mean()
+
+
+def test_faint_star_far_off_the_chip_is_skipped(parts):
+    res = _render(parts, [[N + 5000.0, N / 2]], [10.0], margin_arcsec=1000.0)
+    assert len(res.stars["x_pix"]) == 0
+
+
+def test_empty_catalog_gives_zero_image(parts):
+    res = _render(parts, np.zeros((0, 2)), np.zeros(0))
+    assert res.image_e_per_s_per_pix.shape == (N, N) and not res.image_e_per_s_per_pix.any()
+
+
+def test_nan_flux_is_refused(parts):
+    with pytest.raises(InputError, match="finite"):
+        _render(parts, [[10.0, 10.0]], [np.nan])
+
+
+def test_detector_layout_and_bad_index(parts):
+    fp = parts[0]
+    assert fp.n_detectors == 30
+    with pytest.raises(InputError, match="--detector 30"):
+        fp.detector_offset_px(30)
+
+
+def test_wcs_roll_follows_the_sun(parts):
+    """+x of the image points towards the Sun's projection (the door side)."""
+    from astropy.wcs.utils import proj_plane_pixel_scales
+
+    fp, small = parts[0], parts[1]
+    w = pointing_wcs(150.0, 30.0, SUN, small, 12)
+    assert proj_plane_pixel_scales(w)[0] * 3600 == pytest.approx(0.074, rel=1e-9)
+    from straylight.geometry import radec_to_unit
+
+    c0 = radec_to_unit(*w.pixel_to_world_values(100.0, 100.0))
+    c1 = radec_to_unit(*w.pixel_to_world_values(200.0, 100.0))
+    step = c1 - c0
+    z = radec_to_unit(150.0, 30.0)
+    sun_proj = SUN - (SUN @ z) * z
+    cosang = step @ sun_proj / np.linalg.norm(step) / np.linalg.norm(sun_proj)
+    assert cosang == pytest.approx(1.0, abs=1e-6)
+
+
+@pytest.mark.slow
+def test_image_cli_end_to_end(tmp_path, campaign):
+    """Full 9216 x 9232 detector through the CLI with a small catalog: FITS, WCS, ghosts."""
+    from astropy.io import fits
+    from astropy.table import Table
+    from astropy.wcs import WCS
+
+    from straylight.image import sun_direction_at
+
+    fp = parts_fp = focal_plane_from_instrument(campaign.instrument)
+    w = pointing_wcs(150.0, 30.0, sun_direction_at(campaign, "2026-01-01T00:50:00"), parts_fp, 12)
+    ra, dec = w.pixel_to_world_values(np.array([1000.0, 5000.0, 9000.0]), np.array([2000.0, 4000.0, 100.0]))
+    cat = tmp_path / "stars.ecsv"
+    Table({"ra": ra, "dec": dec, "mag_g": [8.0, 10.0, 12.0]}).write(cat)
+    out = tmp_path / "img.fits"
+    r = run_cli("image", "--time", "2026-01-01T00:50:00", "--ra", 150, "--dec", 30, "--band", "g",
+                "--catalog", cat, "--out", out, timeout=600)
+    assert r.returncode == 0, r.stderr
+    with fits.open(out) as h:
+        assert h[0].data.shape == (fp.ny, fp.nx) and h[0].header["BUNIT"] == "electron/s"
+        assert h[0].header["BAND"] == "g" and "DATE-OBS" in h[0].header
+        ww = WCS(h[0].header)
+        x, y = ww.world_to_pixel_values(ra[0], dec[0])
+        assert (x, y) == pytest.approx((1000.0, 2000.0), abs=1e-6)
+        assert len(h["GHOSTS"].data) == 9
+        img = h[0].data
+        assert np.unravel_index(np.argmax(img), img.shape) == (2000, 1000)
+
+
+def test_image_cli_bad_catalog(tmp_path):
+    from astropy.table import Table
+
+    cat = tmp_path / "stars.ecsv"
+    Table({"ra": [1.0], "dec": [2.0]}).write(cat)
+    r = run_cli("image", "--time", "2026-01-01T00:50:00", "--ra", 1, "--dec", 2, "--band", "g",
+                "--catalog", cat, "--out", tmp_path / "x.fits")
+    assert r.returncode == 2 and "missing column(s) mag_g" in r.stderr and "Traceback" not in r.stderr
