@@ -69,7 +69,7 @@ def cmd_ephem(args) -> int:
     return 0
 
 
-def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None) -> dict:
+def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None, stars=None) -> dict:
     """The ``straylight sky`` JSON record for one time and pointing (grows with the physics)."""
     from .bandpass import load_band
     from .ephemeris import PLANETS
@@ -106,19 +106,28 @@ def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None) -> dic
         "violations": violation_names(int(v["violations"])) + ([] if door > 0 else ["door"]),
         "bands": {},
     }
+    from .components import ComponentModel
+
+    g1 = {k: np.asarray(a).reshape(1) for k, a in g.items()}
+    los = radec_to_unit(np.array([ra_deg]), np.array([dec_deg]))
+    comps = ComponentModel(campaign).evaluate(sc.satellite_km, sc.bodies_km, los, g1, bands or campaign.bands,
+                                              stars=stars)
+    zflag = False
+    for name, res in comps.items():
+        mag = res["_mag"]
+        entry = {}
+        for comp in ("zodiacal", "sun", "moon", "planets", "stars", "earthshine", "earthshine_direct",
+                     "earthshine_door", "total"):
+            e = float(np.ravel(res[comp])[0])
+            m = float(np.ravel(mag(e))[0])
+            entry[comp] = {"e_per_s_per_pix": e, "mag_per_arcsec2": m if np.isfinite(m) else None}
+        record["bands"][name] = entry
     zodi = zodiacal_model_from_instrument(campaign.instrument, campaign.config["models"]["zodiacal_spectrum"])
-    los = radec_to_unit(ra_deg, dec_deg)
-    sun_dir = unit(sc.bodies_km["sun"][0] - sc.satellite_km[0])
-    for name in bands or campaign.bands:
-        band = load_band(campaign.instrument, name, campaign.instrument_path.parent)
-        z = zodi.evaluate(band, los, sun_dir)
-        record["bands"][name] = {
-            "zodiacal": {
-                "e_per_s_per_pix": float(np.ravel(z["e_per_s_per_pix"])[0]),
-                "mag_per_arcsec2": float(np.ravel(z["mag_per_arcsec2"])[0]),
-                "no_data_near_sun": bool(np.ravel(z["no_data"])[0]),
-            }
-        }
+    zflag = bool(np.ravel(zodi.evaluate(load_band(campaign.instrument, (bands or campaign.bands)[0],
+                                                  campaign.instrument_path.parent),
+                                        los[0], unit(sc.bodies_km["sun"][0] - sc.satellite_km[0]))["no_data"])[0])
+    record["zodiacal_no_data_near_sun"] = zflag
+    record["stars_included"] = stars is not None
     return record
 
 
@@ -129,7 +138,14 @@ def cmd_sky(args) -> int:
     if not -90.0 <= args.dec <= 90.0:
         raise InputError(f"--dec: must be within [-90, 90] deg, got {args.dec}")
     bands = [b.strip() for b in args.bands.split(",") if b.strip()] if args.bands else None
-    rec = sky_record(campaign, args.time, args.ra % 360.0, args.dec, bands)
+    stars = None
+    if args.catalog:
+        from .components import StarTable
+        from .image import read_star_table
+
+        cols = [read_star_table(args.catalog, b) for b in (bands or campaign.bands) if b != "V"]
+        stars = StarTable(cols[0][0], cols[0][1], {b: c[2] for b, c in zip([b for b in (bands or campaign.bands) if b != "V"], cols)})
+    rec = sky_record(campaign, args.time, args.ra % 360.0, args.dec, bands, stars)
     if args.json:
         _print_json(rec)
     else:
@@ -140,8 +156,9 @@ def cmd_sky(args) -> int:
                 print(f"  {k:28s} {val}")
         print(f"  observable: {rec['observable']}  violations: {', '.join(rec['violations']) or 'none'}")
         for name, comp in rec["bands"].items():
-            z = comp["zodiacal"]
-            print(f"  {name:4s} zodiacal {z['e_per_s_per_pix']:.4g} e-/s/pix  {z['mag_per_arcsec2']:.2f} mag/arcsec2")
+            parts = "  ".join(f"{k} {v['e_per_s_per_pix']:.3g}" for k, v in comp.items()
+                              if k not in ("earthshine_direct", "earthshine_door"))
+            print(f"  {name:4s} e-/s/pix: {parts}")
     return 0
 
 
@@ -213,6 +230,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--config", default=None, help="campaign config (default: config/config.yaml)")
     s.add_argument("--bands", default=None,
                    help="comma-separated bands (default: the instrument's); 'V' = Bessell V diagnostic")
+    s.add_argument("--catalog", default=None,
+                   help="star table (ra, dec, mag_<band>) for the off-field star term; without it stars = 0")
     s.add_argument("--json", action="store_true", help="print JSON")
     s.set_defaults(func=cmd_sky)
 

@@ -102,9 +102,9 @@ def earth_blocks(satellite_km: np.ndarray, direction: np.ndarray, earth_radius_k
     -------
     bool array: True where the Earth hides the source.
     """
-    u = unit(direction)
-    behind = dot(u, satellite_km) < 0.0  # angle to the position vector > 90 deg
-    miss_distance = norm(np.cross(np.broadcast_to(satellite_km, u.shape), u))
+    sat, u = np.broadcast_arrays(np.asarray(satellite_km, dtype=float), unit(direction))
+    behind = dot(u, sat) < 0.0  # angle to the position vector > 90 deg
+    miss_distance = norm(np.cross(sat, u))
     return behind & (miss_distance < earth_radius_km)
 
 

@@ -1,0 +1,137 @@
+"""All stray-light components of samples (time, pointing) per band: the Python API behind
+``straylight sky`` and the survey cubes.
+
+:func:`components` returns, for each band, e-/s/pixel arrays of the in-field zodiacal light and
+the off-field terms (Sun, Moon, planets, stars, earthshine direct and via the door), reported
+whether or not the pointing is observable.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+
+from .bandpass import load_band
+from .config import Campaign
+from .door import door_from_instrument
+from .ephemeris import PLANETS
+from .geometry import earth_blocks, norm, telescope_frame, unit
+from .offfield import (BandPhotometry, EarthshineSettings, OffFieldModel, magnitude_per_arcsec2,
+                       moon_v_magnitude, planet_v_magnitude)
+from .pst import load_pst
+from .zodiacal import zodiacal_model_from_instrument
+
+COMPONENTS = ("zodiacal", "sun", "moon", "planets", "stars", "earthshine_direct", "earthshine_door", "earthshine")
+
+
+@dataclass
+class StarTable:
+    ra_deg: np.ndarray
+    dec_deg: np.ndarray
+    mag_ab: dict  # band -> array
+
+
+@dataclass
+class ComponentModel:
+    campaign: Campaign
+
+    @cached_property
+    def offfield(self) -> OffFieldModel:
+        inst = self.campaign.instrument
+        pst_file = inst.get("pst", {}).get("file")
+        if pst_file and not Path(pst_file).is_absolute():
+            pst_file = self.campaign.instrument_path.parent / pst_file
+        es = self.campaign.config["models"].get("earthshine", {})
+        dg = inst.get("door_geometry", {})
+        return OffFieldModel(
+            pst=load_pst(pst_file),
+            door=door_from_instrument(inst),
+            door_states_deg=tuple(float(s["opening_deg"]) for s in inst["door"]["states"]),
+            pixel_area_m2=(self.campaign.instrument_value("detector", "pixel_size_um") * 1e-6) ** 2,
+            earthshine=EarthshineSettings(
+                n_gamma=int(es.get("n_gamma", 24)), n_psi=int(es.get("n_psi", 48)),
+                albedo=float(es.get("albedo", 0.3)), door_blocks=tuple(es.get("door_blocks", (8, 8))),
+                door_reflectance=float(dg["reflectance"]["value"]) if "reflectance" in dg else 0.05,
+                n_aperture_door=int(es.get("n_aperture_door", 32)),
+            ),
+            moon_law=self.campaign.config["models"].get("moon_phase_law", "krisciunas_schaefer"),
+            moon_eclipse_factor=float(self.campaign.config["models"].get("moon_eclipse_factor", 1e-4)),
+        )
+
+    @cached_property
+    def zodiacal(self):
+        return zodiacal_model_from_instrument(self.campaign.instrument,
+                                              self.campaign.config["models"].get("zodiacal_spectrum", "solar_leinert"))
+
+    def band(self, name):
+        return load_band(self.campaign.instrument, name, self.campaign.instrument_path.parent)
+
+    def evaluate(self, satellite_km, bodies_km, los, geometry, bands, stars: StarTable | None = None) -> dict:
+        """Components for broadcastable samples; ``geometry`` from :func:`observing_geometry`."""
+        off = self.offfield
+        re_km = self.campaign.earth.radius_km
+        sat = np.asarray(satellite_km, float)
+        sun, moon = bodies_km["sun"], bodies_km["moon"]
+        frame = telescope_frame(los, sun - sat)
+        door = geometry["door_opening_deg"]
+        shape = geometry["sun_angle_deg"].shape
+        d_sun = norm(sun - sat)
+        d_moon = norm(moon - sat)
+        moon_eclipsed = earth_blocks(moon, sun - moon, re_km)
+        v_moon = moon_v_magnitude(geometry["moon_phase_angle_deg"], d_moon, off.moon_law, geometry["moon_elongation_deg"])
+        v_moon_at_earth = moon_v_magnitude(geometry["moon_phase_angle_deg"], norm(moon), off.moon_law,
+                                           geometry["moon_elongation_deg"])
+        eclipse = np.where(moon_eclipsed, off.moon_eclipse_factor, 1.0)
+        aperture_d = self.campaign.instrument_value("telescope", "aperture_diameter_m")
+        pix_arcsec = self.campaign.instrument_value("detector", "pixel_scale_arcsec")
+        out = {}
+        for name in bands:
+            band = self.band(name)
+            phot = BandPhotometry(band)
+            res = {}
+            res["zodiacal"] = np.broadcast_to(self.zodiacal.evaluate(band, frame.z, unit(sun - sat))["e_per_s_per_pix"], shape)
+            sun_irr = phot.sun_at_1au_photons_s_m2 * (1.495978707e8 / d_sun) ** 2
+            res["sun"] = off.point_source(sun_irr, geometry["sun_angle_deg"], geometry["sun_phi_deg"],
+                                          geometry["sun_earth_blocked"], door)
+            moon_irr = phot.solar_like_from_v(v_moon) * eclipse
+            res["moon"] = off.point_source(moon_irr, geometry["moon_angle_deg"], geometry["moon_phi_deg"],
+                                           geometry["moon_earth_blocked"], door)
+            planets = np.zeros(shape)
+            for p in PLANETS:
+                if f"{p}_angle_deg" not in geometry:
+                    continue
+                v = planet_v_magnitude(p, bodies_km[p], sun, sat)
+                planets = planets + off.point_source(phot.solar_like_from_v(v), geometry[f"{p}_angle_deg"],
+                                                     geometry[f"{p}_phi_deg"], geometry[f"{p}_earth_blocked"], door)
+            res["planets"] = planets
+            res["stars"] = self._stars(stars, name, phot, frame, sat, door, shape) if stars is not None else np.zeros(shape)
+            moon_irr_earth = phot.solar_like_from_v(v_moon_at_earth) * eclipse
+            ea1, ea2 = off.earthshine_terms(sat, sun, moon, frame, door, sun_irr, moon_irr_earth, re_km)
+            res["earthshine_direct"], res["earthshine_door"] = np.broadcast_to(ea1, shape), np.broadcast_to(ea2, shape)
+            res["earthshine"] = res["earthshine_direct"] + res["earthshine_door"]
+            res = {k: np.asarray(v, dtype=float) for k, v in res.items()}
+            res["total"] = sum(res[k] for k in ("zodiacal", "sun", "moon", "planets", "stars", "earthshine"))
+            res["_band"] = band
+            res["_mag"] = lambda e, b=band: magnitude_per_arcsec2(e, b, aperture_d, pix_arcsec)
+            out[name] = res
+        return out
+
+    def _stars(self, stars: StarTable, band_name, phot, frame, sat, door, shape):
+        """Sum over catalog stars outside the field (theta > field radius) of E Se Sp PST."""
+        from .geometry import radec_to_unit
+
+        mags = stars.mag_ab.get(band_name)
+        if mags is None or len(mags) == 0:
+            return np.zeros(shape)
+        s = radec_to_unit(stars.ra_deg, stars.dec_deg, "star catalog")  # (S, 3)
+        irr = phot.from_ab(mags)
+        z, x, y = (np.asarray(a)[..., None, :] for a in (frame.z, frame.x, frame.y))
+        dz, dx, dy = (np.sum(a * s, axis=-1) for a in (z, x, y))
+        theta = np.degrees(np.arctan2(np.hypot(dx, dy), dz))
+        phi = np.degrees(np.arctan2(dy, dx)) % 360.0
+        blocked = earth_blocks(np.asarray(sat)[..., None, :], s, self.campaign.earth.radius_km)
+        off_field = theta > 0.6  # in-field stars belong to the in-field terms (scattering, ghosts)
+        vals = self.offfield.point_source(irr, theta, phi, blocked, np.asarray(door)[..., None]) * off_field
+        return np.broadcast_to(vals.sum(axis=-1), shape)

@@ -1,0 +1,134 @@
+"""The aperture door and its blockage factor Sp(theta, phi) (seed paper sects. 2.2, 3.1).
+
+Geometry (telescope frame, z = line of sight, +x towards the Sun = the door's hinge side): the
+aperture is the disc of radius R at z = 0; the door is a flat rectangle of length L and width W
+hinged on the line x = R (parallel to y) at the aperture rim.  Closed it lies over the aperture;
+opened by an angle alpha it points along (-cos alpha, 0, sin alpha), i.e. at 135 deg it leans
+out over the Sun side and shades the aperture from low Sun.
+
+Door length: the paper states that open to 135 deg the door blocks the Sun beyond 65 deg
+off-axis (and open to 105 deg, between 50 and 65 deg).  A ray grazing the door's top edge and the
+far rim of the aperture fixes L:  tan(65 deg) = cot(45 deg) + 2R / (L sin 45 deg), so
+L = 2R / ((tan 65 - 1) sin 45) = 2.472 R.  With this L the 105 deg door blocks the Sun from
+47.9 deg, consistent with the paper's 50-65 deg rule.  W = L (assumption: a square door).
+
+Sp(direction) is the fraction of the aperture NOT shaded by the door: rays from a grid of
+aperture points (``n_aperture`` points, a knob) towards the source are tested against the door
+rectangle.  Tables over (theta, phi) are precomputed per door state for speed.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+from scipy.interpolate import RegularGridInterpolator
+
+from .errors import ConfigError
+
+
+def door_length_from_paper(aperture_radius_m: float, opening_deg: float = 135.0, sun_cutoff_deg: float = 65.0) -> float:
+    """Door length L so that, opened to ``opening_deg``, it just hides the whole aperture from a
+    source at ``sun_cutoff_deg`` off axis in the door's azimuth."""
+    beta = np.radians(180.0 - opening_deg)  # door elevation above the aperture plane
+    denom = (np.tan(np.radians(sun_cutoff_deg)) - 1.0 / np.tan(beta)) * np.sin(beta)
+    if denom <= 0:
+        raise ConfigError(f"door: opening {opening_deg} deg cannot hide the Sun at {sun_cutoff_deg} deg")
+    return 2.0 * aperture_radius_m / denom
+
+
+def aperture_points(radius_m: float, n: int) -> np.ndarray:
+    """~n points (x, y) uniformly covering the aperture disc (sunflower / Vogel spiral)."""
+    if n < 1:
+        raise ConfigError(f"door: n_aperture = {n} must be >= 1")
+    k = np.arange(n) + 0.5
+    r = radius_m * np.sqrt(k / n)
+    a = k * np.pi * (3.0 - np.sqrt(5.0))
+    return np.stack([r * np.cos(a), r * np.sin(a)], axis=-1)
+
+
+@dataclass(frozen=True)
+class Door:
+    aperture_radius_m: float
+    length_m: float
+    width_m: float
+    n_aperture: int = 256
+
+    def __post_init__(self):
+        if not (self.length_m > 0 and self.width_m > 0):
+            raise ConfigError(f"door: length {self.length_m} m and width {self.width_m} m must be > 0")
+        if self.width_m < 2 * self.aperture_radius_m or self.length_m < 2 * self.aperture_radius_m:
+            raise ConfigError(
+                f"door: {self.length_m:.3f} x {self.width_m:.3f} m cannot close over an aperture of diameter "
+                f"{2 * self.aperture_radius_m:.3f} m"
+            )
+
+    def plate(self, opening_deg: float):
+        """Hinge point, unit vector along the door (from the hinge), unit vector along the hinge."""
+        a = np.radians(opening_deg)
+        hinge = np.array([self.aperture_radius_m, 0.0, 0.0])
+        along = np.array([-np.cos(a), 0.0, np.sin(a)])
+        return hinge, along, np.array([0.0, 1.0, 0.0])
+
+    def unshaded_fraction(self, directions: np.ndarray, opening_deg: float) -> np.ndarray:
+        """Sp: fraction of the aperture that sees along ``directions`` (unit vectors, telescope
+        frame, (..., 3)) past the door opened to ``opening_deg``.  Directions below the aperture
+        plane (z <= 0) cannot reach the aperture: Sp = 0 there."""
+        d = np.asarray(directions, dtype=float)
+        shape = d.shape[:-1]
+        d = d.reshape(-1, 3)
+        hinge, along, axis = self.plate(opening_deg)
+        normal = np.cross(along, axis)
+        pts = aperture_points(self.aperture_radius_m, self.n_aperture)
+        p = np.concatenate([pts, np.zeros((pts.shape[0], 1))], axis=1)  # (M, 3)
+        out = np.empty(d.shape[0])
+        for start in range(0, d.shape[0], 4096):
+            dd = d[start:start + 4096]  # (n, 3)
+            denom = dd @ normal  # (n,)
+            num = (hinge - p) @ normal  # (M,)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                t = num[None, :] / denom[:, None]  # (n, M)
+            with np.errstate(invalid="ignore"):
+                hit = p[None, :, :] + t[..., None] * dd[:, None, :]
+            rel = hit - hinge
+            u = rel @ along
+            v = rel @ axis
+            blocked = (t > 0) & (u >= 0) & (u <= self.length_m) & (np.abs(v) <= self.width_m / 2) & np.isfinite(t)
+            frac = 1.0 - blocked.mean(axis=1)
+            out[start:start + 4096] = np.where(dd[:, 2] > 0, frac, 0.0)
+        return out.reshape(shape)
+
+    def table(self, opening_deg: float, theta_step_deg: float = 1.0, phi_step_deg: float = 2.0) -> "DoorTable":
+        theta = np.arange(0.0, 90.0 + theta_step_deg / 2, theta_step_deg)
+        phi = np.arange(0.0, 360.0 + phi_step_deg / 2, phi_step_deg)
+        th, ph = np.meshgrid(np.radians(theta), np.radians(phi), indexing="ij")
+        dirs = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], axis=-1)
+        return DoorTable(theta, phi, self.unshaded_fraction(dirs, opening_deg))
+
+
+@dataclass(frozen=True)
+class DoorTable:
+    """Precomputed Sp(theta, phi) for one door state (theta 0-90 deg; Sp = 0 beyond 90)."""
+
+    theta_deg: np.ndarray
+    phi_deg: np.ndarray
+    values: np.ndarray
+
+    @cached_property
+    def _interp(self):
+        return RegularGridInterpolator((self.theta_deg, self.phi_deg), self.values, method="linear")
+
+    def __call__(self, theta_deg, phi_deg) -> np.ndarray:
+        th, ph = np.broadcast_arrays(np.asarray(theta_deg, float), np.asarray(phi_deg, float))
+        inside = th < 90.0
+        pts = np.stack([np.clip(th, 0.0, 90.0), np.mod(ph, 360.0)], axis=-1).reshape(-1, 2)
+        return np.where(inside, self._interp(pts).reshape(th.shape), 0.0)
+
+
+def door_from_instrument(instrument: dict) -> Door:
+    d = instrument.get("door_geometry") or {}
+    r = float(instrument["telescope"]["aperture_diameter_m"]["value"]) / 2.0
+    length = float(d["length_m"]["value"]) if "length_m" in d else door_length_from_paper(r)
+    width = float(d["width_m"]["value"]) if "width_m" in d else length
+    n = int(d["n_aperture"]["value"]) if "n_aperture" in d else 256
+    return Door(aperture_radius_m=r, length_m=length, width_m=width, n_aperture=n)

@@ -1,0 +1,259 @@
+"""Off-field stray light through the PST (seed paper sects. 2.2, 3.1-3.2).
+
+Point sources (paper eq. 14):  E_p = sum_i E_i Se_i Sp_i PST(theta_i, phi_i), with E_i the band
+photon irradiance at the aperture (photons s-1 m-2), Se_i = 0 when the Earth hides the source
+(two-condition test), Sp_i the door's unshaded fraction (:mod:`straylight.door`) and PST from
+:mod:`straylight.pst`.  The focal-plane rate is E * PST * (pixel area), with the band's total
+throughput (mirrors x filter x QE) turning photons into electrons; the PST is taken as the
+geometric transfer.
+
+Sources and their published brightness laws:
+
+* Sun: ASTM E490-00a spectrum at 1 AU scaled by (1 AU / d)^2.
+* Moon: solar spectrum scaled to V(alpha) = -12.73 + 0.026 |alpha| + 4e-9 alpha^4 at the mean
+  distance 384400 km (Krisciunas & Schaefer 1991, PASP 103, 1033, eq. 9; alpha = phase angle,
+  deg), or the paper's proportional rule (full-Moon brightness times elongation / 180);
+  x (384400 km / d)^2; an eclipsed Moon (inside the Earth's shadow cylinder) is dimmed by
+  ``moon_eclipse_factor``.
+* Planets: V = V0 + 5 log10(r Delta) + phase terms (Meeus 1998, "Astronomical Algorithms",
+  2nd ed., ch. 41, after the Astronomical Almanac 1984), with Saturn's ring term; solar spectrum.
+* Stars: AB magnitudes per band from a catalog.
+
+Solar-like sources are converted with V_sun = -26.76 (Willmer 2018, ApJS 236, 47).
+
+Earthshine (paper sect. 3.2): the Earth cap seen from the satellite is split into n_gamma x
+n_psi blocks of solid angle sin(gamma) dgamma dpsi about nadir; each is a Lambertian reflector of
+albedo A lit by the Sun (radiance A/pi E_sun cos z_sun) or, on the night side, by the Moon.
+EA1 = sum E_i Sp_i PST(theta_i, phi_i) (direct).  EA2 (door): each door block receives
+MP_i = sum_b L_b dOmega_b cos(incidence) from the Earth blocks in front of its inner face and
+re-emits as a Lambertian of reflectance r; the aperture points j receive
+L_door A_i cos(e_ij) / d_ij^2 with PST(theta_ij, phi_ij), averaged over the aperture.  This is
+the paper's EA2 = sum_i MP_i r sum_j PST(theta_ij, phi_ij) / d_ij^2 with the block area, the
+emission cosine and 1/pi written out.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+from .bandpass import Band
+from .door import Door, DoorTable
+from .errors import ConfigError
+from .geometry import dot, earth_blocks, norm, perpendicular_towards, unit
+from .pst import PST
+from .zodiacal import solar_spectrum
+
+AU_KM = 1.495978707e8
+V_SUN_VEGA = -26.76
+MOON_MEAN_DISTANCE_KM = 384400.0
+SATURN_POLE_RA_DEC_DEG = (40.589, 83.537)  # IAU WGCCRE 2015 (Archinal et al. 2018)
+
+# Meeus (1998) ch. 41: V0 and phase coefficients (i in degrees)
+PLANET_V = {
+    "mercury": (-0.42, (0.0380, -0.000273, 0.000002)),
+    "venus": (-4.40, (0.0009, 0.000239, -0.00000065)),
+    "mars": (-1.52, (0.016, 0.0, 0.0)),
+    "jupiter": (-9.40, (0.005, 0.0, 0.0)),
+    "saturn": (-8.88, (0.0, 0.0, 0.0)),
+    "uranus": (-7.19, (0.0, 0.0, 0.0)),
+    "neptune": (-6.87, (0.0, 0.0, 0.0)),
+    "pluto": (-1.00, (0.0, 0.0, 0.0)),
+}
+
+
+def moon_v_magnitude(phase_angle_deg, distance_km, law: str = "krisciunas_schaefer", elongation_deg=None):
+    """Lunar V magnitude at ``distance_km`` for the phase angle (deg, 0 = full)."""
+    a = np.abs(np.asarray(phase_angle_deg, dtype=float))
+    dist_term = 5.0 * np.log10(np.asarray(distance_km, dtype=float) / MOON_MEAN_DISTANCE_KM)
+    if law == "krisciunas_schaefer":
+        return -12.73 + 0.026 * a + 4e-9 * a**4 + dist_term
+    if law == "proportional":
+        e = np.asarray(elongation_deg if elongation_deg is not None else 180.0 - a, dtype=float)
+        ratio = np.clip(e / 180.0, 1e-6, 1.0)
+        return -12.73 - 2.5 * np.log10(ratio) + dist_term
+    raise ConfigError(f"moon phase law {law!r} is not one of 'krisciunas_schaefer', 'proportional'")
+
+
+def planet_v_magnitude(name: str, planet_km, sun_km, observer_km) -> np.ndarray:
+    """Meeus (1998) ch. 41 V magnitude of a planet (geocentric inputs, km)."""
+    v0, (c1, c2, c3) = PLANET_V[name]
+    r = norm(planet_km - sun_km) / AU_KM
+    delta = norm(planet_km - observer_km) / AU_KM
+    i = np.degrees(np.arctan2(norm(np.cross(sun_km - planet_km, observer_km - planet_km)),
+                              dot(sun_km - planet_km, observer_km - planet_km)))
+    v = v0 + 5.0 * np.log10(r * delta) + c1 * i + c2 * i**2 + c3 * i**3
+    if name == "saturn":
+        ra, de = np.radians(SATURN_POLE_RA_DEC_DEG)
+        pole = np.array([np.cos(de) * np.cos(ra), np.cos(de) * np.sin(ra), np.sin(de)])
+        sin_b = np.abs(dot(unit(observer_km - planet_km), pole))
+        v = v - 2.60 * sin_b + 1.25 * sin_b**2
+    return v
+
+
+@dataclass
+class BandPhotometry:
+    """Photon irradiances through one band for the solar-spectrum sources."""
+
+    band: Band
+
+    @cached_property
+    def sun_at_1au_photons_s_m2(self) -> float:
+        wl, flux = solar_spectrum()
+        return float(self.band.photon_rate(wl, flux))
+
+    def solar_like_from_v(self, v_mag) -> np.ndarray:
+        """Photon irradiance of a source with the Sun's spectrum and V magnitude ``v_mag``."""
+        return self.sun_at_1au_photons_s_m2 * 10.0 ** (-0.4 * (np.asarray(v_mag, dtype=float) - V_SUN_VEGA))
+
+    def from_ab(self, mag_ab) -> np.ndarray:
+        return self.band.ab_zero_point_photons_s_m2 * 10.0 ** (-0.4 * np.asarray(mag_ab, dtype=float))
+
+
+@dataclass
+class EarthshineSettings:
+    n_gamma: int = 24  # nadir-angle blocks of the visible cap
+    n_psi: int = 48  # azimuth blocks
+    albedo: float = 0.30
+    door_blocks: tuple[int, int] = (8, 8)  # along x across the door plate
+    door_reflectance: float = 0.05
+    n_aperture_door: int = 32  # aperture points for the door-to-aperture path
+
+    def __post_init__(self):
+        if self.n_gamma < 2 or self.n_psi < 4:
+            raise ConfigError(f"earthshine grid {self.n_gamma} x {self.n_psi}: needs n_gamma >= 2, n_psi >= 4")
+        if not 0 <= self.albedo <= 1:
+            raise ConfigError(f"earthshine albedo = {self.albedo}: must be within [0, 1]")
+        if not 0 <= self.door_reflectance <= 1:
+            raise ConfigError(f"door reflectance = {self.door_reflectance}: must be within [0, 1]")
+
+
+@dataclass
+class OffFieldModel:
+    """Everything needed to evaluate the off-field terms of one band."""
+
+    pst: PST
+    door: Door
+    door_states_deg: tuple[float, ...]
+    pixel_area_m2: float
+    earthshine: EarthshineSettings = field(default_factory=EarthshineSettings)
+    moon_law: str = "krisciunas_schaefer"
+    moon_eclipse_factor: float = 1e-4
+
+    @cached_property
+    def door_tables(self) -> dict[float, DoorTable]:
+        return {s: self.door.table(s) for s in self.door_states_deg}
+
+    def door_factor(self, theta_deg, phi_deg, opening_deg) -> np.ndarray:
+        """Sp for each sample's door state; the narrowest state when none is allowed (door 0)."""
+        th, ph, op = np.broadcast_arrays(theta_deg, phi_deg, opening_deg)
+        out = np.zeros(th.shape)
+        states = sorted(self.door_tables)
+        for s in states:
+            sel = (op == s) | ((op <= 0) & (s == states[0]))
+            if np.any(sel):
+                out[sel] = self.door_tables[s](th[sel], ph[sel])
+        return out
+
+    # -- point sources ----------------------------------------------------------------------
+    def point_source(self, irradiance, theta_deg, phi_deg, earth_blocked, opening_deg) -> np.ndarray:
+        """e-/s/pix of point sources: E * Se * Sp * PST * pixel area (broadcast arrays)."""
+        se = ~np.asarray(earth_blocked, bool)
+        sp = self.door_factor(theta_deg, phi_deg, opening_deg)
+        return np.asarray(irradiance) * se * sp * self.pst(theta_deg, phi_deg) * self.pixel_area_m2
+
+    # -- earthshine -------------------------------------------------------------------------
+    def _cap_grid(self, sat_km, earth_radius_km, s: EarthshineSettings):
+        """Block directions (..., G, P, 3), solid angles, surface points for each sample."""
+        nadir = -unit(sat_km)
+        rho = np.arcsin(np.clip(earth_radius_km / norm(sat_km), 0, 1))
+        e1 = perpendicular_towards(nadir, np.broadcast_to(np.array([0.0, 0.0, 1.0]), nadir.shape))
+        e2 = np.cross(nadir, e1)
+        k = (np.arange(s.n_gamma) + 0.5) / s.n_gamma
+        gamma = rho[..., None] * k  # (..., G)
+        dgamma = rho / s.n_gamma
+        psi = (np.arange(s.n_psi) + 0.5) * 2 * np.pi / s.n_psi
+        cg, sg = np.cos(gamma)[..., :, None, None], np.sin(gamma)[..., :, None, None]
+        cp, spp = np.cos(psi)[:, None], np.sin(psi)[:, None]
+        d = cg * nadir[..., None, None, :] + sg * (cp * e1[..., None, None, :] + spp * e2[..., None, None, :])
+        d_omega = np.sin(gamma)[..., :, None] * dgamma[..., None, None] * (2 * np.pi / s.n_psi)
+        rr = norm(sat_km)[..., None]  # (..., 1)
+        t = rr * np.cos(gamma) - np.sqrt(np.maximum(earth_radius_km**2 - (rr * np.sin(gamma)) ** 2, 0))
+        points = sat_km[..., None, None, :] + t[..., :, None, None] * d
+        return d, np.broadcast_to(d_omega, d.shape[:-1]), points
+
+    def earth_radiance(self, points_km, sun_km, moon_km, sun_irr, moon_irr_at_earth, albedo, earth_radius_km):
+        """Lambertian radiance (photons s-1 m-2 sr-1) of surface points lit by the Sun and Moon."""
+        n = points_km / earth_radius_km
+        mu_sun = np.maximum(dot(n, unit(sun_km[..., None, None, :] - points_km)), 0.0)
+        mu_moon = np.maximum(dot(n, unit(moon_km[..., None, None, :] - points_km)), 0.0)
+        return albedo / np.pi * (np.asarray(sun_irr)[..., None, None] * mu_sun
+                                 + np.asarray(moon_irr_at_earth)[..., None, None] * mu_moon)
+
+    @cached_property
+    def _door_weights(self):
+        """Per door state: (door block positions, inner normal, weight W_i) with
+        W_i = A_i / pi * mean_j [cos(e_ij) PST(theta_ij, phi_ij) / d_ij^2] (m-2 sr-1 * m2)."""
+        from .door import aperture_points
+
+        s = self.earthshine
+        out = {}
+        nu, nv = s.door_blocks
+        ap = aperture_points(self.door.aperture_radius_m, s.n_aperture_door)
+        ap3 = np.concatenate([ap, np.zeros((ap.shape[0], 1))], axis=1)
+        for state in self.door_states_deg:
+            hinge, along, axis = self.door.plate(state)
+            a = np.radians(state)
+            n_in = np.array([-np.sin(a), 0.0, -np.cos(a)])
+            uu = (np.arange(nu) + 0.5) / nu * self.door.length_m
+            vv = ((np.arange(nv) + 0.5) / nv - 0.5) * self.door.width_m
+            q = hinge + uu[:, None, None] * along + vv[None, :, None] * axis  # (nu, nv, 3)
+            area = self.door.length_m * self.door.width_m / (nu * nv)
+            vec = q[:, :, None, :] - ap3[None, None, :, :]  # aperture -> door block
+            dist = norm(vec)
+            u_in = vec / dist[..., None]  # incoming direction as seen from the aperture point
+            cos_e = np.maximum(dot(-u_in, n_in), 0.0)
+            theta = np.degrees(np.arccos(np.clip(u_in[..., 2], -1, 1)))
+            phi = np.degrees(np.arctan2(u_in[..., 1], u_in[..., 0])) % 360.0
+            w = area / np.pi * np.mean(cos_e * self.pst(theta, phi) / dist**2 * (u_in[..., 2] > 0), axis=-1)
+            out[state] = (q.reshape(-1, 3), n_in, w.reshape(-1))
+        return out
+
+    def earthshine_terms(self, sat_km, sun_km, moon_km, frame, opening_deg, sun_irr, moon_irr_at_earth,
+                         earth_radius_km) -> tuple[np.ndarray, np.ndarray]:
+        """(EA1 direct, EA2 via the door) in e-/s/pix for samples (leading shapes broadcast)."""
+        s = self.earthshine
+        d, d_omega, pts = self._cap_grid(sat_km, earth_radius_km, s)
+        lum = self.earth_radiance(pts, sun_km, moon_km, sun_irr, moon_irr_at_earth, s.albedo, earth_radius_km)
+        e_block = lum * d_omega  # photons s-1 m-2 at the aperture, normal to each block's direction
+        # telescope-frame coordinates of every block direction
+        dx = dot(d, frame.x[..., None, None, :])
+        dy = dot(d, frame.y[..., None, None, :])
+        dz = dot(d, frame.z[..., None, None, :])
+        theta = np.degrees(np.arctan2(np.hypot(dx, dy), dz))
+        phi = np.degrees(np.arctan2(dy, dx)) % 360.0
+        op = np.broadcast_to(np.asarray(opening_deg, float)[..., None, None], theta.shape)
+        sp = self.door_factor(theta, phi, op)
+        ea1 = np.sum(e_block * sp * self.pst(theta, phi), axis=(-2, -1)) * self.pixel_area_m2
+        # door path: irradiance on each door block from the Earth blocks in front of its face
+        ea2 = np.zeros(ea1.shape)
+        for state, (q, n_in, w) in self._door_weights.items():
+            sel = (np.asarray(opening_deg) == state) | ((np.asarray(opening_deg) <= 0) & (state == min(self._door_weights)))
+            sel = np.broadcast_to(sel, ea1.shape)
+            if not np.any(sel):
+                continue
+            # a block lights the inner face when it lies in front of it (d . n_in > 0)
+            cos_inc = np.maximum(dx * n_in[0] + dy * n_in[1] + dz * n_in[2], 0.0)
+            mp = np.sum(e_block * cos_inc, axis=(-2, -1))  # same for every door block (distant Earth)
+            val = s.door_reflectance * mp * np.sum(w) * self.pixel_area_m2
+            ea2 = np.where(sel, val, ea2)
+        return ea1, ea2
+
+
+def magnitude_per_arcsec2(e_per_s_per_pix, band: Band, aperture_diameter_m: float, pixel_scale_arcsec: float):
+    """AB mag/arcsec2 of a uniform background giving ``e_per_s_per_pix`` (inf where zero)."""
+    rate = np.asarray(e_per_s_per_pix, dtype=float) / pixel_scale_arcsec**2
+    ref = band.ab_zero_point_photons_s_m2 * np.pi * aperture_diameter_m**2 / 4.0
+    with np.errstate(divide="ignore"):
+        return -2.5 * np.log10(rate / ref)

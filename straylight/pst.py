@@ -1,0 +1,155 @@
+"""Point Source Transmission PST(theta, phi) (seed paper sect. 3): focal-plane irradiance over
+the irradiance at the aperture, for a point source at off-axis angle theta and azimuth phi of
+the telescope frame (phi = 0 towards the Sun's projection, the door side).
+
+The matrix is read from a file and interpolated bilinearly in log10(PST), periodic in phi:
+
+* CSV/ECSV table in long form with columns ``theta_deg, phi_deg, pst`` on a full grid;
+* FITS: a 2-D image (theta rows x phi columns) with 1-D tables ``THETA`` and ``PHI`` extensions;
+* Zarr: an xarray Dataset with variable ``pst`` on dims (theta_deg, phi_deg).
+
+On load it must be finite and positive, with strictly increasing grids covering theta 0-180 deg
+and phi 0-360 deg (phi 360, if present, equal to phi 0).  Anything else is refused with the
+file, the field and the value.
+
+No measured CSST matrix is public.  :func:`default_pst_grid` builds the embedded default from
+the paper's anchors; it is an assumption to be replaced by the measured matrix (config
+``pst.file``).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+from scipy.interpolate import RegularGridInterpolator
+
+from .errors import InputError
+
+# Anchors of the default PST (log10 PST vs theta, deg), azimuthally averaged.
+#  - theta <= 0.59 deg: inside the ~1.1 deg2 field, PST = 1 by definition (on-axis image);
+#  - just outside the field the out-of-field light is 4-6 orders below in-field (paper sect. 2.1):
+#    1e-4 at 1 deg, 1e-5 at 5 deg;
+#  - 1e-6 at 30 deg (paper sect. 2.1: "PST is approximately 1e-6" at 30 deg from the limb);
+#  - beyond, the baffle and sunshade keep falling (assumption: -0.04 dex/deg to 90 deg,
+#    then slower to 1e-10 behind the telescope, typical of baffled two-metre telescopes).
+DEFAULT_ANCHORS_DEG_LOG10 = (
+    (0.0, 0.0), (0.59, 0.0), (1.0, -4.0), (5.0, -5.0), (30.0, -6.0), (50.0, -6.7), (65.0, -7.3),
+    (90.0, -8.0), (120.0, -9.0), (180.0, -10.0),
+)
+#: Door-side asymmetry: up to this many dex darker towards phi = 0 (assumption: the door and its
+#: frame shade the sunward half of the sunshade; the paper says the PST is asymmetric in phi).
+DEFAULT_DOOR_SIDE_DEX = 0.3
+
+
+def default_pst_grid(theta_step_deg: float = 0.5, phi_step_deg: float = 5.0,
+                     door_side_dex: float = DEFAULT_DOOR_SIDE_DEX):
+    """The embedded default PST on a (theta, phi) grid: (theta_deg, phi_deg, pst[theta, phi])."""
+    theta = np.arange(0.0, 180.0 + theta_step_deg / 2, theta_step_deg)
+    phi = np.arange(0.0, 360.0 + phi_step_deg / 2, phi_step_deg)
+    a = np.array(DEFAULT_ANCHORS_DEG_LOG10)
+    log_azavg = np.interp(theta, a[:, 0], a[:, 1])
+    # asymmetry grows from 0 in the field to its full value beyond 10 deg; the azimuthal mean of
+    # -(dex/2)(1 + cos phi) is -dex/2, so add dex/2 back to keep the azimuthal mean on the anchors
+    ramp = np.clip((theta - 0.59) / (10.0 - 0.59), 0.0, 1.0)[:, None]
+    asym = door_side_dex * ramp * (0.5 - 0.5 * (1.0 + np.cos(np.radians(phi)))[None, :])
+    return theta, phi, 10.0 ** (log_azavg[:, None] + asym)
+
+
+@dataclass
+class PST:
+    theta_deg: np.ndarray
+    phi_deg: np.ndarray
+    values: np.ndarray  # (n_theta, n_phi)
+    source: str = "default"
+
+    def __post_init__(self):
+        src = self.source
+        th, ph, v = np.asarray(self.theta_deg, float), np.asarray(self.phi_deg, float), np.asarray(self.values, float)
+        if v.shape != (th.size, ph.size):
+            raise InputError(f"{src}: pst has shape {v.shape}, grids need ({th.size}, {ph.size})")
+        for name, g, lo, hi in (("theta_deg", th, 0.0, 180.0), ("phi_deg", ph, 0.0, 360.0)):
+            if not np.all(np.isfinite(g)):
+                raise InputError(f"{src}: {name} holds non-finite values")
+            if np.any(np.diff(g) <= 0):
+                i = int(np.flatnonzero(np.diff(g) <= 0)[0])
+                raise InputError(f"{src}: {name} is not strictly increasing at {g[i]} -> {g[i + 1]}")
+        if th[0] > 0.0 or th[-1] < 180.0:
+            raise InputError(f"{src}: theta_deg covers {th[0]}-{th[-1]}; it must cover 0-180 deg")
+        if ph[0] > 0.0 or ph[-1] < 360.0 - (ph[1] - ph[0]) - 1e-9 or ph[-1] > 360.0:
+            raise InputError(f"{src}: phi_deg covers {ph[0]}-{ph[-1]}; it must span 0-360 deg with a uniform step")
+        bad = ~np.isfinite(v) | (v <= 0)
+        if bad.any():
+            i, j = np.argwhere(bad)[0]
+            raise InputError(f"{src}: pst = {v[i, j]!r} at theta {th[i]}, phi {ph[j]}: must be finite and > 0")
+        if ph[-1] == 360.0 and not np.allclose(v[:, -1], v[:, 0], rtol=1e-9):
+            raise InputError(f"{src}: pst at phi 360 differs from phi 0; the matrix must be periodic")
+        self.theta_deg, self.phi_deg, self.values = th, ph, v
+
+    @cached_property
+    def _interp(self):
+        th, ph, v = self.theta_deg, self.phi_deg, np.log10(self.values)
+        if ph[-1] < 360.0:  # close the period
+            ph = np.append(ph, 360.0)
+            v = np.concatenate([v, v[:, :1]], axis=1)
+        return RegularGridInterpolator((th, ph), v, method="linear")
+
+    def __call__(self, theta_deg, phi_deg) -> np.ndarray:
+        """PST at (theta, phi) in degrees (any broadcastable shapes); phi wraps, theta clips."""
+        th, ph = np.broadcast_arrays(np.asarray(theta_deg, float), np.asarray(phi_deg, float))
+        th = np.clip(th, 0.0, 180.0)
+        ph = np.mod(ph, 360.0)
+        return (10.0 ** self._interp(np.stack([th, ph], axis=-1).reshape(-1, 2))).reshape(th.shape)
+
+    def azimuthal_mean(self, theta_deg) -> np.ndarray:
+        phi = np.linspace(0.0, 360.0, 73)[:-1]
+        return self(np.asarray(theta_deg)[..., None], phi).mean(axis=-1)
+
+
+def load_pst(path: str | Path | None) -> PST:
+    """Read a PST matrix file (see module doc); ``None`` gives the embedded default."""
+    if path is None:
+        th, ph, v = default_pst_grid()
+        return PST(th, ph, v, source="default (assumption, straylight.pst.default_pst_grid)")
+    p = Path(path)
+    if not p.exists():
+        raise InputError(f"pst.file: {p} does not exist")
+    suffix = p.suffix.lower()
+    try:
+        if suffix == ".zarr" or p.is_dir():
+            import xarray as xr
+
+            ds = xr.open_zarr(p)
+            da = ds["pst"].transpose("theta_deg", "phi_deg")
+            return PST(da["theta_deg"].values, da["phi_deg"].values, da.values, source=str(p))
+        if suffix in (".fits", ".fit"):
+            from astropy.io import fits
+
+            with fits.open(p) as h:
+                return PST(np.asarray(h["THETA"].data["theta_deg"]), np.asarray(h["PHI"].data["phi_deg"]),
+                           np.asarray(h[0].data, float), source=str(p))
+        from astropy.table import Table
+
+        t = Table.read(p, format="ascii.ecsv" if suffix == ".ecsv" else "ascii.csv", comment="#")
+    except InputError:
+        raise
+    except Exception as exc:
+        raise InputError(f"{p}: cannot read PST matrix ({exc})") from exc
+    missing = [c for c in ("theta_deg", "phi_deg", "pst") if c not in t.colnames]
+    if missing:
+        raise InputError(f"{p}: missing column(s) {', '.join(missing)}; have {', '.join(t.colnames)}")
+    th_all = np.asarray(t["theta_deg"], float)
+    ph_all = np.asarray(t["phi_deg"], float)
+    th, ph = np.unique(th_all), np.unique(ph_all)
+    if th.size * ph.size != len(t):
+        raise InputError(f"{p}: {len(t)} rows do not form a full theta x phi grid ({th.size} x {ph.size})")
+    v = np.full((th.size, ph.size), np.nan)
+    v[np.searchsorted(th, th_all), np.searchsorted(ph, ph_all)] = np.asarray(t["pst"], float)
+    return PST(th, ph, v, source=str(p))
+
+
+def write_pst_csv(pst: PST, path: str | Path) -> None:
+    th, ph = np.meshgrid(pst.theta_deg, pst.phi_deg, indexing="ij")
+    lines = ["theta_deg,phi_deg,pst"] + [f"{a:g},{b:g},{c:.6e}" for a, b, c in zip(th.ravel(), ph.ravel(), pst.values.ravel())]
+    Path(path).write_text("\n".join(lines) + "\n")

@@ -1,0 +1,255 @@
+"""Off-field stray light: PST, door, point sources, earthshine (issue #4 checks)."""
+import numpy as np
+import pytest
+
+from straylight.components import ComponentModel, StarTable
+from straylight.door import Door, door_length_from_paper
+from straylight.errors import ConfigError, InputError
+from straylight.geometry import observing_geometry, radec_to_unit, telescope_frame
+from straylight.offfield import EarthshineSettings, moon_v_magnitude, planet_v_magnitude
+from straylight.pst import PST, default_pst_grid, load_pst, write_pst_csv
+
+RE = 6378.137
+AU = 1.495978707e8
+
+
+# -- PST ---------------------------------------------------------------------------------------
+def test_default_pst_anchors():
+    pst = load_pst(None)
+    assert float(pst.azimuthal_mean(30.0)) == pytest.approx(1e-6, rel=0.05)  # paper: ~1e-6 at 30 deg
+    assert float(pst.azimuthal_mean(0.0)) == pytest.approx(1.0)
+    assert 1e-6 <= float(pst.azimuthal_mean(1.0)) <= 1.01e-4  # 4-6 orders below in-field near the field
+    # darker on the door side (phi = 0) than opposite
+    assert float(pst(40.0, 0.0)) < float(pst(40.0, 180.0))
+    # periodic in phi, finite at 0 and 180 deg
+    assert float(pst(40.0, 359.999)) == pytest.approx(float(pst(40.0, 0.0)), rel=1e-4)
+    assert np.all(np.isfinite(pst(np.array([0.0, 180.0]), np.array([0.0, 0.0]))))
+
+
+def test_pst_file_round_trip_and_interpolation_is_exact_at_nodes(tmp_path):
+    th, ph, v = default_pst_grid(theta_step_deg=2.0, phi_step_deg=10.0)
+    p = tmp_path / "pst.csv"
+    write_pst_csv(PST(th, ph, v), p)
+    pst = load_pst(p)
+    np.testing.assert_allclose(pst(th[:, None], ph[None, :]), v, rtol=1e-6)
+
+
+@pytest.mark.parametrize("mutate,match", [
+    (lambda th, ph, v: (th, ph, np.where(v > 1e-7, v, -1.0)), "must be finite and > 0"),
+    (lambda th, ph, v: (th, ph, np.where(v > 1e-7, v, np.nan)), "must be finite and > 0"),
+    (lambda th, ph, v: (th[:-10], ph, v[:-10]), "must cover 0-180"),
+])
+def test_invalid_pst_is_refused(tmp_path, mutate, match):
+    th, ph, v = default_pst_grid(theta_step_deg=2.0, phi_step_deg=10.0)
+    th, ph, v = mutate(th, ph, v)
+    p = tmp_path / "bad.csv"
+    lines = ["theta_deg,phi_deg,pst"] + [f"{a},{b},{c}" for a in th for b, c in zip(ph, v[list(th).index(a)])]
+    p.write_text("\n".join(lines))
+    with pytest.raises(InputError, match=match):
+        load_pst(p)
+
+
+def test_pst_missing_column_and_unsorted(tmp_path):
+    p = tmp_path / "x.csv"
+    p.write_text("theta,phi,pst\n0,0,1\n")
+    with pytest.raises(InputError, match="missing column"):
+        load_pst(p)
+    with pytest.raises(InputError, match="not strictly increasing"):
+        PST(np.array([0.0, 90.0, 80.0, 180.0]), np.array([0.0, 180.0, 360.0]), np.ones((4, 3)), source="t")
+
+
+# -- door --------------------------------------------------------------------------------------
+def _sun_dir(theta_deg, phi_deg=0.0):
+    t, p = np.radians(theta_deg), np.radians(phi_deg)
+    return np.array([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)])
+
+
+def test_door_admits_the_sun_exactly_as_the_paper_states():
+    """135 deg: Sun hidden beyond 65 deg; 105 deg: Sun hidden between 50 and 65 deg."""
+    d = Door(1.0, door_length_from_paper(1.0), door_length_from_paper(1.0), n_aperture=2048)
+    for th in (65.0, 70.0, 85.0):
+        assert float(d.unshaded_fraction(_sun_dir(th), 135.0)) == 0.0
+    for th in (50.0, 57.0, 65.0):
+        assert float(d.unshaded_fraction(_sun_dir(th), 105.0)) == 0.0
+    assert float(d.unshaded_fraction(_sun_dir(60.0), 135.0)) > 0.0  # partly shaded, not 0/1
+    assert float(d.unshaded_fraction(_sun_dir(20.0), 135.0)) == 1.0
+
+
+def test_door_shadow_is_the_geometric_fraction():
+    """In the door's azimuth the shadow edge on the aperture is a straight line x = x_c, so the
+    unshaded fraction is the circular-segment area: compare with the analytic segment."""
+    R = 1.0
+    L = door_length_from_paper(R)
+    d = Door(R, L, 50.0, n_aperture=20000)  # very wide door: 2-D geometry in the x-z plane
+    th = np.radians(58.0)
+    beta = np.radians(45.0)
+    # rays from aperture point x reach the door's top edge when x >= x_c:
+    x_c = R + L * np.cos(beta) - L * np.sin(beta) * np.tan(th)
+    seg = (np.arccos(x_c / R) - x_c / R * np.sqrt(1 - (x_c / R) ** 2)) / np.pi  # area fraction x > x_c
+    assert float(d.unshaded_fraction(_sun_dir(58.0), 135.0)) == pytest.approx(1 - seg, abs=0.01)
+
+
+def test_door_that_cannot_close_is_refused():
+    with pytest.raises(ConfigError, match="cannot close"):
+        Door(1.0, 1.5, 2.5)
+    with pytest.raises(ConfigError, match="cannot hide"):
+        door_length_from_paper(1.0, opening_deg=135.0, sun_cutoff_deg=40.0)
+
+
+# -- point sources ----------------------------------------------------------------------------
+def test_moon_phase_law_new_to_full_spans_8_to_10_mag():
+    """Paper sect. 1: new and full Moon differ by 8-10 mag (Krisciunas & Schaefer 1991 eq. 9)."""
+    full = moon_v_magnitude(0.0, 384400.0)
+    new = moon_v_magnitude(180.0, 384400.0)
+    assert full == pytest.approx(-12.73)
+    assert 8.0 <= new - full <= 10.0
+    a = np.linspace(0, 180, 50)
+    assert np.all(np.diff(moon_v_magnitude(a, 384400.0)) > 0)  # monotonic from full to new
+    assert moon_v_magnitude(0.0, 2 * 384400.0) == pytest.approx(full + 5 * np.log10(2))
+    prop = moon_v_magnitude(90.0, 384400.0, "proportional", elongation_deg=90.0)
+    assert prop == pytest.approx(-12.73 + 2.5 * np.log10(2))
+
+
+def test_planet_magnitudes_are_published_values():
+    """Meeus (1998) ch. 41: Jupiter at a perihelic opposition -2.9 (the paper's Table 1: -2.9),
+    at an average opposition -2.7; Venus near greatest brilliancy ~ -4.6."""
+    sun = np.array([AU, 0, 0])
+    earth = np.zeros(3)
+    jup = np.array([-3.95 * AU, 0, 0])  # perihelic opposition: r = 4.95 AU, Delta = 3.95 AU
+    assert float(planet_v_magnitude("jupiter", jup, sun, earth)) == pytest.approx(-2.94, abs=0.02)
+    jup = np.array([-4.2 * AU, 0, 0])  # r = 5.2 AU, Delta = 4.2 AU
+    assert float(planet_v_magnitude("jupiter", jup, sun, earth)) == pytest.approx(-2.70, abs=0.02)
+    # Venus at 0.4 AU from Earth, phase angle ~120 deg
+    venus_pos = sun + 0.723 * AU * np.array([-np.cos(np.radians(40)), np.sin(np.radians(40)), 0])
+    v = float(planet_v_magnitude("venus", venus_pos, sun, earth))
+    assert -4.9 < v < -3.9
+
+
+@pytest.fixture(scope="module")
+def comp_model(campaign):
+    return ComponentModel(campaign)
+
+
+def _scene_sample(los, sat, sun, moon, campaign):
+    bodies = {"sun": sun, "moon": moon}
+    g = observing_geometry(sat, bodies, los, RE, campaign.constraints)
+    g = {k: np.asarray(v).reshape(1) for k, v in g.items()}
+    return bodies, g
+
+
+def test_source_behind_the_earth_gives_exactly_zero(campaign, comp_model):
+    sat = np.array([[RE + 400.0, 0.0, 0.0]])
+    moon = np.array([[-384400.0, 0.0, 0.0]])  # behind the Earth as seen from the satellite
+    sun = np.array([[0.0, 0.0, AU]])
+    los = radec_to_unit(np.array([0.0]), np.array([0.0]))  # zenith-ish
+    bodies, g = _scene_sample(los, sat, sun, moon, campaign)
+    assert bool(g["moon_earth_blocked"][0])
+    out = comp_model.evaluate(sat, bodies, los, g, ["g"])
+    assert float(out["g"]["moon"][0]) == 0.0
+
+
+def test_sun_behind_the_door_gives_zero_and_components_reported_when_not_observable(campaign, comp_model):
+    sat = np.array([[RE + 400.0, 0.0, 0.0]])
+    los = np.array([[1.0, 0.0, 0.0]])
+    for sun_angle, expect_zero in ((70.0, True), (30.0, False)):
+        t = np.radians(sun_angle)
+        sun = np.array([[AU * np.cos(t), AU * np.sin(t), 0.0]]) + sat
+        bodies, g = _scene_sample(los, sat, sun, np.array([[0.0, 0.0, 384400.0]]), campaign)
+        out = comp_model.evaluate(sat, bodies, los, g, ["g"])
+        assert (float(out["g"]["sun"][0]) == 0.0) == expect_zero
+        assert np.isfinite(float(out["g"]["total"][0]))
+
+
+def test_star_term_sums_off_field_stars(campaign, comp_model):
+    sat = np.array([[RE + 400.0, 0.0, 0.0]])
+    los = np.array([[1.0, 0.0, 0.0]])
+    sun = np.array([[-AU, 0.0, 1.0]])
+    bodies, g = _scene_sample(los, sat, sun, np.array([[0.0, 0.0, 384400.0]]), campaign)
+    ra, dec = np.array([30.0, 0.0]), np.array([0.0, 0.0])  # one at 30 deg off axis, one on axis
+    stars = StarTable(ra, dec, {"g": np.array([0.0, 0.0])})
+    out = comp_model.evaluate(sat, bodies, los, g, ["g"], stars=stars)
+    off = comp_model.offfield
+    band = comp_model.band("g")
+    frame = telescope_frame(los, sun - sat)
+    th, ph = frame.theta_phi_deg(radec_to_unit(30.0, 0.0))
+    expected = band.ab_zero_point_photons_s_m2 * off.pst(th, ph) * off.door_factor(th, ph, 135.0) * off.pixel_area_m2
+    assert float(out["g"]["stars"][0]) == pytest.approx(float(np.ravel(expected)[0]), rel=1e-9)
+
+
+# -- earthshine --------------------------------------------------------------------------------
+def test_uniform_lambertian_cap_matches_analytic_irradiance(comp_model):
+    """Sum of L dOmega cos(gamma) over the cap grid = pi L sin^2(rho) within 0.5 %."""
+    off = comp_model.offfield
+    sat = np.array([RE + 400.0, 0.0, 0.0])
+    s = EarthshineSettings(n_gamma=24, n_psi=48)
+    d, d_omega, pts = off._cap_grid(sat, RE, s)
+    nadir = -sat / np.linalg.norm(sat)
+    cosg = d @ nadir
+    rho = np.arcsin(RE / np.linalg.norm(sat))
+    total = np.sum(d_omega * cosg)
+    assert total == pytest.approx(np.pi * np.sin(rho) ** 2, rel=0.005)
+    assert np.allclose(np.linalg.norm(pts, axis=-1), RE, rtol=1e-9)  # blocks lie on the Earth
+
+
+def _earthshine(comp_model, campaign, limb_offset_deg, n_gamma=24, n_psi=48, moon_phase_full=False, sun_up=True):
+    import copy
+
+    off = copy.copy(comp_model.offfield)
+    off.earthshine = EarthshineSettings(n_gamma=n_gamma, n_psi=n_psi)
+    sat = np.array([[RE + 400.0, 0.0, 0.0]])
+    rho = np.degrees(np.arcsin(RE / (RE + 400.0)))
+    gamma = np.radians(rho + limb_offset_deg)  # angle from nadir of the LOS
+    los = np.array([[-np.cos(gamma), np.sin(gamma), 0.0]])
+    sun = np.array([[AU, 0.0, 0.3 * AU]]) if sun_up else np.array([[-AU, 0.0, 0.2 * AU]])
+    # with the Sun on the far side (-x), a full Moon stands on the satellite's side (+x) and lights
+    # the night hemisphere the satellite sees; a new Moon (-x, near the Sun) lights the far side
+    moon = np.array([[384400.0, 0.0, 20000.0]]) if moon_phase_full else np.array([[-384400.0, 0.0, 20000.0]])
+    bodies, g = _scene_sample(los, sat, sun, moon, campaign)
+    frame = telescope_frame(los, sun - sat)
+    phot_sun = 5e20
+    ea1, ea2 = off.earthshine_terms(sat, sun, moon, frame, g["door_opening_deg"], np.array([phot_sun]),
+                                    np.array([phot_sun * 10 ** (-0.4 * 13.99)]), RE)
+    return float(ea1[0] + ea2[0])
+
+
+def test_earthshine_converges_with_the_grid(comp_model, campaign):
+    """Doubling the Earth-grid resolution changes earthshine by < 1 % at the default (24 x 48)."""
+    for offset in (30.0, 60.0):
+        base = _earthshine(comp_model, campaign, offset)
+        fine = _earthshine(comp_model, campaign, offset, n_gamma=48, n_psi=96)
+        print(f"limb +{offset} deg: {base:.4g} vs {fine:.4g} e-/s/pix (rel {abs(base / fine - 1):.2e})")
+        assert base == pytest.approx(fine, rel=0.01)
+
+
+def test_earthshine_grows_as_the_limb_angle_falls(comp_model, campaign):
+    vals = [_earthshine(comp_model, campaign, off) for off in (80.0, 60.0, 40.0, 20.0, 10.0)]
+    assert all(b > a for a, b in zip(vals, vals[1:])), vals
+
+
+def test_night_side_earthshine_follows_the_moon(comp_model, campaign):
+    full = _earthshine(comp_model, campaign, 30.0, sun_up=False, moon_phase_full=True)
+    new = _earthshine(comp_model, campaign, 30.0, sun_up=False, moon_phase_full=False)
+    day = _earthshine(comp_model, campaign, 30.0, sun_up=True)
+    assert full > new >= 0.0 and day > full
+
+
+def test_bad_earthshine_settings():
+    with pytest.raises(ConfigError, match="albedo = -0.1"):
+        EarthshineSettings(albedo=-0.1)
+    with pytest.raises(ConfigError, match="needs n_gamma"):
+        EarthshineSettings(n_gamma=1)
+
+
+def test_negative_albedo_in_config_is_refused(tmp_path):
+    import yaml
+
+    from conftest import REPO
+    from straylight.config import load_campaign
+
+    cfg = yaml.safe_load((REPO / "config" / "config.yaml").read_text())
+    cfg["instrument"] = str(REPO / "config" / "instruments" / "csst.yaml")
+    cfg["models"]["earthshine"]["albedo"] = -0.2
+    p = tmp_path / "c.yaml"
+    p.write_text(yaml.safe_dump(cfg))
+    with pytest.raises(ConfigError, match="models.earthshine.albedo = -0.2: must be >= 0"):
+        load_campaign(p)
