@@ -9,6 +9,7 @@ import argparse
 import json
 import math
 import sys
+from pathlib import Path
 
 import numpy as np
 
@@ -213,6 +214,32 @@ def cmd_footprint(args) -> int:
     return 0
 
 
+def cmd_scenario(args) -> int:
+    from astropy.table import Table
+
+    from .config import load_campaign
+    from .scenarios import earthshine_scenario, plot_earthshine_scenario
+
+    campaign = load_campaign(args.config)
+    res = earthshine_scenario(campaign, band=args.band)
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    cols = {k: v for k, v in res.items() if isinstance(v, np.ndarray)}
+    Table(cols).write(out.with_suffix(".csv"), overwrite=True)
+    plot_earthshine_scenario(res, out, args.hst_csv)
+    sel = res["limb_is_bright"] & (res["earth_limb_angle_deg"] > 0)
+    print(f"{out}: {int(sel.sum())} sunlit-limb pointings of {sel.size}; table {out.with_suffix('.csv')}")
+    return 0
+
+
+def cmd_pst(args) -> int:
+    from .pst import load_pst, write_pst_csv
+
+    write_pst_csv(load_pst(None), args.write_default)
+    print(f"{args.write_default}: embedded default PST (assumption; see straylight.pst.default_pst_grid)")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="straylight", description="CSST stray-light and sky-background pipeline")
     sub = p.add_subparsers(dest="command", required=True)
@@ -248,6 +275,17 @@ def build_parser() -> argparse.ArgumentParser:
     im.add_argument("--no-ghosts", action="store_true", help="list ghost discs but do not paint them")
     im.add_argument("--config", default=None, help="campaign config (default: config/config.yaml)")
     im.set_defaults(func=cmd_image)
+
+    sc = sub.add_parser("scenario", help="the paper's earthshine scenario (sect. 3.3) as a figure and a table")
+    sc.add_argument("--out", default="results/scenarios/earthshine.png", help="output PNG (a CSV goes beside it)")
+    sc.add_argument("--band", default="V", help="band (default V, as the HST comparison)")
+    sc.add_argument("--hst-csv", default=None, help="HST curve to overlay: limb_angle_deg, v_mag_per_arcsec2")
+    sc.add_argument("--config", default=None, help="campaign config (default: config/config.yaml)")
+    sc.set_defaults(func=cmd_scenario)
+
+    ps = sub.add_parser("pst", help="export the embedded default PST matrix (CSV) to inspect or replace")
+    ps.add_argument("--write-default", required=True, help="output CSV (theta_deg, phi_deg, pst)")
+    ps.set_defaults(func=cmd_pst)
 
     f = sub.add_parser("footprint", help="print the survey footprint of a campaign")
     f.add_argument("--config", default=None, help="campaign config (default: config/config.yaml)")

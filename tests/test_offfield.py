@@ -253,3 +253,23 @@ def test_negative_albedo_in_config_is_refused(tmp_path):
     p.write_text(yaml.safe_dump(cfg))
     with pytest.raises(ConfigError, match="models.earthshine.albedo = -0.2: must be >= 0"):
         load_campaign(p)
+
+
+def test_earthshine_scenario_of_the_paper(campaign, tmp_path):
+    """Sect. 3.3 scenario: earthshine falls with the bright-limb angle and reaches the zodiacal
+    level only far from the limb (the paper: CSST needs ~70 deg to match HST at 20 deg; CSST's
+    bright-limb constraint is 80 deg)."""
+    from straylight.scenarios import earthshine_scenario, plot_earthshine_scenario
+
+    res = earthshine_scenario(campaign)
+    sel = res["limb_is_bright"] & (res["earth_limb_angle_deg"] > 0)
+    limb = res["earth_limb_angle_deg"][sel]
+    es = res["earthshine_e_per_s_per_pix"][sel]
+    zodi_mag = np.median(res["zodiacal_mag_per_arcsec2"][sel])
+    es_mag = res["earthshine_mag_per_arcsec2"][sel]
+    near, far = es[limb < 20].min(), es[(limb > 50) & (limb < 70)].max()
+    assert near > 10 * far
+    # brighter than the zodiacal light everywhere within 60 deg of the bright limb
+    assert np.all(es_mag[limb < 60] < zodi_mag)
+    plot_earthshine_scenario(res, tmp_path / "es.png")
+    assert (tmp_path / "es.png").stat().st_size > 10000
