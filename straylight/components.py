@@ -50,6 +50,7 @@ class ComponentModel:
             door=door_from_instrument(inst),
             door_states_deg=tuple(float(s["opening_deg"]) for s in inst["door"]["states"]),
             pixel_area_m2=(self.campaign.instrument_value("detector", "pixel_size_um") * 1e-6) ** 2,
+            pixel_etendue_m2_sr=self.zodiacal.pixel_etendue_m2_sr,
             earthshine=EarthshineSettings(
                 n_gamma=int(es.get("n_gamma", 24)), n_psi=int(es.get("n_psi", 48)),
                 albedo=float(es.get("albedo", 0.3)), door_blocks=tuple(es.get("door_blocks", (8, 8))),

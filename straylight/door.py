@@ -108,7 +108,12 @@ class Door:
 
 @dataclass(frozen=True)
 class DoorTable:
-    """Precomputed Sp(theta, phi) for one door state (theta 0-90 deg; Sp = 0 beyond 90)."""
+    """Precomputed Sp(theta, phi) for one door state over theta 0-90 deg.
+
+    Beyond 90 deg the source is behind the aperture plane: what reaches the focal plane from
+    there is the PST's business (sunshade and baffle scatter), and the door shades it no more
+    than at 90 deg, so Sp continues at its 90 deg value (continuous, no step for the earthshine
+    grid to resolve)."""
 
     theta_deg: np.ndarray
     phi_deg: np.ndarray
@@ -120,9 +125,8 @@ class DoorTable:
 
     def __call__(self, theta_deg, phi_deg) -> np.ndarray:
         th, ph = np.broadcast_arrays(np.asarray(theta_deg, float), np.asarray(phi_deg, float))
-        inside = th < 90.0
         pts = np.stack([np.clip(th, 0.0, 90.0), np.mod(ph, 360.0)], axis=-1).reshape(-1, 2)
-        return np.where(inside, self._interp(pts).reshape(th.shape), 0.0)
+        return self._interp(pts).reshape(th.shape)
 
 
 def door_from_instrument(instrument: dict) -> Door:

@@ -137,6 +137,8 @@ class OffFieldModel:
     door: Door
     door_states_deg: tuple[float, ...]
     pixel_area_m2: float
+    pixel_etendue_m2_sr: float = 0.0  # pi D^2 / 4 * (p / f)^2, for the Earth seen inside the field
+    field_radius_deg: float = 0.59  # sqrt(1.1 deg2 / pi): the field of view (seed paper sect. 1)
     earthshine: EarthshineSettings = field(default_factory=EarthshineSettings)
     moon_law: str = "krisciunas_schaefer"
     moon_eclipse_factor: float = 1e-4
@@ -170,14 +172,16 @@ class OffFieldModel:
         rho = np.arcsin(np.clip(earth_radius_km / norm(sat_km), 0, 1))
         e1 = perpendicular_towards(nadir, np.broadcast_to(np.array([0.0, 0.0, 1.0]), nadir.shape))
         e2 = np.cross(nadir, e1)
-        k = (np.arange(s.n_gamma) + 0.5) / s.n_gamma
-        gamma = rho[..., None] * k  # (..., G)
-        dgamma = rho / s.n_gamma
+        # nadir angles packed towards the limb, where the Earth lies closest to an allowed line
+        # of sight and the terminator crosses it: gamma = rho sin(pi u / 2), u uniform
+        u = (np.arange(s.n_gamma) + 0.5) / s.n_gamma
+        gamma = rho[..., None] * np.sin(0.5 * np.pi * u)  # (..., G)
+        dgamma = rho[..., None] * 0.5 * np.pi * np.cos(0.5 * np.pi * u) / s.n_gamma
         psi = (np.arange(s.n_psi) + 0.5) * 2 * np.pi / s.n_psi
         cg, sg = np.cos(gamma)[..., :, None, None], np.sin(gamma)[..., :, None, None]
         cp, spp = np.cos(psi)[:, None], np.sin(psi)[:, None]
         d = cg * nadir[..., None, None, :] + sg * (cp * e1[..., None, None, :] + spp * e2[..., None, None, :])
-        d_omega = np.sin(gamma)[..., :, None] * dgamma[..., None, None] * (2 * np.pi / s.n_psi)
+        d_omega = (np.sin(gamma) * dgamma)[..., :, None] * (2 * np.pi / s.n_psi)
         rr = norm(sat_km)[..., None]  # (..., 1)
         t = rr * np.cos(gamma) - np.sqrt(np.maximum(earth_radius_km**2 - (rr * np.sin(gamma)) ** 2, 0))
         points = sat_km[..., None, None, :] + t[..., :, None, None] * d
@@ -220,6 +224,21 @@ class OffFieldModel:
             out[state] = (q.reshape(-1, 3), n_in, w.reshape(-1))
         return out
 
+    def _earth_in_field(self, sat_km, sun_km, moon_km, frame, sun_irr, moon_irr_at_earth, earth_radius_km):
+        """Where the line of sight hits the Earth, its surface is imaged like any extended
+        source: radiance x pixel etendue (e-/s/pix); 0 elsewhere."""
+        los = np.broadcast_to(frame.z, np.broadcast(np.asarray(sat_km), frame.z).shape)
+        sat = np.broadcast_to(np.asarray(sat_km, float), los.shape)
+        b = dot(sat, los)
+        c = dot(sat, sat) - earth_radius_km**2
+        disc = b * b - c
+        hits = (disc > 0) & (b < 0)
+        t = -b - np.sqrt(np.maximum(disc, 0.0))
+        pts = sat + t[..., None] * los
+        lum = self.earth_radiance(pts[..., None, None, :], sun_km, moon_km, sun_irr, moon_irr_at_earth,
+                                  self.earthshine.albedo, earth_radius_km)[..., 0, 0]
+        return np.where(hits, lum * self.pixel_etendue_m2_sr, 0.0)
+
     def earthshine_terms(self, sat_km, sun_km, moon_km, frame, opening_deg, sun_irr, moon_irr_at_earth,
                          earth_radius_km) -> tuple[np.ndarray, np.ndarray]:
         """(EA1 direct, EA2 via the door) in e-/s/pix for samples (leading shapes broadcast)."""
@@ -235,7 +254,11 @@ class OffFieldModel:
         phi = np.degrees(np.arctan2(dy, dx)) % 360.0
         op = np.broadcast_to(np.asarray(opening_deg, float)[..., None, None], theta.shape)
         sp = self.door_factor(theta, phi, op)
-        ea1 = np.sum(e_block * sp * self.pst(theta, phi), axis=(-2, -1)) * self.pixel_area_m2
+        # blocks inside the field are replaced by the in-field term below (a grid block cannot
+        # resolve the 0.6 deg field, where the PST jumps to 1)
+        out_of_field = theta > self.field_radius_deg
+        ea1 = np.sum(e_block * sp * self.pst(theta, phi) * out_of_field, axis=(-2, -1)) * self.pixel_area_m2
+        ea1 = ea1 + self._earth_in_field(sat_km, sun_km, moon_km, frame, sun_irr, moon_irr_at_earth, earth_radius_km)
         # door path: irradiance on each door block from the Earth blocks in front of its face
         ea2 = np.zeros(ea1.shape)
         for state, (q, n_in, w) in self._door_weights.items():

@@ -1,0 +1,88 @@
+"""Benchmark: cost per (time, pointing) sample of the off-field terms, and the earthshine
+error against cost as the Earth-grid knob varies (reference: 96 x 192 blocks).
+
+Prints the figures and writes bench/results/offfield.json.  Run:  OMP_NUM_THREADS=1 python bench/offfield.py
+"""
+from __future__ import annotations
+
+import copy
+import json
+import os
+import time
+from pathlib import Path
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+
+
+def main():
+    from straylight.components import ComponentModel
+    from straylight.config import load_campaign
+    from straylight.geometry import observing_geometry, radec_to_unit, telescope_frame
+    from straylight.offfield import BandPhotometry, EarthshineSettings
+    from straylight.sky import scene
+
+    c = load_campaign()
+    cm = ComponentModel(c)
+    rng = np.random.default_rng(11)
+    n = 400
+    times = c.times[rng.integers(0, len(c.times), n)]
+    sc = scene(c, times)
+    ra, dec = rng.uniform(0, 360, n), np.degrees(np.arcsin(rng.uniform(-1, 1, n)))
+    los = radec_to_unit(ra, dec)
+    g = observing_geometry(sc.satellite_km, sc.bodies_km, los, c.earth.radius_km, c.constraints)
+    cm.evaluate(sc.satellite_km[:2], {k: v[:2] for k, v in sc.bodies_km.items()}, los[:2],
+                {k: v[:2] for k, v in g.items()}, ["g"])  # warm up (door tables)
+    t0 = time.perf_counter()
+    out = cm.evaluate(sc.satellite_km, sc.bodies_km, los, g, ["g"])
+    t_all = time.perf_counter() - t0
+    off = cm.offfield
+    frame = telescope_frame(los, sc.bodies_km["sun"] - sc.satellite_km)
+    phot = BandPhotometry(cm.band("g"))
+    sun_irr = np.full(n, phot.sun_at_1au_photons_s_m2)
+    moon_irr = sun_irr * 10 ** (-0.4 * 14.0)
+    results = {"samples": n, "band": "g", "all_terms_s_per_sample_one_band": t_all / n, "earthshine": {}}
+    t0 = time.perf_counter()
+    off.point_source(sun_irr, g["sun_angle_deg"], g["sun_phi_deg"], g["sun_earth_blocked"], g["door_opening_deg"])
+    results["point_source_s_per_sample"] = (time.perf_counter() - t0) / n
+
+    def earthshine(ng, npsi):
+        o = copy.copy(off)
+        o.earthshine = EarthshineSettings(n_gamma=ng, n_psi=npsi)
+        o.__dict__.pop("_door_weights", None)
+        t = time.perf_counter()
+        a, b = o.earthshine_terms(sc.satellite_km, sc.bodies_km["sun"], sc.bodies_km["moon"], frame,
+                                  g["door_opening_deg"], sun_irr, moon_irr, c.earth.radius_km)
+        return a + b, (time.perf_counter() - t) / n
+
+    ref, t_ref = earthshine(96, 192)
+    results["earthshine"]["reference_96x192_s_per_sample"] = t_ref
+    zodi = out["g"]["zodiacal"]
+    limb = g["earth_limb_angle_deg"]
+    for ng, npsi in ((6, 12), (12, 24), (24, 48), (48, 96)):
+        val, t = earthshine(ng, npsi)
+        rel = np.abs(val - ref) / np.maximum(ref, 1e-300)
+        rel_bg = np.abs(val - ref) / (ref + zodi)  # error as a fraction of earthshine + zodiacal light
+        row = {"s_per_sample": t}
+        for label, sel in (("all", np.ones(n, bool)), ("limb_gt_10deg", limb > 10), ("limb_gt_30deg", limb > 30),
+                           ("observable", g["observable"])):
+            if sel.any():
+                row[label] = {"max_rel_error": float(rel[sel].max()), "median_rel_error": float(np.median(rel[sel])),
+                              "max_error_over_background": float(rel_bg[sel].max()), "n": int(sel.sum())}
+        results["earthshine"][f"{ng}x{npsi}"] = row
+        print(f"earthshine grid {ng:3d} x {npsi:3d}: {t * 1e3:6.2f} ms/sample; median rel error {row['all']['median_rel_error']:.1e}; "
+              f"max error / (earthshine + zodiacal): all {row['all']['max_error_over_background']:.1e}, "
+              f"limb>10 {row['limb_gt_10deg']['max_error_over_background']:.1e}, "
+              f"limb>30 {row['limb_gt_30deg']['max_error_over_background']:.1e}"
+              + (f", observable {row['observable']['max_error_over_background']:.1e}" if "observable" in row else ""))
+    print(f"reference 96 x 192: {t_ref * 1e3:.2f} ms/sample; point source: {results['point_source_s_per_sample'] * 1e6:.1f} "
+          f"us/sample; all terms, one band: {t_all / n * 1e3:.2f} ms/sample")
+    path = Path(__file__).resolve().parent / "results" / "offfield.json"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(results, indent=2) + "\n")
+    print(f"wrote {path}")
+
+
+if __name__ == "__main__":
+    main()
