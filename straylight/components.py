@@ -85,6 +85,7 @@ class ComponentModel:
         v_moon_at_earth = moon_v_magnitude(geometry["moon_phase_angle_deg"], norm(moon), off.moon_law,
                                            geometry["moon_elongation_deg"])
         eclipse = np.where(moon_eclipsed, off.moon_eclipse_factor, 1.0)
+        es_coeff = off.earthshine_coefficients(sat, sun, moon, frame, door, re_km)  # once for all bands
         aperture_d = self.campaign.instrument_value("telescope", "aperture_diameter_m")
         pix_arcsec = self.campaign.instrument_value("detector", "pixel_scale_arcsec")
         out = {}
@@ -109,7 +110,8 @@ class ComponentModel:
             res["planets"] = planets
             res["stars"] = self._stars(stars, name, phot, frame, sat, door, shape) if stars is not None else np.zeros(shape)
             moon_irr_earth = phot.solar_like_from_v(v_moon_at_earth) * eclipse
-            ea1, ea2 = off.earthshine_terms(sat, sun, moon, frame, door, sun_irr, moon_irr_earth, re_km)
+            ea1 = es_coeff["direct_sun"] * sun_irr + es_coeff["direct_moon"] * moon_irr_earth
+            ea2 = es_coeff["door_sun"] * sun_irr + es_coeff["door_moon"] * moon_irr_earth
             res["earthshine_direct"], res["earthshine_door"] = np.broadcast_to(ea1, shape), np.broadcast_to(ea2, shape)
             res["earthshine"] = res["earthshine_direct"] + res["earthshine_door"]
             res = {k: np.asarray(v, dtype=float) for k, v in res.items()}

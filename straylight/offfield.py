@@ -239,39 +239,54 @@ class OffFieldModel:
                                   self.earthshine.albedo, earth_radius_km)[..., 0, 0]
         return np.where(hits, lum * self.pixel_etendue_m2_sr, 0.0)
 
-    def earthshine_terms(self, sat_km, sun_km, moon_km, frame, opening_deg, sun_irr, moon_irr_at_earth,
-                         earth_radius_km) -> tuple[np.ndarray, np.ndarray]:
-        """(EA1 direct, EA2 via the door) in e-/s/pix for samples (leading shapes broadcast)."""
+    def earthshine_coefficients(self, sat_km, sun_km, moon_km, frame, opening_deg, earth_radius_km) -> dict:
+        """Band-independent earthshine per unit photon irradiance of the Sun and of the Moon (at
+        the Earth): keys direct_sun, direct_moon, door_sun, door_moon, in e-/s/pix per
+        (photons s-1 m-2).  The albedo is grey, so a band's earthshine is
+        c_sun * E_sun,band + c_moon * E_moon,band; the geometry is computed once for all bands."""
         s = self.earthshine
         d, d_omega, pts = self._cap_grid(sat_km, earth_radius_km, s)
-        lum = self.earth_radiance(pts, sun_km, moon_km, sun_irr, moon_irr_at_earth, s.albedo, earth_radius_km)
-        e_block = lum * d_omega  # photons s-1 m-2 at the aperture, normal to each block's direction
-        # telescope-frame coordinates of every block direction
+        ones = np.ones(np.shape(d_omega)[:-2])
+        lum_sun = self.earth_radiance(pts, sun_km, moon_km, ones, 0.0 * ones, s.albedo, earth_radius_km)
+        lum_moon = self.earth_radiance(pts, sun_km, moon_km, 0.0 * ones, ones, s.albedo, earth_radius_km)
         dx = dot(d, frame.x[..., None, None, :])
         dy = dot(d, frame.y[..., None, None, :])
         dz = dot(d, frame.z[..., None, None, :])
         theta = np.degrees(np.arctan2(np.hypot(dx, dy), dz))
         phi = np.degrees(np.arctan2(dy, dx)) % 360.0
         op = np.broadcast_to(np.asarray(opening_deg, float)[..., None, None], theta.shape)
-        sp = self.door_factor(theta, phi, op)
-        # blocks inside the field are replaced by the in-field term below (a grid block cannot
-        # resolve the 0.6 deg field, where the PST jumps to 1)
-        out_of_field = theta > self.field_radius_deg
-        ea1 = np.sum(e_block * sp * self.pst(theta, phi) * out_of_field, axis=(-2, -1)) * self.pixel_area_m2
-        ea1 = ea1 + self._earth_in_field(sat_km, sun_km, moon_km, frame, sun_irr, moon_irr_at_earth, earth_radius_km)
-        # door path: irradiance on each door block from the Earth blocks in front of its face
-        ea2 = np.zeros(ea1.shape)
+        # blocks inside the field are replaced by the in-field term (a grid block cannot resolve
+        # the 0.6 deg field, where the PST jumps to 1)
+        w_direct = (self.door_factor(theta, phi, op) * self.pst(theta, phi) * (theta > self.field_radius_deg)
+                    * d_omega * self.pixel_area_m2)
+        out = {
+            "direct_sun": np.sum(lum_sun * w_direct, axis=(-2, -1))
+            + self._earth_in_field(sat_km, sun_km, moon_km, frame, ones, 0.0 * ones, earth_radius_km),
+            "direct_moon": np.sum(lum_moon * w_direct, axis=(-2, -1))
+            + self._earth_in_field(sat_km, sun_km, moon_km, frame, 0.0 * ones, ones, earth_radius_km),
+        }
+        # door path: irradiance on the door's inner face from the Earth blocks in front of it
+        door_sun = np.zeros(out["direct_sun"].shape)
+        door_moon = np.zeros(out["direct_sun"].shape)
+        narrowest = min(self._door_weights)
         for state, (q, n_in, w) in self._door_weights.items():
-            sel = (np.asarray(opening_deg) == state) | ((np.asarray(opening_deg) <= 0) & (state == min(self._door_weights)))
-            sel = np.broadcast_to(sel, ea1.shape)
+            sel = (np.asarray(opening_deg) == state) | ((np.asarray(opening_deg) <= 0) & (state == narrowest))
+            sel = np.broadcast_to(sel, door_sun.shape)
             if not np.any(sel):
                 continue
-            # a block lights the inner face when it lies in front of it (d . n_in > 0)
-            cos_inc = np.maximum(dx * n_in[0] + dy * n_in[1] + dz * n_in[2], 0.0)
-            mp = np.sum(e_block * cos_inc, axis=(-2, -1))  # same for every door block (distant Earth)
-            val = s.door_reflectance * mp * np.sum(w) * self.pixel_area_m2
-            ea2 = np.where(sel, val, ea2)
-        return ea1, ea2
+            cos_inc = np.maximum(dx * n_in[0] + dy * n_in[1] + dz * n_in[2], 0.0)  # d . n_in > 0: in front
+            k = s.door_reflectance * np.sum(w) * self.pixel_area_m2
+            door_sun = np.where(sel, k * np.sum(lum_sun * d_omega * cos_inc, axis=(-2, -1)), door_sun)
+            door_moon = np.where(sel, k * np.sum(lum_moon * d_omega * cos_inc, axis=(-2, -1)), door_moon)
+        out["door_sun"], out["door_moon"] = door_sun, door_moon
+        return out
+
+    def earthshine_terms(self, sat_km, sun_km, moon_km, frame, opening_deg, sun_irr, moon_irr_at_earth,
+                         earth_radius_km) -> tuple[np.ndarray, np.ndarray]:
+        """(EA1 direct, EA2 via the door) in e-/s/pix for samples (leading shapes broadcast)."""
+        c = self.earthshine_coefficients(sat_km, sun_km, moon_km, frame, opening_deg, earth_radius_km)
+        return (c["direct_sun"] * sun_irr + c["direct_moon"] * moon_irr_at_earth,
+                c["door_sun"] * sun_irr + c["door_moon"] * moon_irr_at_earth)
 
 
 def magnitude_per_arcsec2(e_per_s_per_pix, band: Band, aperture_diameter_m: float, pixel_scale_arcsec: float):

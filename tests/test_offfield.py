@@ -273,3 +273,42 @@ def test_earthshine_scenario_of_the_paper(campaign, tmp_path):
     assert np.all(es_mag[limb < 60] < zodi_mag)
     plot_earthshine_scenario(res, tmp_path / "es.png")
     assert (tmp_path / "es.png").stat().st_size > 10000
+
+
+@pytest.mark.parametrize("fmt", ["fits", "zarr", "ecsv"])
+def test_pst_file_formats(tmp_path, fmt):
+    """The same default matrix through FITS (image + THETA/PHI tables), Zarr and ECSV."""
+    th, ph, v = default_pst_grid(theta_step_deg=5.0, phi_step_deg=30.0)
+    if fmt == "fits":
+        from astropy.io import fits
+        from astropy.table import Table
+
+        p = tmp_path / "pst.fits"
+        fits.HDUList([fits.PrimaryHDU(v), fits.BinTableHDU(Table({"theta_deg": th}), name="THETA"),
+                      fits.BinTableHDU(Table({"phi_deg": ph}), name="PHI")]).writeto(p)
+    elif fmt == "zarr":
+        import xarray as xr
+
+        p = tmp_path / "pst.zarr"
+        xr.Dataset({"pst": (("theta_deg", "phi_deg"), v)}, coords={"theta_deg": th, "phi_deg": ph}).to_zarr(p)
+    else:
+        from astropy.table import Table
+
+        tt, pp = np.meshgrid(th, ph, indexing="ij")
+        p = tmp_path / "pst.ecsv"
+        Table({"theta_deg": tt.ravel(), "phi_deg": pp.ravel(), "pst": v.ravel()}).write(p)
+    pst = load_pst(p)
+    np.testing.assert_allclose(pst(th[:, None], ph[None, :]), v, rtol=1e-9)
+
+
+def test_band_independent_earthshine_equals_per_band(comp_model):
+    """Coefficients x irradiance equal the direct per-band evaluation (linearity in the lamps)."""
+    off = comp_model.offfield
+    sat = np.array([[RE + 400.0, 0.0, 0.0]])
+    los = np.array([[0.3, 0.9, 0.3]]) / np.linalg.norm([0.3, 0.9, 0.3])
+    sun, moon = np.array([[AU, 0.2 * AU, 0.0]]), np.array([[-2e5, 3e5, 1e4]])
+    frame = telescope_frame(los, sun - sat)
+    c = off.earthshine_coefficients(sat, sun, moon, frame, np.array([135.0]), RE)
+    a, b = off.earthshine_terms(sat, sun, moon, frame, np.array([135.0]), np.array([3.0]), np.array([2.0]), RE)
+    assert float(a[0]) == pytest.approx(float(3 * c["direct_sun"][0] + 2 * c["direct_moon"][0]), rel=1e-12)
+    assert float(b[0]) == pytest.approx(float(3 * c["door_sun"][0] + 2 * c["door_moon"][0]), rel=1e-12)
