@@ -5,8 +5,8 @@ Prints the figures and writes bench/results/ephemeris.json.  Run with one thread
 """
 from __future__ import annotations
 
-import json
 import os
+import sys
 import platform
 import time
 from pathlib import Path
@@ -15,6 +15,9 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _results import write_results  # noqa: E402
 
 
 def best_of(fn, repeat=3):
@@ -73,10 +76,7 @@ def main():
     }
     for k, v in results.items():
         print(f"{k:55s} {v:.3e}" if isinstance(v, float) else f"{k:55s} {v}")
-    out = Path(__file__).resolve().parent / "results" / "ephemeris.json"
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(results, indent=2) + "\n")
-    print(f"wrote {out}")
+    write_results("ephemeris", results)
 
 
 if __name__ == "__main__":

@@ -6,14 +6,17 @@ bench/results/image.json.  Run:  OMP_NUM_THREADS=1 python bench/image.py
 """
 from __future__ import annotations
 
-import json
 import os
+import sys
 import time
 from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _results import write_results  # noqa: E402
 
 
 def main():
@@ -67,10 +70,7 @@ def main():
                 "max_rel_error": float(rel.max()), "p99_rel_error": float(np.percentile(rel, 99)), "time_s": dt}
             print(f"cut-out near {rn:3d} px far_bin {b:2d}: max rel error {rel.max():.2e}, "
                   f"99th pct {np.percentile(rel, 99):.2e}, {dt:.2f} s")
-    out = Path(__file__).resolve().parent / "results" / "image.json"
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(results, indent=2) + "\n")
-    print(f"wrote {out}")
+    write_results("image", results)
 
 
 if __name__ == "__main__":

@@ -6,14 +6,17 @@ Prints the figures and writes bench/results/offfield.json.  Run:  OMP_NUM_THREAD
 from __future__ import annotations
 
 import copy
-import json
 import os
+import sys
 import time
 from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _results import write_results  # noqa: E402
 
 
 def main():
@@ -78,10 +81,7 @@ def main():
               + (f", observable {row['observable']['max_error_over_background']:.1e}" if "observable" in row else ""))
     print(f"reference 96 x 192: {t_ref * 1e3:.2f} ms/sample; point source: {results['point_source_s_per_sample'] * 1e6:.1f} "
           f"us/sample; all terms, one band: {t_all / n * 1e3:.2f} ms/sample")
-    path = Path(__file__).resolve().parent / "results" / "offfield.json"
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(results, indent=2) + "\n")
-    print(f"wrote {path}")
+    write_results("offfield", results)
 
 
 if __name__ == "__main__":
