@@ -16,6 +16,8 @@ include: "workflow/rules/common.smk"
 include: "workflow/rules/ephemeris.smk"
 include: "workflow/rules/footprint.smk"
 include: "workflow/rules/observability.smk"
+include: "workflow/rules/background.smk"
+include: "workflow/rules/limits.smk"
 
 
 rule all:
@@ -25,3 +27,6 @@ rule all:
         f"{RESULTS}/footprint.fits",
         f"{RESULTS}/plan.json",
         f"{RESULTS}/observability.zarr",
+        f"{RESULTS}/background_summary.json",
+        f"{RESULTS}/limits.zarr",
+        f"{RESULTS}/provenance.json",

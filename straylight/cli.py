@@ -232,6 +232,32 @@ def cmd_scenario(args) -> int:
     return 0
 
 
+def cmd_plan(args) -> int:
+    from .config import load_campaign
+    from .cube import CUBE_COMPONENTS, cube_chunks
+    from .footprint import footprint_from_config
+    from .timegrid import time_blocks
+
+    campaign = load_campaign(args.config)
+    fp = footprint_from_config(campaign.config["footprint"], campaign.path.parent)
+    c = campaign.config["campaign"]
+    nt, npix, nb = len(campaign.times), fp.pixels.size, len(campaign.bands)
+    tb = time_blocks(nt, float(c["cadence_s"]), float(c.get("time_block_hours", 6)))
+    n = nt * npix
+    cube_bytes = n * nb * 4 * (len(CUBE_COMPONENTS) + 1) + n * 6
+    limits_bytes = n * nb * 4 + n
+    s_per_sample = args.seconds_per_sample
+    core_h = n * s_per_sample / 3600.0
+    print(f"campaign {campaign.name}: {nt} times x {npix} pixels (nside {fp.nside}, {fp.area_deg2:.0f} deg2) "
+          f"x {nb} bands")
+    print(f"samples (time, pointing): {n:,}")
+    print(f"time blocks (Snakemake jobs): {len(tb)}; chunks {cube_chunks(campaign, nt, npix)}")
+    print(f"output size (uncompressed): background.zarr {cube_bytes / 1e9:.2f} GB, limits.zarr {limits_bytes / 1e9:.2f} GB")
+    print(f"estimated cost: {core_h:.2f} core-hours at {s_per_sample * 1e3:.2f} ms/sample for all bands "
+          f"(measured on the 2-core development machine; bench/offfield.py)")
+    return 0
+
+
 def cmd_pst(args) -> int:
     from .pst import load_pst, write_pst_csv
 
@@ -282,6 +308,12 @@ def build_parser() -> argparse.ArgumentParser:
     sc.add_argument("--hst-csv", default=None, help="HST curve to overlay: limb_angle_deg, v_mag_per_arcsec2")
     sc.add_argument("--config", default=None, help="campaign config (default: config/config.yaml)")
     sc.set_defaults(func=cmd_scenario)
+
+    pl = sub.add_parser("plan", help="samples, output size and core-hours of a campaign before running it")
+    pl.add_argument("config", nargs="?", default=None, help="campaign config (default: config/config.yaml)")
+    pl.add_argument("--seconds-per-sample", type=float, default=0.95e-3,
+                    help="cost of one (time, pointing) sample, all bands (default: measured 0.95 ms)")
+    pl.set_defaults(func=cmd_plan)
 
     ps = sub.add_parser("pst", help="export the embedded default PST matrix (CSV) to inspect or replace")
     ps.add_argument("--write-default", required=True, help="output CSV (theta_deg, phi_deg, pst)")

@@ -66,8 +66,19 @@ class ComponentModel:
         return zodiacal_model_from_instrument(self.campaign.instrument,
                                               self.campaign.config["models"].get("zodiacal_spectrum", "solar_leinert"))
 
+    @cached_property
+    def _bands(self) -> dict:
+        return {}
+
     def band(self, name):
-        return load_band(self.campaign.instrument, name, self.campaign.instrument_path.parent)
+        if name not in self._bands:
+            b = load_band(self.campaign.instrument, name, self.campaign.instrument_path.parent)
+            self._bands[name] = (b, BandPhotometry(b))
+        return self._bands[name][0]
+
+    def photometry(self, name) -> BandPhotometry:
+        self.band(name)
+        return self._bands[name][1]
 
     def evaluate(self, satellite_km, bodies_km, los, geometry, bands, stars: StarTable | None = None) -> dict:
         """Components for broadcastable samples; ``geometry`` from :func:`observing_geometry`."""
@@ -89,24 +100,30 @@ class ComponentModel:
         aperture_d = self.campaign.instrument_value("telescope", "aperture_diameter_m")
         pix_arcsec = self.campaign.instrument_value("detector", "pixel_scale_arcsec")
         out = {}
+        # band-independent transfer (e-/s/pix per photons s-1 m-2): Se * Sp * PST * pixel area
+        t_sun = off.point_source(1.0, geometry["sun_angle_deg"], geometry["sun_phi_deg"],
+                                 geometry["sun_earth_blocked"], door)
+        t_moon = off.point_source(1.0, geometry["moon_angle_deg"], geometry["moon_phi_deg"],
+                                  geometry["moon_earth_blocked"], door)
+        planet_terms = []  # (V magnitude, transfer) per planet
+        for p in PLANETS:
+            if f"{p}_angle_deg" not in geometry:
+                continue
+            planet_terms.append((planet_v_magnitude(p, bodies_km[p], sun, sat),
+                                 off.point_source(1.0, geometry[f"{p}_angle_deg"], geometry[f"{p}_phi_deg"],
+                                                  geometry[f"{p}_earth_blocked"], door)))
+        sun_dir = unit(sun - sat)
         for name in bands:
             band = self.band(name)
-            phot = BandPhotometry(band)
+            phot = self.photometry(name)
             res = {}
-            res["zodiacal"] = np.broadcast_to(self.zodiacal.evaluate(band, frame.z, unit(sun - sat))["e_per_s_per_pix"], shape)
+            res["zodiacal"] = np.broadcast_to(self.zodiacal.evaluate(band, frame.z, sun_dir)["e_per_s_per_pix"], shape)
             sun_irr = phot.sun_at_1au_photons_s_m2 * (1.495978707e8 / d_sun) ** 2
-            res["sun"] = off.point_source(sun_irr, geometry["sun_angle_deg"], geometry["sun_phi_deg"],
-                                          geometry["sun_earth_blocked"], door)
-            moon_irr = phot.solar_like_from_v(v_moon) * eclipse
-            res["moon"] = off.point_source(moon_irr, geometry["moon_angle_deg"], geometry["moon_phi_deg"],
-                                           geometry["moon_earth_blocked"], door)
+            res["sun"] = t_sun * sun_irr
+            res["moon"] = t_moon * phot.solar_like_from_v(v_moon) * eclipse
             planets = np.zeros(shape)
-            for p in PLANETS:
-                if f"{p}_angle_deg" not in geometry:
-                    continue
-                v = planet_v_magnitude(p, bodies_km[p], sun, sat)
-                planets = planets + off.point_source(phot.solar_like_from_v(v), geometry[f"{p}_angle_deg"],
-                                                     geometry[f"{p}_phi_deg"], geometry[f"{p}_earth_blocked"], door)
+            for v, t in planet_terms:
+                planets = planets + t * phot.solar_like_from_v(v)
             res["planets"] = planets
             res["stars"] = self._stars(stars, name, phot, frame, sat, door, shape) if stars is not None else np.zeros(shape)
             moon_irr_earth = phot.solar_like_from_v(v_moon_at_earth) * eclipse

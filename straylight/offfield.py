@@ -187,11 +187,18 @@ class OffFieldModel:
         points = sat_km[..., None, None, :] + t[..., :, None, None] * d
         return d, np.broadcast_to(d_omega, d.shape[:-1]), points
 
+    @staticmethod
+    def lamp_cosines(points_km, sun_km, moon_km, earth_radius_km):
+        """cos(zenith angle) of the Sun and of the Moon at surface points, clipped at 0."""
+        n = points_km / earth_radius_km
+        # the Sun is at 23,000 Earth radii: its direction is the same from every point (< 0.003 deg)
+        mu_sun = np.maximum(dot(n, unit(sun_km)[..., None, None, :]), 0.0)
+        mu_moon = np.maximum(dot(n, unit(moon_km[..., None, None, :] - points_km)), 0.0)
+        return mu_sun, mu_moon
+
     def earth_radiance(self, points_km, sun_km, moon_km, sun_irr, moon_irr_at_earth, albedo, earth_radius_km):
         """Lambertian radiance (photons s-1 m-2 sr-1) of surface points lit by the Sun and Moon."""
-        n = points_km / earth_radius_km
-        mu_sun = np.maximum(dot(n, unit(sun_km[..., None, None, :] - points_km)), 0.0)
-        mu_moon = np.maximum(dot(n, unit(moon_km[..., None, None, :] - points_km)), 0.0)
+        mu_sun, mu_moon = self.lamp_cosines(points_km, sun_km, moon_km, earth_radius_km)
         return albedo / np.pi * (np.asarray(sun_irr)[..., None, None] * mu_sun
                                  + np.asarray(moon_irr_at_earth)[..., None, None] * mu_moon)
 
@@ -247,8 +254,8 @@ class OffFieldModel:
         s = self.earthshine
         d, d_omega, pts = self._cap_grid(sat_km, earth_radius_km, s)
         ones = np.ones(np.shape(d_omega)[:-2])
-        lum_sun = self.earth_radiance(pts, sun_km, moon_km, ones, 0.0 * ones, s.albedo, earth_radius_km)
-        lum_moon = self.earth_radiance(pts, sun_km, moon_km, 0.0 * ones, ones, s.albedo, earth_radius_km)
+        mu_sun, mu_moon = self.lamp_cosines(pts, sun_km, moon_km, earth_radius_km)
+        lum_sun, lum_moon = s.albedo / np.pi * mu_sun, s.albedo / np.pi * mu_moon
         dx = dot(d, frame.x[..., None, None, :])
         dy = dot(d, frame.y[..., None, None, :])
         dz = dot(d, frame.z[..., None, None, :])

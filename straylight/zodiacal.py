@@ -167,6 +167,9 @@ def zodiacal_spectrum_shape(kind: str) -> tuple[np.ndarray, np.ndarray]:
     return wl_a, s / np.mean(s[sel])
 
 
+_BAND_FACTOR_CACHE: dict = {}
+
+
 @dataclass(frozen=True)
 class ZodiacalModel:
     """Zodiacal light per band for one instrument."""
@@ -178,6 +181,12 @@ class ZodiacalModel:
 
     def band_factors(self, band: Band) -> tuple[float, float]:
         """For B_500 = 1 W m-2 sr-1 um-1: (photons s-1 m-2 sr-1 in band, AB mag/arcsec2)."""
+        key = (band.name, band.origin, self.spectrum)
+        if key not in _BAND_FACTOR_CACHE:
+            _BAND_FACTOR_CACHE[key] = self._band_factors(band)
+        return _BAND_FACTOR_CACHE[key]
+
+    def _band_factors(self, band: Band) -> tuple[float, float]:
         wl, shape = zodiacal_spectrum_shape(self.spectrum)
         lo, hi = band.wavelength_angstrom[0], band.wavelength_angstrom[-1]
         if wl[0] > lo or wl[-1] < hi:

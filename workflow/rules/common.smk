@@ -1,4 +1,19 @@
-# Shared settings of the rules: where results go and which config file the run uses.
+# Shared settings of the rules: where results go, which config file the run uses, the blocks.
+from straylight.config import campaign_from_dict as _campaign_from_dict
+from straylight.timegrid import time_blocks as _time_blocks
+
 CONFIG_PATH = workflow.configfiles[-1]
 RESULTS = f"results/{config['campaign']['name']}"
 LOGS = f"{RESULTS}/logs"
+_CAMPAIGN = _campaign_from_dict(dict(config), CONFIG_PATH)
+TIME_BLOCKS = list(
+    range(
+        len(
+            _time_blocks(
+                len(_CAMPAIGN.times),
+                float(config["campaign"]["cadence_s"]),
+                float(config["campaign"].get("time_block_hours", 6)),
+            )
+        )
+    )
+)

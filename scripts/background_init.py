@@ -1,0 +1,20 @@
+"""Snakemake adapter: rule `background_init` -> background.zarr skeleton + init.json."""
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821 - injected by Snakemake
+from _common import campaign, setup_logging  # noqa: E402
+
+from straylight.cube import cube_chunks, init_store  # noqa: E402
+from straylight.footprint import footprint_from_config  # noqa: E402
+from straylight.io import write_json_atomic  # noqa: E402
+
+log = setup_logging(snakemake)  # noqa: F821
+c = campaign(snakemake)  # noqa: F821
+fp = footprint_from_config(c.config["footprint"], c.path.parent)
+init_store(c, fp, snakemake.params.store)  # noqa: F821
+chunks = cube_chunks(c, len(c.times), fp.pixels.size)
+write_json_atomic({"store": snakemake.params.store, "times": len(c.times), "pixels": int(fp.pixels.size),  # noqa: F821
+                   "bands": c.bands, "chunks": chunks}, snakemake.output[0])  # noqa: F821
+log.info("background.zarr initialised: %d times x %d pixels x %d bands, chunks %s",
+         len(c.times), fp.pixels.size, len(c.bands), chunks)

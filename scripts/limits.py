@@ -1,0 +1,25 @@
+"""Snakemake adapter: rule `limits` -> limits.zarr and maps/*.fits."""
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821 - injected by Snakemake
+from _common import campaign, setup_logging  # noqa: E402
+
+import xarray as xr  # noqa: E402
+
+from straylight.io import atomic_path, write_zarr_atomic  # noqa: E402
+from straylight.limits import limits_dataset, write_limit_maps  # noqa: E402
+
+log = setup_logging(snakemake)  # noqa: F821
+c = campaign(snakemake)  # noqa: F821
+with xr.open_zarr(snakemake.params.store, consolidated=True) as bg:  # noqa: F821
+    ds = limits_dataset(c, bg.load())
+write_zarr_atomic(ds, snakemake.output.limits)  # noqa: F821
+with atomic_path(snakemake.output.maps) as tmp:  # noqa: F821
+    maps = write_limit_maps(ds, tmp)
+for b in ds["band"].values:
+    best = ds["limiting_mag_best"].sel(band=b).values
+    ok = best > -1e20
+    log.info("band %-4s: deepest limit %.2f, median of pixel bests %.2f mag (AB)", b,
+             best[ok].max() if ok.any() else float("nan"), float(__import__("numpy").median(best[ok])) if ok.any() else float("nan"))
+log.info("wrote %d HEALPix maps", len(maps))

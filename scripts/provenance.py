@@ -1,0 +1,23 @@
+"""Snakemake adapter: rule `provenance` -> provenance.json (config, versions, checksums)."""
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821 - injected by Snakemake
+from _common import campaign, setup_logging  # noqa: E402
+
+from straylight.io import write_json_atomic  # noqa: E402
+from straylight.provenance import provenance_record  # noqa: E402
+
+log = setup_logging(snakemake)  # noqa: F821
+c = campaign(snakemake)  # noqa: F821
+outputs = {
+    "background.zarr": snakemake.params.store,  # noqa: F821
+    "limits.zarr": snakemake.input.limits,  # noqa: F821
+    "maps": snakemake.input.maps,  # noqa: F821
+    "ephemeris.zarr": snakemake.input.ephemeris,  # noqa: F821
+    "footprint.fits": snakemake.input.footprint,  # noqa: F821
+}
+rec = provenance_record(c, {}, outputs)
+write_json_atomic(rec, snakemake.output[0])  # noqa: F821
+for k, v in rec["outputs_sha256"].items():
+    log.info("%-16s sha256 %s", k, v)

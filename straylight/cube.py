@@ -1,0 +1,174 @@
+"""Survey-wide background cubes: every footprint pixel at every campaign time, every component
+in every band (issue #6).
+
+Layout of ``background.zarr`` (xarray Dataset):
+
+* dims (time, pixel, band); one float32 variable per component (e- s-1 pixel-1) plus ``total``;
+  ``observable`` (bool) and ``violations`` (uint8 bit mask) and ``door_opening_deg`` on
+  (time, pixel); coords time (UTC), pixel (HEALPix index), ra_deg/dec_deg, band;
+* attrs: HEALPix nside, ordering and frame, campaign, models, provenance pointers.
+* chunks: one time block (``campaign.time_block_hours``) x ``footprint.pixel_block_size`` pixels
+  x all bands.  A time-series read of one pointing then touches one chunk per time block, and a
+  whole-sky read at one time one chunk per pixel block (see bench/cube_chunks.py for timings).
+
+Work split: Snakemake runs one job per time block; inside it Dask computes the pixel blocks, and
+every task writes its own region of the store exactly once.  A block is marked done by a
+sentinel file only after all its regions are written, so a killed job is redone as a whole and,
+the computation being deterministic, gives identical bytes.
+"""
+from __future__ import annotations
+
+import time as _time
+from dataclasses import dataclass
+
+import numpy as np
+import xarray as xr
+
+from .config import Campaign
+from .footprint import Footprint
+from .geometry import VIOLATION_BITS, observing_geometry, radec_to_unit
+
+CUBE_COMPONENTS = ("zodiacal", "earthshine", "moon", "sun", "planets", "stars")
+LONG_NAMES = {
+    "zodiacal": "in-field zodiacal light (Leinert 1998)",
+    "earthshine": "earthshine through the PST, direct + via the aperture door",
+    "moon": "moonlight through the PST",
+    "sun": "sunlight through the PST (door-shaded)",
+    "planets": "planets (Mercury-Pluto) through the PST",
+    "stars": "off-field bright stars through the PST",
+    "total": "total stray light and sky background",
+}
+
+
+def cube_chunks(campaign: Campaign, n_times: int, n_pixels: int) -> dict:
+    from .timegrid import time_blocks
+
+    c = campaign.config["campaign"]
+    tb = time_blocks(n_times, float(c["cadence_s"]), float(c.get("time_block_hours", 6)))
+    t_chunk = tb[0][1] - tb[0][0]
+    p_chunk = min(int(campaign.config["footprint"].get("pixel_block_size", 1024)), n_pixels)
+    return {"time": t_chunk, "pixel": p_chunk, "band": len(campaign.bands)}
+
+
+def empty_cube(campaign: Campaign, fp: Footprint, times) -> xr.Dataset:
+    """The cube's skeleton backed by lazy dask zeros (for writing metadata only)."""
+    import dask.array as da
+
+    nt, npix, nb = len(times), fp.pixels.size, len(campaign.bands)
+    ch = cube_chunks(campaign, nt, npix)
+    chunks3 = (ch["time"], ch["pixel"], ch["band"])
+    chunks2 = (ch["time"], ch["pixel"])
+    data = {}
+    for comp in CUBE_COMPONENTS + ("total",):
+        data[comp] = xr.Variable(("time", "pixel", "band"), da.zeros((nt, npix, nb), chunks=chunks3, dtype=np.float32),
+                                 {"units": "electron / (s pixel)", "long_name": LONG_NAMES[comp]})
+    data["observable"] = xr.Variable(("time", "pixel"), da.zeros((nt, npix), chunks=chunks2, dtype=bool),
+                                     {"units": "1", "long_name": "pointing satisfies every constraint"})
+    data["violations"] = xr.Variable(("time", "pixel"), da.zeros((nt, npix), chunks=chunks2, dtype=np.uint8),
+                                     {"units": "1", "long_name": "violated-constraint bit mask",
+                                      "flag_meanings": ", ".join(f"{v}={k}" for k, v in VIOLATION_BITS.items())})
+    data["door_opening_deg"] = xr.Variable(("time", "pixel"), da.zeros((nt, npix), chunks=chunks2, dtype=np.float32),
+                                           {"units": "deg", "long_name": "aperture door opening (0 = no allowed state)"})
+    ds = xr.Dataset(
+        data,
+        coords={
+            "time": ("time", times.datetime64, {"long_name": "UTC sample time"}),
+            "pixel": ("pixel", fp.pixels, {"long_name": "HEALPix pixel index"}),
+            "ra_deg": ("pixel", fp.ra_deg, {"units": "deg", "long_name": "ICRS RA of pixel centre"}),
+            "dec_deg": ("pixel", fp.dec_deg, {"units": "deg", "long_name": "ICRS Dec of pixel centre"}),
+            "band": ("band", np.array(campaign.bands, dtype=object), {"long_name": "CSST band"}),
+        },
+        attrs={
+            "campaign": campaign.name,
+            "healpix_nside": fp.nside,
+            "healpix_ordering": fp.ordering.upper(),
+            "healpix_frame": "ICRS",
+            "zodiacal_spectrum": campaign.config["models"].get("zodiacal_spectrum"),
+            "moon_phase_law": campaign.config["models"].get("moon_phase_law"),
+            "pst_source": str(campaign.instrument.get("pst", {}).get("source", "")),
+            "stars_included": 0,
+            "chunking": "time block x pixel block x all bands",
+        },
+    )
+    return ds
+
+
+def init_store(campaign: Campaign, fp: Footprint, store) -> None:
+    """Write the skeleton (metadata and coordinates, no data chunks) to ``store``."""
+    ds = empty_cube(campaign, fp, campaign.times)
+    ds.to_zarr(store, mode="w", compute=False, consolidated=False)
+
+
+def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: slice, model=None) -> xr.Dataset:
+    """Compute the cube values of times t_slice x pixels p_slice (numpy-backed Dataset)."""
+    from .components import ComponentModel
+    from .sky import scene
+
+    model = model or ComponentModel(campaign)
+    times = campaign.times[t_slice]
+    sc = scene(campaign, times)
+    los = radec_to_unit(fp.ra_deg[p_slice], fp.dec_deg[p_slice])
+    nt, npix, nb = len(times), los.shape[0], len(campaign.bands)
+    out = {k: np.zeros((nt, npix, nb), np.float32) for k in CUBE_COMPONENTS + ("total",)}
+    obs = np.zeros((nt, npix), bool)
+    viol = np.zeros((nt, npix), np.uint8)
+    door = np.zeros((nt, npix), np.float32)
+    for it in range(nt):  # one time step at a time keeps the earthshine grid in memory bounds
+        sat = np.broadcast_to(sc.satellite_km[it], los.shape)
+        bodies = {k: np.broadcast_to(v[it], los.shape) for k, v in sc.bodies_km.items()}
+        g = observing_geometry(sat, bodies, los, campaign.earth.radius_km, campaign.constraints)
+        res = model.evaluate(sat, bodies, los, g, campaign.bands)
+        for ib, b in enumerate(campaign.bands):
+            for comp in CUBE_COMPONENTS + ("total",):
+                out[comp][it, :, ib] = res[b][comp]
+        obs[it], viol[it], door[it] = g["observable"], g["violations"], g["door_opening_deg"]
+    data = {k: (("time", "pixel", "band"), v) for k, v in out.items()}
+    data["observable"] = (("time", "pixel"), obs)
+    data["violations"] = (("time", "pixel"), viol)
+    data["door_opening_deg"] = (("time", "pixel"), door)
+    return xr.Dataset(data)
+
+
+def write_region(campaign: Campaign, fp: Footprint, store, t_slice: slice, p_slice: slice) -> float:
+    """Compute one (time block, pixel block) region and write it to its Zarr region; seconds."""
+    t0 = _time.perf_counter()
+    ds = compute_region(campaign, fp, t_slice, p_slice)
+    ds.to_zarr(store, region={"time": t_slice, "pixel": p_slice, "band": slice(None)}, mode="r+", consolidated=False)
+    return _time.perf_counter() - t0
+
+
+@dataclass
+class BlockReport:
+    time_block: int
+    pixel_blocks: int
+    samples: int
+    seconds: float
+
+
+def run_time_block(campaign: Campaign, fp: Footprint, store, block_index: int, client=None, log=None) -> BlockReport:
+    """Compute every pixel block of one time block with Dask (``client``) or serially; ``log``
+    (a logging.Logger) gets one line per finished chunk."""
+    from .timegrid import time_blocks
+
+    c = campaign.config["campaign"]
+    tb = time_blocks(len(campaign.times), float(c["cadence_s"]), float(c.get("time_block_hours", 6)))
+    if not 0 <= block_index < len(tb):
+        raise IndexError(f"time block {block_index} outside 0..{len(tb) - 1}")
+    t_slice = slice(*tb[block_index])
+    p_blocks = [slice(a, b) for a, b in fp.blocks(int(campaign.config["footprint"].get("pixel_block_size", 1024)))]
+    t0 = _time.perf_counter()
+    def note(ps, seconds):
+        if log is not None:
+            log.info("chunk time %d:%d pixels %d:%d done in %.1f s", t_slice.start, t_slice.stop, ps.start, ps.stop, seconds)
+
+    if client is None:
+        for ps in p_blocks:
+            note(ps, write_region(campaign, fp, store, t_slice, ps))
+    else:
+        from distributed import as_completed
+
+        futures = {client.submit(write_region, campaign, fp, str(store), t_slice, ps, pure=False): ps for ps in p_blocks}
+        for fut in as_completed(futures):
+            note(futures[fut], fut.result())
+    n = (t_slice.stop - t_slice.start) * fp.pixels.size
+    return BlockReport(block_index, len(p_blocks), n, _time.perf_counter() - t0)

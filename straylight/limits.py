@@ -1,0 +1,112 @@
+"""5-sigma point-source limiting magnitudes (issue #6).
+
+For a band with n exposures of t seconds (total T = n t), a point source of AB magnitude m gives
+S = f80 F(m) T electrons inside the 80 % encircled-energy aperture (radius r80, N_pix pixels),
+with F(m) = 10^(-0.4 m) ZP pi D^2 / 4 and ZP the band's AB photon zero point.  The noise is
+sigma^2 = S + N_pix (B T + D T + n RN^2), B the sky + stray-light rate (e-/s/pix), D the dark
+current and RN the read noise.  The 5-sigma limit solves S = 5 sigma:
+    S = (25 + sqrt(625 + 100 N_b)) / 2,   N_b = N_pix (B T + D T + n RN^2).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .bandpass import load_band
+from .config import Campaign
+
+EE_FRACTION = 0.8
+SNR = 5.0
+
+
+def point_source_limit(background_e_per_s_per_pix, band_name: str, campaign: Campaign) -> np.ndarray:
+    """5-sigma AB limiting magnitude for the band's survey exposures at the given background."""
+    inst = campaign.instrument
+    b = inst["bands"][band_name]
+    n_exp, t_exp = int(b["n_exposures"]), float(b["exposure_s"])
+    t_tot = n_exp * t_exp
+    rn = campaign.instrument_value("detector", "read_noise_e")
+    dark = campaign.instrument_value("detector", "dark_current_e_per_s")
+    r80 = campaign.instrument_value("detector", "ee80_radius_arcsec") / campaign.instrument_value("detector", "pixel_scale_arcsec")
+    n_pix = np.pi * r80**2
+    band = load_band(inst, band_name, campaign.instrument_path.parent)
+    zp_e = band.ab_zero_point_photons_s_m2 * np.pi * campaign.instrument_value("telescope", "aperture_diameter_m") ** 2 / 4
+    bkg = np.asarray(background_e_per_s_per_pix, dtype=float)
+    n_b = n_pix * (bkg * t_tot + dark * t_tot + n_exp * rn**2)
+    s = (SNR**2 + np.sqrt(SNR**4 + 4 * SNR**2 * n_b)) / 2.0
+    return -2.5 * np.log10(s / (EE_FRACTION * t_tot * zp_e))
+
+
+def limits_dataset(campaign: Campaign, background) -> "xr.Dataset":
+    """(time, pixel, band) 5-sigma limits from background.zarr's ``total``, plus per-pixel
+    campaign summaries over observable times (best, median) and the observable fraction.
+    Pixels never observable get the healpy UNSEEN value in the summaries (never NaN)."""
+    import healpy as hp
+    import xarray as xr
+
+    total = background["total"]
+    observable = background["observable"].values
+    lim = np.empty(total.shape, np.float32)
+    for ib, b in enumerate(background["band"].values):
+        lim[:, :, ib] = point_source_limit(total.isel(band=ib).values, str(b), campaign)
+    masked = np.where(observable[:, :, None], lim, np.nan)
+    any_obs = observable.any(axis=0)
+    with np.errstate(all="ignore"):
+        import warnings
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            best = np.nanmax(masked, axis=0)
+            median = np.nanmedian(masked, axis=0)
+    best = np.where(any_obs[:, None], best, hp.UNSEEN).astype(np.float32)
+    median = np.where(any_obs[:, None], median, hp.UNSEEN).astype(np.float32)
+    frac = observable.mean(axis=0).astype(np.float32)
+    desc = ", ".join(f"{b}: {campaign.instrument['bands'][str(b)]['n_exposures']} x "
+                     f"{campaign.instrument['bands'][str(b)]['exposure_s']} s" for b in background["band"].values)
+    ds = xr.Dataset(
+        {
+            "limiting_mag": (("time", "pixel", "band"), lim,
+                             {"units": "mag(AB)", "long_name": f"5-sigma point-source limit in the EE80 aperture ({desc})"}),
+            "limiting_mag_best": (("pixel", "band"), best,
+                                  {"units": "mag(AB)", "long_name": "deepest limit over observable times",
+                                   "missing_value": hp.UNSEEN}),
+            "limiting_mag_median": (("pixel", "band"), median,
+                                    {"units": "mag(AB)", "long_name": "median limit over observable times",
+                                     "missing_value": hp.UNSEEN}),
+            "observable_fraction": (("pixel",), frac, {"units": "1", "long_name": "fraction of campaign times observable"}),
+            "observable": (("time", "pixel"), observable, {"units": "1", "long_name": "pointing satisfies every constraint"}),
+        },
+        coords={k: background[k] for k in ("time", "pixel", "ra_deg", "dec_deg", "band")},
+        attrs={k: background.attrs[k] for k in ("healpix_nside", "healpix_ordering", "healpix_frame", "campaign")},
+    )
+    return ds
+
+
+def write_limit_maps(ds, out_dir) -> list:
+    """HEALPix FITS maps (healpy-readable): limit_best_<band>, limit_median_<band>, observable_fraction."""
+    from pathlib import Path
+
+    import healpy as hp
+
+    from .io import atomic_path
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    nside = int(ds.attrs["healpix_nside"])
+    nest = ds.attrs["healpix_ordering"].upper() == "NESTED"
+    pix = ds["pixel"].values
+    written = []
+
+    def write(name, values, unit):
+        m = np.full(hp.nside2npix(nside), hp.UNSEEN, dtype=np.float32)
+        m[pix] = values
+        path = out_dir / f"{name}.fits"
+        with atomic_path(path) as tmp:
+            hp.write_map(str(tmp), m, nest=nest, coord="C", column_names=[name[:68].upper()],
+                         column_units=[unit], dtype=np.float32, overwrite=True)
+        written.append(path)
+
+    for ib, b in enumerate(ds["band"].values):
+        write(f"limit_best_{b}", ds["limiting_mag_best"].values[:, ib], "mag(AB)")
+        write(f"limit_median_{b}", ds["limiting_mag_median"].values[:, ib], "mag(AB)")
+    write("observable_fraction", ds["observable_fraction"].values, "1")
+    return written

@@ -1,0 +1,166 @@
+"""Survey cubes through the real Snakemake workflow: values, resume, Dask scheduler, limits."""
+import json
+import os
+import shutil
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+import yaml
+
+from conftest import REPO, run_cli
+
+SNAKEMAKE = str(Path(sys.executable).with_name("snakemake"))
+BIN = Path(sys.executable).parent
+
+
+def _config(tmp, name="cube", **compute):
+    cfg = yaml.safe_load((REPO / "config" / "config.yaml").read_text())
+    cfg["campaign"].update(name=name, end="2026-01-01T01:00:00", cadence_s=600, time_block_hours=0.5)
+    cfg["instrument"] = str(REPO / "config" / "instruments" / "csst.yaml")
+    cfg["footprint"].update(nside=4, pixel_block_size=40)
+    cfg["compute"] = compute or {"dask_scheduler": None}
+    p = tmp / f"{name}.yaml"
+    p.write_text(yaml.safe_dump(cfg))
+    return p
+
+
+def _run(tmp, cfg, *extra):
+    r = subprocess.run([SNAKEMAKE, "-s", str(REPO / "Snakefile"), "-d", str(tmp), "--configfile", str(cfg),
+                        "--cores", "2", *extra], capture_output=True, text=True, timeout=900,
+                       env={**os.environ, "PATH": f"{BIN}:{os.environ['PATH']}"})
+    return r
+
+
+@pytest.fixture(scope="module")
+def cube_run(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("cube")
+    cfg = _config(tmp)
+    r = _run(tmp, cfg)
+    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+    return tmp, cfg, tmp / "results" / "cube"
+
+
+def test_cube_layout_units_and_attrs(cube_run):
+    _, _, out = cube_run
+    ds = xr.open_zarr(out / "background.zarr")
+    assert dict(ds.sizes) == {"time": 6, "pixel": 86, "band": 7}
+    for v in ("zodiacal", "earthshine", "moon", "sun", "planets", "stars", "total"):
+        assert ds[v].dims == ("time", "pixel", "band")
+        assert ds[v].attrs["units"] == "electron / (s pixel)" and ds[v].attrs["long_name"]
+        assert np.all(np.isfinite(ds[v].values)) and np.all(ds[v].values >= 0)
+    assert ds.attrs["healpix_nside"] == 4 and ds.attrs["healpix_ordering"] == "RING"
+    assert ds["total"].encoding["chunks"] == (3, 40, 7)
+    parts = sum(ds[v].values.astype(float) for v in ("zodiacal", "earthshine", "moon", "sun", "planets", "stars"))
+    np.testing.assert_allclose(ds["total"].values, parts, rtol=1e-5)
+
+
+def test_cube_value_equals_sky_command(cube_run):
+    """A cube value equals `straylight sky` for the same time and pointing (float32 precision)."""
+    _, cfg, out = cube_run
+    ds = xr.open_zarr(out / "background.zarr")
+    it, ip = 4, 17
+    t = str(ds["time"].values[it])[:23]
+    ra, dec = float(ds["ra_deg"][ip]), float(ds["dec_deg"][ip])
+    r = run_cli("sky", "--time", t, "--ra", repr(ra), "--dec", repr(dec), "--config", cfg, "--json")
+    assert r.returncode == 0, r.stderr
+    rec = json.loads(r.stdout)
+    for ib, b in enumerate(ds["band"].values):
+        for comp in ("zodiacal", "earthshine", "moon", "total"):
+            assert float(ds[comp][it, ip, ib]) == pytest.approx(rec["bands"][b][comp]["e_per_s_per_pix"],
+                                                                rel=1e-6, abs=1e-30)
+    assert bool(ds["observable"][it, ip]) == rec["observable"]
+
+
+def test_limits_and_maps(cube_run):
+    import healpy as hp
+
+    _, _, out = cube_run
+    lim = xr.open_zarr(out / "limits.zarr")
+    assert lim["limiting_mag"].dims == ("time", "pixel", "band") and lim["limiting_mag"].attrs["units"] == "mag(AB)"
+    assert np.all(np.isfinite(lim["limiting_mag"].values))
+    g = lim["limiting_mag"].sel(band="g").values
+    assert 24.0 < np.median(g) < 28.0
+    m = hp.read_map(out / "maps" / "limit_best_g.fits")
+    assert hp.get_nside(m) == 4
+    seen = m[m != hp.UNSEEN]
+    assert seen.size > 0 and np.all((seen > 20) & (seen < 30))
+    frac = hp.read_map(out / "maps" / "observable_fraction.fits")
+    assert np.all((frac[frac != hp.UNSEEN] >= 0) & (frac[frac != hp.UNSEEN] <= 1))
+
+
+def test_provenance_records_checksums(cube_run):
+    _, _, out = cube_run
+    prov = json.loads((out / "provenance.json").read_text())
+    assert prov["config"]["campaign"]["name"] == "cube"
+    for k in ("background.zarr", "limits.zarr", "maps", "ephemeris.zarr", "footprint.fits"):
+        assert len(prov["outputs_sha256"][k]) == 64
+    assert "numpy" in prov["versions"] and "config" in prov["inputs_sha256"]
+
+
+def test_rerun_recomputes_only_what_is_missing(cube_run):
+    tmp, cfg, out = cube_run
+    r = _run(tmp, cfg, "-n")
+    assert "Nothing to be done" in r.stdout + r.stderr
+    before = (out / "background.zarr")
+    from straylight.provenance import sha256_path
+
+    digest = sha256_path(before)
+    (out / "background_blocks" / "block_1.json").unlink()
+    r = _run(tmp, cfg, "-n")
+    text = r.stdout + r.stderr
+    assert "background_block" in text and "background_init" not in text
+    r = _run(tmp, cfg)
+    assert r.returncode == 0
+    assert sha256_path(out / "background.zarr") == digest  # recomputed block is bit-identical
+
+
+def _free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_dask_scheduler_address_gives_the_same_products(tmp_path, cube_run):
+    """A real `dask scheduler` and `dask worker` on loopback, started here; same cube bytes."""
+    port = _free_port()
+    addr = f"tcp://127.0.0.1:{port}"
+    env = {**os.environ, "PATH": f"{BIN}:{os.environ['PATH']}"}
+    sched = subprocess.Popen([str(BIN / "dask"), "scheduler", "--host", "127.0.0.1", "--port", str(port),
+                              "--dashboard-address", ":0", "--no-show"],
+                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
+    worker = None
+    try:
+        deadline = time.time() + 60
+        while time.time() < deadline:
+            try:
+                socket.create_connection(("127.0.0.1", port), timeout=1).close()
+                break
+            except OSError:
+                time.sleep(0.5)
+        worker = subprocess.Popen([str(BIN / "dask"), "worker", addr, "--nworkers", "2", "--nthreads", "1",
+                                   "--no-dashboard"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
+        cfg = _config(tmp_path, name="cube", dask_scheduler=addr)
+        r = _run(tmp_path, cfg)
+        assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+    finally:
+        for p in (worker, sched):
+            if p is not None:
+                p.terminate()
+                p.wait(timeout=30)
+    from straylight.provenance import sha256_path
+
+    _, _, ref = cube_run
+    assert sha256_path(tmp_path / "results" / "cube" / "background.zarr") == sha256_path(ref / "background.zarr")
+
+
+def test_plan_prints_samples_size_and_cost():
+    r = run_cli("plan")
+    assert r.returncode == 0
+    assert "samples (time, pointing): 380,160" in r.stdout
+    assert "core-hours" in r.stdout and "GB" in r.stdout

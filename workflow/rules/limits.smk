@@ -1,0 +1,37 @@
+rule limits:
+    """5-sigma limiting magnitudes per sample, and per-pixel campaign summaries as HEALPix maps."""
+    input:
+        summary=f"{RESULTS}/background_summary.json",
+        config=CONFIG_PATH,
+    output:
+        limits=directory(f"{RESULTS}/limits.zarr"),
+        maps=directory(f"{RESULTS}/maps"),
+    params:
+        store=f"{RESULTS}/background.zarr",
+    conda:
+        "../envs/straylight.yaml"
+    log:
+        f"{LOGS}/limits.log",
+    script:
+        "../../scripts/limits.py"
+
+
+rule provenance:
+    """Config, software versions, input and output checksums of the campaign."""
+    input:
+        config=CONFIG_PATH,
+        limits=f"{RESULTS}/limits.zarr",
+        maps=f"{RESULTS}/maps",
+        summary=f"{RESULTS}/background_summary.json",
+        ephemeris=f"{RESULTS}/ephemeris.zarr",
+        footprint=f"{RESULTS}/footprint.fits",
+    output:
+        f"{RESULTS}/provenance.json",
+    params:
+        store=f"{RESULTS}/background.zarr",
+    conda:
+        "../envs/straylight.yaml"
+    log:
+        f"{LOGS}/provenance.log",
+    script:
+        "../../scripts/provenance.py"
