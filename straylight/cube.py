@@ -155,6 +155,9 @@ def run_time_block(campaign: Campaign, fp: Footprint, store, block_index: int, c
     if not 0 <= block_index < len(tb):
         raise IndexError(f"time block {block_index} outside 0..{len(tb) - 1}")
     t_slice = slice(*tb[block_index])
+    from pathlib import Path
+
+    store = str(Path(store).resolve())  # workers (other hosts, other cwd) need an absolute path
     p_blocks = [slice(a, b) for a, b in fp.blocks(int(campaign.config["footprint"].get("pixel_block_size", 1024)))]
     t0 = _time.perf_counter()
     def note(ps, seconds):
@@ -167,7 +170,7 @@ def run_time_block(campaign: Campaign, fp: Footprint, store, block_index: int, c
     else:
         from distributed import as_completed
 
-        futures = {client.submit(write_region, campaign, fp, str(store), t_slice, ps, pure=False): ps for ps in p_blocks}
+        futures = {client.submit(write_region, campaign, fp, store, t_slice, ps, pure=False): ps for ps in p_blocks}
         for fut in as_completed(futures):
             note(futures[fut], fut.result())
     n = (t_slice.stop - t_slice.start) * fp.pixels.size

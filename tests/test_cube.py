@@ -111,10 +111,19 @@ def test_rerun_recomputes_only_what_is_missing(cube_run):
     from straylight.provenance import sha256_path
 
     digest = sha256_path(before)
+    # as after a crash inside time block 1: its sentinel and everything downstream are missing
     (out / "background_blocks" / "block_1.json").unlink()
+    for p in ("background_summary.json", "provenance.json"):
+        (out / p).unlink()
+    for d in ("limits.zarr", "maps"):
+        shutil.rmtree(out / d)
     r = _run(tmp, cfg, "-n")
     text = r.stdout + r.stderr
     assert "background_block" in text and "background_init" not in text
+    import re
+
+    counts = {m.group(1): int(m.group(2)) for m in re.finditer(r"^(\w+)\s+(\d+)$", text, re.M)}
+    assert counts.get("background_block") == 1  # only the block that was not finished
     r = _run(tmp, cfg)
     assert r.returncode == 0
     assert sha256_path(out / "background.zarr") == digest  # recomputed block is bit-identical
