@@ -18,6 +18,9 @@ def atomic_path(final: str | os.PathLike):
     """Yield a temporary path next to ``final``; on success move it into place."""
     final = Path(final)
     final.parent.mkdir(parents=True, exist_ok=True)
+    # temporaries of an earlier writer killed with SIGKILL (its `finally` never ran)
+    for stale in final.parent.glob(f".{final.name}.*"):
+        shutil.rmtree(stale, ignore_errors=True)
     tmpdir = Path(tempfile.mkdtemp(prefix=f".{final.name}.", dir=final.parent))
     tmp = tmpdir / final.name
     try:

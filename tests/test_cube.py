@@ -173,3 +173,40 @@ def test_plan_prints_samples_size_and_cost():
     assert r.returncode == 0
     assert "samples (time, pointing): 380,160" in r.stdout
     assert "core-hours" in r.stdout and "GB" in r.stdout
+
+
+@pytest.mark.slow
+def test_kill_9_at_random_moments_then_resume_is_bit_identical(tmp_path, cube_run):
+    """SIGKILL the whole run (Snakemake and its Dask workers) ten times at random moments, resume
+    each time, then finish: products are complete and bit-identical to an uninterrupted run."""
+    import signal
+
+    from straylight.provenance import sha256_path
+
+    cfg = _config(tmp_path, name="cube")
+    env = {**os.environ, "PATH": f"{BIN}:{os.environ['PATH']}"}
+    cmd = [SNAKEMAKE, "-s", str(REPO / "Snakefile"), "-d", str(tmp_path), "--configfile", str(cfg), "--cores", "2",
+           "--rerun-incomplete", "-q"]
+    rng = np.random.default_rng(9)
+    kills = 0
+    for _ in range(10):
+        subprocess.run([SNAKEMAKE, "-s", str(REPO / "Snakefile"), "-d", str(tmp_path), "--configfile", str(cfg),
+                        "--unlock", "-q"], capture_output=True, env=env, timeout=120)
+        proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env,
+                                start_new_session=True)
+        try:
+            proc.wait(timeout=float(rng.uniform(2.0, 14.0)))
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+            kills += 1
+    subprocess.run([SNAKEMAKE, "-s", str(REPO / "Snakefile"), "-d", str(tmp_path), "--configfile", str(cfg),
+                    "--unlock", "-q"], capture_output=True, env=env, timeout=120)
+    r = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=900)
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+    assert kills >= 5  # most attempts were really interrupted
+    _, _, ref = cube_run
+    out = tmp_path / "results" / "cube"
+    for product in ("background.zarr", "limits.zarr", "maps", "ephemeris.zarr", "footprint.fits"):
+        assert sha256_path(out / product) == sha256_path(ref / product), product
+    assert not list(out.glob(".*.*"))  # no temporaries left behind

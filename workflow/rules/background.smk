@@ -24,7 +24,9 @@ rule background_block:
         f"{RESULTS}/background_blocks/block_{{block}}.json",
     params:
         store=f"{RESULTS}/background.zarr",
-    threads: workflow.cores
+    # 2 Dask workers per time block; Snakemake lowers it to --cores, runs several blocks at once
+    # on bigger machines, and the SLURM profile raises it (set-threads)
+    threads: 2
     resources:
         mem_mb=4000,
     conda:
