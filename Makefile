@@ -20,7 +20,11 @@ $(VENV)/.installed-test: pyproject.toml $(VENV)/.installed
 	$(BIN)/python -m pip install --quiet -e ".[test]"
 	touch $@
 
+# A run killed with kill -9 leaves Snakemake's lock behind: clear it, but only when no
+# Snakemake of this .venv is running, then resume (finished time blocks are kept).
 run: $(VENV)/.installed
+	@if ! pgrep -f "$(abspath $(BIN))/snakemake" >/dev/null; then \
+		PATH="$(abspath $(BIN)):$$PATH" $(BIN)/snakemake --unlock -q >/dev/null 2>&1 || true; fi
 	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/snakemake --cores $(CORES) --rerun-incomplete
 
 # the whole suite, slow tests included (this is what CI runs)
