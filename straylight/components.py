@@ -51,6 +51,7 @@ class ComponentModel:
             door_states_deg=tuple(float(s["opening_deg"]) for s in inst["door"]["states"]),
             pixel_area_m2=(self.campaign.instrument_value("detector", "pixel_size_um") * 1e-6) ** 2,
             pixel_etendue_m2_sr=self.zodiacal.pixel_etendue_m2_sr,
+            field_radius_deg=float(np.sqrt(self.campaign.instrument_value("detector", "field_of_view_deg2") / np.pi)),
             earthshine=EarthshineSettings(
                 n_gamma=int(es.get("n_gamma", 24)), n_psi=int(es.get("n_psi", 48)),
                 albedo=float(es.get("albedo", 0.3)), door_blocks=tuple(es.get("door_blocks", (8, 8))),
@@ -152,6 +153,6 @@ class ComponentModel:
         theta = np.degrees(np.arctan2(np.hypot(dx, dy), dz))
         phi = np.degrees(np.arctan2(dy, dx)) % 360.0
         blocked = earth_blocks(np.asarray(sat)[..., None, :], s, self.campaign.earth.radius_km)
-        off_field = theta > 0.6  # in-field stars belong to the in-field terms (scattering, ghosts)
+        off_field = theta > self.offfield.field_radius_deg  # in-field stars: scattering and ghosts instead
         vals = self.offfield.point_source(irr, theta, phi, blocked, np.asarray(door)[..., None]) * off_field
         return np.broadcast_to(vals.sum(axis=-1), shape)

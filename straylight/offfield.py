@@ -138,7 +138,7 @@ class OffFieldModel:
     door_states_deg: tuple[float, ...]
     pixel_area_m2: float
     pixel_etendue_m2_sr: float = 0.0  # pi D^2 / 4 * (p / f)^2, for the Earth seen inside the field
-    field_radius_deg: float = 0.59  # sqrt(1.1 deg2 / pi): the field of view (seed paper sect. 1)
+    field_radius_deg: float = 0.59  # radius of the field of view, sqrt(FoV / pi); from the instrument
     earthshine: EarthshineSettings = field(default_factory=EarthshineSettings)
     moon_law: str = "krisciunas_schaefer"
     moon_eclipse_factor: float = 1e-4

@@ -23,3 +23,20 @@ def run_cli(*args, cwd=REPO, timeout=120):
         [sys.executable, "-m", "straylight.cli", *map(str, args)],
         cwd=cwd, capture_output=True, text=True, timeout=timeout, env=env,
     )
+
+
+def tiny_config(tmp, name="tiny", campaign=None, footprint=None, compute=None):
+    """A small campaign config (2 h at 10 min, nside 4) written to tmp; returns its path."""
+    import yaml
+
+    cfg = yaml.safe_load((REPO / "config" / "config.yaml").read_text())
+    cfg["campaign"].update(name=name, end="2026-01-01T02:00:00", cadence_s=600, time_block_hours=1)
+    cfg["campaign"].update(campaign or {})
+    cfg["instrument"] = str(REPO / "config" / "instruments" / "csst.yaml")
+    cfg["footprint"]["nside"] = 4
+    cfg["footprint"].update(footprint or {})
+    if compute is not None:
+        cfg["compute"] = compute
+    p = Path(tmp) / f"{name}.yaml"
+    p.write_text(yaml.safe_dump(cfg))
+    return p

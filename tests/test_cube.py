@@ -20,14 +20,10 @@ BIN = Path(sys.executable).parent
 
 
 def _config(tmp, name="cube", **compute):
-    cfg = yaml.safe_load((REPO / "config" / "config.yaml").read_text())
-    cfg["campaign"].update(name=name, end="2026-01-01T01:00:00", cadence_s=600, time_block_hours=0.5)
-    cfg["instrument"] = str(REPO / "config" / "instruments" / "csst.yaml")
-    cfg["footprint"].update(nside=4, pixel_block_size=40)
-    cfg["compute"] = compute or {"dask_scheduler": None}
-    p = tmp / f"{name}.yaml"
-    p.write_text(yaml.safe_dump(cfg))
-    return p
+    from conftest import tiny_config
+
+    return tiny_config(tmp, name=name, campaign={"end": "2026-01-01T01:00:00", "time_block_hours": 0.5},
+                       footprint={"pixel_block_size": 40}, compute=compute or {"dask_scheduler": None})
 
 
 def _run(tmp, cfg, *extra):

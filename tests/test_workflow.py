@@ -30,14 +30,9 @@ def test_lint_is_clean():
 
 
 def tiny_config(tmp_path, **campaign):
-    cfg = yaml.safe_load((REPO / "config" / "config.yaml").read_text())
-    cfg["campaign"].update(name="tiny", end="2026-01-01T02:00:00", cadence_s=600, time_block_hours=1)
-    cfg["campaign"].update(campaign)
-    cfg["instrument"] = str(REPO / "config" / "instruments" / "csst.yaml")
-    cfg["footprint"]["nside"] = 4
-    p = tmp_path / "tiny.yaml"
-    p.write_text(yaml.safe_dump(cfg))
-    return p
+    from conftest import tiny_config as make
+
+    return make(tmp_path, campaign=campaign)
 
 
 def test_snakemake_validate_refuses_bad_config(tmp_path):
