@@ -1,6 +1,8 @@
 # straylight: CSST stray-light and sky-background pipeline.
 # Run:  snakemake --cores 2            (default campaign: config/config.yaml)
 #       snakemake --cores 2 --configfile my_campaign.yaml
+from pathlib import Path
+
 from snakemake.utils import min_version, validate
 
 min_version("8.0")
@@ -18,6 +20,7 @@ include: "workflow/rules/footprint.smk"
 include: "workflow/rules/observability.smk"
 include: "workflow/rules/background.smk"
 include: "workflow/rules/limits.smk"
+include: "workflow/rules/stars.smk"
 
 
 rule all:
@@ -30,3 +33,4 @@ rule all:
         f"{RESULTS}/background_summary.json",
         f"{RESULTS}/limits.zarr",
         f"{RESULTS}/provenance.json",
+        [f"{RESULTS}/stars_gaia.parquet"] if config.get("stars", {}).get("gaia_files") else [],

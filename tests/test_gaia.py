@@ -105,3 +105,36 @@ def test_parquet_written_atomically_with_metadata(tmp_path):
     t = pq.read_table(p)
     assert t.num_rows == 2 and t.schema.metadata[b"source"] == b'"test"'
     assert not list(tmp_path.glob(".stars.parquet.*"))
+
+
+def test_stars_rules_ingest_real_files_in_parallel_jobs(tmp_path):
+    """Snakemake: one stars_ingest job per Gaia file, merged; quarantine counted, nothing lost."""
+    import json
+    import os
+    import shutil
+    import subprocess
+    import sys
+
+    from conftest import REPO, tiny_config
+
+    for name in ("1710099405832VAL-result.vot", "1712337806100O-result.ecsv"):
+        shutil.copy(GAIA_DATA / name, tmp_path / name)
+    bad = tmp_path / "bad.csv"
+    _write_csv(bad, ["9,10.0,20.0,1.0,2.0,2015.5,5.0,5.3,4.6", "10,10.0,20.0,0,0,2015.5,,5.3,4.6"])
+    cfg = tiny_config(tmp_path, name="stars")
+    import yaml
+
+    c = yaml.safe_load(cfg.read_text())
+    c["stars"] = {"gaia_files": ["1710099405832VAL-result.vot", "1712337806100O-result.ecsv", "bad.csv"],
+                  "g_limit_mag": 21.0}
+    cfg.write_text(yaml.safe_dump(c))
+    snakemake = str(Path(sys.executable).with_name("snakemake"))
+    r = subprocess.run([snakemake, "-s", str(REPO / "Snakefile"), "-d", str(tmp_path), "--configfile", str(cfg),
+                        "--cores", "2", "results/stars/stars_gaia.parquet"], capture_output=True, text=True,
+                       timeout=600, env={**os.environ, "PATH": f"{Path(sys.executable).parent}:{os.environ['PATH']}"})
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+    summary = json.loads((tmp_path / "results" / "stars" / "stars_gaia_summary.json").read_text())
+    rows = sum(f["rows"] for f in summary["files"])
+    kept = sum(f["kept"] + f["fainter_than_limit"] for f in summary["files"])
+    assert rows == 2 + 5 + 2 and kept + summary["quarantined"] == rows
+    assert summary["files"][2]["quarantine_reasons"] == {"missing or NaN phot_g_mean_mag": 1}

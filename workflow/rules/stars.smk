@@ -1,0 +1,37 @@
+GAIA_FILES = [
+    f if f.startswith("/") else str(Path(CONFIG_PATH).parent / f)
+    for f in config.get("stars", {}).get("gaia_files", [])
+]
+
+
+rule stars_ingest:
+    """One Gaia DR2 file: stars brighter than the G limit, and the quarantined rows with reasons."""
+    input:
+        gaia=lambda w: GAIA_FILES[int(w.index)],
+        config=CONFIG_PATH,
+    output:
+        stars=f"{RESULTS}/stars/gaia_{{index}}.parquet",
+        quarantine=f"{RESULTS}/stars/gaia_{{index}}_quarantine.parquet",
+        summary=f"{RESULTS}/stars/gaia_{{index}}_summary.json",
+    conda:
+        "../envs/straylight.yaml"
+    log:
+        f"{LOGS}/stars_ingest_{{index}}.log",
+    script:
+        "../../scripts/stars_ingest.py"
+
+
+rule stars_gaia:
+    """All ingested files merged (duplicates across files quarantined), with a summary."""
+    input:
+        stars=expand(f"{RESULTS}/stars/gaia_{{index}}.parquet", index=range(len(GAIA_FILES))),
+        summaries=expand(f"{RESULTS}/stars/gaia_{{index}}_summary.json", index=range(len(GAIA_FILES))),
+    output:
+        stars=f"{RESULTS}/stars_gaia.parquet",
+        summary=f"{RESULTS}/stars_gaia_summary.json",
+    conda:
+        "../envs/straylight.yaml"
+    log:
+        f"{LOGS}/stars_gaia.log",
+    script:
+        "../../scripts/stars_merge.py"
