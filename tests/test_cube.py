@@ -59,13 +59,11 @@ def test_cube_layout_units_and_attrs(cube_run):
 def test_cube_value_equals_sky_command(cube_run):
     """A cube value equals `straylight sky` for the same time and pointing (float32 precision)."""
     _, cfg, out = cube_run
+    from conftest import sky_at
+
     ds = xr.open_zarr(out / "background.zarr")
     it, ip = 4, 17
-    t = str(ds["time"].values[it])[:23]
-    ra, dec = float(ds["ra_deg"][ip]), float(ds["dec_deg"][ip])
-    r = run_cli("sky", "--time", t, "--ra", repr(ra), "--dec", repr(dec), "--config", cfg, "--json")
-    assert r.returncode == 0, r.stderr
-    rec = json.loads(r.stdout)
+    rec = sky_at(ds, it, ip, cfg)
     for ib, b in enumerate(ds["band"].values):
         for comp in ("zodiacal", "earthshine", "moon", "total"):
             assert float(ds[comp][it, ip, ib]) == pytest.approx(rec["bands"][b][comp]["e_per_s_per_pix"],

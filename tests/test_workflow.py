@@ -69,18 +69,12 @@ def test_end_to_end_products(tiny_run):
 
 def test_cube_value_equals_sky_command(tiny_run):
     """A cube value equals `straylight sky` for the same time and pointing (float32 precision)."""
-    import json
-
-    from conftest import run_cli
+    from conftest import sky_at
 
     out, cfg = tiny_run
     obs = xr.open_zarr(out / "observability.zarr")
     it, ip = 7, 5
-    t = str(obs["time"].values[it])[:23]
-    ra, dec = float(obs["ra_deg"][ip]), float(obs["dec_deg"][ip])
-    r = run_cli("sky", "--time", t, "--ra", repr(ra), "--dec", repr(dec), "--config", cfg, "--json")
-    assert r.returncode == 0, r.stderr
-    rec = json.loads(r.stdout)
+    rec = sky_at(obs, it, ip, cfg)
     for k in ("sun_angle_deg", "moon_angle_deg", "earth_limb_angle_deg"):
         assert float(obs[k][it, ip]) == pytest.approx(rec["geometry"][k], rel=1e-6, abs=1e-4)
     assert bool(obs["observable"][it, ip]) == rec["observable"]
