@@ -5,6 +5,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821 - injected by Snakemake
 from _common import campaign, setup_logging  # noqa: E402
 
+import numpy as np  # noqa: E402
 import xarray as xr  # noqa: E402
 
 from straylight.io import atomic_path, write_zarr_atomic  # noqa: E402
@@ -19,7 +20,9 @@ with atomic_path(snakemake.output.maps) as tmp:  # noqa: F821
     maps = write_limit_maps(ds, tmp)
 for b in ds["band"].values:
     best = ds["limiting_mag_best"].sel(band=b).values
-    ok = best > -1e20
-    log.info("band %-4s: deepest limit %.2f, median of pixel bests %.2f mag (AB)", b,
-             best[ok].max() if ok.any() else float("nan"), float(__import__("numpy").median(best[ok])) if ok.any() else float("nan"))
+    seen = best[best > -1e20]  # healpy UNSEEN marks never-observable pixels
+    if seen.size:
+        log.info("band %-4s: deepest limit %.2f, median of pixel bests %.2f mag (AB)", b, seen.max(), np.median(seen))
+    else:
+        log.info("band %-4s: no observable pixel", b)
 log.info("wrote %d HEALPix maps", len(maps))

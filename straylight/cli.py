@@ -72,11 +72,10 @@ def cmd_ephem(args) -> int:
 
 def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None, stars=None) -> dict:
     """The ``straylight sky`` JSON record for one time and pointing (grows with the physics)."""
-    from .bandpass import load_band
+    from .components import ComponentModel
     from .ephemeris import PLANETS
-    from .geometry import radec_to_unit, unit, violation_names
+    from .geometry import radec_to_unit, violation_names
     from .sky import sample_geometry, scene
-    from .zodiacal import zodiacal_model_from_instrument
 
     sc = scene(campaign, time)
     g = sample_geometry(campaign, sc, np.array([ra_deg]), np.array([dec_deg]), grid=False)
@@ -107,13 +106,10 @@ def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None, stars=
         "violations": violation_names(int(v["violations"])) + ([] if door > 0 else ["door"]),
         "bands": {},
     }
-    from .components import ComponentModel
-
     g1 = {k: np.asarray(a).reshape(1) for k, a in g.items()}
     los = radec_to_unit(np.array([ra_deg]), np.array([dec_deg]))
     comps = ComponentModel(campaign).evaluate(sc.satellite_km, sc.bodies_km, los, g1, bands or campaign.bands,
                                               stars=stars)
-    zflag = False
     for name, res in comps.items():
         mag = res["_mag"]
         entry = {}
@@ -123,11 +119,8 @@ def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None, stars=
             m = float(np.ravel(mag(e))[0])
             entry[comp] = {"e_per_s_per_pix": e, "mag_per_arcsec2": m if np.isfinite(m) else None}
         record["bands"][name] = entry
-    zodi = zodiacal_model_from_instrument(campaign.instrument, campaign.config["models"]["zodiacal_spectrum"])
-    zflag = bool(np.ravel(zodi.evaluate(load_band(campaign.instrument, (bands or campaign.bands)[0],
-                                                  campaign.instrument_path.parent),
-                                        los[0], unit(sc.bodies_km["sun"][0] - sc.satellite_km[0]))["no_data"])[0])
-    record["zodiacal_no_data_near_sun"] = zflag
+    first = next(iter(comps.values()))
+    record["zodiacal_no_data_near_sun"] = bool(np.ravel(first["_zodiacal_no_data"])[0])
     record["stars_included"] = stars is not None
     return record
 

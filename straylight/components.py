@@ -1,7 +1,7 @@
 """All stray-light components of samples (time, pointing) per band: the Python API behind
 ``straylight sky`` and the survey cubes.
 
-:func:`components` returns, for each band, e-/s/pixel arrays of the in-field zodiacal light and
+:meth:`ComponentModel.evaluate` returns, for each band, e-/s/pixel arrays of the in-field zodiacal light and
 the off-field terms (Sun, Moon, planets, stars, earthshine direct and via the door), reported
 whether or not the pointing is observable.
 """
@@ -22,9 +22,6 @@ from .offfield import (BandPhotometry, EarthshineSettings, OffFieldModel, magnit
                        moon_v_magnitude, planet_v_magnitude)
 from .pst import load_pst
 from .zodiacal import zodiacal_model_from_instrument
-
-COMPONENTS = ("zodiacal", "sun", "moon", "planets", "stars", "earthshine_direct", "earthshine_door", "earthshine")
-
 
 @dataclass
 class StarTable:
@@ -113,12 +110,12 @@ class ComponentModel:
             planet_terms.append((planet_v_magnitude(p, bodies_km[p], sun, sat),
                                  off.point_source(1.0, geometry[f"{p}_angle_deg"], geometry[f"{p}_phi_deg"],
                                                   geometry[f"{p}_earth_blocked"], door)))
-        sun_dir = unit(sun - sat)
+        b500, zodi_no_data = self.zodiacal.brightness_500nm(frame.z, unit(sun - sat))  # once for all bands
         for name in bands:
             band = self.band(name)
             phot = self.photometry(name)
             res = {}
-            res["zodiacal"] = np.broadcast_to(self.zodiacal.evaluate(band, frame.z, sun_dir)["e_per_s_per_pix"], shape)
+            res["zodiacal"] = np.broadcast_to(self.zodiacal.e_per_s_per_pix(band, b500), shape)
             sun_irr = phot.sun_at_1au_photons_s_m2 * (1.495978707e8 / d_sun) ** 2
             res["sun"] = t_sun * sun_irr
             res["moon"] = t_moon * phot.solar_like_from_v(v_moon) * eclipse
@@ -135,6 +132,7 @@ class ComponentModel:
             res = {k: np.asarray(v, dtype=float) for k, v in res.items()}
             res["total"] = sum(res[k] for k in ("zodiacal", "sun", "moon", "planets", "stars", "earthshine"))
             res["_band"] = band
+            res["_zodiacal_no_data"] = np.broadcast_to(zodi_no_data, shape)
             res["_mag"] = lambda e, b=band: magnitude_per_arcsec2(e, b, aperture_d, pix_arcsec)
             out[name] = res
         return out

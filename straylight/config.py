@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import copy
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
 from typing import Any
@@ -119,7 +119,6 @@ class Campaign:
     instrument: dict
     path: Path
     instrument_path: Path
-    extra: dict = field(default_factory=dict)
 
     @property
     def name(self) -> str:

@@ -99,12 +99,27 @@ def init_store(campaign: Campaign, fp: Footprint, store) -> None:
     ds.to_zarr(store, mode="w", compute=False, consolidated=False)
 
 
+_MODELS: dict = {}
+
+
+def _component_model(campaign: Campaign):
+    """One ComponentModel per process and campaign: its door tables and bands are built once,
+    not once per Dask task (the campaign arrives pickled, so key on its content)."""
+    import json
+
+    from .components import ComponentModel
+
+    key = (json.dumps(campaign.config, sort_keys=True, default=str), str(campaign.instrument_path))
+    if key not in _MODELS:
+        _MODELS[key] = ComponentModel(campaign)
+    return _MODELS[key]
+
+
 def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: slice, model=None) -> xr.Dataset:
     """Compute the cube values of times t_slice x pixels p_slice (numpy-backed Dataset)."""
-    from .components import ComponentModel
     from .sky import scene
 
-    model = model or ComponentModel(campaign)
+    model = model or _component_model(campaign)
     times = campaign.times[t_slice]
     sc = scene(campaign, times)
     los = radec_to_unit(fp.ra_deg[p_slice], fp.dec_deg[p_slice])

@@ -114,7 +114,6 @@ class LimbGeometry:
 
     earth_limb_angle_deg: np.ndarray  # LOS elevation above the limb; < 0 when the LOS hits the Earth
     zenith_angle_deg: np.ndarray  # angle between LOS and local zenith at the satellite
-    earth_angular_radius_deg: np.ndarray  # angular radius of the Earth's disc seen from the satellite
     limb_is_bright: np.ndarray  # nearest limb point sunlit
     bright_limb_angle_deg: np.ndarray  # angle LOS -> nearest sunlit limb point (180 if none)
     dark_limb_angle_deg: np.ndarray  # angle LOS -> nearest dark limb point (180 if none)
@@ -183,7 +182,6 @@ def limb_geometry(
     return LimbGeometry(
         earth_limb_angle_deg=limb_angle,
         zenith_angle_deg=zenith,
-        earth_angular_radius_deg=np.degrees(rho) * np.ones_like(limb_angle),
         limb_is_bright=lit_nearest,
         bright_limb_angle_deg=bright,
         dark_limb_angle_deg=dark,

@@ -117,12 +117,13 @@ def _interp_profile(table, r_px):
 def _reach_px(table, flux_e_per_s, floor, p_m):
     """Distance (px) beyond which a star's halo per pixel falls below ``floor``."""
     r, v = table
-    per_pix = v * p_m * p_m  # fraction per pixel, decreasing with r beyond the core
-    out = np.zeros_like(flux_e_per_s)
-    for i, f in enumerate(flux_e_per_s):
-        above = np.flatnonzero(f * per_pix >= floor)
-        out[i] = r[above[-1]] if above.size else 0.0
-    return out
+    per_pix = v * p_m * p_m  # fraction per pixel; beyond its peak it never increases
+    k = int(np.argmax(per_pix))
+    tail_r, tail_v = r[k:], per_pix[k:]
+    threshold = floor / np.maximum(np.asarray(flux_e_per_s, float), 1e-300)
+    # number of tail radii whose value reaches each star's threshold (tail is non-increasing)
+    n_above = np.searchsorted(-tail_v, -threshold, side="right")
+    return np.where(n_above > 0, tail_r[np.maximum(n_above - 1, 0)], 0.0)
 
 
 def _linear_upsample_matrix(n_fine: int, n_coarse: int, offset: float, b: int):

@@ -35,8 +35,6 @@ def versions() -> dict:
 
 
 def provenance_record(campaign, inputs: dict, outputs: dict) -> dict:
-    from . import data as _data  # noqa: F401  (package data location)
-
     data_dir = Path(__file__).resolve().parent / "data"
     return {
         "campaign": campaign.name,

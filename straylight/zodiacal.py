@@ -201,17 +201,26 @@ class ZodiacalModel:
         """Aperture area times pixel solid angle: pi D^2 / 4 * (p / f)^2."""
         return np.pi * self.aperture_diameter_m**2 / 4.0 * (self.pixel_size_m / self.focal_length_m) ** 2
 
+    @staticmethod
+    def brightness_500nm(los: np.ndarray, sun_direction: np.ndarray):
+        """Band-independent part: (B_500 in W m-2 sr-1 um-1, no-data flag) for the samples."""
+        dlon, beta = helioecliptic_coordinates(los, sun_direction)
+        return leinert_table().brightness_500nm(dlon, beta)
+
+    def e_per_s_per_pix(self, band: Band, brightness_500nm) -> np.ndarray:
+        """e-/s/pixel in ``band`` for a 500 nm brightness B_500 (W m-2 sr-1 um-1)."""
+        return np.asarray(brightness_500nm) * self.band_factors(band)[0] * self.pixel_etendue_m2_sr
+
     def evaluate(self, band: Band, los: np.ndarray, sun_direction: np.ndarray) -> dict:
         """Zodiacal light for lines of sight and Sun directions (ICRS vectors, broadcast).
 
         Returns dict with ``e_per_s_per_pix``, ``mag_per_arcsec2``, ``brightness_500nm_w_m2_sr_um``
         and ``no_data`` (True where the table has no data near the Sun).
         """
-        dlon, beta = helioecliptic_coordinates(los, sun_direction)
-        b500, flag = leinert_table().brightness_500nm(dlon, beta)
+        b500, flag = self.brightness_500nm(los, sun_direction)
         rate_sr, mag_unit = self.band_factors(band)
         return {
-            "e_per_s_per_pix": b500 * rate_sr * self.pixel_etendue_m2_sr,
+            "e_per_s_per_pix": self.e_per_s_per_pix(band, b500),
             "mag_per_arcsec2": mag_unit - 2.5 * np.log10(b500),
             "brightness_500nm_w_m2_sr_um": b500,
             "no_data": flag,
