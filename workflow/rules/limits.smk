@@ -25,6 +25,7 @@ rule provenance:
         summary=f"{RESULTS}/background_summary.json",
         ephemeris=f"{RESULTS}/ephemeris.zarr",
         footprint=f"{RESULTS}/footprint.fits",
+        stars=f"{RESULTS}/stars_csst.parquet",
     output:
         f"{RESULTS}/provenance.json",
     params:

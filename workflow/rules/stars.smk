@@ -35,3 +35,20 @@ rule stars_gaia:
         f"{LOGS}/stars_gaia.log",
     script:
         "../../scripts/stars_merge.py"
+
+
+rule stars_catalog:
+    """The CSST-band star catalog: Gaia stars (if any) plus Hipparcos, templates and synthetic photometry."""
+    input:
+        gaia=[f"{RESULTS}/stars_gaia.parquet"] if GAIA_FILES else [],
+        config=CONFIG_PATH,
+    output:
+        parquet=f"{RESULTS}/stars_csst.parquet",
+        fits=f"{RESULTS}/stars_csst.fits",
+        summary=f"{RESULTS}/stars_csst_summary.json",
+    conda:
+        "../envs/straylight.yaml"
+    log:
+        f"{LOGS}/stars_catalog.log",
+    script:
+        "../../scripts/stars_catalog.py"
