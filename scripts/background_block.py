@@ -22,7 +22,8 @@ def main(snakemake):
     block = int(snakemake.wildcards.block)
     with dask_client(c.config.get("compute", {}).get("dask_scheduler"), snakemake.threads,
                      snakemake.resources.mem_mb) as client:
-        report = run_time_block(c, fp, snakemake.params.store, block, client, log=log)
+        report = run_time_block(c, fp, snakemake.params.store, block, client, log=log,
+                                stars_path=snakemake.input.stars)
     write_json_atomic(report.__dict__, snakemake.output[0])
     log.info("time block %d: %d samples in %.1f s (%.0f samples/s)", block, report.samples, report.seconds,
              report.samples / report.seconds)

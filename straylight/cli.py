@@ -129,8 +129,6 @@ def cmd_sky(args) -> int:
     from .config import load_campaign
 
     campaign = load_campaign(args.config)
-    if not -90.0 <= args.dec <= 90.0:
-        raise InputError(f"--dec: must be within [-90, 90] deg, got {args.dec}")
     bands = [b.strip() for b in args.bands.split(",") if b.strip()] if args.bands else None
     stars = None
     if args.catalog:
@@ -139,6 +137,12 @@ def cmd_sky(args) -> int:
 
         cols = [read_star_table(args.catalog, b) for b in (bands or campaign.bands) if b != "V"]
         stars = StarTable(cols[0][0], cols[0][1], {b: c[2] for b, c in zip([b for b in (bands or campaign.bands) if b != "V"], cols)})
+    if args.input:
+        return _sky_table(args, campaign, bands, stars)
+    if args.time is None or args.ra is None or args.dec is None:
+        raise InputError("give --time, --ra and --dec, or --input TABLE --out FILE")
+    if not -90.0 <= args.dec <= 90.0:
+        raise InputError(f"--dec: must be within [-90, 90] deg, got {args.dec}")
     rec = sky_record(campaign, args.time, args.ra % 360.0, args.dec, bands, stars)
     if args.json:
         _print_json(rec)
@@ -153,6 +157,25 @@ def cmd_sky(args) -> int:
             parts = "  ".join(f"{k} {v['e_per_s_per_pix']:.3g}" for k, v in comp.items()
                               if k not in ("earthshine_direct", "earthshine_door"))
             print(f"  {name:4s} e-/s/pix: {parts}")
+    return 0
+
+
+def _sky_table(args, campaign, bands, stars) -> int:
+    from .gaia import write_parquet
+    from .pointings import pointing_table, read_pointings
+
+    if not args.out or not str(args.out).endswith(".parquet"):
+        raise InputError("--input needs --out FILE.parquet")
+    p = read_pointings(args.input)
+    cols = pointing_table(campaign, p, bands, stars, source=str(args.input))
+    from . import __version__
+
+    write_parquet(cols, args.out, {"straylight_version": __version__, "input": str(args.input),
+                                   "config": str(campaign.path), "stars_included": stars is not None,
+                                   "units": "components e-/s/pixel; total_mag_per_arcsec2 AB mag/arcsec2; "
+                                            "limit_mag 5-sigma AB for the band's survey exposures"})
+    n_obs = int(np.sum(cols["observable"]))
+    print(f"{args.out}: {len(cols['time'])} pointings ({n_obs} observable), bands {', '.join(bands or campaign.bands)}")
     return 0
 
 
@@ -298,9 +321,12 @@ def build_parser() -> argparse.ArgumentParser:
     e.set_defaults(func=cmd_ephem)
 
     s = sub.add_parser("sky", help="geometry and observability of one pointing at one time")
-    s.add_argument("--time", required=True, help="UTC time, ISO 8601")
-    s.add_argument("--ra", required=True, type=_finite_float("--ra"), help="ICRS right ascension, deg")
-    s.add_argument("--dec", required=True, type=_finite_float("--dec"), help="ICRS declination, deg")
+    s.add_argument("--time", default=None, help="UTC time, ISO 8601")
+    s.add_argument("--ra", default=None, type=_finite_float("--ra"), help="ICRS right ascension, deg")
+    s.add_argument("--dec", default=None, type=_finite_float("--dec"), help="ICRS declination, deg")
+    s.add_argument("--input", default=None,
+                   help="table of pointings (time, ra, dec; CSV/ECSV/Parquet/FITS) -> --out table.parquet")
+    s.add_argument("--out", default=None, help="with --input: output Parquet table")
     s.add_argument("--config", default=None, help="campaign config (default: config/config.yaml)")
     s.add_argument("--bands", default=None,
                    help="comma-separated bands (default: the instrument's); 'V' = Bessell V diagnostic")

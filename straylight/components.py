@@ -111,6 +111,8 @@ class ComponentModel:
                                  off.point_source(1.0, geometry[f"{p}_angle_deg"], geometry[f"{p}_phi_deg"],
                                                   geometry[f"{p}_earth_blocked"], door)))
         b500, zodi_no_data = self.zodiacal.brightness_500nm(frame.z, unit(sun - sat))  # once for all bands
+        star_t = (self._star_transfer(stars, frame, sat, door)
+                  if stars is not None and len(stars.ra_deg) else None)  # once for all bands
         for name in bands:
             band = self.band(name)
             phot = self.photometry(name)
@@ -123,7 +125,10 @@ class ComponentModel:
             for v, t in planet_terms:
                 planets = planets + t * phot.solar_like_from_v(v)
             res["planets"] = planets
-            res["stars"] = self._stars(stars, name, phot, frame, sat, door, shape) if stars is not None else np.zeros(shape)
+            if star_t is not None and name in stars.mag_ab:
+                res["stars"] = np.broadcast_to(star_t @ phot.from_ab(stars.mag_ab[name]), shape)
+            else:
+                res["stars"] = np.zeros(shape)
             moon_irr_earth = phot.solar_like_from_v(v_moon_at_earth) * eclipse
             ea1 = es_coeff["direct_sun"] * sun_irr + es_coeff["direct_moon"] * moon_irr_earth
             ea2 = es_coeff["door_sun"] * sun_irr + es_coeff["door_moon"] * moon_irr_earth
@@ -137,20 +142,41 @@ class ComponentModel:
             out[name] = res
         return out
 
-    def _stars(self, stars: StarTable, band_name, phot, frame, sat, door, shape):
-        """Sum over catalog stars outside the field (theta > field radius) of E Se Sp PST."""
+    def _star_transfer(self, stars: StarTable, frame, sat, door, batch: int = 512):
+        """Band-independent transfer of every off-field catalog star, E = 1 photon s-1 m-2:
+        Se * Sp * PST * pixel factor, zero for stars inside the field (those scatter and make
+        ghosts instead).  Shape (..., S); stars in batches to bound memory."""
         from .geometry import radec_to_unit
 
-        mags = stars.mag_ab.get(band_name)
-        if mags is None or len(mags) == 0:
-            return np.zeros(shape)
-        s = radec_to_unit(stars.ra_deg, stars.dec_deg, "star catalog")  # (S, 3)
-        irr = phot.from_ab(mags)
+        s_all = radec_to_unit(stars.ra_deg, stars.dec_deg, "star catalog")  # (S, 3)
         z, x, y = (np.asarray(a)[..., None, :] for a in (frame.z, frame.x, frame.y))
-        dz, dx, dy = (np.sum(a * s, axis=-1) for a in (z, x, y))
-        theta = np.degrees(np.arctan2(np.hypot(dx, dy), dz))
-        phi = np.degrees(np.arctan2(dy, dx)) % 360.0
-        blocked = earth_blocks(np.asarray(sat)[..., None, :], s, self.campaign.earth.radius_km)
-        off_field = theta > self.offfield.field_radius_deg  # in-field stars: scattering and ghosts instead
-        vals = self.offfield.point_source(irr, theta, phi, blocked, np.asarray(door)[..., None]) * off_field
-        return np.broadcast_to(vals.sum(axis=-1), shape)
+        sat_b = np.asarray(sat)[..., None, :]
+        door_b = np.asarray(door)[..., None]
+        parts = []
+        for i in range(0, len(s_all), batch):
+            s = s_all[i:i + batch]
+            dz, dx, dy = (np.sum(a * s, axis=-1) for a in (z, x, y))
+            theta = np.degrees(np.arctan2(np.hypot(dx, dy), dz))
+            phi = np.degrees(np.arctan2(dy, dx)) % 360.0
+            blocked = earth_blocks(sat_b, s, self.campaign.earth.radius_km)
+            off_field = theta > self.offfield.field_radius_deg
+            parts.append(self.offfield.point_source(1.0, theta, phi, blocked, door_b) * off_field)
+        return np.concatenate(parts, axis=-1)
+
+
+def load_offfield_stars(path, bands, mag_limit: float) -> StarTable:
+    """Catalog stars (``stars_csst.parquet`` or any table with ra, dec, mag_<band>) brighter than
+    ``mag_limit`` in at least one band; in each band only the stars brighter than the limit count
+    (fainter ones get +inf mag).  Positions are taken at the catalog epoch: proper motions move
+    bright stars by < 1 arcmin in a century, far below the PST's angular structure."""
+    from .image import read_star_table
+
+    bands = [b for b in bands if b != "V"]
+    cols = [read_star_table(path, b) for b in bands]
+    if not cols:
+        return StarTable(np.zeros(0), np.zeros(0), {})
+    ra, dec = cols[0][0], cols[0][1]
+    mags = np.array([c[2] for c in cols])  # (B, S)
+    keep = np.any(mags <= mag_limit, axis=0)
+    mags = np.where(mags <= mag_limit, mags, np.inf)[:, keep]
+    return StarTable(ra[keep], dec[keep], {b: mags[i] for i, b in enumerate(bands)})

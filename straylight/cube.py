@@ -21,6 +21,8 @@ from __future__ import annotations
 import time as _time
 from dataclasses import dataclass
 
+from pathlib import Path
+
 import numpy as np
 import xarray as xr
 
@@ -50,7 +52,7 @@ def cube_chunks(campaign: Campaign, n_times: int, n_pixels: int) -> dict:
     return {"time": t_chunk, "pixel": p_chunk, "band": len(campaign.bands)}
 
 
-def empty_cube(campaign: Campaign, fp: Footprint, times) -> xr.Dataset:
+def empty_cube(campaign: Campaign, fp: Footprint, times, stars_path=None) -> xr.Dataset:
     """The cube's skeleton backed by lazy dask zeros (for writing metadata only)."""
     import dask.array as da
 
@@ -86,16 +88,18 @@ def empty_cube(campaign: Campaign, fp: Footprint, times) -> xr.Dataset:
             "zodiacal_spectrum": campaign.config["models"].get("zodiacal_spectrum"),
             "moon_phase_law": campaign.config["models"].get("moon_phase_law"),
             "pst_source": str(campaign.instrument.get("pst", {}).get("source", "")),
-            "stars_included": 0,
+            "stars_included": int(len(_offfield_stars(campaign, stars_path).ra_deg)) if stars_path else 0,
+            "stars_catalog": Path(stars_path).name if stars_path else "none",
+            "stars_offfield_mag_limit": float(campaign.config["stars"].get("offfield_mag_limit", 4.0)),
             "chunking": "time block x pixel block x all bands",
         },
     )
     return ds
 
 
-def init_store(campaign: Campaign, fp: Footprint, store) -> None:
+def init_store(campaign: Campaign, fp: Footprint, store, stars_path=None) -> None:
     """Write the skeleton (metadata and coordinates, no data chunks) to ``store``."""
-    ds = empty_cube(campaign, fp, campaign.times)
+    ds = empty_cube(campaign, fp, campaign.times, stars_path)
     ds.to_zarr(store, mode="w", compute=False, consolidated=False)
 
 
@@ -115,11 +119,30 @@ def _component_model(campaign: Campaign):
     return _MODELS[key]
 
 
-def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: slice, model=None) -> xr.Dataset:
-    """Compute the cube values of times t_slice x pixels p_slice (numpy-backed Dataset)."""
+_STARS: dict = {}
+
+
+def _offfield_stars(campaign: Campaign, stars_path):
+    """The catalog's off-field stars (brighter than stars.offfield_mag_limit), once per process."""
+    if stars_path is None:
+        return None
+    from .components import load_offfield_stars
+
+    limit = float(campaign.config["stars"].get("offfield_mag_limit", 4.0))
+    key = (str(stars_path), tuple(campaign.bands), limit)
+    if key not in _STARS:
+        _STARS[key] = load_offfield_stars(stars_path, campaign.bands, limit)
+    return _STARS[key]
+
+
+def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: slice, model=None,
+                   stars_path=None) -> xr.Dataset:
+    """Compute the cube values of times t_slice x pixels p_slice (numpy-backed Dataset);
+    ``stars_path``: the star catalog for the off-field star term (None: stars = 0)."""
     from .sky import scene
 
     model = model or _component_model(campaign)
+    stars = _offfield_stars(campaign, stars_path)
     times = campaign.times[t_slice]
     sc = scene(campaign, times)
     los = radec_to_unit(fp.ra_deg[p_slice], fp.dec_deg[p_slice])
@@ -132,7 +155,7 @@ def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: s
         sat = np.broadcast_to(sc.satellite_km[it], los.shape)
         bodies = {k: np.broadcast_to(v[it], los.shape) for k, v in sc.bodies_km.items()}
         g = observing_geometry(sat, bodies, los, campaign.earth.radius_km, campaign.constraints)
-        res = model.evaluate(sat, bodies, los, g, campaign.bands)
+        res = model.evaluate(sat, bodies, los, g, campaign.bands, stars)
         for ib, b in enumerate(campaign.bands):
             for comp in CUBE_COMPONENTS + ("total",):
                 out[comp][it, :, ib] = res[b][comp]
@@ -144,10 +167,11 @@ def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: s
     return xr.Dataset(data)
 
 
-def write_region(campaign: Campaign, fp: Footprint, store, t_slice: slice, p_slice: slice) -> float:
+def write_region(campaign: Campaign, fp: Footprint, store, t_slice: slice, p_slice: slice,
+                 stars_path=None) -> float:
     """Compute one (time block, pixel block) region and write it to its Zarr region; seconds."""
     t0 = _time.perf_counter()
-    ds = compute_region(campaign, fp, t_slice, p_slice)
+    ds = compute_region(campaign, fp, t_slice, p_slice, stars_path=stars_path)
     ds.to_zarr(store, region={"time": t_slice, "pixel": p_slice, "band": slice(None)}, mode="r+", consolidated=False)
     return _time.perf_counter() - t0
 
@@ -160,7 +184,8 @@ class BlockReport:
     seconds: float
 
 
-def run_time_block(campaign: Campaign, fp: Footprint, store, block_index: int, client=None, log=None) -> BlockReport:
+def run_time_block(campaign: Campaign, fp: Footprint, store, block_index: int, client=None, log=None,
+                   stars_path=None) -> BlockReport:
     """Compute every pixel block of one time block with Dask (``client``) or serially; ``log``
     (a logging.Logger) gets one line per finished chunk."""
     from .timegrid import time_blocks
@@ -173,6 +198,7 @@ def run_time_block(campaign: Campaign, fp: Footprint, store, block_index: int, c
     from pathlib import Path
 
     store = str(Path(store).resolve())  # workers (other hosts, other cwd) need an absolute path
+    stars_path = str(Path(stars_path).resolve()) if stars_path else None
     p_blocks = [slice(a, b) for a, b in fp.blocks(int(campaign.config["footprint"].get("pixel_block_size", 1024)))]
     t0 = _time.perf_counter()
     def note(ps, seconds):
@@ -181,11 +207,12 @@ def run_time_block(campaign: Campaign, fp: Footprint, store, block_index: int, c
 
     if client is None:
         for ps in p_blocks:
-            note(ps, write_region(campaign, fp, store, t_slice, ps))
+            note(ps, write_region(campaign, fp, store, t_slice, ps, stars_path))
     else:
         from distributed import as_completed
 
-        futures = {client.submit(write_region, campaign, fp, store, t_slice, ps, pure=False): ps for ps in p_blocks}
+        futures = {client.submit(write_region, campaign, fp, store, t_slice, ps, stars_path, pure=False): ps
+                   for ps in p_blocks}
         for fut in as_completed(futures):
             note(futures[fut], fut.result())
     n = (t_slice.stop - t_slice.start) * fp.pixels.size

@@ -262,3 +262,15 @@ def test_population_file_errors_name_the_file_and_column(tmp_path):
     p.write_text("teff,logg,sdss_g,sdss_r,sdss_i\n5000,4.5,1,1,1\n")
     with pytest.raises(InputError, match=r"pop.csv: mock population lacks a feh column"):
         read_population(p)
+
+
+def test_offfield_stars_keep_only_stars_brighter_than_the_limit_in_each_band(tmp_path):
+    from straylight.components import load_offfield_stars
+    from straylight.gaia import write_parquet
+
+    p = tmp_path / "cat.parquet"
+    write_parquet({"ra": np.array([1.0, 2.0, 3.0]), "dec": np.zeros(3), "mag_g": np.array([3.0, 5.0, 7.0]),
+                   "mag_r": np.array([5.0, 3.5, 9.0])}, p)
+    st = load_offfield_stars(p, ["g", "r", "V"], 4.0)
+    assert st.ra_deg.tolist() == [1.0, 2.0]
+    assert st.mag_ab["g"].tolist() == [3.0, np.inf] and st.mag_ab["r"].tolist() == [np.inf, 3.5]

@@ -3,6 +3,7 @@ rule background_init:
     input:
         config=CONFIG_PATH,
         mask=f"{RESULTS}/footprint.fits",
+        stars=f"{RESULTS}/stars_csst.parquet",
     output:
         f"{RESULTS}/background_blocks/init.json",
     params:
@@ -20,6 +21,7 @@ rule background_block:
     input:
         f"{RESULTS}/background_blocks/init.json",
         config=CONFIG_PATH,
+        stars=f"{RESULTS}/stars_csst.parquet",
     output:
         f"{RESULTS}/background_blocks/block_{{block}}.json",
     params:
