@@ -131,12 +131,11 @@ def cmd_sky(args) -> int:
     campaign = load_campaign(args.config)
     bands = [b.strip() for b in args.bands.split(",") if b.strip()] if args.bands else None
     stars = None
-    if args.catalog:
-        from .components import StarTable
-        from .image import read_star_table
+    if args.catalog:  # the cube's star model: stars brighter than stars.offfield_mag_limit
+        from .components import load_offfield_stars
 
-        cols = [read_star_table(args.catalog, b) for b in (bands or campaign.bands) if b != "V"]
-        stars = StarTable(cols[0][0], cols[0][1], {b: c[2] for b, c in zip([b for b in (bands or campaign.bands) if b != "V"], cols)})
+        stars = load_offfield_stars(args.catalog, bands or campaign.bands,
+                                    float(campaign.config["stars"]["offfield_mag_limit"]))
     if args.input:
         return _sky_table(args, campaign, bands, stars)
     if args.time is None or args.ra is None or args.dec is None:
@@ -331,7 +330,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--bands", default=None,
                    help="comma-separated bands (default: the instrument's); 'V' = Bessell V diagnostic")
     s.add_argument("--catalog", default=None,
-                   help="star table (ra, dec, mag_<band>) for the off-field star term; without it stars = 0")
+                   help="star table (ra, dec, mag_<band>) for the off-field star term (stars brighter than "
+                        "stars.offfield_mag_limit, as in the cube); without it stars = 0")
     s.add_argument("--json", action="store_true", help="print JSON")
     s.set_defaults(func=cmd_sky)
 

@@ -42,12 +42,13 @@ def tiny_config(tmp, name="tiny", campaign=None, footprint=None, compute=None):
     return p
 
 
-def sky_at(ds, it, ip, cfg):
+def sky_at(ds, it, ip, cfg, catalog=None):
     """`straylight sky --json` at the time and pixel (indices it, ip) of a products Dataset."""
     import json
 
     t = str(ds["time"].values[it])[:23]
     ra, dec = float(ds["ra_deg"][ip]), float(ds["dec_deg"][ip])
-    r = run_cli("sky", "--time", t, "--ra", repr(ra), "--dec", repr(dec), "--config", cfg, "--json")
+    extra = ("--catalog", catalog) if catalog else ()
+    r = run_cli("sky", "--time", t, "--ra", repr(ra), "--dec", repr(dec), "--config", cfg, "--json", *extra)
     assert r.returncode == 0, r.stderr
     return json.loads(r.stdout)

@@ -57,15 +57,17 @@ def test_cube_layout_units_and_attrs(cube_run):
 
 
 def test_cube_value_equals_sky_command(cube_run):
-    """A cube value equals `straylight sky` for the same time and pointing (float32 precision)."""
+    """A cube value equals `straylight sky --catalog` (the run's star catalog) for the same time and
+    pointing (float32 precision); the star term is the same model (stars.offfield_mag_limit)."""
     _, cfg, out = cube_run
     from conftest import sky_at
 
     ds = xr.open_zarr(out / "background.zarr")
+    assert ds.attrs["stars_included"] > 1000 and ds.attrs["stars_offfield_mag_limit"] == 4.0
     it, ip = 4, 17
-    rec = sky_at(ds, it, ip, cfg)
+    rec = sky_at(ds, it, ip, cfg, catalog=out / "stars_csst.parquet")
     for ib, b in enumerate(ds["band"].values):
-        for comp in ("zodiacal", "earthshine", "moon", "total"):
+        for comp in ("zodiacal", "earthshine", "moon", "stars", "total"):
             assert float(ds[comp][it, ip, ib]) == pytest.approx(rec["bands"][b][comp]["e_per_s_per_pix"],
                                                                 rel=1e-6, abs=1e-30)
     assert bool(ds["observable"][it, ip]) == rec["observable"]
