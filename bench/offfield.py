@@ -17,24 +17,19 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _results import write_results  # noqa: E402
+from _samples import random_samples  # noqa: E402
 
 
 def main():
     from straylight.components import ComponentModel
     from straylight.config import load_campaign
-    from straylight.geometry import observing_geometry, radec_to_unit, telescope_frame
+    from straylight.geometry import telescope_frame
     from straylight.offfield import BandPhotometry, EarthshineSettings
-    from straylight.sky import scene
 
     c = load_campaign()
     cm = ComponentModel(c)
-    rng = np.random.default_rng(11)
     n = 400
-    times = c.times[rng.integers(0, len(c.times), n)]
-    sc = scene(c, times)
-    ra, dec = rng.uniform(0, 360, n), np.degrees(np.arcsin(rng.uniform(-1, 1, n)))
-    los = radec_to_unit(ra, dec)
-    g = observing_geometry(sc.satellite_km, sc.bodies_km, los, c.earth.radius_km, c.constraints)
+    sc, los, g = random_samples(c, n, seed=11)
     cm.evaluate(sc.satellite_km[:2], {k: v[:2] for k, v in sc.bodies_km.items()}, los[:2],
                 {k: v[:2] for k, v in g.items()}, ["g"])  # warm up (door tables)
     t0 = time.perf_counter()

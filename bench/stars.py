@@ -20,16 +20,15 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _results import write_results  # noqa: E402
+from _samples import random_samples  # noqa: E402
 
 
 def main():
     from straylight.catalog import TemplatePhotometry, build_catalog, make_catalog, select_templates
     from straylight.components import ComponentModel, StarTable
     from straylight.config import load_campaign
-    from straylight.geometry import observing_geometry, radec_to_unit
     from straylight.hipparcos import hipparcos_stars
     from straylight.sed import load_pickles
-    from straylight.sky import scene
 
     c = load_campaign()
     cm = ComponentModel(c)
@@ -48,13 +47,7 @@ def main():
     print(f"conversion: {len(hip['ra'])} stars in {dt:.3f} s = {out['conversion_stars_per_s_per_core']:.3g} stars/s/core")
 
     cols, _ = make_catalog(responses)
-    rng = np.random.default_rng(5)
-    n = 4000
-    times = c.times[rng.integers(0, len(c.times), n)]
-    sc = scene(c, times)
-    ra, dec = rng.uniform(0, 360, n), np.degrees(np.arcsin(rng.uniform(-1, 1, n)))
-    los = radec_to_unit(ra, dec)
-    g = observing_geometry(sc.satellite_km, sc.bodies_km, los, c.earth.radius_km, c.constraints)
+    sc, los, g = random_samples(c, 4000, seed=5)
     obs = np.flatnonzero(g["observable"])[:400]
     sat, los = sc.satellite_km[obs], los[obs]
     bodies = {k: v[obs] for k, v in sc.bodies_km.items()}
@@ -66,10 +59,14 @@ def main():
         keep = np.any(mags <= limit, axis=0)
         m = np.where(mags <= limit, mags, np.inf)[:, keep]
         st = StarTable(cols["ra"][keep], cols["dec"][keep], {b: m[i] for i, b in enumerate(bands)})
-        t0 = time.perf_counter()
-        res = cm.evaluate(sat, bodies, los, g, bands, st)
-        return res, time.perf_counter() - t0, int(keep.sum())
+        best = np.inf
+        for _ in range(3):  # best of three
+            t0 = time.perf_counter()
+            res = cm.evaluate(sat, bodies, los, g, bands, st)
+            best = min(best, time.perf_counter() - t0)
+        return res, best, int(keep.sum())
 
+    cm.evaluate(sat, bodies, los, g, bands)  # warm up: door tables and bands are built on first use
     base, t_base, _ = run(-99.0)  # no stars: the cost of everything else
     ref, t_ref, n_ref = run(99.0)
     rows = []

@@ -187,12 +187,14 @@ def build_catalog(stars: dict, band_responses: dict, library: TemplateLibrary | 
 
 
 def round_trip(catalog: dict, photometry: TemplatePhotometry) -> dict:
-    """Template synthetic G and BP - RP against the input (mag): per-star differences and summary."""
+    """Template synthetic BP - RP against the input (mag): per-star differences and summary.
+
+    (G needs no check: every template is scaled to the star's G, so it holds by construction.)
+    """
     idx = _template_index(catalog["template"], photometry.library.template)
     d_bp_rp = photometry.bp_rp[idx] - (catalog["phot_bp_mean_mag"] - catalog["phot_rp_mean_mag"])
-    d_g = np.zeros_like(d_bp_rp)  # templates are scaled to the star's G
     a = np.abs(d_bp_rp)
-    return {"d_bp_rp": d_bp_rp, "d_g": d_g,
+    return {"d_bp_rp": d_bp_rp,
             "median_abs_bp_rp_mag": float(np.median(a)) if a.size else float("nan"),
             "p90_abs_bp_rp_mag": float(np.percentile(a, 90)) if a.size else float("nan"),
             "p99_abs_bp_rp_mag": float(np.percentile(a, 99)) if a.size else float("nan")}
@@ -284,7 +286,8 @@ def write_catalog(columns: dict, path, metadata: dict) -> None:
             t[k].unit = "mag"  # AB
     t.meta["EXTNAME"] = "STARS"
     t.meta["MAGSYS"] = "mag_*: AB; Gaia G/BP/RP: Vega (DR2 system)"
-    t.meta["COMMENT"] = [json.dumps(metadata, default=str)[i:i + 68] for i in range(0, len(json.dumps(metadata, default=str)), 68)]
+    text = json.dumps(metadata, default=str)
+    t.meta["COMMENT"] = [text[i:i + 68] for i in range(0, len(text), 68)]  # FITS cards hold 72 chars
     with atomic_path(path) as tmp:
         t.write(tmp, format="fits", overwrite=True)
 

@@ -29,6 +29,13 @@ class StarTable:
     dec_deg: np.ndarray
     mag_ab: dict  # band -> array
 
+    @cached_property
+    def unit(self) -> np.ndarray:
+        """ICRS unit vectors (S, 3), computed once (the cube reuses the table for every time step)."""
+        from .geometry import radec_to_unit
+
+        return np.atleast_2d(radec_to_unit(self.ra_deg, self.dec_deg, "star catalog"))
+
 
 @dataclass
 class ComponentModel:
@@ -146,9 +153,7 @@ class ComponentModel:
         """Band-independent transfer of every off-field catalog star, E = 1 photon s-1 m-2:
         Se * Sp * PST * pixel factor, zero for stars inside the field (those scatter and make
         ghosts instead).  Shape (..., S); stars in batches to bound memory."""
-        from .geometry import radec_to_unit
-
-        s_all = radec_to_unit(stars.ra_deg, stars.dec_deg, "star catalog")  # (S, 3)
+        s_all = stars.unit  # (S, 3)
         z, x, y = (np.asarray(a)[..., None, :] for a in (frame.z, frame.x, frame.y))
         sat_b = np.asarray(sat)[..., None, :]
         door_b = np.asarray(door)[..., None]
@@ -169,14 +174,13 @@ def load_offfield_stars(path, bands, mag_limit: float) -> StarTable:
     ``mag_limit`` in at least one band; in each band only the stars brighter than the limit count
     (fainter ones get +inf mag).  Positions are taken at the catalog epoch: proper motions move
     bright stars by < 1 arcmin in a century, far below the PST's angular structure."""
-    from .image import read_star_table
+    from .image import read_star_columns
 
     bands = [b for b in bands if b != "V"]
-    cols = [read_star_table(path, b) for b in bands]
-    if not cols:
+    if not bands:
         return StarTable(np.zeros(0), np.zeros(0), {})
-    ra, dec = cols[0][0], cols[0][1]
-    mags = np.array([c[2] for c in cols])  # (B, S)
+    ra, dec, by_band = read_star_columns(path, bands)
+    mags = np.array([by_band[b] for b in bands])  # (B, S)
     keep = np.any(mags <= mag_limit, axis=0)
     mags = np.where(mags <= mag_limit, mags, np.inf)[:, keep]
     return StarTable(ra[keep], dec[keep], {b: mags[i] for i, b in enumerate(bands)})

@@ -334,8 +334,9 @@ def write_fits(result: DetectorImage, path, provenance: dict) -> None:
         fits.HDUList([prim, gt, st]).writeto(tmp)
 
 
-def read_star_table(path, band: str):
-    """Read ra, dec and mag_<band> columns (Parquet, FITS, CSV, ECSV); clear errors otherwise."""
+def read_star_columns(path, bands) -> tuple[np.ndarray, np.ndarray, dict]:
+    """Read ra, dec and mag_<band> for every band in one pass (Parquet, FITS, CSV, ECSV);
+    returns (ra_deg, dec_deg, {band: mag}); clear errors otherwise."""
     from pathlib import Path
 
     from astropy.table import Table
@@ -347,19 +348,27 @@ def read_star_table(path, band: str):
         if p.suffix.lower() == ".parquet":
             import pyarrow.parquet as pq
 
-            t = pq.read_table(p).to_pandas()
-            cols = {c.lower(): c for c in t.columns}
-            get = lambda c: np.asarray(t[cols[c]], dtype=float)  # noqa: E731
+            t = pq.read_table(p)
+            names = t.column_names
         else:
             t = Table.read(p)
-            cols = {c.lower(): c for c in t.colnames}
-            get = lambda c: np.asarray(t[cols[c]], dtype=float)  # noqa: E731
-    except InputError:
-        raise
+            names = t.colnames
     except Exception as exc:
         raise InputError(f"{p}: cannot read star catalog ({exc})") from exc
-    need = ["ra", "dec", f"mag_{band.lower()}"]
+    cols = {c.lower(): c for c in names}
+    need = ["ra", "dec"] + [f"mag_{b.lower()}" for b in bands]
     missing = [c for c in need if c not in cols]
     if missing:
         raise InputError(f"{p}: missing column(s) {', '.join(missing)}; have {', '.join(cols.values())}")
-    return get("ra"), get("dec"), get(f"mag_{band.lower()}")
+
+    def get(c):
+        col = t[cols[c]]
+        return np.asarray(col.to_numpy() if hasattr(col, "to_numpy") else col, dtype=float)
+
+    return get("ra"), get("dec"), {b: get(f"mag_{b.lower()}") for b in bands}
+
+
+def read_star_table(path, band: str):
+    """Read ra, dec and mag_<band> columns (Parquet, FITS, CSV, ECSV); clear errors otherwise."""
+    ra, dec, mags = read_star_columns(path, [band])
+    return ra, dec, mags[band]

@@ -40,17 +40,16 @@ def read_pointings(path) -> dict:
         found = next((cols[n] for n in names if n in cols), None)
         if found is None:
             raise InputError(f"{path}: missing column {key!r} (accepted: {', '.join(names)}); found {', '.join(t.colnames)}")
-        out[key] = np.asarray(t[found])
+        out[key] = np.asarray(np.ma.filled(t[found], np.nan) if key != "time" else t[found])
     for key in ("ra", "dec"):
         try:
-            vals = np.asarray(np.ma.filled(t[cols.get(key) or cols.get(key + "_deg")], np.nan), float)
+            out[key] = out[key].astype(float)
         except (TypeError, ValueError):
             bad = next(i for i, v in enumerate(out[key]) if not _is_number(v))
             raise InputError(f"{path}: row {bad + 1}: {key} = {out[key][bad]!r} is not a number") from None
-        bad = np.flatnonzero(~np.isfinite(vals))
+        bad = np.flatnonzero(~np.isfinite(out[key]))
         if bad.size:
-            raise InputError(f"{path}: row {bad[0] + 1}: {key} = {vals[bad[0]]} is not finite")
-        out[key] = vals
+            raise InputError(f"{path}: row {bad[0] + 1}: {key} = {out[key][bad[0]]} is not finite")
     bad = np.flatnonzero(np.abs(out["dec"]) > 90.0)
     if bad.size:
         raise InputError(f"{path}: row {bad[0] + 1}: dec = {out['dec'][bad[0]]} outside [-90, 90] deg")
@@ -75,18 +74,16 @@ def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int
     from .timeutil import parse_utc
 
     bands = list(bands or campaign.bands)
-    times = []
-    for i, s in enumerate(pointings["time"]):
-        try:
-            times.append(parse_utc(str(s), f"{source} row {i + 1}: time"))
-        except InputError as exc:
-            raise InputError(str(exc)) from None
-    from astropy.time import Time
-
-    t_all = Time(times)
+    iso = [str(v) for v in pointings["time"]]
+    try:
+        t_all = parse_utc(iso, f"{source}: time")
+    except InputError:  # find the first bad row to name it (one parse per row only on failure)
+        for i, v in enumerate(iso):
+            parse_utc(v, f"{source} row {i + 1}: time")
+        raise
     model = ComponentModel(campaign)
     n = len(t_all)
-    cols: dict = {"time": np.array([t.isot for t in t_all], dtype=object), "ra_deg": pointings["ra"],
+    cols: dict = {"time": np.asarray(t_all.isot, dtype=object), "ra_deg": pointings["ra"],
                   "dec_deg": pointings["dec"]}
     geo_keys = ("observable", "violations", "sun_angle_deg", "moon_angle_deg", "moon_illuminated_fraction",
                 "earth_limb_angle_deg", "limb_is_bright", "door_opening_deg")

@@ -21,6 +21,7 @@ Table 1: B -0.09, V 0.02, I 0.45).
 """
 from __future__ import annotations
 
+import io
 import re
 from dataclasses import dataclass
 from functools import lru_cache
@@ -81,27 +82,38 @@ class TemplateLibrary:
                                self.feh_dex[mask])
 
 
-def ab_magnitudes(wavelength_angstrom, flam, filter_names) -> dict[str, np.ndarray]:
-    """AB magnitudes of spectra (last axis = wavelength) through speclite filters, by name.
+def bin_average(wavelength_angstrom, flam, centres_angstrom, step_angstrom) -> np.ndarray:
+    """Mean of the piecewise-linear spectrum over bins of width ``step`` centred on ``centres``
+    (flux-conserving resampling)."""
+    wl, fl = np.asarray(wavelength_angstrom, float), np.asarray(flam, float)
+    edges = np.concatenate([centres_angstrom - step_angstrom / 2, [centres_angstrom[-1] + step_angstrom / 2]])
+    cum = np.concatenate([[0.0], np.cumsum(0.5 * (fl[1:] + fl[:-1]) * np.diff(wl))])
+    return np.diff(np.interp(edges, wl, cum)) / step_angstrom
 
-    ``flam`` in any F_lambda unit; returned magnitudes are relative (offset by a constant for all
-    bands) unless ``flam`` is in erg s-1 cm-2 A-1.  Filters reaching outside the grid raise.
+
+def magnitudes(wavelength_angstrom, flam, responses: dict) -> dict[str, np.ndarray]:
+    """AB magnitudes of spectra (last axis = wavelength) through speclite responses (name -> response).
+
+    ``flam`` in any F_lambda unit; magnitudes are relative (offset by one constant for all bands)
+    unless ``flam`` is in erg s-1 cm-2 A-1.  A response reaching outside the grid raises.
     """
     import astropy.units as u
-    import speclite.filters as sf
 
     wl = np.asarray(wavelength_angstrom, float)
-    fl = np.atleast_2d(np.asarray(flam, float))
+    fl = np.atleast_2d(np.asarray(flam, float)) * u.erg / (u.s * u.cm**2 * u.Angstrom)
     out = {}
-    for name in filter_names:
-        f = _filter(name)
+    for name, f in responses.items():
         lo, hi = float(f.wavelength.min()), float(f.wavelength.max())
         if lo < wl[0] or hi > wl[-1]:
-            raise InputError(f"filter {name} ({lo:.0f}-{hi:.0f} A) reaches outside the spectra "
+            raise InputError(f"band {name} ({lo:.0f}-{hi:.0f} A) reaches outside the spectra "
                              f"({wl[0]:.0f}-{wl[-1]:.0f} A)")
-        out[name] = np.asarray(
-            f.get_ab_magnitude(fl * u.erg / (u.s * u.cm**2 * u.Angstrom), wl * u.Angstrom), float)
+        out[name] = np.asarray(f.get_ab_magnitude(fl, wl * u.Angstrom), float)
     return out
+
+
+def ab_magnitudes(wavelength_angstrom, flam, filter_names) -> dict[str, np.ndarray]:
+    """AB magnitudes through speclite's named filters (e.g. ``sdss2010-g``); see :func:`magnitudes`."""
+    return magnitudes(wavelength_angstrom, flam, {n: _filter(n) for n in filter_names})
 
 
 @lru_cache(maxsize=64)
@@ -113,18 +125,7 @@ def _filter(name: str):
 
 def template_magnitudes(library: TemplateLibrary, responses: dict) -> dict[str, np.ndarray]:
     """AB magnitude of every template through each response (name -> speclite FilterResponse)."""
-    import astropy.units as u
-
-    wl = library.wavelength_angstrom
-    out = {}
-    for name, f in responses.items():
-        lo, hi = float(f.wavelength.min()), float(f.wavelength.max())
-        if lo < wl[0] or hi > wl[-1]:
-            raise InputError(f"band {name} ({lo:.0f}-{hi:.0f} A) reaches outside the template library "
-                             f"{library.name} ({wl[0]:.0f}-{wl[-1]:.0f} A)")
-        out[name] = np.asarray(
-            f.get_ab_magnitude(library.flam * u.erg / (u.s * u.cm**2 * u.Angstrom), wl * u.Angstrom), float)
-    return out
+    return magnitudes(library.wavelength_angstrom, library.flam, responses)
 
 
 def vega_magnitudes(library: TemplateLibrary, filter_names) -> dict[str, np.ndarray]:
@@ -195,12 +196,10 @@ def load_btsettl(paths, wavelength_min_angstrom=1500.0, wavelength_max_angstrom=
                 with fits.open(p) as h:
                     d = h[1].data
                     wl, fl = np.asarray(d["WAVELENGTH"], float), np.asarray(d["FLUX"], float)
-            else:
-                a = np.loadtxt(p, comments="#", usecols=(0, 1), converters=lambda s: float(s.replace(b"D", b"E")
-                                                                                           if isinstance(s, bytes)
-                                                                                           else s.replace("D", "E")))
+            else:  # BT-Settl text files write Fortran exponents (1.0D+05)
+                a = np.loadtxt(io.StringIO(p.read_text().replace("D", "E")), comments="#", usecols=(0, 1))
                 wl, fl = a[:, 0], a[:, 1]
-        except (OSError, ValueError, KeyError) as exc:
+        except (OSError, ValueError, KeyError, IndexError) as exc:
             raise InputError(f"{p}: cannot read a BT-Settl spectrum: {exc}") from exc
         order = np.argsort(wl)
         wl, fl = wl[order], fl[order]
@@ -208,9 +207,7 @@ def load_btsettl(paths, wavelength_min_angstrom=1500.0, wavelength_max_angstrom=
             raise InputError(f"{p}: covers {wl[0]:.0f}-{wl[-1]:.0f} A, need {grid[0]:.0f}-{grid[-1]:.0f} A")
         if not np.all(np.isfinite(fl)) or np.any(fl < 0):
             raise InputError(f"{p}: FLUX has negative or non-finite values")
-        edges = np.concatenate([grid - step_angstrom / 2, [grid[-1] + step_angstrom / 2]])
-        cum = np.concatenate([[0.0], np.cumsum(0.5 * (fl[1:] + fl[:-1]) * np.diff(wl))])
-        rows.append(np.diff(np.interp(edges, wl, cum)) / step_angstrom)
+        rows.append(bin_average(wl, fl, grid, step_angstrom))
         t = float(m["teff"]) * 100.0
         names.append(f"BT-Settl {t:.0f}/{float(m['logg']):.1f}/{float(m['feh']):+.1f}")
         teff.append(t)

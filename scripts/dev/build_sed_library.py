@@ -32,6 +32,8 @@ from pathlib import Path
 import numpy as np
 from astropy.io import fits
 
+from straylight.sed import bin_average
+
 OUT = Path(__file__).resolve().parents[2] / "straylight" / "data" / "pickles1998_uvk_sed.fits"
 PREFIX = "EXOSIMS/TargetList/dat_uvk/"
 WAVELENGTH_MIN_A, WAVELENGTH_MAX_A, STEP_A = 1500.0, 12000.0, 10.0
@@ -57,11 +59,7 @@ def main(wheel: str) -> None:
             continue
         d = fits.open(io.BytesIO(z.read(member)))[1].data
         wl, fl = np.asarray(d["WAVELENGTH"], float), np.asarray(d["FLUX"], float)
-        # bin average over [c - 5, c + 5] A of the piecewise-linear spectrum
-        edges = np.concatenate([centres - STEP_A / 2, [centres[-1] + STEP_A / 2]])
-        cum = np.concatenate([[0.0], np.cumsum(0.5 * (fl[1:] + fl[:-1]) * np.diff(wl))])
-        integral = np.interp(edges, wl, cum)
-        rows.append(np.diff(integral) / STEP_A)
+        rows.append(bin_average(wl, fl, centres, STEP_A))
         meta.append((sptype, luminosity_class(sptype), fname))
     sed = np.asarray(rows, dtype=np.float32)
     hdus = fits.HDUList([fits.PrimaryHDU()])
