@@ -43,10 +43,31 @@ def sdss_from_gaia(g_mag, bp_rp) -> dict:
     return out
 
 
+def _check_gzip(path: Path) -> None:
+    """A ``.gz`` file must be a complete gzip stream: a partial download or a renamed plain file
+    is refused here rather than read as garbage or as a different file than the name says."""
+    import gzip
+    import zlib
+
+    with open(path, "rb") as fh:
+        magic = fh.read(2)
+    if magic != b"\x1f\x8b":
+        raise InputError(f"{path}: not gzip data (starts with {magic!r}, gzip starts with b'\\x1f\\x8b'); "
+                         "re-download it or drop the .gz suffix")
+    try:
+        with gzip.open(path, "rb") as fh:
+            while fh.read(1 << 24):
+                pass
+    except (EOFError, OSError, zlib.error) as exc:
+        raise InputError(f"{path}: truncated or corrupt gzip stream ({exc}); re-download it") from exc
+
+
 def _read_table(path: Path):
     from astropy.table import Table
 
     name = path.name.lower()
+    if name.endswith(".gz"):
+        _check_gzip(path)
     try:
         if name.endswith((".vot", ".xml", ".vot.gz", ".xml.gz")):
             return Table.read(path, format="votable")

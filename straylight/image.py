@@ -365,7 +365,13 @@ def read_star_columns(path, bands) -> tuple[np.ndarray, np.ndarray, dict]:
         col = t[cols[c]]
         return np.asarray(col.to_numpy() if hasattr(col, "to_numpy") else col, dtype=float)
 
-    return get("ra"), get("dec"), {b: get(f"mag_{b.lower()}") for b in bands}
+    ra, dec = get("ra"), get("dec")
+    for name, v, lo, hi in (("ra", ra, -360.0, 360.0), ("dec", dec, -90.0, 90.0)):
+        bad = np.flatnonzero(~np.isfinite(v) | (v < lo) | (v > hi))
+        if bad.size:
+            raise InputError(f"{p}: row {bad[0]}: {cols[name]} = {v[bad[0]]} must be finite and within "
+                             f"[{lo:g}, {hi:g}] deg")
+    return ra % 360.0, dec, {b: get(f"mag_{b.lower()}") for b in bands}
 
 
 def read_star_table(path, band: str):

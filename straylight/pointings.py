@@ -46,13 +46,16 @@ def read_pointings(path) -> dict:
             out[key] = out[key].astype(float)
         except (TypeError, ValueError):
             bad = next(i for i, v in enumerate(out[key]) if not _is_number(v))
-            raise InputError(f"{path}: row {bad + 1}: {key} = {out[key][bad]!r} is not a number") from None
+            raise InputError(f"{path}: row {bad + 1}: {key} = {str(out[key][bad])!r} is not a number") from None
         bad = np.flatnonzero(~np.isfinite(out[key]))
         if bad.size:
             raise InputError(f"{path}: row {bad[0] + 1}: {key} = {out[key][bad[0]]} is not finite")
     bad = np.flatnonzero(np.abs(out["dec"]) > 90.0)
     if bad.size:
         raise InputError(f"{path}: row {bad[0] + 1}: dec = {out['dec'][bad[0]]} outside [-90, 90] deg")
+    bad = np.flatnonzero(np.abs(out["ra"]) > 360.0)  # a wrap is fine, 1e308 is a mistake
+    if bad.size:
+        raise InputError(f"{path}: row {bad[0] + 1}: ra = {out['ra'][bad[0]]} outside [-360, 360] deg")
     out["ra"] = out["ra"] % 360.0
     return out
 
@@ -68,6 +71,7 @@ def _is_number(v) -> bool:
 def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int = 256, source="") -> dict:
     """Columns of the per-pointing background table (see the module docstring)."""
     from .components import ComponentModel
+    from .ephemeris import default_ephemeris
     from .geometry import radec_to_unit
     from .limits import point_source_limit
     from .sky import sample_geometry, scene
@@ -81,6 +85,13 @@ def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int
         for i, v in enumerate(iso):
             parse_utc(v, f"{source} row {i + 1}: time")
         raise
+    eph = default_ephemeris()
+    jd = t_all.tdb.jd
+    out_of_range = np.flatnonzero((jd < eph.jd_start) | (jd > eph.jd_end))
+    if out_of_range.size:
+        i = int(out_of_range[0])
+        raise InputError(f"{source} row {i + 1}: time = {iso[i]} is outside the DE405 range (1600-12-21 to "
+                         f"2200-02-02); {out_of_range.size} of {len(iso)} rows are out of range")
     model = ComponentModel(campaign)
     n = len(t_all)
     cols: dict = {"time": np.asarray(t_all.isot, dtype=object), "ra_deg": pointings["ra"],

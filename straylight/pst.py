@@ -82,9 +82,11 @@ class PST:
         bad = ~np.isfinite(v) | (v <= 0)
         if bad.any():
             i, j = np.argwhere(bad)[0]
-            raise InputError(f"{src}: pst = {v[i, j]!r} at theta {th[i]}, phi {ph[j]}: must be finite and > 0")
+            raise InputError(f"{src}: pst = {float(v[i, j])} at theta {th[i]}, phi {ph[j]}: must be finite and > 0")
         if ph[-1] == 360.0 and not np.allclose(v[:, -1], v[:, 0], rtol=1e-9):
-            raise InputError(f"{src}: pst at phi 360 differs from phi 0; the matrix must be periodic")
+            j = int(np.flatnonzero(~np.isclose(v[:, -1], v[:, 0], rtol=1e-9))[0])
+            raise InputError(f"{src}: pst at theta {th[j]}, phi 360 = {v[j, -1]:g} differs from phi 0 = {v[j, 0]:g}; "
+                             "the matrix must be periodic")
         self.theta_deg, self.phi_deg, self.values = th, ph, v
 
     @cached_property
