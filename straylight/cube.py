@@ -27,6 +27,7 @@ import numpy as np
 import xarray as xr
 
 from .config import Campaign
+from .errors import OutputError
 from .footprint import Footprint
 from .geometry import VIOLATION_BITS, observing_geometry, radec_to_unit
 
@@ -172,7 +173,13 @@ def write_region(campaign: Campaign, fp: Footprint, store, t_slice: slice, p_sli
     """Compute one (time block, pixel block) region and write it to its Zarr region; seconds."""
     t0 = _time.perf_counter()
     ds = compute_region(campaign, fp, t_slice, p_slice, stars_path=stars_path)
-    ds.to_zarr(store, region={"time": t_slice, "pixel": p_slice, "band": slice(None)}, mode="r+", consolidated=False)
+    try:
+        ds.to_zarr(store, region={"time": t_slice, "pixel": p_slice, "band": slice(None)}, mode="r+",
+                   consolidated=False)
+    except OSError as exc:  # ENOSPC, EDQUOT, EACCES...: the block's sentinel is not written
+        raise OutputError(f"{store}: writing times {t_slice.start}:{t_slice.stop} x pixels {p_slice.start}:"
+                          f"{p_slice.stop} failed ({exc.strerror or exc}); finished time blocks are kept, "
+                          "free space and re-run to redo this block") from exc
     return _time.perf_counter() - t0
 
 

@@ -20,3 +20,8 @@ class InputError(StraylightError):
 
 class EphemerisRangeError(InputError):
     """A time outside the range the ephemeris covers."""
+
+
+class OutputError(StraylightError):
+    """Writing a product failed (disk full, no permission): the message names the store and the
+    region; finished parts are kept and a re-run completes the rest."""

@@ -36,7 +36,7 @@ def versions() -> dict:
 
 def provenance_record(campaign, inputs: dict, outputs: dict) -> dict:
     data_dir = Path(__file__).resolve().parent / "data"
-    return {
+    rec = {
         "campaign": campaign.name,
         "config": campaign.config,
         "config_file": str(campaign.path),
@@ -48,5 +48,10 @@ def provenance_record(campaign, inputs: dict, outputs: dict) -> dict:
             **{f"data/{f.name}": sha256_path(f) for f in sorted(data_dir.iterdir()) if f.is_file()},
             **{k: sha256_path(v) for k, v in inputs.items()},
         },
-        "outputs_sha256": {k: sha256_path(v) for k, v in outputs.items()},
     }
+    rec["outputs_sha256"] = {k: sha256_path(v) for k, v in outputs.items()}
+    # one digest for the whole campaign: two runs from the same config and inputs must agree
+    # (tests/test_cube.py compares it after ten kill -9 and resumes)
+    rec["outputs_digest_sha256"] = hashlib.sha256(
+        "".join(f"{k}:{v}\n" for k, v in sorted(rec["outputs_sha256"].items())).encode()).hexdigest()
+    return rec

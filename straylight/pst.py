@@ -10,7 +10,8 @@ The matrix is read from a file and interpolated bilinearly in log10(PST), period
 
 On load it must be finite and positive, with strictly increasing grids covering theta 0-180 deg
 and phi 0-360 deg (phi 360, if present, equal to phi 0).  Anything else is refused with the
-file, the field and the value.
+file, the field and the value.  Rows at theta 0 and 180 (the poles of the frame, where phi is
+undefined) that vary with phi are replaced by their phi mean, with a logged warning.
 
 No measured CSST matrix is public.  :func:`default_pst_grid` builds the embedded default from
 the paper's anchors; it is an assumption to be replaced by the measured matrix (config
@@ -18,6 +19,7 @@ the paper's anchors; it is an assumption to be replaced by the measured matrix (
 """
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -52,7 +54,9 @@ def default_pst_grid(theta_step_deg: float = 0.5, phi_step_deg: float = 5.0,
     log_azavg = np.interp(theta, a[:, 0], a[:, 1])
     # asymmetry grows from 0 in the field to its full value beyond 10 deg; the azimuthal mean of
     # -(dex/2)(1 + cos phi) is -dex/2, so add dex/2 back to keep the azimuthal mean on the anchors
-    ramp = np.clip((theta - 0.59) / (10.0 - 0.59), 0.0, 1.0)[:, None]
+    # and falls back to 0 over the last 10 deg: at theta = 180 phi is undefined (the pole of the
+    # frame), so a phi-dependent value there would make the PST jump with direction
+    ramp = (np.clip((theta - 0.59) / (10.0 - 0.59), 0.0, 1.0) * np.clip((180.0 - theta) / 10.0, 0.0, 1.0))[:, None]
     asym = door_side_dex * ramp * (0.5 - 0.5 * (1.0 + np.cos(np.radians(phi)))[None, :])
     return theta, phi, 10.0 ** (log_azavg[:, None] + asym)
 
@@ -87,6 +91,17 @@ class PST:
             j = int(np.flatnonzero(~np.isclose(v[:, -1], v[:, 0], rtol=1e-9))[0])
             raise InputError(f"{src}: pst at theta {th[j]}, phi 360 = {v[j, -1]:g} differs from phi 0 = {v[j, 0]:g}; "
                              "the matrix must be periodic")
+        for i in (0, th.size - 1):
+            if th[i] in (0.0, 180.0) and np.ptp(np.log10(v[i])) > 1e-9:
+                # theta 0 and 180 are the poles of the frame: one direction, whatever phi says.
+                # A measured row that varies there would make the PST jump with direction, so it
+                # is replaced by its (geometric) phi mean, and the change logged.
+                mean = 10.0 ** np.mean(np.log10(v[i, :-1] if ph[-1] == 360.0 else v[i]))
+                logging.getLogger(__name__).warning(
+                    "%s: pst at theta %g varies with phi (%.3g-%.3g); replaced by its phi mean %.3g",
+                    src, th[i], v[i].min(), v[i].max(), mean)
+                v = v.copy()
+                v[i] = mean
         self.theta_deg, self.phi_deg, self.values = th, ph, v
 
     @cached_property

@@ -1,0 +1,68 @@
+"""Faults while writing (issue #9): a disk that fills during a Zarr write.  The failure is one
+clear error naming the store and region, finished time blocks keep their bytes, and re-running
+the failed block gives a store bit-identical to an uninterrupted run."""
+import errno
+
+import pytest
+
+from conftest import tiny_config
+from straylight.config import load_campaign
+from straylight.cube import init_store, run_time_block
+from straylight.errors import OutputError
+from straylight.footprint import footprint_from_config
+from straylight.provenance import sha256_path
+
+
+@pytest.fixture(scope="module")
+def small(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("faults")
+    c = load_campaign(tiny_config(tmp, name="faults", campaign={"end": "2026-01-01T01:00:00",
+                                                                 "time_block_hours": 0.5},
+                                  footprint={"pixel_block_size": 40}))
+    fp = footprint_from_config(c.config["footprint"], c.path.parent)
+    ref = tmp / "reference.zarr"
+    init_store(c, fp, ref)
+    for b in (0, 1):
+        run_time_block(c, fp, ref, b)
+    return tmp, c, fp, sha256_path(ref)
+
+
+def _files(store):
+    return {str(p.relative_to(store)): p.read_bytes() for p in sorted(store.rglob("*")) if p.is_file()}
+
+
+@pytest.mark.parametrize("fail_after_writes", [0, 2, 5, 11])
+def test_disk_full_during_a_zarr_write_then_rerun(small, tmp_path, monkeypatch, fail_after_writes):
+    import zarr.storage._local as local
+
+    _, c, fp, ref_digest = small
+    store = tmp_path / "background.zarr"
+    init_store(c, fp, store)
+    run_time_block(c, fp, store, 0)
+    block0 = _files(store)
+
+    real_put = local._put
+    calls = {"n": 0}
+
+    def full_disk_put(path, value, exclusive=False):
+        # worst case for a non-atomic file system: half the chunk reaches the disk, then ENOSPC
+        calls["n"] += 1
+        if calls["n"] > fail_after_writes:
+            data = bytes(value.as_buffer_like())
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_bytes(data[: len(data) // 2])
+            raise OSError(errno.ENOSPC, "No space left on device", str(path))
+        return real_put(path, value, exclusive=exclusive)
+
+    monkeypatch.setattr(local, "_put", full_disk_put)
+    with pytest.raises(OutputError) as err:
+        run_time_block(c, fp, store, 1)
+    msg = str(err.value)
+    assert str(store) in msg and "No space left on device" in msg and "re-run" in msg
+    assert "times 3:6" in msg  # the failed block's region is named
+    after = _files(store)
+    # the finished block 0 is untouched: every file it wrote still has its bytes
+    assert all(after.get(k) == v for k, v in block0.items() if "/c/0/" in k or k.endswith("zarr.json"))
+    monkeypatch.setattr(local, "_put", real_put)  # space freed
+    run_time_block(c, fp, store, 1)
+    assert sha256_path(store) == ref_digest
