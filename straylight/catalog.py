@@ -29,6 +29,7 @@ from scipy.spatial import cKDTree
 from .errors import InputError
 from .gaia import sdss_from_gaia
 from .hipparcos import FLAG_VI_RELATION_EXTRAPOLATED
+from .provenance import sha256_path
 from .sed import AB_MINUS_VEGA, TemplateLibrary, ab_magnitudes, load_pickles, template_magnitudes
 
 FLAG_SDSS = {"g": 1, "r": 2, "i": 4}
@@ -315,7 +316,10 @@ def catalog_for_campaign(campaign, gaia_stars: dict | None = None) -> tuple[dict
         match_radius_arcsec=float(sc["match_radius_arcsec"]),
         template_classes=None if library is not None else tuple(sc["template_classes"]),
         population=population, library=library)
-    metadata = {"straylight_version": __version__, "campaign": campaign.name, "config": str(campaign.path),
+    metadata = {"straylight_version": __version__, "campaign": campaign.name,
+                # the file name and content digest, not the absolute path: the product's bytes must
+                # not depend on where the campaign runs (determinism check, tests/test_cube.py)
+                "config": campaign.path.name, "config_sha256": sha256_path(campaign.path),
                 "stars_settings": sc, "summary": summary,
                 "magnitude_systems": "mag_<band>: AB through the instrument's throughput; G, BP, RP: Gaia DR2 Vega",
                 "flags": {"1": "SDSS g relation outside validity", "2": "SDSS r outside validity",

@@ -135,7 +135,8 @@ def cmd_sky(args) -> int:
         from .components import load_offfield_stars
 
         stars = load_offfield_stars(args.catalog, bands or campaign.bands,
-                                    float(campaign.config["stars"]["offfield_mag_limit"]))
+                                    float(campaign.config["stars"]["offfield_mag_limit"]),
+                                    bool(campaign.config["stars"].get("faint_map", True)))
     if args.input:
         return _sky_table(args, campaign, bands, stars)
     if args.time is None or args.ra is None or args.dec is None:

@@ -7,7 +7,7 @@ whether or not the pointing is observable.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
 
@@ -25,9 +25,17 @@ from .zodiacal import zodiacal_model_from_instrument
 
 @dataclass
 class StarTable:
+    """Off-field stars: ``ra_deg, dec_deg, mag_ab`` are summed one by one through the exact
+    transfer (Earth, door, PST(theta, phi)); the optional ``faint_*`` stars (fainter than the
+    direct limit) enter as a smoothed map, the spherical convolution of their fluxes with the
+    azimuth-averaged PST, evaluated at each line of sight (no Earth or door blocking)."""
+
     ra_deg: np.ndarray
     dec_deg: np.ndarray
-    mag_ab: dict  # band -> array
+    mag_ab: dict  # band -> array (AB mag; +inf where the star is not in this part in that band)
+    faint_ra_deg: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    faint_dec_deg: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    faint_mag_ab: dict = field(default_factory=dict)
 
     @cached_property
     def unit(self) -> np.ndarray:
@@ -35,6 +43,14 @@ class StarTable:
         from .geometry import radec_to_unit
 
         return np.atleast_2d(radec_to_unit(self.ra_deg, self.dec_deg, "star catalog"))
+
+    @cached_property
+    def faint_unit(self) -> np.ndarray:
+        from .geometry import radec_to_unit
+
+        if not len(self.faint_ra_deg):
+            return np.zeros((0, 3))
+        return np.atleast_2d(radec_to_unit(self.faint_ra_deg, self.faint_dec_deg, "star catalog"))
 
 
 @dataclass
@@ -58,9 +74,9 @@ class ComponentModel:
             field_radius_deg=float(np.sqrt(self.campaign.instrument_value("detector", "field_of_view_deg2") / np.pi)),
             earthshine=EarthshineSettings(
                 n_gamma=int(es.get("n_gamma", 24)), n_psi=int(es.get("n_psi", 48)),
-                albedo=float(es.get("albedo", 0.3)), door_blocks=tuple(es.get("door_blocks", (8, 8))),
+                albedo=float(es.get("albedo", 0.3)), door_blocks=tuple(es.get("door_blocks", (24, 24))),
                 door_reflectance=float(dg["reflectance"]["value"]) if "reflectance" in dg else 0.05,
-                n_aperture_door=int(es.get("n_aperture_door", 32)),
+                n_aperture_door=int(es.get("n_aperture_door", 128)),
             ),
             moon_law=self.campaign.config["models"].get("moon_phase_law", "krisciunas_schaefer"),
             moon_eclipse_factor=float(self.campaign.config["models"].get("moon_eclipse_factor", 1e-4)),
@@ -120,6 +136,8 @@ class ComponentModel:
         b500, zodi_no_data = self.zodiacal.brightness_500nm(frame.z, unit(sun - sat))  # once for all bands
         star_t = (self._star_transfer(stars, frame, sat, door)
                   if stars is not None and len(stars.ra_deg) else None)  # once for all bands
+        faint = (self.faint_star_rates(stars, frame.z, bands)
+                 if stars is not None and len(stars.faint_ra_deg) else None)
         for name in bands:
             band = self.band(name)
             phot = self.photometry(name)
@@ -132,10 +150,11 @@ class ComponentModel:
             for v, t in planet_terms:
                 planets = planets + t * phot.solar_like_from_v(v)
             res["planets"] = planets
+            res["stars"] = np.zeros(shape)
             if star_t is not None and name in stars.mag_ab:
-                res["stars"] = np.broadcast_to(star_t @ phot.from_ab(stars.mag_ab[name]), shape)
-            else:
-                res["stars"] = np.zeros(shape)
+                res["stars"] = res["stars"] + star_t @ phot.from_ab(stars.mag_ab[name])
+            if faint is not None and name in faint:
+                res["stars"] = res["stars"] + faint[name]
             moon_irr_earth = phot.solar_like_from_v(v_moon_at_earth) * eclipse
             ea1 = es_coeff["direct_sun"] * sun_irr + es_coeff["direct_moon"] * moon_irr_earth
             ea2 = es_coeff["door_sun"] * sun_irr + es_coeff["door_moon"] * moon_irr_earth
@@ -148,6 +167,43 @@ class ComponentModel:
             res["_mag"] = lambda e, b=band: magnitude_per_arcsec2(e, b, aperture_d, pix_arcsec)
             out[name] = res
         return out
+
+    @cached_property
+    def _pst_azimuthal_table(self):
+        """log10 of the azimuth-averaged PST on a 0.01 deg theta grid (for the faint-star map)."""
+        theta = np.linspace(0.0, 180.0, 18001)
+        return theta, np.log10(self.offfield.pst.azimuthal_mean(theta))
+
+    def faint_star_rates(self, stars: StarTable, los, bands, batch: int = 4096) -> dict:
+        """e-/s/pix per band from the faint stars: sum_s E_s PSTavg(theta_s) * pixel area over the
+        stars outside the field, for lines of sight ``los`` (..., 3).  Depends on the line of sight
+        only, so it is computed once per distinct set of lines of sight (cached)."""
+        import hashlib
+
+        los = np.asarray(los, float)
+        # cached on the star table (whose lifetime bounds the entries) per model and lines of sight
+        key = (hashlib.sha1(np.ascontiguousarray(los).tobytes()).hexdigest(), id(self), tuple(bands))
+        cache = stars.__dict__.setdefault("_faint_cache", {})
+        if key in cache:
+            return cache[key]
+        flat = los.reshape(-1, 3)
+        bands = [b for b in bands if b in stars.faint_mag_ab]
+        flux = np.array([self.photometry(b).from_ab(stars.faint_mag_ab[b]) for b in bands]).T  # (S, B)
+        theta_grid, log_pst = self._pst_azimuthal_table
+        r_field = self.offfield.field_radius_deg
+        out = np.zeros((flat.shape[0], len(bands)))
+        s_all = stars.faint_unit
+        for i in range(0, len(s_all), batch):
+            cosang = np.clip(flat @ s_all[i:i + batch].T, -1.0, 1.0)
+            theta = np.degrees(np.arccos(cosang))
+            t = 10.0 ** np.interp(theta, theta_grid, log_pst) * (theta > r_field)
+            out += t @ flux[i:i + batch]
+        out *= self.offfield.pixel_area_m2
+        res = {b: out[:, j].reshape(los.shape[:-1]) for j, b in enumerate(bands)}
+        if len(cache) > 64:
+            cache.clear()
+        cache[key] = res
+        return res
 
     def _star_transfer(self, stars: StarTable, frame, sat, door, batch: int = 512):
         """Band-independent transfer of every off-field catalog star, E = 1 photon s-1 m-2:
@@ -169,11 +225,13 @@ class ComponentModel:
         return np.concatenate(parts, axis=-1)
 
 
-def load_offfield_stars(path, bands, mag_limit: float) -> StarTable:
-    """Catalog stars (``stars_csst.parquet`` or any table with ra, dec, mag_<band>) brighter than
-    ``mag_limit`` in at least one band; in each band only the stars brighter than the limit count
-    (fainter ones get +inf mag).  Positions are taken at the catalog epoch: proper motions move
-    bright stars by < 1 arcmin in a century, far below the PST's angular structure."""
+def load_offfield_stars(path, bands, mag_limit: float, faint_map: bool = False) -> StarTable:
+    """Catalog stars (``stars_csst.parquet`` or any table with ra, dec, mag_<band>): those brighter
+    than ``mag_limit`` in at least one band are summed directly (in each band only the stars
+    brighter than the limit count; fainter ones get +inf mag there).  With ``faint_map`` every
+    other star enters the smoothed faint-star map (:meth:`ComponentModel.faint_star_rates`), so
+    each star counts exactly once in each band.  Positions are taken at the catalog epoch: proper
+    motions move bright stars by < 1 arcmin in a century, far below the PST's angular structure."""
     from .image import read_star_columns
 
     bands = [b for b in bands if b != "V"]
@@ -181,6 +239,12 @@ def load_offfield_stars(path, bands, mag_limit: float) -> StarTable:
         return StarTable(np.zeros(0), np.zeros(0), {})
     ra, dec, by_band = read_star_columns(path, bands)
     mags = np.array([by_band[b] for b in bands])  # (B, S)
-    keep = np.any(mags <= mag_limit, axis=0)
-    mags = np.where(mags <= mag_limit, mags, np.inf)[:, keep]
-    return StarTable(ra[keep], dec[keep], {b: mags[i] for i, b in enumerate(bands)})
+    bright = mags <= mag_limit
+    keep = np.any(bright, axis=0)
+    direct = np.where(bright, mags, np.inf)[:, keep]
+    if not faint_map:
+        return StarTable(ra[keep], dec[keep], {b: direct[i] for i, b in enumerate(bands)})
+    rest = np.any(~bright & np.isfinite(mags), axis=0)
+    faint = np.where(~bright, mags, np.inf)[:, rest]
+    return StarTable(ra[keep], dec[keep], {b: direct[i] for i, b in enumerate(bands)},
+                     ra[rest], dec[rest], {b: faint[i] for i, b in enumerate(bands)})

@@ -90,8 +90,10 @@ def empty_cube(campaign: Campaign, fp: Footprint, times, stars_path=None) -> xr.
             "moon_phase_law": campaign.config["models"].get("moon_phase_law"),
             "pst_source": str(campaign.instrument.get("pst", {}).get("source", "")),
             "stars_included": int(len(_offfield_stars(campaign, stars_path).ra_deg)) if stars_path else 0,
+            "stars_in_faint_map": int(len(_offfield_stars(campaign, stars_path).faint_ra_deg)) if stars_path else 0,
             "stars_catalog": Path(stars_path).name if stars_path else "none",
-            "stars_offfield_mag_limit": float(campaign.config["stars"].get("offfield_mag_limit", 4.0)),
+            "stars_offfield_mag_limit": float(campaign.config["stars"].get("offfield_mag_limit", 2.0)),
+            "stars_faint_map": int(bool(campaign.config["stars"].get("faint_map", True))),
             "chunking": "time block x pixel block x all bands",
         },
     )
@@ -129,10 +131,11 @@ def _offfield_stars(campaign: Campaign, stars_path):
         return None
     from .components import load_offfield_stars
 
-    limit = float(campaign.config["stars"].get("offfield_mag_limit", 4.0))
-    key = (str(stars_path), tuple(campaign.bands), limit)
+    limit = float(campaign.config["stars"].get("offfield_mag_limit", 2.0))
+    faint = bool(campaign.config["stars"].get("faint_map", True))
+    key = (str(stars_path), tuple(campaign.bands), limit, faint)
     if key not in _STARS:
-        _STARS[key] = load_offfield_stars(stars_path, campaign.bands, limit)
+        _STARS[key] = load_offfield_stars(stars_path, campaign.bands, limit, faint)
     return _STARS[key]
 
 

@@ -32,7 +32,7 @@ from .bandpass import Band
 from .errors import InputError
 from .geometry import radec_to_unit, telescope_frame, unit
 from .ghosts import GhostModel
-from .scatter import ARCSEC_RAD, ScatterModel, check_fluxes
+from .scatter import ScatterModel, check_fluxes
 
 
 @dataclass(frozen=True)

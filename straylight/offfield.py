@@ -41,7 +41,7 @@ import numpy as np
 from .bandpass import Band
 from .door import Door, DoorTable
 from .errors import ConfigError
-from .geometry import dot, earth_blocks, norm, perpendicular_towards, unit
+from .geometry import dot, norm, perpendicular_towards, unit
 from .pst import PST
 from .zodiacal import solar_spectrum
 
@@ -116,9 +116,9 @@ class EarthshineSettings:
     n_gamma: int = 24  # nadir-angle blocks of the visible cap
     n_psi: int = 48  # azimuth blocks
     albedo: float = 0.30
-    door_blocks: tuple[int, int] = (8, 8)  # along x across the door plate
+    door_blocks: tuple[int, int] = (24, 24)  # along x across the door plate
     door_reflectance: float = 0.05
-    n_aperture_door: int = 32  # aperture points for the door-to-aperture path
+    n_aperture_door: int = 128  # aperture points for the door-to-aperture path
 
     def __post_init__(self):
         if self.n_gamma < 2 or self.n_psi < 4:

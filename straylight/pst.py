@@ -48,9 +48,12 @@ DEFAULT_DOOR_SIDE_DEX = 0.3
 def default_pst_grid(theta_step_deg: float = 0.5, phi_step_deg: float = 5.0,
                      door_side_dex: float = DEFAULT_DOOR_SIDE_DEX):
     """The embedded default PST on a (theta, phi) grid: (theta_deg, phi_deg, pst[theta, phi])."""
-    theta = np.arange(0.0, 180.0 + theta_step_deg / 2, theta_step_deg)
-    phi = np.arange(0.0, 360.0 + phi_step_deg / 2, phi_step_deg)
     a = np.array(DEFAULT_ANCHORS_DEG_LOG10)
+    # the anchors and the asymmetry's break points are grid nodes: log10 PST is piecewise linear in
+    # theta between them, so the bilinear interpolation is exact in theta (a uniform 0.5 deg grid
+    # alone put PST 0.16 instead of 0.8 at 0.6 deg, just outside the field edge: bench/run.py)
+    theta = np.union1d(np.arange(0.0, 180.0 + theta_step_deg / 2, theta_step_deg), np.r_[a[:, 0], 10.0, 170.0])
+    phi = np.arange(0.0, 360.0 + phi_step_deg / 2, phi_step_deg)
     log_azavg = np.interp(theta, a[:, 0], a[:, 1])
     # asymmetry grows from 0 in the field to its full value beyond 10 deg; the azimuthal mean of
     # -(dex/2)(1 + cos phi) is -dex/2, so add dex/2 back to keep the azimuthal mean on the anchors

@@ -63,7 +63,8 @@ def test_cube_value_equals_sky_command(cube_run):
     from conftest import sky_at
 
     ds = xr.open_zarr(out / "background.zarr")
-    assert ds.attrs["stars_included"] > 1000 and ds.attrs["stars_offfield_mag_limit"] == 4.0
+    assert ds.attrs["stars_included"] > 150 and ds.attrs["stars_offfield_mag_limit"] == 2.0
+    assert ds.attrs["stars_in_faint_map"] > 100_000 and ds.attrs["stars_faint_map"] == 1
     it, ip = 4, 17
     rec = sky_at(ds, it, ip, cfg, catalog=out / "stars_csst.parquet")
     for ib, b in enumerate(ds["band"].values):

@@ -1,0 +1,315 @@
+"""The benchmark suite in one command (issue #7):  python bench/run.py [--samples N] [--quick]
+
+For every approximation knob, the error of the whole background (all components, all seven
+bands) against a converged reference, against its cost, at random observable (time, pointing)
+samples of the default campaign; one Pareto chart per knob; and the default and reference
+settings side by side.  Writes bench/results/summary.json, bench/results/knobs.json and
+bench/results/pareto_<knob>.png.
+
+Error: max over samples and bands of |B - B_ref| / B_ref,total (the same "fraction of the total
+background" as the tolerance in the config).  Cost: seconds per sample on one core
+(OMP_NUM_THREADS=1), best of three, after a warm-up.
+
+Knobs: earthshine Earth-cap grid (n_gamma x n_psi); door and aperture discretisation of the
+door path; star split (direct magnitude limit, smoothed faint-star map on/off); PST grid step
+(interpolation of the default matrix); time cadence with linear interpolation in time; HEALPix
+nside (a pixel's value standing for every direction inside it).
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _results import write_results  # noqa: E402
+from _samples import random_samples  # noqa: E402
+
+RESULTS = Path(__file__).resolve().parent / "results"
+COMPONENTS = ("zodiacal", "sun", "moon", "planets", "stars", "earthshine")
+
+
+def timed(fn, repeats=3):
+    fn()  # warm-up: tables, caches
+    best, out = np.inf, None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        out = fn()
+        best = min(best, time.perf_counter() - t0)
+    return out, best
+
+
+def max_rel_error(res, ref, bands):
+    return max(float(np.max(np.abs(res[b]["total"] - ref[b]["total"]) / ref[b]["total"])) for b in bands)
+
+
+class Bench:
+    def __init__(self, n_samples: int, seed: int = 5):
+        from straylight.catalog import make_catalog
+        from straylight.components import ComponentModel
+        from straylight.config import load_campaign
+
+        self.campaign = load_campaign()
+        self.bands = list(self.campaign.bands)
+        base = ComponentModel(self.campaign)
+        self.catalog, _ = make_catalog({b: base.band(b).response for b in self.bands})
+        sc, los, g = random_samples(self.campaign, 12 * n_samples, seed=seed)
+        obs = np.flatnonzero(g["observable"])[:n_samples]
+        self.sat, self.los = sc.satellite_km[obs], los[obs]
+        self.bodies = {k: v[obs] for k, v in sc.bodies_km.items()}
+        self.geometry = {k: v[obs] for k, v in g.items()}
+        self.n = len(obs)
+
+    def stars(self, limit: float, faint: bool):
+        from straylight.components import StarTable
+
+        mags = np.array([self.catalog[f"mag_{b}"] for b in self.bands])
+        bright = mags <= limit
+        keep = np.any(bright, axis=0)
+        m = np.where(bright, mags, np.inf)[:, keep]
+        extra = ()
+        if faint:
+            rest = np.any(~bright & np.isfinite(mags), axis=0)
+            f = np.where(~bright, mags, np.inf)[:, rest]
+            extra = (self.catalog["ra"][rest], self.catalog["dec"][rest], {b: f[i] for i, b in enumerate(self.bands)})
+        return StarTable(self.catalog["ra"][keep], self.catalog["dec"][keep],
+                         {b: m[i] for i, b in enumerate(self.bands)}, *extra)
+
+    def model(self, n_gamma=24, n_psi=48, door_blocks=(24, 24), n_aperture_door=128, pst_step=(0.5, 5.0)):
+        from straylight.components import ComponentModel
+        from straylight.pst import PST, default_pst_grid
+
+        cm = ComponentModel(self.campaign)
+        off = cm.offfield
+        es = replace(off.earthshine, n_gamma=n_gamma, n_psi=n_psi, door_blocks=tuple(door_blocks),
+                     n_aperture_door=n_aperture_door)
+        pst = off.pst if tuple(pst_step) == (0.5, 5.0) else PST(*default_pst_grid(*pst_step), source="bench")
+        cm.__dict__["offfield"] = replace(off, earthshine=es, pst=pst)
+        return cm
+
+    def evaluate(self, cm, stars, sl=slice(None)):
+        bodies = {k: v[sl] for k, v in self.bodies.items()}
+        g = {k: v[sl] for k, v in self.geometry.items()}
+        return cm.evaluate(self.sat[sl], bodies, self.los[sl], g, self.bands, stars)
+
+
+DEFAULT = dict(n_gamma=24, n_psi=48, door_blocks=(24, 24), n_aperture_door=128, pst_step=(0.5, 5.0))
+REFERENCE = dict(n_gamma=96, n_psi=192, door_blocks=(48, 48), n_aperture_door=512, pst_step=(0.1, 1.0))
+DEFAULT_STARS = (2.0, True)
+REFERENCE_STARS = (99.0, False)  # every catalog star summed with the exact transfer
+
+
+def sweep(bench, ref, name, settings, make):
+    rows = []
+    for label, kwargs, stars in settings:
+        cm = bench.model(**kwargs)
+        res, dt = timed(lambda: bench.evaluate(cm, stars))
+        err = max_rel_error(res, ref, bench.bands)
+        rows.append({"setting": label, "max_rel_error": err, "seconds_per_sample": dt / bench.n})
+        print(f"  {name:14s} {label:24s} error {err:9.2e}   {dt / bench.n * 1e3:8.3f} ms/sample")
+    return rows
+
+
+def time_cadence_rows(bench):
+    """Background over 6 h at 60 s for 40 observable-rich pointings; coarser cadences linearly
+    interpolated in time; error over samples observable at the fine cadence."""
+    from straylight.components import ComponentModel
+    from straylight.geometry import observing_geometry, radec_to_unit
+    from straylight.sky import scene
+    from astropy.time import Time, TimeDelta
+
+    c = bench.campaign
+    cm = ComponentModel(c)
+    stars = bench.stars(*DEFAULT_STARS)
+    t0 = Time("2026-01-01T00:00:00", scale="utc")
+    fine_s = 60.0
+    times = t0 + TimeDelta(np.arange(0, 6 * 3600 + 1, fine_s), format="sec")
+    rng = np.random.default_rng(2)
+    ra, dec = rng.uniform(0, 360, 40), np.degrees(np.arcsin(rng.uniform(-1, 1, 40)))
+    los = radec_to_unit(ra, dec)
+    sc = scene(c, times)
+
+    def at(idx):
+        out, obs = [], []
+        for i in idx:
+            sat = np.broadcast_to(sc.satellite_km[i], los.shape)
+            bodies = {k: np.broadcast_to(v[i], los.shape) for k, v in sc.bodies_km.items()}
+            g = observing_geometry(sat, bodies, los, c.earth.radius_km, c.constraints)
+            r = cm.evaluate(sat, bodies, los, g, bench.bands, stars)
+            out.append([r[b]["total"] for b in bench.bands])
+            obs.append(g["observable"])
+        return np.array(out), np.array(obs)  # (T, B, P), (T, P)
+
+    full, obs = at(range(len(times)))
+    rows = []
+    for step in (1, 5, 10, 30, 60):
+        idx = np.arange(0, len(times), step)
+        t_start = time.perf_counter()
+        coarse, _ = at(idx)
+        dt = time.perf_counter() - t_start
+        x = np.arange(len(times))
+        interp = np.empty_like(full)
+        for b in range(full.shape[1]):
+            for p in range(full.shape[2]):
+                interp[:, b, p] = np.interp(x, idx, coarse[:, b, p])
+        rel = np.abs(interp - full) / full
+        err = float(np.max(np.where(obs[:, None, :], rel, 0.0)))
+        p99 = float(np.percentile(rel.transpose(0, 2, 1)[obs], 99))
+        cost = dt / (len(times) * los.shape[0])  # per output sample
+        rows.append({"setting": f"{step * fine_s:.0f} s", "max_rel_error": err, "p99_rel_error": p99,
+                     "seconds_per_sample": cost})
+        print(f"  {'cadence':14s} {step * fine_s:6.0f} s{'':17s} error {err:9.2e} (p99 {p99:.1e}) "
+              f"{cost * 1e3:8.3f} ms/sample")
+    return rows
+
+
+def nside_rows(bench):
+    """A pixel's value standing for every direction inside it: random directions against the
+    value at their pixel's centre, at one time."""
+    import healpy as hp
+
+    from straylight.components import ComponentModel
+    from straylight.geometry import observing_geometry, radec_to_unit
+    from straylight.sky import scene
+
+    c = bench.campaign
+    cm = ComponentModel(c)
+    stars = bench.stars(*DEFAULT_STARS)
+    sc = scene(c, ["2026-01-01T03:00:00"])
+    rng = np.random.default_rng(4)
+    n = 400
+    ra, dec = rng.uniform(0, 360, n), np.degrees(np.arcsin(rng.uniform(-1, 1, n)))
+
+    def total(ra_, dec_):
+        los = radec_to_unit(ra_, dec_)
+        sat = np.broadcast_to(sc.satellite_km[0], los.shape)
+        bodies = {k: np.broadcast_to(v[0], los.shape) for k, v in sc.bodies_km.items()}
+        g = observing_geometry(sat, bodies, los, c.earth.radius_km, c.constraints)
+        r = cm.evaluate(sat, bodies, los, g, bench.bands, stars)
+        return np.array([r[b]["total"] for b in bench.bands]), g["observable"]
+
+    exact, obs = total(ra, dec)
+    rows = []
+    for nside in (8, 16, 32, 64, 128):
+        pix = hp.ang2pix(nside, ra, dec, lonlat=True)
+        cra, cdec = hp.pix2ang(nside, pix, lonlat=True)
+        centre, obs_c = total(cra, cdec)
+        both = obs & obs_c
+        err = float(np.max(np.abs(centre - exact)[:, both] / exact[:, both]))
+        cost_rel = hp.nside2npix(nside) / hp.nside2npix(16)
+        rows.append({"setting": f"nside {nside}", "max_rel_error": err, "cost_relative_to_nside16": cost_rel,
+                     "seconds_per_sample": cost_rel})
+        print(f"  {'nside':14s} {nside:<24d} error {err:9.2e}   cost x{cost_rel:g} of nside 16")
+    return rows
+
+
+def pareto_chart(name, rows, path, xlabel="seconds per sample (one core, all bands)"):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    x = np.array([r["seconds_per_sample"] for r in rows])
+    y = np.array([max(r["max_rel_error"], 1e-9) for r in rows])
+    fig, ax = plt.subplots(figsize=(6, 4.2))
+    ax.loglog(x, y, "o", color="C0")
+    order = np.argsort(x)
+    front, best = [], np.inf
+    for i in order:  # Pareto front: nothing cheaper is as accurate
+        if y[i] < best:
+            front.append(i)
+            best = y[i]
+    ax.loglog(x[front], y[front], "-", color="C1", label="Pareto front")
+    for xi, yi, r in zip(x, y, rows):
+        ax.annotate(r["setting"], (xi, yi), textcoords="offset points", xytext=(4, 4), fontsize=7)
+    ax.axhline(0.01, color="grey", ls="--", lw=0.8, label="default tolerance 1 %")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel("max |error| / total background")
+    ax.set_title(f"straylight: {name}")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--samples", type=int, default=150, help="random observable samples (default 150)")
+    ap.add_argument("--quick", action="store_true", help="fewer settings (a smoke run)")
+    args = ap.parse_args(argv)
+    t_start = time.perf_counter()
+    bench = Bench(args.samples)
+    print(f"{bench.n} observable samples, {len(bench.bands)} bands")
+    ref_model = bench.model(**REFERENCE)
+    ref_stars = bench.stars(*REFERENCE_STARS)
+    ref, t_ref = timed(lambda: bench.evaluate(ref_model, ref_stars), repeats=1)
+    # the reference itself against a still finer one, on a few samples: is it converged?
+    finer = bench.model(n_gamma=192, n_psi=384, door_blocks=(64, 64), n_aperture_door=1024, pst_step=(0.05, 0.5))
+    few = slice(0, min(20, bench.n))
+    res_finer = bench.evaluate(finer, ref_stars, few)
+    ref_few = bench.evaluate(ref_model, ref_stars, few)
+    ref_err = max_rel_error(ref_few, res_finer, bench.bands)
+    def_model = bench.model(**DEFAULT)
+    def_stars = bench.stars(*DEFAULT_STARS)
+    res_def, t_def = timed(lambda: bench.evaluate(def_model, def_stars))
+    def_err = max_rel_error(res_def, ref, bench.bands)
+    per_component = {c: max(float(np.max(np.abs(res_def[b][c] - ref[b][c]) / ref[b]["total"])) for b in bench.bands)
+                     for c in COMPONENTS}
+    print(f"default:   {bench.n / t_def:9.0f} samples/s/core, max error {def_err:.2e} of the total")
+    print(f"reference: {bench.n / t_ref:9.1f} samples/s/core, max error {ref_err:.2e} against a finer model")
+    print("default error by component:", {k: f"{v:.1e}" for k, v in per_component.items()})
+
+    knobs = {}
+    print("knob sweeps (others at their default):")
+    g = [(16, 32), (24, 48), (32, 64), (48, 96)] if args.quick else [(8, 16), (12, 24), (16, 32), (24, 48), (32, 64), (48, 96), (96, 192)]
+    knobs["earth_grid"] = sweep(bench, ref, "earth grid", [(f"{a} x {b}", {**DEFAULT, "n_gamma": a, "n_psi": b}, def_stars)
+                                                          for a, b in g], None)
+    d = [(8, 32), (24, 128)] if args.quick else [(2, 8), (4, 16), (8, 32), (16, 64), (24, 128), (32, 256)]
+    knobs["door_discretisation"] = sweep(bench, ref, "door", [(f"{a}x{a} blocks, {b} ap.", {**DEFAULT, "door_blocks": (a, a), "n_aperture_door": b}, def_stars)
+                                                             for a, b in d], None)
+    p = [(0.5, 5.0), (0.25, 2.5), (0.1, 1.0)] if args.quick else [(2.0, 20.0), (1.0, 10.0), (0.5, 5.0), (0.25, 2.5), (0.1, 1.0)]
+    knobs["pst_grid"] = sweep(bench, ref, "PST grid", [(f"{a} x {b} deg", {**DEFAULT, "pst_step": (a, b)}, def_stars) for a, b in p], None)
+    s = [(-99.0, True), (2.0, True), (4.0, True), (4.0, False)] if args.quick else \
+        [(-99.0, True), (0.0, True), (2.0, True), (4.0, True), (6.0, True), (2.0, False), (4.0, False), (6.0, False), (8.0, False)]
+    knobs["star_split"] = sweep(bench, ref, "stars", [(f"direct <= {lim:g}{' + map' if f else ''}", DEFAULT, bench.stars(lim, f))
+                                                      for lim, f in s], None)
+    knobs["time_cadence"] = time_cadence_rows(bench)
+    knobs["healpix_nside"] = nside_rows(bench)
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    for name, rows in knobs.items():
+        xlabel = "cost relative to nside 16" if name == "healpix_nside" else "seconds per sample (one core, all bands)"
+        pareto_chart(name, rows, RESULTS / f"pareto_{name}.png", xlabel)
+    summary = {
+        "samples": bench.n,
+        "bands": bench.bands,
+        "background_samples_per_s_per_core": bench.n / t_def,
+        "background_max_rel_error": def_err,
+        "background_max_rel_error_by_component": per_component,
+        "default_settings": {**DEFAULT, "stars_direct_mag_limit": DEFAULT_STARS[0], "stars_faint_map": DEFAULT_STARS[1]},
+        "reference": {"background_samples_per_s_per_core": bench.n / t_ref,
+                      "background_max_rel_error": ref_err,
+                      "background_max_rel_error_against": "a finer model (Earth grid 192 x 384, door 64 x 64 blocks, "
+                                                          "1024 aperture points, PST 0.05 x 0.5 deg), 20 samples",
+                      "settings": {**REFERENCE, "stars_direct_mag_limit": REFERENCE_STARS[0], "stars_faint_map": False}},
+        "speedup_default_over_reference": t_ref / t_def,
+        "goal_samples_per_s_per_core": 1e6,
+        "goal_max_rel_error": 0.01,
+        "bench_seconds": time.perf_counter() - t_start,
+        "charts": sorted(str(p.name) for p in RESULTS.glob("pareto_*.png")),
+    }
+    write_results("knobs", knobs)
+    write_results("summary", summary)
+    print(f"default {summary['background_samples_per_s_per_core']:.0f} samples/s/core at max error "
+          f"{def_err:.2e}; reference {summary['reference']['background_samples_per_s_per_core']:.1f}; "
+          f"speed-up {summary['speedup_default_over_reference']:.0f}x; {summary['bench_seconds']:.0f} s")
+
+
+if __name__ == "__main__":
+    main()
