@@ -68,19 +68,10 @@ class Bench:
         self.n = len(obs)
 
     def stars(self, limit: float, faint: bool):
-        from straylight.components import StarTable
+        from straylight.components import split_stars
 
-        mags = np.array([self.catalog[f"mag_{b}"] for b in self.bands])
-        bright = mags <= limit
-        keep = np.any(bright, axis=0)
-        m = np.where(bright, mags, np.inf)[:, keep]
-        extra = ()
-        if faint:
-            rest = np.any(~bright & np.isfinite(mags), axis=0)
-            f = np.where(~bright, mags, np.inf)[:, rest]
-            extra = (self.catalog["ra"][rest], self.catalog["dec"][rest], {b: f[i] for i, b in enumerate(self.bands)})
-        return StarTable(self.catalog["ra"][keep], self.catalog["dec"][keep],
-                         {b: m[i] for i, b in enumerate(self.bands)}, *extra)
+        return split_stars(self.catalog["ra"], self.catalog["dec"],
+                           {b: self.catalog[f"mag_{b}"] for b in self.bands}, limit, faint)
 
     def model(self, n_gamma=24, n_psi=48, door_blocks=(24, 24), n_aperture_door=128, pst_step=(0.5, 5.0)):
         from straylight.components import ComponentModel

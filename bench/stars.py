@@ -26,7 +26,7 @@ from _samples import random_samples  # noqa: E402
 
 def main():
     from straylight.catalog import TemplatePhotometry, build_catalog, make_catalog, select_templates
-    from straylight.components import ComponentModel, StarTable
+    from straylight.components import ComponentModel, split_stars
     from straylight.config import load_campaign
     from straylight.hipparcos import hipparcos_stars
     from straylight.sed import load_pickles
@@ -54,18 +54,9 @@ def main():
     bodies = {k: v[obs] for k, v in sc.bodies_km.items()}
     g = {k: v[obs] for k, v in g.items()}
     bands = list(c.bands)
-    mags = np.array([cols[f"mag_{b}"] for b in bands])
 
     def run(limit, faint=False):
-        bright = mags <= limit
-        keep = np.any(bright, axis=0)
-        m = np.where(bright, mags, np.inf)[:, keep]
-        extra = ()
-        if faint:
-            rest = np.any(~bright & np.isfinite(mags), axis=0)
-            f = np.where(~bright, mags, np.inf)[:, rest]
-            extra = (cols["ra"][rest], cols["dec"][rest], {b: f[i] for i, b in enumerate(bands)})
-        st = StarTable(cols["ra"][keep], cols["dec"][keep], {b: m[i] for i, b in enumerate(bands)}, *extra)
+        st = split_stars(cols["ra"], cols["dec"], {b: cols[f"mag_{b}"] for b in bands}, limit, faint)
         t0 = time.perf_counter()
         cm.evaluate(sat, bodies, los, g, bands, st)  # first call: builds the faint map for these lines of sight
         first = time.perf_counter() - t0
@@ -74,7 +65,7 @@ def main():
             t0 = time.perf_counter()
             res = cm.evaluate(sat, bodies, los, g, bands, st)
             best = min(best, time.perf_counter() - t0)
-        return res, best, int(keep.sum()), first - best
+        return res, best, int(len(st.ra_deg)), first - best
 
     cm.evaluate(sat, bodies, los, g, bands)  # warm up: door tables and bands are built on first use
     base, t_base, _, _ = run(-99.0)  # no stars: the cost of everything else

@@ -226,25 +226,32 @@ class ComponentModel:
 
 
 def load_offfield_stars(path, bands, mag_limit: float, faint_map: bool = False) -> StarTable:
-    """Catalog stars (``stars_csst.parquet`` or any table with ra, dec, mag_<band>): those brighter
-    than ``mag_limit`` in at least one band are summed directly (in each band only the stars
-    brighter than the limit count; fainter ones get +inf mag there).  With ``faint_map`` every
-    other star enters the smoothed faint-star map (:meth:`ComponentModel.faint_star_rates`), so
-    each star counts exactly once in each band.  Positions are taken at the catalog epoch: proper
-    motions move bright stars by < 1 arcmin in a century, far below the PST's angular structure."""
+    """Catalog stars (``stars_csst.parquet`` or any table with ra, dec, mag_<band>), split by
+    :func:`split_stars`.  Positions are taken at the catalog epoch: proper motions move bright
+    stars by < 1 arcmin in a century, far below the PST's angular structure."""
     from .image import read_star_columns
 
     bands = [b for b in bands if b != "V"]
     if not bands:
         return StarTable(np.zeros(0), np.zeros(0), {})
     ra, dec, by_band = read_star_columns(path, bands)
-    mags = np.array([by_band[b] for b in bands])  # (B, S)
+    return split_stars(ra, dec, by_band, mag_limit, faint_map)
+
+
+def split_stars(ra_deg, dec_deg, mag_by_band: dict, mag_limit: float, faint_map: bool) -> StarTable:
+    """Stars brighter than ``mag_limit`` (AB) in at least one band are summed directly (in each
+    band only those brighter than the limit count; the others get +inf mag there).  With
+    ``faint_map`` every other star enters the smoothed faint-star map
+    (:meth:`ComponentModel.faint_star_rates`), so each star counts exactly once in each band;
+    without it they are left out."""
+    bands = list(mag_by_band)
+    mags = np.array([mag_by_band[b] for b in bands])  # (B, S)
     bright = mags <= mag_limit
     keep = np.any(bright, axis=0)
     direct = np.where(bright, mags, np.inf)[:, keep]
     if not faint_map:
-        return StarTable(ra[keep], dec[keep], {b: direct[i] for i, b in enumerate(bands)})
+        return StarTable(ra_deg[keep], dec_deg[keep], {b: direct[i] for i, b in enumerate(bands)})
     rest = np.any(~bright & np.isfinite(mags), axis=0)
     faint = np.where(~bright, mags, np.inf)[:, rest]
-    return StarTable(ra[keep], dec[keep], {b: direct[i] for i, b in enumerate(bands)},
-                     ra[rest], dec[rest], {b: faint[i] for i, b in enumerate(bands)})
+    return StarTable(ra_deg[keep], dec_deg[keep], {b: direct[i] for i, b in enumerate(bands)},
+                     ra_deg[rest], dec_deg[rest], {b: faint[i] for i, b in enumerate(bands)})
