@@ -73,11 +73,24 @@ class Bench:
         return split_stars(self.catalog["ra"], self.catalog["dec"],
                            {b: self.catalog[f"mag_{b}"] for b in self.bands}, limit, faint)
 
-    def model(self, n_gamma=24, n_psi=48, door_blocks=(24, 24), n_aperture_door=128, pst_step=(0.5, 5.0)):
+    def model(self, n_gamma=24, n_psi=48, door_blocks=(24, 24), n_aperture_door=128, pst_step=(0.5, 5.0),
+              lut_steps=None):
+        """A component model with these knobs; ``lut_steps`` (deg): the earthshine look-up table
+        with these node steps instead of the direct sum (built on first use, cached)."""
+        import copy
+
         from straylight.components import ComponentModel
+        from straylight.config import campaign_from_dict
         from straylight.pst import PST, default_pst_grid
 
-        cm = ComponentModel(self.campaign)
+        raw = copy.deepcopy(self.campaign.config)
+        es = raw["models"]["earthshine"]
+        if lut_steps is None:
+            es["method"] = "direct"
+        else:
+            es["method"] = "lut"
+            es["lut"] = dict(zip(("sun_zenith_step_deg", "los_zenith_step_deg", "azimuth_step_deg"), lut_steps))
+        cm = ComponentModel(campaign_from_dict(raw, self.campaign.path), expected_samples=10**6)
         off = cm.offfield
         es = replace(off.earthshine, n_gamma=n_gamma, n_psi=n_psi, door_blocks=tuple(door_blocks),
                      n_aperture_door=n_aperture_door)
@@ -97,14 +110,22 @@ DEFAULT_STARS = (2.0, True)
 REFERENCE_STARS = (99.0, False)  # every catalog star summed with the exact transfer
 
 
-def sweep(bench, ref, name, settings, make):
+def sweep(bench, ref, name, settings):
     rows = []
     for label, kwargs, stars in settings:
         cm = bench.model(**kwargs)
+        t0 = time.perf_counter()
+        info = cm.earthshine_model  # builds the look-up table if one is asked for
+        build = time.perf_counter() - t0
         res, dt = timed(lambda: bench.evaluate(cm, stars))
         err = max_rel_error(res, ref, bench.bands)
-        rows.append({"setting": label, "max_rel_error": err, "seconds_per_sample": dt / bench.n})
-        print(f"  {name:14s} {label:24s} error {err:9.2e}   {dt / bench.n * 1e3:8.3f} ms/sample")
+        row = {"setting": label, "max_rel_error": err, "seconds_per_sample": dt / bench.n}
+        if info["method"] == "lut":
+            row["lut_build_seconds"] = build
+            row["lut_validation_max_rel_error"] = info["lut_validation_max_rel_error"]
+        rows.append(row)
+        extra = f"  (table built in {build:.0f} s)" if info["method"] == "lut" else ""
+        print(f"  {name:14s} {label:24s} error {err:9.2e}   {dt / bench.n * 1e3:8.3f} ms/sample{extra}")
     return rows
 
 
@@ -201,6 +222,18 @@ def nside_rows(bench):
     return rows
 
 
+def _table_summary(rows):
+    """The default earthshine table (the last, finest row) against the direct sum (first row):
+    speed, error, build time and the campaign size above which the table pays off."""
+    direct, table = rows[0], rows[-1]
+    saved = direct["seconds_per_sample"] - table["seconds_per_sample"]
+    return {"setting": table["setting"], "samples_per_s_per_core": 1.0 / table["seconds_per_sample"],
+            "max_rel_error": table["max_rel_error"], "build_seconds": table.get("lut_build_seconds"),
+            "validation_max_rel_error": table.get("lut_validation_max_rel_error"),
+            "direct_samples_per_s_per_core": 1.0 / direct["seconds_per_sample"],
+            "pays_off_above_samples": table.get("lut_build_seconds", 0.0) / saved if saved > 0 else None}
+
+
 def pareto_chart(name, rows, path, xlabel="seconds per sample (one core, all bands)"):
     import matplotlib
 
@@ -261,16 +294,20 @@ def main(argv=None):
     print("knob sweeps (others at their default):")
     g = [(16, 32), (24, 48), (32, 64), (48, 96)] if args.quick else [(8, 16), (12, 24), (16, 32), (24, 48), (32, 64), (48, 96), (96, 192)]
     knobs["earth_grid"] = sweep(bench, ref, "earth grid", [(f"{a} x {b}", {**DEFAULT, "n_gamma": a, "n_psi": b}, def_stars)
-                                                          for a, b in g], None)
+                                                          for a, b in g])
+    lut = [(5.0, 5.0, 20.0), (1.0, 2.0, 10.0)] if args.quick else \
+        [(5.0, 5.0, 20.0), (2.5, 4.0, 10.0), (1.0, 2.0, 10.0), (0.5, 2.0, 5.0)]
+    knobs["earthshine_lut"] = sweep(bench, ref, "earthshine", [("direct 24 x 48", DEFAULT, def_stars)] + [
+        (f"table {a:g}/{b:g}/{c:g} deg", {**DEFAULT, "lut_steps": (a, b, c)}, def_stars) for a, b, c in lut])
     d = [(8, 32), (24, 128)] if args.quick else [(2, 8), (4, 16), (8, 32), (16, 64), (24, 128), (32, 256)]
     knobs["door_discretisation"] = sweep(bench, ref, "door", [(f"{a}x{a} blocks, {b} ap.", {**DEFAULT, "door_blocks": (a, a), "n_aperture_door": b}, def_stars)
-                                                             for a, b in d], None)
+                                                             for a, b in d])
     p = [(0.5, 5.0), (0.25, 2.5), (0.1, 1.0)] if args.quick else [(2.0, 20.0), (1.0, 10.0), (0.5, 5.0), (0.25, 2.5), (0.1, 1.0)]
-    knobs["pst_grid"] = sweep(bench, ref, "PST grid", [(f"{a} x {b} deg", {**DEFAULT, "pst_step": (a, b)}, def_stars) for a, b in p], None)
+    knobs["pst_grid"] = sweep(bench, ref, "PST grid", [(f"{a} x {b} deg", {**DEFAULT, "pst_step": (a, b)}, def_stars) for a, b in p])
     s = [(-99.0, True), (2.0, True), (4.0, True), (4.0, False)] if args.quick else \
         [(-99.0, True), (0.0, True), (2.0, True), (4.0, True), (6.0, True), (2.0, False), (4.0, False), (6.0, False), (8.0, False)]
     knobs["star_split"] = sweep(bench, ref, "stars", [(f"direct <= {lim:g}{' + map' if f else ''}", DEFAULT, bench.stars(lim, f))
-                                                      for lim, f in s], None)
+                                                      for lim, f in s])
     knobs["time_cadence"] = time_cadence_rows(bench)
     knobs["healpix_nside"] = nside_rows(bench)
     RESULTS.mkdir(parents=True, exist_ok=True)
@@ -290,6 +327,7 @@ def main(argv=None):
                                                           "1024 aperture points, PST 0.05 x 0.5 deg), 20 samples",
                       "settings": {**REFERENCE, "stars_direct_mag_limit": REFERENCE_STARS[0], "stars_faint_map": False}},
         "speedup_default_over_reference": t_ref / t_def,
+        "earthshine_table": _table_summary(knobs["earthshine_lut"]),
         "goal_samples_per_s_per_core": 1e6,
         "goal_max_rel_error": 0.01,
         "bench_seconds": time.perf_counter() - t_start,

@@ -108,8 +108,9 @@ def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None, stars=
     }
     g1 = {k: np.asarray(a).reshape(1) for k, a in g.items()}
     los = radec_to_unit(np.array([ra_deg]), np.array([dec_deg]))
-    comps = ComponentModel(campaign).evaluate(sc.satellite_km, sc.bodies_km, los, g1, bands or campaign.bands,
-                                              stars=stars)
+    model = ComponentModel(campaign)
+    comps = model.evaluate(sc.satellite_km, sc.bodies_km, los, g1, bands or campaign.bands, stars=stars)
+    record["models"] = model.models_record()
     for name, res in comps.items():
         mag = res["_mag"]
         entry = {}
@@ -167,11 +168,13 @@ def _sky_table(args, campaign, bands, stars) -> int:
     if not args.out or not str(args.out).endswith(".parquet"):
         raise InputError("--input needs --out FILE.parquet")
     p = read_pointings(args.input)
-    cols = pointing_table(campaign, p, bands, stars, source=str(args.input))
+    models: dict = {}
+    cols = pointing_table(campaign, p, bands, stars, source=str(args.input), models=models)
     from . import __version__
 
     write_parquet(cols, args.out, {"straylight_version": __version__, "input": str(args.input),
                                    "config": str(campaign.path), "stars_included": stars is not None,
+                                   "models": models,
                                    "units": "components e-/s/pixel; total_mag_per_arcsec2 AB mag/arcsec2; "
                                             "limit_mag 5-sigma AB for the band's survey exposures"})
     n_obs = int(np.sum(cols["observable"]))

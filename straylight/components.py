@@ -55,7 +55,13 @@ class StarTable:
 
 @dataclass
 class ComponentModel:
+    """All components for one campaign.  ``expected_samples``: how many (time, pointing) samples
+    this model will evaluate (the cube: the whole campaign; a pointing table: its rows; one
+    pointing: 1); with models.earthshine.method = auto it decides whether building the
+    earthshine look-up table pays off."""
+
     campaign: Campaign
+    expected_samples: int = 1
 
     @cached_property
     def offfield(self) -> OffFieldModel:
@@ -117,7 +123,11 @@ class ComponentModel:
         v_moon_at_earth = moon_v_magnitude(geometry["moon_phase_angle_deg"], norm(moon), off.moon_law,
                                            geometry["moon_elongation_deg"])
         eclipse = np.where(moon_eclipsed, off.moon_eclipse_factor, 1.0)
-        es_coeff = off.earthshine_coefficients(sat, sun, moon, frame, door, re_km)  # once for all bands
+        b500, zodi_no_data = self.zodiacal.brightness_500nm(frame.z, unit(sun - sat))  # once for all bands
+        moon_at_earth_unit = {name: self.photometry(name).solar_like_from_v(v_moon_at_earth) * eclipse
+                              for name in bands}
+        zodi = {name: self.zodiacal.e_per_s_per_pix(self.band(name), b500) for name in bands}
+        es_coeff = self._earthshine_coefficients(sat, sun, moon, frame, door, shape, moon_at_earth_unit, zodi)
         aperture_d = self.campaign.instrument_value("telescope", "aperture_diameter_m")
         pix_arcsec = self.campaign.instrument_value("detector", "pixel_scale_arcsec")
         out = {}
@@ -133,7 +143,6 @@ class ComponentModel:
             planet_terms.append((planet_v_magnitude(p, bodies_km[p], sun, sat),
                                  off.point_source(1.0, geometry[f"{p}_angle_deg"], geometry[f"{p}_phi_deg"],
                                                   geometry[f"{p}_earth_blocked"], door)))
-        b500, zodi_no_data = self.zodiacal.brightness_500nm(frame.z, unit(sun - sat))  # once for all bands
         star_t = (self._star_transfer(stars, frame, sat, door)
                   if stars is not None and len(stars.ra_deg) else None)  # once for all bands
         faint = (self.faint_star_rates(stars, frame.z, bands)
@@ -142,7 +151,7 @@ class ComponentModel:
             band = self.band(name)
             phot = self.photometry(name)
             res = {}
-            res["zodiacal"] = np.broadcast_to(self.zodiacal.e_per_s_per_pix(band, b500), shape)
+            res["zodiacal"] = np.broadcast_to(zodi[name], shape)
             sun_irr = phot.sun_at_1au_photons_s_m2 * (1.495978707e8 / d_sun) ** 2
             res["sun"] = t_sun * sun_irr
             res["moon"] = t_moon * phot.solar_like_from_v(v_moon) * eclipse
@@ -155,7 +164,7 @@ class ComponentModel:
                 res["stars"] = res["stars"] + star_t @ phot.from_ab(stars.mag_ab[name])
             if faint is not None and name in faint:
                 res["stars"] = res["stars"] + faint[name]
-            moon_irr_earth = phot.solar_like_from_v(v_moon_at_earth) * eclipse
+            moon_irr_earth = moon_at_earth_unit[name]
             ea1 = es_coeff["direct_sun"] * sun_irr + es_coeff["direct_moon"] * moon_irr_earth
             ea2 = es_coeff["door_sun"] * sun_irr + es_coeff["door_moon"] * moon_irr_earth
             res["earthshine_direct"], res["earthshine_door"] = np.broadcast_to(ea1, shape), np.broadcast_to(ea2, shape)
@@ -166,6 +175,113 @@ class ComponentModel:
             res["_zodiacal_no_data"] = np.broadcast_to(zodi_no_data, shape)
             res["_mag"] = lambda e, b=band: magnitude_per_arcsec2(e, b, aperture_d, pix_arcsec)
             out[name] = res
+        return out
+
+    # -- earthshine: direct sum or look-up table ----------------------------------------------
+    @cached_property
+    def tolerance(self) -> float:
+        """models.tolerance: the error allowed to a fast path, as a fraction of the total."""
+        return float(self.campaign.config["models"].get("tolerance", 0.01))
+
+    @cached_property
+    def earthshine_floor(self) -> float:
+        """The darkest sky background (zodiacal light at the darkest Leinert-table point) in
+        earthshine-coefficient units (e-/s/pix per photon s-1 m-2 of the Sun at 1 AU), over the
+        instrument's bands: errors relative to it bound errors relative to the total."""
+        from .zodiacal import LEINERT_UNIT_W_M2_SR_UM, leinert_table
+
+        b_min = float(np.min(leinert_table().filled)) * LEINERT_UNIT_W_M2_SR_UM
+        return min(float(self.zodiacal.e_per_s_per_pix(self.band(b), b_min))
+                   / self.photometry(b).sun_at_1au_photons_s_m2 for b in self.campaign.bands)
+
+    @cached_property
+    def earthshine_model(self) -> dict:
+        """Which earthshine model runs, from models.earthshine.method (auto | lut | direct) and
+        the tolerance: 'auto' takes the look-up table when its validated error is within half the
+        tolerance, else the direct sum.  Keys: method, and for the table its file, validated
+        error, build time and node steps."""
+        import logging
+
+        from .earthshine_lut import LUTSettings, load_or_build
+
+        es = self.campaign.config["models"].get("earthshine", {})
+        method = es.get("method", "auto")
+        if method == "direct":
+            return {"method": "direct", "lut": None, "reason": "models.earthshine.method = direct"}
+        lut_cfg = es.get("lut", {})
+        settings = LUTSettings(float(lut_cfg.get("sun_zenith_step_deg", 0.5)),
+                               float(lut_cfg.get("los_zenith_step_deg", 2.0)),
+                               float(lut_cfg.get("azimuth_step_deg", 5.0)),
+                               int(lut_cfg.get("n_radius", 1)))
+        r = self.campaign.orbit_radius_range_km
+        log = logging.getLogger("straylight")
+        if method == "auto":
+            # build cost against what the table saves (bench/run.py: the direct sum costs ~0.6 ms per
+            # sample more than the table; a node costs ~0.5 ms to build, per door state)
+            n_nodes = settings.node_count(r[0], self.campaign.earth.radius_km) * len(self.offfield.door_states_deg)
+            build_s, saved_s = 0.5e-3 * n_nodes, 0.6e-3 * self.expected_samples
+            if saved_s < build_s:
+                return {"method": "direct", "lut": None,
+                        "reason": f"auto: {self.expected_samples} samples save ~{saved_s:.0f} s, the table costs ~{build_s:.0f} s"}
+        lut, path = load_or_build(self.offfield, self.campaign.earth.radius_km, r, settings, self.earthshine_floor, log,
+                                  min_limb_angle_deg=self.campaign.constraints.dark_limb_min_deg)
+        info = {"lut_file": str(path.name), "lut_validation_max_rel_error": lut.validation_max_rel_error,
+                "lut_build_seconds": lut.build_seconds,
+                "lut_steps_deg": [settings.sun_zenith_step_deg, settings.los_zenith_step_deg, settings.azimuth_step_deg]}
+        if method == "auto" and not lut.validation_max_rel_error <= 0.5 * self.tolerance:
+            reason = (f"auto: table error {lut.validation_max_rel_error:.2g} > half the tolerance "
+                      f"{self.tolerance:g}")
+            log.info("earthshine: %s: direct sum", reason)
+            return {"method": "direct", "lut": None, "reason": reason, **info}
+        return {"method": "lut", "lut": lut, "reason": f"{method}: {self.expected_samples} samples", **info}
+
+    def models_record(self) -> dict:
+        """Which models ran and their error budget, for a product's attributes (JSON-able)."""
+        sc = self.campaign.config["stars"]
+        # build time left out: the record goes into products, whose bytes must not vary run to run
+        es = {k: v for k, v in self.earthshine_model.items() if k not in ("lut", "lut_build_seconds")}
+        return {"tolerance": self.tolerance, "earthshine": es,
+                "moonlit_earthshine": "skipped where its bound < tolerance/4 x zodiacal light, else summed directly"
+                if es["method"] == "lut" else "summed directly",
+                "stars": {"direct_mag_limit": float(sc.get("offfield_mag_limit", 2.0)),
+                          "faint_map": bool(sc.get("faint_map", True))},
+                "error_budget": {"earthshine_lut_validated": es.get("lut_validation_max_rel_error") if es["method"] == "lut" else 0.0,
+                                 "moonlit_earthshine_skip_max": 0.25 * self.tolerance if es["method"] == "lut" else 0.0,
+                                 "see": "bench/results/summary.json for the whole model against the converged reference"}}
+
+    def _earthshine_coefficients(self, sat, sun, moon, frame, door, shape, moon_at_earth_unit: dict,
+                                 zodi: dict) -> dict:
+        """Earthshine coefficients (see OffFieldModel.earthshine_coefficients) by the model that
+        runs.  With the table, the moonlit Earth is skipped where its bound, times the Moon's
+        irradiance, is below a quarter of the tolerance times the zodiacal light in every band,
+        and summed directly elsewhere."""
+        off, re_km = self.offfield, self.campaign.earth.radius_km
+        lut = self.earthshine_model["lut"]
+        if lut is None:
+            return off.earthshine_coefficients(sat, sun, moon, frame, door, re_km)
+        full = shape + (3,)
+        sat_b, sun_b, moon_b = (np.broadcast_to(np.asarray(v, float), full) for v in (sat, sun, moon))
+        los_b = np.broadcast_to(frame.z, full)
+        door_b = np.broadcast_to(np.asarray(door, float), shape)
+        d_sun, g_sun = lut.sun_coefficients(sat_b, sun_b, los_b, door_b)
+        ones = np.ones(shape)
+        out = {"direct_sun": d_sun + off.earth_in_field(sat_b, sun_b, moon_b, frame, ones, 0 * ones, re_km),
+               "door_sun": g_sun,
+               "direct_moon": off.earth_in_field(sat_b, sun_b, moon_b, frame, 0 * ones, ones, re_km),
+               "door_moon": np.zeros(shape)}
+        bound = lut.moon_bound(sat_b, moon_b, los_b, re_km)
+        need = np.zeros(shape, bool)
+        for b, e_moon in moon_at_earth_unit.items():
+            need |= np.broadcast_to(bound * e_moon > 0.25 * self.tolerance * zodi[b], shape)
+        if np.any(need):
+            from .geometry import TelescopeFrame
+
+            sub = TelescopeFrame(*(np.broadcast_to(a, full)[need] for a in (frame.x, frame.y, frame.z)))
+            c = off.earthshine_coefficients(sat_b[need], sun_b[need], moon_b[need], sub, door_b[need], re_km,
+                                            in_field=False)
+            out["direct_moon"][need] += c["direct_moon"]
+            out["door_moon"][need] = c["door_moon"]
+        self.__dict__["moon_earthshine_direct_fraction"] = float(np.mean(need))
         return out
 
     @cached_property

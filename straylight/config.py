@@ -141,6 +141,20 @@ class Campaign:
         return orbit_from_config(orbit_cfg, self.earth)
 
     @cached_property
+    def orbit_radius_range_km(self) -> tuple[float, float]:
+        """The satellite's smallest and largest geocentric distance over the campaign, km
+        (one value for a circular orbit; sampled at the campaign times for a TLE)."""
+        from .orbit import CircularOrbit
+
+        if isinstance(self.orbit, CircularOrbit):
+            r = self.earth.radius_km + self.orbit.altitude_km
+            return (r, r)
+        import numpy as np
+
+        r = np.linalg.norm(self.orbit.position_gcrs_km(self.times), axis=-1)
+        return (float(r.min()), float(r.max()))
+
+    @cached_property
     def constraints(self):
         from .geometry import Constraints, DoorState
 

@@ -18,6 +18,7 @@ the computation being deterministic, gives identical bytes.
 """
 from __future__ import annotations
 
+import json
 import time as _time
 from dataclasses import dataclass
 
@@ -95,6 +96,9 @@ def empty_cube(campaign: Campaign, fp: Footprint, times, stars_path=None) -> xr.
             "stars_offfield_mag_limit": float(campaign.config["stars"].get("offfield_mag_limit", 2.0)),
             "stars_faint_map": int(bool(campaign.config["stars"].get("faint_map", True))),
             "chunking": "time block x pixel block x all bands",
+            # which models ran and their error budget (the earthshine table is built here, once,
+            # before the time-block jobs start)
+            "models": json.dumps(_component_model(campaign, fp.pixels.size).models_record(), sort_keys=True),
         },
     )
     return ds
@@ -109,16 +113,16 @@ def init_store(campaign: Campaign, fp: Footprint, store, stars_path=None) -> Non
 _MODELS: dict = {}
 
 
-def _component_model(campaign: Campaign):
-    """One ComponentModel per process and campaign: its door tables and bands are built once,
-    not once per Dask task (the campaign arrives pickled, so key on its content)."""
-    import json
-
+def _component_model(campaign: Campaign, n_pixels: int):
+    """One ComponentModel per process and campaign: its door tables, bands and earthshine table
+    are built once, not once per Dask task (the campaign arrives pickled, so key on its content).
+    It expects the whole campaign's samples (times x footprint pixels)."""
     from .components import ComponentModel
 
-    key = (json.dumps(campaign.config, sort_keys=True, default=str), str(campaign.instrument_path))
+    n = len(campaign.times) * int(n_pixels)
+    key = (json.dumps(campaign.config, sort_keys=True, default=str), str(campaign.instrument_path), n)
     if key not in _MODELS:
-        _MODELS[key] = ComponentModel(campaign)
+        _MODELS[key] = ComponentModel(campaign, expected_samples=n)
     return _MODELS[key]
 
 
@@ -145,7 +149,7 @@ def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: s
     ``stars_path``: the star catalog for the off-field star term (None: stars = 0)."""
     from .sky import scene
 
-    model = model or _component_model(campaign)
+    model = model or _component_model(campaign, fp.pixels.size)
     stars = _offfield_stars(campaign, stars_path)
     times = campaign.times[t_slice]
     sc = scene(campaign, times)

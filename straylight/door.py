@@ -38,13 +38,21 @@ def door_length_from_paper(aperture_radius_m: float, opening_deg: float = 135.0,
 
 
 def aperture_points(radius_m: float, n: int) -> np.ndarray:
-    """~n points (x, y) uniformly covering the aperture disc (sunflower / Vogel spiral)."""
+    """n points (x, y) uniformly covering the aperture disc: a sunflower (Vogel) spiral of n/2
+    points and its mirror image y -> -y, so that the door's shade keeps the mirror symmetry of
+    the real door about the Sun's plane (phi -> -phi; a bare spiral broke it by up to 0.16 in
+    Sp, and the earthshine look-up table relies on it).  n = 1: the centre."""
     if n < 1:
         raise ConfigError(f"door: n_aperture = {n} must be >= 1")
-    k = np.arange(n) + 0.5
-    r = radius_m * np.sqrt(k / n)
+    if n == 1:
+        return np.zeros((1, 2))
+    half = n // 2
+    k = np.arange(half) + 0.5
+    r = radius_m * np.sqrt(k / half)
     a = k * np.pi * (3.0 - np.sqrt(5.0))
-    return np.stack([r * np.cos(a), r * np.sin(a)], axis=-1)
+    pts = np.stack([r * np.cos(a), r * np.sin(a)], axis=-1)
+    out = np.concatenate([pts, pts * [1.0, -1.0]])
+    return np.concatenate([out, [[0.0, 0.0]]]) if n % 2 else out
 
 
 @dataclass(frozen=True)
@@ -101,7 +109,9 @@ class Door:
     def table(self, opening_deg: float, theta_step_deg: float = 1.0, phi_step_deg: float = 2.0) -> "DoorTable":
         theta = np.arange(0.0, 90.0 + theta_step_deg / 2, theta_step_deg)
         phi = np.arange(0.0, 360.0 + phi_step_deg / 2, phi_step_deg)
-        th, ph = np.meshgrid(np.radians(theta), np.radians(phi), indexing="ij")
+        # the 90 deg row is the limit from above the aperture plane: exactly in the plane the
+        # ray-plate intersection is 0/0 and its rounding broke the table's mirror symmetry
+        th, ph = np.meshgrid(np.radians(np.minimum(theta, 90.0 - 1e-6)), np.radians(phi), indexing="ij")
         dirs = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], axis=-1)
         return DoorTable(theta, phi, self.unshaded_fraction(dirs, opening_deg))
 

@@ -231,7 +231,7 @@ class OffFieldModel:
             out[state] = (q.reshape(-1, 3), n_in, w.reshape(-1))
         return out
 
-    def _earth_in_field(self, sat_km, sun_km, moon_km, frame, sun_irr, moon_irr_at_earth, earth_radius_km):
+    def earth_in_field(self, sat_km, sun_km, moon_km, frame, sun_irr, moon_irr_at_earth, earth_radius_km):
         """Where the line of sight hits the Earth, its surface is imaged like any extended
         source: radiance x pixel etendue (e-/s/pix); 0 elsewhere."""
         los = np.broadcast_to(frame.z, np.broadcast(np.asarray(sat_km), frame.z).shape)
@@ -246,15 +246,37 @@ class OffFieldModel:
                                   self.earthshine.albedo, earth_radius_km)[..., 0, 0]
         return np.where(hits, lum * self.pixel_etendue_m2_sr, 0.0)
 
-    def earthshine_coefficients(self, sat_km, sun_km, moon_km, frame, opening_deg, earth_radius_km) -> dict:
+    def earthshine_lamp_bound(self, sat_km, lamp_direction, los, earth_radius_km) -> np.ndarray:
+        """Upper bound of the direct coefficient of a cap lit from ``lamp_direction`` (unit
+        vector, the lamp at infinity) whatever the telescope's roll and door: radiance
+        albedo/pi cos(z_lamp), the PST at its maximum over phi (larger neighbouring theta row),
+        Sp = 1."""
+        s = self.earthshine
+        d, d_omega, pts = self._cap_grid(np.asarray(sat_km, float), earth_radius_km, s)
+        mu = np.maximum(dot(pts / earth_radius_km, np.asarray(lamp_direction, float)[..., None, None, :]), 0.0)
+        cosang = np.clip(dot(d, unit(np.asarray(los, float))[..., None, None, :]), -1.0, 1.0)
+        theta = np.degrees(np.arccos(cosang))
+        th = self.pst.theta_deg
+        row_max = self.pst.values.max(axis=1)
+        i = np.clip(np.searchsorted(th, theta), 1, th.size - 1)
+        pst_max = np.maximum(row_max[i - 1], row_max[i])
+        return np.sum(s.albedo / np.pi * mu * pst_max * (theta > self.field_radius_deg) * d_omega,
+                      axis=(-2, -1)) * self.pixel_area_m2
+
+    def earthshine_coefficients(self, sat_km, sun_km, moon_km, frame, opening_deg, earth_radius_km,
+                                in_field: bool = True, moon: bool = True) -> dict:
         """Band-independent earthshine per unit photon irradiance of the Sun and of the Moon (at
         the Earth): keys direct_sun, direct_moon, door_sun, door_moon, in e-/s/pix per
         (photons s-1 m-2).  The albedo is grey, so a band's earthshine is
-        c_sun * E_sun,band + c_moon * E_moon,band; the geometry is computed once for all bands."""
+        c_sun * E_sun,band + c_moon * E_moon,band; the geometry is computed once for all bands.
+        ``in_field=False`` leaves out the line of sight hitting the Earth; ``moon=False`` the
+        moonlit terms (zeros), as the look-up table does (:mod:`straylight.earthshine_lut`)."""
         s = self.earthshine
         d, d_omega, pts = self._cap_grid(sat_km, earth_radius_km, s)
         ones = np.ones(np.shape(d_omega)[:-2])
         mu_sun, mu_moon = self.lamp_cosines(pts, sun_km, moon_km, earth_radius_km)
+        if not moon:
+            mu_moon = np.zeros_like(mu_sun)
         lum_sun, lum_moon = s.albedo / np.pi * mu_sun, s.albedo / np.pi * mu_moon
         dx = dot(d, frame.x[..., None, None, :])
         dy = dot(d, frame.y[..., None, None, :])
@@ -266,12 +288,13 @@ class OffFieldModel:
         # the 0.6 deg field, where the PST jumps to 1)
         w_direct = (self.door_factor(theta, phi, op) * self.pst(theta, phi) * (theta > self.field_radius_deg)
                     * d_omega * self.pixel_area_m2)
-        out = {
-            "direct_sun": np.sum(lum_sun * w_direct, axis=(-2, -1))
-            + self._earth_in_field(sat_km, sun_km, moon_km, frame, ones, 0.0 * ones, earth_radius_km),
-            "direct_moon": np.sum(lum_moon * w_direct, axis=(-2, -1))
-            + self._earth_in_field(sat_km, sun_km, moon_km, frame, 0.0 * ones, ones, earth_radius_km),
-        }
+        out = {"direct_sun": np.sum(lum_sun * w_direct, axis=(-2, -1)),
+               "direct_moon": np.sum(lum_moon * w_direct, axis=(-2, -1))}
+        if in_field:
+            out["direct_sun"] = out["direct_sun"] + self.earth_in_field(sat_km, sun_km, moon_km, frame, ones,
+                                                                        0.0 * ones, earth_radius_km)
+            out["direct_moon"] = out["direct_moon"] + self.earth_in_field(sat_km, sun_km, moon_km, frame,
+                                                                          0.0 * ones, ones, earth_radius_km)
         # door path: irradiance on the door's inner face from the Earth blocks in front of it
         door_sun = np.zeros(out["direct_sun"].shape)
         door_moon = np.zeros(out["direct_sun"].shape)

@@ -68,8 +68,10 @@ def _is_number(v) -> bool:
         return False
 
 
-def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int = 256, source="") -> dict:
-    """Columns of the per-pointing background table (see the module docstring)."""
+def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int = 256, source="",
+                   models: dict | None = None) -> dict:
+    """Columns of the per-pointing background table (see the module docstring); ``models``, if
+    given, receives the record of which models ran and their error budget."""
     from .components import ComponentModel
     from .ephemeris import default_ephemeris
     from .geometry import radec_to_unit
@@ -85,6 +87,7 @@ def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int
         for i, v in enumerate(iso):
             parse_utc(v, f"{source} row {i + 1}: time")
         raise
+    n_rows = len(iso)
     eph = default_ephemeris()
     jd = t_all.tdb.jd
     out_of_range = np.flatnonzero((jd < eph.jd_start) | (jd > eph.jd_end))
@@ -92,7 +95,9 @@ def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int
         i = int(out_of_range[0])
         raise InputError(f"{source} row {i + 1}: time = {iso[i]} is outside the DE405 range (1600-12-21 to "
                          f"2200-02-02); {out_of_range.size} of {len(iso)} rows are out of range")
-    model = ComponentModel(campaign)
+    model = ComponentModel(campaign, expected_samples=n_rows)
+    if models is not None:
+        models.update(model.models_record())
     n = len(t_all)
     cols: dict = {"time": np.asarray(t_all.isot, dtype=object), "ra_deg": pointings["ra"],
                   "dec_deg": pointings["dec"]}

@@ -1,11 +1,14 @@
 import os
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
+# tests keep their earthshine look-up tables to themselves (subprocesses inherit this)
+os.environ["STRAYLIGHT_CACHE"] = tempfile.mkdtemp(prefix="straylight-test-cache-")
 SHARED_DATA = REPO.parent / "shared" / "data"
 
 

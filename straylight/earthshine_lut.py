@@ -1,0 +1,330 @@
+"""Earthshine from a precomputed look-up table (issue #7, fast path).
+
+The sunlit-Earth coefficients of :meth:`OffFieldModel.earthshine_coefficients` (direct through
+the PST and via the door, per unit solar irradiance) depend on the scene only through
+four quantities, because the problem is symmetric under rotation about the local vertical:
+
+* the satellite's geocentric distance r (one node for a circular orbit),
+* the Sun's zenith angle at the sub-satellite point, z_sun (0-180 deg),
+* the line of sight's zenith angle at the satellite, zeta (0-180 deg),
+* the line of sight's azimuth from the Sun's about the vertical, A (0-180 deg when the PST and
+  the door are mirror-symmetric about the Sun's plane, phi -> -phi, as the default is; else
+  0-360 deg),
+
+and on the door state, one table per state.  The table is built once with the same Earth-cap
+grid as the direct method and interpolated linearly in asinh(c / c_scale) (logarithmic for the
+large values, linear near zero, so the terminator interpolates without the log's bias).  The
+in-field term (the line of sight hitting the Earth) is not tabulated: it is one ray per sample
+and jumps at the limb, so it is evaluated directly.
+
+The moonlit-Earth coefficients depend on the Moon's geometry as well; they are bounded instead
+(:meth:`EarthshineLUT.moon_bound`: the cap fully lit, PST at its azimuthal maximum, door fully
+open) and computed directly only where the bound exceeds the tolerance.
+
+Validity: the Sun is taken at infinity (its direction from the satellite and from the Earth's
+centre differ by < 3e-6 rad).  Errors against the direct sum: bench/run.py (knob
+``earthshine_lut``).
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy.interpolate import RegularGridInterpolator
+
+from .errors import InputError
+from .geometry import dot, norm, telescope_frame, unit
+
+AU_KM = 1.495978707e8
+#: bumped whenever the table's content or layout changes: part of the cache key
+LUT_FORMAT = 2
+
+
+@dataclass(frozen=True)
+class LUTSettings:
+    """Node spacing (deg).  The Sun's zenith angle is sampled at ``sun_zenith_step_deg`` where the
+    terminator crosses the visible cap (60 deg to the cap's edge) and 2.5 times coarser above;
+    beyond the cap's edge the cap is dark (one node at 180).  The line of sight's zenith angle at
+    ``los_zenith_step_deg`` above the limb and 2.5 times coarser below it (never observable)."""
+
+    sun_zenith_step_deg: float = 0.5  # midpoint interpolation error at 1 deg: 0.4 % of the total
+    los_zenith_step_deg: float = 2.0  # 0.2 %
+    azimuth_step_deg: float = 5.0  # 0.13 % (10 deg: 0.55 %)
+    n_radius: int = 1  # radius nodes between the orbit's extremes (1: a circular orbit)
+
+    def __post_init__(self):
+        for k in ("sun_zenith_step_deg", "los_zenith_step_deg", "azimuth_step_deg"):
+            v = getattr(self, k)
+            if not 0.05 <= v <= 30.0:
+                raise InputError(f"models.earthshine.lut.{k} = {v}: must be within [0.05, 30] deg")
+        if self.n_radius < 1:
+            raise InputError(f"models.earthshine.lut.n_radius = {self.n_radius}: needs >= 1")
+
+    def node_count(self, radius_km: float, earth_radius_km: float) -> int:
+        zs, zl, az = self.nodes(radius_km, earth_radius_km, True)
+        return zs.size * zl.size * az.size * self.n_radius
+
+    def nodes(self, radius_km: float, earth_radius_km: float, symmetric: bool):
+        """(sun zenith, line-of-sight zenith, azimuth) node arrays, deg."""
+        cap = np.degrees(np.arccos(earth_radius_km / radius_km))  # the cap's edge beyond nadir, = limb depression
+        hs, hl, ha = self.sun_zenith_step_deg, self.los_zenith_step_deg, self.azimuth_step_deg
+
+        def steps(a, b, h):
+            n = max(int(np.ceil((b - a) / h - 1e-9)), 1)
+            return np.linspace(a, b, n + 1)
+
+        zs = np.unique(np.r_[steps(0.0, 60.0, 2.5 * hs), steps(60.0, 90.0 + cap + hs, hs), 180.0])
+        limb = 90.0 + cap
+        zl = np.unique(np.r_[steps(0.0, limb, hl), steps(limb, 180.0, 2.5 * hl)])
+        az = steps(0.0, 180.0 if symmetric else 360.0, ha)
+        return zs, zl, az
+
+
+def _local_scene(R, Z, L, A):
+    """Satellite, Sun (km) and line of sight in the local frame: vertical +x, Sun in the x-y plane."""
+    sat = np.stack([R, 0 * R, 0 * R], axis=-1)
+    sun = AU_KM * np.stack([np.cos(Z), np.sin(Z), 0 * Z], axis=-1)
+    los = np.stack([np.cos(L), np.sin(L) * np.cos(A), np.sin(L) * np.sin(A)], axis=-1)
+    return sat, sun, los
+
+
+def _sun_coefficients_direct(off, R, Z, L, A, state, earth_radius_km, batch):
+    """Direct sums in the local frame (vertical +x, the Sun in the x-y plane): radius R (km),
+    Sun zenith Z, line-of-sight zenith L and azimuth A (rad), one door state."""
+    sat, sun, los = _local_scene(R, Z, L, A)
+    moon = np.broadcast_to([0.0, 0.0, -1e9], sat.shape)  # unused: the Moon's terms are not tabulated
+    d_out, g_out = np.empty(R.size), np.empty(R.size)
+    for i in range(0, R.size, batch):
+        sl = slice(i, i + batch)
+        frame = telescope_frame(los[sl], sun[sl] - sat[sl])
+        c = off.earthshine_coefficients(sat[sl], sun[sl], moon[sl], frame, np.full(R[sl].size, state),
+                                        earth_radius_km, in_field=False, moon=False)
+        d_out[sl], g_out[sl] = c["direct_sun"], c["door_sun"]
+    return d_out, g_out
+
+
+def _mirror_symmetric(off) -> bool:
+    """PST(theta, phi) == PST(theta, -phi) and the door shade likewise (sampled check)."""
+    th = np.r_[np.linspace(0.0, 89.0, 90), np.linspace(91.0, 180.0, 90)][:, None]  # 90: grazing, noise
+    ph = np.linspace(0.0, 360.0, 73)[None, :]
+    if not np.allclose(off.pst(th, ph), off.pst(th, 360.0 - ph), rtol=1e-9):
+        return False
+    return all(np.allclose(off.door_factor(th, ph, s), off.door_factor(th, 360.0 - ph, s), atol=1e-9)
+               for s in off.door_states_deg)
+
+
+@dataclass
+class EarthshineLUT:
+    radius_km: np.ndarray
+    sun_zenith_deg: np.ndarray
+    los_zenith_deg: np.ndarray
+    azimuth_deg: np.ndarray
+    direct: dict  # door state -> array (R, Z, L, A), e-/s/pix per (photon s-1 m-2) of the Sun
+    door: dict
+    moon_direct_bound: np.ndarray  # (R, Z, L): PST at its maximum over phi, Sp = 1, max over azimuth
+    moon_door_bound: float  # door path with the cap fully lit
+    symmetric: bool
+    scale: float  # asinh scale of the interpolation
+    validation_max_rel_error: float = float("nan")  # see build(): against the direct sum
+    build_seconds: float = float("nan")
+
+    # -- construction ---------------------------------------------------------------------------
+    @classmethod
+    def build(cls, off, earth_radius_km: float, radius_range_km: tuple[float, float],
+              settings: LUTSettings = LUTSettings(), floor: float = 0.0, batch: int = 1024,
+              n_validation: int = 400, min_limb_angle_deg: float = 30.0) -> "EarthshineLUT":
+        """Tabulate ``off.earthshine_coefficients`` (an :class:`OffFieldModel`), then validate:
+        at ``n_validation`` random points where a line of sight can be observable (more than
+        ``min_limb_angle_deg`` above the limb, the dark-limb avoidance angle) the largest
+        |table - direct| / (direct + floor), with ``floor`` the darkest sky background in the
+        same units (so the error is a fraction of the total, and a pessimistic one)."""
+        import time
+
+        t_start = time.perf_counter()
+        s = settings
+        symmetric = _mirror_symmetric(off)
+        rr = np.linspace(radius_range_km[0], radius_range_km[1], s.n_radius) if s.n_radius > 1 \
+            else np.array([0.5 * (radius_range_km[0] + radius_range_km[1])])
+        zs, zl, az = s.nodes(float(rr.min()), earth_radius_km, symmetric)
+        R, Z, L, A = np.meshgrid(rr, np.radians(zs), np.radians(zl), np.radians(az), indexing="ij")
+        shape = R.shape
+        R, Z, L, A = (v.ravel() for v in (R, Z, L, A))
+        direct, door = {}, {}
+        for state in off.door_states_deg:
+            d_out, g_out = _sun_coefficients_direct(off, R, Z, L, A, state, earth_radius_km, batch)
+            direct[state], door[state] = d_out.reshape(shape), g_out.reshape(shape)
+        # moonlit-Earth bound over (radius, Moon zenith, line-of-sight zenith): the PST at its
+        # maximum over phi, Sp = 1, maximised over the azimuth nodes
+        bound = np.zeros((rr.size, zs.size, zl.size))
+        Zg, Lg, Ag = np.meshgrid(np.radians(zs), np.radians(zl), np.radians(az), indexing="ij")
+        for i, r in enumerate(rr):
+            Rg = np.full(Zg.size, r)
+            sat1, lamp, los1 = _local_scene(Rg, Zg.ravel(), Lg.ravel(), Ag.ravel())
+            vals = np.concatenate([off.earthshine_lamp_bound(sat1[j:j + batch], unit(lamp[j:j + batch]),
+                                                             los1[j:j + batch], earth_radius_km)
+                                   for j in range(0, Rg.size, batch)])
+            bound[i] = vals.reshape(Zg.shape).max(axis=-1)
+        moon_door = max(off.earthshine.door_reflectance * float(np.sum(w)) * off.pixel_area_m2
+                        for _, _, w in off._door_weights.values()) * off.earthshine.albedo
+        positive = np.concatenate([v[v > 0] for v in list(direct.values()) + list(door.values())])
+        scale = float(np.percentile(positive, 1)) if positive.size else 1e-30
+        lut = cls(rr, zs, zl, az, direct, door, bound, moon_door, symmetric, scale)
+        # validation at random off-node points of the observable region
+        rng = np.random.default_rng(20261122)
+        limb = 90.0 + np.degrees(np.arccos(earth_radius_km / rr.min()))
+        vr = rng.uniform(rr.min(), rr.max(), n_validation)
+        vz = rng.uniform(0.0, 180.0, n_validation)
+        vl = rng.uniform(0.0, limb - min_limb_angle_deg, n_validation)
+        va = rng.uniform(0.0, 180.0 if symmetric else 360.0, n_validation)
+        errs = []
+        for state in off.door_states_deg:
+            d_ref, g_ref = _sun_coefficients_direct(off, vr, *np.radians([vz, vl, va]), state, earth_radius_km, batch)
+            sat_v, sun_v, los_v = _local_scene(vr, *np.radians([vz, vl, va]))
+            d_t, g_t = lut.sun_coefficients(sat_v, sun_v, los_v, np.full(n_validation, state))
+            errs.append(np.abs((d_t + g_t) - (d_ref + g_ref)) / (d_ref + g_ref + floor))
+        lut.validation_max_rel_error = float(np.max(errs)) if floor > 0 else float("nan")
+        lut.build_seconds = time.perf_counter() - t_start
+        return lut
+
+    # -- evaluation -----------------------------------------------------------------------------
+    def _interpolators(self):
+        if not hasattr(self, "_interp"):
+            axes = (self.sun_zenith_deg, self.los_zenith_deg, self.azimuth_deg)
+            if self.radius_km.size > 1:
+                axes = (self.radius_km,) + axes
+
+            def make(v):
+                v = np.arcsinh(v / self.scale)
+                if self.radius_km.size == 1:
+                    v = v[0]
+                return RegularGridInterpolator(axes, v, method="linear", bounds_error=False, fill_value=None)
+
+            self._interp = {s: (make(self.direct[s]), make(self.door[s])) for s in self.direct}
+        return self._interp
+
+    def coordinates(self, sat_km, sun_km, los):
+        """(r, z_sun, zeta, A) of samples; arrays of the samples' shape."""
+        sat = np.asarray(sat_km, float)
+        r = norm(sat)
+        up = sat / r[..., None]
+        s = unit(np.asarray(sun_km, float))
+        l_ = unit(np.asarray(los, float))
+        z_sun = np.degrees(np.arccos(np.clip(dot(up, s), -1.0, 1.0)))
+        zeta = np.degrees(np.arccos(np.clip(dot(up, l_), -1.0, 1.0)))
+        s_h = s - dot(s, up)[..., None] * up  # horizontal parts
+        l_h = l_ - dot(l_, up)[..., None] * up
+        cos_a = dot(s_h, l_h)
+        sin_a = dot(np.cross(s_h, l_h), up)
+        a = np.degrees(np.arctan2(sin_a, cos_a))
+        a = np.abs(a) if self.symmetric else np.mod(a, 360.0)
+        return r, z_sun, zeta, a
+
+    def sun_coefficients(self, sat_km, sun_km, los, opening_deg):
+        """(direct_sun, door_sun) per unit solar irradiance, excluding the in-field term."""
+        r, z_sun, zeta, a = self.coordinates(sat_km, sun_km, los)
+        shape = z_sun.shape
+        pts = np.stack([z_sun, zeta, a], axis=-1)
+        if self.radius_km.size > 1:
+            pts = np.concatenate([np.clip(r, self.radius_km[0], self.radius_km[-1])[..., None], pts], axis=-1)
+        pts = pts.reshape(-1, pts.shape[-1])
+        op = np.broadcast_to(np.asarray(opening_deg, float), shape).ravel()
+        states = sorted(self.direct)
+        direct, door = np.zeros(op.size), np.zeros(op.size)
+        for st, (f_direct, f_door) in self._interpolators().items():
+            sel = (op == st) | ((op <= 0) & (st == states[0]))  # no allowed state: the narrowest
+            if np.any(sel):
+                direct[sel] = self.scale * np.sinh(f_direct(pts[sel]))
+                door[sel] = self.scale * np.sinh(f_door(pts[sel]))
+        return np.maximum(direct, 0.0).reshape(shape), np.maximum(door, 0.0).reshape(shape)
+
+    def moon_bound(self, sat_km, moon_km, los, earth_radius_km: float):
+        """Upper bound of direct_moon + door_moon per unit lunar irradiance at the Earth: the
+        larger of the four neighbouring (Moon zenith, line-of-sight zenith) nodes (largest
+        radius node), x 1.2 for the azimuth between nodes; infinite for a line of sight less
+        than 1 deg above the limb or below it (there a grid block can sit next to the field
+        edge, where the PST jumps, and no table bounds it)."""
+        sat = np.asarray(sat_km, float)
+        r = norm(sat)
+        up = sat / r[..., None]
+        zeta = np.degrees(np.arccos(np.clip(dot(up, unit(np.asarray(los, float))), -1, 1)))
+        z_moon = np.degrees(np.arccos(np.clip(dot(up, unit(np.asarray(moon_km, float))), -1, 1)))
+        table = self.moon_direct_bound.max(axis=0)  # (Z, L), the worst radius
+
+        def neighbours(nodes, x):
+            i = np.clip(np.searchsorted(nodes, x), 1, nodes.size - 1)
+            return i - 1, i
+
+        zi0, zi1 = neighbours(self.sun_zenith_deg, z_moon)
+        li0, li1 = neighbours(self.los_zenith_deg, zeta)
+        b = np.maximum.reduce([table[zi0, li0], table[zi0, li1], table[zi1, li0], table[zi1, li1]])
+        limb = 90.0 + np.degrees(np.arccos(np.clip(earth_radius_km / r, -1, 1)))
+        return np.where(zeta < limb - 1.0, 1.2 * b + self.moon_door_bound, np.inf)
+
+    # -- storage --------------------------------------------------------------------------------
+    def save(self, path) -> None:
+        p = Path(path)
+        tmp = p.with_name(f"{p.stem}.{os.getpid()}.partial.npz")  # concurrent builders never share a temporary
+        arrays = {"radius_km": self.radius_km, "sun_zenith_deg": self.sun_zenith_deg,
+                  "los_zenith_deg": self.los_zenith_deg, "azimuth_deg": self.azimuth_deg,
+                  "moon_direct_bound": self.moon_direct_bound}
+        for s in self.direct:
+            arrays[f"direct_{s:g}"] = self.direct[s]
+            arrays[f"door_{s:g}"] = self.door[s]
+        meta = {"states": [float(s) for s in self.direct], "moon_door_bound": self.moon_door_bound,
+                "symmetric": self.symmetric, "scale": self.scale,
+                "validation_max_rel_error": self.validation_max_rel_error, "build_seconds": self.build_seconds}
+        np.savez(tmp, meta=np.array(json.dumps(meta)), **arrays)
+        tmp.replace(p)
+
+    @classmethod
+    def load(cls, path) -> "EarthshineLUT":
+        try:
+            z = np.load(path, allow_pickle=False)
+            meta = json.loads(str(z["meta"]))
+            states = meta["states"]
+            return cls(z["radius_km"], z["sun_zenith_deg"], z["los_zenith_deg"], z["azimuth_deg"],
+                       {s: z[f"direct_{s:g}"] for s in states}, {s: z[f"door_{s:g}"] for s in states},
+                       z["moon_direct_bound"], float(meta["moon_door_bound"]), bool(meta["symmetric"]),
+                       float(meta["scale"]), float(meta["validation_max_rel_error"]), float(meta["build_seconds"]))
+        except (OSError, KeyError, ValueError) as exc:
+            raise InputError(f"{path}: not a valid earthshine look-up table ({exc}); delete it to rebuild") from exc
+
+
+def cache_dir() -> Path:
+    """Where tables are kept: $STRAYLIGHT_CACHE, else $XDG_CACHE_HOME/straylight, else
+    ~/.cache/straylight.  Tables are named by the digest of everything they depend on."""
+    if os.environ.get("STRAYLIGHT_CACHE"):
+        return Path(os.environ["STRAYLIGHT_CACHE"])
+    return Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "straylight"
+
+
+def load_or_build(off, earth_radius_km, radius_range_km, settings: LUTSettings, floor: float, log=None,
+                  min_limb_angle_deg: float = 30.0):
+    """The table for these inputs from the cache, built and stored there if missing."""
+    key = lut_key(off, earth_radius_km, radius_range_km, settings, floor, min_limb_angle_deg)
+    path = cache_dir() / f"earthshine_lut_{key}.npz"
+    if path.exists():
+        return EarthshineLUT.load(path), path
+    if log is not None:
+        log.info("building the earthshine look-up table %s (once; cached in %s)", key, path.parent)
+    lut = EarthshineLUT.build(off, earth_radius_km, radius_range_km, settings, floor,
+                              min_limb_angle_deg=min_limb_angle_deg)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    lut.save(path)
+    return lut, path
+
+
+def lut_key(off, earth_radius_km, radius_range_km, settings: LUTSettings, floor: float = 0.0,
+            min_limb_angle_deg: float = 30.0) -> str:
+    """Digest of everything the table depends on (PST, door, cap grid, albedo, radii, nodes)."""
+    h = hashlib.sha256(f"format {LUT_FORMAT}".encode())
+    h.update(np.ascontiguousarray(off.pst.values).tobytes())
+    h.update(np.ascontiguousarray(off.pst.theta_deg).tobytes() + np.ascontiguousarray(off.pst.phi_deg).tobytes())
+    h.update(repr((off.door, off.door_states_deg, off.pixel_area_m2, off.field_radius_deg, off.earthshine,
+                   round(earth_radius_km, 6), tuple(round(r, 3) for r in radius_range_km), settings,
+                   f"{floor:.6g}", min_limb_angle_deg)).encode())
+    return h.hexdigest()[:16]

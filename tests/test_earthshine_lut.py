@@ -1,0 +1,151 @@
+"""The earthshine look-up table (issue #7 fast path) against the direct Earth-cap sum it
+tabulates, its moonlit-Earth bound, its cache, and the automatic choice from the tolerance.
+A coarse table (5 x 5 x 20 deg nodes, ~10 s to build) keeps the tests fast; the default table's
+error and cost are measured by bench/run.py."""
+import copy
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from straylight.components import ComponentModel
+from straylight.config import campaign_from_dict
+from straylight.earthshine_lut import EarthshineLUT, LUTSettings, lut_key
+from straylight.geometry import telescope_frame
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
+from _samples import random_samples  # noqa: E402
+
+COARSE = {"sun_zenith_step_deg": 5.0, "los_zenith_step_deg": 5.0, "azimuth_step_deg": 20.0}
+
+
+def _campaign(campaign, **earthshine):
+    raw = copy.deepcopy(campaign.config)
+    raw["models"]["earthshine"].update(earthshine)
+    return campaign_from_dict(raw, campaign.path)
+
+
+@pytest.fixture(scope="module")
+def coarse(campaign):
+    c = _campaign(campaign, method="lut", lut=COARSE)
+    cm = ComponentModel(c, expected_samples=10**6)
+    return c, cm, cm.earthshine_model
+
+
+def test_table_reproduces_the_direct_sum_at_its_nodes(coarse):
+    """At a node the table returns the direct sum it stored (to the asinh round trip)."""
+    c, cm, info = coarse
+    lut = info["lut"]
+    off = cm.offfield
+    r = lut.radius_km[0]
+    iz, il, ia = 7, 10, 4
+    z, l_, a = np.radians([lut.sun_zenith_deg[iz], lut.los_zenith_deg[il], lut.azimuth_deg[ia]])
+    sat = np.array([[r, 0.0, 0.0]])
+    sun = 1.495978707e8 * np.array([[np.cos(z), np.sin(z), 0.0]])
+    los = np.array([[np.cos(l_), np.sin(l_) * np.cos(a), np.sin(l_) * np.sin(a)]])
+    for state in off.door_states_deg:
+        d, g = lut.sun_coefficients(sat, sun, los, np.array([state]))
+        ref = off.earthshine_coefficients(sat, sun, np.array([[0, 0, -1e9]]), telescope_frame(los, sun - sat),
+                                          np.array([state]), c.earth.radius_km, in_field=False, moon=False)
+        assert d[0] == pytest.approx(ref["direct_sun"][0], rel=1e-9, abs=1e-40)
+        assert g[0] == pytest.approx(ref["door_sun"][0], rel=1e-9, abs=1e-40)
+
+
+def test_rotation_about_the_vertical_changes_nothing(coarse):
+    """The table's premise: the same (z_sun, zeta, A) anywhere on the orbit gives the same
+    coefficients (direct sums agree to the cap grid's orientation, < 1e-3 of the total)."""
+    c, cm, info = coarse
+    sc, los, g = random_samples(c, 400, seed=1)
+    obs = np.flatnonzero(g["observable"])[:40]
+    sat, sun, los = sc.satellite_km[obs], sc.bodies_km["sun"][obs], los[obs]
+    lut = info["lut"]
+    r, zs, zl, a = lut.coordinates(sat, sun, los)
+    from straylight.earthshine_lut import _local_scene, _sun_coefficients_direct
+
+    off = cm.offfield
+    door = g["door_opening_deg"][obs]
+    frame = telescope_frame(los, sun - sat)
+    real = off.earthshine_coefficients(sat, sun, sc.bodies_km["moon"][obs], frame, door, c.earth.radius_km,
+                                       in_field=False, moon=False)
+    res = cm.evaluate(sat, {k: v[obs] for k, v in sc.bodies_km.items()}, los, {k: v[obs] for k, v in g.items()}, ["g"])
+    sun_irr = cm.photometry("g").sun_at_1au_photons_s_m2 * (1.495978707e8 / np.linalg.norm(sun - sat, axis=-1)) ** 2
+    for state in off.door_states_deg:
+        sel = door == state
+        if not sel.any():
+            continue
+        d, gd = _sun_coefficients_direct(off, r[sel], *np.radians([zs[sel], zl[sel], a[sel]]), state,
+                                         c.earth.radius_km, 256)
+        err = np.abs(d + gd - real["direct_sun"][sel] - real["door_sun"][sel]) * sun_irr[sel] / res["g"]["total"][sel]
+        assert err.max() < 1e-2
+
+
+def test_validation_error_is_recorded_and_measured_off_the_nodes(coarse):
+    _, _, info = coarse
+    assert info["method"] == "lut"
+    assert 0.0 < info["lut_validation_max_rel_error"] < 1.0  # the coarse table is far from 1 %
+
+
+def test_moonlit_bound_holds(coarse):
+    c, cm, info = coarse
+    sc, los, g = random_samples(c, 1500, seed=4)
+    sat, sun, moon = sc.satellite_km, sc.bodies_km["sun"], sc.bodies_km["moon"]
+    frame = telescope_frame(los, sun - sat)
+    co = cm.offfield.earthshine_coefficients(sat, sun, moon, frame, g["door_opening_deg"], c.earth.radius_km,
+                                             in_field=False)
+    bound = info["lut"].moon_bound(sat, moon, los, c.earth.radius_km)
+    fin = np.isfinite(bound)
+    assert fin.mean() > 0.5
+    assert np.all(co["direct_moon"][fin] + co["door_moon"][fin] <= bound[fin])
+
+
+def test_save_load_round_trip_and_cache_key(coarse, tmp_path, campaign):
+    c, cm, info = coarse
+    lut = info["lut"]
+    p = tmp_path / "t.npz"
+    lut.save(p)
+    back = EarthshineLUT.load(p)
+    for s in lut.direct:
+        assert np.array_equal(back.direct[s], lut.direct[s]) and np.array_equal(back.door[s], lut.door[s])
+    assert back.validation_max_rel_error == lut.validation_max_rel_error
+    off = cm.offfield
+    k = lut_key(off, 6378.137, (6778.137, 6778.137), LUTSettings(5, 5, 20), 1e-20)
+    assert k != lut_key(off, 6378.137, (6778.137, 6778.137), LUTSettings(5, 5, 10), 1e-20)
+    from dataclasses import replace
+
+    assert k != lut_key(replace(off, earthshine=replace(off.earthshine, albedo=0.31)), 6378.137,
+                        (6778.137, 6778.137), LUTSettings(5, 5, 20), 1e-20)
+    (tmp_path / "bad.npz").write_bytes(b"not a table")
+    from straylight.errors import InputError
+
+    with pytest.raises(InputError, match="bad.npz: not a valid earthshine look-up table"):
+        EarthshineLUT.load(tmp_path / "bad.npz")
+
+
+def test_automatic_choice(coarse, campaign):
+    c, _, _ = coarse
+    one = ComponentModel(_campaign(campaign, method="auto", lut=COARSE), expected_samples=1).earthshine_model
+    assert one["method"] == "direct" and "samples save" in one["reason"]  # one pointing: no table
+    many = ComponentModel(_campaign(campaign, method="auto", lut=COARSE), expected_samples=10**7).earthshine_model
+    assert many["method"] == "direct" and "half the tolerance" in many["reason"]  # too coarse for 1 %
+    raw = copy.deepcopy(c.config)
+    raw["models"]["tolerance"] = 1.0
+    loose = ComponentModel(campaign_from_dict(raw, c.path), expected_samples=10**7).earthshine_model
+    assert loose["method"] == "lut"
+
+
+def test_lut_path_agrees_with_direct_within_its_validated_error(coarse, campaign):
+    """The whole model with the table against the direct sum, at random observable samples:
+    the difference stays within the table's validated error (fraction of the total)."""
+    c, cm, info = coarse
+    direct = ComponentModel(_campaign(campaign, method="direct"))
+    sc, los, g = random_samples(c, 1500, seed=8)
+    obs = g["observable"]
+    a = cm.evaluate(sc.satellite_km, sc.bodies_km, los, g, ["g", "z"])
+    b = direct.evaluate(sc.satellite_km, sc.bodies_km, los, g, ["g", "z"])
+    for band in ("g", "z"):
+        err = np.abs(a[band]["total"] - b[band]["total"]) / b[band]["total"]
+        assert err[obs].max() <= info["lut_validation_max_rel_error"] + 0.25 * cm.tolerance
+        assert np.all(np.isfinite(a[band]["total"]))
+    rec = cm.models_record()
+    assert rec["earthshine"]["method"] == "lut" and "lut_build_seconds" not in rec["earthshine"]
