@@ -313,6 +313,13 @@ def cmd_pst(args) -> int:
     return 0
 
 
+def cmd_config_doc(args) -> int:
+    from .configdoc import config_reference
+
+    sys.stdout.write(config_reference())
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="straylight", description="CSST stray-light and sky-background pipeline")
     sub = p.add_subparsers(dest="command", required=True)
@@ -378,6 +385,9 @@ def build_parser() -> argparse.ArgumentParser:
     ps = sub.add_parser("pst", help="export the embedded default PST matrix (CSV) to inspect or replace")
     ps.add_argument("--write-default", required=True, help="output CSV (theta_deg, phi_deg, pst)")
     ps.set_defaults(func=cmd_pst)
+
+    cd = sub.add_parser("config-doc", help="print the campaign-config reference (Markdown) from the schema")
+    cd.set_defaults(func=cmd_config_doc)
 
     f = sub.add_parser("footprint", help="print the survey footprint of a campaign")
     f.add_argument("--config", default=None, help="campaign config (default: config/config.yaml)")

@@ -98,3 +98,21 @@ def test_tle_orbit_from_config(tmp_path):
 
     r = np.linalg.norm(c.orbit.position_gcrs_km("2008-09-20T12:00:00"))
     assert 6600 < r < 6800
+
+
+def test_config_reference_is_generated_from_the_schema_and_covers_the_default_config():
+    """docs/config.md is `straylight config-doc`'s output (regenerate it when the schema
+    changes), and every key of the default config has a row."""
+    from straylight.configdoc import config_reference
+
+    ref = config_reference()
+    assert (REPO / "docs" / "config.md").read_text() == ref
+
+    def keys(tree, prefix=""):
+        for k, v in tree.items():
+            yield prefix + k
+            if isinstance(v, dict):
+                yield from keys(v, prefix + k + ".")
+
+    for k in keys(BASE):
+        assert f"| `{k}` |" in ref, k
