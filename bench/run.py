@@ -149,7 +149,7 @@ def time_cadence_rows(bench):
     sc = scene(c, times)
 
     def at(idx):
-        out, obs = [], []
+        out, obs, door = [], [], []
         for i in idx:
             sat = np.broadcast_to(sc.satellite_km[i], los.shape)
             bodies = {k: np.broadcast_to(v[i], los.shape) for k, v in sc.bodies_km.items()}
@@ -157,16 +157,17 @@ def time_cadence_rows(bench):
             r = cm.evaluate(sat, bodies, los, g, bench.bands, stars)
             out.append([r[b]["total"] for b in bench.bands])
             obs.append(g["observable"])
-        return np.array(out), np.array(obs)  # (T, B, P), (T, P)
+            door.append(g["door_opening_deg"])
+        return np.array(out), np.array(obs), np.array(door)  # (T, B, P), (T, P), (T, P)
 
-    full, obs = at(range(len(times)))
+    t_start = time.perf_counter()
+    full, obs, door = at(range(len(times)))
+    per_sample = (time.perf_counter() - t_start) / (len(times) * los.shape[0])
     rows = []
+    x = np.arange(len(times))
     for step in (1, 5, 10, 30, 60):
         idx = np.arange(0, len(times), step)
-        t_start = time.perf_counter()
-        coarse, _ = at(idx)
-        dt = time.perf_counter() - t_start
-        x = np.arange(len(times))
+        coarse = full[idx]  # the same numbers a coarse run computes
         interp = np.empty_like(full)
         for b in range(full.shape[1]):
             for p in range(full.shape[2]):
@@ -174,11 +175,27 @@ def time_cadence_rows(bench):
         rel = np.abs(interp - full) / full
         err = float(np.max(np.where(obs[:, None, :], rel, 0.0)))
         p99 = float(np.percentile(rel.transpose(0, 2, 1)[obs], 99))
-        cost = dt / (len(times) * los.shape[0])  # per output sample
+        cost = per_sample * len(idx) / len(times)
         rows.append({"setting": f"{step * fine_s:.0f} s", "max_rel_error": err, "p99_rel_error": p99,
                      "seconds_per_sample": cost})
         print(f"  {'cadence':14s} {step * fine_s:6.0f} s{'':17s} error {err:9.2e} (p99 {p99:.1e}) "
               f"{cost * 1e3:8.3f} ms/sample")
+        if step == 1:
+            continue
+        # adaptive: interpolate only between coarse samples that are both observable in the same
+        # door state (a pointing's background is smooth there); compute every other sample
+        lo = np.minimum(x // step * step, idx[-1])
+        hi = np.minimum(lo + step, idx[-1])
+        smooth = obs[lo] & obs[hi] & (door[lo] == door[hi])
+        adaptive = np.where(smooth[:, None, :], interp, full)
+        rel_a = np.abs(adaptive - full) / full
+        err_a = float(np.max(np.where(obs[:, None, :], rel_a, 0.0)))
+        computed = len(idx) * los.shape[0] + int(np.sum(~smooth & ~np.isin(x, idx)[:, None]))
+        cost_a = per_sample * computed / (len(times) * los.shape[0])
+        rows.append({"setting": f"adaptive {step * fine_s:.0f} s", "max_rel_error": err_a,
+                     "seconds_per_sample": cost_a, "fraction_computed": computed / (len(times) * los.shape[0])})
+        print(f"  {'cadence':14s} adaptive {step * fine_s:6.0f} s{'':8s} error {err_a:9.2e}   "
+              f"{cost_a * 1e3:8.3f} ms/sample ({computed / (len(times) * los.shape[0]):.0%} computed)")
     return rows
 
 
@@ -267,7 +284,22 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--samples", type=int, default=150, help="random observable samples (default 150)")
     ap.add_argument("--quick", action="store_true", help="fewer settings (a smoke run)")
+    ap.add_argument("--only", choices=("time_cadence", "healpix_nside"), default=None,
+                    help="re-run one model-independent sweep and update knobs.json and its chart")
     args = ap.parse_args(argv)
+    if args.only:
+        import json
+
+        bench = Bench(args.samples)
+        rows = {"time_cadence": time_cadence_rows, "healpix_nside": nside_rows}[args.only](bench)
+        path = RESULTS / "knobs.json"
+        knobs = json.loads(path.read_text()) if path.exists() else {}
+        knobs[args.only] = rows
+        write_results("knobs", knobs)
+        pareto_chart(args.only, rows, RESULTS / f"pareto_{args.only}.png",
+                     "cost relative to nside 16" if args.only == "healpix_nside" else
+                     "seconds per sample (one core, all bands)")
+        return
     t_start = time.perf_counter()
     bench = Bench(args.samples)
     print(f"{bench.n} observable samples, {len(bench.bands)} bands")

@@ -369,8 +369,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     pl = sub.add_parser("plan", help="samples, output size and core-hours of a campaign before running it")
     pl.add_argument("config", nargs="?", default=None, help="campaign config (default: config/config.yaml)")
-    pl.add_argument("--seconds-per-sample", type=float, default=0.95e-3,
-                    help="cost of one (time, pointing) sample, all bands (default: measured 0.95 ms)")
+    pl.add_argument("--seconds-per-sample", type=float, default=1.17e-3,
+                    help="cost of one (time, pointing) sample, all bands, one core (default: 1.17 ms, "
+                         "measured by bench/background.py)")
     pl.set_defaults(func=cmd_plan)
 
     ca = sub.add_parser("catalog", help="bright-star catalog in the CSST bands (Gaia DR2 files, or Hipparcos)")
