@@ -283,7 +283,6 @@ class ComponentModel:
                                             in_field=False)
             out["direct_moon"][need] += c["direct_moon"]
             out["door_moon"][need] = c["door_moon"]
-        self.__dict__["moon_earthshine_direct_fraction"] = float(np.mean(need))
         return out
 
     @cached_property
