@@ -21,6 +21,7 @@ include: "workflow/rules/observability.smk"
 include: "workflow/rules/background.smk"
 include: "workflow/rules/limits.smk"
 include: "workflow/rules/stars.smk"
+include: "workflow/rules/scheduling.smk"
 
 
 rule all:
@@ -34,4 +35,5 @@ rule all:
         f"{RESULTS}/limits.zarr",
         f"{RESULTS}/provenance.json",
         f"{RESULTS}/stars_csst.parquet",
+        f"{RESULTS}/scheduling",
         [f"{RESULTS}/stars_gaia.parquet"] if config.get("stars", {}).get("gaia_files") else [],

@@ -313,6 +313,20 @@ def cmd_pst(args) -> int:
     return 0
 
 
+def cmd_schedule(args) -> int:
+    from .components import ComponentModel
+    from .config import load_campaign
+    from .scheduling import write_tables
+
+    campaign = load_campaign(args.config)
+    fraction = float(args.fraction if args.fraction is not None else campaign.config["scheduling"]["fraction_of_zodiacal"])
+    if not 0 < fraction <= 10:
+        raise InputError(f"--fraction {fraction}: must be within (0, 10]")
+    for p in write_tables(ComponentModel(campaign), args.out, fraction):
+        print(p)
+    return 0
+
+
 def cmd_config_doc(args) -> int:
     from .configdoc import config_reference
 
@@ -386,6 +400,14 @@ def build_parser() -> argparse.ArgumentParser:
     ps = sub.add_parser("pst", help="export the embedded default PST matrix (CSV) to inspect or replace")
     ps.add_argument("--write-default", required=True, help="output CSV (theta_deg, phi_deg, pst)")
     ps.set_defaults(func=cmd_pst)
+
+    sh = sub.add_parser("schedule", help="scheduling tables: Moon and bright-limb angles, exposure-time factor")
+    sh.add_argument("--out", required=True, help="output folder (CSV and PNG per table)")
+    sh.add_argument("--fraction", type=float, default=None,
+                    help="stray light allowed, as a fraction of the darkest zodiacal light (default: config "
+                         "scheduling.fraction_of_zodiacal)")
+    sh.add_argument("--config", default=None, help="campaign config (default: config/config.yaml)")
+    sh.set_defaults(func=cmd_schedule)
 
     cd = sub.add_parser("config-doc", help="print the campaign-config reference (Markdown) from the schema")
     cd.set_defaults(func=cmd_config_doc)

@@ -1,0 +1,13 @@
+rule scheduling:
+    """Scheduling tables (CSV + PNG): Moon avoidance angle per lunar phase and band, bright-limb
+    elevation per solar geometry and band, exposure-time factor under stray light."""
+    input:
+        config=CONFIG_PATH,
+    output:
+        directory(f"{RESULTS}/scheduling"),
+    conda:
+        "../envs/straylight.yaml"
+    log:
+        f"{LOGS}/scheduling.log",
+    script:
+        "../../scripts/scheduling.py"
