@@ -9,31 +9,56 @@ current and RN the read noise.  The 5-sigma limit solves S = 5 sigma:
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from .bandpass import load_band
 from .config import Campaign
 
+if TYPE_CHECKING:
+    import xarray as xr
+
 EE_FRACTION = 0.8
 SNR = 5.0
 
 
-def point_source_limit(background_e_per_s_per_pix, band_name: str, campaign: Campaign) -> np.ndarray:
-    """5-sigma AB limiting magnitude for the band's survey exposures at the given background."""
+@dataclass(frozen=True)
+class SurveyExposure:
+    """A band's survey exposures and the detector noise terms (from the instrument config)."""
+
+    n_exposures: int
+    exposure_s: float
+    read_noise_e: float
+    dark_e_per_s: float
+    n_pix: float  # pixels in the 80 % encircled-energy aperture
+    zero_point_e_per_s: float  # AB mag 0 source, e-/s through the whole aperture
+
+    @property
+    def total_s(self) -> float:
+        return self.n_exposures * self.exposure_s
+
+
+def survey_exposure(campaign: Campaign, band_name: str) -> SurveyExposure:
     inst = campaign.instrument
     b = inst["bands"][band_name]
-    n_exp, t_exp = int(b["n_exposures"]), float(b["exposure_s"])
-    t_tot = n_exp * t_exp
-    rn = campaign.instrument_value("detector", "read_noise_e")
-    dark = campaign.instrument_value("detector", "dark_current_e_per_s")
     r80 = campaign.instrument_value("detector", "ee80_radius_arcsec") / campaign.instrument_value("detector", "pixel_scale_arcsec")
-    n_pix = np.pi * r80**2
     band = load_band(inst, band_name, campaign.instrument_path.parent)
     zp_e = band.ab_zero_point_photons_s_m2 * np.pi * campaign.instrument_value("telescope", "aperture_diameter_m") ** 2 / 4
+    return SurveyExposure(int(b["n_exposures"]), float(b["exposure_s"]),
+                          campaign.instrument_value("detector", "read_noise_e"),
+                          campaign.instrument_value("detector", "dark_current_e_per_s"), np.pi * r80**2, zp_e)
+
+
+def point_source_limit(background_e_per_s_per_pix, band_name: str, campaign: Campaign) -> np.ndarray:
+    """5-sigma AB limiting magnitude for the band's survey exposures at the given background."""
+    x = survey_exposure(campaign, band_name)
+    t_tot = x.total_s
     bkg = np.asarray(background_e_per_s_per_pix, dtype=float)
-    n_b = n_pix * (bkg * t_tot + dark * t_tot + n_exp * rn**2)
+    n_b = x.n_pix * (bkg * t_tot + x.dark_e_per_s * t_tot + x.n_exposures * x.read_noise_e**2)
     s = (SNR**2 + np.sqrt(SNR**4 + 4 * SNR**2 * n_b)) / 2.0
-    return -2.5 * np.log10(s / (EE_FRACTION * t_tot * zp_e))
+    return -2.5 * np.log10(s / (EE_FRACTION * t_tot * x.zero_point_e_per_s))
 
 
 def limits_dataset(campaign: Campaign, background) -> "xr.Dataset":

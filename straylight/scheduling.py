@@ -23,7 +23,7 @@ import numpy as np
 
 from .components import ComponentModel
 from .config import Campaign
-from .limits import SNR
+from .limits import SNR, survey_exposure
 from .offfield import MOON_MEAN_DISTANCE_KM, moon_v_magnitude
 
 
@@ -115,23 +115,13 @@ def exposure_time_factor(stray_e_per_s, nominal_background_e_per_s, band: str, c
     """Exposure time to reach the nominal 5-sigma depth with ``stray_e_per_s`` added to the
     nominal background, over the nominal time (1 when there is no stray light).  The number of
     exposures grows with the time (read noise per exposure of the band's length)."""
-    from .bandpass import load_band
-
-    inst = campaign.instrument
-    b = inst["bands"][band]
-    n_exp, t_exp = int(b["n_exposures"]), float(b["exposure_s"])
-    t_tot = n_exp * t_exp
-    rn = campaign.instrument_value("detector", "read_noise_e")
-    dark = campaign.instrument_value("detector", "dark_current_e_per_s")
-    r80 = campaign.instrument_value("detector", "ee80_radius_arcsec") / campaign.instrument_value("detector", "pixel_scale_arcsec")
-    n_pix = np.pi * r80**2
-    load_band(inst, band, campaign.instrument_path.parent)  # validates the band
-    c0 = nominal_background_e_per_s + dark + rn**2 / t_exp
-    n_b = n_pix * c0 * t_tot
-    s = (SNR**2 + np.sqrt(SNR**4 + 4 * SNR**2 * n_b)) / 2.0 / t_tot  # limiting source, e-/s in the aperture
-    c = nominal_background_e_per_s + np.asarray(stray_e_per_s, float) + dark + rn**2 / t_exp
-    t_needed = SNR**2 * (s + n_pix * c) / s**2  # the encircled-energy fraction cancels in the ratio
-    return t_needed / t_tot
+    x = survey_exposure(campaign, band)
+    c0 = nominal_background_e_per_s + x.dark_e_per_s + x.read_noise_e**2 / x.exposure_s
+    n_b = x.n_pix * c0 * x.total_s
+    s = (SNR**2 + np.sqrt(SNR**4 + 4 * SNR**2 * n_b)) / 2.0 / x.total_s  # limiting source, e-/s in the aperture
+    c = nominal_background_e_per_s + np.asarray(stray_e_per_s, float) + x.dark_e_per_s + x.read_noise_e**2 / x.exposure_s
+    t_needed = SNR**2 * (s + x.n_pix * c) / s**2  # the encircled-energy fraction cancels in the ratio
+    return t_needed / x.total_s
 
 
 def exposure_factor_table(model: ComponentModel, ratios=(0.0, 0.01, 0.03, 0.1, 0.3, 1.0, 3.0, 10.0)) -> dict:
