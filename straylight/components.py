@@ -242,7 +242,10 @@ class ComponentModel:
         sc = self.campaign.config["stars"]
         # build time left out: the record goes into products, whose bytes must not vary run to run
         es = {k: v for k, v in self.earthshine_model.items() if k not in ("lut", "lut_build_seconds")}
-        return {"tolerance": self.tolerance, "earthshine": es,
+        s = self.offfield.earthshine
+        es["earth_grid"] = [s.n_gamma, s.n_psi]
+        es["door_blocks"], es["aperture_points_door"] = list(s.door_blocks), s.n_aperture_door
+        return {"tolerance": self.tolerance, "earthshine": es, "pst": self.offfield.pst.source,
                 "moonlit_earthshine": "skipped where its bound < tolerance/4 x zodiacal light, else summed directly"
                 if es["method"] == "lut" else "summed directly",
                 "stars": {"direct_mag_limit": float(sc.get("offfield_mag_limit", 2.0)),
