@@ -22,6 +22,10 @@ include: "workflow/rules/background.smk"
 include: "workflow/rules/limits.smk"
 include: "workflow/rules/stars.smk"
 include: "workflow/rules/scheduling.smk"
+include: "workflow/rules/plots.smk"
+
+
+report: "workflow/report/workflow.rst"
 
 
 rule all:
@@ -36,4 +40,6 @@ rule all:
         f"{RESULTS}/provenance.json",
         f"{RESULTS}/stars_csst.parquet",
         f"{RESULTS}/scheduling",
+        f"{RESULTS}/plots",
+        f"{RESULTS}/bench_charts",
         [f"{RESULTS}/stars_gaia.parquet"] if config.get("stars", {}).get("gaia_files") else [],

@@ -37,6 +37,7 @@ def tiny_config(tmp, name="tiny", campaign=None, footprint=None, compute=None):
     cfg["campaign"].update(campaign or {})
     cfg["instrument"] = str(REPO / "config" / "instruments" / "csst.yaml")
     cfg["footprint"]["nside"] = 4
+    cfg["report"] = {"sky_map_times": 1, "sky_map_bands": ["g"], "series_pointings": 1}  # figures cost time
     cfg["footprint"].update(footprint or {})
     if compute is not None:
         cfg["compute"] = compute

@@ -225,3 +225,19 @@ def test_kill_9_at_random_moments_then_resume_is_bit_identical(tmp_path, cube_ru
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
     assert kills >= 10
     check_complete()
+
+
+def test_html_report_holds_maps_series_tables_and_provenance(cube_run):
+    """`snakemake --report` after a run: one self-contained HTML file with the figures."""
+    tmp, cfg, out = cube_run
+    plots = sorted(p.name for p in (out / "plots").glob("*.png"))
+    assert any(p.startswith("sky_g_") for p in plots) and any(p.startswith("series_orbit_") for p in plots)
+    assert {"limits_best.png", "limits_median.png"} <= set(plots)
+    assert (out / "scheduling" / "moon_avoidance.png").exists()
+    report = tmp / "report.html"
+    r = _run(tmp, cfg, "--report", str(report))
+    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+    text = report.read_text(errors="replace")
+    assert report.stat().st_size > 100_000
+    for needle in ("Maps and time series", "Scheduling tables", "Provenance", "sky_g_", "moon_avoidance"):
+        assert needle in text, needle

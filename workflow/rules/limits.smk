@@ -27,7 +27,7 @@ rule provenance:
         footprint=f"{RESULTS}/footprint.fits",
         stars=f"{RESULTS}/stars_csst.parquet",
     output:
-        f"{RESULTS}/provenance.json",
+        report(f"{RESULTS}/provenance.json", caption="../report/provenance.rst", category="Provenance"),
     params:
         store=f"{RESULTS}/background.zarr",
     conda:

@@ -4,7 +4,8 @@ rule scheduling:
     input:
         config=CONFIG_PATH,
     output:
-        directory(f"{RESULTS}/scheduling"),
+        report(directory(f"{RESULTS}/scheduling"), patterns=["{name}.png"], caption="../report/scheduling.rst",
+               category="Scheduling tables"),
     conda:
         "../envs/straylight.yaml"
     log:

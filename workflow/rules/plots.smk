@@ -1,0 +1,34 @@
+rule plots:
+    """Report figures: Mollweide maps per component and band, time series, limit maps."""
+    input:
+        summary=f"{RESULTS}/background_summary.json",
+        limits=f"{RESULTS}/limits.zarr",
+        config=CONFIG_PATH,
+    output:
+        report(directory(f"{RESULTS}/plots"), patterns=["{name}.png"], caption="../report/plots.rst",
+               category="Maps and time series"),
+    params:
+        store=f"{RESULTS}/background.zarr",
+    conda:
+        "../envs/straylight.yaml"
+    log:
+        f"{LOGS}/plots.log",
+    script:
+        "../../scripts/plots.py"
+
+
+rule bench_charts:
+    """The speed-against-accuracy charts of bench/run.py, when they have been made."""
+    input:
+        charts=lambda wildcards: sorted(str(p) for p in Path(workflow.basedir, "bench", "results").glob("pareto_*.png")),
+    output:
+        report(directory(f"{RESULTS}/bench_charts"), patterns=["{name}.png"], caption="../report/bench.rst",
+               category="Speed against accuracy"),
+    log:
+        f"{LOGS}/bench_charts.log",
+    run:
+        import shutil
+
+        Path(output[0]).mkdir(parents=True, exist_ok=True)
+        for chart in input.charts:
+            shutil.copy(chart, output[0])
