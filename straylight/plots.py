@@ -40,9 +40,9 @@ def _save(fig, path: Path) -> Path:
     return path
 
 
-def sky_maps(ds, campaign, out_dir, n_times: int = 2, bands=None) -> list:
-    """Per chosen time (evenly spread) and band: a 2 x 4 page of Mollweide maps, one per
-    component, the total and the observability."""
+def sky_maps(ds, campaign, out_dir, n_times: int = 2, bands=None, times=()) -> list:
+    """Per chosen time (``times``, UTC ISO, nearest sample; else ``n_times`` evenly spread) and
+    band: a 2 x 4 page of Mollweide maps, one per component, the total and the observability."""
     import healpy as hp
     import matplotlib
 
@@ -52,9 +52,16 @@ def sky_maps(ds, campaign, out_dir, n_times: int = 2, bands=None) -> list:
     from .cube import CUBE_COMPONENTS
 
     nest = str(ds.attrs["healpix_ordering"]).upper() == "NESTED"
-    times = np.unique(np.linspace(0, ds.sizes["time"] - 1, n_times).round().astype(int))
+    if times:
+        from .timeutil import parse_utc
+
+        wanted = np.asarray(parse_utc(list(times), "report.times").datetime64, dtype="datetime64[ns]")
+        t_all = ds["time"].values
+        idx = np.unique([int(np.argmin(np.abs(t_all - w))) for w in wanted])
+    else:
+        idx = np.unique(np.linspace(0, ds.sizes["time"] - 1, n_times).round().astype(int))
     written = []
-    for it in times:
+    for it in idx:
         t = str(ds["time"].values[it])[:16]
         for ib, band in enumerate(ds["band"].values):
             if bands is not None and str(band) not in bands:
@@ -77,8 +84,9 @@ def sky_maps(ds, campaign, out_dir, n_times: int = 2, bands=None) -> list:
     return written
 
 
-def time_series(ds, campaign, out_dir, n_pointings: int = 3) -> list:
-    """For evenly spread footprint pixels: total and components in each band against time, over
+def time_series(ds, campaign, out_dir, n_pointings: int = 3, pointings=()) -> list:
+    """For chosen pointings (``pointings``: [ra, dec] deg, nearest footprint pixel; else
+    ``n_pointings`` evenly spread pixels): total and components in each band against time, over
     the first orbit and over the whole campaign; unobservable times shaded."""
     import matplotlib
 
@@ -87,7 +95,14 @@ def time_series(ds, campaign, out_dir, n_pointings: int = 3) -> list:
 
     from .cube import CUBE_COMPONENTS
 
-    pix_idx = np.unique(np.linspace(0, ds.sizes["pixel"] - 1, n_pointings).round().astype(int))
+    if pointings:
+        from .geometry import radec_to_unit
+
+        centres = radec_to_unit(np.asarray(ds["ra_deg"]), np.asarray(ds["dec_deg"]))
+        wanted = np.atleast_2d(radec_to_unit(*np.asarray(pointings, float).T, "report.pointings"))
+        pix_idx = np.unique(np.argmax(wanted @ centres.T, axis=1))
+    else:
+        pix_idx = np.unique(np.linspace(0, ds.sizes["pixel"] - 1, n_pointings).round().astype(int))
     t = ds["time"].values
     minutes = (t - t[0]) / np.timedelta64(1, "m")
     written = []
@@ -163,6 +178,6 @@ def campaign_figures(background_path, limits_path, campaign, out_dir) -> list:
 
         raise ConfigError(f"{campaign.path}: report.sky_map_bands: {', '.join(unknown)} not among the cube's bands "
                           f"{', '.join(str(b) for b in ds['band'].values)}")
-    written = (sky_maps(ds, campaign, out, int(rc["sky_map_times"]), rc.get("sky_map_bands"))
-               + time_series(ds, campaign, out, int(rc["series_pointings"])))
+    written = (sky_maps(ds, campaign, out, int(rc["sky_map_times"]), rc.get("sky_map_bands"), rc.get("times") or ())
+               + time_series(ds, campaign, out, int(rc["series_pointings"]), rc.get("pointings") or ()))
     return written + limit_maps(xr.open_zarr(limits_path), campaign, out)

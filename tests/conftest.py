@@ -37,7 +37,8 @@ def tiny_config(tmp, name="tiny", campaign=None, footprint=None, compute=None):
     cfg["campaign"].update(campaign or {})
     cfg["instrument"] = str(REPO / "config" / "instruments" / "csst.yaml")
     cfg["footprint"]["nside"] = 4
-    cfg["report"] = {"sky_map_times": 1, "sky_map_bands": ["g"], "series_pointings": 1}  # figures cost time
+    # figures cost time: one map page at a chosen time, one chosen pointing
+    cfg["report"] = {"sky_map_bands": ["g"], "times": ["2026-01-01T00:30:00"], "pointings": [[150.0, 30.0]]}
     cfg["footprint"].update(footprint or {})
     if compute is not None:
         cfg["compute"] = compute
