@@ -122,7 +122,7 @@ def test_rerun_recomputes_only_what_is_missing(cube_run):
 
     counts = {m.group(1): int(m.group(2)) for m in re.finditer(r"^(\w+)\s+(\d+)$", text, re.M)}
     assert counts.get("background_block") == 1  # only the block that was not finished
-    r = _run(tmp, cfg, str(out / "provenance.json"))
+    r = _run(tmp, cfg, "results/cube/provenance.json")
     assert r.returncode == 0
     assert sha256_path(out / "background.zarr") == digest  # recomputed block is bit-identical
 
@@ -153,7 +153,7 @@ def test_dask_scheduler_address_gives_the_same_products(tmp_path, cube_run):
         worker = subprocess.Popen([str(BIN / "dask"), "worker", addr, "--nworkers", "2", "--nthreads", "1",
                                    "--no-dashboard"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
         cfg = _config(tmp_path, name="cube", dask_scheduler=addr)
-        r = _run(tmp_path, cfg, str(tmp_path / "results" / "cube" / "background_summary.json"))  # the cube only
+        r = _run(tmp_path, cfg, "results/cube/background_summary.json")  # the cube only (relative to -d)
         assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
     finally:
         for p in (worker, sched):
@@ -187,7 +187,7 @@ def test_kill_9_at_random_moments_then_resume_is_bit_identical(tmp_path, cube_ru
     env = {**os.environ, "PATH": f"{BIN}:{os.environ['PATH']}"}
     base = [SNAKEMAKE, "-s", str(REPO / "Snakefile"), "-d", str(tmp_path), "--configfile", str(cfg)]
     # the products compared below (figures and scheduling tables are left out to save time)
-    cmd = base + ["--cores", "2", "--rerun-incomplete", "-q", str(tmp_path / "results" / "cube" / "provenance.json")]
+    cmd = base + ["--cores", "2", "--rerun-incomplete", "-q", "results/cube/provenance.json"]
     _, _, ref = cube_run
     out = tmp_path / "results" / "cube"
     products = ("background.zarr", "limits.zarr", "maps", "ephemeris.zarr", "footprint.fits", "provenance.json")
