@@ -187,7 +187,8 @@ def test_kill_9_at_random_moments_then_resume_is_bit_identical(tmp_path, cube_ru
     env = {**os.environ, "PATH": f"{BIN}:{os.environ['PATH']}"}
     base = [SNAKEMAKE, "-s", str(REPO / "Snakefile"), "-d", str(tmp_path), "--configfile", str(cfg)]
     # the products compared below (figures and scheduling tables are left out to save time)
-    cmd = base + ["--cores", "2", "--rerun-incomplete", "-q", "results/cube/provenance.json"]
+    # the target after a fixed-arity option: --configfile and -q would swallow it
+    cmd = base + ["--cores", "2", "results/cube/provenance.json", "--rerun-incomplete", "-q"]
     _, _, ref = cube_run
     out = tmp_path / "results" / "cube"
     products = ("background.zarr", "limits.zarr", "maps", "ephemeris.zarr", "footprint.fits", "provenance.json")
