@@ -183,16 +183,21 @@ class ComponentModel:
         """models.tolerance: the error allowed to a fast path, as a fraction of the total."""
         return float(self.campaign.config["models"].get("tolerance", 0.01))
 
-    @cached_property
-    def earthshine_floor(self) -> float:
-        """The darkest sky background (zodiacal light at the darkest Leinert-table point) in
-        earthshine-coefficient units (e-/s/pix per photon s-1 m-2 of the Sun at 1 AU), over the
-        instrument's bands: errors relative to it bound errors relative to the total."""
+    def darkest_zodiacal_e_per_s(self, band: str) -> float:
+        """e-/s/pix of the zodiacal light at the darkest point of the Leinert (1998) table, in a
+        band: the floor of any total background (scheduling tables, error budgets)."""
         from .zodiacal import LEINERT_UNIT_W_M2_SR_UM, leinert_table
 
         b_min = float(np.min(leinert_table().filled)) * LEINERT_UNIT_W_M2_SR_UM
-        return min(float(self.zodiacal.e_per_s_per_pix(self.band(b), b_min))
-                   / self.photometry(b).sun_at_1au_photons_s_m2 for b in self.campaign.bands)
+        return float(self.zodiacal.e_per_s_per_pix(self.band(band), b_min))
+
+    @cached_property
+    def earthshine_floor(self) -> float:
+        """The darkest sky background in earthshine-coefficient units (e-/s/pix per photon
+        s-1 m-2 of the Sun at 1 AU), over the instrument's bands: errors relative to it bound
+        errors relative to the total."""
+        return min(self.darkest_zodiacal_e_per_s(b) / self.photometry(b).sun_at_1au_photons_s_m2
+                   for b in self.campaign.bands)
 
     @cached_property
     def earthshine_model(self) -> dict:

@@ -28,10 +28,8 @@ from .offfield import MOON_MEAN_DISTANCE_KM, moon_v_magnitude
 
 
 def darkest_zodiacal_e_per_s(model: ComponentModel, band: str) -> float:
-    from .zodiacal import LEINERT_UNIT_W_M2_SR_UM, leinert_table
-
-    b_min = float(np.min(leinert_table().filled)) * LEINERT_UNIT_W_M2_SR_UM
-    return float(model.zodiacal.e_per_s_per_pix(model.band(band), b_min))
+    """The reference background of the tables (see ComponentModel.darkest_zodiacal_e_per_s)."""
+    return model.darkest_zodiacal_e_per_s(band)
 
 
 def _pst_max_over_phi(model: ComponentModel, theta_deg: np.ndarray) -> np.ndarray:
