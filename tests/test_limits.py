@@ -1,0 +1,78 @@
+"""5-sigma limiting magnitudes against the published CSST wide-survey depth (issue #6, check 3).
+
+Published depth: Qu et al. 2023, MNRAS 519, 6499 (arXiv:2212.10804), abstract: "the point-source
+depth reaches 26.3 mag in the g band and 25.9 mag in the i band" for the 17,500 deg2 wide survey
+(2 x 150 s).  Only g and i are quoted there; the other bands' published values could not be
+checked offline, so they are printed but not compared.
+"""
+import shutil
+
+import numpy as np
+import pytest
+import yaml
+
+from conftest import REPO, SHARED_DATA
+
+PUBLISHED_DEPTH_MAG = {"g": 26.3, "i": 25.9}  # Qu et al. 2023 abstract
+THROUGHPUT = SHARED_DATA / "csst_throughput"
+
+
+@pytest.fixture(scope="module")
+def real_curve_campaign(tmp_path_factory):
+    """The default campaign with the real CSST throughput curves (Wen et al. 2024; test-only data
+    read from ../shared, never copied into the repository)."""
+    from straylight.config import load_campaign
+
+    tmp = tmp_path_factory.mktemp("instrument")
+    src = REPO / "config" / "instruments"
+    for p in src.iterdir():
+        (shutil.copytree if p.is_dir() else shutil.copy)(p, tmp / p.name)
+    inst = yaml.safe_load((src / "csst.yaml").read_text())
+    for name, band in inst["bands"].items():
+        band.pop("peak_throughput", None)
+        band.pop("edge_width_nm", None)
+        band["throughput_file"] = str(THROUGHPUT / f"csst_phot.{name.lower()}.fits")
+    (tmp / "csst.yaml").write_text(yaml.safe_dump(inst))
+    return load_campaign(REPO / "config" / "config.yaml", overrides={"instrument": str(tmp / "csst.yaml")})
+
+
+def _high_latitude_limits(campaign):
+    """Limits over observable samples at ecliptic |beta| >= 60 deg (the darkest zodiacal light),
+    a 10 x 10 deg grid of pointings every 30 min of the default campaign day, full model."""
+    from straylight.components import ComponentModel
+    from straylight.geometry import radec_to_unit
+    from straylight.limits import point_source_limit
+    from straylight.sky import sample_geometry, scene
+    from straylight.zodiacal import icrs_to_ecliptic_matrix
+
+    ra, dec = np.meshgrid(np.arange(0.0, 360.0, 10.0), np.arange(-80.0, 81.0, 10.0))
+    ra, dec = ra.ravel(), dec.ravel()
+    beta = np.degrees(np.arcsin((radec_to_unit(ra, dec) @ icrs_to_ecliptic_matrix().T)[:, 2]))
+    ra, dec = ra[np.abs(beta) >= 60], dec[np.abs(beta) >= 60]
+    sc = scene(campaign, campaign.times[::6])
+    g = sample_geometry(campaign, sc, ra, dec)
+    shape = g["observable"].shape + (3,)
+    sat = np.broadcast_to(sc.satellite_km[:, None, :], shape)
+    bodies = {k: np.broadcast_to(v[:, None, :], shape) for k, v in sc.bodies_km.items()}
+    los = np.broadcast_to(radec_to_unit(ra, dec)[None], shape)
+    res = ComponentModel(campaign).evaluate(sat, bodies, los, g, campaign.bands)
+    obs = g["observable"]
+    assert obs.sum() > 100, "too few observable high-latitude samples"
+    return {b: point_source_limit(res[b]["total"][obs], b, campaign) for b in campaign.bands}
+
+
+@pytest.mark.skipif(not THROUGHPUT.exists(), reason="../shared/data/csst_throughput (test-only real CSST curves) not present")
+@pytest.mark.xfail(strict=True, raises=AssertionError, reason=(
+    "measured: the model is 0.39 (g) and 0.40 (i) mag deeper than Qu et al. 2023 at dark high-latitude "
+    "pointings, beyond the issue's 0.3 mag; the noise budget (read noise dominates g at 300 s) and the "
+    "published calculation's assumptions (throughput generation, aperture, sky) are not reconciled. "
+    "strict: the test fails as soon as the check passes, so the mark must then be removed"))
+def test_depth_within_0p3_mag_of_published_wide_survey(real_curve_campaign):
+    lims = _high_latitude_limits(real_curve_campaign)
+    for b, lim in lims.items():
+        ref = PUBLISHED_DEPTH_MAG.get(b)
+        extra = f"; published {ref:.1f}, difference {np.median(lim) - ref:+.2f} mag" if ref else ""
+        print(f"{b:4s} 5-sigma limit at ecliptic |beta| >= 60: median {np.median(lim):.2f}, "
+              f"best {lim.max():.2f}, worst {lim.min():.2f}{extra}")
+    for b, ref in PUBLISHED_DEPTH_MAG.items():
+        assert np.median(lims[b]) == pytest.approx(ref, abs=0.3), b
