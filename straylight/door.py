@@ -22,9 +22,9 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
-from scipy.interpolate import RegularGridInterpolator
 
 from .errors import ConfigError
+from .gridinterp import LinearGrid
 
 
 def door_length_from_paper(aperture_radius_m: float, opening_deg: float = 135.0, sun_cutoff_deg: float = 65.0) -> float:
@@ -131,12 +131,11 @@ class DoorTable:
 
     @cached_property
     def _interp(self):
-        return RegularGridInterpolator((self.theta_deg, self.phi_deg), self.values, method="linear")
+        return LinearGrid((self.theta_deg, self.phi_deg), self.values)
 
     def __call__(self, theta_deg, phi_deg) -> np.ndarray:
         th, ph = np.broadcast_arrays(np.asarray(theta_deg, float), np.asarray(phi_deg, float))
-        pts = np.stack([np.clip(th, 0.0, 90.0), np.mod(ph, 360.0)], axis=-1).reshape(-1, 2)
-        return self._interp(pts).reshape(th.shape)
+        return self._interp(np.clip(th, 0.0, 90.0), np.mod(ph, 360.0))
 
 
 def door_from_instrument(instrument: dict) -> Door:

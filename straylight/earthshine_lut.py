@@ -34,10 +34,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy.interpolate import RegularGridInterpolator
 
 from .errors import InputError
 from .geometry import dot, norm, telescope_frame, unit
+from .gridinterp import LinearGrid
 
 AU_KM = 1.495978707e8
 #: bumped whenever the table's content or layout changes: part of the cache key
@@ -201,7 +201,7 @@ class EarthshineLUT:
                 v = np.arcsinh(v / self.scale)
                 if self.radius_km.size == 1:
                     v = v[0]
-                return RegularGridInterpolator(axes, v, method="linear", bounds_error=False, fill_value=None)
+                return LinearGrid(axes, v)  # the axes span every coordinate's whole range
 
             self._interp = {s: (make(self.direct[s]), make(self.door[s])) for s in self.direct}
         return self._interp
@@ -237,8 +237,8 @@ class EarthshineLUT:
         for st, (f_direct, f_door) in self._interpolators().items():
             sel = (op == st) | ((op <= 0) & (st == states[0]))  # no allowed state: the narrowest
             if np.any(sel):
-                direct[sel] = self.scale * np.sinh(f_direct(pts[sel]))
-                door[sel] = self.scale * np.sinh(f_door(pts[sel]))
+                direct[sel] = self.scale * np.sinh(f_direct(*pts[sel].T))
+                door[sel] = self.scale * np.sinh(f_door(*pts[sel].T))
         return np.maximum(direct, 0.0).reshape(shape), np.maximum(door, 0.0).reshape(shape)
 
     def moon_bound(self, sat_km, moon_km, los, earth_radius_km: float):

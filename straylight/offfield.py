@@ -271,6 +271,16 @@ class OffFieldModel:
         c_sun * E_sun,band + c_moon * E_moon,band; the geometry is computed once for all bands.
         ``in_field=False`` leaves out the line of sight hitting the Earth; ``moon=False`` the
         moonlit terms (zeros), as the look-up table does (:mod:`straylight.earthshine_lut`)."""
+        one = _one_scene(sat_km, sun_km, moon_km)
+        if one is not None:
+            out = self._earthshine_one_scene(*one, frame, opening_deg, earth_radius_km, moon)
+            if in_field:
+                ones = np.ones(out["direct_sun"].shape)
+                out["direct_sun"] = out["direct_sun"] + self.earth_in_field(sat_km, sun_km, moon_km, frame, ones,
+                                                                            0.0 * ones, earth_radius_km)
+                out["direct_moon"] = out["direct_moon"] + self.earth_in_field(sat_km, sun_km, moon_km, frame,
+                                                                              0.0 * ones, ones, earth_radius_km)
+            return out
         s = self.earthshine
         d, d_omega, pts = self._cap_grid(sat_km, earth_radius_km, s)
         ones = np.ones(np.shape(d_omega)[:-2])
@@ -311,12 +321,68 @@ class OffFieldModel:
         out["door_sun"], out["door_moon"] = door_sun, door_moon
         return out
 
+    def _earthshine_one_scene(self, sat, sun, moon, frame, opening_deg, earth_radius_km, with_moon: bool,
+                              batch: int = 1024) -> dict:
+        """earthshine_coefficients (without the in-field term) for many lines of sight sharing one
+        satellite, Sun and Moon (a time step of a survey cube): the Earth cap is gridded once and
+        its dark blocks (lit by neither lamp) are dropped before the per-line-of-sight work, which
+        becomes matrix products.  Same sums as the general path, so the same values up to
+        rounding (tests/test_offfield.py)."""
+        s = self.earthshine
+        d, d_omega, pts = self._cap_grid(sat, earth_radius_km, s)
+        mu_sun, mu_moon = self.lamp_cosines(pts, sun, moon, earth_radius_km)
+        if not with_moon:
+            mu_moon = np.zeros_like(mu_sun)
+        lit = (mu_sun > 0) | (mu_moon > 0)
+        blocks = d[lit]  # (K, 3)
+        lum = s.albedo / np.pi * np.stack([mu_sun[lit], mu_moon[lit]], axis=-1) * d_omega[lit][:, None]  # (K, 2)
+        shape = np.broadcast_shapes(frame.z.shape[:-1], np.shape(opening_deg))
+        fx, fy, fz = (np.broadcast_to(a, shape + (3,)).reshape(-1, 3) for a in (frame.x, frame.y, frame.z))
+        op = np.broadcast_to(np.asarray(opening_deg, float), shape).ravel()
+        direct = np.zeros((op.size, 2))
+        door = np.zeros((op.size, 2))
+        if blocks.shape[0]:
+            states = sorted(self.door_tables)
+            for start in range(0, op.size, batch):
+                sl = slice(start, start + batch)
+                dx, dy, dz = fx[sl] @ blocks.T, fy[sl] @ blocks.T, fz[sl] @ blocks.T  # (n, K)
+                theta = np.degrees(np.arctan2(np.hypot(dx, dy), dz))
+                phi = np.degrees(np.arctan2(dy, dx)) % 360.0
+                w = self.pst(theta, phi) * (theta > self.field_radius_deg) * self.pixel_area_m2
+                for state in states:  # per sample's door state; the narrowest when none is allowed
+                    rows = (op[sl] == state) | ((op[sl] <= 0) & (state == states[0]))
+                    if not np.any(rows):
+                        continue
+                    w[rows] *= self.door_tables[state](theta[rows], phi[rows])
+                    q, n_in, wd = self._door_weights[state]
+                    k = s.door_reflectance * np.sum(wd) * self.pixel_area_m2
+                    cos_inc = np.maximum(dx[rows] * n_in[0] + dy[rows] * n_in[1] + dz[rows] * n_in[2], 0.0)
+                    door[start + np.flatnonzero(rows)] = k * (cos_inc @ lum)
+                direct[sl] = w @ lum
+        return {"direct_sun": direct[:, 0].reshape(shape), "direct_moon": direct[:, 1].reshape(shape),
+                "door_sun": door[:, 0].reshape(shape), "door_moon": door[:, 1].reshape(shape)}
+
     def earthshine_terms(self, sat_km, sun_km, moon_km, frame, opening_deg, sun_irr, moon_irr_at_earth,
                          earth_radius_km) -> tuple[np.ndarray, np.ndarray]:
         """(EA1 direct, EA2 via the door) in e-/s/pix for samples (leading shapes broadcast)."""
         c = self.earthshine_coefficients(sat_km, sun_km, moon_km, frame, opening_deg, earth_radius_km)
         return (c["direct_sun"] * sun_irr + c["direct_moon"] * moon_irr_at_earth,
                 c["door_sun"] * sun_irr + c["door_moon"] * moon_irr_at_earth)
+
+
+def _one_scene(sat_km, sun_km, moon_km):
+    """(sat, sun, moon) as single vectors when every sample shares them (a survey cube's time
+    step), else None."""
+    vs = [np.asarray(v, float) for v in (sat_km, sun_km, moon_km)]
+    if vs[0].ndim < 2 or vs[0].reshape(-1, 3).shape[0] < 2:
+        return None
+    firsts = []
+    for v in vs:
+        flat = v.reshape(-1, 3)
+        if np.any(flat != flat[0]):
+            return None
+        firsts.append(flat[0].copy())
+    return tuple(firsts)
 
 
 def magnitude_per_arcsec2(e_per_s_per_pix, band: Band, aperture_diameter_m: float, pixel_scale_arcsec: float):

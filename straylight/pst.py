@@ -25,9 +25,9 @@ from functools import cached_property
 from pathlib import Path
 
 import numpy as np
-from scipy.interpolate import RegularGridInterpolator
 
 from .errors import InputError
+from .gridinterp import LinearGrid
 
 # Anchors of the default PST (log10 PST vs theta, deg), azimuthally averaged.
 #  - theta <= 0.59 deg: inside the ~1.1 deg2 field, PST = 1 by definition (on-axis image);
@@ -113,14 +113,14 @@ class PST:
         if ph[-1] < 360.0:  # close the period
             ph = np.append(ph, 360.0)
             v = np.concatenate([v, v[:, :1]], axis=1)
-        return RegularGridInterpolator((th, ph), v, method="linear")
+        return LinearGrid((th, ph), v * np.log(10.0))  # natural log: exp is cheaper than 10**
 
     def __call__(self, theta_deg, phi_deg) -> np.ndarray:
         """PST at (theta, phi) in degrees (any broadcastable shapes); phi wraps, theta clips."""
         th, ph = np.broadcast_arrays(np.asarray(theta_deg, float), np.asarray(phi_deg, float))
         th = np.clip(th, 0.0, 180.0)
         ph = np.mod(ph, 360.0)
-        return (10.0 ** self._interp(np.stack([th, ph], axis=-1).reshape(-1, 2))).reshape(th.shape)
+        return np.exp(self._interp(th, ph))
 
     def azimuthal_mean(self, theta_deg) -> np.ndarray:
         phi = np.linspace(0.0, 360.0, 73)[:-1]

@@ -357,3 +357,26 @@ def test_band_independent_earthshine_equals_per_band(comp_model):
     a, b = off.earthshine_terms(sat, sun, moon, frame, np.array([135.0]), np.array([3.0]), np.array([2.0]), RE)
     assert float(a[0]) == pytest.approx(float(3 * c["direct_sun"][0] + 2 * c["direct_moon"][0]), rel=1e-12)
     assert float(b[0]) == pytest.approx(float(3 * c["door_sun"][0] + 2 * c["door_moon"][0]), rel=1e-12)
+
+
+@pytest.mark.parametrize("sun_x", [1.0, -1.0])  # satellite on the day side; on the night side (Moon only)
+def test_one_scene_earthshine_equals_per_sample_sum(comp_model, sun_x):
+    """The cube's path (lines of sight sharing one satellite, Sun and Moon: cap gridded once,
+    dark blocks dropped, matrix products) gives the per-sample general sum's values."""
+    off = comp_model.offfield
+    rng = np.random.default_rng(3)
+    los = rng.normal(size=(300, 3))
+    los /= np.linalg.norm(los, axis=1)[:, None]
+    sat1 = np.array([RE + 400.0, 0.0, 0.0])
+    sun1, moon1 = np.array([sun_x * AU, 0.3 * AU, 0.1 * AU]), np.array([2e5, -3e5, 1e4])
+    sat, sun, moon = (np.broadcast_to(v, los.shape) for v in (sat1, sun1, moon1))
+    frame = telescope_frame(los, sun - sat)
+    door = rng.choice([135.0, 105.0, 0.0], size=300)
+    fast = off.earthshine_coefficients(sat, sun, moon, frame, door, RE)
+    for i in range(0, 300, 7):
+        fr = telescope_frame(los[i:i + 1], sun[i:i + 1] - sat[i:i + 1])
+        ref = off.earthshine_coefficients(sat[i:i + 1], sun[i:i + 1], moon[i:i + 1], fr, door[i:i + 1], RE)
+        for k in ref:
+            assert float(fast[k][i]) == pytest.approx(float(ref[k][0]), rel=1e-9, abs=1e-300), (k, i)
+    if sun_x < 0:  # the Sun below the cap: only moonlight
+        assert np.all(fast["door_sun"] == 0) and np.any(fast["direct_moon"] > 0)

@@ -1,0 +1,37 @@
+"""The fast grid interpolator against scipy's RegularGridInterpolator (the independent library)."""
+import numpy as np
+import pytest
+from scipy.interpolate import RegularGridInterpolator
+
+from straylight.gridinterp import LinearGrid
+
+
+@pytest.mark.parametrize("ndim", [2, 3])
+def test_matches_scipy_on_nonuniform_axes(ndim):
+    rng = np.random.default_rng(1)
+    # non-uniform axes with a narrow cell among wide ones (like the PST's anchor nodes)
+    axes = [np.unique(np.concatenate([np.linspace(0, 180, 19), [30.01, 30.02, 0.5], rng.uniform(0, 180, 5)]))
+            for _ in range(ndim)]
+    values = rng.normal(size=tuple(a.size for a in axes))
+    pts = rng.uniform(0, 180, size=(200_000, ndim))
+    pts[:50] = np.array(np.meshgrid(*axes, indexing="ij")).reshape(ndim, -1).T[:50]  # exactly on nodes
+    pts[50:60] = 180.0  # upper edge
+    pts[60:70] = 0.0
+    ref = RegularGridInterpolator(axes, values, method="linear")(pts)
+    got = LinearGrid(axes, values)(*pts.T)
+    assert np.max(np.abs(got - ref)) < 1e-12
+
+
+def test_clips_outside_and_propagates_nan():
+    f = LinearGrid([np.array([0.0, 1.0, 3.0]), np.array([0.0, 2.0])], np.array([[0.0, 2.0], [1.0, 3.0], [3.0, 5.0]]))
+    assert f(-5.0, 1.0) == pytest.approx(1.0)  # clipped to x = 0: 0 + (2 - 0) * 1/2
+    assert f(10.0, 2.0) == pytest.approx(5.0)
+    assert f(2.0, 1.0) == pytest.approx(3.0)  # (2 + 4) / 2
+    assert np.isnan(f(np.nan, 1.0)) and np.isnan(f(1.0, np.nan))
+
+
+def test_rejects_bad_axes():
+    with pytest.raises(ValueError):
+        LinearGrid([np.array([0.0, 0.0, 1.0])], np.zeros(3))
+    with pytest.raises(ValueError):
+        LinearGrid([np.array([0.0, 1.0])], np.zeros(3))
