@@ -219,6 +219,7 @@ class ComponentModel:
                                float(lut_cfg.get("azimuth_step_deg", 5.0)),
                                int(lut_cfg.get("n_radius", 1)))
         r = self.campaign.orbit_radius_range_km
+        k = self.campaign.constraints
         log = logging.getLogger("straylight")
         if method == "auto":
             # build cost against what the table saves, both measured by bench/run.py: a node costs
@@ -231,7 +232,7 @@ class ComponentModel:
                 return {"method": "direct", "lut": None,
                         "reason": f"auto: {self.expected_samples} samples save ~{saved_s:.0f} s, the table costs ~{build_s:.0f} s"}
         lut, path = load_or_build(self.offfield, self.campaign.earth.radius_km, r, settings, self.earthshine_floor, log,
-                                  min_limb_angle_deg=self.campaign.constraints.dark_limb_min_deg)
+                                  avoidance_deg=(k.dark_limb_min_deg, k.bright_limb_min_deg, k.sun_min_deg))
         info = {"lut_file": str(path.name), "lut_validation_max_rel_error": lut.validation_max_rel_error,
                 "lut_build_seconds": lut.build_seconds,
                 "lut_steps_deg": [settings.sun_zenith_step_deg, settings.los_zenith_step_deg, settings.azimuth_step_deg]}
@@ -245,14 +246,16 @@ class ComponentModel:
     def models_record(self) -> dict:
         """Which models ran and their error budget, for a product's attributes (JSON-able)."""
         sc = self.campaign.config["stars"]
+        es_cfg = self.campaign.config["models"].get("earthshine", {})
         # build time left out: the record goes into products, whose bytes must not vary run to run
         es = {k: v for k, v in self.earthshine_model.items() if k not in ("lut", "lut_build_seconds")}
         s = self.offfield.earthshine
         es["earth_grid"] = [s.n_gamma, s.n_psi]
         es["door_blocks"], es["aperture_points_door"] = list(s.door_blocks), s.n_aperture_door
         return {"tolerance": self.tolerance, "earthshine": es, "pst": self.offfield.pst.source,
-                "moonlit_earthshine": "skipped where its bound < tolerance/4 x zodiacal light, else summed directly"
-                if es["method"] == "lut" else "summed directly",
+                "moonlit_earthshine": ("skipped where its bound < tolerance/4 x zodiacal light, else summed directly "
+                                       f"(grid {list(es_cfg.get('moonlit_grid', [8, 16]))} where >= the dark-limb "
+                                       "angle above the limb)") if es["method"] == "lut" else "summed directly",
                 "stars": {"direct_mag_limit": float(sc.get("offfield_mag_limit", 2.0)),
                           "faint_map": bool(sc.get("faint_map", True))},
                 "error_budget": {"earthshine_lut_validated": es.get("lut_validation_max_rel_error") if es["method"] == "lut" else 0.0,
@@ -284,13 +287,22 @@ class ComponentModel:
         for b, e_moon in moon_at_earth_unit.items():
             need |= np.broadcast_to(bound * e_moon > 0.25 * self.tolerance * zodi[b], shape)
         if np.any(need):
-            from .geometry import TelescopeFrame
+            from .geometry import TelescopeFrame, angle_between_deg
 
-            sub = TelescopeFrame(*(np.broadcast_to(a, full)[need] for a in (frame.x, frame.y, frame.z)))
-            c = off.earthshine_coefficients(sat_b[need], sun_b[need], moon_b[need], sub, door_b[need], re_km,
-                                            in_field=False)
-            out["direct_moon"][need] += c["direct_moon"]
-            out["door_moon"][need] = c["door_moon"]
+            # the moonlit Earth is ~1e-5 of the sunlit: a coarse grid is enough where the line of
+            # sight is at least the dark-limb angle above the limb (models.earthshine.moonlit_grid)
+            r = norm(sat_b)
+            limb_angle = angle_between_deg(los_b, -sat_b) - np.degrees(np.arcsin(np.clip(re_km / r, 0, 1)))
+            away = limb_angle >= self.campaign.constraints.dark_limb_min_deg
+            coarse = tuple(self.campaign.config["models"].get("earthshine", {}).get("moonlit_grid", (8, 16)))
+            for part, grid in ((need & away, coarse), (need & ~away, None)):
+                if not np.any(part):
+                    continue
+                sub = TelescopeFrame(*(np.broadcast_to(a, full)[part] for a in (frame.x, frame.y, frame.z)))
+                c = off.earthshine_coefficients(sat_b[part], sun_b[part], moon_b[part], sub, door_b[part], re_km,
+                                                in_field=False, sun=False, grid=grid)
+                out["direct_moon"][part] += c["direct_moon"]
+                out["door_moon"][part] = c["door_moon"]
         return out
 
     @cached_property

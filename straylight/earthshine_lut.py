@@ -41,7 +41,7 @@ from .gridinterp import LinearGrid
 
 AU_KM = 1.495978707e8
 #: bumped whenever the table's content or layout changes: part of the cache key
-LUT_FORMAT = 2
+LUT_FORMAT = 3
 
 
 @dataclass(frozen=True)
@@ -98,12 +98,18 @@ def _sun_coefficients_direct(off, R, Z, L, A, state, earth_radius_km, batch):
     sat, sun, los = _local_scene(R, Z, L, A)
     moon = np.broadcast_to([0.0, 0.0, -1e9], sat.shape)  # unused: the Moon's terms are not tabulated
     d_out, g_out = np.empty(R.size), np.empty(R.size)
-    for i in range(0, R.size, batch):
-        sl = slice(i, i + batch)
-        frame = telescope_frame(los[sl], sun[sl] - sat[sl])
-        c = off.earthshine_coefficients(sat[sl], sun[sl], moon[sl], frame, np.full(R[sl].size, state),
-                                        earth_radius_km, in_field=False, moon=False)
-        d_out[sl], g_out[sl] = c["direct_sun"], c["door_sun"]
+    # samples sharing a (radius, Sun zenith) share one scene: one cap grid, dark blocks dropped
+    groups = {}
+    for i, key in enumerate(zip(R.tolist(), Z.tolist())):
+        groups.setdefault(key, []).append(i)
+    for idx in groups.values():
+        idx = np.asarray(idx)
+        for j in range(0, idx.size, batch):
+            sl = idx[j:j + batch]
+            frame = telescope_frame(los[sl], sun[sl] - sat[sl])
+            c = off.earthshine_coefficients(sat[sl], sun[sl], moon[sl], frame, np.full(sl.size, state),
+                                            earth_radius_km, in_field=False, moon=False)
+            d_out[sl], g_out[sl] = c["direct_sun"], c["door_sun"]
     return d_out, g_out
 
 
@@ -115,6 +121,30 @@ def _mirror_symmetric(off) -> bool:
         return False
     return all(np.allclose(off.door_factor(th, ph, s), off.door_factor(th, 360.0 - ph, s), atol=1e-9)
                for s in off.door_states_deg)
+
+
+def _observable_points(rr, earth_radius_km, symmetric, n, avoidance_deg):
+    """n random (radius, Sun zenith, line-of-sight zenith, azimuth) points (deg) whose line of
+    sight meets the dark-limb, bright-limb and Sun avoidance angles (rejection sampling)."""
+    from .geometry import angle_between_deg, limb_geometry
+
+    dark_min, bright_min, sun_min = (float(a) for a in avoidance_deg)
+    rng = np.random.default_rng(20261122)
+    limb = 90.0 + np.degrees(np.arccos(earth_radius_km / rr.min()))
+    kept = []
+    while sum(len(k[0]) for k in kept) < n:
+        m = 4 * n
+        p = (rng.uniform(rr.min(), rr.max(), m), rng.uniform(0.0, 180.0, m),
+             rng.uniform(0.0, max(limb - dark_min, 1.0), m), rng.uniform(0.0, 180.0 if symmetric else 360.0, m))
+        sat, sun, los = _local_scene(p[0], *np.radians(p[1:]))
+        lg = limb_geometry(sat, los, sun, earth_radius_km)
+        ok = ((lg.dark_limb_angle_deg >= dark_min) & (lg.bright_limb_angle_deg >= bright_min)
+              & (angle_between_deg(los, sun - sat) >= sun_min))
+        if not ok.any() and not kept:
+            raise InputError(f"earthshine table validation: no observable line of sight with avoidance angles "
+                             f"{avoidance_deg} deg")
+        kept.append(tuple(v[ok] for v in p))
+    return tuple(np.concatenate([k[i] for k in kept])[:n] for i in range(4))
 
 
 @dataclass
@@ -136,12 +166,13 @@ class EarthshineLUT:
     @classmethod
     def build(cls, off, earth_radius_km: float, radius_range_km: tuple[float, float],
               settings: LUTSettings = LUTSettings(), floor: float = 0.0, batch: int = 1024,
-              n_validation: int = 400, min_limb_angle_deg: float = 30.0) -> "EarthshineLUT":
+              n_validation: int = 400, avoidance_deg: tuple = (30.0, 80.0, 50.0)) -> "EarthshineLUT":
         """Tabulate ``off.earthshine_coefficients`` (an :class:`OffFieldModel`), then validate:
-        at ``n_validation`` random points where a line of sight can be observable (more than
-        ``min_limb_angle_deg`` above the limb, the dark-limb avoidance angle) the largest
-        |table - direct| / (direct + floor), with ``floor`` the darkest sky background in the
-        same units (so the error is a fraction of the total, and a pessimistic one)."""
+        at ``n_validation`` random points where a line of sight is observable (``avoidance_deg``:
+        the minimum angles from the dark limb, the bright limb and the Sun, as the campaign's
+        constraints) the largest |table - direct| / (direct + floor), with ``floor`` the darkest
+        sky background in the same units (so the error is a fraction of the total, and a
+        pessimistic one)."""
         import time
 
         t_start = time.perf_counter()
@@ -174,12 +205,7 @@ class EarthshineLUT:
         scale = float(np.percentile(positive, 1)) if positive.size else 1e-30
         lut = cls(rr, zs, zl, az, direct, door, bound, moon_door, symmetric, scale)
         # validation at random off-node points of the observable region
-        rng = np.random.default_rng(20261122)
-        limb = 90.0 + np.degrees(np.arccos(earth_radius_km / rr.min()))
-        vr = rng.uniform(rr.min(), rr.max(), n_validation)
-        vz = rng.uniform(0.0, 180.0, n_validation)
-        vl = rng.uniform(0.0, limb - min_limb_angle_deg, n_validation)
-        va = rng.uniform(0.0, 180.0 if symmetric else 360.0, n_validation)
+        vr, vz, vl, va = _observable_points(rr, earth_radius_km, symmetric, n_validation, avoidance_deg)
         errs = []
         for state in off.door_states_deg:
             d_ref, g_ref = _sun_coefficients_direct(off, vr, *np.radians([vz, vl, va]), state, earth_radius_km, batch)
@@ -303,28 +329,28 @@ def cache_dir() -> Path:
 
 
 def load_or_build(off, earth_radius_km, radius_range_km, settings: LUTSettings, floor: float, log=None,
-                  min_limb_angle_deg: float = 30.0):
+                  avoidance_deg: tuple = (30.0, 80.0, 50.0)):
     """The table for these inputs from the cache, built and stored there if missing."""
-    key = lut_key(off, earth_radius_km, radius_range_km, settings, floor, min_limb_angle_deg)
+    key = lut_key(off, earth_radius_km, radius_range_km, settings, floor, avoidance_deg)
     path = cache_dir() / f"earthshine_lut_{key}.npz"
     if path.exists():
         return EarthshineLUT.load(path), path
     if log is not None:
         log.info("building the earthshine look-up table %s (once; cached in %s)", key, path.parent)
     lut = EarthshineLUT.build(off, earth_radius_km, radius_range_km, settings, floor,
-                              min_limb_angle_deg=min_limb_angle_deg)
+                              avoidance_deg=avoidance_deg)
     path.parent.mkdir(parents=True, exist_ok=True)
     lut.save(path)
     return lut, path
 
 
 def lut_key(off, earth_radius_km, radius_range_km, settings: LUTSettings, floor: float = 0.0,
-            min_limb_angle_deg: float = 30.0) -> str:
+            avoidance_deg: tuple = (30.0, 80.0, 50.0)) -> str:
     """Digest of everything the table depends on (PST, door, cap grid, albedo, radii, nodes)."""
     h = hashlib.sha256(f"format {LUT_FORMAT}".encode())
     h.update(np.ascontiguousarray(off.pst.values).tobytes())
     h.update(np.ascontiguousarray(off.pst.theta_deg).tobytes() + np.ascontiguousarray(off.pst.phi_deg).tobytes())
     h.update(repr((off.door, off.door_states_deg, off.pixel_area_m2, off.field_radius_deg, off.earthshine,
                    round(earth_radius_km, 6), tuple(round(r, 3) for r in radius_range_km), settings,
-                   f"{floor:.6g}", min_limb_angle_deg)).encode())
+                   f"{floor:.6g}", tuple(float(a) for a in avoidance_deg))).encode())
     return h.hexdigest()[:16]

@@ -33,7 +33,7 @@ emission cosine and 1/pi written out.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
@@ -264,16 +264,20 @@ class OffFieldModel:
                       axis=(-2, -1)) * self.pixel_area_m2
 
     def earthshine_coefficients(self, sat_km, sun_km, moon_km, frame, opening_deg, earth_radius_km,
-                                in_field: bool = True, moon: bool = True) -> dict:
+                                in_field: bool = True, moon: bool = True, sun: bool = True,
+                                grid: tuple[int, int] | None = None) -> dict:
         """Band-independent earthshine per unit photon irradiance of the Sun and of the Moon (at
         the Earth): keys direct_sun, direct_moon, door_sun, door_moon, in e-/s/pix per
         (photons s-1 m-2).  The albedo is grey, so a band's earthshine is
         c_sun * E_sun,band + c_moon * E_moon,band; the geometry is computed once for all bands.
         ``in_field=False`` leaves out the line of sight hitting the Earth; ``moon=False`` the
-        moonlit terms (zeros), as the look-up table does (:mod:`straylight.earthshine_lut`)."""
+        moonlit terms (zeros), as the look-up table does (:mod:`straylight.earthshine_lut`);
+        ``sun=False`` the sunlit ones (the table's path sums only the moonlit Earth directly);
+        ``grid`` = (n_gamma, n_psi) replaces the configured Earth-cap grid."""
+        s = self.earthshine if grid is None else replace(self.earthshine, n_gamma=int(grid[0]), n_psi=int(grid[1]))
         one = _one_scene(sat_km, sun_km, moon_km)
         if one is not None:
-            out = self._earthshine_one_scene(*one, frame, opening_deg, earth_radius_km, moon)
+            out = self._earthshine_one_scene(*one, frame, opening_deg, earth_radius_km, moon, sun, s)
             if in_field:
                 ones = np.ones(out["direct_sun"].shape)
                 out["direct_sun"] = out["direct_sun"] + self.earth_in_field(sat_km, sun_km, moon_km, frame, ones,
@@ -281,12 +285,13 @@ class OffFieldModel:
                 out["direct_moon"] = out["direct_moon"] + self.earth_in_field(sat_km, sun_km, moon_km, frame,
                                                                               0.0 * ones, ones, earth_radius_km)
             return out
-        s = self.earthshine
         d, d_omega, pts = self._cap_grid(sat_km, earth_radius_km, s)
         ones = np.ones(np.shape(d_omega)[:-2])
         mu_sun, mu_moon = self.lamp_cosines(pts, sun_km, moon_km, earth_radius_km)
         if not moon:
             mu_moon = np.zeros_like(mu_sun)
+        if not sun:
+            mu_sun = np.zeros_like(mu_moon)
         lum_sun, lum_moon = s.albedo / np.pi * mu_sun, s.albedo / np.pi * mu_moon
         dx = dot(d, frame.x[..., None, None, :])
         dy = dot(d, frame.y[..., None, None, :])
@@ -322,17 +327,19 @@ class OffFieldModel:
         return out
 
     def _earthshine_one_scene(self, sat, sun, moon, frame, opening_deg, earth_radius_km, with_moon: bool,
-                              batch: int = 1024) -> dict:
+                              with_sun: bool = True, s: EarthshineSettings | None = None, batch: int = 1024) -> dict:
         """earthshine_coefficients (without the in-field term) for many lines of sight sharing one
         satellite, Sun and Moon (a time step of a survey cube): the Earth cap is gridded once and
         its dark blocks (lit by neither lamp) are dropped before the per-line-of-sight work, which
         becomes matrix products.  Same sums as the general path, so the same values up to
         rounding (tests/test_offfield.py)."""
-        s = self.earthshine
+        s = s or self.earthshine
         d, d_omega, pts = self._cap_grid(sat, earth_radius_km, s)
         mu_sun, mu_moon = self.lamp_cosines(pts, sun, moon, earth_radius_km)
         if not with_moon:
             mu_moon = np.zeros_like(mu_sun)
+        if not with_sun:
+            mu_sun = np.zeros_like(mu_moon)
         lit = (mu_sun > 0) | (mu_moon > 0)
         blocks = d[lit]  # (K, 3)
         lum = s.albedo / np.pi * np.stack([mu_sun[lit], mu_moon[lit]], axis=-1) * d_omega[lit][:, None]  # (K, 2)
