@@ -239,6 +239,53 @@ def nside_rows(bench):
     return rows
 
 
+def cube_summary(catalog, time_step: int = 24, n_times: int = 12) -> dict:
+    """The survey cube's access pattern: every footprint pixel of the default campaign at
+    ``n_times`` times spread over its day, one time step per evaluation (as compute_region runs
+    it, the Earth cap gridded once per time step), stars included.  Seconds per sample on one
+    core for the direct earthshine sum and for the look-up table (built once, cached), and the
+    table path's largest difference from the direct path at observable samples, as a fraction
+    of the total (the direct path's own error is the random-sample figure above)."""
+    import copy
+    import tempfile
+
+    from straylight.catalog import write_catalog
+    from straylight.components import ComponentModel
+    from straylight.config import campaign_from_dict, load_campaign
+    from straylight.cube import compute_region
+    from straylight.footprint import footprint_from_config
+
+    base = load_campaign()
+    fp = footprint_from_config(base.config["footprint"])
+    t_slice = slice(0, time_step * n_times, time_step)
+    out = {"pixels": int(fp.pixels.size), "times": n_times, "time_step_s": time_step * float(base.config["campaign"]["cadence_s"])}
+    res = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        stars_path = Path(tmp) / "stars.parquet"
+        write_catalog(catalog, stars_path, {})
+        for method in ("direct", "lut"):
+            raw = copy.deepcopy(base.config)
+            raw["models"].setdefault("earthshine", {})["method"] = method
+            c = campaign_from_dict(raw, base.path)
+            model = ComponentModel(c, expected_samples=10**9)
+            model.earthshine_model  # the table: built or loaded before timing
+            compute_region(c, fp, slice(0, 1), slice(None), model=model, stars_path=stars_path)  # warm-up
+            t0 = time.perf_counter()
+            res[method] = compute_region(c, fp, t_slice, slice(None), model=model, stars_path=stars_path)
+            dt = time.perf_counter() - t0
+            out[method] = {"samples_per_s_per_core": n_times * fp.pixels.size / dt}
+            print(f"cube, earthshine {method}: {out[method]['samples_per_s_per_core']:.0f} samples/s/core")
+    obs = res["direct"]["observable"].values
+    diff = np.abs(res["lut"]["total"].values - res["direct"]["total"].values) / res["direct"]["total"].values
+    out["lut_vs_direct_max_rel_error_observable"] = float(diff[obs].max()) if obs.any() else None
+    out["lut_vs_direct_max_rel_error_all"] = float(diff.max())
+    out["observable_samples"] = int(obs.sum())
+    out["speedup_lut_over_direct"] = out["lut"]["samples_per_s_per_core"] / out["direct"]["samples_per_s_per_core"]
+    print(f"cube: table path differs from the direct path by <= {out['lut_vs_direct_max_rel_error_observable']:.2e} "
+          f"of the total at {out['observable_samples']} observable samples ({out['lut_vs_direct_max_rel_error_all']:.2e} at all)")
+    return out
+
+
 def _table_summary(rows):
     """The default earthshine table (the last, finest row) against the direct sum (first row):
     speed, error, build time and the campaign size above which the table pays off."""
@@ -284,9 +331,19 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--samples", type=int, default=150, help="random observable samples (default 150)")
     ap.add_argument("--quick", action="store_true", help="fewer settings (a smoke run)")
-    ap.add_argument("--only", choices=("time_cadence", "healpix_nside"), default=None,
-                    help="re-run one model-independent sweep and update knobs.json and its chart")
+    ap.add_argument("--only", choices=("time_cadence", "healpix_nside", "cube"), default=None,
+                    help="re-run one model-independent sweep and update knobs.json and its chart "
+                         "(cube: the cube section of summary.json)")
     args = ap.parse_args(argv)
+    if args.only == "cube":
+        import json
+
+        bench = Bench(args.samples)
+        path = RESULTS / "summary.json"
+        summary = json.loads(path.read_text()) if path.exists() else {}
+        summary["cube"] = cube_summary(bench.catalog)
+        write_results("summary", summary)
+        return
     if args.only:
         import json
 
@@ -360,6 +417,7 @@ def main(argv=None):
                       "settings": {**REFERENCE, "stars_direct_mag_limit": REFERENCE_STARS[0], "stars_faint_map": False}},
         "speedup_default_over_reference": t_ref / t_def,
         "earthshine_table": _table_summary(knobs["earthshine_lut"]),
+        "cube": cube_summary(bench.catalog),
         "goal_samples_per_s_per_core": 1e6,
         "goal_max_rel_error": 0.01,
         "bench_seconds": time.perf_counter() - t_start,

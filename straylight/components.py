@@ -222,12 +222,12 @@ class ComponentModel:
         k = self.campaign.constraints
         log = logging.getLogger("straylight")
         if method == "auto":
-            # build cost against what the table saves, both measured by bench/run.py: a node costs
-            # ~0.6 ms to build (per door state); the table saves only ~0.05 ms per observable sample,
-            # because the moonlit Earth, which it does not tabulate, must still be summed directly
-            # wherever its bound matters (about a third of observable samples)
+            # build cost against what the table saves, both measured (bench/run.py --only cube,
+            # one core): a node costs ~0.35 ms to build per door state; the table saves ~0.15 ms
+            # per cube sample (2416 -> 3835 samples/s), not more, because the moonlit Earth, which
+            # it does not tabulate, is still summed directly near and below the limb
             n_nodes = settings.node_count(r[0], self.campaign.earth.radius_km) * len(self.offfield.door_states_deg)
-            build_s, saved_s = 0.6e-3 * n_nodes, 0.05e-3 * self.expected_samples
+            build_s, saved_s = 0.35e-3 * n_nodes, 0.15e-3 * self.expected_samples
             if saved_s < build_s:
                 return {"method": "direct", "lut": None,
                         "reason": f"auto: {self.expected_samples} samples save ~{saved_s:.0f} s, the table costs ~{build_s:.0f} s"}
