@@ -61,7 +61,7 @@ def test_rotation_about_the_vertical_changes_nothing(coarse):
     sat, sun, los = sc.satellite_km[obs], sc.bodies_km["sun"][obs], los[obs]
     lut = info["lut"]
     r, zs, zl, a = lut.coordinates(sat, sun, los)
-    from straylight.earthshine_lut import _local_scene, _sun_coefficients_direct
+    from straylight.earthshine_lut import _sun_coefficients_direct
 
     off = cm.offfield
     door = g["door_opening_deg"][obs]

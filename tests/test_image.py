@@ -95,7 +95,7 @@ def test_wcs_roll_follows_the_sun(parts):
     """+x of the image points towards the Sun's projection (the door side)."""
     from astropy.wcs.utils import proj_plane_pixel_scales
 
-    fp, small = parts[0], parts[1]
+    small = parts[1]
     w = pointing_wcs(150.0, 30.0, SUN, small, 12)
     assert proj_plane_pixel_scales(w)[0] * 3600 == pytest.approx(0.074, rel=1e-9)
     from straylight.geometry import radec_to_unit

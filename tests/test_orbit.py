@@ -74,7 +74,7 @@ def test_nodal_precession_equals_analytic_j2_rate():
 
 
 def test_tle_path_equals_sgp4_directly():
-    from sgp4.api import Satrec, jday
+    from sgp4.api import Satrec
 
     orb = TLEOrbit(ISS_L1, ISS_L2)
     t = Time("2008-09-20T12:25:40") + TimeDelta(np.arange(0, 5400, 600.0), format="sec")

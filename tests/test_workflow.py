@@ -1,5 +1,4 @@
 """The Snakemake spine: dry run, lint, schema validation and a small end-to-end run."""
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -7,7 +6,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 import xarray as xr
-import yaml
 
 from conftest import REPO
 
