@@ -307,9 +307,11 @@ class ComponentModel:
 
     @cached_property
     def _pst_azimuthal_table(self):
-        """log10 of the azimuth-averaged PST on a 0.01 deg theta grid (for the faint-star map)."""
+        """Natural log of the azimuth-averaged PST on a uniform 0.01 deg theta grid (for the
+        faint-star map): nodes, values, and the per-cell slopes for direct-index interpolation."""
         theta = np.linspace(0.0, 180.0, 18001)
-        return theta, np.log10(self.offfield.pst.azimuthal_mean(theta))
+        ln_pst = np.log(self.offfield.pst.azimuthal_mean(theta))
+        return theta, ln_pst, np.diff(ln_pst)
 
     def faint_star_rates(self, stars: StarTable, los, bands, batch: int = 4096) -> dict:
         """e-/s/pix per band from the faint stars: sum_s E_s PSTavg(theta_s) * pixel area over the
@@ -326,14 +328,16 @@ class ComponentModel:
         flat = los.reshape(-1, 3)
         bands = [b for b in bands if b in stars.faint_mag_ab]
         flux = np.array([self.photometry(b).from_ab(stars.faint_mag_ab[b]) for b in bands]).T  # (S, B)
-        theta_grid, log_pst = self._pst_azimuthal_table
+        theta_grid, ln_pst, slope = self._pst_azimuthal_table
+        per_deg = (theta_grid.size - 1) / theta_grid[-1]
         r_field = self.offfield.field_radius_deg
         out = np.zeros((flat.shape[0], len(bands)))
         s_all = stars.faint_unit
         for i in range(0, len(s_all), batch):
             cosang = np.clip(flat @ s_all[i:i + batch].T, -1.0, 1.0)
-            theta = np.degrees(np.arccos(cosang))
-            t = 10.0 ** np.interp(theta, theta_grid, log_pst) * (theta > r_field)
+            x = np.degrees(np.arccos(cosang)) * per_deg  # position on the uniform grid
+            k = np.minimum(x.astype(np.intp), slope.size - 1)  # linear in ln PST, as np.interp on the grid
+            t = np.exp(ln_pst[k] + (x - k) * slope[k]) * (x > r_field * per_deg)
             out += t @ flux[i:i + batch]
         out *= self.offfield.pixel_area_m2
         res = {b: out[:, j].reshape(los.shape[:-1]) for j, b in enumerate(bands)}
