@@ -243,10 +243,15 @@ class ComponentModel:
             return {"method": "direct", "lut": None, "reason": reason, **info}
         return {"method": "lut", "lut": lut, "reason": f"{method}: {self.expected_samples} samples", **info}
 
+    @cached_property
+    def moonlit_grid(self) -> tuple[int, int]:
+        """models.earthshine.moonlit_grid: (n_gamma, n_psi) of the moonlit Earth's direct sum on
+        the table's path, away from the limb."""
+        return tuple(int(n) for n in self.campaign.config["models"].get("earthshine", {}).get("moonlit_grid", (8, 16)))
+
     def models_record(self) -> dict:
         """Which models ran and their error budget, for a product's attributes (JSON-able)."""
         sc = self.campaign.config["stars"]
-        es_cfg = self.campaign.config["models"].get("earthshine", {})
         # build time left out: the record goes into products, whose bytes must not vary run to run
         es = {k: v for k, v in self.earthshine_model.items() if k not in ("lut", "lut_build_seconds")}
         s = self.offfield.earthshine
@@ -254,7 +259,7 @@ class ComponentModel:
         es["door_blocks"], es["aperture_points_door"] = list(s.door_blocks), s.n_aperture_door
         return {"tolerance": self.tolerance, "earthshine": es, "pst": self.offfield.pst.source,
                 "moonlit_earthshine": ("skipped where its bound < tolerance/4 x zodiacal light, else summed directly "
-                                       f"(grid {list(es_cfg.get('moonlit_grid', [8, 16]))} where >= the dark-limb "
+                                       f"(grid {list(self.moonlit_grid)} where >= the dark-limb "
                                        "angle above the limb)") if es["method"] == "lut" else "summed directly",
                 "stars": {"direct_mag_limit": float(sc.get("offfield_mag_limit", 2.0)),
                           "faint_map": bool(sc.get("faint_map", True))},
@@ -294,8 +299,7 @@ class ComponentModel:
             r = norm(sat_b)
             limb_angle = angle_between_deg(los_b, -sat_b) - np.degrees(np.arcsin(np.clip(re_km / r, 0, 1)))
             away = limb_angle >= self.campaign.constraints.dark_limb_min_deg
-            coarse = tuple(self.campaign.config["models"].get("earthshine", {}).get("moonlit_grid", (8, 16)))
-            for part, grid in ((need & away, coarse), (need & ~away, None)):
+            for part, grid in ((need & away, self.moonlit_grid), (need & ~away, None)):
                 if not np.any(part):
                     continue
                 sub = TelescopeFrame(*(np.broadcast_to(a, full)[part] for a in (frame.x, frame.y, frame.z)))

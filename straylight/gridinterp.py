@@ -1,11 +1,12 @@
 """Multilinear interpolation on a rectilinear grid, for the hot loops (PST, door, earthshine table).
 
 It computes exactly what ``scipy.interpolate.RegularGridInterpolator(method="linear")`` computes
-(tests/test_gridinterp.py checks agreement to 1e-12), about three times faster on the
-earthshine sum's millions of points per time step: scipy locates cells with a binary search
-and validates its input on every call; here each axis gets, once, a table of bins of uniform
-width no wider than its narrowest cell, so a point's cell is one multiplication, one look-up
-and one comparison.
+(tests/test_gridinterp.py checks agreement to 1e-12), faster on the earthshine sum's millions
+of points per time step (measured in the cube: 0.7 s instead of 1.0 s for the PST and door
+look-ups of 2 x 1320 lines of sight x 1152 Earth blocks): scipy locates cells with a binary
+search and validates its input on every call; here each axis gets, once, a table of bins of
+uniform width no wider than its narrowest cell, so a point's cell is one multiplication, one
+look-up and one comparison.
 
 Points outside the grid are clipped to its edges (callers clip or wrap before: theta 0-180,
 phi periodic).  NaN inputs give NaN.
