@@ -127,7 +127,8 @@ class ComponentModel:
         moon_at_earth_unit = {name: self.photometry(name).solar_like_from_v(v_moon_at_earth) * eclipse
                               for name in bands}
         zodi = {name: self.zodiacal.e_per_s_per_pix(self.band(name), b500) for name in bands}
-        es_coeff = self._earthshine_coefficients(sat, sun, moon, frame, door, shape, moon_at_earth_unit, zodi)
+        es_coeff = self._earthshine_coefficients(sat, sun, moon, frame, door, shape, moon_at_earth_unit, zodi,
+                                                 geometry["earth_limb_angle_deg"])
         aperture_d = self.campaign.instrument_value("telescope", "aperture_diameter_m")
         pix_arcsec = self.campaign.instrument_value("detector", "pixel_scale_arcsec")
         out = {}
@@ -268,7 +269,7 @@ class ComponentModel:
                                  "see": "bench/results/summary.json for the whole model against the converged reference"}}
 
     def _earthshine_coefficients(self, sat, sun, moon, frame, door, shape, moon_at_earth_unit: dict,
-                                 zodi: dict) -> dict:
+                                 zodi: dict, earth_limb_angle_deg) -> dict:
         """Earthshine coefficients (see OffFieldModel.earthshine_coefficients) by the model that
         runs.  With the table, the moonlit Earth is skipped where its bound, times the Moon's
         irradiance, is below a quarter of the tolerance times the zodiacal light in every band,
@@ -292,13 +293,11 @@ class ComponentModel:
         for b, e_moon in moon_at_earth_unit.items():
             need |= np.broadcast_to(bound * e_moon > 0.25 * self.tolerance * zodi[b], shape)
         if np.any(need):
-            from .geometry import TelescopeFrame, angle_between_deg
+            from .geometry import TelescopeFrame
 
             # the moonlit Earth is ~1e-5 of the sunlit: a coarse grid is enough where the line of
             # sight is at least the dark-limb angle above the limb (models.earthshine.moonlit_grid)
-            r = norm(sat_b)
-            limb_angle = angle_between_deg(los_b, -sat_b) - np.degrees(np.arcsin(np.clip(re_km / r, 0, 1)))
-            away = limb_angle >= self.campaign.constraints.dark_limb_min_deg
+            away = np.broadcast_to(earth_limb_angle_deg, shape) >= self.campaign.constraints.dark_limb_min_deg
             for part, grid in ((need & away, self.moonlit_grid), (need & ~away, None)):
                 if not np.any(part):
                     continue

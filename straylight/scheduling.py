@@ -27,11 +27,6 @@ from .limits import SNR, survey_exposure
 from .offfield import MOON_MEAN_DISTANCE_KM, moon_v_magnitude
 
 
-def darkest_zodiacal_e_per_s(model: ComponentModel, band: str) -> float:
-    """The reference background of the tables (see ComponentModel.darkest_zodiacal_e_per_s)."""
-    return model.darkest_zodiacal_e_per_s(band)
-
-
 def _pst_max_over_phi(model: ComponentModel, theta_deg: np.ndarray) -> np.ndarray:
     phi = np.linspace(0.0, 360.0, 145)
     return model.offfield.pst(np.asarray(theta_deg)[:, None], phi[None, :]).max(axis=1)
@@ -46,7 +41,7 @@ def moon_avoidance_table(model: ComponentModel, fraction: float = 0.1, phase_ste
     out = {"phase_angle_deg": phases, "illuminated_fraction": (1 + np.cos(np.radians(phases))) / 2}
     v = moon_v_magnitude(phases, np.full(phases.size, MOON_MEAN_DISTANCE_KM), model.offfield.moon_law, 180.0 - phases)
     for b in model.campaign.bands:
-        limit = fraction * darkest_zodiacal_e_per_s(model, b)
+        limit = fraction * model.darkest_zodiacal_e_per_s(b)
         irr = model.photometry(b).solar_like_from_v(v)  # photons s-1 m-2
         rate = irr[:, None] * transfer[None, :]  # (phase, theta)
         # the smallest angle beyond which the Moon stays below the limit at every larger angle
@@ -89,7 +84,7 @@ def bright_limb_table(model: ComponentModel, fraction: float = 0.1, sun_zenith_s
             coeff[sel] = d + g
     out = {"sun_zenith_deg": zs}
     for b in c.bands:
-        limit = fraction * darkest_zodiacal_e_per_s(model, b)
+        limit = fraction * model.darkest_zodiacal_e_per_s(b)
         rate = coeff * model.photometry(b).sun_at_1au_photons_s_m2  # e-/s/pix, Sun at 1 AU
         bad = ~(rate <= limit)  # too bright, or not allowed (NaN)
         allowed = ~np.isnan(coeff)
@@ -127,7 +122,7 @@ def exposure_factor_table(model: ComponentModel, ratios=(0.0, 0.01, 0.03, 0.1, 0
     r = np.asarray(ratios, float)
     out = {"stray_to_zodiacal_ratio": r}
     for b in model.campaign.bands:
-        z = darkest_zodiacal_e_per_s(model, b)
+        z = model.darkest_zodiacal_e_per_s(b)
         out[f"exposure_time_factor_{b}"] = exposure_time_factor(r * z, z, b, model.campaign)
     return out
 

@@ -7,7 +7,7 @@ import pytest
 from conftest import run_cli
 from straylight.components import ComponentModel
 from straylight.limits import point_source_limit
-from straylight.scheduling import (bright_limb_table, darkest_zodiacal_e_per_s, exposure_time_factor,
+from straylight.scheduling import (bright_limb_table, exposure_time_factor,
                                    moon_avoidance_table)
 
 
@@ -23,7 +23,7 @@ def test_exposure_factor_reaches_the_nominal_depth(campaign, model):
     from scipy.optimize import brentq
 
     b = "g"
-    z = darkest_zodiacal_e_per_s(model, b)
+    z = model.darkest_zodiacal_e_per_s(b)
     assert exposure_time_factor(0.0, z, b, campaign) == pytest.approx(1.0, rel=1e-12)
     m_lim = float(point_source_limit(z, b, campaign))
     inst = campaign.instrument
@@ -55,7 +55,7 @@ def test_moon_avoidance_angle_is_the_exact_threshold(model):
     assert g[0] > 40.0  # the paper's fixed 40 deg is not enough at full Moon for 10 % of the darkest sky
     from straylight.offfield import MOON_MEAN_DISTANCE_KM, moon_v_magnitude
 
-    limit = fraction * darkest_zodiacal_e_per_s(model, "g")
+    limit = fraction * model.darkest_zodiacal_e_per_s("g")
     off = model.offfield
     phi = np.linspace(0.0, 360.0, 361)
     for alpha, theta in zip(t["phase_angle_deg"], g):
@@ -79,7 +79,7 @@ def test_bright_limb_elevation_holds_in_a_rotated_scene(campaign, model):
     i = 0  # Sun overhead
     h = need[i]
     assert np.isfinite(h)
-    limit = fraction * darkest_zodiacal_e_per_s(model, "g")
+    limit = fraction * model.darkest_zodiacal_e_per_s("g")
     re = campaign.earth.radius_km
     r = 0.5 * sum(campaign.orbit_radius_range_km)
     # a rotated scene: the satellite over (30 N, 70 E), the Sun at zenith 0 there
