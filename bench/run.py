@@ -11,7 +11,8 @@ background" as the tolerance in the config).  Cost: seconds per sample on one co
 (OMP_NUM_THREADS=1), best of three, after a warm-up.
 
 Knobs: earthshine Earth-cap grid (n_gamma x n_psi); door and aperture discretisation of the
-door path; star split (direct magnitude limit, smoothed faint-star map on/off); PST grid step
+door path; star split (direct magnitude limit, smoothed faint-star map on/off); star skip (the
+tolerance that sizes each direct star's influence radius); PST grid step
 (interpolation of the default matrix); time cadence with linear interpolation in time; HEALPix
 nside (a pixel's value standing for every direction inside it).
 """
@@ -74,9 +75,11 @@ class Bench:
                            {b: self.catalog[f"mag_{b}"] for b in self.bands}, limit, faint)
 
     def model(self, n_gamma=24, n_psi=48, door_blocks=(24, 24), n_aperture_door=128, pst_step=(0.5, 5.0),
-              lut_steps=None):
+              lut_steps=None, tolerance=None):
         """A component model with these knobs; ``lut_steps`` (deg): the earthshine look-up table
-        with these node steps instead of the direct sum (built on first use, cached)."""
+        with these node steps instead of the direct sum (built on first use, cached);
+        ``tolerance``: models.tolerance (with the direct sum it sizes only the bright stars'
+        skipping on their bound; 1e-12 skips nothing)."""
         import copy
 
         from straylight.components import ComponentModel
@@ -84,6 +87,8 @@ class Bench:
         from straylight.pst import PST, default_pst_grid
 
         raw = copy.deepcopy(self.campaign.config)
+        if tolerance is not None:
+            raw["models"]["tolerance"] = tolerance
         es = raw["models"]["earthshine"]
         if lut_steps is None:
             es["method"] = "direct"
@@ -105,7 +110,8 @@ class Bench:
 
 
 DEFAULT = dict(n_gamma=24, n_psi=48, door_blocks=(24, 24), n_aperture_door=128, pst_step=(0.5, 5.0))
-REFERENCE = dict(n_gamma=96, n_psi=192, door_blocks=(48, 48), n_aperture_door=512, pst_step=(0.1, 1.0))
+REFERENCE = dict(n_gamma=96, n_psi=192, door_blocks=(48, 48), n_aperture_door=512, pst_step=(0.1, 1.0),
+                 tolerance=1e-12)
 DEFAULT_STARS = (2.0, True)
 REFERENCE_STARS = (99.0, False)  # every catalog star summed with the exact transfer
 
@@ -364,7 +370,8 @@ def main(argv=None):
     ref_stars = bench.stars(*REFERENCE_STARS)
     ref, t_ref = timed(lambda: bench.evaluate(ref_model, ref_stars), repeats=1)
     # the reference itself against a still finer one, on a few samples: is it converged?
-    finer = bench.model(n_gamma=192, n_psi=384, door_blocks=(64, 64), n_aperture_door=1024, pst_step=(0.05, 0.5))
+    finer = bench.model(n_gamma=192, n_psi=384, door_blocks=(64, 64), n_aperture_door=1024, pst_step=(0.05, 0.5),
+                        tolerance=1e-12)
     few = slice(0, min(20, bench.n))
     res_finer = bench.evaluate(finer, ref_stars, few)
     ref_few = bench.evaluate(ref_model, ref_stars, few)
@@ -397,6 +404,9 @@ def main(argv=None):
         [(-99.0, True), (0.0, True), (2.0, True), (4.0, True), (6.0, True), (2.0, False), (4.0, False), (6.0, False), (8.0, False)]
     knobs["star_split"] = sweep(bench, ref, "stars", [(f"direct <= {lim:g}{' + map' if f else ''}", DEFAULT, bench.stars(lim, f))
                                                       for lim, f in s])
+    tols = [1e-12, 1e-2, 1e-1] if args.quick else [1e-12, 1e-3, 1e-2, 3e-2, 1e-1]
+    knobs["star_skip"] = sweep(bench, ref, "star skip", [(f"tolerance {t:g}", {**DEFAULT, "tolerance": t}, def_stars)
+                                                         for t in tols])
     knobs["time_cadence"] = time_cadence_rows(bench)
     knobs["healpix_nside"] = nside_rows(bench)
     RESULTS.mkdir(parents=True, exist_ok=True)

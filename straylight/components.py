@@ -19,7 +19,7 @@ from .door import door_from_instrument
 from .ephemeris import PLANETS
 from .geometry import earth_blocks, norm, telescope_frame, unit
 from .offfield import (BandPhotometry, EarthshineSettings, OffFieldModel, magnitude_per_arcsec2,
-                       moon_v_magnitude, planet_v_magnitude)
+                       moon_v_magnitude, planet_v_magnitude, shared_vectors)
 from .pst import load_pst
 from .zodiacal import zodiacal_model_from_instrument
 
@@ -107,8 +107,11 @@ class ComponentModel:
         self.band(name)
         return self._bands[name][1]
 
-    def evaluate(self, satellite_km, bodies_km, los, geometry, bands, stars: StarTable | None = None) -> dict:
-        """Components for broadcastable samples; ``geometry`` from :func:`observing_geometry`."""
+    def evaluate(self, satellite_km, bodies_km, los, geometry, bands, stars: StarTable | None = None,
+                 faint_rates: dict | None = None) -> dict:
+        """Components for broadcastable samples; ``geometry`` from :func:`observing_geometry`;
+        ``faint_rates``: the faint stars' map at these lines of sight, band -> e-/s/pix (as
+        :meth:`faint_star_rates` gives it), when already computed."""
         off = self.offfield
         re_km = self.campaign.earth.radius_km
         sat = np.asarray(satellite_km, float)
@@ -127,8 +130,7 @@ class ComponentModel:
         moon_at_earth_unit = {name: self.photometry(name).solar_like_from_v(v_moon_at_earth) * eclipse
                               for name in bands}
         zodi = {name: self.zodiacal.e_per_s_per_pix(self.band(name), b500) for name in bands}
-        es_coeff = self._earthshine_coefficients(sat, sun, moon, frame, door, shape, moon_at_earth_unit, zodi,
-                                                 geometry["earth_limb_angle_deg"])
+        es_coeff = self._earthshine_coefficients(sat, sun, moon, frame, door, shape, moon_at_earth_unit, zodi)
         aperture_d = self.campaign.instrument_value("telescope", "aperture_diameter_m")
         pix_arcsec = self.campaign.instrument_value("detector", "pixel_scale_arcsec")
         out = {}
@@ -146,8 +148,9 @@ class ComponentModel:
                                                   geometry[f"{p}_earth_blocked"], door)))
         star_t = (self._star_transfer(stars, frame, sat, door)
                   if stars is not None and len(stars.ra_deg) else None)  # once for all bands
-        faint = (self.faint_star_rates(stars, frame.z, bands)
-                 if stars is not None and len(stars.faint_ra_deg) else None)
+        faint = faint_rates
+        if faint is None and stars is not None and len(stars.faint_ra_deg):
+            faint = self.faint_star_rates(stars, frame.z, bands)
         for name in bands:
             band = self.band(name)
             phot = self.photometry(name)
@@ -224,11 +227,10 @@ class ComponentModel:
         log = logging.getLogger("straylight")
         if method == "auto":
             # build cost against what the table saves, both measured (bench/run.py --only cube,
-            # one core): a node costs ~0.35 ms to build per door state; the table saves ~0.15 ms
-            # per cube sample (2416 -> 3835 samples/s), not more, because the moonlit Earth, which
-            # it does not tabulate, is still summed directly near and below the limb
+            # one core): a node costs ~0.35 ms to build per door state; the table saves ~0.28 ms
+            # per cube sample (2934 -> 17777 samples/s, stars included)
             n_nodes = settings.node_count(r[0], self.campaign.earth.radius_km) * len(self.offfield.door_states_deg)
-            build_s, saved_s = 0.35e-3 * n_nodes, 0.15e-3 * self.expected_samples
+            build_s, saved_s = 0.35e-3 * n_nodes, 0.28e-3 * self.expected_samples
             if saved_s < build_s:
                 return {"method": "direct", "lut": None,
                         "reason": f"auto: {self.expected_samples} samples save ~{saved_s:.0f} s, the table costs ~{build_s:.0f} s"}
@@ -260,8 +262,9 @@ class ComponentModel:
         es["door_blocks"], es["aperture_points_door"] = list(s.door_blocks), s.n_aperture_door
         return {"tolerance": self.tolerance, "earthshine": es, "pst": self.offfield.pst.source,
                 "moonlit_earthshine": ("skipped where its bound < tolerance/4 x zodiacal light, else summed directly "
-                                       f"(grid {list(self.moonlit_grid)} where >= the dark-limb "
-                                       "angle above the limb)") if es["method"] == "lut" else "summed directly",
+                                       f"on grid {list(self.moonlit_grid)}") if es["method"] == "lut" else "summed directly",
+                "earthshine_near_limb": ("indicative only within the dark-limb angle of the limb and below it "
+                                         "(never observable; no Earth grid converges there)"),
                 "stars": {"direct_mag_limit": float(sc.get("offfield_mag_limit", 2.0)),
                           "faint_map": bool(sc.get("faint_map", True))},
                 "error_budget": {"earthshine_lut_validated": es.get("lut_validation_max_rel_error") if es["method"] == "lut" else 0.0,
@@ -269,7 +272,7 @@ class ComponentModel:
                                  "see": "bench/results/summary.json for the whole model against the converged reference"}}
 
     def _earthshine_coefficients(self, sat, sun, moon, frame, door, shape, moon_at_earth_unit: dict,
-                                 zodi: dict, earth_limb_angle_deg) -> dict:
+                                 zodi: dict) -> dict:
         """Earthshine coefficients (see OffFieldModel.earthshine_coefficients) by the model that
         runs.  With the table, the moonlit Earth is skipped where its bound, times the Moon's
         irradiance, is below a quarter of the tolerance times the zodiacal light in every band,
@@ -295,17 +298,16 @@ class ComponentModel:
         if np.any(need):
             from .geometry import TelescopeFrame
 
-            # the moonlit Earth is ~1e-5 of the sunlit: a coarse grid is enough where the line of
-            # sight is at least the dark-limb angle above the limb (models.earthshine.moonlit_grid)
-            away = np.broadcast_to(earth_limb_angle_deg, shape) >= self.campaign.constraints.dark_limb_min_deg
-            for part, grid in ((need & away, self.moonlit_grid), (need & ~away, None)):
-                if not np.any(part):
-                    continue
-                sub = TelescopeFrame(*(np.broadcast_to(a, full)[part] for a in (frame.x, frame.y, frame.z)))
-                c = off.earthshine_coefficients(sat_b[part], sun_b[part], moon_b[part], sub, door_b[part], re_km,
-                                                in_field=False, sun=False, grid=grid)
-                out["direct_moon"][part] += c["direct_moon"]
-                out["door_moon"][part] = c["door_moon"]
+            # the moonlit Earth is ~1e-5 of the sunlit: a coarse grid (models.earthshine.moonlit_grid)
+            # is enough where a line of sight can be observable (>= the dark-limb angle above the
+            # limb).  Nearer the limb and below it no Earth grid converges (blocks next to the field
+            # edge meet the PST's jump), so the configured grid would cost 5x for numbers no better
+            # than indicative: the coarse grid runs there too.
+            sub = TelescopeFrame(*(np.broadcast_to(a, full)[need] for a in (frame.x, frame.y, frame.z)))
+            c = off.earthshine_coefficients(sat_b[need], sun_b[need], moon_b[need], sub, door_b[need], re_km,
+                                            in_field=False, sun=False, grid=self.moonlit_grid)
+            out["direct_moon"][need] += c["direct_moon"]
+            out["door_moon"][need] = c["door_moon"]
         return out
 
     @cached_property
@@ -349,24 +351,66 @@ class ComponentModel:
         cache[key] = res
         return res
 
-    def _star_transfer(self, stars: StarTable, frame, sat, door, batch: int = 512):
+    def star_influence_cos(self, stars: StarTable) -> np.ndarray:
+        """Per direct star, the cosine of the angle beyond which it is skipped: there its upper
+        bound (Se = Sp = 1, the PST at its maximum over phi) stays below tolerance / 8 of the
+        darkest zodiacal light divided by the number of direct stars, in every band, so the
+        skipped stars of a line of sight add up to less than tolerance / 8 of any total.
+        Cached on the star table."""
+        key = (id(self), tuple(self.campaign.bands), self.tolerance)
+        cache = stars.__dict__.setdefault("_influence_cache", {})
+        if key not in cache:
+            n = max(len(stars.ra_deg), 1)
+            # stars' e-/s/pix at PST = 1, as a fraction of the darkest zodiacal light, worst band
+            rel = np.zeros(len(stars.ra_deg))
+            for b in self.campaign.bands:
+                if b in stars.mag_ab:
+                    e = self.photometry(b).from_ab(stars.mag_ab[b]) * self.offfield.pixel_area_m2
+                    rel = np.maximum(rel, e / self.darkest_zodiacal_e_per_s(b))
+            with np.errstate(divide="ignore"):
+                limit = np.where(rel > 0, 0.125 * self.tolerance / n / rel, np.inf)
+            radius = self.offfield.pst.influence_radius_deg(limit)
+            cache[key] = np.where(radius >= 180.0, -2.0, np.cos(np.radians(radius)))  # 180: every pair
+        return cache[key]
+
+    def _star_transfer(self, stars: StarTable, frame, sat, door, batch: int = 1024):
         """Band-independent transfer of every off-field catalog star, E = 1 photon s-1 m-2:
         Se * Sp * PST * pixel factor, zero for stars inside the field (those scatter and make
-        ghosts instead).  Shape (..., S); stars in batches to bound memory."""
+        ghosts instead), shape (..., S).  Only pairs within the star's influence radius
+        (:meth:`star_influence_cos`; most pairs are outside it) that are neither behind the Earth
+        nor in the field get the PST and door look-ups; when every sample shares one satellite
+        position (a cube time step) the Earth test runs once per star.  Samples in batches to
+        bound memory."""
         s_all = stars.unit  # (S, 3)
-        z, x, y = (np.asarray(a)[..., None, :] for a in (frame.z, frame.x, frame.y))
-        sat_b = np.asarray(sat)[..., None, :]
-        door_b = np.asarray(door)[..., None]
-        parts = []
-        for i in range(0, len(s_all), batch):
-            s = s_all[i:i + batch]
-            dz, dx, dy = (np.sum(a * s, axis=-1) for a in (z, x, y))
+        near_cos = self.star_influence_cos(stars)
+        shape = np.broadcast_shapes(np.shape(frame.z)[:-1], np.shape(door), np.shape(sat)[:-1])
+        fz, fx, fy = (np.broadcast_to(a, shape + (3,)).reshape(-1, 3) for a in (frame.z, frame.x, frame.y))
+        op = np.broadcast_to(np.asarray(door, float), shape).ravel()
+        re_km = self.campaign.earth.radius_km
+        one = shared_vectors(sat)
+        if one is not None:
+            star_blocked = earth_blocks(one[0], s_all, re_km)
+        else:
+            sat_flat = np.broadcast_to(np.asarray(sat, float), shape + (3,)).reshape(-1, 3)
+        out = np.zeros((op.size, len(s_all)))
+        for start in range(0, op.size, batch):
+            sl = slice(start, start + batch)
+            cz = fz[sl] @ s_all.T
+            r, k = np.nonzero(cz > near_cos)
+            if one is not None:
+                seen = ~star_blocked[k]
+            else:
+                seen = ~earth_blocks(sat_flat[sl][r], s_all[k], re_km)
+            r, k = r[seen], k[seen]
+            dz = cz[r, k]
+            dx = np.einsum("ij,ij->i", fx[sl][r], s_all[k])
+            dy = np.einsum("ij,ij->i", fy[sl][r], s_all[k])
             theta = np.degrees(np.arctan2(np.hypot(dx, dy), dz))
+            off = theta > self.offfield.field_radius_deg
+            r, k, theta, dx, dy = r[off], k[off], theta[off], dx[off], dy[off]
             phi = np.degrees(np.arctan2(dy, dx)) % 360.0
-            blocked = earth_blocks(sat_b, s, self.campaign.earth.radius_km)
-            off_field = theta > self.offfield.field_radius_deg
-            parts.append(self.offfield.point_source(1.0, theta, phi, blocked, door_b) * off_field)
-        return np.concatenate(parts, axis=-1)
+            out[start + r, k] = self.offfield.point_source(1.0, theta, phi, False, op[sl][r])
+        return out.reshape(shape + (len(s_all),))
 
 
 def load_offfield_stars(path, bands, mag_limit: float, faint_map: bool = False) -> StarTable:

@@ -104,9 +104,33 @@ def empty_cube(campaign: Campaign, fp: Footprint, times, stars_path=None) -> xr.
     return ds
 
 
+def faint_star_map(campaign: Campaign, fp: Footprint, stars_path) -> xr.Variable | None:
+    """The faint stars' smoothed map at every footprint pixel, (pixel, band), e-/s/pix: it
+    depends on the line of sight only, so the cube computes it once (in :func:`init_store`)
+    and every time block reads it.  None without a catalog or with no faint stars."""
+    stars = _offfield_stars(campaign, stars_path)
+    if stars is None or not len(stars.faint_ra_deg):
+        return None
+    model = _component_model(campaign, fp.pixels.size)
+    los = radec_to_unit(fp.ra_deg, fp.dec_deg)
+    values = np.zeros((fp.pixels.size, len(campaign.bands)))
+    for a, b in fp.blocks(1024):  # bounds the (pixels x stars) temporaries
+        rates = model.faint_star_rates(stars, los[a:b], campaign.bands)
+        for i, band in enumerate(campaign.bands):
+            if band in rates:
+                values[a:b, i] = rates[band]
+    return xr.Variable(("pixel", "band"), values,
+                       {"units": "electron / (s pixel)",
+                        "long_name": "faint off-field stars: smoothed map (azimuth-averaged PST), part of stars"})
+
+
 def init_store(campaign: Campaign, fp: Footprint, store, stars_path=None) -> None:
-    """Write the skeleton (metadata and coordinates, no data chunks) to ``store``."""
+    """Write the skeleton (metadata and coordinates, no data chunks) to ``store``, and the
+    faint-star map (computed here once for the whole campaign)."""
     ds = empty_cube(campaign, fp, campaign.times, stars_path)
+    faint = faint_star_map(campaign, fp, stars_path)
+    if faint is not None:
+        ds["faint_star_map"] = faint
     ds.to_zarr(store, mode="w", compute=False, consolidated=False)
 
 
@@ -144,9 +168,11 @@ def _offfield_stars(campaign: Campaign, stars_path):
 
 
 def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: slice, model=None,
-                   stars_path=None) -> xr.Dataset:
+                   stars_path=None, faint_map=None) -> xr.Dataset:
     """Compute the cube values of times t_slice x pixels p_slice (numpy-backed Dataset);
-    ``stars_path``: the star catalog for the off-field star term (None: stars = 0)."""
+    ``stars_path``: the star catalog for the off-field star term (None: stars = 0);
+    ``faint_map``: the faint stars' map at these pixels, (pixel, band) e-/s/pix, as
+    :func:`faint_star_map` gives it (None: computed here)."""
     from .sky import scene
 
     model = model or _component_model(campaign, fp.pixels.size)
@@ -155,6 +181,7 @@ def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: s
     sc = scene(campaign, times)
     los = radec_to_unit(fp.ra_deg[p_slice], fp.dec_deg[p_slice])
     nt, npix, nb = len(times), los.shape[0], len(campaign.bands)
+    faint = None if faint_map is None else {b: np.asarray(faint_map)[:, i] for i, b in enumerate(campaign.bands)}
     out = {k: np.zeros((nt, npix, nb), np.float32) for k in CUBE_COMPONENTS + ("total",)}
     obs = np.zeros((nt, npix), bool)
     viol = np.zeros((nt, npix), np.uint8)
@@ -163,7 +190,7 @@ def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: s
         sat = np.broadcast_to(sc.satellite_km[it], los.shape)
         bodies = {k: np.broadcast_to(v[it], los.shape) for k, v in sc.bodies_km.items()}
         g = observing_geometry(sat, bodies, los, campaign.earth.radius_km, campaign.constraints)
-        res = model.evaluate(sat, bodies, los, g, campaign.bands, stars)
+        res = model.evaluate(sat, bodies, los, g, campaign.bands, stars, faint_rates=faint)
         for ib, b in enumerate(campaign.bands):
             for comp in CUBE_COMPONENTS + ("total",):
                 out[comp][it, :, ib] = res[b][comp]
@@ -179,7 +206,12 @@ def write_region(campaign: Campaign, fp: Footprint, store, t_slice: slice, p_sli
                  stars_path=None) -> float:
     """Compute one (time block, pixel block) region and write it to its Zarr region; seconds."""
     t0 = _time.perf_counter()
-    ds = compute_region(campaign, fp, t_slice, p_slice, stars_path=stars_path)
+    faint = None
+    if stars_path is not None:
+        with xr.open_zarr(store, consolidated=False) as skeleton:
+            if "faint_star_map" in skeleton:
+                faint = skeleton["faint_star_map"][p_slice].values
+    ds = compute_region(campaign, fp, t_slice, p_slice, stars_path=stars_path, faint_map=faint)
     try:
         ds.to_zarr(store, region={"time": t_slice, "pixel": p_slice, "band": slice(None)}, mode="r+",
                    consolidated=False)

@@ -275,7 +275,7 @@ class OffFieldModel:
         ``sun=False`` the sunlit ones (the table's path sums only the moonlit Earth directly);
         ``grid`` = (n_gamma, n_psi) replaces the configured Earth-cap grid."""
         s = self.earthshine if grid is None else replace(self.earthshine, n_gamma=int(grid[0]), n_psi=int(grid[1]))
-        one = _one_scene(sat_km, sun_km, moon_km)
+        one = shared_vectors(sat_km, sun_km, moon_km)
         if one is not None:
             out = self._earthshine_one_scene(*one, frame, opening_deg, earth_radius_km, moon, sun, s)
             if in_field:
@@ -377,10 +377,10 @@ class OffFieldModel:
                 c["door_sun"] * sun_irr + c["door_moon"] * moon_irr_at_earth)
 
 
-def _one_scene(sat_km, sun_km, moon_km):
-    """(sat, sun, moon) as single vectors when every sample shares them (a survey cube's time
-    step), else None."""
-    vs = [np.asarray(v, float) for v in (sat_km, sun_km, moon_km)]
+def shared_vectors(*vectors_km):
+    """The 3-vectors as single vectors when every sample shares each of them (a survey cube's
+    time step shares the satellite, Sun and Moon), else None (also for a single sample)."""
+    vs = [np.asarray(v, float) for v in vectors_km]
     if vs[0].ndim < 2 or vs[0].reshape(-1, 3).shape[0] < 2:
         return None
     firsts = []

@@ -122,6 +122,15 @@ class PST:
         ph = np.mod(ph, 360.0)
         return np.exp(self._interp(th, ph))
 
+    def influence_radius_deg(self, pst_limit) -> np.ndarray:
+        """The smallest theta node beyond which the PST stays at or below ``pst_limit`` at every
+        phi (array-valued): the interpolant is bounded by its cell's corners, so the bound holds
+        between nodes too.  180 where no node qualifies (the limit is below the PST's tail)."""
+        tail_max = np.maximum.accumulate(self.values.max(axis=1)[::-1])[::-1]  # non-increasing
+        # first node k with tail_max[k] <= limit (searchsorted on the reversed, increasing array)
+        k = self.theta_deg.size - np.searchsorted(tail_max[::-1], np.asarray(pst_limit, float), side="right")
+        return np.where(k < self.theta_deg.size, self.theta_deg[np.minimum(k, self.theta_deg.size - 1)], 180.0)
+
     def azimuthal_mean(self, theta_deg) -> np.ndarray:
         phi = np.linspace(0.0, 360.0, 73)[:-1]
         return self(np.asarray(theta_deg)[..., None], phi).mean(axis=-1)

@@ -53,6 +53,11 @@ def test_cube_layout_units_and_attrs(cube_run):
     assert ds["total"].encoding["chunks"] == (3, 40, 7)
     parts = sum(ds[v].values.astype(float) for v in ("zodiacal", "earthshine", "moon", "sun", "planets", "stars"))
     np.testing.assert_allclose(ds["total"].values, parts, rtol=1e-5)
+    # the faint stars' map, computed once at init: part of every time step's star term
+    faint = ds["faint_star_map"]
+    assert faint.dims == ("pixel", "band") and faint.attrs["units"] == "electron / (s pixel)"
+    assert np.all(faint.values > 0)
+    assert np.all(ds["stars"].values >= faint.values[None].astype(np.float32) * (1 - 1e-6))
 
 
 def test_cube_value_equals_sky_command(cube_run):
