@@ -391,8 +391,8 @@ def main(argv=None):
     g = [(16, 32), (24, 48), (32, 64), (48, 96)] if args.quick else [(8, 16), (12, 24), (16, 32), (24, 48), (32, 64), (48, 96), (96, 192)]
     knobs["earth_grid"] = sweep(bench, ref, "earth grid", [(f"{a} x {b}", {**DEFAULT, "n_gamma": a, "n_psi": b}, def_stars)
                                                           for a, b in g])
-    lut = [(5.0, 5.0, 20.0), (1.0, 2.0, 10.0)] if args.quick else \
-        [(5.0, 5.0, 20.0), (2.5, 4.0, 10.0), (1.0, 2.0, 10.0), (0.5, 2.0, 5.0)]
+    lut = [(5.0, 5.0, 20.0), (0.5, 2.0, 2.5)] if args.quick else \
+        [(5.0, 5.0, 20.0), (2.5, 4.0, 10.0), (1.0, 2.0, 10.0), (0.5, 2.0, 5.0), (0.5, 2.0, 2.5)]
     knobs["earthshine_lut"] = sweep(bench, ref, "earthshine", [("direct 24 x 48", DEFAULT, def_stars)] + [
         (f"table {a:g}/{b:g}/{c:g} deg", {**DEFAULT, "lut_steps": (a, b, c)}, def_stars) for a, b, c in lut])
     d = [(8, 32), (24, 128)] if args.quick else [(2, 8), (4, 16), (8, 32), (16, 64), (24, 128), (32, 256)]

@@ -220,7 +220,7 @@ class ComponentModel:
         lut_cfg = es.get("lut", {})
         settings = LUTSettings(float(lut_cfg.get("sun_zenith_step_deg", 0.5)),
                                float(lut_cfg.get("los_zenith_step_deg", 2.0)),
-                               float(lut_cfg.get("azimuth_step_deg", 5.0)),
+                               float(lut_cfg.get("azimuth_step_deg", 2.5)),
                                int(lut_cfg.get("n_radius", 1)))
         r = self.campaign.orbit_radius_range_km
         k = self.campaign.constraints
@@ -266,9 +266,12 @@ class ComponentModel:
                 "earthshine_near_limb": ("indicative only within the dark-limb angle of the limb and below it "
                                          "(never observable; no Earth grid converges there)"),
                 "stars": {"direct_mag_limit": float(sc.get("offfield_mag_limit", 2.0)),
-                          "faint_map": bool(sc.get("faint_map", True))},
+                          "faint_map": bool(sc.get("faint_map", True)),
+                          "direct_skipped": "pairs beyond each star's influence radius, together < tolerance/8 "
+                                            "x the darkest zodiacal light"},
                 "error_budget": {"earthshine_lut_validated": es.get("lut_validation_max_rel_error") if es["method"] == "lut" else 0.0,
                                  "moonlit_earthshine_skip_max": 0.25 * self.tolerance if es["method"] == "lut" else 0.0,
+                                 "stars_skip_max": 0.125 * self.tolerance,
                                  "see": "bench/results/summary.json for the whole model against the converged reference"}}
 
     def _earthshine_coefficients(self, sat, sun, moon, frame, door, shape, moon_at_earth_unit: dict,
