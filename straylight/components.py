@@ -227,10 +227,10 @@ class ComponentModel:
         log = logging.getLogger("straylight")
         if method == "auto":
             # build cost against what the table saves, both measured (bench/run.py --only cube,
-            # one core): a node costs ~0.35 ms to build per door state; the table saves ~0.28 ms
-            # per cube sample (2934 -> 17777 samples/s, stars included)
+            # one core): a node costs ~0.35 ms to build per door state; the table saves ~0.25 ms
+            # per cube sample (3334 -> 19248 samples/s, stars included)
             n_nodes = settings.node_count(r[0], self.campaign.earth.radius_km) * len(self.offfield.door_states_deg)
-            build_s, saved_s = 0.35e-3 * n_nodes, 0.28e-3 * self.expected_samples
+            build_s, saved_s = 0.35e-3 * n_nodes, 0.25e-3 * self.expected_samples
             if saved_s < build_s:
                 return {"method": "direct", "lut": None,
                         "reason": f"auto: {self.expected_samples} samples save ~{saved_s:.0f} s, the table costs ~{build_s:.0f} s"}
