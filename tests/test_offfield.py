@@ -191,8 +191,9 @@ def test_star_term_sums_off_field_stars(campaign, comp_model, exact_model):
     assert float(out["g"]["stars"][0]) == pytest.approx(float(np.ravel(expected)[0]), rel=1e-9)
     skipped = comp_model.evaluate(sat, bodies, los, g, ["g"], stars=stars)
     assert float(skipped["g"]["stars"][0]) == 0.0
-    bound = band.ab_zero_point_photons_s_m2 * off.pst.values.max() * off.pixel_area_m2  # generous: PST max anywhere
-    assert float(expected.ravel()[0]) < 0.125 * comp_model.tolerance / 2 * comp_model.darkest_zodiacal_e_per_s("g") < bound
+    # skipping it is within the budget: its exact value is below its share (1 of 2 stars) of
+    # tolerance / 8 of the darkest zodiacal light
+    assert float(expected.ravel()[0]) < 0.125 * comp_model.tolerance / 2 * comp_model.darkest_zodiacal_e_per_s("g")
 
 
 def test_star_skipping_stays_within_its_budget(campaign, comp_model, exact_model):
