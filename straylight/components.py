@@ -18,7 +18,7 @@ from .config import Campaign
 from .door import door_from_instrument
 from .ephemeris import PLANETS
 from .geometry import earth_blocks, norm, telescope_frame, unit
-from .offfield import (BandPhotometry, EarthshineSettings, OffFieldModel, magnitude_per_arcsec2,
+from .offfield import (V_SUN_VEGA, BandPhotometry, EarthshineSettings, OffFieldModel, magnitude_per_arcsec2,
                        moon_v_magnitude, planet_v_magnitude, shared_vectors)
 from .pst import load_pst
 from .zodiacal import zodiacal_model_from_instrument
@@ -143,9 +143,9 @@ class ComponentModel:
         for p in PLANETS:
             if f"{p}_angle_deg" not in geometry:
                 continue
-            planet_terms.append((planet_v_magnitude(p, bodies_km[p], sun, sat),
-                                 off.point_source(1.0, geometry[f"{p}_angle_deg"], geometry[f"{p}_phi_deg"],
-                                                  geometry[f"{p}_earth_blocked"], door)))
+            v = planet_v_magnitude(p, bodies_km[p], sun, sat)
+            planet_terms.append((v, self._planet_transfer(v, geometry[f"{p}_angle_deg"], geometry[f"{p}_phi_deg"],
+                                                          geometry[f"{p}_earth_blocked"], door, bands)))
         star_t = (self._star_transfer(stars, frame, sat, door)
                   if stars is not None and len(stars.ra_deg) else None)  # once for all bands
         faint = faint_rates
@@ -200,8 +200,31 @@ class ComponentModel:
         """The darkest sky background in earthshine-coefficient units (e-/s/pix per photon
         s-1 m-2 of the Sun at 1 AU), over the instrument's bands: errors relative to it bound
         errors relative to the total."""
-        return min(self.darkest_zodiacal_e_per_s(b) / self.photometry(b).sun_at_1au_photons_s_m2
-                   for b in self.campaign.bands)
+        return self.solar_floor(tuple(self.campaign.bands))
+
+    def solar_floor(self, bands: tuple) -> float:
+        """:attr:`earthshine_floor` over ``bands`` (cached per set of bands)."""
+        cache = self.__dict__.setdefault("_solar_floor", {})
+        if bands not in cache:
+            cache[bands] = min(self.darkest_zodiacal_e_per_s(b) / self.photometry(b).sun_at_1au_photons_s_m2
+                               for b in bands)
+        return cache[bands]
+
+    def _planet_transfer(self, v_mag, angle_deg, phi_deg, earth_blocked, door, bands):
+        """A planet's band-independent transfer (as OffFieldModel.point_source with E = 1),
+        skipped (0) where its upper bound (the PST at its maximum over phi from the planet's
+        angle out, Se = Sp = 1) stays below tolerance / 64 of the darkest zodiacal light in every
+        band, so the eight planets together stay below tolerance / 8."""
+        off = self.offfield
+        shape = np.broadcast_shapes(*(np.shape(a) for a in (v_mag, angle_deg, phi_deg, earth_blocked, door)))
+        v, ang, ph, blk, op = (np.broadcast_to(a, shape) for a in (v_mag, angle_deg, phi_deg, earth_blocked, door))
+        # e-/s/pix at PST = 1 relative to the darkest zodiacal light, worst band (solar spectrum)
+        rel = off.pixel_area_m2 * 10.0 ** (-0.4 * (v - V_SUN_VEGA)) / self.solar_floor(tuple(bands))
+        need = ~np.asarray(blk, bool) & (ang < off.pst.influence_radius_deg(self.tolerance / 64.0 / rel))
+        t = np.zeros(shape)
+        if np.any(need):
+            t[need] = off.point_source(1.0, ang[need], ph[need], False, op[need])
+        return t
 
     @cached_property
     def earthshine_model(self) -> dict:
@@ -227,10 +250,10 @@ class ComponentModel:
         log = logging.getLogger("straylight")
         if method == "auto":
             # build cost against what the table saves, both measured (bench/run.py --only cube,
-            # one core): a node costs ~0.35 ms to build per door state; the table saves ~0.25 ms
-            # per cube sample (3334 -> 19248 samples/s, stars included)
+            # one core): a node costs ~0.35 ms to build per door state; the table saves ~0.23 ms
+            # per cube sample (3677 -> 21750 samples/s, stars included)
             n_nodes = settings.node_count(r[0], self.campaign.earth.radius_km) * len(self.offfield.door_states_deg)
-            build_s, saved_s = 0.35e-3 * n_nodes, 0.25e-3 * self.expected_samples
+            build_s, saved_s = 0.35e-3 * n_nodes, 0.23e-3 * self.expected_samples
             if saved_s < build_s:
                 return {"method": "direct", "lut": None,
                         "reason": f"auto: {self.expected_samples} samples save ~{saved_s:.0f} s, the table costs ~{build_s:.0f} s"}
@@ -272,6 +295,7 @@ class ComponentModel:
                 "error_budget": {"earthshine_lut_validated": es.get("lut_validation_max_rel_error") if es["method"] == "lut" else 0.0,
                                  "moonlit_earthshine_skip_max": 0.25 * self.tolerance if es["method"] == "lut" else 0.0,
                                  "stars_skip_max": 0.125 * self.tolerance,
+                                 "planets_skip_max": 0.125 * self.tolerance,
                                  "see": "bench/results/summary.json for the whole model against the converged reference"}}
 
     def _earthshine_coefficients(self, sat, sun, moon, frame, door, shape, moon_at_earth_unit: dict,
