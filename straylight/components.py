@@ -137,15 +137,15 @@ class ComponentModel:
         # band-independent transfer (e-/s/pix per photons s-1 m-2): Se * Sp * PST * pixel area
         t_sun = off.point_source(1.0, geometry["sun_angle_deg"], geometry["sun_phi_deg"],
                                  geometry["sun_earth_blocked"], door)
-        t_moon = off.point_source(1.0, geometry["moon_angle_deg"], geometry["moon_phi_deg"],
-                                  geometry["moon_earth_blocked"], door)
+        t_moon = self._skippable_transfer(v_moon, geometry["moon_angle_deg"], geometry["moon_phi_deg"],
+                                          geometry["moon_earth_blocked"], door, bands)
         planet_terms = []  # (V magnitude, transfer) per planet
         for p in PLANETS:
             if f"{p}_angle_deg" not in geometry:
                 continue
             v = planet_v_magnitude(p, bodies_km[p], sun, sat)
-            planet_terms.append((v, self._planet_transfer(v, geometry[f"{p}_angle_deg"], geometry[f"{p}_phi_deg"],
-                                                          geometry[f"{p}_earth_blocked"], door, bands)))
+            planet_terms.append((v, self._skippable_transfer(v, geometry[f"{p}_angle_deg"], geometry[f"{p}_phi_deg"],
+                                                             geometry[f"{p}_earth_blocked"], door, bands)))
         star_t = (self._star_transfer(stars, frame, sat, door)
                   if stars is not None and len(stars.ra_deg) else None)  # once for all bands
         faint = faint_rates
@@ -210,17 +210,19 @@ class ComponentModel:
                                for b in bands)
         return cache[bands]
 
-    def _planet_transfer(self, v_mag, angle_deg, phi_deg, earth_blocked, door, bands):
-        """A planet's band-independent transfer (as OffFieldModel.point_source with E = 1),
-        skipped (0) where its upper bound (the PST at its maximum over phi from the planet's
-        angle out, Se = Sp = 1) stays below tolerance / 64 of the darkest zodiacal light in every
-        band, so the eight planets together stay below tolerance / 8."""
+    def _skippable_transfer(self, v_mag, angle_deg, phi_deg, earth_blocked, door, bands):
+        """The band-independent transfer (as OffFieldModel.point_source with E = 1) of the Moon or
+        a planet, a solar-spectrum source of V magnitude ``v_mag``, skipped (0) where its upper
+        bound (the PST at its maximum over phi from the source's angle out, Se = Sp = 1) stays
+        below tolerance / 72 of the darkest zodiacal light in every band, so the Moon and the
+        eight planets together stay below tolerance / 8 (a new Moon far from the line of sight
+        is skipped, a bright one never)."""
         off = self.offfield
         shape = np.broadcast_shapes(*(np.shape(a) for a in (v_mag, angle_deg, phi_deg, earth_blocked, door)))
         v, ang, ph, blk, op = (np.broadcast_to(a, shape) for a in (v_mag, angle_deg, phi_deg, earth_blocked, door))
         # e-/s/pix at PST = 1 relative to the darkest zodiacal light, worst band (solar spectrum)
         rel = off.pixel_area_m2 * 10.0 ** (-0.4 * (v - V_SUN_VEGA)) / self.solar_floor(tuple(bands))
-        need = ~np.asarray(blk, bool) & (ang < off.pst.influence_radius_deg(self.tolerance / 64.0 / rel))
+        need = ~np.asarray(blk, bool) & (ang < off.pst.influence_radius_deg(self.tolerance / 72.0 / rel))
         t = np.zeros(shape)
         if np.any(need):
             t[need] = off.point_source(1.0, ang[need], ph[need], False, op[need])
@@ -295,7 +297,7 @@ class ComponentModel:
                 "error_budget": {"earthshine_lut_validated": es.get("lut_validation_max_rel_error") if es["method"] == "lut" else 0.0,
                                  "moonlit_earthshine_skip_max": 0.25 * self.tolerance if es["method"] == "lut" else 0.0,
                                  "stars_skip_max": 0.125 * self.tolerance,
-                                 "planets_skip_max": 0.125 * self.tolerance,
+                                 "moon_and_planets_skip_max": 0.125 * self.tolerance,
                                  "see": "bench/results/summary.json for the whole model against the converged reference"}}
 
     def _earthshine_coefficients(self, sat, sun, moon, frame, door, shape, moon_at_earth_unit: dict,

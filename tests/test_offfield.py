@@ -230,10 +230,11 @@ def test_star_skipping_stays_within_its_budget(campaign, comp_model, exact_model
     assert max(np.max(exact[b]["stars"]) for b in bands) > 0.0
 
 
-def test_planet_skipping_stays_within_its_budget(campaign, comp_model, exact_model):
-    """400 samples over the campaign, half of them 0.7-60 deg from a planet: skipping a planet
-    where its bound is below tolerance / 64 of the darkest zodiacal light changes the planets'
-    term by at most tolerance / 8 of it in every band; nearer, the exact transfer runs."""
+def test_moon_and_planet_skipping_stays_within_its_budget(campaign, comp_model, exact_model):
+    """400 samples over the campaign, half of them 0.7-60 deg from a planet: skipping the Moon or
+    a planet where its bound is below tolerance / 72 of the darkest zodiacal light changes the
+    Moon's and the planets' terms together by at most tolerance / 8 of it in every band;
+    nearer, the exact transfer runs."""
     import sys
     from pathlib import Path
 
@@ -257,10 +258,27 @@ def test_planet_skipping_stays_within_its_budget(campaign, comp_model, exact_mod
     args = (sc.satellite_km, sc.bodies_km, los, g, bands)
     fast, exact = comp_model.evaluate(*args), exact_model.evaluate(*args)
     for b in bands:
-        err = np.abs(fast[b]["planets"] - exact[b]["planets"]) / comp_model.darkest_zodiacal_e_per_s(b)
+        err = (np.abs(fast[b]["planets"] - exact[b]["planets"]) + np.abs(fast[b]["moon"] - exact[b]["moon"])) \
+            / comp_model.darkest_zodiacal_e_per_s(b)
         assert err.max() <= 0.125 * comp_model.tolerance
         assert np.all(fast[b]["planets"] <= exact[b]["planets"] * (1 + 1e-12))  # skipping only removes
     assert np.count_nonzero(exact["g"]["planets"] > fast["g"]["planets"]) > 0  # some were skipped
+
+
+def test_new_moon_far_from_the_line_of_sight_is_skipped(campaign, comp_model, exact_model):
+    """A 20-deg-old Moon (phase angle ~160 deg) 90 deg from the line of sight: its exact term is
+    below its share (tolerance / 72 of the darkest zodiacal light), so the default model skips
+    it (0), while a tolerance of 1e-12 computes it."""
+    sat = np.array([[RE + 400.0, 0.0, 0.0]])
+    los = np.array([[0.0, 0.0, 1.0]])
+    t = np.radians(20.0)
+    sun = np.array([[AU * np.sin(t), AU * np.cos(t), 0.0]])
+    moon = np.array([[0.0, 384400.0, 0.0]])
+    bodies, g = _scene_sample(los, sat, sun, moon, campaign)
+    fast, exact = comp_model.evaluate(sat, bodies, los, g, ["g"]), exact_model.evaluate(sat, bodies, los, g, ["g"])
+    assert float(g["moon_angle_deg"][0]) == pytest.approx(90.0, abs=0.1)
+    assert float(fast["g"]["moon"][0]) == 0.0
+    assert 0.0 < float(exact["g"]["moon"][0]) < comp_model.tolerance / 72 * comp_model.darkest_zodiacal_e_per_s("g")
 
 
 def test_faint_star_map_is_the_azimuth_averaged_pst_sum(campaign, comp_model):
