@@ -12,7 +12,7 @@ from straylight.io import write_json_atomic  # noqa: E402
 log = setup_logging(snakemake)  # noqa: F821
 c = campaign(snakemake)  # noqa: F821
 fp = footprint_from_config(c.config["footprint"], c.path.parent)
-init_store(c, fp, snakemake.params.store, snakemake.input.stars)  # noqa: F821
+init_store(c, fp, snakemake.params.store, snakemake.input.stars, build_workers=snakemake.threads)  # noqa: F821
 chunks = cube_chunks(c, len(c.times), fp.pixels.size)
 write_json_atomic({"store": snakemake.params.store, "times": len(c.times), "pixels": int(fp.pixels.size),  # noqa: F821
                    "bands": c.bands, "chunks": chunks}, snakemake.output[0])  # noqa: F821

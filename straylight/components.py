@@ -58,10 +58,12 @@ class ComponentModel:
     """All components for one campaign.  ``expected_samples``: how many (time, pointing) samples
     this model will evaluate (the cube: the whole campaign; a pointing table: its rows; one
     pointing: 1); with models.earthshine.method = auto it decides whether building the
-    earthshine look-up table pays off."""
+    earthshine look-up table pays off.  ``build_workers``: processes that build the table when it
+    is not cached (the result does not depend on it)."""
 
     campaign: Campaign
     expected_samples: int = 1
+    build_workers: int = 1
 
     @cached_property
     def offfield(self) -> OffFieldModel:
@@ -251,6 +253,8 @@ class ComponentModel:
         k = self.campaign.constraints
         log = logging.getLogger("straylight")
         if method == "auto":
+            # deliberately blind to the cache: the same config must give the same products on
+            # every machine, whether or not a table was built there before.
             # build cost against what the table saves, both measured (bench/run.py --only cube,
             # one core): a node costs ~0.35 ms to build per door state; the table saves ~0.23 ms
             # per cube sample (3677 -> 21750 samples/s, stars included)
@@ -260,7 +264,8 @@ class ComponentModel:
                 return {"method": "direct", "lut": None,
                         "reason": f"auto: {self.expected_samples} samples save ~{saved_s:.0f} s, the table costs ~{build_s:.0f} s"}
         lut, path = load_or_build(self.offfield, self.campaign.earth.radius_km, r, settings, self.earthshine_floor, log,
-                                  avoidance_deg=(k.dark_limb_min_deg, k.bright_limb_min_deg, k.sun_min_deg))
+                                  avoidance_deg=(k.dark_limb_min_deg, k.bright_limb_min_deg, k.sun_min_deg),
+                                  workers=self.build_workers)
         info = {"lut_file": str(path.name), "lut_validation_max_rel_error": lut.validation_max_rel_error,
                 "lut_build_seconds": lut.build_seconds,
                 "lut_steps_deg": [settings.sun_zenith_step_deg, settings.los_zenith_step_deg, settings.azimuth_step_deg]}

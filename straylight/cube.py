@@ -54,8 +54,10 @@ def cube_chunks(campaign: Campaign, n_times: int, n_pixels: int) -> dict:
     return {"time": t_chunk, "pixel": p_chunk, "band": len(campaign.bands)}
 
 
-def empty_cube(campaign: Campaign, fp: Footprint, times, stars_path=None) -> xr.Dataset:
-    """The cube's skeleton backed by lazy dask zeros (for writing metadata only)."""
+def empty_cube(campaign: Campaign, fp: Footprint, times, stars_path=None, build_workers: int = 1) -> xr.Dataset:
+    """The cube's skeleton backed by lazy dask zeros (for writing metadata only); the models
+    record it carries builds the earthshine table if one runs and is not cached
+    (``build_workers`` processes)."""
     import dask.array as da
 
     nt, npix, nb = len(times), fp.pixels.size, len(campaign.bands)
@@ -98,7 +100,8 @@ def empty_cube(campaign: Campaign, fp: Footprint, times, stars_path=None) -> xr.
             "chunking": "time block x pixel block x all bands",
             # which models ran and their error budget (the earthshine table is built here, once,
             # before the time-block jobs start)
-            "models": json.dumps(_component_model(campaign, fp.pixels.size).models_record(), sort_keys=True),
+            "models": json.dumps(_component_model(campaign, fp.pixels.size, build_workers).models_record(),
+                                 sort_keys=True),
         },
     )
     return ds
@@ -124,10 +127,12 @@ def faint_star_map(campaign: Campaign, fp: Footprint, stars_path) -> xr.Variable
                         "long_name": "faint off-field stars: smoothed map (azimuth-averaged PST), part of stars"})
 
 
-def init_store(campaign: Campaign, fp: Footprint, store, stars_path=None) -> None:
+def init_store(campaign: Campaign, fp: Footprint, store, stars_path=None, build_workers: int = 1) -> None:
     """Write the skeleton (metadata and coordinates, no data chunks) to ``store``, and the
-    faint-star map (computed here once for the whole campaign)."""
-    ds = empty_cube(campaign, fp, campaign.times, stars_path)
+    faint-star map (computed here once for the whole campaign); an earthshine table the
+    campaign needs is built here too, before the time blocks start (``build_workers``
+    processes)."""
+    ds = empty_cube(campaign, fp, campaign.times, stars_path, build_workers)
     faint = faint_star_map(campaign, fp, stars_path)
     if faint is not None:
         ds["faint_star_map"] = faint
@@ -137,7 +142,7 @@ def init_store(campaign: Campaign, fp: Footprint, store, stars_path=None) -> Non
 _MODELS: dict = {}
 
 
-def _component_model(campaign: Campaign, n_pixels: int):
+def _component_model(campaign: Campaign, n_pixels: int, build_workers: int = 1):
     """One ComponentModel per process and campaign: its door tables, bands and earthshine table
     are built once, not once per Dask task (the campaign arrives pickled, so key on its content).
     It expects the whole campaign's samples (times x footprint pixels)."""
@@ -146,7 +151,7 @@ def _component_model(campaign: Campaign, n_pixels: int):
     n = len(campaign.times) * int(n_pixels)
     key = (json.dumps(campaign.config, sort_keys=True, default=str), str(campaign.instrument_path), n)
     if key not in _MODELS:
-        _MODELS[key] = ComponentModel(campaign, expected_samples=n)
+        _MODELS[key] = ComponentModel(campaign, expected_samples=n, build_workers=build_workers)
     return _MODELS[key]
 
 

@@ -115,6 +115,27 @@ def _sun_coefficients_direct(off, R, Z, L, A, state, earth_radius_km, batch):
     return d_out, g_out
 
 
+def _lamp_bound_chunk(off, sat, lamp, los, earth_radius_km, batch):
+    """off.earthshine_lamp_bound over rows, ``batch`` rows at a time (bounds memory)."""
+    return np.concatenate([off.earthshine_lamp_bound(sat[j:j + batch], lamp[j:j + batch], los[j:j + batch],
+                                                     earth_radius_km) for j in range(0, len(sat), batch)])
+
+
+def _map(fn, tasks: list, workers: int) -> list:
+    """fn(*task) for every task, in ``workers`` forked processes; serially with one worker or
+    where fork is not available.  Each task's result does not depend on the split, so the table
+    is the same byte for byte whatever ``workers`` is (tests/test_earthshine_lut.py)."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    if workers <= 1 or len(tasks) <= 1 or "fork" not in multiprocessing.get_all_start_methods():
+        return [fn(*t) for t in tasks]
+    # fork, not spawn: spawn re-imports the caller's main module, which in a Snakemake script
+    # would run the job again
+    with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("fork")) as ex:
+        return list(ex.map(fn, *zip(*tasks)))
+
+
 def _mirror_symmetric(off) -> bool:
     """PST(theta, phi) == PST(theta, -phi) and the door shade likewise (sampled check)."""
     th = np.r_[np.linspace(0.0, 89.0, 90), np.linspace(91.0, 180.0, 90)][:, None]  # 90: grazing, noise
@@ -168,13 +189,15 @@ class EarthshineLUT:
     @classmethod
     def build(cls, off, earth_radius_km: float, radius_range_km: tuple[float, float],
               settings: LUTSettings = LUTSettings(), floor: float = 0.0, batch: int = 1024,
-              n_validation: int = 400, avoidance_deg: tuple = (30.0, 80.0, 50.0)) -> "EarthshineLUT":
+              n_validation: int = 400, avoidance_deg: tuple = (30.0, 80.0, 50.0),
+              workers: int = 1) -> "EarthshineLUT":
         """Tabulate ``off.earthshine_coefficients`` (an :class:`OffFieldModel`), then validate:
         at ``n_validation`` random points where a line of sight is observable (``avoidance_deg``:
         the minimum angles from the dark limb, the bright limb and the Sun, as the campaign's
         constraints) the largest |table - direct| / (direct + floor), with ``floor`` the darkest
         sky background in the same units (so the error is a fraction of the total, and a
-        pessimistic one)."""
+        pessimistic one).  ``workers`` processes share the node sums (one per core: the build
+        is ~9 min on one core with the default steps)."""
         import time
 
         t_start = time.perf_counter()
@@ -187,8 +210,17 @@ class EarthshineLUT:
         shape = R.shape
         R, Z, L, A = (v.ravel() for v in (R, Z, L, A))
         direct, door = {}, {}
+        # whole (radius, Sun zenith) scenes per task: the nodes of one scene are contiguous
+        per_scene = zl.size * az.size
+        parts = [slice(g[0] * per_scene, (g[-1] + 1) * per_scene)
+                 for g in np.array_split(np.arange(rr.size * zs.size), max(4 * workers, 1)) if g.size]
+        tasks = [(off, R[p], Z[p], L[p], A[p], state, earth_radius_km, batch)
+                 for state in off.door_states_deg for p in parts]
+        results = iter(_map(_sun_coefficients_direct, tasks, workers))
         for state in off.door_states_deg:
-            d_out, g_out = _sun_coefficients_direct(off, R, Z, L, A, state, earth_radius_km, batch)
+            d_out, g_out = np.empty(R.size), np.empty(R.size)
+            for p in parts:
+                d_out[p], g_out[p] = next(results)
             direct[state], door[state] = d_out.reshape(shape), g_out.reshape(shape)
         # moonlit-Earth bound over (radius, Moon zenith, line-of-sight zenith): the PST at its
         # maximum over phi, Sp = 1, maximised over the azimuth nodes
@@ -197,9 +229,10 @@ class EarthshineLUT:
         for i, r in enumerate(rr):
             Rg = np.full(Zg.size, r)
             sat1, lamp, los1 = _local_scene(Rg, Zg.ravel(), Lg.ravel(), Ag.ravel())
-            vals = np.concatenate([off.earthshine_lamp_bound(sat1[j:j + batch], unit(lamp[j:j + batch]),
-                                                             los1[j:j + batch], earth_radius_km)
-                                   for j in range(0, Rg.size, batch)])
+            lamp = unit(lamp)
+            cuts = np.array_split(np.arange(Rg.size), max(4 * workers, 1))
+            vals = np.concatenate(_map(_lamp_bound_chunk, [(off, sat1[c], lamp[c], los1[c], earth_radius_km, batch)
+                                                           for c in cuts if c.size], workers))
             bound[i] = vals.reshape(Zg.shape).max(axis=-1)
         moon_door = max(off.earthshine.door_reflectance * float(np.sum(w)) * off.pixel_area_m2
                         for _, _, w in off._door_weights.values()) * off.earthshine.albedo
@@ -331,8 +364,9 @@ def cache_dir() -> Path:
 
 
 def load_or_build(off, earth_radius_km, radius_range_km, settings: LUTSettings, floor: float, log=None,
-                  avoidance_deg: tuple = (30.0, 80.0, 50.0)):
-    """The table for these inputs from the cache, built and stored there if missing."""
+                  avoidance_deg: tuple = (30.0, 80.0, 50.0), workers: int = 1):
+    """The table for these inputs from the cache, built (by ``workers`` processes) and stored
+    there if missing."""
     key = lut_key(off, earth_radius_km, radius_range_km, settings, floor, avoidance_deg)
     path = cache_dir() / f"earthshine_lut_{key}.npz"
     if path.exists():
@@ -340,7 +374,7 @@ def load_or_build(off, earth_radius_km, radius_range_km, settings: LUTSettings, 
     if log is not None:
         log.info("building the earthshine look-up table %s (once; cached in %s)", key, path.parent)
     lut = EarthshineLUT.build(off, earth_radius_km, radius_range_km, settings, floor,
-                              avoidance_deg=avoidance_deg)
+                              avoidance_deg=avoidance_deg, workers=workers)
     path.parent.mkdir(parents=True, exist_ok=True)
     lut.save(path)
     return lut, path

@@ -122,6 +122,20 @@ def test_save_load_round_trip_and_cache_key(coarse, tmp_path, campaign):
         EarthshineLUT.load(tmp_path / "bad.npz")
 
 
+def test_parallel_build_gives_the_same_table(coarse):
+    """Two worker processes build the same table, byte for byte, as one (the coarse steps)."""
+    c, cm, info = coarse
+    k = c.constraints
+    args = (cm.offfield, c.earth.radius_km, c.orbit_radius_range_km, LUTSettings(**COARSE), cm.earthshine_floor)
+    kw = {"avoidance_deg": (k.dark_limb_min_deg, k.bright_limb_min_deg, k.sun_min_deg)}
+    two = EarthshineLUT.build(*args, **kw, workers=2)
+    one = info["lut"]
+    for s in one.direct:
+        assert np.array_equal(two.direct[s], one.direct[s]) and np.array_equal(two.door[s], one.door[s])
+    assert np.array_equal(two.moon_direct_bound, one.moon_direct_bound)
+    assert two.validation_max_rel_error == one.validation_max_rel_error
+
+
 def test_automatic_choice(coarse, campaign):
     c, _, _ = coarse
     one = ComponentModel(_campaign(campaign, method="auto", lut=COARSE), expected_samples=1).earthshine_model

@@ -8,6 +8,9 @@ rule background_init:
         f"{RESULTS}/background_blocks/init.json",
     params:
         store=f"{RESULTS}/background.zarr",
+    # processes for the earthshine table's build, when the campaign needs one that is not cached
+    # (lowered to --cores by Snakemake; the SLURM profile can raise it)
+    threads: 2
     conda:
         "../envs/straylight.yaml"
     log:
