@@ -224,7 +224,8 @@ class ComponentModel:
         v, ang, ph, blk, op = (np.broadcast_to(a, shape) for a in (v_mag, angle_deg, phi_deg, earth_blocked, door))
         # e-/s/pix at PST = 1 relative to the darkest zodiacal light, worst band (solar spectrum)
         rel = off.pixel_area_m2 * 10.0 ** (-0.4 * (v - V_SUN_VEGA)) / self.solar_floor(tuple(bands))
-        need = ~np.asarray(blk, bool) & (ang < off.pst.influence_radius_deg(self.tolerance / 72.0 / rel))
+        radius = off.pst.influence_radius_deg(self.tolerance / 72.0 / rel)
+        need = ~np.asarray(blk, bool) & ((ang < radius) | (radius >= 180.0))  # 180: nowhere skippable
         t = np.zeros(shape)
         if np.any(need):
             t[need] = off.point_source(1.0, ang[need], ph[need], False, op[need])
