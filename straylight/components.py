@@ -137,8 +137,11 @@ class ComponentModel:
         pix_arcsec = self.campaign.instrument_value("detector", "pixel_scale_arcsec")
         out = {}
         # band-independent transfer (e-/s/pix per photons s-1 m-2): Se * Sp * PST * pixel area
-        t_sun = off.point_source(1.0, geometry["sun_angle_deg"], geometry["sun_phi_deg"],
-                                 geometry["sun_earth_blocked"], door)
+        # the Sun is never skipped on its bound (its influence radius is the whole sky), only its
+        # look-ups where the Earth hides it
+        v_sun = V_SUN_VEGA + 5.0 * np.log10(d_sun / 1.495978707e8)
+        t_sun = self._skippable_transfer(v_sun, geometry["sun_angle_deg"], geometry["sun_phi_deg"],
+                                         geometry["sun_earth_blocked"], door, bands)
         t_moon = self._skippable_transfer(v_moon, geometry["moon_angle_deg"], geometry["moon_phi_deg"],
                                           geometry["moon_earth_blocked"], door, bands)
         planet_terms = []  # (V magnitude, transfer) per planet

@@ -281,6 +281,25 @@ def test_new_moon_far_from_the_line_of_sight_is_skipped(campaign, comp_model, ex
     assert 0.0 < float(exact["g"]["moon"][0]) < comp_model.tolerance / 72 * comp_model.darkest_zodiacal_e_per_s("g")
 
 
+def test_sun_term_is_never_skipped_on_its_bound(campaign, comp_model):
+    """3000 random samples: the Sun's term equals E_sun * Se * Sp * PST * pixel area from
+    OffFieldModel.point_source everywhere (only its look-ups behind the Earth are saved)."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
+    from _samples import random_samples
+
+    sc, los, g = random_samples(campaign, 3000, seed=9)
+    out = comp_model.evaluate(sc.satellite_km, sc.bodies_km, los, g, ["g"])
+    t = comp_model.offfield.point_source(1.0, g["sun_angle_deg"], g["sun_phi_deg"], g["sun_earth_blocked"],
+                                         g["door_opening_deg"])
+    d_au = np.linalg.norm(sc.bodies_km["sun"] - sc.satellite_km, axis=-1) / 1.495978707e8
+    expected = t * comp_model.photometry("g").sun_at_1au_photons_s_m2 / d_au**2
+    np.testing.assert_allclose(out["g"]["sun"], expected, rtol=1e-12, atol=0)
+    assert np.count_nonzero(expected) > 100 and np.any(g["sun_earth_blocked"])
+
+
 def test_faint_star_map_is_the_azimuth_averaged_pst_sum(campaign, comp_model):
     """Faint stars at 0.3 deg (in the field: 0), 2 deg and 40 deg: the map gives
     sum F PSTavg(theta) * pixel area, PSTavg from PST.azimuthal_mean (72 azimuths)."""
