@@ -137,11 +137,8 @@ class ComponentModel:
         pix_arcsec = self.campaign.instrument_value("detector", "pixel_scale_arcsec")
         out = {}
         # band-independent transfer (e-/s/pix per photons s-1 m-2): Se * Sp * PST * pixel area
-        # the Sun is never skipped on its bound (its influence radius is the whole sky), only its
-        # look-ups where the Earth hides it
-        v_sun = V_SUN_VEGA + 5.0 * np.log10(d_sun / 1.495978707e8)
-        t_sun = self._skippable_transfer(v_sun, geometry["sun_angle_deg"], geometry["sun_phi_deg"],
-                                         geometry["sun_earth_blocked"], door, bands)
+        t_sun = off.point_source(1.0, geometry["sun_angle_deg"], geometry["sun_phi_deg"],
+                                 geometry["sun_earth_blocked"], door)  # never skipped on a bound
         t_moon = self._skippable_transfer(v_moon, geometry["moon_angle_deg"], geometry["moon_phi_deg"],
                                           geometry["moon_earth_blocked"], door, bands)
         planet_terms = []  # (V magnitude, transfer) per planet
@@ -223,16 +220,13 @@ class ComponentModel:
         eight planets together stay below tolerance / 8 (a new Moon far from the line of sight
         is skipped, a bright one never)."""
         off = self.offfield
-        shape = np.broadcast_shapes(*(np.shape(a) for a in (v_mag, angle_deg, phi_deg, earth_blocked, door)))
-        v, ang, ph, blk, op = (np.broadcast_to(a, shape) for a in (v_mag, angle_deg, phi_deg, earth_blocked, door))
         # e-/s/pix at PST = 1 relative to the darkest zodiacal light, worst band (solar spectrum)
-        rel = off.pixel_area_m2 * 10.0 ** (-0.4 * (v - V_SUN_VEGA)) / self.solar_floor(tuple(bands))
+        rel = off.pixel_area_m2 * 10.0 ** (-0.4 * (np.asarray(v_mag, float) - V_SUN_VEGA)) \
+            / self.solar_floor(tuple(bands))
         radius = off.pst.influence_radius_deg(self.tolerance / 72.0 / rel)
-        need = ~np.asarray(blk, bool) & ((ang < radius) | (radius >= 180.0))  # 180: nowhere skippable
-        t = np.zeros(shape)
-        if np.any(need):
-            t[need] = off.point_source(1.0, ang[need], ph[need], False, op[need])
-        return t
+        far = (np.asarray(angle_deg) >= radius) & (radius < 180.0)  # 180: nowhere skippable
+        # a skipped source is treated as hidden: point_source then looks nothing up for it
+        return off.point_source(1.0, angle_deg, phi_deg, np.asarray(earth_blocked, bool) | far, door)
 
     @cached_property
     def earthshine_model(self) -> dict:

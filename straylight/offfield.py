@@ -160,10 +160,14 @@ class OffFieldModel:
 
     # -- point sources ----------------------------------------------------------------------
     def point_source(self, irradiance, theta_deg, phi_deg, earth_blocked, opening_deg) -> np.ndarray:
-        """e-/s/pix of point sources: E * Se * Sp * PST * pixel area (broadcast arrays)."""
-        se = ~np.asarray(earth_blocked, bool)
-        sp = self.door_factor(theta_deg, phi_deg, opening_deg)
-        return np.asarray(irradiance) * se * sp * self.pst(theta_deg, phi_deg) * self.pixel_area_m2
+        """e-/s/pix of point sources: E * Se * Sp * PST * pixel area (broadcast arrays); the door
+        and PST tables are looked up only where the Earth does not hide the source (Se = 1)."""
+        th, ph, blocked, op = np.broadcast_arrays(theta_deg, phi_deg, np.asarray(earth_blocked, bool), opening_deg)
+        seen = ~blocked
+        t = np.zeros(th.shape)
+        if np.any(seen):
+            t[seen] = self.door_factor(th[seen], ph[seen], op[seen]) * self.pst(th[seen], ph[seen])
+        return np.asarray(irradiance) * t * self.pixel_area_m2
 
     # -- earthshine -------------------------------------------------------------------------
     def _cap_grid(self, sat_km, earth_radius_km, s: EarthshineSettings):
