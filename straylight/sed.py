@@ -4,7 +4,9 @@ A :class:`TemplateLibrary` holds spectra on one wavelength grid.  Two sources:
 
 - :func:`load_pickles` - the embedded Pickles (1998, PASP 110, 863) UVKLIB library, 106
   solar-abundance spectra O5-M10 of luminosity classes V-I, resampled to 10 A over
-  1500-12000 A (``data/pickles1998_uvk_sed.fits``, rebuilt by ``scripts/dev/build_sed_library.py``);
+  1500-12000 A (``data/pickles1998_uvk_sed.fits``, rebuilt by ``scripts/dev/build_sed_library.py``),
+  each with the Teff of its spectral type (:func:`teff_from_spectral_type`, frozen in
+  ``data/pickles1998_template_teff.csv``);
 - :func:`load_btsettl` - BT-Settl model spectra (Allard et al. 2012) for a team that has them:
   two-column text (Angstrom, F_lambda) or FITS tables (WAVELENGTH, FLUX), with Teff, log g and
   [M/H] read from the standard file name ``lte{Teff/100}-{logg}{[M/H]}...``.
@@ -43,16 +45,6 @@ AB_MINUS_VEGA = {
     "bessell-V": 0.02,
     "bessell-I": 0.45,
 }
-
-# Colour-Teff relations, theta = 5040 / Teff = b0 + b1 X + b2 X^2 + b3 X [Fe/H] + b4 [Fe/H] + b5 [Fe/H]^2.
-# Dwarfs and subgiants: Casagrande et al. 2010, A&A 512, A54, Table 4, X = (V - Ic), valid 0.46-1.47,
-# sigma 59 K.  Giants: Gonzalez Hernandez & Bonifacio 2009, A&A 497, 497, Table 5, X = (B - V),
-# valid 0.3-1.4, sigma 57 K.
-TEFF_RELATIONS = {
-    "dwarf": ("V-I", (0.4033, 0.8171, -0.1987, -0.0409, 0.0319, 0.0012), (0.46, 1.47)),
-    "giant": ("B-V", (0.4967, 0.7260, -0.1563, 0.0255, -0.0585, -0.0061), (0.3, 1.4)),
-}
-
 
 @dataclass(frozen=True)
 class TemplateLibrary:
@@ -134,20 +126,64 @@ def vega_magnitudes(library: TemplateLibrary, filter_names) -> dict[str, np.ndar
     return {n: ab[n] - AB_MINUS_VEGA[n] for n in filter_names}
 
 
-def teff_from_colours(luminosity_class, v_minus_i, b_minus_v, feh_dex=0.0) -> np.ndarray:
-    """Teff (K) from Johnson-Cousins colours with the relations of ``TEFF_RELATIONS``; NaN outside."""
-    lc = np.asarray(luminosity_class).astype(str)
-    vi, bv = np.asarray(v_minus_i, float), np.asarray(b_minus_v, float)
-    feh = np.broadcast_to(np.asarray(feh_dex, float), vi.shape)
-    teff = np.full(vi.shape, np.nan)
-    giant = np.isin(lc, ["III", "II", "I"])
-    for kind, sel in (("dwarf", ~giant), ("giant", giant)):
-        _, b, (lo, hi) = TEFF_RELATIONS[kind]
-        x = vi if kind == "dwarf" else bv
-        ok = sel & (x >= lo) & (x <= hi)
-        theta = b[0] + b[1] * x + b[2] * x**2 + b[3] * x * feh + b[4] * feh + b[5] * feh**2
-        teff[ok] = 5040.0 / theta[ok]
-    return teff
+DWARF_TEFF_FILE = DATA / "pecaut_mamajek_dwarf_teff.csv"
+SPECTRAL_CLASSES = "OBAFGKM"
+# de Jager & Nieuwenhuijzen's polynomial turns over for luminosity classes IV-I after M4 (it
+# makes M9 III 480 K hotter than M4 III): no Teff from it for later M types.
+DEJAGER_LATEST_M_SUBTYPE = 4.0
+_PICKLES_TYPE = re.compile(r"^[rw]?(?P<cls>[OBAFGKM])(?P<sub>\d+(?:\.\d+)?)(?P<lc>I{1,3}|IV|V)$")
+
+
+def parse_spectral_type(name: str) -> tuple[str, float, str]:
+    """Spectral class, subtype and luminosity class of a Pickles template name: 'G2V' ->
+    ('G', 2.0, 'V'); two digits are Pickles' subtype ranges ('B57V' is B5-7 V -> 6.0, 'K01II'
+    -> 0.5), except M10."""
+    m = _PICKLES_TYPE.match(str(name).strip())
+    if not m:
+        raise InputError(f"template {name!r}: not a spectral type like G2V, B57V or M10III")
+    sub = m["sub"]
+    if len(sub) == 2 and sub != "10":
+        value = (int(sub[0]) + int(sub[1])) / 2.0
+    else:
+        value = float(sub)
+    return m["cls"], value, m["lc"]
+
+
+@lru_cache(maxsize=1)
+def _dwarf_teff_table() -> tuple[np.ndarray, np.ndarray]:
+    lines = [ln for ln in DWARF_TEFF_FILE.read_text().splitlines() if ln and not ln.startswith("#")]
+    rows = [ln.split(",") for ln in lines[1:]]  # after the header spt,teff_k
+    codes = np.array([_type_code(*parse_spectral_type(r[0])[:2]) for r in rows])
+    return codes, np.array([float(r[1]) for r in rows])
+
+
+def _type_code(spectral_class: str, subtype: float) -> float:
+    return 10.0 * SPECTRAL_CLASSES.index(spectral_class) + subtype
+
+
+def teff_from_spectral_type(names) -> np.ndarray:
+    """Teff (K) of templates from their spectral type and luminosity class.
+
+    Class V: Pecaut & Mamajek (2013, ApJS 208, 9) Table 5 (updated table v2024.05.15,
+    ``data/pecaut_mamajek_dwarf_teff.csv``), linear between tabulated subtypes.  Classes IV-I:
+    de Jager & Nieuwenhuijzen (1987, A&A 177, 217) 20-coefficient relation through PyAstronomy's
+    ``SpecTypeDeJager`` (class I taken as Iab); it reproduces their tables to a few per cent.
+    NaN for giants and supergiants later than M4 (see ``DEJAGER_LATEST_M_SUBTYPE``).  Needs
+    PyAstronomy (a test dependency; the product reads the frozen table, :func:`pickles_teff`)."""
+    from PyAstronomy.pyasl import SpecTypeDeJager
+
+    codes, teffs = _dwarf_teff_table()
+    dj = SpecTypeDeJager()
+    out = np.full(len(names), np.nan)
+    for i, name in enumerate(names):
+        cls, sub, lc = parse_spectral_type(name)
+        code = _type_code(cls, sub)
+        if lc == "V":
+            if codes[0] <= code <= codes[-1]:
+                out[i] = np.interp(code, codes, teffs)
+        elif not (cls == "M" and sub > DEJAGER_LATEST_M_SUBTYPE):
+            out[i] = 10.0 ** float(dj.lumAndTeff(f"{cls}{sub:g}", "Iab" if lc == "I" else lc)[1])
+    return out
 
 
 # assumption: Pickles (1998) gives no log g; typical values of each luminosity class
@@ -166,11 +202,27 @@ def load_pickles() -> TemplateLibrary:
         t = h["TEMPLATES"].data
         names = np.char.strip(np.asarray(t["TEMPLATE"]).astype(str))
         lc = np.char.strip(np.asarray(t["LUMCLASS"]).astype(str))
-    lib = TemplateLibrary("pickles1998", wl, flam, names, lc, np.full(len(names), np.nan),
-                          np.array([NOMINAL_LOGG[c] for c in lc]), np.zeros(len(names)))
-    vega = vega_magnitudes(lib, ["bessell-B", "bessell-V", "bessell-I"])
-    teff = teff_from_colours(lc, vega["bessell-V"] - vega["bessell-I"], vega["bessell-B"] - vega["bessell-V"])
-    return TemplateLibrary(lib.name, wl, flam, names, lc, teff, lib.logg_cgs, lib.feh_dex)
+    return TemplateLibrary("pickles1998", wl, flam, names, lc, pickles_teff(names),
+                           np.array([NOMINAL_LOGG[c] for c in lc]), np.zeros(len(names)))
+
+
+PICKLES_TEFF_FILE = DATA / "pickles1998_template_teff.csv"
+
+
+def pickles_teff(names) -> np.ndarray:
+    """The templates' Teff (K) frozen in ``data/pickles1998_template_teff.csv`` (written by
+    ``scripts/dev/build_template_teff.py`` with :func:`teff_from_spectral_type`, so a run needs
+    no PyAstronomy; tests re-derive it).  NaN where the file has none."""
+    table = {}
+    for ln in PICKLES_TEFF_FILE.read_text().splitlines():
+        if ln and not ln.startswith("#") and not ln.startswith("template,"):
+            name, teff = ln.split(",")[:2]
+            table[name] = float(teff) if teff else np.nan
+    missing = [n for n in names if n not in table]
+    if missing:
+        raise InputError(f"{PICKLES_TEFF_FILE}: no row for templates {missing}; rebuild it "
+                         "with scripts/dev/build_template_teff.py")
+    return np.array([table[n] for n in names])
 
 
 _BTSETTL_NAME = re.compile(r"lte(?P<teff>\d+(?:\.\d+)?)-?(?P<logg>[+-]?\d+\.\d+)(?P<feh>[+-]\d+\.\d+)")

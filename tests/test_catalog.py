@@ -87,6 +87,63 @@ def test_g2v_template_has_solar_colours():
         assert cs[c] == pytest.approx(v, abs=0.03), c  # the real solar spectrum is closer
 
 
+def test_template_teff_follows_the_published_spectral_type_scales():
+    """Every template's Teff comes from its spectral type (issue #3, item 5).
+
+    Dwarfs: Pecaut & Mamajek 2013 Table 5 (updated table v2024.05.15): G2V 5770 K, A0V 9700 K,
+    M0V 3850 K; B57V (Pickles' B5-7 V) is B6V, 14500 K.  Giants: de Jager & Nieuwenhuijzen 1987
+    through PyAstronomy, checked against an independent scale, Alonso et al. 1999 (A&AS 140, 261)
+    Table 1, solar-metallicity class III means: F5 6255, G5 5050, G8 4860, K0 4660, K1 4580,
+    K2 4455, K3 4285, K5 3950 K (their sigma 55-245 K; DJ87's polynomial reproduces its own
+    tables to a few per cent): within 250 K.  Giants and supergiants after M4, where DJ87 turns
+    over, have no Teff (NaN) rather than a wrong one."""
+    from straylight.sed import load_pickles, parse_spectral_type
+
+    lib = load_pickles()
+    teff = dict(zip(lib.template, lib.teff_k))
+    for name, ref in {"G2V": 5770.0, "A0V": 9700.0, "M0V": 3850.0, "B57V": 14500.0}.items():
+        assert teff[name] == pytest.approx(ref, abs=0.5), name
+    alonso = {"F5III": 6255, "G5III": 5050, "G8III": 4860, "K0III": 4660, "K1III": 4580, "K2III": 4455,
+              "K3III": 4285, "K5III": 3950}
+    diff = {k: teff[k] - v for k, v in alonso.items()}
+    print("DJ87 - Alonso 1999 (K):", {k: round(v) for k, v in diff.items()})
+    assert max(abs(v) for v in diff.values()) < 250.0
+    late_m = [n for n in lib.template if parse_spectral_type(n)[0] == "M" and parse_spectral_type(n)[1] > 4
+              and parse_spectral_type(n)[2] != "V"]
+    assert late_m and all(np.isnan(teff[n]) for n in late_m)
+    assert np.count_nonzero(np.isnan(lib.teff_k)) == len(late_m), "only the late-M giants lack Teff"
+    # along the spectral sequence of each luminosity class Teff falls
+    for lc in ("V", "IV", "III", "II", "I"):
+        rows = sorted((10 * "OBAFGKM".index(c) + s, teff[n]) for n in lib.template
+                      for c, s, l in [parse_spectral_type(n)] if l == lc and np.isfinite(teff[n]))
+        assert np.all(np.diff([t for _, t in rows]) < 0), lc
+
+
+def test_frozen_template_teff_table_is_reproduced_by_its_derivation():
+    """data/pickles1998_template_teff.csv (read by runs, which need no PyAstronomy) equals
+    teff_from_spectral_type to its 1 K rounding."""
+    from straylight.sed import load_pickles, teff_from_spectral_type
+
+    lib = load_pickles()
+    derived = teff_from_spectral_type(lib.template)
+    assert np.array_equal(np.isnan(derived), np.isnan(lib.teff_k))
+    ok = np.isfinite(derived)
+    assert np.max(np.abs(derived[ok] - lib.teff_k[ok])) <= 0.5
+
+
+def test_spectral_type_names_parse_and_bad_ones_fail_clearly():
+    """Pickles' names: two digits are a subtype range (B5-7 V), M10 is M10."""
+    from straylight.errors import InputError
+    from straylight.sed import parse_spectral_type
+
+    assert parse_spectral_type("B57V") == ("B", 6.0, "V")
+    assert parse_spectral_type("K01II") == ("K", 0.5, "II")
+    assert parse_spectral_type("M10III") == ("M", 10.0, "III")
+    assert parse_spectral_type("rK0V") == ("K", 0.0, "V")
+    with pytest.raises(InputError, match="'G2'"):
+        parse_spectral_type("G2")
+
+
 def test_hp_to_v_agrees_with_bessell_2000():
     """The Hipparcos-catalogue V - Hp polynomial against Bessell (2000, PASP 112, 961) Table 2.
 
