@@ -18,7 +18,7 @@ Units: wavelengths in Angstrom inside speclite; spectra passed as F_lambda in W 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cached_property, lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -41,11 +41,11 @@ class Band:
     throughput: np.ndarray
     origin: str  # "parametric", "file:<path>", or "speclite:<name>"
 
-    @property
+    @cached_property
     def response(self):
         return _speclite_response(self.name, self.origin, tuple(self.wavelength_angstrom), tuple(self.throughput))
 
-    @property
+    @cached_property  # an astropy unit conversion: too slow for every evaluation
     def ab_zero_point_photons_s_m2(self) -> float:
         """Photon rate of a 0 mag (AB) point source through this band, photons s-1 m-2."""
         return float(self.response.ab_zeropoint.to_value("1 / (s m2)"))
