@@ -13,8 +13,9 @@ background" as the tolerance in the config).  Cost: seconds per sample on one co
 Knobs: earthshine Earth-cap grid (n_gamma x n_psi); door and aperture discretisation of the
 door path; star split (direct magnitude limit, smoothed faint-star map on/off); star skip (the
 tolerance that sizes each direct star's influence radius); PST grid step
-(interpolation of the default matrix); time cadence with linear interpolation in time; HEALPix
-nside (a pixel's value standing for every direction inside it).
+(interpolation of the default matrix); the moonlit Earth's grid on the table path (in the cube,
+on a full-Moon day); time cadence with linear interpolation in time; HEALPix nside (a pixel's
+value standing for every direction inside it).
 """
 from __future__ import annotations
 
@@ -245,6 +246,46 @@ def nside_rows(bench):
     return rows
 
 
+def moonlit_grid_rows(bench, day: str = "2026-01-03", time_step: int = 24, n_times: int = 12):
+    """The moonlit Earth's grid on the table path (models.earthshine.moonlit_grid): the cube's
+    access pattern (every footprint pixel at ``n_times`` times of a full-Moon day, when the
+    moonlit Earth is brightest), against a 48 x 96 grid with nothing skipped; error over
+    observable samples, as a fraction of the total, of the product's treatment (skip on the
+    bound plus the grid); seconds per sample of the whole cube (best of three)."""
+    import copy
+
+    from straylight.components import ComponentModel
+    from straylight.config import campaign_from_dict
+    from straylight.cube import compute_region
+    from straylight.footprint import footprint_from_config
+
+    base = bench.campaign
+    fp = footprint_from_config(base.config["footprint"])
+    t_slice = slice(0, time_step * n_times, time_step)
+
+    def run(grid, **kw):
+        raw = copy.deepcopy(base.config)
+        raw["campaign"]["start"], raw["campaign"]["end"] = f"{day}T00:00:00", f"{day}T23:59:59"
+        raw["models"].setdefault("earthshine", {}).update(method="lut", moonlit_grid=list(grid))
+        c = campaign_from_dict(raw, base.path)
+        model = ComponentModel(c, expected_samples=10**9, **kw)
+        model.earthshine_model  # built or loaded before timing
+        return timed(lambda: compute_region(c, fp, t_slice, slice(None), model=model), repeats=1 if kw else 3)
+
+    ref, _ = run((48, 96), moonlit_skip_share=0.0)
+    total, obs = ref["total"].values.astype(float), ref["observable"].values
+    rows = []
+    for grid in ((3, 6), (4, 8), (6, 12), (8, 16), (12, 24), (24, 48)):
+        ds, dt = run(grid)
+        rel = np.abs(ds["total"].values - total) / total
+        err = float(rel[obs].max())
+        cost = dt / (n_times * fp.pixels.size)
+        rows.append({"setting": f"{grid[0]} x {grid[1]}", "max_rel_error": err, "seconds_per_sample": cost,
+                     "samples_per_s_per_core": 1.0 / cost, "observable_samples": int(obs.sum()), "day": day})
+        print(f"  {'moonlit grid':14s} {grid[0]} x {grid[1]:<20d} error {err:9.2e}   {cost * 1e6:8.1f} us/sample (cube)")
+    return rows
+
+
 def cube_summary(catalog, time_step: int = 24, n_times: int = 12) -> dict:
     """The survey cube's access pattern: every footprint pixel of the default campaign at
     ``n_times`` times spread over its day, one time step per evaluation (as compute_region runs
@@ -336,7 +377,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--samples", type=int, default=150, help="random observable samples (default 150)")
     ap.add_argument("--quick", action="store_true", help="fewer settings (a smoke run)")
-    ap.add_argument("--only", choices=("time_cadence", "healpix_nside", "cube"), default=None,
+    ap.add_argument("--only", choices=("time_cadence", "healpix_nside", "moonlit_grid", "cube"), default=None,
                     help="re-run one model-independent sweep and update knobs.json and its chart "
                          "(cube: the cube section of summary.json)")
     args = ap.parse_args(argv)
@@ -353,7 +394,8 @@ def main(argv=None):
         import json
 
         bench = Bench(args.samples)
-        rows = {"time_cadence": time_cadence_rows, "healpix_nside": nside_rows}[args.only](bench)
+        rows = {"time_cadence": time_cadence_rows, "healpix_nside": nside_rows,
+                "moonlit_grid": moonlit_grid_rows}[args.only](bench)
         path = RESULTS / "knobs.json"
         knobs = json.loads(path.read_text()) if path.exists() else {}
         knobs[args.only] = rows
@@ -406,6 +448,7 @@ def main(argv=None):
     tols = [1e-12, 1e-2, 1e-1] if args.quick else [1e-12, 1e-3, 1e-2, 3e-2, 1e-1]
     knobs["star_skip"] = sweep(bench, ref, "star skip", [(f"tolerance {t:g}", {**DEFAULT, "tolerance": t}, def_stars)
                                                          for t in tols])
+    knobs["moonlit_grid"] = moonlit_grid_rows(bench)
     knobs["time_cadence"] = time_cadence_rows(bench)
     knobs["healpix_nside"] = nside_rows(bench)
     RESULTS.mkdir(parents=True, exist_ok=True)

@@ -23,6 +23,14 @@ from .offfield import (V_SUN_VEGA, BandPhotometry, EarthshineSettings, OffFieldM
 from .pst import load_pst
 from .zodiacal import zodiacal_model_from_instrument
 
+# Shares of models.tolerance (a fraction of the total) held by each fast path; they add up to 1.
+# The earthshine table must validate within its share; the moonlit Earth has two: the samples
+# skipped on its bound, and the coarse grid of the others (measured, bench/run.py moonlit_grid);
+# the skipped star pairs and the skipped Moon and planets are held to theirs by bounds.
+ERROR_BUDGET_SHARES = {"earthshine_lut": 0.5, "moonlit_earthshine_skip": 0.125, "moonlit_earthshine_grid": 0.125,
+                       "stars_skip": 0.125, "moon_and_planets_skip": 0.125}
+
+
 @dataclass
 class StarTable:
     """Off-field stars: ``ra_deg, dec_deg, mag_ab`` are summed one by one through the exact
@@ -64,6 +72,9 @@ class ComponentModel:
     campaign: Campaign
     expected_samples: int = 1
     build_workers: int = 1
+    #: fraction of the tolerance the moonlit Earth's skipped samples may take (0: none skipped,
+    #: as the benchmark's reference runs)
+    moonlit_skip_share: float = ERROR_BUDGET_SHARES["moonlit_earthshine_skip"]
 
     @cached_property
     def offfield(self) -> OffFieldModel:
@@ -216,14 +227,14 @@ class ComponentModel:
         """The band-independent transfer (as OffFieldModel.point_source with E = 1) of the Moon or
         a planet, a solar-spectrum source of V magnitude ``v_mag``, skipped (0) where its upper
         bound (the PST at its maximum over phi from the source's angle out, Se = Sp = 1) stays
-        below tolerance / 72 of the darkest zodiacal light in every band, so the Moon and the
-        eight planets together stay below tolerance / 8 (a new Moon far from the line of sight
-        is skipped, a bright one never)."""
+        below 1/9 of the moon_and_planets_skip share (tolerance / 72) of the darkest zodiacal
+        light in every band, so the Moon and the eight planets together stay within the share (a
+        new Moon far from the line of sight is skipped, a bright one never)."""
         off = self.offfield
         # e-/s/pix at PST = 1 relative to the darkest zodiacal light, worst band (solar spectrum)
         rel = off.pixel_area_m2 * 10.0 ** (-0.4 * (np.asarray(v_mag, float) - V_SUN_VEGA)) \
             / self.solar_floor(tuple(bands))
-        radius = off.pst.influence_radius_deg(self.tolerance / 72.0 / rel)
+        radius = off.pst.influence_radius_deg(ERROR_BUDGET_SHARES["moon_and_planets_skip"] / 9.0 * self.tolerance / rel)
         far = (np.asarray(angle_deg) >= radius) & (radius < 180.0)  # 180: nowhere skippable
         # a skipped source is treated as hidden: point_source then looks nothing up for it
         return off.point_source(1.0, angle_deg, phi_deg, np.asarray(earth_blocked, bool) | far, door)
@@ -267,8 +278,9 @@ class ComponentModel:
         info = {"lut_file": str(path.name), "lut_validation_max_rel_error": lut.validation_max_rel_error,
                 "lut_build_seconds": lut.build_seconds,
                 "lut_steps_deg": [settings.sun_zenith_step_deg, settings.los_zenith_step_deg, settings.azimuth_step_deg]}
-        if method == "auto" and not lut.validation_max_rel_error <= 0.5 * self.tolerance:
-            reason = (f"auto: table error {lut.validation_max_rel_error:.2g} > half the tolerance "
+        share = ERROR_BUDGET_SHARES["earthshine_lut"]
+        if method == "auto" and not lut.validation_max_rel_error <= share * self.tolerance:
+            reason = (f"auto: table error {lut.validation_max_rel_error:.2g} > {share:g} x the tolerance "
                       f"{self.tolerance:g}")
             log.info("earthshine: %s: direct sum", reason)
             return {"method": "direct", "lut": None, "reason": reason, **info}
@@ -278,7 +290,7 @@ class ComponentModel:
     def moonlit_grid(self) -> tuple[int, int]:
         """models.earthshine.moonlit_grid: (n_gamma, n_psi) of the moonlit Earth's direct sum on
         the table's path, away from the limb."""
-        return tuple(int(n) for n in self.campaign.config["models"].get("earthshine", {}).get("moonlit_grid", (8, 16)))
+        return tuple(int(n) for n in self.campaign.config["models"].get("earthshine", {}).get("moonlit_grid", (6, 12)))
 
     def models_record(self) -> dict:
         """Which models ran and their error budget, for a product's attributes (JSON-able)."""
@@ -288,27 +300,32 @@ class ComponentModel:
         s = self.offfield.earthshine
         es["earth_grid"] = [s.n_gamma, s.n_psi]
         es["door_blocks"], es["aperture_points_door"] = list(s.door_blocks), s.n_aperture_door
+        shares, lut_runs = ERROR_BUDGET_SHARES, es["method"] == "lut"
         return {"tolerance": self.tolerance, "earthshine": es, "pst": self.offfield.pst.source,
-                "moonlit_earthshine": ("skipped where its bound < tolerance/4 x zodiacal light, else summed directly "
-                                       f"on grid {list(self.moonlit_grid)}") if es["method"] == "lut" else "summed directly",
+                "moonlit_earthshine": (f"skipped where its bound < {self.moonlit_skip_share:g} x tolerance x zodiacal "
+                                       f"light, else summed directly on grid {list(self.moonlit_grid)}")
+                                      if lut_runs else "summed directly",
                 "earthshine_near_limb": ("indicative only within the dark-limb angle of the limb and below it "
                                          "(never observable; no Earth grid converges there)"),
                 "stars": {"direct_mag_limit": float(sc.get("offfield_mag_limit", 2.0)),
                           "faint_map": bool(sc.get("faint_map", True)),
-                          "direct_skipped": "pairs beyond each star's influence radius, together < tolerance/8 "
-                                            "x the darkest zodiacal light"},
-                "error_budget": {"earthshine_lut_validated": es.get("lut_validation_max_rel_error") if es["method"] == "lut" else 0.0,
-                                 "moonlit_earthshine_skip_max": 0.25 * self.tolerance if es["method"] == "lut" else 0.0,
-                                 "stars_skip_max": 0.125 * self.tolerance,
-                                 "moon_and_planets_skip_max": 0.125 * self.tolerance,
-                                 "see": "bench/results/summary.json for the whole model against the converged reference"}}
+                          "direct_skipped": (f"pairs beyond each star's influence radius, together < "
+                                             f"{shares['stars_skip']:g} x tolerance x the darkest zodiacal light")},
+                "error_budget": {"earthshine_lut_validated": es.get("lut_validation_max_rel_error") if lut_runs else 0.0,
+                                 "moonlit_earthshine_skip_max": self.moonlit_skip_share * self.tolerance if lut_runs else 0.0,
+                                 "moonlit_earthshine_grid_share": shares["moonlit_earthshine_grid"] * self.tolerance
+                                 if lut_runs else 0.0,
+                                 "stars_skip_max": shares["stars_skip"] * self.tolerance,
+                                 "moon_and_planets_skip_max": shares["moon_and_planets_skip"] * self.tolerance,
+                                 "see": "bench/results/summary.json for the whole model against the converged "
+                                        "reference, knobs.json moonlit_grid for the moonlit grid's measured error"}}
 
     def _earthshine_coefficients(self, sat, sun, moon, frame, door, shape, moon_at_earth_unit: dict,
                                  zodi: dict) -> dict:
         """Earthshine coefficients (see OffFieldModel.earthshine_coefficients) by the model that
         runs.  With the table, the moonlit Earth is skipped where its bound, times the Moon's
-        irradiance, is below a quarter of the tolerance times the zodiacal light in every band,
-        and summed directly elsewhere."""
+        irradiance, is below ``moonlit_skip_share`` x the tolerance x the zodiacal light in every
+        band, and summed directly on the coarse ``moonlit_grid`` elsewhere."""
         off, re_km = self.offfield, self.campaign.earth.radius_km
         lut = self.earthshine_model["lut"]
         if lut is None:
@@ -326,7 +343,7 @@ class ComponentModel:
         bound = lut.moon_bound(sat_b, moon_b, los_b, re_km)
         need = np.zeros(shape, bool)
         for b, e_moon in moon_at_earth_unit.items():
-            need |= np.broadcast_to(bound * e_moon > 0.25 * self.tolerance * zodi[b], shape)
+            need |= np.broadcast_to(bound * e_moon > self.moonlit_skip_share * self.tolerance * zodi[b], shape)
         if np.any(need):
             from .geometry import TelescopeFrame
 
@@ -400,7 +417,7 @@ class ComponentModel:
                     e = self.photometry(b).from_ab(stars.mag_ab[b]) * self.offfield.pixel_area_m2
                     rel = np.maximum(rel, e / self.darkest_zodiacal_e_per_s(b))
             with np.errstate(divide="ignore"):
-                limit = np.where(rel > 0, 0.125 * self.tolerance / n / rel, np.inf)
+                limit = np.where(rel > 0, ERROR_BUDGET_SHARES["stars_skip"] * self.tolerance / n / rel, np.inf)
             radius = self.offfield.pst.influence_radius_deg(limit)
             cache[key] = np.where(radius >= 180.0, -2.0, np.cos(np.radians(radius)))  # 180: every pair
         return cache[key]
