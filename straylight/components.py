@@ -156,7 +156,8 @@ class ComponentModel:
         for p in PLANETS:
             if f"{p}_angle_deg" not in geometry:
                 continue
-            v = planet_v_magnitude(p, bodies_km[p], sun, sat)
+            # a cube time step shares one scene: the planet's magnitude once, not per line of sight
+            v = planet_v_magnitude(p, *(shared_vectors(bodies_km[p], sun, sat) or (bodies_km[p], sun, sat)))
             planet_terms.append((v, self._skippable_transfer(v, geometry[f"{p}_angle_deg"], geometry[f"{p}_phi_deg"],
                                                              geometry[f"{p}_earth_blocked"], door, bands)))
         star_t = (self._star_transfer(stars, frame, sat, door)
