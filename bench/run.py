@@ -282,7 +282,7 @@ def moonlit_grid_rows(bench, day: str = "2026-01-03", time_step: int = 24, n_tim
         cost = dt / (n_times * fp.pixels.size)
         rows.append({"setting": f"{grid[0]} x {grid[1]}", "max_rel_error": err, "seconds_per_sample": cost,
                      "samples_per_s_per_core": 1.0 / cost, "observable_samples": int(obs.sum()), "day": day})
-        print(f"  {'moonlit grid':14s} {grid[0]} x {grid[1]:<20d} error {err:9.2e}   {cost * 1e6:8.1f} us/sample (cube)")
+        print(f"  {'moonlit grid':14s} {rows[-1]['setting']:24s} error {err:9.2e}   {cost * 1e6:8.1f} us/sample (cube)")
     return rows
 
 

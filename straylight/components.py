@@ -229,13 +229,14 @@ class ComponentModel:
         a planet, a solar-spectrum source of V magnitude ``v_mag``, skipped (0) where its upper
         bound (the PST at its maximum over phi from the source's angle out, Se = Sp = 1) stays
         below 1/9 of the moon_and_planets_skip share (tolerance / 72) of the darkest zodiacal
-        light in every band, so the Moon and the eight planets together stay within the share (a
+        light in every band, so the Moon and the eight planets together stay within it (a
         new Moon far from the line of sight is skipped, a bright one never)."""
         off = self.offfield
         # e-/s/pix at PST = 1 relative to the darkest zodiacal light, worst band (solar spectrum)
         rel = off.pixel_area_m2 * 10.0 ** (-0.4 * (np.asarray(v_mag, float) - V_SUN_VEGA)) \
             / self.solar_floor(tuple(bands))
-        radius = off.pst.influence_radius_deg(ERROR_BUDGET_SHARES["moon_and_planets_skip"] / 9.0 * self.tolerance / rel)
+        per_source = ERROR_BUDGET_SHARES["moon_and_planets_skip"] / (1 + len(PLANETS))  # the Moon and each planet
+        radius = off.pst.influence_radius_deg(per_source * self.tolerance / rel)
         far = (np.asarray(angle_deg) >= radius) & (radius < 180.0)  # 180: nowhere skippable
         # a skipped source is treated as hidden: point_source then looks nothing up for it
         return off.point_source(1.0, angle_deg, phi_deg, np.asarray(earth_blocked, bool) | far, door)

@@ -149,12 +149,20 @@ def parse_spectral_type(name: str) -> tuple[str, float, str]:
     return m["cls"], value, m["lc"]
 
 
+def _read_teff_csv(path: Path, name_column: str) -> dict[str, float]:
+    """name -> Teff (K) from one of the embedded CSV tables (``#`` comments; empty: NaN)."""
+    from astropy.table import Table
+
+    t = Table.read(path, format="ascii.csv", comment="#")
+    teff = np.ma.filled(np.ma.asarray(t["teff_k"], float), np.nan)
+    return dict(zip((str(n) for n in t[name_column]), teff))
+
+
 @lru_cache(maxsize=1)
 def _dwarf_teff_table() -> tuple[np.ndarray, np.ndarray]:
-    lines = [ln for ln in DWARF_TEFF_FILE.read_text().splitlines() if ln and not ln.startswith("#")]
-    rows = [ln.split(",") for ln in lines[1:]]  # after the header spt,teff_k
-    codes = np.array([_type_code(*parse_spectral_type(r[0])[:2]) for r in rows])
-    return codes, np.array([float(r[1]) for r in rows])
+    table = _read_teff_csv(DWARF_TEFF_FILE, "spt")
+    codes = np.array([_type_code(*parse_spectral_type(n)[:2]) for n in table])
+    return codes, np.array(list(table.values()))
 
 
 def _type_code(spectral_class: str, subtype: float) -> float:
@@ -213,11 +221,7 @@ def pickles_teff(names) -> np.ndarray:
     """The templates' Teff (K) frozen in ``data/pickles1998_template_teff.csv`` (written by
     ``scripts/dev/build_template_teff.py`` with :func:`teff_from_spectral_type`, so a run needs
     no PyAstronomy; tests re-derive it).  NaN where the file has none."""
-    table = {}
-    for ln in PICKLES_TEFF_FILE.read_text().splitlines():
-        if ln and not ln.startswith("#") and not ln.startswith("template,"):
-            name, teff = ln.split(",")[:2]
-            table[name] = float(teff) if teff else np.nan
+    table = _read_teff_csv(PICKLES_TEFF_FILE, "template")
     missing = [n for n in names if n not in table]
     if missing:
         raise InputError(f"{PICKLES_TEFF_FILE}: no row for templates {missing}; rebuild it "

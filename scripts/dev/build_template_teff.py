@@ -25,6 +25,7 @@ template,teff_k,source
 
 
 def main() -> None:
+    # the template names straight from the library file: load_pickles() needs this table already
     with fits.open(PICKLES_FILE) as h:
         names = [str(n).strip() for n in h["TEMPLATES"].data["TEMPLATE"]]
         lcs = [str(c).strip() for c in h["TEMPLATES"].data["LUMCLASS"]]
