@@ -63,9 +63,10 @@ def _high_latitude_limits(campaign):
 
 @pytest.mark.skipif(not THROUGHPUT.exists(), reason="../shared/data/csst_throughput (test-only real CSST curves) not present")
 @pytest.mark.xfail(strict=True, raises=AssertionError, reason=(
-    "measured: the model is 0.39 (g) and 0.40 (i) mag deeper than Qu et al. 2023 at dark high-latitude "
-    "pointings, beyond the issue's 0.3 mag; the noise budget (read noise dominates g at 300 s) and the "
-    "published calculation's assumptions (throughput generation, aperture, sky) are not reconciled. "
+    "measured: the model is 0.38 (g) and 0.40 (i) mag deeper than Qu et al. 2023 at dark high-latitude "
+    "pointings, beyond the issue's 0.3 mag; with these curves and noise terms the published depths need a "
+    "sky of 0.37 (g) and 0.41 (i) e-/s/pix against ~0.1 at the darkest pointings, so the published "
+    "calculation likely assumes a brighter sky; its inputs could not be checked offline. "
     "strict: the test fails as soon as the check passes, so the mark must then be removed"))
 def test_depth_within_0p3_mag_of_published_wide_survey(real_curve_campaign):
     lims = _high_latitude_limits(real_curve_campaign)
@@ -74,5 +75,12 @@ def test_depth_within_0p3_mag_of_published_wide_survey(real_curve_campaign):
         extra = f"; published {ref:.1f}, difference {np.median(lim) - ref:+.2f} mag" if ref else ""
         print(f"{b:4s} 5-sigma limit at ecliptic |beta| >= 60: median {np.median(lim):.2f}, "
               f"best {lim.max():.2f}, worst {lim.min():.2f}{extra}")
+    from scipy.optimize import brentq
+
+    from straylight.limits import point_source_limit
+
+    for b, ref in PUBLISHED_DEPTH_MAG.items():  # what sky the published depth implies here
+        sky = brentq(lambda s: float(point_source_limit(s, b, real_curve_campaign)) - ref, 1e-6, 1e3)
+        print(f"{b:4s} the published {ref:.1f} needs a sky + stray light of {sky:.3f} e-/s/pix")
     for b, ref in PUBLISHED_DEPTH_MAG.items():
         assert np.median(lims[b]) == pytest.approx(ref, abs=0.3), b
