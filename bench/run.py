@@ -246,16 +246,29 @@ def nside_rows(bench):
     return rows
 
 
+def _cube_model(base, campaign: dict | None = None, earthshine: dict | None = None, **model_kw):
+    """A campaign from ``base`` with ``campaign`` and ``models.earthshine`` overrides, and its
+    ComponentModel for cube-sized runs, the earthshine table built or loaded before timing."""
+    import copy
+
+    from straylight.components import ComponentModel
+    from straylight.config import campaign_from_dict
+
+    raw = copy.deepcopy(base.config)
+    raw["campaign"].update(campaign or {})
+    raw["models"].setdefault("earthshine", {}).update(earthshine or {})
+    c = campaign_from_dict(raw, base.path)
+    model = ComponentModel(c, expected_samples=10**9, **model_kw)
+    model.earthshine_model
+    return c, model
+
+
 def moonlit_grid_rows(bench, day: str = "2026-01-03", time_step: int = 24, n_times: int = 12):
     """The moonlit Earth's grid on the table path (models.earthshine.moonlit_grid): the cube's
     access pattern (every footprint pixel at ``n_times`` times of a full-Moon day, when the
     moonlit Earth is brightest), against a 48 x 96 grid with nothing skipped; error over
     observable samples, as a fraction of the total, of the product's treatment (skip on the
     bound plus the grid); seconds per sample of the whole cube (best of three)."""
-    import copy
-
-    from straylight.components import ComponentModel
-    from straylight.config import campaign_from_dict
     from straylight.cube import compute_region
     from straylight.footprint import footprint_from_config
 
@@ -264,12 +277,8 @@ def moonlit_grid_rows(bench, day: str = "2026-01-03", time_step: int = 24, n_tim
     t_slice = slice(0, time_step * n_times, time_step)
 
     def run(grid, **kw):
-        raw = copy.deepcopy(base.config)
-        raw["campaign"]["start"], raw["campaign"]["end"] = f"{day}T00:00:00", f"{day}T23:59:59"
-        raw["models"].setdefault("earthshine", {}).update(method="lut", moonlit_grid=list(grid))
-        c = campaign_from_dict(raw, base.path)
-        model = ComponentModel(c, expected_samples=10**9, **kw)
-        model.earthshine_model  # built or loaded before timing
+        c, model = _cube_model(base, {"start": f"{day}T00:00:00", "end": f"{day}T23:59:59"},
+                               {"method": "lut", "moonlit_grid": list(grid)}, **kw)
         return timed(lambda: compute_region(c, fp, t_slice, slice(None), model=model), repeats=1 if kw else 3)
 
     ref, _ = run((48, 96), moonlit_skip_share=0.0)
@@ -293,12 +302,10 @@ def cube_summary(catalog, time_step: int = 24, n_times: int = 12) -> dict:
     core (best of three) for the direct earthshine sum and for the look-up table (built once, cached), and the
     table path's largest difference from the direct path at observable samples, as a fraction
     of the total (the direct path's own error is the random-sample figure above)."""
-    import copy
     import tempfile
 
     from straylight.catalog import write_catalog
-    from straylight.components import ComponentModel
-    from straylight.config import campaign_from_dict, load_campaign
+    from straylight.config import load_campaign
     from straylight.cube import compute_region
     from straylight.footprint import footprint_from_config
 
@@ -311,11 +318,7 @@ def cube_summary(catalog, time_step: int = 24, n_times: int = 12) -> dict:
         stars_path = Path(tmp) / "stars.parquet"
         write_catalog(catalog, stars_path, {})
         for method in ("direct", "lut"):
-            raw = copy.deepcopy(base.config)
-            raw["models"].setdefault("earthshine", {})["method"] = method
-            c = campaign_from_dict(raw, base.path)
-            model = ComponentModel(c, expected_samples=10**9)
-            model.earthshine_model  # the table: built or loaded before timing
+            c, model = _cube_model(base, earthshine={"method": method})
             # best of three after a warm-up (single runs of this bench varied by up to 30 %)
             res[method], dt = timed(lambda: compute_region(c, fp, t_slice, slice(None), model=model,
                                                            stars_path=stars_path))

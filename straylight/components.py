@@ -404,9 +404,10 @@ class ComponentModel:
 
     def star_influence_cos(self, stars: StarTable) -> np.ndarray:
         """Per direct star, the cosine of the angle beyond which it is skipped: there its upper
-        bound (Se = Sp = 1, the PST at its maximum over phi) stays below tolerance / 8 of the
-        darkest zodiacal light divided by the number of direct stars, in every band, so the
-        skipped stars of a line of sight add up to less than tolerance / 8 of any total.
+        bound (Se = Sp = 1, the PST at its maximum over phi) stays below the stars_skip share of
+        the tolerance (1/8) x the darkest zodiacal light divided by the number of direct stars, in
+        every band, so the skipped stars of a line of sight add up to less than that share of
+        any total.
         Cached on the star table."""
         key = (id(self), tuple(self.campaign.bands), self.tolerance)
         cache = stars.__dict__.setdefault("_influence_cache", {})

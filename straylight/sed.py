@@ -169,6 +169,11 @@ def _type_code(spectral_class: str, subtype: float) -> float:
     return 10.0 * SPECTRAL_CLASSES.index(spectral_class) + subtype
 
 
+def teff_scale(luminosity_class: str) -> str:
+    """Which published scale gives a luminosity class its Teff: "PM13" (class V) or "DJ87"."""
+    return "PM13" if luminosity_class == "V" else "DJ87"
+
+
 def teff_from_spectral_type(names) -> np.ndarray:
     """Teff (K) of templates from their spectral type and luminosity class.
 
@@ -186,7 +191,7 @@ def teff_from_spectral_type(names) -> np.ndarray:
     for i, name in enumerate(names):
         cls, sub, lc = parse_spectral_type(name)
         code = _type_code(cls, sub)
-        if lc == "V":
+        if teff_scale(lc) == "PM13":
             if codes[0] <= code <= codes[-1]:
                 out[i] = np.interp(code, codes, teffs)
         elif not (cls == "M" and sub > DEJAGER_LATEST_M_SUBTYPE):

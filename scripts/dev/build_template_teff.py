@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from astropy.io import fits
 
-from straylight.sed import PICKLES_FILE, PICKLES_TEFF_FILE, teff_from_spectral_type
+from straylight.sed import PICKLES_FILE, PICKLES_TEFF_FILE, teff_from_spectral_type, teff_scale
 
 HEADER = """\
 # Teff of the embedded Pickles (1998) templates from their spectral type and luminosity class.
@@ -32,7 +32,7 @@ def main() -> None:
     teff = teff_from_spectral_type(names)
     rows = []
     for n, lc, t in zip(names, lcs, teff):
-        src = "" if not np.isfinite(t) else ("PM13" if lc == "V" else "DJ87")
+        src = teff_scale(lc) if np.isfinite(t) else ""
         rows.append(f"{n},{'' if not np.isfinite(t) else f'{t:.0f}'},{src}")
     PICKLES_TEFF_FILE.write_text(HEADER + "\n".join(rows) + "\n")
     print(f"{PICKLES_TEFF_FILE}: {len(rows)} templates, {int(np.isnan(teff).sum())} without Teff")
