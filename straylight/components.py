@@ -143,15 +143,28 @@ class ComponentModel:
         moon_at_earth_unit = {name: self.photometry(name).solar_like_from_v(v_moon_at_earth) * eclipse
                               for name in bands}
         zodi = {name: self.zodiacal.e_per_s_per_pix(self.band(name), b500) for name in bands}
-        es_coeff = self._earthshine_coefficients(sat, sun, moon, frame, door, shape, moon_at_earth_unit, zodi)
+        sun_irr = {name: self.photometry(name).sun_at_1au_photons_s_m2 * (1.495978707e8 / d_sun) ** 2
+                   for name in bands}
         aperture_d = self.campaign.instrument_value("telescope", "aperture_diameter_m")
         pix_arcsec = self.campaign.instrument_value("detector", "pixel_scale_arcsec")
         out = {}
         # band-independent transfer (e-/s/pix per photons s-1 m-2): Se * Sp * PST * pixel area
         t_sun = off.point_source(1.0, geometry["sun_angle_deg"], geometry["sun_phi_deg"],
                                  geometry["sun_earth_blocked"], door)  # never skipped on a bound
+        es_coeff = self._earthshine_coefficients(sat, sun, moon, frame, door, shape)
+        # The terms computed so far (never skipped) are a lower bound of each sample's total: the
+        # skippable terms below are held to their shares of the tolerance times it, so a term
+        # that matters only against the darkest sky is still summed there, and skipped where the
+        # Sun or the sunlit Earth already outshines it (the scene does not need it).
+        floor = {name: self._floor(zodi[name] + (t_sun + es_coeff["direct_sun"] + es_coeff["door_sun"]) * sun_irr[name]
+                                   + (es_coeff["direct_moon"] + es_coeff["door_moon"]) * moon_at_earth_unit[name],
+                                   name, shape) for name in bands}
+        if self.earthshine_model["lut"] is not None:
+            self._add_moonlit_earthshine(es_coeff, sat, sun, moon, frame, door, shape, moon_at_earth_unit, floor)
+        # the floor in units of the darkest zodiacal light, worst band: what the skip radii scale with
+        floor_ratio = np.min([floor[name] / self.darkest_zodiacal_e_per_s(name) for name in bands], axis=0)
         t_moon = self._skippable_transfer(v_moon, geometry["moon_angle_deg"], geometry["moon_phi_deg"],
-                                          geometry["moon_earth_blocked"], door, bands)
+                                          geometry["moon_earth_blocked"], door, bands, floor_ratio)
         planet_terms = []  # (V magnitude, transfer) per planet
         for p in PLANETS:
             if f"{p}_angle_deg" not in geometry:
@@ -159,8 +172,8 @@ class ComponentModel:
             # a cube time step shares one scene: the planet's magnitude once, not per line of sight
             v = planet_v_magnitude(p, *(shared_vectors(bodies_km[p], sun, sat) or (bodies_km[p], sun, sat)))
             planet_terms.append((v, self._skippable_transfer(v, geometry[f"{p}_angle_deg"], geometry[f"{p}_phi_deg"],
-                                                             geometry[f"{p}_earth_blocked"], door, bands)))
-        star_t = (self._star_transfer(stars, frame, sat, door)
+                                                             geometry[f"{p}_earth_blocked"], door, bands, floor_ratio)))
+        star_t = (self._star_transfer(stars, frame, sat, door, floor_ratio)
                   if stars is not None and len(stars.ra_deg) else None)  # once for all bands
         faint = faint_rates
         if faint is None and stars is not None and len(stars.faint_ra_deg):
@@ -170,8 +183,7 @@ class ComponentModel:
             phot = self.photometry(name)
             res = {}
             res["zodiacal"] = np.broadcast_to(zodi[name], shape)
-            sun_irr = phot.sun_at_1au_photons_s_m2 * (1.495978707e8 / d_sun) ** 2
-            res["sun"] = t_sun * sun_irr
+            res["sun"] = t_sun * sun_irr[name]
             res["moon"] = t_moon * phot.solar_like_from_v(v_moon) * eclipse
             planets = np.zeros(shape)
             for v, t in planet_terms:
@@ -183,8 +195,8 @@ class ComponentModel:
             if faint is not None and name in faint:
                 res["stars"] = res["stars"] + faint[name]
             moon_irr_earth = moon_at_earth_unit[name]
-            ea1 = es_coeff["direct_sun"] * sun_irr + es_coeff["direct_moon"] * moon_irr_earth
-            ea2 = es_coeff["door_sun"] * sun_irr + es_coeff["door_moon"] * moon_irr_earth
+            ea1 = es_coeff["direct_sun"] * sun_irr[name] + es_coeff["direct_moon"] * moon_irr_earth
+            ea2 = es_coeff["door_sun"] * sun_irr[name] + es_coeff["door_moon"] * moon_irr_earth
             res["earthshine_direct"], res["earthshine_door"] = np.broadcast_to(ea1, shape), np.broadcast_to(ea2, shape)
             res["earthshine"] = res["earthshine_direct"] + res["earthshine_door"]
             res = {k: np.asarray(v, dtype=float) for k, v in res.items()}
@@ -224,19 +236,27 @@ class ComponentModel:
                                for b in bands)
         return cache[bands]
 
-    def _skippable_transfer(self, v_mag, angle_deg, phi_deg, earth_blocked, door, bands):
+    def _floor(self, partial_total, band: str, shape) -> np.ndarray:
+        """A lower bound of the samples' total in ``band`` (e-/s/pix): the terms computed before
+        the skippable ones, never below the darkest zodiacal light (nor NaN)."""
+        return np.fmax(np.broadcast_to(np.asarray(partial_total, float), shape),
+                       self.darkest_zodiacal_e_per_s(band))
+
+    def _skippable_transfer(self, v_mag, angle_deg, phi_deg, earth_blocked, door, bands, floor_ratio=1.0):
         """The band-independent transfer (as OffFieldModel.point_source with E = 1) of the Moon or
         a planet, a solar-spectrum source of V magnitude ``v_mag``, skipped (0) where its upper
         bound (the PST at its maximum over phi from the source's angle out, Se = Sp = 1) stays
-        below 1/9 of the moon_and_planets_skip share (tolerance / 72) of the darkest zodiacal
-        light in every band, so the Moon and the eight planets together stay within it (a
-        new Moon far from the line of sight is skipped, a bright one never)."""
+        below 1/9 of the moon_and_planets_skip share (tolerance / 72) of the sample's floor in
+        every band, so the Moon and the eight planets together stay within it.  The floor is
+        ``floor_ratio`` (>= 1, per sample) times the darkest zodiacal light: a lower bound of the
+        total (:meth:`evaluate`).  A new Moon far from the line of sight is skipped, a bright one
+        only where the Sun or the sunlit Earth outshines it by ~10^4."""
         off = self.offfield
         # e-/s/pix at PST = 1 relative to the darkest zodiacal light, worst band (solar spectrum)
         rel = off.pixel_area_m2 * 10.0 ** (-0.4 * (np.asarray(v_mag, float) - V_SUN_VEGA)) \
             / self.solar_floor(tuple(bands))
         per_source = ERROR_BUDGET_SHARES["moon_and_planets_skip"] / (1 + len(PLANETS))  # the Moon and each planet
-        radius = off.pst.influence_radius_deg(per_source * self.tolerance / rel)
+        radius = off.pst.influence_radius_deg(per_source * self.tolerance * np.asarray(floor_ratio, float) / rel)
         far = (np.asarray(angle_deg) >= radius) & (radius < 180.0)  # 180: nowhere skippable
         # a skipped source is treated as hidden: point_source then looks nothing up for it
         return off.point_source(1.0, angle_deg, phi_deg, np.asarray(earth_blocked, bool) | far, door)
@@ -304,15 +324,19 @@ class ComponentModel:
         es["door_blocks"], es["aperture_points_door"] = list(s.door_blocks), s.n_aperture_door
         shares, lut_runs = ERROR_BUDGET_SHARES, es["method"] == "lut"
         return {"tolerance": self.tolerance, "earthshine": es, "pst": self.offfield.pst.source,
-                "moonlit_earthshine": (f"skipped where its bound < {self.moonlit_skip_share:g} x tolerance x zodiacal "
-                                       f"light, else summed directly on grid {list(self.moonlit_grid)}")
+                "skip_floor": ("each sample's zodiacal light + Sun + sunlit Earth + moonlit Earth in the field "
+                               "(a lower bound of its total; never below the darkest zodiacal light)"),
+                "moonlit_earthshine": (f"skipped where its bound < {self.moonlit_skip_share:g} x tolerance x the "
+                                       f"sample's floor, else summed directly on grid {list(self.moonlit_grid)}")
                                       if lut_runs else "summed directly",
                 "earthshine_near_limb": ("indicative only within the dark-limb angle of the limb and below it "
                                          "(never observable; no Earth grid converges there)"),
                 "stars": {"direct_mag_limit": float(sc.get("offfield_mag_limit", 2.0)),
                           "faint_map": bool(sc.get("faint_map", True)),
                           "direct_skipped": (f"pairs beyond each star's influence radius, together < "
-                                             f"{shares['stars_skip']:g} x tolerance x the darkest zodiacal light")},
+                                             f"{shares['stars_skip']:g} x tolerance x the sample's floor")},
+                "moon_and_planets_skipped": (f"where the bound of each is < {shares['moon_and_planets_skip']:g} / "
+                                             f"{1 + len(PLANETS)} x tolerance x the sample's floor"),
                 "error_budget": {"earthshine_lut_validated": es.get("lut_validation_max_rel_error") if lut_runs else 0.0,
                                  "moonlit_earthshine_skip_max": self.moonlit_skip_share * self.tolerance if lut_runs else 0.0,
                                  "moonlit_earthshine_grid_share": shares["moonlit_earthshine_grid"] * self.tolerance
@@ -322,44 +346,58 @@ class ComponentModel:
                                  "see": "bench/results/summary.json for the whole model against the converged "
                                         "reference, knobs.json moonlit_grid for the moonlit grid's measured error"}}
 
-    def _earthshine_coefficients(self, sat, sun, moon, frame, door, shape, moon_at_earth_unit: dict,
-                                 zodi: dict) -> dict:
+    def _earthshine_coefficients(self, sat, sun, moon, frame, door, shape) -> dict:
         """Earthshine coefficients (see OffFieldModel.earthshine_coefficients) by the model that
-        runs.  With the table, the moonlit Earth is skipped where its bound, times the Moon's
-        irradiance, is below ``moonlit_skip_share`` x the tolerance x the zodiacal light in every
-        band, and summed directly on the coarse ``moonlit_grid`` elsewhere."""
+        runs.  The direct sum gives every term; the table gives the sunlit Earth, and of the
+        moonlit Earth only the part inside the field (the rest: :meth:`_add_moonlit_earthshine`)."""
         off, re_km = self.offfield, self.campaign.earth.radius_km
         lut = self.earthshine_model["lut"]
         if lut is None:
             return off.earthshine_coefficients(sat, sun, moon, frame, door, re_km)
         full = shape + (3,)
         sat_b, sun_b, moon_b = (np.broadcast_to(np.asarray(v, float), full) for v in (sat, sun, moon))
-        los_b = np.broadcast_to(frame.z, full)
-        door_b = np.broadcast_to(np.asarray(door, float), shape)
-        d_sun, g_sun = lut.sun_coefficients(sat_b, sun_b, los_b, door_b)
+        d_sun, g_sun = lut.sun_coefficients(sat_b, sun_b, np.broadcast_to(frame.z, full),
+                                            np.broadcast_to(np.asarray(door, float), shape))
         ones = np.ones(shape)
-        out = {"direct_sun": d_sun + off.earth_in_field(sat_b, sun_b, moon_b, frame, ones, 0 * ones, re_km),
-               "door_sun": g_sun,
-               "direct_moon": off.earth_in_field(sat_b, sun_b, moon_b, frame, 0 * ones, ones, re_km),
-               "door_moon": np.zeros(shape)}
+        return {"direct_sun": d_sun + off.earth_in_field(sat_b, sun_b, moon_b, frame, ones, 0 * ones, re_km),
+                "door_sun": g_sun,
+                "direct_moon": off.earth_in_field(sat_b, sun_b, moon_b, frame, 0 * ones, ones, re_km),
+                "door_moon": np.zeros(shape)}
+
+    def _add_moonlit_earthshine(self, es_coeff: dict, sat, sun, moon, frame, door, shape, moon_at_earth_unit: dict,
+                                floor: dict) -> None:
+        """On the table's path, add the moonlit Earth outside the field to ``es_coeff`` (in place):
+        skipped where its bound, times the Moon's irradiance, is below ``moonlit_skip_share`` x
+        the tolerance x the sample's floor (a lower bound of its total, :meth:`evaluate`) in every
+        band, and summed directly on the coarse ``moonlit_grid`` elsewhere."""
+        from .geometry import TelescopeFrame
+
+        off, re_km = self.offfield, self.campaign.earth.radius_km
+        lut = self.earthshine_model["lut"]
+        full = shape + (3,)
+        sat_b, sun_b, moon_b = (np.broadcast_to(np.asarray(v, float), full) for v in (sat, sun, moon))
+        los_b = np.broadcast_to(frame.z, full)
         bound = lut.moon_bound(sat_b, moon_b, los_b, re_km)
+        # within 1 deg of the limb and below it the table has no bound: there the whole cap, fully
+        # lit, at the PST's largest value outside the field
+        bound = np.where(np.isfinite(bound), bound, off.earthshine_cap_bound(sat_b, re_km, self.moonlit_grid)
+                         + lut.moon_door_bound)
         need = np.zeros(shape, bool)
         for b, e_moon in moon_at_earth_unit.items():
-            need |= np.broadcast_to(bound * e_moon > self.moonlit_skip_share * self.tolerance * zodi[b], shape)
-        if np.any(need):
-            from .geometry import TelescopeFrame
-
-            # the moonlit Earth is ~1e-5 of the sunlit: a coarse grid (models.earthshine.moonlit_grid)
-            # is enough where a line of sight can be observable (>= the dark-limb angle above the
-            # limb).  Nearer the limb and below it no Earth grid converges (blocks next to the field
-            # edge meet the PST's jump), so the configured grid would cost 5x for numbers no better
-            # than indicative: the coarse grid runs there too.
-            sub = TelescopeFrame(*(np.broadcast_to(a, full)[need] for a in (frame.x, frame.y, frame.z)))
-            c = off.earthshine_coefficients(sat_b[need], sun_b[need], moon_b[need], sub, door_b[need], re_km,
-                                            in_field=False, sun=False, grid=self.moonlit_grid)
-            out["direct_moon"][need] += c["direct_moon"]
-            out["door_moon"][need] = c["door_moon"]
-        return out
+            need |= np.broadcast_to(bound * e_moon > self.moonlit_skip_share * self.tolerance * floor[b], shape)
+        if not np.any(need):
+            return
+        # the moonlit Earth is ~1e-5 of the sunlit: a coarse grid (models.earthshine.moonlit_grid)
+        # is enough where a line of sight can be observable (>= the dark-limb angle above the
+        # limb).  Nearer the limb and below it no Earth grid converges (blocks next to the field
+        # edge meet the PST's jump), so the configured grid would cost 5x for numbers no better
+        # than indicative: the coarse grid runs there too.
+        sub = TelescopeFrame(*(np.broadcast_to(a, full)[need] for a in (frame.x, frame.y, frame.z)))
+        c = off.earthshine_coefficients(sat_b[need], sun_b[need], moon_b[need], sub,
+                                        np.broadcast_to(np.asarray(door, float), shape)[need], re_km,
+                                        in_field=False, sun=False, grid=self.moonlit_grid)
+        es_coeff["direct_moon"][need] += c["direct_moon"]
+        es_coeff["door_moon"][need] = c["door_moon"]
 
     @cached_property
     def _pst_azimuthal_table(self):
@@ -402,13 +440,17 @@ class ComponentModel:
         cache[key] = res
         return res
 
+    #: the star skip's floor levels, in units of the darkest zodiacal light: a sample's floor
+    #: is rounded down to one of them, so the per-star radii are computed once per level
+    STAR_FLOOR_LEVELS = 4.0 ** np.arange(12)
+
     def star_influence_cos(self, stars: StarTable) -> np.ndarray:
-        """Per direct star, the cosine of the angle beyond which it is skipped: there its upper
-        bound (Se = Sp = 1, the PST at its maximum over phi) stays below the stars_skip share of
-        the tolerance (1/8) x the darkest zodiacal light divided by the number of direct stars, in
-        every band, so the skipped stars of a line of sight add up to less than that share of
-        any total.
-        Cached on the star table."""
+        """Per floor level (:attr:`STAR_FLOOR_LEVELS`) and direct star, (L, S), the cosine of the
+        angle beyond which the star is skipped: there its upper bound (Se = Sp = 1, the PST at its
+        maximum over phi) stays below the stars_skip share of the tolerance (1/8) x the level x
+        the darkest zodiacal light divided by the number of direct stars, in every band, so the
+        skipped stars of a line of sight add up to less than that share of its floor (a lower
+        bound of its total, :meth:`evaluate`).  Cached on the star table."""
         key = (id(self), tuple(self.campaign.bands), self.tolerance)
         cache = stars.__dict__.setdefault("_influence_cache", {})
         if key not in cache:
@@ -421,23 +463,28 @@ class ComponentModel:
                     rel = np.maximum(rel, e / self.darkest_zodiacal_e_per_s(b))
             with np.errstate(divide="ignore"):
                 limit = np.where(rel > 0, ERROR_BUDGET_SHARES["stars_skip"] * self.tolerance / n / rel, np.inf)
-            radius = self.offfield.pst.influence_radius_deg(limit)
+            radius = self.offfield.pst.influence_radius_deg(self.STAR_FLOOR_LEVELS[:, None] * limit)
             cache[key] = np.where(radius >= 180.0, -2.0, np.cos(np.radians(radius)))  # 180: every pair
         return cache[key]
 
-    def _star_transfer(self, stars: StarTable, frame, sat, door, batch: int = 1024):
+    def _star_transfer(self, stars: StarTable, frame, sat, door, floor_ratio=1.0, batch: int = 1024):
         """Band-independent transfer of every off-field catalog star, E = 1 photon s-1 m-2:
         Se * Sp * PST * pixel factor, zero for stars inside the field (those scatter and make
-        ghosts instead), shape (..., S).  Only pairs within the star's influence radius
-        (:meth:`star_influence_cos`; most pairs are outside it) that are neither behind the Earth
+        ghosts instead), shape (..., S).  Only pairs within the star's influence radius at the
+        sample's floor (``floor_ratio`` >= 1 times the darkest zodiacal light, per sample;
+        :meth:`star_influence_cos`; most pairs are outside it) that are neither behind the Earth
         nor in the field get the PST and door look-ups; when every sample shares one satellite
         position (a cube time step) the Earth test runs once per star.  Samples in batches to
         bound memory."""
         s_all = stars.unit  # (S, 3)
-        near_cos = self.star_influence_cos(stars)
+        near_cos = self.star_influence_cos(stars)  # (L, S)
         shape = np.broadcast_shapes(np.shape(frame.z)[:-1], np.shape(door), np.shape(sat)[:-1])
         fz, fx, fy = (np.broadcast_to(a, shape + (3,)).reshape(-1, 3) for a in (frame.z, frame.x, frame.y))
         op = np.broadcast_to(np.asarray(door, float), shape).ravel()
+        # each sample's floor level: rounded down, so its radii are never too small
+        level = np.searchsorted(self.STAR_FLOOR_LEVELS, np.broadcast_to(np.asarray(floor_ratio, float), shape).ravel(),
+                                side="right") - 1
+        level = np.clip(level, 0, self.STAR_FLOOR_LEVELS.size - 1)
         re_km = self.campaign.earth.radius_km
         one = shared_vectors(sat)
         if one is not None:
@@ -448,7 +495,7 @@ class ComponentModel:
         for start in range(0, op.size, batch):
             sl = slice(start, start + batch)
             cz = fz[sl] @ s_all.T
-            r, k = np.nonzero(cz > near_cos)
+            r, k = np.nonzero(cz > near_cos[level[sl]])
             if one is not None:
                 seen = ~star_blocked[k]
             else:

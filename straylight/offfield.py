@@ -267,6 +267,24 @@ class OffFieldModel:
         return np.sum(s.albedo / np.pi * mu * pst_max * (theta > self.field_radius_deg) * d_omega,
                       axis=(-2, -1)) * self.pixel_area_m2
 
+    def earthshine_cap_bound(self, sat_km, earth_radius_km, grid: tuple[int, int]) -> np.ndarray:
+        """Upper bound of the direct coefficient (outside the field) that the sum on an Earth-cap
+        ``grid`` (n_gamma, n_psi) gives for any line of sight, lamp and roll: the whole cap
+        fully lit (cos z = 1), at the PST's largest value outside the field, Sp = 1, times the
+        grid's own solid angle (so the bound holds for the sum, not only for the integral)."""
+        s = replace(self.earthshine, n_gamma=int(grid[0]), n_psi=int(grid[1]))
+        sat = np.asarray(sat_km, float)
+        one = shared_vectors(sat)
+        _, d_omega, _ = self._cap_grid(one[0] if one is not None else sat, earth_radius_km, s)
+        cap_sr = np.sum(d_omega, axis=(-2, -1))
+        # the PST beyond the field: its largest node from the field's edge out (the interpolant
+        # is bounded by its cell's corners, so the node before the edge is included)
+        th = self.pst.theta_deg
+        first = max(int(np.searchsorted(th, self.field_radius_deg, side="right")) - 1, 0)
+        pst_max = float(self.pst.values[first:].max())
+        bound = self.earthshine.albedo / np.pi * pst_max * cap_sr * self.pixel_area_m2
+        return np.broadcast_to(bound, sat.shape[:-1])
+
     def earthshine_coefficients(self, sat_km, sun_km, moon_km, frame, opening_deg, earth_radius_km,
                                 in_field: bool = True, moon: bool = True, sun: bool = True,
                                 grid: tuple[int, int] | None = None) -> dict:

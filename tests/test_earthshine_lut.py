@@ -99,6 +99,31 @@ def test_moonlit_bound_holds(coarse):
     assert np.all(co["direct_moon"][fin] + co["door_moon"][fin] <= bound[fin])
 
 
+def test_cap_bound_holds_for_any_line_of_sight(coarse):
+    """Within 1 deg of the limb and below it the table gives no moonlit bound; there the whole
+    cap fully lit at the PST's largest value outside the field (OffFieldModel.earthshine_cap_bound)
+    must bound the coarse grid's sum: 1500 random samples, a third of them aimed into the Earth."""
+    c, cm, info = coarse
+    sc, los, g = random_samples(c, 1500, seed=8)
+    sat, sun, moon = sc.satellite_km, sc.bodies_km["sun"], sc.bodies_km["moon"]
+    rng = np.random.default_rng(3)
+    into = rng.random(len(los)) < 1 / 3  # towards a random point of the visible cap
+    nadir = -sat / np.linalg.norm(sat, axis=1, keepdims=True)
+    tilt = np.cross(nadir, rng.normal(size=sat.shape))
+    tilt /= np.linalg.norm(tilt, axis=1, keepdims=True)
+    a = np.radians(rng.uniform(0.0, 69.0, len(los)))[:, None]
+    los = np.where(into[:, None], np.cos(a) * nadir + np.sin(a) * tilt, los)
+    frame = telescope_frame(los, sun - sat)
+    door = c.constraints.door_opening_deg(np.degrees(np.arccos(np.clip(
+        np.sum(los * (sun - sat), axis=1) / np.linalg.norm(sun - sat, axis=1), -1, 1))))
+    co = cm.offfield.earthshine_coefficients(sat, sun, moon, frame, door, c.earth.radius_km, in_field=False,
+                                             sun=False, grid=cm.moonlit_grid)
+    bound = cm.offfield.earthshine_cap_bound(sat, c.earth.radius_km, cm.moonlit_grid) + info["lut"].moon_door_bound
+    assert np.all(np.isfinite(bound)) and into.sum() > 400
+    assert np.all(co["direct_moon"] + co["door_moon"] <= bound)
+    assert np.max((co["direct_moon"] + co["door_moon"]) / bound) > 1e-3  # a bound, not a wild one
+
+
 def test_moonlit_earth_stays_within_its_share_of_the_tolerance(campaign):
     """On the table path the moonlit Earth is skipped on its bound or summed on the coarse
     default grid; together they must stay within their two shares of the tolerance (1/8 + 1/8)
