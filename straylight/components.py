@@ -309,10 +309,47 @@ class ComponentModel:
         return {"method": "lut", "lut": lut, "reason": f"{method}: {self.expected_samples} samples", **info}
 
     @cached_property
+    def moonlit_model(self) -> dict:
+        """How the moonlit Earth is summed where its bound does not let it be skipped, on the
+        table's path (models.earthshine.moonlit_method): 'lut', its own look-up table over (Moon
+        zenith, line-of-sight zenith, azimuth from the Moon, roll) of the coarse grid's sum,
+        when its validated error (full Moon at perigee, a fraction of the total) is within the
+        moonlit grid's share of the tolerance, else (or with 'direct') the coarse grid's direct
+        sum.  Keys: method, lut, and for the table its file, validated error and steps."""
+        import logging
+
+        from .earthshine_lut import MoonlitSettings, load_or_build_moonlit
+        from .offfield import MOON_PERIGEE_KM
+
+        es = self.campaign.config["models"].get("earthshine", {})
+        if es.get("moonlit_method", "lut") == "direct":
+            return {"method": "direct", "lut": None, "reason": "models.earthshine.moonlit_method = direct"}
+        cfg = es.get("moonlit_lut", {})
+        settings = MoonlitSettings(*(float(cfg.get(k, d)) for k, d in (
+            ("moon_zenith_step_deg", 5.0), ("los_zenith_step_deg", 4.0), ("azimuth_step_deg", 10.0),
+            ("roll_step_deg", 15.0))))
+        # the brightest Moon (full, at perigee) per unit solar irradiance at 1 AU
+        moon_max = float(10.0 ** (-0.4 * (moon_v_magnitude(0.0, MOON_PERIGEE_KM, self.offfield.moon_law, 180.0)
+                                          - V_SUN_VEGA)))
+        k = self.campaign.constraints
+        lut, path = load_or_build_moonlit(self.offfield, self.campaign.earth.radius_km,
+                                          self.campaign.orbit_radius_range_km, settings, self.moonlit_grid,
+                                          self.earthshine_floor, moon_max, k.dark_limb_min_deg,
+                                          logging.getLogger("straylight"), self.build_workers)
+        info = {"lut_file": path.name, "lut_validation_max_rel_error": lut.validation_max_rel_error,
+                "lut_steps_deg": [settings.moon_zenith_step_deg, settings.los_zenith_step_deg,
+                                  settings.azimuth_step_deg, settings.roll_step_deg]}
+        share = ERROR_BUDGET_SHARES["moonlit_earthshine_grid"]
+        if not lut.validation_max_rel_error <= share * self.tolerance:
+            return {"method": "direct", "lut": None, **info,
+                    "reason": f"table error {lut.validation_max_rel_error:.2g} > {share:g} x the tolerance"}
+        return {"method": "lut", "lut": lut, **info}
+
+    @cached_property
     def moonlit_grid(self) -> tuple[int, int]:
         """models.earthshine.moonlit_grid: (n_gamma, n_psi) of the moonlit Earth's direct sum on
         the table's path, away from the limb."""
-        return tuple(int(n) for n in self.campaign.config["models"].get("earthshine", {}).get("moonlit_grid", (6, 12)))
+        return tuple(int(n) for n in self.campaign.config["models"].get("earthshine", {}).get("moonlit_grid", (8, 16)))
 
     def models_record(self) -> dict:
         """Which models ran and their error budget, for a product's attributes (JSON-able)."""
@@ -327,7 +364,12 @@ class ComponentModel:
                 "skip_floor": ("each sample's zodiacal light + Sun + sunlit Earth + moonlit Earth in the field "
                                "(a lower bound of its total; never below the darkest zodiacal light)"),
                 "moonlit_earthshine": (f"skipped where its bound < {self.moonlit_skip_share:g} x tolerance x the "
-                                       f"sample's floor, else summed directly on grid {list(self.moonlit_grid)}")
+                                       f"sample's floor, else "
+                                       + (f"from its table of the grid {list(self.moonlit_grid)} sum (steps "
+                                          f"{self.moonlit_model['lut_steps_deg']} deg, validated "
+                                          f"{self.moonlit_model['lut_validation_max_rel_error']:.2g} of the total "
+                                          f"at full Moon)" if self.moonlit_model["method"] == "lut" else
+                                          f"summed directly on grid {list(self.moonlit_grid)}"))
                                       if lut_runs else "summed directly",
                 "earthshine_near_limb": ("indicative only within the dark-limb angle of the limb and below it "
                                          "(never observable; no Earth grid converges there)"),
@@ -341,6 +383,8 @@ class ComponentModel:
                                  "moonlit_earthshine_skip_max": self.moonlit_skip_share * self.tolerance if lut_runs else 0.0,
                                  "moonlit_earthshine_grid_share": shares["moonlit_earthshine_grid"] * self.tolerance
                                  if lut_runs else 0.0,
+                                 "moonlit_earthshine_lut_validated": self.moonlit_model["lut_validation_max_rel_error"]
+                                 if lut_runs and self.moonlit_model["method"] == "lut" else 0.0,
                                  "stars_skip_max": shares["stars_skip"] * self.tolerance,
                                  "moon_and_planets_skip_max": shares["moon_and_planets_skip"] * self.tolerance,
                                  "see": "bench/results/summary.json for the whole model against the converged "
@@ -393,11 +437,16 @@ class ComponentModel:
         # edge meet the PST's jump), so the configured grid would cost 5x for numbers no better
         # than indicative: the coarse grid runs there too.
         sub = TelescopeFrame(*(np.broadcast_to(a, full)[need] for a in (frame.x, frame.y, frame.z)))
-        c = off.earthshine_coefficients(sat_b[need], sun_b[need], moon_b[need], sub,
-                                        np.broadcast_to(np.asarray(door, float), shape)[need], re_km,
-                                        in_field=False, sun=False, grid=self.moonlit_grid)
-        es_coeff["direct_moon"][need] += c["direct_moon"]
-        es_coeff["door_moon"][need] = c["door_moon"]
+        door_need = np.broadcast_to(np.asarray(door, float), shape)[need]
+        mlut = self.moonlit_model["lut"]
+        if mlut is not None:  # the coarse grid's sum, tabulated
+            direct_moon, door_moon = mlut.coefficients(sat_b[need], moon_b[need], sub, door_need)
+        else:
+            c = off.earthshine_coefficients(sat_b[need], sun_b[need], moon_b[need], sub, door_need, re_km,
+                                            in_field=False, sun=False, grid=self.moonlit_grid)
+            direct_moon, door_moon = c["direct_moon"], c["door_moon"]
+        es_coeff["direct_moon"][need] += direct_moon
+        es_coeff["door_moon"][need] = door_moon
 
     @cached_property
     def _pst_azimuthal_table(self):

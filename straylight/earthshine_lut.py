@@ -383,10 +383,268 @@ def load_or_build(off, earth_radius_km, radius_range_km, settings: LUTSettings, 
 def lut_key(off, earth_radius_km, radius_range_km, settings: LUTSettings, floor: float = 0.0,
             avoidance_deg: tuple = (30.0, 80.0, 50.0)) -> str:
     """Digest of everything the table depends on (PST, door, cap grid, albedo, radii, nodes)."""
-    h = hashlib.sha256(f"format {LUT_FORMAT}".encode())
+    return _digest(f"format {LUT_FORMAT}", off,
+                   (round(earth_radius_km, 6), tuple(round(r, 3) for r in radius_range_km), settings,
+                    f"{floor:.6g}", tuple(float(a) for a in avoidance_deg)))
+
+
+def _digest(prefix: str, off, items: tuple) -> str:
+    """16 hex digits of sha256 over ``prefix``, the PST, the door and Earth settings, and ``items``."""
+    h = hashlib.sha256(prefix.encode())
     h.update(np.ascontiguousarray(off.pst.values).tobytes())
     h.update(np.ascontiguousarray(off.pst.theta_deg).tobytes() + np.ascontiguousarray(off.pst.phi_deg).tobytes())
-    h.update(repr((off.door, off.door_states_deg, off.pixel_area_m2, off.field_radius_deg, off.earthshine,
-                   round(earth_radius_km, 6), tuple(round(r, 3) for r in radius_range_km), settings,
-                   f"{floor:.6g}", tuple(float(a) for a in avoidance_deg))).encode())
+    h.update(repr((off.door, off.door_states_deg, off.pixel_area_m2, off.field_radius_deg, off.earthshine)
+                  + items).encode())
     return h.hexdigest()[:16]
+
+
+# -- the moonlit Earth --------------------------------------------------------------------------
+#: bumped whenever the moonlit table's content or layout changes: part of its cache key
+MOONLIT_FORMAT = 1
+#: the Moon's distance the moonlit table is built at (its mean, km); the validation draws the
+#: real range (perigee to apogee), so the parallax this ignores is inside the validated error
+MOON_BUILD_DISTANCE_KM = 384400.0
+MOON_DISTANCE_RANGE_KM = (356400.0, 406700.0)  # perigee and apogee extremes (Meeus 1998, ch. 50)
+
+
+@dataclass(frozen=True)
+class MoonlitSettings:
+    """Node spacing (deg) of the moonlit Earth's table.  Its coefficients depend on one angle
+    more than the sunlit Earth's: the telescope's roll is set by the Sun, not by the lamp, so
+    the table runs over the Moon's zenith angle at the satellite, the line of sight's zenith
+    angle, its azimuth from the Moon's about the vertical, and the roll (the angle about the
+    line of sight from its upward vertical to the telescope's +x axis).  Measured against the
+    coarse grid's own sum at full Moon: 5/4/10/15 deg 2.7e-4 of the darkest sky, 10/6/15/30 deg
+    1.1e-3 (scratch study, README)."""
+
+    moon_zenith_step_deg: float = 5.0
+    los_zenith_step_deg: float = 4.0
+    azimuth_step_deg: float = 10.0
+    roll_step_deg: float = 15.0
+
+    def __post_init__(self):
+        for k in ("moon_zenith_step_deg", "los_zenith_step_deg", "azimuth_step_deg", "roll_step_deg"):
+            v = getattr(self, k)
+            if not 0.5 <= v <= 45.0:
+                raise InputError(f"models.earthshine.moonlit_lut.{k} = {v}: must be within [0.5, 45] deg")
+
+    def nodes(self, radius_km: float, earth_radius_km: float, symmetric: bool):
+        """(Moon zenith, line-of-sight zenith, azimuth, roll) node arrays, deg.  Beyond the cap's
+        edge plus one step the Moon lights none of the visible cap (one node at 180)."""
+        cap = np.degrees(np.arccos(earth_radius_km / radius_km))
+
+        def steps(a, b, h):
+            n = max(int(np.ceil((b - a) / h - 1e-9)), 1)
+            return np.linspace(a, b, n + 1)
+
+        hz, hl = self.moon_zenith_step_deg, self.los_zenith_step_deg
+        zm = np.unique(np.r_[steps(0.0, min(90.0 + cap + hz, 180.0), hz), 180.0])
+        limb = 90.0 + cap
+        zl = np.unique(np.r_[steps(0.0, limb, hl), steps(limb, 180.0, 2.5 * hl)])
+        az = steps(0.0, 180.0 if symmetric else 360.0, self.azimuth_step_deg)
+        roll = steps(0.0, 360.0, self.roll_step_deg)
+        return zm, zl, az, roll
+
+
+def _moonlit_scene(R, D, Zm, L, A, P):
+    """Satellite and Moon (km) and the telescope frame in the local frame (vertical +x, the Moon
+    in the x-y plane): radius R, Moon distance D (km), Moon zenith Zm, line-of-sight zenith L,
+    azimuth A and roll P (rad)."""
+    from .geometry import TelescopeFrame
+
+    sat = np.stack([R, 0 * R, 0 * R], axis=-1)
+    moon = D[..., None] * np.stack([np.cos(Zm), np.sin(Zm), 0 * Zm], axis=-1)
+    los = np.stack([np.cos(L), np.sin(L) * np.cos(A), np.sin(L) * np.sin(A)], axis=-1)
+    up_ref = np.stack([np.sin(L), -np.cos(L) * np.cos(A), -np.cos(L) * np.sin(A)], axis=-1)  # upward, in the vertical plane
+    x = np.cos(P)[..., None] * up_ref + np.sin(P)[..., None] * np.cross(los, up_ref)
+    return sat, moon, TelescopeFrame(x=x, y=np.cross(los, x), z=los)
+
+
+def _moon_coefficients_direct(off, R, D, Zm, L, A, P, state, earth_radius_km, grid, batch):
+    """(direct_moon, door_moon) of the moonlit Earth on the Earth-cap ``grid``, per unit lunar
+    irradiance at the Earth, for scenes in the local frame (rad, km), one door state; samples
+    sharing (R, D, Zm) share one cap grid."""
+    from .geometry import TelescopeFrame
+
+    d_out, g_out = np.empty(R.size), np.empty(R.size)
+    groups = {}
+    for i, key in enumerate(zip(R.tolist(), D.tolist(), Zm.tolist())):
+        groups.setdefault(key, []).append(i)
+    for idx in groups.values():
+        idx = np.asarray(idx)
+        for j in range(0, idx.size, batch):
+            sl = idx[j:j + batch]
+            sat, moon, frame = _moonlit_scene(R[sl], D[sl], Zm[sl], L[sl], A[sl], P[sl])
+            c = off.earthshine_coefficients(sat, moon, moon, TelescopeFrame(frame.x, frame.y, frame.z),
+                                            np.full(sl.size, state), earth_radius_km, in_field=False, sun=False,
+                                            grid=grid)
+            d_out[sl], g_out[sl] = c["direct_moon"], c["door_moon"]
+    return d_out, g_out
+
+
+@dataclass
+class MoonlitLUT:
+    """The moonlit Earth's coefficients (direct and via the door, per unit lunar irradiance at
+    the Earth, outside the field) on the coarse Earth-cap ``grid`` the direct path sums
+    (models.earthshine.moonlit_grid), tabulated over (Moon zenith, line-of-sight zenith,
+    azimuth from the Moon, roll) per door state and interpolated linearly in asinh(c / scale).
+    The satellite's radius and the Moon's distance are fixed at the orbit's mean and the
+    Moon's mean; the validation draws both over their ranges."""
+
+    moon_zenith_deg: np.ndarray
+    los_zenith_deg: np.ndarray
+    azimuth_deg: np.ndarray
+    roll_deg: np.ndarray
+    direct: dict  # door state -> (Zm, L, A, P)
+    door: dict
+    symmetric: bool
+    scale: float
+    grid: tuple
+    validation_max_rel_error: float = float("nan")
+    build_seconds: float = float("nan")
+
+    @classmethod
+    def build(cls, off, earth_radius_km: float, radius_range_km: tuple[float, float],
+              settings: MoonlitSettings = MoonlitSettings(), grid: tuple[int, int] = (8, 16),
+              floor: float = 0.0, moon_max: float = 0.0, dark_limb_min_deg: float = 30.0, batch: int = 4096,
+              n_validation: int = 400, workers: int = 1) -> "MoonlitLUT":
+        """Tabulate, then validate at ``n_validation`` random points whose line of sight is at
+        least ``dark_limb_min_deg`` above the limb (any Moon, roll, radius in the orbit's range
+        and Moon distance from perigee to apogee): the largest |table - direct| x moon_max /
+        (direct x moon_max + floor), with ``moon_max`` the brightest lunar irradiance (full Moon
+        at perigee) and ``floor`` the darkest sky, both per unit solar irradiance at 1 AU: an
+        error as a fraction of the total, at full Moon (a pessimistic one)."""
+        import time
+
+        t_start = time.perf_counter()
+        symmetric = _mirror_symmetric(off)
+        r0 = 0.5 * (radius_range_km[0] + radius_range_km[1])
+        zm, zl, az, roll = settings.nodes(float(radius_range_km[0]), earth_radius_km, symmetric)
+        Zm, L, A, P = (v.ravel() for v in np.meshgrid(*(np.radians(v) for v in (zm, zl, az, roll)), indexing="ij"))
+        R, D = np.full(Zm.size, r0), np.full(Zm.size, MOON_BUILD_DISTANCE_KM)
+        per_zm = zl.size * az.size * roll.size  # nodes of one Moon zenith are contiguous: one scene
+        parts = [slice(g[0] * per_zm, (g[-1] + 1) * per_zm)
+                 for g in np.array_split(np.arange(zm.size), max(4 * workers, 1)) if g.size]
+        tasks = [(off, R[p], D[p], Zm[p], L[p], A[p], P[p], state, earth_radius_km, tuple(grid), batch)
+                 for state in off.door_states_deg for p in parts]
+        results = iter(_map(_moon_coefficients_direct, tasks, workers))
+        shape = (zm.size, zl.size, az.size, roll.size)
+        direct, door = {}, {}
+        for state in off.door_states_deg:
+            d_out, g_out = np.empty(Zm.size), np.empty(Zm.size)
+            for p in parts:
+                d_out[p], g_out[p] = next(results)
+            direct[state], door[state] = d_out.reshape(shape), g_out.reshape(shape)
+        positive = np.concatenate([v[v > 0] for v in list(direct.values()) + list(door.values())])
+        scale = float(np.percentile(positive, 1)) if positive.size else 1e-30
+        lut = cls(zm, zl, az, roll, direct, door, symmetric, scale, tuple(int(g) for g in grid))
+        rng = np.random.default_rng(20261122)
+        n = n_validation
+        limb = 90.0 + np.degrees(np.arccos(earth_radius_km / radius_range_km[0]))
+        vr = rng.uniform(radius_range_km[0], radius_range_km[1], n)
+        vd = rng.uniform(*MOON_DISTANCE_RANGE_KM, n)
+        vz, vl = np.radians(rng.uniform(0.0, 180.0, n)), np.radians(rng.uniform(0.0, max(limb - dark_limb_min_deg, 1.0), n))
+        va, vp = np.radians(rng.uniform(0.0, 360.0, n)), np.radians(rng.uniform(0.0, 360.0, n))
+        sat_v, moon_v, frame_v = _moonlit_scene(vr, vd, vz, vl, va, vp)
+        errs = []
+        for state in off.door_states_deg:
+            d_ref, g_ref = _moon_coefficients_direct(off, vr, vd, vz, vl, va, vp, state, earth_radius_km, grid, batch)
+            d_t, g_t = lut.coefficients(sat_v, moon_v, frame_v, np.full(n, state))
+            errs.append(np.abs((d_t + g_t) - (d_ref + g_ref)) * moon_max / ((d_ref + g_ref) * moon_max + floor))
+        lut.validation_max_rel_error = float(np.max(errs)) if floor > 0 else float("nan")
+        lut.build_seconds = time.perf_counter() - t_start
+        return lut
+
+    def _interpolators(self):
+        if not hasattr(self, "_interp"):
+            axes = (self.moon_zenith_deg, self.los_zenith_deg, self.azimuth_deg, self.roll_deg)
+            self._interp = {s: (LinearGrid(axes, np.arcsinh(self.direct[s] / self.scale)),
+                                LinearGrid(axes, np.arcsinh(self.door[s] / self.scale))) for s in self.direct}
+        return self._interp
+
+    def coordinates(self, sat_km, moon_km, frame):
+        """(Moon zenith, line-of-sight zenith, azimuth from the Moon, roll) of samples, deg."""
+        from .geometry import perpendicular_towards
+
+        up = unit(np.asarray(sat_km, float))
+        m = unit(np.asarray(moon_km, float))  # geocentric, as the table's Moon
+        los = np.asarray(frame.z, float)
+        z_moon = np.degrees(np.arccos(np.clip(dot(up, m), -1.0, 1.0)))
+        zeta = np.degrees(np.arccos(np.clip(dot(up, los), -1.0, 1.0)))
+        m_h = m - dot(m, up)[..., None] * up
+        l_h = los - dot(los, up)[..., None] * up
+        a = np.degrees(np.arctan2(dot(np.cross(m_h, l_h), up), dot(m_h, l_h)))
+        up_ref = perpendicular_towards(los, up)  # upward in the line of sight's vertical plane
+        roll = np.degrees(np.arctan2(dot(np.cross(up_ref, frame.x), los), dot(up_ref, frame.x)))
+        if self.symmetric:  # the mirror image about the Moon's vertical plane: (A, roll) -> (-A, -roll)
+            roll = np.where(a < 0, -roll, roll)
+            a = np.abs(a)
+        else:
+            a = np.mod(a, 360.0)
+        return z_moon, zeta, a, np.mod(roll, 360.0)
+
+    def coefficients(self, sat_km, moon_km, frame, opening_deg):
+        """(direct_moon, door_moon) per unit lunar irradiance at the Earth, outside the field."""
+        zm, zeta, a, roll = self.coordinates(sat_km, moon_km, frame)
+        shape = zm.shape
+        pts = [v.ravel() for v in (zm, zeta, a, roll)]
+        op = np.broadcast_to(np.asarray(opening_deg, float), shape).ravel()
+        states = sorted(self.direct)
+        direct, door = np.zeros(op.size), np.zeros(op.size)
+        for st, (f_direct, f_door) in self._interpolators().items():
+            sel = (op == st) | ((op <= 0) & (st == states[0]))  # no allowed state: the narrowest
+            if np.any(sel):
+                direct[sel] = self.scale * np.sinh(f_direct(*(v[sel] for v in pts)))
+                door[sel] = self.scale * np.sinh(f_door(*(v[sel] for v in pts)))
+        return np.maximum(direct, 0.0).reshape(shape), np.maximum(door, 0.0).reshape(shape)
+
+    def save(self, path) -> None:
+        p = Path(path)
+        tmp = p.with_name(f"{p.stem}.{os.getpid()}.partial.npz")
+        arrays = {"moon_zenith_deg": self.moon_zenith_deg, "los_zenith_deg": self.los_zenith_deg,
+                  "azimuth_deg": self.azimuth_deg, "roll_deg": self.roll_deg}
+        for s in self.direct:
+            arrays[f"direct_{s:g}"] = self.direct[s]
+            arrays[f"door_{s:g}"] = self.door[s]
+        meta = {"states": [float(s) for s in self.direct], "symmetric": self.symmetric, "scale": self.scale,
+                "grid": list(self.grid), "validation_max_rel_error": self.validation_max_rel_error,
+                "build_seconds": self.build_seconds}
+        np.savez(tmp, meta=np.array(json.dumps(meta)), **arrays)
+        tmp.replace(p)
+
+    @classmethod
+    def load(cls, path) -> "MoonlitLUT":
+        try:
+            z = np.load(path, allow_pickle=False)
+            meta = json.loads(str(z["meta"]))
+            states = meta["states"]
+            return cls(z["moon_zenith_deg"], z["los_zenith_deg"], z["azimuth_deg"], z["roll_deg"],
+                       {s: z[f"direct_{s:g}"] for s in states}, {s: z[f"door_{s:g}"] for s in states},
+                       bool(meta["symmetric"]), float(meta["scale"]), tuple(meta["grid"]),
+                       float(meta["validation_max_rel_error"]), float(meta["build_seconds"]))
+        except (OSError, KeyError, ValueError) as exc:
+            raise InputError(f"{path}: not a valid moonlit-Earth look-up table ({exc}); delete it to rebuild") from exc
+
+
+def moonlit_key(off, earth_radius_km, radius_range_km, settings: MoonlitSettings, grid, floor: float,
+                moon_max: float, dark_limb_min_deg: float) -> str:
+    """Digest of everything the moonlit table depends on."""
+    return _digest(f"moonlit format {MOONLIT_FORMAT}", off,
+                   (round(earth_radius_km, 6), tuple(round(r, 3) for r in radius_range_km), settings,
+                    tuple(int(g) for g in grid), f"{floor:.6g}", f"{moon_max:.6g}", float(dark_limb_min_deg)))
+
+
+def load_or_build_moonlit(off, earth_radius_km, radius_range_km, settings: MoonlitSettings, grid, floor: float,
+                          moon_max: float, dark_limb_min_deg: float = 30.0, log=None, workers: int = 1):
+    """The moonlit table for these inputs from the cache, built and stored there if missing."""
+    key = moonlit_key(off, earth_radius_km, radius_range_km, settings, grid, floor, moon_max, dark_limb_min_deg)
+    path = cache_dir() / f"moonlit_lut_{key}.npz"
+    if path.exists():
+        return MoonlitLUT.load(path), path
+    if log is not None:
+        log.info("building the moonlit-Earth look-up table %s (once; cached in %s)", key, path.parent)
+    lut = MoonlitLUT.build(off, earth_radius_km, radius_range_km, settings, grid, floor, moon_max,
+                           dark_limb_min_deg, workers=workers)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    lut.save(path)
+    return lut, path

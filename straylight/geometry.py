@@ -200,7 +200,10 @@ class TelescopeFrame:
     def theta_phi_deg(self, direction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Off-axis angle theta in [0, 180] and azimuth phi in [0, 360) of a direction, deg."""
         d = np.asarray(direction, dtype=float)
-        dx, dy, dz = dot(d, self.x), dot(d, self.y), dot(d, self.z)
+        if d.ndim == 1:  # one direction for every frame (a body seen from a cube time step)
+            dx, dy, dz = self.x @ d, self.y @ d, self.z @ d
+        else:
+            dx, dy, dz = dot(d, self.x), dot(d, self.y), dot(d, self.z)
         theta = np.degrees(np.arctan2(np.hypot(dx, dy), dz))
         phi = np.degrees(np.arctan2(dy, dx))
         phi = np.where(phi < 0.0, phi + 360.0, phi)
@@ -298,6 +301,17 @@ def moon_phase(sun_km: np.ndarray, moon_km: np.ndarray, observer_km: np.ndarray)
     return alpha, fraction, elongation
 
 
+def _single_row(v) -> np.ndarray | None:
+    """The 3-vector when every row of ``v`` (..., 3), of two rows or more, is the same, else None."""
+    v = np.asarray(v, float)
+    if v.ndim < 2:
+        return None
+    flat = v.reshape(-1, 3)
+    if flat.shape[0] < 2 or np.any(flat != flat[0]):
+        return None
+    return flat[0].copy()
+
+
 def observing_geometry(
     satellite_km: np.ndarray,
     bodies_km: dict[str, np.ndarray],
@@ -328,12 +342,18 @@ def observing_geometry(
     frame = telescope_frame(los, sun_dir)
     limb = limb_geometry(sat, frame.z, sun, earth_radius_km)
     out: dict[str, np.ndarray] = {}
+    sat_one = _single_row(sat)
     for name, pos in bodies_km.items():
-        d = pos - sat
+        one = _single_row(pos) if sat_one is not None else None
+        # a cube time step shares the satellite and the bodies: each body's direction once
+        d = pos - sat if one is None else one - sat_one
         theta, phi = frame.theta_phi_deg(unit(d))
+        if theta.shape != frame.z.shape[:-1]:
+            theta, phi = np.broadcast_arrays(theta, phi, frame.z[..., 0])[:2]
         out[f"{name}_angle_deg"] = theta  # = off-axis angle theta in the telescope frame
         out[f"{name}_phi_deg"] = phi
-        out[f"{name}_earth_blocked"] = earth_blocks(sat, d, earth_radius_km) & np.ones(theta.shape, bool)
+        out[f"{name}_earth_blocked"] = earth_blocks(sat if one is None else sat_one, d, earth_radius_km) \
+            & np.ones(theta.shape, bool)
     alpha, fraction, elongation = moon_phase(sun, moon, sat)
     shape = out["sun_angle_deg"].shape
     out["moon_phase_angle_deg"] = np.broadcast_to(alpha, shape)

@@ -48,6 +48,8 @@ from .zodiacal import solar_spectrum
 AU_KM = 1.495978707e8
 V_SUN_VEGA = -26.76
 MOON_MEAN_DISTANCE_KM = 384400.0
+#: the Moon's nearest perigee in 2000-2100, km (~356,400; Meeus 1998, ch. 50): the brightest Moon
+MOON_PERIGEE_KM = 356400.0
 SATURN_POLE_RA_DEC_DEG = (40.589, 83.537)  # IAU WGCCRE 2015 (Archinal et al. 2018)
 
 # Meeus (1998) ch. 41: V0 and phase coefficients (i in degrees)
