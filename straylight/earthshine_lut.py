@@ -17,9 +17,10 @@ large values, linear near zero, so the terminator interpolates without the log's
 in-field term (the line of sight hitting the Earth) is not tabulated: it is one ray per sample
 and jumps at the limb, so it is evaluated directly.
 
-The moonlit-Earth coefficients depend on the Moon's geometry as well; they are bounded instead
-(:meth:`EarthshineLUT.moon_bound`: the cap fully lit, PST at its azimuthal maximum, door fully
-open) and computed directly only where the bound exceeds the tolerance.
+The moonlit-Earth coefficients are bounded (:meth:`EarthshineLUT.moon_bound`: the cap fully lit,
+PST at its azimuthal maximum, door fully open), skipped where the bound is below their share of
+the tolerance, and elsewhere taken from a table of their own (:class:`MoonlitLUT`), which runs
+over one angle more, the telescope's roll: it is set by the Sun, not by the Moon.
 
 Validity: the Sun is taken at infinity (its direction from the satellite and from the Earth's
 centre differ by < 3e-6 rad).  Errors against the direct sum: bench/run.py (knob
