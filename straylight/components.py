@@ -325,9 +325,7 @@ class ComponentModel:
         if es.get("moonlit_method", "lut") == "direct":
             return {"method": "direct", "lut": None, "reason": "models.earthshine.moonlit_method = direct"}
         cfg = es.get("moonlit_lut", {})
-        settings = MoonlitSettings(*(float(cfg.get(k, d)) for k, d in (
-            ("moon_zenith_step_deg", 5.0), ("los_zenith_step_deg", 4.0), ("azimuth_step_deg", 10.0),
-            ("roll_step_deg", 15.0))))
+        settings = MoonlitSettings(**{k: float(v) for k, v in cfg.items()})  # keys checked by the schema
         # the brightest Moon (full, at perigee) per unit solar irradiance at 1 AU
         moon_max = float(10.0 ** (-0.4 * (moon_v_magnitude(0.0, MOON_PERIGEE_KM, self.offfield.moon_law, 180.0)
                                           - V_SUN_VEGA)))
@@ -413,7 +411,8 @@ class ComponentModel:
         """On the table's path, add the moonlit Earth outside the field to ``es_coeff`` (in place):
         skipped where its bound, times the Moon's irradiance, is below ``moonlit_skip_share`` x
         the tolerance x the sample's floor (a lower bound of its total, :meth:`evaluate`) in every
-        band, and summed directly on the coarse ``moonlit_grid`` elsewhere."""
+        band, and elsewhere the coarse ``moonlit_grid`` sum, from its table (:attr:`moonlit_model`)
+        or summed directly."""
         from .geometry import TelescopeFrame
 
         off, re_km = self.offfield, self.campaign.earth.radius_km

@@ -76,15 +76,76 @@ class LUTSettings:
         cap = np.degrees(np.arccos(earth_radius_km / radius_km))  # the cap's edge beyond nadir, = limb depression
         hs, hl, ha = self.sun_zenith_step_deg, self.los_zenith_step_deg, self.azimuth_step_deg
 
-        def steps(a, b, h):
-            n = max(int(np.ceil((b - a) / h - 1e-9)), 1)
-            return np.linspace(a, b, n + 1)
-
-        zs = np.unique(np.r_[steps(0.0, 60.0, 2.5 * hs), steps(60.0, 90.0 + cap + hs, hs), 180.0])
+        zs = np.unique(np.r_[_steps(0.0, 60.0, 2.5 * hs), _steps(60.0, 90.0 + cap + hs, hs), 180.0])
         limb = 90.0 + cap
-        zl = np.unique(np.r_[steps(0.0, limb, hl), steps(limb, 180.0, 2.5 * hl)])
-        az = steps(0.0, 180.0 if symmetric else 360.0, ha)
+        zl = np.unique(np.r_[_steps(0.0, limb, hl), _steps(limb, 180.0, 2.5 * hl)])
+        az = _steps(0.0, 180.0 if symmetric else 360.0, ha)
         return zs, zl, az
+
+
+def _steps(a: float, b: float, h: float) -> np.ndarray:
+    """Nodes from a to b (both included) at most h apart, evenly spaced."""
+    n = max(int(np.ceil((b - a) / h - 1e-9)), 1)
+    return np.linspace(a, b, n + 1)
+
+
+def _asinh_scale(direct: dict, door: dict) -> float:
+    """The tables' asinh scale: the 1st percentile of their positive values (linear below it,
+    logarithmic above)."""
+    positive = np.concatenate([v[v > 0] for v in list(direct.values()) + list(door.values())])
+    return float(np.percentile(positive, 1)) if positive.size else 1e-30
+
+
+def _per_door_state(interpolators: dict, coords, opening_deg, shape, scale: float):
+    """(direct, door) from per-door-state interpolators of asinh(c / scale) at ``coords`` (flat
+    arrays); a sample with no allowed state (opening 0) takes the narrowest; clipped at 0."""
+    op = np.broadcast_to(np.asarray(opening_deg, float), shape).ravel()
+    states = sorted(interpolators)
+    direct, door = np.zeros(op.size), np.zeros(op.size)
+    for st, (f_direct, f_door) in interpolators.items():
+        sel = (op == st) | ((op <= 0) & (st == states[0]))
+        if np.any(sel):
+            direct[sel] = scale * np.sinh(f_direct(*(c[sel] for c in coords)))
+            door[sel] = scale * np.sinh(f_door(*(c[sel] for c in coords)))
+    return np.maximum(direct, 0.0).reshape(shape), np.maximum(door, 0.0).reshape(shape)
+
+
+def _save_tables(path, axes: dict, direct: dict, door: dict, meta: dict) -> None:
+    """Axes, per-door-state tables and metadata to one .npz, atomically (concurrent builders
+    never share a temporary)."""
+    p = Path(path)
+    tmp = p.with_name(f"{p.stem}.{os.getpid()}.partial.npz")
+    arrays = dict(axes)
+    for s in direct:
+        arrays[f"direct_{s:g}"] = direct[s]
+        arrays[f"door_{s:g}"] = door[s]
+    np.savez(tmp, meta=np.array(json.dumps({"states": [float(s) for s in direct], **meta})), **arrays)
+    tmp.replace(p)
+
+
+def _load_tables(path, what: str):
+    """(arrays, metadata, direct, door) of a table :func:`_save_tables` wrote; InputError naming
+    the file when it is not one."""
+    try:
+        z = np.load(path, allow_pickle=False)
+        meta = json.loads(str(z["meta"]))
+        states = meta["states"]
+        return z, meta, {s: z[f"direct_{s:g}"] for s in states}, {s: z[f"door_{s:g}"] for s in states}
+    except (OSError, KeyError, ValueError) as exc:
+        raise InputError(f"{path}: not a valid {what} look-up table ({exc}); delete it to rebuild") from exc
+
+
+def _cached(prefix: str, key: str, what: str, load, build, log):
+    """load(path) of the cached table ``prefix_key.npz``, else build(), saved there."""
+    path = cache_dir() / f"{prefix}_{key}.npz"
+    if path.exists():
+        return load(path), path
+    if log is not None:
+        log.info("building the %s look-up table %s (once; cached in %s)", what, key, path.parent)
+    lut = build()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    lut.save(path)
+    return lut, path
 
 
 def _local_scene(R, Z, L, A):
@@ -237,8 +298,7 @@ class EarthshineLUT:
             bound[i] = vals.reshape(Zg.shape).max(axis=-1)
         moon_door = max(off.earthshine.door_reflectance * float(np.sum(w)) * off.pixel_area_m2
                         for _, _, w in off._door_weights.values()) * off.earthshine.albedo
-        positive = np.concatenate([v[v > 0] for v in list(direct.values()) + list(door.values())])
-        scale = float(np.percentile(positive, 1)) if positive.size else 1e-30
+        scale = _asinh_scale(direct, door)
         lut = cls(rr, zs, zl, az, direct, door, bound, moon_door, symmetric, scale)
         # validation at random off-node points of the observable region
         vr, vz, vl, va = _observable_points(rr, earth_radius_km, symmetric, n_validation, avoidance_deg)
@@ -293,15 +353,7 @@ class EarthshineLUT:
         if self.radius_km.size > 1:
             pts = np.concatenate([np.clip(r, self.radius_km[0], self.radius_km[-1])[..., None], pts], axis=-1)
         pts = pts.reshape(-1, pts.shape[-1])
-        op = np.broadcast_to(np.asarray(opening_deg, float), shape).ravel()
-        states = sorted(self.direct)
-        direct, door = np.zeros(op.size), np.zeros(op.size)
-        for st, (f_direct, f_door) in self._interpolators().items():
-            sel = (op == st) | ((op <= 0) & (st == states[0]))  # no allowed state: the narrowest
-            if np.any(sel):
-                direct[sel] = self.scale * np.sinh(f_direct(*pts[sel].T))
-                door[sel] = self.scale * np.sinh(f_door(*pts[sel].T))
-        return np.maximum(direct, 0.0).reshape(shape), np.maximum(door, 0.0).reshape(shape)
+        return _per_door_state(self._interpolators(), pts.T, opening_deg, shape, self.scale)
 
     def moon_bound(self, sat_km, moon_km, los, earth_radius_km: float):
         """Upper bound of direct_moon + door_moon per unit lunar irradiance at the Earth: the
@@ -328,32 +380,18 @@ class EarthshineLUT:
 
     # -- storage --------------------------------------------------------------------------------
     def save(self, path) -> None:
-        p = Path(path)
-        tmp = p.with_name(f"{p.stem}.{os.getpid()}.partial.npz")  # concurrent builders never share a temporary
-        arrays = {"radius_km": self.radius_km, "sun_zenith_deg": self.sun_zenith_deg,
-                  "los_zenith_deg": self.los_zenith_deg, "azimuth_deg": self.azimuth_deg,
-                  "moon_direct_bound": self.moon_direct_bound}
-        for s in self.direct:
-            arrays[f"direct_{s:g}"] = self.direct[s]
-            arrays[f"door_{s:g}"] = self.door[s]
-        meta = {"states": [float(s) for s in self.direct], "moon_door_bound": self.moon_door_bound,
-                "symmetric": self.symmetric, "scale": self.scale,
-                "validation_max_rel_error": self.validation_max_rel_error, "build_seconds": self.build_seconds}
-        np.savez(tmp, meta=np.array(json.dumps(meta)), **arrays)
-        tmp.replace(p)
+        _save_tables(path, {"radius_km": self.radius_km, "sun_zenith_deg": self.sun_zenith_deg,
+                            "los_zenith_deg": self.los_zenith_deg, "azimuth_deg": self.azimuth_deg,
+                            "moon_direct_bound": self.moon_direct_bound}, self.direct, self.door,
+                     {"moon_door_bound": self.moon_door_bound, "symmetric": self.symmetric, "scale": self.scale,
+                      "validation_max_rel_error": self.validation_max_rel_error, "build_seconds": self.build_seconds})
 
     @classmethod
     def load(cls, path) -> "EarthshineLUT":
-        try:
-            z = np.load(path, allow_pickle=False)
-            meta = json.loads(str(z["meta"]))
-            states = meta["states"]
-            return cls(z["radius_km"], z["sun_zenith_deg"], z["los_zenith_deg"], z["azimuth_deg"],
-                       {s: z[f"direct_{s:g}"] for s in states}, {s: z[f"door_{s:g}"] for s in states},
-                       z["moon_direct_bound"], float(meta["moon_door_bound"]), bool(meta["symmetric"]),
-                       float(meta["scale"]), float(meta["validation_max_rel_error"]), float(meta["build_seconds"]))
-        except (OSError, KeyError, ValueError) as exc:
-            raise InputError(f"{path}: not a valid earthshine look-up table ({exc}); delete it to rebuild") from exc
+        z, meta, direct, door = _load_tables(path, "earthshine")
+        return cls(z["radius_km"], z["sun_zenith_deg"], z["los_zenith_deg"], z["azimuth_deg"], direct, door,
+                   z["moon_direct_bound"], float(meta["moon_door_bound"]), bool(meta["symmetric"]),
+                   float(meta["scale"]), float(meta["validation_max_rel_error"]), float(meta["build_seconds"]))
 
 
 def cache_dir() -> Path:
@@ -369,16 +407,9 @@ def load_or_build(off, earth_radius_km, radius_range_km, settings: LUTSettings, 
     """The table for these inputs from the cache, built (by ``workers`` processes) and stored
     there if missing."""
     key = lut_key(off, earth_radius_km, radius_range_km, settings, floor, avoidance_deg)
-    path = cache_dir() / f"earthshine_lut_{key}.npz"
-    if path.exists():
-        return EarthshineLUT.load(path), path
-    if log is not None:
-        log.info("building the earthshine look-up table %s (once; cached in %s)", key, path.parent)
-    lut = EarthshineLUT.build(off, earth_radius_km, radius_range_km, settings, floor,
-                              avoidance_deg=avoidance_deg, workers=workers)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    lut.save(path)
-    return lut, path
+    return _cached("earthshine_lut", key, "earthshine", EarthshineLUT.load,
+                   lambda: EarthshineLUT.build(off, earth_radius_km, radius_range_km, settings, floor,
+                                               avoidance_deg=avoidance_deg, workers=workers), log)
 
 
 def lut_key(off, earth_radius_km, radius_range_km, settings: LUTSettings, floor: float = 0.0,
@@ -434,16 +465,12 @@ class MoonlitSettings:
         edge plus one step the Moon lights none of the visible cap (one node at 180)."""
         cap = np.degrees(np.arccos(earth_radius_km / radius_km))
 
-        def steps(a, b, h):
-            n = max(int(np.ceil((b - a) / h - 1e-9)), 1)
-            return np.linspace(a, b, n + 1)
-
         hz, hl = self.moon_zenith_step_deg, self.los_zenith_step_deg
-        zm = np.unique(np.r_[steps(0.0, min(90.0 + cap + hz, 180.0), hz), 180.0])
+        zm = np.unique(np.r_[_steps(0.0, min(90.0 + cap + hz, 180.0), hz), 180.0])
         limb = 90.0 + cap
-        zl = np.unique(np.r_[steps(0.0, limb, hl), steps(limb, 180.0, 2.5 * hl)])
-        az = steps(0.0, 180.0 if symmetric else 360.0, self.azimuth_step_deg)
-        roll = steps(0.0, 360.0, self.roll_step_deg)
+        zl = np.unique(np.r_[_steps(0.0, limb, hl), _steps(limb, 180.0, 2.5 * hl)])
+        az = _steps(0.0, 180.0 if symmetric else 360.0, self.azimuth_step_deg)
+        roll = _steps(0.0, 360.0, self.roll_step_deg)
         return zm, zl, az, roll
 
 
@@ -536,8 +563,7 @@ class MoonlitLUT:
             for p in parts:
                 d_out[p], g_out[p] = next(results)
             direct[state], door[state] = d_out.reshape(shape), g_out.reshape(shape)
-        positive = np.concatenate([v[v > 0] for v in list(direct.values()) + list(door.values())])
-        scale = float(np.percentile(positive, 1)) if positive.size else 1e-30
+        scale = _asinh_scale(direct, door)
         lut = cls(zm, zl, az, roll, direct, door, symmetric, scale, tuple(int(g) for g in grid))
         rng = np.random.default_rng(20261122)
         n = n_validation
@@ -588,43 +614,21 @@ class MoonlitLUT:
         """(direct_moon, door_moon) per unit lunar irradiance at the Earth, outside the field."""
         zm, zeta, a, roll = self.coordinates(sat_km, moon_km, frame)
         shape = zm.shape
-        pts = [v.ravel() for v in (zm, zeta, a, roll)]
-        op = np.broadcast_to(np.asarray(opening_deg, float), shape).ravel()
-        states = sorted(self.direct)
-        direct, door = np.zeros(op.size), np.zeros(op.size)
-        for st, (f_direct, f_door) in self._interpolators().items():
-            sel = (op == st) | ((op <= 0) & (st == states[0]))  # no allowed state: the narrowest
-            if np.any(sel):
-                direct[sel] = self.scale * np.sinh(f_direct(*(v[sel] for v in pts)))
-                door[sel] = self.scale * np.sinh(f_door(*(v[sel] for v in pts)))
-        return np.maximum(direct, 0.0).reshape(shape), np.maximum(door, 0.0).reshape(shape)
+        return _per_door_state(self._interpolators(), [v.ravel() for v in (zm, zeta, a, roll)], opening_deg, shape,
+                               self.scale)
 
     def save(self, path) -> None:
-        p = Path(path)
-        tmp = p.with_name(f"{p.stem}.{os.getpid()}.partial.npz")
-        arrays = {"moon_zenith_deg": self.moon_zenith_deg, "los_zenith_deg": self.los_zenith_deg,
-                  "azimuth_deg": self.azimuth_deg, "roll_deg": self.roll_deg}
-        for s in self.direct:
-            arrays[f"direct_{s:g}"] = self.direct[s]
-            arrays[f"door_{s:g}"] = self.door[s]
-        meta = {"states": [float(s) for s in self.direct], "symmetric": self.symmetric, "scale": self.scale,
-                "grid": list(self.grid), "validation_max_rel_error": self.validation_max_rel_error,
-                "build_seconds": self.build_seconds}
-        np.savez(tmp, meta=np.array(json.dumps(meta)), **arrays)
-        tmp.replace(p)
+        _save_tables(path, {"moon_zenith_deg": self.moon_zenith_deg, "los_zenith_deg": self.los_zenith_deg,
+                            "azimuth_deg": self.azimuth_deg, "roll_deg": self.roll_deg}, self.direct, self.door,
+                     {"symmetric": self.symmetric, "scale": self.scale, "grid": list(self.grid),
+                      "validation_max_rel_error": self.validation_max_rel_error, "build_seconds": self.build_seconds})
 
     @classmethod
     def load(cls, path) -> "MoonlitLUT":
-        try:
-            z = np.load(path, allow_pickle=False)
-            meta = json.loads(str(z["meta"]))
-            states = meta["states"]
-            return cls(z["moon_zenith_deg"], z["los_zenith_deg"], z["azimuth_deg"], z["roll_deg"],
-                       {s: z[f"direct_{s:g}"] for s in states}, {s: z[f"door_{s:g}"] for s in states},
-                       bool(meta["symmetric"]), float(meta["scale"]), tuple(meta["grid"]),
-                       float(meta["validation_max_rel_error"]), float(meta["build_seconds"]))
-        except (OSError, KeyError, ValueError) as exc:
-            raise InputError(f"{path}: not a valid moonlit-Earth look-up table ({exc}); delete it to rebuild") from exc
+        z, meta, direct, door = _load_tables(path, "moonlit-Earth")
+        return cls(z["moon_zenith_deg"], z["los_zenith_deg"], z["azimuth_deg"], z["roll_deg"], direct, door,
+                   bool(meta["symmetric"]), float(meta["scale"]), tuple(meta["grid"]),
+                   float(meta["validation_max_rel_error"]), float(meta["build_seconds"]))
 
 
 def moonlit_key(off, earth_radius_km, radius_range_km, settings: MoonlitSettings, grid, floor: float,
@@ -639,13 +643,6 @@ def load_or_build_moonlit(off, earth_radius_km, radius_range_km, settings: Moonl
                           moon_max: float, dark_limb_min_deg: float = 30.0, log=None, workers: int = 1):
     """The moonlit table for these inputs from the cache, built and stored there if missing."""
     key = moonlit_key(off, earth_radius_km, radius_range_km, settings, grid, floor, moon_max, dark_limb_min_deg)
-    path = cache_dir() / f"moonlit_lut_{key}.npz"
-    if path.exists():
-        return MoonlitLUT.load(path), path
-    if log is not None:
-        log.info("building the moonlit-Earth look-up table %s (once; cached in %s)", key, path.parent)
-    lut = MoonlitLUT.build(off, earth_radius_km, radius_range_km, settings, grid, floor, moon_max,
-                           dark_limb_min_deg, workers=workers)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    lut.save(path)
-    return lut, path
+    return _cached("moonlit_lut", key, "moonlit-Earth", MoonlitLUT.load,
+                   lambda: MoonlitLUT.build(off, earth_radius_km, radius_range_km, settings, grid, floor, moon_max,
+                                            dark_limb_min_deg, workers=workers), log)
