@@ -17,9 +17,9 @@ from .bandpass import load_band
 from .config import Campaign
 from .door import door_from_instrument
 from .ephemeris import PLANETS
-from .geometry import earth_blocks, norm, telescope_frame, unit
+from .geometry import earth_blocks, norm, shared_vectors, telescope_frame, unit
 from .offfield import (V_SUN_VEGA, BandPhotometry, EarthshineSettings, OffFieldModel, magnitude_per_arcsec2,
-                       moon_v_magnitude, planet_v_magnitude, shared_vectors)
+                       moon_v_magnitude, planet_v_magnitude)
 from .pst import load_pst
 from .zodiacal import zodiacal_model_from_instrument
 

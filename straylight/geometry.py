@@ -301,15 +301,19 @@ def moon_phase(sun_km: np.ndarray, moon_km: np.ndarray, observer_km: np.ndarray)
     return alpha, fraction, elongation
 
 
-def _single_row(v) -> np.ndarray | None:
-    """The 3-vector when every row of ``v`` (..., 3), of two rows or more, is the same, else None."""
-    v = np.asarray(v, float)
-    if v.ndim < 2:
+def shared_vectors(*vectors_km):
+    """The 3-vectors as single vectors when every sample shares each of them (a survey cube's
+    time step shares the satellite, Sun and Moon), else None (also for a single sample)."""
+    vs = [np.asarray(v, float) for v in vectors_km]
+    if vs[0].ndim < 2 or vs[0].reshape(-1, 3).shape[0] < 2:
         return None
-    flat = v.reshape(-1, 3)
-    if flat.shape[0] < 2 or np.any(flat != flat[0]):
-        return None
-    return flat[0].copy()
+    firsts = []
+    for v in vs:
+        flat = v.reshape(-1, 3)
+        if np.any(flat != flat[0]):
+            return None
+        firsts.append(flat[0].copy())
+    return tuple(firsts)
 
 
 def observing_geometry(
@@ -342,17 +346,16 @@ def observing_geometry(
     frame = telescope_frame(los, sun_dir)
     limb = limb_geometry(sat, frame.z, sun, earth_radius_km)
     out: dict[str, np.ndarray] = {}
-    sat_one = _single_row(sat)
     for name, pos in bodies_km.items():
-        one = _single_row(pos) if sat_one is not None else None
         # a cube time step shares the satellite and the bodies: each body's direction once
-        d = pos - sat if one is None else one - sat_one
+        one = shared_vectors(sat, pos)
+        d = pos - sat if one is None else one[1] - one[0]
         theta, phi = frame.theta_phi_deg(unit(d))
         if theta.shape != frame.z.shape[:-1]:
             theta, phi = np.broadcast_arrays(theta, phi, frame.z[..., 0])[:2]
         out[f"{name}_angle_deg"] = theta  # = off-axis angle theta in the telescope frame
         out[f"{name}_phi_deg"] = phi
-        out[f"{name}_earth_blocked"] = earth_blocks(sat if one is None else sat_one, d, earth_radius_km) \
+        out[f"{name}_earth_blocked"] = earth_blocks(sat if one is None else one[0], d, earth_radius_km) \
             & np.ones(theta.shape, bool)
     alpha, fraction, elongation = moon_phase(sun, moon, sat)
     shape = out["sun_angle_deg"].shape

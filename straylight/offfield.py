@@ -41,7 +41,7 @@ import numpy as np
 from .bandpass import Band
 from .door import Door, DoorTable
 from .errors import ConfigError
-from .geometry import dot, norm, perpendicular_towards, unit
+from .geometry import dot, norm, perpendicular_towards, shared_vectors, unit
 from .pst import PST
 from .zodiacal import solar_spectrum
 
@@ -399,21 +399,6 @@ class OffFieldModel:
         c = self.earthshine_coefficients(sat_km, sun_km, moon_km, frame, opening_deg, earth_radius_km)
         return (c["direct_sun"] * sun_irr + c["direct_moon"] * moon_irr_at_earth,
                 c["door_sun"] * sun_irr + c["door_moon"] * moon_irr_at_earth)
-
-
-def shared_vectors(*vectors_km):
-    """The 3-vectors as single vectors when every sample shares each of them (a survey cube's
-    time step shares the satellite, Sun and Moon), else None (also for a single sample)."""
-    vs = [np.asarray(v, float) for v in vectors_km]
-    if vs[0].ndim < 2 or vs[0].reshape(-1, 3).shape[0] < 2:
-        return None
-    firsts = []
-    for v in vs:
-        flat = v.reshape(-1, 3)
-        if np.any(flat != flat[0]):
-            return None
-        firsts.append(flat[0].copy())
-    return tuple(firsts)
 
 
 def magnitude_per_arcsec2(e_per_s_per_pix, band: Band, aperture_diameter_m: float, pixel_scale_arcsec: float):
