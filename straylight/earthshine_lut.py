@@ -97,17 +97,18 @@ def _asinh_scale(direct: dict, door: dict) -> float:
 
 
 def _per_door_state(interpolators: dict, coords, opening_deg, shape, scale: float):
-    """(direct, door) from per-door-state interpolators of asinh(c / scale) at ``coords`` (flat
-    arrays); a sample with no allowed state (opening 0) takes the narrowest; clipped at 0."""
+    """(direct, door) from per-door-state interpolators of asinh(c / scale), two channels, at
+    ``coords`` (flat arrays); a sample with no allowed state (opening 0) takes the narrowest;
+    clipped at 0."""
     op = np.broadcast_to(np.asarray(opening_deg, float), shape).ravel()
     states = sorted(interpolators)
-    direct, door = np.zeros(op.size), np.zeros(op.size)
-    for st, (f_direct, f_door) in interpolators.items():
+    both = np.zeros((op.size, 2))
+    for st, f in interpolators.items():
         sel = (op == st) | ((op <= 0) & (st == states[0]))
         if np.any(sel):
-            direct[sel] = scale * np.sinh(f_direct(*(c[sel] for c in coords)))
-            door[sel] = scale * np.sinh(f_door(*(c[sel] for c in coords)))
-    return np.maximum(direct, 0.0).reshape(shape), np.maximum(door, 0.0).reshape(shape)
+            both[sel] = scale * np.sinh(f(*(c[sel] for c in coords)))
+    both = np.maximum(both, 0.0)
+    return both[:, 0].reshape(shape), both[:, 1].reshape(shape)
 
 
 def _save_tables(path, axes: dict, direct: dict, door: dict, meta: dict) -> None:
@@ -319,13 +320,13 @@ class EarthshineLUT:
             if self.radius_km.size > 1:
                 axes = (self.radius_km,) + axes
 
-            def make(v):
-                v = np.arcsinh(v / self.scale)
+            def make(state):  # direct and door as two channels of one grid: located once
+                v = np.arcsinh(np.stack([self.direct[state], self.door[state]], axis=-1) / self.scale)
                 if self.radius_km.size == 1:
                     v = v[0]
                 return LinearGrid(axes, v)  # the axes span every coordinate's whole range
 
-            self._interp = {s: (make(self.direct[s]), make(self.door[s])) for s in self.direct}
+            self._interp = {s: make(s) for s in self.direct}
         return self._interp
 
     def coordinates(self, sat_km, sun_km, los):
@@ -585,8 +586,8 @@ class MoonlitLUT:
     def _interpolators(self):
         if not hasattr(self, "_interp"):
             axes = (self.moon_zenith_deg, self.los_zenith_deg, self.azimuth_deg, self.roll_deg)
-            self._interp = {s: (LinearGrid(axes, np.arcsinh(self.direct[s] / self.scale)),
-                                LinearGrid(axes, np.arcsinh(self.door[s] / self.scale))) for s in self.direct}
+            self._interp = {s: LinearGrid(axes, np.arcsinh(np.stack([self.direct[s], self.door[s]], axis=-1)
+                                                           / self.scale)) for s in self.direct}
         return self._interp
 
     def coordinates(self, sat_km, moon_km, frame):

@@ -46,15 +46,21 @@ class _Axis:
 
 class LinearGrid:
     """f(x1, ..., xn) linear in each axis between the nodes of ``axes``; ``values`` of shape
-    (len(axes[0]), ..., len(axes[-1])).  Call with n broadcastable arrays."""
+    (len(axes[0]), ..., len(axes[-1])) or with trailing dimensions (several functions on one
+    grid, e.g. a table's direct and door terms: located once, interpolated together; the result
+    then ends in those dimensions).  Call with n broadcastable arrays."""
 
     def __init__(self, axes, values):
         self.axes = [_Axis(a) for a in axes]
         self.values = np.ascontiguousarray(values, dtype=float)
-        if self.values.shape != tuple(a.nodes.size for a in self.axes):
+        n = len(self.axes)
+        if self.values.shape[:n] != tuple(a.nodes.size for a in self.axes):
             raise ValueError(f"values shape {self.values.shape} does not match the axes")
-        self._flat = self.values.ravel()
-        self._strides = [int(np.prod(self.values.shape[k + 1:])) for k in range(len(self.axes))]
+        self._trailing = self.values.shape[n:]
+        # one row per node: a channel-less grid is a flat array, else (nodes, channels)
+        self._flat = self.values.reshape(int(np.prod(self.values.shape[:n])), -1) if self._trailing \
+            else self.values.ravel()
+        self._strides = [int(np.prod(self.values.shape[k + 1:n])) for k in range(n)]
 
     def __call__(self, *coords) -> np.ndarray:
         coords = np.broadcast_arrays(*(np.asarray(c, float) for c in coords))
@@ -65,20 +71,23 @@ class LinearGrid:
             i, t = ax.locate(x)
             base += i * stride
             fracs.append(t)
-        if len(self.axes) == 2:  # the common case, unrolled
+        if len(self.axes) == 2 and not self._trailing:  # the common case (PST, door), unrolled
             s = self._strides[0]
             f, (tx, ty) = self._flat, fracs
             return ((f[base] * (1 - ty) + f[base + 1] * ty) * (1 - tx)
                     + (f[base + s] * (1 - ty) + f[base + s + 1] * ty) * tx)
+        # corner weights and offsets built axis by axis (corner bit k = the upper node of axis k)
+        weights, offsets = [None], [0]
+        for t, stride in zip(fracs, self._strides):
+            weights = [(1 - t) if w is None else w * (1 - t) for w in weights] + \
+                      [t if w is None else w * t for w in weights]
+            offsets = offsets + [o + stride for o in offsets]
+        if self._trailing:
+            out = np.zeros(shape + (self._flat.shape[1],))
+            for w, off in zip(weights, offsets):
+                out += w[..., None] * self._flat[base + off]
+            return out.reshape(shape + self._trailing)
         out = np.zeros(shape)
-        for corner in range(1 << len(self.axes)):
-            w = np.ones(shape)
-            off = 0
-            for k, t in enumerate(fracs):
-                if corner >> k & 1:
-                    w = w * t
-                    off += self._strides[k]
-                else:
-                    w = w * (1 - t)
+        for w, off in zip(weights, offsets):
             out += w * self._flat[base + off]
         return out

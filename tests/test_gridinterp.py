@@ -6,7 +6,7 @@ from scipy.interpolate import RegularGridInterpolator
 from straylight.gridinterp import LinearGrid
 
 
-@pytest.mark.parametrize("ndim", [2, 3])
+@pytest.mark.parametrize("ndim", [2, 3, 4])
 def test_matches_scipy_on_nonuniform_axes(ndim):
     rng = np.random.default_rng(1)
     # non-uniform axes with a narrow cell among wide ones (like the PST's anchor nodes)
@@ -35,3 +35,18 @@ def test_rejects_bad_axes():
         LinearGrid([np.array([0.0, 0.0, 1.0])], np.zeros(3))
     with pytest.raises(ValueError):
         LinearGrid([np.array([0.0, 1.0])], np.zeros(3))
+
+
+@pytest.mark.parametrize("ndim", [2, 4])
+def test_channels_match_scipy_per_channel(ndim):
+    """Values with a trailing dimension (the look-up tables' direct and door terms on one grid)
+    give, per channel, what scipy gives for that channel alone."""
+    rng = np.random.default_rng(2)
+    axes = [np.unique(np.r_[np.linspace(0.0, 90.0, 7), rng.uniform(0, 90, 3)]) for _ in range(ndim)]
+    values = rng.normal(size=tuple(a.size for a in axes) + (2,))
+    pts = rng.uniform(-5.0, 95.0, size=(20_000, ndim))  # some outside: clipped
+    got = LinearGrid(axes, values)(*pts.T)
+    assert got.shape == (20_000, 2)
+    for c in range(2):
+        ref = RegularGridInterpolator(axes, values[..., c], method="linear")(np.clip(pts, 0.0, 90.0))
+        assert np.max(np.abs(got[:, c] - ref)) < 1e-12
