@@ -273,7 +273,10 @@ def moonlit_grid_rows(bench, day: str = "2026-01-03", time_step: int = 24, n_tim
     skipped; error over observable samples, as a fraction of the total, of the product's
     treatment (skip on the bound plus the grid or table); seconds per sample of the whole cube
     (best of three; the table's build, once and cached, not included)."""
+    from dataclasses import astuple
+
     from straylight.cube import compute_region
+    from straylight.earthshine_lut import MoonlitSettings
     from straylight.footprint import footprint_from_config
 
     base = bench.campaign
@@ -283,8 +286,7 @@ def moonlit_grid_rows(bench, day: str = "2026-01-03", time_step: int = 24, n_tim
     def run(grid, method, steps=None, **kw):
         es = {"method": "lut", "moonlit_grid": list(grid), "moonlit_method": method}
         if steps:
-            es["moonlit_lut"] = dict(zip(("moon_zenith_step_deg", "los_zenith_step_deg", "azimuth_step_deg",
-                                          "roll_step_deg"), steps))
+            es["moonlit_lut"] = vars(MoonlitSettings(*steps))
         c, model = _cube_model(base, {"start": f"{day}T00:00:00", "end": f"{day}T23:59:59"}, es, **kw)
         model.moonlit_model  # built (or loaded) before timing
         return timed(lambda: compute_region(c, fp, t_slice, slice(None), model=model), repeats=1 if kw else 3)
@@ -300,7 +302,7 @@ def moonlit_grid_rows(bench, day: str = "2026-01-03", time_step: int = 24, n_tim
         err = float(rel[obs].max())
         cost = dt / (n_times * fp.pixels.size)
         label = f"{grid[0]} x {grid[1]} " + ("direct" if method == "direct" else
-                                             "table " + "/".join(f"{v:g}" for v in (steps or (5, 4, 10, 15))) + " deg")
+                                             "table " + "/".join(f"{v:g}" for v in (steps or astuple(MoonlitSettings()))) + " deg")
         rows.append({"setting": label, "max_rel_error": err, "seconds_per_sample": cost,
                      "samples_per_s_per_core": 1.0 / cost, "observable_samples": int(obs.sum()), "day": day})
         print(f"  {'moonlit':14s} {label:24s} error {err:9.2e}   {cost * 1e6:8.1f} us/sample (cube)")

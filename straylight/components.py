@@ -18,7 +18,7 @@ from .config import Campaign
 from .door import door_from_instrument
 from .ephemeris import PLANETS
 from .geometry import earth_blocks, norm, shared_vectors, telescope_frame, unit
-from .offfield import (V_SUN_VEGA, BandPhotometry, EarthshineSettings, OffFieldModel, magnitude_per_arcsec2,
+from .offfield import (AU_KM, V_SUN_VEGA, BandPhotometry, EarthshineSettings, OffFieldModel, magnitude_per_arcsec2,
                        moon_v_magnitude, planet_v_magnitude)
 from .pst import load_pst
 from .zodiacal import zodiacal_model_from_instrument
@@ -143,7 +143,7 @@ class ComponentModel:
         moon_at_earth_unit = {name: self.photometry(name).solar_like_from_v(v_moon_at_earth) * eclipse
                               for name in bands}
         zodi = {name: self.zodiacal.e_per_s_per_pix(self.band(name), b500) for name in bands}
-        sun_irr = {name: self.photometry(name).sun_at_1au_photons_s_m2 * (1.495978707e8 / d_sun) ** 2
+        sun_irr = {name: self.photometry(name).sun_at_1au_photons_s_m2 * (AU_KM / d_sun) ** 2
                    for name in bands}
         aperture_d = self.campaign.instrument_value("telescope", "aperture_diameter_m")
         pix_arcsec = self.campaign.instrument_value("detector", "pixel_scale_arcsec")
@@ -215,11 +215,15 @@ class ComponentModel:
 
     def darkest_zodiacal_e_per_s(self, band: str) -> float:
         """e-/s/pix of the zodiacal light at the darkest point of the Leinert (1998) table, in a
-        band: the floor of any total background (scheduling tables, error budgets)."""
+        band: the floor of any total background (scheduling tables, error budgets).  Cached per
+        band (every evaluation's skips read it)."""
         from .zodiacal import LEINERT_UNIT_W_M2_SR_UM, leinert_table
 
-        b_min = float(np.min(leinert_table().filled)) * LEINERT_UNIT_W_M2_SR_UM
-        return float(self.zodiacal.e_per_s_per_pix(self.band(band), b_min))
+        cache = self.__dict__.setdefault("_darkest_zodiacal", {})
+        if band not in cache:
+            b_min = float(np.min(leinert_table().filled)) * LEINERT_UNIT_W_M2_SR_UM
+            cache[band] = float(self.zodiacal.e_per_s_per_pix(self.band(band), b_min))
+        return cache[band]
 
     @cached_property
     def earthshine_floor(self) -> float:

@@ -39,6 +39,7 @@ import numpy as np
 from .errors import InputError
 from .geometry import dot, norm, telescope_frame, unit
 from .gridinterp import LinearGrid
+from .offfield import MOON_APOGEE_KM, MOON_MEAN_DISTANCE_KM, MOON_PERIGEE_KM
 
 AU_KM = 1.495978707e8
 #: bumped whenever the table's content or layout changes: part of the cache key
@@ -434,10 +435,6 @@ def _digest(prefix: str, off, items: tuple) -> str:
 # -- the moonlit Earth --------------------------------------------------------------------------
 #: bumped whenever the moonlit table's content or layout changes: part of its cache key
 MOONLIT_FORMAT = 1
-#: the Moon's distance the moonlit table is built at (its mean, km); the validation draws the
-#: real range (perigee to apogee), so the parallax this ignores is inside the validated error
-MOON_BUILD_DISTANCE_KM = 384400.0
-MOON_DISTANCE_RANGE_KM = (356400.0, 406700.0)  # perigee and apogee extremes (Meeus 1998, ch. 50)
 
 
 @dataclass(frozen=True)
@@ -446,9 +443,10 @@ class MoonlitSettings:
     more than the sunlit Earth's: the telescope's roll is set by the Sun, not by the lamp, so
     the table runs over the Moon's zenith angle at the satellite, the line of sight's zenith
     angle, its azimuth from the Moon's about the vertical, and the roll (the angle about the
-    line of sight from its upward vertical to the telescope's +x axis).  Measured against the
-    coarse grid's own sum at full Moon: 5/4/10/15 deg 2.7e-4 of the darkest sky, 10/6/15/30 deg
-    1.1e-3 (scratch study, README)."""
+    line of sight from its upward vertical to the telescope's +x axis).  The defaults validate
+    within 1.7e-4 of the total at full Moon (:meth:`MoonlitLUT.build`); in the cube of a
+    full-Moon day (bench/run.py moonlit_grid, 6 x 12 grid, against 48 x 96) they err by 4.2e-4,
+    10/6/15/30 deg by 6.3e-4."""
 
     moon_zenith_step_deg: float = 5.0
     los_zenith_step_deg: float = 4.0
@@ -493,8 +491,6 @@ def _moon_coefficients_direct(off, R, D, Zm, L, A, P, state, earth_radius_km, gr
     """(direct_moon, door_moon) of the moonlit Earth on the Earth-cap ``grid``, per unit lunar
     irradiance at the Earth, for scenes in the local frame (rad, km), one door state; samples
     sharing (R, D, Zm) share one cap grid."""
-    from .geometry import TelescopeFrame
-
     d_out, g_out = np.empty(R.size), np.empty(R.size)
     groups = {}
     for i, key in enumerate(zip(R.tolist(), D.tolist(), Zm.tolist())):
@@ -504,8 +500,7 @@ def _moon_coefficients_direct(off, R, D, Zm, L, A, P, state, earth_radius_km, gr
         for j in range(0, idx.size, batch):
             sl = idx[j:j + batch]
             sat, moon, frame = _moonlit_scene(R[sl], D[sl], Zm[sl], L[sl], A[sl], P[sl])
-            c = off.earthshine_coefficients(sat, moon, moon, TelescopeFrame(frame.x, frame.y, frame.z),
-                                            np.full(sl.size, state), earth_radius_km, in_field=False, sun=False,
+            c = off.earthshine_coefficients(sat, moon, moon, frame, np.full(sl.size, state), earth_radius_km, in_field=False, sun=False,
                                             grid=grid)
             d_out[sl], g_out[sl] = c["direct_moon"], c["door_moon"]
     return d_out, g_out
@@ -550,7 +545,9 @@ class MoonlitLUT:
         r0 = 0.5 * (radius_range_km[0] + radius_range_km[1])
         zm, zl, az, roll = settings.nodes(float(radius_range_km[0]), earth_radius_km, symmetric)
         Zm, L, A, P = (v.ravel() for v in np.meshgrid(*(np.radians(v) for v in (zm, zl, az, roll)), indexing="ij"))
-        R, D = np.full(Zm.size, r0), np.full(Zm.size, MOON_BUILD_DISTANCE_KM)
+        # built at the Moon's mean distance; the validation draws perigee to apogee, so the
+        # parallax this ignores is inside the validated error
+        R, D = np.full(Zm.size, r0), np.full(Zm.size, MOON_MEAN_DISTANCE_KM)
         per_zm = zl.size * az.size * roll.size  # nodes of one Moon zenith are contiguous: one scene
         parts = [slice(g[0] * per_zm, (g[-1] + 1) * per_zm)
                  for g in np.array_split(np.arange(zm.size), max(4 * workers, 1)) if g.size]
@@ -570,7 +567,7 @@ class MoonlitLUT:
         n = n_validation
         limb = 90.0 + np.degrees(np.arccos(earth_radius_km / radius_range_km[0]))
         vr = rng.uniform(radius_range_km[0], radius_range_km[1], n)
-        vd = rng.uniform(*MOON_DISTANCE_RANGE_KM, n)
+        vd = rng.uniform(MOON_PERIGEE_KM, MOON_APOGEE_KM, n)
         vz, vl = np.radians(rng.uniform(0.0, 180.0, n)), np.radians(rng.uniform(0.0, max(limb - dark_limb_min_deg, 1.0), n))
         va, vp = np.radians(rng.uniform(0.0, 360.0, n)), np.radians(rng.uniform(0.0, 360.0, n))
         sat_v, moon_v, frame_v = _moonlit_scene(vr, vd, vz, vl, va, vp)

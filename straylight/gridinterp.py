@@ -77,10 +77,9 @@ class LinearGrid:
             return ((f[base] * (1 - ty) + f[base + 1] * ty) * (1 - tx)
                     + (f[base + s] * (1 - ty) + f[base + s + 1] * ty) * tx)
         # corner weights and offsets built axis by axis (corner bit k = the upper node of axis k)
-        weights, offsets = [None], [0]
+        weights, offsets = [1.0], [0]
         for t, stride in zip(fracs, self._strides):
-            weights = [(1 - t) if w is None else w * (1 - t) for w in weights] + \
-                      [t if w is None else w * t for w in weights]
+            weights = [w * (1 - t) for w in weights] + [w * t for w in weights]
             offsets = offsets + [o + stride for o in offsets]
         if self._trailing:
             out = np.zeros(shape + (self._flat.shape[1],))

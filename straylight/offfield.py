@@ -50,6 +50,8 @@ V_SUN_VEGA = -26.76
 MOON_MEAN_DISTANCE_KM = 384400.0
 #: the Moon's nearest perigee in 2000-2100, km (~356,400; Meeus 1998, ch. 50): the brightest Moon
 MOON_PERIGEE_KM = 356400.0
+#: the Moon's farthest apogee in 2000-2100, km (~406,700; Meeus 1998, ch. 50)
+MOON_APOGEE_KM = 406700.0
 SATURN_POLE_RA_DEC_DEG = (40.589, 83.537)  # IAU WGCCRE 2015 (Archinal et al. 2018)
 
 # Meeus (1998) ch. 41: V0 and phase coefficients (i in degrees)
@@ -172,17 +174,23 @@ class OffFieldModel:
         return np.asarray(irradiance) * t * self.pixel_area_m2
 
     # -- earthshine -------------------------------------------------------------------------
+    @staticmethod
+    def _cap_nadir_angles(sat_km, earth_radius_km, s: EarthshineSettings):
+        """The cap grid's nadir angles gamma and their widths (rad, (..., G)): packed towards
+        the limb, where the Earth lies closest to an allowed line of sight and the terminator
+        crosses it: gamma = rho sin(pi u / 2), u uniform."""
+        rho = np.arcsin(np.clip(earth_radius_km / norm(sat_km), 0, 1))
+        u = (np.arange(s.n_gamma) + 0.5) / s.n_gamma
+        gamma = rho[..., None] * np.sin(0.5 * np.pi * u)
+        dgamma = rho[..., None] * 0.5 * np.pi * np.cos(0.5 * np.pi * u) / s.n_gamma
+        return gamma, dgamma
+
     def _cap_grid(self, sat_km, earth_radius_km, s: EarthshineSettings):
         """Block directions (..., G, P, 3), solid angles, surface points for each sample."""
         nadir = -unit(sat_km)
-        rho = np.arcsin(np.clip(earth_radius_km / norm(sat_km), 0, 1))
         e1 = perpendicular_towards(nadir, np.broadcast_to(np.array([0.0, 0.0, 1.0]), nadir.shape))
         e2 = np.cross(nadir, e1)
-        # nadir angles packed towards the limb, where the Earth lies closest to an allowed line
-        # of sight and the terminator crosses it: gamma = rho sin(pi u / 2), u uniform
-        u = (np.arange(s.n_gamma) + 0.5) / s.n_gamma
-        gamma = rho[..., None] * np.sin(0.5 * np.pi * u)  # (..., G)
-        dgamma = rho[..., None] * 0.5 * np.pi * np.cos(0.5 * np.pi * u) / s.n_gamma
+        gamma, dgamma = self._cap_nadir_angles(sat_km, earth_radius_km, s)  # (..., G)
         psi = (np.arange(s.n_psi) + 0.5) * 2 * np.pi / s.n_psi
         cg, sg = np.cos(gamma)[..., :, None, None], np.sin(gamma)[..., :, None, None]
         cp, spp = np.cos(psi)[:, None], np.sin(psi)[:, None]
@@ -276,16 +284,17 @@ class OffFieldModel:
         grid's own solid angle (so the bound holds for the sum, not only for the integral)."""
         s = replace(self.earthshine, n_gamma=int(grid[0]), n_psi=int(grid[1]))
         sat = np.asarray(sat_km, float)
-        one = shared_vectors(sat)
-        _, d_omega, _ = self._cap_grid(one[0] if one is not None else sat, earth_radius_km, s)
-        cap_sr = np.sum(d_omega, axis=(-2, -1))
-        # the PST beyond the field: its largest node from the field's edge out (the interpolant
-        # is bounded by its cell's corners, so the node before the edge is included)
+        gamma, dgamma = self._cap_nadir_angles(sat, earth_radius_km, s)
+        cap_sr = 2.0 * np.pi * np.sum(np.sin(gamma) * dgamma, axis=-1)  # the grid's sum of d_omega
+        return self.earthshine.albedo / np.pi * self._pst_max_outside_field * cap_sr * self.pixel_area_m2
+
+    @cached_property
+    def _pst_max_outside_field(self) -> float:
+        """The PST's largest node from the field's edge out (the interpolant is bounded by its
+        cell's corners, so the node before the edge is included)."""
         th = self.pst.theta_deg
         first = max(int(np.searchsorted(th, self.field_radius_deg, side="right")) - 1, 0)
-        pst_max = float(self.pst.values[first:].max())
-        bound = self.earthshine.albedo / np.pi * pst_max * cap_sr * self.pixel_area_m2
-        return np.broadcast_to(bound, sat.shape[:-1])
+        return float(self.pst.values[first:].max())
 
     def earthshine_coefficients(self, sat_km, sun_km, moon_km, frame, opening_deg, earth_radius_km,
                                 in_field: bool = True, moon: bool = True, sun: bool = True,

@@ -240,7 +240,8 @@ def test_moonlit_table_reproduces_the_coarse_sum_at_its_nodes(moonlit):
     """At a node (Moon zenith, line-of-sight zenith, azimuth, roll) the table returns the coarse
     grid's direct sum it stored, for every door state: the table's coordinates invert the
     scene it was built from (including the roll, measured from the upward vertical)."""
-    from straylight.earthshine_lut import MOON_BUILD_DISTANCE_KM, _moonlit_scene
+    from straylight.earthshine_lut import _moonlit_scene
+    from straylight.offfield import MOON_MEAN_DISTANCE_KM
 
     c, cm, lut = moonlit
     off = cm.offfield
@@ -248,7 +249,7 @@ def test_moonlit_table_reproduces_the_coarse_sum_at_its_nodes(moonlit):
     for iz, il, ia, ip in ((3, 5, 2, 4), (8, 12, 9, 17), (1, 20, 15, 11)):
         node = [np.radians([v[i]]) for v, i in ((lut.moon_zenith_deg, iz), (lut.los_zenith_deg, il),
                                                (lut.azimuth_deg, ia), (lut.roll_deg, ip))]
-        sat, moon, frame = _moonlit_scene(r, np.array([MOON_BUILD_DISTANCE_KM]), *node)
+        sat, moon, frame = _moonlit_scene(r, np.array([MOON_MEAN_DISTANCE_KM]), *node)
         for state in off.door_states_deg:
             d, g = lut.coefficients(sat, moon, frame, np.array([state]))
             ref = off.earthshine_coefficients(sat, moon, moon, frame, np.array([state]), c.earth.radius_km,

@@ -266,6 +266,21 @@ def test_moon_and_planet_skipping_stays_within_its_budget(campaign, comp_model, 
     assert np.count_nonzero(exact["g"]["planets"] > fast["g"]["planets"]) > 0  # some were skipped
 
 
+def test_skip_radius_shrinks_with_the_samples_floor(comp_model):
+    """A V = -4 planet (Venus-like) 20 deg off axis: against the darkest sky (floor ratio 1) its
+    bound exceeds its share (tolerance / 72; README: Venus counts out to ~51 deg), so the exact
+    transfer runs; where the sample's floor is 10^4 times the darkest sky (the bright limb, the
+    Sun near) the same bound is below its share and the planet is skipped (0)."""
+    off = comp_model.offfield
+    args = (-4.0, np.array([20.0]), np.array([30.0]), np.array([False]), np.array([135.0]), ["g"])
+    exact = off.point_source(1.0, *args[1:5])
+    at_darkest = comp_model._skippable_transfer(*args, floor_ratio=np.array([1.0]))
+    bright = comp_model._skippable_transfer(*args, floor_ratio=np.array([1e4]))
+    assert float(exact[0]) > 0.0
+    assert at_darkest[0] == pytest.approx(float(exact[0]), rel=1e-12)
+    assert float(bright[0]) == 0.0
+
+
 def test_new_moon_far_from_the_line_of_sight_is_skipped(campaign, comp_model, exact_model):
     """A 20-deg-old Moon (phase angle ~160 deg) 90 deg from the line of sight: its exact term is
     below its share (tolerance / 72 of the darkest zodiacal light), so the default model skips
