@@ -17,9 +17,9 @@ from .bandpass import load_band
 from .config import Campaign
 from .door import door_from_instrument
 from .ephemeris import PLANETS
-from .geometry import earth_blocks, norm, shared_vectors, telescope_frame, unit
+from .geometry import earth_blocks, norm, scene_runs, telescope_frame, unit
 from .offfield import (AU_KM, V_SUN_VEGA, BandPhotometry, EarthshineSettings, OffFieldModel, magnitude_per_arcsec2,
-                       moon_v_magnitude, planet_v_magnitude)
+                       moon_v_magnitude, planet_v_magnitude, solar_like_fraction)
 from .pst import load_pst
 from .zodiacal import zodiacal_model_from_instrument
 
@@ -140,11 +140,13 @@ class ComponentModel:
                                            geometry["moon_elongation_deg"])
         eclipse = np.where(moon_eclipsed, off.moon_eclipse_factor, 1.0)
         b500, zodi_no_data = self.zodiacal.brightness_500nm(frame.z, unit(sun - sat))  # once for all bands
-        moon_at_earth_unit = {name: self.photometry(name).solar_like_from_v(v_moon_at_earth) * eclipse
-                              for name in bands}
+        sun_at_1au = {name: self.photometry(name).sun_at_1au_photons_s_m2 for name in bands}
+        # the Moon and planets have the Sun's spectrum: one band-independent fraction of the
+        # Sun's irradiance at 1 AU, times each band's solar irradiance
+        moon_at_earth_fraction = solar_like_fraction(v_moon_at_earth) * eclipse
+        moon_at_earth_unit = {name: sun_at_1au[name] * moon_at_earth_fraction for name in bands}
         zodi = {name: self.zodiacal.e_per_s_per_pix(self.band(name), b500) for name in bands}
-        sun_irr = {name: self.photometry(name).sun_at_1au_photons_s_m2 * (AU_KM / d_sun) ** 2
-                   for name in bands}
+        sun_irr = {name: sun_at_1au[name] * (AU_KM / d_sun) ** 2 for name in bands}
         aperture_d = self.campaign.instrument_value("telescope", "aperture_diameter_m")
         pix_arcsec = self.campaign.instrument_value("detector", "pixel_scale_arcsec")
         out = {}
@@ -165,14 +167,18 @@ class ComponentModel:
         floor_ratio = np.min([floor[name] / self.darkest_zodiacal_e_per_s(name) for name in bands], axis=0)
         t_moon = self._skippable_transfer(v_moon, geometry["moon_angle_deg"], geometry["moon_phi_deg"],
                                           geometry["moon_earth_blocked"], door, bands, floor_ratio)
-        planet_terms = []  # (V magnitude, transfer) per planet
+        planets_fraction = np.zeros(shape)  # sum of transfer x fraction of the Sun at 1 AU
         for p in PLANETS:
             if f"{p}_angle_deg" not in geometry:
                 continue
-            # a cube time step shares one scene: the planet's magnitude once, not per line of sight
-            v = planet_v_magnitude(p, *(shared_vectors(bodies_km[p], sun, sat) or (bodies_km[p], sun, sat)))
-            planet_terms.append((v, self._skippable_transfer(v, geometry[f"{p}_angle_deg"], geometry[f"{p}_phi_deg"],
-                                                             geometry[f"{p}_earth_blocked"], door, bands, floor_ratio)))
+            # a cube time step shares one scene: the planet's magnitude once per step
+            runs = scene_runs(bodies_km[p], sun, sat)
+            v = planet_v_magnitude(p, bodies_km[p], sun, sat) if runs is None else \
+                runs.expand(planet_v_magnitude(p, *runs.vectors))
+            t = self._skippable_transfer(v, geometry[f"{p}_angle_deg"], geometry[f"{p}_phi_deg"],
+                                         geometry[f"{p}_earth_blocked"], door, bands, floor_ratio)
+            planets_fraction = planets_fraction + t * solar_like_fraction(v)
+        moon_fraction = t_moon * solar_like_fraction(v_moon) * eclipse
         star_t = (self._star_transfer(stars, frame, sat, door, floor_ratio)
                   if stars is not None and len(stars.ra_deg) else None)  # once for all bands
         faint = faint_rates
@@ -184,11 +190,8 @@ class ComponentModel:
             res = {}
             res["zodiacal"] = np.broadcast_to(zodi[name], shape)
             res["sun"] = t_sun * sun_irr[name]
-            res["moon"] = t_moon * phot.solar_like_from_v(v_moon) * eclipse
-            planets = np.zeros(shape)
-            for v, t in planet_terms:
-                planets = planets + t * phot.solar_like_from_v(v)
-            res["planets"] = planets
+            res["moon"] = moon_fraction * sun_at_1au[name]
+            res["planets"] = planets_fraction * sun_at_1au[name]
             res["stars"] = np.zeros(shape)
             if star_t is not None and name in stars.mag_ab:
                 res["stars"] = res["stars"] + star_t @ phot.from_ab(stars.mag_ab[name])
@@ -257,7 +260,7 @@ class ComponentModel:
         only where the Sun or the sunlit Earth outshines it by ~10^4."""
         off = self.offfield
         # e-/s/pix at PST = 1 relative to the darkest zodiacal light, worst band (solar spectrum)
-        rel = off.pixel_area_m2 * 10.0 ** (-0.4 * (np.asarray(v_mag, float) - V_SUN_VEGA)) \
+        rel = off.pixel_area_m2 * solar_like_fraction(v_mag) \
             / self.solar_floor(tuple(bands))
         per_source = ERROR_BUDGET_SHARES["moon_and_planets_skip"] / (1 + len(PLANETS))  # the Moon and each planet
         radius = off.pst.influence_radius_deg(per_source * self.tolerance * np.asarray(floor_ratio, float) / rel)
@@ -525,8 +528,8 @@ class ComponentModel:
         ghosts instead), shape (..., S).  Only pairs within the star's influence radius at the
         sample's floor (``floor_ratio`` >= 1 times the darkest zodiacal light, per sample;
         :meth:`star_influence_cos`; most pairs are outside it) that are neither behind the Earth
-        nor in the field get the PST and door look-ups; when every sample shares one satellite
-        position (a cube time step) the Earth test runs once per star.  Samples in batches to
+        nor in the field get the PST and door look-ups; where samples come in runs that share a
+        satellite position (cube time steps) the Earth test runs once per star and step.  Samples in batches to
         bound memory."""
         s_all = stars.unit  # (S, 3)
         near_cos = self.star_influence_cos(stars)  # (L, S)
@@ -538,9 +541,10 @@ class ComponentModel:
                                 side="right") - 1
         level = np.clip(level, 0, self.STAR_FLOOR_LEVELS.size - 1)
         re_km = self.campaign.earth.radius_km
-        one = shared_vectors(sat)
-        if one is not None:
-            star_blocked = earth_blocks(one[0], s_all, re_km)
+        runs = scene_runs(np.broadcast_to(np.asarray(sat, float), shape + (3,)))
+        if runs is not None:  # the Earth test once per star and time step
+            star_blocked = earth_blocks(runs.vectors[0][:, None, :], s_all[None], re_km)  # (R, S)
+            run_of = runs.index
         else:
             sat_flat = np.broadcast_to(np.asarray(sat, float), shape + (3,)).reshape(-1, 3)
         out = np.zeros((op.size, len(s_all)))
@@ -548,8 +552,8 @@ class ComponentModel:
             sl = slice(start, start + batch)
             cz = fz[sl] @ s_all.T
             r, k = np.nonzero(cz > near_cos[level[sl]])
-            if one is not None:
-                seen = ~star_blocked[k]
+            if runs is not None:
+                seen = ~star_blocked[run_of[sl][r], k]
             else:
                 seen = ~earth_blocks(sat_flat[sl][r], s_all[k], re_km)
             r, k = r[seen], k[seen]

@@ -301,19 +301,55 @@ def moon_phase(sun_km: np.ndarray, moon_km: np.ndarray, observer_km: np.ndarray)
     return alpha, fraction, elongation
 
 
-def shared_vectors(*vectors_km):
-    """The 3-vectors as single vectors when every sample shares each of them (a survey cube's
-    time step shares the satellite, Sun and Moon), else None (also for a single sample)."""
-    vs = [np.asarray(v, float) for v in vectors_km]
-    if vs[0].ndim < 2 or vs[0].reshape(-1, 3).shape[0] < 2:
+@dataclass(frozen=True)
+class SceneRuns:
+    """Samples grouped into runs of consecutive samples that share a scene (the same 3-vectors):
+    ``vectors``, each (R, 3), once per run; ``index``, (N,), each flattened sample's run;
+    ``shape``, the samples' shape."""
+
+    vectors: tuple
+    index: np.ndarray
+    shape: tuple
+
+    @property
+    def count(self) -> int:
+        return int(self.vectors[0].shape[0])
+
+    def expand(self, per_run) -> np.ndarray:
+        """Values per run, (R, ...), to values per sample, shape + (...) (read-only: one run is
+        broadcast, not copied)."""
+        per_run = np.asarray(per_run)
+        if self.count == 1:
+            return np.broadcast_to(per_run[0], self.shape + per_run.shape[1:])
+        return per_run[self.index].reshape(self.shape + per_run.shape[1:])
+
+
+def scene_runs(*vectors_km) -> SceneRuns | None:
+    """The samples' runs of shared 3-vectors: a survey cube's time step shares the satellite, the
+    Sun and the Moon, so a batch of whole steps is one run per step, and a scene quantity
+    (a body's direction, the Earth hiding a star) is computed once per run.  None where that
+    would not save work: a single sample, or more runs than half the samples."""
+    vs = np.broadcast_arrays(*(np.asarray(v, float) for v in vectors_km))
+    shape = vs[0].shape[:-1]
+    flat = [v.reshape(-1, 3) for v in vs]
+    n = flat[0].shape[0]
+    if vs[0].ndim < 2 or n < 2:
         return None
-    firsts = []
-    for v in vs:
-        flat = v.reshape(-1, 3)
-        if np.any(flat != flat[0]):
-            return None
-        firsts.append(flat[0].copy())
-    return tuple(firsts)
+    new = np.zeros(n, bool)
+    new[0] = True
+    for f in flat:
+        new[1:] |= np.any(f[1:] != f[:-1], axis=1)
+    starts = np.flatnonzero(new)
+    if starts.size > n // 2:
+        return None
+    return SceneRuns(tuple(f[starts].copy() for f in flat), np.cumsum(new) - 1, shape)
+
+
+def shared_vectors(*vectors_km):
+    """The 3-vectors as single vectors when every sample shares each of them (one scene, as a
+    survey cube's time step), else None (also for a single sample)."""
+    runs = scene_runs(*vectors_km)
+    return None if runs is None or runs.count > 1 else tuple(v[0] for v in runs.vectors)
 
 
 def observing_geometry(
@@ -347,16 +383,20 @@ def observing_geometry(
     limb = limb_geometry(sat, frame.z, sun, earth_radius_km)
     out: dict[str, np.ndarray] = {}
     for name, pos in bodies_km.items():
-        # a cube time step shares the satellite and the bodies: each body's direction once
-        one = shared_vectors(sat, pos)
-        d = pos - sat if one is None else one[1] - one[0]
-        theta, phi = frame.theta_phi_deg(unit(d))
+        # a cube time step shares the satellite and the bodies: each body's direction once per step
+        runs = scene_runs(sat, pos)
+        if runs is None:
+            d = unit(pos - sat)
+            blocked = earth_blocks(sat, d, earth_radius_km)
+        else:
+            d_run = unit(runs.vectors[1] - runs.vectors[0])
+            d, blocked = runs.expand(d_run), runs.expand(earth_blocks(runs.vectors[0], d_run, earth_radius_km))
+        theta, phi = frame.theta_phi_deg(d)
         if theta.shape != frame.z.shape[:-1]:
             theta, phi = np.broadcast_arrays(theta, phi, frame.z[..., 0])[:2]
         out[f"{name}_angle_deg"] = theta  # = off-axis angle theta in the telescope frame
         out[f"{name}_phi_deg"] = phi
-        out[f"{name}_earth_blocked"] = earth_blocks(sat if one is None else one[0], d, earth_radius_km) \
-            & np.ones(theta.shape, bool)
+        out[f"{name}_earth_blocked"] = blocked & np.ones(theta.shape, bool)
     alpha, fraction, elongation = moon_phase(sun, moon, sat)
     shape = out["sun_angle_deg"].shape
     out["moon_phase_angle_deg"] = np.broadcast_to(alpha, shape)

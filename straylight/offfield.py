@@ -96,6 +96,12 @@ def planet_v_magnitude(name: str, planet_km, sun_km, observer_km) -> np.ndarray:
     return v
 
 
+def solar_like_fraction(v_mag) -> np.ndarray:
+    """Irradiance of a source with the Sun's spectrum and V magnitude ``v_mag`` as a fraction of
+    the Sun's at 1 AU, in any band (the same spectrum, so the same fraction in every band)."""
+    return 10.0 ** (-0.4 * (np.asarray(v_mag, dtype=float) - V_SUN_VEGA))
+
+
 @dataclass
 class BandPhotometry:
     """Photon irradiances through one band for the solar-spectrum sources."""
@@ -109,7 +115,7 @@ class BandPhotometry:
 
     def solar_like_from_v(self, v_mag) -> np.ndarray:
         """Photon irradiance of a source with the Sun's spectrum and V magnitude ``v_mag``."""
-        return self.sun_at_1au_photons_s_m2 * 10.0 ** (-0.4 * (np.asarray(v_mag, dtype=float) - V_SUN_VEGA))
+        return self.sun_at_1au_photons_s_m2 * solar_like_fraction(v_mag)
 
     def from_ab(self, mag_ab) -> np.ndarray:
         return self.band.ab_zero_point_photons_s_m2 * 10.0 ** (-0.4 * np.asarray(mag_ab, dtype=float))

@@ -316,3 +316,61 @@ def test_moonlit_table_save_load_round_trip(moonlit, tmp_path):
     (tmp_path / "bad.npz").write_bytes(b"not a table")
     with pytest.raises(Exception, match="bad.npz"):
         MoonlitLUT.load(tmp_path / "bad.npz")
+
+
+def test_a_batch_of_time_steps_equals_each_step_alone(coarse):
+    """On the table's path the cube evaluates whole time steps as one flat batch, computing each
+    step's scene quantities (bodies' directions, planets' magnitudes, the Earth hiding each
+    star) once per step (geometry.scene_runs).  The batch must give what each step alone gives,
+    to float rounding: nothing may leak from one step's scene into another's."""
+    from straylight.components import split_stars
+    from straylight.geometry import observing_geometry, radec_to_unit
+    from straylight.sky import scene
+
+    c, cm, _ = coarse
+    rng = np.random.default_rng(11)
+    n_los, n_star = 150, 400
+    los = radec_to_unit(rng.uniform(0, 360, n_los), np.degrees(np.arcsin(rng.uniform(-1, 1, n_los))))
+    s_ra, s_dec = rng.uniform(0, 360, n_star), np.degrees(np.arcsin(rng.uniform(-1, 1, n_star)))
+    stars = split_stars(s_ra, s_dec, {b: rng.uniform(-1.0, 4.0, n_star) for b in c.bands}, 2.0, False)
+    sc = scene(c, ["2026-01-01T00:00:00", "2026-01-01T00:35:00", "2026-01-01T03:10:00"])
+    k = len(sc.satellite_km)
+
+    def run(sat, bodies, lines):
+        g = observing_geometry(sat, bodies, lines, c.earth.radius_km, c.constraints)
+        return g, cm.evaluate(sat, bodies, lines, g, c.bands, stars)
+
+    g_batch, batch = run(np.repeat(sc.satellite_km, n_los, axis=0),
+                         {b: np.repeat(v, n_los, axis=0) for b, v in sc.bodies_km.items()}, np.tile(los, (k, 1)))
+    checked = 0
+    for it in range(k):
+        sl = slice(it * n_los, (it + 1) * n_los)
+        g, alone = run(np.broadcast_to(sc.satellite_km[it], los.shape),
+                       {b: np.broadcast_to(v[it], los.shape) for b, v in sc.bodies_km.items()}, los)
+        for key in ("sun_angle_deg", "moon_earth_blocked", "jupiter_phi_deg", "door_opening_deg", "observable"):
+            np.testing.assert_array_equal(g_batch[key][sl], g[key])
+        for b in c.bands:
+            for comp in ("moon", "planets", "stars", "earthshine", "total"):
+                np.testing.assert_allclose(batch[b][comp][sl], alone[b][comp], rtol=1e-12, atol=0)
+                checked += int(np.count_nonzero(alone[b][comp]))
+    assert checked > 1000  # the stars and planets were summed, not all skipped
+    assert np.count_nonzero(batch["g"]["stars"]) > 50
+
+
+def test_scene_runs_group_consecutive_samples_that_share_a_scene():
+    from straylight.geometry import scene_runs, shared_vectors
+
+    a = np.repeat(np.array([[1.0, 0, 0], [0, 1.0, 0], [1.0, 0, 0]]), 4, axis=0)  # 3 runs; the third repeats the first
+    b = np.repeat(np.array([[0, 0, 1.0], [0, 0, 1.0], [0, 0, 2.0]]), 4, axis=0)
+    runs = scene_runs(a, b)
+    assert runs.count == 3 and runs.index.tolist() == [0] * 4 + [1] * 4 + [2] * 4
+    np.testing.assert_array_equal(runs.expand(runs.vectors[0]), a)
+    np.testing.assert_array_equal(runs.expand(np.arange(3.0)).reshape(3, 4), np.repeat(np.arange(3.0)[:, None], 4, 1))
+    b2 = b.copy()
+    b2[5, 2] = 3.0  # one sample differs: a run of its own, and the next sample starts another
+    assert scene_runs(a, b2).count == 5
+    assert scene_runs(a[:1], b[:1]) is None  # a single sample
+    assert scene_runs(np.eye(3), np.eye(3)) is None  # every sample its own scene: no saving
+    one = np.broadcast_to([7.0, 0, 0], (5, 3))
+    assert shared_vectors(one)[0].tolist() == [7.0, 0, 0] and shared_vectors(a) is None
+    assert scene_runs(one).expand(np.array([[1.0, 2.0]])).shape == (5, 2)  # one run: broadcast
