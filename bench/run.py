@@ -311,8 +311,9 @@ def moonlit_grid_rows(bench, day: str = "2026-01-03", time_step: int = 24, n_tim
 
 def cube_summary(catalog, time_step: int = 24, n_times: int = 12) -> dict:
     """The survey cube's access pattern: every footprint pixel of the default campaign at
-    ``n_times`` times spread over its day, one time step per evaluation (as compute_region runs
-    it, the Earth cap gridded once per time step), stars included.  Seconds per sample on one
+    ``n_times`` times spread over its day, as compute_region runs it (the direct path one time
+    step per evaluation, the Earth cap gridded once per step; the table path whole steps as one
+    batch, cube.SAMPLES_PER_EVALUATION), stars included.  Seconds per sample on one
     core (best of three) for the direct earthshine sum and for the look-up table (built once, cached), and the
     table path's largest difference from the direct path at observable samples, as a fraction
     of the total (the direct path's own error is the random-sample figure above)."""
