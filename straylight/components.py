@@ -168,13 +168,12 @@ class ComponentModel:
         t_moon = self._skippable_transfer(v_moon, geometry["moon_angle_deg"], geometry["moon_phi_deg"],
                                           geometry["moon_earth_blocked"], door, bands, floor_ratio)
         planets_fraction = np.zeros(shape)  # sum of transfer x fraction of the Sun at 1 AU
-        for p in PLANETS:
-            if f"{p}_angle_deg" not in geometry:
-                continue
-            # a cube time step shares one scene: the planet's magnitude once per step
-            runs = scene_runs(bodies_km[p], sun, sat)
+        planets = [p for p in PLANETS if f"{p}_angle_deg" in geometry]
+        # a cube time step shares one scene: each planet's magnitude once per step
+        runs = scene_runs(sat, sun, *(bodies_km[p] for p in planets)) if planets else None
+        for i, p in enumerate(planets):
             v = planet_v_magnitude(p, bodies_km[p], sun, sat) if runs is None else \
-                runs.expand(planet_v_magnitude(p, *runs.vectors))
+                runs.expand(planet_v_magnitude(p, runs.vectors[2 + i], runs.vectors[1], runs.vectors[0]))
             t = self._skippable_transfer(v, geometry[f"{p}_angle_deg"], geometry[f"{p}_phi_deg"],
                                          geometry[f"{p}_earth_blocked"], door, bands, floor_ratio)
             planets_fraction = planets_fraction + t * solar_like_fraction(v)

@@ -382,14 +382,14 @@ def observing_geometry(
     frame = telescope_frame(los, sun_dir)
     limb = limb_geometry(sat, frame.z, sun, earth_radius_km)
     out: dict[str, np.ndarray] = {}
-    for name, pos in bodies_km.items():
-        # a cube time step shares the satellite and the bodies: each body's direction once per step
-        runs = scene_runs(sat, pos)
+    # a cube time step shares the satellite and the bodies: each body's direction once per step
+    runs = scene_runs(sat, *bodies_km.values())
+    for i, (name, pos) in enumerate(bodies_km.items()):
         if runs is None:
             d = unit(pos - sat)
             blocked = earth_blocks(sat, d, earth_radius_km)
         else:
-            d_run = unit(runs.vectors[1] - runs.vectors[0])
+            d_run = unit(runs.vectors[1 + i] - runs.vectors[0])
             d, blocked = runs.expand(d_run), runs.expand(earth_blocks(runs.vectors[0], d_run, earth_radius_km))
         theta, phi = frame.theta_phi_deg(d)
         if theta.shape != frame.z.shape[:-1]:
