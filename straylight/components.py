@@ -528,8 +528,8 @@ class ComponentModel:
         sample's floor (``floor_ratio`` >= 1 times the darkest zodiacal light, per sample;
         :meth:`star_influence_cos`; most pairs are outside it) that are neither behind the Earth
         nor in the field get the PST and door look-ups; where samples come in runs that share a
-        satellite position (cube time steps) the Earth test runs once per star and step.  Samples in batches to
-        bound memory."""
+        satellite position (cube time steps) the Earth test runs once per star and step.  Samples
+        in batches to bound memory."""
         s_all = stars.unit  # (S, 3)
         near_cos = self.star_influence_cos(stars)  # (L, S)
         shape = np.broadcast_shapes(np.shape(frame.z)[:-1], np.shape(door), np.shape(sat)[:-1])

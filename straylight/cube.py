@@ -34,9 +34,12 @@ from .geometry import VIOLATION_BITS, observing_geometry, radec_to_unit
 
 CUBE_COMPONENTS = ("zodiacal", "earthshine", "moon", "sun", "planets", "stars")
 #: samples per evaluation on the table path (whole time steps of a pixel block): large enough
-#: that numpy's per-call cost is paid rarely, small enough for the star pairs' (samples x
-#: direct stars) arrays (~30 MB at 200 stars)
+#: that numpy's per-call cost is paid rarely (a bigger batch gains little more)
 SAMPLES_PER_EVALUATION = 16384
+#: and at most this many (sample, direct star) pairs per evaluation: the star transfer's array,
+#: 32 MB (the default catalog's 212 direct stars allow the full batch; a deep
+#: stars.offfield_mag_limit gets smaller batches rather than gigabytes)
+STAR_PAIRS_PER_EVALUATION = 4_000_000
 LONG_NAMES = {
     "zodiacal": "in-field zodiacal light (Leinert 1998)",
     "earthshine": "earthshine through the PST, direct + via the aperture door",
@@ -196,11 +199,14 @@ def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: s
     viol = np.zeros((nt, npix), np.uint8)
     door = np.zeros((nt, npix), np.float32)
     # Steps are evaluated together, as one flat batch of samples: numpy's per-call cost is then
-    # paid once per batch, not once per step (1.7x on the table path).  The direct earthshine
-    # sum grids the Earth per sample, so there one step per call bounds its memory.
-    per_call = 1 if model.earthshine_model["lut"] is None else max(1, SAMPLES_PER_EVALUATION // max(npix, 1))
-    for t0 in range(0, nt, per_call):
-        steps = slice(t0, min(t0 + per_call, nt))
+    # paid once per batch, not once per step (1.5-1.7x on the table path).  The direct earthshine
+    # sum grids the Earth per sample, so there one step per call bounds its memory; the star
+    # pairs' (samples x direct stars) array bounds the batch too.
+    n_direct = 0 if stars is None else len(stars.ra_deg)
+    batch = min(SAMPLES_PER_EVALUATION, STAR_PAIRS_PER_EVALUATION // max(n_direct, 1))
+    per_call = 1 if model.earthshine_model["lut"] is None else max(1, batch // max(npix, 1))
+    for first in range(0, nt, per_call):
+        steps = slice(first, min(first + per_call, nt))
         k = steps.stop - steps.start
         if k == 1:  # one scene shared by every line of sight (geometry and stars use it)
             sat = np.broadcast_to(sc.satellite_km[steps.start], los.shape)
@@ -212,18 +218,21 @@ def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: s
         faint_k = None if faint is None else {b: np.tile(v, k) for b, v in faint.items()}
         g = observing_geometry(sat, bodies, los_k, campaign.earth.radius_km, campaign.constraints)
         res = model.evaluate(sat, bodies, los_k, g, campaign.bands, stars, faint_rates=faint_k)
-        def grid(values):  # (k * npix,) -> (k, npix)
-            return np.broadcast_to(values, (k * npix,)).reshape(k, npix)
-
         for ib, b in enumerate(campaign.bands):
             for comp in CUBE_COMPONENTS + ("total",):
-                out[comp][steps, :, ib] = grid(res[b][comp])
-        obs[steps], viol[steps], door[steps] = (grid(g[v]) for v in ("observable", "violations", "door_opening_deg"))
+                out[comp][steps, :, ib] = _by_step(res[b][comp], k, npix)
+        obs[steps], viol[steps], door[steps] = (_by_step(g[v], k, npix)
+                                                for v in ("observable", "violations", "door_opening_deg"))
     data = {k: (("time", "pixel", "band"), v) for k, v in out.items()}
     data["observable"] = (("time", "pixel"), obs)
     data["violations"] = (("time", "pixel"), viol)
     data["door_opening_deg"] = (("time", "pixel"), door)
     return xr.Dataset(data)
+
+
+def _by_step(values, k: int, npix: int) -> np.ndarray:
+    """A batch's k * npix samples (step-major) as (k, npix)."""
+    return np.broadcast_to(values, (k * npix,)).reshape(k, npix)
 
 
 def write_region(campaign: Campaign, fp: Footprint, store, t_slice: slice, p_slice: slice,

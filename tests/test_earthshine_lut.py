@@ -357,6 +357,30 @@ def test_a_batch_of_time_steps_equals_each_step_alone(coarse):
     assert np.count_nonzero(batch["g"]["stars"]) > 50
 
 
+def test_cube_region_batches_steps_in_time_pixel_order(coarse):
+    """compute_region on the table's path (its steps in one batch) puts each value at its own
+    time and pixel: the same as evaluating each step alone."""
+    from straylight.cube import compute_region
+    from straylight.footprint import footprint_from_config
+    from straylight.geometry import observing_geometry, radec_to_unit
+    from straylight.sky import scene
+
+    c, cm, _ = coarse
+    fp = footprint_from_config(c.config["footprint"])
+    t_slice, p_slice = slice(0, 30, 10), slice(100, 160)
+    ds = compute_region(c, fp, t_slice, p_slice, model=cm)
+    los = radec_to_unit(fp.ra_deg[p_slice], fp.dec_deg[p_slice])
+    sc = scene(c, c.times[t_slice])
+    for it in range(3):
+        sat = np.broadcast_to(sc.satellite_km[it], los.shape)
+        bodies = {b: np.broadcast_to(v[it], los.shape) for b, v in sc.bodies_km.items()}
+        g = observing_geometry(sat, bodies, los, c.earth.radius_km, c.constraints)
+        alone = cm.evaluate(sat, bodies, los, g, c.bands)
+        np.testing.assert_array_equal(ds["observable"].values[it], g["observable"])
+        for ib, b in enumerate(c.bands):
+            np.testing.assert_allclose(ds["total"].values[it, :, ib], alone[b]["total"], rtol=1e-6)
+
+
 def test_scene_runs_group_consecutive_samples_that_share_a_scene():
     from straylight.geometry import scene_runs, shared_vectors
 
