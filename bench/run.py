@@ -294,7 +294,7 @@ def moonlit_grid_rows(bench, day: str = "2026-01-03", time_step: int = 24, n_tim
     ref, _ = run((48, 96), "direct", moonlit_skip_share=0.0)
     total, obs = ref["total"].values.astype(float), ref["observable"].values
     rows = []
-    cases = [((g, "direct", None)) for g in ((3, 6), (4, 8), (6, 12), (8, 16), (12, 24), (24, 48))]
+    cases = [(g, "direct", None) for g in ((3, 6), (4, 8), (6, 12), (8, 16), (12, 24), (24, 48))]
     cases += [((4, 8), "lut", None), ((6, 12), "lut", (10, 6, 15, 30)), ((6, 12), "lut", None), ((8, 16), "lut", None)]
     for grid, method, steps in cases:
         ds, dt = run(grid, method, steps)

@@ -18,7 +18,7 @@ from .config import Campaign
 from .door import door_from_instrument
 from .ephemeris import PLANETS
 from .geometry import earth_blocks, norm, scene_runs, telescope_frame, unit
-from .offfield import (AU_KM, V_SUN_VEGA, BandPhotometry, EarthshineSettings, OffFieldModel, magnitude_per_arcsec2,
+from .offfield import (AU_KM, BandPhotometry, EarthshineSettings, OffFieldModel, magnitude_per_arcsec2,
                        moon_v_magnitude, planet_v_magnitude, solar_like_fraction)
 from .pst import load_pst
 from .zodiacal import zodiacal_model_from_instrument
@@ -333,8 +333,7 @@ class ComponentModel:
         cfg = es.get("moonlit_lut", {})
         settings = MoonlitSettings(**{k: float(v) for k, v in cfg.items()})  # keys checked by the schema
         # the brightest Moon (full, at perigee) per unit solar irradiance at 1 AU
-        moon_max = float(10.0 ** (-0.4 * (moon_v_magnitude(0.0, MOON_PERIGEE_KM, self.offfield.moon_law, 180.0)
-                                          - V_SUN_VEGA)))
+        moon_max = float(solar_like_fraction(moon_v_magnitude(0.0, MOON_PERIGEE_KM, self.offfield.moon_law, 180.0)))
         k = self.campaign.constraints
         lut, path = load_or_build_moonlit(self.offfield, self.campaign.earth.radius_km,
                                           self.campaign.orbit_radius_range_km, settings, self.moonlit_grid,

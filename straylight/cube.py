@@ -208,12 +208,9 @@ def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: s
     for first in range(0, nt, per_call):
         steps = slice(first, min(first + per_call, nt))
         k = steps.stop - steps.start
-        if k == 1:  # one scene shared by every line of sight (geometry and stars use it)
-            sat = np.broadcast_to(sc.satellite_km[steps.start], los.shape)
-            bodies = {b: np.broadcast_to(v[steps.start], los.shape) for b, v in sc.bodies_km.items()}
-        else:
-            sat = np.repeat(sc.satellite_km[steps], npix, axis=0)
-            bodies = {b: np.repeat(v[steps], npix, axis=0) for b, v in sc.bodies_km.items()}
+        # each step's scene repeated over its pixels (geometry.scene_runs finds the steps again)
+        sat = np.repeat(sc.satellite_km[steps], npix, axis=0)
+        bodies = {b: np.repeat(v[steps], npix, axis=0) for b, v in sc.bodies_km.items()}
         los_k = np.broadcast_to(los[None], (k,) + los.shape).reshape(-1, 3)
         faint_k = None if faint is None else {b: np.tile(v, k) for b, v in faint.items()}
         g = observing_geometry(sat, bodies, los_k, campaign.earth.radius_km, campaign.constraints)

@@ -97,6 +97,16 @@ def _asinh_scale(direct: dict, door: dict) -> float:
     return float(np.percentile(positive, 1)) if positive.size else 1e-30
 
 
+def _asinh_grids(axes, direct: dict, door: dict, scale: float, drop_first: bool = False) -> dict:
+    """Per door state, one LinearGrid of asinh(c / scale) on ``axes`` with the direct and door
+    terms as two channels (located once); ``drop_first``: the tables' first axis has one node."""
+    grids = {}
+    for s in direct:
+        v = np.arcsinh(np.stack([direct[s], door[s]], axis=-1) / scale)
+        grids[s] = LinearGrid(axes, v[0] if drop_first else v)
+    return grids
+
+
 def _per_door_state(interpolators: dict, coords, opening_deg, shape, scale: float):
     """(direct, door) from per-door-state interpolators of asinh(c / scale), two channels, at
     ``coords`` (flat arrays); a sample with no allowed state (opening 0) takes the narrowest;
@@ -321,13 +331,8 @@ class EarthshineLUT:
             if self.radius_km.size > 1:
                 axes = (self.radius_km,) + axes
 
-            def make(state):  # direct and door as two channels of one grid: located once
-                v = np.arcsinh(np.stack([self.direct[state], self.door[state]], axis=-1) / self.scale)
-                if self.radius_km.size == 1:
-                    v = v[0]
-                return LinearGrid(axes, v)  # the axes span every coordinate's whole range
-
-            self._interp = {s: make(s) for s in self.direct}
+            # the axes span every coordinate's whole range; one radius: no radius axis
+            self._interp = _asinh_grids(axes, self.direct, self.door, self.scale, drop_first=self.radius_km.size == 1)
         return self._interp
 
     def coordinates(self, sat_km, sun_km, los):
@@ -500,8 +505,8 @@ def _moon_coefficients_direct(off, R, D, Zm, L, A, P, state, earth_radius_km, gr
         for j in range(0, idx.size, batch):
             sl = idx[j:j + batch]
             sat, moon, frame = _moonlit_scene(R[sl], D[sl], Zm[sl], L[sl], A[sl], P[sl])
-            c = off.earthshine_coefficients(sat, moon, moon, frame, np.full(sl.size, state), earth_radius_km, in_field=False, sun=False,
-                                            grid=grid)
+            c = off.earthshine_coefficients(sat, moon, moon, frame, np.full(sl.size, state), earth_radius_km,
+                                            in_field=False, sun=False, grid=grid)
             d_out[sl], g_out[sl] = c["direct_moon"], c["door_moon"]
     return d_out, g_out
 
@@ -583,8 +588,7 @@ class MoonlitLUT:
     def _interpolators(self):
         if not hasattr(self, "_interp"):
             axes = (self.moon_zenith_deg, self.los_zenith_deg, self.azimuth_deg, self.roll_deg)
-            self._interp = {s: LinearGrid(axes, np.arcsinh(np.stack([self.direct[s], self.door[s]], axis=-1)
-                                                           / self.scale)) for s in self.direct}
+            self._interp = _asinh_grids(axes, self.direct, self.door, self.scale)
         return self._interp
 
     def coordinates(self, sat_km, moon_km, frame):

@@ -265,8 +265,8 @@ def test_moonlit_table_matches_the_coarse_sum_in_real_scenes(moonlit):
     coarse grid's direct sum to within the moonlit grid's share of the tolerance (1/8 of 1 %),
     the error taken at full Moon at perigee as a fraction of the total (the table's validation
     measure; its recorded validation, 400 random scenes, within the same share)."""
-    from straylight.components import ERROR_BUDGET_SHARES, V_SUN_VEGA
-    from straylight.offfield import MOON_PERIGEE_KM, moon_v_magnitude
+    from straylight.components import ERROR_BUDGET_SHARES
+    from straylight.offfield import MOON_PERIGEE_KM, moon_v_magnitude, solar_like_fraction
 
     c, cm, lut = moonlit
     sc, los, g = random_samples(c, 2000, seed=12)
@@ -277,7 +277,7 @@ def test_moonlit_table_matches_the_coarse_sum_in_real_scenes(moonlit):
     ref = cm.offfield.earthshine_coefficients(sat, sun, moon, frame, door, c.earth.radius_km, in_field=False,
                                               sun=False, grid=cm.moonlit_grid)
     d, gd = lut.coefficients(sat, moon, frame, door)
-    moon_max = 10 ** (-0.4 * (moon_v_magnitude(0.0, MOON_PERIGEE_KM) - V_SUN_VEGA))
+    moon_max = solar_like_fraction(moon_v_magnitude(0.0, MOON_PERIGEE_KM))
     direct = ref["direct_moon"] + ref["door_moon"]
     err = np.abs(d + gd - direct) * moon_max / (direct * moon_max + cm.earthshine_floor)
     share = ERROR_BUDGET_SHARES["moonlit_earthshine_grid"] * cm.tolerance
