@@ -178,8 +178,8 @@ class ComponentModel:
                                          geometry[f"{p}_earth_blocked"], door, bands, floor_ratio)
             planets_fraction = planets_fraction + t * solar_like_fraction(v)
         moon_fraction = t_moon * solar_like_fraction(v_moon) * eclipse
-        star_t = (self._star_transfer(stars, frame, sat, door, floor_ratio)
-                  if stars is not None and len(stars.ra_deg) else None)  # once for all bands
+        star_pairs = (self._star_pairs(stars, frame, sat, door, floor_ratio)
+                      if stars is not None and len(stars.ra_deg) else None)  # once for all bands
         faint = faint_rates
         if faint is None and stars is not None and len(stars.faint_ra_deg):
             faint = self.faint_star_rates(stars, frame.z, bands)
@@ -192,8 +192,11 @@ class ComponentModel:
             res["moon"] = moon_fraction * sun_at_1au[name]
             res["planets"] = planets_fraction * sun_at_1au[name]
             res["stars"] = np.zeros(shape)
-            if star_t is not None and name in stars.mag_ab:
-                res["stars"] = res["stars"] + star_t @ phot.from_ab(stars.mag_ab[name])
+            if star_pairs is not None and name in stars.mag_ab:
+                pairs_shape, (pair_sample, pair_star, pair_transfer) = star_pairs
+                e = np.bincount(pair_sample, weights=pair_transfer * phot.from_ab(stars.mag_ab[name])[pair_star],
+                                minlength=int(np.prod(pairs_shape)))
+                res["stars"] = res["stars"] + e.reshape(pairs_shape)
             if faint is not None and name in faint:
                 res["stars"] = res["stars"] + faint[name]
             moon_irr_earth = moon_at_earth_unit[name]
@@ -520,50 +523,132 @@ class ComponentModel:
             cache[key] = np.where(radius >= 180.0, -2.0, np.cos(np.radians(radius)))  # 180: every pair
         return cache[key]
 
-    def _star_transfer(self, stars: StarTable, frame, sat, door, floor_ratio=1.0, batch: int = 1024):
-        """Band-independent transfer of every off-field catalog star, E = 1 photon s-1 m-2:
-        Se * Sp * PST * pixel factor, zero for stars inside the field (those scatter and make
-        ghosts instead), shape (..., S).  Only pairs within the star's influence radius at the
-        sample's floor (``floor_ratio`` >= 1 times the darkest zodiacal light, per sample;
-        :meth:`star_influence_cos`; most pairs are outside it) that are neither behind the Earth
-        nor in the field get the PST and door look-ups; where samples come in runs that share a
-        satellite position (cube time steps) the Earth test runs once per star and step.  Samples
-        in batches to bound memory."""
+    #: HEALPix nside of the sky cells that hold each star's candidate lines of sight
+    #: (:meth:`star_cells`): a cell's radius (3.8 deg at 16) widens every star's reach, so finer
+    #: cells test fewer pairs but cost more to build (3072 cells x stars, once per star table)
+    STAR_CELL_NSIDE = 16
+    #: candidate (sample, star) pairs tested at once: bounds the memory of a deep catalog
+    STAR_PAIRS_PER_PASS = 1 << 20
+
+    def star_cells(self, stars: StarTable) -> "StarCells":
+        """Per sky cell (HEALPix, :attr:`STAR_CELL_NSIDE`, nested = False) and floor level, the
+        direct stars that can pass :meth:`star_influence_cos` for some line of sight in the cell:
+        those within the star's radius plus the cell's radius of its centre.  Each cell's stars
+        are sorted by the number of levels they reach, so a level's candidates are a prefix of
+        the cell's list.  Cached on the star table."""
+        import healpy as hp
+
+        key = (id(self), tuple(self.campaign.bands), self.tolerance, self.STAR_CELL_NSIDE)
+        cache = stars.__dict__.setdefault("_cells_cache", {})
+        if key in cache:
+            return cache[key]
+        near_cos = self.star_influence_cos(stars)  # (L, S)
+        radius_rad = np.where(near_cos < -1.0, np.pi, np.arccos(np.clip(near_cos, -1.0, 1.0)))
+        nside = self.STAR_CELL_NSIDE
+        n_cells = hp.nside2npix(nside)
+        centres = np.array(hp.pix2vec(nside, np.arange(n_cells))).T
+        # max_pixrad: the largest centre-to-corner distance; 1 % and 1e-9 rad over it for the
+        # curved edges and rounding (sampled: no point of a cell lies beyond 0.999 of it)
+        margin_rad = 1.01 * hp.max_pixrad(nside) + 1e-9
+        s_all = stars.unit
+        counts = np.zeros((n_cells, near_cos.shape[0]), np.intp)
+        lists = []
+        for a in range(0, n_cells, 256):
+            ang = np.arccos(np.clip(centres[a:a + 256] @ s_all.T, -1.0, 1.0))  # (c, S)
+            # levels at which each star is a candidate: radii shrink with the level, so they
+            # are levels 0 .. reach - 1
+            reach = np.zeros(ang.shape, np.intp)
+            for level_radius in radius_rad:
+                reach += ang < level_radius + margin_rad
+            order = np.argsort(-reach, axis=1, kind="stable")
+            counts[a:a + 256] = (reach[:, None, :] > np.arange(near_cos.shape[0])[None, :, None]).sum(axis=2)
+            lists += [order[i, :counts[a + i, 0]] for i in range(order.shape[0])]
+        start = np.concatenate([[0], np.cumsum(counts[:, 0])[:-1]])
+        cells = StarCells(nside, np.concatenate(lists) if lists else np.zeros(0, np.intp), start, counts)
+        cache[key] = cells
+        return cells
+
+    def _star_pairs(self, stars: StarTable, frame, sat, door, floor_ratio=1.0):
+        """The off-field catalog stars' band-independent transfer, E = 1 photon s-1 m-2:
+        Se * Sp * PST * pixel factor, for the (sample, star) pairs that count: the star lies
+        within its influence radius at the sample's floor (``floor_ratio`` >= 1 times the darkest
+        zodiacal light, per sample; :meth:`star_influence_cos`), is not behind the Earth, and is
+        outside the field (stars inside scatter and make ghosts instead).  Returns the shape of
+        the samples and ``(sample, star, transfer)``: flat sample index, star index, transfer.
+
+        Only a sample's sky cell's candidates (:meth:`star_cells`) are tested, a few stars
+        instead of all; where samples come in runs that share a satellite position (cube time
+        steps) the Earth test runs once per star and step."""
         s_all = stars.unit  # (S, 3)
         near_cos = self.star_influence_cos(stars)  # (L, S)
+        cells = self.star_cells(stars)
         shape = np.broadcast_shapes(np.shape(frame.z)[:-1], np.shape(door), np.shape(sat)[:-1])
         fz, fx, fy = (np.broadcast_to(a, shape + (3,)).reshape(-1, 3) for a in (frame.z, frame.x, frame.y))
+        # components as contiguous rows: a pair's dot product is then three 1-D gathers
+        # (faster than gathering (pairs, 3) rows for einsum)
+        fz_c, fx_c, fy_c, s_c = (np.ascontiguousarray(a.T) for a in (fz, fx, fy, s_all))
+
+        def dots(rows, r, k):
+            return rows[0][r] * s_c[0][k] + rows[1][r] * s_c[1][k] + rows[2][r] * s_c[2][k]
+
         op = np.broadcast_to(np.asarray(door, float), shape).ravel()
         # each sample's floor level: rounded down, so its radii are never too small
         level = np.searchsorted(self.STAR_FLOOR_LEVELS, np.broadcast_to(np.asarray(floor_ratio, float), shape).ravel(),
                                 side="right") - 1
         level = np.clip(level, 0, self.STAR_FLOOR_LEVELS.size - 1)
         re_km = self.campaign.earth.radius_km
-        runs = scene_runs(np.broadcast_to(np.asarray(sat, float), shape + (3,)))
+        sat_b = np.broadcast_to(np.asarray(sat, float), shape + (3,))
+        runs = scene_runs(sat_b)
         if runs is not None:  # the Earth test once per star and time step
             star_blocked = earth_blocks(runs.vectors[0][:, None, :], s_all[None], re_km)  # (R, S)
-            run_of = runs.index
-        else:
-            sat_flat = np.broadcast_to(np.asarray(sat, float), shape + (3,)).reshape(-1, 3)
-        out = np.zeros((op.size, len(s_all)))
-        for start in range(0, op.size, batch):
-            sl = slice(start, start + batch)
-            cz = fz[sl] @ s_all.T
-            r, k = np.nonzero(cz > near_cos[level[sl]])
-            if runs is not None:
-                seen = ~star_blocked[run_of[sl][r], k]
-            else:
-                seen = ~earth_blocks(sat_flat[sl][r], s_all[k], re_km)
-            r, k = r[seen], k[seen]
-            dz = cz[r, k]
-            dx = np.einsum("ij,ij->i", fx[sl][r], s_all[k])
-            dy = np.einsum("ij,ij->i", fy[sl][r], s_all[k])
+        sat_flat = sat_b.reshape(-1, 3)
+        cell = cells.cell_of(fz)
+        n_cand = cells.count[cell, level]  # candidates per sample
+        first = cells.start[cell]
+        ends = np.cumsum(n_cand)
+        parts = []
+        a = 0
+        while a < fz.shape[0]:  # passes of at most STAR_PAIRS_PER_PASS candidates (one sample at least)
+            base = ends[a - 1] if a else 0
+            b = max(int(np.searchsorted(ends, base + self.STAR_PAIRS_PER_PASS, side="right")), a + 1)
+            n = n_cand[a:b]
+            r = np.repeat(np.arange(a, b), n)
+            k = cells.stars[np.arange(ends[b - 1] - base) - np.repeat(ends[a:b] - n - base, n) + np.repeat(first[a:b], n)]
+            a = b
+            cz = dots(fz_c, r, k)
+            near = cz > near_cos[level[r], k]
+            r, k, cz = r[near], k[near], cz[near]
+            seen = ~star_blocked[runs.index[r], k] if runs is not None else ~earth_blocks(sat_flat[r], s_all[k], re_km)
+            r, k, dz = r[seen], k[seen], cz[seen]
+            dx = dots(fx_c, r, k)
+            dy = dots(fy_c, r, k)
             theta = np.degrees(np.arctan2(np.hypot(dx, dy), dz))
             off = theta > self.offfield.field_radius_deg
             r, k, theta, dx, dy = r[off], k[off], theta[off], dx[off], dy[off]
             phi = np.degrees(np.arctan2(dy, dx)) % 360.0
-            out[start + r, k] = self.offfield.point_source(1.0, theta, phi, False, op[sl][r])
-        return out.reshape(shape + (len(s_all),))
+            parts.append((r, k, self.offfield.point_source(1.0, theta, phi, False, op[r])))
+        if not parts:
+            return shape, (np.zeros(0, np.intp), np.zeros(0, np.intp), np.zeros(0))
+        return shape, tuple(np.concatenate(x) for x in zip(*parts))
+
+
+@dataclass(frozen=True)
+class StarCells:
+    """Candidate direct stars per HEALPix sky cell (ring order) and floor level
+    (:meth:`ComponentModel.star_cells`): cell c's candidates at level l are
+    ``stars[start[c] : start[c] + count[c, l]]``."""
+
+    nside: int
+    stars: np.ndarray  # star indices, cell after cell
+    start: np.ndarray  # (cells,) each cell's first entry
+    count: np.ndarray  # (cells, levels) candidates
+
+    def cell_of(self, unit_vectors) -> np.ndarray:
+        """The sky cell of each unit vector (N, 3)."""
+        import healpy as hp
+
+        v = np.asarray(unit_vectors, float)
+        return hp.vec2pix(self.nside, v[:, 0], v[:, 1], v[:, 2])
 
 
 def load_offfield_stars(path, bands, mag_limit: float, faint_map: bool = False) -> StarTable:

@@ -36,10 +36,6 @@ CUBE_COMPONENTS = ("zodiacal", "earthshine", "moon", "sun", "planets", "stars")
 #: samples per evaluation on the table path (whole time steps of a pixel block): large enough
 #: that numpy's per-call cost is paid rarely (a bigger batch gains little more)
 SAMPLES_PER_EVALUATION = 16384
-#: and at most this many (sample, direct star) pairs per evaluation: the star transfer's array,
-#: 32 MB (the default catalog's 212 direct stars allow the full batch; a deep
-#: stars.offfield_mag_limit gets smaller batches rather than gigabytes)
-STAR_PAIRS_PER_EVALUATION = 4_000_000
 LONG_NAMES = {
     "zodiacal": "in-field zodiacal light (Leinert 1998)",
     "earthshine": "earthshine through the PST, direct + via the aperture door",
@@ -200,11 +196,9 @@ def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: s
     door = np.zeros((nt, npix), np.float32)
     # Steps are evaluated together, as one flat batch of samples: numpy's per-call cost is then
     # paid once per batch, not once per step (1.5-1.7x on the table path).  The direct earthshine
-    # sum grids the Earth per sample, so there one step per call bounds its memory; the star
-    # pairs' (samples x direct stars) array bounds the batch too.
-    n_direct = 0 if stars is None else len(stars.ra_deg)
-    batch = min(SAMPLES_PER_EVALUATION, STAR_PAIRS_PER_EVALUATION // max(n_direct, 1))
-    per_call = 1 if model.earthshine_model["lut"] is None else max(1, batch // max(npix, 1))
+    # sum grids the Earth per sample, so there one step per call bounds its memory (the star
+    # pairs bound their own: ComponentModel.STAR_PAIRS_PER_PASS).
+    per_call = 1 if model.earthshine_model["lut"] is None else max(1, SAMPLES_PER_EVALUATION // max(npix, 1))
     for first in range(0, nt, per_call):
         steps = slice(first, min(first + per_call, nt))
         k = steps.stop - steps.start

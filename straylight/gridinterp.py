@@ -62,7 +62,11 @@ class LinearGrid:
             else self.values.ravel()
         self._strides = [int(np.prod(self.values.shape[k + 1:n])) for k in range(n)]
 
-    def __call__(self, *coords) -> np.ndarray:
+    def __call__(self, *coords, channel=None) -> np.ndarray:
+        """The interpolant at the points ``coords``; with ``channel`` (integer array, broadcast
+        with them; a grid with one trailing dimension only), that channel's value at each point
+        instead of all channels: e.g. each sample's own door state from one stacked table,
+        located once (the same arithmetic as a separate grid per channel, so the same numbers)."""
         coords = np.broadcast_arrays(*(np.asarray(c, float) for c in coords))
         shape = coords[0].shape
         base = np.zeros(shape, np.intp)
@@ -71,11 +75,25 @@ class LinearGrid:
             i, t = ax.locate(x)
             base += i * stride
             fracs.append(t)
-        if len(self.axes) == 2 and not self._trailing:  # the common case (PST, door), unrolled
-            s = self._strides[0]
-            f, (tx, ty) = self._flat, fracs
-            return ((f[base] * (1 - ty) + f[base + 1] * ty) * (1 - tx)
-                    + (f[base + s] * (1 - ty) + f[base + s + 1] * ty) * tx)
+        if channel is not None:
+            if len(self._trailing) != 1:
+                raise ValueError("channel needs a grid with exactly one trailing dimension")
+            n_channels = self._trailing[0]
+            ch = np.broadcast_to(np.asarray(channel, np.intp), shape)
+            if ch.size and (ch.min() < 0 or ch.max() >= n_channels):
+                raise ValueError(f"channel outside 0..{n_channels - 1}")
+            base = base * n_channels + ch
+            strides = [st * n_channels for st in self._strides]
+            f = self._flat.ravel()
+        else:
+            strides, f = self._strides, self._flat
+        if len(self.axes) == 2 and (channel is not None or not self._trailing):  # PST, door: unrolled
+            s, c = strides[0], strides[1]
+            tx, ty = fracs
+            return ((f[base] * (1 - ty) + f[base + c] * ty) * (1 - tx)
+                    + (f[base + s] * (1 - ty) + f[base + s + c] * ty) * tx)
+        if channel is not None:
+            raise ValueError("channel is implemented for two-axis grids")
         # corner weights and offsets built axis by axis (corner bit k = the upper node of axis k)
         weights, offsets = [1.0], [0]
         for t, stride in zip(fracs, self._strides):

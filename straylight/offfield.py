@@ -42,6 +42,7 @@ from .bandpass import Band
 from .door import Door, DoorTable
 from .errors import ConfigError
 from .geometry import dot, norm, perpendicular_towards, shared_vectors, unit
+from .gridinterp import LinearGrid
 from .pst import PST
 from .zodiacal import solar_spectrum
 
@@ -157,16 +158,29 @@ class OffFieldModel:
     def door_tables(self) -> dict[float, DoorTable]:
         return {s: self.door.table(s) for s in self.door_states_deg}
 
+    @cached_property
+    def _door_grid(self):
+        """(door states ascending, one LinearGrid holding every state's Sp table as a channel):
+        the tables share their (theta, phi) nodes, so a batch with mixed door states locates
+        its points once."""
+        states = np.array(sorted(self.door_tables), float)
+        tables = [self.door_tables[s] for s in states]
+        for t in tables[1:]:
+            if not (np.array_equal(t.theta_deg, tables[0].theta_deg) and np.array_equal(t.phi_deg, tables[0].phi_deg)):
+                raise ValueError("door tables of different states must share their theta and phi nodes")
+        return states, LinearGrid((tables[0].theta_deg, tables[0].phi_deg), np.stack([t.values for t in tables], -1))
+
     def door_factor(self, theta_deg, phi_deg, opening_deg) -> np.ndarray:
-        """Sp for each sample's door state; the narrowest state when none is allowed (door 0)."""
-        th, ph, op = np.broadcast_arrays(theta_deg, phi_deg, opening_deg)
-        out = np.zeros(th.shape)
-        states = sorted(self.door_tables)
-        for s in states:
-            sel = (op == s) | ((op <= 0) & (s == states[0]))
-            if np.any(sel):
-                out[sel] = self.door_tables[s](th[sel], ph[sel])
-        return out
+        """Sp for each sample's door state; the narrowest state when none is allowed (door 0);
+        0 for an opening that is none of the door states."""
+        th, ph, op = np.broadcast_arrays(np.asarray(theta_deg, float), np.asarray(phi_deg, float),
+                                         np.asarray(opening_deg, float))
+        states, grid = self._door_grid
+        state = np.minimum(np.searchsorted(states, op), states.size - 1)
+        state = np.where(op <= 0, 0, state)
+        known = (states[state] == op) | (op <= 0)
+        # as DoorTable: theta clipped to 0-90 deg (Sp holds its 90 deg value behind the aperture)
+        return np.where(known, grid(np.clip(th, 0.0, 90.0), np.mod(ph, 360.0), channel=state), 0.0)
 
     # -- point sources ----------------------------------------------------------------------
     def point_source(self, irradiance, theta_deg, phi_deg, earth_blocked, opening_deg) -> np.ndarray:

@@ -50,3 +50,21 @@ def test_channels_match_scipy_per_channel(ndim):
     for c in range(2):
         ref = RegularGridInterpolator(axes, values[..., c], method="linear")(np.clip(pts, 0.0, 90.0))
         assert np.max(np.abs(got[:, c] - ref)) < 1e-12
+
+
+def test_channel_picks_each_points_own_table_with_the_same_numbers():
+    """channel=: each point's own channel of a stacked grid, bit for bit what that channel's own
+    grid gives (the door states' Sp tables, located once for a batch with mixed states)."""
+    rng = np.random.default_rng(3)
+    axes = [np.unique(np.r_[np.linspace(0.0, 90.0, 10), 33.3]), np.linspace(0.0, 360.0, 13)]
+    values = rng.uniform(size=(axes[0].size, axes[1].size, 4))
+    pts = rng.uniform(-5.0, 365.0, size=(5000, 2))
+    ch = rng.integers(0, 4, 5000)
+    got = LinearGrid(axes, values)(*pts.T, channel=ch)
+    for c in range(4):
+        own = LinearGrid(axes, values[..., c])(*pts[ch == c].T)
+        assert np.array_equal(got[ch == c], own)
+    with pytest.raises(ValueError, match="channel outside"):
+        LinearGrid(axes, values)(*pts.T, channel=4)
+    with pytest.raises(ValueError, match="one trailing dimension"):
+        LinearGrid(axes, values[..., 0])(*pts.T, channel=0)

@@ -5,7 +5,7 @@ import pytest
 from straylight.components import ComponentModel, StarTable
 from straylight.door import Door, door_length_from_paper
 from straylight.errors import ConfigError, InputError
-from straylight.geometry import observing_geometry, radec_to_unit, telescope_frame
+from straylight.geometry import TelescopeFrame, observing_geometry, radec_to_unit, telescope_frame
 from straylight.offfield import EarthshineSettings, moon_v_magnitude, planet_v_magnitude
 from straylight.pst import PST, default_pst_grid, load_pst, write_pst_csv
 
@@ -87,6 +87,26 @@ def test_door_shadow_is_the_geometric_fraction():
     x_c = R + L * np.cos(beta) - L * np.sin(beta) * np.tan(th)
     seg = (np.arccos(x_c / R) - x_c / R * np.sqrt(1 - (x_c / R) ** 2)) / np.pi  # area fraction x > x_c
     assert float(d.unshaded_fraction(_sun_dir(58.0), 135.0)) == pytest.approx(1 - seg, abs=0.01)
+
+
+def test_door_factor_of_mixed_states_is_each_states_own_table(comp_model):
+    """door_factor looks every door state up in one stacked grid: the same numbers as each
+    state's own table (DoorTable), the narrowest state where no state is allowed (opening <= 0),
+    and 0 for an opening that is no door state."""
+    off = comp_model.offfield
+    states = sorted(off.door_states_deg)
+    rng = np.random.default_rng(5)
+    n = 4000
+    theta, phi = rng.uniform(0.0, 180.0, n), rng.uniform(-10.0, 370.0, n)
+    opening = rng.choice(np.r_[states, 0.0, -1.0], n)
+    opening[:10] = states[0] + 0.5  # not a state
+    got = off.door_factor(theta, phi, opening)
+    for s in states:
+        sel = opening == s
+        assert np.array_equal(got[sel], off.door_tables[s](theta[sel], phi[sel]))
+    closed = opening <= 0
+    assert np.array_equal(got[closed], off.door_tables[states[0]](theta[closed], phi[closed]))
+    assert np.all(got[:10] == 0.0)
 
 
 def test_door_that_cannot_close_is_refused():
@@ -229,6 +249,107 @@ def test_star_skipping_stays_within_its_budget(campaign, comp_model, exact_model
         err = np.abs(fast[b]["stars"] - exact[b]["stars"]) / exact[b]["total"]
         assert err.max() <= 0.125 * comp_model.tolerance
     assert max(np.max(exact[b]["stars"]) for b in bands) > 0.0
+
+
+def _dense_star_pairs(model, stars, frame, sat, door, floor_ratio):
+    """Every (sample, star) pair tested, as the star term did before the sky cells: the dense
+    search the candidate lists must reproduce."""
+    from straylight.geometry import earth_blocks
+
+    near_cos = model.star_influence_cos(stars)
+    level = np.clip(np.searchsorted(model.STAR_FLOOR_LEVELS, floor_ratio, side="right") - 1, 0,
+                    model.STAR_FLOOR_LEVELS.size - 1)
+    cz = frame.z @ stars.unit.T
+    r, k = np.nonzero(cz > near_cos[level])
+    seen = ~earth_blocks(sat[r], stars.unit[k], RE)
+    r, k = r[seen], k[seen]
+    theta, phi = (np.ravel(a) for a in TelescopeFrame(frame.x[r], frame.y[r], frame.z[r]).theta_phi_deg(stars.unit[k]))
+    off = theta > model.offfield.field_radius_deg
+    r, k, theta, phi = r[off], k[off], theta[off], phi[off]
+    return r, k, model.offfield.point_source(1.0, theta, phi, False, door[r])
+
+
+@pytest.mark.parametrize("nside, pairs_per_pass", [(16, 1 << 20), (4, 1 << 20), (64, 1 << 20), (16, 997)])
+def test_star_sky_cells_find_exactly_the_pairs_of_the_dense_search(campaign, comp_model, nside, pairs_per_pass,
+                                                                    monkeypatch):
+    """The star term tests only the candidates of each line of sight's sky cell
+    (ComponentModel.star_cells): the same pairs, with the same transfers (1e-12), as testing
+    every star against every line of sight, at every floor level, for lines of sight at the
+    poles, on the RA wrap, near the stars themselves and on cell corners, whatever the cells'
+    size and however the candidates are split into passes."""
+    import healpy as hp
+
+    from straylight.catalog import make_catalog
+    from straylight.components import split_stars
+
+    monkeypatch.setattr(ComponentModel, "STAR_CELL_NSIDE", nside)
+    monkeypatch.setattr(ComponentModel, "STAR_PAIRS_PER_PASS", pairs_per_pass)
+    bands = list(campaign.bands)
+    cat, _ = make_catalog({b: comp_model.band(b).response for b in bands})
+    stars = split_stars(cat["ra"], cat["dec"], {b: cat[f"mag_{b}"] for b in bands}, 2.0, False)
+    rng = np.random.default_rng(11)
+    n = 3000
+    los = rng.normal(size=(n, 3))
+    los[:300] = stars.unit[rng.integers(0, len(stars.ra_deg), 300)] + rng.normal(scale=0.03, size=(300, 3))
+    corners = hp.boundaries(nside, np.arange(min(hp.nside2npix(nside), 200)), step=1)  # (cells, 3, 4)
+    los[300:500] = corners[np.arange(200) % corners.shape[0], :, np.arange(200) % 4] * (1 + 1e-12)
+    los[500:510] = [0.0, 0.0, 1.0]
+    los[510:520] = [0.0, 0.0, -1.0]
+    los[520:540] = radec_to_unit(rng.choice([0.0, 1e-9, 359.9999999], 20), rng.uniform(-80, 80, 20))
+    los /= np.linalg.norm(los, axis=1, keepdims=True)
+    sat = np.repeat(rng.normal(size=(30, 3)), n // 30, axis=0)  # runs sharing a satellite, as a cube's steps
+    sat *= (RE + 400.0) / np.linalg.norm(sat, axis=1, keepdims=True)
+    sun = np.array([AU, 0.3 * AU, 0.1 * AU])
+    frame = telescope_frame(los, sun - sat)
+    door = rng.choice(comp_model.offfield.door_states_deg, n)
+    floor_ratio = 10.0 ** rng.uniform(0.0, 7.5, n)  # every level, 1 to 4^11 and beyond
+    floor_ratio[:100] = 1.0
+    shape, (r, k, t) = comp_model._star_pairs(stars, frame, sat, door, floor_ratio)
+    assert shape == (n,)
+    r_ref, k_ref, t_ref = _dense_star_pairs(comp_model, stars, frame, sat, door, floor_ratio)
+    got = np.lexsort((k, r))
+    ref = np.lexsort((k_ref, r_ref))
+    assert r.size == r_ref.size > 2000
+    assert np.array_equal(r[got], r_ref[ref]) and np.array_equal(k[got], k_ref[ref])
+    np.testing.assert_allclose(t[got], t_ref[ref], rtol=1e-12, atol=0.0)
+    # the worst case of a cell: a line of sight just inside a cell corner and a star just
+    # within its radius from it, on the far side from the cell's centre
+    m = 400
+    mags = rng.uniform(-1.0, 3.0, m)
+    near0 = comp_model.star_influence_cos(StarTable(np.zeros(m), np.zeros(m), {b: mags for b in bands}))[0]
+    radius = np.arccos(np.clip(near0, -1.0, 1.0)) - 1e-7
+    cell = rng.integers(0, hp.nside2npix(nside), m)
+    centre = np.array(hp.pix2vec(nside, cell)).T
+    corner = hp.boundaries(nside, cell, step=1)[np.arange(m), :, rng.integers(0, 4, m)]
+    los = corner + 1e-7 * (centre - corner)
+    los /= np.linalg.norm(los, axis=1, keepdims=True)
+    away = los - centre
+    away -= (away * los).sum(1, keepdims=True) * los
+    away /= np.linalg.norm(away, axis=1, keepdims=True)
+    star = np.cos(radius)[:, None] * los + np.sin(radius)[:, None] * away
+    edge = StarTable(np.degrees(np.arctan2(star[:, 1], star[:, 0])) % 360.0, np.degrees(np.arcsin(star[:, 2])),
+                     {b: mags for b in bands})
+    sat = np.broadcast_to(-(RE + 400.0) * los[0], (m, 3))  # the Earth behind the first line of sight
+    frame = telescope_frame(los, sun - sat)
+    door = np.full(m, comp_model.offfield.door_states_deg[-1])
+    _, (r, k, t) = comp_model._star_pairs(edge, frame, sat, door, np.ones(m))
+    r_ref, k_ref, _ = _dense_star_pairs(comp_model, edge, frame, sat, door, np.ones(m))
+    assert np.count_nonzero(r_ref == k_ref) > m / 3  # most constructed pairs count
+    assert set(zip(r.tolist(), k.tolist())) == set(zip(r_ref.tolist(), k_ref.tolist()))
+
+
+def test_star_cells_of_an_empty_catalog_and_of_no_candidates(campaign, comp_model):
+    """No direct star: no cell has a candidate; a star too faint to reach any line of sight at
+    the samples' floor: no pair, and the star term is exactly 0."""
+    none = StarTable(np.zeros(0), np.zeros(0), {"g": np.zeros(0)})
+    cells = comp_model.star_cells(none)
+    assert cells.count.sum() == 0
+    faint = StarTable(np.array([10.0]), np.array([0.0]), {"g": np.array([25.0])})
+    los = radec_to_unit(np.array([12.0, 40.0]), np.array([0.0, 0.0]))
+    sat = np.array([[RE + 400.0, 0.0, 0.0]])
+    frame = telescope_frame(los, np.array([0.0, 0.0, AU]) - sat)
+    shape, (r, k, t) = comp_model._star_pairs(faint, frame, sat, 135.0, np.array([1.0, 1.0]))
+    assert shape == (2,) and r.size == k.size == t.size == 0
 
 
 def test_moon_and_planet_skipping_stays_within_its_budget(campaign, comp_model, exact_model):
