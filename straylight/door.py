@@ -138,6 +138,16 @@ class DoorTable:
         return self._interp(np.clip(th, 0.0, 90.0), np.mod(ph, 360.0))
 
 
+def door_state_index(states_deg, opening_deg):
+    """(index into the ascending ``states_deg`` of each sample's door state, whether it is one):
+    an opening <= 0 (no state allowed) takes the narrowest state; an opening that is no state
+    is flagged False (its index is then meaningless)."""
+    states = np.asarray(states_deg, float)
+    op = np.asarray(opening_deg, float)
+    index = np.where(op <= 0, 0, np.minimum(np.searchsorted(states, op), states.size - 1))
+    return index, (states[index] == op) | (op <= 0)
+
+
 def door_from_instrument(instrument: dict) -> Door:
     d = instrument.get("door_geometry") or {}
     r = float(instrument["telescope"]["aperture_diameter_m"]["value"]) / 2.0

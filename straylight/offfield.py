@@ -39,7 +39,7 @@ from functools import cached_property
 import numpy as np
 
 from .bandpass import Band
-from .door import Door, DoorTable
+from .door import Door, DoorTable, door_state_index
 from .errors import ConfigError
 from .geometry import dot, norm, perpendicular_towards, shared_vectors, unit
 from .gridinterp import LinearGrid
@@ -176,9 +176,7 @@ class OffFieldModel:
         th, ph, op = np.broadcast_arrays(np.asarray(theta_deg, float), np.asarray(phi_deg, float),
                                          np.asarray(opening_deg, float))
         states, grid = self._door_grid
-        state = np.minimum(np.searchsorted(states, op), states.size - 1)
-        state = np.where(op <= 0, 0, state)
-        known = (states[state] == op) | (op <= 0)
+        state, known = door_state_index(states, op)
         # as DoorTable: theta clipped to 0-90 deg (Sp holds its 90 deg value behind the aperture)
         return np.where(known, grid(np.clip(th, 0.0, 90.0), np.mod(ph, 360.0), channel=state), 0.0)
 
