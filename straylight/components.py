@@ -408,10 +408,8 @@ class ComponentModel:
         sat_b, sun_b, moon_b = (np.broadcast_to(np.asarray(v, float), full) for v in (sat, sun, moon))
         d_sun, g_sun = lut.sun_coefficients(sat_b, sun_b, np.broadcast_to(frame.z, full),
                                             np.broadcast_to(np.asarray(door, float), shape))
-        ones = np.ones(shape)
-        return {"direct_sun": d_sun + off.earth_in_field(sat_b, sun_b, moon_b, frame, ones, 0 * ones, re_km),
-                "door_sun": g_sun,
-                "direct_moon": off.earth_in_field(sat_b, sun_b, moon_b, frame, 0 * ones, ones, re_km),
+        in_field_sun, in_field_moon = off.earth_in_field(sat_b, sun_b, moon_b, frame, re_km)
+        return {"direct_sun": d_sun + in_field_sun, "door_sun": g_sun, "direct_moon": in_field_moon,
                 "door_moon": np.zeros(shape)}
 
     def _add_moonlit_earthshine(self, es_coeff: dict, sat, sun, moon, frame, door, shape, moon_at_earth_unit: dict,

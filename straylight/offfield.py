@@ -263,20 +263,27 @@ class OffFieldModel:
             out[state] = (q.reshape(-1, 3), n_in, w.reshape(-1))
         return out
 
-    def earth_in_field(self, sat_km, sun_km, moon_km, frame, sun_irr, moon_irr_at_earth, earth_radius_km):
+    def earth_in_field(self, sat_km, sun_km, moon_km, frame, earth_radius_km):
         """Where the line of sight hits the Earth, its surface is imaged like any extended
-        source: radiance x pixel etendue (e-/s/pix); 0 elsewhere."""
+        source: radiance x pixel etendue.  Returns (per unit solar irradiance, per unit lunar
+        irradiance at the Earth), e-/s/pix per photon s-1 m-2, both lamps in one pass over the
+        samples that hit the Earth; 0 elsewhere."""
         los = np.broadcast_to(frame.z, np.broadcast(np.asarray(sat_km), frame.z).shape)
         sat = np.broadcast_to(np.asarray(sat_km, float), los.shape)
         b = dot(sat, los)
         c = dot(sat, sat) - earth_radius_km**2
         disc = b * b - c
         hits = (disc > 0) & (b < 0)
-        t = -b - np.sqrt(np.maximum(disc, 0.0))
-        pts = sat + t[..., None] * los
-        lum = self.earth_radiance(pts[..., None, None, :], sun_km, moon_km, sun_irr, moon_irr_at_earth,
-                                  self.earthshine.albedo, earth_radius_km)[..., 0, 0]
-        return np.where(hits, lum * self.pixel_etendue_m2_sr, 0.0)
+        per_sun, per_moon = np.zeros(hits.shape), np.zeros(hits.shape)
+        if np.any(hits):
+            t = -b[hits] - np.sqrt(disc[hits])
+            pts = sat[hits] + t[:, None] * los[hits]
+            sun = np.broadcast_to(np.asarray(sun_km, float), los.shape)[hits]
+            moon = np.broadcast_to(np.asarray(moon_km, float), los.shape)[hits]
+            mu_sun, mu_moon = self.lamp_cosines(pts[:, None, None, :], sun, moon, earth_radius_km)
+            per_sun[hits] = self.earthshine.albedo / np.pi * mu_sun[:, 0, 0] * self.pixel_etendue_m2_sr
+            per_moon[hits] = self.earthshine.albedo / np.pi * mu_moon[:, 0, 0] * self.pixel_etendue_m2_sr
+        return per_sun, per_moon
 
     def earthshine_lamp_bound(self, sat_km, lamp_direction, los, earth_radius_km) -> np.ndarray:
         """Upper bound of the direct coefficient of a cap lit from ``lamp_direction`` (unit
@@ -330,14 +337,11 @@ class OffFieldModel:
         if one is not None:
             out = self._earthshine_one_scene(*one, frame, opening_deg, earth_radius_km, moon, sun, s)
             if in_field:
-                ones = np.ones(out["direct_sun"].shape)
-                out["direct_sun"] = out["direct_sun"] + self.earth_in_field(sat_km, sun_km, moon_km, frame, ones,
-                                                                            0.0 * ones, earth_radius_km)
-                out["direct_moon"] = out["direct_moon"] + self.earth_in_field(sat_km, sun_km, moon_km, frame,
-                                                                              0.0 * ones, ones, earth_radius_km)
+                per_sun, per_moon = self.earth_in_field(sat_km, sun_km, moon_km, frame, earth_radius_km)
+                out["direct_sun"] = out["direct_sun"] + per_sun
+                out["direct_moon"] = out["direct_moon"] + per_moon
             return out
         d, d_omega, pts = self._cap_grid(sat_km, earth_radius_km, s)
-        ones = np.ones(np.shape(d_omega)[:-2])
         mu_sun, mu_moon = self.lamp_cosines(pts, sun_km, moon_km, earth_radius_km)
         if not moon:
             mu_moon = np.zeros_like(mu_sun)
@@ -357,10 +361,9 @@ class OffFieldModel:
         out = {"direct_sun": np.sum(lum_sun * w_direct, axis=(-2, -1)),
                "direct_moon": np.sum(lum_moon * w_direct, axis=(-2, -1))}
         if in_field:
-            out["direct_sun"] = out["direct_sun"] + self.earth_in_field(sat_km, sun_km, moon_km, frame, ones,
-                                                                        0.0 * ones, earth_radius_km)
-            out["direct_moon"] = out["direct_moon"] + self.earth_in_field(sat_km, sun_km, moon_km, frame,
-                                                                          0.0 * ones, ones, earth_radius_km)
+            per_sun, per_moon = self.earth_in_field(sat_km, sun_km, moon_km, frame, earth_radius_km)
+            out["direct_sun"] = out["direct_sun"] + per_sun
+            out["direct_moon"] = out["direct_moon"] + per_moon
         # door path: irradiance on the door's inner face from the Earth blocks in front of it
         door_sun = np.zeros(out["direct_sun"].shape)
         door_moon = np.zeros(out["direct_sun"].shape)
