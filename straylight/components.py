@@ -523,17 +523,25 @@ class ComponentModel:
 
     #: HEALPix nside of the sky cells that hold each star's candidate lines of sight
     #: (:meth:`star_cells`): a cell's radius (3.8 deg at 16) widens every star's reach, so finer
-    #: cells test fewer pairs but cost more to build (3072 cells x stars, once per star table)
+    #: cells test fewer pairs but cost more to build.  Measured on a cube batch (15,840 samples,
+    #: 212 direct stars, 85,728 pairs that count): candidates 158k, 127k, 114k, 107k at nside 8,
+    #: 16, 32, 64, built in 0.01, 0.05, 0.2, 0.6-0.9 s (once per star table); 16 the balance
     STAR_CELL_NSIDE = 16
+    #: the cells' lists hold about this many entries at most (int32: 64 MB): beyond, the widest-
+    #: reaching stars are tested at every line of sight of their levels instead (a deep catalog,
+    #: or a tiny tolerance that gives every star a sky-wide radius)
+    STAR_CELL_ENTRIES = 16_000_000
     #: candidate (sample, star) pairs tested at once: bounds the memory of a deep catalog
     STAR_PAIRS_PER_PASS = 1 << 20
 
     def star_cells(self, stars: StarTable) -> "StarCells":
-        """Per sky cell (HEALPix, :attr:`STAR_CELL_NSIDE`, nested = False) and floor level, the
-        direct stars that can pass :meth:`star_influence_cos` for some line of sight in the cell:
-        those within the star's radius plus the cell's radius of its centre.  Each cell's stars
-        are sorted by the number of levels they reach, so a level's candidates are a prefix of
-        the cell's list.  Cached on the star table."""
+        """Per sky cell (HEALPix ring order, :attr:`STAR_CELL_NSIDE`) and floor level, the direct
+        stars that can pass :meth:`star_influence_cos` for some line of sight in the cell: those
+        within the star's radius plus the cell's radius of its centre.  Each cell's stars are
+        sorted by the number of levels they reach, so a level's candidates are a prefix of the
+        cell's list.  A star whose radius at a level is the whole sky (a bright star against the
+        darkest floors, or every star at a tiny tolerance) is listed once for the whole sky
+        instead, not in every cell.  Cached on the star table."""
         import healpy as hp
 
         key = (id(self), tuple(self.campaign.bands), self.tolerance, self.STAR_CELL_NSIDE)
@@ -541,28 +549,48 @@ class ComponentModel:
         if key in cache:
             return cache[key]
         near_cos = self.star_influence_cos(stars)  # (L, S)
-        radius_rad = np.where(near_cos < -1.0, np.pi, np.arccos(np.clip(near_cos, -1.0, 1.0)))
+        n_levels = near_cos.shape[0]
         nside = self.STAR_CELL_NSIDE
         n_cells = hp.nside2npix(nside)
         centres = np.array(hp.pix2vec(nside, np.arange(n_cells))).T
         # max_pixrad: the largest centre-to-corner distance; 1 % and 1e-9 rad over it for the
         # curved edges and rounding (sampled: no point of a cell lies beyond 0.999 of it)
         margin_rad = 1.01 * hp.max_pixrad(nside) + 1e-9
-        s_all = stars.unit
-        counts = np.zeros((n_cells, near_cos.shape[0]), np.intp)
+        # levels 0 .. everywhere - 1 at which the star is tested at every line of sight: where
+        # its radius is the whole sky, and, should the lists outgrow STAR_CELL_ENTRIES, where its
+        # reach (radius + cell radius) is wider than the widest reach that keeps them within it
+        # (radii shrink with the level, so these are the first levels)
+        reach_rad = np.where(near_cos < -1.0, np.inf, np.arccos(np.clip(near_cos, -1.0, 1.0)) + margin_rad)
+        for widest_rad in np.radians([np.inf, 120.0, 90.0, 60.0, 45.0, 30.0, 20.0, 10.0, 0.0]):
+            everywhere = np.sum(reach_rad >= widest_rad, axis=0)
+            first_local = reach_rad[np.minimum(everywhere, n_levels - 1), np.arange(near_cos.shape[1])]
+            cap = np.where(everywhere < n_levels, (1.0 - np.cos(np.minimum(first_local, np.pi))) / 2.0, 0.0)
+            if n_cells * cap.sum() <= self.STAR_CELL_ENTRIES:  # the lists' expected length
+                break
+        sky_order = np.argsort(-everywhere, kind="stable")
+        sky_count = np.array([np.count_nonzero(everywhere > lv) for lv in range(n_levels)], np.intp)
+        local = np.flatnonzero(everywhere < n_levels)  # stars that some level limits to a radius
+        radius_rad = np.arccos(np.clip(near_cos[:, local], -1.0, 1.0))
+        s_local = stars.unit[local] if local.size else np.zeros((0, 3))
+        counts = np.zeros((n_cells, n_levels), np.intp)
         lists = []
-        for a in range(0, n_cells, 256):
-            ang = np.arccos(np.clip(centres[a:a + 256] @ s_all.T, -1.0, 1.0))  # (c, S)
-            # levels at which each star is a candidate: radii shrink with the level, so they
-            # are levels 0 .. reach - 1
+        block = max(1, (1 << 21) // max(local.size, 1))  # cells at a time: arrays of ~2 million
+        for a in range(0, n_cells, block):
+            ang = np.arccos(np.clip(centres[a:a + block] @ s_local.T, -1.0, 1.0))  # (c, S_local)
+            # levels at which the star is a cell candidate but not a whole-sky one: levels
+            # everywhere .. reach - 1 (listed from 0: the whole-sky levels are skipped per sample)
             reach = np.zeros(ang.shape, np.intp)
             for level_radius in radius_rad:
                 reach += ang < level_radius + margin_rad
+            reach = np.where(reach > everywhere[local], reach, 0)
             order = np.argsort(-reach, axis=1, kind="stable")
-            counts[a:a + 256] = (reach[:, None, :] > np.arange(near_cos.shape[0])[None, :, None]).sum(axis=2)
-            lists += [order[i, :counts[a + i, 0]] for i in range(order.shape[0])]
+            hist = np.bincount((np.arange(ang.shape[0])[:, None] * (n_levels + 1) + reach).ravel(),
+                               minlength=ang.shape[0] * (n_levels + 1)).reshape(-1, n_levels + 1)
+            counts[a:a + block] = np.cumsum(hist[:, ::-1], axis=1)[:, ::-1][:, 1:]  # reach > level
+            lists += [local[order[i, :counts[a + i, 0]]].astype(np.int32) for i in range(order.shape[0])]
         start = np.concatenate([[0], np.cumsum(counts[:, 0])[:-1]])
-        cells = StarCells(nside, np.concatenate(lists) if lists else np.zeros(0, np.intp), start, counts)
+        cells = StarCells(nside, np.concatenate(lists) if lists else np.zeros(0, np.int32), start, counts,
+                          sky_order, sky_count, everywhere)
         cache[key] = cells
         return cells
 
@@ -597,11 +625,15 @@ class ComponentModel:
         re_km = self.campaign.earth.radius_km
         sat_b = np.broadcast_to(np.asarray(sat, float), shape + (3,))
         runs = scene_runs(sat_b)
+        if runs is not None and runs.count * len(s_all) > self.STAR_PAIRS_PER_PASS:
+            runs = None  # many short runs of a deep catalog: the test per pair costs less memory
         if runs is not None:  # the Earth test once per star and time step
             star_blocked = earth_blocks(runs.vectors[0][:, None, :], s_all[None], re_km)  # (R, S)
         sat_flat = sat_b.reshape(-1, 3)
         cell = cells.cell_of(fz)
-        n_cand = cells.count[cell, level]  # candidates per sample
+        n_cell = cells.count[cell, level]  # the cell's candidates per sample
+        n_sky = cells.sky_count[level]  # and the whole-sky ones
+        n_cand = n_cell + n_sky
         first = cells.start[cell]
         ends = np.cumsum(n_cand)
         parts = []
@@ -609,12 +641,16 @@ class ComponentModel:
         while a < fz.shape[0]:  # passes of at most STAR_PAIRS_PER_PASS candidates (one sample at least)
             base = ends[a - 1] if a else 0
             b = max(int(np.searchsorted(ends, base + self.STAR_PAIRS_PER_PASS, side="right")), a + 1)
-            n = n_cand[a:b]
-            r = np.repeat(np.arange(a, b), n)
-            k = cells.stars[np.arange(ends[b - 1] - base) - np.repeat(ends[a:b] - n - base, n) + np.repeat(first[a:b], n)]
+            r = np.repeat(np.arange(a, b), n_cand[a:b])
+            # position of each candidate in its sample's list: the cell's first, then the sky's
+            pos = np.arange(ends[b - 1] - base) - np.repeat(ends[a:b] - n_cand[a:b] - base, n_cand[a:b])
+            in_cell = pos < n_cell[r]
+            k = np.where(in_cell, cells.stars[np.where(in_cell, first[r] + pos, 0)] if cells.stars.size else 0,
+                         cells.sky_order[np.where(in_cell, 0, pos - n_cell[r])] if n_sky.any() else 0)
             a = b
             cz = dots(fz_c, r, k)
-            near = cz > near_cos[level[r], k]
+            # a cell candidate that counts for the whole sky at the sample's level is the sky's
+            near = (cz > near_cos[level[r], k]) & ~(in_cell & (cells.everywhere[k] > level[r]))
             r, k, cz = r[near], k[near], cz[near]
             seen = ~star_blocked[runs.index[r], k] if runs is not None else ~earth_blocks(sat_flat[r], s_all[k], re_km)
             r, k, dz = r[seen], k[seen], cz[seen]
@@ -634,12 +670,16 @@ class ComponentModel:
 class StarCells:
     """Candidate direct stars per HEALPix sky cell (ring order) and floor level
     (:meth:`ComponentModel.star_cells`): cell c's candidates at level l are
-    ``stars[start[c] : start[c] + count[c, l]]``."""
+    ``stars[start[c] : start[c] + count[c, l]]`` (less those that count everywhere at l) and
+    ``sky_order[:sky_count[l]]``."""
 
     nside: int
     stars: np.ndarray  # star indices, cell after cell
     start: np.ndarray  # (cells,) each cell's first entry
     count: np.ndarray  # (cells, levels) candidates
+    sky_order: np.ndarray  # star indices, by the number of levels at which they count everywhere
+    sky_count: np.ndarray  # (levels,) whole-sky candidates: a prefix of sky_order
+    everywhere: np.ndarray  # (stars,) levels 0 .. everywhere - 1 count for the whole sky
 
     def cell_of(self, unit_vectors) -> np.ndarray:
         """The sky cell of each unit vector (N, 3)."""

@@ -269,14 +269,17 @@ def _dense_star_pairs(model, stars, frame, sat, door, floor_ratio):
     return r, k, model.offfield.point_source(1.0, theta, phi, False, door[r])
 
 
-@pytest.mark.parametrize("nside, pairs_per_pass", [(16, 1 << 20), (4, 1 << 20), (64, 1 << 20), (16, 997)])
+@pytest.mark.parametrize("nside, pairs_per_pass, list_entries",
+                         [(16, 1 << 20, 16_000_000), (4, 1 << 20, 16_000_000), (64, 1 << 20, 16_000_000),
+                          (16, 997, 16_000_000), (16, 1 << 20, 20_000), (16, 997, 0)])
 def test_star_sky_cells_find_exactly_the_pairs_of_the_dense_search(campaign, comp_model, nside, pairs_per_pass,
-                                                                    monkeypatch):
+                                                                    list_entries, monkeypatch):
     """The star term tests only the candidates of each line of sight's sky cell
     (ComponentModel.star_cells): the same pairs, with the same transfers (1e-12), as testing
     every star against every line of sight, at every floor level, for lines of sight at the
     poles, on the RA wrap, near the stars themselves and on cell corners, whatever the cells'
-    size and however the candidates are split into passes."""
+    size, however the candidates are split into passes, and with the widest-reaching stars
+    tested at every line of sight (lists capped at 20,000 entries, or none)."""
     import healpy as hp
 
     from straylight.catalog import make_catalog
@@ -284,6 +287,7 @@ def test_star_sky_cells_find_exactly_the_pairs_of_the_dense_search(campaign, com
 
     monkeypatch.setattr(ComponentModel, "STAR_CELL_NSIDE", nside)
     monkeypatch.setattr(ComponentModel, "STAR_PAIRS_PER_PASS", pairs_per_pass)
+    monkeypatch.setattr(ComponentModel, "STAR_CELL_ENTRIES", list_entries)
     bands = list(campaign.bands)
     cat, _ = make_catalog({b: comp_model.band(b).response for b in bands})
     stars = split_stars(cat["ra"], cat["dec"], {b: cat[f"mag_{b}"] for b in bands}, 2.0, False)
@@ -304,6 +308,9 @@ def test_star_sky_cells_find_exactly_the_pairs_of_the_dense_search(campaign, com
     door = rng.choice(comp_model.offfield.door_states_deg, n)
     floor_ratio = 10.0 ** rng.uniform(0.0, 7.5, n)  # every level, 1 to 4^11 and beyond
     floor_ratio[:100] = 1.0
+    cells = comp_model.star_cells(stars)
+    if list_entries < 1_000_000:  # some stars are tested everywhere at some level, others listed
+        assert cells.sky_count[0] > 0 and (list_entries == 0 or cells.stars.size > 0)
     shape, (r, k, t) = comp_model._star_pairs(stars, frame, sat, door, floor_ratio)
     assert shape == (n,)
     r_ref, k_ref, t_ref = _dense_star_pairs(comp_model, stars, frame, sat, door, floor_ratio)
