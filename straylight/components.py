@@ -525,7 +525,7 @@ class ComponentModel:
     #: (:meth:`star_cells`): a cell's radius (3.8 deg at 16) widens every star's reach, so finer
     #: cells test fewer pairs but cost more to build.  Measured on a cube batch (15,840 samples,
     #: 212 direct stars, 85,728 pairs that count): candidates 158k, 127k, 114k, 107k at nside 8,
-    #: 16, 32, 64, built in 0.01, 0.05, 0.2, 0.6-0.9 s (once per star table); 16 the balance
+    #: 16, 32, 64, built in 0.01, 0.04, 0.2, 0.8 s (once per star table); 16 the balance
     STAR_CELL_NSIDE = 16
     #: the cells' lists hold about this many entries at most (int32: 64 MB): beyond, the widest-
     #: reaching stars are tested at every line of sight of their levels instead (a deep catalog,
