@@ -122,18 +122,17 @@ def sweep(bench, ref, name, settings):
     for label, kwargs, stars in settings:
         cm = bench.model(**kwargs)
         info = cm.earthshine_model  # builds the look-up table if one is asked for (or loads it)
-        if info["method"] == "lut":
-            # the tables' own recorded build times: a cached table loads in milliseconds
-            build = info["lut"].build_seconds + (cm.moonlit_model["lut"].build_seconds
-                                                 if cm.moonlit_model["lut"] is not None else 0.0)
         res, dt = timed(lambda: bench.evaluate(cm, stars))
         err = max_rel_error(res, ref, bench.bands)
         row = {"setting": label, "max_rel_error": err, "seconds_per_sample": dt / bench.n}
+        extra = ""
         if info["method"] == "lut":
-            row["lut_build_seconds"] = build
+            # the tables' own recorded build times: a cached table loads in milliseconds
+            mlut = cm.moonlit_model["lut"]
+            row["lut_build_seconds"] = info["lut"].build_seconds + (mlut.build_seconds if mlut is not None else 0.0)
             row["lut_validation_max_rel_error"] = info["lut_validation_max_rel_error"]
+            extra = f"  (table built in {row['lut_build_seconds']:.0f} s)"
         rows.append(row)
-        extra = f"  (table built in {build:.0f} s)" if info["method"] == "lut" else ""
         print(f"  {name:14s} {label:24s} error {err:9.2e}   {dt / bench.n * 1e3:8.3f} ms/sample{extra}")
     return rows
 

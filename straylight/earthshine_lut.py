@@ -36,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .door import door_state_index
 from .errors import InputError
 from .geometry import dot, norm, telescope_frame, unit
 from .gridinterp import LinearGrid
@@ -113,11 +114,12 @@ def _per_door_state(interpolators: dict, coords, opening_deg, shape, scale: floa
     clipped at 0."""
     op = np.broadcast_to(np.asarray(opening_deg, float), shape).ravel()
     states = sorted(interpolators)
+    state_of, known = door_state_index(states, op)
     both = np.zeros((op.size, 2))
-    for st, f in interpolators.items():
-        sel = (op == st) | ((op <= 0) & (st == states[0]))
+    for i, st in enumerate(states):
+        sel = known & (state_of == i)
         if np.any(sel):
-            both[sel] = scale * np.sinh(f(*(c[sel] for c in coords)))
+            both[sel] = scale * np.sinh(interpolators[st](*(c[sel] for c in coords)))
     both = np.maximum(both, 0.0)
     return both[:, 0].reshape(shape), both[:, 1].reshape(shape)
 
@@ -158,6 +160,16 @@ def _cached(prefix: str, key: str, what: str, load, build, log):
     path.parent.mkdir(parents=True, exist_ok=True)
     lut.save(path)
     return lut, path
+
+
+def _zenith_azimuth(up, lamp, los):
+    """(lamp zenith angle, line-of-sight zenith angle, line-of-sight azimuth from the lamp's
+    about the vertical, signed, -180 to 180), deg, of unit vectors ``up``, ``lamp``, ``los``."""
+    z_lamp = np.degrees(np.arccos(np.clip(dot(up, lamp), -1.0, 1.0)))
+    zeta = np.degrees(np.arccos(np.clip(dot(up, los), -1.0, 1.0)))
+    lamp_h = lamp - dot(lamp, up)[..., None] * up  # horizontal parts
+    los_h = los - dot(los, up)[..., None] * up
+    return z_lamp, zeta, np.degrees(np.arctan2(dot(np.cross(lamp_h, los_h), up), dot(lamp_h, los_h)))
 
 
 def _local_scene(R, Z, L, A):
@@ -340,15 +352,7 @@ class EarthshineLUT:
         sat = np.asarray(sat_km, float)
         r = norm(sat)
         up = sat / r[..., None]
-        s = unit(np.asarray(sun_km, float))
-        l_ = unit(np.asarray(los, float))
-        z_sun = np.degrees(np.arccos(np.clip(dot(up, s), -1.0, 1.0)))
-        zeta = np.degrees(np.arccos(np.clip(dot(up, l_), -1.0, 1.0)))
-        s_h = s - dot(s, up)[..., None] * up  # horizontal parts
-        l_h = l_ - dot(l_, up)[..., None] * up
-        cos_a = dot(s_h, l_h)
-        sin_a = dot(np.cross(s_h, l_h), up)
-        a = np.degrees(np.arctan2(sin_a, cos_a))
+        z_sun, zeta, a = _zenith_azimuth(up, unit(np.asarray(sun_km, float)), unit(np.asarray(los, float)))
         a = np.abs(a) if self.symmetric else np.mod(a, 360.0)
         return r, z_sun, zeta, a
 
@@ -598,11 +602,7 @@ class MoonlitLUT:
         up = unit(np.asarray(sat_km, float))
         m = unit(np.asarray(moon_km, float))  # geocentric, as the table's Moon
         los = np.asarray(frame.z, float)
-        z_moon = np.degrees(np.arccos(np.clip(dot(up, m), -1.0, 1.0)))
-        zeta = np.degrees(np.arccos(np.clip(dot(up, los), -1.0, 1.0)))
-        m_h = m - dot(m, up)[..., None] * up
-        l_h = los - dot(los, up)[..., None] * up
-        a = np.degrees(np.arctan2(dot(np.cross(m_h, l_h), up), dot(m_h, l_h)))
+        z_moon, zeta, a = _zenith_azimuth(up, m, los)
         up_ref = perpendicular_towards(los, up)  # upward in the line of sight's vertical plane
         roll = np.degrees(np.arctan2(dot(np.cross(up_ref, frame.x), los), dot(up_ref, frame.x)))
         if self.symmetric:  # the mirror image about the Moon's vertical plane: (A, roll) -> (-A, -roll)

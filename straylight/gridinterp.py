@@ -64,9 +64,11 @@ class LinearGrid:
 
     def __call__(self, *coords, channel=None) -> np.ndarray:
         """The interpolant at the points ``coords``; with ``channel`` (integer array, broadcast
-        with them; a grid with one trailing dimension only), that channel's value at each point
+        with them; a two-axis grid with one trailing dimension only), that channel's value at each point
         instead of all channels: e.g. each sample's own door state from one stacked table,
         located once (the same arithmetic as a separate grid per channel, so the same numbers)."""
+        if channel is not None and (len(self._trailing) != 1 or len(self.axes) != 2):
+            raise ValueError("channel needs a two-axis grid with exactly one trailing dimension")
         coords = np.broadcast_arrays(*(np.asarray(c, float) for c in coords))
         shape = coords[0].shape
         base = np.zeros(shape, np.intp)
@@ -76,8 +78,6 @@ class LinearGrid:
             base += i * stride
             fracs.append(t)
         if channel is not None:
-            if len(self._trailing) != 1:
-                raise ValueError("channel needs a grid with exactly one trailing dimension")
             n_channels = self._trailing[0]
             ch = np.broadcast_to(np.asarray(channel, np.intp), shape)
             if ch.size and (ch.min() < 0 or ch.max() >= n_channels):
@@ -92,8 +92,6 @@ class LinearGrid:
             tx, ty = fracs
             return ((f[base] * (1 - ty) + f[base + c] * ty) * (1 - tx)
                     + (f[base + s] * (1 - ty) + f[base + s + c] * ty) * tx)
-        if channel is not None:
-            raise ValueError("channel is implemented for two-axis grids")
         # corner weights and offsets built axis by axis (corner bit k = the upper node of axis k)
         weights, offsets = [1.0], [0]
         for t, stride in zip(fracs, self._strides):

@@ -228,12 +228,6 @@ class OffFieldModel:
         mu_moon = np.maximum(dot(n, unit(moon_km[..., None, None, :] - points_km)), 0.0)
         return mu_sun, mu_moon
 
-    def earth_radiance(self, points_km, sun_km, moon_km, sun_irr, moon_irr_at_earth, albedo, earth_radius_km):
-        """Lambertian radiance (photons s-1 m-2 sr-1) of surface points lit by the Sun and Moon."""
-        mu_sun, mu_moon = self.lamp_cosines(points_km, sun_km, moon_km, earth_radius_km)
-        return albedo / np.pi * (np.asarray(sun_irr)[..., None, None] * mu_sun
-                                 + np.asarray(moon_irr_at_earth)[..., None, None] * mu_moon)
-
     @cached_property
     def _door_weights(self):
         """Per door state: (door block positions, inner normal, weight W_i) with
@@ -281,8 +275,9 @@ class OffFieldModel:
             sun = np.broadcast_to(np.asarray(sun_km, float), los.shape)[hits]
             moon = np.broadcast_to(np.asarray(moon_km, float), los.shape)[hits]
             mu_sun, mu_moon = self.lamp_cosines(pts[:, None, None, :], sun, moon, earth_radius_km)
-            per_sun[hits] = self.earthshine.albedo / np.pi * mu_sun[:, 0, 0] * self.pixel_etendue_m2_sr
-            per_moon[hits] = self.earthshine.albedo / np.pi * mu_moon[:, 0, 0] * self.pixel_etendue_m2_sr
+            lambert = self.earthshine.albedo / np.pi  # Lambertian radiance per unit irradiance and cos z
+            per_sun[hits] = lambert * mu_sun[:, 0, 0] * self.pixel_etendue_m2_sr
+            per_moon[hits] = lambert * mu_moon[:, 0, 0] * self.pixel_etendue_m2_sr
         return per_sun, per_moon
 
     def earthshine_lamp_bound(self, sat_km, lamp_direction, los, earth_radius_km) -> np.ndarray:
@@ -367,10 +362,11 @@ class OffFieldModel:
         # door path: irradiance on the door's inner face from the Earth blocks in front of it
         door_sun = np.zeros(out["direct_sun"].shape)
         door_moon = np.zeros(out["direct_sun"].shape)
-        narrowest = min(self._door_weights)
-        for state, (q, n_in, w) in self._door_weights.items():
-            sel = (np.asarray(opening_deg) == state) | ((np.asarray(opening_deg) <= 0) & (state == narrowest))
-            sel = np.broadcast_to(sel, door_sun.shape)
+        states = sorted(self._door_weights)
+        state_of, known = door_state_index(states, opening_deg)
+        for i, state in enumerate(states):
+            _, n_in, w = self._door_weights[state]
+            sel = np.broadcast_to(known & (state_of == i), door_sun.shape)
             if not np.any(sel):
                 continue
             cos_inc = np.maximum(dx * n_in[0] + dy * n_in[1] + dz * n_in[2], 0.0)  # d . n_in > 0: in front
@@ -404,14 +400,15 @@ class OffFieldModel:
         door = np.zeros((op.size, 2))
         if blocks.shape[0]:
             states = sorted(self.door_tables)
+            state_of, known = door_state_index(states, op)
             for start in range(0, op.size, batch):
                 sl = slice(start, start + batch)
                 dx, dy, dz = fx[sl] @ blocks.T, fy[sl] @ blocks.T, fz[sl] @ blocks.T  # (n, K)
                 theta = np.degrees(np.arctan2(np.hypot(dx, dy), dz))
                 phi = np.degrees(np.arctan2(dy, dx)) % 360.0
                 w = self.pst(theta, phi) * (theta > self.field_radius_deg) * self.pixel_area_m2
-                for state in states:  # per sample's door state; the narrowest when none is allowed
-                    rows = (op[sl] == state) | ((op[sl] <= 0) & (state == states[0]))
+                for i, state in enumerate(states):  # per sample's door state (door.door_state_index)
+                    rows = known[sl] & (state_of[sl] == i)
                     if not np.any(rows):
                         continue
                     w[rows] *= self.door_tables[state](theta[rows], phi[rows])
