@@ -1,0 +1,56 @@
+"""The benchmark's error-checked adaptive time sampling (bench/run.py, issue #7): what it
+computes and what it fills in, on series whose answer is known in closed form."""
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
+from run import adaptive_in_time  # noqa: E402
+
+
+def _series(values):
+    """(T,) values as a one-band, one-pointing series, observable, door open at 135 deg."""
+    full = np.asarray(values, float)[:, None, None]
+    return full, np.ones(full.shape[::2], bool), np.full(full.shape[::2], 135.0)
+
+
+def test_a_straight_line_is_filled_after_one_check_per_interval():
+    # a line passes every check: knots every 8 of 33 samples (0, 8, 16, 24, 32) and one
+    # midpoint per interval are computed, 9 of 33, and the rest is exact to rounding
+    full, obs, door = _series(1.0 + 0.01 * np.arange(33))
+    computed, out = adaptive_in_time(full, obs, door, 8, 0.0025)
+    assert np.flatnonzero(computed[:, 0]).tolist() == [0, 4, 8, 12, 16, 20, 24, 28, 32]
+    np.testing.assert_allclose(out, full, rtol=1e-14)
+
+
+def test_a_door_change_is_bracketed_down_to_single_steps():
+    # the door narrows at sample 11 (inside 8..16): 8..12 is split down to single steps around
+    # the change (9, 10, 11 computed), 12..16 lies in one state and is checked once (14)
+    full, obs, door = _series(np.ones(33))
+    door[11:, 0] = 105.0
+    computed, out = adaptive_in_time(full, obs, door, 8, 0.0025)
+    assert np.flatnonzero(computed[:, 0]).tolist() == [0, 4, 8, 9, 10, 11, 12, 14, 16, 20, 24, 28, 32]
+    np.testing.assert_array_equal(out, full)
+
+
+def test_a_curve_is_refined_until_the_midpoint_check_holds():
+    # y = 1 + t^2 / 2000: the line between a and b misses the midpoint by (b - a)^2 / 8000, so
+    # intervals of 8 fail the check (0.008 > 0.0025 y for t <= 32) and intervals of 4 pass it
+    # (0.002): every second sample is computed, and the others are off by 1/2000 / y at most
+    t = np.arange(33)
+    full, obs, door = _series(1.0 + t**2 / 2000.0)
+    computed, out = adaptive_in_time(full, obs, door, 8, 0.0025)
+    assert np.flatnonzero(computed[:, 0]).tolist() == list(range(0, 33, 2))
+    rel = np.abs(out - full) / full
+    assert 0.0004 < rel.max() <= 0.0005
+
+
+def test_a_spike_between_the_checks_is_missed():
+    # the method's failure mode: a feature narrower than the check spacing, here one sample
+    # (a star crossing the field's edge, say) between an interval's ends and its midpoint
+    full, obs, door = _series(np.ones(33))
+    full[2, 0, 0] = 2.0
+    computed, out = adaptive_in_time(full, obs, door, 8, 0.0025)
+    assert not computed[2, 0]
+    assert out[2, 0, 0] == 1.0  # the spike is interpolated away: a 50 % error
