@@ -84,8 +84,10 @@ def perpendicular_towards(v: np.ndarray, target: np.ndarray) -> np.ndarray:
     """
     v, target = np.broadcast_arrays(v, unit(target))
     p = target - dot(target, v)[..., None] * v
-    ok = (norm(p) > 1e-9)[..., None]
-    return np.where(ok, unit(p), _any_perpendicular(v))
+    degenerate = ~(norm(p) > 1e-9)  # NaN counts as degenerate
+    if not np.any(degenerate):  # the fallback is rare: computed only when needed
+        return unit(p)
+    return np.where(degenerate[..., None], _any_perpendicular(v), unit(p))
 
 
 # -- Earth ------------------------------------------------------------------------------------
@@ -384,20 +386,30 @@ def observing_geometry(
     out: dict[str, np.ndarray] = {}
     # a cube time step shares the satellite and the bodies: each body's direction once per step
     runs = scene_runs(sat, *bodies_km.values())
-    for i, (name, pos) in enumerate(bodies_km.items()):
-        if runs is None:
+    if runs is None:
+        for name, pos in bodies_km.items():
             d = unit(pos - sat)
-            blocked = earth_blocks(sat, d, earth_radius_km)
-        else:
-            d_run = unit(runs.vectors[1 + i] - runs.vectors[0])
-            d, blocked = runs.expand(d_run), runs.expand(earth_blocks(runs.vectors[0], d_run, earth_radius_km))
-        theta, phi = frame.theta_phi_deg(d)
-        if theta.shape != frame.z.shape[:-1]:
-            theta, phi = np.broadcast_arrays(theta, phi, frame.z[..., 0])[:2]
-        out[f"{name}_angle_deg"] = theta  # = off-axis angle theta in the telescope frame
-        out[f"{name}_phi_deg"] = phi
-        out[f"{name}_earth_blocked"] = blocked & np.ones(theta.shape, bool)
-    alpha, fraction, elongation = moon_phase(sun, moon, sat)
+            theta, phi = frame.theta_phi_deg(d)
+            if theta.shape != frame.z.shape[:-1]:
+                theta, phi = np.broadcast_arrays(theta, phi, frame.z[..., 0])[:2]
+            out[f"{name}_angle_deg"] = theta  # = off-axis angle theta in the telescope frame
+            out[f"{name}_phi_deg"] = phi
+            out[f"{name}_earth_blocked"] = earth_blocks(sat, d, earth_radius_km) & np.ones(theta.shape, bool)
+        alpha, fraction, elongation = moon_phase(sun, moon, sat)
+    else:
+        # every body's direction and Earth test once per run, then all bodies' angles in one pass
+        d_run = unit(np.stack(runs.vectors[1:]) - runs.vectors[0])  # (bodies, runs, 3)
+        per_sample = (len(bodies_km),) + runs.shape
+        blocked = earth_blocks(runs.vectors[0], d_run, earth_radius_km)[:, runs.index].reshape(per_sample)
+        theta, phi = frame.theta_phi_deg(d_run[:, runs.index].reshape(per_sample + (3,)))
+        for i, name in enumerate(bodies_km):
+            out[f"{name}_angle_deg"] = theta[i]
+            out[f"{name}_phi_deg"] = phi[i]
+            out[f"{name}_earth_blocked"] = blocked[i] & np.ones(theta[i].shape, bool)
+        names = list(bodies_km)
+        sat_run, sun_run, moon_run = (runs.vectors[0], runs.vectors[1 + names.index("sun")],
+                                      runs.vectors[1 + names.index("moon")])
+        alpha, fraction, elongation = (runs.expand(v) for v in moon_phase(sun_run, moon_run, sat_run))
     shape = out["sun_angle_deg"].shape
     out["moon_phase_angle_deg"] = np.broadcast_to(alpha, shape)
     out["moon_illuminated_fraction"] = np.broadcast_to(fraction, shape)
