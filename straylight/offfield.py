@@ -185,10 +185,13 @@ class OffFieldModel:
         """e-/s/pix of point sources: E * Se * Sp * PST * pixel area (broadcast arrays); the door
         and PST tables are looked up only where the Earth does not hide the source (Se = 1)."""
         th, ph, blocked, op = np.broadcast_arrays(theta_deg, phi_deg, np.asarray(earth_blocked, bool), opening_deg)
-        seen = ~blocked
-        t = np.zeros(th.shape)
-        if np.any(seen):
-            t[seen] = self.door_factor(th[seen], ph[seen], op[seen]) * self.pst(th[seen], ph[seen])
+        if not np.any(blocked):  # (the star pairs: none hidden) no masked copies
+            t = self.door_factor(th, ph, op) * self.pst(th, ph)
+        else:
+            seen = ~blocked
+            t = np.zeros(th.shape)
+            if np.any(seen):
+                t[seen] = self.door_factor(th[seen], ph[seen], op[seen]) * self.pst(th[seen], ph[seen])
         return np.asarray(irradiance) * t * self.pixel_area_m2
 
     # -- earthshine -------------------------------------------------------------------------
