@@ -185,7 +185,7 @@ class OffFieldModel:
         """e-/s/pix of point sources: E * Se * Sp * PST * pixel area (broadcast arrays); the door
         and PST tables are looked up only where the Earth does not hide the source (Se = 1)."""
         th, ph, blocked, op = np.broadcast_arrays(theta_deg, phi_deg, np.asarray(earth_blocked, bool), opening_deg)
-        if not np.any(blocked):  # (the star pairs: none hidden) no masked copies
+        if not np.any(blocked):  # nothing hidden (every star pair): no masked copies
             t = self.door_factor(th, ph, op) * self.pst(th, ph)
         else:
             seen = ~blocked
