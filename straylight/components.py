@@ -165,19 +165,21 @@ class ComponentModel:
             self._add_moonlit_earthshine(es_coeff, sat, sun, moon, frame, door, shape, moon_at_earth_unit, floor)
         # the floor in units of the darkest zodiacal light, worst band: what the skip radii scale with
         floor_ratio = np.min([floor[name] / self.darkest_zodiacal_e_per_s(name) for name in bands], axis=0)
-        t_moon = self._skippable_transfer(v_moon, geometry["moon_angle_deg"], geometry["moon_phi_deg"],
+        moon_sun_fraction = solar_like_fraction(v_moon)
+        t_moon = self._skippable_transfer(moon_sun_fraction, geometry["moon_angle_deg"], geometry["moon_phi_deg"],
                                           geometry["moon_earth_blocked"], door, bands, floor_ratio)
         planets_fraction = np.zeros(shape)  # sum of transfer x fraction of the Sun at 1 AU
         planets = [p for p in PLANETS if f"{p}_angle_deg" in geometry]
         # a cube time step shares one scene: each planet's magnitude once per step
         runs = scene_runs(sat, sun, *(bodies_km[p] for p in planets)) if planets else None
         for i, p in enumerate(planets):
-            v = planet_v_magnitude(p, bodies_km[p], sun, sat) if runs is None else \
-                runs.expand(planet_v_magnitude(p, runs.vectors[2 + i], runs.vectors[1], runs.vectors[0]))
-            t = self._skippable_transfer(v, geometry[f"{p}_angle_deg"], geometry[f"{p}_phi_deg"],
+            sun_fraction = solar_like_fraction(planet_v_magnitude(p, bodies_km[p], sun, sat)) if runs is None else \
+                runs.expand(solar_like_fraction(planet_v_magnitude(p, runs.vectors[2 + i], runs.vectors[1],
+                                                                   runs.vectors[0])))
+            t = self._skippable_transfer(sun_fraction, geometry[f"{p}_angle_deg"], geometry[f"{p}_phi_deg"],
                                          geometry[f"{p}_earth_blocked"], door, bands, floor_ratio)
-            planets_fraction = planets_fraction + t * solar_like_fraction(v)
-        moon_fraction = t_moon * solar_like_fraction(v_moon) * eclipse
+            planets_fraction = planets_fraction + t * sun_fraction
+        moon_fraction = t_moon * moon_sun_fraction * eclipse
         star_pairs = (self._star_pairs(stars, frame, sat, door, floor_ratio)
                       if stars is not None and len(stars.ra_deg) else None)  # once for all bands
         faint = faint_rates
@@ -251,9 +253,10 @@ class ComponentModel:
         return np.fmax(np.broadcast_to(np.asarray(partial_total, float), shape),
                        self.darkest_zodiacal_e_per_s(band))
 
-    def _skippable_transfer(self, v_mag, angle_deg, phi_deg, earth_blocked, door, bands, floor_ratio=1.0):
+    def _skippable_transfer(self, sun_fraction, angle_deg, phi_deg, earth_blocked, door, bands, floor_ratio=1.0):
         """The band-independent transfer (as OffFieldModel.point_source with E = 1) of the Moon or
-        a planet, a solar-spectrum source of V magnitude ``v_mag``, skipped (0) where its upper
+        a planet, a solar-spectrum source whose irradiance is ``sun_fraction`` of the Sun's at
+        1 AU (:func:`~straylight.offfield.solar_like_fraction` of its V magnitude), skipped (0) where its upper
         bound (the PST at its maximum over phi from the source's angle out, Se = Sp = 1) stays
         below 1/9 of the moon_and_planets_skip share (tolerance / 72) of the sample's floor in
         every band, so the Moon and the eight planets together stay within it.  The floor is
@@ -262,8 +265,7 @@ class ComponentModel:
         only where the Sun or the sunlit Earth outshines it by ~10^4."""
         off = self.offfield
         # e-/s/pix at PST = 1 relative to the darkest zodiacal light, worst band (solar spectrum)
-        rel = off.pixel_area_m2 * solar_like_fraction(v_mag) \
-            / self.solar_floor(tuple(bands))
+        rel = off.pixel_area_m2 * np.asarray(sun_fraction, float) / self.solar_floor(tuple(bands))
         per_source = ERROR_BUDGET_SHARES["moon_and_planets_skip"] / (1 + len(PLANETS))  # the Moon and each planet
         radius = off.pst.influence_radius_deg(per_source * self.tolerance * np.asarray(floor_ratio, float) / rel)
         far = (np.asarray(angle_deg) >= radius) & (radius < 180.0)  # 180: nowhere skippable
@@ -629,7 +631,8 @@ class ComponentModel:
             runs = None  # many short runs of a deep catalog: the test per pair costs less memory
         if runs is not None:  # the Earth test once per star and time step
             star_blocked = earth_blocks(runs.vectors[0][:, None, :], s_all[None], re_km)  # (R, S)
-        sat_flat = sat_b.reshape(-1, 3)
+        else:
+            sat_flat = sat_b.reshape(-1, 3)
         cell = cells.cell_of(fz)
         n_cell = cells.count[cell, level]  # the cell's candidates per sample
         n_sky = cells.sky_count[level]  # and the whole-sky ones

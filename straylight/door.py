@@ -133,9 +133,15 @@ class DoorTable:
     def _interp(self):
         return LinearGrid((self.theta_deg, self.phi_deg), self.values)
 
-    def __call__(self, theta_deg, phi_deg) -> np.ndarray:
+    @staticmethod
+    def coordinates(theta_deg, phi_deg):
+        """The table's (theta, phi) of directions: theta clipped to 0-90 deg (Sp holds its 90 deg
+        value behind the aperture), phi wrapped to 0-360 deg."""
         th, ph = np.broadcast_arrays(np.asarray(theta_deg, float), np.asarray(phi_deg, float))
-        return self._interp(np.clip(th, 0.0, 90.0), np.mod(ph, 360.0))
+        return np.clip(th, 0.0, 90.0), np.mod(ph, 360.0)
+
+    def __call__(self, theta_deg, phi_deg) -> np.ndarray:
+        return self._interp(*self.coordinates(theta_deg, phi_deg))
 
 
 def door_state_index(states_deg, opening_deg):

@@ -177,8 +177,7 @@ class OffFieldModel:
                                          np.asarray(opening_deg, float))
         states, grid = self._door_grid
         state, known = door_state_index(states, op)
-        # as DoorTable: theta clipped to 0-90 deg (Sp holds its 90 deg value behind the aperture)
-        return np.where(known, grid(np.clip(th, 0.0, 90.0), np.mod(ph, 360.0), channel=state), 0.0)
+        return np.where(known, grid(*DoorTable.coordinates(th, ph), channel=state), 0.0)
 
     # -- point sources ----------------------------------------------------------------------
     def point_source(self, irradiance, theta_deg, phi_deg, earth_blocked, opening_deg) -> np.ndarray:

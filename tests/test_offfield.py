@@ -6,7 +6,7 @@ from straylight.components import ComponentModel, StarTable
 from straylight.door import Door, door_length_from_paper
 from straylight.errors import ConfigError, InputError
 from straylight.geometry import TelescopeFrame, observing_geometry, radec_to_unit, telescope_frame
-from straylight.offfield import EarthshineSettings, moon_v_magnitude, planet_v_magnitude
+from straylight.offfield import EarthshineSettings, moon_v_magnitude, planet_v_magnitude, solar_like_fraction
 from straylight.pst import PST, default_pst_grid, load_pst, write_pst_csv
 
 RE = 6378.137
@@ -400,7 +400,8 @@ def test_skip_radius_shrinks_with_the_samples_floor(comp_model):
     transfer runs; where the sample's floor is 10^4 times the darkest sky (the bright limb, the
     Sun near) the same bound is below its share and the planet is skipped (0)."""
     off = comp_model.offfield
-    args = (-4.0, np.array([20.0]), np.array([30.0]), np.array([False]), np.array([135.0]), ["g"])
+    args = (solar_like_fraction(-4.0), np.array([20.0]), np.array([30.0]), np.array([False]), np.array([135.0]),
+            ["g"])
     exact = off.point_source(1.0, *args[1:5])
     at_darkest = comp_model._skippable_transfer(*args, floor_ratio=np.array([1.0]))
     bright = comp_model._skippable_transfer(*args, floor_ratio=np.array([1e4]))
