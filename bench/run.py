@@ -283,9 +283,11 @@ def nside_rows(bench):
     return rows
 
 
-def _cube_model(base, campaign: dict | None = None, earthshine: dict | None = None, **model_kw):
-    """A campaign from ``base`` with ``campaign`` and ``models.earthshine`` overrides, and its
-    ComponentModel for cube-sized runs, the earthshine table built or loaded before timing."""
+def _cube_model(base, campaign: dict | None = None, earthshine: dict | None = None, models: dict | None = None,
+                **model_kw):
+    """A campaign from ``base`` with ``campaign``, ``models.earthshine`` and ``models``
+    overrides, and its ComponentModel for cube-sized runs, the earthshine table built or loaded
+    before timing."""
     import copy
 
     from straylight.components import ComponentModel
@@ -293,6 +295,7 @@ def _cube_model(base, campaign: dict | None = None, earthshine: dict | None = No
 
     raw = copy.deepcopy(base.config)
     raw["campaign"].update(campaign or {})
+    raw["models"].update(models or {})
     raw["models"].setdefault("earthshine", {}).update(earthshine or {})
     c = campaign_from_dict(raw, base.path)
     model = ComponentModel(c, expected_samples=10**9, **model_kw)
@@ -351,7 +354,10 @@ def cube_summary(catalog, time_step: int = 24, n_times: int = 12) -> dict:
     batch, cube.SAMPLES_PER_EVALUATION), stars included.  Seconds per sample on one
     core (best of three) for the direct earthshine sum and for the look-up table (built once, cached), and the
     table path's largest difference from the direct path at observable samples, as a fraction
-    of the total (the direct path's own error is the random-sample figure above)."""
+    of the total (the direct path's own error is the random-sample figure above).  Then the
+    table path with models.unobservable_samples: skip, its rate counted over every sample
+    (the unobservable ones are NaN), its observable values checked identical to the table
+    path's."""
     import tempfile
 
     from straylight.catalog import write_catalog
@@ -367,14 +373,21 @@ def cube_summary(catalog, time_step: int = 24, n_times: int = 12) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         stars_path = Path(tmp) / "stars.parquet"
         write_catalog(catalog, stars_path, {})
-        for method in ("direct", "lut"):
-            c, model = _cube_model(base, earthshine={"method": method})
+        for key, method, unobservable in (("direct", "direct", "evaluate"), ("lut", "lut", "evaluate"),
+                                          ("lut_observable_only", "lut", "skip")):
+            c, model = _cube_model(base, earthshine={"method": method}, models={"unobservable_samples": unobservable})
             # best of three after a warm-up (single runs of this bench varied by up to 30 %)
-            res[method], dt = timed(lambda: compute_region(c, fp, t_slice, slice(None), model=model,
-                                                           stars_path=stars_path))
-            out[method] = {"samples_per_s_per_core": n_times * fp.pixels.size / dt}
-            print(f"cube, earthshine {method}: {out[method]['samples_per_s_per_core']:.0f} samples/s/core")
+            res[key], dt = timed(lambda: compute_region(c, fp, t_slice, slice(None), model=model,
+                                                        stars_path=stars_path))
+            out[key] = {"samples_per_s_per_core": n_times * fp.pixels.size / dt}
+            print(f"cube, earthshine {method}, unobservable samples {unobservable}: "
+                  f"{out[key]['samples_per_s_per_core']:.0f} samples/s/core")
     obs = res["direct"]["observable"].values
+    skipped = res["lut_observable_only"]["total"].values
+    out["lut_observable_only"]["identical_at_observable"] = bool(
+        np.array_equal(skipped[obs], res["lut"]["total"].values[obs]) and np.all(np.isnan(skipped[~obs])))
+    out["lut_observable_only"]["speedup_over_lut"] = (out["lut_observable_only"]["samples_per_s_per_core"]
+                                                      / out["lut"]["samples_per_s_per_core"])
     diff = np.abs(res["lut"]["total"].values - res["direct"]["total"].values) / res["direct"]["total"].values
     out["lut_vs_direct_max_rel_error_observable"] = float(diff[obs].max()) if obs.any() else None
     out["lut_vs_direct_max_rel_error_all"] = float(diff.max())

@@ -368,7 +368,9 @@ class ComponentModel:
         es["earth_grid"] = [s.n_gamma, s.n_psi]
         es["door_blocks"], es["aperture_points_door"] = list(s.door_blocks), s.n_aperture_door
         shares, lut_runs = ERROR_BUDGET_SHARES, es["method"] == "lut"
+        skip = self.campaign.config["models"].get("unobservable_samples", "evaluate") == "skip"
         return {"tolerance": self.tolerance, "earthshine": es, "pst": self.offfield.pst.source,
+                "unobservable_samples": ("skipped: NaN in every component" if skip else "evaluated"),
                 "skip_floor": ("each sample's zodiacal light + Sun + sunlit Earth + moonlit Earth in the field "
                                "(a lower bound of its total; never below the darkest zodiacal light)"),
                 "moonlit_earthshine": (f"skipped where its bound < {self.moonlit_skip_share:g} x tolerance x the "

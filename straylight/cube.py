@@ -199,6 +199,7 @@ def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: s
     # sum grids the Earth per sample, so there one step per call bounds its memory (the star
     # pairs bound their own: ComponentModel.STAR_PAIRS_PER_PASS).
     per_call = 1 if model.earthshine_model["lut"] is None else max(1, SAMPLES_PER_EVALUATION // max(npix, 1))
+    skip_unobservable = unobservable_samples(campaign) == "skip"
     for first in range(0, nt, per_call):
         steps = slice(first, min(first + per_call, nt))
         k = steps.stop - steps.start
@@ -208,10 +209,13 @@ def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: s
         los_k = np.broadcast_to(los[None], (k,) + los.shape).reshape(-1, 3)
         faint_k = None if faint is None else {b: np.tile(v, k) for b, v in faint.items()}
         g = observing_geometry(sat, bodies, los_k, campaign.earth.radius_km, campaign.constraints)
-        res = model.evaluate(sat, bodies, los_k, g, campaign.bands, stars, faint_rates=faint_k)
-        for ib, b in enumerate(campaign.bands):
-            for comp in CUBE_COMPONENTS + ("total",):
-                out[comp][steps, :, ib] = _by_step(res[b][comp], k, npix)
+        if skip_unobservable:
+            _evaluate_observable(model, campaign, sat, bodies, los_k, g, stars, faint_k, out, steps, npix)
+        else:
+            res = model.evaluate(sat, bodies, los_k, g, campaign.bands, stars, faint_rates=faint_k)
+            for ib, b in enumerate(campaign.bands):
+                for comp in CUBE_COMPONENTS + ("total",):
+                    out[comp][steps, :, ib] = _by_step(res[b][comp], k, npix)
         obs[steps], viol[steps], door[steps] = (_by_step(g[v], k, npix)
                                                 for v in ("observable", "violations", "door_opening_deg"))
     data = {k: (("time", "pixel", "band"), v) for k, v in out.items()}
@@ -219,6 +223,33 @@ def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: s
     data["violations"] = (("time", "pixel"), viol)
     data["door_opening_deg"] = (("time", "pixel"), door)
     return xr.Dataset(data)
+
+
+def unobservable_samples(campaign: Campaign) -> str:
+    """models.unobservable_samples: 'evaluate' (every sample gets its background) or 'skip'
+    (samples that break a constraint get NaN in every component)."""
+    return str(campaign.config["models"].get("unobservable_samples", "evaluate"))
+
+
+def _evaluate_observable(model, campaign: Campaign, sat, bodies, los, geometry, stars, faint, out, steps, npix):
+    """Evaluate one batch's observable samples only and write them into ``out`` at ``steps``;
+    the other samples get NaN.  Each sample's background depends on that sample alone, so the
+    observable ones come out as they do in a whole batch (tests/test_cube.py)."""
+    k = steps.stop - steps.start
+    n = k * npix
+    sel = np.flatnonzero(np.broadcast_to(geometry["observable"], (n,)))
+    for comp in CUBE_COMPONENTS + ("total",):
+        out[comp][steps] = np.nan
+    if sel.size == 0:
+        return
+    g_sel = {key: np.broadcast_to(v, (n,) + np.shape(v)[1:])[sel] if np.ndim(v) else v
+             for key, v in geometry.items()}
+    res = model.evaluate(sat[sel], {b: v[sel] for b, v in bodies.items()}, los[sel], g_sel, campaign.bands,
+                         stars, faint_rates=None if faint is None else {b: v[sel] for b, v in faint.items()})
+    t_idx, p_idx = np.divmod(sel, npix)
+    for ib, b in enumerate(campaign.bands):
+        for comp in CUBE_COMPONENTS + ("total",):
+            out[comp][steps.start + t_idx, p_idx, ib] = np.broadcast_to(res[b][comp], sel.shape)
 
 
 def _by_step(values, k: int, npix: int) -> np.ndarray:

@@ -381,6 +381,32 @@ def test_cube_region_batches_steps_in_time_pixel_order(coarse):
             np.testing.assert_allclose(ds["total"].values[it, :, ib], alone[b]["total"], rtol=1e-6)
 
 
+def test_cube_region_skipping_unobservable_samples_changes_no_observable_value(coarse):
+    """models.unobservable_samples: skip evaluates only the observable samples: they come out
+    bit-identical to evaluating every sample, every other sample is NaN in every component, and
+    the flags are the same."""
+    from straylight.cube import CUBE_COMPONENTS, compute_region
+    from straylight.footprint import footprint_from_config
+
+    c, cm, _ = coarse
+    raw = copy.deepcopy(c.config)
+    raw["models"]["unobservable_samples"] = "skip"
+    c_skip = campaign_from_dict(raw, c.path)
+    fp = footprint_from_config(c.config["footprint"])
+    t_slice, p_slice = slice(0, 60, 6), slice(0, 400)
+    every = compute_region(c, fp, t_slice, p_slice, model=cm)
+    skip = compute_region(c_skip, fp, t_slice, p_slice, model=cm)
+    obs = every["observable"].values
+    assert 200 < obs.sum() < 0.9 * obs.size  # both kinds of sample present
+    for v in ("observable", "violations", "door_opening_deg"):
+        np.testing.assert_array_equal(skip[v].values, every[v].values)
+    for comp in CUBE_COMPONENTS + ("total",):
+        np.testing.assert_array_equal(skip[comp].values[obs], every[comp].values[obs])
+        assert np.all(np.isnan(skip[comp].values[~obs]))
+    assert np.count_nonzero(every["moon"].values[obs]) > 0  # a skippable term was summed somewhere
+    assert cm.models_record()["unobservable_samples"] == "evaluated"
+
+
 def test_scene_runs_group_consecutive_samples_that_share_a_scene():
     from straylight.geometry import scene_runs, shared_vectors
 
