@@ -205,13 +205,17 @@ def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: s
         k = steps.stop - steps.start
         # each step's scene repeated over its pixels (geometry.scene_runs finds the steps again)
         sat = np.repeat(sc.satellite_km[steps], npix, axis=0)
-        bodies = {b: np.repeat(v[steps], npix, axis=0) for b, v in sc.bodies_km.items()}
         los_k = np.broadcast_to(los[None], (k,) + los.shape).reshape(-1, 3)
-        faint_k = None if faint is None else {b: np.tile(v, k) for b, v in faint.items()}
-        g = observing_geometry(sat, bodies, los_k, campaign.earth.radius_km, campaign.constraints)
         if skip_unobservable:
-            _evaluate_observable(model, campaign, sat, bodies, los_k, g, stars, faint_k, out, steps, npix)
+            # the constraints need the Sun's and the Moon's angles only: the planets' wait for
+            # the observable samples
+            g = observing_geometry(sat, {b: np.repeat(sc.bodies_km[b][steps], npix, axis=0) for b in ("sun", "moon")},
+                                   los_k, campaign.earth.radius_km, campaign.constraints)
+            _evaluate_observable(model, campaign, sc, los, faint, g["observable"], stars, out, steps)
         else:
+            bodies = {b: np.repeat(v[steps], npix, axis=0) for b, v in sc.bodies_km.items()}
+            faint_k = None if faint is None else {b: np.tile(v, k) for b, v in faint.items()}
+            g = observing_geometry(sat, bodies, los_k, campaign.earth.radius_km, campaign.constraints)
             res = model.evaluate(sat, bodies, los_k, g, campaign.bands, stars, faint_rates=faint_k)
             for ib, b in enumerate(campaign.bands):
                 for comp in CUBE_COMPONENTS + ("total",):
@@ -231,22 +235,24 @@ def unobservable_samples(campaign: Campaign) -> str:
     return str(campaign.config["models"].get("unobservable_samples", "evaluate"))
 
 
-def _evaluate_observable(model, campaign: Campaign, sat, bodies, los, geometry, stars, faint, out, steps, npix):
-    """Evaluate one batch's observable samples only and write them into ``out`` at ``steps``;
-    the other samples get NaN.  Each sample's background depends on that sample alone, so the
-    observable ones come out as they do in a whole batch (tests/test_cube.py)."""
-    k = steps.stop - steps.start
-    n = k * npix
-    sel = np.flatnonzero(np.broadcast_to(geometry["observable"], (n,)))
+def _evaluate_observable(model, campaign: Campaign, sc, los, faint, observable, stars, out, steps):
+    """Evaluate the ``observable`` samples (flat, step-major) of the time steps ``steps`` of the
+    scene ``sc`` at the lines of sight ``los`` (pixel, 3) only, their geometry then their
+    background, and write them into ``out`` at ``steps``; the other samples get NaN.  Each
+    sample's values depend on that sample alone, so the observable ones come out as they do in a
+    whole batch (tests/test_earthshine_lut.py).  ``faint``: band -> per-pixel faint-star rates."""
+    npix = los.shape[0]
+    sel = np.flatnonzero(observable)
     for comp in CUBE_COMPONENTS + ("total",):
         out[comp][steps] = np.nan
     if sel.size == 0:
         return
-    g_sel = {key: np.broadcast_to(v, (n,) + np.shape(v)[1:])[sel] if np.ndim(v) else v
-             for key, v in geometry.items()}
-    res = model.evaluate(sat[sel], {b: v[sel] for b, v in bodies.items()}, los[sel], g_sel, campaign.bands,
-                         stars, faint_rates=None if faint is None else {b: v[sel] for b, v in faint.items()})
     t_idx, p_idx = np.divmod(sel, npix)
+    sat = sc.satellite_km[steps][t_idx]
+    bodies = {b: v[steps][t_idx] for b, v in sc.bodies_km.items()}
+    g = observing_geometry(sat, bodies, los[p_idx], campaign.earth.radius_km, campaign.constraints)
+    res = model.evaluate(sat, bodies, los[p_idx], g, campaign.bands, stars,
+                         faint_rates=None if faint is None else {b: v[p_idx] for b, v in faint.items()})
     for ib, b in enumerate(campaign.bands):
         for comp in CUBE_COMPONENTS + ("total",):
             out[comp][steps.start + t_idx, p_idx, ib] = np.broadcast_to(res[b][comp], sel.shape)
