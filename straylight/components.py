@@ -368,9 +368,9 @@ class ComponentModel:
         es["earth_grid"] = [s.n_gamma, s.n_psi]
         es["door_blocks"], es["aperture_points_door"] = list(s.door_blocks), s.n_aperture_door
         shares, lut_runs = ERROR_BUDGET_SHARES, es["method"] == "lut"
-        skip = self.campaign.config["models"].get("unobservable_samples", "evaluate") == "skip"
         return {"tolerance": self.tolerance, "earthshine": es, "pst": self.offfield.pst.source,
-                "unobservable_samples": ("skipped: NaN in every component" if skip else "evaluated"),
+                "unobservable_samples": ("skipped: NaN in every component"
+                                         if unobservable_samples(self.campaign) == "skip" else "evaluated"),
                 "skip_floor": ("each sample's zodiacal light + Sun + sunlit Earth + moonlit Earth in the field "
                                "(a lower bound of its total; never below the darkest zodiacal light)"),
                 "moonlit_earthshine": (f"skipped where its bound < {self.moonlit_skip_share:g} x tolerance x the "
@@ -669,6 +669,12 @@ class ComponentModel:
         if not parts:
             return shape, (np.zeros(0, np.intp), np.zeros(0, np.intp), np.zeros(0))
         return shape, tuple(np.concatenate(x) for x in zip(*parts))
+
+
+def unobservable_samples(campaign) -> str:
+    """models.unobservable_samples of a campaign: 'evaluate' (every cube sample gets its
+    background) or 'skip' (samples that break a constraint get NaN in every component)."""
+    return str(campaign.config["models"].get("unobservable_samples", "evaluate"))
 
 
 @dataclass(frozen=True)

@@ -181,6 +181,7 @@ def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: s
     ``stars_path``: the star catalog for the off-field star term (None: stars = 0);
     ``faint_map``: the faint stars' map at these pixels, (pixel, band) e-/s/pix, as
     :func:`faint_star_map` gives it (None: computed here)."""
+    from .components import unobservable_samples
     from .sky import scene
 
     model = model or _component_model(campaign, fp.pixels.size)
@@ -199,7 +200,7 @@ def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: s
     # sum grids the Earth per sample, so there one step per call bounds its memory (the star
     # pairs bound their own: ComponentModel.STAR_PAIRS_PER_PASS).
     per_call = 1 if model.earthshine_model["lut"] is None else max(1, SAMPLES_PER_EVALUATION // max(npix, 1))
-    skip_unobservable = unobservable_samples(campaign) == "skip"
+    skip_unobservable = unobservable_samples(campaign) == "skip"  # the campaign's, not the model's
     for first in range(0, nt, per_call):
         steps = slice(first, min(first + per_call, nt))
         k = steps.stop - steps.start
@@ -227,12 +228,6 @@ def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: s
     data["violations"] = (("time", "pixel"), viol)
     data["door_opening_deg"] = (("time", "pixel"), door)
     return xr.Dataset(data)
-
-
-def unobservable_samples(campaign: Campaign) -> str:
-    """models.unobservable_samples: 'evaluate' (every sample gets its background) or 'skip'
-    (samples that break a constraint get NaN in every component)."""
-    return str(campaign.config["models"].get("unobservable_samples", "evaluate"))
 
 
 def _evaluate_observable(model, campaign: Campaign, sc, los, faint, observable, stars, out, steps):

@@ -405,6 +405,8 @@ def test_cube_region_skipping_unobservable_samples_changes_no_observable_value(c
         assert np.all(np.isnan(skip[comp].values[~obs]))
     assert np.count_nonzero(every["moon"].values[obs]) > 0  # a skippable term was summed somewhere
     assert cm.models_record()["unobservable_samples"] == "evaluated"
+    assert ComponentModel(c_skip, expected_samples=10**6).models_record()["unobservable_samples"] == \
+        "skipped: NaN in every component"
 
 
 def test_scene_runs_group_consecutive_samples_that_share_a_scene():
