@@ -207,16 +207,15 @@ def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: s
         # each step's scene repeated over its pixels (geometry.scene_runs finds the steps again)
         sat = np.repeat(sc.satellite_km[steps], npix, axis=0)
         los_k = np.broadcast_to(los[None], (k,) + los.shape).reshape(-1, 3)
+        # skipping, the constraints need the Sun's and the Moon's angles only: the planets' wait
+        # for the observable samples
+        names = ("sun", "moon") if skip_unobservable else tuple(sc.bodies_km)
+        bodies = {b: np.repeat(sc.bodies_km[b][steps], npix, axis=0) for b in names}
+        g = observing_geometry(sat, bodies, los_k, campaign.earth.radius_km, campaign.constraints)
         if skip_unobservable:
-            # the constraints need the Sun's and the Moon's angles only: the planets' wait for
-            # the observable samples
-            g = observing_geometry(sat, {b: np.repeat(sc.bodies_km[b][steps], npix, axis=0) for b in ("sun", "moon")},
-                                   los_k, campaign.earth.radius_km, campaign.constraints)
             _evaluate_observable(model, campaign, sc, los, faint, g["observable"], stars, out, steps)
         else:
-            bodies = {b: np.repeat(v[steps], npix, axis=0) for b, v in sc.bodies_km.items()}
             faint_k = None if faint is None else {b: np.tile(v, k) for b, v in faint.items()}
-            g = observing_geometry(sat, bodies, los_k, campaign.earth.radius_km, campaign.constraints)
             res = model.evaluate(sat, bodies, los_k, g, campaign.bands, stars, faint_rates=faint_k)
             for ib, b in enumerate(campaign.bands):
                 for comp in CUBE_COMPONENTS + ("total",):

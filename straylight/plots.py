@@ -78,7 +78,7 @@ def sky_maps(ds, campaign, out_dir, n_times: int = 2, bands=None, times=()) -> l
             obs = np.asarray(ds["observable"].isel(time=it), float)
             hp.mollview(_full_sky(ds, obs), nest=nest, fig=fig.number, sub=(2, 4, 8), title="observable",
                         min=0, max=1, cmap="RdYlGn", cbar=False, notext=True)
-            # models.unobservable_samples: skip leaves NaN where not observable
+            # models.unobservable_samples: skip leaves NaN where not observable (e: the total here)
             grey = "outside the footprint" + (" or not evaluated (not observable)" if np.isnan(e).any() else "")
             fig.suptitle(f"{campaign.name}: band {band} at {t} UTC (ICRS Mollweide; grey: {grey})")
             written.append(_save(fig, Path(out_dir) / f"sky_{band}_{t.replace(':', '').replace('-', '')}.png"))
