@@ -369,13 +369,14 @@ def cube_summary(catalog, time_step: int = 24, n_times: int = 12) -> dict:
     fp = footprint_from_config(base.config["footprint"])
     t_slice = slice(0, time_step * n_times, time_step)
     out = {"pixels": int(fp.pixels.size), "times": n_times, "time_step_s": time_step * float(base.config["campaign"]["cadence_s"])}
-    res = {}
+    res, models = {}, {}
     with tempfile.TemporaryDirectory() as tmp:
         stars_path = Path(tmp) / "stars.parquet"
         write_catalog(catalog, stars_path, {})
         for key, method, unobservable in (("direct", "direct", "evaluate"), ("lut", "lut", "evaluate"),
                                           ("lut_observable_only", "lut", "skip")):
             c, model = _cube_model(base, earthshine={"method": method}, models={"unobservable_samples": unobservable})
+            models[key] = model
             # best of three after a warm-up (single runs of this bench varied by up to 30 %)
             res[key], dt = timed(lambda: compute_region(c, fp, t_slice, slice(None), model=model,
                                                         stars_path=stars_path))
@@ -393,8 +394,31 @@ def cube_summary(catalog, time_step: int = 24, n_times: int = 12) -> dict:
     out["lut_vs_direct_max_rel_error_all"] = float(diff.max())
     out["observable_samples"] = int(obs.sum())
     out["speedup_lut_over_direct"] = out["lut"]["samples_per_s_per_core"] / out["direct"]["samples_per_s_per_core"]
+    out["auto_cost_model"] = auto_cost_model(models["lut"], out)
     print(f"cube: table path differs from the direct path by <= {out['lut_vs_direct_max_rel_error_observable']:.2e} "
           f"of the total at {out['observable_samples']} observable samples ({out['lut_vs_direct_max_rel_error_all']:.2e} at all)")
+    return out
+
+
+def auto_cost_model(lut_model, cube: dict) -> dict:
+    """models.earthshine.method = auto's two constants against this run: the seconds a cube
+    sample saves on the table path (measured just now) and the table's build seconds per node
+    and door state (as recorded when the cached table was built, on whatever cores it had).
+    A ratio far from 1 means the constants in straylight/components.py want updating."""
+    from straylight import components as comp
+
+    es = lut_model.earthshine_model
+    saved = 1.0 / cube["direct"]["samples_per_s_per_core"] - 1.0 / cube["lut"]["samples_per_s_per_core"]
+    build = es["lut_build_seconds"] / es["lut_node_states"]
+    out = {"saved_seconds_per_sample": {"measured": saved, "assumed": comp.LUT_SAVED_SECONDS_PER_SAMPLE},
+           "build_seconds_per_node": {"recorded": build, "assumed": comp.LUT_BUILD_SECONDS_PER_NODE},
+           "pays_off_above_samples": {"measured": es["lut_build_seconds"] / saved,
+                                      "assumed": comp.LUT_BUILD_SECONDS_PER_NODE * es["lut_node_states"]
+                                      / comp.LUT_SAVED_SECONDS_PER_SAMPLE}}
+    print(f"auto: the table saves {saved * 1e3:.3f} ms per cube sample (assumed "
+          f"{comp.LUT_SAVED_SECONDS_PER_SAMPLE * 1e3:.3f}), was built at {build * 1e3:.3f} ms per node and "
+          f"state (assumed {comp.LUT_BUILD_SECONDS_PER_NODE * 1e3:.3f}): pays off above "
+          f"{out['pays_off_above_samples']['measured']:.3g} samples (assumed {out['pays_off_above_samples']['assumed']:.3g})")
     return out
 
 

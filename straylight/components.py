@@ -30,6 +30,14 @@ from .zodiacal import zodiacal_model_from_instrument
 ERROR_BUDGET_SHARES = {"earthshine_lut": 0.5, "moonlit_earthshine_skip": 0.125, "moonlit_earthshine_grid": 0.125,
                        "stars_skip": 0.125, "moon_and_planets_skip": 0.125}
 
+# models.earthshine.method = auto weighs the sunlit table's build against what it saves, both
+# measured on one core: the default table (782,633 nodes x 2 door states) was built in 608 s,
+# 0.39 ms per node and state; in the cube the table path saves 0.36 ms per sample (bench/run.py
+# --only cube: direct 2686, table 126,654 samples/s; the bench prints both again as
+# cube.auto_cost_model, so a drift shows).
+LUT_BUILD_SECONDS_PER_NODE = 0.39e-3
+LUT_SAVED_SECONDS_PER_SAMPLE = 0.36e-3
+
 
 @dataclass
 class StarTable:
@@ -272,6 +280,12 @@ class ComponentModel:
         # a skipped source is treated as hidden: point_source then looks nothing up for it
         return off.point_source(1.0, angle_deg, phi_deg, np.asarray(earth_blocked, bool) | far, door)
 
+    def lut_node_states(self, settings) -> int:
+        """How many (node, door state) pairs the sunlit earthshine table with these
+        :class:`~straylight.earthshine_lut.LUTSettings` sums, each an Earth-grid sum."""
+        r = self.campaign.orbit_radius_range_km
+        return settings.node_count(r[0], self.campaign.earth.radius_km) * len(self.offfield.door_states_deg)
+
     @cached_property
     def earthshine_model(self) -> dict:
         """Which earthshine model runs, from models.earthshine.method (auto | lut | direct) and
@@ -297,11 +311,9 @@ class ComponentModel:
         if method == "auto":
             # deliberately blind to the cache: the same config must give the same products on
             # every machine, whether or not a table was built there before.
-            # build cost against what the table saves, both measured (bench/run.py --only cube,
-            # one core): a node costs ~0.35 ms to build per door state; the table saves ~0.23 ms
-            # per cube sample (3677 -> 21750 samples/s, stars included)
-            n_nodes = settings.node_count(r[0], self.campaign.earth.radius_km) * len(self.offfield.door_states_deg)
-            build_s, saved_s = 0.35e-3 * n_nodes, 0.23e-3 * self.expected_samples
+            # build cost against what the table saves (LUT_BUILD_SECONDS_PER_NODE, above)
+            build_s = LUT_BUILD_SECONDS_PER_NODE * self.lut_node_states(settings)
+            saved_s = LUT_SAVED_SECONDS_PER_SAMPLE * self.expected_samples
             if saved_s < build_s:
                 return {"method": "direct", "lut": None,
                         "reason": f"auto: {self.expected_samples} samples save ~{saved_s:.0f} s, the table costs ~{build_s:.0f} s"}
@@ -309,7 +321,7 @@ class ComponentModel:
                                   avoidance_deg=(k.dark_limb_min_deg, k.bright_limb_min_deg, k.sun_min_deg),
                                   workers=self.build_workers)
         info = {"lut_file": str(path.name), "lut_validation_max_rel_error": lut.validation_max_rel_error,
-                "lut_build_seconds": lut.build_seconds,
+                "lut_build_seconds": lut.build_seconds, "lut_node_states": self.lut_node_states(settings),
                 "lut_steps_deg": [settings.sun_zenith_step_deg, settings.los_zenith_step_deg, settings.azimuth_step_deg]}
         share = ERROR_BUDGET_SHARES["earthshine_lut"]
         if method == "auto" and not lut.validation_max_rel_error <= share * self.tolerance:
@@ -363,7 +375,7 @@ class ComponentModel:
         """Which models ran and their error budget, for a product's attributes (JSON-able)."""
         sc = self.campaign.config["stars"]
         # build time left out: the record goes into products, whose bytes must not vary run to run
-        es = {k: v for k, v in self.earthshine_model.items() if k not in ("lut", "lut_build_seconds")}
+        es = {k: v for k, v in self.earthshine_model.items() if k not in ("lut", "lut_build_seconds", "lut_node_states")}
         s = self.offfield.earthshine
         es["earth_grid"] = [s.n_gamma, s.n_psi]
         es["door_blocks"], es["aperture_points_door"] = list(s.door_blocks), s.n_aperture_door
@@ -433,8 +445,9 @@ class ComponentModel:
         bound = lut.moon_bound(sat_b, moon_b, los_b, re_km)
         # within 1 deg of the limb and below it the table has no bound: there the whole cap, fully
         # lit, at the PST's largest value outside the field
-        bound = np.where(np.isfinite(bound), bound, off.earthshine_cap_bound(sat_b, re_km, self.moonlit_grid)
-                         + lut.moon_door_bound)
+        no_bound = ~np.isfinite(bound)
+        if np.any(no_bound):  # the cap's bound only where needed (it grids each sample's cap)
+            bound[no_bound] = off.earthshine_cap_bound(sat_b[no_bound], re_km, self.moonlit_grid) + lut.moon_door_bound
         need = np.zeros(shape, bool)
         for b, e_moon in moon_at_earth_unit.items():
             need |= np.broadcast_to(bound * e_moon > self.moonlit_skip_share * self.tolerance * floor[b], shape)

@@ -210,6 +210,28 @@ def test_automatic_choice(coarse, campaign):
     assert loose["method"] == "lut"
 
 
+def test_automatic_choice_turns_at_the_build_cost(coarse):
+    """auto takes the table exactly when the campaign's samples save more than it costs to
+    build, at the measured per-node and per-sample figures (components.LUT_*)."""
+    from straylight import components as comp
+
+    c, _, _ = coarse
+    raw = copy.deepcopy(c.config)
+    raw["models"]["tolerance"] = 1.0  # the coarse table's error passes: only the cost decides
+    raw["models"]["earthshine"]["method"] = "auto"
+    loose = campaign_from_dict(raw, c.path)
+    settings = LUTSettings(**COARSE)
+    n_nodes = ComponentModel(loose).lut_node_states(settings)
+    # the coarse table's nodes (LUTSettings.nodes: 18 Sun zenith x 29 line-of-sight zenith x 10
+    # azimuth) x 2 door states
+    assert n_nodes == 18 * 29 * 10 * 2
+    turn = comp.LUT_BUILD_SECONDS_PER_NODE * n_nodes / comp.LUT_SAVED_SECONDS_PER_SAMPLE
+    below = ComponentModel(loose, expected_samples=int(turn) - 1).earthshine_model
+    above = ComponentModel(loose, expected_samples=int(turn) + 2).earthshine_model
+    assert below["method"] == "direct" and "samples save" in below["reason"]
+    assert above["method"] == "lut"
+
+
 def test_lut_path_agrees_with_direct_within_its_validated_error(coarse, campaign):
     """The whole model with the table against the direct sum, at random observable samples:
     the difference stays within the table's validated error (fraction of the total)."""
