@@ -103,7 +103,7 @@ def empty_cube(campaign: Campaign, fp: Footprint, times, stars_path=None, build_
             "chunking": "time block x pixel block x all bands",
             # which models ran and their error budget (the earthshine table is built here, once,
             # before the time-block jobs start)
-            "models": json.dumps(_component_model(campaign, fp.pixels.size, build_workers).models_record(),
+            "models": json.dumps(_component_model(campaign, fp, build_workers).models_record(),
                                  sort_keys=True),
         },
     )
@@ -117,7 +117,7 @@ def faint_star_map(campaign: Campaign, fp: Footprint, stars_path) -> xr.Variable
     stars = _offfield_stars(campaign, stars_path)
     if stars is None or not len(stars.faint_ra_deg):
         return None
-    model = _component_model(campaign, fp.pixels.size)
+    model = _component_model(campaign, fp)
     los = radec_to_unit(fp.ra_deg, fp.dec_deg)
     values = np.zeros((fp.pixels.size, len(campaign.bands)))
     for a, b in fp.blocks(1024):  # bounds the (pixels x stars) temporaries
@@ -145,16 +145,39 @@ def init_store(campaign: Campaign, fp: Footprint, store, stars_path=None, build_
 _MODELS: dict = {}
 
 
-def _component_model(campaign: Campaign, n_pixels: int, build_workers: int = 1):
+def evaluated_samples(campaign: Campaign, fp: Footprint, max_times: int = 144, max_pixels: int = 660) -> int:
+    """How many samples the campaign's cube evaluates: every (time, pixel) one, or with
+    models.unobservable_samples: skip the observable ones, their fraction estimated from an
+    even subsample of at most ``max_times`` x ``max_pixels`` (deterministic: the same config
+    gives the same count, and so the same earthshine model, on every machine; exact when the
+    campaign is no bigger).  On the default day (16.5 % observable) 144 x 660 of its 288 x 1320
+    samples give the fraction to 0.1 % of the samples in 0.15 s; 48 x 256 erred by 2.4 % (every
+    sixth step, 30 minutes apart, meets the 92-minute orbit in a pattern)."""
+    from .components import unobservable_samples
+    from .sky import scene
+
+    n = len(campaign.times) * int(fp.pixels.size)
+    if unobservable_samples(campaign) != "skip" or n == 0:
+        return n
+    t_idx = np.unique(np.linspace(0, len(campaign.times) - 1, min(max_times, len(campaign.times))).round().astype(int))
+    p_idx = np.unique(np.linspace(0, fp.pixels.size - 1, min(max_pixels, fp.pixels.size)).round().astype(int))
+    sc = scene(campaign, campaign.times[t_idx])
+    los = radec_to_unit(fp.ra_deg[p_idx], fp.dec_deg[p_idx])
+    g = observing_geometry(sc.satellite_km[:, None], {b: sc.bodies_km[b][:, None] for b in ("sun", "moon")},
+                           los[None], campaign.earth.radius_km, campaign.constraints)
+    return int(round(n * float(np.mean(g["observable"]))))
+
+
+def _component_model(campaign: Campaign, fp: Footprint, build_workers: int = 1):
     """One ComponentModel per process and campaign: its door tables, bands and earthshine table
     are built once, not once per Dask task (the campaign arrives pickled, so key on its content).
-    It expects the whole campaign's samples (times x footprint pixels)."""
+    It expects the samples the cube evaluates (:func:`evaluated_samples`)."""
     from .components import ComponentModel
 
-    n = len(campaign.times) * int(n_pixels)
-    key = (json.dumps(campaign.config, sort_keys=True, default=str), str(campaign.instrument_path), n)
+    key = (json.dumps(campaign.config, sort_keys=True, default=str), str(campaign.instrument_path), fp.pixels.size)
     if key not in _MODELS:
-        _MODELS[key] = ComponentModel(campaign, expected_samples=n, build_workers=build_workers)
+        _MODELS[key] = ComponentModel(campaign, expected_samples=evaluated_samples(campaign, fp),
+                                      build_workers=build_workers)
     return _MODELS[key]
 
 
@@ -184,13 +207,16 @@ def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: s
     from .components import unobservable_samples
     from .sky import scene
 
-    model = model or _component_model(campaign, fp.pixels.size)
+    model = model or _component_model(campaign, fp)
     stars = _offfield_stars(campaign, stars_path)
     times = campaign.times[t_slice]
     sc = scene(campaign, times)
     los = radec_to_unit(fp.ra_deg[p_slice], fp.dec_deg[p_slice])
     nt, npix, nb = len(times), los.shape[0], len(campaign.bands)
     faint = None if faint_map is None else {b: np.asarray(faint_map)[:, i] for i, b in enumerate(campaign.bands)}
+    if faint is None and stars is not None and len(stars.faint_ra_deg):
+        # once per pixel, not per sample of a many-step batch (it depends on the line of sight only)
+        faint = model.faint_star_rates(stars, los, campaign.bands)
     out = {k: np.zeros((nt, npix, nb), np.float32) for k in CUBE_COMPONENTS + ("total",)}
     obs = np.zeros((nt, npix), bool)
     viol = np.zeros((nt, npix), np.uint8)
