@@ -369,14 +369,14 @@ def cube_summary(catalog, time_step: int = 24, n_times: int = 12) -> dict:
     fp = footprint_from_config(base.config["footprint"])
     t_slice = slice(0, time_step * n_times, time_step)
     out = {"pixels": int(fp.pixels.size), "times": n_times, "time_step_s": time_step * float(base.config["campaign"]["cadence_s"])}
-    res, models = {}, {}
+    res, lut_model = {}, None
     with tempfile.TemporaryDirectory() as tmp:
         stars_path = Path(tmp) / "stars.parquet"
         write_catalog(catalog, stars_path, {})
         for key, method, unobservable in (("direct", "direct", "evaluate"), ("lut", "lut", "evaluate"),
                                           ("lut_observable_only", "lut", "skip")):
             c, model = _cube_model(base, earthshine={"method": method}, models={"unobservable_samples": unobservable})
-            models[key] = model
+            lut_model = model if key == "lut" else lut_model
             # best of three after a warm-up (single runs of this bench varied by up to 30 %)
             res[key], dt = timed(lambda: compute_region(c, fp, t_slice, slice(None), model=model,
                                                         stars_path=stars_path))
@@ -394,7 +394,7 @@ def cube_summary(catalog, time_step: int = 24, n_times: int = 12) -> dict:
     out["lut_vs_direct_max_rel_error_all"] = float(diff.max())
     out["observable_samples"] = int(obs.sum())
     out["speedup_lut_over_direct"] = out["lut"]["samples_per_s_per_core"] / out["direct"]["samples_per_s_per_core"]
-    out["auto_cost_model"] = auto_cost_model(models["lut"], out)
+    out["auto_cost_model"] = auto_cost_model(lut_model, out)
     print(f"cube: table path differs from the direct path by <= {out['lut_vs_direct_max_rel_error_observable']:.2e} "
           f"of the total at {out['observable_samples']} observable samples ({out['lut_vs_direct_max_rel_error_all']:.2e} at all)")
     return out
@@ -404,7 +404,8 @@ def auto_cost_model(lut_model, cube: dict) -> dict:
     """models.earthshine.method = auto's two constants against this run: the seconds a cube
     sample saves on the table path (measured just now) and the table's build seconds per node
     and door state (as recorded when the cached table was built, on whatever cores it had).
-    A ratio far from 1 means the constants in straylight/components.py want updating."""
+    A measured figure far from the assumed one means the constants in straylight/components.py
+    want updating."""
     from straylight import components as comp
 
     es = lut_model.earthshine_model
