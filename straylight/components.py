@@ -479,10 +479,11 @@ class ComponentModel:
         ln_pst = np.log(self.offfield.pst.azimuthal_mean(theta))
         return theta, ln_pst, np.diff(ln_pst)
 
-    def faint_star_rates(self, stars: StarTable, los, bands, batch: int = 4096) -> dict:
+    def faint_star_rates(self, stars: StarTable, los, bands, batch: int = 4096, los_batch: int = 1024) -> dict:
         """e-/s/pix per band from the faint stars: sum_s E_s PSTavg(theta_s) * pixel area over the
         stars outside the field, for lines of sight ``los`` (..., 3).  Depends on the line of sight
-        only, so it is computed once per distinct set of lines of sight (cached)."""
+        only, so it is computed once per distinct set of lines of sight (cached).  ``los_batch``
+        lines of sight x ``batch`` stars at a time bound the temporaries (~34 MB each)."""
         import hashlib
 
         los = np.asarray(los, float)
@@ -499,12 +500,13 @@ class ComponentModel:
         r_field = self.offfield.field_radius_deg
         out = np.zeros((flat.shape[0], len(bands)))
         s_all = stars.faint_unit
-        for i in range(0, len(s_all), batch):
-            cosang = np.clip(flat @ s_all[i:i + batch].T, -1.0, 1.0)
-            x = np.degrees(np.arccos(cosang)) * per_deg  # position on the uniform grid
-            k = np.minimum(x.astype(np.intp), slope.size - 1)  # linear in ln PST, as np.interp on the grid
-            t = np.exp(ln_pst[k] + (x - k) * slope[k]) * (x > r_field * per_deg)
-            out += t @ flux[i:i + batch]
+        for a in range(0, flat.shape[0], los_batch):
+            for i in range(0, len(s_all), batch):
+                cosang = np.clip(flat[a:a + los_batch] @ s_all[i:i + batch].T, -1.0, 1.0)
+                x = np.degrees(np.arccos(cosang)) * per_deg  # position on the uniform grid
+                k = np.minimum(x.astype(np.intp), slope.size - 1)  # linear in ln PST, as np.interp on the grid
+                t = np.exp(ln_pst[k] + (x - k) * slope[k]) * (x > r_field * per_deg)
+                out[a:a + los_batch] += t @ flux[i:i + batch]
         out *= self.offfield.pixel_area_m2
         res = {b: out[:, j].reshape(los.shape[:-1]) for j, b in enumerate(bands)}
         if len(cache) > 64:

@@ -117,14 +117,12 @@ def faint_star_map(campaign: Campaign, fp: Footprint, stars_path) -> xr.Variable
     stars = _offfield_stars(campaign, stars_path)
     if stars is None or not len(stars.faint_ra_deg):
         return None
-    model = _component_model(campaign, fp)
-    los = radec_to_unit(fp.ra_deg, fp.dec_deg)
+    rates = _component_model(campaign, fp).faint_star_rates(stars, radec_to_unit(fp.ra_deg, fp.dec_deg),
+                                                            campaign.bands)
     values = np.zeros((fp.pixels.size, len(campaign.bands)))
-    for a, b in fp.blocks(1024):  # bounds the (pixels x stars) temporaries
-        rates = model.faint_star_rates(stars, los[a:b], campaign.bands)
-        for i, band in enumerate(campaign.bands):
-            if band in rates:
-                values[a:b, i] = rates[band]
+    for i, band in enumerate(campaign.bands):
+        if band in rates:
+            values[:, i] = rates[band]
     return xr.Variable(("pixel", "band"), values,
                        {"units": "electron / (s pixel)",
                         "long_name": "faint off-field stars: smoothed map (azimuth-averaged PST), part of stars"})
