@@ -374,7 +374,8 @@ def cube_summary(catalog, time_step: int = 24, n_times: int = 12) -> dict:
         stars_path = Path(tmp) / "stars.parquet"
         write_catalog(catalog, stars_path, {})
         for key, method, unobservable in (("direct", "direct", "evaluate"), ("lut", "lut", "evaluate"),
-                                          ("lut_observable_only", "lut", "skip")):
+                                          ("lut_observable_only", "lut", "skip"),
+                                          ("direct_observable_only", "direct", "skip")):
             c, model = _cube_model(base, earthshine={"method": method}, models={"unobservable_samples": unobservable})
             lut_model = model if key == "lut" else lut_model
             # best of three after a warm-up (single runs of this bench varied by up to 30 %)
@@ -387,6 +388,9 @@ def cube_summary(catalog, time_step: int = 24, n_times: int = 12) -> dict:
     skipped = res["lut_observable_only"]["total"].values
     out["lut_observable_only"]["identical_at_observable"] = bool(
         np.array_equal(skipped[obs], res["lut"]["total"].values[obs]) and np.all(np.isnan(skipped[~obs])))
+    direct_skipped = res["direct_observable_only"]["total"].values
+    out["direct_observable_only"]["identical_at_observable"] = bool(
+        np.array_equal(direct_skipped[obs], res["direct"]["total"].values[obs]) and np.all(np.isnan(direct_skipped[~obs])))
     out["lut_observable_only"]["speedup_over_lut"] = (out["lut_observable_only"]["samples_per_s_per_core"]
                                                       / out["lut"]["samples_per_s_per_core"])
     diff = np.abs(res["lut"]["total"].values - res["direct"]["total"].values) / res["direct"]["total"].values
@@ -395,9 +399,57 @@ def cube_summary(catalog, time_step: int = 24, n_times: int = 12) -> dict:
     out["observable_samples"] = int(obs.sum())
     out["speedup_lut_over_direct"] = out["lut"]["samples_per_s_per_core"] / out["direct"]["samples_per_s_per_core"]
     out["auto_cost_model"] = auto_cost_model(lut_model, out)
+    out["plan_cost_model"] = plan_cost_model(base, fp, t_slice, out)
     print(f"cube: table path differs from the direct path by <= {out['lut_vs_direct_max_rel_error_observable']:.2e} "
           f"of the total at {out['observable_samples']} observable samples ({out['lut_vs_direct_max_rel_error_all']:.2e} at all)")
     return out
+
+
+def plan_cost_model(base, fp, t_slice, cube: dict) -> dict:
+    """``straylight plan``'s figures (straylight.cube.CUBE_*) against this run: the table path
+    per sample; the skip mode's screen per sample (the Sun's and the Moon's geometry of every
+    sample, timed here through cube.evaluated_samples on the same steps and pixels) and per
+    observable sample (the rest of the skip run); then each of the four runs' seconds as the
+    plan's formula gives them from the assumed figures, against the measured ones."""
+    import copy
+
+    from astropy.time import TimeDelta
+
+    from straylight import components as comp
+    from straylight import cube as cu
+    from straylight.config import campaign_from_dict
+
+    steps = range(*t_slice.indices(len(base.times)))
+    raw = copy.deepcopy(base.config)
+    raw["models"]["unobservable_samples"] = "skip"
+    raw["campaign"].update(start=base.times[steps[0]].isot, end=(base.times[steps[-1]] + TimeDelta(1, format="sec")).isot,
+                           cadence_s=steps.step * float(base.config["campaign"]["cadence_s"]))
+    sub = campaign_from_dict(raw, base.path)  # the same steps as a campaign of their own
+    assert len(sub.times) == len(steps)
+    _, screen = timed(lambda: cu.evaluated_samples(sub, fp, max_times=len(sub.times), max_pixels=fp.pixels.size))
+    n = len(steps) * fp.pixels.size
+    n_obs = cube["observable_samples"]
+    measured = {"table_seconds_per_sample": 1.0 / cube["lut"]["samples_per_s_per_core"],
+                "screen_seconds_per_sample": screen / n}
+    measured["table_seconds_per_observable_sample"] = (
+        (n / cube["lut_observable_only"]["samples_per_s_per_core"] - n * measured["screen_seconds_per_sample"]) / n_obs)
+    assumed = {"table_seconds_per_sample": cu.CUBE_TABLE_SECONDS_PER_SAMPLE,
+               "screen_seconds_per_sample": cu.CUBE_SCREEN_SECONDS_PER_SAMPLE,
+               "table_seconds_per_observable_sample": cu.CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE}
+    saved = comp.LUT_SAVED_SECONDS_PER_SAMPLE
+    predicted = {"lut": n * cu.CUBE_TABLE_SECONDS_PER_SAMPLE,
+                 "direct": n * (cu.CUBE_TABLE_SECONDS_PER_SAMPLE + saved),
+                 "lut_observable_only": n * cu.CUBE_SCREEN_SECONDS_PER_SAMPLE
+                 + n_obs * cu.CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE,
+                 "direct_observable_only": n * cu.CUBE_SCREEN_SECONDS_PER_SAMPLE
+                 + n_obs * (cu.CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE + saved)}
+    runs = {k: {"predicted_seconds": v, "measured_seconds": n / cube[k]["samples_per_s_per_core"]}
+            for k, v in predicted.items()}
+    for k, v in measured.items():
+        print(f"plan: {k} {v * 1e6:.2f} us (assumed {assumed[k] * 1e6:.2f})")
+    for k, v in runs.items():
+        print(f"plan: {k:22s} predicted {v['predicted_seconds']:.2f} s, measured {v['measured_seconds']:.2f} s")
+    return {"measured": measured, "assumed": assumed, "runs": runs}
 
 
 def auto_cost_model(lut_model, cube: dict) -> dict:

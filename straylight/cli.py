@@ -253,7 +253,7 @@ def cmd_scenario(args) -> int:
 
 def cmd_plan(args) -> int:
     from .config import load_campaign
-    from .cube import CUBE_COMPONENTS, cube_chunks
+    from .cube import CUBE_COMPONENTS, cube_chunks, estimated_cost
     from .footprint import footprint_from_config
     from .timegrid import time_blocks
 
@@ -262,18 +262,29 @@ def cmd_plan(args) -> int:
     c = campaign.config["campaign"]
     nt, npix, nb = len(campaign.times), fp.pixels.size, len(campaign.bands)
     tb = time_blocks(nt, float(c["cadence_s"]), float(c.get("time_block_hours", 6)))
-    n = nt * npix
+    cost = estimated_cost(campaign, fp)
+    n = cost["samples"]
     cube_bytes = n * nb * 4 * (len(CUBE_COMPONENTS) + 1) + n * 6
     limits_bytes = n * nb * 4 + n
-    s_per_sample = args.seconds_per_sample
-    core_h = n * s_per_sample / 3600.0
     print(f"campaign {campaign.name}: {nt} times x {npix} pixels (nside {fp.nside}, {fp.area_deg2:.0f} deg2) "
           f"x {nb} bands")
-    print(f"samples (time, pointing): {n:,}")
+    print(f"samples (time, pointing): {n:,}; evaluated: {cost['evaluated_samples']:,} "
+          f"(models.unobservable_samples: {cost['unobservable_samples']})")
     print(f"time blocks (Snakemake jobs): {len(tb)}; chunks {cube_chunks(campaign, nt, npix)}")
     print(f"output size (uncompressed): background.zarr {cube_bytes / 1e9:.2f} GB, limits.zarr {limits_bytes / 1e9:.2f} GB")
-    print(f"estimated cost: {core_h:.2f} core-hours at {s_per_sample * 1e3:.2f} ms/sample for all bands "
-          f"(measured on the 2-core development machine; bench/offfield.py)")
+    method = {"lut": "look-up table", "direct": "direct Earth-grid sum"}[cost["earthshine_method"]]
+    table = ""
+    if cost["earthshine_method"] == "lut":
+        table = ("; the table is cached" if cost["table_cached"] else
+                 f"; building the table takes ~{cost['table_build_seconds'] / 3600:.2f} core-hours, once")
+    print(f"sunlit earthshine: {method} ({cost['earthshine_reason']}){table}")
+    if args.seconds_per_sample is None:
+        core_h = cost["core_hours"]
+        how = "this code's figures on the 2-core development machine (straylight.cube.CUBE_*; bench/run.py --only cube)"
+    else:
+        core_h = cost["evaluated_samples"] * args.seconds_per_sample / 3600.0 + cost["table_build_seconds"] / 3600.0
+        how = f"{args.seconds_per_sample * 1e3:.3g} ms per evaluated sample (--seconds-per-sample)"
+    print(f"estimated cost: {core_h:.2f} core-hours at {how}")
     return 0
 
 
@@ -383,9 +394,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     pl = sub.add_parser("plan", help="samples, output size and core-hours of a campaign before running it")
     pl.add_argument("config", nargs="?", default=None, help="campaign config (default: config/config.yaml)")
-    pl.add_argument("--seconds-per-sample", type=float, default=1.17e-3,
-                    help="cost of one (time, pointing) sample, all bands, one core (default: 1.17 ms, "
-                         "measured by bench/background.py)")
+    pl.add_argument("--seconds-per-sample", type=float, default=None,
+                    help="cost of one evaluated (time, pointing) sample, all bands, one core, on the machine "
+                         "that will run (default: this code's measured figures for the earthshine model "
+                         "auto picks)")
     pl.set_defaults(func=cmd_plan)
 
     ca = sub.add_parser("catalog", help="bright-star catalog in the CSST bands (Gaia DR2 files, or Hipparcos)")

@@ -288,49 +288,82 @@ class ComponentModel:
         return settings.node_count(r[0], self.campaign.earth.radius_km) * len(self.offfield.door_states_deg)
 
     @cached_property
-    def earthshine_model(self) -> dict:
-        """Which earthshine model runs, from models.earthshine.method (auto | lut | direct) and
-        the tolerance: 'auto' takes the look-up table when its validated error is within half the
-        tolerance, else the direct sum.  Keys: method, and for the table its file, validated
-        error, build time and node steps."""
-        import logging
-
-        from .earthshine_lut import LUTSettings, load_or_build
+    def earthshine_choice(self) -> dict:
+        """Which sunlit earthshine model :attr:`earthshine_model` will run, decided without
+        building anything (``straylight plan`` reads it).  Keys: method ('lut' or 'direct'),
+        reason, settings (:class:`~straylight.earthshine_lut.LUTSettings`), node_states and
+        build_seconds_estimate (the table's build at LUT_BUILD_SECONDS_PER_NODE; 0 for
+        'direct' by config).  With 'auto' the table still falls back to the direct sum when its
+        validated error, known once it is built, exceeds its share of the tolerance."""
+        from .earthshine_lut import LUTSettings
 
         es = self.campaign.config["models"].get("earthshine", {})
         method = es.get("method", "auto")
         if method == "direct":
-            return {"method": "direct", "lut": None, "reason": "models.earthshine.method = direct"}
+            return {"method": "direct", "reason": "models.earthshine.method = direct", "settings": None,
+                    "node_states": 0, "build_seconds_estimate": 0.0}
         lut_cfg = es.get("lut", {})
         settings = LUTSettings(float(lut_cfg.get("sun_zenith_step_deg", 0.5)),
                                float(lut_cfg.get("los_zenith_step_deg", 2.0)),
                                float(lut_cfg.get("azimuth_step_deg", 2.5)),
                                int(lut_cfg.get("n_radius", 1)))
-        r = self.campaign.orbit_radius_range_km
-        k = self.campaign.constraints
-        log = logging.getLogger("straylight")
+        node_states = self.lut_node_states(settings)
+        build_s = LUT_BUILD_SECONDS_PER_NODE * node_states
+        choice = {"method": "lut", "reason": f"{method}: {self.expected_samples} samples", "settings": settings,
+                  "node_states": node_states, "build_seconds_estimate": build_s}
         if method == "auto":
             # deliberately blind to the cache: the same config must give the same products on
             # every machine, whether or not a table was built there before.
             # build cost against what the table saves (LUT_BUILD_SECONDS_PER_NODE, above)
-            build_s = LUT_BUILD_SECONDS_PER_NODE * self.lut_node_states(settings)
             saved_s = LUT_SAVED_SECONDS_PER_SAMPLE * self.expected_samples
             if saved_s < build_s:
-                return {"method": "direct", "lut": None,
-                        "reason": f"auto: {self.expected_samples} samples save ~{saved_s:.0f} s, the table costs ~{build_s:.0f} s"}
+                choice.update(method="direct", reason=f"auto: {self.expected_samples} samples save ~{saved_s:.0f} s, "
+                                                      f"the table costs ~{build_s:.0f} s")
+        return choice
+
+    def earthshine_lut_path(self) -> Path:
+        """Where the sunlit table of :attr:`earthshine_choice`'s settings is cached (it may not
+        exist yet)."""
+        from .earthshine_lut import cache_dir, lut_key
+
+        k = self.campaign.constraints
+        key = lut_key(self.offfield, self.campaign.earth.radius_km, self.campaign.orbit_radius_range_km,
+                      self.earthshine_choice["settings"], self.earthshine_floor,
+                      (k.dark_limb_min_deg, k.bright_limb_min_deg, k.sun_min_deg))
+        return cache_dir() / f"earthshine_lut_{key}.npz"
+
+    @cached_property
+    def earthshine_model(self) -> dict:
+        """Which earthshine model runs, from models.earthshine.method (auto | lut | direct) and
+        the tolerance (:attr:`earthshine_choice`): 'auto' takes the look-up table when the
+        campaign's samples repay its build and its validated error is within half the
+        tolerance, else the direct sum.  Keys: method, and for the table its file, validated
+        error, build time and node steps."""
+        import logging
+
+        from .earthshine_lut import load_or_build
+
+        choice = self.earthshine_choice
+        if choice["method"] == "direct":
+            return {"method": "direct", "lut": None, "reason": choice["reason"]}
+        settings = choice["settings"]
+        r = self.campaign.orbit_radius_range_km
+        k = self.campaign.constraints
+        log = logging.getLogger("straylight")
         lut, path = load_or_build(self.offfield, self.campaign.earth.radius_km, r, settings, self.earthshine_floor, log,
                                   avoidance_deg=(k.dark_limb_min_deg, k.bright_limb_min_deg, k.sun_min_deg),
                                   workers=self.build_workers)
         info = {"lut_file": str(path.name), "lut_validation_max_rel_error": lut.validation_max_rel_error,
-                "lut_build_seconds": lut.build_seconds, "lut_node_states": self.lut_node_states(settings),
+                "lut_build_seconds": lut.build_seconds, "lut_node_states": choice["node_states"],
                 "lut_steps_deg": [settings.sun_zenith_step_deg, settings.los_zenith_step_deg, settings.azimuth_step_deg]}
         share = ERROR_BUDGET_SHARES["earthshine_lut"]
+        method = self.campaign.config["models"].get("earthshine", {}).get("method", "auto")
         if method == "auto" and not lut.validation_max_rel_error <= share * self.tolerance:
             reason = (f"auto: table error {lut.validation_max_rel_error:.2g} > {share:g} x the tolerance "
                       f"{self.tolerance:g}")
             log.info("earthshine: %s: direct sum", reason)
             return {"method": "direct", "lut": None, "reason": reason, **info}
-        return {"method": "lut", "lut": lut, "reason": f"{method}: {self.expected_samples} samples", **info}
+        return {"method": "lut", "lut": lut, "reason": choice["reason"], **info}
 
     @cached_property
     def moonlit_model(self) -> dict:

@@ -166,6 +166,45 @@ def evaluated_samples(campaign: Campaign, fp: Footprint, max_times: int = 144, m
     return int(round(n * float(np.mean(g["observable"]))))
 
 
+#: The cube's cost on one core, all bands, per sample, as ``straylight plan`` predicts it: the
+#: table path evaluating every sample, and with models.unobservable_samples: skip the screen
+#: (the Sun's and the Moon's geometry, every sample) and each observable sample evaluated (they
+#: cost ~2x the average sample: more star pairs and moonlit-Earth sums); the direct earthshine
+#: sum adds components.LUT_SAVED_SECONDS_PER_SAMPLE per evaluated sample.  Measured by
+#: bench/run.py --only cube on the default day (12 steps x 1320 pixels, best of three), two
+#: runs: 9.6 / 9.1 us, 1.03 / 1.54 us, 25.5 / 14.4 us (last cycle's skip runs give 14.5-19);
+#: the bench prints them again as cube.plan_cost_model, and the four runs' predicted seconds
+#: against the measured ones (within 30 % in both runs), so a drift shows.
+CUBE_TABLE_SECONDS_PER_SAMPLE = 10e-6
+CUBE_SCREEN_SECONDS_PER_SAMPLE = 1.2e-6
+CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE = 20e-6
+
+
+def estimated_cost(campaign: Campaign, fp: Footprint) -> dict:
+    """What the campaign's cube will cost before it runs: its samples, the samples it
+    evaluates (:func:`evaluated_samples`), the sunlit earthshine model ``auto`` picks
+    (ComponentModel.earthshine_choice, nothing built), the table's build when it is not cached
+    yet, and the compute at the CUBE_* and LUT_* figures above.  Seconds on one core.  The
+    figures are this code's on the 2-core development machine; single runs wander by 20-40 %."""
+    from .components import LUT_SAVED_SECONDS_PER_SAMPLE, ComponentModel, unobservable_samples
+
+    n = len(campaign.times) * int(fp.pixels.size)
+    n_eval = evaluated_samples(campaign, fp)
+    model = ComponentModel(campaign, expected_samples=n_eval)
+    choice = model.earthshine_choice
+    skip = unobservable_samples(campaign) == "skip"
+    per_eval = CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE if skip else CUBE_TABLE_SECONDS_PER_SAMPLE
+    if choice["method"] == "direct":
+        per_eval += LUT_SAVED_SECONDS_PER_SAMPLE
+    compute_s = n_eval * per_eval + (n * CUBE_SCREEN_SECONDS_PER_SAMPLE if skip else 0.0)
+    table_cached = choice["method"] == "lut" and model.earthshine_lut_path().exists()
+    build_s = choice["build_seconds_estimate"] if choice["method"] == "lut" and not table_cached else 0.0
+    return {"samples": n, "evaluated_samples": n_eval, "unobservable_samples": "skip" if skip else "evaluate",
+            "earthshine_method": choice["method"], "earthshine_reason": choice["reason"],
+            "table_cached": table_cached, "table_build_seconds": build_s, "compute_seconds": compute_s,
+            "core_hours": (compute_s + build_s) / 3600.0}
+
+
 def _component_model(campaign: Campaign, fp: Footprint, build_workers: int = 1):
     """One ComponentModel per process and campaign: its door tables, bands and earthshine table
     are built once, not once per Dask task (the campaign arrives pickled, so key on its content).

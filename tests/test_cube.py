@@ -204,8 +204,52 @@ def test_evaluated_samples_skipping_counts_the_observable_ones(campaign):
 def test_plan_prints_samples_size_and_cost():
     r = run_cli("plan")
     assert r.returncode == 0
-    assert "samples (time, pointing): 380,160" in r.stdout
+    assert "samples (time, pointing): 380,160; evaluated: 380,160" in r.stdout
+    assert "sunlit earthshine: direct Earth-grid sum (auto: 380160 samples save" in r.stdout
     assert "core-hours" in r.stdout and "GB" in r.stdout
+
+
+def test_plan_costs_the_model_auto_picks(campaign, tmp_path, monkeypatch):
+    """straylight plan (cube.estimated_cost) costs the earthshine model the cube will run, on
+    the samples it evaluates, without building anything: the default day takes the direct sum;
+    a week of it the table, whose build (782,633 nodes x 2 door states at
+    components.LUT_BUILD_SECONDS_PER_NODE, the default table's node count) is counted while it
+    is not cached; the same week skipping the unobservable samples (~16.5 %) is short of the
+    table's break-even (~1.9 million samples) again."""
+    import copy
+
+    from straylight import components as comp
+    from straylight import cube as cu
+    from straylight.config import campaign_from_dict
+    from straylight.footprint import footprint_from_config
+
+    monkeypatch.setenv("STRAYLIGHT_CACHE", str(tmp_path))  # an empty cache: the table is not built
+    fp = footprint_from_config(campaign.config["footprint"])
+    day = cu.estimated_cost(campaign, fp)
+    assert (day["samples"], day["evaluated_samples"], day["earthshine_method"]) == (380_160, 380_160, "direct")
+    assert day["table_build_seconds"] == 0.0
+    per_sample = cu.CUBE_TABLE_SECONDS_PER_SAMPLE + comp.LUT_SAVED_SECONDS_PER_SAMPLE
+    assert day["compute_seconds"] == pytest.approx(380_160 * per_sample, rel=1e-12)
+
+    def week(unobservable):
+        raw = copy.deepcopy(campaign.config)
+        raw["campaign"]["end"] = "2026-01-08T00:00:00"
+        raw["models"]["unobservable_samples"] = unobservable
+        return cu.estimated_cost(campaign_from_dict(raw, campaign.path), fp)
+
+    evaluating = week("evaluate")
+    assert (evaluating["samples"], evaluating["earthshine_method"]) == (7 * 380_160, "lut")
+    assert not evaluating["table_cached"]
+    assert evaluating["table_build_seconds"] == pytest.approx(782_633 * 2 * comp.LUT_BUILD_SECONDS_PER_NODE, rel=1e-12)
+    assert evaluating["core_hours"] * 3600 == pytest.approx(
+        7 * 380_160 * cu.CUBE_TABLE_SECONDS_PER_SAMPLE + evaluating["table_build_seconds"], rel=1e-12)
+    skipping = week("skip")
+    assert 0.12 < skipping["evaluated_samples"] / skipping["samples"] < 0.2  # the default day: 16.5 %
+    assert skipping["earthshine_method"] == "direct" and skipping["table_build_seconds"] == 0.0
+    assert skipping["compute_seconds"] == pytest.approx(
+        7 * 380_160 * cu.CUBE_SCREEN_SECONDS_PER_SAMPLE
+        + skipping["evaluated_samples"] * (cu.CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE + comp.LUT_SAVED_SECONDS_PER_SAMPLE),
+        rel=1e-12)
 
 
 @pytest.mark.slow
