@@ -15,27 +15,21 @@ script says so and exits.  Writes bench/results/compiled_geometry.json.
 """
 from __future__ import annotations
 
-import json
 import math
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-RESULTS = ROOT / "bench" / "results"
+sys.path.insert(0, str(ROOT / "bench"))
+from _results import write_results  # noqa: E402
+from run import timed  # noqa: E402  (its warm-up call is where numba compiles)
 
 
-def best_seconds(fn, repeats: int = 7) -> float:
-    fn()  # warm-up (numba compiles here)
-    best = np.inf
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
+def best_seconds(fn) -> float:
+    return timed(fn, repeats=7)[1]
 
 
 def kernels():
@@ -148,9 +142,7 @@ def main() -> int:
     for name, v in parts.items():
         print(f"{name}: numpy {v['numpy_seconds'] * 1e3:.2f} ms, numba {v['numba_seconds'] * 1e3:.2f} ms "
               f"({v['speedup']:.1f}x) for {n} samples; largest difference {v['max_abs_difference_deg']:.1e} deg")
-    RESULTS.mkdir(parents=True, exist_ok=True)
-    (RESULTS / "compiled_geometry.json").write_text(json.dumps({"numba": numba.__version__, "numpy": np.__version__,
-                                                                **parts}, indent=1))
+    write_results("compiled_geometry", {"numba": numba.__version__, "numpy": np.__version__, **parts})
     return 0
 
 

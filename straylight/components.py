@@ -321,16 +321,20 @@ class ComponentModel:
                                                       f"the table costs ~{build_s:.0f} s")
         return choice
 
+    @property
+    def _lut_avoidance_deg(self) -> tuple:
+        """The avoidance angles the sunlit table depends on (dark limb, bright limb, Sun), deg."""
+        k = self.campaign.constraints
+        return (k.dark_limb_min_deg, k.bright_limb_min_deg, k.sun_min_deg)
+
     def earthshine_lut_path(self) -> Path:
         """Where the sunlit table of :attr:`earthshine_choice`'s settings is cached (it may not
-        exist yet)."""
-        from .earthshine_lut import cache_dir, lut_key
+        exist yet): the path :func:`~straylight.earthshine_lut.load_or_build` reads or writes."""
+        from .earthshine_lut import cache_path, lut_key
 
-        k = self.campaign.constraints
         key = lut_key(self.offfield, self.campaign.earth.radius_km, self.campaign.orbit_radius_range_km,
-                      self.earthshine_choice["settings"], self.earthshine_floor,
-                      (k.dark_limb_min_deg, k.bright_limb_min_deg, k.sun_min_deg))
-        return cache_dir() / f"earthshine_lut_{key}.npz"
+                      self.earthshine_choice["settings"], self.earthshine_floor, self._lut_avoidance_deg)
+        return cache_path("earthshine_lut", key)
 
     @cached_property
     def earthshine_model(self) -> dict:
@@ -347,11 +351,9 @@ class ComponentModel:
         if choice["method"] == "direct":
             return {"method": "direct", "lut": None, "reason": choice["reason"]}
         settings = choice["settings"]
-        r = self.campaign.orbit_radius_range_km
-        k = self.campaign.constraints
         log = logging.getLogger("straylight")
-        lut, path = load_or_build(self.offfield, self.campaign.earth.radius_km, r, settings, self.earthshine_floor, log,
-                                  avoidance_deg=(k.dark_limb_min_deg, k.bright_limb_min_deg, k.sun_min_deg),
+        lut, path = load_or_build(self.offfield, self.campaign.earth.radius_km, self.campaign.orbit_radius_range_km,
+                                  settings, self.earthshine_floor, log, avoidance_deg=self._lut_avoidance_deg,
                                   workers=self.build_workers)
         info = {"lut_file": str(path.name), "lut_validation_max_rel_error": lut.validation_max_rel_error,
                 "lut_build_seconds": lut.build_seconds, "lut_node_states": choice["node_states"],

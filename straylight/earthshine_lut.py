@@ -149,9 +149,14 @@ def _load_tables(path, what: str):
         raise InputError(f"{path}: not a valid {what} look-up table ({exc}); delete it to rebuild") from exc
 
 
+def cache_path(prefix: str, key: str) -> Path:
+    """Where the table ``prefix`` with digest ``key`` is cached (it may not exist yet)."""
+    return cache_dir() / f"{prefix}_{key}.npz"
+
+
 def _cached(prefix: str, key: str, what: str, load, build, log):
     """load(path) of the cached table ``prefix_key.npz``, else build(), saved there."""
-    path = cache_dir() / f"{prefix}_{key}.npz"
+    path = cache_path(prefix, key)
     if path.exists():
         return load(path), path
     if log is not None:
