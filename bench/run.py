@@ -415,7 +415,6 @@ def plan_cost_model(base, fp, t_slice, cube: dict) -> dict:
 
     from astropy.time import TimeDelta
 
-    from straylight import components as comp
     from straylight import cube as cu
     from straylight.config import campaign_from_dict
 
@@ -436,13 +435,10 @@ def plan_cost_model(base, fp, t_slice, cube: dict) -> dict:
     assumed = {"table_seconds_per_sample": cu.CUBE_TABLE_SECONDS_PER_SAMPLE,
                "screen_seconds_per_sample": cu.CUBE_SCREEN_SECONDS_PER_SAMPLE,
                "table_seconds_per_observable_sample": cu.CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE}
-    saved = comp.LUT_SAVED_SECONDS_PER_SAMPLE
-    predicted = {"lut": n * cu.CUBE_TABLE_SECONDS_PER_SAMPLE,
-                 "direct": n * (cu.CUBE_TABLE_SECONDS_PER_SAMPLE + saved),
-                 "lut_observable_only": n * cu.CUBE_SCREEN_SECONDS_PER_SAMPLE
-                 + n_obs * cu.CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE,
-                 "direct_observable_only": n * cu.CUBE_SCREEN_SECONDS_PER_SAMPLE
-                 + n_obs * (cu.CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE + saved)}
+    predicted = {"lut": cu.cube_compute_seconds(n, n, "lut", False),
+                 "direct": cu.cube_compute_seconds(n, n, "direct", False),
+                 "lut_observable_only": cu.cube_compute_seconds(n, n_obs, "lut", True),
+                 "direct_observable_only": cu.cube_compute_seconds(n, n_obs, "direct", True)}
     runs = {k: {"predicted_seconds": v, "measured_seconds": n / cube[k]["samples_per_s_per_core"]}
             for k, v in predicted.items()}
     for k, v in measured.items():

@@ -262,7 +262,7 @@ def cmd_plan(args) -> int:
     c = campaign.config["campaign"]
     nt, npix, nb = len(campaign.times), fp.pixels.size, len(campaign.bands)
     tb = time_blocks(nt, float(c["cadence_s"]), float(c.get("time_block_hours", 6)))
-    cost = estimated_cost(campaign, fp)
+    cost = estimated_cost(campaign, fp, args.seconds_per_sample)
     n = cost["samples"]
     cube_bytes = n * nb * 4 * (len(CUBE_COMPONENTS) + 1) + n * 6
     limits_bytes = n * nb * 4 + n
@@ -278,13 +278,10 @@ def cmd_plan(args) -> int:
         table = ("; the table is cached" if cost["table_cached"] else
                  f"; building the table takes ~{cost['table_build_seconds'] / 3600:.2f} core-hours, once")
     print(f"sunlit earthshine: {method} ({cost['earthshine_reason']}){table}")
-    if args.seconds_per_sample is None:
-        core_h = cost["core_hours"]
-        how = "this code's figures on the 2-core development machine (straylight.cube.CUBE_*; bench/run.py --only cube)"
-    else:
-        core_h = cost["evaluated_samples"] * args.seconds_per_sample / 3600.0 + cost["table_build_seconds"] / 3600.0
-        how = f"{args.seconds_per_sample * 1e3:.3g} ms per evaluated sample (--seconds-per-sample)"
-    print(f"estimated cost: {core_h:.2f} core-hours at {how}")
+    how = ("this code's figures on the 2-core development machine (straylight.cube.CUBE_*; bench/run.py --only cube)"
+           if args.seconds_per_sample is None else
+           f"{args.seconds_per_sample * 1e3:.3g} ms per evaluated sample (--seconds-per-sample)")
+    print(f"estimated cost: {cost['core_hours']:.2f} core-hours at {how}")
     return 0
 
 

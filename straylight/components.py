@@ -291,7 +291,7 @@ class ComponentModel:
     def earthshine_choice(self) -> dict:
         """Which sunlit earthshine model :attr:`earthshine_model` will run, decided without
         building anything (``straylight plan`` reads it).  Keys: method ('lut' or 'direct'),
-        reason, settings (:class:`~straylight.earthshine_lut.LUTSettings`), node_states and
+        requested (models.earthshine.method), reason, settings (:class:`~straylight.earthshine_lut.LUTSettings`), node_states and
         build_seconds_estimate (the table's build at LUT_BUILD_SECONDS_PER_NODE; 0 for
         'direct' by config).  With 'auto' the table still falls back to the direct sum when its
         validated error, known once it is built, exceeds its share of the tolerance."""
@@ -300,8 +300,8 @@ class ComponentModel:
         es = self.campaign.config["models"].get("earthshine", {})
         method = es.get("method", "auto")
         if method == "direct":
-            return {"method": "direct", "reason": "models.earthshine.method = direct", "settings": None,
-                    "node_states": 0, "build_seconds_estimate": 0.0}
+            return {"method": "direct", "requested": method, "reason": "models.earthshine.method = direct",
+                    "settings": None, "node_states": 0, "build_seconds_estimate": 0.0}
         lut_cfg = es.get("lut", {})
         settings = LUTSettings(float(lut_cfg.get("sun_zenith_step_deg", 0.5)),
                                float(lut_cfg.get("los_zenith_step_deg", 2.0)),
@@ -309,8 +309,8 @@ class ComponentModel:
                                int(lut_cfg.get("n_radius", 1)))
         node_states = self.lut_node_states(settings)
         build_s = LUT_BUILD_SECONDS_PER_NODE * node_states
-        choice = {"method": "lut", "reason": f"{method}: {self.expected_samples} samples", "settings": settings,
-                  "node_states": node_states, "build_seconds_estimate": build_s}
+        choice = {"method": "lut", "requested": method, "reason": f"{method}: {self.expected_samples} samples",
+                  "settings": settings, "node_states": node_states, "build_seconds_estimate": build_s}
         if method == "auto":
             # deliberately blind to the cache: the same config must give the same products on
             # every machine, whether or not a table was built there before.
@@ -359,8 +359,7 @@ class ComponentModel:
                 "lut_build_seconds": lut.build_seconds, "lut_node_states": choice["node_states"],
                 "lut_steps_deg": [settings.sun_zenith_step_deg, settings.los_zenith_step_deg, settings.azimuth_step_deg]}
         share = ERROR_BUDGET_SHARES["earthshine_lut"]
-        method = self.campaign.config["models"].get("earthshine", {}).get("method", "auto")
-        if method == "auto" and not lut.validation_max_rel_error <= share * self.tolerance:
+        if choice["requested"] == "auto" and not lut.validation_max_rel_error <= share * self.tolerance:
             reason = (f"auto: table error {lut.validation_max_rel_error:.2g} > {share:g} x the tolerance "
                       f"{self.tolerance:g}")
             log.info("earthshine: %s: direct sum", reason)

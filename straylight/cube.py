@@ -180,23 +180,37 @@ CUBE_SCREEN_SECONDS_PER_SAMPLE = 1.2e-6
 CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE = 20e-6
 
 
-def estimated_cost(campaign: Campaign, fp: Footprint) -> dict:
+def cube_compute_seconds(samples: int, evaluated: int, earthshine_method: str, skip: bool,
+                         seconds_per_evaluated_sample: float | None = None) -> float:
+    """Seconds on one core to compute a cube of ``samples`` (time, pixel) samples of which
+    ``evaluated`` are evaluated (all, or with ``skip`` the observable ones), with the sunlit
+    earthshine ``earthshine_method`` ('lut' or 'direct'), at the CUBE_* and
+    components.LUT_SAVED_SECONDS_PER_SAMPLE figures above; or at
+    ``seconds_per_evaluated_sample`` per evaluated sample when given (another machine)."""
+    from .components import LUT_SAVED_SECONDS_PER_SAMPLE
+
+    if seconds_per_evaluated_sample is not None:
+        return evaluated * seconds_per_evaluated_sample
+    per_eval = CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE if skip else CUBE_TABLE_SECONDS_PER_SAMPLE
+    if earthshine_method == "direct":
+        per_eval += LUT_SAVED_SECONDS_PER_SAMPLE
+    return evaluated * per_eval + (samples * CUBE_SCREEN_SECONDS_PER_SAMPLE if skip else 0.0)
+
+
+def estimated_cost(campaign: Campaign, fp: Footprint, seconds_per_evaluated_sample: float | None = None) -> dict:
     """What the campaign's cube will cost before it runs: its samples, the samples it
     evaluates (:func:`evaluated_samples`), the sunlit earthshine model ``auto`` picks
     (ComponentModel.earthshine_choice, nothing built), the table's build when it is not cached
-    yet, and the compute at the CUBE_* and LUT_* figures above.  Seconds on one core.  The
-    figures are this code's on the 2-core development machine; single runs wander by 20-40 %."""
-    from .components import LUT_SAVED_SECONDS_PER_SAMPLE, ComponentModel, unobservable_samples
+    yet, and the compute (:func:`cube_compute_seconds`).  Seconds on one core.  The figures are
+    this code's on the 2-core development machine; single runs wander by 20-40 %."""
+    from .components import ComponentModel, unobservable_samples
 
     n = len(campaign.times) * int(fp.pixels.size)
     n_eval = evaluated_samples(campaign, fp)
     model = ComponentModel(campaign, expected_samples=n_eval)
     choice = model.earthshine_choice
     skip = unobservable_samples(campaign) == "skip"
-    per_eval = CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE if skip else CUBE_TABLE_SECONDS_PER_SAMPLE
-    if choice["method"] == "direct":
-        per_eval += LUT_SAVED_SECONDS_PER_SAMPLE
-    compute_s = n_eval * per_eval + (n * CUBE_SCREEN_SECONDS_PER_SAMPLE if skip else 0.0)
+    compute_s = cube_compute_seconds(n, n_eval, choice["method"], skip, seconds_per_evaluated_sample)
     table_cached = choice["method"] == "lut" and model.earthshine_lut_path().exists()
     build_s = choice["build_seconds_estimate"] if choice["method"] == "lut" and not table_cached else 0.0
     return {"samples": n, "evaluated_samples": n_eval, "unobservable_samples": "skip" if skip else "evaluate",
