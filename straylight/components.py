@@ -130,15 +130,16 @@ class ComponentModel:
         return self._bands[name][1]
 
     def evaluate(self, satellite_km, bodies_km, los, geometry, bands, stars: StarTable | None = None,
-                 faint_rates: dict | None = None) -> dict:
+                 faint_rates: dict | None = None, frame=None) -> dict:
         """Components for broadcastable samples; ``geometry`` from :func:`observing_geometry`;
         ``faint_rates``: the faint stars' map at these lines of sight, band -> e-/s/pix (as
-        :meth:`faint_star_rates` gives it), when already computed."""
+        :meth:`faint_star_rates` gives it), when already computed; ``frame``: the samples'
+        ``telescope_frame(los, sun - satellite)``, when already computed."""
         off = self.offfield
         re_km = self.campaign.earth.radius_km
         sat = np.asarray(satellite_km, float)
         sun, moon = bodies_km["sun"], bodies_km["moon"]
-        frame = telescope_frame(los, sun - sat)
+        frame = telescope_frame(los, sun - sat) if frame is None else frame
         door = geometry["door_opening_deg"]
         shape = geometry["sun_angle_deg"].shape
         d_sun = norm(sun - sat)

@@ -30,7 +30,8 @@ import xarray as xr
 from .config import Campaign
 from .errors import OutputError
 from .footprint import Footprint
-from .geometry import VIOLATION_BITS, observing_geometry, radec_to_unit
+from .geometry import (VIOLATION_BITS, TelescopeFrame, body_geometry, observing_geometry, radec_to_unit,
+                       telescope_frame)
 
 CUBE_COMPONENTS = ("zodiacal", "earthshine", "moon", "sun", "planets", "stars")
 #: samples per evaluation on the table path (whole time steps of a pixel block): large enough
@@ -288,12 +289,13 @@ def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: s
         # for the observable samples
         names = ("sun", "moon") if skip_unobservable else tuple(sc.bodies_km)
         bodies = {b: np.repeat(sc.bodies_km[b][steps], npix, axis=0) for b in names}
-        g = observing_geometry(sat, bodies, los_k, campaign.earth.radius_km, campaign.constraints)
+        frame = telescope_frame(los_k, bodies["sun"] - sat)  # once for the geometry and the background
+        g = observing_geometry(sat, bodies, los_k, campaign.earth.radius_km, campaign.constraints, frame=frame)
         if skip_unobservable:
-            _evaluate_observable(model, campaign, sc, los, faint, g["observable"], stars, out, steps)
+            _evaluate_observable(model, campaign, sc, los, faint, g, frame, stars, out, steps)
         else:
             faint_k = None if faint is None else {b: np.tile(v, k) for b, v in faint.items()}
-            res = model.evaluate(sat, bodies, los_k, g, campaign.bands, stars, faint_rates=faint_k)
+            res = model.evaluate(sat, bodies, los_k, g, campaign.bands, stars, faint_rates=faint_k, frame=frame)
             for ib, b in enumerate(campaign.bands):
                 for comp in CUBE_COMPONENTS + ("total",):
                     out[comp][steps, :, ib] = _by_step(res[b][comp], k, npix)
@@ -306,14 +308,16 @@ def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: s
     return xr.Dataset(data)
 
 
-def _evaluate_observable(model, campaign: Campaign, sc, los, faint, observable, stars, out, steps):
-    """Evaluate the ``observable`` samples (flat, step-major) of the time steps ``steps`` of the
-    scene ``sc`` at the lines of sight ``los`` (pixel, 3) only, their geometry then their
-    background, and write them into ``out`` at ``steps``; the other samples get NaN.  Each
-    sample's values depend on that sample alone, so the observable ones come out as they do in a
-    whole batch (tests/test_earthshine_lut.py).  ``faint``: band -> per-pixel faint-star rates."""
+def _evaluate_observable(model, campaign: Campaign, sc, los, faint, screen: dict, frame, stars, out, steps):
+    """Evaluate the observable samples (flat, step-major) of the time steps ``steps`` of the
+    scene ``sc`` at the lines of sight ``los`` (pixel, 3) only, and write them into ``out`` at
+    ``steps``; the other samples get NaN.  ``screen``: the batch's geometry with the Sun and
+    the Moon (:func:`observing_geometry`), ``frame`` its telescope frame: the observable samples
+    take their values and add the other bodies' angles.  Each sample's values depend on that
+    sample alone, so the observable ones come out as they do in a whole batch
+    (tests/test_earthshine_lut.py).  ``faint``: band -> per-pixel faint-star rates."""
     npix = los.shape[0]
-    sel = np.flatnonzero(observable)
+    sel = np.flatnonzero(screen["observable"])
     for comp in CUBE_COMPONENTS + ("total",):
         out[comp][steps] = np.nan
     if sel.size == 0:
@@ -321,9 +325,12 @@ def _evaluate_observable(model, campaign: Campaign, sc, los, faint, observable, 
     t_idx, p_idx = np.divmod(sel, npix)
     sat = sc.satellite_km[steps][t_idx]
     bodies = {b: v[steps][t_idx] for b, v in sc.bodies_km.items()}
-    g = observing_geometry(sat, bodies, los[p_idx], campaign.earth.radius_km, campaign.constraints)
+    sub = TelescopeFrame(frame.x[sel], frame.y[sel], frame.z[sel])
+    g = {name: np.asarray(v)[sel] for name, v in screen.items()}
+    g.update(body_geometry(sat, {b: v for b, v in bodies.items() if f"{b}_angle_deg" not in screen}, sub,
+                           campaign.earth.radius_km))
     res = model.evaluate(sat, bodies, los[p_idx], g, campaign.bands, stars,
-                         faint_rates=None if faint is None else {b: v[p_idx] for b, v in faint.items()})
+                         faint_rates=None if faint is None else {b: v[p_idx] for b, v in faint.items()}, frame=sub)
     for ib, b in enumerate(campaign.bands):
         for comp in CUBE_COMPONENTS + ("total",):
             out[comp][steps.start + t_idx, p_idx, ib] = np.broadcast_to(res[b][comp], sel.shape)

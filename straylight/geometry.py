@@ -139,23 +139,20 @@ def limb_geometry(
     r = np.asarray(satellite_km, dtype=float)
     los = unit(np.asarray(los, dtype=float))
     r, los, sun = np.broadcast_arrays(r, los, np.asarray(sun_km, dtype=float))
-    dist = norm(r)
-    if np.any(dist <= earth_radius_km):
-        raise InputError(
-            f"satellite position is inside the Earth (|r| = {float(dist.min()):.1f} km "
-            f"<= Earth radius {earth_radius_km} km)"
-        )
-    nadir = -r / dist[..., None]
-    rho = np.arcsin(earth_radius_km / dist)
-    gamma_deg = angle_between_deg(los, nadir)
+    # what depends on the satellite and the Sun alone, once per run of samples that share them
+    # (a survey cube's time step)
+    runs = scene_runs(r, sun)
+    per_scene = _limb_scene(r, sun, earth_radius_km) if runs is None else \
+        tuple(runs.expand(v) for v in _limb_scene(*runs.vectors, earth_radius_km))
+    nadir, rho, tangent_len, cr, sr, a_term = per_scene
+    los_x_nadir = np.cross(los, nadir)
+    sin_gamma = norm(los_x_nadir)
+    gamma_deg = np.degrees(np.arctan2(sin_gamma, dot(los, nadir)))  # angle_between_deg(los, nadir)
     limb_angle = gamma_deg - np.degrees(rho)
     zenith = 180.0 - gamma_deg
 
-    e1 = perpendicular_towards(nadir, np.where((norm(np.cross(los, nadir)) > 1e-12)[..., None], los, sun))
+    e1 = perpendicular_towards(nadir, np.where((sin_gamma > 1e-12)[..., None], los, sun))
     e2 = np.cross(nadir, e1)
-    tangent_len = np.sqrt(np.maximum(dist**2 - earth_radius_km**2, 0.0))
-    cr, sr = np.cos(rho), np.sin(rho)
-    a_term = dot(r, sun) + tangent_len * cr * dot(nadir, sun) - earth_radius_km**2
     s1, s2 = dot(e1, sun), dot(e2, sun)
     b_term = tangent_len * sr * np.hypot(s1, s2)
     psi_sun = np.arctan2(s2, s1)
@@ -189,6 +186,24 @@ def limb_geometry(
         bright_limb_angle_deg=bright,
         dark_limb_angle_deg=dark,
     )
+
+
+def _limb_scene(r, sun, earth_radius_km):
+    """:func:`limb_geometry`'s quantities of the satellite ``r`` and the Sun ``sun`` alone (km,
+    (..., 3)): nadir, the limb's angle rho from nadir (rad), the tangent length (km), cos and sin
+    of rho, and A of P . S - Re^2 = A + B cos(psi - psi_s)."""
+    dist = norm(r)
+    if np.any(dist <= earth_radius_km):
+        raise InputError(
+            f"satellite position is inside the Earth (|r| = {float(dist.min()):.1f} km "
+            f"<= Earth radius {earth_radius_km} km)"
+        )
+    nadir = -r / dist[..., None]
+    rho = np.arcsin(earth_radius_km / dist)
+    tangent_len = np.sqrt(np.maximum(dist**2 - earth_radius_km**2, 0.0))
+    cr, sr = np.cos(rho), np.sin(rho)
+    a_term = dot(r, sun) + tangent_len * cr * dot(nadir, sun) - earth_radius_km**2
+    return nadir, rho, tangent_len, cr, sr, a_term
 
 
 # -- telescope frame --------------------------------------------------------------------------
@@ -356,12 +371,49 @@ def shared_vectors(*vectors_km):
     return None if runs is None or runs.count > 1 else tuple(v[0] for v in runs.vectors)
 
 
+def body_geometry(
+    satellite_km: np.ndarray, bodies_km: dict[str, np.ndarray], frame: TelescopeFrame, earth_radius_km: float
+) -> dict[str, np.ndarray]:
+    """Each body's off-axis angle, azimuth and Earth test in the telescope ``frame`` (see
+    :func:`observing_geometry`): ``<body>_angle_deg``, ``<body>_phi_deg`` and
+    ``<body>_earth_blocked``, arrays of the samples' shape."""
+    sat = np.asarray(satellite_km, dtype=float)
+    # a cube time step shares the satellite and the bodies: each body's direction once per step
+    return _body_geometry(sat, bodies_km, frame, earth_radius_km, scene_runs(sat, *bodies_km.values()))
+
+
+def _body_geometry(sat, bodies_km, frame, earth_radius_km, runs) -> dict[str, np.ndarray]:
+    """:func:`body_geometry` with the samples' ``scene_runs(sat, *bodies_km.values())``."""
+    out: dict[str, np.ndarray] = {}
+    if runs is None:
+        for name, pos in bodies_km.items():
+            d = unit(pos - sat)
+            theta, phi = frame.theta_phi_deg(d)
+            if theta.shape != frame.z.shape[:-1]:
+                theta, phi = np.broadcast_arrays(theta, phi, frame.z[..., 0])[:2]
+            out[f"{name}_angle_deg"] = theta  # = off-axis angle theta in the telescope frame
+            out[f"{name}_phi_deg"] = phi
+            out[f"{name}_earth_blocked"] = earth_blocks(sat, d, earth_radius_km) & np.ones(theta.shape, bool)
+        return out
+    # every body's direction and Earth test once per run, then all bodies' angles in one pass
+    d_run = unit(np.stack(runs.vectors[1:]) - runs.vectors[0])  # (bodies, runs, 3)
+    per_sample = (len(bodies_km),) + runs.shape
+    blocked = earth_blocks(runs.vectors[0], d_run, earth_radius_km)[:, runs.index].reshape(per_sample)
+    theta, phi = frame.theta_phi_deg(d_run[:, runs.index].reshape(per_sample + (3,)))
+    for i, name in enumerate(bodies_km):
+        out[f"{name}_angle_deg"] = theta[i]
+        out[f"{name}_phi_deg"] = phi[i]
+        out[f"{name}_earth_blocked"] = blocked[i] & np.ones(theta[i].shape, bool)
+    return out
+
+
 def observing_geometry(
     satellite_km: np.ndarray,
     bodies_km: dict[str, np.ndarray],
     los: np.ndarray,
     earth_radius_km: float,
     constraints: Constraints,
+    frame: TelescopeFrame | None = None,
 ) -> dict[str, np.ndarray]:
     """Every geometric quantity the stray-light physics needs, for broadcastable samples.
 
@@ -372,6 +424,8 @@ def observing_geometry(
     los : (..., 3) unit line-of-sight vectors.
     earth_radius_km : spherical Earth radius, km.
     constraints : avoidance angles and door rules.
+    frame : the samples' ``telescope_frame(los, sun - satellite)`` when the caller already has
+        it (it is then not computed again).
 
     Returns
     -------
@@ -382,32 +436,14 @@ def observing_geometry(
     """
     sat = np.asarray(satellite_km, dtype=float)
     sun, moon = bodies_km["sun"], bodies_km["moon"]
-    sun_dir = sun - sat
-    frame = telescope_frame(los, sun_dir)
+    if frame is None:
+        frame = telescope_frame(los, sun - sat)
     limb = limb_geometry(sat, frame.z, sun, earth_radius_km)
-    out: dict[str, np.ndarray] = {}
-    # a cube time step shares the satellite and the bodies: each body's direction once per step
     runs = scene_runs(sat, *bodies_km.values())
+    out = _body_geometry(sat, bodies_km, frame, earth_radius_km, runs)
     if runs is None:
-        for name, pos in bodies_km.items():
-            d = unit(pos - sat)
-            theta, phi = frame.theta_phi_deg(d)
-            if theta.shape != frame.z.shape[:-1]:
-                theta, phi = np.broadcast_arrays(theta, phi, frame.z[..., 0])[:2]
-            out[f"{name}_angle_deg"] = theta  # = off-axis angle theta in the telescope frame
-            out[f"{name}_phi_deg"] = phi
-            out[f"{name}_earth_blocked"] = earth_blocks(sat, d, earth_radius_km) & np.ones(theta.shape, bool)
         alpha, fraction, elongation = moon_phase(sun, moon, sat)
     else:
-        # every body's direction and Earth test once per run, then all bodies' angles in one pass
-        d_run = unit(np.stack(runs.vectors[1:]) - runs.vectors[0])  # (bodies, runs, 3)
-        per_sample = (len(bodies_km),) + runs.shape
-        blocked = earth_blocks(runs.vectors[0], d_run, earth_radius_km)[:, runs.index].reshape(per_sample)
-        theta, phi = frame.theta_phi_deg(d_run[:, runs.index].reshape(per_sample + (3,)))
-        for i, name in enumerate(bodies_km):
-            out[f"{name}_angle_deg"] = theta[i]
-            out[f"{name}_phi_deg"] = phi[i]
-            out[f"{name}_earth_blocked"] = blocked[i] & np.ones(theta[i].shape, bool)
         names = list(bodies_km)
         sat_run, sun_run, moon_run = (runs.vectors[0], runs.vectors[1 + names.index("sun")],
                                       runs.vectors[1 + names.index("moon")])

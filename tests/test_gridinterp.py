@@ -22,6 +22,31 @@ def test_matches_scipy_on_nonuniform_axes(ndim):
     assert np.max(np.abs(got - ref)) < 1e-12
 
 
+@pytest.mark.parametrize("ndim", [1, 2, 3])
+def test_uniform_axes_match_scipy_at_and_beside_nodes(ndim):
+    """Evenly spaced axes take the one-multiplication cell finder: the same values as scipy at
+    random points, on every node, one rounding step either side of it (where the cell found may
+    be the neighbouring one, with t ~1 or ~0), at the edges, outside (clipped) and at NaN; and
+    the general finder's values to rounding (it runs on a copy told the axes are uneven)."""
+    rng = np.random.default_rng(4)
+    axes = [np.linspace(0.0, 360.0, 73), np.linspace(0.0, 90.0, 91), np.linspace(-1.5, 2.5, 9)][:ndim]
+    values = rng.normal(size=tuple(a.size for a in axes))
+    nodes = np.array(np.meshgrid(*axes, indexing="ij")).reshape(ndim, -1).T
+    pts = np.concatenate([rng.uniform(-10.0, 370.0, size=(50_000, ndim)), nodes,
+                          np.nextafter(nodes, np.inf), np.nextafter(nodes, -np.inf)])
+    lo, hi = np.array([a[0] for a in axes]), np.array([a[-1] for a in axes])
+    grid = LinearGrid(axes, values)
+    assert all(ax.uniform for ax in grid.axes)
+    ref = RegularGridInterpolator(axes, values, method="linear")(np.clip(pts, lo, hi))
+    got = grid(*pts.T)
+    assert np.max(np.abs(got - ref)) < 1e-12
+    general = LinearGrid(axes, values)
+    for ax in general.axes:
+        ax.uniform = False
+    assert np.max(np.abs(got - general(*pts.T))) < 1e-13
+    assert np.isnan(grid(*([np.nan] + [1.0] * (ndim - 1))))
+
+
 def test_clips_outside_and_propagates_nan():
     f = LinearGrid([np.array([0.0, 1.0, 3.0]), np.array([0.0, 2.0])], np.array([[0.0, 2.0], [1.0, 3.0], [3.0, 5.0]]))
     assert f(-5.0, 1.0) == pytest.approx(1.0)  # clipped to x = 0: 0 + (2 - 0) * 1/2
