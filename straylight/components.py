@@ -17,7 +17,7 @@ from .bandpass import load_band
 from .config import Campaign
 from .door import door_from_instrument
 from .ephemeris import PLANETS
-from .geometry import earth_blocks, norm, scene_runs, telescope_frame, unit
+from .geometry import earth_blocks, norm, scene_runs, telescope_frame, unit, wrap_360_deg
 from .offfield import (AU_KM, BandPhotometry, EarthshineSettings, OffFieldModel, magnitude_per_arcsec2,
                        moon_v_magnitude, planet_v_magnitude, solar_like_fraction)
 from .pst import load_pst
@@ -277,6 +277,17 @@ class ComponentModel:
         # e-/s/pix at PST = 1 relative to the darkest zodiacal light, worst band (solar spectrum)
         rel = off.pixel_area_m2 * np.asarray(sun_fraction, float) / self.solar_floor(tuple(bands))
         per_source = ERROR_BUDGET_SHARES["moon_and_planets_skip"] / (1 + len(PLANETS))  # the Moon and each planet
+        if np.size(angle_deg):
+            # the radius shrinks as its limit rises: the smallest limit (the darkest floor over the
+            # brightest source; a hair smaller against rounding) gives a radius that bounds every
+            # sample's, so a source outside it everywhere (most planets, most of the time) is
+            # skipped with no radius per sample
+            with np.errstate(divide="ignore"):
+                smallest = per_source * self.tolerance * float(np.min(floor_ratio)) / float(np.max(rel)) * (1 - 1e-12)
+            widest = float(off.pst.influence_radius_deg(smallest))
+            if widest < 180.0 and np.min(angle_deg) >= widest:
+                return np.zeros(np.broadcast_shapes(np.shape(angle_deg), np.shape(phi_deg), np.shape(earth_blocked),
+                                                    np.shape(door)))
         radius = off.pst.influence_radius_deg(per_source * self.tolerance * np.asarray(floor_ratio, float) / rel)
         far = (np.asarray(angle_deg) >= radius) & (radius < 180.0)  # 180: nowhere skippable
         # a skipped source is treated as hidden: point_source then looks nothing up for it
@@ -715,7 +726,7 @@ class ComponentModel:
             theta = np.degrees(np.arctan2(np.hypot(dx, dy), dz))
             off = theta > self.offfield.field_radius_deg
             r, k, theta, dx, dy = r[off], k[off], theta[off], dx[off], dy[off]
-            phi = np.degrees(np.arctan2(dy, dx)) % 360.0
+            phi = wrap_360_deg(np.degrees(np.arctan2(dy, dx)))
             parts.append((r, k, self.offfield.point_source(1.0, theta, phi, False, op[r])))
         if not parts:
             return shape, (np.zeros(0, np.intp), np.zeros(0, np.intp), np.zeros(0))

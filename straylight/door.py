@@ -24,6 +24,7 @@ from functools import cached_property
 import numpy as np
 
 from .errors import ConfigError
+from .geometry import wrap_360_deg
 from .gridinterp import LinearGrid
 
 
@@ -138,7 +139,7 @@ class DoorTable:
         """The table's (theta, phi) of directions: theta clipped to 0-90 deg (Sp holds its 90 deg
         value behind the aperture), phi wrapped to 0-360 deg."""
         th, ph = np.broadcast_arrays(np.asarray(theta_deg, float), np.asarray(phi_deg, float))
-        return np.clip(th, 0.0, 90.0), np.mod(ph, 360.0)
+        return np.clip(th, 0.0, 90.0), wrap_360_deg(ph)
 
     def __call__(self, theta_deg, phi_deg) -> np.ndarray:
         return self._interp(*self.coordinates(theta_deg, phi_deg))

@@ -38,7 +38,7 @@ import numpy as np
 
 from .door import door_state_index
 from .errors import InputError
-from .geometry import dot, norm, telescope_frame, unit
+from .geometry import dot, norm, telescope_frame, unit, wrap_360_deg
 from .gridinterp import LinearGrid
 from .offfield import MOON_APOGEE_KM, MOON_MEAN_DISTANCE_KM, MOON_PERIGEE_KM
 
@@ -358,7 +358,7 @@ class EarthshineLUT:
         r = norm(sat)
         up = sat / r[..., None]
         z_sun, zeta, a = _zenith_azimuth(up, unit(np.asarray(sun_km, float)), unit(np.asarray(los, float)))
-        a = np.abs(a) if self.symmetric else np.mod(a, 360.0)
+        a = np.abs(a) if self.symmetric else wrap_360_deg(a)
         return r, z_sun, zeta, a
 
     def sun_coefficients(self, sat_km, sun_km, los, opening_deg):
@@ -614,8 +614,8 @@ class MoonlitLUT:
             roll = np.where(a < 0, -roll, roll)
             a = np.abs(a)
         else:
-            a = np.mod(a, 360.0)
-        return z_moon, zeta, a, np.mod(roll, 360.0)
+            a = wrap_360_deg(a)
+        return z_moon, zeta, a, wrap_360_deg(roll)
 
     def coefficients(self, sat_km, moon_km, frame, opening_deg):
         """(direct_moon, door_moon) per unit lunar irradiance at the Earth, outside the field."""

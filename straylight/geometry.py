@@ -48,6 +48,16 @@ def unit(a: np.ndarray) -> np.ndarray:
     return np.divide(a, n, out=np.zeros(np.broadcast(a, n).shape), where=n > 0)
 
 
+def wrap_360_deg(angle_deg) -> np.ndarray:
+    """``np.mod(angle_deg, 360.0)``, the same numbers, without its slow floating-point modulo
+    where every angle already lies within (-360, 360) deg (an arctan2's, or one already wrapped:
+    then only its negatives move, by 360)."""
+    a = np.asarray(angle_deg, dtype=float)
+    if a.size and a.min() > -360.0 and a.max() < 360.0:  # NaN fails both: np.mod below
+        return a if a.min() >= 0.0 else np.where(a < 0.0, a + 360.0, a)
+    return np.mod(a, 360.0)
+
+
 def angle_between_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Angle in degrees between vectors a and b (any lengths), stable at 0 and 180 deg."""
     a, b = np.broadcast_arrays(a, b)

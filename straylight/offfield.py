@@ -41,7 +41,7 @@ import numpy as np
 from .bandpass import Band
 from .door import Door, DoorTable, door_state_index
 from .errors import ConfigError
-from .geometry import dot, norm, perpendicular_towards, shared_vectors, unit
+from .geometry import dot, norm, perpendicular_towards, shared_vectors, unit, wrap_360_deg
 from .gridinterp import LinearGrid
 from .pst import PST
 from .zodiacal import solar_spectrum
@@ -349,7 +349,7 @@ class OffFieldModel:
         dy = dot(d, frame.y[..., None, None, :])
         dz = dot(d, frame.z[..., None, None, :])
         theta = np.degrees(np.arctan2(np.hypot(dx, dy), dz))
-        phi = np.degrees(np.arctan2(dy, dx)) % 360.0
+        phi = wrap_360_deg(np.degrees(np.arctan2(dy, dx)))
         op = np.broadcast_to(np.asarray(opening_deg, float)[..., None, None], theta.shape)
         # blocks inside the field are replaced by the in-field term (a grid block cannot resolve
         # the 0.6 deg field, where the PST jumps to 1)
@@ -407,7 +407,7 @@ class OffFieldModel:
                 sl = slice(start, start + batch)
                 dx, dy, dz = fx[sl] @ blocks.T, fy[sl] @ blocks.T, fz[sl] @ blocks.T  # (n, K)
                 theta = np.degrees(np.arctan2(np.hypot(dx, dy), dz))
-                phi = np.degrees(np.arctan2(dy, dx)) % 360.0
+                phi = wrap_360_deg(np.degrees(np.arctan2(dy, dx)))
                 w = self.pst(theta, phi) * (theta > self.field_radius_deg) * self.pixel_area_m2
                 for i, state in enumerate(states):  # per sample's door state (door.door_state_index)
                     rows = known[sl] & (state_of[sl] == i)

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
+from .geometry import wrap_360_deg
 from .gridinterp import LinearGrid
 
 # Anchors of the default PST (log10 PST vs theta, deg), azimuthally averaged.
@@ -119,16 +120,21 @@ class PST:
         """PST at (theta, phi) in degrees (any broadcastable shapes); phi wraps, theta clips."""
         th, ph = np.broadcast_arrays(np.asarray(theta_deg, float), np.asarray(phi_deg, float))
         th = np.clip(th, 0.0, 180.0)
-        ph = np.mod(ph, 360.0)
+        ph = wrap_360_deg(ph)
         return np.exp(self._interp(th, ph))
+
+    @cached_property
+    def _tail_max_reversed(self) -> np.ndarray:
+        """The PST's largest value at or beyond each theta node, over phi (non-increasing in
+        theta), in reverse order (increasing)."""
+        return np.maximum.accumulate(self.values.max(axis=1)[::-1])
 
     def influence_radius_deg(self, pst_limit) -> np.ndarray:
         """The smallest theta node beyond which the PST stays at or below ``pst_limit`` at every
         phi (array-valued): the interpolant is bounded by its cell's corners, so the bound holds
         between nodes too.  180 where no node qualifies (the limit is below the PST's tail)."""
-        tail_max = np.maximum.accumulate(self.values.max(axis=1)[::-1])[::-1]  # non-increasing
         # first node k with tail_max[k] <= limit (searchsorted on the reversed, increasing array)
-        k = self.theta_deg.size - np.searchsorted(tail_max[::-1], np.asarray(pst_limit, float), side="right")
+        k = self.theta_deg.size - np.searchsorted(self._tail_max_reversed, np.asarray(pst_limit, float), side="right")
         return np.where(k < self.theta_deg.size, self.theta_deg[np.minimum(k, self.theta_deg.size - 1)], 180.0)
 
     def azimuthal_mean(self, theta_deg) -> np.ndarray:
