@@ -49,9 +49,9 @@ def unit(a: np.ndarray) -> np.ndarray:
 
 
 def wrap_360_deg(angle_deg) -> np.ndarray:
-    """``np.mod(angle_deg, 360.0)``, the same numbers, without its slow floating-point modulo
-    where every angle already lies within (-360, 360) deg (an arctan2's, or one already wrapped:
-    then only its negatives move, by 360)."""
+    """``np.mod(angle_deg, 360.0)``, the same values (-0.0 may stay -0.0), without its slow
+    floating-point modulo where every angle already lies within (-360, 360) deg (an arctan2's,
+    or one already wrapped: then only its negatives move, by 360)."""
     a = np.asarray(angle_deg, dtype=float)
     if a.size and a.min() > -360.0 and a.max() < 360.0:  # NaN fails both: np.mod below
         return a if a.min() >= 0.0 else np.where(a < 0.0, a + 360.0, a)

@@ -14,6 +14,7 @@ from straylight.geometry import (
     observing_geometry,
     radec_to_unit,
     telescope_frame,
+    wrap_360_deg,
 )
 
 RE = 6378.137
@@ -211,3 +212,17 @@ def test_grid_shapes(campaign):
     g = sample_geometry(campaign, sc, np.array([0.0, 90.0, 180.0]), np.array([0.0, 45.0, -89.0]))
     assert g["observable"].shape == (5, 3)
     assert g["moon_phase_angle_deg"].shape == (5, 3)
+
+
+def test_wrap_360_equals_numpys_modulo():
+    """wrap_360_deg skips the floating-point modulo where it can: its values equal np.mod's
+    (numpy is the reference; -0.0 stays -0.0, equal to np.mod's 0.0), for arctan2's range,
+    angles already wrapped, -1e-15 (which np.mod rounds to 360.0), beyond +-360 deg, huge
+    values and NaN."""
+    rng = np.random.default_rng(5)
+    cases = [np.degrees(np.arctan2(rng.normal(size=10_000), rng.normal(size=10_000))),
+             rng.uniform(0.0, 360.0, 1000), rng.uniform(-1e4, 1e4, 1000),
+             np.array([-1e-15, -0.0, 0.0, 360.0 - 2 ** -44, -359.9, 359.9, 720.5, -1e300, np.nan]),
+             np.zeros(0)]
+    for x in cases:
+        assert np.array_equal(wrap_360_deg(x), np.mod(x, 360.0), equal_nan=True)

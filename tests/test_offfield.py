@@ -410,6 +410,28 @@ def test_skip_radius_shrinks_with_the_samples_floor(comp_model):
     assert float(bright[0]) == 0.0
 
 
+def test_skipping_a_source_for_a_whole_batch_is_the_per_sample_rule(comp_model):
+    """The Moon and the planets are skipped for a whole batch when the darkest sample's radius
+    already leaves them out: the batch gives, sample by sample, what each sample alone gives
+    (its own floor, its own radius), whether the shortcut applies (a V = -4 source 60-170 deg
+    from every line of sight) or not (the same source 5-170 deg away, some samples near)."""
+    rng = np.random.default_rng(8)
+    n = 400
+    frac = solar_like_fraction(-4.0)
+    phi = rng.uniform(0.0, 360.0, n)
+    blocked = rng.random(n) < 0.2
+    door = np.where(rng.random(n) < 0.5, 135.0, 105.0)
+    floor = 10.0 ** rng.uniform(0.0, 4.0, n)
+    for lo in (60.0, 5.0):
+        angle = rng.uniform(lo, 170.0, n)
+        batch = comp_model._skippable_transfer(frac, angle, phi, blocked, door, ["g", "z"], floor_ratio=floor)
+        alone = np.concatenate([comp_model._skippable_transfer(frac, angle[i:i + 1], phi[i:i + 1], blocked[i:i + 1],
+                                                               door[i:i + 1], ["g", "z"], floor_ratio=floor[i:i + 1])
+                                for i in range(n)])
+        assert np.array_equal(batch, alone)
+        assert (np.count_nonzero(batch) == 0) == (lo == 60.0)  # the far batch is all skipped, the near one not
+
+
 def test_new_moon_far_from_the_line_of_sight_is_skipped(campaign, comp_model, exact_model):
     """A 20-deg-old Moon (phase angle ~160 deg) 90 deg from the line of sight: its exact term is
     below its share (tolerance / 72 of the darkest zodiacal light), so the default model skips
