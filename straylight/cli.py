@@ -262,7 +262,12 @@ def cmd_plan(args) -> int:
     c = campaign.config["campaign"]
     nt, npix, nb = len(campaign.times), fp.pixels.size, len(campaign.bands)
     tb = time_blocks(nt, float(c["cadence_s"]), float(c.get("time_block_hours", 6)))
-    cost = estimated_cost(campaign, fp, args.seconds_per_sample)
+    speed = None
+    if args.calibrate:
+        from .cube import machine_speed
+
+        speed = machine_speed(campaign, fp)
+    cost = estimated_cost(campaign, fp, args.seconds_per_sample, speed["factor"] if speed else 1.0)
     n = cost["samples"]
     cube_bytes = n * nb * 4 * (len(CUBE_COMPONENTS) + 1) + n * 6
     limits_bytes = n * nb * 4 + n
@@ -278,7 +283,12 @@ def cmd_plan(args) -> int:
         table = ("; the table is cached" if cost["table_cached"] else
                  f"; building the table takes ~{cost['table_build_seconds'] / 3600:.2f} core-hours, once")
     print(f"sunlit earthshine: {method} ({cost['earthshine_reason']}){table}")
-    how = ("this code's figures on the 2-core development machine (straylight.cube.CUBE_*; bench/run.py --only cube)"
+    if speed:
+        print(f"this machine: {speed['samples']} cube samples on the direct sum took "
+              f"{speed['measured_seconds']:.3f} s against {speed['assumed_seconds']:.3f} s at the figures "
+              f"(x{speed['factor']:.2f})")
+    how = ("this code's figures on the 2-core development machine (straylight.cube.CUBE_*; bench/run.py --only "
+           "cube)" + (f" x{speed['factor']:.2f} for this machine (--calibrate)" if speed else "")
            if args.seconds_per_sample is None else
            f"{args.seconds_per_sample * 1e3:.3g} ms per evaluated sample (--seconds-per-sample)")
     print(f"estimated cost: {cost['core_hours']:.2f} core-hours at {how}")
@@ -391,10 +401,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     pl = sub.add_parser("plan", help="samples, output size and core-hours of a campaign before running it")
     pl.add_argument("config", nargs="?", default=None, help="campaign config (default: config/config.yaml)")
-    pl.add_argument("--seconds-per-sample", type=float, default=None,
-                    help="cost of one evaluated (time, pointing) sample, all bands, one core, on the machine "
-                         "that will run (default: this code's measured figures for the earthshine model "
-                         "auto picks)")
+    how = pl.add_mutually_exclusive_group()
+    how.add_argument("--seconds-per-sample", type=float, default=None,
+                     help="cost of one evaluated (time, pointing) sample, all bands, one core, on the machine "
+                          "that will run (default: this code's measured figures for the earthshine model "
+                          "auto picks)")
+    how.add_argument("--calibrate", action="store_true",
+                     help="time a few cube steps on this machine (seconds) and scale the figures by it")
     pl.set_defaults(func=cmd_plan)
 
     ca = sub.add_parser("catalog", help="bright-star catalog in the CSST bands (Gaia DR2 files, or Hipparcos)")

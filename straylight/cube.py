@@ -182,11 +182,12 @@ CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE = 20e-6
 
 
 def cube_compute_seconds(samples: int, evaluated: int, earthshine_method: str, skip: bool,
-                         seconds_per_evaluated_sample: float | None = None) -> float:
+                         seconds_per_evaluated_sample: float | None = None, speed_factor: float = 1.0) -> float:
     """Seconds on one core to compute a cube of ``samples`` (time, pixel) samples of which
     ``evaluated`` are evaluated (all, or with ``skip`` the observable ones), with the sunlit
     earthshine ``earthshine_method`` ('lut' or 'direct'), at the CUBE_* and
-    components.LUT_SAVED_SECONDS_PER_SAMPLE figures above; or at
+    components.LUT_SAVED_SECONDS_PER_SAMPLE figures above times ``speed_factor`` (this machine
+    against the one they were measured on, :func:`machine_speed`); or at
     ``seconds_per_evaluated_sample`` per evaluated sample when given (another machine)."""
     from .components import LUT_SAVED_SECONDS_PER_SAMPLE
 
@@ -195,15 +196,53 @@ def cube_compute_seconds(samples: int, evaluated: int, earthshine_method: str, s
     per_eval = CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE if skip else CUBE_TABLE_SECONDS_PER_SAMPLE
     if earthshine_method == "direct":
         per_eval += LUT_SAVED_SECONDS_PER_SAMPLE
-    return evaluated * per_eval + (samples * CUBE_SCREEN_SECONDS_PER_SAMPLE if skip else 0.0)
+    return speed_factor * (evaluated * per_eval + (samples * CUBE_SCREEN_SECONDS_PER_SAMPLE if skip else 0.0))
 
 
-def estimated_cost(campaign: Campaign, fp: Footprint, seconds_per_evaluated_sample: float | None = None) -> dict:
+def machine_speed(campaign: Campaign, fp: Footprint, n_times: int = 4, n_pixels: int = 1320, repeats: int = 2) -> dict:
+    """This machine's speed against the one the cost figures (CUBE_*, components.LUT_*) were
+    measured on: ``n_times`` cube time steps spread over the campaign at ~``n_pixels`` footprint
+    pixels spread over it (one step, or a few hundred pixels, weigh the per-step costs too much:
+    x0.39 from the first step alone, x0.48 from 330 pixels, where 12 steps gave x0.31), on the
+    direct earthshine sum, every sample evaluated, without stars (~1 % of that path's cost),
+    best of ``repeats`` after a warm-up, against :func:`cube_compute_seconds` for it.  Returns the samples, ``measured_seconds``, ``assumed_seconds`` and ``factor``
+    (measured / assumed: below 1 on a faster machine).  One factor for every figure: the
+    direct sum's, the table path's, the screen's and the table build's ratios between two
+    machines differed by up to ~25 % (README)."""
+    import copy
+
+    from .components import ComponentModel
+    from .config import campaign_from_dict
+
+    raw = copy.deepcopy(campaign.config)
+    raw["models"].setdefault("earthshine", {})["method"] = "direct"
+    raw["models"]["unobservable_samples"] = "evaluate"
+    direct = campaign_from_dict(raw, campaign.path)
+    model = ComponentModel(direct, expected_samples=1)
+    nt = len(direct.times)
+    t_slice = slice(0, nt, max(1, nt // max(1, n_times)))
+    p_slice = slice(0, None, max(1, int(fp.pixels.size) // max(1, n_pixels)))
+    # warm-up at full size: door tables, bands, and glibc's mmap threshold, which rises only after
+    # the first large arrays are freed (the first call ran 1.4x slower)
+    compute_region(direct, fp, t_slice, p_slice, model=model)
+    best = np.inf
+    for _ in range(max(1, repeats)):
+        t0 = _time.perf_counter()
+        compute_region(direct, fp, t_slice, p_slice, model=model)
+        best = min(best, _time.perf_counter() - t0)
+    n = len(range(*t_slice.indices(nt))) * len(range(*p_slice.indices(int(fp.pixels.size))))
+    assumed = cube_compute_seconds(n, n, "direct", False)
+    return {"samples": n, "measured_seconds": best, "assumed_seconds": assumed, "factor": best / assumed}
+
+
+def estimated_cost(campaign: Campaign, fp: Footprint, seconds_per_evaluated_sample: float | None = None,
+                   speed_factor: float = 1.0) -> dict:
     """What the campaign's cube will cost before it runs: its samples, the samples it
     evaluates (:func:`evaluated_samples`), the sunlit earthshine model ``auto`` picks
     (ComponentModel.earthshine_choice, nothing built), the table's build when it is not cached
     yet, and the compute (:func:`cube_compute_seconds`).  Seconds on one core.  The figures are
-    this code's on the 2-core development machine; single runs wander by 20-40 %."""
+    this code's on a 2-core development machine (single runs wander by 20-40 %), times
+    ``speed_factor`` (:func:`machine_speed`) for this one."""
     from .components import ComponentModel, unobservable_samples
 
     n = len(campaign.times) * int(fp.pixels.size)
@@ -211,13 +250,13 @@ def estimated_cost(campaign: Campaign, fp: Footprint, seconds_per_evaluated_samp
     model = ComponentModel(campaign, expected_samples=n_eval)
     choice = model.earthshine_choice
     skip = unobservable_samples(campaign) == "skip"
-    compute_s = cube_compute_seconds(n, n_eval, choice["method"], skip, seconds_per_evaluated_sample)
+    compute_s = cube_compute_seconds(n, n_eval, choice["method"], skip, seconds_per_evaluated_sample, speed_factor)
     table_cached = choice["method"] == "lut" and model.earthshine_lut_path().exists()
-    build_s = choice["build_seconds_estimate"] if choice["method"] == "lut" and not table_cached else 0.0
+    build_s = speed_factor * choice["build_seconds_estimate"] if choice["method"] == "lut" and not table_cached else 0.0
     return {"samples": n, "evaluated_samples": n_eval, "unobservable_samples": "skip" if skip else "evaluate",
             "earthshine_method": choice["method"], "earthshine_reason": choice["reason"],
             "table_cached": table_cached, "table_build_seconds": build_s, "compute_seconds": compute_s,
-            "core_hours": (compute_s + build_s) / 3600.0}
+            "core_hours": (compute_s + build_s) / 3600.0, "speed_factor": speed_factor}
 
 
 def _component_model(campaign: Campaign, fp: Footprint, build_workers: int = 1):

@@ -209,6 +209,45 @@ def test_plan_prints_samples_size_and_cost():
     assert "core-hours" in r.stdout and "GB" in r.stdout
 
 
+def test_plan_calibrate_scales_the_figures_by_this_machines_speed():
+    """plan --calibrate times a few cube steps on this machine and prints the factor it scales
+    the cost figures by; it and --seconds-per-sample exclude each other."""
+    r = run_cli("plan", "--calibrate")
+    assert r.returncode == 0, r.stderr
+    line = next(x for x in r.stdout.splitlines() if x.startswith("this machine: "))
+    factor = float(line.rsplit("(x", 1)[1].rstrip(")"))
+    assert 0.0 < factor < 100.0
+    assert f"x{factor:.2f} for this machine (--calibrate)" in r.stdout
+    assert run_cli("plan", "--calibrate", "--seconds-per-sample", "1e-5").returncode == 2
+
+
+def test_machine_speed_and_its_factor(campaign, tmp_path, monkeypatch):
+    """cube.machine_speed: the measured seconds of a small direct-path cube against the
+    figures' seconds for it (cube_compute_seconds, the direct sum evaluating every sample);
+    estimated_cost scales the compute and the table's build by the factor, nothing else."""
+    import copy
+
+    from straylight import cube as cu
+    from straylight.config import campaign_from_dict
+    from straylight.footprint import footprint_from_config
+
+    fp = footprint_from_config(campaign.config["footprint"])
+    speed = cu.machine_speed(campaign, fp, n_times=1, n_pixels=66, repeats=1)
+    assert speed["samples"] == 66  # every 20th of the 1320 pixels at the first step
+    assert speed["assumed_seconds"] == pytest.approx(cu.cube_compute_seconds(66, 66, "direct", False), rel=1e-12)
+    assert speed["measured_seconds"] > 0.0
+    assert speed["factor"] == pytest.approx(speed["measured_seconds"] / speed["assumed_seconds"], rel=1e-12)
+    monkeypatch.setenv("STRAYLIGHT_CACHE", str(tmp_path))  # an empty cache: the build is counted
+    raw = copy.deepcopy(campaign.config)
+    raw["campaign"]["end"] = "2026-01-08T00:00:00"
+    week = campaign_from_dict(raw, campaign.path)
+    base, fast = cu.estimated_cost(week, fp), cu.estimated_cost(week, fp, speed_factor=0.25)
+    assert fast["compute_seconds"] == pytest.approx(0.25 * base["compute_seconds"], rel=1e-12)
+    assert base["table_build_seconds"] > 0.0
+    assert fast["table_build_seconds"] == pytest.approx(0.25 * base["table_build_seconds"], rel=1e-12)
+    assert (fast["earthshine_method"], fast["evaluated_samples"]) == (base["earthshine_method"], base["evaluated_samples"])
+
+
 def test_plan_costs_the_model_auto_picks(campaign, tmp_path, monkeypatch):
     """straylight plan (cube.estimated_cost) costs the earthshine model the cube will run, on
     the samples it evaluates, without building anything: the default day takes the direct sum;
