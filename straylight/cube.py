@@ -222,6 +222,9 @@ def machine_speed(campaign: Campaign, fp: Footprint, n_times: int = 4, n_pixels:
     nt = len(direct.times)
     t_slice = slice(0, nt, max(1, nt // max(1, n_times)))
     p_slice = slice(0, None, max(1, int(fp.pixels.size) // max(1, n_pixels)))
+    n = len(range(*t_slice.indices(nt))) * len(range(*p_slice.indices(int(fp.pixels.size))))
+    if n == 0:  # no time or no pixel: nothing to time, the figures stand
+        return {"samples": 0, "measured_seconds": 0.0, "assumed_seconds": 0.0, "factor": 1.0}
     # warm-up at full size: door tables, bands, and glibc's mmap threshold, which rises only after
     # the first large arrays are freed (the first call ran 1.4x slower)
     compute_region(direct, fp, t_slice, p_slice, model=model)
@@ -230,7 +233,6 @@ def machine_speed(campaign: Campaign, fp: Footprint, n_times: int = 4, n_pixels:
         t0 = _time.perf_counter()
         compute_region(direct, fp, t_slice, p_slice, model=model)
         best = min(best, _time.perf_counter() - t0)
-    n = len(range(*t_slice.indices(nt))) * len(range(*p_slice.indices(int(fp.pixels.size))))
     assumed = cube_compute_seconds(n, n, "direct", False)
     return {"samples": n, "measured_seconds": best, "assumed_seconds": assumed, "factor": best / assumed}
 

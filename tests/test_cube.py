@@ -254,7 +254,7 @@ def test_plan_costs_the_model_auto_picks(campaign, tmp_path, monkeypatch):
     a week of it the table, whose build (782,633 nodes x 2 door states at
     components.LUT_BUILD_SECONDS_PER_NODE, the default table's node count) is counted while it
     is not cached; the same week skipping the unobservable samples (~16.5 %) is short of the
-    table's break-even (~1.9 million samples) again."""
+    table's break-even (~2.3 million samples) again."""
     import copy
 
     from straylight import components as comp
