@@ -202,13 +202,14 @@ def cube_compute_seconds(samples: int, evaluated: int, earthshine_method: str, s
 def machine_speed(campaign: Campaign, fp: Footprint, n_times: int = 4, n_pixels: int = 1320, repeats: int = 2) -> dict:
     """This machine's speed against the one the cost figures (CUBE_*, components.LUT_*) were
     measured on: ``n_times`` cube time steps spread over the campaign at ~``n_pixels`` footprint
-    pixels spread over it (one step, or a few hundred pixels, weigh the per-step costs too much:
-    x0.39 from the first step alone, x0.48 from 330 pixels, where 12 steps gave x0.31), on the
-    direct earthshine sum, every sample evaluated, without stars (~1 % of that path's cost),
-    best of ``repeats`` after a warm-up, against :func:`cube_compute_seconds` for it.  Returns the samples, ``measured_seconds``, ``assumed_seconds`` and ``factor``
-    (measured / assumed: below 1 on a faster machine).  One factor for every figure: the
-    direct sum's, the table path's, the screen's and the table build's ratios between two
-    machines differed by up to ~25 % (README)."""
+    pixels spread over it (one step, or a few hundred pixels, weigh the per-step costs too
+    much), on the direct earthshine sum, every sample evaluated, without stars (~1 % of that
+    path's cost), best of ``repeats`` after a full-size warm-up, against
+    :func:`cube_compute_seconds` for it.  Returns the samples, ``measured_seconds``,
+    ``assumed_seconds`` and ``factor`` (measured / assumed: below 1 on a faster machine).  One
+    factor for every figure: on this cycle's development machine it read x0.39-0.42, the cube
+    bench's four paths x0.29-0.35 against the same figures, so it errs high by up to ~40 %
+    (README)."""
     import copy
 
     from .components import ComponentModel
