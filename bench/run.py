@@ -411,19 +411,17 @@ def plan_cost_model(base, fp, t_slice, cube: dict) -> dict:
     sample, timed here through cube.evaluated_samples on the same steps and pixels) and per
     observable sample (the rest of the skip run); then each of the four runs' seconds as the
     plan's formula gives them from the assumed figures, against the measured ones."""
-    import copy
-
     from astropy.time import TimeDelta
 
     from straylight import cube as cu
-    from straylight.config import campaign_from_dict
+    from straylight.config import campaign_from_dict, deep_merge
 
     steps = range(*t_slice.indices(len(base.times)))
-    raw = copy.deepcopy(base.config)
-    raw["models"]["unobservable_samples"] = "skip"
-    raw["campaign"].update(start=base.times[steps[0]].isot, end=(base.times[steps[-1]] + TimeDelta(1, format="sec")).isot,
-                           cadence_s=steps.step * float(base.config["campaign"]["cadence_s"]))
-    sub = campaign_from_dict(raw, base.path)  # the same steps as a campaign of their own
+    over = {"models": {"unobservable_samples": "skip"},
+            "campaign": {"start": base.times[steps[0]].isot,
+                         "end": (base.times[steps[-1]] + TimeDelta(1, format="sec")).isot,
+                         "cadence_s": steps.step * float(base.config["campaign"]["cadence_s"])}}
+    sub = campaign_from_dict(deep_merge(base.config, over), base.path)  # the same steps as a campaign of their own
     assert len(sub.times) == len(steps)
     _, screen = timed(lambda: cu.evaluated_samples(sub, fp, max_times=len(sub.times), max_pixels=fp.pixels.size))
     n = len(steps) * fp.pixels.size

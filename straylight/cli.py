@@ -287,10 +287,12 @@ def cmd_plan(args) -> int:
         print(f"this machine: {speed['samples']} cube samples on the direct sum took "
               f"{speed['measured_seconds']:.3f} s against {speed['assumed_seconds']:.3f} s at the figures "
               f"(x{speed['factor']:.2f})")
-    how = ("this code's figures on the 2-core development machine (straylight.cube.CUBE_*; bench/run.py --only "
-           "cube)" + (f" x{speed['factor']:.2f} for this machine (--calibrate)" if speed else "")
-           if args.seconds_per_sample is None else
-           f"{args.seconds_per_sample * 1e3:.3g} ms per evaluated sample (--seconds-per-sample)")
+    if args.seconds_per_sample is not None:
+        how = f"{args.seconds_per_sample * 1e3:.3g} ms per evaluated sample (--seconds-per-sample)"
+    else:
+        how = "this code's figures on the 2-core development machine (straylight.cube.CUBE_*; bench/run.py --only cube)"
+        if speed:
+            how += f" x{speed['factor']:.2f} for this machine (--calibrate)"
     print(f"estimated cost: {cost['core_hours']:.2f} core-hours at {how}")
     return 0
 

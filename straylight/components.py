@@ -278,18 +278,19 @@ class ComponentModel:
         # e-/s/pix at PST = 1 relative to the darkest zodiacal light, worst band (solar spectrum)
         rel = off.pixel_area_m2 * np.asarray(sun_fraction, float) / self.solar_floor(tuple(bands))
         per_source = ERROR_BUDGET_SHARES["moon_and_planets_skip"] / (1 + len(PLANETS))  # the Moon and each planet
+        budget = per_source * self.tolerance
         if np.size(angle_deg):
             # the radius shrinks as its limit rises: the smallest limit (the darkest floor over the
             # brightest source; a hair smaller against rounding) gives a radius that bounds every
             # sample's, so a source outside it everywhere (most planets, most of the time) is
             # skipped with no radius per sample
             with np.errstate(divide="ignore"):
-                smallest = per_source * self.tolerance * float(np.min(floor_ratio)) / float(np.max(rel)) * (1 - 1e-12)
+                smallest = budget * float(np.min(floor_ratio)) / float(np.max(rel)) * (1 - 1e-12)
             widest = float(off.pst.influence_radius_deg(smallest))
             if widest < 180.0 and np.min(angle_deg) >= widest:
                 return np.zeros(np.broadcast_shapes(np.shape(angle_deg), np.shape(phi_deg), np.shape(earth_blocked),
                                                     np.shape(door)))
-        radius = off.pst.influence_radius_deg(per_source * self.tolerance * np.asarray(floor_ratio, float) / rel)
+        radius = off.pst.influence_radius_deg(budget * np.asarray(floor_ratio, float) / rel)
         far = (np.asarray(angle_deg) >= radius) & (radius < 180.0)  # 180: nowhere skippable
         # a skipped source is treated as hidden: point_source then looks nothing up for it
         return off.point_source(1.0, angle_deg, phi_deg, np.asarray(earth_blocked, bool) | far, door)

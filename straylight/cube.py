@@ -210,15 +210,12 @@ def machine_speed(campaign: Campaign, fp: Footprint, n_times: int = 4, n_pixels:
     factor for every figure: on this cycle's development machine it read x0.39-0.42, the cube
     bench's four paths x0.29-0.35 against the same figures, so it errs high by up to ~40 %
     (README)."""
-    import copy
-
     from .components import ComponentModel
-    from .config import campaign_from_dict
+    from .config import campaign_from_dict, deep_merge
 
-    raw = copy.deepcopy(campaign.config)
-    raw["models"].setdefault("earthshine", {})["method"] = "direct"
-    raw["models"]["unobservable_samples"] = "evaluate"
-    direct = campaign_from_dict(raw, campaign.path)
+    direct = campaign_from_dict(deep_merge(campaign.config, {"models": {"earthshine": {"method": "direct"},
+                                                                        "unobservable_samples": "evaluate"}}),
+                                campaign.path)
     model = ComponentModel(direct, expected_samples=1)
     nt = len(direct.times)
     t_slice = slice(0, nt, max(1, nt // max(1, n_times)))

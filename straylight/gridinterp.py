@@ -37,7 +37,6 @@ class _Axis:
         # evenly spaced nodes (the PST's phi, the door's and most tables' axes): a point's cell is
         # one multiplication, with no look-up
         self.uniform = bool(np.all(np.abs(steps - steps[0]) <= 1e-12 * steps[0]))
-        self.inv_uniform_step = 1.0 / float(steps[0])
 
     def locate(self, x: np.ndarray):
         """(cell index, fractional position in the cell) of clipped points."""
@@ -47,7 +46,7 @@ class _Axis:
             # t is then ~1 in the cell below (or ~0 just below the node), the same value to
             # rounding (1e-15; tests/test_gridinterp.py)
             with np.errstate(invalid="ignore"):  # NaN -> cell 0, then t = NaN
-                i = np.clip(((x - self.lo) * self.inv_uniform_step).astype(np.intp), 0, self.nodes.size - 2)
+                i = np.clip(((x - self.lo) * self.inv_step[0]).astype(np.intp), 0, self.nodes.size - 2)
             return i, (x - self.nodes[i]) * self.inv_step[i]
         with np.errstate(invalid="ignore"):  # NaN -> bin 0, then t = NaN
             b = np.clip(((x - self.lo) * self.inv_width).astype(np.intp), 0, self.n_bins)

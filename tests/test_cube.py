@@ -170,14 +170,21 @@ def test_dask_scheduler_address_gives_the_same_products(tmp_path, cube_run):
     assert sha256_path(tmp_path / "results" / "cube" / "background.zarr") == sha256_path(ref / "background.zarr")
 
 
+def _campaign_with(campaign, over: dict):
+    """``campaign`` with the config keys of ``over`` replaced (config.deep_merge), validated again."""
+    from straylight.config import campaign_from_dict, deep_merge
+
+    return campaign_from_dict(deep_merge(campaign.config, over), campaign.path)
+
+
+WEEK = {"campaign": {"end": "2026-01-08T00:00:00"}}  # seven days of the default campaign
+
+
 def test_evaluated_samples_skipping_counts_the_observable_ones(campaign):
     """earthshine auto weighs the table against the samples the cube evaluates: with
     unobservable_samples: skip, the observable ones, estimated from 144 times x 660 pixels; on
     the default day (288 times x 1320 pixels, 16.5 % observable) against the exact count from
     the geometry of every sample, and every sample without skipping."""
-    import copy
-
-    from straylight.config import campaign_from_dict
     from straylight.cube import evaluated_samples
     from straylight.footprint import footprint_from_config
     from straylight.geometry import observing_geometry, radec_to_unit
@@ -186,9 +193,7 @@ def test_evaluated_samples_skipping_counts_the_observable_ones(campaign):
     fp = footprint_from_config(campaign.config["footprint"])
     n = len(campaign.times) * fp.pixels.size
     assert evaluated_samples(campaign, fp) == n == 380_160
-    raw = copy.deepcopy(campaign.config)
-    raw["models"]["unobservable_samples"] = "skip"
-    skipping = campaign_from_dict(raw, campaign.path)
+    skipping = _campaign_with(campaign, {"models": {"unobservable_samples": "skip"}})
     sc = scene(skipping, skipping.times)
     los = radec_to_unit(fp.ra_deg, fp.dec_deg)
     g = observing_geometry(sc.satellite_km[:, None], {b: sc.bodies_km[b][:, None] for b in ("sun", "moon")},
@@ -225,10 +230,7 @@ def test_machine_speed_and_its_factor(campaign, tmp_path, monkeypatch):
     """cube.machine_speed: the measured seconds of a small direct-path cube against the
     figures' seconds for it (cube_compute_seconds, the direct sum evaluating every sample);
     estimated_cost scales the compute and the table's build by the factor, nothing else."""
-    import copy
-
     from straylight import cube as cu
-    from straylight.config import campaign_from_dict
     from straylight.footprint import footprint_from_config
 
     fp = footprint_from_config(campaign.config["footprint"])
@@ -238,9 +240,7 @@ def test_machine_speed_and_its_factor(campaign, tmp_path, monkeypatch):
     assert speed["measured_seconds"] > 0.0
     assert speed["factor"] == pytest.approx(speed["measured_seconds"] / speed["assumed_seconds"], rel=1e-12)
     monkeypatch.setenv("STRAYLIGHT_CACHE", str(tmp_path))  # an empty cache: the build is counted
-    raw = copy.deepcopy(campaign.config)
-    raw["campaign"]["end"] = "2026-01-08T00:00:00"
-    week = campaign_from_dict(raw, campaign.path)
+    week = _campaign_with(campaign, WEEK)
     base, fast = cu.estimated_cost(week, fp), cu.estimated_cost(week, fp, speed_factor=0.25)
     assert fast["compute_seconds"] == pytest.approx(0.25 * base["compute_seconds"], rel=1e-12)
     assert base["table_build_seconds"] > 0.0
@@ -255,11 +255,8 @@ def test_plan_costs_the_model_auto_picks(campaign, tmp_path, monkeypatch):
     components.LUT_BUILD_SECONDS_PER_NODE, the default table's node count) is counted while it
     is not cached; the same week skipping the unobservable samples (~16.5 %) is short of the
     table's break-even (~2.3 million samples) again."""
-    import copy
-
     from straylight import components as comp
     from straylight import cube as cu
-    from straylight.config import campaign_from_dict
     from straylight.footprint import footprint_from_config
 
     monkeypatch.setenv("STRAYLIGHT_CACHE", str(tmp_path))  # an empty cache: the table is not built
@@ -271,10 +268,7 @@ def test_plan_costs_the_model_auto_picks(campaign, tmp_path, monkeypatch):
     assert day["compute_seconds"] == pytest.approx(380_160 * per_sample, rel=1e-12)
 
     def week(unobservable):
-        raw = copy.deepcopy(campaign.config)
-        raw["campaign"]["end"] = "2026-01-08T00:00:00"
-        raw["models"]["unobservable_samples"] = unobservable
-        return cu.estimated_cost(campaign_from_dict(raw, campaign.path), fp)
+        return cu.estimated_cost(_campaign_with(campaign, {**WEEK, "models": {"unobservable_samples": unobservable}}), fp)
 
     evaluating = week("evaluate")
     assert (evaluating["samples"], evaluating["earthshine_method"]) == (7 * 380_160, "lut")
