@@ -180,15 +180,15 @@ class ComponentModel:
         t_moon = self._skippable_transfer(moon_sun_fraction, geometry["moon_angle_deg"], geometry["moon_phi_deg"],
                                           geometry["moon_earth_blocked"], door, bands, floor_ratio)
         planets_fraction = np.zeros(shape)  # sum of transfer x fraction of the Sun at 1 AU
-        planets = [p for p in PLANETS if f"{p}_angle_deg" in geometry]
-        # a cube time step shares one scene: each planet's magnitude once per step
+        planets = [p for p in PLANETS if p in bodies_km]
+        # a cube time step shares one scene: each planet's magnitude and direction once per step
         runs = scene_runs(sat, sun, *(bodies_km[p] for p in planets)) if planets else None
         for i, p in enumerate(planets):
             sun_fraction = solar_like_fraction(planet_v_magnitude(p, bodies_km[p], sun, sat)) if runs is None else \
                 runs.expand(solar_like_fraction(planet_v_magnitude(p, runs.vectors[2 + i], runs.vectors[1],
                                                                    runs.vectors[0])))
-            t = self._skippable_transfer(sun_fraction, geometry[f"{p}_angle_deg"], geometry[f"{p}_phi_deg"],
-                                         geometry[f"{p}_earth_blocked"], door, bands, floor_ratio)
+            t = self._planet_transfer(sun_fraction, sat, bodies_km[p], frame, door, bands, floor_ratio, shape,
+                                      None if runs is None else (runs, 2 + i))
             planets_fraction = planets_fraction + t * sun_fraction
         moon_fraction = t_moon * moon_sun_fraction * eclipse
         star_pairs = (self._star_pairs(stars, frame, sat, door, floor_ratio)
@@ -280,13 +280,9 @@ class ComponentModel:
         per_source = ERROR_BUDGET_SHARES["moon_and_planets_skip"] / (1 + len(PLANETS))  # the Moon and each planet
         budget = per_source * self.tolerance
         if np.size(angle_deg):
-            # the radius shrinks as its limit rises: the smallest limit (the darkest floor over the
-            # brightest source; a hair smaller against rounding) gives a radius that bounds every
-            # sample's, so a source outside it everywhere (most planets, most of the time) is
-            # skipped with no radius per sample
-            with np.errstate(divide="ignore"):
-                smallest = budget * float(np.min(floor_ratio)) / float(np.max(rel)) * (1 - 1e-12)
-            widest = float(off.pst.influence_radius_deg(smallest))
+            # a source outside the widest radius everywhere (the Moon, often) is skipped with no
+            # radius per sample
+            widest = self._widest_skip_radius_deg(rel, budget, floor_ratio)
             if widest < 180.0 and np.min(angle_deg) >= widest:
                 return np.zeros(np.broadcast_shapes(np.shape(angle_deg), np.shape(phi_deg), np.shape(earth_blocked),
                                                     np.shape(door)))
@@ -294,6 +290,54 @@ class ComponentModel:
         far = (np.asarray(angle_deg) >= radius) & (radius < 180.0)  # 180: nowhere skippable
         # a skipped source is treated as hidden: point_source then looks nothing up for it
         return off.point_source(1.0, angle_deg, phi_deg, np.asarray(earth_blocked, bool) | far, door)
+
+    def _widest_skip_radius_deg(self, rel, budget, floor_ratio) -> float:
+        """The largest of the samples' skip radii (:meth:`_skippable_transfer`): the radius
+        shrinks as its limit rises, so the smallest limit (the darkest floor over the brightest
+        source; a hair smaller against rounding) gives a radius that bounds every sample's."""
+        with np.errstate(divide="ignore"):
+            smallest = budget * float(np.min(floor_ratio)) / float(np.max(rel)) * (1 - 1e-12)
+        return float(self.offfield.pst.influence_radius_deg(smallest))
+
+    def _planet_transfer(self, sun_fraction, satellite_km, planet_km, frame, door, bands, floor_ratio, shape,
+                         run=None) -> np.ndarray:
+        """:meth:`_skippable_transfer` of a planet, its angles computed (:func:`body_geometry`)
+        only at the samples within the widest skip radius: a cosine per sample finds them (most
+        planets, most of the time, reach no sample; the angles' two arctangents are most of the
+        geometry's cost).  ``run``: (:func:`scene_runs` of the samples, the planet's index in
+        its vectors), for one direction per time step instead of one per sample."""
+        from .geometry import TelescopeFrame, body_geometry, dot
+
+        rel = self.offfield.pixel_area_m2 * np.asarray(sun_fraction, float) / self.solar_floor(tuple(bands))
+        budget = ERROR_BUDGET_SHARES["moon_and_planets_skip"] / (1 + len(PLANETS)) * self.tolerance
+        n = int(np.prod(shape))
+        full = shape + (3,)
+        fz = np.broadcast_to(frame.z, full).reshape(-1, 3)
+        sat = np.broadcast_to(np.asarray(satellite_km, float), full).reshape(-1, 3)
+        planet = np.broadcast_to(np.asarray(planet_km, float), full).reshape(-1, 3)
+        widest = self._widest_skip_radius_deg(rel, budget, floor_ratio) if n else 180.0
+        if widest < 180.0:
+            if run is None:
+                cos_angle = dot(fz, unit(planet - sat))
+            else:
+                runs, i = run
+                cos_angle = dot(fz, unit(runs.vectors[i] - runs.vectors[0])[runs.index])
+            # a margin of 1e-6 deg: the samples left out lie beyond the widest radius whatever the
+            # rounding, and the others get the per-sample rule below
+            near = np.flatnonzero(cos_angle > np.cos(np.radians(widest + 1e-6)))
+        else:
+            near = np.arange(n)
+        out = np.zeros(n)
+        if near.size:
+            g = body_geometry(sat[near], {"planet": planet[near]},
+                              TelescopeFrame(*(np.broadcast_to(a, full).reshape(-1, 3)[near]
+                                               for a in (frame.x, frame.y, frame.z))),
+                              self.campaign.earth.radius_km)
+            out[near] = self._skippable_transfer(
+                np.broadcast_to(np.asarray(sun_fraction, float), shape).ravel()[near], g["planet_angle_deg"],
+                g["planet_phi_deg"], g["planet_earth_blocked"], np.broadcast_to(np.asarray(door, float), shape).ravel()[near],
+                bands, np.broadcast_to(np.asarray(floor_ratio, float), shape).ravel()[near])
+        return out.reshape(shape)
 
     def lut_node_states(self, settings) -> int:
         """How many (node, door state) pairs the sunlit earthshine table with these

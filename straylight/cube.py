@@ -30,7 +30,7 @@ import xarray as xr
 from .config import Campaign
 from .errors import OutputError
 from .footprint import Footprint
-from .geometry import (VIOLATION_BITS, TelescopeFrame, body_geometry, observing_geometry, radec_to_unit,
+from .geometry import (VIOLATION_BITS, TelescopeFrame, observing_geometry, radec_to_unit,
                        telescope_frame)
 
 CUBE_COMPONENTS = ("zodiacal", "earthshine", "moon", "sun", "planets", "stars")
@@ -324,12 +324,13 @@ def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: s
         # each step's scene repeated over its pixels (geometry.scene_runs finds the steps again)
         sat = np.repeat(sc.satellite_km[steps], npix, axis=0)
         los_k = np.broadcast_to(los[None], (k,) + los.shape).reshape(-1, 3)
-        # skipping, the constraints need the Sun's and the Moon's angles only: the planets' wait
-        # for the observable samples
-        names = ("sun", "moon") if skip_unobservable else tuple(sc.bodies_km)
-        bodies = {b: np.repeat(sc.bodies_km[b][steps], npix, axis=0) for b in names}
+        # the constraints need the Sun's and the Moon's angles only; the background finds the
+        # planets' where they can matter (ComponentModel._planet_transfer)
+        bodies = {b: np.repeat(sc.bodies_km[b][steps], npix, axis=0)
+                  for b in (("sun", "moon") if skip_unobservable else sc.bodies_km)}
         frame = telescope_frame(los_k, bodies["sun"] - sat)  # once for the geometry and the background
-        g = observing_geometry(sat, bodies, los_k, campaign.earth.radius_km, campaign.constraints, frame=frame)
+        g = observing_geometry(sat, {b: bodies[b] for b in ("sun", "moon")}, los_k, campaign.earth.radius_km,
+                               campaign.constraints, frame=frame)
         if skip_unobservable:
             _evaluate_observable(model, campaign, sc, los, faint, g, frame, stars, out, steps)
         else:
@@ -352,7 +353,7 @@ def _evaluate_observable(model, campaign: Campaign, sc, los, faint, screen: dict
     scene ``sc`` at the lines of sight ``los`` (pixel, 3) only, and write them into ``out`` at
     ``steps``; the other samples get NaN.  ``screen``: the batch's geometry with the Sun and
     the Moon (:func:`observing_geometry`), ``frame`` its telescope frame: the observable samples
-    take their values and add the other bodies' angles.  Each sample's values depend on that
+    take their values (the background finds the planets' angles itself).  Each sample's values depend on that
     sample alone, so the observable ones come out as they do in a whole batch
     (tests/test_earthshine_lut.py).  ``faint``: band -> per-pixel faint-star rates."""
     npix = los.shape[0]
@@ -366,8 +367,6 @@ def _evaluate_observable(model, campaign: Campaign, sc, los, faint, screen: dict
     bodies = {b: v[steps][t_idx] for b, v in sc.bodies_km.items()}
     sub = TelescopeFrame(frame.x[sel], frame.y[sel], frame.z[sel])
     g = {name: np.asarray(v)[sel] for name, v in screen.items()}
-    g.update(body_geometry(sat, {b: v for b, v in bodies.items() if f"{b}_angle_deg" not in screen}, sub,
-                           campaign.earth.radius_km))
     res = model.evaluate(sat, bodies, los[p_idx], g, campaign.bands, stars,
                          faint_rates=None if faint is None else {b: v[p_idx] for b, v in faint.items()}, frame=sub)
     for ib, b in enumerate(campaign.bands):

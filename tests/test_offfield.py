@@ -432,6 +432,44 @@ def test_skipping_a_source_for_a_whole_batch_is_the_per_sample_rule(comp_model):
         assert (np.count_nonzero(batch) == 0) == (lo == 60.0)  # the far batch is all skipped, the near one not
 
 
+def test_planet_angles_only_where_they_can_count_change_no_transfer(campaign, comp_model):
+    """The planets' angles are computed only at the samples within the batch's widest skip radius
+    (a cosine per sample finds them): the transfer is, sample by sample, exactly the per-sample
+    rule on every sample's angles (geometry.body_geometry everywhere), for Venus 0.7-170 deg from
+    the lines of sight, in a batch of two shared scenes (a cube's time steps) and in one with a
+    scene per sample, at the darkest floor and at varied floors."""
+    from straylight.geometry import body_geometry, scene_runs
+
+    rng = np.random.default_rng(12)
+    n = 600
+    sat_steps = np.array([[RE + 400.0, 0.0, 0.0], [0.0, RE + 400.0, 0.0]])
+    venus_steps = np.array([[0.3 * AU, 0.2 * AU, 0.05 * AU], [0.31 * AU, 0.19 * AU, 0.06 * AU]])
+    step = np.repeat([0, 1], n // 2)
+    u = venus_steps[step] - sat_steps[step]
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    perp = np.cross(u, rng.normal(size=u.shape))
+    perp /= np.linalg.norm(perp, axis=1, keepdims=True)
+    a = np.radians(rng.uniform(0.7, 170.0, n))[:, None]
+    los = np.cos(a) * u + np.sin(a) * perp
+    sun = np.broadcast_to(np.array([0.0, 0.0, AU]), (n, 3))
+    door = np.where(rng.random(n) < 0.5, 135.0, 105.0)
+    frac = np.full(n, solar_like_fraction(-4.0))
+    for per_sample_scene in (False, True):
+        sat = sat_steps[step] + (rng.normal(size=(n, 3)) if per_sample_scene else 0.0)
+        venus = venus_steps[step]
+        frame = telescope_frame(los, sun - sat)
+        g = body_geometry(sat, {"venus": venus}, frame, RE)
+        runs = scene_runs(sat, sun, venus)
+        assert (runs is None) == per_sample_scene
+        for floor in (np.ones(n), 10.0 ** rng.uniform(0.0, 4.0, n)):
+            rule = comp_model._skippable_transfer(frac, g["venus_angle_deg"], g["venus_phi_deg"],
+                                                  g["venus_earth_blocked"], door, ["g", "z"], floor_ratio=floor)
+            lazy = comp_model._planet_transfer(frac, sat, venus, frame, door, ["g", "z"], floor, (n,),
+                                               None if runs is None else (runs, 2))
+            assert np.array_equal(lazy, rule)
+            assert 0 < np.count_nonzero(rule) < n  # some samples near enough to count, some not
+
+
 def test_new_moon_far_from_the_line_of_sight_is_skipped(campaign, comp_model, exact_model):
     """A 20-deg-old Moon (phase angle ~160 deg) 90 deg from the line of sight: its exact term is
     below its share (tolerance / 72 of the darkest zodiacal light), so the default model skips
