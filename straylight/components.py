@@ -12,12 +12,13 @@ from functools import cached_property
 from pathlib import Path
 
 import numpy as np
+from numba import njit
 
 from .bandpass import load_band
 from .config import Campaign
 from .door import door_from_instrument
 from .ephemeris import PLANETS
-from .geometry import earth_blocks, norm, scene_runs, telescope_frame, unit, wrap_360_deg
+from .geometry import earth_blocks, norm, scene_runs, telescope_frame, unit
 from .offfield import (AU_KM, BandPhotometry, EarthshineSettings, OffFieldModel, magnitude_per_arcsec2,
                        moon_v_magnitude, planet_v_magnitude, solar_like_fraction)
 from .pst import load_pst
@@ -717,18 +718,12 @@ class ComponentModel:
         Only a sample's sky cell's candidates (:meth:`star_cells`) are tested, a few stars
         instead of all; where samples come in runs that share a satellite position (cube time
         steps) the Earth test runs once per star and step."""
-        s_all = stars.unit  # (S, 3)
+        s_all = np.ascontiguousarray(stars.unit, dtype=float)  # (S, 3)
         near_cos = self.star_influence_cos(stars)  # (L, S)
         cells = self.star_cells(stars)
         shape = np.broadcast_shapes(np.shape(frame.z)[:-1], np.shape(door), np.shape(sat)[:-1])
-        fz, fx, fy = (np.broadcast_to(a, shape + (3,)).reshape(-1, 3) for a in (frame.z, frame.x, frame.y))
-        # components as contiguous rows: a pair's dot product is then three 1-D gathers
-        # (faster than gathering (pairs, 3) rows for einsum)
-        fz_c, fx_c, fy_c, s_c = (np.ascontiguousarray(a.T) for a in (fz, fx, fy, s_all))
-
-        def dots(rows, r, k):
-            return rows[0][r] * s_c[0][k] + rows[1][r] * s_c[1][k] + rows[2][r] * s_c[2][k]
-
+        fz, fx, fy = (np.ascontiguousarray(np.broadcast_to(a, shape + (3,)).reshape(-1, 3), dtype=float)
+                      for a in (frame.z, frame.x, frame.y))
         op = np.broadcast_to(np.asarray(door, float), shape).ravel()
         # each sample's floor level: rounded down, so its radii are never too small
         level = np.searchsorted(self.STAR_FLOOR_LEVELS, np.broadcast_to(np.asarray(floor_ratio, float), shape).ravel(),
@@ -741,42 +736,79 @@ class ComponentModel:
             runs = None  # many short runs of a deep catalog: the test per pair costs less memory
         if runs is not None:  # the Earth test once per star and time step
             star_blocked = earth_blocks(runs.vectors[0][:, None, :], s_all[None], re_km)  # (R, S)
+            run_index, sat_flat = runs.index, np.zeros((0, 3))
         else:
-            sat_flat = sat_b.reshape(-1, 3)
+            star_blocked, run_index = np.zeros((0, 0), bool), np.zeros(0, np.intp)
+            sat_flat = np.ascontiguousarray(sat_b.reshape(-1, 3))
         cell = cells.cell_of(fz)
-        n_cell = cells.count[cell, level]  # the cell's candidates per sample
-        n_sky = cells.sky_count[level]  # and the whole-sky ones
-        n_cand = n_cell + n_sky
-        first = cells.start[cell]
+        n_cand = cells.count[cell, level] + cells.sky_count[level]  # the cell's and the whole sky's candidates
         ends = np.cumsum(n_cand)
         parts = []
         a = 0
         while a < fz.shape[0]:  # passes of at most STAR_PAIRS_PER_PASS candidates (one sample at least)
             base = ends[a - 1] if a else 0
             b = max(int(np.searchsorted(ends, base + self.STAR_PAIRS_PER_PASS, side="right")), a + 1)
-            r = np.repeat(np.arange(a, b), n_cand[a:b])
-            # position of each candidate in its sample's list: the cell's first, then the sky's
-            pos = np.arange(ends[b - 1] - base) - np.repeat(ends[a:b] - n_cand[a:b] - base, n_cand[a:b])
-            in_cell = pos < n_cell[r]
-            k = np.where(in_cell, cells.stars[np.where(in_cell, first[r] + pos, 0)] if cells.stars.size else 0,
-                         cells.sky_order[np.where(in_cell, 0, pos - n_cell[r])] if n_sky.any() else 0)
-            a = b
-            cz = dots(fz_c, r, k)
-            # a cell candidate that counts for the whole sky at the sample's level is the sky's
-            near = (cz > near_cos[level[r], k]) & ~(in_cell & (cells.everywhere[k] > level[r]))
-            r, k, cz = r[near], k[near], cz[near]
-            seen = ~star_blocked[runs.index[r], k] if runs is not None else ~earth_blocks(sat_flat[r], s_all[k], re_km)
-            r, k, dz = r[seen], k[seen], cz[seen]
-            dx = dots(fx_c, r, k)
-            dy = dots(fy_c, r, k)
-            theta = np.degrees(np.arctan2(np.hypot(dx, dy), dz))
-            off = theta > self.offfield.field_radius_deg
-            r, k, theta, dx, dy = r[off], k[off], theta[off], dx[off], dy[off]
-            phi = wrap_360_deg(np.degrees(np.arctan2(dy, dx)))
+            r, k, theta, phi = (np.empty(int(ends[b - 1] - base), t) for t in (np.intp, np.intp, float, float))
+            n = _star_pairs_kernel(a, b, fz, fx, fy, s_all, near_cos, level, cell, cells.start, cells.count,
+                                   cells.stars, cells.sky_order, cells.sky_count, cells.everywhere, star_blocked,
+                                   run_index, sat_flat, float(re_km), float(self.offfield.field_radius_deg),
+                                   r, k, theta, phi)
+            r, k, theta, phi = r[:n], k[:n], theta[:n], phi[:n]
             parts.append((r, k, self.offfield.point_source(1.0, theta, phi, False, op[r])))
+            a = b
         if not parts:
             return shape, (np.zeros(0, np.intp), np.zeros(0, np.intp), np.zeros(0))
         return shape, tuple(np.concatenate(x) for x in zip(*parts))
+
+
+@njit(cache=True, nogil=True)
+def _star_pairs_kernel(first, stop, fz, fx, fy, s, near_cos, level, cell, start, count, cell_stars, sky_order,
+                       sky_count, everywhere, blocked_by_run, run_index, sat, re_km, field_radius_deg,
+                       out_sample, out_star, out_theta, out_phi):
+    """:meth:`ComponentModel._star_pairs` for samples ``first`` .. ``stop`` - 1: each sample's
+    candidates (its sky cell's at its level, then the whole sky's), kept where the star lies
+    within its radius, is not behind the Earth (per run from ``blocked_by_run``, else tested
+    here against ``sat``) and lies outside the field; writes (sample, star, theta, phi) of the
+    pairs kept and returns their number.  One pass per pair instead of numpy's pass per
+    operation over every candidate."""
+    n = 0
+    for i in range(first, stop):
+        lv = level[i]
+        c = cell[i]
+        n_cell = count[c, lv]
+        for j in range(n_cell + sky_count[lv]):
+            if j < n_cell:
+                k = cell_stars[start[c] + j]
+                if everywhere[k] > lv:  # a whole-sky star at this level: the sky's list has it
+                    continue
+            else:
+                k = sky_order[j - n_cell]
+            dz = fz[i, 0] * s[k, 0] + fz[i, 1] * s[k, 1] + fz[i, 2] * s[k, 2]
+            if not dz > near_cos[lv, k]:
+                continue
+            if blocked_by_run.size:
+                if blocked_by_run[run_index[i], k]:
+                    continue
+            else:  # geometry.earth_blocks: behind the satellite's horizon plane and within the Earth
+                sk = np.sqrt(s[k, 0] ** 2 + s[k, 1] ** 2 + s[k, 2] ** 2)
+                u0, u1, u2 = s[k, 0] / sk, s[k, 1] / sk, s[k, 2] / sk
+                x0, x1, x2 = sat[i, 0], sat[i, 1], sat[i, 2]
+                if u0 * x0 + u1 * x1 + u2 * x2 < 0.0:
+                    m0, m1, m2 = x1 * u2 - x2 * u1, x2 * u0 - x0 * u2, x0 * u1 - x1 * u0
+                    if np.sqrt(m0 * m0 + m1 * m1 + m2 * m2) < re_km:
+                        continue
+            dx = fx[i, 0] * s[k, 0] + fx[i, 1] * s[k, 1] + fx[i, 2] * s[k, 2]
+            dy = fy[i, 0] * s[k, 0] + fy[i, 1] * s[k, 1] + fy[i, 2] * s[k, 2]
+            theta = np.degrees(np.arctan2(np.hypot(dx, dy), dz))
+            if not theta > field_radius_deg:
+                continue
+            phi = np.degrees(np.arctan2(dy, dx))
+            out_sample[n] = i
+            out_star[n] = k
+            out_theta[n] = theta
+            out_phi[n] = phi + 360.0 if phi < 0.0 else phi
+            n += 1
+    return n
 
 
 def unobservable_samples(campaign) -> str:

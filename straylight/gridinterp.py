@@ -6,7 +6,10 @@ of points per time step (measured in the cube: 0.7 s instead of 1.0 s for the PS
 look-ups of 2 x 1320 lines of sight x 1152 Earth blocks): scipy locates cells with a binary
 search and validates its input on every call; here each axis gets, once, a table of bins of
 uniform width no wider than its narrowest cell, so a point's cell is one multiplication, one
-look-up and one comparison (on an evenly spaced axis, one multiplication).
+look-up and one comparison (on an evenly spaced axis, one multiplication).  The look-ups are
+compiled (numba, :func:`_interpolate`): one pass per point instead of numpy's pass per
+operation, 4-5x faster on a table of four axes (80 instead of 440 ns a point, two channels,
+15,840 points), the same numbers bit for bit (the cube's totals compared array to array).
 
 Points outside the grid are clipped to its edges (callers clip or wrap before: theta 0-180,
 phi periodic).  NaN inputs give NaN.
@@ -14,6 +17,68 @@ phi periodic).  NaN inputs give NaN.
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
+
+
+@njit(cache=True, nogil=True)
+def _interpolate(points, lo, hi, uniform, inv_width, n_bins, bin_cell, nodes, n_nodes, inv_step, strides, flat,
+                 channel, unrolled, out):
+    """:meth:`LinearGrid.__call__` on ``points`` (ndim, N) into ``out`` (N, channels out), from
+    the axes packed by :class:`LinearGrid`.  Each point is clipped to the grid and its cell found
+    per axis (:class:`_Axis`); on an evenly spaced axis the cell can be one off the exact one
+    only where the point lies within rounding of a node, and t is then ~1 in the cell below
+    (or ~0 just below the node): the same value to rounding (1e-15; tests/test_gridinterp.py).
+    Then the corner sum, corner bit k the upper node of axis k.  ``channel``: one channel per
+    point, or empty for all; ``unrolled``: the two-axis bilinear formula."""
+    n_dim, n_points = points.shape
+    cell = np.empty(n_dim, np.intp)
+    frac = np.empty(n_dim)
+    for p in range(n_points):
+        base = 0
+        missing = False
+        for k in range(n_dim):
+            x = points[k, p]
+            if x != x:  # NaN in, NaN out
+                missing = True
+                break
+            x = min(max(x, lo[k]), hi[k])
+            last = n_nodes[k] - 2
+            if uniform[k]:
+                i = min(int((x - lo[k]) * inv_step[k, 0]), last)
+            else:
+                i = bin_cell[k, min(int((x - lo[k]) * inv_width[k]), n_bins[k])]
+                if x >= nodes[k, min(i + 1, last + 1)]:
+                    i = min(i + 1, last)
+            cell[k] = i
+            frac[k] = (x - nodes[k, i]) * inv_step[k, i]
+            base += i * strides[k]
+        if missing:
+            out[p, :] = np.nan
+            continue
+        if channel.size:
+            first_channel, n_out = channel[p], 1
+        else:
+            first_channel, n_out = 0, out.shape[1]
+        if unrolled:
+            s, c, tx, ty = strides[0], strides[1], frac[0], frac[1]
+            for j in range(n_out):
+                ch = first_channel + j
+                out[p, j] = ((flat[base, ch] * (1 - ty) + flat[base + c, ch] * ty) * (1 - tx)
+                             + (flat[base + s, ch] * (1 - ty) + flat[base + s + c, ch] * ty) * tx)
+            continue
+        for j in range(n_out):
+            out[p, j] = 0.0
+        for corner in range(1 << n_dim):  # bit k: the upper node of axis k
+            w = 1.0
+            offset = 0
+            for k in range(n_dim):
+                if (corner >> k) & 1:
+                    w *= frac[k]
+                    offset += strides[k]
+                else:
+                    w *= 1 - frac[k]
+            for j in range(n_out):
+                out[p, j] += w * flat[base + offset, first_channel + j]
 
 
 class _Axis:
@@ -38,22 +103,6 @@ class _Axis:
         # one multiplication, with no look-up
         self.uniform = bool(np.all(np.abs(steps - steps[0]) <= 1e-12 * steps[0]))
 
-    def locate(self, x: np.ndarray):
-        """(cell index, fractional position in the cell) of clipped points."""
-        x = np.clip(x, self.lo, self.hi)
-        if self.uniform:
-            # the cell can be one off the exact one only where x lies within rounding of a node:
-            # t is then ~1 in the cell below (or ~0 just below the node), the same value to
-            # rounding (1e-15; tests/test_gridinterp.py)
-            with np.errstate(invalid="ignore"):  # NaN -> cell 0, then t = NaN
-                i = np.clip(((x - self.lo) * self.inv_step[0]).astype(np.intp), 0, self.nodes.size - 2)
-            return i, (x - self.nodes[i]) * self.inv_step[i]
-        with np.errstate(invalid="ignore"):  # NaN -> bin 0, then t = NaN
-            b = np.clip(((x - self.lo) * self.inv_width).astype(np.intp), 0, self.n_bins)
-        i = self.bin_cell[b]
-        i = np.minimum(i + (x >= self.nodes[np.minimum(i + 1, self.nodes.size - 1)]), self.nodes.size - 2)
-        return i, (x - self.nodes[i]) * self.inv_step[i]
-
 
 class LinearGrid:
     """f(x1, ..., xn) linear in each axis between the nodes of ``axes``; ``values`` of shape
@@ -72,6 +121,22 @@ class LinearGrid:
         self._flat = self.values.reshape(int(np.prod(self.values.shape[:n])), -1) if self._trailing \
             else self.values.ravel()
         self._strides = [int(np.prod(self.values.shape[k + 1:n])) for k in range(n)]
+        # the axes packed for the compiled kernel (rows padded to the longest axis)
+        longest = max(a.nodes.size for a in self.axes)
+        widest = max(a.n_bins for a in self.axes) + 1
+        self._lo = np.array([a.lo for a in self.axes])
+        self._hi = np.array([a.hi for a in self.axes])
+        self._inv_width = np.array([a.inv_width for a in self.axes])
+        self._n_bins = np.array([a.n_bins for a in self.axes], np.intp)
+        self._n_nodes = np.array([a.nodes.size for a in self.axes], np.intp)
+        self._nodes = np.zeros((n, longest))
+        self._inv_step = np.zeros((n, longest))
+        self._bin_cell = np.zeros((n, widest), np.intp)
+        for k, a in enumerate(self.axes):
+            self._nodes[k, :a.nodes.size] = a.nodes
+            self._inv_step[k, :a.nodes.size - 1] = a.inv_step
+            self._bin_cell[k, :a.n_bins + 1] = a.bin_cell
+        self._strides_arr = np.array(self._strides, np.intp)
 
     def __call__(self, *coords, channel=None) -> np.ndarray:
         """The interpolant at the points ``coords``; with ``channel`` (integer array, broadcast
@@ -82,38 +147,24 @@ class LinearGrid:
             raise ValueError("channel needs a two-axis grid with exactly one trailing dimension")
         coords = np.broadcast_arrays(*(np.asarray(c, float) for c in coords))
         shape = coords[0].shape
-        base = np.zeros(shape, np.intp)
-        fracs = []
-        for ax, x, stride in zip(self.axes, coords, self._strides):
-            i, t = ax.locate(x)
-            base += i * stride
-            fracs.append(t)
+        points = np.empty((len(coords), int(np.prod(shape))))
+        for k, x in enumerate(coords):
+            points[k] = x.ravel()
+        flat = self._flat if self._trailing else self._flat[:, None]
         if channel is not None:
             n_channels = self._trailing[0]
-            ch = np.broadcast_to(np.asarray(channel, np.intp), shape)
+            ch = np.ascontiguousarray(np.broadcast_to(np.asarray(channel, np.intp), shape).ravel())
             if ch.size and (ch.min() < 0 or ch.max() >= n_channels):
                 raise ValueError(f"channel outside 0..{n_channels - 1}")
-            base = base * n_channels + ch
-            strides = [st * n_channels for st in self._strides]
-            f = self._flat.ravel()
+            out = np.empty((points.shape[1], 1))
         else:
-            strides, f = self._strides, self._flat
-        if len(self.axes) == 2 and (channel is not None or not self._trailing):  # PST, door: unrolled
-            s, c = strides[0], strides[1]
-            tx, ty = fracs
-            return ((f[base] * (1 - ty) + f[base + c] * ty) * (1 - tx)
-                    + (f[base + s] * (1 - ty) + f[base + s + c] * ty) * tx)
-        # corner weights and offsets built axis by axis (corner bit k = the upper node of axis k)
-        weights, offsets = [1.0], [0]
-        for t, stride in zip(fracs, self._strides):
-            weights = [w * (1 - t) for w in weights] + [w * t for w in weights]
-            offsets = offsets + [o + stride for o in offsets]
-        if self._trailing:
-            out = np.zeros(shape + (self._flat.shape[1],))
-            for w, off in zip(weights, offsets):
-                out += w[..., None] * self._flat[base + off]
+            ch = np.zeros(0, np.intp)
+            out = np.empty((points.shape[1], flat.shape[1]))
+        uniform = np.array([ax.uniform for ax in self.axes])
+        # the PST and the door (two axes, one value per point): the unrolled bilinear formula
+        unrolled = len(self.axes) == 2 and (channel is not None or not self._trailing)
+        _interpolate(points, self._lo, self._hi, uniform, self._inv_width, self._n_bins, self._bin_cell,
+                     self._nodes, self._n_nodes, self._inv_step, self._strides_arr, flat, ch, unrolled, out)
+        if self._trailing and channel is None:
             return out.reshape(shape + self._trailing)
-        out = np.zeros(shape)
-        for w, off in zip(weights, offsets):
-            out += w * self._flat[base + off]
-        return out
+        return out.reshape(shape)
