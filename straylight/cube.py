@@ -207,9 +207,9 @@ def machine_speed(campaign: Campaign, fp: Footprint, n_times: int = 4, n_pixels:
     path's cost), best of ``repeats`` after a full-size warm-up, against
     :func:`cube_compute_seconds` for it.  Returns the samples, ``measured_seconds``,
     ``assumed_seconds`` and ``factor`` (measured / assumed: below 1 on a faster machine).  One
-    factor for every figure: on this cycle's development machine it read x0.39-0.42, the cube
-    bench's four paths x0.29-0.35 against the same figures, so it errs high by up to ~40 %
-    (README)."""
+    factor for every figure: on the development machine it read x0.24 with the compiled
+    look-ups (x0.39-0.42 before), the cube bench's four paths x0.21-0.33 against the same
+    figures, so it errs by -12 % to +40 % per path (README)."""
     from .components import ComponentModel
     from .config import campaign_from_dict, deep_merge
 
