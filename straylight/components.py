@@ -18,7 +18,7 @@ from .bandpass import load_band
 from .config import Campaign
 from .door import door_from_instrument
 from .ephemeris import PLANETS
-from .geometry import earth_blocks, norm, scene_runs, telescope_frame, unit
+from .geometry import TelescopeFrame, body_geometry, dot, earth_blocks, norm, scene_runs, telescope_frame, unit
 from .offfield import (AU_KM, BandPhotometry, EarthshineSettings, OffFieldModel, magnitude_per_arcsec2,
                        moon_v_magnitude, planet_v_magnitude, solar_like_fraction)
 from .pst import load_pst
@@ -133,7 +133,9 @@ class ComponentModel:
 
     def evaluate(self, satellite_km, bodies_km, los, geometry, bands, stars: StarTable | None = None,
                  faint_rates: dict | None = None, frame=None) -> dict:
-        """Components for broadcastable samples; ``geometry`` from :func:`observing_geometry`;
+        """Components for broadcastable samples; ``geometry`` from :func:`observing_geometry`
+        (the Sun's and the Moon's entries and the limb's are read; each planet in ``bodies_km``
+        gets its angles here, only where it can count: :meth:`_planet_transfer`);
         ``faint_rates``: the faint stars' map at these lines of sight, band -> e-/s/pix (as
         :meth:`faint_star_rates` gives it), when already computed; ``frame``: the samples'
         ``telescope_frame(los, sun - satellite)``, when already computed."""
@@ -307,8 +309,6 @@ class ComponentModel:
         planets, most of the time, reach no sample; the angles' two arctangents are most of the
         geometry's cost).  ``run``: (:func:`scene_runs` of the samples, the planet's index in
         its vectors), for one direction per time step instead of one per sample."""
-        from .geometry import TelescopeFrame, body_geometry, dot
-
         rel = self.offfield.pixel_area_m2 * np.asarray(sun_fraction, float) / self.solar_floor(tuple(bands))
         budget = ERROR_BUDGET_SHARES["moon_and_planets_skip"] / (1 + len(PLANETS)) * self.tolerance
         n = int(np.prod(shape))
@@ -334,10 +334,10 @@ class ComponentModel:
                               TelescopeFrame(*(np.broadcast_to(a, full).reshape(-1, 3)[near]
                                                for a in (frame.x, frame.y, frame.z))),
                               self.campaign.earth.radius_km)
-            out[near] = self._skippable_transfer(
-                np.broadcast_to(np.asarray(sun_fraction, float), shape).ravel()[near], g["planet_angle_deg"],
-                g["planet_phi_deg"], g["planet_earth_blocked"], np.broadcast_to(np.asarray(door, float), shape).ravel()[near],
-                bands, np.broadcast_to(np.asarray(floor_ratio, float), shape).ravel()[near])
+            fraction_near, door_near, floor_near = (np.broadcast_to(np.asarray(v, float), shape).ravel()[near]
+                                                    for v in (sun_fraction, door, floor_ratio))
+            out[near] = self._skippable_transfer(fraction_near, g["planet_angle_deg"], g["planet_phi_deg"],
+                                                 g["planet_earth_blocked"], door_near, bands, floor_near)
         return out.reshape(shape)
 
     def lut_node_states(self, settings) -> int:
@@ -529,8 +529,6 @@ class ComponentModel:
         the tolerance x the sample's floor (a lower bound of its total, :meth:`evaluate`) in every
         band, and elsewhere the coarse ``moonlit_grid`` sum, from its table (:attr:`moonlit_model`)
         or summed directly."""
-        from .geometry import TelescopeFrame
-
         off, re_km = self.offfield, self.campaign.earth.radius_km
         lut = self.earthshine_model["lut"]
         full = shape + (3,)
@@ -769,7 +767,7 @@ def _star_pairs_kernel(first, stop, fz, fx, fy, s, near_cos, level, cell, start,
     candidates (its sky cell's at its level, then the whole sky's), kept where the star lies
     within its radius, is not behind the Earth (per run from ``blocked_by_run``, else tested
     here against ``sat``) and lies outside the field; writes (sample, star, theta, phi) of the
-    pairs kept and returns their number.  One pass per pair instead of numpy's pass per
+    pairs kept and returns their number.  One pass per candidate instead of numpy's pass per
     operation over every candidate."""
     n = 0
     for i in range(first, stop):

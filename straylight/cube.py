@@ -353,8 +353,8 @@ def _evaluate_observable(model, campaign: Campaign, sc, los, faint, screen: dict
     scene ``sc`` at the lines of sight ``los`` (pixel, 3) only, and write them into ``out`` at
     ``steps``; the other samples get NaN.  ``screen``: the batch's geometry with the Sun and
     the Moon (:func:`observing_geometry`), ``frame`` its telescope frame: the observable samples
-    take their values (the background finds the planets' angles itself).  Each sample's values depend on that
-    sample alone, so the observable ones come out as they do in a whole batch
+    take their values (the background finds the planets' angles itself).  Each sample's values
+    depend on that sample alone, so the observable ones come out as they do in a whole batch
     (tests/test_earthshine_lut.py).  ``faint``: band -> per-pixel faint-star rates."""
     npix = los.shape[0]
     sel = np.flatnonzero(screen["observable"])
