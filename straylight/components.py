@@ -278,10 +278,7 @@ class ComponentModel:
         total (:meth:`evaluate`).  A new Moon far from the line of sight is skipped, a bright one
         only where the Sun or the sunlit Earth outshines it by ~10^4."""
         off = self.offfield
-        # e-/s/pix at PST = 1 relative to the darkest zodiacal light, worst band (solar spectrum)
-        rel = off.pixel_area_m2 * np.asarray(sun_fraction, float) / self.solar_floor(tuple(bands))
-        per_source = ERROR_BUDGET_SHARES["moon_and_planets_skip"] / (1 + len(PLANETS))  # the Moon and each planet
-        budget = per_source * self.tolerance
+        rel, budget = self._skip_scale(sun_fraction, bands)
         if np.size(angle_deg):
             # a source outside the widest radius everywhere (the Moon, often) is skipped with no
             # radius per sample
@@ -293,6 +290,14 @@ class ComponentModel:
         far = (np.asarray(angle_deg) >= radius) & (radius < 180.0)  # 180: nowhere skippable
         # a skipped source is treated as hidden: point_source then looks nothing up for it
         return off.point_source(1.0, angle_deg, phi_deg, np.asarray(earth_blocked, bool) | far, door)
+
+    def _skip_scale(self, sun_fraction, bands) -> tuple:
+        """(rel, budget) of :meth:`_skippable_transfer`: the source's e-/s/pix at PST = 1 relative
+        to the darkest zodiacal light, worst band (solar spectrum), and its share of the
+        tolerance (the Moon and each planet: 1/9 of moon_and_planets_skip)."""
+        rel = self.offfield.pixel_area_m2 * np.asarray(sun_fraction, float) / self.solar_floor(tuple(bands))
+        per_source = ERROR_BUDGET_SHARES["moon_and_planets_skip"] / (1 + len(PLANETS))
+        return rel, per_source * self.tolerance
 
     def _widest_skip_radius_deg(self, rel, budget, floor_ratio) -> float:
         """The largest of the samples' skip radii (:meth:`_skippable_transfer`): the radius
@@ -309,8 +314,7 @@ class ComponentModel:
         planets, most of the time, reach no sample; the angles' two arctangents are most of the
         geometry's cost).  ``run``: (:func:`scene_runs` of the samples, the planet's index in
         its vectors), for one direction per time step instead of one per sample."""
-        rel = self.offfield.pixel_area_m2 * np.asarray(sun_fraction, float) / self.solar_floor(tuple(bands))
-        budget = ERROR_BUDGET_SHARES["moon_and_planets_skip"] / (1 + len(PLANETS)) * self.tolerance
+        rel, budget = self._skip_scale(sun_fraction, bands)
         n = int(np.prod(shape))
         full = shape + (3,)
         fz = np.broadcast_to(frame.z, full).reshape(-1, 3)

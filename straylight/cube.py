@@ -30,8 +30,7 @@ import xarray as xr
 from .config import Campaign
 from .errors import OutputError
 from .footprint import Footprint
-from .geometry import (VIOLATION_BITS, TelescopeFrame, observing_geometry, radec_to_unit,
-                       telescope_frame)
+from .geometry import VIOLATION_BITS, TelescopeFrame, observing_geometry, radec_to_unit, telescope_frame
 
 CUBE_COMPONENTS = ("zodiacal", "earthshine", "moon", "sun", "planets", "stars")
 #: samples per evaluation on the table path (whole time steps of a pixel block): large enough

@@ -31,7 +31,6 @@ def _interpolate(points, lo, hi, uniform, inv_width, n_bins, bin_cell, nodes, n_
     Then the corner sum, corner bit k the upper node of axis k.  ``channel``: one channel per
     point, or empty for all; ``unrolled``: the two-axis bilinear formula."""
     n_dim, n_points = points.shape
-    cell = np.empty(n_dim, np.intp)
     frac = np.empty(n_dim)
     for p in range(n_points):
         base = 0
@@ -49,7 +48,6 @@ def _interpolate(points, lo, hi, uniform, inv_width, n_bins, bin_cell, nodes, n_
                 i = bin_cell[k, min(int((x - lo[k]) * inv_width[k]), n_bins[k])]
                 if x >= nodes[k, min(i + 1, last + 1)]:
                     i = min(i + 1, last)
-            cell[k] = i
             frac[k] = (x - nodes[k, i]) * inv_step[k, i]
             base += i * strides[k]
         if missing:
