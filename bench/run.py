@@ -12,7 +12,7 @@ background" as the tolerance in the config).  Cost: seconds per sample on one co
 
 Knobs: earthshine Earth-cap grid (n_gamma x n_psi); door and aperture discretisation of the
 door path; star split (direct magnitude limit, smoothed faint-star map on/off); star skip (the
-tolerance that sizes each direct star's influence radius); PST grid step
+tolerance that sizes the direct stars' skip per sky cell); PST grid step
 (interpolation of the default matrix); the moonlit Earth's grid on the table path (in the cube,
 on a full-Moon day); time cadence with linear interpolation in time, plain and
 error-checked adaptive; HEALPix nside (a pixel's

@@ -495,8 +495,9 @@ class ComponentModel:
                                          "(never observable; no Earth grid converges there)"),
                 "stars": {"direct_mag_limit": float(sc.get("offfield_mag_limit", 2.0)),
                           "faint_map": bool(sc.get("faint_map", True)),
-                          "direct_skipped": (f"pairs beyond each star's influence radius, together < "
-                                             f"{shares['stars_skip']:g} x tolerance x the sample's floor")},
+                          "direct_skipped": (f"per sky cell and floor level, the stars of smallest bound, "
+                                             f"together < {shares['stars_skip']:g} x tolerance x the "
+                                             f"sample's floor")},
                 "moon_and_planets_skipped": (f"where the bound of each is < {shares['moon_and_planets_skip']:g} / "
                                              f"{1 + len(PLANETS)} x tolerance x the sample's floor"),
                 "error_budget": {"earthshine_lut_validated": es.get("lut_validation_max_rel_error") if lut_runs else 0.0,
@@ -610,124 +611,171 @@ class ComponentModel:
         return res
 
     #: the star skip's floor levels, in units of the darkest zodiacal light: a sample's floor
-    #: is rounded down to one of them, so the per-star radii are computed once per level
+    #: is rounded down to one of them, so each sky cell's candidates are chosen once per level
     STAR_FLOOR_LEVELS = 4.0 ** np.arange(12)
 
-    def star_influence_cos(self, stars: StarTable) -> np.ndarray:
-        """Per floor level (:attr:`STAR_FLOOR_LEVELS`) and direct star, (L, S), the cosine of the
-        angle beyond which the star is skipped: there its upper bound (Se = Sp = 1, the PST at its
-        maximum over phi) stays below the stars_skip share of the tolerance (1/8) x the level x
-        the darkest zodiacal light divided by the number of direct stars, in every band, so the
-        skipped stars of a line of sight add up to less than that share of its floor (a lower
-        bound of its total, :meth:`evaluate`).  Cached on the star table."""
-        key = (id(self), tuple(self.campaign.bands), self.tolerance)
-        cache = stars.__dict__.setdefault("_influence_cache", {})
-        if key not in cache:
-            n = max(len(stars.ra_deg), 1)
-            # stars' e-/s/pix at PST = 1, as a fraction of the darkest zodiacal light, worst band
-            rel = np.zeros(len(stars.ra_deg))
-            for b in self.campaign.bands:
-                if b in stars.mag_ab:
-                    e = self.photometry(b).from_ab(stars.mag_ab[b]) * self.offfield.pixel_area_m2
-                    rel = np.maximum(rel, e / self.darkest_zodiacal_e_per_s(b))
-            with np.errstate(divide="ignore"):
-                limit = np.where(rel > 0, ERROR_BUDGET_SHARES["stars_skip"] * self.tolerance / n / rel, np.inf)
-            radius = self.offfield.pst.influence_radius_deg(self.STAR_FLOOR_LEVELS[:, None] * limit)
-            cache[key] = np.where(radius >= 180.0, -2.0, np.cos(np.radians(radius)))  # 180: every pair
-        return cache[key]
+    def star_bound_scale(self, stars: StarTable) -> np.ndarray:
+        """Per direct star, (S,), its e-/s/pix at PST = 1 (Se = Sp = 1) as a fraction of the
+        darkest zodiacal light, in the band where that fraction is largest: times the PST's
+        bound at a line of sight (:meth:`~straylight.pst.PST.tail_max`), an upper bound of the
+        star's share of any total in every band."""
+        rel = np.zeros(len(stars.ra_deg))
+        for b in self.campaign.bands:
+            if b in stars.mag_ab:
+                e = self.photometry(b).from_ab(stars.mag_ab[b]) * self.offfield.pixel_area_m2
+                rel = np.maximum(rel, e / self.darkest_zodiacal_e_per_s(b))
+        return rel
 
-    #: HEALPix nside of the sky cells that hold each star's candidate lines of sight
-    #: (:meth:`star_cells`): a cell's radius (3.8 deg at 16) widens every star's reach, so finer
-    #: cells test fewer pairs but cost more to build.  Measured on a cube batch (15,840 samples,
-    #: 212 direct stars, 85,728 pairs that count): candidates 158k, 127k, 114k, 107k at nside 8,
-    #: 16, 32, 64, built in 0.01, 0.04, 0.2, 0.8 s (once per star table); 16 the balance
-    STAR_CELL_NSIDE = 16
-    #: the cells' lists hold about this many entries at most (int32: 64 MB): beyond, the widest-
-    #: reaching stars are tested at every line of sight of their levels instead (a deep catalog,
-    #: or a tiny tolerance that gives every star a sky-wide radius)
+    #: HEALPix nside of the sky cells whose lines of sight share a list of candidate direct
+    #: stars (:meth:`star_cells`): a cell's radius (1.9 deg at 32) loosens every star's bound
+    #: over the cell, so finer cells sum fewer pairs but cost more to build.  Measured on a
+    #: cube batch (15,840 samples, 212 direct stars): 0.68, 0.47, 0.38 candidates per sample
+    #: at nside 16, 32, 64 (a per-sample choice would need 0.23), built in 0.04, 0.2, 1.8 s
+    #: (once per star table); 32 the balance
+    STAR_CELL_NSIDE = 32
+    #: the cells' lists hold about this many entries at most (int32: 64 MB): beyond, the stars
+    #: listed in most cells are summed at every line of sight of their levels instead (a deep
+    #: catalog at a tiny tolerance)
     STAR_CELL_ENTRIES = 16_000_000
     #: candidate (sample, star) pairs tested at once: bounds the memory of a deep catalog
     STAR_PAIRS_PER_PASS = 1 << 20
 
     def star_cells(self, stars: StarTable) -> "StarCells":
-        """Per sky cell (HEALPix ring order, :attr:`STAR_CELL_NSIDE`) and floor level, the direct
-        stars that can pass :meth:`star_influence_cos` for some line of sight in the cell: those
-        within the star's radius plus the cell's radius of its centre.  Each cell's stars are
-        sorted by the number of levels they reach, so a level's candidates are a prefix of the
-        cell's list.  A star whose radius at a level is the whole sky (a bright star against the
-        darkest floors, or every star at a tiny tolerance) is listed once for the whole sky
-        instead, not in every cell.  Cached on the star table."""
+        """Per sky cell (HEALPix ring order, :attr:`STAR_CELL_NSIDE`) and floor level
+        (:attr:`STAR_FLOOR_LEVELS`), the direct stars summed at the cell's lines of sight; the
+        others are skipped.  Each star's bound over the cell is its :meth:`star_bound_scale`
+        times the PST's :meth:`~straylight.pst.PST.tail_max` from its angle to the cell's
+        nearest point (the angle to the centre less the cell's radius, rounded down to
+        :attr:`STAR_BOUND_STEP_DEG`): the stars with the smallest bounds are skipped for as long
+        as their bounds add up to no more than the stars_skip share of the tolerance (1/8) times
+        the level, and the rest are the candidates.  So at every line of sight of the cell the
+        skipped stars together stay below that share of the sample's floor (a lower bound of its
+        total, :meth:`evaluate`) in every band, the Earth and the door only lowering them
+        further.  One budget shared by all the stars rather than split evenly among them: a
+        line of sight sees few stars close, so a cube batch sums 0.47 candidates per sample
+        instead of testing 8 (a radius per star, each held to 1/212 of the budget).
+
+        Each cell's candidates are sorted by the number of levels that need them, so a level's
+        candidates are a prefix of the cell's list.  A star that every cell needs at a level (a
+        bright star against the darkest floors, or every star at a tiny tolerance) is listed
+        once for the whole sky there instead of in every cell.  Cached on the star table."""
         import healpy as hp
 
         key = (id(self), tuple(self.campaign.bands), self.tolerance, self.STAR_CELL_NSIDE)
         cache = stars.__dict__.setdefault("_cells_cache", {})
         if key in cache:
             return cache[key]
-        near_cos = self.star_influence_cos(stars)  # (L, S)
-        n_levels = near_cos.shape[0]
+        n_stars, n_levels = len(stars.ra_deg), self.STAR_FLOOR_LEVELS.size
+        rel = self.star_bound_scale(stars)
+        # a hair under the share, against the rounding of the sums
+        budget = ERROR_BUDGET_SHARES["stars_skip"] * self.tolerance * self.STAR_FLOOR_LEVELS * (1.0 - 1e-9)
         nside = self.STAR_CELL_NSIDE
         n_cells = hp.nside2npix(nside)
         centres = np.array(hp.pix2vec(nside, np.arange(n_cells))).T
         # max_pixrad: the largest centre-to-corner distance; 1 % and 1e-9 rad over it for the
         # curved edges and rounding (sampled: no point of a cell lies beyond 0.999 of it)
-        margin_rad = 1.01 * hp.max_pixrad(nside) + 1e-9
-        # levels 0 .. everywhere - 1 at which the star is tested at every line of sight: where
-        # its radius is the whole sky, and, should the lists outgrow STAR_CELL_ENTRIES, where its
-        # reach (radius + cell radius) is wider than the widest reach that keeps them within it
-        # (radii shrink with the level, so these are the first levels)
-        reach_rad = np.where(near_cos < -1.0, np.inf, np.arccos(np.clip(near_cos, -1.0, 1.0)) + margin_rad)
-        for widest_rad in np.radians([np.inf, 120.0, 90.0, 60.0, 45.0, 30.0, 20.0, 10.0, 0.0]):
-            everywhere = np.sum(reach_rad >= widest_rad, axis=0)
-            first_local = reach_rad[np.minimum(everywhere, n_levels - 1), np.arange(near_cos.shape[1])]
-            cap = np.where(everywhere < n_levels, (1.0 - np.cos(np.minimum(first_local, np.pi))) / 2.0, 0.0)
-            if n_cells * cap.sum() <= self.STAR_CELL_ENTRIES:  # the lists' expected length
-                break
+        margin_deg = np.degrees(1.01 * hp.max_pixrad(nside) + 1e-9)
+        # the PST's tail maximum at a step's nodes: looked up at the node at or below an angle,
+        # it bounds the tail maximum there (which does not grow with the angle)
+        per_deg = 1.0 / self.STAR_BOUND_STEP_DEG
+        tail = self.offfield.pst.tail_max(np.arange(int(round(180.0 * per_deg)) + 1) / per_deg)
+        s_unit = stars.unit if n_stars else np.zeros((0, 3))
+        parts = []  # per block of cells: (cell, star, reach) of the candidates, cell after cell
+        block = max(1, (1 << 21) // max(n_stars, 1))  # cells at a time: arrays of ~2 million
+        for a in range(0, n_cells, block):
+            ang_deg = np.degrees(np.arccos(np.clip(centres[a:a + block] @ s_unit.T, -1.0, 1.0))) - margin_deg
+            bound = rel * tail[(np.maximum(ang_deg, 0.0) * per_deg).astype(np.intp)]  # (c, S)
+            parts.append(self._cell_candidates(bound, budget, a))
+        cell, star, reach = (np.concatenate(x) for x in zip(*parts)) if parts else (np.zeros(0, np.intp),) * 3
+        # levels at which every cell lists the star: those it is summed at everywhere
+        listed_cells = np.bincount(star, minlength=n_stars)
+        everywhere = np.full(n_stars, n_levels, np.intp)
+        np.minimum.at(everywhere, star, reach)
+        everywhere[listed_cells < n_cells] = 0
+        everywhere = self._promote_to_whole_sky(star, reach, everywhere)
+        kept = reach > everywhere[star]  # entries the whole sky's list does not already hold
+        cell, star, reach = cell[kept], star[kept], reach[kept]
+        hist = np.bincount(cell * (n_levels + 1) + reach, minlength=n_cells * (n_levels + 1)).reshape(n_cells, -1)
+        counts = np.cumsum(hist[:, ::-1], axis=1)[:, ::-1][:, 1:]  # (cells, levels): reach > level
+        start = np.concatenate([[0], np.cumsum(counts[:, 0])[:-1]]).astype(np.intp)
         sky_order = np.argsort(-everywhere, kind="stable")
         sky_count = np.array([np.count_nonzero(everywhere > lv) for lv in range(n_levels)], np.intp)
-        local = np.flatnonzero(everywhere < n_levels)  # stars that some level limits to a radius
-        radius_rad = np.arccos(np.clip(near_cos[:, local], -1.0, 1.0))
-        s_local = stars.unit[local] if local.size else np.zeros((0, 3))
-        counts = np.zeros((n_cells, n_levels), np.intp)
-        lists = []
-        block = max(1, (1 << 21) // max(local.size, 1))  # cells at a time: arrays of ~2 million
-        for a in range(0, n_cells, block):
-            ang = np.arccos(np.clip(centres[a:a + block] @ s_local.T, -1.0, 1.0))  # (c, S_local)
-            # levels at which the star is a cell candidate but not a whole-sky one: levels
-            # everywhere .. reach - 1 (listed from 0: the whole-sky levels are skipped per sample)
-            reach = np.zeros(ang.shape, np.intp)
-            for level_radius in radius_rad:
-                reach += ang < level_radius + margin_rad
-            reach = np.where(reach > everywhere[local], reach, 0)
-            order = np.argsort(-reach, axis=1, kind="stable")
-            hist = np.bincount((np.arange(ang.shape[0])[:, None] * (n_levels + 1) + reach).ravel(),
-                               minlength=ang.shape[0] * (n_levels + 1)).reshape(-1, n_levels + 1)
-            counts[a:a + block] = np.cumsum(hist[:, ::-1], axis=1)[:, ::-1][:, 1:]  # reach > level
-            lists += [local[order[i, :counts[a + i, 0]]].astype(np.int32) for i in range(order.shape[0])]
-        start = np.concatenate([[0], np.cumsum(counts[:, 0])[:-1]])
-        cells = StarCells(nside, np.concatenate(lists) if lists else np.zeros(0, np.int32), start, counts,
-                          sky_order, sky_count, everywhere)
+        cells = StarCells(nside, star.astype(np.int32), start, counts, sky_order, sky_count, everywhere)
         cache[key] = cells
         return cells
 
+    #: the angle step of :meth:`star_cells`' PST bound look-up, deg
+    STAR_BOUND_STEP_DEG = 0.01
+
+    @staticmethod
+    def _cell_candidates(bound, budget, first_cell) -> tuple:
+        """:meth:`star_cells`' candidates of a block of cells from the stars' bounds over each,
+        (c, S): per cell, by decreasing bound, the fewest stars whose complement's bounds sum to
+        at most ``budget`` (per level, increasing); returns (cell, star, reach) per candidate,
+        reach the number of levels that need it.  Only each cell's largest bounds are sorted
+        (argpartition), more of them for the cells that need more."""
+        n_cells, n_stars = bound.shape
+        total = bound.sum(axis=1)
+        need = np.zeros((n_cells, budget.size), np.intp)
+        top = np.zeros((n_cells, 0), np.intp)
+        rows = np.arange(n_cells)
+        k = min(n_stars, 16)
+        while rows.size:
+            part = (np.argpartition(-bound[rows], k - 1, axis=1)[:, :k] if k < n_stars
+                    else np.broadcast_to(np.arange(n_stars), (rows.size, n_stars)))
+            order = np.argsort(-np.take_along_axis(bound[rows], part, axis=1), axis=1, kind="stable")
+            part = np.take_along_axis(part, order, axis=1)
+            prefix = np.cumsum(np.take_along_axis(bound[rows], part, axis=1), axis=1)
+            rest = total[rows, None] - np.concatenate([np.zeros((rows.size, 1)), prefix], axis=1)  # (r, k + 1)
+            # rest does not grow with the candidates taken: count where it is still over budget
+            over = np.stack([np.count_nonzero(rest > lim, axis=1) for lim in budget], axis=1)
+            done = (over[:, 0] <= k) | (k == n_stars)
+            need[rows[done]] = np.minimum(over[done], n_stars)
+            if top.shape[1] < k:
+                top = np.concatenate([top, np.zeros((n_cells, k - top.shape[1]), np.intp)], axis=1)
+            top[rows[done], :k] = part[done]
+            rows, k = rows[~done], min(n_stars, 4 * k)
+        j = np.arange(top.shape[1])
+        reach = np.count_nonzero(need[:, None, :] > j[None, :, None], axis=2)  # (c, K)
+        listed = j[None, :] < need[:, :1]
+        c = np.broadcast_to(np.arange(n_cells)[:, None], top.shape)
+        return c[listed] + first_cell, top[listed], reach[listed]
+
+    def _promote_to_whole_sky(self, star, reach, everywhere) -> np.ndarray:
+        """:meth:`star_cells`' whole-sky levels per star, raised for the stars listed in most
+        cells while the lists would exceed :attr:`STAR_CELL_ENTRIES` entries: such a star is
+        then summed at every line of sight of each level that needs it in some cell (summing a
+        star never breaks the budget; it only costs)."""
+        everywhere = everywhere.copy()
+        listed = reach > everywhere[star]
+        entries = np.bincount(star[listed], minlength=everywhere.size)
+        if entries.sum() <= self.STAR_CELL_ENTRIES:
+            return everywhere
+        widest = np.zeros(everywhere.size, np.intp)
+        np.maximum.at(widest, star, reach)
+        by_entries = np.argsort(-entries, kind="stable")
+        excess = entries.sum() - self.STAR_CELL_ENTRIES
+        promoted = by_entries[:int(np.searchsorted(np.cumsum(entries[by_entries]), excess)) + 1]
+        everywhere[promoted] = np.maximum(everywhere[promoted], widest[promoted])
+        return everywhere
+
     def _star_pairs(self, stars: StarTable, frame, sat, door, floor_ratio=1.0):
         """The off-field catalog stars' band-independent transfer, E = 1 photon s-1 m-2:
-        Se * Sp * PST * pixel factor, for the (sample, star) pairs that count: the star lies
-        within its influence radius at the sample's floor (``floor_ratio`` >= 1 times the darkest
-        zodiacal light, per sample; :meth:`star_influence_cos`), is not behind the Earth, and is
+        Se * Sp * PST * pixel factor, for the (sample, star) pairs that count: the star is a
+        candidate of the sample's sky cell at its floor level (``floor_ratio`` >= 1 times the
+        darkest zodiacal light, per sample; :meth:`star_cells`), is not behind the Earth, and is
         outside the field (stars inside scatter and make ghosts instead).  Returns the shape of
         the samples and ``(sample, star, transfer)``: flat sample index, star index, transfer.
 
-        Only a sample's sky cell's candidates (:meth:`star_cells`) are tested, a few stars
-        instead of all; where samples come in runs that share a satellite position (cube time
-        steps) the Earth test runs once per star and step."""
+        Where samples come in runs that share a satellite position (cube time steps) the Earth
+        test runs once per star and step."""
         s_all = np.ascontiguousarray(stars.unit, dtype=float)  # (S, 3)
-        near_cos = self.star_influence_cos(stars)  # (L, S)
         cells = self.star_cells(stars)
         shape = np.broadcast_shapes(np.shape(frame.z)[:-1], np.shape(door), np.shape(sat)[:-1])
         fz, fx, fy = (np.ascontiguousarray(np.broadcast_to(a, shape + (3,)).reshape(-1, 3), dtype=float)
                       for a in (frame.z, frame.x, frame.y))
         op = np.broadcast_to(np.asarray(door, float), shape).ravel()
-        # each sample's floor level: rounded down, so its radii are never too small
+        # each sample's floor level: rounded down, so its budget is never too large
         level = np.searchsorted(self.STAR_FLOOR_LEVELS, np.broadcast_to(np.asarray(floor_ratio, float), shape).ravel(),
                                 side="right") - 1
         level = np.clip(level, 0, self.STAR_FLOOR_LEVELS.size - 1)
@@ -751,7 +799,7 @@ class ComponentModel:
             base = ends[a - 1] if a else 0
             b = max(int(np.searchsorted(ends, base + self.STAR_PAIRS_PER_PASS, side="right")), a + 1)
             r, k, theta, phi = (np.empty(int(ends[b - 1] - base), t) for t in (np.intp, np.intp, float, float))
-            n = _star_pairs_kernel(a, b, fz, fx, fy, s_all, near_cos, level, cell, cells.start, cells.count,
+            n = _star_pairs_kernel(a, b, fz, fx, fy, s_all, level, cell, cells.start, cells.count,
                                    cells.stars, cells.sky_order, cells.sky_count, cells.everywhere, star_blocked,
                                    run_index, sat_flat, float(re_km), float(self.offfield.field_radius_deg),
                                    r, k, theta, phi)
@@ -764,12 +812,12 @@ class ComponentModel:
 
 
 @njit(cache=True, nogil=True)
-def _star_pairs_kernel(first, stop, fz, fx, fy, s, near_cos, level, cell, start, count, cell_stars, sky_order,
+def _star_pairs_kernel(first, stop, fz, fx, fy, s, level, cell, start, count, cell_stars, sky_order,
                        sky_count, everywhere, blocked_by_run, run_index, sat, re_km, field_radius_deg,
                        out_sample, out_star, out_theta, out_phi):
     """:meth:`ComponentModel._star_pairs` for samples ``first`` .. ``stop`` - 1: each sample's
-    candidates (its sky cell's at its level, then the whole sky's), kept where the star lies
-    within its radius, is not behind the Earth (per run from ``blocked_by_run``, else tested
+    candidates (its sky cell's at its level, then the whole sky's), kept where the star is
+    not behind the Earth (per run from ``blocked_by_run``, else tested
     here against ``sat``) and lies outside the field; writes (sample, star, theta, phi) of the
     pairs kept and returns their number.  One pass per candidate instead of numpy's pass per
     operation over every candidate."""
@@ -785,9 +833,6 @@ def _star_pairs_kernel(first, stop, fz, fx, fy, s, near_cos, level, cell, start,
                     continue
             else:
                 k = sky_order[j - n_cell]
-            dz = fz[i, 0] * s[k, 0] + fz[i, 1] * s[k, 1] + fz[i, 2] * s[k, 2]
-            if not dz > near_cos[lv, k]:
-                continue
             if blocked_by_run.size:
                 if blocked_by_run[run_index[i], k]:
                     continue
@@ -799,6 +844,7 @@ def _star_pairs_kernel(first, stop, fz, fx, fy, s, near_cos, level, cell, start,
                     m0, m1, m2 = x1 * u2 - x2 * u1, x2 * u0 - x0 * u2, x0 * u1 - x1 * u0
                     if np.sqrt(m0 * m0 + m1 * m1 + m2 * m2) < re_km:
                         continue
+            dz = fz[i, 0] * s[k, 0] + fz[i, 1] * s[k, 1] + fz[i, 2] * s[k, 2]
             dx = fx[i, 0] * s[k, 0] + fx[i, 1] * s[k, 1] + fx[i, 2] * s[k, 2]
             dy = fy[i, 0] * s[k, 0] + fy[i, 1] * s[k, 1] + fy[i, 2] * s[k, 2]
             theta = np.degrees(np.arctan2(np.hypot(dx, dy), dz))

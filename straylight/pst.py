@@ -129,6 +129,14 @@ class PST:
         theta), in reverse order (increasing)."""
         return np.maximum.accumulate(self.values.max(axis=1)[::-1])
 
+    def tail_max(self, theta_deg) -> np.ndarray:
+        """The PST's largest value over every phi at ``theta_deg`` or beyond (any shape): the
+        interpolant is bounded by its cell's corners, so this bounds it everywhere from theta
+        out (from the node at or below theta)."""
+        th = np.clip(np.asarray(theta_deg, float), 0.0, 180.0)
+        k = np.searchsorted(self.theta_deg, th, side="right") - 1
+        return self._tail_max_reversed[::-1][k]
+
     def influence_radius_deg(self, pst_limit) -> np.ndarray:
         """The smallest theta node beyond which the PST stays at or below ``pst_limit`` at every
         phi (array-valued): the interpolant is bounded by its cell's corners, so the bound holds
