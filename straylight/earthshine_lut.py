@@ -98,29 +98,27 @@ def _asinh_scale(direct: dict, door: dict) -> float:
     return float(np.percentile(positive, 1)) if positive.size else 1e-30
 
 
-def _asinh_grids(axes, direct: dict, door: dict, scale: float, drop_first: bool = False) -> dict:
-    """Per door state, one LinearGrid of asinh(c / scale) on ``axes`` with the direct and door
-    terms as two channels (located once); ``drop_first``: the tables' first axis has one node."""
-    grids = {}
-    for s in direct:
-        v = np.arcsinh(np.stack([direct[s], door[s]], axis=-1) / scale)
-        grids[s] = LinearGrid(axes, v[0] if drop_first else v)
-    return grids
+def _asinh_grids(axes, direct: dict, door: dict, scale: float, drop_first: bool = False) -> tuple:
+    """(door states ascending, one LinearGrid of asinh(c / scale) on ``axes`` whose channels are
+    each state's direct and door terms in turn): a sample's cell is located once whatever its
+    state; ``drop_first``: the tables' first axis has one node."""
+    states = sorted(direct)
+    v = np.arcsinh(np.stack([np.stack([direct[s], door[s]], axis=-1) for s in states], axis=-2) / scale)
+    v = v.reshape(v.shape[:-2] + (2 * len(states),))
+    return states, LinearGrid(axes, v[0] if drop_first else v)
 
 
-def _per_door_state(interpolators: dict, coords, opening_deg, shape, scale: float):
-    """(direct, door) from per-door-state interpolators of asinh(c / scale), two channels, at
-    ``coords`` (flat arrays); a sample with no allowed state (opening 0) takes the narrowest;
-    clipped at 0."""
+def _per_door_state(interpolator: tuple, coords, opening_deg, shape, scale: float):
+    """(direct, door) at ``coords`` (flat arrays) from :func:`_asinh_grids`' grid of asinh(c /
+    scale), each sample from its own door state's channels; a sample with no allowed state
+    (opening 0) takes the narrowest, one with an opening that is no state gets 0; clipped at 0."""
+    states, grid = interpolator
     op = np.broadcast_to(np.asarray(opening_deg, float), shape).ravel()
-    states = sorted(interpolators)
     state_of, known = door_state_index(states, op)
-    both = np.zeros((op.size, 2))
-    for i, st in enumerate(states):
-        sel = known & (state_of == i)
-        if np.any(sel):
-            both[sel] = scale * np.sinh(interpolators[st](*(c[sel] for c in coords)))
-    both = np.maximum(both, 0.0)
+    both = grid(*coords, channel=np.where(known, state_of, 0), group=2).reshape(op.size, 2)
+    both = np.maximum(scale * np.sinh(both), 0.0)
+    if not np.all(known):
+        both[~known] = 0.0
     return both[:, 0].reshape(shape), both[:, 1].reshape(shape)
 
 

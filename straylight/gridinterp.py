@@ -28,8 +28,9 @@ def _interpolate(points, lo, hi, uniform, inv_width, n_bins, bin_cell, nodes, n_
     per axis (:class:`_Axis`); on an evenly spaced axis the cell can be one off the exact one
     only where the point lies within rounding of a node, and t is then ~1 in the cell below
     (or ~0 just below the node): the same value to rounding (1e-15; tests/test_gridinterp.py).
-    Then the corner sum, corner bit k the upper node of axis k.  ``channel``: one channel per
-    point, or empty for all; ``unrolled``: the two-axis bilinear formula."""
+    Then the corner sum, corner bit k the upper node of axis k.  ``channel``: per point, the
+    group of ``out.shape[1]`` consecutive channels it takes, or empty for all channels;
+    ``unrolled``: the two-axis bilinear formula."""
     n_dim, n_points = points.shape
     frac = np.empty(n_dim)
     for p in range(n_points):
@@ -54,7 +55,7 @@ def _interpolate(points, lo, hi, uniform, inv_width, n_bins, bin_cell, nodes, n_
             out[p, :] = np.nan
             continue
         if channel.size:
-            first_channel, n_out = channel[p], 1
+            first_channel, n_out = channel[p] * out.shape[1], out.shape[1]
         else:
             first_channel, n_out = 0, out.shape[1]
         if unrolled:
@@ -136,13 +137,15 @@ class LinearGrid:
             self._bin_cell[k, :a.n_bins + 1] = a.bin_cell
         self._strides_arr = np.array(self._strides, np.intp)
 
-    def __call__(self, *coords, channel=None) -> np.ndarray:
+    def __call__(self, *coords, channel=None, group: int = 1) -> np.ndarray:
         """The interpolant at the points ``coords``; with ``channel`` (integer array, broadcast
-        with them; a two-axis grid with one trailing dimension only), that channel's value at each point
-        instead of all channels: e.g. each sample's own door state from one stacked table,
-        located once (the same arithmetic as a separate grid per channel, so the same numbers)."""
-        if channel is not None and (len(self._trailing) != 1 or len(self.axes) != 2):
-            raise ValueError("channel needs a two-axis grid with exactly one trailing dimension")
+        with them; a grid with one trailing dimension only), each point's own group of ``group``
+        consecutive channels (channels channel * group .. channel * group + group - 1; the
+        result then ends in a dimension of ``group`` unless it is 1) instead of all channels:
+        e.g. each sample's own door state from one stacked table, located once (the same
+        arithmetic as a separate grid per group, so the same numbers)."""
+        if channel is not None and (len(self._trailing) != 1 or self._trailing[0] % group):
+            raise ValueError(f"channel needs a grid with exactly one trailing dimension, in groups of {group}")
         coords = np.broadcast_arrays(*(np.asarray(c, float) for c in coords))
         shape = coords[0].shape
         points = np.empty((len(coords), int(np.prod(shape))))
@@ -150,11 +153,11 @@ class LinearGrid:
             points[k] = x.ravel()
         flat = self._flat if self._trailing else self._flat[:, None]
         if channel is not None:
-            n_channels = self._trailing[0]
+            n_groups = self._trailing[0] // group
             ch = np.ascontiguousarray(np.broadcast_to(np.asarray(channel, np.intp), shape).ravel())
-            if ch.size and (ch.min() < 0 or ch.max() >= n_channels):
-                raise ValueError(f"channel outside 0..{n_channels - 1}")
-            out = np.empty((points.shape[1], 1))
+            if ch.size and (ch.min() < 0 or ch.max() >= n_groups):
+                raise ValueError(f"channel outside 0..{n_groups - 1}")
+            out = np.empty((points.shape[1], group))
         else:
             ch = np.zeros(0, np.intp)
             out = np.empty((points.shape[1], flat.shape[1]))
@@ -165,4 +168,4 @@ class LinearGrid:
                      self._nodes, self._n_nodes, self._inv_step, self._strides_arr, flat, ch, unrolled, out)
         if self._trailing and channel is None:
             return out.reshape(shape + self._trailing)
-        return out.reshape(shape)
+        return out.reshape(shape + ((group,) if group > 1 else ()))

@@ -78,8 +78,9 @@ def test_channels_match_scipy_per_channel(ndim):
 
 
 def test_channel_picks_each_points_own_table_with_the_same_numbers():
-    """channel=: each point's own channel of a stacked grid, bit for bit what that channel's own
-    grid gives (the door states' Sp tables, located once for a batch with mixed states)."""
+    """channel=: each point's own channel (or group of channels) of a stacked grid, bit for bit
+    what that channel's own grid gives (the door states' Sp tables, and the earthshine tables'
+    direct and door terms per state, located once for a batch with mixed states)."""
     rng = np.random.default_rng(3)
     axes = [np.unique(np.r_[np.linspace(0.0, 90.0, 10), 33.3]), np.linspace(0.0, 360.0, 13)]
     values = rng.uniform(size=(axes[0].size, axes[1].size, 4))
@@ -93,3 +94,18 @@ def test_channel_picks_each_points_own_table_with_the_same_numbers():
         LinearGrid(axes, values)(*pts.T, channel=4)
     with pytest.raises(ValueError, match="one trailing dimension"):
         LinearGrid(axes, values[..., 0])(*pts.T, channel=0)
+    # groups of channels (the earthshine tables: each door state's direct and door terms) on
+    # three axes: each point's own pair, bit for bit what that pair's own grid gives
+    axes3 = axes + [np.array([0.0, 1.0, 3.0])]
+    values3 = rng.uniform(size=(axes[0].size, axes[1].size, 3, 6))
+    pts3 = np.c_[pts, rng.uniform(-0.5, 3.5, 5000)]
+    group = rng.integers(0, 3, 5000)
+    got = LinearGrid(axes3, values3)(*pts3.T, channel=group, group=2)
+    assert got.shape == (5000, 2)
+    for g in range(3):
+        own = LinearGrid(axes3, values3[..., 2 * g:2 * g + 2])(*pts3[group == g].T)
+        assert np.array_equal(got[group == g], own)
+    with pytest.raises(ValueError, match="in groups of 4"):
+        LinearGrid(axes3, values3)(*pts3.T, channel=group, group=4)
+    with pytest.raises(ValueError, match="channel outside"):
+        LinearGrid(axes3, values3)(*pts3.T, channel=3, group=2)
