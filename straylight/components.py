@@ -182,17 +182,7 @@ class ComponentModel:
         moon_sun_fraction = solar_like_fraction(v_moon)
         t_moon = self._skippable_transfer(moon_sun_fraction, geometry["moon_angle_deg"], geometry["moon_phi_deg"],
                                           geometry["moon_earth_blocked"], door, bands, floor_ratio)
-        planets_fraction = np.zeros(shape)  # sum of transfer x fraction of the Sun at 1 AU
-        planets = [p for p in PLANETS if p in bodies_km]
-        # a cube time step shares one scene: each planet's magnitude and direction once per step
-        runs = scene_runs(sat, sun, *(bodies_km[p] for p in planets)) if planets else None
-        for i, p in enumerate(planets):
-            sun_fraction = solar_like_fraction(planet_v_magnitude(p, bodies_km[p], sun, sat)) if runs is None else \
-                runs.expand(solar_like_fraction(planet_v_magnitude(p, runs.vectors[2 + i], runs.vectors[1],
-                                                                   runs.vectors[0])))
-            t = self._planet_transfer(sun_fraction, sat, bodies_km[p], frame, door, bands, floor_ratio, shape,
-                                      None if runs is None else (runs, 2 + i))
-            planets_fraction = planets_fraction + t * sun_fraction
+        planets_fraction = self._planets_fraction(sat, bodies_km, frame, door, bands, floor_ratio, shape)
         moon_fraction = t_moon * moon_sun_fraction * eclipse
         star_pairs = (self._star_pairs(stars, frame, sat, door, floor_ratio)
                       if stars is not None and len(stars.ra_deg) else None)  # once for all bands
@@ -307,31 +297,69 @@ class ComponentModel:
             smallest = budget * float(np.min(floor_ratio)) / float(np.max(rel)) * (1 - 1e-12)
         return float(self.offfield.pst.influence_radius_deg(smallest))
 
+    def _planets_fraction(self, sat, bodies_km, frame, door, bands, floor_ratio, shape) -> np.ndarray:
+        """The planets in ``bodies_km`` together, per sample: the sum of each one's
+        :meth:`_planet_transfer` times its fraction of the Sun's irradiance at 1 AU.  Where the
+        samples come in runs that share a scene (a cube's time steps), each planet's magnitude
+        and direction are computed once per run, and one compiled pass finds every planet's
+        samples within its widest skip radius (:func:`_near_runs_kernel`)."""
+        out = np.zeros(shape)
+        planets = [p for p in PLANETS if p in bodies_km]
+        sun = bodies_km["sun"]
+        runs = scene_runs(sat, sun, *(bodies_km[p] for p in planets)) if planets else None
+        if runs is None:
+            for p in planets:
+                fraction = solar_like_fraction(planet_v_magnitude(p, bodies_km[p], sun, sat))
+                out = out + self._planet_transfer(fraction, sat, bodies_km[p], frame, door, bands, floor_ratio,
+                                                  shape) * fraction
+            return out
+        sat_run, sun_run = runs.vectors[0], runs.vectors[1]
+        fractions = [solar_like_fraction(planet_v_magnitude(p, runs.vectors[2 + i], sun_run, sat_run))
+                     for i, p in enumerate(planets)]  # per run
+        if not out.size:
+            return out
+        min_floor = float(np.min(floor_ratio))
+        widest = np.array([self._widest_skip_radius_deg(*self._skip_scale(f, bands), min_floor) for f in fractions])
+        # the margin as _planet_transfer's; a radius of 180 deg: every sample (any cosine > -inf)
+        cos_limit = np.where(widest < 180.0, np.cos(np.radians(widest + 1e-6)), -np.inf)
+        directions = np.ascontiguousarray(unit(np.stack(runs.vectors[2:]) - sat_run))  # (planets, runs, 3)
+        fz = np.ascontiguousarray(np.broadcast_to(frame.z, shape + (3,)).reshape(-1, 3), dtype=float)
+        near = _near_runs_kernel(fz, directions, np.ascontiguousarray(runs.index, dtype=np.intp), cos_limit)
+        for i, p in enumerate(planets):
+            near_i = np.flatnonzero(near[i])
+            if near_i.size:
+                fraction = runs.expand(fractions[i])
+                out = out + self._planet_transfer(fraction, sat, bodies_km[p], frame, door, bands, floor_ratio, shape,
+                                                  (runs, 2 + i), near_i) * fraction
+        return out
+
     def _planet_transfer(self, sun_fraction, satellite_km, planet_km, frame, door, bands, floor_ratio, shape,
-                         run=None) -> np.ndarray:
+                         run=None, near=None) -> np.ndarray:
         """:meth:`_skippable_transfer` of a planet, its angles computed (:func:`body_geometry`)
         only at the samples within the widest skip radius: a cosine per sample finds them (most
         planets, most of the time, reach no sample; the angles' two arctangents are most of the
         geometry's cost).  ``run``: (:func:`scene_runs` of the samples, the planet's index in
-        its vectors), for one direction per time step instead of one per sample."""
+        its vectors), for one direction per time step instead of one per sample; ``near``: those
+        samples' flat indices when already found (:meth:`_planets_fraction`)."""
         rel, budget = self._skip_scale(sun_fraction, bands)
         n = int(np.prod(shape))
         full = shape + (3,)
         fz = np.broadcast_to(frame.z, full).reshape(-1, 3)
         sat = np.broadcast_to(np.asarray(satellite_km, float), full).reshape(-1, 3)
         planet = np.broadcast_to(np.asarray(planet_km, float), full).reshape(-1, 3)
-        widest = self._widest_skip_radius_deg(rel, budget, floor_ratio) if n else 180.0
-        if widest < 180.0:
-            if run is None:
-                cos_angle = dot(fz, unit(planet - sat))
+        if near is None:
+            widest = self._widest_skip_radius_deg(rel, budget, floor_ratio) if n else 180.0
+            if widest < 180.0:
+                if run is None:
+                    cos_angle = dot(fz, unit(planet - sat))
+                else:
+                    runs, i = run
+                    cos_angle = dot(fz, unit(runs.vectors[i] - runs.vectors[0])[runs.index])
+                # a margin of 1e-6 deg: the samples left out lie beyond the widest radius whatever
+                # the rounding, and the others get the per-sample rule below
+                near = np.flatnonzero(cos_angle > np.cos(np.radians(widest + 1e-6)))
             else:
-                runs, i = run
-                cos_angle = dot(fz, unit(runs.vectors[i] - runs.vectors[0])[runs.index])
-            # a margin of 1e-6 deg: the samples left out lie beyond the widest radius whatever the
-            # rounding, and the others get the per-sample rule below
-            near = np.flatnonzero(cos_angle > np.cos(np.radians(widest + 1e-6)))
-        else:
-            near = np.arange(n)
+                near = np.arange(n)
         out = np.zeros(n)
         if near.size:
             g = body_geometry(sat[near], {"planet": planet[near]},
@@ -857,6 +885,22 @@ def _star_pairs_kernel(first, stop, fz, fx, fy, s, level, cell, start, count, ce
             out_phi[n] = phi + 360.0 if phi < 0.0 else phi
             n += 1
     return n
+
+
+@njit(cache=True, nogil=True)
+def _near_runs_kernel(fz, directions, run_index, cos_limit):
+    """(bodies, samples) bool: sample n's line of sight ``fz[n]`` has a cosine over
+    ``cos_limit[b]`` with body b's direction in the sample's run, ``directions[b, run_index[n]]``
+    (the products summed in :func:`~straylight.geometry.dot`'s order, so the same cosines)."""
+    n_bodies, n = directions.shape[0], fz.shape[0]
+    out = np.zeros((n_bodies, n), np.bool_)
+    for b in range(n_bodies):
+        limit = cos_limit[b]
+        for i in range(n):
+            r = run_index[i]
+            c = fz[i, 0] * directions[b, r, 0] + fz[i, 1] * directions[b, r, 1] + fz[i, 2] * directions[b, r, 2]
+            out[b, i] = c > limit
+    return out
 
 
 def unobservable_samples(campaign) -> str:
