@@ -657,9 +657,10 @@ class ComponentModel:
     #: HEALPix nside of the sky cells whose lines of sight share a list of candidate direct
     #: stars (:meth:`star_cells`): a cell's radius (1.9 deg at 32) loosens every star's bound
     #: over the cell, so finer cells sum fewer pairs but cost more to build.  Measured on a
-    #: cube batch (15,840 samples, 212 direct stars): 0.68, 0.47, 0.38 candidates per sample
-    #: at nside 16, 32, 64 (a per-sample choice would need 0.23), built in 0.04, 0.2, 1.8 s
-    #: (once per star table); 32 the balance
+    #: cube batch (15,840 samples, 212 direct stars), with each cell's bounds sorted: 0.68,
+    #: 0.47, 0.38 candidates per sample at nside 16, 32, 64 (a per-sample choice would need
+    #: 0.23), built in 0.04, 0.2, 1.8 s (once per star table), the batch's time within noise
+    #: across the three; 32 the balance
     STAR_CELL_NSIDE = 32
     #: the cells' lists hold this many entries at most (int32: 64 MB; while they are built, 16
     #: bytes an entry): beyond, the stars listed in most cells are summed at every line of
@@ -682,8 +683,8 @@ class ComponentModel:
         that share of the sample's floor (a lower bound of its total, :meth:`evaluate`) in every
         band, the Earth and the door only lowering them further.  One budget shared by all the
         stars rather than split evenly among them: a line of sight sees few stars close, so a
-        cube batch sums 0.47 candidates per sample instead of testing 8 (a radius per star, each
-        held to 1/212 of the budget).  The smallest bounds are found without sorting: the bounds
+        cube batch sums 0.42 pairs per sample instead of 5.4 (a radius per star, each held to
+        1/212 of the budget, tested 8 candidates per sample).  The smallest bounds are found without sorting: the bounds
         are binned by :attr:`STAR_BOUND_BINS_PER_DEX` and whole bins skipped, from the smallest,
         while their sum stays within the budget.
 

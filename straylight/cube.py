@@ -169,15 +169,17 @@ def evaluated_samples(campaign: Campaign, fp: Footprint, max_times: int = 144, m
 #: The cube's cost on one core, all bands, per sample, as ``straylight plan`` predicts it: the
 #: table path evaluating every sample, and with models.unobservable_samples: skip the screen
 #: (the Sun's and the Moon's geometry, every sample) and each observable sample evaluated (they
-#: cost ~2x the average sample: more star pairs and moonlit-Earth sums); the direct earthshine
-#: sum adds components.LUT_SAVED_SECONDS_PER_SAMPLE per evaluated sample.  Measured by
-#: bench/run.py --only cube on the default day (12 steps x 1320 pixels, best of three), two
-#: runs: 9.6 / 9.1 us, 1.03 / 1.54 us, 25.5 / 14.4 us (last cycle's skip runs give 14.5-19);
-#: the bench prints them again as cube.plan_cost_model, and the four runs' predicted seconds
-#: against the measured ones (within 30 % in both runs), so a drift shows.
-CUBE_TABLE_SECONDS_PER_SAMPLE = 10e-6
-CUBE_SCREEN_SECONDS_PER_SAMPLE = 1.2e-6
-CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE = 20e-6
+#: cost ~1.7x the average sample: more moonlit-Earth sums and star pairs); the direct earthshine
+#: sum adds components.LUT_SAVED_SECONDS_PER_SAMPLE per evaluated sample.  In the units of the
+#: machine those were measured on: bench/run.py --only cube on the default day (12 steps x 1320
+#: pixels, best of three) measured, in two runs on a machine whose direct path ran x0.20 and
+#: x0.24 of that figure, 1.69 / 1.85 us, 0.38 / 0.43 us, 2.96 / 3.18 us: 8.6 / 7.7, 1.9 / 1.8,
+#: 15.1 / 13.3 us in these units (until the star skip's shared budget the figures were 10, 1.2
+#: and 20 us).  The bench prints them again as cube.plan_cost_model, and the four runs'
+#: predicted seconds against the measured ones, so a drift shows.
+CUBE_TABLE_SECONDS_PER_SAMPLE = 8e-6
+CUBE_SCREEN_SECONDS_PER_SAMPLE = 1.9e-6
+CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE = 14e-6
 
 
 def cube_compute_seconds(samples: int, evaluated: int, earthshine_method: str, skip: bool,
