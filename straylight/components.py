@@ -684,9 +684,9 @@ class ComponentModel:
         band, the Earth and the door only lowering them further.  One budget shared by all the
         stars rather than split evenly among them: a line of sight sees few stars close, so a
         cube batch sums 0.42 pairs per sample instead of 5.4 (a radius per star, each held to
-        1/212 of the budget, tested 8 candidates per sample).  The smallest bounds are found without sorting: the bounds
-        are binned by :attr:`STAR_BOUND_BINS_PER_DEX` and whole bins skipped, from the smallest,
-        while their sum stays within the budget.
+        1/212 of the budget, tested 8 candidates per sample).  The smallest bounds are found
+        without sorting: they are binned by :attr:`STAR_BOUND_BINS_PER_DEX` and whole bins are
+        skipped, from the smallest, while their sum stays within the budget.
 
         Each cell's candidates are sorted by the number of levels that need them, so a level's
         candidates are a prefix of the cell's list.  A star that every cell needs at a level (a
@@ -779,7 +779,8 @@ class ComponentModel:
         cache = self.__dict__.setdefault("_cell_bound_tables", {})
         if margin_rad not in cache:
             cos_nodes = np.linspace(-1.0, 1.0, self.STAR_BOUND_COS_NODES)
-            cache[margin_rad] = self.offfield.pst.tail_max(np.degrees(np.maximum(np.arccos(cos_nodes) - margin_rad, 0.0)))
+            angle_deg = np.degrees(np.maximum(np.arccos(cos_nodes) - margin_rad, 0.0))
+            cache[margin_rad] = self.offfield.pst.tail_max(angle_deg)
         return cache[margin_rad]
 
     @staticmethod
