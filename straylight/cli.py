@@ -280,8 +280,9 @@ def cmd_plan(args) -> int:
     method = {"lut": "look-up table", "direct": "direct Earth-grid sum"}[cost["earthshine_method"]]
     table = ""
     if cost["earthshine_method"] == "lut":
-        table = ("; the table is cached" if cost["table_cached"] else
-                 f"; building the table takes ~{cost['table_build_seconds'] / 3600:.2f} core-hours, once")
+        table = ("; its tables (sunlit and moonlit Earth) are cached" if cost["table_cached"] else
+                 f"; building its tables (sunlit and moonlit Earth, those not cached) takes "
+                 f"~{cost['table_build_seconds'] / 3600:.2f} core-hours, once")
     print(f"sunlit earthshine: {method} ({cost['earthshine_reason']}){table}")
     if speed:
         print(f"this machine: {speed['samples']} cube samples on the direct sum took "

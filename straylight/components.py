@@ -40,6 +40,11 @@ ERROR_BUDGET_SHARES = {"earthshine_lut": 0.5, "moonlit_earthshine_skip": 0.125, 
 # faster; 0.32 until this cycle; the bench prints both again as cube.auto_cost_model).
 LUT_BUILD_SECONDS_PER_NODE = 0.39e-3
 LUT_SAVED_SECONDS_PER_SAMPLE = 0.27e-3
+# The moonlit Earth's table (the table path builds it too) per node and door state, in the same
+# units: its coarse grid (8 x 16 blocks) makes a node cheap.  Both default tables built in one
+# session on one machine: 4.55 s for 878,750 moonlit node-states against 129 s for 1,565,266
+# sunlit ones, 0.063 of the sunlit cost per node.
+MOONLIT_LUT_BUILD_SECONDS_PER_NODE = 0.063 * LUT_BUILD_SECONDS_PER_NODE
 
 
 @dataclass
@@ -378,30 +383,57 @@ class ComponentModel:
         r = self.campaign.orbit_radius_range_km
         return settings.node_count(r[0], self.campaign.earth.radius_km) * len(self.offfield.door_states_deg)
 
+    def moonlit_node_states(self) -> int:
+        """How many (node, door state) pairs the moonlit Earth's table (:attr:`moonlit_model`)
+        sums, each a coarse Earth-grid sum; 0 with models.earthshine.moonlit_method = direct."""
+        from .earthshine_lut import _mirror_symmetric
+
+        settings = self._moonlit_settings()
+        if settings is None:
+            return 0
+        r = self.campaign.orbit_radius_range_km
+        nodes = settings.nodes(float(r[0]), self.campaign.earth.radius_km, _mirror_symmetric(self.offfield))
+        return int(np.prod([a.size for a in nodes])) * len(self.offfield.door_states_deg)
+
+    def _moonlit_settings(self):
+        """The moonlit table's :class:`~straylight.earthshine_lut.MoonlitSettings` from the
+        config, or None when the moonlit Earth is summed directly (moonlit_method = direct)."""
+        from .earthshine_lut import MoonlitSettings
+
+        es = self.campaign.config["models"].get("earthshine", {})
+        if es.get("moonlit_method", "lut") == "direct":
+            return None
+        return MoonlitSettings(**{k: float(v) for k, v in es.get("moonlit_lut", {}).items()})  # keys checked by the schema
+
     @cached_property
     def earthshine_choice(self) -> dict:
         """Which sunlit earthshine model :attr:`earthshine_model` will run, decided without
         building anything (``straylight plan`` reads it).  Keys: method ('lut' or 'direct'),
         requested (models.earthshine.method), reason, settings (:class:`~straylight.earthshine_lut.LUTSettings`), node_states and
-        build_seconds_estimate (the table's build at LUT_BUILD_SECONDS_PER_NODE; 0 for
-        'direct' by config).  With 'auto' the table still falls back to the direct sum when its
-        validated error, known once it is built, exceeds its share of the tolerance."""
+        build_seconds_estimate (the sunlit table's build at LUT_BUILD_SECONDS_PER_NODE, plus the
+        moonlit one's at MOONLIT_LUT_BUILD_SECONDS_PER_NODE, which the table path builds too:
+        moonlit_build_seconds_estimate; 0 for 'direct' by config).  With 'auto' the table still
+        falls back to the direct sum when its validated error, known once it is built, exceeds
+        its share of the tolerance."""
         from .earthshine_lut import LUTSettings
 
         es = self.campaign.config["models"].get("earthshine", {})
         method = es.get("method", "auto")
         if method == "direct":
             return {"method": "direct", "requested": method, "reason": "models.earthshine.method = direct",
-                    "settings": None, "node_states": 0, "build_seconds_estimate": 0.0}
+                    "settings": None, "node_states": 0, "build_seconds_estimate": 0.0,
+                    "moonlit_build_seconds_estimate": 0.0}
         lut_cfg = es.get("lut", {})
         settings = LUTSettings(float(lut_cfg.get("sun_zenith_step_deg", 0.5)),
                                float(lut_cfg.get("los_zenith_step_deg", 2.0)),
                                float(lut_cfg.get("azimuth_step_deg", 2.5)),
                                int(lut_cfg.get("n_radius", 1)))
         node_states = self.lut_node_states(settings)
-        build_s = LUT_BUILD_SECONDS_PER_NODE * node_states
+        moonlit_s = MOONLIT_LUT_BUILD_SECONDS_PER_NODE * self.moonlit_node_states()
+        build_s = LUT_BUILD_SECONDS_PER_NODE * node_states + moonlit_s
         choice = {"method": "lut", "requested": method, "reason": f"{method}: {self.expected_samples} samples",
-                  "settings": settings, "node_states": node_states, "build_seconds_estimate": build_s}
+                  "settings": settings, "node_states": node_states, "build_seconds_estimate": build_s,
+                  "moonlit_build_seconds_estimate": moonlit_s}
         if method == "auto":
             # deliberately blind to the cache: the same config must give the same products on
             # every machine, whether or not a table was built there before.
@@ -467,21 +499,13 @@ class ComponentModel:
         sum.  Keys: method, lut, and for the table its file, validated error and steps."""
         import logging
 
-        from .earthshine_lut import MoonlitSettings, load_or_build_moonlit
-        from .offfield import MOON_PERIGEE_KM
+        from .earthshine_lut import load_or_build_moonlit
 
-        es = self.campaign.config["models"].get("earthshine", {})
-        if es.get("moonlit_method", "lut") == "direct":
+        settings = self._moonlit_settings()
+        if settings is None:
             return {"method": "direct", "lut": None, "reason": "models.earthshine.moonlit_method = direct"}
-        cfg = es.get("moonlit_lut", {})
-        settings = MoonlitSettings(**{k: float(v) for k, v in cfg.items()})  # keys checked by the schema
-        # the brightest Moon (full, at perigee) per unit solar irradiance at 1 AU
-        moon_max = float(solar_like_fraction(moon_v_magnitude(0.0, MOON_PERIGEE_KM, self.offfield.moon_law, 180.0)))
-        k = self.campaign.constraints
-        lut, path = load_or_build_moonlit(self.offfield, self.campaign.earth.radius_km,
-                                          self.campaign.orbit_radius_range_km, settings, self.moonlit_grid,
-                                          self.earthshine_floor, moon_max, k.dark_limb_min_deg,
-                                          logging.getLogger("straylight"), self.build_workers)
+        lut, path = load_or_build_moonlit(*self._moonlit_table_inputs(settings), logging.getLogger("straylight"),
+                                          self.build_workers)
         info = {"lut_file": path.name, "lut_validation_max_rel_error": lut.validation_max_rel_error,
                 "lut_steps_deg": [settings.moon_zenith_step_deg, settings.los_zenith_step_deg,
                                   settings.azimuth_step_deg, settings.roll_step_deg]}
@@ -490,6 +514,25 @@ class ComponentModel:
             return {"method": "direct", "lut": None, **info,
                     "reason": f"table error {lut.validation_max_rel_error:.2g} > {share:g} x the tolerance"}
         return {"method": "lut", "lut": lut, **info}
+
+    def _moonlit_table_inputs(self, settings) -> tuple:
+        """The arguments of :func:`~straylight.earthshine_lut.load_or_build_moonlit` (and of its
+        cache key) before the logger: the model, the Earth, the orbit, the settings, the grid, the
+        darkest sky and the brightest Moon (full, at perigee) per unit solar irradiance at 1 AU,
+        and the dark-limb angle."""
+        from .offfield import MOON_PERIGEE_KM
+
+        moon_max = float(solar_like_fraction(moon_v_magnitude(0.0, MOON_PERIGEE_KM, self.offfield.moon_law, 180.0)))
+        return (self.offfield, self.campaign.earth.radius_km, self.campaign.orbit_radius_range_km, settings,
+                self.moonlit_grid, self.earthshine_floor, moon_max, self.campaign.constraints.dark_limb_min_deg)
+
+    def moonlit_lut_path(self) -> Path | None:
+        """Where the moonlit table of the configured settings is cached (it may not exist yet);
+        None when the moonlit Earth is summed directly."""
+        from .earthshine_lut import cache_path, moonlit_key
+
+        settings = self._moonlit_settings()
+        return None if settings is None else cache_path("moonlit_lut", moonlit_key(*self._moonlit_table_inputs(settings)))
 
     @cached_property
     def moonlit_grid(self) -> tuple[int, int]:

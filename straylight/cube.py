@@ -252,8 +252,15 @@ def estimated_cost(campaign: Campaign, fp: Footprint, seconds_per_evaluated_samp
     choice = model.earthshine_choice
     skip = unobservable_samples(campaign) == "skip"
     compute_s = cube_compute_seconds(n, n_eval, choice["method"], skip, seconds_per_evaluated_sample, speed_factor)
-    table_cached = choice["method"] == "lut" and model.earthshine_lut_path().exists()
-    build_s = speed_factor * choice["build_seconds_estimate"] if choice["method"] == "lut" and not table_cached else 0.0
+    build_s, table_cached = 0.0, False
+    if choice["method"] == "lut":  # the sunlit table and the moonlit one, each unless cached
+        moonlit_s = choice["moonlit_build_seconds_estimate"]
+        sunlit_cached = model.earthshine_lut_path().exists()
+        moonlit_path = model.moonlit_lut_path()
+        moonlit_cached = moonlit_path is None or moonlit_path.exists()
+        table_cached = sunlit_cached and moonlit_cached
+        build_s = speed_factor * ((0.0 if sunlit_cached else choice["build_seconds_estimate"] - moonlit_s)
+                                  + (0.0 if moonlit_cached else moonlit_s))
     return {"samples": n, "evaluated_samples": n_eval, "unobservable_samples": "skip" if skip else "evaluate",
             "earthshine_method": choice["method"], "earthshine_reason": choice["reason"],
             "table_cached": table_cached, "table_build_seconds": build_s, "compute_seconds": compute_s,

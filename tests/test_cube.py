@@ -252,8 +252,9 @@ def test_plan_costs_the_model_auto_picks(campaign, tmp_path, monkeypatch):
     """straylight plan (cube.estimated_cost) costs the earthshine model the cube will run, on
     the samples it evaluates, without building anything: the default day takes the direct sum;
     a week of it the table, whose build (782,633 nodes x 2 door states at
-    components.LUT_BUILD_SECONDS_PER_NODE, the default table's node count) is counted while it
-    is not cached; the same week skipping the unobservable samples (~16.5 %) is short of the
+    components.LUT_BUILD_SECONDS_PER_NODE, the default table's node count, and the moonlit
+    table's 439,375 x 2 at MOONLIT_LUT_BUILD_SECONDS_PER_NODE) is counted while it is not
+    cached, each table on its own; the same week skipping the unobservable samples (~16.5 %) is short of the
     table's break-even (~2.3 million samples) again."""
     from straylight import components as comp
     from straylight import cube as cu
@@ -273,9 +274,21 @@ def test_plan_costs_the_model_auto_picks(campaign, tmp_path, monkeypatch):
     evaluating = week("evaluate")
     assert (evaluating["samples"], evaluating["earthshine_method"]) == (7 * 380_160, "lut")
     assert not evaluating["table_cached"]
-    assert evaluating["table_build_seconds"] == pytest.approx(782_633 * 2 * comp.LUT_BUILD_SECONDS_PER_NODE, rel=1e-12)
+    sunlit_s = 782_633 * 2 * comp.LUT_BUILD_SECONDS_PER_NODE
+    moonlit_s = 439_375 * 2 * comp.MOONLIT_LUT_BUILD_SECONDS_PER_NODE  # (Moon zenith, zenith, azimuth, roll) nodes
+    assert evaluating["table_build_seconds"] == pytest.approx(sunlit_s + moonlit_s, rel=1e-12)
+    assert 0.02 < moonlit_s / sunlit_s < 0.05  # measured 4.6 s against 129 s
     assert evaluating["core_hours"] * 3600 == pytest.approx(
         7 * 380_160 * cu.CUBE_TABLE_SECONDS_PER_SAMPLE + evaluating["table_build_seconds"], rel=1e-12)
+    # each table counted only while it is not cached: with the sunlit one in the cache, the moonlit
+    week_model = comp.ComponentModel(_campaign_with(campaign, {**WEEK, "models": {"unobservable_samples": "evaluate"}}),
+                                     expected_samples=7 * 380_160)
+    week_model.earthshine_lut_path().write_bytes(b"")  # only its existence is checked
+    one_left = week("evaluate")
+    assert not one_left["table_cached"]
+    assert one_left["table_build_seconds"] == pytest.approx(moonlit_s, rel=1e-12)
+    week_model.moonlit_lut_path().write_bytes(b"")
+    assert week("evaluate")["table_cached"] and week("evaluate")["table_build_seconds"] == 0.0
     skipping = week("skip")
     assert 0.12 < skipping["evaluated_samples"] / skipping["samples"] < 0.2  # the default day: 16.5 %
     assert skipping["earthshine_method"] == "direct" and skipping["table_build_seconds"] == 0.0
