@@ -212,7 +212,8 @@ def test_automatic_choice(coarse, campaign):
 
 def test_automatic_choice_turns_at_the_build_cost(coarse):
     """auto takes the table exactly when the campaign's samples save more than it costs to
-    build, at the measured per-node and per-sample figures (components.LUT_*)."""
+    build (the sunlit table and the moonlit one), at the measured per-node and per-sample
+    figures (components.LUT_*, MOONLIT_LUT_*)."""
     from straylight import components as comp
 
     c, _, _ = coarse
@@ -225,7 +226,11 @@ def test_automatic_choice_turns_at_the_build_cost(coarse):
     # the coarse table's nodes (LUTSettings.nodes: 18 Sun zenith x 29 line-of-sight zenith x 10
     # azimuth) x 2 door states
     assert n_nodes == 18 * 29 * 10 * 2
-    turn = comp.LUT_BUILD_SECONDS_PER_NODE * n_nodes / comp.LUT_SAVED_SECONDS_PER_SAMPLE
+    # the moonlit table is built on the table path too: its nodes weigh in, at their own cost
+    moonlit_nodes = ComponentModel(loose).moonlit_node_states()
+    assert moonlit_nodes > 0
+    turn = (comp.LUT_BUILD_SECONDS_PER_NODE * n_nodes + comp.MOONLIT_LUT_BUILD_SECONDS_PER_NODE * moonlit_nodes
+            ) / comp.LUT_SAVED_SECONDS_PER_SAMPLE
     below = ComponentModel(loose, expected_samples=int(turn) - 1).earthshine_model
     above = ComponentModel(loose, expected_samples=int(turn) + 2).earthshine_model
     assert below["method"] == "direct" and "samples save" in below["reason"]
