@@ -38,7 +38,7 @@ import numpy as np
 
 from .door import door_state_index
 from .errors import InputError
-from .geometry import dot, norm, telescope_frame, unit, wrap_360_deg
+from .geometry import dot, norm, scene_runs, telescope_frame, unit, wrap_360_deg
 from .gridinterp import LinearGrid
 from .offfield import MOON_APOGEE_KM, MOON_MEAN_DISTANCE_KM, MOON_PERIGEE_KM
 
@@ -375,21 +375,27 @@ class EarthshineLUT:
         radius node), x 1.2 for the azimuth between nodes; infinite for a line of sight less
         than 1 deg above the limb or below it (there a grid block can sit next to the field
         edge, where the PST jumps, and no table bounds it)."""
-        sat = np.asarray(sat_km, float)
-        r = norm(sat)
-        up = sat / r[..., None]
-        zeta = np.degrees(np.arccos(np.clip(dot(up, unit(np.asarray(los, float))), -1, 1)))
-        z_moon = np.degrees(np.arccos(np.clip(dot(up, unit(np.asarray(moon_km, float))), -1, 1)))
+        sat, moon = np.asarray(sat_km, float), np.asarray(moon_km, float)
         table = self.moon_direct_bound.max(axis=0)  # (Z, L), the worst radius
 
         def neighbours(nodes, x):
             i = np.clip(np.searchsorted(nodes, x), 1, nodes.size - 1)
             return i - 1, i
 
-        zi0, zi1 = neighbours(self.sun_zenith_deg, z_moon)
+        def per_scene(sat, moon):  # the satellite's and the Moon's parts
+            r = norm(sat)
+            up = sat / r[..., None]
+            z_moon = np.degrees(np.arccos(np.clip(dot(up, unit(moon)), -1, 1)))
+            limb = 90.0 + np.degrees(np.arccos(np.clip(earth_radius_km / r, -1, 1)))
+            return (up, limb) + neighbours(self.sun_zenith_deg, z_moon)
+
+        # a cube time step shares the satellite and the Moon: their parts once per step
+        runs = scene_runs(sat, moon)
+        up, limb, zi0, zi1 = per_scene(sat, moon) if runs is None else \
+            (runs.expand(v) for v in per_scene(*runs.vectors))
+        zeta = np.degrees(np.arccos(np.clip(dot(up, unit(np.asarray(los, float))), -1, 1)))
         li0, li1 = neighbours(self.los_zenith_deg, zeta)
         b = np.maximum.reduce([table[zi0, li0], table[zi0, li1], table[zi1, li0], table[zi1, li1]])
-        limb = 90.0 + np.degrees(np.arccos(np.clip(earth_radius_km / r, -1, 1)))
         return np.where(zeta < limb - 1.0, 1.2 * b + self.moon_door_bound, np.inf)
 
     # -- storage --------------------------------------------------------------------------------

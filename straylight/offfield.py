@@ -199,7 +199,12 @@ class OffFieldModel:
         """The cap grid's nadir angles gamma and their widths (rad, (..., G)): packed towards
         the limb, where the Earth lies closest to an allowed line of sight and the terminator
         crosses it: gamma = rho sin(pi u / 2), u uniform."""
-        rho = np.arcsin(np.clip(earth_radius_km / norm(sat_km), 0, 1))
+        return OffFieldModel._cap_nadir_angles_at(norm(sat_km), earth_radius_km, s)
+
+    @staticmethod
+    def _cap_nadir_angles_at(radius_km, earth_radius_km, s: EarthshineSettings):
+        """:meth:`_cap_nadir_angles` of satellites at ``radius_km`` from the Earth's centre."""
+        rho = np.arcsin(np.clip(earth_radius_km / radius_km, 0, 1))
         u = (np.arange(s.n_gamma) + 0.5) / s.n_gamma
         gamma = rho[..., None] * np.sin(0.5 * np.pi * u)
         dgamma = rho[..., None] * 0.5 * np.pi * np.cos(0.5 * np.pi * u) / s.n_gamma
@@ -305,10 +310,12 @@ class OffFieldModel:
         fully lit (cos z = 1), at the PST's largest value outside the field, Sp = 1, times the
         grid's own solid angle (so the bound holds for the sum, not only for the integral)."""
         s = replace(self.earthshine, n_gamma=int(grid[0]), n_psi=int(grid[1]))
-        sat = np.asarray(sat_km, float)
-        gamma, dgamma = self._cap_nadir_angles(sat, earth_radius_km, s)
+        # it depends on the satellite's radius alone: once per distinct radius (a cube's time step)
+        radius, index = np.unique(norm(np.asarray(sat_km, float)), return_inverse=True)
+        gamma, dgamma = self._cap_nadir_angles_at(radius, earth_radius_km, s)
         cap_sr = 2.0 * np.pi * np.sum(np.sin(gamma) * dgamma, axis=-1)  # the grid's sum of d_omega
-        return self.earthshine.albedo / np.pi * self._pst_max_outside_field * cap_sr * self.pixel_area_m2
+        bound = self.earthshine.albedo / np.pi * self._pst_max_outside_field * cap_sr * self.pixel_area_m2
+        return bound[index.reshape(np.shape(sat_km)[:-1])]
 
     @cached_property
     def _pst_max_outside_field(self) -> float:
