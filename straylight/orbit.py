@@ -15,6 +15,7 @@ Both give ``position_gcrs_km(times) -> (..., 3)``.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -101,11 +102,15 @@ class CircularOrbit:
         """Nodal (draconic) period 2 pi / (du/dt), s."""
         return float(2 * np.pi / self.arg_latitude_rate_rad_s)
 
+    @cached_property
+    def _epoch_time(self):
+        """The epoch as an astropy Time, parsed once (a cube region asks for it once)."""
+        return parse_utc(self.epoch, "orbit.circular.epoch")
+
     def position_gcrs_km(self, times) -> np.ndarray:
         """Position (km, GCRS axes) for UTC times of any shape -> shape + (3,)."""
         t = parse_utc(times)
-        t0 = parse_utc(self.epoch, "orbit.circular.epoch")
-        dt_s = np.asarray((t - t0).to_value("s"), dtype=float)
+        dt_s = np.asarray((t - self._epoch_time).to_value("s"), dtype=float)
         raan = np.radians(self.raan_deg) + self.nodal_rate_rad_s * dt_s
         u = np.radians(self.arg_latitude_deg) + self.arg_latitude_rate_rad_s * dt_s
         inc = np.radians(self.inclination_deg)
