@@ -384,6 +384,7 @@ def cube_summary(catalog, time_step: int = 24, n_times: int = 12) -> dict:
             out[key] = {"samples_per_s_per_core": n_times * fp.pixels.size / dt}
             print(f"cube, earthshine {method}, unobservable samples {unobservable}: "
                   f"{out[key]['samples_per_s_per_core']:.0f} samples/s/core")
+        out["production_region"] = production_region_rates(base, fp, stars_path)
     obs = res["direct"]["observable"].values
     skipped = res["lut_observable_only"]["total"].values
     out["lut_observable_only"]["identical_at_observable"] = bool(
@@ -400,38 +401,31 @@ def cube_summary(catalog, time_step: int = 24, n_times: int = 12) -> dict:
     out["speedup_lut_over_direct"] = out["lut"]["samples_per_s_per_core"] / out["direct"]["samples_per_s_per_core"]
     out["auto_cost_model"] = auto_cost_model(lut_model, out)
     out["plan_cost_model"] = plan_cost_model(base, fp, t_slice, out)
-    out["production_region"] = production_region_rates(base, fp, catalog)
     print(f"cube: table path differs from the direct path by <= {out['lut_vs_direct_max_rel_error_observable']:.2e} "
           f"of the total at {out['observable_samples']} observable samples ({out['lut_vs_direct_max_rel_error_all']:.2e} at all)")
     return out
 
 
-def production_region_rates(base, fp, catalog) -> dict:
+def production_region_rates(base, fp, stars_path) -> dict:
     """The table path (every sample, and observable samples only) on the region one task of a
     production run computes (cube.run_time_block): one time block of consecutive steps
     (campaign.time_block_hours, 72 at the default 5-minute cadence) x one pixel block
-    (footprint.pixel_block_size, 1024), the day's first, stars included; samples per second on
-    one core, best of three after a warm-up.  The per-region costs (the bodies' ephemeris, the
-    faint-star map's tile) are then shared by 72 steps instead of the 12 spread over the day
-    above."""
-    import tempfile
-
-    from straylight.catalog import write_catalog
+    (footprint.pixel_block_size, 660 by default), the day's first, with the star catalog at
+    ``stars_path``; samples per second on one core, best of three after a warm-up.  The
+    per-region costs (the bodies' ephemeris, the faint-star map's tile) are then shared by 72
+    steps instead of the 12 spread over the day in :func:`cube_summary`."""
     from straylight.cube import compute_region, cube_chunks
 
     ch = cube_chunks(base, len(base.times), int(fp.pixels.size))
     t_slice, p_slice = slice(0, ch["time"]), slice(0, ch["pixel"])
     n = ch["time"] * ch["pixel"]
     out = {"times": int(ch["time"]), "pixels": int(ch["pixel"])}
-    with tempfile.TemporaryDirectory() as tmp:
-        stars_path = Path(tmp) / "stars.parquet"
-        write_catalog(catalog, stars_path, {})
-        for key, unobservable in (("lut", "evaluate"), ("lut_observable_only", "skip")):
-            c, model = _cube_model(base, earthshine={"method": "lut"}, models={"unobservable_samples": unobservable})
-            _, dt = timed(lambda: compute_region(c, fp, t_slice, p_slice, model=model, stars_path=stars_path))
-            out[key] = {"samples_per_s_per_core": n / dt}
-            print(f"cube, one production region ({out['times']} steps x {out['pixels']} pixels), unobservable samples "
-                  f"{unobservable}: {n / dt:.0f} samples/s/core")
+    for key, unobservable in (("lut", "evaluate"), ("lut_observable_only", "skip")):
+        c, model = _cube_model(base, earthshine={"method": "lut"}, models={"unobservable_samples": unobservable})
+        _, dt = timed(lambda: compute_region(c, fp, t_slice, p_slice, model=model, stars_path=stars_path))
+        out[key] = {"samples_per_s_per_core": n / dt}
+        print(f"cube, one production region ({out['times']} steps x {out['pixels']} pixels), unobservable samples "
+              f"{unobservable}: {n / dt:.0f} samples/s/core")
     return out
 
 

@@ -18,7 +18,7 @@ from .bandpass import load_band
 from .config import Campaign
 from .door import door_from_instrument
 from .ephemeris import PLANETS
-from .geometry import TelescopeFrame, body_geometry, dot, earth_blocks, norm, scene_runs, telescope_frame, unit
+from .geometry import TelescopeFrame, body_geometry, earth_blocks, norm, scene_runs, telescope_frame, unit
 from .offfield import (AU_KM, BandPhotometry, EarthshineSettings, OffFieldModel, magnitude_per_arcsec2,
                        moon_v_magnitude, planet_v_magnitude, solar_like_fraction)
 from .pst import load_pst
@@ -140,7 +140,7 @@ class ComponentModel:
                  faint_rates: dict | None = None, frame=None) -> dict:
         """Components for broadcastable samples; ``geometry`` from :func:`observing_geometry`
         (the Sun's and the Moon's entries and the limb's are read; each planet in ``bodies_km``
-        gets its angles here, only where it can count: :meth:`_planet_transfer`);
+        gets its angles here, only where it can count: :meth:`_planets_fraction`);
         ``faint_rates``: the faint stars' map at these lines of sight, band -> e-/s/pix (as
         :meth:`faint_star_rates` gives it), when already computed; ``frame``: the samples'
         ``telescope_frame(los, sun - satellite)``, when already computed."""
@@ -304,77 +304,55 @@ class ComponentModel:
 
     def _planets_fraction(self, sat, bodies_km, frame, door, bands, floor_ratio, shape) -> np.ndarray:
         """The planets in ``bodies_km`` together, per sample: the sum of each one's
-        :meth:`_planet_transfer` times its fraction of the Sun's irradiance at 1 AU.  Where the
-        samples come in runs that share a scene (a cube's time steps), each planet's magnitude
-        and direction are computed once per run, and one compiled pass finds every planet's
-        samples within its widest skip radius (:func:`_near_runs_kernel`)."""
+        :meth:`_planet_transfer` times its fraction of the Sun's irradiance at 1 AU.  Each
+        planet's magnitude and direction are computed once per run of samples that share a
+        scene (a cube's time step; else once per sample), and one compiled pass finds every
+        planet's samples within its widest skip radius (:func:`_near_runs_kernel`): the only
+        ones whose angles are computed (most planets, most of the time, reach no sample; the
+        angles' two arctangents are most of the geometry's cost)."""
         out = np.zeros(shape)
         planets = [p for p in PLANETS if p in bodies_km]
-        sun = bodies_km["sun"]
-        runs = scene_runs(sat, sun, *(bodies_km[p] for p in planets)) if planets else None
-        if runs is None:
-            for p in planets:
-                fraction = solar_like_fraction(planet_v_magnitude(p, bodies_km[p], sun, sat))
-                out = out + self._planet_transfer(fraction, sat, bodies_km[p], frame, door, bands, floor_ratio,
-                                                  shape) * fraction
+        if not planets or not out.size:
             return out
-        sat_run, sun_run = runs.vectors[0], runs.vectors[1]
-        fractions = [solar_like_fraction(planet_v_magnitude(p, runs.vectors[2 + i], sun_run, sat_run))
+        scene = (sat, bodies_km["sun"], *(bodies_km[p] for p in planets))
+        runs = scene_runs(*scene)
+        if runs is None:  # a scene per sample
+            vectors = tuple(np.broadcast_to(np.asarray(v, float), shape + (3,)).reshape(-1, 3) for v in scene)
+            index = np.arange(out.size)
+        else:
+            vectors, index = runs.vectors, runs.index
+        fractions = [solar_like_fraction(planet_v_magnitude(p, vectors[2 + i], vectors[1], vectors[0]))
                      for i, p in enumerate(planets)]  # per run
-        if not out.size:
-            return out
         min_floor = float(np.min(floor_ratio))
         widest = np.array([self._widest_skip_radius_deg(*self._skip_scale(f, bands), min_floor) for f in fractions])
-        # the margin as _planet_transfer's; a radius of 180 deg: every sample (any cosine > -inf)
+        # a margin of 1e-6 deg: the samples left out lie beyond the widest radius whatever the
+        # rounding, and the others get the per-sample rule; a radius of 180 deg: every sample
         cos_limit = np.where(widest < 180.0, np.cos(np.radians(widest + 1e-6)), -np.inf)
-        directions = np.ascontiguousarray(unit(np.stack(runs.vectors[2:]) - sat_run))  # (planets, runs, 3)
+        directions = np.ascontiguousarray(unit(np.stack(vectors[2:]) - vectors[0]))  # (planets, runs, 3)
         fz = np.ascontiguousarray(np.broadcast_to(frame.z, shape + (3,)).reshape(-1, 3), dtype=float)
-        near = _near_runs_kernel(fz, directions, np.ascontiguousarray(runs.index, dtype=np.intp), cos_limit)
+        near = _near_runs_kernel(fz, directions, np.ascontiguousarray(index, dtype=np.intp), cos_limit)
         for i, p in enumerate(planets):
             near_i = np.flatnonzero(near[i])
             if near_i.size:
-                fraction = runs.expand(fractions[i])
+                fraction = fractions[i][index].reshape(shape)
                 out = out + self._planet_transfer(fraction, sat, bodies_km[p], frame, door, bands, floor_ratio, shape,
-                                                  (runs, 2 + i), near_i) * fraction
+                                                  near_i) * fraction
         return out
 
     def _planet_transfer(self, sun_fraction, satellite_km, planet_km, frame, door, bands, floor_ratio, shape,
-                         run=None, near=None) -> np.ndarray:
-        """:meth:`_skippable_transfer` of a planet, its angles computed (:func:`body_geometry`)
-        only at the samples within the widest skip radius: a cosine per sample finds them (most
-        planets, most of the time, reach no sample; the angles' two arctangents are most of the
-        geometry's cost).  ``run``: (:func:`scene_runs` of the samples, the planet's index in
-        its vectors), for one direction per time step instead of one per sample; ``near``: those
-        samples' flat indices when already found (:meth:`_planets_fraction`)."""
-        rel, budget = self._skip_scale(sun_fraction, bands)
-        n = int(np.prod(shape))
+                         near) -> np.ndarray:
+        """:meth:`_skippable_transfer` of a planet at the samples ``near`` (flat indices: those
+        :meth:`_planets_fraction` finds within its widest skip radius), its angles
+        (:func:`body_geometry`) computed there only; 0 elsewhere."""
         full = shape + (3,)
-        fz = np.broadcast_to(frame.z, full).reshape(-1, 3)
-        sat = np.broadcast_to(np.asarray(satellite_km, float), full).reshape(-1, 3)
-        planet = np.broadcast_to(np.asarray(planet_km, float), full).reshape(-1, 3)
-        if near is None:
-            widest = self._widest_skip_radius_deg(rel, budget, floor_ratio) if n else 180.0
-            if widest < 180.0:
-                if run is None:
-                    cos_angle = dot(fz, unit(planet - sat))
-                else:
-                    runs, i = run
-                    cos_angle = dot(fz, unit(runs.vectors[i] - runs.vectors[0])[runs.index])
-                # a margin of 1e-6 deg: the samples left out lie beyond the widest radius whatever
-                # the rounding, and the others get the per-sample rule below
-                near = np.flatnonzero(cos_angle > np.cos(np.radians(widest + 1e-6)))
-            else:
-                near = np.arange(n)
-        out = np.zeros(n)
-        if near.size:
-            g = body_geometry(sat[near], {"planet": planet[near]},
-                              TelescopeFrame(*(np.broadcast_to(a, full).reshape(-1, 3)[near]
-                                               for a in (frame.x, frame.y, frame.z))),
-                              self.campaign.earth.radius_km)
-            fraction_near, door_near, floor_near = (np.broadcast_to(np.asarray(v, float), shape).ravel()[near]
-                                                    for v in (sun_fraction, door, floor_ratio))
-            out[near] = self._skippable_transfer(fraction_near, g["planet_angle_deg"], g["planet_phi_deg"],
-                                                 g["planet_earth_blocked"], door_near, bands, floor_near)
+        out = np.zeros(int(np.prod(shape)))
+        sat, planet, fx, fy, fz = (np.broadcast_to(np.asarray(v, float), full).reshape(-1, 3)[near]
+                                   for v in (satellite_km, planet_km, frame.x, frame.y, frame.z))
+        g = body_geometry(sat, {"planet": planet}, TelescopeFrame(fx, fy, fz), self.campaign.earth.radius_km)
+        fraction_near, door_near, floor_near = (np.broadcast_to(np.asarray(v, float), shape).ravel()[near]
+                                                for v in (sun_fraction, door, floor_ratio))
+        out[near] = self._skippable_transfer(fraction_near, g["planet_angle_deg"], g["planet_phi_deg"],
+                                             g["planet_earth_blocked"], door_near, bands, floor_near)
         return out.reshape(shape)
 
     def lut_node_states(self, settings) -> int:

@@ -333,7 +333,7 @@ def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: s
         sat = np.repeat(sc.satellite_km[steps], npix, axis=0)
         los_k = np.broadcast_to(los[None], (k,) + los.shape).reshape(-1, 3)
         # the constraints need the Sun's and the Moon's angles only; the background finds the
-        # planets' where they can matter (ComponentModel._planet_transfer)
+        # planets' where they can matter (ComponentModel._planets_fraction)
         bodies = {b: np.repeat(sc.bodies_km[b][steps], npix, axis=0)
                   for b in (("sun", "moon") if skip_unobservable else sc.bodies_km)}
         frame = telescope_frame(los_k, bodies["sun"] - sat)  # once for the geometry and the background

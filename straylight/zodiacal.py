@@ -31,6 +31,7 @@ from importlib import resources
 from pathlib import Path
 
 import numpy as np
+
 from .bandpass import Band
 from .errors import ConfigError
 from .gridinterp import LinearGrid
@@ -52,24 +53,26 @@ def icrs_to_ecliptic_matrix() -> np.ndarray:
     return np.array([[1.0, 0.0, 0.0], [0.0, ce, se], [0.0, -se, ce]])
 
 
+def _ecliptic_lon_lat_deg(vectors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Ecliptic longitude in (-180, 180] and latitude (deg) of ICRS vectors (..., 3)."""
+    e = np.asarray(vectors, dtype=float) @ icrs_to_ecliptic_matrix().T
+    return (np.degrees(np.arctan2(e[..., 1], e[..., 0])),
+            np.degrees(np.arctan2(e[..., 2], np.hypot(e[..., 0], e[..., 1]))))
+
+
 def ecliptic_lon_lat_deg(vectors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Ecliptic longitude [0, 360) and latitude (deg) of ICRS vectors (..., 3)."""
-    e = np.einsum("ij,...j->...i", icrs_to_ecliptic_matrix(), np.asarray(vectors, dtype=float))
-    lon = np.degrees(np.arctan2(e[..., 1], e[..., 0])) % 360.0
-    lat = np.degrees(np.arctan2(e[..., 2], np.hypot(e[..., 0], e[..., 1])))
-    return lon, lat
+    lon, lat = _ecliptic_lon_lat_deg(vectors)
+    return lon % 360.0, lat
 
 
 def helioecliptic_coordinates(los: np.ndarray, sun_direction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(|lambda - lambda_sun| in [0, 180], |beta| in [0, 90]) for lines of sight, deg (the
-    longitudes as :func:`ecliptic_lon_lat_deg`'s, their difference folded without a modulo)."""
-    m = icrs_to_ecliptic_matrix().T
-    e = np.asarray(los, dtype=float) @ m
-    s = np.asarray(sun_direction, dtype=float) @ m
-    d = np.abs(np.degrees(np.arctan2(e[..., 1], e[..., 0])) - np.degrees(np.arctan2(s[..., 1], s[..., 0])))
-    dlon = np.where(d > 180.0, 360.0 - d, d)  # d in [0, 360]: the angle between the longitudes
-    lat = np.degrees(np.arctan2(e[..., 2], np.hypot(e[..., 0], e[..., 1])))
-    return dlon, np.abs(lat)
+    """(|lambda - lambda_sun| in [0, 180], |beta| in [0, 90]) for lines of sight, deg (their
+    longitudes' difference folded without a modulo)."""
+    lon, lat = _ecliptic_lon_lat_deg(los)
+    lon_sun, _ = _ecliptic_lon_lat_deg(sun_direction)
+    d = np.abs(lon - lon_sun)
+    return np.where(d > 180.0, 360.0 - d, d), np.abs(lat)  # d in [0, 360]: the angle between them
 
 
 @dataclass(frozen=True)

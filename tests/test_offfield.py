@@ -459,10 +459,11 @@ def test_skipping_a_source_for_a_whole_batch_is_the_per_sample_rule(comp_model):
 
 def test_planet_angles_only_where_they_can_count_change_no_transfer(campaign, comp_model):
     """The planets' angles are computed only at the samples within the batch's widest skip radius
-    (a cosine per sample finds them): the transfer is, sample by sample, exactly the per-sample
-    rule on every sample's angles (geometry.body_geometry everywhere), for Venus 0.7-170 deg from
-    the lines of sight, in a batch of two shared scenes (a cube's time steps) and in one with a
-    scene per sample, at the darkest floor and at varied floors."""
+    (ComponentModel._planets_fraction: a cosine per sample finds them): the planets' term is,
+    sample by sample, exactly the per-sample rule on every sample's angles (geometry.body_geometry
+    everywhere), for Venus 0.7-170 deg from the lines of sight, in a batch of two shared scenes (a
+    cube's time steps) and in one with a scene per sample, at the darkest floor and at varied
+    floors."""
     from straylight.geometry import body_geometry, scene_runs
 
     rng = np.random.default_rng(12)
@@ -478,10 +479,10 @@ def test_planet_angles_only_where_they_can_count_change_no_transfer(campaign, co
     los = np.cos(a) * u + np.sin(a) * perp
     sun = np.broadcast_to(np.array([0.0, 0.0, AU]), (n, 3))
     door = np.where(rng.random(n) < 0.5, 135.0, 105.0)
-    frac = np.full(n, solar_like_fraction(-4.0))
     for per_sample_scene in (False, True):
         sat = sat_steps[step] + (rng.normal(size=(n, 3)) if per_sample_scene else 0.0)
         venus = venus_steps[step]
+        frac = solar_like_fraction(planet_v_magnitude("venus", venus, sun, sat))
         frame = telescope_frame(los, sun - sat)
         g = body_geometry(sat, {"venus": venus}, frame, RE)
         runs = scene_runs(sat, sun, venus)
@@ -489,9 +490,9 @@ def test_planet_angles_only_where_they_can_count_change_no_transfer(campaign, co
         for floor in (np.ones(n), 10.0 ** rng.uniform(0.0, 4.0, n)):
             rule = comp_model._skippable_transfer(frac, g["venus_angle_deg"], g["venus_phi_deg"],
                                                   g["venus_earth_blocked"], door, ["g", "z"], floor_ratio=floor)
-            lazy = comp_model._planet_transfer(frac, sat, venus, frame, door, ["g", "z"], floor, (n,),
-                                               None if runs is None else (runs, 2))
-            assert np.array_equal(lazy, rule)
+            lazy = comp_model._planets_fraction(sat, {"sun": sun, "venus": venus}, frame, door, ["g", "z"], floor,
+                                                (n,))
+            assert np.array_equal(lazy, rule * frac)
             assert 0 < np.count_nonzero(rule) < n  # some samples near enough to count, some not
 
 
