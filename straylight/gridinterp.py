@@ -10,6 +10,12 @@ look-up and one comparison (on an evenly spaced axis, one multiplication).  The 
 compiled (numba, :func:`_interpolate`): one pass per point instead of numpy's pass per
 operation, 4-5x faster on a table of four axes (80 instead of 440 ns a point, two channels,
 15,840 points), the same numbers bit for bit (the cube's totals compared array to array).
+On two to four axes the corners are then combined as nested linear steps written out, not a
+loop over corners: inside a cube batch (15,840 samples) the sunlit table's look-ups take 1.1
+instead of 1.9 ms, the moonlit table's 0.9 instead of 1.25 ms, the zodiacal light's 0.3
+instead of 0.5 ms, the batch 24.2 instead of 26.1 ms (interleaved runs); the values differ from the corner
+sum's by rounding (~1e-15 on values of order 1) and the cube's float32 totals not at all
+(the 12 x 1320 batch, array to array).
 
 Points outside the grid are clipped to its edges (callers clip or wrap before: theta 0-180,
 phi periodic).  NaN inputs give NaN.
@@ -22,17 +28,20 @@ from numba import njit
 
 @njit(cache=True, nogil=True)
 def _interpolate(points, lo, hi, uniform, inv_width, n_bins, bin_cell, nodes, n_nodes, inv_step, strides, flat,
-                 channel, unrolled, out):
+                 channel, out):
     """:meth:`LinearGrid.__call__` on ``points`` (ndim, N) into ``out`` (N, channels out), from
     the axes packed by :class:`LinearGrid`.  Each point is clipped to the grid and its cell found
     per axis (:class:`_Axis`); on an evenly spaced axis the cell can be one off the exact one
     only where the point lies within rounding of a node, and t is then ~1 in the cell below
     (or ~0 just below the node): the same value to rounding (1e-15; tests/test_gridinterp.py).
-    Then the corner sum, corner bit k the upper node of axis k.  ``channel``: per point, the
-    group of ``out.shape[1]`` consecutive channels it takes, or empty for all channels;
-    ``unrolled``: the two-axis bilinear formula."""
+    Then the cell's corners: on two, three and four axes written out as nested linear steps,
+    the last axis first (the cube's PST, door, zodiacal and earthshine tables: 2.1x faster than
+    the general loop over corners on the sunlit table, which stays for other dimensions).
+    ``channel``: per point, the group of ``out.shape[1]`` consecutive channels it takes, or
+    empty for all channels."""
     n_dim, n_points = points.shape
-    frac = np.empty(n_dim)
+    frac = np.empty(max(n_dim, 4))
+    n_out = out.shape[1]
     for p in range(n_points):
         base = 0
         missing = False
@@ -54,30 +63,56 @@ def _interpolate(points, lo, hi, uniform, inv_width, n_bins, bin_cell, nodes, n_
         if missing:
             out[p, :] = np.nan
             continue
-        if channel.size:
-            first_channel, n_out = channel[p] * out.shape[1], out.shape[1]
+        first = channel[p] * n_out if channel.size else 0
+        if n_dim == 2:
+            s0, s1, t0, t1 = strides[0], strides[1], frac[0], frac[1]
+            for j in range(n_out):
+                ch = first + j
+                out[p, j] = ((flat[base, ch] * (1 - t1) + flat[base + s1, ch] * t1) * (1 - t0)
+                             + (flat[base + s0, ch] * (1 - t1) + flat[base + s0 + s1, ch] * t1) * t0)
+        elif n_dim == 3:
+            s0, s1, s2, t0, t1, t2 = strides[0], strides[1], strides[2], frac[0], frac[1], frac[2]
+            for j in range(n_out):
+                ch = first + j
+                b = base
+                v00 = flat[b, ch] * (1 - t2) + flat[b + s2, ch] * t2
+                v01 = flat[b + s1, ch] * (1 - t2) + flat[b + s1 + s2, ch] * t2
+                b = base + s0
+                v10 = flat[b, ch] * (1 - t2) + flat[b + s2, ch] * t2
+                v11 = flat[b + s1, ch] * (1 - t2) + flat[b + s1 + s2, ch] * t2
+                out[p, j] = (v00 * (1 - t1) + v01 * t1) * (1 - t0) + (v10 * (1 - t1) + v11 * t1) * t0
+        elif n_dim == 4:
+            s0, s1, s2, s3 = strides[0], strides[1], strides[2], strides[3]
+            t0, t1, t2, t3 = frac[0], frac[1], frac[2], frac[3]
+            for j in range(n_out):
+                ch = first + j
+                b = base  # the first axis' lower node
+                v00 = flat[b, ch] * (1 - t3) + flat[b + s3, ch] * t3
+                v01 = flat[b + s2, ch] * (1 - t3) + flat[b + s2 + s3, ch] * t3
+                v10 = flat[b + s1, ch] * (1 - t3) + flat[b + s1 + s3, ch] * t3
+                v11 = flat[b + s1 + s2, ch] * (1 - t3) + flat[b + s1 + s2 + s3, ch] * t3
+                lower = (v00 * (1 - t2) + v01 * t2) * (1 - t1) + (v10 * (1 - t2) + v11 * t2) * t1
+                b = base + s0  # its upper node
+                v00 = flat[b, ch] * (1 - t3) + flat[b + s3, ch] * t3
+                v01 = flat[b + s2, ch] * (1 - t3) + flat[b + s2 + s3, ch] * t3
+                v10 = flat[b + s1, ch] * (1 - t3) + flat[b + s1 + s3, ch] * t3
+                v11 = flat[b + s1 + s2, ch] * (1 - t3) + flat[b + s1 + s2 + s3, ch] * t3
+                upper = (v00 * (1 - t2) + v01 * t2) * (1 - t1) + (v10 * (1 - t2) + v11 * t2) * t1
+                out[p, j] = lower * (1 - t0) + upper * t0
         else:
-            first_channel, n_out = 0, out.shape[1]
-        if unrolled:
-            s, c, tx, ty = strides[0], strides[1], frac[0], frac[1]
             for j in range(n_out):
-                ch = first_channel + j
-                out[p, j] = ((flat[base, ch] * (1 - ty) + flat[base + c, ch] * ty) * (1 - tx)
-                             + (flat[base + s, ch] * (1 - ty) + flat[base + s + c, ch] * ty) * tx)
-            continue
-        for j in range(n_out):
-            out[p, j] = 0.0
-        for corner in range(1 << n_dim):  # bit k: the upper node of axis k
-            w = 1.0
-            offset = 0
-            for k in range(n_dim):
-                if (corner >> k) & 1:
-                    w *= frac[k]
-                    offset += strides[k]
-                else:
-                    w *= 1 - frac[k]
-            for j in range(n_out):
-                out[p, j] += w * flat[base + offset, first_channel + j]
+                out[p, j] = 0.0
+            for corner in range(1 << n_dim):  # bit k: the upper node of axis k
+                wc = 1.0
+                offset = 0
+                for k in range(n_dim):
+                    if (corner >> k) & 1:
+                        wc *= frac[k]
+                        offset += strides[k]
+                    else:
+                        wc *= 1 - frac[k]
+                for j in range(n_out):
+                    out[p, j] += wc * flat[base + offset, first + j]
 
 
 class _Axis:
@@ -162,10 +197,8 @@ class LinearGrid:
             ch = np.zeros(0, np.intp)
             out = np.empty((points.shape[1], flat.shape[1]))
         uniform = np.array([ax.uniform for ax in self.axes])
-        # the PST and the door (two axes, one value per point): the unrolled bilinear formula
-        unrolled = len(self.axes) == 2 and (channel is not None or not self._trailing)
         _interpolate(points, self._lo, self._hi, uniform, self._inv_width, self._n_bins, self._bin_cell,
-                     self._nodes, self._n_nodes, self._inv_step, self._strides_arr, flat, ch, unrolled, out)
+                     self._nodes, self._n_nodes, self._inv_step, self._strides_arr, flat, ch, out)
         if self._trailing and channel is None:
             return out.reshape(shape + self._trailing)
         return out.reshape(shape + ((group,) if group > 1 else ()))
