@@ -22,6 +22,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from .errors import InputError
 
@@ -151,55 +152,106 @@ def limb_geometry(
     modelled).  When the satellite is below the surface, InputError.
     """
     r = np.asarray(satellite_km, dtype=float)
-    los = unit(np.asarray(los, dtype=float))
+    los = np.asarray(los, dtype=float)
     r, los, sun = np.broadcast_arrays(r, los, np.asarray(sun_km, dtype=float))
+    shape = los.shape[:-1]
     # what depends on the satellite and the Sun alone, once per run of samples that share them
     # (a survey cube's time step)
     runs = scene_runs(r, sun)
-    per_scene = _limb_scene(r, sun, earth_radius_km) if runs is None else \
-        tuple(runs.expand(v) for v in _limb_scene(*runs.vectors, earth_radius_km))
-    nadir, rho, tangent_len, cr, sr, a_term = per_scene
-    los_x_nadir = np.cross(los, nadir)
-    sin_gamma = norm(los_x_nadir)
-    gamma_deg = np.degrees(np.arctan2(sin_gamma, dot(los, nadir)))  # angle_between_deg(los, nadir)
-    limb_angle = gamma_deg - np.degrees(rho)
-    zenith = 180.0 - gamma_deg
-
-    e1 = perpendicular_towards(nadir, np.where((sin_gamma > 1e-12)[..., None], los, sun))
-    e2 = np.cross(nadir, e1)
-    s1, s2 = dot(e1, sun), dot(e2, sun)
-    b_term = tangent_len * sr * np.hypot(s1, s2)
-    psi_sun = np.arctan2(s2, s1)
-    lit_nearest = a_term + b_term * np.cos(psi_sun) > 0.0
-
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        c = np.where(b_term > 0, -a_term / np.where(b_term > 0, b_term, 1.0), np.sign(-a_term) * 2.0)
-    all_lit = c <= -1.0
-    none_lit = c >= 1.0
-    half_width = np.arccos(np.clip(c, -1.0, 1.0))
-    # the two terminator points on the limb, as |psi| from the LOS side, wrapped to [0, pi]
-    def wrapped(psi):
-        return np.abs((psi + np.pi) % (2 * np.pi) - np.pi)
-
-    psi_end = np.minimum(wrapped(psi_sun - half_width), wrapped(psi_sun + half_width))
-
-    g = np.radians(gamma_deg)
-
-    def angle_to_limb_point(psi):
-        cosang = cr * np.cos(g) + sr * np.sin(g) * np.cos(psi)
-        return np.degrees(np.arccos(np.clip(cosang, -1.0, 1.0)))
-
-    nearest = np.abs(limb_angle)
-    to_end = angle_to_limb_point(psi_end)
-    bright = np.where(lit_nearest, nearest, np.where(none_lit, 180.0, to_end))
-    dark = np.where(~lit_nearest, nearest, np.where(all_lit, 180.0, to_end))
+    if runs is None:
+        scene_sun, index = sun.reshape(-1, 3), np.arange(int(np.prod(shape)))
+        per_scene = _limb_scene(r.reshape(-1, 3), scene_sun, earth_radius_km)
+    else:
+        scene_sun, index = runs.vectors[1], runs.index
+        per_scene = _limb_scene(runs.vectors[0], scene_sun, earth_radius_km)
+    out = np.empty((5, index.size))
+    _limb_kernel(np.ascontiguousarray(los.reshape(-1, 3)), index, np.ascontiguousarray(scene_sun),
+                 *(np.ascontiguousarray(v) for v in per_scene), out)
     return LimbGeometry(
-        earth_limb_angle_deg=limb_angle,
-        zenith_angle_deg=zenith,
-        limb_is_bright=lit_nearest,
-        bright_limb_angle_deg=bright,
-        dark_limb_angle_deg=dark,
+        earth_limb_angle_deg=out[0].reshape(shape),
+        zenith_angle_deg=out[1].reshape(shape),
+        limb_is_bright=(out[2] > 0.0).reshape(shape),
+        bright_limb_angle_deg=out[3].reshape(shape),
+        dark_limb_angle_deg=out[4].reshape(shape),
     )
+
+
+@njit(cache=True, nogil=True)
+def _limb_kernel(los, index, sun, nadir, rho, tangent_len, cr, sr, a_term, out):
+    """:func:`limb_geometry` per sample: ``los`` (N, 3) lines of sight (any length; zero or NaN
+    ones count as zero vectors, as :func:`unit` makes them), ``index`` (N,) each sample's row of
+    the scene quantities (:func:`_limb_scene`, and the geocentric ``sun``, km).  ``out`` (5, N):
+    limb angle, zenith angle, nearest limb point lit (1/0), bright and dark limb angles (deg).
+
+    One pass per sample with two transcendental calls (the angle from nadir, the angle to the
+    arc's end) where the vectorised form took nine: the azimuth psi_s of the Sun about nadir
+    enters only through cos and |sin| (s1 / h, |s2| / h), and the nearer terminator point,
+    min over +- of |psi_s +- w| wrapped to [0, pi], has cos(psi_s) cos(w) + |sin(psi_s)| sin(w)
+    with cos(w) = -A / B."""
+    deg = 180.0 / np.pi
+    for p in range(los.shape[0]):
+        q = index[p]
+        lx, ly, lz = los[p, 0], los[p, 1], los[p, 2]
+        ln = np.sqrt(lx * lx + ly * ly + lz * lz)
+        if ln > 0.0:
+            lx, ly, lz = lx / ln, ly / ln, lz / ln
+        else:
+            lx, ly, lz = 0.0, 0.0, 0.0
+        nx, ny, nz = nadir[q, 0], nadir[q, 1], nadir[q, 2]
+        cx, cy, cz = ly * nz - lz * ny, lz * nx - lx * nz, lx * ny - ly * nx
+        sin_g = np.sqrt(cx * cx + cy * cy + cz * cz)
+        cos_g = lx * nx + ly * ny + lz * nz
+        gamma = np.arctan2(sin_g, cos_g)
+        gamma_deg = gamma * deg
+        limb_deg = gamma_deg - rho[q] * deg
+        # the limb's azimuth origin: towards the line of sight, or the Sun where the line of
+        # sight is along the vertical, or a fixed perpendicular where that too is (perpendicular_towards)
+        sx, sy, sz = sun[q, 0], sun[q, 1], sun[q, 2]
+        if sin_g > 1e-12:
+            tx, ty, tz = lx, ly, lz
+        else:
+            sn = np.sqrt(sx * sx + sy * sy + sz * sz)
+            tx, ty, tz = (sx / sn, sy / sn, sz / sn) if sn > 0.0 else (0.0, 0.0, 0.0)
+        tn = tx * nx + ty * ny + tz * nz
+        px, py, pz = tx - tn * nx, ty - tn * ny, tz - tn * nz
+        pn = np.sqrt(px * px + py * py + pz * pz)
+        if not pn > 1e-9:  # _any_perpendicular: celestial north projected, else +X projected
+            px, py, pz = -nz * nx, -nz * ny, 1.0 - nz * nz
+            pn = np.sqrt(px * px + py * py + pz * pz)
+            if pn < 1e-6:
+                px, py, pz = 1.0 - nx * nx, -nx * ny, -nx * nz
+                pn = np.sqrt(px * px + py * py + pz * pz)
+        e1x, e1y, e1z = px / pn, py / pn, pz / pn
+        e2x, e2y, e2z = ny * e1z - nz * e1y, nz * e1x - nx * e1z, nx * e1y - ny * e1x
+        s1 = e1x * sx + e1y * sy + e1z * sz
+        s2 = e2x * sx + e2y * sy + e2z * sz
+        h = np.sqrt(s1 * s1 + s2 * s2)
+        cos_psi, sin_psi_abs = (s1 / h, abs(s2) / h) if h > 0.0 else (1.0, 0.0)
+        a = a_term[q]
+        b = tangent_len[q] * sr[q] * h
+        lit = a + b * cos_psi > 0.0
+        if b > 0.0:
+            c = -a / b
+        elif a < 0.0:
+            c = 2.0
+        elif a > 0.0:
+            c = -2.0
+        elif a == 0.0:
+            c = 0.0
+        else:
+            c = np.nan
+        cc = min(max(c, -1.0), 1.0)
+        cos_end = cos_psi * cc + sin_psi_abs * np.sqrt(1.0 - cc * cc)
+        # cos and sin of gamma from its own arctangent's arguments (a zero line of sight: gamma 0)
+        gn = np.sqrt(sin_g * sin_g + cos_g * cos_g)
+        cg, sg = (cos_g / gn, sin_g / gn) if gn > 0.0 else (1.0, 0.0)
+        to_end = np.arccos(min(max(cr[q] * cg + sr[q] * sg * cos_end, -1.0), 1.0)) * deg
+        nearest = abs(limb_deg)
+        out[0, p] = limb_deg
+        out[1, p] = 180.0 - gamma_deg
+        out[2, p] = 1.0 if lit else 0.0
+        out[3, p] = nearest if lit else (180.0 if c >= 1.0 else to_end)
+        out[4, p] = (180.0 if c <= -1.0 else to_end) if lit else nearest
 
 
 def _limb_scene(r, sun, earth_radius_km):
