@@ -35,10 +35,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from numba import njit
 
 from .door import door_state_index
 from .errors import InputError
-from .geometry import dot, norm, scene_runs, telescope_frame, unit, wrap_360_deg
+from .geometry import dot, norm, scene_runs, telescope_frame, unit
 from .gridinterp import LinearGrid
 from .offfield import MOON_APOGEE_KM, MOON_MEAN_DISTANCE_KM, MOON_PERIGEE_KM
 
@@ -165,14 +166,77 @@ def _cached(prefix: str, key: str, what: str, load, build, log):
     return lut, path
 
 
-def _zenith_azimuth(up, lamp, los):
-    """(lamp zenith angle, line-of-sight zenith angle, line-of-sight azimuth from the lamp's
-    about the vertical, signed, -180 to 180), deg, of unit vectors ``up``, ``lamp``, ``los``."""
-    z_lamp = np.degrees(np.arccos(np.clip(dot(up, lamp), -1.0, 1.0)))
-    zeta = np.degrees(np.arccos(np.clip(dot(up, los), -1.0, 1.0)))
-    lamp_h = lamp - dot(lamp, up)[..., None] * up  # horizontal parts
-    los_h = los - dot(los, up)[..., None] * up
-    return z_lamp, zeta, np.degrees(np.arctan2(dot(np.cross(lamp_h, los_h), up), dot(lamp_h, los_h)))
+def _lamp_coordinates(sat_km, lamp_km, los, symmetric: bool, frame_xy=None):
+    """The tables' coordinates of samples: (radius km, the lamp's zenith angle, the line of
+    sight's zenith angle, its azimuth from the lamp's about the vertical, and with ``frame_xy``
+    (the telescope frame's x and y axes, (..., 3)) the roll), deg, arrays of the samples' shape.
+    ``lamp_km``: the geocentric Sun or Moon.  The azimuth is folded to [0, 180] when
+    ``symmetric`` (the instrument mirror-symmetric about the lamp's vertical plane; the roll then
+    changes sign with it), else wrapped to [0, 360); the roll is wrapped to [0, 360).
+
+    The satellite's and the lamp's parts (the vertical, the lamp's zenith angle, its horizontal
+    direction) once per run of samples that share them (a cube's time step), the rest in one
+    compiled pass per sample (:func:`_los_coordinates_kernel`)."""
+    sat, lamp, los = np.broadcast_arrays(np.asarray(sat_km, float), np.asarray(lamp_km, float),
+                                         np.asarray(los, float))
+    shape = los.shape[:-1]
+    runs = scene_runs(sat, lamp)
+    if runs is None:
+        sat_r, lamp_r, index = sat.reshape(-1, 3), lamp.reshape(-1, 3), np.arange(int(np.prod(shape)))
+    else:
+        (sat_r, lamp_r), index = runs.vectors, runs.index
+    r = norm(sat_r)
+    up = unit(sat_r)
+    lamp_u = unit(lamp_r)
+    z_lamp = np.degrees(np.arccos(np.clip(dot(up, lamp_u), -1.0, 1.0)))
+    lamp_h = lamp_u - dot(lamp_u, up)[:, None] * up  # its horizontal part
+    with_roll = frame_xy is not None
+    out = np.empty((3 if with_roll else 2, index.size))
+    xy = [np.ascontiguousarray(np.broadcast_to(a, shape + (3,)).reshape(-1, 3), dtype=float)
+          for a in frame_xy] if with_roll else [np.zeros((0, 3))] * 2
+    _los_coordinates_kernel(np.ascontiguousarray(los.reshape(-1, 3)), *xy, np.ascontiguousarray(index, dtype=np.intp),
+                            np.ascontiguousarray(up), np.ascontiguousarray(lamp_h),
+                            np.ascontiguousarray(np.cross(up, lamp_h)), symmetric, out)
+    return (r[index].reshape(shape), z_lamp[index].reshape(shape)) + tuple(v.reshape(shape) for v in out)
+
+
+@njit(cache=True, nogil=True)
+def _los_coordinates_kernel(los, x, y, index, up, lamp_h, up_x_lamp_h, symmetric, out):
+    """:func:`_lamp_coordinates` per sample into ``out`` (2 or 3, N): the line of sight's zenith
+    angle, its azimuth atan2(los . (up x h), los . h) from the lamp's horizontal direction h
+    (= atan2((h x los_h) . up, h . los_h), los_h the line of sight's horizontal part), and,
+    where ``x`` and ``y`` are given, the roll: the angle from the upward direction in the line
+    of sight's vertical plane (up projected across the line of sight) to the frame's x axis
+    about the line of sight, atan2(-up_ref . y, up_ref . x); along the vertical, where up_ref
+    vanishes, celestial north projected (else +X: geometry.perpendicular_towards).  Lines of
+    sight of any length (normalised here)."""
+    deg = 180.0 / np.pi
+    roll = x.shape[0] > 0
+    for p in range(los.shape[0]):
+        q = index[p]
+        lx, ly, lz = los[p, 0], los[p, 1], los[p, 2]
+        ln = np.sqrt(lx * lx + ly * ly + lz * lz)
+        if ln > 0.0:
+            lx, ly, lz = lx / ln, ly / ln, lz / ln
+        ux, uy, uz = up[q, 0], up[q, 1], up[q, 2]
+        c = lx * ux + ly * uy + lz * uz
+        out[0, p] = np.arccos(min(max(c, -1.0), 1.0)) * deg
+        a = np.arctan2(lx * up_x_lamp_h[q, 0] + ly * up_x_lamp_h[q, 1] + lz * up_x_lamp_h[q, 2],
+                       lx * lamp_h[q, 0] + ly * lamp_h[q, 1] + lz * lamp_h[q, 2]) * deg
+        if roll:
+            px, py, pz = ux - c * lx, uy - c * ly, uz - c * lz
+            if not np.sqrt(px * px + py * py + pz * pz) > 1e-9:
+                px, py, pz = -lz * lx, -lz * ly, 1.0 - lz * lz
+                if np.sqrt(px * px + py * py + pz * pz) < 1e-6:
+                    px, py, pz = 1.0 - lx * lx, -lx * ly, -lx * lz
+            r = np.arctan2(-(px * y[p, 0] + py * y[p, 1] + pz * y[p, 2]), px * x[p, 0] + py * x[p, 1] + pz * x[p, 2]) * deg
+            if symmetric and a < 0.0:  # the mirror image about the lamp's vertical plane: (A, roll) -> (-A, -roll)
+                r = -r
+            out[2, p] = r + 360.0 if r < 0.0 else r
+        if symmetric:
+            out[1, p] = abs(a)
+        else:
+            out[1, p] = a + 360.0 if a < 0.0 else a
 
 
 def _local_scene(R, Z, L, A):
@@ -352,12 +416,7 @@ class EarthshineLUT:
 
     def coordinates(self, sat_km, sun_km, los):
         """(r, z_sun, zeta, A) of samples; arrays of the samples' shape."""
-        sat = np.asarray(sat_km, float)
-        r = norm(sat)
-        up = sat / r[..., None]
-        z_sun, zeta, a = _zenith_azimuth(up, unit(np.asarray(sun_km, float)), unit(np.asarray(los, float)))
-        a = np.abs(a) if self.symmetric else wrap_360_deg(a)
-        return r, z_sun, zeta, a
+        return _lamp_coordinates(sat_km, sun_km, los, self.symmetric)
 
     def sun_coefficients(self, sat_km, sun_km, los, opening_deg):
         """(direct_sun, door_sun) per unit solar irradiance, excluding the in-field term."""
@@ -606,20 +665,7 @@ class MoonlitLUT:
 
     def coordinates(self, sat_km, moon_km, frame):
         """(Moon zenith, line-of-sight zenith, azimuth from the Moon, roll) of samples, deg."""
-        from .geometry import perpendicular_towards
-
-        up = unit(np.asarray(sat_km, float))
-        m = unit(np.asarray(moon_km, float))  # geocentric, as the table's Moon
-        los = np.asarray(frame.z, float)
-        z_moon, zeta, a = _zenith_azimuth(up, m, los)
-        up_ref = perpendicular_towards(los, up)  # upward in the line of sight's vertical plane
-        roll = np.degrees(np.arctan2(dot(np.cross(up_ref, frame.x), los), dot(up_ref, frame.x)))
-        if self.symmetric:  # the mirror image about the Moon's vertical plane: (A, roll) -> (-A, -roll)
-            roll = np.where(a < 0, -roll, roll)
-            a = np.abs(a)
-        else:
-            a = wrap_360_deg(a)
-        return z_moon, zeta, a, wrap_360_deg(roll)
+        return _lamp_coordinates(sat_km, moon_km, frame.z, self.symmetric, (frame.x, frame.y))[1:]
 
     def coefficients(self, sat_km, moon_km, frame, opening_deg):
         """(direct_moon, door_moon) per unit lunar irradiance at the Earth, outside the field."""
