@@ -239,6 +239,30 @@ def _los_coordinates_kernel(los, x, y, index, up, lamp_h, up_x_lamp_h, symmetric
             out[1, p] = a + 360.0 if a < 0.0 else a
 
 
+@njit(cache=True, nogil=True)
+def _moon_bound_kernel(los, index, up, limb_deg, zi, table, los_zenith_deg, door_bound, out):
+    """:meth:`EarthshineLUT.moon_bound` per sample: the line of sight's zenith angle against the
+    vertical ``up`` of its scene run ``index``; infinite within 1 deg of the limb
+    (``limb_deg``, the limb's zenith angle) or below it (NaN too), else 1.2 x the largest of
+    ``table`` at the Moon zenith nodes zi - 1, zi and the two line-of-sight zenith nodes either
+    side, plus ``door_bound``."""
+    deg = 180.0 / np.pi
+    last = los_zenith_deg.size - 1
+    for p in range(los.shape[0]):
+        q = index[p]
+        lx, ly, lz = los[p, 0], los[p, 1], los[p, 2]
+        ln = np.sqrt(lx * lx + ly * ly + lz * lz)
+        if ln > 0.0:
+            lx, ly, lz = lx / ln, ly / ln, lz / ln
+        zeta = np.arccos(min(max(up[q, 0] * lx + up[q, 1] * ly + up[q, 2] * lz, -1.0), 1.0)) * deg
+        if not zeta < limb_deg[q] - 1.0:
+            out[p] = np.inf
+            continue
+        i = min(max(np.searchsorted(los_zenith_deg, zeta), 1), last)
+        z0, z1 = zi[q] - 1, zi[q]
+        out[p] = 1.2 * max(max(table[z0, i - 1], table[z0, i]), max(table[z1, i - 1], table[z1, i])) + door_bound
+
+
 def _local_scene(R, Z, L, A):
     """Satellite, Sun (km) and line of sight in the local frame: vertical +x, Sun in the x-y plane."""
     sat = np.stack([R, 0 * R, 0 * R], axis=-1)
@@ -434,28 +458,27 @@ class EarthshineLUT:
         radius node), x 1.2 for the azimuth between nodes; infinite for a line of sight less
         than 1 deg above the limb or below it (there a grid block can sit next to the field
         edge, where the PST jumps, and no table bounds it)."""
-        sat, moon = np.asarray(sat_km, float), np.asarray(moon_km, float)
-        table = self.moon_direct_bound.max(axis=0)  # (Z, L), the worst radius
-
-        def neighbours(nodes, x):
-            i = np.clip(np.searchsorted(nodes, x), 1, nodes.size - 1)
-            return i - 1, i
-
-        def per_scene(sat, moon):  # the satellite's and the Moon's parts
-            r = norm(sat)
-            up = sat / r[..., None]
-            z_moon = np.degrees(np.arccos(np.clip(dot(up, unit(moon)), -1, 1)))
-            limb = 90.0 + np.degrees(np.arccos(np.clip(earth_radius_km / r, -1, 1)))
-            return (up, limb) + neighbours(self.sun_zenith_deg, z_moon)
-
-        # a cube time step shares the satellite and the Moon: their parts once per step
+        sat, moon, los = np.broadcast_arrays(np.asarray(sat_km, float), np.asarray(moon_km, float),
+                                             np.asarray(los, float))
+        shape = los.shape[:-1]
+        if not hasattr(self, "_moon_bound_table"):
+            self._moon_bound_table = np.ascontiguousarray(self.moon_direct_bound.max(axis=0))  # (Z, L), the worst radius
+        # the satellite's and the Moon's parts once per run of samples sharing them (a cube's time step)
         runs = scene_runs(sat, moon)
-        up, limb, zi0, zi1 = per_scene(sat, moon) if runs is None else \
-            (runs.expand(v) for v in per_scene(*runs.vectors))
-        zeta = np.degrees(np.arccos(np.clip(dot(up, unit(np.asarray(los, float))), -1, 1)))
-        li0, li1 = neighbours(self.los_zenith_deg, zeta)
-        b = np.maximum.reduce([table[zi0, li0], table[zi0, li1], table[zi1, li0], table[zi1, li1]])
-        return np.where(zeta < limb - 1.0, 1.2 * b + self.moon_door_bound, np.inf)
+        if runs is None:
+            sat_r, moon_r, index = sat.reshape(-1, 3), moon.reshape(-1, 3), np.arange(int(np.prod(shape)))
+        else:
+            (sat_r, moon_r), index = runs.vectors, runs.index
+        r = norm(sat_r)
+        up = sat_r / r[:, None]
+        z_moon = np.degrees(np.arccos(np.clip(dot(up, unit(moon_r)), -1, 1)))
+        limb = 90.0 + np.degrees(np.arccos(np.clip(earth_radius_km / r, -1, 1)))
+        zi = np.clip(np.searchsorted(self.sun_zenith_deg, z_moon), 1, self.sun_zenith_deg.size - 1)
+        out = np.empty(index.size)
+        _moon_bound_kernel(np.ascontiguousarray(los.reshape(-1, 3)), np.ascontiguousarray(index, dtype=np.intp),
+                           np.ascontiguousarray(up), limb, zi, self._moon_bound_table, self.los_zenith_deg,
+                           float(self.moon_door_bound), out)
+        return out.reshape(shape)
 
     # -- storage --------------------------------------------------------------------------------
     def save(self, path) -> None:
