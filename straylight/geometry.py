@@ -422,12 +422,20 @@ def scene_runs(*vectors_km) -> SceneRuns | None:
     new = np.zeros(n, bool)
     new[0] = True
     for f in flat:
-        changed = f[1:] != f[:-1]
-        new[1:] |= changed[:, 0] | changed[:, 1] | changed[:, 2]  # 9x faster than any(axis=1)
+        _mark_changed_rows(f, new)
     starts = np.flatnonzero(new)
     if starts.size > n // 2:
         return None
     return SceneRuns(tuple(f[starts].copy() for f in flat), np.cumsum(new) - 1, shape)
+
+
+@njit(cache=True, nogil=True)
+def _mark_changed_rows(f, new):
+    """new[i] |= row i of ``f`` (N, 3) differs from row i - 1 (NaN differs from everything);
+    rows already marked are not compared (one pass instead of numpy's four per vector)."""
+    for i in range(1, f.shape[0]):
+        if not new[i] and (f[i, 0] != f[i - 1, 0] or f[i, 1] != f[i - 1, 1] or f[i, 2] != f[i - 1, 2]):
+            new[i] = True
 
 
 def shared_vectors(*vectors_km):
