@@ -39,7 +39,7 @@ from numba import njit
 
 from .door import door_state_index
 from .errors import InputError
-from .geometry import dot, norm, scene_runs, telescope_frame, unit
+from .geometry import _any_perpendicular_xyz, dot, norm, scene_runs, telescope_frame, unit
 from .gridinterp import LinearGrid
 from .offfield import MOON_APOGEE_KM, MOON_MEAN_DISTANCE_KM, MOON_PERIGEE_KM
 
@@ -226,9 +226,7 @@ def _los_coordinates_kernel(los, x, y, index, up, lamp_h, up_x_lamp_h, symmetric
         if roll:
             px, py, pz = ux - c * lx, uy - c * ly, uz - c * lz
             if not np.sqrt(px * px + py * py + pz * pz) > 1e-9:
-                px, py, pz = -lz * lx, -lz * ly, 1.0 - lz * lz
-                if np.sqrt(px * px + py * py + pz * pz) < 1e-6:
-                    px, py, pz = 1.0 - lx * lx, -lx * ly, -lx * lz
+                px, py, pz, _ = _any_perpendicular_xyz(lx, ly, lz)
             r = np.arctan2(-(px * y[p, 0] + py * y[p, 1] + pz * y[p, 2]), px * x[p, 0] + py * x[p, 1] + pz * x[p, 2]) * deg
             if symmetric and a < 0.0:  # the mirror image about the lamp's vertical plane: (A, roll) -> (-A, -roll)
                 r = -r

@@ -91,6 +91,18 @@ def _any_perpendicular(v: np.ndarray) -> np.ndarray:
     return unit(np.where(use_alt, alt, p))
 
 
+@njit(cache=True, nogil=True)
+def _any_perpendicular_xyz(vx, vy, vz):
+    """:func:`_any_perpendicular` of one unit vector inside a compiled kernel, the same
+    arithmetic: (px, py, pz, length), not yet normalised."""
+    px, py, pz = 0.0 - vz * vx, 0.0 - vz * vy, 1.0 - vz * vz
+    n = np.sqrt(px * px + py * py + pz * pz)
+    if n < 1e-6:
+        px, py, pz = 1.0 - vx * vx, 0.0 - vx * vy, 0.0 - vx * vz
+        n = np.sqrt(px * px + py * py + pz * pz)
+    return px, py, pz, n
+
+
 def perpendicular_towards(v: np.ndarray, target: np.ndarray) -> np.ndarray:
     """Unit vector perpendicular to unit v pointing towards target's projection.
 
@@ -215,12 +227,8 @@ def _limb_kernel(los, index, sun, nadir, rho, tangent_len, cr, sr, a_term, out):
         tn = tx * nx + ty * ny + tz * nz
         px, py, pz = tx - tn * nx, ty - tn * ny, tz - tn * nz
         pn = np.sqrt(px * px + py * py + pz * pz)
-        if not pn > 1e-9:  # _any_perpendicular: celestial north projected, else +X projected
-            px, py, pz = -nz * nx, -nz * ny, 1.0 - nz * nz
-            pn = np.sqrt(px * px + py * py + pz * pz)
-            if pn < 1e-6:
-                px, py, pz = 1.0 - nx * nx, -nx * ny, -nx * nz
-                pn = np.sqrt(px * px + py * py + pz * pz)
+        if not pn > 1e-9:
+            px, py, pz, pn = _any_perpendicular_xyz(nx, ny, nz)
         e1x, e1y, e1z = px / pn, py / pn, pz / pn
         e2x, e2y, e2z = ny * e1z - nz * e1y, nz * e1x - nx * e1z, nx * e1y - ny * e1x
         s1 = e1x * sx + e1y * sy + e1z * sz
@@ -301,11 +309,44 @@ def telescope_frame(los: np.ndarray, sun_direction: np.ndarray) -> TelescopeFram
     With the Sun exactly on or opposite the LOS the roll is undefined; the +X axis then falls
     back to celestial north projected on the focal plane, so the frame is always finite.
     """
-    z = unit(np.asarray(los, dtype=float))
-    x = perpendicular_towards(z, sun_direction)
-    z, x = np.broadcast_arrays(z, x)
-    y = np.cross(z, x)
-    return TelescopeFrame(x=x, y=y, z=z)
+    los, sun_direction = np.broadcast_arrays(np.asarray(los, dtype=float), np.asarray(sun_direction, dtype=float))
+    shape = los.shape
+    axes = np.empty((3,) + shape)
+    _frame_kernel(np.ascontiguousarray(los.reshape(-1, 3)), np.ascontiguousarray(sun_direction.reshape(-1, 3)),
+                  axes.reshape(3, -1, 3))
+    return TelescopeFrame(x=axes[0], y=axes[1], z=axes[2])
+
+
+@njit(cache=True, nogil=True)
+def _frame_kernel(los, sun_direction, axes):
+    """:func:`telescope_frame` per sample, into ``axes`` (3, N, 3) = x, y, z: the arithmetic of
+    z = unit(los), x = perpendicular_towards(z, sun_direction), y = z x x, operation for
+    operation (the same numbers), in one pass instead of ~40 numpy passes."""
+    for p in range(los.shape[0]):
+        zx, zy, zz = los[p, 0], los[p, 1], los[p, 2]
+        n = np.sqrt(zx * zx + zy * zy + zz * zz)
+        if n > 0.0:
+            zx, zy, zz = zx / n, zy / n, zz / n
+        else:
+            zx, zy, zz = 0.0, 0.0, 0.0
+        tx, ty, tz = sun_direction[p, 0], sun_direction[p, 1], sun_direction[p, 2]
+        n = np.sqrt(tx * tx + ty * ty + tz * tz)
+        if n > 0.0:
+            tx, ty, tz = tx / n, ty / n, tz / n
+        else:
+            tx, ty, tz = 0.0, 0.0, 0.0
+        d = tx * zx + ty * zy + tz * zz
+        px, py, pz = tx - d * zx, ty - d * zy, tz - d * zz
+        n = np.sqrt(px * px + py * py + pz * pz)
+        if not n > 1e-9:  # the Sun on or opposite the line of sight
+            px, py, pz, n = _any_perpendicular_xyz(zx, zy, zz)
+        if n > 0.0:
+            px, py, pz = px / n, py / n, pz / n
+        else:
+            px, py, pz = 0.0, 0.0, 0.0
+        axes[0, p, 0], axes[0, p, 1], axes[0, p, 2] = px, py, pz
+        axes[1, p, 0], axes[1, p, 1], axes[1, p, 2] = zy * pz - zz * py, zz * px - zx * pz, zx * py - zy * px
+        axes[2, p, 0], axes[2, p, 1], axes[2, p, 2] = zx, zy, zz
 
 
 # -- constraints ------------------------------------------------------------------------------
