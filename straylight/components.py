@@ -153,7 +153,9 @@ class ComponentModel:
         shape = geometry["sun_angle_deg"].shape
         d_sun = norm(sun - sat)
         d_moon = norm(moon - sat)
-        moon_eclipsed = earth_blocks(moon, sun - moon, re_km)
+        runs = scene_runs(sun, moon)  # the Moon's eclipse once per run sharing them (a cube's time step)
+        moon_eclipsed = earth_blocks(moon, sun - moon, re_km) if runs is None else \
+            runs.expand(earth_blocks(runs.vectors[1], runs.vectors[0] - runs.vectors[1], re_km))
         v_moon = moon_v_magnitude(geometry["moon_phase_angle_deg"], d_moon, off.moon_law, geometry["moon_elongation_deg"])
         v_moon_at_earth = moon_v_magnitude(geometry["moon_phase_angle_deg"], norm(moon), off.moon_law,
                                            geometry["moon_elongation_deg"])

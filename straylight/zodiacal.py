@@ -34,6 +34,7 @@ import numpy as np
 
 from .bandpass import Band
 from .errors import ConfigError
+from .geometry import scene_runs
 from .gridinterp import LinearGrid
 
 NO_DATA = 1.0e6
@@ -70,7 +71,9 @@ def helioecliptic_coordinates(los: np.ndarray, sun_direction: np.ndarray) -> tup
     """(|lambda - lambda_sun| in [0, 180], |beta| in [0, 90]) for lines of sight, deg (their
     longitudes' difference folded without a modulo)."""
     lon, lat = _ecliptic_lon_lat_deg(los)
-    lon_sun, _ = _ecliptic_lon_lat_deg(sun_direction)
+    runs = scene_runs(sun_direction)  # a cube's time step shares the Sun: its longitude once per step
+    lon_sun = _ecliptic_lon_lat_deg(sun_direction)[0] if runs is None else \
+        runs.expand(_ecliptic_lon_lat_deg(runs.vectors[0])[0])
     d = np.abs(lon - lon_sun)
     return np.where(d > 180.0, 360.0 - d, d), np.abs(lat)  # d in [0, 360]: the angle between them
 
