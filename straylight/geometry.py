@@ -248,18 +248,22 @@ def _limb_kernel(los, index, sun, nadir, rho, tangent_len, cr, sr, a_term, out):
             c = 0.0
         else:
             c = np.nan
+        nearest = abs(limb_deg)
+        out[0, p] = limb_deg
+        out[1, p] = 180.0 - gamma_deg
+        out[2, p] = 1.0 if lit else 0.0
+        # the whole limb lit (c <= -1) or dark (c >= 1): no arc end, no arccos (76 % of the
+        # default day's time steps)
+        if (c <= -1.0) if lit else (c >= 1.0):
+            out[3, p], out[4, p] = (nearest, 180.0) if lit else (180.0, nearest)
+            continue
         cc = min(max(c, -1.0), 1.0)
         cos_end = cos_psi * cc + sin_psi_abs * np.sqrt(1.0 - cc * cc)
         # cos and sin of gamma from its own arctangent's arguments (a zero line of sight: gamma 0)
         gn = np.sqrt(sin_g * sin_g + cos_g * cos_g)
         cg, sg = (cos_g / gn, sin_g / gn) if gn > 0.0 else (1.0, 0.0)
         to_end = np.arccos(min(max(cr[q] * cg + sr[q] * sg * cos_end, -1.0), 1.0)) * deg
-        nearest = abs(limb_deg)
-        out[0, p] = limb_deg
-        out[1, p] = 180.0 - gamma_deg
-        out[2, p] = 1.0 if lit else 0.0
-        out[3, p] = nearest if lit else (180.0 if c >= 1.0 else to_end)
-        out[4, p] = (180.0 if c <= -1.0 else to_end) if lit else nearest
+        out[3, p], out[4, p] = (nearest, to_end) if lit else (to_end, nearest)
 
 
 def _limb_scene(r, sun, earth_radius_km):
@@ -293,14 +297,46 @@ class TelescopeFrame:
         """Off-axis angle theta in [0, 180] and azimuth phi in [0, 360) of a direction, deg."""
         d = np.asarray(direction, dtype=float)
         if d.ndim == 1:  # one direction for every frame (a body seen from a cube time step)
-            dx, dy, dz = self.x @ d, self.y @ d, self.z @ d
+            shape = self.z.shape[:-1]
+            d_run, index = d[None, None, :], np.zeros(int(np.prod(shape)), np.intp)
         else:
-            dx, dy, dz = dot(d, self.x), dot(d, self.y), dot(d, self.z)
-        theta = np.degrees(np.arctan2(np.hypot(dx, dy), dz))
-        phi = np.degrees(np.arctan2(dy, dx))
-        phi = np.where(phi < 0.0, phi + 360.0, phi)
-        phi = np.where(phi >= 360.0, 0.0, phi)  # -1e-15 + 360 rounds to 360.0
-        return theta, phi
+            shape = np.broadcast_shapes(d.shape, self.x.shape, self.y.shape, self.z.shape)[:-1]
+            d_run, index = np.broadcast_to(d, shape + (3,)).reshape(1, -1, 3), np.arange(int(np.prod(shape)))
+        theta, phi = self.theta_phi_runs_deg(d_run, index, shape)
+        return theta[0], phi[0]
+
+    def theta_phi_runs_deg(self, d_run: np.ndarray, index: np.ndarray, shape: tuple) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`theta_phi_deg` of bodies whose directions are given per run of samples: unit
+        ``d_run`` (B, R, 3), ``index`` (N,) each sample's run, ``shape`` the samples' shape (N
+        samples, the frames broadcast to it); (theta, phi) of shape (B,) + shape, in one
+        compiled pass (:func:`_theta_phi_kernel`) that reads each sample's direction from its
+        run rather than a gathered (B, N, 3) array."""
+        frames = [np.ascontiguousarray(np.broadcast_to(a, tuple(shape) + (3,)).reshape(-1, 3), dtype=float)
+                  for a in (self.x, self.y, self.z)]
+        out = np.empty((d_run.shape[0], 2, index.size))
+        _theta_phi_kernel(*frames, np.ascontiguousarray(d_run, dtype=float), np.ascontiguousarray(index, dtype=np.intp),
+                          out)
+        return out[:, 0].reshape((-1,) + tuple(shape)), out[:, 1].reshape((-1,) + tuple(shape))
+
+
+@njit(cache=True, nogil=True)
+def _theta_phi_kernel(x, y, z, d_run, index, out):
+    """theta = atan2(hypot(d . x, d . y), d . z) in [0, 180] and phi = atan2(d . y, d . x) in
+    [0, 360) (deg) of each body b's direction d = d_run[b, index[p]] in sample p's frame, into
+    ``out`` (B, 2, N)."""
+    deg = 180.0 / np.pi
+    for b in range(d_run.shape[0]):
+        for p in range(x.shape[0]):
+            q = index[p]
+            d0, d1, d2 = d_run[b, q, 0], d_run[b, q, 1], d_run[b, q, 2]
+            dx = d0 * x[p, 0] + d1 * x[p, 1] + d2 * x[p, 2]
+            dy = d0 * y[p, 0] + d1 * y[p, 1] + d2 * y[p, 2]
+            dz = d0 * z[p, 0] + d1 * z[p, 1] + d2 * z[p, 2]
+            out[b, 0, p] = np.arctan2(np.hypot(dx, dy), dz) * deg
+            phi = np.arctan2(dy, dx) * deg
+            if phi < 0.0:
+                phi += 360.0
+            out[b, 1, p] = 0.0 if phi >= 360.0 else phi  # -1e-15 + 360 rounds to 360.0
 
 
 def telescope_frame(los: np.ndarray, sun_direction: np.ndarray) -> TelescopeFrame:
@@ -514,7 +550,9 @@ def _body_geometry(sat, bodies_km, frame, earth_radius_km, runs) -> dict[str, np
     d_run = unit(np.stack(runs.vectors[1:]) - runs.vectors[0])  # (bodies, runs, 3)
     per_sample = (len(bodies_km),) + runs.shape
     blocked = earth_blocks(runs.vectors[0], d_run, earth_radius_km)[:, runs.index].reshape(per_sample)
-    theta, phi = frame.theta_phi_deg(d_run[:, runs.index].reshape(per_sample + (3,)))
+    shape = np.broadcast_shapes(runs.shape, frame.z.shape[:-1])
+    index = runs.index if shape == runs.shape else np.broadcast_to(runs.index.reshape(runs.shape), shape).ravel()
+    theta, phi = frame.theta_phi_runs_deg(d_run, index, shape)
     for i, name in enumerate(bodies_km):
         out[f"{name}_angle_deg"] = theta[i]
         out[f"{name}_phi_deg"] = phi[i]
