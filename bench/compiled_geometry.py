@@ -1,23 +1,27 @@
-"""How much a compiled per-sample kernel would buy (issue #7): the ten bodies' off-axis angle
-and azimuth in the telescope frame (TelescopeFrame.theta_phi_deg: an arctan2 for theta, one for
-phi, per body and sample), written once in numpy (what runs) and once as a numba loop over
-samples of the same formulas, timed side by side on one core for one cube batch (12 steps x
-1320 pixels of the default campaign, 15,840 samples).
+"""The cube's geometry compiled (issue #7): the library's numba kernels against the numpy forms
+they replaced, timed side by side on one core for one production region of the default
+campaign (72 steps x 660 pixels, 47,520 samples), with their largest differences.
 
-It stays here, as a measurement, not in the library: on a machine whose numpy vectorises its
-transcendental functions (SIMD) it loses (2026-11 development machine: 0.7-0.8x; an earlier
-one: 1.8-2.4x).  The Earth limb was measured here too (the same formulas compiled: 1.1x on
-that machine); it is now compiled in the library (geometry._limb_kernel) with two
-transcendental calls per sample instead of nine (the Sun's azimuth about nadir enters only
-through its cosine and |sine|), 3.1 -> 1.4 ms per batch.  numba pays where the work is gathers,
-branches or many numpy passes per transcendental call, not where it is the calls themselves.
-Writes bench/results/compiled_geometry.json.
+- the Earth limb (geometry.limb_geometry, _limb_kernel): the numpy form took nine
+  transcendental calls per sample; the kernel takes the angle from nadir's arctangent and,
+  only where the terminator crosses the limb, one arccos (the Sun's azimuth about nadir enters
+  through its cosine and |sine|);
+- the Sun's and the Moon's off-axis angle and azimuth (TelescopeFrame.theta_phi_runs_deg,
+  _theta_phi_kernel): the same two arctangents and hypot per body and sample; compiled, each
+  sample's direction is read from its time step instead of a gathered (bodies, samples, 3)
+  array.
+
+numpy runs its transcendental functions vectorised (SIMD) where a compiled loop calls libm
+one value at a time, so compiling pays only where it removes calls or passes: this machine read
+the limb's formulas compiled one for one 1.1x and the bodies' angles compiled on gathered
+directions 0.7-0.9x (earlier versions of this script); now the limb 4.0x (9.4 -> 2.3 ms, fewer
+calls) and the bodies' angles 1.3-1.4x in three runs of four, 0.9x in one (no gather; the
+same calls).  Writes bench/results/compiled_geometry.json.
 
     python bench/compiled_geometry.py
 """
 from __future__ import annotations
 
-import math
 import sys
 from pathlib import Path
 
@@ -34,63 +38,96 @@ def best_seconds(fn) -> float:
     return timed(fn, repeats=7)[1]
 
 
-def kernels():
-    import numba
+def limb_numpy(r, los, sun, earth_radius_km):
+    """geometry.limb_geometry as it was in numpy (ca4022e): (limb, zenith, lit, bright, dark)."""
+    from straylight.geometry import _limb_scene, dot, norm, perpendicular_towards, scene_runs, unit
 
-    @numba.njit(cache=False)
-    def theta_phi(x, y, z, d, out):
-        """TelescopeFrame.theta_phi_deg for bodies d (B, N, 3) in frames (N, 3): out (B, N, 2)."""
-        for k in range(d.shape[0]):
-            for i in range(d.shape[1]):
-                dx = d[k, i, 0] * x[i, 0] + d[k, i, 1] * x[i, 1] + d[k, i, 2] * x[i, 2]
-                dy = d[k, i, 0] * y[i, 0] + d[k, i, 1] * y[i, 1] + d[k, i, 2] * y[i, 2]
-                dz = d[k, i, 0] * z[i, 0] + d[k, i, 1] * z[i, 1] + d[k, i, 2] * z[i, 2]
-                phi = math.degrees(math.atan2(dy, dx))
-                phi = phi + 360.0 if phi < 0.0 else phi
-                out[k, i, 0] = math.degrees(math.atan2(math.hypot(dx, dy), dz))
-                out[k, i, 1] = 0.0 if phi >= 360.0 else phi
+    los = unit(los)
+    runs = scene_runs(r, sun)
+    nadir, rho, tangent_len, cr, sr, a_term = tuple(runs.expand(v) for v in _limb_scene(*runs.vectors, earth_radius_km))
+    sin_gamma = norm(np.cross(los, nadir))
+    gamma_deg = np.degrees(np.arctan2(sin_gamma, dot(los, nadir)))
+    limb_angle = gamma_deg - np.degrees(rho)
+    e1 = perpendicular_towards(nadir, np.where((sin_gamma > 1e-12)[..., None], los, sun))
+    e2 = np.cross(nadir, e1)
+    s1, s2 = dot(e1, sun), dot(e2, sun)
+    b_term = tangent_len * sr * np.hypot(s1, s2)
+    psi_sun = np.arctan2(s2, s1)
+    lit = a_term + b_term * np.cos(psi_sun) > 0.0
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        c = np.where(b_term > 0, -a_term / np.where(b_term > 0, b_term, 1.0), np.sign(-a_term) * 2.0)
+    half_width = np.arccos(np.clip(c, -1.0, 1.0))
 
-    return theta_phi
+    def wrapped(psi):
+        return np.abs((psi + np.pi) % (2 * np.pi) - np.pi)
+
+    psi_end = np.minimum(wrapped(psi_sun - half_width), wrapped(psi_sun + half_width))
+    g = np.radians(gamma_deg)
+    to_end = np.degrees(np.arccos(np.clip(cr * np.cos(g) + sr * np.sin(g) * np.cos(psi_end), -1.0, 1.0)))
+    nearest = np.abs(limb_angle)
+    bright = np.where(lit, nearest, np.where(c >= 1.0, 180.0, to_end))
+    dark = np.where(~lit, nearest, np.where(c <= -1.0, 180.0, to_end))
+    return limb_angle, 180.0 - gamma_deg, lit, bright, dark
+
+
+def theta_phi_numpy(frame, d):
+    """TelescopeFrame.theta_phi_deg as it was in numpy, on gathered directions d (B, N, 3)."""
+    from straylight.geometry import dot
+
+    dx, dy, dz = dot(d, frame.x), dot(d, frame.y), dot(d, frame.z)
+    theta = np.degrees(np.arctan2(np.hypot(dx, dy), dz))
+    phi = np.degrees(np.arctan2(dy, dx))
+    phi = np.where(phi < 0.0, phi + 360.0, phi)
+    return theta, np.where(phi >= 360.0, 0.0, phi)
 
 
 def main() -> int:
-    try:
-        import numba
-    except ImportError:
-        print("numba is not installed (a straylight dependency): pip install -e . first")
-        return 0
     from straylight.config import load_campaign
+    from straylight.cube import cube_chunks
     from straylight.footprint import footprint_from_config
-    from straylight.geometry import radec_to_unit, telescope_frame, unit
+    from straylight.geometry import limb_geometry, radec_to_unit, scene_runs, telescope_frame, unit
     from straylight.sky import scene
 
     campaign = load_campaign()
     fp = footprint_from_config(campaign.config["footprint"])
-    times = campaign.times[0:24 * 12:24]
-    sc = scene(campaign, times)
-    npix = fp.pixels.size
-    sat = np.repeat(sc.satellite_km, npix, axis=0)
-    los = np.tile(radec_to_unit(fp.ra_deg, fp.dec_deg), (len(times), 1))
-    sun = np.repeat(sc.bodies_km["sun"], npix, axis=0)
+    ch = cube_chunks(campaign, len(campaign.times), int(fp.pixels.size))
+    nt, npix = int(ch["time"]), int(ch["pixel"])
+    sc = scene(campaign, campaign.times[:nt])
+    step = np.repeat(np.arange(nt), npix)
+    sat, sun, moon = sc.satellite_km[step], sc.bodies_km["sun"][step], sc.bodies_km["moon"][step]
+    los = np.tile(radec_to_unit(fp.ra_deg[:npix], fp.dec_deg[:npix]), (nt, 1))
+    re_km = campaign.earth.radius_km
     n = los.shape[0]
-    theta_phi_nb = kernels()
+
+    t_np = best_seconds(lambda: limb_numpy(sat, los, sun, re_km))
+    t_nb = best_seconds(lambda: limb_geometry(sat, los, sun, re_km))
+    ref = limb_numpy(sat, los, sun, re_km)
+    lg = limb_geometry(sat, los, sun, re_km)
+    got = (lg.earth_limb_angle_deg, lg.zenith_angle_deg, lg.limb_is_bright, lg.bright_limb_angle_deg,
+           lg.dark_limb_angle_deg)
+    limb_diff = max(float(np.max(np.abs(np.asarray(a, float) - np.asarray(b, float)))) for a, b in zip(got, ref))
 
     frame = telescope_frame(los, sun - sat)
-    d = np.stack([np.repeat(unit(sc.bodies_km[b] - sc.satellite_km), npix, axis=0) for b in sc.bodies_km])
-    out_tp = np.empty(d.shape[:2] + (2,))
-    x, y, z = (np.ascontiguousarray(a) for a in (frame.x, frame.y, frame.z))
-    tp_np = best_seconds(lambda: frame.theta_phi_deg(d))
-    tp_nb = best_seconds(lambda: theta_phi_nb(x, y, z, d, out_tp))
-    theta, phi = frame.theta_phi_deg(d)
-    dphi = np.abs(out_tp[..., 1] - phi)
-    tp_diff = max(float(np.max(np.abs(out_tp[..., 0] - theta))), float(np.max(np.minimum(dphi, 360.0 - dphi))))
+    runs = scene_runs(sat, sun, moon)
+    d_run = unit(np.stack(runs.vectors[1:]) - runs.vectors[0])
+    tp_np = best_seconds(lambda: theta_phi_numpy(frame, d_run[:, runs.index]))
+    tp_nb = best_seconds(lambda: frame.theta_phi_runs_deg(d_run, runs.index, (n,)))
+    theta, phi = theta_phi_numpy(frame, d_run[:, runs.index])
+    theta_c, phi_c = frame.theta_phi_runs_deg(d_run, runs.index, (n,))
+    dphi = np.abs(phi_c - phi)
+    tp_diff = max(float(np.max(np.abs(theta_c - theta))), float(np.max(np.minimum(dphi, 360.0 - dphi))))
 
-    parts = {"bodies_theta_phi": {"samples": n, "bodies": int(d.shape[0]), "numpy_seconds": tp_np,
-                                  "numba_seconds": tp_nb, "numba_ns_per_body_sample": tp_nb / d[..., 0].size * 1e9,
-                                  "speedup": tp_np / tp_nb, "max_abs_difference_deg": tp_diff}}
+    parts = {"limb_geometry": {"samples": n, "numpy_seconds": t_np, "numba_seconds": t_nb,
+                               "numba_ns_per_sample": t_nb / n * 1e9, "speedup": t_np / t_nb,
+                               "max_abs_difference_deg": limb_diff},
+             "bodies_theta_phi": {"samples": n, "bodies": 2, "numpy_seconds": tp_np, "numba_seconds": tp_nb,
+                                  "numba_ns_per_body_sample": tp_nb / (2 * n) * 1e9, "speedup": tp_np / tp_nb,
+                                  "max_abs_difference_deg": tp_diff}}
     for name, v in parts.items():
-        print(f"{name}: numpy {v['numpy_seconds'] * 1e3:.2f} ms, numba {v['numba_seconds'] * 1e3:.2f} ms "
+        print(f"{name}: numpy {v['numpy_seconds'] * 1e3:.2f} ms, compiled {v['numba_seconds'] * 1e3:.2f} ms "
               f"({v['speedup']:.1f}x) for {n} samples; largest difference {v['max_abs_difference_deg']:.1e} deg")
+    import numba
+
     write_results("compiled_geometry", {"numba": numba.__version__, "numpy": np.__version__, **parts})
     return 0
 
