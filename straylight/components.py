@@ -18,7 +18,8 @@ from .bandpass import load_band
 from .config import Campaign
 from .door import door_from_instrument
 from .ephemeris import PLANETS
-from .geometry import TelescopeFrame, body_geometry, earth_blocks, norm, scene_runs, telescope_frame, unit
+from .geometry import (TelescopeFrame, body_geometry, earth_blocks, norm, scene_runs, telescope_frame,
+                       tiled_period, unit)
 from .offfield import (AU_KM, BandPhotometry, EarthshineSettings, OffFieldModel, magnitude_per_arcsec2,
                        moon_v_magnitude, planet_v_magnitude, solar_like_fraction)
 from .pst import load_pst
@@ -845,6 +846,7 @@ class ComponentModel:
         re_km = self.campaign.earth.radius_km
         sat_b = np.broadcast_to(np.asarray(sat, float), shape + (3,))
         runs = scene_runs(sat_b)
+        period = tiled_period(fz, runs)  # a cube batch: the same lines of sight at every time step
         if runs is not None and runs.count * len(s_all) > self.STAR_PAIRS_PER_PASS:
             runs = None  # many short runs of a deep catalog: the test per pair costs less memory
         if runs is not None:  # the Earth test once per star and time step
@@ -853,7 +855,7 @@ class ComponentModel:
         else:
             star_blocked, run_index = np.zeros((0, 0), bool), np.zeros(0, np.intp)
             sat_flat = np.ascontiguousarray(sat_b.reshape(-1, 3))
-        cell = cells.cell_of(fz)
+        cell = cells.cell_of(fz) if period is None else np.tile(cells.cell_of(fz[:period]), len(fz) // period)
         n_cand = cells.count[cell, level] + cells.sky_count[level]  # the cell's and the whole sky's candidates
         ends = np.cumsum(n_cand)
         parts = []

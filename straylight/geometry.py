@@ -515,6 +515,21 @@ def _mark_changed_rows(f, new):
             new[i] = True
 
 
+def tiled_period(vectors, runs: SceneRuns | None) -> int | None:
+    """L when the 3-vectors ``vectors`` (..., 3; flattened, N rows) are their first L rows
+    repeated once per scene run of ``runs`` (a cube batch: the same lines of sight at every
+    time step), checked exactly, so that what depends on them alone is computed on L rows and
+    tiled; else None."""
+    if runs is None or runs.count < 2:
+        return None
+    flat = np.asarray(vectors).reshape(-1, 3)
+    period = flat.shape[0] // runs.count
+    if period * runs.count != flat.shape[0]:
+        return None
+    blocks = flat.reshape(runs.count, period, 3)
+    return period if np.array_equal(blocks, np.broadcast_to(blocks[:1], blocks.shape)) else None
+
+
 def shared_vectors(*vectors_km):
     """The 3-vectors as single vectors when every sample shares each of them (one scene, as a
     survey cube's time step), else None (also for a single sample)."""

@@ -226,3 +226,32 @@ def test_wrap_360_equals_numpys_modulo():
              np.zeros(0)]
     for x in cases:
         assert np.array_equal(wrap_360_deg(x), np.mod(x, 360.0), equal_nan=True)
+
+
+def test_tiled_period_finds_repeated_lines_of_sight_exactly():
+    """A cube batch repeats its pixels' lines of sight at every time step: tiled_period finds
+    the period only when every step's rows equal the first step's bit for bit (one ulp off, a
+    step of another length, or a single run: None), so work done on the first step's rows and
+    tiled is the same as per sample (here the zodiacal light's coordinates, compared exactly)."""
+    from straylight.geometry import scene_runs, tiled_period
+    from straylight.zodiacal import _ecliptic_lon_lat_deg, helioecliptic_coordinates
+
+    rng = np.random.default_rng(3)
+    steps, pixels = 5, 7
+    los = rng.normal(size=(pixels, 3))
+    los /= np.linalg.norm(los, axis=1)[:, None]
+    tiled = np.tile(los, (steps, 1))
+    sun = np.repeat(rng.normal(size=(steps, 3)), pixels, axis=0)
+    runs = scene_runs(sun)
+    assert tiled_period(tiled, runs) == pixels
+    assert tiled_period(tiled.reshape(steps, pixels, 3), runs) == pixels
+    off = tiled.copy()
+    off[3 * pixels + 2, 1] = np.nextafter(off[3 * pixels + 2, 1], 2.0)
+    assert tiled_period(off, runs) is None
+    assert tiled_period(tiled[:-1], scene_runs(sun[:-1])) is None
+    assert tiled_period(tiled, None) is None and tiled_period(los, scene_runs(sun[:pixels])) is None
+    dlon, beta = helioecliptic_coordinates(tiled, sun)
+    lon, lat = _ecliptic_lon_lat_deg(tiled)
+    lon_sun, _ = _ecliptic_lon_lat_deg(sun)
+    d = np.abs(lon - lon_sun)
+    assert np.array_equal(dlon, np.where(d > 180.0, 360.0 - d, d)) and np.array_equal(beta, np.abs(lat))
