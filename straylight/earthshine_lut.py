@@ -227,7 +227,8 @@ def _los_coordinates_kernel(los, x, y, index, up, lamp_h, up_x_lamp_h, symmetric
             px, py, pz = ux - c * lx, uy - c * ly, uz - c * lz
             if not np.sqrt(px * px + py * py + pz * pz) > 1e-9:
                 px, py, pz, _ = _any_perpendicular_xyz(lx, ly, lz)
-            r = np.arctan2(-(px * y[p, 0] + py * y[p, 1] + pz * y[p, 2]), px * x[p, 0] + py * x[p, 1] + pz * x[p, 2]) * deg
+            r = np.arctan2(-(px * y[p, 0] + py * y[p, 1] + pz * y[p, 2]),
+                           px * x[p, 0] + py * x[p, 1] + pz * x[p, 2]) * deg
             if symmetric and a < 0.0:  # the mirror image about the lamp's vertical plane: (A, roll) -> (-A, -roll)
                 r = -r
             out[2, p] = r + 360.0 if r < 0.0 else r
@@ -460,7 +461,8 @@ class EarthshineLUT:
                                              np.asarray(los, float))
         shape = los.shape[:-1]
         if not hasattr(self, "_moon_bound_table"):
-            self._moon_bound_table = np.ascontiguousarray(self.moon_direct_bound.max(axis=0))  # (Z, L), the worst radius
+            # (Z, L), the worst radius
+            self._moon_bound_table = np.ascontiguousarray(self.moon_direct_bound.max(axis=0))
         # the satellite's and the Moon's parts once per run of samples sharing them (a cube's time step)
         runs = scene_runs(sat, moon)
         if runs is None:

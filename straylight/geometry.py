@@ -259,9 +259,10 @@ def _limb_kernel(los, index, sun, nadir, rho, tangent_len, cr, sr, a_term, out):
             continue
         cc = min(max(c, -1.0), 1.0)
         cos_end = cos_psi * cc + sin_psi_abs * np.sqrt(1.0 - cc * cc)
-        # cos and sin of gamma from its own arctangent's arguments (a zero line of sight: gamma 0)
+        # cos and sin of gamma from its own arctangent's arguments (a zero line of sight: from
+        # gamma itself, 0 or 180 deg as the zero's sign gives it)
         gn = np.sqrt(sin_g * sin_g + cos_g * cos_g)
-        cg, sg = (cos_g / gn, sin_g / gn) if gn > 0.0 else (1.0, 0.0)
+        cg, sg = (cos_g / gn, sin_g / gn) if gn > 0.0 else (np.cos(gamma), np.sin(gamma))
         to_end = np.arccos(min(max(cr[q] * cg + sr[q] * sg * cos_end, -1.0), 1.0)) * deg
         out[3, p], out[4, p] = (nearest, to_end) if lit else (to_end, nearest)
 
