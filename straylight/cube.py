@@ -173,15 +173,16 @@ def evaluated_samples(campaign: Campaign, fp: Footprint, max_times: int = 144, m
 #: (the Sun's and the Moon's geometry, every sample) and each observable sample evaluated (they
 #: cost ~1.7x the average sample: more moonlit-Earth sums and star pairs); the direct earthshine
 #: sum adds components.LUT_SAVED_SECONDS_PER_SAMPLE per evaluated sample.  In the units of the
-#: machine those were measured on: bench/run.py --only cube on the default day (12 steps x 1320
-#: pixels, best of three) measured, in two runs on a machine whose direct path ran x0.20 and
-#: x0.24 of that figure, 1.69 / 1.85 us, 0.38 / 0.43 us, 2.96 / 3.18 us: 8.6 / 7.7, 1.9 / 1.8,
-#: 15.1 / 13.3 us in these units (until the star skip's shared budget the figures were 10, 1.2
-#: and 20 us).  The bench prints them again as cube.plan_cost_model, and the four runs'
-#: predicted seconds against the measured ones, so a drift shows.
-CUBE_TABLE_SECONDS_PER_SAMPLE = 8e-6
-CUBE_SCREEN_SECONDS_PER_SAMPLE = 1.9e-6
-CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE = 14e-6
+#: machine those were measured on: bench/run.py on the default day (12 steps x 1320 pixels,
+#: best of three) measured, in two runs on a machine whose direct path ran x0.209 and x0.223 of
+#: that figure, 1.31 / 1.42 us, 0.29 / 0.30 us, 2.42 / 3.03 us: 6.3 / 6.4, 1.4 / 1.35, 11.6 /
+#: 13.6 us in these units (until this cycle's compiled geometry and table coordinates 8, 1.9
+#: and 14 us; until the star skip's shared budget 10, 1.2 and 20 us).  The bench prints them
+#: again as cube.plan_cost_model, and the four runs' predicted seconds against the measured
+#: ones, so a drift shows.
+CUBE_TABLE_SECONDS_PER_SAMPLE = 6.3e-6
+CUBE_SCREEN_SECONDS_PER_SAMPLE = 1.4e-6
+CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE = 12.5e-6
 
 
 def cube_compute_seconds(samples: int, evaluated: int, earthshine_method: str, skip: bool,
