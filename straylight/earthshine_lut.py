@@ -39,7 +39,7 @@ from numba import njit
 
 from .door import door_state_index
 from .errors import InputError
-from .geometry import _any_perpendicular_xyz, dot, norm, scene_runs, telescope_frame, unit
+from .geometry import _any_perpendicular_xyz, _unit_xyz, dot, norm, scene_rows, telescope_frame, unit
 from .gridinterp import LinearGrid
 from .offfield import MOON_APOGEE_KM, MOON_MEAN_DISTANCE_KM, MOON_PERIGEE_KM
 
@@ -180,11 +180,7 @@ def _lamp_coordinates(sat_km, lamp_km, los, symmetric: bool, frame_xy=None):
     sat, lamp, los = np.broadcast_arrays(np.asarray(sat_km, float), np.asarray(lamp_km, float),
                                          np.asarray(los, float))
     shape = los.shape[:-1]
-    runs = scene_runs(sat, lamp)
-    if runs is None:
-        sat_r, lamp_r, index = sat.reshape(-1, 3), lamp.reshape(-1, 3), np.arange(int(np.prod(shape)))
-    else:
-        (sat_r, lamp_r), index = runs.vectors, runs.index
+    (sat_r, lamp_r), index = scene_rows(sat, lamp)
     r = norm(sat_r)
     up = unit(sat_r)
     lamp_u = unit(lamp_r)
@@ -209,15 +205,12 @@ def _los_coordinates_kernel(los, x, y, index, up, lamp_h, up_x_lamp_h, symmetric
     of sight's vertical plane (up projected across the line of sight) to the frame's x axis
     about the line of sight, atan2(-up_ref . y, up_ref . x); along the vertical, where up_ref
     vanishes, celestial north projected (else +X: geometry.perpendicular_towards).  Lines of
-    sight of any length (normalised here)."""
+    sight of any length (normalised here; zero or NaN ones count as zero vectors, as unit makes them)."""
     deg = 180.0 / np.pi
     roll = x.shape[0] > 0
     for p in range(los.shape[0]):
         q = index[p]
-        lx, ly, lz = los[p, 0], los[p, 1], los[p, 2]
-        ln = np.sqrt(lx * lx + ly * ly + lz * lz)
-        if ln > 0.0:
-            lx, ly, lz = lx / ln, ly / ln, lz / ln
+        lx, ly, lz = _unit_xyz(los[p, 0], los[p, 1], los[p, 2])
         ux, uy, uz = up[q, 0], up[q, 1], up[q, 2]
         c = lx * ux + ly * uy + lz * uz
         out[0, p] = np.arccos(min(max(c, -1.0), 1.0)) * deg
@@ -249,10 +242,7 @@ def _moon_bound_kernel(los, index, up, limb_deg, zi, table, los_zenith_deg, door
     last = los_zenith_deg.size - 1
     for p in range(los.shape[0]):
         q = index[p]
-        lx, ly, lz = los[p, 0], los[p, 1], los[p, 2]
-        ln = np.sqrt(lx * lx + ly * ly + lz * lz)
-        if ln > 0.0:
-            lx, ly, lz = lx / ln, ly / ln, lz / ln
+        lx, ly, lz = _unit_xyz(los[p, 0], los[p, 1], los[p, 2])
         zeta = np.arccos(min(max(up[q, 0] * lx + up[q, 1] * ly + up[q, 2] * lz, -1.0), 1.0)) * deg
         if not zeta < limb_deg[q] - 1.0:
             out[p] = np.inf
@@ -464,11 +454,7 @@ class EarthshineLUT:
             # (Z, L), the worst radius
             self._moon_bound_table = np.ascontiguousarray(self.moon_direct_bound.max(axis=0))
         # the satellite's and the Moon's parts once per run of samples sharing them (a cube's time step)
-        runs = scene_runs(sat, moon)
-        if runs is None:
-            sat_r, moon_r, index = sat.reshape(-1, 3), moon.reshape(-1, 3), np.arange(int(np.prod(shape)))
-        else:
-            (sat_r, moon_r), index = runs.vectors, runs.index
+        (sat_r, moon_r), index = scene_rows(sat, moon)
         r = norm(sat_r)
         up = sat_r / r[:, None]
         z_moon = np.degrees(np.arccos(np.clip(dot(up, unit(moon_r)), -1, 1)))

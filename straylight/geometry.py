@@ -92,6 +92,16 @@ def _any_perpendicular(v: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True, nogil=True)
+def _unit_xyz(x, y, z):
+    """:func:`unit` of one 3-vector inside a compiled kernel, the same arithmetic: a zero or
+    NaN vector gives the zero vector."""
+    n = np.sqrt(x * x + y * y + z * z)
+    if n > 0.0:
+        return x / n, y / n, z / n
+    return 0.0, 0.0, 0.0
+
+
+@njit(cache=True, nogil=True)
 def _any_perpendicular_xyz(vx, vy, vz):
     """:func:`_any_perpendicular` of one unit vector inside a compiled kernel, the same
     arithmetic: (px, py, pz, length), not yet normalised."""
@@ -169,13 +179,8 @@ def limb_geometry(
     shape = los.shape[:-1]
     # what depends on the satellite and the Sun alone, once per run of samples that share them
     # (a survey cube's time step)
-    runs = scene_runs(r, sun)
-    if runs is None:
-        scene_sun, index = sun.reshape(-1, 3), np.arange(int(np.prod(shape)))
-        per_scene = _limb_scene(r.reshape(-1, 3), scene_sun, earth_radius_km)
-    else:
-        scene_sun, index = runs.vectors[1], runs.index
-        per_scene = _limb_scene(runs.vectors[0], scene_sun, earth_radius_km)
+    (scene_r, scene_sun), index = scene_rows(r, sun)
+    per_scene = _limb_scene(scene_r, scene_sun, earth_radius_km)
     out = np.empty((5, index.size))
     _limb_kernel(np.ascontiguousarray(los.reshape(-1, 3)), index, np.ascontiguousarray(scene_sun),
                  *(np.ascontiguousarray(v) for v in per_scene), out)
@@ -203,12 +208,7 @@ def _limb_kernel(los, index, sun, nadir, rho, tangent_len, cr, sr, a_term, out):
     deg = 180.0 / np.pi
     for p in range(los.shape[0]):
         q = index[p]
-        lx, ly, lz = los[p, 0], los[p, 1], los[p, 2]
-        ln = np.sqrt(lx * lx + ly * ly + lz * lz)
-        if ln > 0.0:
-            lx, ly, lz = lx / ln, ly / ln, lz / ln
-        else:
-            lx, ly, lz = 0.0, 0.0, 0.0
+        lx, ly, lz = _unit_xyz(los[p, 0], los[p, 1], los[p, 2])
         nx, ny, nz = nadir[q, 0], nadir[q, 1], nadir[q, 2]
         cx, cy, cz = ly * nz - lz * ny, lz * nx - lx * nz, lx * ny - ly * nx
         sin_g = np.sqrt(cx * cx + cy * cy + cz * cz)
@@ -219,11 +219,7 @@ def _limb_kernel(los, index, sun, nadir, rho, tangent_len, cr, sr, a_term, out):
         # the limb's azimuth origin: towards the line of sight, or the Sun where the line of
         # sight is along the vertical, or a fixed perpendicular where that too is (perpendicular_towards)
         sx, sy, sz = sun[q, 0], sun[q, 1], sun[q, 2]
-        if sin_g > 1e-12:
-            tx, ty, tz = lx, ly, lz
-        else:
-            sn = np.sqrt(sx * sx + sy * sy + sz * sz)
-            tx, ty, tz = (sx / sn, sy / sn, sz / sn) if sn > 0.0 else (0.0, 0.0, 0.0)
+        tx, ty, tz = (lx, ly, lz) if sin_g > 1e-12 else _unit_xyz(sx, sy, sz)
         tn = tx * nx + ty * ny + tz * nz
         px, py, pz = tx - tn * nx, ty - tn * ny, tz - tn * nz
         pn = np.sqrt(px * px + py * py + pz * pz)
@@ -360,27 +356,14 @@ def _frame_kernel(los, sun_direction, axes):
     z = unit(los), x = perpendicular_towards(z, sun_direction), y = z x x, operation for
     operation (the same numbers), in one pass instead of ~40 numpy passes."""
     for p in range(los.shape[0]):
-        zx, zy, zz = los[p, 0], los[p, 1], los[p, 2]
-        n = np.sqrt(zx * zx + zy * zy + zz * zz)
-        if n > 0.0:
-            zx, zy, zz = zx / n, zy / n, zz / n
-        else:
-            zx, zy, zz = 0.0, 0.0, 0.0
-        tx, ty, tz = sun_direction[p, 0], sun_direction[p, 1], sun_direction[p, 2]
-        n = np.sqrt(tx * tx + ty * ty + tz * tz)
-        if n > 0.0:
-            tx, ty, tz = tx / n, ty / n, tz / n
-        else:
-            tx, ty, tz = 0.0, 0.0, 0.0
+        zx, zy, zz = _unit_xyz(los[p, 0], los[p, 1], los[p, 2])
+        tx, ty, tz = _unit_xyz(sun_direction[p, 0], sun_direction[p, 1], sun_direction[p, 2])
         d = tx * zx + ty * zy + tz * zz
         px, py, pz = tx - d * zx, ty - d * zy, tz - d * zz
         n = np.sqrt(px * px + py * py + pz * pz)
         if not n > 1e-9:  # the Sun on or opposite the line of sight
             px, py, pz, n = _any_perpendicular_xyz(zx, zy, zz)
-        if n > 0.0:
-            px, py, pz = px / n, py / n, pz / n
-        else:
-            px, py, pz = 0.0, 0.0, 0.0
+        px, py, pz = (px / n, py / n, pz / n) if n > 0.0 else (0.0, 0.0, 0.0)
         axes[0, p, 0], axes[0, p, 1], axes[0, p, 2] = px, py, pz
         axes[1, p, 0], axes[1, p, 1], axes[1, p, 2] = zy * pz - zz * py, zz * px - zx * pz, zx * py - zy * px
         axes[2, p, 0], axes[2, p, 1], axes[2, p, 2] = zx, zy, zz
@@ -514,6 +497,17 @@ def _mark_changed_rows(f, new):
     for i in range(1, f.shape[0]):
         if not new[i] and (f[i, 0] != f[i - 1, 0] or f[i, 1] != f[i - 1, 1] or f[i, 2] != f[i - 1, 2]):
             new[i] = True
+
+
+def scene_rows(*vectors_km) -> tuple[tuple, np.ndarray]:
+    """(each 3-vector per scene run, (R, 3); each flattened sample's run, (N,)) of broadcastable
+    vectors: their :func:`scene_runs`, or every sample a run of its own where that finds none,
+    for the compiled kernels that read a sample's scene quantities by its run."""
+    vs = np.broadcast_arrays(*(np.asarray(v, float) for v in vectors_km))
+    runs = scene_runs(*vs)
+    if runs is None:
+        return tuple(v.reshape(-1, 3) for v in vs), np.arange(int(np.prod(vs[0].shape[:-1])))
+    return runs.vectors, runs.index
 
 
 def tiled_period(vectors, runs: SceneRuns | None) -> int | None:
