@@ -18,8 +18,8 @@ from .bandpass import load_band
 from .config import Campaign
 from .door import door_from_instrument
 from .ephemeris import PLANETS
-from .geometry import (TelescopeFrame, body_geometry, earth_blocks, norm, scene_runs, telescope_frame,
-                       tiled_period, unit)
+from .geometry import (TelescopeFrame, body_geometry, earth_blocks, norm, scene_rows, scene_runs,
+                       telescope_frame, tiled_period, unit)
 from .offfield import (AU_KM, BandPhotometry, EarthshineSettings, OffFieldModel, magnitude_per_arcsec2,
                        moon_v_magnitude, planet_v_magnitude, solar_like_fraction)
 from .pst import load_pst
@@ -154,9 +154,8 @@ class ComponentModel:
         shape = geometry["sun_angle_deg"].shape
         d_sun = norm(sun - sat)
         d_moon = norm(moon - sat)
-        runs = scene_runs(sun, moon)  # the Moon's eclipse once per run sharing them (a cube's time step)
-        moon_eclipsed = earth_blocks(moon, sun - moon, re_km) if runs is None else \
-            runs.expand(earth_blocks(runs.vectors[1], runs.vectors[0] - runs.vectors[1], re_km))
+        rows = scene_rows(sun, moon)  # the Moon's eclipse once per run sharing them (a cube's time step)
+        moon_eclipsed = rows.expand(earth_blocks(rows.vectors[1], rows.vectors[0] - rows.vectors[1], re_km))
         v_moon = moon_v_magnitude(geometry["moon_phase_angle_deg"], d_moon, off.moon_law, geometry["moon_elongation_deg"])
         v_moon_at_earth = moon_v_magnitude(geometry["moon_phase_angle_deg"], norm(moon), off.moon_law,
                                            geometry["moon_elongation_deg"])
@@ -317,13 +316,9 @@ class ComponentModel:
         planets = [p for p in PLANETS if p in bodies_km]
         if not planets or not out.size:
             return out
-        scene = (sat, bodies_km["sun"], *(bodies_km[p] for p in planets))
-        runs = scene_runs(*scene)
-        if runs is None:  # a scene per sample
-            vectors = tuple(np.broadcast_to(np.asarray(v, float), shape + (3,)).reshape(-1, 3) for v in scene)
-            index = np.arange(out.size)
-        else:
-            vectors, index = runs.vectors, runs.index
+        rows = scene_rows(*(np.broadcast_to(np.asarray(v, float), shape + (3,))
+                            for v in (sat, bodies_km["sun"], *(bodies_km[p] for p in planets))))
+        vectors, index = rows.vectors, rows.index
         fractions = [solar_like_fraction(planet_v_magnitude(p, vectors[2 + i], vectors[1], vectors[0]))
                      for i, p in enumerate(planets)]  # per run
         min_floor = float(np.min(floor_ratio))
@@ -337,7 +332,7 @@ class ComponentModel:
         for i, p in enumerate(planets):
             near_i = np.flatnonzero(near[i])
             if near_i.size:
-                fraction = fractions[i][index].reshape(shape)
+                fraction = rows.expand(fractions[i])
                 out = out + self._planet_transfer(fraction, sat, bodies_km[p], frame, door, bands, floor_ratio, shape,
                                                   near_i) * fraction
         return out

@@ -180,7 +180,8 @@ def _lamp_coordinates(sat_km, lamp_km, los, symmetric: bool, frame_xy=None):
     sat, lamp, los = np.broadcast_arrays(np.asarray(sat_km, float), np.asarray(lamp_km, float),
                                          np.asarray(los, float))
     shape = los.shape[:-1]
-    (sat_r, lamp_r), index = scene_rows(sat, lamp)
+    rows = scene_rows(sat, lamp)
+    (sat_r, lamp_r), index = rows.vectors, rows.index
     r = norm(sat_r)
     up = unit(sat_r)
     lamp_u = unit(lamp_r)
@@ -454,7 +455,8 @@ class EarthshineLUT:
             # (Z, L), the worst radius
             self._moon_bound_table = np.ascontiguousarray(self.moon_direct_bound.max(axis=0))
         # the satellite's and the Moon's parts once per run of samples sharing them (a cube's time step)
-        (sat_r, moon_r), index = scene_rows(sat, moon)
+        rows = scene_rows(sat, moon)
+        (sat_r, moon_r), index = rows.vectors, rows.index
         r = norm(sat_r)
         up = sat_r / r[:, None]
         z_moon = np.degrees(np.arccos(np.clip(dot(up, unit(moon_r)), -1, 1)))

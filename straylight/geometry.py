@@ -179,7 +179,8 @@ def limb_geometry(
     shape = los.shape[:-1]
     # what depends on the satellite and the Sun alone, once per run of samples that share them
     # (a survey cube's time step)
-    (scene_r, scene_sun), index = scene_rows(r, sun)
+    rows = scene_rows(r, sun)
+    (scene_r, scene_sun), index = rows.vectors, rows.index
     per_scene = _limb_scene(scene_r, scene_sun, earth_radius_km)
     out = np.empty((5, index.size))
     _limb_kernel(np.ascontiguousarray(los.reshape(-1, 3)), index, np.ascontiguousarray(scene_sun),
@@ -499,15 +500,13 @@ def _mark_changed_rows(f, new):
             new[i] = True
 
 
-def scene_rows(*vectors_km) -> tuple[tuple, np.ndarray]:
-    """(each 3-vector per scene run, (R, 3); each flattened sample's run, (N,)) of broadcastable
-    vectors: their :func:`scene_runs`, or every sample a run of its own where that finds none,
-    for the compiled kernels that read a sample's scene quantities by its run."""
+def scene_rows(*vectors_km) -> SceneRuns:
+    """The broadcastable 3-vectors' :func:`scene_runs`, or, where that finds none, every sample
+    a run of its own: one form for the code that computes scene quantities per run and reads
+    them per sample (``vectors``, ``index``, ``expand``) whatever the samples."""
     vs = np.broadcast_arrays(*(np.asarray(v, float) for v in vectors_km))
-    runs = scene_runs(*vs)
-    if runs is None:
-        return tuple(v.reshape(-1, 3) for v in vs), np.arange(int(np.prod(vs[0].shape[:-1])))
-    return runs.vectors, runs.index
+    shape = vs[0].shape[:-1]
+    return scene_runs(*vs) or SceneRuns(tuple(v.reshape(-1, 3) for v in vs), np.arange(int(np.prod(shape))), shape)
 
 
 def tiled_period(vectors, runs: SceneRuns | None) -> int | None:
@@ -540,33 +539,22 @@ def body_geometry(
     ``<body>_earth_blocked``, arrays of the samples' shape."""
     sat = np.asarray(satellite_km, dtype=float)
     # a cube time step shares the satellite and the bodies: each body's direction once per step
-    return _body_geometry(sat, bodies_km, frame, earth_radius_km, scene_runs(sat, *bodies_km.values()))
+    return _body_geometry(bodies_km, frame, earth_radius_km, scene_rows(sat, *bodies_km.values()))
 
 
-def _body_geometry(sat, bodies_km, frame, earth_radius_km, runs) -> dict[str, np.ndarray]:
-    """:func:`body_geometry` with the samples' ``scene_runs(sat, *bodies_km.values())``."""
-    out: dict[str, np.ndarray] = {}
-    if runs is None:
-        for name, pos in bodies_km.items():
-            d = unit(pos - sat)
-            theta, phi = frame.theta_phi_deg(d)
-            if theta.shape != frame.z.shape[:-1]:
-                theta, phi = np.broadcast_arrays(theta, phi, frame.z[..., 0])[:2]
-            out[f"{name}_angle_deg"] = theta  # = off-axis angle theta in the telescope frame
-            out[f"{name}_phi_deg"] = phi
-            out[f"{name}_earth_blocked"] = earth_blocks(sat, d, earth_radius_km) & np.ones(theta.shape, bool)
-        return out
-    # every body's direction and Earth test once per run, then all bodies' angles in one pass
-    d_run = unit(np.stack(runs.vectors[1:]) - runs.vectors[0])  # (bodies, runs, 3)
-    per_sample = (len(bodies_km),) + runs.shape
-    blocked = earth_blocks(runs.vectors[0], d_run, earth_radius_km)[:, runs.index].reshape(per_sample)
-    shape = np.broadcast_shapes(runs.shape, frame.z.shape[:-1])
-    index = runs.index if shape == runs.shape else np.broadcast_to(runs.index.reshape(runs.shape), shape).ravel()
+def _body_geometry(bodies_km, frame, earth_radius_km, rows: SceneRuns) -> dict[str, np.ndarray]:
+    """:func:`body_geometry` with the samples' ``scene_rows(satellite, *bodies_km.values())``:
+    every body's direction and Earth test once per run, then all bodies' angles in one pass."""
+    d_run = unit(np.stack(rows.vectors[1:]) - rows.vectors[0])  # (bodies, runs, 3)
+    shape = np.broadcast_shapes(rows.shape, frame.z.shape[:-1])
+    index = rows.index if shape == rows.shape else np.broadcast_to(rows.index.reshape(rows.shape), shape).ravel()
+    blocked = earth_blocks(rows.vectors[0], d_run, earth_radius_km)[:, index].reshape((len(bodies_km),) + shape)
     theta, phi = frame.theta_phi_runs_deg(d_run, index, shape)
+    out: dict[str, np.ndarray] = {}
     for i, name in enumerate(bodies_km):
-        out[f"{name}_angle_deg"] = theta[i]
+        out[f"{name}_angle_deg"] = theta[i]  # = off-axis angle theta in the telescope frame
         out[f"{name}_phi_deg"] = phi[i]
-        out[f"{name}_earth_blocked"] = blocked[i] & np.ones(theta[i].shape, bool)
+        out[f"{name}_earth_blocked"] = blocked[i]
     return out
 
 
@@ -598,19 +586,15 @@ def observing_geometry(
     ``<body>_phi_deg`` (azimuth in the telescope frame) and ``<body>_earth_blocked``.
     """
     sat = np.asarray(satellite_km, dtype=float)
-    sun, moon = bodies_km["sun"], bodies_km["moon"]
+    sun = bodies_km["sun"]
     if frame is None:
         frame = telescope_frame(los, sun - sat)
     limb = limb_geometry(sat, frame.z, sun, earth_radius_km)
-    runs = scene_runs(sat, *bodies_km.values())
-    out = _body_geometry(sat, bodies_km, frame, earth_radius_km, runs)
-    if runs is None:
-        alpha, fraction, elongation = moon_phase(sun, moon, sat)
-    else:
-        names = list(bodies_km)
-        sat_run, sun_run, moon_run = (runs.vectors[0], runs.vectors[1 + names.index("sun")],
-                                      runs.vectors[1 + names.index("moon")])
-        alpha, fraction, elongation = (runs.expand(v) for v in moon_phase(sun_run, moon_run, sat_run))
+    rows = scene_rows(sat, *bodies_km.values())
+    out = _body_geometry(bodies_km, frame, earth_radius_km, rows)
+    names = list(bodies_km)
+    alpha, fraction, elongation = (rows.expand(v) for v in moon_phase(
+        rows.vectors[1 + names.index("sun")], rows.vectors[1 + names.index("moon")], rows.vectors[0]))
     shape = out["sun_angle_deg"].shape
     out["moon_phase_angle_deg"] = np.broadcast_to(alpha, shape)
     out["moon_illuminated_fraction"] = np.broadcast_to(fraction, shape)

@@ -26,6 +26,14 @@ import numpy as np
 from numba import njit
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _bilinear(flat, b, ch, sa, sb, ta, tb):
+    """Channel ``ch`` of the cell at flat node ``b`` interpolated over two axes of strides
+    ``sa``, ``sb`` at fractions ``ta``, ``tb`` (the second axis first)."""
+    return ((flat[b, ch] * (1 - tb) + flat[b + sb, ch] * tb) * (1 - ta)
+            + (flat[b + sa, ch] * (1 - tb) + flat[b + sa + sb, ch] * tb) * ta)
+
+
 @njit(cache=True, nogil=True)
 def _interpolate(points, lo, hi, uniform, inv_width, n_bins, bin_cell, nodes, n_nodes, inv_step, strides, flat,
                  channel, out):
@@ -64,40 +72,25 @@ def _interpolate(points, lo, hi, uniform, inv_width, n_bins, bin_cell, nodes, n_
             out[p, :] = np.nan
             continue
         first = channel[p] * n_out if channel.size else 0
+        # two to four axes: the last two bilinearly, then the others a linear step each
         if n_dim == 2:
-            s0, s1, t0, t1 = strides[0], strides[1], frac[0], frac[1]
             for j in range(n_out):
-                ch = first + j
-                out[p, j] = ((flat[base, ch] * (1 - t1) + flat[base + s1, ch] * t1) * (1 - t0)
-                             + (flat[base + s0, ch] * (1 - t1) + flat[base + s0 + s1, ch] * t1) * t0)
+                out[p, j] = _bilinear(flat, base, first + j, strides[0], strides[1], frac[0], frac[1])
         elif n_dim == 3:
             s0, s1, s2, t0, t1, t2 = strides[0], strides[1], strides[2], frac[0], frac[1], frac[2]
             for j in range(n_out):
                 ch = first + j
-                b = base
-                v00 = flat[b, ch] * (1 - t2) + flat[b + s2, ch] * t2
-                v01 = flat[b + s1, ch] * (1 - t2) + flat[b + s1 + s2, ch] * t2
-                b = base + s0
-                v10 = flat[b, ch] * (1 - t2) + flat[b + s2, ch] * t2
-                v11 = flat[b + s1, ch] * (1 - t2) + flat[b + s1 + s2, ch] * t2
-                out[p, j] = (v00 * (1 - t1) + v01 * t1) * (1 - t0) + (v10 * (1 - t1) + v11 * t1) * t0
+                out[p, j] = (_bilinear(flat, base, ch, s1, s2, t1, t2) * (1 - t0)
+                             + _bilinear(flat, base + s0, ch, s1, s2, t1, t2) * t0)
         elif n_dim == 4:
             s0, s1, s2, s3 = strides[0], strides[1], strides[2], strides[3]
             t0, t1, t2, t3 = frac[0], frac[1], frac[2], frac[3]
             for j in range(n_out):
                 ch = first + j
-                b = base  # the first axis' lower node
-                v00 = flat[b, ch] * (1 - t3) + flat[b + s3, ch] * t3
-                v01 = flat[b + s2, ch] * (1 - t3) + flat[b + s2 + s3, ch] * t3
-                v10 = flat[b + s1, ch] * (1 - t3) + flat[b + s1 + s3, ch] * t3
-                v11 = flat[b + s1 + s2, ch] * (1 - t3) + flat[b + s1 + s2 + s3, ch] * t3
-                lower = (v00 * (1 - t2) + v01 * t2) * (1 - t1) + (v10 * (1 - t2) + v11 * t2) * t1
-                b = base + s0  # its upper node
-                v00 = flat[b, ch] * (1 - t3) + flat[b + s3, ch] * t3
-                v01 = flat[b + s2, ch] * (1 - t3) + flat[b + s2 + s3, ch] * t3
-                v10 = flat[b + s1, ch] * (1 - t3) + flat[b + s1 + s3, ch] * t3
-                v11 = flat[b + s1 + s2, ch] * (1 - t3) + flat[b + s1 + s2 + s3, ch] * t3
-                upper = (v00 * (1 - t2) + v01 * t2) * (1 - t1) + (v10 * (1 - t2) + v11 * t2) * t1
+                lower = (_bilinear(flat, base, ch, s2, s3, t2, t3) * (1 - t1)
+                         + _bilinear(flat, base + s1, ch, s2, s3, t2, t3) * t1)
+                upper = (_bilinear(flat, base + s0, ch, s2, s3, t2, t3) * (1 - t1)
+                         + _bilinear(flat, base + s0 + s1, ch, s2, s3, t2, t3) * t1)
                 out[p, j] = lower * (1 - t0) + upper * t0
         else:
             for j in range(n_out):

@@ -34,7 +34,7 @@ import numpy as np
 
 from .bandpass import Band
 from .errors import ConfigError
-from .geometry import scene_runs, tiled_period
+from .geometry import scene_rows, tiled_period
 from .gridinterp import LinearGrid
 
 NO_DATA = 1.0e6
@@ -70,16 +70,15 @@ def ecliptic_lon_lat_deg(vectors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def helioecliptic_coordinates(los: np.ndarray, sun_direction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(|lambda - lambda_sun| in [0, 180], |beta| in [0, 90]) for lines of sight, deg (their
     longitudes' difference folded without a modulo)."""
-    runs = scene_runs(sun_direction)  # a cube's time step shares the Sun: its longitude once per step
+    rows = scene_rows(sun_direction)  # a cube's time step shares the Sun: its longitude once per step
     # and a cube batch repeats its lines of sight at every step: theirs once per pixel
-    period = tiled_period(los, runs) if np.shape(los) == np.shape(sun_direction) else None
+    period = tiled_period(los, rows) if np.shape(los) == np.shape(sun_direction) else None
     if period is None:
         lon, lat = _ecliptic_lon_lat_deg(los)
     else:
-        lon, lat = (np.tile(v, runs.count).reshape(np.shape(los)[:-1])
+        lon, lat = (np.tile(v, rows.count).reshape(np.shape(los)[:-1])
                     for v in _ecliptic_lon_lat_deg(np.asarray(los, float).reshape(-1, 3)[:period]))
-    lon_sun = _ecliptic_lon_lat_deg(sun_direction)[0] if runs is None else \
-        runs.expand(_ecliptic_lon_lat_deg(runs.vectors[0])[0])
+    lon_sun = rows.expand(_ecliptic_lon_lat_deg(rows.vectors[0])[0])
     d = np.abs(lon - lon_sun)
     return np.where(d > 180.0, 360.0 - d, d), np.abs(lat)  # d in [0, 360]: the angle between them
 
