@@ -175,8 +175,9 @@ def _lamp_coordinates(sat_km, lamp_km, los, symmetric: bool, frame_xy=None):
     changes sign with it), else wrapped to [0, 360); the roll is wrapped to [0, 360).
 
     The satellite's and the lamp's parts (the vertical, the lamp's zenith angle, its horizontal
-    direction) once per run of samples that share them (a cube's time step), the rest in one
-    compiled pass per sample (:func:`_los_coordinates_kernel`)."""
+    direction) once per run of samples that share them (a cube's time step), the rest per sample:
+    the vectors' components in one compiled pass (:func:`_los_components_kernel`), the angles
+    from them in numpy."""
     sat, lamp, los = np.broadcast_arrays(np.asarray(sat_km, float), np.asarray(lamp_km, float),
                                          np.asarray(los, float))
     shape = los.shape[:-1]
@@ -188,48 +189,61 @@ def _lamp_coordinates(sat_km, lamp_km, los, symmetric: bool, frame_xy=None):
     z_lamp = np.degrees(np.arccos(np.clip(dot(up, lamp_u), -1.0, 1.0)))
     lamp_h = lamp_u - dot(lamp_u, up)[:, None] * up  # its horizontal part
     with_roll = frame_xy is not None
-    out = np.empty((3 if with_roll else 2, index.size))
+    # the components in one compiled pass, the angles in numpy (its SIMD arccos and arctan2 are
+    # several times the compiled loop's libm calls here)
+    comp = np.empty((5 if with_roll else 3, index.size))
     xy = [np.ascontiguousarray(np.broadcast_to(a, shape + (3,)).reshape(-1, 3), dtype=float)
           for a in frame_xy] if with_roll else [np.zeros((0, 3))] * 2
-    _los_coordinates_kernel(np.ascontiguousarray(los.reshape(-1, 3)), *xy, np.ascontiguousarray(index, dtype=np.intp),
-                            np.ascontiguousarray(up), np.ascontiguousarray(lamp_h),
-                            np.ascontiguousarray(np.cross(up, lamp_h)), symmetric, out)
+    _los_components_kernel(np.ascontiguousarray(los.reshape(-1, 3)), *xy, np.ascontiguousarray(index, dtype=np.intp),
+                           np.ascontiguousarray(up), np.ascontiguousarray(lamp_h),
+                           np.ascontiguousarray(np.cross(up, lamp_h)), comp)
+    deg = 180.0 / np.pi
+    zenith = np.arccos(comp[0])
+    zenith *= deg
+    azimuth = np.arctan2(comp[1], comp[2])
+    azimuth *= deg
+    mirrored = azimuth < 0.0
+    out = [zenith, azimuth]
+    if with_roll:
+        roll = np.arctan2(comp[3], comp[4])
+        roll *= deg
+        if symmetric:  # the mirror image about the lamp's vertical plane: (A, roll) -> (-A, -roll)
+            np.negative(roll, out=roll, where=mirrored)
+        np.add(roll, 360.0, out=roll, where=roll < 0.0)
+        out.append(roll)
+    if symmetric:
+        np.abs(azimuth, out=azimuth)
+    else:
+        np.add(azimuth, 360.0, out=azimuth, where=mirrored)
     return (r[index].reshape(shape), z_lamp[index].reshape(shape)) + tuple(v.reshape(shape) for v in out)
 
 
 @njit(cache=True, nogil=True)
-def _los_coordinates_kernel(los, x, y, index, up, lamp_h, up_x_lamp_h, symmetric, out):
-    """:func:`_lamp_coordinates` per sample into ``out`` (2 or 3, N): the line of sight's zenith
-    angle, its azimuth atan2(los . (up x h), los . h) from the lamp's horizontal direction h
-    (= atan2((h x los_h) . up, h . los_h), los_h the line of sight's horizontal part), and,
-    where ``x`` and ``y`` are given, the roll: the angle from the upward direction in the line
-    of sight's vertical plane (up projected across the line of sight) to the frame's x axis
-    about the line of sight, atan2(-up_ref . y, up_ref . x); along the vertical, where up_ref
-    vanishes, celestial north projected (else +X: geometry.perpendicular_towards).  Lines of
-    sight of any length (normalised here; zero or NaN ones count as zero vectors, as unit makes them)."""
-    deg = 180.0 / np.pi
+def _los_components_kernel(los, x, y, index, up, lamp_h, up_x_lamp_h, out):
+    """:func:`_lamp_coordinates`' arguments per sample, into ``out`` (3 or 5, N): the cosine of
+    the line of sight's zenith angle (clipped to [-1, 1]); the azimuth's arctangent arguments
+    los . (up x h), los . h (h the lamp's horizontal direction; = (h x los_h) . up, h . los_h,
+    los_h the line of sight's horizontal part); and, where ``x`` and ``y`` are given, the roll's,
+    -up_ref . y, up_ref . x: the angle from the upward direction in the line of sight's vertical
+    plane (up projected across the line of sight) to the frame's x axis about the line of sight;
+    along the vertical, where up_ref vanishes, celestial north projected (else +X:
+    geometry.perpendicular_towards).  Lines of sight of any length (normalised here; zero or NaN
+    ones count as zero vectors, as unit makes them)."""
     roll = x.shape[0] > 0
     for p in range(los.shape[0]):
         q = index[p]
         lx, ly, lz = _unit_xyz(los[p, 0], los[p, 1], los[p, 2])
         ux, uy, uz = up[q, 0], up[q, 1], up[q, 2]
         c = lx * ux + ly * uy + lz * uz
-        out[0, p] = np.arccos(min(max(c, -1.0), 1.0)) * deg
-        a = np.arctan2(lx * up_x_lamp_h[q, 0] + ly * up_x_lamp_h[q, 1] + lz * up_x_lamp_h[q, 2],
-                       lx * lamp_h[q, 0] + ly * lamp_h[q, 1] + lz * lamp_h[q, 2]) * deg
+        out[0, p] = min(max(c, -1.0), 1.0)
+        out[1, p] = lx * up_x_lamp_h[q, 0] + ly * up_x_lamp_h[q, 1] + lz * up_x_lamp_h[q, 2]
+        out[2, p] = lx * lamp_h[q, 0] + ly * lamp_h[q, 1] + lz * lamp_h[q, 2]
         if roll:
             px, py, pz = ux - c * lx, uy - c * ly, uz - c * lz
             if not np.sqrt(px * px + py * py + pz * pz) > 1e-9:
                 px, py, pz, _ = _any_perpendicular_xyz(lx, ly, lz)
-            r = np.arctan2(-(px * y[p, 0] + py * y[p, 1] + pz * y[p, 2]),
-                           px * x[p, 0] + py * x[p, 1] + pz * x[p, 2]) * deg
-            if symmetric and a < 0.0:  # the mirror image about the lamp's vertical plane: (A, roll) -> (-A, -roll)
-                r = -r
-            out[2, p] = r + 360.0 if r < 0.0 else r
-        if symmetric:
-            out[1, p] = abs(a)
-        else:
-            out[1, p] = a + 360.0 if a < 0.0 else a
+            out[3, p] = -(px * y[p, 0] + py * y[p, 1] + pz * y[p, 2])
+            out[4, p] = px * x[p, 0] + py * x[p, 1] + pz * x[p, 2]
 
 
 @njit(cache=True, nogil=True)
