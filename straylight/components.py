@@ -602,13 +602,19 @@ class ComponentModel:
         # limb).  Nearer the limb and below it no Earth grid converges (blocks next to the field
         # edge meet the PST's jump), so the configured grid would cost 5x for numbers no better
         # than indicative: the coarse grid runs there too.
-        sub = TelescopeFrame(*(np.broadcast_to(a, full)[need] for a in (frame.x, frame.y, frame.z)))
-        door_need = np.broadcast_to(np.asarray(door, float), shape)[need]
+        # the needed rows by index (np.take: ~5x a boolean mask's gather of (N, 3) rows)
+        at = np.flatnonzero(need)
+
+        def rows(a):
+            return np.take(np.broadcast_to(a, full).reshape(-1, 3), at, axis=0)
+
+        sub = TelescopeFrame(rows(frame.x), rows(frame.y), rows(frame.z))
+        door_need = np.broadcast_to(np.asarray(door, float), shape).ravel()[at]
         mlut = self.moonlit_model["lut"]
         if mlut is not None:  # the coarse grid's sum, tabulated
-            direct_moon, door_moon = mlut.coefficients(sat_b[need], moon_b[need], sub, door_need)
+            direct_moon, door_moon = mlut.coefficients(rows(sat_b), rows(moon_b), sub, door_need)
         else:
-            c = off.earthshine_coefficients(sat_b[need], sun_b[need], moon_b[need], sub, door_need, re_km,
+            c = off.earthshine_coefficients(rows(sat_b), rows(sun_b), rows(moon_b), sub, door_need, re_km,
                                             in_field=False, sun=False, grid=self.moonlit_grid)
             direct_moon, door_moon = c["direct_moon"], c["door_moon"]
         es_coeff["direct_moon"][need] += direct_moon

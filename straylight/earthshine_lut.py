@@ -247,22 +247,23 @@ def _los_components_kernel(los, x, y, index, up, lamp_h, up_x_lamp_h, out):
 
 
 @njit(cache=True, nogil=True)
-def _moon_bound_kernel(los, index, up, limb_deg, zi, table, los_zenith_deg, door_bound, out):
-    """:meth:`EarthshineLUT.moon_bound` per sample: the line of sight's zenith angle against the
-    vertical ``up`` of its scene run ``index``; infinite within 1 deg of the limb
-    (``limb_deg``, the limb's zenith angle) or below it (NaN too), else 1.2 x the largest of
-    ``table`` at the Moon zenith nodes zi - 1, zi and the two line-of-sight zenith nodes either
-    side, plus ``door_bound``."""
-    deg = 180.0 / np.pi
-    last = los_zenith_deg.size - 1
+def _moon_bound_kernel(los, index, up, cos_limit, zi, table, neg_cos_nodes, door_bound, out):
+    """:meth:`EarthshineLUT.moon_bound` per sample, in cosines (no arccos): the cosine c of the
+    line of sight's zenith angle against the vertical ``up`` of its scene run ``index``;
+    infinite where c is not above ``cos_limit`` (the cosine of the limb's zenith angle less
+    1 deg: within 1 deg of the limb or below it; NaN too), else 1.2 x the largest of ``table``
+    at the Moon zenith nodes zi - 1, zi and the two line-of-sight zenith nodes either side (the
+    first node whose cosine is not above c, found in ``neg_cos_nodes``, the nodes' negated
+    cosines, increasing), plus ``door_bound``."""
+    last = neg_cos_nodes.size - 1
     for p in range(los.shape[0]):
         q = index[p]
         lx, ly, lz = _unit_xyz(los[p, 0], los[p, 1], los[p, 2])
-        zeta = np.arccos(min(max(up[q, 0] * lx + up[q, 1] * ly + up[q, 2] * lz, -1.0), 1.0)) * deg
-        if not zeta < limb_deg[q] - 1.0:
+        c = min(max(up[q, 0] * lx + up[q, 1] * ly + up[q, 2] * lz, -1.0), 1.0)
+        if not c > cos_limit[q]:
             out[p] = np.inf
             continue
-        i = min(max(np.searchsorted(los_zenith_deg, zeta), 1), last)
+        i = min(max(np.searchsorted(neg_cos_nodes, -c), 1), last)
         z0, z1 = zi[q] - 1, zi[q]
         out[p] = 1.2 * max(max(table[z0, i - 1], table[z0, i]), max(table[z1, i - 1], table[z1, i])) + door_bound
 
@@ -478,8 +479,8 @@ class EarthshineLUT:
         zi = np.clip(np.searchsorted(self.sun_zenith_deg, z_moon), 1, self.sun_zenith_deg.size - 1)
         out = np.empty(index.size)
         _moon_bound_kernel(np.ascontiguousarray(los.reshape(-1, 3)), np.ascontiguousarray(index, dtype=np.intp),
-                           np.ascontiguousarray(up), limb, zi, self._moon_bound_table, self.los_zenith_deg,
-                           float(self.moon_door_bound), out)
+                           np.ascontiguousarray(up), np.cos(np.radians(limb - 1.0)), zi, self._moon_bound_table,
+                           -np.cos(np.radians(self.los_zenith_deg)), float(self.moon_door_bound), out)
         return out.reshape(shape)
 
     # -- storage --------------------------------------------------------------------------------

@@ -41,7 +41,7 @@ import numpy as np
 from .bandpass import Band
 from .door import Door, DoorTable, door_state_index
 from .errors import ConfigError
-from .geometry import dot, norm, perpendicular_towards, shared_vectors, unit, wrap_360_deg
+from .geometry import dot, norm, perpendicular_towards, scene_rows, shared_vectors, unit, wrap_360_deg
 from .gridinterp import LinearGrid
 from .pst import PST
 from .zodiacal import solar_spectrum
@@ -310,12 +310,12 @@ class OffFieldModel:
         fully lit (cos z = 1), at the PST's largest value outside the field, Sp = 1, times the
         grid's own solid angle (so the bound holds for the sum, not only for the integral)."""
         s = replace(self.earthshine, n_gamma=int(grid[0]), n_psi=int(grid[1]))
-        # it depends on the satellite's radius alone: once per distinct radius (a cube's time step)
-        radius, index = np.unique(norm(np.asarray(sat_km, float)), return_inverse=True)
-        gamma, dgamma = self._cap_nadir_angles_at(radius, earth_radius_km, s)
+        # it depends on the satellite's radius alone: once per run of samples sharing the
+        # satellite (a cube's time step)
+        rows = scene_rows(np.asarray(sat_km, float))
+        gamma, dgamma = self._cap_nadir_angles_at(norm(rows.vectors[0]), earth_radius_km, s)
         cap_sr = 2.0 * np.pi * np.sum(np.sin(gamma) * dgamma, axis=-1)  # the grid's sum of d_omega
-        bound = self.earthshine.albedo / np.pi * self._pst_max_outside_field * cap_sr * self.pixel_area_m2
-        return bound[index.reshape(np.shape(sat_km)[:-1])]
+        return rows.expand(self.earthshine.albedo / np.pi * self._pst_max_outside_field * cap_sr * self.pixel_area_m2)
 
     @cached_property
     def _pst_max_outside_field(self) -> float:
