@@ -344,7 +344,7 @@ class ComponentModel:
         (:func:`body_geometry`) computed there only; 0 elsewhere."""
         full = shape + (3,)
         out = np.zeros(int(np.prod(shape)))
-        sat, planet, fx, fy, fz = (np.broadcast_to(np.asarray(v, float), full).reshape(-1, 3)[near]
+        sat, planet, fx, fy, fz = (np.take(np.broadcast_to(np.asarray(v, float), full).reshape(-1, 3), near, axis=0)
                                    for v in (satellite_km, planet_km, frame.x, frame.y, frame.z))
         g = body_geometry(sat, {"planet": planet}, TelescopeFrame(fx, fy, fz), self.campaign.earth.radius_km)
         fraction_near, door_near, floor_near = (np.broadcast_to(np.asarray(v, float), shape).ravel()[near]

@@ -374,11 +374,12 @@ def _evaluate_observable(model, campaign: Campaign, sc, los, faint, screen: dict
     if sel.size == 0:
         return
     t_idx, p_idx = np.divmod(sel, npix)
-    sat = sc.satellite_km[steps][t_idx]
-    bodies = {b: v[steps][t_idx] for b, v in sc.bodies_km.items()}
-    sub = TelescopeFrame(frame.x[sel], frame.y[sel], frame.z[sel])
+    # rows by index with np.take (3-4x numpy's fancy indexing of (N, 3) rows)
+    sat = np.take(sc.satellite_km[steps], t_idx, axis=0)
+    bodies = {b: np.take(v[steps], t_idx, axis=0) for b, v in sc.bodies_km.items()}
+    sub = TelescopeFrame(*(np.take(a, sel, axis=0) for a in (frame.x, frame.y, frame.z)))
     g = {name: np.asarray(v)[sel] for name, v in screen.items()}
-    res = model.evaluate(sat, bodies, los[p_idx], g, campaign.bands, stars,
+    res = model.evaluate(sat, bodies, np.take(los, p_idx, axis=0), g, campaign.bands, stars,
                          faint_rates=None if faint is None else {b: v[p_idx] for b, v in faint.items()}, frame=sub)
     for ib, b in enumerate(campaign.bands):
         for comp in CUBE_COMPONENTS + ("total",):
