@@ -328,7 +328,8 @@ class TelescopeFrame:
 @njit(cache=True, nogil=True)
 def _frame_components_kernel(x, y, z, d_run, index, out):
     """Each body b's direction d = d_run[b, index[p]] in sample p's frame, into ``out`` (B, 4, N):
-    hypot(d . x, d . y), d . z, d . y, d . x (theta = atan2 of the first two, phi of the last two)."""
+    sqrt((d . x)^2 + (d . y)^2) (hypot's value to rounding: unit vectors neither overflow nor
+    underflow), d . z, d . y, d . x (theta = atan2 of the first two, phi of the last two)."""
     for b in range(d_run.shape[0]):
         for p in range(x.shape[0]):
             q = index[p]
