@@ -489,6 +489,8 @@ def scene_runs(*vectors_km) -> SceneRuns | None:
     new = np.zeros(n, bool)
     new[0] = True
     for f in flat:
+        # read-only, said explicitly: numpy warns when numba asks a broadcast view whether it is writeable
+        f.flags.writeable = False
         _mark_changed_rows(f, new)
     starts = np.flatnonzero(new)
     if starts.size > n // 2:
