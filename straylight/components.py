@@ -342,10 +342,8 @@ class ComponentModel:
         """:meth:`_skippable_transfer` of a planet at the samples ``near`` (flat indices: those
         :meth:`_planets_fraction` finds within its widest skip radius), its angles
         (:func:`body_geometry`) computed there only; 0 elsewhere."""
-        full = shape + (3,)
         out = np.zeros(int(np.prod(shape)))
-        sat, planet, fx, fy, fz = (np.take(np.broadcast_to(np.asarray(v, float), full).reshape(-1, 3), near, axis=0)
-                                   for v in (satellite_km, planet_km, frame.x, frame.y, frame.z))
+        sat, planet, fx, fy, fz = (_rows_at(v, shape, near) for v in (satellite_km, planet_km, frame.x, frame.y, frame.z))
         g = body_geometry(sat, {"planet": planet}, TelescopeFrame(fx, fy, fz), self.campaign.earth.radius_km)
         fraction_near, door_near, floor_near = (np.broadcast_to(np.asarray(v, float), shape).ravel()[near]
                                                 for v in (sun_fraction, door, floor_ratio))
@@ -602,20 +600,16 @@ class ComponentModel:
         # limb).  Nearer the limb and below it no Earth grid converges (blocks next to the field
         # edge meet the PST's jump), so the configured grid would cost 5x for numbers no better
         # than indicative: the coarse grid runs there too.
-        # the needed rows by index (np.take: ~5x a boolean mask's gather of (N, 3) rows)
         at = np.flatnonzero(need)
-
-        def rows(a):
-            return np.take(np.broadcast_to(a, full).reshape(-1, 3), at, axis=0)
-
-        sub = TelescopeFrame(rows(frame.x), rows(frame.y), rows(frame.z))
+        sub = TelescopeFrame(*(_rows_at(a, shape, at) for a in (frame.x, frame.y, frame.z)))
         door_need = np.broadcast_to(np.asarray(door, float), shape).ravel()[at]
         mlut = self.moonlit_model["lut"]
         if mlut is not None:  # the coarse grid's sum, tabulated
-            direct_moon, door_moon = mlut.coefficients(rows(sat_b), rows(moon_b), sub, door_need)
+            direct_moon, door_moon = mlut.coefficients(_rows_at(sat_b, shape, at), _rows_at(moon_b, shape, at), sub,
+                                                       door_need)
         else:
-            c = off.earthshine_coefficients(rows(sat_b), rows(sun_b), rows(moon_b), sub, door_need, re_km,
-                                            in_field=False, sun=False, grid=self.moonlit_grid)
+            c = off.earthshine_coefficients(*(_rows_at(v, shape, at) for v in (sat_b, sun_b, moon_b)), sub, door_need,
+                                            re_km, in_field=False, sun=False, grid=self.moonlit_grid)
             direct_moon, door_moon = c["direct_moon"], c["door_moon"]
         es_coeff["direct_moon"][need] += direct_moon
         es_coeff["door_moon"][need] = door_moon
@@ -875,6 +869,13 @@ class ComponentModel:
         if not parts:
             return shape, (np.zeros(0, np.intp), np.zeros(0, np.intp), np.zeros(0))
         return shape, tuple(np.concatenate(x) for x in zip(*parts))
+
+
+def _rows_at(vectors, shape, index) -> np.ndarray:
+    """The 3-vectors ``vectors`` (broadcast to ``shape`` + (3,)) at the flat sample indices
+    ``index``, (len(index), 3): by np.take, 3-5x numpy's boolean or fancy indexing of (N, 3)
+    rows on this machine (47,520 rows: 0.12 against 0.43-0.66 ms)."""
+    return np.take(np.broadcast_to(np.asarray(vectors, float), tuple(shape) + (3,)).reshape(-1, 3), index, axis=0)
 
 
 @njit(cache=True, nogil=True)

@@ -315,7 +315,8 @@ class OffFieldModel:
         rows = scene_rows(np.asarray(sat_km, float))
         gamma, dgamma = self._cap_nadir_angles_at(norm(rows.vectors[0]), earth_radius_km, s)
         cap_sr = 2.0 * np.pi * np.sum(np.sin(gamma) * dgamma, axis=-1)  # the grid's sum of d_omega
-        return rows.expand(self.earthshine.albedo / np.pi * self._pst_max_outside_field * cap_sr * self.pixel_area_m2)
+        return np.array(rows.expand(self.earthshine.albedo / np.pi * self._pst_max_outside_field * cap_sr
+                                    * self.pixel_area_m2))  # a writable array, as before
 
     @cached_property
     def _pst_max_outside_field(self) -> float:
