@@ -36,8 +36,10 @@ CUBE_COMPONENTS = ("zodiacal", "earthshine", "moon", "sun", "planets", "stars")
 #: samples per evaluation on the table path (whole time steps of a pixel block): large enough
 #: that numpy's per-call cost is paid rarely: a default production region (72 steps x 660
 #: pixels) in one call, 53-54 ms against 57-66 ms in three calls of 16,384 (three interleaved
-#: rounds; peak memory 854 against 830 MB, the tables most of it)
-SAMPLES_PER_EVALUATION = 65536
+#: rounds; peak memory 854 against 830 MB, the tables most of it).  A region of 72 steps x
+#: 1024 pixels (the schema's default pixel block) in one call: 71-74 ms against 75-79 ms in two
+#: (three interleaved rounds), 116 against 105 MB traced at the peak (~1.6 kB a sample)
+SAMPLES_PER_EVALUATION = 131072
 LONG_NAMES = {
     "zodiacal": "in-field zodiacal light (Leinert 1998)",
     "earthshine": "earthshine through the PST, direct + via the aperture door",
@@ -327,10 +329,9 @@ def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: s
     # paid once per batch, not once per step (1.5-1.7x on the table path).  The direct earthshine
     # sum grids the Earth per sample, so there one step per call bounds its memory (the star
     # pairs bound their own: ComponentModel.STAR_PAIRS_PER_PASS).
-    per_call = 1 if model.earthshine_model["lut"] is None else max(1, SAMPLES_PER_EVALUATION // max(npix, 1))
+    max_samples = npix if model.earthshine_model["lut"] is None else SAMPLES_PER_EVALUATION
     skip_unobservable = unobservable_samples(campaign) == "skip"  # the campaign's, not the model's
-    for first in range(0, nt, per_call):
-        steps = slice(first, min(first + per_call, nt))
+    for steps in _step_batches(nt, npix, max_samples):
         k = steps.stop - steps.start
         # each step's scene repeated over its pixels (geometry.scene_runs finds the steps again)
         sat = np.repeat(sc.satellite_km[steps], npix, axis=0)
@@ -384,6 +385,17 @@ def _evaluate_observable(model, campaign: Campaign, sc, los, faint, screen: dict
     for ib, b in enumerate(campaign.bands):
         for comp in CUBE_COMPONENTS + ("total",):
             out[comp][steps.start + t_idx, p_idx, ib] = np.broadcast_to(res[b][comp], sel.shape)
+
+
+def _step_batches(n_steps: int, n_pixels: int, max_samples: int) -> list[slice]:
+    """The time steps of one evaluation each: as few as keep each within ``max_samples``
+    samples (at least one step), sized within one step of each other, so no call is a small
+    remainder paying the per-call cost for a few steps (72 steps of 1024 pixels within 65,536:
+    two calls of 36, not 64 and 8)."""
+    steps_max = max(1, max_samples // max(n_pixels, 1))
+    n_calls = -(-n_steps // steps_max)
+    bounds = [n_steps * i // n_calls for i in range(n_calls + 1)] if n_calls else [0]
+    return [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
 
 
 def _by_step(values, k: int, npix: int) -> np.ndarray:

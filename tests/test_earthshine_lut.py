@@ -408,6 +408,40 @@ def test_cube_region_batches_steps_in_time_pixel_order(coarse):
             np.testing.assert_allclose(ds["total"].values[it, :, ib], alone[b]["total"], rtol=1e-6)
 
 
+def test_step_batches_are_even_and_within_the_cap():
+    """cube._step_batches: consecutive slices covering every step once, each within the cap
+    (or one step where a step alone exceeds it), sizes within one step of each other."""
+    from straylight.cube import _step_batches
+
+    for n_steps, n_pixels, cap in [(72, 1024, 65536), (72, 660, 131072), (7, 60, 150), (5, 10**6, 1000),
+                                   (72, 1024, 131072), (13, 1, 4), (0, 660, 65536)]:
+        batches = _step_batches(n_steps, n_pixels, cap)
+        sizes = [b.stop - b.start for b in batches]
+        assert [b.start for b in batches] == [sum(sizes[:i]) for i in range(len(sizes))] and sum(sizes) == n_steps
+        assert all(s * n_pixels <= cap or s == 1 for s in sizes)
+        assert not sizes or max(sizes) - min(sizes) <= 1
+        # no more calls than the cap needs: ceil(steps / steps that fit)
+        assert len(batches) == -(-n_steps // max(1, cap // n_pixels))
+    assert [(b.start, b.stop) for b in _step_batches(72, 1024, 65536)] == [(0, 36), (36, 72)]  # not 64 + 8
+
+
+def test_cube_region_split_into_calls_gives_the_same_values(coarse, monkeypatch):
+    """A region evaluated in several calls (a small SAMPLES_PER_EVALUATION) equals the region in
+    one call, value for value: each sample depends on that sample alone."""
+    import straylight.cube as cube
+    from straylight.footprint import footprint_from_config
+
+    c, cm, _ = coarse
+    fp = footprint_from_config(c.config["footprint"])
+    t_slice, p_slice = slice(0, 35, 5), slice(200, 260)
+    whole = cube.compute_region(c, fp, t_slice, p_slice, model=cm)
+    monkeypatch.setattr(cube, "SAMPLES_PER_EVALUATION", 150)  # 7 steps of 60 pixels: calls of 1, 2, 2, 2 steps
+    split = cube.compute_region(c, fp, t_slice, p_slice, model=cm)
+    for name in list(cube.CUBE_COMPONENTS) + ["total", "observable", "violations", "door_opening_deg"]:
+        np.testing.assert_array_equal(split[name].values, whole[name].values, err_msg=name)
+    assert np.count_nonzero(whole["total"].values) == whole["total"].size
+
+
 def test_cube_region_skipping_unobservable_samples_changes_no_observable_value(coarse):
     """models.unobservable_samples: skip evaluates only the observable samples: they come out
     bit-identical to evaluating every sample, every other sample is NaN in every component, and
