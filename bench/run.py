@@ -407,25 +407,38 @@ def cube_summary(catalog, time_step: int = 24, n_times: int = 12) -> dict:
 
 
 def production_region_rates(base, fp, stars_path) -> dict:
-    """The table path (every sample, and observable samples only) on the region one task of a
+    """The table path (every sample, and observable samples only) on what one task of a
     production run computes (cube.run_time_block): one time block of consecutive steps
     (campaign.time_block_hours, 72 at the default 5-minute cadence) x one pixel block
     (footprint.pixel_block_size, 660 by default), the day's first, with the star catalog at
     ``stars_path``; samples per second on one core, best of three after a warm-up.  The
-    per-region costs (the bodies' ephemeris, the faint-star map's tile) are then shared by 72
-    steps instead of the 12 spread over the day in :func:`cube_summary`."""
+    per-region costs (the faint-star map's tile) are then shared by 72 steps instead of the 12
+    spread over the day in :func:`cube_summary`.  Also the whole time block as its job computes
+    it, writes aside: the bodies' positions once (sky.scene), then every pixel block."""
     from straylight.cube import compute_region, cube_chunks
+    from straylight.sky import scene
 
     ch = cube_chunks(base, len(base.times), int(fp.pixels.size))
     t_slice, p_slice = slice(0, ch["time"]), slice(0, ch["pixel"])
-    n = ch["time"] * ch["pixel"]
-    out = {"times": int(ch["time"]), "pixels": int(ch["pixel"])}
+    p_blocks = [slice(a, b) for a, b in fp.blocks(ch["pixel"])]
+    n, n_block = ch["time"] * ch["pixel"], ch["time"] * int(fp.pixels.size)
+    out = {"times": int(ch["time"]), "pixels": int(ch["pixel"]), "time_block": {"pixel_blocks": len(p_blocks)}}
     for key, unobservable in (("lut", "evaluate"), ("lut_observable_only", "skip")):
         c, model = _cube_model(base, earthshine={"method": "lut"}, models={"unobservable_samples": unobservable})
         _, dt = timed(lambda: compute_region(c, fp, t_slice, p_slice, model=model, stars_path=stars_path))
         out[key] = {"samples_per_s_per_core": n / dt}
         print(f"cube, one production region ({out['times']} steps x {out['pixels']} pixels), unobservable samples "
               f"{unobservable}: {n / dt:.0f} samples/s/core")
+
+        def time_block():
+            sc = scene(c, c.times[t_slice])
+            for ps in p_blocks:
+                compute_region(c, fp, t_slice, ps, model=model, stars_path=stars_path, scene=sc)
+
+        _, dt = timed(time_block)
+        out["time_block"][key] = {"samples_per_s_per_core": n_block / dt}
+        print(f"cube, one production time block ({out['times']} steps x {fp.pixels.size} pixels in {len(p_blocks)} "
+              f"blocks, the scene once), unobservable samples {unobservable}: {n_block / dt:.0f} samples/s/core")
     return out
 
 

@@ -442,6 +442,28 @@ def test_cube_region_split_into_calls_gives_the_same_values(coarse, monkeypatch)
     assert np.count_nonzero(whole["total"].values) == whole["total"].size
 
 
+def test_cube_region_with_its_time_blocks_scene_gives_the_same_values(coarse):
+    """A pixel block given its time block's scene (cube.run_time_block computes it once for
+    all its pixel blocks) equals one that computes its own; a scene at other times is refused."""
+    import straylight.cube as cube
+    from straylight.footprint import footprint_from_config
+    from straylight.sky import scene
+
+    c, cm, _ = coarse
+    fp = footprint_from_config(c.config["footprint"])
+    t_slice = slice(0, 12, 4)
+    block_scene = scene(c, c.times[t_slice])
+    for p_slice in (slice(0, 40), slice(300, 340)):
+        own = cube.compute_region(c, fp, t_slice, p_slice, model=cm)
+        shared = cube.compute_region(c, fp, t_slice, p_slice, model=cm, scene=block_scene)
+        for name in list(cube.CUBE_COMPONENTS) + ["total", "observable", "door_opening_deg"]:
+            np.testing.assert_array_equal(shared[name].values, own[name].values, err_msg=name)
+    with pytest.raises(ValueError, match="not at the region's"):
+        cube.compute_region(c, fp, slice(1, 13, 4), slice(0, 40), model=cm, scene=block_scene)
+    with pytest.raises(ValueError, match="not at the region's"):
+        cube.compute_region(c, fp, slice(0, 8, 4), slice(0, 40), model=cm, scene=block_scene)
+
+
 def test_cube_region_skipping_unobservable_samples_changes_no_observable_value(coarse):
     """models.unobservable_samples: skip evaluates only the observable samples: they come out
     bit-identical to evaluating every sample, every other sample is NaN in every component, and
