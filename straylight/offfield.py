@@ -41,7 +41,7 @@ import numpy as np
 from .bandpass import Band
 from .door import Door, DoorTable, door_state_index
 from .errors import ConfigError
-from .geometry import dot, norm, perpendicular_towards, scene_rows, shared_vectors, unit, wrap_360_deg
+from .geometry import dot, norm, perpendicular_towards, rows_at, scene_rows, shared_vectors, unit, wrap_360_deg
 from .gridinterp import LinearGrid
 from .pst import PST
 from .zodiacal import solar_spectrum
@@ -276,15 +276,16 @@ class OffFieldModel:
         disc = b * b - c
         hits = (disc > 0) & (b < 0)
         per_sun, per_moon = np.zeros(hits.shape), np.zeros(hits.shape)
-        if np.any(hits):
-            t = -b[hits] - np.sqrt(disc[hits])
-            pts = sat[hits] + t[:, None] * los[hits]
-            sun = np.broadcast_to(np.asarray(sun_km, float), los.shape)[hits]
-            moon = np.broadcast_to(np.asarray(moon_km, float), los.shape)[hits]
+        at = np.flatnonzero(hits)  # the rows by index (geometry.rows_at: ~4x a boolean mask's)
+        if at.size:
+            shape = hits.shape
+            t = -b.ravel()[at] - np.sqrt(disc.ravel()[at])
+            pts = rows_at(sat, shape, at) + t[:, None] * rows_at(los, shape, at)
+            sun, moon = rows_at(sun_km, shape, at), rows_at(moon_km, shape, at)
             mu_sun, mu_moon = self.lamp_cosines(pts[:, None, None, :], sun, moon, earth_radius_km)
             lambert = self.earthshine.albedo / np.pi  # Lambertian radiance per unit irradiance and cos z
-            per_sun[hits] = lambert * mu_sun[:, 0, 0] * self.pixel_etendue_m2_sr
-            per_moon[hits] = lambert * mu_moon[:, 0, 0] * self.pixel_etendue_m2_sr
+            per_sun.ravel()[at] = lambert * mu_sun[:, 0, 0] * self.pixel_etendue_m2_sr
+            per_moon.ravel()[at] = lambert * mu_moon[:, 0, 0] * self.pixel_etendue_m2_sr
         return per_sun, per_moon
 
     def earthshine_lamp_bound(self, sat_km, lamp_direction, los, earth_radius_km) -> np.ndarray:
