@@ -167,7 +167,8 @@ class ComponentModel:
         moon_at_earth_fraction = solar_like_fraction(v_moon_at_earth) * eclipse
         moon_at_earth_unit = {name: sun_at_1au[name] * moon_at_earth_fraction for name in bands}
         zodi = {name: self.zodiacal.e_per_s_per_pix(self.band(name), b500) for name in bands}
-        sun_irr = {name: sun_at_1au[name] * (AU_KM / d_sun) ** 2 for name in bands}
+        inverse_square = (AU_KM / d_sun) ** 2  # once for all bands
+        sun_irr = {name: sun_at_1au[name] * inverse_square for name in bands}
         aperture_d = self.campaign.instrument_value("telescope", "aperture_diameter_m")
         pix_arcsec = self.campaign.instrument_value("detector", "pixel_scale_arcsec")
         out = {}
@@ -179,9 +180,10 @@ class ComponentModel:
         # skippable terms below are held to their shares of the tolerance times it, so a term
         # that matters only against the darkest sky is still summed there, and skipped where the
         # Sun or the sunlit Earth already outshines it (the scene does not need it).
-        floor = {name: self._floor(zodi[name] + (t_sun + es_coeff["direct_sun"] + es_coeff["door_sun"]) * sun_irr[name]
-                                   + (es_coeff["direct_moon"] + es_coeff["door_moon"]) * moon_at_earth_unit[name],
-                                   name, shape) for name in bands}
+        per_sun = t_sun + es_coeff["direct_sun"] + es_coeff["door_sun"]  # the band-independent sums once
+        per_moon = es_coeff["direct_moon"] + es_coeff["door_moon"]
+        floor = {name: self._floor(zodi[name] + per_sun * sun_irr[name] + per_moon * moon_at_earth_unit[name], name, shape)
+                 for name in bands}
         if self.earthshine_model["lut"] is not None:
             self._add_moonlit_earthshine(es_coeff, sat, sun, moon, frame, door, shape, moon_at_earth_unit, floor)
         # the floor in units of the darkest zodiacal light, worst band: what the skip radii scale with
@@ -218,7 +220,9 @@ class ComponentModel:
             res["earthshine_direct"], res["earthshine_door"] = np.broadcast_to(ea1, shape), np.broadcast_to(ea2, shape)
             res["earthshine"] = res["earthshine_direct"] + res["earthshine_door"]
             res = {k: np.asarray(v, dtype=float) for k, v in res.items()}
-            res["total"] = sum(res[k] for k in ("zodiacal", "sun", "moon", "planets", "stars", "earthshine"))
+            # summed in this order from the zodiacal light (not from 0, as sum() would: one pass fewer)
+            res["total"] = (res["zodiacal"] + res["sun"] + res["moon"] + res["planets"] + res["stars"]
+                            + res["earthshine"])
             res["_band"] = band
             res["_zodiacal_no_data"] = np.broadcast_to(zodi_no_data, shape)
             res["_mag"] = lambda e, b=band: magnitude_per_arcsec2(e, b, aperture_d, pix_arcsec)
