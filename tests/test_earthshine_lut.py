@@ -464,6 +464,38 @@ def test_cube_region_with_its_time_blocks_scene_gives_the_same_values(coarse):
         cube.compute_region(c, fp, slice(0, 8, 4), slice(0, 40), model=cm, scene=block_scene)
 
 
+def test_evaluate_into_given_arrays_writes_the_same_values(coarse):
+    """ComponentModel.evaluate(into=...) (the cube's float32 region) writes each asked-for
+    component's values, the float64 ones of a plain call rounded to float32, and computes no
+    other; a wrongly shaped array is refused."""
+    from straylight.components import BAND_COMPONENTS
+    from straylight.geometry import observing_geometry, radec_to_unit
+    from straylight.sky import scene
+
+    c, cm, _ = coarse
+    sc = scene(c, c.times[0:20:5])
+    los = radec_to_unit(np.linspace(0.0, 350.0, 50), np.linspace(-60.0, 70.0, 50))
+    sat = np.repeat(sc.satellite_km, 50, axis=0)
+    bodies = {b: np.repeat(v, 50, axis=0) for b, v in sc.bodies_km.items()}
+    los_k = np.tile(los, (4, 1))
+    g = observing_geometry(sat, bodies, los_k, c.earth.radius_km, c.constraints)
+    plain = cm.evaluate(sat, bodies, los_k, g, c.bands)
+    asked = ("zodiacal", "earthshine", "stars", "total")
+    into = {comp: np.full((200, len(c.bands)), np.nan, np.float32) for comp in asked}
+    res = cm.evaluate(sat, bodies, los_k, g, c.bands, into=into)
+    for ib, b in enumerate(c.bands):
+        assert set(res[b]) & set(BAND_COMPONENTS) == set(asked)
+        for comp in asked:
+            np.testing.assert_array_equal(into[comp][:, ib], plain[b][comp].astype(np.float32), err_msg=comp)
+        # the plain call's components add up to its total (to rounding: the same order of sums)
+        parts = sum(plain[b][k] for k in ("zodiacal", "sun", "moon", "planets", "stars", "earthshine"))
+        np.testing.assert_allclose(plain[b]["total"], parts, rtol=1e-15)
+        np.testing.assert_array_equal(plain[b]["earthshine"], plain[b]["earthshine_direct"] + plain[b]["earthshine_door"])
+    assert np.count_nonzero(into["earthshine"]) > 0 and np.all(into["total"] > 0)
+    with pytest.raises(ValueError, match="into\\['total'\\] has shape"):
+        cm.evaluate(sat, bodies, los_k, g, c.bands, into={"total": np.zeros((199, len(c.bands)), np.float32)})
+
+
 def test_cube_region_skipping_unobservable_samples_changes_no_observable_value(coarse):
     """models.unobservable_samples: skip evaluates only the observable samples: they come out
     bit-identical to evaluating every sample, every other sample is NaN in every component, and
