@@ -138,7 +138,7 @@ class ComponentModel:
         return self._bands[name][1]
 
     def evaluate(self, satellite_km, bodies_km, los, geometry, bands, stars: StarTable | None = None,
-                 faint_rates: dict | None = None, frame=None, into: dict | None = None) -> dict:
+                 faint_rates: dict | None = None, frame=None, into: tuple | None = None) -> dict:
         """Components for broadcastable samples, band -> {component: e-/s/pix, float64 arrays
         of the samples' shape (:data:`BAND_COMPONENTS`), and ``_band``, ``_zodiacal_no_data``,
         ``_mag``}; ``geometry`` from :func:`observing_geometry` (the Sun's and the Moon's
@@ -146,10 +146,10 @@ class ComponentModel:
         only where it can count: :meth:`_planets_fraction`); ``faint_rates``: the faint stars'
         map at these lines of sight, band -> e-/s/pix (as :meth:`faint_star_rates` gives it),
         when already computed; ``frame``: the samples' ``telescope_frame(los, sun -
-        satellite)``, when already computed; ``into``: component -> array (samples flattened,
-        bands), e.g. float32 views of a cube's region, that receives those components (the
-        result's arrays are then views of them, and components not in ``into`` are not
-        computed).  ValueError if an ``into`` array has another shape."""
+        satellite)``, when already computed; ``into``: (component names, array (names,
+        samples flattened, bands)), e.g. a cube region's float32 block, that receives those
+        components (the result's arrays are then views of it, and the other components are
+        not computed).  ValueError for an unknown name or an array of another shape."""
         off = self.offfield
         re_km = self.campaign.earth.radius_km
         sat = np.asarray(satellite_km, float)
@@ -217,26 +217,20 @@ class ComponentModel:
                 stars_e[ib] = np.bincount(pair_sample, weights=pair_transfer * flux[pair_star], minlength=n)
             if faint is not None and name in faint:
                 stars_e[ib] += np.broadcast_to(faint[name], shape).ravel()
-        targets = into or {}
-        values = {}
-        for comp in BAND_COMPONENTS:
-            if comp in targets:
-                a = targets[comp]
-                if a.shape != (n, len(bands)):
-                    raise ValueError(f"into[{comp!r}] has shape {a.shape}, not (samples, bands) = {(n, len(bands))}")
-                values[comp] = a
-            elif into is None:  # band-major, so each band's array is contiguous
-                values[comp] = np.empty((len(bands), n)).T
-            else:
-                values[comp] = np.empty((0, 0))  # not asked for: not written
+        names, values = into if into is not None else (BAND_COMPONENTS, np.empty((len(BAND_COMPONENTS), len(bands), n))
+                                                         .transpose(0, 2, 1))  # band-major: each band's row contiguous
+        unknown = set(names) - set(BAND_COMPONENTS)
+        if unknown or values.shape != (len(names), n, len(bands)):
+            raise ValueError(f"into: components {tuple(names)} (unknown: {sorted(unknown)}) in an array of shape "
+                             f"{values.shape}, not (components, samples, bands) = {(len(names), n, len(bands))}")
+        slot = np.array([list(names).index(c) if c in names else -1 for c in BAND_COMPONENTS], np.intp)
         flat = [np.ascontiguousarray(np.broadcast_to(np.asarray(v, float), shape).ravel()) for v in
                 (t_sun, inverse_square, moon_fraction, planets_fraction, es_coeff["direct_sun"],
                  es_coeff["door_sun"], es_coeff["direct_moon"], es_coeff["door_moon"], moon_at_earth_fraction)]
-        _band_components_kernel(zodi_e, *flat, stars_e, np.array([sun_at_1au[name] for name in bands]),
-                                *(values[c] for c in BAND_COMPONENTS))
+        _band_components_kernel(zodi_e, *flat, stars_e, np.array([sun_at_1au[name] for name in bands]), slot, values)
         for ib, name in enumerate(bands):
             band = self.band(name)
-            res = {comp: values[comp][:, ib].reshape(shape) for comp in BAND_COMPONENTS if values[comp].size}
+            res = {comp: values[k, :, ib].reshape(shape) for k, comp in enumerate(names)}
             res["_band"] = band
             res["_zodiacal_no_data"] = np.broadcast_to(zodi_no_data, shape)
             res["_mag"] = lambda e, b=band: magnitude_per_arcsec2(e, b, aperture_d, pix_arcsec)
@@ -897,46 +891,32 @@ BAND_COMPONENTS = ("zodiacal", "sun", "moon", "planets", "stars", "earthshine_di
 
 @njit(cache=True, nogil=True)
 def _band_components_kernel(zodi_e, t_sun, inverse_square, moon_fraction, planets_fraction, direct_sun, door_sun,
-                            direct_moon, door_moon, moon_at_earth_fraction, stars_e, sun_at_1au,
-                            zodiacal, sun, moon, planets, stars, earthshine_direct, earthshine_door, earthshine, total):
-    """Every band's :data:`BAND_COMPONENTS` (e-/s/pix) per sample, into the (samples, bands)
-    arrays given (any float dtype and strides; an empty array is not written), from the
-    band-independent per-sample terms and each band's solar photon irradiance at 1 AU;
-    ``zodi_e`` and ``stars_e``: each band's zodiacal light and stars, (bands, samples).  The
-    arithmetic is the per-band numpy expressions it replaced, in the same order, so the same
-    float64 values (the cube's totals compared bit for bit), in one pass over the samples
-    instead of ~25 numpy passes a band."""
+                            direct_moon, door_moon, moon_at_earth_fraction, stars_e, sun_at_1au, slot, out):
+    """Every band's :data:`BAND_COMPONENTS` (e-/s/pix) per sample, component ``c`` into
+    ``out[slot[c], sample, band]`` (any float dtype and strides; not written where slot[c] is
+    -1), from the band-independent per-sample terms and each band's solar photon irradiance
+    at 1 AU; ``zodi_e`` and ``stars_e``: each band's zodiacal light and stars, (bands,
+    samples).  The arithmetic is the per-band numpy expressions it replaced, in the same
+    order, so the same float64 values (the cube's totals compared bit for bit), in one pass
+    over the samples instead of ~25 numpy passes a band."""
+    v = np.empty(len(BAND_COMPONENTS))
     for i in range(t_sun.shape[0]):
         for ib in range(sun_at_1au.shape[0]):
             s1 = sun_at_1au[ib]
             sun_irr = s1 * inverse_square[i]
             moon_irr_earth = s1 * moon_at_earth_fraction[i]
-            z = zodi_e[ib, i]
-            su = t_sun[i] * sun_irr
-            mo = moon_fraction[i] * s1
-            pl = planets_fraction[i] * s1
-            st = stars_e[ib, i]
-            ea1 = direct_sun[i] * sun_irr + direct_moon[i] * moon_irr_earth
-            ea2 = door_sun[i] * sun_irr + door_moon[i] * moon_irr_earth
-            ea = ea1 + ea2
-            if zodiacal.size:
-                zodiacal[i, ib] = z
-            if sun.size:
-                sun[i, ib] = su
-            if moon.size:
-                moon[i, ib] = mo
-            if planets.size:
-                planets[i, ib] = pl
-            if stars.size:
-                stars[i, ib] = st
-            if earthshine_direct.size:
-                earthshine_direct[i, ib] = ea1
-            if earthshine_door.size:
-                earthshine_door[i, ib] = ea2
-            if earthshine.size:
-                earthshine[i, ib] = ea
-            if total.size:
-                total[i, ib] = z + su + mo + pl + st + ea
+            v[0] = zodi_e[ib, i]
+            v[1] = t_sun[i] * sun_irr
+            v[2] = moon_fraction[i] * s1
+            v[3] = planets_fraction[i] * s1
+            v[4] = stars_e[ib, i]
+            v[5] = direct_sun[i] * sun_irr + direct_moon[i] * moon_irr_earth
+            v[6] = door_sun[i] * sun_irr + door_moon[i] * moon_irr_earth
+            v[7] = v[5] + v[6]
+            v[8] = v[0] + v[1] + v[2] + v[3] + v[4] + v[7]
+            for c in range(len(BAND_COMPONENTS)):
+                if slot[c] >= 0:
+                    out[slot[c], i, ib] = v[c]
 
 
 @njit(cache=True, nogil=True)

@@ -328,7 +328,8 @@ def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: s
     # or more (a default region's 9.3 MB), where seven 1.3 MB arrays were first touched 4 kB page
     # by page (~2300 page faults, ~3 ms of a ~47 ms region)
     names = CUBE_COMPONENTS + ("total",)
-    out = dict(zip(names, np.zeros((len(names), nt, npix, nb), np.float32)))
+    block = np.zeros((len(names), nt, npix, nb), np.float32)
+    out = dict(zip(names, block))
     obs = np.zeros((nt, npix), bool)
     viol = np.zeros((nt, npix), np.uint8)
     door = np.zeros((nt, npix), np.float32)
@@ -354,8 +355,9 @@ def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: s
             _evaluate_observable(model, campaign, sc, los, faint, g, frame, stars, out, steps)
         else:
             faint_k = None if faint is None else {b: np.tile(v, k) for b, v in faint.items()}
-            # written straight into the region's float32 arrays (rows: the steps' samples, step-major)
-            into = {comp: out[comp][steps].reshape(k * npix, nb) for comp in CUBE_COMPONENTS + ("total",)}
+            # written straight into the region's float32 block: a view (the steps are consecutive,
+            # so step and pixel merge into the batch's step-major samples)
+            into = (names, block[:, steps].reshape(len(names), k * npix, nb))
             model.evaluate(sat, bodies, los_k, g, campaign.bands, stars, faint_rates=faint_k, frame=frame, into=into)
         obs[steps], viol[steps], door[steps] = (_by_step(g[v], k, npix)
                                                 for v in ("observable", "violations", "door_opening_deg"))
@@ -398,11 +400,13 @@ def _evaluate_observable(model, campaign: Campaign, sc, los, faint, screen: dict
     bodies = {b: np.take(v[steps], t_idx, axis=0) for b, v in sc.bodies_km.items()}
     sub = TelescopeFrame(*(np.take(a, sel, axis=0) for a in (frame.x, frame.y, frame.z)))
     g = {name: np.asarray(v)[sel] for name, v in screen.items()}
-    into = {comp: np.empty((sel.size, len(campaign.bands)), np.float32) for comp in CUBE_COMPONENTS + ("total",)}
+    names = CUBE_COMPONENTS + ("total",)
+    values = np.empty((len(names), sel.size, len(campaign.bands)), np.float32)
     model.evaluate(sat, bodies, np.take(los, p_idx, axis=0), g, campaign.bands, stars,
-                   faint_rates=None if faint is None else {b: v[p_idx] for b, v in faint.items()}, frame=sub, into=into)
-    for comp, values in into.items():  # every band of a sample at once
-        out[comp][steps.start + t_idx, p_idx] = values
+                   faint_rates=None if faint is None else {b: v[p_idx] for b, v in faint.items()}, frame=sub,
+                   into=(names, values))
+    for comp, v in zip(names, values):  # every band of a sample at once
+        out[comp][steps.start + t_idx, p_idx] = v
 
 
 def _step_batches(n_steps: int, n_pixels: int, max_samples: int) -> list[slice]:

@@ -464,10 +464,10 @@ def test_cube_region_with_its_time_blocks_scene_gives_the_same_values(coarse):
         cube.compute_region(c, fp, slice(0, 8, 4), slice(0, 40), model=cm, scene=block_scene)
 
 
-def test_evaluate_into_given_arrays_writes_the_same_values(coarse):
-    """ComponentModel.evaluate(into=...) (the cube's float32 region) writes each asked-for
-    component's values, the float64 ones of a plain call rounded to float32, and computes no
-    other; a wrongly shaped array is refused."""
+def test_evaluate_into_a_given_array_writes_the_same_values(coarse):
+    """ComponentModel.evaluate(into=(names, array)) (the cube's float32 region) writes each
+    asked-for component's values, in the order asked, the float64 ones of a plain call rounded
+    to float32, and returns no other; an unknown name or a wrongly shaped array is refused."""
     from straylight.components import BAND_COMPONENTS
     from straylight.geometry import observing_geometry, radec_to_unit
     from straylight.sky import scene
@@ -480,20 +480,23 @@ def test_evaluate_into_given_arrays_writes_the_same_values(coarse):
     los_k = np.tile(los, (4, 1))
     g = observing_geometry(sat, bodies, los_k, c.earth.radius_km, c.constraints)
     plain = cm.evaluate(sat, bodies, los_k, g, c.bands)
-    asked = ("zodiacal", "earthshine", "stars", "total")
-    into = {comp: np.full((200, len(c.bands)), np.nan, np.float32) for comp in asked}
-    res = cm.evaluate(sat, bodies, los_k, g, c.bands, into=into)
+    asked = ("total", "earthshine", "zodiacal", "stars")
+    into = np.full((len(asked), 200, len(c.bands)), np.nan, np.float32)
+    res = cm.evaluate(sat, bodies, los_k, g, c.bands, into=(asked, into))
     for ib, b in enumerate(c.bands):
         assert set(res[b]) & set(BAND_COMPONENTS) == set(asked)
-        for comp in asked:
-            np.testing.assert_array_equal(into[comp][:, ib], plain[b][comp].astype(np.float32), err_msg=comp)
+        for k, comp in enumerate(asked):
+            np.testing.assert_array_equal(into[k, :, ib], plain[b][comp].astype(np.float32), err_msg=comp)
+            assert np.shares_memory(res[b][comp], into)
         # the plain call's components add up to its total (to rounding: the same order of sums)
         parts = sum(plain[b][k] for k in ("zodiacal", "sun", "moon", "planets", "stars", "earthshine"))
         np.testing.assert_allclose(plain[b]["total"], parts, rtol=1e-15)
         np.testing.assert_array_equal(plain[b]["earthshine"], plain[b]["earthshine_direct"] + plain[b]["earthshine_door"])
-    assert np.count_nonzero(into["earthshine"]) > 0 and np.all(into["total"] > 0)
-    with pytest.raises(ValueError, match="into\\['total'\\] has shape"):
-        cm.evaluate(sat, bodies, los_k, g, c.bands, into={"total": np.zeros((199, len(c.bands)), np.float32)})
+    assert np.count_nonzero(into[1]) > 0 and np.all(into[0] > 0)
+    with pytest.raises(ValueError, match="not \\(components, samples, bands\\) = \\(1, 200, 7\\)"):
+        cm.evaluate(sat, bodies, los_k, g, c.bands, into=(("total",), np.zeros((1, 199, len(c.bands)), np.float32)))
+    with pytest.raises(ValueError, match="unknown: \\['sky'\\]"):
+        cm.evaluate(sat, bodies, los_k, g, c.bands, into=(("sky",), np.zeros((1, 200, len(c.bands)), np.float32)))
 
 
 def test_cube_region_skipping_unobservable_samples_changes_no_observable_value(coarse):
