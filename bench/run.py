@@ -547,6 +547,49 @@ def pareto_chart(name, rows, path, xlabel="seconds per sample (one core, all ban
     plt.close(fig)
 
 
+def goal_check(summary: dict) -> dict:
+    """Issue #7's goal figures against this run's (the default path: the cube on the table
+    path, every sample evaluated, as production computes it): samples/s/core for all bands on
+    a production time block (the figure production runs at), a single region and the
+    day-spread batch; the default's error against the converged reference (the earthshine
+    table's row of the random-sample sweep, the largest term's error; None in a ``--only
+    cube`` run without an earlier full run) and the cube's table path against its direct
+    path; the speed-up over the direct path, side by side in one run."""
+    cube = summary.get("cube", {})
+    region = cube.get("production_region", {})
+    rates = {"production_time_block": region.get("time_block", {}).get("lut", {}).get("samples_per_s_per_core"),
+             "production_region": region.get("lut", {}).get("samples_per_s_per_core"),
+             "day_spread_batch": cube.get("lut", {}).get("samples_per_s_per_core")}
+    error = (summary.get("earthshine_table") or {}).get("max_rel_error")
+    speedup = cube.get("speedup_lut_over_direct")
+    goal_rate, goal_error, goal_speedup = 1e6, 0.01, 10.0
+    return {
+        "samples_per_s_per_core": rates,
+        "goal_samples_per_s_per_core": goal_rate,
+        "max_rel_error_vs_reference": error,
+        "max_rel_error_table_vs_direct_observable": cube.get("lut_vs_direct_max_rel_error_observable"),
+        "goal_max_rel_error": goal_error,
+        "speedup_over_direct": speedup,
+        "goal_speedup_over_direct": goal_speedup,
+        "met": {"rate_production_time_block": None if rates["production_time_block"] is None
+                else bool(rates["production_time_block"] >= goal_rate),
+                "rate_day_spread_batch": None if rates["day_spread_batch"] is None
+                else bool(rates["day_spread_batch"] >= goal_rate),
+                "error": None if error is None else bool(error <= goal_error),
+                "speedup": None if speedup is None else bool(speedup >= goal_speedup)},
+    }
+
+
+def _print_goal_check(check: dict) -> None:
+    r = check["samples_per_s_per_core"]
+    fmt = lambda v: "-" if v is None else f"{v:,.0f}"  # noqa: E731
+    err = check["max_rel_error_vs_reference"]
+    print(f"goal: {fmt(r['production_time_block'])} samples/s/core on a production time block "
+          f"({fmt(r['production_region'])} one region, {fmt(r['day_spread_batch'])} the day-spread batch) against "
+          f"{check['goal_samples_per_s_per_core']:,.0f}; error {'-' if err is None else f'{err:.2e}'} against "
+          f"{check['goal_max_rel_error']:g}; {fmt(check['speedup_over_direct'])}x the direct path; met: {check['met']}")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--samples", type=int, default=150, help="random observable samples (default 150)")
@@ -562,6 +605,8 @@ def main(argv=None):
         path = RESULTS / "summary.json"
         summary = json.loads(path.read_text()) if path.exists() else {}
         summary["cube"] = cube_summary(bench.catalog)
+        summary["goal_check"] = goal_check(summary)
+        _print_goal_check(summary["goal_check"])
         write_results("summary", summary)
         return
     if args.only:
@@ -649,6 +694,8 @@ def main(argv=None):
         "bench_seconds": time.perf_counter() - t_start,
         "charts": sorted(str(p.name) for p in RESULTS.glob("pareto_*.png")),
     }
+    summary["goal_check"] = goal_check(summary)
+    _print_goal_check(summary["goal_check"])
     write_results("knobs", knobs)
     write_results("summary", summary)
     print(f"default {summary['background_samples_per_s_per_core']:.0f} samples/s/core at max error "
