@@ -775,3 +775,26 @@ def test_one_scene_earthshine_equals_per_sample_sum(comp_model, sun_x):
             assert float(fast[k][i]) == pytest.approx(float(ref[k][0]), rel=1e-9, abs=1e-300), (k, i)
     if sun_x < 0:  # the Sun below the cap: only moonlight
         assert np.all(fast["door_sun"] == 0) and np.any(fast["direct_moon"] > 0)
+
+
+def test_door_state_index_matches_numpys_searchsorted():
+    """door.door_state_index (a compiled scan) against the numpy formulation it replaced
+    (searchsorted, first state >= the opening): the same index wherever the opening is a state
+    or none is allowed, the same flags everywhere; NaN is no state; no states is an error."""
+    from straylight.door import door_state_index
+
+    rng = np.random.default_rng(7)
+    for states in ([90.0], [45.0, 135.0], [30.0, 60.0, 90.0, 135.0]):
+        st = np.array(states)
+        op = np.concatenate([rng.choice(np.concatenate([st, [0.0, -5.0]]), 500), rng.uniform(-10, 200, 500),
+                             [np.nan, 0.0, st[0], st[-1], st[-1] + 1e-9, st[0] - 1e-9]]).reshape(2, -1)
+        index, known = door_state_index(states, op)
+        ref_index = np.where(op <= 0, 0, np.minimum(np.searchsorted(st, op), st.size - 1))
+        ref_known = (st[ref_index] == op) | (op <= 0)
+        np.testing.assert_array_equal(known, ref_known)
+        np.testing.assert_array_equal(index[known], ref_index[known])
+        assert index.shape == op.shape and known[op <= 0].all() and not known[np.isnan(op)].any()
+        assert known.sum() >= 500  # the drawn states and the closed door
+    assert door_state_index([45.0, 135.0], 135.0) == (1, True)
+    with pytest.raises(ValueError, match="door states"):
+        door_state_index([], [45.0])
