@@ -295,8 +295,8 @@ class ComponentModel:
             if widest < 180.0 and np.min(angle_deg) >= widest:
                 return np.zeros(np.broadcast_shapes(np.shape(angle_deg), np.shape(phi_deg), np.shape(earth_blocked),
                                                     np.shape(door)))
-        radius = off.pst.influence_radius_deg(budget * np.asarray(floor_ratio, float) / rel)
-        far = (np.asarray(angle_deg) >= radius) & (radius < 180.0)  # 180: nowhere skippable
+        # beyond each sample's radius (a radius of 180: nowhere skippable)
+        far = off.pst.beyond_influence_radius(angle_deg, budget * np.asarray(floor_ratio, float) / rel)
         # a skipped source is treated as hidden: point_source then looks nothing up for it
         return off.point_source(1.0, angle_deg, phi_deg, np.asarray(earth_blocked, bool) | far, door)
 

@@ -25,10 +25,11 @@ from functools import cached_property
 from pathlib import Path
 
 import numpy as np
+from numba import njit
 
 from .errors import InputError
 from .geometry import wrap_360_deg
-from .gridinterp import LinearGrid
+from .gridinterp import LinearGrid, _Axis
 
 # Anchors of the default PST (log10 PST vs theta, deg), azimuthally averaged.
 #  - theta <= 0.59 deg: inside the ~1.1 deg2 field, PST = 1 by definition (on-axis image);
@@ -145,6 +146,26 @@ class PST:
         k = self.theta_deg.size - np.searchsorted(self._tail_max_reversed, np.asarray(pst_limit, float), side="right")
         return np.where(k < self.theta_deg.size, self.theta_deg[np.minimum(k, self.theta_deg.size - 1)], 180.0)
 
+    def beyond_influence_radius(self, theta_deg, pst_limit) -> np.ndarray:
+        """Whether each ``theta_deg`` lies at or beyond :meth:`influence_radius_deg` of its
+        ``pst_limit`` (broadcast), a radius of 180 counting as nowhere (False; NaN too): the
+        same flags as ``(theta >= radius) & (radius < 180)``, found in one compiled pass with
+        no search (theta's node from a table of uniform bins, as gridinterp locates cells; the
+        node's tail maximum against the limit): ~10x numpy's searchsorted over the nodes."""
+        th, lim = np.broadcast_arrays(np.asarray(theta_deg, float), np.asarray(pst_limit, float))
+        out = np.empty(th.size, np.bool_)
+        ax, tail = self._node_finder
+        # a radius at the last node counts only when that node is short of 180
+        last_ok = ax.nodes.size - (2 if ax.nodes[-1] >= 180.0 else 1)
+        _beyond_kernel(np.ascontiguousarray(th.ravel()), np.ascontiguousarray(lim.ravel()), ax.lo, ax.inv_width,
+                       ax.bin_cell, ax.nodes, tail, last_ok, out)
+        return out.reshape(th.shape)
+
+    @cached_property
+    def _node_finder(self):
+        """(theta's cell finder, the tail maximum at each node, non-increasing)."""
+        return _Axis(self.theta_deg), np.ascontiguousarray(self._tail_max_reversed[::-1])
+
     def azimuthal_mean(self, theta_deg) -> np.ndarray:
         phi = np.linspace(0.0, 360.0, 73)[:-1]
         return self(np.asarray(theta_deg)[..., None], phi).mean(axis=-1)
@@ -196,3 +217,23 @@ def write_pst_csv(pst: PST, path: str | Path) -> None:
     th, ph = np.meshgrid(pst.theta_deg, pst.phi_deg, indexing="ij")
     lines = ["theta_deg,phi_deg,pst"] + [f"{a:g},{b:g},{c:.6e}" for a, b, c in zip(th.ravel(), ph.ravel(), pst.values.ravel())]
     Path(path).write_text("\n".join(lines) + "\n")
+
+
+@njit(cache=True, nogil=True)
+def _beyond_kernel(theta, limit, lo, inv_width, bin_cell, nodes, tail, last_ok, out):
+    """:meth:`PST.beyond_influence_radius` per sample: j, the node at or below theta (its bin's
+    cell or the next); beyond the radius iff tail[min(j, last_ok)] <= limit (the tail maximum
+    does not increase, so the first node within the limit is at or below j)."""
+    n = nodes.size
+    for p in range(theta.size):
+        x = theta[p]
+        if not x >= lo:  # NaN, or short of the first node: within every radius
+            out[p] = False
+            continue
+        if x >= nodes[n - 1]:
+            j = n - 1
+        else:
+            j = bin_cell[min(int((x - lo) * inv_width), bin_cell.size - 1)]
+            if x >= nodes[j + 1]:
+                j += 1
+        out[p] = tail[min(j, last_ok)] <= limit[p]

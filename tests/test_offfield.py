@@ -798,3 +798,23 @@ def test_door_state_index_matches_numpys_searchsorted():
     assert door_state_index([45.0, 135.0], 135.0) == (1, True)
     with pytest.raises(ValueError, match="door states"):
         door_state_index([], [45.0])
+
+
+@pytest.mark.parametrize("grid", ["default", "uniform 2 deg"])
+def test_beyond_influence_radius_matches_the_radius_per_sample(grid):
+    """PST.beyond_influence_radius (a compiled pass, no search) flags exactly the samples at or
+    beyond influence_radius_deg of their limit, a radius of 180 being nowhere: random angles
+    and limits, every node, limits equal to the tail maxima, 0, 180 and NaN."""
+    if grid == "default":
+        pst = load_pst(None)
+    else:
+        th, ph = np.arange(0.0, 180.1, 2.0), np.arange(0.0, 361.0, 10.0)
+        pst = PST(th, ph, 10.0 ** (-2.0 - th[:, None] / 30.0 + 0.1 * np.cos(np.radians(ph))[None, :]))
+    rng = np.random.default_rng(11)
+    angle = np.concatenate([rng.uniform(0.0, 180.0, 20000), pst.theta_deg, [0.0, 180.0, np.nan, 179.9999, 1e-12]])
+    tails = np.maximum.accumulate(pst.values.max(axis=1)[::-1])[::-1]
+    for limit in (10.0 ** rng.uniform(-14.0, 0.0, angle.size), rng.choice(tails, angle.size)):
+        radius = pst.influence_radius_deg(limit)
+        expected = (angle >= radius) & (radius < 180.0)
+        np.testing.assert_array_equal(pst.beyond_influence_radius(angle, limit), expected)
+        assert 0 < expected.sum() < angle.size
