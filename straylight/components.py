@@ -157,6 +157,8 @@ class ComponentModel:
         frame = telescope_frame(los, sun - sat) if frame is None else frame
         door = geometry["door_opening_deg"]
         shape = geometry["sun_angle_deg"].shape
+        if into is not None:  # checked before any work
+            _check_into(into, int(np.prod(shape)), len(bands))
         d_sun = norm(sun - sat)
         d_moon = norm(moon - sat)
         rows = scene_rows(sun, moon)  # the Moon's eclipse once per run sharing them (a cube's time step)
@@ -219,10 +221,6 @@ class ComponentModel:
                 stars_e[ib] += np.broadcast_to(faint[name], shape).ravel()
         names, values = into if into is not None else (BAND_COMPONENTS, np.empty((len(BAND_COMPONENTS), len(bands), n))
                                                          .transpose(0, 2, 1))  # band-major: each band's row contiguous
-        unknown = set(names) - set(BAND_COMPONENTS)
-        if unknown or values.shape != (len(names), n, len(bands)):
-            raise ValueError(f"into: components {tuple(names)} (unknown: {sorted(unknown)}) in an array of shape "
-                             f"{values.shape}, not (components, samples, bands) = {(len(names), n, len(bands))}")
         slot = np.array([list(names).index(c) if c in names else -1 for c in BAND_COMPONENTS], np.intp)
         flat = [np.ascontiguousarray(np.broadcast_to(np.asarray(v, float), shape).ravel()) for v in
                 (t_sun, inverse_square, moon_fraction, planets_fraction, es_coeff["direct_sun"],
@@ -882,6 +880,17 @@ class ComponentModel:
         if not parts:
             return shape, (np.zeros(0, np.intp), np.zeros(0, np.intp), np.zeros(0))
         return shape, tuple(np.concatenate(x) for x in zip(*parts))
+
+
+def _check_into(into, n_samples: int, n_bands: int) -> None:
+    """ValueError unless ``into`` is (distinct names of :data:`BAND_COMPONENTS`, an array of
+    shape (names, samples, bands))."""
+    names, values = into
+    unknown = sorted(set(names) - set(BAND_COMPONENTS))
+    expected = (len(names), n_samples, n_bands)
+    if unknown or len(set(names)) != len(names) or np.shape(values) != expected:
+        raise ValueError(f"into: components {tuple(names)} (unknown: {unknown}; each at most once) in an array of "
+                         f"shape {np.shape(values)}, not (components, samples, bands) = {expected}")
 
 
 #: the per-band components :meth:`ComponentModel.evaluate` returns, in e-/s/pix

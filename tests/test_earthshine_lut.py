@@ -497,6 +497,8 @@ def test_evaluate_into_a_given_array_writes_the_same_values(coarse):
         cm.evaluate(sat, bodies, los_k, g, c.bands, into=(("total",), np.zeros((1, 199, len(c.bands)), np.float32)))
     with pytest.raises(ValueError, match="unknown: \\['sky'\\]"):
         cm.evaluate(sat, bodies, los_k, g, c.bands, into=(("sky",), np.zeros((1, 200, len(c.bands)), np.float32)))
+    with pytest.raises(ValueError, match="each at most once"):
+        cm.evaluate(sat, bodies, los_k, g, c.bands, into=(("total", "total"), np.zeros((2, 200, 7), np.float32)))
 
 
 def test_cube_region_skipping_unobservable_samples_changes_no_observable_value(coarse):
