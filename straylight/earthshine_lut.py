@@ -106,7 +106,7 @@ def _asinh_grids(axes, direct: dict, door: dict, scale: float, drop_first: bool 
     states = sorted(direct)
     v = np.arcsinh(np.stack([np.stack([direct[s], door[s]], axis=-1) for s in states], axis=-2) / scale)
     v = v.reshape(v.shape[:-2] + (2 * len(states),))
-    return states, LinearGrid(axes, v[0] if drop_first else v)
+    return states, LinearGrid(axes, v[0] if drop_first else v, channel_group=2)  # read a state's pair at a time
 
 
 def _per_door_state(interpolator: tuple, coords, opening_deg, shape, scale: float):
