@@ -339,27 +339,26 @@ class ComponentModel:
         directions = np.ascontiguousarray(unit(np.stack(vectors[2:]) - vectors[0]))  # (planets, runs, 3)
         fz = np.ascontiguousarray(np.broadcast_to(frame.z, shape + (3,)).reshape(-1, 3), dtype=float)
         near = _near_runs_kernel(fz, directions, np.ascontiguousarray(index, dtype=np.intp), cos_limit)
+        flat_out = out.reshape(-1)  # a view: the sums land in out
         for i, p in enumerate(planets):
             near_i = np.flatnonzero(near[i])
-            if near_i.size:
-                fraction = rows.expand(fractions[i])
-                out = out + self._planet_transfer(fraction, sat, bodies_km[p], frame, door, bands, floor_ratio, shape,
-                                                  near_i) * fraction
+            if near_i.size:  # added at the near samples only (elsewhere the planet adds 0)
+                fraction_near = np.take(fractions[i], np.take(index, near_i))
+                flat_out[near_i] += self._planet_transfer(fraction_near, sat, bodies_km[p], frame, door, bands,
+                                                          floor_ratio, shape, near_i) * fraction_near
         return out
 
-    def _planet_transfer(self, sun_fraction, satellite_km, planet_km, frame, door, bands, floor_ratio, shape,
+    def _planet_transfer(self, fraction_near, satellite_km, planet_km, frame, door, bands, floor_ratio, shape,
                          near) -> np.ndarray:
         """:meth:`_skippable_transfer` of a planet at the samples ``near`` (flat indices: those
-        :meth:`_planets_fraction` finds within its widest skip radius), its angles
-        (:func:`body_geometry`) computed there only; 0 elsewhere."""
-        out = np.zeros(int(np.prod(shape)))
+        :meth:`_planets_fraction` finds within its widest skip radius), there only, (len(near),);
+        ``fraction_near``: its fraction of the Sun's irradiance there; its angles
+        (:func:`body_geometry`) computed there only."""
         sat, planet, fx, fy, fz = (rows_at(v, shape, near) for v in (satellite_km, planet_km, frame.x, frame.y, frame.z))
         g = body_geometry(sat, {"planet": planet}, TelescopeFrame(fx, fy, fz), self.campaign.earth.radius_km)
-        fraction_near, door_near, floor_near = (np.broadcast_to(np.asarray(v, float), shape).ravel()[near]
-                                                for v in (sun_fraction, door, floor_ratio))
-        out[near] = self._skippable_transfer(fraction_near, g["planet_angle_deg"], g["planet_phi_deg"],
-                                             g["planet_earth_blocked"], door_near, bands, floor_near)
-        return out.reshape(shape)
+        door_near, floor_near = (np.broadcast_to(np.asarray(v, float), shape).ravel()[near] for v in (door, floor_ratio))
+        return self._skippable_transfer(fraction_near, g["planet_angle_deg"], g["planet_phi_deg"],
+                                        g["planet_earth_blocked"], door_near, bands, floor_near)
 
     def lut_node_states(self, settings) -> int:
         """How many (node, door state) pairs the sunlit earthshine table with these
