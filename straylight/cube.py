@@ -179,12 +179,15 @@ def evaluated_samples(campaign: Campaign, fp: Footprint, max_times: int = 144, m
 #: best of three) measured, in two runs on a machine whose direct path ran x0.209 and x0.223 of
 #: that figure, 1.31 / 1.42 us, 0.29 / 0.30 us, 2.42 / 3.03 us: 6.3 / 6.4, 1.4 / 1.35, 11.6 /
 #: 13.6 us in these units (until this cycle's compiled geometry and table coordinates 8, 1.9
-#: and 14 us; until the star skip's shared budget 10, 1.2 and 20 us).  The bench prints them
-#: again as cube.plan_cost_model, and the four runs' predicted seconds against the measured
-#: ones, so a drift shows.
-CUBE_TABLE_SECONDS_PER_SAMPLE = 6.3e-6
-CUBE_SCREEN_SECONDS_PER_SAMPLE = 1.4e-6
-CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE = 12.5e-6
+#: and 14 us; until the star skip's shared budget 10, 1.2 and 20 us).  Since the per-band
+#: compiled pass and the compiled door states and skip radii (a later cycle, best of seven, on
+#: a machine whose direct path ran x0.263 and x0.265 of the figure): 1.26 / 1.26 us, 0.28 /
+#: 0.28 us, 2.58 / 2.86 us, i.e. 4.8, 1.05 and 9.8 / 10.8 us in these units (6.3, 1.4 and 12.5
+#: until then).  The bench prints them again as cube.plan_cost_model, and the four runs'
+#: predicted seconds against the measured ones, so a drift shows.
+CUBE_TABLE_SECONDS_PER_SAMPLE = 4.8e-6
+CUBE_SCREEN_SECONDS_PER_SAMPLE = 1.05e-6
+CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE = 10.3e-6
 
 
 def cube_compute_seconds(samples: int, evaluated: int, earthshine_method: str, skip: bool,
