@@ -39,7 +39,7 @@ def _interpolate(points, lo, hi, uniform, inv_width, n_bins, bin_cell, nodes, n_
                  channel, group_rows, out):
     """:meth:`LinearGrid.__call__` on ``points`` (ndim, N) into ``out`` (N, channels out), from
     the axes packed by :class:`LinearGrid`.  Each point is clipped to the grid and its cell found
-    per axis (:class:`_Axis`); on an evenly spaced axis the cell can be one off the exact one
+    per axis (:class:`AxisCells`); on an evenly spaced axis the cell can be one off the exact one
     only where the point lies within rounding of a node, and t is then ~1 in the cell below
     (or ~0 just below the node): the same value to rounding (1e-15; tests/test_gridinterp.py).
     Then the cell's corners: on two, three and four axes written out as nested linear steps,
@@ -115,7 +115,7 @@ def _interpolate(points, lo, hi, uniform, inv_width, n_bins, bin_cell, nodes, n_
                     out[p, j] += wc * flat[base + offset, first + j]
 
 
-class _Axis:
+class AxisCells:
     """Cell finder for one strictly increasing axis."""
 
     def __init__(self, nodes: np.ndarray):
@@ -148,15 +148,16 @@ class LinearGrid:
     region (the earthshine tables, 14-25 MB), the same values bit for bit."""
 
     def __init__(self, axes, values, channel_group: int | None = None):
-        self.axes = [_Axis(a) for a in axes]
+        self.axes = [AxisCells(a) for a in axes]
         self.values = np.ascontiguousarray(values, dtype=float)
         n = len(self.axes)
         if self.values.shape[:n] != tuple(a.nodes.size for a in self.axes):
             raise ValueError(f"values shape {self.values.shape} does not match the axes")
         self._trailing = self.values.shape[n:]
-        n_nodes = int(np.prod(self.values.shape[:n]))
+        self._n_nodes_total = int(np.prod(self.values.shape[:n]))
+        self._strides = [int(np.prod(self.values.shape[k + 1:n])) for k in range(n)]
         # one row per node: a channel-less grid is a flat array, else (nodes, channels)
-        self._flat = self.values.reshape(n_nodes, -1) if self._trailing else self.values.ravel()
+        self._flat = self.values.reshape(self._n_nodes_total, -1) if self._trailing else self.values.ravel()
         # channel_group g: always read in groups of g channels (each sample its own door state):
         # stored group-major, so a point's cell corners hold only its group's channels (fewer
         # cache lines a point on tables of tens of MB)
@@ -165,11 +166,8 @@ class LinearGrid:
             if len(self._trailing) != 1 or self._trailing[0] % channel_group:
                 raise ValueError(f"channel_group {channel_group} needs one trailing dimension in groups of it")
             n_groups = self._trailing[0] // channel_group
-            self._flat = np.ascontiguousarray(self._flat.reshape(n_nodes, n_groups, channel_group).transpose(1, 0, 2)
-                                              .reshape(n_groups * n_nodes, channel_group))
-        self._n_nodes_total = n_nodes
-        self._strides = [int(np.prod(self.values.shape[k + 1:n])) for k in range(n)]
-        if channel_group is not None:
+            self._flat = np.ascontiguousarray(self._flat.reshape(self._n_nodes_total, n_groups, channel_group)
+                                              .transpose(1, 0, 2).reshape(-1, channel_group))
             self.values = None  # the group-major copy is the table (tens of MB: not kept twice)
         # the axes packed for the compiled kernel (rows padded to the longest axis)
         longest = max(a.nodes.size for a in self.axes)

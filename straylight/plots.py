@@ -49,7 +49,7 @@ def sky_maps(ds, campaign, out_dir, n_times: int = 2, bands=None, times=()) -> l
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .cube import CUBE_COMPONENTS
+    from .cube import CUBE_BAND_VARIABLES
 
     nest = str(ds.attrs["healpix_ordering"]).upper() == "NESTED"
     if times:
@@ -67,7 +67,7 @@ def sky_maps(ds, campaign, out_dir, n_times: int = 2, bands=None, times=()) -> l
             if bands is not None and str(band) not in bands:
                 continue
             fig = plt.figure(figsize=(16, 6.5))
-            for k, comp in enumerate(CUBE_COMPONENTS + ("total",)):
+            for k, comp in enumerate(CUBE_BAND_VARIABLES):
                 e = np.asarray(ds[comp].isel(time=it, band=ib), float)
                 mag = _mag(ds, e, str(band), campaign)
                 finite = np.isfinite(mag)
@@ -95,7 +95,7 @@ def time_series(ds, campaign, out_dir, n_pointings: int = 3, pointings=()) -> li
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .cube import CUBE_COMPONENTS
+    from .cube import CUBE_BAND_VARIABLES
 
     if pointings:
         from .geometry import radec_to_unit
@@ -117,7 +117,7 @@ def time_series(ds, campaign, out_dir, n_pointings: int = 3, pointings=()) -> li
             fig, axes = plt.subplots(len(bands), 1, figsize=(10, 2.0 * len(bands)), sharex=True)
             for ax, band in zip(np.atleast_1d(axes), bands):
                 ib = bands.index(band)
-                for comp in CUBE_COMPONENTS + ("total",):
+                for comp in CUBE_BAND_VARIABLES:
                     y = np.asarray(sub[comp].isel(band=ib), float)[sel]
                     ax.semilogy(minutes[sel], np.maximum(y, 1e-12), lw=1.6 if comp == "total" else 0.9,
                                 color="k" if comp == "total" else None, label=comp)
