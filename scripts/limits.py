@@ -20,7 +20,7 @@ with atomic_path(snakemake.output.maps) as tmp:  # noqa: F821
     maps = write_limit_maps(ds, tmp)
 for b in ds["band"].values:
     best = ds["limiting_mag_best"].sel(band=b).values
-    seen = best[best > -1e20]  # healpy UNSEEN marks never-observable pixels
+    seen = best[np.isfinite(best)]  # NaN: never observable
     if seen.size:
         log.info("band %-4s: deepest limit %.2f, median of pixel bests %.2f mag (AB)", b, seen.max(), np.median(seen))
     else:

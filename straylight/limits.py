@@ -64,8 +64,9 @@ def point_source_limit(background_e_per_s_per_pix, band_name: str, campaign: Cam
 def limits_dataset(campaign: Campaign, background) -> "xr.Dataset":
     """(time, pixel, band) 5-sigma limits from background.zarr's ``total``, plus per-pixel
     campaign summaries over observable times (best, median) and the observable fraction.
-    Pixels never observable get the healpy UNSEEN value in the summaries (never NaN)."""
-    import healpy as hp
+    Pixels never observable get NaN in the summaries (the HEALPix FITS maps turn it into
+    healpy's UNSEEN: :func:`write_limit_maps`).  A float sentinel here would pass as a
+    magnitude: a plot's colour range or a mean over pixels would take -1.6e30 mag."""
     import xarray as xr
 
     total = background["total"]
@@ -82,8 +83,8 @@ def limits_dataset(campaign: Campaign, background) -> "xr.Dataset":
             warnings.simplefilter("ignore", RuntimeWarning)
             best = np.nanmax(masked, axis=0)
             median = np.nanmedian(masked, axis=0)
-    best = np.where(any_obs[:, None], best, hp.UNSEEN).astype(np.float32)
-    median = np.where(any_obs[:, None], median, hp.UNSEEN).astype(np.float32)
+    best = np.where(any_obs[:, None], best, np.nan).astype(np.float32)
+    median = np.where(any_obs[:, None], median, np.nan).astype(np.float32)
     frac = observable.mean(axis=0).astype(np.float32)
     desc = ", ".join(f"{b}: {campaign.instrument['bands'][str(b)]['n_exposures']} x "
                      f"{campaign.instrument['bands'][str(b)]['exposure_s']} s" for b in background["band"].values)
@@ -92,11 +93,11 @@ def limits_dataset(campaign: Campaign, background) -> "xr.Dataset":
             "limiting_mag": (("time", "pixel", "band"), lim,
                              {"units": "mag(AB)", "long_name": f"5-sigma point-source limit in the EE80 aperture ({desc})"}),
             "limiting_mag_best": (("pixel", "band"), best,
-                                  {"units": "mag(AB)", "long_name": "deepest limit over observable times",
-                                   "missing_value": hp.UNSEEN}),
+                                  {"units": "mag(AB)",
+                                   "long_name": "deepest limit over observable times (NaN: never observable)"}),
             "limiting_mag_median": (("pixel", "band"), median,
-                                    {"units": "mag(AB)", "long_name": "median limit over observable times",
-                                     "missing_value": hp.UNSEEN}),
+                                    {"units": "mag(AB)",
+                                     "long_name": "median limit over observable times (NaN: never observable)"}),
             "observable_fraction": (("pixel",), frac, {"units": "1", "long_name": "fraction of campaign times observable"}),
             "observable": (("time", "pixel"), observable, {"units": "1", "long_name": "pointing satisfies every constraint"}),
         },
@@ -107,7 +108,9 @@ def limits_dataset(campaign: Campaign, background) -> "xr.Dataset":
 
 
 def write_limit_maps(ds, out_dir) -> list:
-    """HEALPix FITS maps (healpy-readable): limit_best_<band>, limit_median_<band>, observable_fraction."""
+    """HEALPix FITS maps (healpy-readable): limit_best_<band>, limit_median_<band>,
+    observable_fraction; healpy's UNSEEN outside the footprint and where ``ds`` has NaN (never
+    observable), the HEALPix convention for a missing pixel."""
     from pathlib import Path
 
     import healpy as hp
@@ -123,7 +126,7 @@ def write_limit_maps(ds, out_dir) -> list:
 
     def write(name, values, unit):
         m = np.full(hp.nside2npix(nside), hp.UNSEEN, dtype=np.float32)
-        m[pix] = values
+        m[pix] = np.where(np.isnan(values), hp.UNSEEN, values)
         path = out_dir / f"{name}.fits"
         with atomic_path(path) as tmp:
             hp.write_map(str(tmp), m, nest=nest, coord="C", column_names=[name[:68].upper()],

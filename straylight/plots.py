@@ -32,11 +32,20 @@ def _full_sky(ds, values):
     return m
 
 
+def _mollview_with_unit(fig, values, unit: str, **kw) -> None:
+    """healpy's mollview with a colour bar whose unit sits below the tick labels: healpy puts
+    it at a fixed fraction of the bar's height, over the labels on a 2 x 4 page."""
+    import healpy as hp
+
+    hp.mollview(values, fig=fig.number, unit="", cbar=True, **kw)
+    fig.axes[-1].set_xlabel(unit, fontsize=9, labelpad=2)  # the colour bar: the last axes mollview adds
+
+
 def _save(fig, path: Path) -> Path:
     from .io import atomic_path
 
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=90, format="png")
+        fig.savefig(tmp, dpi=90, format="png", bbox_inches="tight")  # healpy's colour-bar labels overhang the axes
     return path
 
 
@@ -72,14 +81,15 @@ def sky_maps(ds, campaign, out_dir, n_times: int = 2, bands=None, times=()) -> l
                 mag = _mag(ds, e, str(band), campaign)
                 finite = np.isfinite(mag)
                 lo, hi = (np.percentile(mag[finite], [2, 98]) if finite.any() else (20.0, 30.0))
-                hp.mollview(_full_sky(ds, mag), nest=nest, fig=fig.number, sub=(2, 4, k + 1),
-                            title=f"{comp}", unit="AB mag/arcsec2", min=lo, max=max(hi, lo + 0.1),
-                            cmap="viridis_r", cbar=True, notext=True)
+                _mollview_with_unit(fig, _full_sky(ds, mag), "AB mag/arcsec2", nest=nest, sub=(2, 4, k + 1),
+                                    title=f"{comp}", min=lo, max=max(hi, lo + 0.1), cmap="viridis_r", notext=True)
             obs = np.asarray(ds["observable"].isel(time=it), float)
             hp.mollview(_full_sky(ds, obs), nest=nest, fig=fig.number, sub=(2, 4, 8), title="observable",
                         min=0, max=1, cmap="RdYlGn", cbar=False, notext=True)
             # models.unobservable_samples: skip leaves NaN where not observable (e: the total here)
-            grey = "outside the footprint" + (" or not evaluated (not observable)" if np.isnan(e).any() else "")
+            # a component's 0 (blocked, or skipped below its share of the tolerance) has no magnitude
+            grey = "outside the footprint, a component's 0" + (", not evaluated (not observable)"
+                                                               if np.isnan(e).any() else "")
             fig.suptitle(f"{campaign.name}: band {band} at {t} UTC (ICRS Mollweide; grey: {grey})")
             written.append(_save(fig, Path(out_dir) / f"sky_{band}_{t.replace(':', '').replace('-', '')}.png"))
             plt.close(fig)
@@ -159,9 +169,10 @@ def limit_maps(limits_ds, campaign, out_dir) -> list:
             v = np.asarray(limits_ds[var].isel(band=ib), float)
             finite = np.isfinite(v)
             lo, hi = (np.percentile(v[finite], [2, 98]) if finite.any() else (20.0, 28.0))
-            hp.mollview(_full_sky(limits_ds, v), nest=nest, fig=fig.number, sub=(2, 4, ib + 1), title=str(band),
-                        unit="AB mag (5 sigma)", min=lo, max=max(hi, lo + 0.1), cmap="magma", notext=True)
-        fig.suptitle(f"{campaign.name}: {stat} 5-sigma point-source limit over the campaign (survey exposures)")
+            _mollview_with_unit(fig, _full_sky(limits_ds, v), "AB mag (5 sigma)", nest=nest, sub=(2, 4, ib + 1),
+                                title=str(band), min=lo, max=max(hi, lo + 0.1), cmap="magma", notext=True)
+        fig.suptitle(f"{campaign.name}: {stat} 5-sigma point-source limit over the campaign (survey exposures; "
+                     "grey: outside the footprint or never observable)")
         written.append(_save(fig, Path(out_dir) / f"limits_{stat}.png"))
         plt.close(fig)
     return written

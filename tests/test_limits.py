@@ -84,3 +84,40 @@ def test_depth_within_0p3_mag_of_published_wide_survey(real_curve_campaign):
         print(f"{b:4s} the published {ref:.1f} needs a sky + stray light of {sky:.3f} e-/s/pix")
     for b, ref in PUBLISHED_DEPTH_MAG.items():
         assert np.median(lims[b]) == pytest.approx(ref, abs=0.3), b
+
+
+def test_never_observable_pixels_are_nan_in_zarr_and_unseen_in_fits(tmp_path):
+    """A pixel never observable has no best or median limit: NaN in limits.zarr (a float
+    sentinel there passed as a magnitude: the report's limit maps took -1.6e30 mag as their
+    colour range's low end), healpy's UNSEEN in the FITS maps.  The observable pixel's best and
+    median are the largest and the median of its observable times' limits, from
+    point_source_limit itself (the masked times, brighter or fainter, are ignored)."""
+    import healpy as hp
+    import xarray as xr
+
+    from straylight.config import load_campaign
+    from straylight.limits import limits_dataset, point_source_limit, write_limit_maps
+
+    c = load_campaign()
+    bands = list(c.bands)
+    total = np.array([[1.0, 5.0], [0.2, 5.0], [0.5, 5.0], [1e-3, 5.0]])  # (time, pixel) e-/s/pix
+    observable = np.array([[True, False], [True, False], [True, False], [False, False]])
+    background = xr.Dataset(
+        {"total": (("time", "pixel", "band"), np.repeat(total[:, :, None], len(bands), axis=2)),
+         "observable": (("time", "pixel"), observable)},
+        coords={"time": np.arange(4), "pixel": [0, 1], "ra_deg": ("pixel", [0.0, 10.0]),
+                "dec_deg": ("pixel", [0.0, 10.0]), "band": bands},
+        attrs={"healpix_nside": 1, "healpix_ordering": "RING", "healpix_frame": "ICRS", "campaign": "test"})
+    ds = limits_dataset(c, background)
+    g = bands.index("g")
+    expected = point_source_limit(total[:3, 0], "g", c)
+    assert ds["limiting_mag_best"].values[0, g] == pytest.approx(expected.max(), abs=1e-5)
+    assert ds["limiting_mag_median"].values[0, g] == pytest.approx(np.median(expected), abs=1e-5)
+    assert np.all(np.isnan(ds["limiting_mag_best"].values[1])) and np.all(np.isnan(ds["limiting_mag_median"].values[1]))
+    ds.to_zarr(tmp_path / "limits.zarr")
+    back = xr.open_zarr(tmp_path / "limits.zarr")
+    assert np.isnan(back["limiting_mag_best"].values[1]).all() and np.isfinite(back["limiting_mag_best"].values[0]).all()
+    write_limit_maps(ds, tmp_path / "maps")
+    m = hp.read_map(tmp_path / "maps" / "limit_best_g.fits")
+    assert m[0] == pytest.approx(expected.max(), abs=1e-5)
+    assert m[1] == hp.UNSEEN and np.all(m[2:] == hp.UNSEEN)
