@@ -425,15 +425,21 @@ def production_region_rates(base, fp, stars_path) -> dict:
     warm-up.  The
     per-region costs (the faint-star map's tile) are then shared by 72 steps instead of the 12
     spread over the day in :func:`cube_summary`.  Also the whole time block as its job computes
-    it, writes aside: the bodies' positions once (sky.scene), then every pixel block."""
+    it, writes aside: the bodies' positions once (sky.scene), then every pixel block; and every
+    time block of the campaign so, each the best of its own repeats: the whole default campaign's
+    samples over the sum of its blocks' times (``campaign``; the first block alone could be a
+    cheaper scene than the others)."""
     from straylight.cube import compute_region, cube_chunks
     from straylight.sky import scene
 
-    ch = cube_chunks(base, len(base.times), int(fp.pixels.size))
+    n_times = len(base.times)
+    ch = cube_chunks(base, n_times, int(fp.pixels.size))
     t_slice, p_slice = slice(0, ch["time"]), slice(0, ch["pixel"])
     p_blocks = [slice(a, b) for a, b in fp.blocks(ch["pixel"])]
+    t_blocks = [slice(t, min(t + ch["time"], n_times)) for t in range(0, n_times, ch["time"])]
     n, n_block = ch["time"] * ch["pixel"], ch["time"] * int(fp.pixels.size)
-    out = {"times": int(ch["time"]), "pixels": int(ch["pixel"]), "time_block": {"pixel_blocks": len(p_blocks)}}
+    out = {"times": int(ch["time"]), "pixels": int(ch["pixel"]), "time_block": {"pixel_blocks": len(p_blocks)},
+           "campaign": {"time_blocks": len(t_blocks), "samples": n_times * int(fp.pixels.size)}}
     for key, unobservable in (("lut", "evaluate"), ("lut_observable_only", "skip")):
         c, model = _cube_model(base, earthshine={"method": "lut"}, models={"unobservable_samples": unobservable})
         _, dt = timed(lambda: compute_region(c, fp, t_slice, p_slice, model=model, stars_path=stars_path),
@@ -442,15 +448,22 @@ def production_region_rates(base, fp, stars_path) -> dict:
         print(f"cube, one production region ({out['times']} steps x {out['pixels']} pixels), unobservable samples "
               f"{unobservable}: {n / dt:.0f} samples/s/core")
 
-        def time_block():
-            sc = scene(c, c.times[t_slice])
+        def time_block(ts=t_slice):
+            sc = scene(c, c.times[ts])
             for ps in p_blocks:
-                compute_region(c, fp, t_slice, ps, model=model, stars_path=stars_path, scene=sc)
+                compute_region(c, fp, ts, ps, model=model, stars_path=stars_path, scene=sc)
 
         _, dt = timed(time_block, repeats=FAST_REPEATS)
         out["time_block"][key] = {"samples_per_s_per_core": n_block / dt}
         print(f"cube, one production time block ({out['times']} steps x {fp.pixels.size} pixels in {len(p_blocks)} "
               f"blocks, the scene once), unobservable samples {unobservable}: {n_block / dt:.0f} samples/s/core")
+        block_s = [timed(lambda ts=ts: time_block(ts), repeats=FAST_REPEATS)[1] for ts in t_blocks]
+        samples = [(ts.stop - ts.start) * int(fp.pixels.size) for ts in t_blocks]
+        out["campaign"][key] = {"samples_per_s_per_core": sum(samples) / sum(block_s),
+                                "per_time_block": [k / s for k, s in zip(samples, block_s)]}
+        print(f"cube, the whole campaign ({len(t_blocks)} time blocks, {sum(samples)} samples), unobservable samples "
+              f"{unobservable}: {sum(samples) / sum(block_s):.0f} samples/s/core (blocks: "
+              + ", ".join(f"{k / s:.0f}" for k, s in zip(samples, block_s)) + ")")
     return out
 
 
@@ -562,14 +575,16 @@ def pareto_chart(name, rows, path, xlabel="seconds per sample (one core, all ban
 def goal_check(summary: dict) -> dict:
     """Issue #7's goal figures against this run's (the default path: the cube on the table
     path, every sample evaluated, as production computes it): samples/s/core for all bands on
-    a production time block (the figure production runs at), a single region and the
-    day-spread batch; the default's error against the converged reference (the earthshine
+    the whole default campaign, time block by time block as its jobs compute it (the figure
+    production runs at), its first time block, a single region and the day-spread batch; the
+    default's error against the converged reference (the earthshine
     table's row of the random-sample sweep, the largest term's error; None in a ``--only
     cube`` run without an earlier full run) and the cube's table path against its direct
     path; the speed-up over the direct path, side by side in one run."""
     cube = summary.get("cube", {})
     region = cube.get("production_region", {})
-    rates = {"production_time_block": region.get("time_block", {}).get("lut", {}).get("samples_per_s_per_core"),
+    rates = {"production_campaign": region.get("campaign", {}).get("lut", {}).get("samples_per_s_per_core"),
+             "production_time_block": region.get("time_block", {}).get("lut", {}).get("samples_per_s_per_core"),
              "production_region": region.get("lut", {}).get("samples_per_s_per_core"),
              "day_spread_batch": cube.get("lut", {}).get("samples_per_s_per_core")}
     error = (summary.get("earthshine_table") or {}).get("max_rel_error")
@@ -583,7 +598,9 @@ def goal_check(summary: dict) -> dict:
         "goal_max_rel_error": goal_error,
         "speedup_over_direct": speedup,
         "goal_speedup_over_direct": goal_speedup,
-        "met": {"rate_production_time_block": None if rates["production_time_block"] is None
+        "met": {"rate_production_campaign": None if rates["production_campaign"] is None
+                else bool(rates["production_campaign"] >= goal_rate),
+                "rate_production_time_block": None if rates["production_time_block"] is None
                 else bool(rates["production_time_block"] >= goal_rate),
                 "rate_day_spread_batch": None if rates["day_spread_batch"] is None
                 else bool(rates["day_spread_batch"] >= goal_rate),
@@ -597,8 +614,9 @@ def _print_goal_check(check: dict) -> None:
     fmt = lambda v: "-" if v is None else f"{v:,.0f}"  # noqa: E731
     err = check["max_rel_error_vs_reference"]
     err = "-" if err is None else f"{err:.2e}"
-    print(f"goal: {fmt(r['production_time_block'])} samples/s/core on a production time block "
-          f"({fmt(r['production_region'])} one region, {fmt(r['day_spread_batch'])} the day-spread batch) against "
+    print(f"goal: {fmt(r['production_campaign'])} samples/s/core on the whole default campaign "
+          f"({fmt(r['production_time_block'])} its first time block, {fmt(r['production_region'])} one region, "
+          f"{fmt(r['day_spread_batch'])} the day-spread batch) against "
           f"{check['goal_samples_per_s_per_core']:,.0f}; error {err} against "
           f"{check['goal_max_rel_error']:g}; {fmt(check['speedup_over_direct'])}x the direct path; met: {check['met']}")
 
