@@ -53,8 +53,10 @@ def moon_avoidance_table(model: ComponentModel, fraction: float = 0.1, phase_ste
 
 def bright_limb_table(model: ComponentModel, fraction: float = 0.1, sun_zenith_step_deg: float = 10.0,
                       azimuth_step_deg: float = 30.0, elevation_step_deg: float = 1.0) -> dict:
-    """Columns sun_zenith_deg and min_limb_elevation_deg_<band> (deg above the limb; inf where
-    even 90 deg is not enough, NaN where no line of sight clears the Sun avoidance angle)."""
+    """Columns sun_zenith_deg and min_limb_elevation_deg_<band> (deg above the limb): the lowest
+    elevation, itself clear of the Sun avoidance angle, from which every line of sight that
+    clears it stays below the limit, worst case over azimuth; inf where no such elevation exists
+    within 90 deg of the limb, NaN where no line of sight clears the Sun avoidance angle."""
     from .earthshine_lut import _sun_coefficients_direct
 
     c: Campaign = model.campaign
@@ -94,11 +96,15 @@ def bright_limb_table(model: ComponentModel, fraction: float = 0.1, sun_zenith_s
             for j in range(az.size):
                 if not allowed[i, j].any():
                     continue
-                # the elevation from which every allowed, higher line of sight stays below the limit
-                # (inf: not reached within 90 deg of the limb)
+                # the lowest allowed elevation from which every allowed, higher line of sight stays
+                # below the limit (inf: none within 90 deg of the limb).  The node above the last
+                # bright one can lie inside the Sun's avoidance cone: that is no answer (with the
+                # Sun overhead the cone starts 50 deg from the zenith, and every allowed line of
+                # sight below it is too bright).
                 k = np.flatnonzero(bad[i, j] & allowed[i, j])
                 if k.size:
-                    worst = max(worst, h[k[-1] + 1] if k[-1] + 1 < h.size else np.inf)
+                    above = k[-1] + 1 + np.flatnonzero(allowed[i, j, k[-1] + 1:])
+                    worst = max(worst, h[above[0]] if above.size else np.inf)
             need[i] = worst if allowed[i].any() else np.nan
         out[f"min_limb_elevation_deg_{b}"] = need
     return out

@@ -67,39 +67,59 @@ def test_moon_avoidance_angle_is_the_exact_threshold(model):
         assert at <= limit * 1.01 and before > limit * 0.99
 
 
-def test_bright_limb_elevation_holds_in_a_rotated_scene(campaign, model):
-    """At the tabulated elevation, a real (rotated, not the local-frame) scene with the Sun at that
-    zenith angle gives earthshine below the limit for every azimuth."""
+def _rotated_scene_rate(campaign, model, sun_zenith_deg: float, elevation_deg: float, azimuth_deg: float):
+    """Sunlit earthshine (direct + door), e-/s/pix in g, and the door opening, for a line of
+    sight ``elevation_deg`` above the limb at ``azimuth_deg`` from the Sun's, in a real
+    (rotated, not the local-frame) scene: the satellite over (30 N, 70 E), the Sun at
+    ``sun_zenith_deg`` there."""
     from straylight.geometry import observing_geometry, telescope_frame
 
-    fraction = 0.1
-    t = bright_limb_table(model, fraction, sun_zenith_step_deg=30.0, azimuth_step_deg=45.0, elevation_step_deg=2.0)
-    need = t["min_limb_elevation_deg_g"]
-    assert np.all((need >= 0) | np.isnan(need))
-    i = 0  # Sun overhead
-    h = need[i]
-    assert np.isfinite(h)
-    limit = fraction * model.darkest_zodiacal_e_per_s("g")
     re = campaign.earth.radius_km
     r = 0.5 * sum(campaign.orbit_radius_range_km)
-    # a rotated scene: the satellite over (30 N, 70 E), the Sun at zenith 0 there
     lat, lon = np.radians(30.0), np.radians(70.0)
     up = np.array([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)])
     east = np.array([-np.sin(lon), np.cos(lon), 0.0])
+    north = np.cross(up, east)
+    z_sun = np.radians(sun_zenith_deg)
     sat = r * up
-    sun = 1.495978707e8 * up
-    zeta = np.radians(90.0 + np.degrees(np.arccos(re / r)) - h)
-    for az in np.radians(np.arange(0.0, 360.0, 30.0)):
-        north = np.cross(up, east)
-        los = np.cos(zeta) * up + np.sin(zeta) * (np.cos(az) * east + np.sin(az) * north)
-        bodies = {"sun": sun[None], "moon": (-1e6 * up)[None]}
-        g = observing_geometry(sat[None], bodies, los[None], re, campaign.constraints)
-        if g["door_opening_deg"][0] <= 0:
-            continue
-        c = model.offfield.earthshine_coefficients(sat[None], sun[None], bodies["moon"], telescope_frame(los[None], sun[None] - sat[None]),
-                                                   g["door_opening_deg"], re, in_field=False, moon=False)
-        rate = (c["direct_sun"][0] + c["door_sun"][0]) * model.photometry("g").sun_at_1au_photons_s_m2
-        assert rate <= limit * 1.05  # 5 %: azimuths between the table's 45 deg nodes
+    sun = 1.495978707e8 * (np.cos(z_sun) * up + np.sin(z_sun) * east)
+    zeta = np.radians(90.0 + np.degrees(np.arccos(re / r)) - elevation_deg)
+    az = np.radians(azimuth_deg)
+    los = np.cos(zeta) * up + np.sin(zeta) * (np.cos(az) * east + np.sin(az) * north)
+    bodies = {"sun": sun[None], "moon": (-1e6 * up)[None]}
+    g = observing_geometry(sat[None], bodies, los[None], re, campaign.constraints)
+    c = model.offfield.earthshine_coefficients(sat[None], sun[None], bodies["moon"],
+                                               telescope_frame(los[None], sun[None] - sat[None]),
+                                               g["door_opening_deg"], re, in_field=False, moon=False)
+    rate = (c["direct_sun"][0] + c["door_sun"][0]) * model.photometry("g").sun_at_1au_photons_s_m2
+    return float(rate), float(g["door_opening_deg"][0])
+
+
+def test_bright_limb_elevation_holds_in_a_rotated_scene(campaign, model):
+    """Where the table gives an elevation, a real (rotated) scene with the Sun at that zenith
+    angle gives earthshine below the limit there for every azimuth the Sun allows (and some
+    azimuth is checked: a table whose elevation lies inside the Sun's avoidance cone would
+    leave none, as it once did with the Sun overhead).  Where it gives inf, the highest line of
+    sight the Sun allows is too bright at some azimuth: no elevation works."""
+    fraction = 0.1
+    t = bright_limb_table(model, fraction, sun_zenith_step_deg=50.0, azimuth_step_deg=45.0, elevation_step_deg=2.0)
+    assert list(t["sun_zenith_deg"]) == [0.0, 50.0, 100.0]
+    need = t["min_limb_elevation_deg_g"]
+    limit = fraction * model.darkest_zodiacal_e_per_s("g")
+    # the Sun overhead: the avoidance cone (50 deg) starts 59.8 deg above the limb at 400 km
+    assert need[0] == np.inf
+    top = [_rotated_scene_rate(campaign, model, 0.0, 59.0, az) for az in np.arange(0.0, 360.0, 30.0)]
+    assert all(door > 0 for _, door in top) and max(rate for rate, _ in top) > limit
+    # the Sun 10 deg below the horizon: a finite elevation, below the limit wherever allowed
+    h = need[2]
+    assert np.isfinite(h) and 0.0 < h < 90.0
+    checked = 0
+    for az in np.arange(0.0, 360.0, 30.0):
+        rate, door = _rotated_scene_rate(campaign, model, 100.0, h, az)
+        if door > 0:
+            checked += 1
+            assert rate <= limit * 1.05  # 5 %: azimuths between the table's 45 deg nodes
+    assert checked >= 6
 
 
 def test_schedule_command_writes_tables_and_refuses_a_bad_fraction(tmp_path):
