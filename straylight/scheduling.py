@@ -167,6 +167,12 @@ def write_tables(model: ComponentModel, out_dir, fraction: float = 0.1) -> list:
             ax.plot(cols[x], cols[prefix + b], marker="o", ms=3, label=b)
         if name == "exposure_factor":
             ax.set_xscale("symlog", linthresh=0.01)
+        if name == "bright_limb":  # inf draws nothing: shade where no elevation works in some band
+            never = np.any([np.isinf(cols[prefix + b]) for b in model.campaign.bands], axis=0)
+            step = float(np.diff(cols[x][:2])[0]) if len(cols[x]) > 1 else 1.0
+            for i in np.flatnonzero(never):
+                ax.axvspan(cols[x][i] - step / 2, cols[x][i] + step / 2, color="0.88", lw=0,
+                           label="no elevation works (inf)" if i == np.flatnonzero(never)[0] else None)
         ax.set_xlabel(xlabel)
         ax.set_ylabel(ylabel)
         ax.set_title(f"{name.replace('_', ' ')} (stray light <= {fraction:g} x darkest zodiacal)"
