@@ -138,7 +138,7 @@ class ComponentModel:
         return self._bands[name][1]
 
     def evaluate(self, satellite_km, bodies_km, los, geometry, bands, stars: StarTable | None = None,
-                 faint_rates: dict | None = None, frame=None, into: tuple | None = None) -> dict:
+                 faint_rates: dict | None = None, frame=None, into: tuple | None = None, runs=None) -> dict:
         """Components for broadcastable samples, band -> {component: e-/s/pix, float64 arrays
         of the samples' shape (:data:`BAND_COMPONENTS`), and ``_band``, ``_zodiacal_no_data``,
         ``_mag``}; ``geometry`` from :func:`observing_geometry` (the Sun's and the Moon's
@@ -149,7 +149,10 @@ class ComponentModel:
         satellite)``, when already computed; ``into``: (component names, array (names,
         samples flattened, bands)), e.g. a cube region's float32 block, that receives those
         components (the result's arrays are then views of it, and the other components are
-        not computed).  ValueError for an unknown name or an array of another shape."""
+        not computed); ``runs``: the samples' scene runs when the caller knows them
+        (:class:`~straylight.geometry.SceneRuns`, e.g. a cube's time steps: runs of samples
+        that share the satellite and every body in ``bodies_km``), else found where needed.
+        ValueError for an unknown name or an array of another shape."""
         off = self.offfield
         re_km = self.campaign.earth.radius_km
         sat = np.asarray(satellite_km, float)
@@ -161,13 +164,13 @@ class ComponentModel:
             _check_into(into, int(np.prod(shape)), len(bands))
         d_sun = norm(sun - sat)
         d_moon = norm(moon - sat)
-        rows = scene_rows(sun, moon)  # the Moon's eclipse once per run sharing them (a cube's time step)
+        rows = scene_rows(sun, moon, runs=runs)  # the Moon's eclipse once per run sharing them (a cube's time step)
         moon_eclipsed = rows.expand(earth_blocks(rows.vectors[1], rows.vectors[0] - rows.vectors[1], re_km))
         v_moon = moon_v_magnitude(geometry["moon_phase_angle_deg"], d_moon, off.moon_law, geometry["moon_elongation_deg"])
         v_moon_at_earth = moon_v_magnitude(geometry["moon_phase_angle_deg"], norm(moon), off.moon_law,
                                            geometry["moon_elongation_deg"])
         eclipse = np.where(moon_eclipsed, off.moon_eclipse_factor, 1.0)
-        b500, zodi_no_data = self.zodiacal.brightness_500nm(frame.z, unit(sun - sat))  # once for all bands
+        b500, zodi_no_data = self.zodiacal.brightness_500nm(frame.z, unit(sun - sat), runs)  # once for all bands
         sun_at_1au = {name: self.photometry(name).sun_at_1au_photons_s_m2 for name in bands}
         # the Moon and planets have the Sun's spectrum: one band-independent fraction of the
         # Sun's irradiance at 1 AU, times each band's solar irradiance
@@ -185,7 +188,7 @@ class ComponentModel:
         # band-independent transfer (e-/s/pix per photons s-1 m-2): Se * Sp * PST * pixel area
         t_sun = off.point_source(1.0, geometry["sun_angle_deg"], geometry["sun_phi_deg"],
                                  geometry["sun_earth_blocked"], door)  # never skipped on a bound
-        es_coeff = self._earthshine_coefficients(sat, sun, moon, frame, door, shape)
+        es_coeff = self._earthshine_coefficients(sat, sun, moon, frame, door, shape, runs)
         # The terms computed so far (never skipped) are a lower bound of each sample's total: the
         # skippable terms below are held to their shares of the tolerance times it, so a term
         # that matters only against the darkest sky is still summed there, and skipped where the
@@ -195,15 +198,15 @@ class ComponentModel:
         floor = {name: self._floor(zodi[name] + per_sun * sun_irr[name] + per_moon * moon_at_earth_unit[name], name, shape)
                  for name in bands}
         if self.earthshine_model["lut"] is not None:
-            self._add_moonlit_earthshine(es_coeff, sat, sun, moon, frame, door, shape, moon_at_earth_unit, floor)
+            self._add_moonlit_earthshine(es_coeff, sat, sun, moon, frame, door, shape, moon_at_earth_unit, floor, runs)
         # the floor in units of the darkest zodiacal light, worst band: what the skip radii scale with
         floor_ratio = np.min([floor[name] / self.darkest_zodiacal_e_per_s(name) for name in bands], axis=0)
         moon_sun_fraction = solar_like_fraction(v_moon)
         t_moon = self._skippable_transfer(moon_sun_fraction, geometry["moon_angle_deg"], geometry["moon_phi_deg"],
                                           geometry["moon_earth_blocked"], door, bands, floor_ratio)
-        planets_fraction = self._planets_fraction(sat, bodies_km, frame, door, bands, floor_ratio, shape)
+        planets_fraction = self._planets_fraction(sat, bodies_km, frame, door, bands, floor_ratio, shape, runs)
         moon_fraction = t_moon * moon_sun_fraction * eclipse
-        star_pairs = (self._star_pairs(stars, frame, sat, door, floor_ratio)
+        star_pairs = (self._star_pairs(stars, frame, sat, door, floor_ratio, runs)
                       if stars is not None and len(stars.ra_deg) else None)  # once for all bands
         faint = faint_rates
         if faint is None and stars is not None and len(stars.faint_ra_deg):
@@ -314,7 +317,7 @@ class ComponentModel:
             smallest = budget * float(np.min(floor_ratio)) / float(np.max(rel)) * (1 - 1e-12)
         return float(self.offfield.pst.influence_radius_deg(smallest))
 
-    def _planets_fraction(self, sat, bodies_km, frame, door, bands, floor_ratio, shape) -> np.ndarray:
+    def _planets_fraction(self, sat, bodies_km, frame, door, bands, floor_ratio, shape, runs=None) -> np.ndarray:
         """The planets in ``bodies_km`` together, per sample: the sum of each one's
         :meth:`_planet_transfer` times its fraction of the Sun's irradiance at 1 AU.  Each
         planet's magnitude and direction are computed once per run of samples that share a
@@ -327,7 +330,7 @@ class ComponentModel:
         if not planets or not out.size:
             return out
         rows = scene_rows(*(np.broadcast_to(np.asarray(v, float), shape + (3,))
-                            for v in (sat, bodies_km["sun"], *(bodies_km[p] for p in planets))))
+                            for v in (sat, bodies_km["sun"], *(bodies_km[p] for p in planets))), runs=runs)
         vectors, index = rows.vectors, rows.index
         fractions = [solar_like_fraction(planet_v_magnitude(p, vectors[2 + i], vectors[1], vectors[0]))
                      for i, p in enumerate(planets)]  # per run
@@ -345,17 +348,20 @@ class ComponentModel:
             if near_i.size:  # added at the near samples only (elsewhere the planet adds 0)
                 fraction_near = np.take(fractions[i], np.take(index, near_i))
                 flat_out[near_i] += self._planet_transfer(fraction_near, sat, bodies_km[p], frame, door, bands,
-                                                          floor_ratio, shape, near_i) * fraction_near
+                                                          floor_ratio, shape, near_i,
+                                                          None if runs is None else runs.at(near_i)) * fraction_near
         return out
 
     def _planet_transfer(self, fraction_near, satellite_km, planet_km, frame, door, bands, floor_ratio, shape,
-                         near) -> np.ndarray:
+                         near, runs_near=None) -> np.ndarray:
         """:meth:`_skippable_transfer` of a planet at the samples ``near`` (flat indices: those
         :meth:`_planets_fraction` finds within its widest skip radius), there only, (len(near),);
         ``fraction_near``: its fraction of the Sun's irradiance there; its angles
-        (:func:`body_geometry`) computed there only."""
+        (:func:`body_geometry`) computed there only; ``runs_near``: the scene runs of the
+        samples ``near``, when known."""
         sat, planet, fx, fy, fz = (rows_at(v, shape, near) for v in (satellite_km, planet_km, frame.x, frame.y, frame.z))
-        g = body_geometry(sat, {"planet": planet}, TelescopeFrame(fx, fy, fz), self.campaign.earth.radius_km)
+        g = body_geometry(sat, {"planet": planet}, TelescopeFrame(fx, fy, fz), self.campaign.earth.radius_km,
+                          runs=runs_near)
         door_near, floor_near = (np.broadcast_to(np.asarray(v, float), shape).ravel()[near] for v in (door, floor_ratio))
         return self._skippable_transfer(fraction_near, g["planet_angle_deg"], g["planet_phi_deg"],
                                         g["planet_earth_blocked"], door_near, bands, floor_near)
@@ -565,7 +571,7 @@ class ComponentModel:
                                  "see": "bench/results/summary.json for the whole model against the converged "
                                         "reference, knobs.json moonlit_grid for the moonlit grid's measured error"}}
 
-    def _earthshine_coefficients(self, sat, sun, moon, frame, door, shape) -> dict:
+    def _earthshine_coefficients(self, sat, sun, moon, frame, door, shape, runs=None) -> dict:
         """Earthshine coefficients (see OffFieldModel.earthshine_coefficients) by the model that
         runs.  The direct sum gives every term; the table gives the sunlit Earth, and of the
         moonlit Earth only the part inside the field (the rest: :meth:`_add_moonlit_earthshine`)."""
@@ -576,13 +582,13 @@ class ComponentModel:
         full = shape + (3,)
         sat_b, sun_b, moon_b = (np.broadcast_to(np.asarray(v, float), full) for v in (sat, sun, moon))
         d_sun, g_sun = lut.sun_coefficients(sat_b, sun_b, np.broadcast_to(frame.z, full),
-                                            np.broadcast_to(np.asarray(door, float), shape))
+                                            np.broadcast_to(np.asarray(door, float), shape), runs)
         in_field_sun, in_field_moon = off.earth_in_field(sat_b, sun_b, moon_b, frame, re_km)
         return {"direct_sun": d_sun + in_field_sun, "door_sun": g_sun, "direct_moon": in_field_moon,
                 "door_moon": np.zeros(shape)}
 
     def _add_moonlit_earthshine(self, es_coeff: dict, sat, sun, moon, frame, door, shape, moon_at_earth_unit: dict,
-                                floor: dict) -> None:
+                                floor: dict, runs=None) -> None:
         """On the table's path, add the moonlit Earth outside the field to ``es_coeff`` (in place):
         skipped where its bound, times the Moon's irradiance, is below ``moonlit_skip_share`` x
         the tolerance x the sample's floor (a lower bound of its total, :meth:`evaluate`) in every
@@ -593,13 +599,15 @@ class ComponentModel:
         full = shape + (3,)
         sat_b, sun_b, moon_b = (np.broadcast_to(np.asarray(v, float), full) for v in (sat, sun, moon))
         los_b = np.broadcast_to(frame.z, full)
-        bound = lut.moon_bound(sat_b, moon_b, los_b, re_km)
+        bound = lut.moon_bound(sat_b, moon_b, los_b, re_km, runs)
         # within 1 deg of the limb and below it the table has no bound: there the whole cap, fully
         # lit, at the PST's largest value outside the field
         no_bound = ~np.isfinite(bound)
         if np.any(no_bound):  # the cap's bound only where needed (it grids each sample's cap)
-            bound[no_bound] = (off.earthshine_cap_bound(rows_at(sat_b, shape, np.flatnonzero(no_bound)), re_km,
-                                                        self.moonlit_grid) + lut.moon_door_bound)
+            unbounded = np.flatnonzero(no_bound)
+            bound[no_bound] = (off.earthshine_cap_bound(rows_at(sat_b, shape, unbounded), re_km, self.moonlit_grid,
+                                                        None if runs is None else runs.at(unbounded))
+                               + lut.moon_door_bound)
         need = np.zeros(shape, bool)
         for b, e_moon in moon_at_earth_unit.items():
             need |= np.broadcast_to(bound * e_moon > self.moonlit_skip_share * self.tolerance * floor[b], shape)
@@ -616,7 +624,7 @@ class ComponentModel:
         mlut = self.moonlit_model["lut"]
         if mlut is not None:  # the coarse grid's sum, tabulated
             direct_moon, door_moon = mlut.coefficients(rows_at(sat_b, shape, at), rows_at(moon_b, shape, at), sub,
-                                                       door_need)
+                                                       door_need, None if runs is None else runs.at(at))
         else:
             c = off.earthshine_coefficients(*(rows_at(v, shape, at) for v in (sat_b, sun_b, moon_b)), sub, door_need,
                                             re_km, in_field=False, sun=False, grid=self.moonlit_grid)
@@ -828,7 +836,7 @@ class ComponentModel:
             promoted[by_entries[:int(np.searchsorted(np.cumsum(entries[by_entries]), excess)) + 1]] = True
         return [(c[~promoted[k]], k[~promoted[k]], r[~promoted[k]]) for c, k, r in parts]
 
-    def _star_pairs(self, stars: StarTable, frame, sat, door, floor_ratio=1.0):
+    def _star_pairs(self, stars: StarTable, frame, sat, door, floor_ratio=1.0, runs=None):
         """The off-field catalog stars' band-independent transfer, E = 1 photon s-1 m-2:
         Se * Sp * PST * pixel factor, for the (sample, star) pairs that count: the star is a
         candidate of the sample's sky cell at its floor level (``floor_ratio`` >= 1 times the
@@ -837,7 +845,7 @@ class ComponentModel:
         the samples and ``(sample, star, transfer)``: flat sample index, star index, transfer.
 
         Where samples come in runs that share a satellite position (cube time steps) the Earth
-        test runs once per star and step."""
+        test runs once per star and step (``runs``: the samples' scene runs when known)."""
         s_all = np.ascontiguousarray(stars.unit, dtype=float)  # (S, 3)
         cells = self.star_cells(stars)
         shape = np.broadcast_shapes(np.shape(frame.z)[:-1], np.shape(door), np.shape(sat)[:-1])
@@ -850,7 +858,7 @@ class ComponentModel:
         level = np.clip(level, 0, self.STAR_FLOOR_LEVELS.size - 1)
         re_km = self.campaign.earth.radius_km
         sat_b = np.broadcast_to(np.asarray(sat, float), shape + (3,))
-        runs = scene_runs(sat_b)
+        runs = scene_runs(sat_b, runs=runs)
         period = tiled_period(fz, runs)  # a cube batch: the same lines of sight at every time step
         if runs is not None and runs.count * len(s_all) > self.STAR_PAIRS_PER_PASS:
             runs = None  # many short runs of a deep catalog: the test per pair costs less memory

@@ -166,7 +166,7 @@ def _cached(prefix: str, key: str, what: str, load, build, log):
     return lut, path
 
 
-def _lamp_coordinates(sat_km, lamp_km, los, symmetric: bool, frame_xy=None):
+def _lamp_coordinates(sat_km, lamp_km, los, symmetric: bool, frame_xy=None, runs=None):
     """The tables' coordinates of samples: (radius km, the lamp's zenith angle, the line of
     sight's zenith angle, its azimuth from the lamp's about the vertical, and with ``frame_xy``
     (the telescope frame's x and y axes, (..., 3)) the roll), deg, arrays of the samples' shape.
@@ -177,11 +177,12 @@ def _lamp_coordinates(sat_km, lamp_km, los, symmetric: bool, frame_xy=None):
     The satellite's and the lamp's parts (the vertical, the lamp's zenith angle, its horizontal
     direction) once per run of samples that share them (a cube's time step), the rest per sample:
     the vectors' components in one compiled pass (:func:`_los_components_kernel`), the angles
-    from them in numpy."""
+    from them in numpy.  ``runs``: the samples' scene runs when known
+    (:class:`~straylight.geometry.SceneRuns`)."""
     sat, lamp, los = np.broadcast_arrays(np.asarray(sat_km, float), np.asarray(lamp_km, float),
                                          np.asarray(los, float))
     shape = los.shape[:-1]
-    rows = scene_rows(sat, lamp)
+    rows = scene_rows(sat, lamp, runs=runs)
     (sat_r, lamp_r), index = rows.vectors, rows.index
     r = norm(sat_r)
     up = unit(sat_r)
@@ -443,13 +444,15 @@ class EarthshineLUT:
             self._interp = _asinh_grids(axes, self.direct, self.door, self.scale, drop_first=self.radius_km.size == 1)
         return self._interp
 
-    def coordinates(self, sat_km, sun_km, los):
-        """(r, z_sun, zeta, A) of samples; arrays of the samples' shape."""
-        return _lamp_coordinates(sat_km, sun_km, los, self.symmetric)
+    def coordinates(self, sat_km, sun_km, los, runs=None):
+        """(r, z_sun, zeta, A) of samples; arrays of the samples' shape; ``runs``: the samples'
+        scene runs when known."""
+        return _lamp_coordinates(sat_km, sun_km, los, self.symmetric, runs=runs)
 
-    def sun_coefficients(self, sat_km, sun_km, los, opening_deg):
-        """(direct_sun, door_sun) per unit solar irradiance, excluding the in-field term."""
-        r, z_sun, zeta, a = self.coordinates(sat_km, sun_km, los)
+    def sun_coefficients(self, sat_km, sun_km, los, opening_deg, runs=None):
+        """(direct_sun, door_sun) per unit solar irradiance, excluding the in-field term;
+        ``runs``: the samples' scene runs when known."""
+        r, z_sun, zeta, a = self.coordinates(sat_km, sun_km, los, runs)
         shape = z_sun.shape
         pts = np.stack([z_sun, zeta, a], axis=-1)
         if self.radius_km.size > 1:
@@ -457,12 +460,13 @@ class EarthshineLUT:
         pts = pts.reshape(-1, pts.shape[-1])
         return _per_door_state(self._interpolators(), pts.T, opening_deg, shape, self.scale)
 
-    def moon_bound(self, sat_km, moon_km, los, earth_radius_km: float):
+    def moon_bound(self, sat_km, moon_km, los, earth_radius_km: float, runs=None):
         """Upper bound of direct_moon + door_moon per unit lunar irradiance at the Earth: the
         larger of the four neighbouring (Moon zenith, line-of-sight zenith) nodes (largest
         radius node), x 1.2 for the azimuth between nodes; infinite for a line of sight less
         than 1 deg above the limb or below it (there a grid block can sit next to the field
-        edge, where the PST jumps, and no table bounds it)."""
+        edge, where the PST jumps, and no table bounds it).  ``runs``: the samples' scene runs
+        when known."""
         sat, moon, los = np.broadcast_arrays(np.asarray(sat_km, float), np.asarray(moon_km, float),
                                              np.asarray(los, float))
         shape = los.shape[:-1]
@@ -470,7 +474,7 @@ class EarthshineLUT:
             # (Z, L), the worst radius
             self._moon_bound_table = np.ascontiguousarray(self.moon_direct_bound.max(axis=0))
         # the satellite's and the Moon's parts once per run of samples sharing them (a cube's time step)
-        rows = scene_rows(sat, moon)
+        rows = scene_rows(sat, moon, runs=runs)
         (sat_r, moon_r), index = rows.vectors, rows.index
         r = norm(sat_r)
         up = sat_r / r[:, None]
@@ -689,13 +693,15 @@ class MoonlitLUT:
             self._interp = _asinh_grids(axes, self.direct, self.door, self.scale)
         return self._interp
 
-    def coordinates(self, sat_km, moon_km, frame):
-        """(Moon zenith, line-of-sight zenith, azimuth from the Moon, roll) of samples, deg."""
-        return _lamp_coordinates(sat_km, moon_km, frame.z, self.symmetric, (frame.x, frame.y))[1:]
+    def coordinates(self, sat_km, moon_km, frame, runs=None):
+        """(Moon zenith, line-of-sight zenith, azimuth from the Moon, roll) of samples, deg;
+        ``runs``: the samples' scene runs when known."""
+        return _lamp_coordinates(sat_km, moon_km, frame.z, self.symmetric, (frame.x, frame.y), runs)[1:]
 
-    def coefficients(self, sat_km, moon_km, frame, opening_deg):
-        """(direct_moon, door_moon) per unit lunar irradiance at the Earth, outside the field."""
-        zm, zeta, a, roll = self.coordinates(sat_km, moon_km, frame)
+    def coefficients(self, sat_km, moon_km, frame, opening_deg, runs=None):
+        """(direct_moon, door_moon) per unit lunar irradiance at the Earth, outside the field;
+        ``runs``: the samples' scene runs when known."""
+        zm, zeta, a, roll = self.coordinates(sat_km, moon_km, frame, runs)
         shape = zm.shape
         return _per_door_state(self._interpolators(), [v.ravel() for v in (zm, zeta, a, roll)], opening_deg, shape,
                                self.scale)

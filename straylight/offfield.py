@@ -305,15 +305,16 @@ class OffFieldModel:
         return np.sum(s.albedo / np.pi * mu * pst_max * (theta > self.field_radius_deg) * d_omega,
                       axis=(-2, -1)) * self.pixel_area_m2
 
-    def earthshine_cap_bound(self, sat_km, earth_radius_km, grid: tuple[int, int]) -> np.ndarray:
+    def earthshine_cap_bound(self, sat_km, earth_radius_km, grid: tuple[int, int], runs=None) -> np.ndarray:
         """Upper bound of the direct coefficient (outside the field) that the sum on an Earth-cap
         ``grid`` (n_gamma, n_psi) gives for any line of sight, lamp and roll: the whole cap
         fully lit (cos z = 1), at the PST's largest value outside the field, Sp = 1, times the
-        grid's own solid angle (so the bound holds for the sum, not only for the integral)."""
+        grid's own solid angle (so the bound holds for the sum, not only for the integral).
+        ``runs``: the samples' scene runs when known."""
         s = replace(self.earthshine, n_gamma=int(grid[0]), n_psi=int(grid[1]))
         # it depends on the satellite's radius alone: once per run of samples sharing the
         # satellite (a cube's time step)
-        rows = scene_rows(np.asarray(sat_km, float))
+        rows = scene_rows(np.asarray(sat_km, float), runs=runs)
         gamma, dgamma = self._cap_nadir_angles_at(norm(rows.vectors[0]), earth_radius_km, s)
         cap_sr = 2.0 * np.pi * np.sum(np.sin(gamma) * dgamma, axis=-1)  # the grid's sum of d_omega
         return np.array(rows.expand(self.earthshine.albedo / np.pi * self._pst_max_outside_field * cap_sr

@@ -152,7 +152,6 @@ def _runs(mask):
 
 def limit_maps(limits_ds, campaign, out_dir) -> list:
     """Best and median 5-sigma limiting magnitude over the campaign, per band (Mollweide)."""
-    import healpy as hp
     import matplotlib
 
     matplotlib.use("Agg")

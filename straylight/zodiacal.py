@@ -67,10 +67,11 @@ def ecliptic_lon_lat_deg(vectors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return lon % 360.0, lat
 
 
-def helioecliptic_coordinates(los: np.ndarray, sun_direction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def helioecliptic_coordinates(los: np.ndarray, sun_direction: np.ndarray, runs=None) -> tuple[np.ndarray, np.ndarray]:
     """(|lambda - lambda_sun| in [0, 180], |beta| in [0, 90]) for lines of sight, deg (their
-    longitudes' difference folded without a modulo)."""
-    rows = scene_rows(sun_direction)  # a cube's time step shares the Sun: its longitude once per step
+    longitudes' difference folded without a modulo); ``runs``: the samples' scene runs when
+    known (:class:`~straylight.geometry.SceneRuns`)."""
+    rows = scene_rows(sun_direction, runs=runs)  # a cube's time step shares the Sun: its longitude once per step
     # and a cube batch repeats its lines of sight at every step: theirs once per pixel
     period = tiled_period(los, rows) if np.shape(los) == np.shape(sun_direction) else None
     if period is None:
@@ -213,9 +214,9 @@ class ZodiacalModel:
         return np.pi * self.aperture_diameter_m**2 / 4.0 * (self.pixel_size_m / self.focal_length_m) ** 2
 
     @staticmethod
-    def brightness_500nm(los: np.ndarray, sun_direction: np.ndarray):
+    def brightness_500nm(los: np.ndarray, sun_direction: np.ndarray, runs=None):
         """Band-independent part: (B_500 in W m-2 sr-1 um-1, no-data flag) for the samples."""
-        dlon, beta = helioecliptic_coordinates(los, sun_direction)
+        dlon, beta = helioecliptic_coordinates(los, sun_direction, runs)
         return leinert_table().brightness_500nm(dlon, beta)
 
     def e_per_s_per_pix(self, band: Band, brightness_500nm) -> np.ndarray:

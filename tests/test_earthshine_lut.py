@@ -351,7 +351,7 @@ def test_a_batch_of_time_steps_equals_each_step_alone(coarse):
     star) once per step (geometry.scene_runs).  The batch must give what each step alone gives,
     to float rounding: nothing may leak from one step's scene into another's."""
     from straylight.components import split_stars
-    from straylight.geometry import observing_geometry, radec_to_unit
+    from straylight.geometry import SceneRuns, observing_geometry, radec_to_unit
     from straylight.sky import scene
 
     c, cm, _ = coarse
@@ -363,12 +363,20 @@ def test_a_batch_of_time_steps_equals_each_step_alone(coarse):
     sc = scene(c, ["2026-01-01T00:00:00", "2026-01-01T00:35:00", "2026-01-01T03:10:00"])
     k = len(sc.satellite_km)
 
-    def run(sat, bodies, lines):
-        g = observing_geometry(sat, bodies, lines, c.earth.radius_km, c.constraints)
-        return g, cm.evaluate(sat, bodies, lines, g, c.bands, stars)
+    def run(sat, bodies, lines, runs=None):
+        g = observing_geometry(sat, bodies, lines, c.earth.radius_km, c.constraints, runs=runs)
+        return g, cm.evaluate(sat, bodies, lines, g, c.bands, stars, runs=runs)
 
-    g_batch, batch = run(np.repeat(sc.satellite_km, n_los, axis=0),
-                         {b: np.repeat(v, n_los, axis=0) for b, v in sc.bodies_km.items()}, np.tile(los, (k, 1)))
+    batch_args = (np.repeat(sc.satellite_km, n_los, axis=0),
+                  {b: np.repeat(v, n_los, axis=0) for b, v in sc.bodies_km.items()}, np.tile(los, (k, 1)))
+    g_batch, batch = run(*batch_args)
+    # the steps passed as known runs (as the cube passes them) change nothing, bit for bit
+    g_known, known = run(*batch_args, runs=SceneRuns.steps(k, n_los))
+    for key in g_batch:
+        np.testing.assert_array_equal(g_known[key], g_batch[key])
+    for b in c.bands:
+        for comp in ("zodiacal", "sun", "moon", "planets", "stars", "earthshine", "total"):
+            np.testing.assert_array_equal(known[b][comp], batch[b][comp])
     checked = 0
     for it in range(k):
         sl = slice(it * n_los, (it + 1) * n_los)
@@ -546,3 +554,32 @@ def test_scene_runs_group_consecutive_samples_that_share_a_scene():
     one = np.broadcast_to([7.0, 0, 0], (5, 3))
     assert shared_vectors(one)[0].tolist() == [7.0, 0, 0] and shared_vectors(a) is None
     assert scene_runs(one).expand(np.array([[1.0, 2.0]])).shape == (5, 2)  # one run: broadcast
+
+
+def test_known_runs_read_what_the_scan_finds():
+    """SceneRuns.steps (a cube's time steps, known to the caller) gives the runs that scanning
+    the vectors finds: the same vectors, index and starts; restricted to a subset of the
+    samples (SceneRuns.at), the runs that scanning the subset finds; the wrong number of
+    samples is refused."""
+    from straylight.geometry import SceneRuns, scene_rows, scene_runs
+
+    rng = np.random.default_rng(5)
+    steps, per_step = 4, 6
+    a = np.repeat(rng.normal(size=(steps, 3)), per_step, axis=0)
+    b = np.repeat(rng.normal(size=(steps, 3)), per_step, axis=0)
+    known = SceneRuns.steps(steps, per_step)
+    for found, given in ((scene_runs(a, b), known.of(a, b)), (scene_runs(a, b), scene_runs(a, b, runs=known)),
+                         (scene_rows(b), scene_rows(b, runs=known))):
+        assert given.count == found.count == steps and given.shape == found.shape
+        np.testing.assert_array_equal(given.index, found.index)
+        np.testing.assert_array_equal(given.starts, found.starts)
+        for v, w in zip(given.vectors, found.vectors):
+            np.testing.assert_array_equal(v, w)
+    subset = np.array([1, 2, 9, 20, 21, 23])  # steps 0, 0, 1, 3, 3, 3: three runs
+    sub = known.at(subset).of(a[subset], b[subset])
+    scanned = scene_rows(a[subset], b[subset])
+    assert sub.count == scanned.count == 3
+    np.testing.assert_array_equal(sub.index, scanned.index)
+    np.testing.assert_array_equal(sub.vectors[1], scanned.vectors[1])
+    with pytest.raises(ValueError, match="24 samples"):
+        known.of(a[:-1])
