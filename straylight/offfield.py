@@ -182,15 +182,28 @@ class OffFieldModel:
     # -- point sources ----------------------------------------------------------------------
     def point_source(self, irradiance, theta_deg, phi_deg, earth_blocked, opening_deg) -> np.ndarray:
         """e-/s/pix of point sources: E * Se * Sp * PST * pixel area (broadcast arrays); the door
-        and PST tables are looked up only where the Earth does not hide the source (Se = 1)."""
+        table is looked up only where the Earth does not hide the source (Se = 1), and the PST
+        only where the door lets it in (Sp > 0): the Sun, whose angle sets the door's state,
+        gets past the door at ~5 % of a default region's samples."""
         th, ph, blocked, op = np.broadcast_arrays(theta_deg, phi_deg, np.asarray(earth_blocked, bool), opening_deg)
         if not np.any(blocked):  # nothing hidden (every star pair): no masked copies
-            t = self.door_factor(th, ph, op) * self.pst(th, ph)
+            t = self.door_factor(th, ph, op)
+            lit = t > 0.0
+            if np.all(lit):
+                t *= self.pst(th, ph)
+            elif np.any(lit):
+                t[lit] *= self.pst(th[lit], ph[lit])
         else:
-            seen = ~blocked
+            seen = np.flatnonzero(~blocked)
             t = np.zeros(th.shape)
-            if np.any(seen):
-                t[seen] = self.door_factor(th[seen], ph[seen], op[seen]) * self.pst(th[seen], ph[seen])
+            if seen.size:
+                th_s, ph_s = np.take(th, seen), np.take(ph, seen)
+                door = self.door_factor(th_s, ph_s, np.take(op, seen))
+                lit = np.flatnonzero(door > 0.0)
+                if lit.size == seen.size:  # the door hides none of them (the Moon, mostly)
+                    t.reshape(-1)[seen] = door * self.pst(th_s, ph_s)
+                elif lit.size:
+                    t.reshape(-1)[seen[lit]] = door[lit] * self.pst(np.take(th_s, lit), np.take(ph_s, lit))
         return np.asarray(irradiance) * t * self.pixel_area_m2
 
     # -- earthshine -------------------------------------------------------------------------

@@ -571,6 +571,31 @@ def test_sun_term_is_never_skipped_on_its_bound(campaign, comp_model):
     assert np.count_nonzero(expected) > 100 and np.any(g["sun_earth_blocked"])
 
 
+def test_point_source_is_se_sp_pst_wherever_it_looks_tables_up(campaign, comp_model):
+    """point_source looks the door table up only where the Earth does not hide the source, and
+    the PST only where the door lets it in: on 3000 random samples (the Sun: hidden, shaded and
+    lit samples; the Moon) and on arrays the Earth hides nowhere, it equals Se * Sp * PST *
+    pixel area from both tables everywhere, bit for bit."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
+    from _samples import random_samples
+
+    off = comp_model.offfield
+    _, _, g = random_samples(campaign, 3000, seed=9)
+    door = g["door_opening_deg"]
+    for body in ("sun", "moon"):
+        th, ph, blocked = g[f"{body}_angle_deg"], g[f"{body}_phi_deg"], g[f"{body}_earth_blocked"]
+        expected = np.where(blocked, 0.0, off.door_factor(th, ph, door) * off.pst(th, ph)) * off.pixel_area_m2
+        for hidden in (blocked, np.zeros_like(blocked)):
+            want = expected if hidden is blocked else off.door_factor(th, ph, door) * off.pst(th, ph) * off.pixel_area_m2
+            np.testing.assert_array_equal(off.point_source(1.0, th, ph, hidden, door), want)
+        if body == "sun":  # all three kinds of sample were there
+            shaded = ~blocked & (off.door_factor(th, ph, door) == 0)
+            assert np.any(blocked) and np.any(shaded) and np.count_nonzero(expected) > 100
+
+
 def test_faint_star_map_is_the_azimuth_averaged_pst_sum(campaign, comp_model):
     """Faint stars at 0.3 deg (in the field: 0), 2 deg and 40 deg: the map gives
     sum F PSTavg(theta) * pixel area, PSTavg from PST.azimuthal_mean (72 azimuths)."""
