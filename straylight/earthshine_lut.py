@@ -32,6 +32,7 @@ import hashlib
 import json
 import os
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -39,7 +40,7 @@ from numba import njit
 
 from .door import door_state_index
 from .errors import InputError
-from .geometry import _any_perpendicular_xyz, _unit_xyz, dot, norm, scene_rows, telescope_frame, unit
+from .geometry import _any_perpendicular_xyz, _unit_xyz, dot, norm, rows_at, scene_rows, telescope_frame, unit
 from .gridinterp import LinearGrid
 from .offfield import MOON_APOGEE_KM, MOON_MEAN_DISTANCE_KM, MOON_PERIGEE_KM
 
@@ -451,14 +452,50 @@ class EarthshineLUT:
 
     def sun_coefficients(self, sat_km, sun_km, los, opening_deg, runs=None):
         """(direct_sun, door_sun) per unit solar irradiance, excluding the in-field term;
-        ``runs``: the samples' scene runs when known."""
-        r, z_sun, zeta, a = self.coordinates(sat_km, sun_km, los, runs)
+        ``runs``: the samples' scene runs when known.  Samples whose Sun zenith angle lies
+        beyond :attr:`dark_sun_zenith_deg` (no sunlit Earth in view: every table node from there
+        on is 0, so the interpolation gives exactly 0) get 0 without a look-up: a low orbit's
+        night side, ~40 % of its samples."""
+        sat, sun, los = np.broadcast_arrays(np.asarray(sat_km, float), np.asarray(sun_km, float),
+                                            np.asarray(los, float))
+        shape = los.shape[:-1]
+        op = np.broadcast_to(np.asarray(opening_deg, float), shape)
+        rows = scene_rows(sat, sun, runs=runs)
+        up_r, sun_r = unit(rows.vectors[0]), unit(rows.vectors[1])
+        # the Sun's zenith angle per run, as _lamp_coordinates computes it
+        dark_run = np.degrees(np.arccos(np.clip(dot(up_r, sun_r), -1.0, 1.0))) > self.dark_sun_zenith_deg
+        if not np.any(dark_run):
+            return self._sun_lookup(sat, sun, los, op, rows)
+        lit = np.flatnonzero(~np.take(dark_run, rows.index))
+        direct, door = np.zeros(shape), np.zeros(shape)
+        if lit.size:
+            d, g = self._sun_lookup(*(rows_at(v, shape, lit) for v in (sat, sun, los)), op.reshape(-1)[lit],
+                                    rows.at(lit))
+            direct.reshape(-1)[lit], door.reshape(-1)[lit] = d, g
+        return direct, door
+
+    def _sun_lookup(self, sat, sun, los, opening_deg, runs):
+        """:meth:`sun_coefficients` by look-up at every sample."""
+        r, z_sun, zeta, a = self.coordinates(sat, sun, los, runs)
         shape = z_sun.shape
         pts = np.stack([z_sun, zeta, a], axis=-1)
         if self.radius_km.size > 1:
             pts = np.concatenate([np.clip(r, self.radius_km[0], self.radius_km[-1])[..., None], pts], axis=-1)
         pts = pts.reshape(-1, pts.shape[-1])
         return _per_door_state(self._interpolators(), pts.T, opening_deg, shape, self.scale)
+
+    @cached_property
+    def dark_sun_zenith_deg(self) -> float:
+        """The Sun zenith angle beyond which the table is 0 (every node from the first of the
+        all-zero Sun-zenith slabs that run to the axis' end, in every door state and term);
+        beyond it by 1e-6 deg, so a point within rounding of that node (which the cell finder
+        may place in the cell below) is looked up as before.  inf when no such slabs."""
+        zero = np.ones(self.sun_zenith_deg.size, bool)
+        for table in (*self.direct.values(), *self.door.values()):
+            zero &= ~np.any(np.moveaxis(table, 1, 0).reshape(self.sun_zenith_deg.size, -1) != 0, axis=1)
+        nonzero = np.flatnonzero(~zero)
+        first = 0 if nonzero.size == 0 else int(nonzero[-1]) + 1
+        return float(self.sun_zenith_deg[first]) + 1e-6 if first < self.sun_zenith_deg.size else float("inf")
 
     def moon_bound(self, sat_km, moon_km, los, earth_radius_km: float, runs=None):
         """Upper bound of direct_moon + door_moon per unit lunar irradiance at the Earth: the

@@ -80,6 +80,41 @@ def test_rotation_about_the_vertical_changes_nothing(coarse):
         assert err.max() < 1e-2
 
 
+def test_night_side_samples_skip_the_look_up_and_get_exactly_what_it_gives(coarse):
+    """sun_coefficients gives 0 without a look-up where the Sun's zenith angle lies beyond
+    dark_sun_zenith_deg (every table node from there on is 0).  On a cube-like batch of time
+    steps over a whole orbit (day, twilight and night steps), with and without known runs, it
+    equals the look-up at every sample bit for bit; the skipped samples are there, and the
+    table really is 0 at every node beyond the angle."""
+    from straylight.geometry import SceneRuns, radec_to_unit
+    from straylight.sky import scene
+
+    c, _, info = coarse
+    lut = info["lut"]
+    dark = lut.dark_sun_zenith_deg
+    assert 90.0 < dark < 180.0
+    beyond = lut.sun_zenith_deg > dark
+    for table in (*lut.direct.values(), *lut.door.values()):
+        assert beyond.any() and np.all(table[:, beyond] == 0) and np.any(table[:, ~beyond] != 0)
+    rng = np.random.default_rng(3)
+    n_los = 200
+    los = radec_to_unit(rng.uniform(0, 360, n_los), np.degrees(np.arcsin(rng.uniform(-1, 1, n_los))))
+    times = [f"2026-01-01T{m // 60:02d}:{m % 60:02d}:00" for m in range(0, 95, 5)]  # one orbit, 19 steps
+    sc = scene(c, times)
+    k = len(times)
+    sat, sun = np.repeat(sc.satellite_km, n_los, axis=0), np.repeat(sc.bodies_km["sun"], n_los, axis=0)
+    lines = np.tile(los, (k, 1))
+    door = np.where(rng.uniform(size=k * n_los) < 0.5, 105.0, 135.0)
+    full = lut._sun_lookup(sat, sun, lines, door, SceneRuns.steps(k, n_los).of(sat, sun))
+    z_sun = lut.coordinates(sat, sun, lines)[1]
+    assert np.any(z_sun > dark) and np.any(z_sun < 90.0)  # night and day steps both there
+    for runs in (None, SceneRuns.steps(k, n_los)):
+        got = lut.sun_coefficients(sat, sun, lines, door, runs)
+        for g, f in zip(got, full):
+            np.testing.assert_array_equal(g, f)
+            assert np.all(g[z_sun > dark] == 0) and np.count_nonzero(g) > 100
+
+
 def test_validation_error_is_recorded_and_measured_off_the_nodes(coarse):
     _, _, info = coarse
     assert info["method"] == "lut"
