@@ -18,7 +18,7 @@ from .bandpass import load_band
 from .config import Campaign
 from .door import door_from_instrument
 from .ephemeris import PLANETS
-from .geometry import (TelescopeFrame, body_geometry, earth_blocks, norm, rows_at, scene_rows, scene_runs,
+from .geometry import (TelescopeFrame, body_geometry, dot, earth_blocks, norm, rows_at, scene_rows, scene_runs,
                        telescope_frame, tiled_period, unit)
 from .offfield import (AU_KM, BandPhotometry, EarthshineSettings, OffFieldModel, magnitude_per_arcsec2,
                        moon_v_magnitude, planet_v_magnitude, solar_like_fraction)
@@ -593,24 +593,43 @@ class ComponentModel:
         skipped where its bound, times the Moon's irradiance, is below ``moonlit_skip_share`` x
         the tolerance x the sample's floor (a lower bound of its total, :meth:`evaluate`) in every
         band, and elsewhere the coarse ``moonlit_grid`` sum, from its table (:attr:`moonlit_model`)
-        or summed directly."""
+        or summed directly.  With the table, samples whose Moon zenith angle lies beyond its
+        ``dark_moon_zenith_deg`` (no moonlit Earth in view: the table is 0 there) are left out
+        from the start, bound and all: they would add exactly 0."""
         off, re_km = self.offfield, self.campaign.earth.radius_km
-        lut = self.earthshine_model["lut"]
-        full = shape + (3,)
-        sat_b, sun_b, moon_b = (np.broadcast_to(np.asarray(v, float), full) for v in (sat, sun, moon))
-        los_b = np.broadcast_to(frame.z, full)
+        lut, mlut = self.earthshine_model["lut"], self.moonlit_model["lut"]
+        sat_b, sun_b, moon_b, los_b = (np.broadcast_to(np.asarray(v, float), shape + (3,)).reshape(-1, 3)
+                                       for v in (sat, sun, moon, frame.z))
+        door_b = np.broadcast_to(np.asarray(door, float), shape).reshape(-1)
+        floor_b = {b: np.broadcast_to(floor[b], shape).reshape(-1) for b in moon_at_earth_unit}
+        cand = None  # the samples considered (flat indices; None: all)
+        if mlut is not None:
+            rows = scene_rows(sat_b, moon_b, runs=runs)
+            # the Moon's zenith angle per run, as the table's coordinates compute it
+            z_moon = np.degrees(np.arccos(np.clip(dot(unit(rows.vectors[0]), unit(rows.vectors[1])), -1.0, 1.0)))
+            dark = z_moon > mlut.dark_moon_zenith_deg
+            if np.all(dark):
+                return
+            if np.any(dark):
+                cand = np.flatnonzero(~np.take(dark, rows.index))
+                sat_b, sun_b, moon_b, los_b = (np.take(v, cand, axis=0) for v in (sat_b, sun_b, moon_b, los_b))
+                door_b = np.take(door_b, cand)
+                floor_b = {b: np.take(v, cand) for b, v in floor_b.items()}
+                runs = None if runs is None else runs.at(cand)
         bound = lut.moon_bound(sat_b, moon_b, los_b, re_km, runs)
         # within 1 deg of the limb and below it the table has no bound: there the whole cap, fully
         # lit, at the PST's largest value outside the field
         no_bound = ~np.isfinite(bound)
         if np.any(no_bound):  # the cap's bound only where needed (it grids each sample's cap)
             unbounded = np.flatnonzero(no_bound)
-            bound[no_bound] = (off.earthshine_cap_bound(rows_at(sat_b, shape, unbounded), re_km, self.moonlit_grid,
+            bound[no_bound] = (off.earthshine_cap_bound(np.take(sat_b, unbounded, axis=0), re_km, self.moonlit_grid,
                                                         None if runs is None else runs.at(unbounded))
                                + lut.moon_door_bound)
-        need = np.zeros(shape, bool)
+        need = np.zeros(bound.shape, bool)
         for b, e_moon in moon_at_earth_unit.items():
-            need |= np.broadcast_to(bound * e_moon > self.moonlit_skip_share * self.tolerance * floor[b], shape)
+            e_moon = np.broadcast_to(e_moon, shape).reshape(-1)
+            need |= bound * (e_moon if cand is None else np.take(e_moon, cand)) > (
+                self.moonlit_skip_share * self.tolerance * floor_b[b])
         if not np.any(need):
             return
         # the moonlit Earth is ~1e-5 of the sunlit: a coarse grid (models.earthshine.moonlit_grid)
@@ -618,19 +637,20 @@ class ComponentModel:
         # limb).  Nearer the limb and below it no Earth grid converges (blocks next to the field
         # edge meet the PST's jump), so the configured grid would cost 5x for numbers no better
         # than indicative: the coarse grid runs there too.
-        at = np.flatnonzero(need)
-        sub = TelescopeFrame(*(rows_at(a, shape, at) for a in (frame.x, frame.y, frame.z)))
-        door_need = np.broadcast_to(np.asarray(door, float), shape).ravel()[at]
-        mlut = self.moonlit_model["lut"]
+        at = np.flatnonzero(need)  # among the samples considered
+        sub = TelescopeFrame(*(rows_at(a, shape, at if cand is None else np.take(cand, at))
+                               for a in (frame.x, frame.y, frame.z)))
+        door_need = np.take(door_b, at)
         if mlut is not None:  # the coarse grid's sum, tabulated
-            direct_moon, door_moon = mlut.coefficients(rows_at(sat_b, shape, at), rows_at(moon_b, shape, at), sub,
+            direct_moon, door_moon = mlut.coefficients(np.take(sat_b, at, axis=0), np.take(moon_b, at, axis=0), sub,
                                                        door_need, None if runs is None else runs.at(at))
         else:
-            c = off.earthshine_coefficients(*(rows_at(v, shape, at) for v in (sat_b, sun_b, moon_b)), sub, door_need,
+            c = off.earthshine_coefficients(*(np.take(v, at, axis=0) for v in (sat_b, sun_b, moon_b)), sub, door_need,
                                             re_km, in_field=False, sun=False, grid=self.moonlit_grid)
             direct_moon, door_moon = c["direct_moon"], c["door_moon"]
-        es_coeff["direct_moon"][need] += direct_moon
-        es_coeff["door_moon"][need] = door_moon
+        samples = np.unravel_index(at if cand is None else np.take(cand, at), shape)
+        es_coeff["direct_moon"][samples] += direct_moon
+        es_coeff["door_moon"][samples] = door_moon
 
     @cached_property
     def _pst_azimuthal_table(self):

@@ -167,6 +167,20 @@ def _cached(prefix: str, key: str, what: str, load, build, log):
     return lut, path
 
 
+def _dark_lamp_zenith_deg(zenith_nodes_deg, tables, axis: int) -> float:
+    """The lamp zenith angle beyond which ``tables`` (each with the lamp's zenith angle along
+    ``axis``) are 0: the first node of the all-zero slabs that run to the axis' end, in every
+    table, plus 1e-6 deg, so that a point within rounding of that node (which the cell finder
+    may place in the cell below) is looked up as before; inf when the last slab is not 0.
+    Beyond it the interpolation gives exactly 0 and no look-up is needed."""
+    nonzero = np.zeros(zenith_nodes_deg.size, bool)
+    for table in tables:
+        nonzero |= np.any(np.moveaxis(np.asarray(table), axis, 0).reshape(zenith_nodes_deg.size, -1) != 0, axis=1)
+    lit = np.flatnonzero(nonzero)
+    first = 0 if lit.size == 0 else int(lit[-1]) + 1
+    return float(zenith_nodes_deg[first]) + 1e-6 if first < zenith_nodes_deg.size else float("inf")
+
+
 def _lamp_coordinates(sat_km, lamp_km, los, symmetric: bool, frame_xy=None, runs=None):
     """The tables' coordinates of samples: (radius km, the lamp's zenith angle, the line of
     sight's zenith angle, its azimuth from the lamp's about the vertical, and with ``frame_xy``
@@ -486,16 +500,8 @@ class EarthshineLUT:
 
     @cached_property
     def dark_sun_zenith_deg(self) -> float:
-        """The Sun zenith angle beyond which the table is 0 (every node from the first of the
-        all-zero Sun-zenith slabs that run to the axis' end, in every door state and term);
-        beyond it by 1e-6 deg, so a point within rounding of that node (which the cell finder
-        may place in the cell below) is looked up as before.  inf when no such slabs."""
-        zero = np.ones(self.sun_zenith_deg.size, bool)
-        for table in (*self.direct.values(), *self.door.values()):
-            zero &= ~np.any(np.moveaxis(table, 1, 0).reshape(self.sun_zenith_deg.size, -1) != 0, axis=1)
-        nonzero = np.flatnonzero(~zero)
-        first = 0 if nonzero.size == 0 else int(nonzero[-1]) + 1
-        return float(self.sun_zenith_deg[first]) + 1e-6 if first < self.sun_zenith_deg.size else float("inf")
+        """The Sun zenith angle beyond which the table is 0 (:func:`_dark_lamp_zenith_deg`)."""
+        return _dark_lamp_zenith_deg(self.sun_zenith_deg, (*self.direct.values(), *self.door.values()), axis=1)
 
     def moon_bound(self, sat_km, moon_km, los, earth_radius_km: float, runs=None):
         """Upper bound of direct_moon + door_moon per unit lunar irradiance at the Earth: the
@@ -729,6 +735,11 @@ class MoonlitLUT:
             axes = (self.moon_zenith_deg, self.los_zenith_deg, self.azimuth_deg, self.roll_deg)
             self._interp = _asinh_grids(axes, self.direct, self.door, self.scale)
         return self._interp
+
+    @cached_property
+    def dark_moon_zenith_deg(self) -> float:
+        """The Moon zenith angle beyond which the table is 0 (:func:`_dark_lamp_zenith_deg`)."""
+        return _dark_lamp_zenith_deg(self.moon_zenith_deg, (*self.direct.values(), *self.door.values()), axis=0)
 
     def coordinates(self, sat_km, moon_km, frame, runs=None):
         """(Moon zenith, line-of-sight zenith, azimuth from the Moon, roll) of samples, deg;

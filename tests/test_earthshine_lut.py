@@ -115,6 +115,44 @@ def test_night_side_samples_skip_the_look_up_and_get_exactly_what_it_gives(coars
             assert np.all(g[z_sun > dark] == 0) and np.count_nonzero(g) > 100
 
 
+def test_moonlit_earth_is_left_out_where_the_moon_is_down_and_changes_nothing(moonlit):
+    """With the moonlit table, samples whose Moon zenith angle lies beyond its
+    dark_moon_zenith_deg (the table is 0 at every node from there on) skip the moonlit Earth,
+    bound and all.  Over one orbit with the Moon up and down the components equal, bit for bit,
+    those computed with nothing left out (the angle set to inf)."""
+    from straylight.geometry import SceneRuns, observing_geometry, radec_to_unit
+    from straylight.sky import scene
+
+    c, cm, mlut = moonlit
+    dark = mlut.dark_moon_zenith_deg
+    assert 90.0 < dark < 180.0
+    beyond = mlut.moon_zenith_deg > dark
+    for table in (*mlut.direct.values(), *mlut.door.values()):
+        assert beyond.any() and np.all(table[beyond] == 0) and np.any(table[~beyond] != 0)
+    rng = np.random.default_rng(8)
+    n_los = 150
+    los = radec_to_unit(rng.uniform(0, 360, n_los), np.degrees(np.arcsin(rng.uniform(-1, 1, n_los))))
+    sc = scene(c, [f"2026-01-01T{m // 60:02d}:{m % 60:02d}:00" for m in range(0, 95, 5)])
+    k = len(sc.satellite_km)
+    sat = np.repeat(sc.satellite_km, n_los, axis=0)
+    bodies = {b: np.repeat(v, n_los, axis=0) for b, v in sc.bodies_km.items()}
+    lines = np.tile(los, (k, 1))
+    g = observing_geometry(sat, bodies, lines, c.earth.radius_km, c.constraints)
+    z_moon = mlut.coordinates(sat, bodies["moon"], telescope_frame(lines, bodies["sun"] - sat))[0]
+    assert np.any(z_moon > dark) and np.any(z_moon < 90.0)  # the Moon down and up
+    out = {}
+    for key, angle in (("skipping", dark), ("all", np.inf)):
+        mlut.__dict__["dark_moon_zenith_deg"] = angle  # the cached property's value
+        for runs in (None, SceneRuns.steps(k, n_los)):
+            out[key, runs is None] = cm.evaluate(sat, bodies, lines, g, c.bands, runs=runs)
+    mlut.__dict__["dark_moon_zenith_deg"] = dark
+    for known in (False, True):
+        for b in c.bands:
+            for comp in ("earthshine", "earthshine_direct", "earthshine_door", "moon", "total"):
+                np.testing.assert_array_equal(out["skipping", known][b][comp], out["all", known][b][comp])
+    assert np.count_nonzero(out["all", True]["g"]["earthshine_door"]) > 0
+
+
 def test_validation_error_is_recorded_and_measured_off_the_nodes(coarse):
     _, _, info = coarse
     assert info["method"] == "lut"
