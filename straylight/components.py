@@ -21,7 +21,7 @@ from .ephemeris import PLANETS
 from .geometry import (TelescopeFrame, body_geometry, dot, earth_blocks, norm, rows_at, scene_rows, scene_runs,
                        telescope_frame, tiled_period, unit)
 from .offfield import (AU_KM, BandPhotometry, EarthshineSettings, OffFieldModel, magnitude_per_arcsec2,
-                       moon_v_magnitude, planet_v_magnitude, solar_like_fraction)
+                       moon_v_magnitude, planet_v_magnitudes, solar_like_fraction)
 from .pst import load_pst
 from .zodiacal import zodiacal_model_from_instrument
 
@@ -332,8 +332,8 @@ class ComponentModel:
         rows = scene_rows(*(np.broadcast_to(np.asarray(v, float), shape + (3,))
                             for v in (sat, bodies_km["sun"], *(bodies_km[p] for p in planets))), runs=runs)
         vectors, index = rows.vectors, rows.index
-        fractions = [solar_like_fraction(planet_v_magnitude(p, vectors[2 + i], vectors[1], vectors[0]))
-                     for i, p in enumerate(planets)]  # per run
+        fractions = solar_like_fraction(planet_v_magnitudes(planets, np.stack(vectors[2:]), vectors[1],
+                                                            vectors[0]))  # (planets, runs)
         min_floor = float(np.min(floor_ratio))
         widest = np.array([self._widest_skip_radius_deg(*self._skip_scale(f, bands), min_floor) for f in fractions])
         # a margin of 1e-6 deg: the samples left out lie beyond the widest radius whatever the

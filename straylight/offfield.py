@@ -83,17 +83,29 @@ def moon_v_magnitude(phase_angle_deg, distance_km, law: str = "krisciunas_schaef
 
 def planet_v_magnitude(name: str, planet_km, sun_km, observer_km) -> np.ndarray:
     """Meeus (1998) ch. 41 V magnitude of a planet (geocentric inputs, km)."""
-    v0, (c1, c2, c3) = PLANET_V[name]
-    r = norm(planet_km - sun_km) / AU_KM
-    delta = norm(planet_km - observer_km) / AU_KM
-    i = np.degrees(np.arctan2(norm(np.cross(sun_km - planet_km, observer_km - planet_km)),
-                              dot(sun_km - planet_km, observer_km - planet_km)))
+    return planet_v_magnitudes([name], np.asarray(planet_km, float)[None], sun_km, observer_km)[0]
+
+
+def planet_v_magnitudes(names, planets_km, sun_km, observer_km) -> np.ndarray:
+    """:func:`planet_v_magnitude` of several planets at once: ``planets_km`` (planets, ..., 3),
+    one row per name, -> (planets, ...) (one numpy pass per step for all of them, not one per
+    planet: a cube batch's per-step magnitudes cost ~80 us a planet in small-array overheads)."""
+    v0 = np.array([PLANET_V[n][0] for n in names], float)
+    c1, c2, c3 = np.array([PLANET_V[n][1] for n in names], float).T
+    planet = np.asarray(planets_km, float)
+    sun, observer = np.asarray(sun_km, float), np.asarray(observer_km, float)
+    extra = (slice(None),) + (None,) * (planet.ndim - 2)  # each planet's constants over its samples
+    v0, c1, c2, c3 = v0[extra], c1[extra], c2[extra], c3[extra]
+    r = norm(planet - sun) / AU_KM
+    delta = norm(planet - observer) / AU_KM
+    i = np.degrees(np.arctan2(norm(np.cross(sun - planet, observer - planet)), dot(sun - planet, observer - planet)))
     v = v0 + 5.0 * np.log10(r * delta) + c1 * i + c2 * i**2 + c3 * i**3
-    if name == "saturn":
+    if "saturn" in names:
+        k = list(names).index("saturn")
         ra, de = np.radians(SATURN_POLE_RA_DEC_DEG)
         pole = np.array([np.cos(de) * np.cos(ra), np.cos(de) * np.sin(ra), np.sin(de)])
-        sin_b = np.abs(dot(unit(observer_km - planet_km), pole))
-        v = v - 2.60 * sin_b + 1.25 * sin_b**2
+        sin_b = np.abs(dot(unit(observer - planet[k]), pole))
+        v[k] = v[k] - 2.60 * sin_b + 1.25 * sin_b**2
     return v
 
 
