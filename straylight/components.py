@@ -604,7 +604,7 @@ class ComponentModel:
         floor_b = {b: np.broadcast_to(floor[b], shape).reshape(-1) for b in moon_at_earth_unit}
         cand = None  # the samples considered (flat indices; None: all)
         if mlut is not None:
-            rows = scene_rows(sat_b, moon_b, runs=runs)
+            rows = runs = scene_rows(sat_b, moon_b, runs=runs)  # found once here if not known
             # the Moon's zenith angle per run, as the table's coordinates compute it
             z_moon = np.degrees(np.arccos(np.clip(dot(unit(rows.vectors[0]), unit(rows.vectors[1])), -1.0, 1.0)))
             dark = z_moon > mlut.dark_moon_zenith_deg
