@@ -598,15 +598,19 @@ def goal_check(summary: dict) -> dict:
         "goal_max_rel_error": goal_error,
         "speedup_over_direct": speedup,
         "goal_speedup_over_direct": goal_speedup,
-        "met": {"rate_production_campaign": None if rates["production_campaign"] is None
-                else bool(rates["production_campaign"] >= goal_rate),
-                "rate_production_time_block": None if rates["production_time_block"] is None
-                else bool(rates["production_time_block"] >= goal_rate),
-                "rate_day_spread_batch": None if rates["day_spread_batch"] is None
-                else bool(rates["day_spread_batch"] >= goal_rate),
-                "error": None if error is None else bool(error <= goal_error),
-                "speedup": None if speedup is None else bool(speedup >= goal_speedup)},
+        "met": {**{f"rate_{k}": _met(rates[k], goal_rate)
+                   for k in ("production_campaign", "production_time_block", "day_spread_batch")},
+                "error": _met(error, goal_error, at_most=True),
+                "speedup": _met(speedup, goal_speedup)},
     }
+
+
+def _met(value, goal, at_most: bool = False):
+    """Whether a measured figure meets its goal (at least it; at most it for an error); None
+    when the run did not measure it (not a pass)."""
+    if value is None:
+        return None
+    return bool(value <= goal if at_most else value >= goal)
 
 
 def _print_goal_check(check: dict) -> None:

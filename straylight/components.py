@@ -18,7 +18,7 @@ from .bandpass import load_band
 from .config import Campaign
 from .door import door_from_instrument
 from .ephemeris import PLANETS
-from .geometry import (TelescopeFrame, body_geometry, dot, earth_blocks, norm, rows_at, scene_rows, scene_runs,
+from .geometry import (TelescopeFrame, body_geometry, earth_blocks, norm, rows_at, scene_rows, scene_runs,
                        telescope_frame, tiled_period, unit)
 from .offfield import (AU_KM, BandPhotometry, EarthshineSettings, OffFieldModel, magnitude_per_arcsec2,
                        moon_v_magnitude, planet_v_magnitudes, solar_like_fraction)
@@ -604,18 +604,17 @@ class ComponentModel:
         floor_b = {b: np.broadcast_to(floor[b], shape).reshape(-1) for b in moon_at_earth_unit}
         cand = None  # the samples considered (flat indices; None: all)
         if mlut is not None:
-            rows = runs = scene_rows(sat_b, moon_b, runs=runs)  # found once here if not known
-            # the Moon's zenith angle per run, as the table's coordinates compute it
-            z_moon = np.degrees(np.arccos(np.clip(dot(unit(rows.vectors[0]), unit(rows.vectors[1])), -1.0, 1.0)))
-            dark = z_moon > mlut.dark_moon_zenith_deg
+            runs = scene_rows(sat_b, moon_b, runs=runs)  # found once here if not known
+            dark = mlut.dark_runs(runs)
             if np.all(dark):
                 return
             if np.any(dark):
-                cand = np.flatnonzero(~np.take(dark, rows.index))
-                sat_b, sun_b, moon_b, los_b = (np.take(v, cand, axis=0) for v in (sat_b, sun_b, moon_b, los_b))
+                cand = np.flatnonzero(~np.take(dark, runs.index))
+                # (the Sun's rows serve the direct moonlit sum only, which has no dark test)
+                sat_b, moon_b, los_b = (np.take(v, cand, axis=0) for v in (sat_b, moon_b, los_b))
                 door_b = np.take(door_b, cand)
                 floor_b = {b: np.take(v, cand) for b, v in floor_b.items()}
-                runs = None if runs is None else runs.at(cand)
+                runs = runs.at(cand)
         bound = lut.moon_bound(sat_b, moon_b, los_b, re_km, runs)
         # within 1 deg of the limb and below it the table has no bound: there the whole cap, fully
         # lit, at the PST's largest value outside the field

@@ -181,6 +181,18 @@ def _dark_lamp_zenith_deg(zenith_nodes_deg, tables, axis: int) -> float:
     return float(zenith_nodes_deg[first]) + 1e-6 if first < zenith_nodes_deg.size else float("inf")
 
 
+def _lamp_zenith_deg(sat_km, lamp_km) -> np.ndarray:
+    """The lamp's zenith angle (deg) seen from the satellite's vertical: the angle between the
+    geocentric satellite and lamp (Sun or Moon) directions, (..., 3) -> (...)."""
+    return np.degrees(np.arccos(np.clip(dot(unit(sat_km), unit(lamp_km)), -1.0, 1.0)))
+
+
+def _beyond_dark_zenith(rows, dark_zenith_deg: float) -> np.ndarray:
+    """Per run of ``rows`` (scene runs of (satellite, lamp)): whether the lamp's zenith angle
+    lies beyond ``dark_zenith_deg`` (:func:`_dark_lamp_zenith_deg`: the table is 0 there)."""
+    return _lamp_zenith_deg(rows.vectors[0], rows.vectors[1]) > dark_zenith_deg
+
+
 def _lamp_coordinates(sat_km, lamp_km, los, symmetric: bool, frame_xy=None, runs=None):
     """The tables' coordinates of samples: (radius km, the lamp's zenith angle, the line of
     sight's zenith angle, its azimuth from the lamp's about the vertical, and with ``frame_xy``
@@ -202,7 +214,7 @@ def _lamp_coordinates(sat_km, lamp_km, los, symmetric: bool, frame_xy=None, runs
     r = norm(sat_r)
     up = unit(sat_r)
     lamp_u = unit(lamp_r)
-    z_lamp = np.degrees(np.arccos(np.clip(dot(up, lamp_u), -1.0, 1.0)))
+    z_lamp = _lamp_zenith_deg(sat_r, lamp_r)
     lamp_h = lamp_u - dot(lamp_u, up)[:, None] * up  # its horizontal part
     with_roll = frame_xy is not None
     # the components in one compiled pass, the angles in numpy (its SIMD arccos and arctan2 are
@@ -475,9 +487,7 @@ class EarthshineLUT:
         shape = los.shape[:-1]
         op = np.broadcast_to(np.asarray(opening_deg, float), shape)
         rows = scene_rows(sat, sun, runs=runs)
-        up_r, sun_r = unit(rows.vectors[0]), unit(rows.vectors[1])
-        # the Sun's zenith angle per run, as _lamp_coordinates computes it
-        dark_run = np.degrees(np.arccos(np.clip(dot(up_r, sun_r), -1.0, 1.0))) > self.dark_sun_zenith_deg
+        dark_run = self.dark_runs(rows)
         if not np.any(dark_run):
             return self._sun_lookup(sat, sun, los, op, rows)
         lit = np.flatnonzero(~np.take(dark_run, rows.index))
@@ -502,6 +512,11 @@ class EarthshineLUT:
     def dark_sun_zenith_deg(self) -> float:
         """The Sun zenith angle beyond which the table is 0 (:func:`_dark_lamp_zenith_deg`)."""
         return _dark_lamp_zenith_deg(self.sun_zenith_deg, (*self.direct.values(), *self.door.values()), axis=1)
+
+    def dark_runs(self, rows) -> np.ndarray:
+        """Per run of ``rows`` (scene runs of (satellite, Sun)): no sunlit Earth in view, the
+        table 0 (beyond :attr:`dark_sun_zenith_deg`)."""
+        return _beyond_dark_zenith(rows, self.dark_sun_zenith_deg)
 
     def moon_bound(self, sat_km, moon_km, los, earth_radius_km: float, runs=None):
         """Upper bound of direct_moon + door_moon per unit lunar irradiance at the Earth: the
@@ -740,6 +755,11 @@ class MoonlitLUT:
     def dark_moon_zenith_deg(self) -> float:
         """The Moon zenith angle beyond which the table is 0 (:func:`_dark_lamp_zenith_deg`)."""
         return _dark_lamp_zenith_deg(self.moon_zenith_deg, (*self.direct.values(), *self.door.values()), axis=0)
+
+    def dark_runs(self, rows) -> np.ndarray:
+        """Per run of ``rows`` (scene runs of (satellite, Moon)): no moonlit Earth in view, the
+        table 0 (beyond :attr:`dark_moon_zenith_deg`)."""
+        return _beyond_dark_zenith(rows, self.dark_moon_zenith_deg)
 
     def coordinates(self, sat_km, moon_km, frame, runs=None):
         """(Moon zenith, line-of-sight zenith, azimuth from the Moon, roll) of samples, deg;

@@ -199,24 +199,24 @@ class OffFieldModel:
         gets past the door at ~5 % of a default region's samples."""
         th, ph, blocked, op = np.broadcast_arrays(theta_deg, phi_deg, np.asarray(earth_blocked, bool), opening_deg)
         if not np.any(blocked):  # nothing hidden (every star pair): no masked copies
-            t = self.door_factor(th, ph, op)
-            lit = t > 0.0
-            if np.all(lit):
-                t *= self.pst(th, ph)
-            elif np.any(lit):
-                t[lit] *= self.pst(th[lit], ph[lit])
+            t = self._door_times_pst(th, ph, op)
         else:
             seen = np.flatnonzero(~blocked)
             t = np.zeros(th.shape)
             if seen.size:
-                th_s, ph_s = np.take(th, seen), np.take(ph, seen)
-                door = self.door_factor(th_s, ph_s, np.take(op, seen))
-                lit = np.flatnonzero(door > 0.0)
-                if lit.size == seen.size:  # the door hides none of them (the Moon, mostly)
-                    t.reshape(-1)[seen] = door * self.pst(th_s, ph_s)
-                elif lit.size:
-                    t.reshape(-1)[seen[lit]] = door[lit] * self.pst(np.take(th_s, lit), np.take(ph_s, lit))
+                t.reshape(-1)[seen] = self._door_times_pst(np.take(th, seen), np.take(ph, seen), np.take(op, seen))
         return np.asarray(irradiance) * t * self.pixel_area_m2
+
+    def _door_times_pst(self, theta_deg, phi_deg, opening_deg) -> np.ndarray:
+        """Sp * PST (new array), the PST looked up only where the door lets the source in."""
+        t = self.door_factor(theta_deg, phi_deg, opening_deg)
+        lit = np.flatnonzero(t > 0.0)
+        if lit.size == t.size:  # the door hides none (the Moon, mostly; every star pair)
+            t *= self.pst(theta_deg, phi_deg)
+        elif lit.size:
+            flat = t.reshape(-1)
+            flat[lit] *= self.pst(np.take(theta_deg, lit), np.take(phi_deg, lit))
+        return t
 
     # -- earthshine -------------------------------------------------------------------------
     @staticmethod
