@@ -15,7 +15,7 @@ log = setup_logging(snakemake)  # noqa: F821
 c = campaign(snakemake)  # noqa: F821
 with xr.open_zarr(snakemake.params.store, consolidated=True) as bg:  # noqa: F821
     ds = limits_dataset(c, bg.load())
-write_zarr_atomic(ds, snakemake.output.limits)  # noqa: F821
+write_zarr_atomic(ds, snakemake.output.limits, storage=c.config["storage"])  # noqa: F821
 with atomic_path(snakemake.output.maps) as tmp:  # noqa: F821
     maps = write_limit_maps(ds, tmp)
 for b in ds["band"].values:

@@ -17,7 +17,7 @@ c = campaign(snakemake)  # noqa: F821
 fp, _ = footprint_products(c)
 with xr.open_zarr(snakemake.input.ephemeris) as ephem:  # noqa: F821
     ds = observability_dataset(c, ephem.load(), fp)
-write_zarr_atomic(ds, snakemake.output[0])  # noqa: F821
+write_zarr_atomic(ds, snakemake.output[0], storage=c.config["storage"])  # noqa: F821
 frac = float(ds["observable"].mean())
 log.info("observability: %d times x %d pixels, observable fraction %.3f, %.2f s",
          ds.sizes["time"], ds.sizes["pixel"], frac, time.perf_counter() - t0)

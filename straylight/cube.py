@@ -139,11 +139,15 @@ def init_store(campaign: Campaign, fp: Footprint, store, stars_path=None, build_
     faint-star map (computed here once for the whole campaign); an earthshine table the
     campaign needs is built here too, before the time blocks start (``build_workers``
     processes)."""
+    from .storage import encoded
+
     ds = empty_cube(campaign, fp, campaign.times, stars_path, build_workers)
     faint = faint_star_map(campaign, fp, stars_path)
     if faint is not None:
         ds["faint_star_map"] = faint
-    ds.to_zarr(store, mode="w", compute=False, consolidated=False)
+    # the products' codecs (bit-rounded floats); the faint map exactly, the time blocks read it
+    ds, encoding = encoded(ds, campaign.config["storage"], lossless=("faint_star_map",))
+    ds.to_zarr(store, mode="w", compute=False, consolidated=False, encoding=encoding)
 
 
 _MODELS: dict = {}

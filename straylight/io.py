@@ -34,10 +34,17 @@ def atomic_path(final: str | os.PathLike):
         shutil.rmtree(tmpdir, ignore_errors=True)
 
 
-def write_zarr_atomic(dataset, path: str | os.PathLike) -> None:
-    """Write an xarray Dataset to a Zarr store at ``path`` atomically (consolidated metadata)."""
+def write_zarr_atomic(dataset, path: str | os.PathLike, storage: dict | None = None) -> None:
+    """Write an xarray Dataset to a Zarr store at ``path`` atomically (consolidated metadata);
+    with ``storage`` (a campaign's storage section) through the products' codecs
+    (:func:`straylight.storage.encoded`), else xarray's default (lossless) ones."""
+    encoding = None
+    if storage is not None:
+        from .storage import encoded
+
+        dataset, encoding = encoded(dataset, storage)
     with atomic_path(path) as tmp:
-        dataset.to_zarr(tmp, mode="w", consolidated=True)
+        dataset.to_zarr(tmp, mode="w", consolidated=True, encoding=encoding)
 
 
 def write_json_atomic(obj, path: str | os.PathLike) -> None:

@@ -1,0 +1,162 @@
+"""Benchmark: the products on disk (issue #32): bytes per (time, pixel) sample per store, the
+stored values' error against a reference run of the same campaign, and the two read patterns.
+
+    python bench/storage.py --run compressed=results/default --run lossless=/tmp/ref/results/default \\
+        --reference lossless --uncompressed /tmp/uncompressed
+
+Each ``--run label=DIR`` is a campaign's results directory (background.zarr, limits.zarr,
+observability.zarr, ephemeris.zarr).  ``--reference LABEL``: the run the others' values are
+compared with, variable by variable over the whole cube (max |stored - reference| / |reference|
+over its finite nonzero values; zeros, NaN and inf must be stored as they are).
+``--uncompressed DIR``: also write the reference's products with no compression at all (same
+chunks) to DIR and time the reads there.  Read patterns, best and median of ``--repeat`` (each
+opens the store, consolidated metadata, and loads every (time, pixel) data variable): one
+pointing over the whole campaign (all times at the footprint's middle pixel) and the whole sky at
+one time (every pixel at the middle time).  The files are in the page cache after the first
+read: the figures are decode and Zarr costs, not the disk's.  Writes bench/results/storage.json.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import shutil
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _results import write_results  # noqa: E402
+
+PRODUCTS = ("background.zarr", "limits.zarr", "observability.zarr", "ephemeris.zarr")
+#: the (time, pixel) products: the ones the read patterns and the error comparison cover
+GRIDDED = PRODUCTS[:3]
+
+
+def _bytes(path: Path) -> int:
+    return sum(p.stat().st_size for p in path.rglob("*") if p.is_file())
+
+
+def _gridded_vars(ds) -> list:
+    return [n for n, v in ds.data_vars.items() if v.dims[:2] == ("time", "pixel")]
+
+
+def _open(path: Path):
+    import xarray as xr
+
+    return xr.open_zarr(path, consolidated=True)
+
+
+def _time_reads(path: Path, repeat: int) -> dict:
+    """ms to read one pointing over the campaign and the whole sky at one time."""
+    with _open(path) as ds:
+        names = _gridded_vars(ds)
+        it, ip = ds.sizes["time"] // 2, ds.sizes["pixel"] // 2
+    out = {}
+    for pattern, sel in (("pointing_all_times_ms", {"pixel": ip}), ("sky_one_time_ms", {"time": it})):
+        runs = []
+        for _ in range(repeat + 1):  # the first: page cache and imports
+            t0 = time.perf_counter()
+            with _open(path) as ds:
+                ds[names].isel(sel).load()
+            runs.append(1e3 * (time.perf_counter() - t0))
+        out[pattern] = {"best": min(runs[1:]), "median": float(np.median(runs[1:]))}
+    return out
+
+
+def _max_relative_error(stored: np.ndarray, reference: np.ndarray) -> float:
+    s, r = np.asarray(stored, dtype=float), np.asarray(reference, dtype=float)
+    exact = (r == 0) | ~np.isfinite(r)
+    if not np.array_equal(s[exact], r[exact], equal_nan=True):
+        return float("inf")
+    return float(np.max(np.abs(s[~exact] - r[~exact]) / np.abs(r[~exact]), initial=0.0))
+
+
+def _errors(path: Path, reference: Path) -> dict:
+    """Per data variable: max relative error against the reference and the recorded bound."""
+    out = {}
+    with _open(path) as ds, _open(reference) as ref:
+        for name in ds.data_vars:
+            s, r = ds[name], ref[name]
+            if s.dtype.kind != "f":
+                out[name] = {"max_relative_error": 0.0 if np.array_equal(s.values, r.values) else float("inf"),
+                             "bound": s.attrs.get("max_relative_error")}
+                continue
+            # block by block over time: the whole cube never in memory twice
+            step = max(1, int(s.chunks[0][0])) if s.chunks and "time" in s.dims else None
+            if step is None:
+                err = _max_relative_error(s.values, r.values)
+            else:
+                err = max(_max_relative_error(s.isel(time=slice(t, t + step)).values,
+                                              r.isel(time=slice(t, t + step)).values)
+                          for t in range(0, s.sizes["time"], step))
+            out[name] = {"max_relative_error": err, "bound": s.attrs.get("max_relative_error")}
+    return out
+
+
+def _write_uncompressed(reference_dir: Path, out_dir: Path) -> None:
+    """The reference's gridded products again with no compressor and no filter (same chunks)."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    for product in GRIDDED:
+        target = out_dir / product
+        shutil.rmtree(target, ignore_errors=True)
+        with _open(reference_dir / product) as ds:
+            enc = {n: {"compressors": None, "filters": None} for n in ds.data_vars}
+            for n in ds.variables:
+                ds[n].encoding = {k: v for k, v in ds[n].encoding.items() if k in ("chunks",)}
+            ds.to_zarr(target, mode="w", consolidated=True, encoding=enc)
+
+
+def main(argv=None) -> dict:
+    warnings.filterwarnings("ignore", message="Numcodecs codecs are not in the Zarr version 3")
+    warnings.filterwarnings("ignore", message="Consolidated metadata is currently not part")
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--run", action="append", required=True, metavar="LABEL=DIR")
+    ap.add_argument("--reference", help="label of the run the others are compared with")
+    ap.add_argument("--uncompressed", type=Path, help="write the reference's products uncompressed here, and time them")
+    ap.add_argument("--repeat", type=int, default=5)
+    args = ap.parse_args(argv)
+    runs = dict(r.split("=", 1) for r in args.run)
+    runs = {k: Path(v) for k, v in runs.items()}
+    if args.uncompressed is not None:
+        if args.reference is None:
+            ap.error("--uncompressed needs --reference")
+        _write_uncompressed(runs[args.reference], args.uncompressed)
+        runs["uncompressed"] = args.uncompressed
+    results = {"machine": {"platform": platform.platform(), "cpus": os.cpu_count(),
+                           "load_average_at_start": list(os.getloadavg())},
+               "note": "read times: page-cached files, best and median of repeated open + load", "runs": {}}
+    for label, d in runs.items():
+        with _open(d / "background.zarr") as bg:
+            samples = bg.sizes["time"] * bg.sizes["pixel"]
+        stores = {}
+        for product in PRODUCTS:
+            if not (d / product).exists():
+                continue
+            b = _bytes(d / product)
+            stores[product] = {"bytes": b, "bytes_per_sample": b / samples}
+        run = {"dir": str(d), "samples": samples, "stores": stores,
+               "bytes_per_sample_gridded_products": sum(stores[p]["bytes_per_sample"] for p in GRIDDED if p in stores),
+               "bytes_per_sample_all": sum(s["bytes_per_sample"] for s in stores.values()),
+               "reads": {p: _time_reads(d / p, args.repeat) for p in GRIDDED if p in stores}}
+        if args.reference and label != args.reference and label != "uncompressed":
+            run["errors_against_" + args.reference] = {p: _errors(d / p, runs[args.reference] / p)
+                                                       for p in GRIDDED if p in stores}
+        results["runs"][label] = run
+        print(f"{label}: {run['bytes_per_sample_gridded_products']:.2f} bytes/sample (background+limits+observability), "
+              + ", ".join(f"{p} {s['bytes_per_sample']:.2f}" for p, s in stores.items()))
+        for p, r in run["reads"].items():
+            print(f"  {p}: one pointing, all times {r['pointing_all_times_ms']['best']:.1f} ms; "
+                  f"whole sky, one time {r['sky_one_time_ms']['best']:.1f} ms (best of {args.repeat})")
+        for p, errs in run.get("errors_against_" + str(args.reference), {}).items():
+            worst = max(errs.items(), key=lambda kv: kv[1]["max_relative_error"])
+            print(f"  {p}: max relative error {worst[1]['max_relative_error']:.3g} ({worst[0]}, bound {worst[1]['bound']})")
+    write_results("storage", results)
+    return results
+
+
+if __name__ == "__main__":
+    main()
