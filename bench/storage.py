@@ -13,7 +13,10 @@ chunks) to DIR and time the reads there.  Read patterns, best and median of ``--
 opens the store, consolidated metadata, and loads every (time, pixel) data variable): one
 pointing over the whole campaign (all times at the footprint's middle pixel) and the whole sky at
 one time (every pixel at the middle time).  The files are in the page cache after the first
-read: the figures are decode and Zarr costs, not the disk's.  Writes bench/results/storage.json.
+read: the figures are decode and Zarr costs, not the disk's.  Writing: the reference's first
+time block of background.zarr (every pixel) written again through the products' codecs
+(``--config``'s storage section), through xarray's default ones and with none, best of
+``--repeat``: what the codecs add to a time-block job.  Writes bench/results/storage.json.
 """
 from __future__ import annotations
 
@@ -110,6 +113,35 @@ def _write_uncompressed(reference_dir: Path, out_dir: Path) -> None:
             ds.to_zarr(target, mode="w", consolidated=True, encoding=enc)
 
 
+def _time_writes(reference_dir: Path, storage: dict, repeat: int, tmp: Path) -> dict:
+    """ms and us per sample to write the reference's first background time block three ways."""
+    from straylight.storage import encoded
+
+    with _open(reference_dir / "background.zarr") as bg:
+        step = int(bg["total"].chunks[0][0])
+        block = bg[_gridded_vars(bg)].isel(time=slice(0, step)).load()
+        chunks = {n: {"chunks": tuple(c[0] for c in bg[n].chunks)} for n in block.data_vars}
+    for n in block.variables:
+        block[n].encoding = {}
+    samples = block.sizes["time"] * block.sizes["pixel"]
+    compressed, enc = encoded(block, storage)
+    ways = {"products_codecs": (compressed, {n: {**enc[n], **chunks[n]} for n in enc}),
+            "xarray_default": (block, chunks),
+            "none": (block, {n: {**chunks[n], "compressors": None} for n in chunks})}
+    out = {"samples": samples}
+    for label, (ds, encoding) in ways.items():
+        runs = []
+        for _ in range(repeat):
+            shutil.rmtree(tmp, ignore_errors=True)
+            t0 = time.perf_counter()
+            ds.to_zarr(tmp, mode="w", consolidated=False, encoding=encoding)
+            runs.append(time.perf_counter() - t0)
+        out[label] = {"best_ms": 1e3 * min(runs), "us_per_sample": 1e6 * min(runs) / samples,
+                      "bytes": _bytes(tmp)}
+    shutil.rmtree(tmp, ignore_errors=True)
+    return out
+
+
 def main(argv=None) -> dict:
     warnings.filterwarnings("ignore", message="Numcodecs codecs are not in the Zarr version 3")
     warnings.filterwarnings("ignore", message="Consolidated metadata is currently not part")
@@ -118,6 +150,8 @@ def main(argv=None) -> dict:
     ap.add_argument("--reference", help="label of the run the others are compared with")
     ap.add_argument("--uncompressed", type=Path, help="write the reference's products uncompressed here, and time them")
     ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--config", type=Path, default=Path(__file__).resolve().parents[1] / "config" / "config.yaml",
+                    help="campaign config whose storage section the write timing uses")
     args = ap.parse_args(argv)
     runs = dict(r.split("=", 1) for r in args.run)
     runs = {k: Path(v) for k, v in runs.items()}
@@ -154,6 +188,17 @@ def main(argv=None) -> dict:
         for p, errs in run.get("errors_against_" + str(args.reference), {}).items():
             worst = max(errs.items(), key=lambda kv: kv[1]["max_relative_error"])
             print(f"  {p}: max relative error {worst[1]['max_relative_error']:.3g} ({worst[0]}, bound {worst[1]['bound']})")
+    if args.reference:
+        from straylight.config import load_campaign
+
+        storage = load_campaign(args.config).config["storage"]
+        import tempfile
+
+        with tempfile.TemporaryDirectory() as tmp:
+            w = _time_writes(runs[args.reference], storage, args.repeat, Path(tmp) / "block.zarr")
+        results["write_one_time_block"] = {"storage": storage, **w}
+        print(f"writing one time block ({w['samples']} samples): " + ", ".join(
+            f"{k} {v['best_ms']:.0f} ms ({v['us_per_sample']:.2f} us/sample)" for k, v in w.items() if k != "samples"))
     write_results("storage", results)
     return results
 
