@@ -28,20 +28,20 @@ DIR="$(realpath -m "${2:-${SLURM_LOCAL_DIR:-/tmp/straylight-slurm}}")"
 CPUS="${SLURM_LOCAL_CPUS:-2}"
 PARTITION="${SLURM_LOCAL_PARTITION:-debug}"
 START_TIMEOUT_S="${SLURM_LOCAL_TIMEOUT_S:-60}"
+export PATH="$PATH:/usr/sbin:/sbin"  # the daemons live in sbin, outside a plain user's PATH
 
 fail() { echo "slurm_local: $*" >&2; exit 3; }
 
 install_if_needed() {
     local missing=()
     for exe in slurmctld slurmd munged sinfo sbatch squeue srun; do
-        command -v "$exe" >/dev/null 2>&1 || PATH="$PATH:/usr/sbin" command -v "$exe" >/dev/null 2>&1 \
-            || missing+=("$exe")
+        command -v "$exe" >/dev/null 2>&1 || missing+=("$exe")
     done
     [ "${#missing[@]}" -eq 0 ] && return 0
     [ "$(id -u)" -eq 0 ] || fail "not installed (${missing[*]}) and not root, cannot apt-get install slurm-wlm munge"
     command -v apt-get >/dev/null 2>&1 || fail "not installed (${missing[*]}) and no apt-get on this machine"
     echo "slurm_local: installing slurm-wlm and munge with apt-get" >&2
-    { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq slurm-wlm munge; } \
+    timeout 900 bash -c 'apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq slurm-wlm munge' \
         >"$DIR/apt.log" 2>&1 || fail "apt-get install slurm-wlm munge failed (see $DIR/apt.log)"
 }
 
@@ -52,6 +52,15 @@ free_port() {
 pid_alive() { [ -s "$1" ] && kill -0 "$(cat "$1")" 2>/dev/null; }
 
 stop() {
+    # jobs still running (a run interrupted or failed) are cancelled while the controller is up
+    if pid_alive "$DIR/run/slurmctld.pid"; then
+        export SLURM_CONF="$DIR/slurm.conf"
+        scancel --quiet --user "$(id -un)" 2>/dev/null || true
+        for _ in $(seq 1 100); do
+            [ -z "$(squeue -h -t PENDING,RUNNING,COMPLETING -o %i 2>/dev/null)" ] && break
+            sleep 0.1
+        done
+    fi
     # the daemons started from DIR, each by its pid file; slurmd first, munged last
     for name in slurmd slurmctld munged; do
         local pidfile="$DIR/run/$name.pid"
@@ -71,7 +80,6 @@ start() {
     [ "$(id -u)" -eq 0 ] || fail "must run as root (slurmd launches jobs as their users)"
     mkdir -p "$DIR"
     install_if_needed
-    export PATH="$PATH:/usr/sbin"
     stop  # a cluster left over in DIR by an earlier, interrupted run
     mkdir -p "$DIR"/{munge,run,log,state,spool}
     chmod 700 "$DIR/munge"
@@ -148,7 +156,7 @@ EOF
     mkdir -p /run/slurm
     ln -sfn "$DIR" /run/slurm/conf
 
-    slurmctld -f "$SLURM_CONF" -i || fail "slurmctld did not start (see $DIR/log/slurmctld.log)"
+    slurmctld -f "$SLURM_CONF" -c || fail "slurmctld did not start (see $DIR/log/slurmctld.log)"
     slurmd -f "$SLURM_CONF" -N localhost || fail "slurmd did not start (see $DIR/log/slurmd.log)"
 
     local state=""
