@@ -19,8 +19,6 @@ import xarray as xr
 
 from conftest import REPO, tiny_config
 
-pytestmark = pytest.mark.slow
-
 SNAKEMAKE = str(Path(sys.executable).with_name("snakemake"))
 BIN = Path(sys.executable).parent
 SLURM_LOCAL = REPO / "scripts" / "dev" / "slurm_local.sh"
@@ -79,6 +77,33 @@ def _command(workdir, cfg, *args):
     return [SNAKEMAKE, TARGET, "-s", str(REPO / "Snakefile"), "-d", str(workdir), "--configfile", str(cfg), *args]
 
 
+def test_profile_takes_site_settings_from_the_environment(monkeypatch):
+    """The profile as Snakemake reads it: its documented defaults, and a site's partition, account
+    (empty: none) and cores from the environment, the cube jobs' memory following the cores."""
+    from snakemake.profiles import ProfileConfigFileParser
+
+    def read():
+        with open(PROFILE / "config.yaml") as f:
+            return ProfileConfigFileParser().parse(f)
+
+    for var in ("STRAYLIGHT_SLURM_PARTITION", "STRAYLIGHT_SLURM_ACCOUNT", "STRAYLIGHT_SLURM_CPUS"):
+        monkeypatch.delenv(var, raising=False)
+    default = read()
+    assert default["executor"] == "slurm"
+    assert {"slurm_partition=normal", "slurm_account=csst"} <= set(default["default-resources"])
+    assert "background_block=16" in default["set-threads"]
+    assert "background_block:mem_mb=32000" in default["set-resources"]
+    monkeypatch.setenv("STRAYLIGHT_SLURM_PARTITION", "debug")
+    monkeypatch.setenv("STRAYLIGHT_SLURM_ACCOUNT", "")
+    monkeypatch.setenv("STRAYLIGHT_SLURM_CPUS", "2")
+    site = read()
+    assert "slurm_partition=debug" in site["default-resources"]
+    assert not any(r.startswith("slurm_account") for r in site["default-resources"])
+    assert "background_block=2" in site["set-threads"]
+    assert {"background_block:cpus_per_task=2", "background_block:mem_mb=4000"} <= set(site["set-resources"])
+
+
+@pytest.mark.slow
 def test_campaign_on_slurm_equals_local_run(tmp_path, slurm_cluster):
     env = slurm_cluster
     local, cluster = tmp_path / "local", tmp_path / "cluster"
