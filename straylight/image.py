@@ -269,8 +269,9 @@ def render_detector(
         th = np.radians(chief_ray_angle_deg)
         off = ghosts.centre_offsets_mm(th * ux, th * uy) / fp.pixel_size_mm  # (3, 2, n)
         radii = ghosts.radii_mm() / fp.pixel_size_mm
-        irr = ghosts.irradiance_fraction_per_mm2() * fp.pixel_size_mm**2
-        frac = ghosts.energy_fractions()
+        # f is the detected rate (filter included): ghosts relative to the nominal image
+        irr = ghosts.irradiance_relative_to_image_per_mm2() * fp.pixel_size_mm**2
+        frac = ghosts.energy_relative_to_image()
         rows = []
         for k in range(3):
             rows.append(dict(
