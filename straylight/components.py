@@ -183,7 +183,7 @@ class ComponentModel:
         inverse_square = (AU_KM / d_sun) ** 2  # once for all bands
         sun_irr = {name: sun_at_1au[name] * inverse_square for name in bands}
         aperture_d = self.campaign.instrument_value("telescope", "aperture_diameter_m")
-        pix_arcsec = self.campaign.instrument_value("detector", "pixel_scale_arcsec")
+        pix_arcsec = self.campaign.pixel_scale_arcsec
         out = {}
         # band-independent transfer (e-/s/pix per photons s-1 m-2): Se * Sp * PST * pixel area
         t_sun = off.point_source(1.0, geometry["sun_angle_deg"], geometry["sun_phi_deg"],

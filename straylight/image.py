@@ -29,6 +29,7 @@ import numpy as np
 from scipy import signal
 
 from .bandpass import Band
+from .config import pixel_scale_arcsec
 from .errors import InputError
 from .geometry import radec_to_unit, telescope_frame, unit
 from .ghosts import GhostModel
@@ -64,7 +65,7 @@ def focal_plane_from_instrument(instrument: dict) -> FocalPlane:
     if nx <= 0 or ny <= 0:
         raise InputError(f"detector size {nx} x {ny}: must be positive")
     return FocalPlane(
-        nx=nx, ny=ny, pixel_scale_arcsec=float(d["pixel_scale_arcsec"]["value"]),
+        nx=nx, ny=ny, pixel_scale_arcsec=pixel_scale_arcsec(instrument),
         pixel_size_mm=float(d["pixel_size_um"]["value"]) / 1000.0,
         columns=int(d["layout_columns"]["value"]), rows=int(d["layout_rows"]["value"]),
         gap_px=float(d["layout_gap_pixels"]["value"]),
