@@ -111,6 +111,12 @@ def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None, stars=
     model = ComponentModel(campaign)
     comps = model.evaluate(sc.satellite_km, sc.bodies_km, los, g1, bands or campaign.bands, stars=stars)
     record["models"] = model.models_record()
+    # bodies inside the field: point sources, left out of the background and listed here
+    in_field = model.in_field_point_sources(sc.satellite_km, sc.bodies_km, los, g1, bands or campaign.bands)
+    record["in_field_point_sources"] = [
+        {"body": k, "angle_deg": float(np.ravel(v["angle_deg"])[0]), "v_mag": float(np.ravel(v["v_mag"])[0]),
+         "mag_ab": {b: float(np.ravel(m)[0]) for b, m in v["mag_ab"].items()}}
+        for k, v in in_field.items() if bool(np.ravel(v["in_field"])[0])]
     for name, res in comps.items():
         mag = res["_mag"]
         entry = {}
@@ -154,6 +160,10 @@ def cmd_sky(args) -> int:
             if k != "planet_angles_deg":
                 print(f"  {k:28s} {val}")
         print(f"  observable: {rec['observable']}  violations: {', '.join(rec['violations']) or 'none'}")
+        for src in rec["in_field_point_sources"]:
+            mags = "  ".join(f"{b} {m:.2f}" for b, m in src["mag_ab"].items())
+            print(f"  in the field (a point source, not in the background): {src['body']} "
+                  f"{src['angle_deg']:.3f} deg off axis, V {src['v_mag']:.2f}; AB {mags}")
         for name, comp in rec["bands"].items():
             parts = "  ".join(f"{k} {v['e_per_s_per_pix']:.3g}" for k, v in comp.items()
                               if k not in ("earthshine_direct", "earthshine_door"))
@@ -186,7 +196,7 @@ def cmd_image(args) -> int:
     from .bandpass import load_band
     from .config import load_campaign
     from .ghosts import ghost_model_from_instrument
-    from .image import (RenderSettings, focal_plane_from_instrument, read_star_table, render_detector,
+    from .image import (RenderSettings, bodies_as_stars, focal_plane_from_instrument, read_star_table, render_detector,
                         star_fluxes_e_per_s, sun_direction_at, write_fits)
     from .scatter import scatter_model_from_instrument
     from .timeutil import parse_utc
@@ -200,6 +210,11 @@ def cmd_image(args) -> int:
     t = parse_utc(args.time, "--time")
     band = load_band(inst, args.band, campaign.instrument_path.parent)
     ra, dec, mag = read_star_table(args.catalog, args.band)
+    # the Sun, Moon and planets inside the field are imaged like stars
+    b_ra, b_dec, b_mag, b_names = bodies_as_stars(campaign, t, args.ra % 360.0, args.dec, args.band)
+    if b_names:
+        print(f"in the field, imaged as stars: {', '.join(f'{n} ({m:.2f} AB)' for n, m in zip(b_names, b_mag))}")
+        ra, dec, mag = np.concatenate([ra, b_ra]), np.concatenate([dec, b_dec]), np.concatenate([mag, b_mag])
     flux = star_fluxes_e_per_s(mag, band, campaign.instrument_value("telescope", "aperture_diameter_m"))
     fp = focal_plane_from_instrument(inst)
     settings = RenderSettings(far_bin=args.far_bin, margin_arcsec=args.margin_arcsec,

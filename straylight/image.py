@@ -307,6 +307,27 @@ def _paint_discs(ny, nx, g, min_irr) -> np.ndarray:
     return out
 
 
+def bodies_as_stars(campaign, time, ra_deg: float, dec_deg: float, band: str) -> tuple:
+    """The Sun, Moon and planets inside the field at ``time`` as extra catalog stars:
+    (ra_deg, dec_deg, mag_ab, names), arrays; a body in the field is a point source, left out of
+    the background (:meth:`~straylight.components.ComponentModel.in_field_point_sources`)."""
+    from .components import ComponentModel
+    from .sky import sample_geometry, scene
+
+    sc = scene(campaign, time)
+    g = sample_geometry(campaign, sc, np.array([ra_deg]), np.array([dec_deg]), grid=False)
+    los = radec_to_unit(np.array([ra_deg]), np.array([dec_deg]))
+    found = ComponentModel(campaign).in_field_point_sources(sc.satellite_km, sc.bodies_km, los, g, [band])
+    names = [k for k, v in found.items() if bool(np.ravel(v["in_field"])[0])]
+    ra, dec = [], []
+    for k in names:
+        d = unit(sc.bodies_km[k][0] - sc.satellite_km[0])
+        ra.append(float(np.degrees(np.arctan2(d[1], d[0])) % 360.0))
+        dec.append(float(np.degrees(np.arcsin(d[2]))))
+    mags = [float(np.ravel(found[k]["mag_ab"][band])[0]) for k in names]
+    return np.array(ra), np.array(dec), np.array(mags), names
+
+
 def sun_direction_at(campaign, time) -> np.ndarray:
     """Unit vector from the satellite to the Sun at ``time`` (for the roll)."""
     from .sky import scene
