@@ -363,6 +363,27 @@ def cmd_schedule(args) -> int:
     return 0
 
 
+def cmd_figure(args) -> int:
+    from .config import load_campaign
+    from .paperfigs import make_figure
+
+    campaign = load_campaign(args.config)
+    out = args.out or f"docs/img/paper_{args.name.replace('-', '_')}.png"
+    d = make_figure(args.name, campaign, out, args.catalog)
+    if args.name == "zodiacal-map":
+        v = d["v_mag_per_arcsec2"]
+        print(f"zodiacal V: darkest {np.nanmax(v):.2f}, median {np.nanmedian(v):.2f} mag/arcsec2; "
+              f"Sun at RA {d['sun_ra_deg']:.2f} Dec {d['sun_dec_deg']:+.2f} deg")
+    elif args.name == "scattering":
+        r = d["r_px"]
+        print(f"TIS {d['tis_per_mirror']:.4f} per mirror; halo / peak {np.interp(10, r, d['halo']):.2e} at 10 px, "
+              f"{np.interp(100, r, d['halo']):.2e} at 100 px")
+    elif args.name == "ghosts":
+        print("ghost / star peak pixel: " + ", ".join(f"{v:.2e}" for v in d["ghost_relative_to_peak"]))
+    print(out)
+    return 0
+
+
 def cmd_config_doc(args) -> int:
     from .configdoc import config_reference
 
@@ -448,6 +469,16 @@ def build_parser() -> argparse.ArgumentParser:
                          "scheduling.fraction_of_zodiacal)")
     sh.add_argument("--config", default=None, help="campaign config (default: config/config.yaml)")
     sh.set_defaults(func=cmd_schedule)
+
+    fg = sub.add_parser("figure", help="one of the paper's in-field figures (sects. 4.1-4.4) as a PNG")
+    fg.add_argument("name", choices=["zodiacal-map", "scattering", "ghosts", "detector"],
+                    help="zodiacal-map (4.1), scattering (4.2), ghosts (4.3), detector (4.4); "
+                         "the earthshine figure (3.3) is 'straylight scenario'")
+    fg.add_argument("--out", default=None, help="output PNG (default docs/img/paper_<name>.png)")
+    fg.add_argument("--catalog", default=None,
+                    help="detector: star table (ra, dec, mag_NUV); default the Hipparcos catalog in the CSST bands")
+    fg.add_argument("--config", default=None, help="campaign config (default: config/config.yaml)")
+    fg.set_defaults(func=cmd_figure)
 
     cd = sub.add_parser("config-doc", help="print the campaign-config reference (Markdown) from the schema")
     cd.set_defaults(func=cmd_config_doc)
