@@ -913,3 +913,18 @@ def test_planet_in_the_field_is_a_point_source_not_a_background(campaign, tmp_pa
     b_ra, b_dec, b_mag, names = bodies_as_stars(campaign, t, ra, dec, "g")
     assert names == ["jupiter"] and b_ra[0] == pytest.approx(ra, abs=1e-9) and b_dec[0] == pytest.approx(dec, abs=1e-9)
     assert b_mag[0] == pytest.approx(src["mag_ab"]["g"], abs=1e-9)
+
+
+def test_paper_moon_rule_is_one_switch_away_and_its_difference(campaign):
+    """Issue 35 item 8: the paper's proportional phase rule (sect. 2.2) is
+    models.moon_phase_law: proportional; at phase angle 90 deg the default Krisciunas-Schaefer
+    Moon is 1.85 mag (5.5x) fainter (docs/assumptions.md)."""
+    from straylight.config import load_campaign
+
+    from conftest import REPO
+
+    ks = moon_v_magnitude(90.0, 384400.0, "krisciunas_schaefer")
+    prop = moon_v_magnitude(90.0, 384400.0, "proportional", elongation_deg=90.0)
+    assert ks - prop == pytest.approx(1.85, abs=0.01) and 10 ** (0.4 * (ks - prop)) == pytest.approx(5.5, abs=0.05)
+    c = load_campaign(REPO / "config" / "config.yaml", overrides={"models": {"moon_phase_law": "proportional"}})
+    assert ComponentModel(c).offfield.moon_law == "proportional"
