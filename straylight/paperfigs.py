@@ -194,24 +194,34 @@ def detector_image_data(campaign: Campaign, catalog: dict, star_ra_deg: float, s
 
 
 def plot_detector_image(d: dict, out_png) -> None:
+    """Left: the image (stars, halos, ghosts); right: its ghosts alone (the painted discs)."""
+    from .image import _paint_discs
+
     plt = _pyplot()
     img = np.asarray(d["image"], float)
-    fig, ax = plt.subplots(figsize=(7, 6))
+    ghosts = _paint_discs(img.shape[0], img.shape[1], d["ghosts"], 0.0)
+    fig, axes = plt.subplots(1, 2, figsize=(12, 5.4))
     floor = max(float(np.percentile(img[img > 0], 1)), 1e-8) if np.any(img > 0) else 1e-8
-    im = ax.imshow(np.log10(np.maximum(img, floor)), origin="lower", cmap="magma")
+    im = axes[0].imshow(np.log10(np.maximum(img, floor)), origin="lower", cmap="magma")
+    fig.colorbar(im, ax=axes[0], label="log10 stray light (e-/s/pixel)")
     g = d["ghosts"]
-    on = (g["x_pix"] > -50) & (g["x_pix"] < img.shape[1] + 50) & (g["y_pix"] > -50) & (g["y_pix"] < img.shape[0] + 50)
-    for xc, yc, r in zip(g["x_pix"][on], g["y_pix"][on], g["radius_pix"][on]):
-        ax.add_patch(plt.Circle((xc, yc), r, fill=False, color="cyan", lw=0.6))
-    fig.colorbar(im, ax=ax, label="log10 stray light (e-/s/pixel)")
-    ax.set_xlim(-0.5, img.shape[1] - 0.5)
-    ax.set_ylim(-0.5, img.shape[0] - 0.5)
-    ax.set_title(f"{d['band']} detector {d['detector']} (part), stars, halos and ghosts (cyan), paper sect. 4.4",
-                 fontsize=9)
-    ax.set_xlabel("x (pixels)")
-    ax.set_ylabel("y (pixels)")
+    for xc, yc, r in zip(g["x_pix"], g["y_pix"], g["radius_pix"]):
+        axes[0].add_patch(plt.Circle((xc, yc), r, fill=False, color="cyan", lw=0.6))
+    axes[0].set_title("stars, scattering halos and ghosts (cyan)", fontsize=9)
+    gi = np.where(ghosts > 0, ghosts, np.nan)
+    im2 = axes[1].imshow(np.log10(gi), origin="lower", cmap="GnBu")
+    fig.colorbar(im2, ax=axes[1], label="log10 ghost irradiance (e-/s/pixel)")
+    sx, sy = d["star_xy"]
+    axes[1].plot(sx, sy, "r*", ms=10)
+    axes[1].set_title("ghosts alone (red star: the bright star's image)", fontsize=9)
+    for ax in axes:
+        ax.set_xlim(-0.5, img.shape[1] - 0.5)
+        ax.set_ylim(-0.5, img.shape[0] - 0.5)
+        ax.set_xlabel("x (pixels)")
+        ax.set_ylabel("y (pixels)")
+    fig.suptitle(f"{d['band']} detector {d['detector']} (part), {d['time']} UTC (paper sect. 4.4)", fontsize=10)
     fig.tight_layout()
-    fig.savefig(out_png, dpi=90)
+    fig.savefig(out_png, dpi=80)
     plt.close(fig)
 
 

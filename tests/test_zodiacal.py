@@ -113,7 +113,7 @@ def test_spectra_agree_and_bands_are_plausible(campaign):
         e1 = float(np.ravel(out["solar_leinert"][b]["e_per_s_per_pix"])[0])
         print(f"{b:4s} pole zodiacal: {e1:.4f} e-/s/pix, {m1:.2f} (solar+Leinert) vs {m2:.2f} (HST) mag/arcsec2")
         assert abs(m1 - m2) < 0.5
-    # broad bands g, r, i collect ~0.05-0.2 e-/s/pix of dark-sky zodiacal light at 0.074"/pix
+    # broad bands g, r, i collect ~0.05-0.2 e-/s/pix of dark-sky zodiacal light at 0.0737"/pix
     for b in "gri":
         assert 0.03 < float(np.ravel(out["solar_leinert"][b]["e_per_s_per_pix"])[0]) < 0.3
 
