@@ -7,11 +7,13 @@ a speclite ``FilterResponse``.  Its source is, in order of preference:
    table with a wavelength and a throughput column; wavelength unit from
    ``throughput_wavelength_unit``);
 2. the documented parametric default: flat at ``peak_throughput`` between the paper's band edges
-   with error-function edges of 10-90 % width ``edge_width_nm``; where the band gives
-   ``zero_point_ab_mag`` (the AB magnitude giving 1 e-/s through the whole aperture, published
-   for CSST g r i z), the curve is scaled so that its zero point is that one
-   (:func:`zero_point_ab_mag`).  A flat top at the peak throughput overstates a real band's mean
-   (filter ripple, the CCD's QE slope), so unscaled it is 0.1-0.6 mag too bright.
+   with error-function edges of 10-90 % width ``edge_width_nm``.
+
+Where the band gives ``zero_point_ab_mag`` (the AB magnitude giving 1 e-/s through the whole
+aperture, published for CSST g r i z), either curve is scaled so that its zero point is that one
+(:func:`zero_point_ab_mag`); the curve then gives the shape only.  A flat top at the peak
+throughput overstates a real band's mean (filter ripple, the CCD's QE slope), so unscaled it is
+0.1-0.6 mag too bright.
 
 The Bessell V curve (speclite ``bessell-V``) is available as the diagnostic band ``V`` for
 comparison with published V-band sky tables; it has no QE, so its e-/s are nominal.
@@ -177,25 +179,24 @@ def load_band(instrument: dict, name: str, instrument_dir: Path | None = None) -
         raise InputError(f"unknown band {name!r}; known: {', '.join(list(bands) + list(DIAGNOSTIC_BANDS))}")
     b = bands[name]
     if b.get("throughput_file"):
-        if "zero_point_ab_mag" in b:
-            raise ConfigError(
-                f"bands.{name}: zero_point_ab_mag = {b['zero_point_ab_mag']} scales the parametric curve; "
-                f"with throughput_file = {b['throughput_file']!r} the measured curve sets the zero point: remove one")
         p = Path(b["throughput_file"])
         if not p.is_absolute() and instrument_dir is not None:
             p = instrument_dir / p
         wl, t = read_throughput_file(p, b.get("throughput_wavelength_unit", "angstrom"))
-        return Band(name, wl, t, f"file:{p}")
-    if "peak_throughput" not in b:
-        raise ConfigError(f"bands.{name}: give peak_throughput (parametric model) or throughput_file")
-    wl, t = parametric_curve(b["wavelength_min_nm"], b["wavelength_max_nm"], b["peak_throughput"],
-                             b.get("edge_width_nm", 5.0))
+        origin = f"file:{p}"
+    else:
+        if "peak_throughput" not in b:
+            raise ConfigError(f"bands.{name}: give peak_throughput (parametric model) or throughput_file")
+        wl, t = parametric_curve(b["wavelength_min_nm"], b["wavelength_max_nm"], b["peak_throughput"],
+                                 b.get("edge_width_nm", 5.0))
+        origin = "parametric"
     if "zero_point_ab_mag" not in b:
-        return Band(name, wl, t, "parametric")
-    flat_zp = zero_point_ab_mag(Band(name, wl, t, "parametric"), aperture_area_m2(instrument))
-    scale = 10.0 ** (0.4 * (float(b["zero_point_ab_mag"]) - flat_zp))
+        return Band(name, wl, t, origin)
+    # the curve's shape, scaled so that its AB zero point is the given one
+    own_zp = zero_point_ab_mag(Band(name, wl, t, origin), aperture_area_m2(instrument))
+    scale = 10.0 ** (0.4 * (float(b["zero_point_ab_mag"]) - own_zp))
     if not 0 < scale * t.max() <= 1:
         raise ConfigError(
             f"bands.{name}: zero_point_ab_mag = {b['zero_point_ab_mag']} needs a peak throughput of "
-            f"{scale * t.max():.3g} (flat-top zero point {flat_zp:.3f}); it must be within (0, 1]")
-    return Band(name, wl, t * scale, f"parametric scaled to AB zero point {float(b['zero_point_ab_mag']):.3f}")
+            f"{scale * t.max():.3g} (the curve's own zero point is {own_zp:.3f}); it must be within (0, 1]")
+    return Band(name, wl, t * scale, f"{origin} scaled to AB zero point {float(b['zero_point_ab_mag']):.3f}")

@@ -68,6 +68,27 @@ def test_default_zero_points_are_the_published_ones(campaign):
         assert zp == pytest.approx(ref, abs=0.02), b
 
 
+def test_a_measured_curve_is_scaled_to_the_given_zero_point(tmp_path, campaign):
+    """zero_point_ab_mag scales a throughput_file's curve too (its shape kept): a triangle
+    400-550 nm peaking at 0.5 gets the published g zero point, 26.23, exactly."""
+    import copy
+
+    from straylight.bandpass import aperture_area_m2, load_band, zero_point_ab_mag
+
+    wl = np.linspace(400.0, 550.0, 151)
+    t = 0.6 * np.clip((wl - 400.0) / 20.0, 0, 1) * np.clip((550.0 - wl) / 20.0, 0, 1)
+    (tmp_path / "g.csv").write_text("wavelength,throughput\n" + "".join(f"{w},{v}\n" for w, v in zip(wl, t)))
+    inst = copy.deepcopy(campaign.instrument)
+    g = inst["bands"]["g"]
+    g.pop("peak_throughput")
+    g.update(throughput_file=str(tmp_path / "g.csv"), throughput_wavelength_unit="nm")
+    band = load_band(inst, "g")
+    assert zero_point_ab_mag(band, aperture_area_m2(inst)) == pytest.approx(26.23, abs=1e-9)
+    interior = band.throughput > 0
+    ratio = band.throughput[interior][1:-1] / np.interp(band.wavelength_angstrom[interior][1:-1] / 10, wl, t)
+    assert np.ptp(ratio) < 1e-9  # same shape
+
+
 @pytest.mark.skipif(not THROUGHPUT.exists(), reason="../shared/data/csst_throughput (test-only real CSST curves) not present")
 def test_unpublished_zero_points_against_the_real_curves(campaign):
     """NUV, u and y have no published zero point: their flat top stays at the peak throughput.
