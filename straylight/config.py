@@ -9,6 +9,7 @@ file, the key path, the value and what is allowed, e.g.::
 from __future__ import annotations
 
 import copy
+import math
 import os
 from dataclasses import dataclass
 from functools import cached_property
@@ -228,7 +229,7 @@ def _check_instrument(inst: dict, source: str) -> None:
             )
 
 
-ARCSEC_PER_RAD = 648000.0 / 3.141592653589793
+ARCSEC_PER_RAD = 648000.0 / math.pi
 
 
 def pixel_scale_arcsec(instrument: dict) -> float:
