@@ -9,6 +9,12 @@ a speclite ``FilterResponse``.  Its source is, in order of preference:
 2. the documented parametric default: flat at ``peak_throughput`` between the paper's band edges
    with error-function edges of 10-90 % width ``edge_width_nm``.
 
+Where the band gives ``zero_point_ab_mag`` (the AB magnitude giving 1 e-/s through the whole
+aperture, published for CSST g r i z), either curve is scaled so that its zero point is that one
+(:func:`zero_point_ab_mag`); the curve then gives the shape only.  A flat top at the peak
+throughput overstates a real band's mean (filter ripple, the CCD's QE slope), so unscaled it is
+0.1-0.6 mag too bright.
+
 The Bessell V curve (speclite ``bessell-V``) is available as the diagnostic band ``V`` for
 comparison with published V-band sky tables; it has no QE, so its e-/s are nominal.
 
@@ -151,6 +157,16 @@ def read_throughput_file(path: str | Path, wavelength_unit: str = "angstrom") ->
     return wl, t
 
 
+def aperture_area_m2(instrument: dict) -> float:
+    """Unobstructed collecting area pi D^2 / 4 of the instrument's telescope, m2."""
+    return float(np.pi * float(instrument["telescope"]["aperture_diameter_m"]["value"]) ** 2 / 4.0)
+
+
+def zero_point_ab_mag(band: Band, aperture_area_m2_: float) -> float:
+    """AB magnitude of a point source giving 1 e-/s through ``band`` and the aperture."""
+    return float(2.5 * np.log10(band.ab_zero_point_photons_s_m2 * aperture_area_m2_))
+
+
 def load_band(instrument: dict, name: str, instrument_dir: Path | None = None) -> Band:
     """The band ``name`` of an instrument config, or a diagnostic band (``V``)."""
     if name == "V":
@@ -167,9 +183,20 @@ def load_band(instrument: dict, name: str, instrument_dir: Path | None = None) -
         if not p.is_absolute() and instrument_dir is not None:
             p = instrument_dir / p
         wl, t = read_throughput_file(p, b.get("throughput_wavelength_unit", "angstrom"))
-        return Band(name, wl, t, f"file:{p}")
-    if "peak_throughput" not in b:
-        raise ConfigError(f"bands.{name}: give peak_throughput (parametric model) or throughput_file")
-    wl, t = parametric_curve(b["wavelength_min_nm"], b["wavelength_max_nm"], b["peak_throughput"],
-                             b.get("edge_width_nm", 5.0))
-    return Band(name, wl, t, "parametric")
+        origin = f"file:{p}"
+    else:
+        if "peak_throughput" not in b:
+            raise ConfigError(f"bands.{name}: give peak_throughput (parametric model) or throughput_file")
+        wl, t = parametric_curve(b["wavelength_min_nm"], b["wavelength_max_nm"], b["peak_throughput"],
+                                 b.get("edge_width_nm", 5.0))
+        origin = "parametric"
+    if "zero_point_ab_mag" not in b:
+        return Band(name, wl, t, origin)
+    # the curve's shape, scaled so that its AB zero point is the given one
+    own_zp = zero_point_ab_mag(Band(name, wl, t, origin), aperture_area_m2(instrument))
+    scale = 10.0 ** (0.4 * (float(b["zero_point_ab_mag"]) - own_zp))
+    if not 0 < scale * t.max() <= 1:
+        raise ConfigError(
+            f"bands.{name}: zero_point_ab_mag = {b['zero_point_ab_mag']} needs a peak throughput of "
+            f"{scale * t.max():.3g} (the curve's own zero point is {own_zp:.3f}); it must be within (0, 1]")
+    return Band(name, wl, t * scale, f"{origin} scaled to AB zero point {float(b['zero_point_ab_mag']):.3f}")

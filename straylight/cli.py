@@ -111,6 +111,12 @@ def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None, stars=
     model = ComponentModel(campaign)
     comps = model.evaluate(sc.satellite_km, sc.bodies_km, los, g1, bands or campaign.bands, stars=stars)
     record["models"] = model.models_record()
+    # bodies inside the field: point sources, left out of the background and listed here
+    in_field = model.in_field_point_sources(sc.satellite_km, sc.bodies_km, los, g1, bands or campaign.bands)
+    record["in_field_point_sources"] = [
+        {"body": k, "angle_deg": float(np.ravel(v["angle_deg"])[0]), "v_mag": float(np.ravel(v["v_mag"])[0]),
+         "mag_ab": {b: float(np.ravel(m)[0]) for b, m in v["mag_ab"].items()}}
+        for k, v in in_field.items() if bool(np.ravel(v["in_field"])[0])]
     for name, res in comps.items():
         mag = res["_mag"]
         entry = {}
@@ -154,6 +160,10 @@ def cmd_sky(args) -> int:
             if k != "planet_angles_deg":
                 print(f"  {k:28s} {val}")
         print(f"  observable: {rec['observable']}  violations: {', '.join(rec['violations']) or 'none'}")
+        for src in rec["in_field_point_sources"]:
+            mags = "  ".join(f"{b} {m:.2f}" for b, m in src["mag_ab"].items())
+            print(f"  in the field (a point source, not in the background): {src['body']} "
+                  f"{src['angle_deg']:.3f} deg off axis, V {src['v_mag']:.2f}; AB {mags}")
         for name, comp in rec["bands"].items():
             parts = "  ".join(f"{k} {v['e_per_s_per_pix']:.3g}" for k, v in comp.items()
                               if k not in ("earthshine_direct", "earthshine_door"))
@@ -186,7 +196,7 @@ def cmd_image(args) -> int:
     from .bandpass import load_band
     from .config import load_campaign
     from .ghosts import ghost_model_from_instrument
-    from .image import (RenderSettings, focal_plane_from_instrument, read_star_table, render_detector,
+    from .image import (RenderSettings, bodies_as_stars, focal_plane_from_instrument, read_star_table, render_detector,
                         star_fluxes_e_per_s, sun_direction_at, write_fits)
     from .scatter import scatter_model_from_instrument
     from .timeutil import parse_utc
@@ -200,6 +210,11 @@ def cmd_image(args) -> int:
     t = parse_utc(args.time, "--time")
     band = load_band(inst, args.band, campaign.instrument_path.parent)
     ra, dec, mag = read_star_table(args.catalog, args.band)
+    # the Sun, Moon and planets inside the field are imaged like stars
+    b_ra, b_dec, b_mag, b_names = bodies_as_stars(campaign, t, args.ra % 360.0, args.dec, args.band)
+    if b_names:
+        print(f"in the field, imaged as stars: {', '.join(f'{n} ({m:.2f} AB)' for n, m in zip(b_names, b_mag))}")
+        ra, dec, mag = np.concatenate([ra, b_ra]), np.concatenate([dec, b_dec]), np.concatenate([mag, b_mag])
     flux = star_fluxes_e_per_s(mag, band, campaign.instrument_value("telescope", "aperture_diameter_m"))
     fp = focal_plane_from_instrument(inst)
     settings = RenderSettings(far_bin=args.far_bin, margin_arcsec=args.margin_arcsec,
@@ -348,6 +363,27 @@ def cmd_schedule(args) -> int:
     return 0
 
 
+def cmd_figure(args) -> int:
+    from .config import load_campaign
+    from .paperfigs import make_figure
+
+    campaign = load_campaign(args.config)
+    out = args.out or f"docs/img/paper_{args.name.replace('-', '_')}.png"
+    d = make_figure(args.name, campaign, out, args.catalog)
+    if args.name == "zodiacal-map":
+        v = d["v_mag_per_arcsec2"]
+        print(f"zodiacal V: darkest {np.nanmax(v):.2f}, median {np.nanmedian(v):.2f} mag/arcsec2; "
+              f"Sun at RA {d['sun_ra_deg']:.2f} Dec {d['sun_dec_deg']:+.2f} deg")
+    elif args.name == "scattering":
+        r = d["r_px"]
+        print(f"TIS {d['tis_per_mirror']:.4f} per mirror; halo / peak {np.interp(10, r, d['halo']):.2e} at 10 px, "
+              f"{np.interp(100, r, d['halo']):.2e} at 100 px")
+    elif args.name == "ghosts":
+        print("ghost / star peak pixel: " + ", ".join(f"{v:.2e}" for v in d["ghost_relative_to_peak"]))
+    print(out)
+    return 0
+
+
 def cmd_config_doc(args) -> int:
     from .configdoc import config_reference
 
@@ -433,6 +469,16 @@ def build_parser() -> argparse.ArgumentParser:
                          "scheduling.fraction_of_zodiacal)")
     sh.add_argument("--config", default=None, help="campaign config (default: config/config.yaml)")
     sh.set_defaults(func=cmd_schedule)
+
+    fg = sub.add_parser("figure", help="one of the paper's in-field figures (sects. 4.1-4.4) as a PNG")
+    fg.add_argument("name", choices=["zodiacal-map", "scattering", "ghosts", "detector"],
+                    help="zodiacal-map (4.1), scattering (4.2), ghosts (4.3), detector (4.4); "
+                         "the earthshine figure (3.3) is 'straylight scenario'")
+    fg.add_argument("--out", default=None, help="output PNG (default docs/img/paper_<name>.png)")
+    fg.add_argument("--catalog", default=None,
+                    help="detector: star table (ra, dec, mag_NUV); default the Hipparcos catalog in the CSST bands")
+    fg.add_argument("--config", default=None, help="campaign config (default: config/config.yaml)")
+    fg.set_defaults(func=cmd_figure)
 
     cd = sub.add_parser("config-doc", help="print the campaign-config reference (Markdown) from the schema")
     cd.set_defaults(func=cmd_config_doc)

@@ -21,7 +21,7 @@ from .ephemeris import PLANETS
 from .geometry import (TelescopeFrame, body_geometry, earth_blocks, norm, rows_at, scene_rows, scene_runs,
                        telescope_frame, tiled_period, unit)
 from .offfield import (AU_KM, BandPhotometry, EarthshineSettings, OffFieldModel, magnitude_per_arcsec2,
-                       moon_v_magnitude, planet_v_magnitudes, solar_like_fraction)
+                       V_SUN_VEGA, moon_v_magnitude, planet_v_magnitudes, solar_like_fraction)
 from .pst import load_pst
 from .zodiacal import zodiacal_model_from_instrument
 
@@ -137,6 +137,39 @@ class ComponentModel:
         self.band(name)
         return self._bands[name][1]
 
+    def in_field_point_sources(self, satellite_km, bodies_km, los, geometry, bands) -> dict:
+        """The Sun, Moon and planets inside the field (within ``field_radius_deg`` of the line of
+        sight), which the background leaves out (:meth:`OffFieldModel.point_source`): a body in
+        the field is a point source, imaged with its halo and ghosts like a star.  Returns
+        body -> {"in_field": bool, "angle_deg": deg from the line of sight, "v_mag": V (Vega),
+        "mag_ab": {band: AB magnitude through the band (solar spectrum)}}, arrays over the
+        samples; ``geometry``: :func:`~straylight.sky.sample_geometry`'s (the Moon's phase)."""
+        sat = np.asarray(satellite_km, float)
+        z = unit(np.asarray(los, float))
+        out = {}
+        for body in ("sun", "moon", *PLANETS):
+            if body not in bodies_km:
+                continue
+            pos = np.asarray(bodies_km[body], float)
+            d = unit(pos - sat)
+            angle = np.degrees(np.arccos(np.clip(np.sum(d * z, axis=-1), -1.0, 1.0)))
+            dist = norm(pos - sat)
+            if body == "sun":
+                fraction = (AU_KM / dist) ** 2
+                v = V_SUN_VEGA - 2.5 * np.log10(fraction)
+            elif body == "moon":
+                v = moon_v_magnitude(geometry["moon_phase_angle_deg"], dist, self.offfield.moon_law,
+                                     geometry["moon_elongation_deg"])
+                fraction = solar_like_fraction(v)
+            else:
+                v = planet_v_magnitudes([body], pos[None], np.asarray(bodies_km["sun"], float), sat)[0]
+                fraction = solar_like_fraction(v)
+            mags = {b: -2.5 * np.log10(fraction * self.photometry(b).sun_at_1au_photons_s_m2
+                                       / self.band(b).ab_zero_point_photons_s_m2) for b in bands}
+            out[body] = {"in_field": angle <= self.offfield.field_radius_deg, "angle_deg": angle,
+                         "v_mag": np.asarray(v, float), "mag_ab": mags}
+        return out
+
     def evaluate(self, satellite_km, bodies_km, los, geometry, bands, stars: StarTable | None = None,
                  faint_rates: dict | None = None, frame=None, into: tuple | None = None, runs=None) -> dict:
         """Components for broadcastable samples, band -> {component: e-/s/pix, float64 arrays
@@ -183,7 +216,7 @@ class ComponentModel:
         inverse_square = (AU_KM / d_sun) ** 2  # once for all bands
         sun_irr = {name: sun_at_1au[name] * inverse_square for name in bands}
         aperture_d = self.campaign.instrument_value("telescope", "aperture_diameter_m")
-        pix_arcsec = self.campaign.instrument_value("detector", "pixel_scale_arcsec")
+        pix_arcsec = self.campaign.pixel_scale_arcsec
         out = {}
         # band-independent transfer (e-/s/pix per photons s-1 m-2): Se * Sp * PST * pixel area
         t_sun = off.point_source(1.0, geometry["sun_angle_deg"], geometry["sun_phi_deg"],

@@ -9,6 +9,7 @@ file, the key path, the value and what is allowed, e.g.::
 from __future__ import annotations
 
 import copy
+import math
 import os
 from dataclasses import dataclass
 from functools import cached_property
@@ -183,6 +184,11 @@ class Campaign:
         c = self.config["campaign"]
         return campaign_times(c["start"], c["end"], float(c["cadence_s"]))
 
+    @property
+    def pixel_scale_arcsec(self) -> float:
+        """Arcsec per pixel, derived from the pixel size and focal length (:func:`pixel_scale_arcsec`)."""
+        return pixel_scale_arcsec(self.instrument)
+
     def instrument_value(self, section: str, key: str) -> float:
         return float(self.instrument[section][key]["value"])
 
@@ -223,11 +229,27 @@ def _check_instrument(inst: dict, source: str) -> None:
             )
 
 
+ARCSEC_PER_RAD = 648000.0 / math.pi
+
+
+def pixel_scale_arcsec(instrument: dict) -> float:
+    """The one pixel scale, arcsec per pixel: pixel size / focal length (10 um / 28 m =
+    0.07367 arcsec for CSST; published rounded as 0.074).  Rates (the pixel's etendue),
+    surface brightness, apertures and the image WCS all use it."""
+    p_m = float(instrument["detector"]["pixel_size_um"]["value"]) * 1e-6
+    return p_m / float(instrument["telescope"]["focal_length_m"]["value"]) * ARCSEC_PER_RAD
+
+
 def load_instrument(path: str | os.PathLike) -> dict:
     path = Path(path)
     inst = _read_yaml(path, "instrument file")
     if not isinstance(inst, dict):
         raise ConfigError(f"{path}: instrument file must be a mapping, got {type(inst).__name__}")
+    det = inst.get("detector")
+    if isinstance(det, dict) and "pixel_scale_arcsec" in det:
+        raise ConfigError(
+            f"{path}: detector.pixel_scale_arcsec = {det['pixel_scale_arcsec']}: the pixel scale is derived "
+            f"(pixel_size_um / focal_length_m), not configured; remove it")
     validate(inst, load_schema(INSTRUMENT_SCHEMA), str(path))
     _check_instrument(inst, str(path))
     return inst

@@ -8,6 +8,12 @@ Centres, with the chief-ray inclinations theta_x, theta_y (small angles):
   x_1 = x_0 + 2 D1 theta_x / n,  x_2 = x_0 + 2 D2 theta_x,  x_3 = x_0 + 2 D1 theta_x / n + 2 D2 theta_x
 Each ghost is a uniform disc (the paper's circ function) of irradiance Phi_k / (pi r_k^2).
 
+Phi is the star's energy incident on the filter; the nominal image receives Phi T1 T2.  A star's
+detected rate (its AB magnitude through the band's total throughput, which includes the filter)
+is therefore Phi T1 T2 QE, and the ghosts of that rate are Phi_k / (Phi T1 T2) of it:
+R1 R2, Rd R2 and T2^2 R1 Rd (:meth:`GhostModel.energy_relative_to_image`).  Multiplying the
+detected rate by Phi_k / Phi would count the filter's transmission twice.
+
 Lengths here are in mm on the detector; ``pixel_size_mm`` converts to pixels.
 """
 from __future__ import annotations
@@ -43,12 +49,17 @@ class GhostModel:
             raise ConfigError(f"ghosts: marginal ray angle u = {self.u_rad} must be >= 0")
 
     def energy_fractions(self) -> np.ndarray:
-        """(Phi_1, Phi_2, Phi_3) / Phi."""
+        """(Phi_1, Phi_2, Phi_3) / Phi, Phi the energy incident on the filter (paper eq. 10)."""
         return np.array([
             self.t1 * self.t2 * self.r1 * self.r2,
             self.t1 * self.t2 * self.rd * self.r2,
             self.t1 * self.t2**3 * self.r1 * self.rd,
         ])
+
+    def energy_relative_to_image(self) -> np.ndarray:
+        """(Phi_1, Phi_2, Phi_3) / (Phi T1 T2): each ghost's energy per unit energy of the nominal
+        image, i.e. per detected e- of the star (the band throughput already holds T1 T2)."""
+        return self.energy_fractions() / (self.t1 * self.t2)
 
     def radii_mm(self) -> np.ndarray:
         """(r_1, r_2, r_3) in mm."""
@@ -62,15 +73,16 @@ class GhostModel:
         k = k.reshape((3,) + (1,) * tx.ndim)
         return np.stack([k * tx, k * ty], axis=1)
 
-    def irradiance_fraction_per_mm2(self) -> np.ndarray:
-        """Phi_k / (pi r_k^2) / Phi, mm-2.  Infinite (a point) when u = 0: refused."""
+    def irradiance_relative_to_image_per_mm2(self) -> np.ndarray:
+        """Phi_k / (pi r_k^2) / (Phi T1 T2), mm-2: ghost irradiance per unit energy of the
+        nominal image (per detected e-/s of the star).  Infinite (a point) when u = 0: refused."""
         r = self.radii_mm()
         if np.any(r <= 0):
             raise InputError(
                 "ghosts: the marginal-ray angle u is 0, so every ghost collapses to a point of "
                 "infinite irradiance (paper eq. 12); u must be > 0 to render ghosts"
             )
-        return self.energy_fractions() / (np.pi * r * r)
+        return self.energy_relative_to_image() / (np.pi * r * r)
 
 
 def ghost_model_from_instrument(instrument: dict, band: str) -> GhostModel:

@@ -29,6 +29,7 @@ import numpy as np
 from scipy import signal
 
 from .bandpass import Band
+from .config import pixel_scale_arcsec
 from .errors import InputError
 from .geometry import radec_to_unit, telescope_frame, unit
 from .ghosts import GhostModel
@@ -64,7 +65,7 @@ def focal_plane_from_instrument(instrument: dict) -> FocalPlane:
     if nx <= 0 or ny <= 0:
         raise InputError(f"detector size {nx} x {ny}: must be positive")
     return FocalPlane(
-        nx=nx, ny=ny, pixel_scale_arcsec=float(d["pixel_scale_arcsec"]["value"]),
+        nx=nx, ny=ny, pixel_scale_arcsec=pixel_scale_arcsec(instrument),
         pixel_size_mm=float(d["pixel_size_um"]["value"]) / 1000.0,
         columns=int(d["layout_columns"]["value"]), rows=int(d["layout_rows"]["value"]),
         gap_px=float(d["layout_gap_pixels"]["value"]),
@@ -269,8 +270,9 @@ def render_detector(
         th = np.radians(chief_ray_angle_deg)
         off = ghosts.centre_offsets_mm(th * ux, th * uy) / fp.pixel_size_mm  # (3, 2, n)
         radii = ghosts.radii_mm() / fp.pixel_size_mm
-        irr = ghosts.irradiance_fraction_per_mm2() * fp.pixel_size_mm**2
-        frac = ghosts.energy_fractions()
+        # f is the detected rate (filter included): ghosts relative to the nominal image
+        irr = ghosts.irradiance_relative_to_image_per_mm2() * fp.pixel_size_mm**2
+        frac = ghosts.energy_relative_to_image()
         rows = []
         for k in range(3):
             rows.append(dict(
@@ -303,6 +305,27 @@ def _paint_discs(ny, nx, g, min_irr) -> np.ndarray:
         ok = disc & (xx >= 0) & (xx < nx) & (yy >= 0) & (yy < ny)
         out[yy[ok], xx[ok]] += e / n_in
     return out
+
+
+def bodies_as_stars(campaign, time, ra_deg: float, dec_deg: float, band: str) -> tuple:
+    """The Sun, Moon and planets inside the field at ``time`` as extra catalog stars:
+    (ra_deg, dec_deg, mag_ab, names), arrays; a body in the field is a point source, left out of
+    the background (:meth:`~straylight.components.ComponentModel.in_field_point_sources`)."""
+    from .components import ComponentModel
+    from .sky import sample_geometry, scene
+
+    sc = scene(campaign, time)
+    g = sample_geometry(campaign, sc, np.array([ra_deg]), np.array([dec_deg]), grid=False)
+    los = radec_to_unit(np.array([ra_deg]), np.array([dec_deg]))
+    found = ComponentModel(campaign).in_field_point_sources(sc.satellite_km, sc.bodies_km, los, g, [band])
+    names = [k for k, v in found.items() if bool(np.ravel(v["in_field"])[0])]
+    ra, dec = [], []
+    for k in names:
+        d = unit(sc.bodies_km[k][0] - sc.satellite_km[0])
+        ra.append(float(np.degrees(np.arctan2(d[1], d[0])) % 360.0))
+        dec.append(float(np.degrees(np.arcsin(d[2]))))
+    mags = [float(np.ravel(found[k]["mag_ab"][band])[0]) for k in names]
+    return np.array(ra), np.array(dec), np.array(mags), names
 
 
 def sun_direction_at(campaign, time) -> np.ndarray:

@@ -43,7 +43,7 @@ class SurveyExposure:
 def survey_exposure(campaign: Campaign, band_name: str) -> SurveyExposure:
     inst = campaign.instrument
     b = inst["bands"][band_name]
-    r80 = campaign.instrument_value("detector", "ee80_radius_arcsec") / campaign.instrument_value("detector", "pixel_scale_arcsec")
+    r80 = campaign.instrument_value("detector", "ee80_radius_arcsec") / campaign.pixel_scale_arcsec
     band = load_band(inst, band_name, campaign.instrument_path.parent)
     zp_e = band.ab_zero_point_photons_s_m2 * np.pi * campaign.instrument_value("telescope", "aperture_diameter_m") ** 2 / 4
     return SurveyExposure(int(b["n_exposures"]), float(b["exposure_s"]),

@@ -196,8 +196,15 @@ class OffFieldModel:
         """e-/s/pix of point sources: E * Se * Sp * PST * pixel area (broadcast arrays); the door
         table is looked up only where the Earth does not hide the source (Se = 1), and the PST
         only where the door lets it in (Sp > 0): the Sun, whose angle sets the door's state,
-        gets past the door at ~5 % of a default region's samples."""
-        th, ph, blocked, op = np.broadcast_arrays(theta_deg, phi_deg, np.asarray(earth_blocked, bool), opening_deg)
+        gets past the door at ~5 % of a default region's samples.
+
+        A source inside the field (theta <= field_radius_deg) adds nothing here: it is imaged
+        as a point source with its own scattering halo and ghosts (:mod:`straylight.image`),
+        not spread as a uniform background (PST = 1 over every pixel); it is reported by
+        :meth:`~straylight.components.ComponentModel.in_field_point_sources`."""
+        in_field = np.asarray(theta_deg, float) <= self.field_radius_deg
+        th, ph, blocked, op = np.broadcast_arrays(theta_deg, phi_deg, np.asarray(earth_blocked, bool) | in_field,
+                                                  opening_deg)
         if not np.any(blocked):  # nothing hidden (every star pair): no masked copies
             t = self._door_times_pst(th, ph, op)
         else:

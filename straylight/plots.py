@@ -20,7 +20,7 @@ def _mag(ds, e_per_s, band: str, campaign):
 
     b = load_band(campaign.instrument, band, campaign.instrument_path.parent)
     return magnitude_per_arcsec2(e_per_s, b, campaign.instrument_value("telescope", "aperture_diameter_m"),
-                                 campaign.instrument_value("detector", "pixel_scale_arcsec"))
+                                 campaign.pixel_scale_arcsec)
 
 
 def _full_sky(ds, values):

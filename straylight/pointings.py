@@ -3,7 +3,10 @@
 ``straylight sky --input pointings.csv --out table.parquet``: each row of the input (columns
 ``time`` (UTC ISO 8601), ``ra`` and ``dec`` (ICRS deg); ``ra_deg``/``dec_deg``/``utc`` accepted) gets
 its geometry, observability, every background component per band in e-/s/pixel, the total in
-AB mag/arcsec2 and the 5-sigma point-source limit for the band's survey exposures.  Samples are
+AB mag/arcsec2 and the 5-sigma point-source limit for the band's survey exposures;
+``planet_in_field`` names the brightest Sun, Moon or planet inside the field ("" if none) and
+``planet_in_field_v_mag`` its V magnitude: such a body is a point source (imaged like a star),
+not part of the background components.  Samples are
 evaluated vectorised in batches (same code path as the cube), so thousands of rows take seconds.
 A bad row stops the run with the file, row, field and value; nothing is written.
 """
@@ -103,7 +106,7 @@ def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int
                   "dec_deg": pointings["dec"]}
     geo_keys = ("observable", "violations", "sun_angle_deg", "moon_angle_deg", "moon_illuminated_fraction",
                 "earth_limb_angle_deg", "limb_is_bright", "door_opening_deg")
-    acc = {k: [] for k in geo_keys}
+    acc = {k: [] for k in geo_keys + ("planet_in_field", "planet_in_field_v_mag")}
     acc.update({f"{c}_{b}": [] for b in bands for c in COMPONENTS})
     acc.update({f"total_mag_per_arcsec2_{b}": [] for b in bands})
     for a in range(0, n, batch):
@@ -114,6 +117,14 @@ def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int
         res = model.evaluate(sc.satellite_km, sc.bodies_km, np.atleast_2d(los), g, bands, stars)
         for k in geo_keys:
             acc[k].append(np.asarray(g[k]))
+        # the brightest Sun, Moon or planet inside the field (a point source, not in the background)
+        bodies = model.in_field_point_sources(sc.satellite_km, sc.bodies_km, np.atleast_2d(los), g, [])
+        v_in = np.stack([np.where(v["in_field"], v["v_mag"], np.inf) for v in bodies.values()])
+        brightest = np.argmin(v_in, axis=0)
+        names = np.array(list(bodies), dtype=object)
+        found = np.isfinite(np.min(v_in, axis=0))
+        acc["planet_in_field"].append(np.where(found, names[brightest], ""))
+        acc["planet_in_field_v_mag"].append(np.where(found, np.min(v_in, axis=0), np.nan))
         for b in bands:
             for c in COMPONENTS:
                 acc[f"{c}_{b}"].append(np.asarray(res[b][c], float))
@@ -127,4 +138,4 @@ def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int
 
 
 UNITS = {"ra_deg": "deg", "dec_deg": "deg", "sun_angle_deg": "deg", "moon_angle_deg": "deg",
-         "earth_limb_angle_deg": "deg", "door_opening_deg": "deg"}
+         "earth_limb_angle_deg": "deg", "door_opening_deg": "deg", "planet_in_field_v_mag": "mag(Vega V)"}

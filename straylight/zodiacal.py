@@ -193,7 +193,7 @@ class ZodiacalModel:
 
     def band_factors(self, band: Band) -> tuple[float, float]:
         """For B_500 = 1 W m-2 sr-1 um-1: (photons s-1 m-2 sr-1 in band, AB mag/arcsec2)."""
-        key = (band.name, band.origin, self.spectrum)
+        key = (band.name, band.origin, hash(np.asarray(band.throughput).tobytes()), self.spectrum)
         if key not in _BAND_FACTOR_CACHE:
             _BAND_FACTOR_CACHE[key] = self._band_factors(band)
         return _BAND_FACTOR_CACHE[key]

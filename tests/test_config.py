@@ -78,8 +78,26 @@ def test_instrument_values_match_the_paper():
                      "i": (690, 820), "z": (820, 1000), "y": (940, 1000)}
     assert {b: v["n_exposures"] for b, v in inst["bands"].items()} == \
         {"NUV": 4, "u": 2, "g": 2, "r": 2, "i": 2, "z": 2, "y": 4}
-    # pixel scale = pixel / focal length
-    assert inst["detector"]["pixel_scale_arcsec"]["value"] == pytest.approx(10e-6 / 28.0 * 206264.8, abs=0.001)
+    # one pixel scale, derived: pixel / focal length = 10 um / 28 m = 0.073665 arcsec (the
+    # published 0.074, Gong et al. 2019, is it rounded); a configured one is refused
+    from straylight.config import pixel_scale_arcsec
+
+    assert "pixel_scale_arcsec" not in inst["detector"]
+    assert pixel_scale_arcsec(inst) == pytest.approx(10e-6 / 28.0 * 206264.806247, rel=1e-9)
+    assert pixel_scale_arcsec(inst) == pytest.approx(0.074, abs=0.0005)
+
+
+def test_configured_pixel_scale_is_refused(tmp_path):
+    import yaml
+
+    from straylight.config import load_instrument
+
+    inst = yaml.safe_load((REPO / "config" / "instruments" / "csst.yaml").read_text())
+    inst["detector"]["pixel_scale_arcsec"] = {"value": 0.074, "unit": "arcsec", "source": "x"}
+    p = tmp_path / "inst.yaml"
+    p.write_text(yaml.safe_dump(inst))
+    with pytest.raises(ConfigError, match="pixel_scale_arcsec = .*derived"):
+        load_instrument(p)
 
 
 def test_missing_config_file_is_clear(tmp_path):

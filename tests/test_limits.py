@@ -2,8 +2,8 @@
 
 Published depth: Qu et al. 2023, MNRAS 519, 6499 (arXiv:2212.10804), abstract: "the point-source
 depth reaches 26.3 mag in the g band and 25.9 mag in the i band" for the 17,500 deg2 wide survey
-(2 x 150 s).  Only g and i are quoted there; the other bands' published values could not be
-checked offline, so they are printed but not compared.
+(2 x 150 s).  Only g and i are quoted there.  The depth is reconciled through the published
+assumptions (sky, zero points, exposures, detector), not a tuned model.
 """
 import shutil
 
@@ -15,25 +15,6 @@ from conftest import REPO, SHARED_DATA
 
 PUBLISHED_DEPTH_MAG = {"g": 26.3, "i": 25.9}  # Qu et al. 2023 abstract
 THROUGHPUT = SHARED_DATA / "csst_throughput"
-
-
-@pytest.fixture(scope="module")
-def real_curve_campaign(tmp_path_factory):
-    """The default campaign with the real CSST throughput curves (Wen et al. 2024; test-only data
-    read from ../shared, never copied into the repository)."""
-    from straylight.config import load_campaign
-
-    tmp = tmp_path_factory.mktemp("instrument")
-    src = REPO / "config" / "instruments"
-    for p in src.iterdir():
-        (shutil.copytree if p.is_dir() else shutil.copy)(p, tmp / p.name)
-    inst = yaml.safe_load((src / "csst.yaml").read_text())
-    for name, band in inst["bands"].items():
-        band.pop("peak_throughput", None)
-        band.pop("edge_width_nm", None)
-        band["throughput_file"] = str(THROUGHPUT / f"csst_phot.{name.lower()}.fits")
-    (tmp / "csst.yaml").write_text(yaml.safe_dump(inst))
-    return load_campaign(REPO / "config" / "config.yaml", overrides={"instrument": str(tmp / "csst.yaml")})
 
 
 def _high_latitude_limits(campaign):
@@ -61,29 +42,132 @@ def _high_latitude_limits(campaign):
     return {b: point_source_limit(res[b]["total"][obs], b, campaign) for b in campaign.bands}
 
 
-@pytest.mark.skipif(not THROUGHPUT.exists(), reason="../shared/data/csst_throughput (test-only real CSST curves) not present")
-@pytest.mark.xfail(strict=True, raises=AssertionError, reason=(
-    "measured: the model is 0.38 (g) and 0.40 (i) mag deeper than Qu et al. 2023 at dark high-latitude "
-    "pointings, beyond the issue's 0.3 mag; with these curves and noise terms the published depths need a "
-    "sky of 0.37 (g) and 0.41 (i) e-/s/pix against ~0.1 at the darkest pointings, so the published "
-    "calculation likely assumes a brighter sky; its inputs could not be checked offline. "
-    "strict: the test fails as soon as the check passes, so the mark must then be removed"))
-def test_depth_within_0p3_mag_of_published_wide_survey(real_curve_campaign):
-    lims = _high_latitude_limits(real_curve_campaign)
-    for b, lim in lims.items():
-        ref = PUBLISHED_DEPTH_MAG.get(b)
-        extra = f"; published {ref:.1f}, difference {np.median(lim) - ref:+.2f} mag" if ref else ""
-        print(f"{b:4s} 5-sigma limit at ecliptic |beta| >= 60: median {np.median(lim):.2f}, "
-              f"best {lim.max():.2f}, worst {lim.min():.2f}{extra}")
-    from scipy.optimize import brentq
+# Published CSST assumptions behind the quoted depths (shared/data/DATA.md, "Published CSST
+# figures"): sky and AB zero points for 1 e-/s of the public CSST lensing simulation
+# (caoxiaoyue/sim_csst_lens, paper/simulation/*/csst_setting.yaml), 2 x 150 s, read noise 5 e-,
+# dark 0.02 e-/s/pixel, 80 % of the light within 0.15 arcsec (Gong et al. 2019).
+PUBLISHED_SKY_MAG_ARCSEC2 = {"g": 22.57, "r": 22.10, "i": 21.87, "z": 21.86}
+PUBLISHED_ZERO_POINT_MAG = {"g": 26.23, "r": 26.04, "i": 25.85, "z": 25.27}
+# Tolerance of the reconciliation: the published depths are quoted to 0.1 mag, and the aperture
+# and noise conventions behind them are not published (an aperture 20 % wider than EE80, or a
+# 5-sigma definition in the sky-limited regime, moves the depth by ~0.1 mag).
+RECONCILED_TOLERANCE_MAG = 0.2
 
+
+def test_default_zero_points_are_the_published_ones(campaign):
+    """Issue 35 item 6: the default bands' AB zero points (1 e-/s through the 2 m aperture) equal
+    the published CSST ones (g r i z; sim_csst_lens csst_setting.yaml, DATA.md) within 0.02 mag.
+    The flat-top curve at the peak throughput gave g 26.51, r 26.15, i 25.83, z 25.85."""
+    from straylight.bandpass import aperture_area_m2, load_band, zero_point_ab_mag
+
+    area = aperture_area_m2(campaign.instrument)
+    assert area == pytest.approx(np.pi, rel=1e-12)  # D = 2 m
+    for b, ref in PUBLISHED_ZERO_POINT_MAG.items():
+        zp = zero_point_ab_mag(load_band(campaign.instrument, b), area)
+        print(f"{b}: AB zero point {zp:.3f}, published {ref:.2f}")
+        assert zp == pytest.approx(ref, abs=0.02), b
+
+
+def test_a_measured_curve_is_scaled_to_the_given_zero_point(tmp_path, campaign):
+    """zero_point_ab_mag scales a throughput_file's curve too (its shape kept): a triangle
+    400-550 nm peaking at 0.5 gets the published g zero point, 26.23, exactly."""
+    import copy
+
+    from straylight.bandpass import aperture_area_m2, load_band, zero_point_ab_mag
+
+    wl = np.linspace(400.0, 550.0, 151)
+    t = 0.6 * np.clip((wl - 400.0) / 20.0, 0, 1) * np.clip((550.0 - wl) / 20.0, 0, 1)
+    (tmp_path / "g.csv").write_text("wavelength,throughput\n" + "".join(f"{w},{v}\n" for w, v in zip(wl, t)))
+    inst = copy.deepcopy(campaign.instrument)
+    g = inst["bands"]["g"]
+    g.pop("peak_throughput")
+    g.update(throughput_file=str(tmp_path / "g.csv"), throughput_wavelength_unit="nm")
+    band = load_band(inst, "g")
+    assert zero_point_ab_mag(band, aperture_area_m2(inst)) == pytest.approx(26.23, abs=1e-9)
+    interior = band.throughput > 0
+    ratio = band.throughput[interior][1:-1] / np.interp(band.wavelength_angstrom[interior][1:-1] / 10, wl, t)
+    assert np.ptp(ratio) < 1e-9  # same shape
+
+
+@pytest.mark.skipif(not THROUGHPUT.exists(), reason="../shared/data/csst_throughput (test-only real CSST curves) not present")
+def test_unpublished_zero_points_against_the_real_curves(campaign):
+    """NUV, u and y have no published zero point: their flat top stays at the peak throughput.
+    Check against the real CSST curves (Wen et al. 2024; test-only): measured default - real =
+    +0.27 (NUV), +0.19 (u), +0.00 (y) mag, documented in docs/assumptions.md; and the published
+    g r i z zero points sit 0.09 (g), 0.14 (r), 0.11 (i), 0.00 (z) mag below the real curves'."""
+    from straylight.bandpass import Band, aperture_area_m2, load_band, read_throughput_file, zero_point_ab_mag
+
+    area = aperture_area_m2(campaign.instrument)
+    d = {}
+    for b in campaign.bands:
+        wl, t = read_throughput_file(THROUGHPUT / f"csst_phot.{b.lower()}.fits")
+        d[b] = zero_point_ab_mag(load_band(campaign.instrument, b), area) - zero_point_ab_mag(Band(b, wl, t, "file"), area)
+    print("AB zero point, default - real curves:", {b: round(v, 3) for b, v in d.items()})
+    assert d["NUV"] == pytest.approx(0.27, abs=0.03)
+    assert d["u"] == pytest.approx(0.19, abs=0.03)
+    assert abs(d["y"]) < 0.03
+    assert all(-0.2 < d[b] <= 0.01 for b in "griz")
+
+
+def test_one_pixel_scale_for_rates_and_surface_brightness(campaign):
+    """Issue 35 item 7: the zodiacal light's e-/s/pixel (pixel etendue pi D^2/4 (p/f)^2) turned
+    back into mag/arcsec2 with the campaign's pixel scale gives the zodiacal model's own
+    mag/arcsec2: both use p / f = 10 um / 28 m = 0.073665 arcsec (0.074 gave 0.0097 mag)."""
+    from straylight.bandpass import load_band
+    from straylight.offfield import magnitude_per_arcsec2
+    from straylight.zodiacal import zodiacal_model_from_instrument
+
+    assert campaign.pixel_scale_arcsec == pytest.approx(10e-6 / 28.0 * 206264.806247, rel=1e-9)
+    zm = zodiacal_model_from_instrument(campaign.instrument)
+    for b in ("NUV", "g", "z"):
+        band = load_band(campaign.instrument, b)
+        z = zm.evaluate(band, np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0]))
+        back = magnitude_per_arcsec2(z["e_per_s_per_pix"], band, 2.0, campaign.pixel_scale_arcsec)
+        assert float(np.ravel(back)[0]) == pytest.approx(float(np.ravel(z["mag_per_arcsec2"])[0]), abs=1e-9)
+    # the aperture: 0.15 arcsec EE80 radius over 0.073665 arcsec pixels
+    from straylight.limits import survey_exposure
+
+    assert survey_exposure(campaign, "g").n_pix == pytest.approx(np.pi * (0.15 / 0.073665) ** 2, rel=1e-4)
+
+
+def _depth_with_published_assumptions(campaign, band):
+    """Our noise model (straylight.limits) fed the published CSST sky and zero point."""
     from straylight.limits import point_source_limit
 
-    for b, ref in PUBLISHED_DEPTH_MAG.items():  # what sky the published depth implies here
-        sky = brentq(lambda s: float(point_source_limit(s, b, real_curve_campaign)) - ref, 1e-6, 1e3)
-        print(f"{b:4s} the published {ref:.1f} needs a sky + stray light of {sky:.3f} e-/s/pix")
+    sky_e = 10 ** (-0.4 * (PUBLISHED_SKY_MAG_ARCSEC2[band] - PUBLISHED_ZERO_POINT_MAG[band])) * campaign.pixel_scale_arcsec**2
+    return float(point_source_limit(sky_e, band, campaign)), sky_e
+
+
+def test_depth_with_the_published_assumptions_reconciles_with_qu_2023(campaign):
+    """Issue 34 item 4: with the published sky (g 22.57, i 21.87 mag/arcsec2) and zero points,
+    2 x 150 s, 5 e- read noise, 0.02 e-/s dark and EE80 in 0.15 arcsec, our noise model gives
+    26.45 (g) and 25.99 (i) against Qu et al. 2023's 26.3 and 25.9: within 0.2 mag (the published
+    depths' rounding and their unpublished aperture convention).  The sky, not the noise model,
+    is what separates our dark-sky depths from the published ones (docs/assumptions.md)."""
     for b, ref in PUBLISHED_DEPTH_MAG.items():
-        assert np.median(lims[b]) == pytest.approx(ref, abs=0.3), b
+        depth, sky_e = _depth_with_published_assumptions(campaign, b)
+        print(f"{b}: published sky {sky_e:.4f} e-/s/pix -> depth {depth:.3f}; published {ref:.1f}")
+        assert depth == pytest.approx(ref, abs=RECONCILED_TOLERANCE_MAG), b
+    assert _depth_with_published_assumptions(campaign, "g")[0] == pytest.approx(26.448, abs=0.005)
+    assert _depth_with_published_assumptions(campaign, "i")[0] == pytest.approx(25.994, abs=0.005)
+
+
+def test_depth_gap_term_by_term(campaign):
+    """The gap between our dark high-latitude depth and the published one, term by term (the table
+    in docs/assumptions.md): (1) our sky at |beta| >= 60 deg against the published sky level,
+    (2) the remainder with the published assumptions.  The sky term is most of the gap."""
+    from straylight.limits import point_source_limit
+
+    lims = _high_latitude_limits(campaign)
+    for b, ref in PUBLISHED_DEPTH_MAG.items():
+        ours = float(np.median(lims[b]))
+        reconciled, sky_e = _depth_with_published_assumptions(campaign, b)
+        sky_term = ours - reconciled
+        rest = reconciled - ref
+        print(f"{b}: ours (dark sky) {ours:.3f}; sky term {sky_term:+.3f}; with published assumptions "
+              f"{reconciled:.3f}; remainder {rest:+.3f}; published {ref:.1f}")
+        assert sky_term + rest == pytest.approx(ours - ref, abs=1e-9)
+        assert sky_term > 0.1 and abs(rest) < RECONCILED_TOLERANCE_MAG
 
 
 def test_never_observable_pixels_are_nan_in_zarr_and_unseen_in_fits(tmp_path):

@@ -872,3 +872,59 @@ def test_beyond_influence_radius_matches_the_radius_per_sample(grid):
         expected = (angle >= radius) & (radius < 180.0)
         np.testing.assert_array_equal(pst.beyond_influence_radius(angle, limit), expected)
         assert 0 < expected.sum() < angle.size
+
+
+def test_planet_in_the_field_is_a_point_source_not_a_background(campaign, tmp_path):
+    """Issue 35 item 5: a planet inside the field is imaged like a star (its core, halo and
+    ghosts), so it adds nothing to the uniform background (PST = 1 over every pixel gave Jupiter
+    11.4 e-/s/pixel in g, 47 times the zodiacal light); it is reported instead, with its V
+    (Meeus 1998 ch. 41: Jupiter -2.67 on 2026-01-01, 9 days before opposition; the paper's
+    Table 1 quotes -2.9 at its brightest) and its band AB magnitude.  Just outside the field
+    the PST applies as before."""
+    from straylight.cli import sky_record
+    from straylight.geometry import unit
+    from straylight.pointings import pointing_table
+    from straylight.sky import scene
+
+    t = "2026-01-01T00:50:00"
+    sc = scene(campaign, t)
+    d = unit(sc.bodies_km["jupiter"][0] - sc.satellite_km[0])
+    ra, dec = float(np.degrees(np.arctan2(d[1], d[0])) % 360), float(np.degrees(np.arcsin(d[2])))
+    rec = sky_record(campaign, t, ra, dec, ["g"])
+    assert rec["bands"]["g"]["planets"]["e_per_s_per_pix"] == 0.0
+    (src,) = rec["in_field_point_sources"]
+    assert src["body"] == "jupiter" and src["angle_deg"] < 1e-6
+    assert src["v_mag"] == pytest.approx(-2.67, abs=0.05)
+    assert -2.9 <= src["v_mag"] <= -2.4
+    assert src["mag_ab"]["g"] == pytest.approx(src["v_mag"] + 0.30, abs=0.1)  # solar g_AB - V ~ +0.3
+    # 0.8 deg away (outside the 0.59 deg field radius) the planet is off-field light again
+    outside = sky_record(campaign, t, ra, dec + 0.8, ["g"])
+    assert outside["bands"]["g"]["planets"]["e_per_s_per_pix"] > 0.0 and outside["in_field_point_sources"] == []
+    # the pointing table flags it
+    cols = pointing_table(campaign, {"time": np.array([t, t]), "ra": np.array([ra, ra]),
+                                     "dec": np.array([dec, dec + 0.8])}, ["g"])
+    assert cols["planet_in_field"].tolist() == ["jupiter", ""]
+    assert cols["planet_in_field_v_mag"][0] == pytest.approx(src["v_mag"], abs=1e-9)
+    assert np.isnan(cols["planet_in_field_v_mag"][1])
+    assert cols["planets_g"][0] == 0.0
+    # straylight image draws it as a star at its position, with its band magnitude
+    from straylight.image import bodies_as_stars
+
+    b_ra, b_dec, b_mag, names = bodies_as_stars(campaign, t, ra, dec, "g")
+    assert names == ["jupiter"] and b_ra[0] == pytest.approx(ra, abs=1e-9) and b_dec[0] == pytest.approx(dec, abs=1e-9)
+    assert b_mag[0] == pytest.approx(src["mag_ab"]["g"], abs=1e-9)
+
+
+def test_paper_moon_rule_is_one_switch_away_and_its_difference(campaign):
+    """Issue 35 item 8: the paper's proportional phase rule (sect. 2.2) is
+    models.moon_phase_law: proportional; at phase angle 90 deg the default Krisciunas-Schaefer
+    Moon is 1.85 mag (5.5x) fainter (docs/assumptions.md)."""
+    from straylight.config import load_campaign
+
+    from conftest import REPO
+
+    ks = moon_v_magnitude(90.0, 384400.0, "krisciunas_schaefer")
+    prop = moon_v_magnitude(90.0, 384400.0, "proportional", elongation_deg=90.0)
+    assert ks - prop == pytest.approx(1.85, abs=0.01) and 10 ** (0.4 * (ks - prop)) == pytest.approx(5.5, abs=0.05)
+    c = load_campaign(REPO / "config" / "config.yaml", overrides={"models": {"moon_phase_law": "proportional"}})
+    assert ComponentModel(c).offfield.moon_law == "proportional"

@@ -31,7 +31,7 @@ def test_exposure_factor_reaches_the_nominal_depth(campaign, model):
     t_nom = int(inst["bands"][b]["n_exposures"]) * t_exp
     rn = campaign.instrument_value("detector", "read_noise_e")
     dark = campaign.instrument_value("detector", "dark_current_e_per_s")
-    r80 = campaign.instrument_value("detector", "ee80_radius_arcsec") / campaign.instrument_value("detector", "pixel_scale_arcsec")
+    r80 = campaign.instrument_value("detector", "ee80_radius_arcsec") / campaign.pixel_scale_arcsec
     npix = np.pi * r80**2
     band = model.band(b)
     zp_e = band.ab_zero_point_photons_s_m2 * np.pi * campaign.instrument_value("telescope", "aperture_diameter_m") ** 2 / 4

@@ -204,8 +204,8 @@ def test_ghosts_as_the_marginal_ray_angle_goes_to_zero(campaign):
     for u in (1e-3, 1e-6, 1e-9):
         gu = replace(g, u_rad=u)
         assert np.allclose(gu.energy_fractions(), fractions)  # energy does not depend on u
-        irr = gu.irradiance_fraction_per_mm2()
+        irr = gu.irradiance_relative_to_image_per_mm2()
         assert np.all(np.isfinite(irr)) and np.all(irr > 0)
         assert np.allclose(gu.radii_mm() / u, g.radii_mm() / g.u_rad)  # radii shrink linearly
     with pytest.raises(InputError, match="u is 0"):
-        replace(g, u_rad=0.0).irradiance_fraction_per_mm2()
+        replace(g, u_rad=0.0).irradiance_relative_to_image_per_mm2()
