@@ -144,7 +144,10 @@ def cmd_sky(args) -> int:
     elif args.time is None or args.ra is None or args.dec is None:
         raise InputError("give --time, --ra and --dec, or --input TABLE --out FILE")
     else:
+        from .timeutil import parse_utc
+
         pointing = _pointing(args)
+        args.time = parse_utc(args.time, "--time")  # ISO 8601, with or without a UTC offset
     campaign = load_campaign(args.config)
     bands = [b.strip() for b in args.bands.split(",") if b.strip()] if args.bands else None
     stars = None
