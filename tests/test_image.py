@@ -208,22 +208,35 @@ def test_named_stars_are_bright_in_the_default_catalog(campaign):
         assert vmag[number] < 2.6, (name, vmag[number])
 
 
-def test_image_cli_star_bin_and_empty_field(tmp_path):
-    """--star NAME with the default catalog, --bin 16, gzip: a small file; a field with no star
-    gives a warning and exit 1, and nothing is written unless --allow-empty."""
+def test_image_cli_star_bin_and_empty_field(tmp_path, campaign):
+    """--star NAME with the default catalog, --bin 16, gzip, --background: a small file whose
+    background is the pointing table's total at the boresight; a field with no star gives a
+    warning and exit 1, and nothing is written unless --allow-empty."""
     from astropy.io import fits
     from astropy.table import Table
 
+    from straylight.catalog import default_catalog_path
+    from straylight.components import load_offfield_stars
+    from straylight.pointings import pointing_table
+
     out = tmp_path / "sirius.fits"
     r = run_cli("image", "--time", "2026-01-01T00:50:00", "--star", "Sirius", "--band", "g", "--bin", "16",
-                "--out", out, timeout=900)
+                "--background", "--out", out, timeout=900)
     assert r.returncode == 0, r.stderr
     assert out.stat().st_size < 5e6
     with fits.open(out) as h:
         img = h["SCI"].data
         assert img.shape == (9232 // 16, 9216 // 16)
         assert np.unravel_index(np.argmax(img), img.shape) == pytest.approx((9232 // 32, 9216 // 32), abs=2)
-        assert h["SCI"].header["STAR"] == "Sirius"
+        hdr = h["SCI"].header
+        assert hdr["STAR"] == "Sirius"
+        sc = campaign.config["stars"]
+        stars = load_offfield_stars(default_catalog_path(campaign), ["g"], float(sc["offfield_mag_limit"]),
+                                    bool(sc.get("faint_map", True)))
+        cols = pointing_table(campaign, {"time": np.array(["2026-01-01T00:50:00"]), "ra": np.array([hdr["RA_PNT"]]),
+                                         "dec": np.array([hdr["DEC_PNT"]])}, ["g"], stars)
+        assert hdr["BKG_TOT"] == pytest.approx(float(cols["total_g"][0]), rel=1e-9)
+        assert img.min() >= hdr["BKG_TOT"] * (1 - 1e-6)
     cat = tmp_path / "one.ecsv"
     Table({"ra": [10.0], "dec": [-60.0], "mag_g": [5.0]}).write(cat)
     empty = tmp_path / "empty.fits"
