@@ -3,15 +3,15 @@
 #       snakemake --cores 2 --configfile my_campaign.yaml
 from pathlib import Path
 
-from snakemake.utils import min_version, validate
+from snakemake.utils import min_version
 
 min_version("8.0")
 
 
 configfile: "config/config.yaml"
 
-
-validate(config, "config/schema/config.schema.yaml")
+# validated (with the schema's defaults) in workflow/rules/common.smk, errors naming the file
+# that set the key, and relative paths resolved against that file
 
 
 include: "workflow/rules/common.smk"
@@ -25,7 +25,12 @@ include: "workflow/rules/scheduling.smk"
 include: "workflow/rules/plots.smk"
 
 
-report: "workflow/report/workflow.rst"
+# the report's first page: the campaign's depth table written by rule plots once it has run
+# (snakemake --report), else the generic description
+_REPORT_FRONT = Path(RESULTS, "plots", "summary.rst").resolve()
+
+
+report: str(_REPORT_FRONT) if _REPORT_FRONT.exists() else "workflow/report/workflow.rst"
 
 
 rule all:

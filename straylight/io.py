@@ -13,6 +13,49 @@ from contextlib import contextmanager
 from pathlib import Path
 
 
+def check_output_path(path, flag: str = "--out", overwrite: bool = False, parents: bool = False,
+                      folder: bool = False) -> Path:
+    """Check, before any work, that ``path`` can be written; return it as a Path.
+
+    The parent folder must exist (created when ``parents``), be a folder and accept a new file
+    (probed by creating and removing a temporary file, so read-only file systems and missing
+    permissions are caught whoever runs); an existing file is refused unless ``overwrite``.
+    ``folder``: ``path`` is an output folder (it may exist; files in it are replaced only with
+    ``overwrite``).  Raises :class:`~straylight.errors.InputError` naming ``flag`` and the path.
+    """
+    from .errors import InputError
+
+    p = Path(path)
+    if folder:
+        if p.exists() and not p.is_dir():
+            raise InputError(f"{flag} {p}: exists and is not a folder")
+        if p.is_dir() and any(p.iterdir()) and not overwrite:
+            raise InputError(f"{flag} {p}: folder exists and is not empty; pass --overwrite to replace its files")
+        target = p
+    else:
+        if p.is_dir():
+            raise InputError(f"{flag} {p}: is a folder, expected a file name")
+        if (p.exists() or p.is_symlink()) and not overwrite:
+            raise InputError(f"{flag} {p}: file exists; pass --overwrite to replace it")
+        target = p.parent
+    if not target.exists():
+        if not parents:
+            raise InputError(f"{flag} {p}: folder {target} does not exist; create it or pass --parents")
+        try:
+            target.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise InputError(f"{flag} {p}: cannot create folder {target}: {exc.strerror or exc}") from None
+    if not target.is_dir():
+        raise InputError(f"{flag} {p}: {target} is not a folder")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".straylight-write-check.", dir=target)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise InputError(f"{flag} {p}: cannot write in {target}: {exc.strerror or exc}") from None
+    return p
+
+
 @contextmanager
 def atomic_path(final: str | os.PathLike):
     """Yield a temporary path next to ``final``; on success move it into place."""

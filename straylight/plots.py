@@ -32,13 +32,47 @@ def _full_sky(ds, values):
     return m
 
 
+def _tick_format(lo: float, hi: float, n: int = 4):
+    """Rounded colour-bar ticks for [lo, hi]: a matplotlib locator and formatter with as few
+    decimals as the tick step needs."""
+    from matplotlib.ticker import FormatStrFormatter, MaxNLocator
+
+    loc = MaxNLocator(n, steps=[1, 2, 2.5, 5, 10])
+    ticks = loc.tick_values(lo, hi)
+    step = float(np.min(np.diff(ticks))) if ticks.size > 1 else max(hi - lo, 1.0)
+    decimals = int(max(0, -np.floor(np.log10(step) + 1e-9)))
+    return loc, FormatStrFormatter(f"%.{decimals}f")
+
+
+def _colour_range(values, percentiles=(2.0, 98.0), min_span: float = 0.01) -> tuple[float, float]:
+    """The range of the colour scale: the given percentiles of the finite values, widened
+    symmetrically to ``min_span`` where the values are nearly uniform."""
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return 20.0, 30.0
+    lo, hi = (float(x) for x in np.percentile(v, percentiles))
+    if hi - lo < min_span:
+        mid = 0.5 * (lo + hi)
+        lo, hi = mid - min_span / 2, mid + min_span / 2
+    return lo, hi
+
+
 def _mollview_with_unit(fig, values, unit: str, **kw) -> None:
-    """healpy's mollview with a colour bar whose unit sits below the tick labels: healpy puts
-    it at a fixed fraction of the bar's height, over the labels on a 2 x 4 page."""
+    """healpy's mollview with a 30-deg graticule, a colour bar of a few rounded ticks, and the
+    unit below the tick labels (healpy puts it over the labels on a 2 x 4 page)."""
     import healpy as hp
+    import matplotlib.pyplot as plt
 
     hp.mollview(values, fig=fig.number, unit="", cbar=True, **kw)
-    fig.axes[-1].set_xlabel(unit, fontsize=9, labelpad=2)  # the colour bar: the last axes mollview adds
+    cax, ax = fig.axes[-1], fig.axes[-2]  # mollview adds the map, then its colour bar
+    loc, fmt = _tick_format(kw["min"], kw["max"])
+    cax.xaxis.set_major_locator(loc)
+    cax.xaxis.set_major_formatter(fmt)
+    cax.tick_params(labelsize=8)
+    cax.set_xlabel(unit, fontsize=9, labelpad=2)
+    plt.sca(ax)
+    hp.graticule(dpar=30, dmer=60, color="0.3", alpha=0.5, lw=0.4)
 
 
 def _save(fig, path: Path) -> Path:
@@ -75,22 +109,39 @@ def sky_maps(ds, campaign, out_dir, n_times: int = 2, bands=None, times=()) -> l
         for ib, band in enumerate(ds["band"].values):
             if bands is not None and str(band) not in bands:
                 continue
-            fig = plt.figure(figsize=(16, 6.5))
-            for k, comp in enumerate(CUBE_BAND_VARIABLES):
+            maps, zero = [], []
+            for comp in CUBE_BAND_VARIABLES:
                 e = np.asarray(ds[comp].isel(time=it, band=ib), float)
-                mag = _mag(ds, e, str(band), campaign)
-                finite = np.isfinite(mag)
-                lo, hi = (np.percentile(mag[finite], [2, 98]) if finite.any() else (20.0, 30.0))
-                _mollview_with_unit(fig, _full_sky(ds, mag), "AB mag/arcsec2", nest=nest, sub=(2, 4, k + 1),
-                                    title=f"{comp}", min=lo, max=max(hi, lo + 0.1), cmap="viridis_r", notext=True)
+                if not np.any(np.isfinite(e) & (e > 0)):
+                    zero.append(comp)  # no panel: say so in the title instead
+                    continue
+                maps.append((comp, e, _mag(ds, e, str(band), campaign)))
+            ncol = 4
+            nrow = int(np.ceil((len(maps) + 1) / ncol))
+            fig = plt.figure(figsize=(16, 3.3 * nrow))
+            for k, (comp, e, mag) in enumerate(maps):
+                lo, hi = _colour_range(mag)
+                _mollview_with_unit(fig, _full_sky(ds, mag), "AB mag/arcsec2 (brighter: yellow)", nest=nest,
+                                    sub=(nrow, ncol, k + 1), title=comp, min=lo, max=hi, cmap="viridis_r",
+                                    notext=True)
             obs = np.asarray(ds["observable"].isel(time=it), float)
-            hp.mollview(_full_sky(ds, obs), nest=nest, fig=fig.number, sub=(2, 4, 8), title="observable",
-                        min=0, max=1, cmap="RdYlGn", cbar=False, notext=True)
+            hp.mollview(_full_sky(ds, obs), nest=nest, fig=fig.number, sub=(nrow, ncol, len(maps) + 1),
+                        title="observable", min=0, max=1, cmap="RdYlGn", cbar=False, notext=True)
+            hp.graticule(dpar=30, dmer=60, color="0.3", alpha=0.5, lw=0.4)
+            from matplotlib.patches import Patch
+
+            fig.axes[-1].legend(handles=[Patch(color=plt.cm.RdYlGn(1.0), label="observable"),
+                                         Patch(color=plt.cm.RdYlGn(0.0), label="not observable"),
+                                         Patch(color="0.5", label="outside the footprint")],
+                                loc="upper center", bbox_to_anchor=(0.5, -0.02), ncol=3, fontsize=8, frameon=False)
             # models.unobservable_samples: skip leaves NaN where not observable (e: the total here)
             # a component's 0 (blocked, or skipped below its share of the tolerance) has no magnitude
-            grey = "outside the footprint, a component's 0" + (", not evaluated (not observable)"
-                                                               if np.isnan(e).any() else "")
-            fig.suptitle(f"{campaign.name}: band {band} at {t} UTC (ICRS Mollweide; grey: {grey})")
+            grey = "outside the footprint, or a component's 0" + (", or not evaluated (not observable)"
+                                                                  if np.isnan(maps[-1][1]).any() else "")
+            note = f"; zero everywhere, not shown: {', '.join(zero)}" if zero else ""
+            fig.suptitle(f"{campaign.name}: band {band} at {t} UTC (ICRS Mollweide, graticule every 30 deg in Dec "
+                         f"and 60 deg in RA; colours: 2nd-98th percentile per panel; grey: {grey}{note})",
+                         fontsize=10)
             written.append(_save(fig, Path(out_dir) / f"sky_{band}_{t.replace(':', '').replace('-', '')}.png"))
             plt.close(fig)
     return written
@@ -124,21 +175,39 @@ def time_series(ds, campaign, out_dir, n_pointings: int = 3, pointings=()) -> li
         obs = np.asarray(sub["observable"], bool)
         for span, sel in (("orbit", minutes <= ORBIT_MINUTES), ("campaign", np.ones(minutes.size, bool))):
             bands = list(ds["band"].values)
-            fig, axes = plt.subplots(len(bands), 1, figsize=(10, 2.0 * len(bands)), sharex=True)
+            fig, axes = plt.subplots(len(bands), 1, figsize=(10, 2.2 * len(bands)), sharex=True)
+            shown = {}
             for ax, band in zip(np.atleast_1d(axes), bands):
                 ib = bands.index(band)
-                for comp in CUBE_BAND_VARIABLES:
+                zp = float(_mag(ds, np.array([1.0]), str(band), campaign)[0])  # mag/arcsec2 at 1 e-/s/pix
+                for k, comp in enumerate(CUBE_BAND_VARIABLES):
                     y = np.asarray(sub[comp].isel(band=ib), float)[sel]
-                    ax.semilogy(minutes[sel], np.maximum(y, 1e-12), lw=1.6 if comp == "total" else 0.9,
-                                color="k" if comp == "total" else None, label=comp)
+                    if not np.any(y > 0):
+                        continue  # zero all along: no line (listed in the title)
+                    mag = np.where(y > 0, zp - 2.5 * np.log10(np.where(y > 0, y, 1.0)), np.nan)
+                    line, = ax.plot(minutes[sel], mag, lw=1.8 if comp == "total" else 1.0,
+                                    color="k" if comp == "total" else f"C{k}", label=comp)
+                    shown[comp] = line
                 for a, b in _runs(~obs[sel]):
-                    ax.axvspan(minutes[sel][a], minutes[sel][b], color="0.85", lw=0)
-                ax.set_ylabel(f"{band}\ne-/s/pix")
-                ax.set_ylim(1e-6, None)
-            np.atleast_1d(axes)[0].legend(fontsize=7, ncol=7, loc="upper right")
-            np.atleast_1d(axes)[-1].set_xlabel(f"minutes after {str(t[0])[:16]} UTC (grey: not observable)")
-            fig.suptitle(f"{campaign.name}: pointing RA {ra:.1f}, Dec {dec:.1f} deg, {span}")
-            fig.tight_layout()
+                    ax.axvspan(minutes[sel][a], minutes[sel][b], color="0.88", lw=0)
+                total = np.asarray(sub["total"].isel(band=ib), float)[sel]
+                tmag = zp - 2.5 * np.log10(total[total > 0]) if np.any(total > 0) else np.array([20.0])
+                # brighter up; the faint end a few magnitudes below the total's faintest value
+                ax.set_ylim(min(float(np.nanmax(tmag)) + 4.0, 32.0), float(np.nanmin(tmag)) - 1.0)
+                ax.set_ylabel(f"{band}\nmag/arcsec2", fontsize=9)
+                ax.yaxis.set_major_locator(plt.MaxNLocator(4, integer=True))
+                ax.grid(alpha=0.3, lw=0.5)
+                # the band's zero point: e-/s/pixel = 10^(-0.4 (mag - zp))
+                ax.text(1.005, 0.5, f"zero point\n{zp:.2f}\n(1 e-/s/pix)", transform=ax.transAxes, fontsize=7,
+                        va="center", ha="left")
+            missing = [c for c in CUBE_BAND_VARIABLES if c not in shown]
+            fig.legend(handles=list(shown.values()), loc="upper center", ncol=len(shown), fontsize=8,
+                       bbox_to_anchor=(0.5, 0.965), frameon=False)
+            np.atleast_1d(axes)[-1].set_xlabel(f"minutes after {str(t[0])[:16]} UTC (grey: not observable)"
+                                               + (f"; zero all along, not drawn: {', '.join(missing)}" if missing else ""))
+            fig.suptitle(f"{campaign.name}: pointing RA {ra:.1f}, Dec {dec:.1f} deg, {span} (AB mag/arcsec2, "
+                         "brighter up; e-/s/pixel = 10^(-0.4 (mag - zero point)))", fontsize=10)
+            fig.tight_layout(rect=(0, 0, 1, 0.95))
             written.append(_save(fig, Path(out_dir) / f"series_{span}_ra{ra:06.2f}_dec{dec:+06.2f}.png"))
             plt.close(fig)
     return written
@@ -166,15 +235,113 @@ def limit_maps(limits_ds, campaign, out_dir) -> list:
         fig = plt.figure(figsize=(16, 6.5))
         for ib, band in enumerate(limits_ds["band"].values):
             v = np.asarray(limits_ds[var].isel(band=ib), float)
-            finite = np.isfinite(v)
-            lo, hi = (np.percentile(v[finite], [2, 98]) if finite.any() else (20.0, 28.0))
-            _mollview_with_unit(fig, _full_sky(limits_ds, v), "AB mag (5 sigma)", nest=nest, sub=(2, 4, ib + 1),
-                                title=str(band), min=lo, max=max(hi, lo + 0.1), cmap="magma", notext=True)
+            # the bulk of the sky sits within a few 0.01 mag of the best; the shallow tail near the Sun
+            # and Moon would take the whole scale: the range is the 10th-99.9th percentile per band
+            lo, hi = _colour_range(v, (10.0, 99.9))
+            med = float(np.nanmedian(v)) if np.isfinite(v).any() else float("nan")
+            _mollview_with_unit(fig, _full_sky(limits_ds, v), "AB mag (5 sigma), deeper: brighter",
+                                nest=nest, sub=(2, 4, ib + 1), title=f"{band} (median {med:.2f})", min=lo, max=hi,
+                                cmap="magma", notext=True)
         fig.suptitle(f"{campaign.name}: {stat} 5-sigma point-source limit over the campaign (survey exposures; "
-                     "grey: outside the footprint or never observable)")
+                     "colours: 10th-99.9th percentile per band, shallower pixels black; graticule 30/60 deg; "
+                     "grey: outside the footprint or never observable)", fontsize=10)
         written.append(_save(fig, Path(out_dir) / f"limits_{stat}.png"))
         plt.close(fig)
     return written
+
+
+def depth_summary(limits_ds) -> dict:
+    """Per band: the median over the footprint of each pixel's median 5-sigma limit, the best
+    pixel's best limit (AB mag), and the observable fraction of all (time, pixel) samples."""
+    obs = float(np.asarray(limits_ds["observable"], bool).mean())
+    rows = {}
+    for ib, band in enumerate(limits_ds["band"].values):
+        med = np.asarray(limits_ds["limiting_mag_median"].isel(band=ib), float)
+        best = np.asarray(limits_ds["limiting_mag_best"].isel(band=ib), float)
+        rows[str(band)] = {
+            "median_depth_mag": float(np.nanmedian(med)) if np.isfinite(med).any() else float("nan"),
+            "best_depth_mag": float(np.nanmax(best)) if np.isfinite(best).any() else float("nan"),
+            "observable_fraction": obs,
+        }
+    return rows
+
+
+def write_summary(limits_ds, campaign, out_dir) -> list:
+    """``summary.csv`` (the depth table) and ``summary.rst`` (the report's first page: the
+    campaign, the table and a guide to the figures; rendered by Snakemake's Jinja)."""
+    from .io import atomic_path
+
+    rows = depth_summary(limits_ds)
+    out = Path(out_dir)
+    with atomic_path(out / "summary.csv") as tmp:
+        lines = ["band,median_depth_mag,best_depth_mag,observable_fraction"]
+        lines += [f"{b},{r['median_depth_mag']:.2f},{r['best_depth_mag']:.2f},{r['observable_fraction']:.3f}"
+                  for b, r in rows.items()]
+        tmp.write_text("\n".join(lines) + "\n")
+    c = campaign.config["campaign"]
+    table = ["   * - band", "     - median depth (AB mag)", "     - best depth (AB mag)",
+             "     - observable fraction"]
+    for b, r in rows.items():
+        table += [f"   * - {b}", f"     - {r['median_depth_mag']:.2f}", f"     - {r['best_depth_mag']:.2f}",
+                  f"     - {100 * r['observable_fraction']:.1f} %"]
+    text = f"""Stray-light and sky-background products of the campaign **{campaign.name}**
+({c['start']} to {c['end']} UTC, every {float(c['cadence_s']):g} s) for the CSST survey camera
+(straylight; method of Xian et al., the seed paper).
+
+.. list-table:: 5-sigma point-source depth for the band's survey exposures (median over the footprint of each
+   pixel's median over time; best: the deepest pixel at its best time), and the fraction of (time, pointing)
+   samples that are observable
+   :header-rows: 1
+
+{chr(10).join(table)}
+
+**Figures** (in *Maps and time series*): ``limits_median`` and ``limits_best`` map the depth;
+``sky_<band>_<time>`` show each background component at one time in AB mag/arcsec2 (components zero
+everywhere are listed in the title instead of drawn); ``series_orbit_*`` and ``series_campaign_*``
+follow three pointings in mag/arcsec2 (grey: not observable). **Scheduling tables** (CSV and PNG):
+the Moon angle and bright-limb elevation that keep stray light below a fraction of the darkest
+zodiacal light, and the exposure-time factor. Provenance (config, software versions, checksums)
+is in provenance.json.
+"""
+    text += _thumbnails(out)
+    with atomic_path(out / "summary.rst") as tmp:
+        tmp.write_text(text)
+    return [out / "summary.csv", out / "summary.rst"]
+
+
+#: The figures shown on the report's first page as thumbnails (file-name prefix, caption).
+THUMBNAILS = (("limits_median", "Median 5-sigma depth per band over the campaign (AB mag)."),
+              ("limits_best", "Best 5-sigma depth per band (AB mag)."),
+              ("sky_g_", "Every background component in g at the first map time (AB mag/arcsec2)."),
+              ("series_orbit_", "One pointing over the first orbit, every band (AB mag/arcsec2; grey: not observable)."))
+
+
+def _thumbnails(out: Path, width_px: int = 560) -> str:
+    """RST figures of :data:`THUMBNAILS` as embedded PNG thumbnails (data URIs: the report is
+    one self-contained file)."""
+    import base64
+    import io
+
+    from PIL import Image
+
+    parts = []
+    for prefix, caption in THUMBNAILS:
+        found = sorted(out.glob(f"{prefix}*.png"))
+        if not found:
+            continue
+        img = Image.open(found[0])
+        img.thumbnail((width_px, width_px))
+        buf = io.BytesIO()
+        img.save(buf, format="PNG", optimize=True)
+        # raw HTML with the base64 split over lines (docutils limits a line to 10,000 characters;
+        # browsers drop the whitespace inside a base64 data URI)
+        b64 = base64.b64encode(buf.getvalue()).decode()
+        lines = "\n".join("   " + b64[i:i + 76] for i in range(0, len(b64), 76))
+        parts.append(f".. raw:: html\n\n   <figure style=\"display:inline-block;margin:6px;vertical-align:top\">\n"
+                     f"   <img style=\"width:{img.width}px\" alt=\"{found[0].stem}\" src=\"data:image/png;base64,\n{lines}\n   \">\n"
+                     f"   <figcaption style=\"font-size:90%\"><b>{found[0].stem}</b>: {caption} Full size in "
+                     f"<i>Maps and time series</i>.</figcaption></figure>\n")
+    return "\n" + "\n".join(parts) if parts else ""
 
 
 def campaign_figures(background_path, limits_path, campaign, out_dir) -> list:
@@ -192,4 +359,5 @@ def campaign_figures(background_path, limits_path, campaign, out_dir) -> list:
                           f"{', '.join(str(b) for b in ds['band'].values)}")
     written = (sky_maps(ds, campaign, out, int(rc["sky_map_times"]), rc.get("sky_map_bands"), rc.get("times") or ())
                + time_series(ds, campaign, out, int(rc["series_pointings"]), rc.get("pointings") or ()))
-    return written + limit_maps(xr.open_zarr(limits_path), campaign, out)
+    limits_ds = xr.open_zarr(limits_path)
+    return written + limit_maps(limits_ds, campaign, out) + write_summary(limits_ds, campaign, out)

@@ -44,23 +44,37 @@ def read_pointings(path) -> dict:
         if found is None:
             raise InputError(f"{path}: missing column {key!r} (accepted: {', '.join(names)}); found {', '.join(t.colnames)}")
         out[key] = np.asarray(np.ma.filled(t[found], np.nan) if key != "time" else t[found])
-    for key in ("ra", "dec"):
-        try:
-            out[key] = out[key].astype(float)
-        except (TypeError, ValueError):
-            bad = next(i for i, v in enumerate(out[key]) if not _is_number(v))
-            raise InputError(f"{path}: row {bad + 1}: {key} = {str(out[key][bad])!r} is not a number") from None
-        bad = np.flatnonzero(~np.isfinite(out[key]))
-        if bad.size:
-            raise InputError(f"{path}: row {bad[0] + 1}: {key} = {out[key][bad[0]]} is not finite")
-    bad = np.flatnonzero(np.abs(out["dec"]) > 90.0)
-    if bad.size:
-        raise InputError(f"{path}: row {bad[0] + 1}: dec = {out['dec'][bad[0]]} outside [-90, 90] deg")
-    bad = np.flatnonzero(np.abs(out["ra"]) > 360.0)  # a wrap is fine, 1e308 is a mistake
-    if bad.size:
-        raise InputError(f"{path}: row {bad[0] + 1}: ra = {out['ra'][bad[0]]} outside [-360, 360] deg")
-    out["ra"] = out["ra"] % 360.0
+    out["ra"], out["dec"] = check_radec(out["ra"], out["dec"], lambda i: f"{path}: row {i + 1}: ")
     return out
+
+
+def check_radec(ra, dec, where=lambda i: "", names=("ra", "dec")) -> tuple[np.ndarray, np.ndarray]:
+    """The rule every pointing obeys (table rows and the command line alike): RA and Dec are
+    numbers, finite, Dec within [-90, 90] deg, RA within [-360, 360] deg (a wrap is fine, 1e308
+    is a mistake).  Returns (RA wrapped to [0, 360), Dec) in deg as float arrays.
+
+    ``where(i)`` prefixes the message for element ``i`` (e.g. the file and row); ``names`` are
+    the field names used in messages (e.g. ``("--ra", "--dec")``).
+    """
+    vals = {}
+    for key, name, v in (("ra", names[0], ra), ("dec", names[1], dec)):
+        v = np.atleast_1d(np.asarray(v, dtype=object) if not isinstance(v, np.ndarray) else v)
+        try:
+            arr = v.astype(float)
+        except (TypeError, ValueError):
+            bad = next(i for i, x in enumerate(v) if not _is_number(x))
+            raise InputError(f"{where(bad)}{name} = {str(v[bad])!r} is not a number") from None
+        bad = np.flatnonzero(~np.isfinite(arr))
+        if bad.size:
+            raise InputError(f"{where(bad[0])}{name} = {arr[bad[0]]} is not finite")
+        vals[key] = arr
+    bad = np.flatnonzero(np.abs(vals["dec"]) > 90.0)
+    if bad.size:
+        raise InputError(f"{where(bad[0])}{names[1]} = {vals['dec'][bad[0]]} outside [-90, 90] deg")
+    bad = np.flatnonzero(np.abs(vals["ra"]) > 360.0)
+    if bad.size:
+        raise InputError(f"{where(bad[0])}{names[0]} = {vals['ra'][bad[0]]} outside [-360, 360] deg")
+    return vals["ra"] % 360.0, vals["dec"]
 
 
 def _is_number(v) -> bool:

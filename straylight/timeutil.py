@@ -8,6 +8,7 @@ series of ERFA (geocentric), so no Earth-orientation data enter the ephemeris pa
 """
 from __future__ import annotations
 
+import re
 import warnings
 
 import numpy as np
@@ -55,16 +56,49 @@ def parse_utc(times, field: str = "time") -> Time:
                     raise InputError(f"{field}: times must be finite, got {times!r}")
                 t = Time(arr, format="jd", scale="utc")
             else:
-                t = Time(times, scale="utc")
+                t = _parse_iso_with_offsets(times)
         except InputError:
             raise
         except Exception as exc:  # astropy raises ValueError with a long message
             raise InputError(
                 f"{field}: cannot parse {times!r} as a UTC time "
-                "(expected ISO 8601, e.g. 2026-01-01T00:50:00)"
+                "(expected ISO 8601, e.g. 2026-01-01T00:50:00 or 2026-01-01T08:50:00+08:00)"
             ) from exc
     return t
 
+
+
+_UTC_OFFSET = re.compile(r"(Z|[+-](\d\d):?(\d\d))$", re.IGNORECASE)
+
+
+def _parse_iso_with_offsets(times) -> Time:
+    """ISO 8601 strings, with an optional UTC offset (``Z``, ``+08:00``, ``-0530``), as UTC.
+
+    A time with an offset is local time: UTC = local - offset (ISO 8601-1:2019 sect. 4.3.8).
+    Strings without an offset are UTC.
+    """
+    arr = np.asarray(times)
+    flat = [str(v).strip() for v in arr.ravel()] if arr.dtype.kind in "USO" else None
+    if flat is None:
+        return Time(times, scale="utc")
+    base, offset_s = [], np.zeros(len(flat))
+    for i, s in enumerate(flat):
+        m = _UTC_OFFSET.search(s) if "T" in s or " " in s else None
+        if m and not s[:m.start()].endswith(("T", " ")):
+            if m.group(1).upper() != "Z":
+                hours, minutes = int(m.group(2)), int(m.group(3))
+                if hours > 23 or minutes > 59:
+                    raise ValueError(f"bad UTC offset in {s!r}")
+                sign = -1.0 if m.group(1)[0] == "-" else 1.0
+                offset_s[i] = sign * (hours * 3600.0 + minutes * 60.0)
+            s = s[:m.start()]
+        base.append(s)
+    t = Time(base if arr.ndim else base[0], scale="utc")
+    if np.any(offset_s):
+        import astropy.units as u
+
+        t = Time(t - (offset_s.reshape(arr.shape) if arr.ndim else offset_s[0]) * u.s, scale="utc", format="isot")
+    return t
 
 #: Above this many times, TDB-TT is interpolated from a grid instead of the full series.
 DTDB_DIRECT_MAX = 4096

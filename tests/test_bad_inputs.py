@@ -95,9 +95,12 @@ def test_bad_input(case, tmp_path, capsys):
     argv, expect = case["run"], case["expect"]
     if expect["exit"] == 2:
         # a product from an earlier run sits where the output goes: it must survive untouched
-        for i, a in enumerate(argv[:-1]):
+        # (and the user allowed it to be replaced: the bad input, not the existing file, is refused)
+        for i, a in enumerate(list(argv[:-1])):
             if a in OUTPUT_FLAGS and not Path(argv[i + 1]).exists():
                 Path(argv[i + 1]).write_bytes(b"product of an earlier run")
+                if "--overwrite" not in argv:
+                    argv = [*argv, "--overwrite"]
         before = _tree_digest(tmp_path)
         code, _, err = _run(argv, capsys)
         assert code == 2, err

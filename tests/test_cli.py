@@ -1,5 +1,6 @@
 """The CLI as a user runs it: JSON content, and clear errors without tracebacks."""
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -39,8 +40,10 @@ def test_sky_json_has_the_documented_fields():
 
 
 @pytest.mark.parametrize("args,fragment", [
-    (("sky", "--time", "2026-01-01T00:00:00", "--ra", "nan", "--dec", "0"), "--ra must be finite"),
-    (("sky", "--time", "2026-01-01T00:00:00", "--ra", "10", "--dec", "95"), "--dec: must be within"),
+    (("sky", "--time", "2026-01-01T00:00:00", "--ra", "nan", "--dec", "0"), "--ra = nan is not finite"),
+    (("sky", "--time", "2026-01-01T00:00:00", "--ra", "10", "--dec", "95"), "--dec = 95.0 outside [-90, 90] deg"),
+    (("sky", "--time", "2026-01-01T00:00:00", "--ra", "400", "--dec", "5"), "--ra = 400.0 outside [-360, 360] deg"),
+    (("sky", "--time", "2026-01-01T00:00:00", "--ra", "1e308", "--dec", "5"), "--ra = 1e+308 outside"),
     (("sky", "--time", "2301-01-01T00:00:00", "--ra", "10", "--dec", "5"), "outside the DE405 range"),
     (("sky", "--time", "tomorrow", "--ra", "10", "--dec", "5"), "cannot parse 'tomorrow'"),
     (("ephem", "--time", "2026-01-01T00:00:00", "--bodies", "vulcan"), "unknown body 'vulcan'"),
@@ -67,3 +70,110 @@ def test_bad_config_key_via_cli(tmp_path):
 def test_every_command_has_help(cmd):
     r = run_cli(cmd, "--help")
     assert r.returncode == 0 and "usage" in r.stdout
+
+
+# -- output paths checked before any work (issue 33 item 5) --------------------------------------
+OUTPUT_COMMANDS = [
+    ("pst", "--write-default", "pst.csv"),
+    ("catalog", "--out", "cat.parquet"),
+    ("image", "--out", "img.fits"),
+    ("sky", "--out", "table.parquet"),
+    ("scenario", "--out", "scenario.png"),
+]
+
+
+def _argv(cmd, flag, path, tmp_path):
+    if cmd == "image":
+        return ("image", "--time", "2026-01-01T00:50:00", "--ra", "150", "--dec", "30", "--band", "g", flag, path)
+    if cmd == "sky":
+        table = tmp_path / "p.csv"
+        table.write_text("time,ra,dec\n2026-01-01T00:50:00,10,30\n")
+        return ("sky", "--input", table, flag, path)
+    return (cmd, flag, path)
+
+
+@pytest.mark.parametrize("cmd,flag,name", OUTPUT_COMMANDS, ids=[c[0] for c in OUTPUT_COMMANDS])
+def test_existing_output_is_refused_untouched(cmd, flag, name, tmp_path):
+    out = tmp_path / name
+    out.write_bytes(b"an earlier product")
+    r = run_cli(*_argv(cmd, flag, out, tmp_path))
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+    assert f"{flag} {out}: file exists; pass --overwrite" in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1
+    assert out.read_bytes() == b"an earlier product"
+
+
+@pytest.mark.parametrize("cmd,flag,name", OUTPUT_COMMANDS, ids=[c[0] for c in OUTPUT_COMMANDS])
+def test_missing_folder_is_refused_not_created(cmd, flag, name, tmp_path):
+    out = tmp_path / "no" / "such" / name
+    r = run_cli(*_argv(cmd, flag, out, tmp_path))
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+    assert f"folder {out.parent} does not exist; create it or pass --parents" in r.stderr
+    assert not (tmp_path / "no").exists()
+
+
+def test_unwritable_folder_is_one_line_before_work(tmp_path):
+    """A folder the user cannot write (read-only for non-root; /proc refuses even root): one line
+    naming the path, exit 2, before the catalog is built."""
+    import os
+
+    if os.geteuid() == 0:
+        out = Path("/proc/straylight-test.parquet")
+    else:
+        ro = tmp_path / "ro"
+        ro.mkdir()
+        ro.chmod(0o555)
+        out = ro / "cat.parquet"
+    r = run_cli("catalog", "--out", out, timeout=60)
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+    assert f"--out {out}: cannot write in {out.parent}" in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1
+
+
+def test_parents_and_overwrite_allow_writing(tmp_path):
+    out = tmp_path / "new" / "dir" / "pst.csv"
+    r = run_cli("pst", "--write-default", out, "--parents")
+    assert r.returncode == 0, r.stderr
+    first = out.read_bytes()
+    r = run_cli("pst", "--write-default", out, "--overwrite")
+    assert r.returncode == 0, r.stderr and out.read_bytes() == first
+
+
+def test_schedule_folder_not_empty_is_refused(tmp_path):
+    (tmp_path / "sched").mkdir()
+    (tmp_path / "sched" / "moon_angle.csv").write_text("earlier")
+    r = run_cli("schedule", "--out", tmp_path / "sched")
+    assert r.returncode == 2 and "folder exists and is not empty; pass --overwrite" in r.stderr
+    assert (tmp_path / "sched" / "moon_angle.csv").read_text() == "earlier"
+
+
+def test_check_output_path_unit(tmp_path):
+    from straylight.errors import InputError
+    from straylight.io import check_output_path
+
+    assert check_output_path(tmp_path / "a.fits") == tmp_path / "a.fits"
+    with pytest.raises(InputError, match="is a folder"):
+        check_output_path(tmp_path)
+    assert not list(tmp_path.iterdir())  # the write probe leaves nothing behind
+
+
+# -- times with a UTC offset (ISO 8601) ------------------------------------------------------------
+def test_utc_offset_is_converted():
+    """2026-01-01T08:50:00+08:00 (Beijing time) is 2026-01-01T00:50:00 UTC: same sky record."""
+    a = run_cli("sky", "--time", "2026-01-01T08:50:00+08:00", "--ra", "10", "--dec", "30", "--json")
+    b = run_cli("sky", "--time", "2026-01-01T00:50:00", "--ra", "10", "--dec", "30", "--json")
+    assert a.returncode == 0 and b.returncode == 0, a.stderr + b.stderr
+    ja, jb = json.loads(a.stdout), json.loads(b.stdout)
+    assert ja["time"] == "2026-01-01T00:50:00.000"
+    assert ja["geometry"] == jb["geometry"]
+
+
+def test_utc_offsets_in_a_pointing_table(tmp_path, campaign):
+    from straylight.pointings import pointing_table, read_pointings
+
+    p = tmp_path / "p.csv"
+    p.write_text("time,ra,dec\n2026-01-01T08:50:00+08:00,10,30\n2026-01-01T00:50:00Z,10,30\n"
+                 "2025-12-31T19:20:00-05:30,10,30\n")
+    cols = pointing_table(campaign, read_pointings(p), ["g"])
+    assert list(cols["time"]) == ["2026-01-01T00:50:00.000"] * 3
+    assert cols["total_g"][0] == cols["total_g"][1] == cols["total_g"][2]

@@ -378,3 +378,8 @@ def test_html_report_holds_maps_series_tables_and_provenance(cube_run):
     assert report.stat().st_size > 100_000
     for needle in ("Maps and time series", "Scheduling tables", "Provenance", "sky_g_", "moon_avoidance"):
         assert needle in text, needle
+    # the first page: the depth table (from plots/summary.rst) and thumbnails; the CSVs attached
+    assert (out / "plots" / "summary.csv").exists()
+    for needle in ("median depth (AB mag)", "observable fraction", "limits_median</b>", "moon_avoidance.csv",
+                   "summary.csv"):
+        assert needle in text, needle

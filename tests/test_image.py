@@ -132,16 +132,18 @@ def test_image_cli_end_to_end(tmp_path, campaign):
     Table({"ra": ra, "dec": dec, "mag_g": [8.0, 10.0, 12.0]}).write(cat)
     out = tmp_path / "img.fits"
     r = run_cli("image", "--time", "2026-01-01T00:50:00", "--ra", 150, "--dec", 30, "--band", "g",
-                "--catalog", cat, "--out", out, timeout=600)
+                "--catalog", cat, "--out", out, "--center", "boresight", timeout=600)
     assert r.returncode == 0, r.stderr
     with fits.open(out) as h:
-        assert h[0].data.shape == (fp.ny, fp.nx) and h[0].header["BUNIT"] == "electron/s"
-        assert h[0].header["BAND"] == "g" and "DATE-OBS" in h[0].header
-        ww = WCS(h[0].header)
+        assert h["SCI"].data.shape == (fp.ny, fp.nx) and h["SCI"].header["BUNIT"] == "electron/s"
+        assert h["SCI"].header["BAND"] == "g" and "DATE-OBS" in h["SCI"].header
+        ww = WCS(h["SCI"].header)
         x, y = ww.world_to_pixel_values(ra[0], dec[0])
         assert (x, y) == pytest.approx((1000.0, 2000.0), abs=1e-6)
         assert len(h["GHOSTS"].data) == 9
-        img = h[0].data
+        assert h["GHOSTS"].columns["energy_e_per_s"].unit == "electron/s"
+        assert h["STARS"].columns["x_pix"].unit == "pix"
+        img = h["SCI"].data
         assert np.unravel_index(np.argmax(img), img.shape) == (2000, 1000)
 
 
@@ -153,3 +155,101 @@ def test_image_cli_bad_catalog(tmp_path):
     r = run_cli("image", "--time", "2026-01-01T00:50:00", "--ra", 1, "--dec", 2, "--band", "g",
                 "--catalog", cat, "--out", tmp_path / "x.fits")
     assert r.returncode == 2 and "missing column(s) mag_g" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_strips_equal_whole_image(parts, monkeypatch):
+    """Rendering in row strips (memory bound) gives the whole-image result to FFT round-off."""
+    import straylight.image as image
+
+    xy, flux = [[100.0, 120.0], [400.0, 700.0], [700.0, 30.0], [N + 150.0, 300.0]], [1e8, 1e6, 1e7, 1e9]
+    gh = parts[3]
+    whole = _render(parts, xy, flux, ghosts=gh, margin_arcsec=60.0).image_e_per_s_per_pix.astype(float)
+    monkeypatch.setattr(image, "STRIP_ROWS", 100)
+    strips = _render(parts, xy, flux, ghosts=gh, margin_arcsec=60.0).image_e_per_s_per_pix.astype(float)
+    assert np.abs(strips - whole).max() <= 1e-6 * whole.max()
+
+
+def test_bin_and_cutout_keep_units_and_wcs(parts):
+    """--bin N: the mean of N x N pixels (e-/s per chip pixel, so the sum scales by 1/N^2) with a
+    WCS that maps the star to its binned pixel; a cutout is the same pixels as the full image."""
+    fp, small, sc, _ = parts
+    w = pointing_wcs(150.0, 30.0, SUN, small, 12)
+    ra, dec = w.pixel_to_world_values(np.array([300.0]), np.array([500.0]))
+    kw = dict(settings=RenderSettings(margin_arcsec=10.0), size_override=(N, N))
+    full = render_detector(150.0, 30.0, ra, dec, [1e6], SUN, fp, 12, sc, None, 3.9, **kw)
+    binned = render_detector(150.0, 30.0, ra, dec, [1e6], SUN, fp, 12, sc, None, 3.9, bin_factor=8, **kw)
+    assert binned.image_e_per_s_per_pix.shape == (N // 8, N // 8)
+    assert binned.image_e_per_s_per_pix.astype(float).sum() * 64 == pytest.approx(
+        full.image_e_per_s_per_pix.astype(float).sum(), rel=1e-5)
+    x, y = binned.wcs.world_to_pixel_values(ra[0], dec[0])
+    assert (float(x), float(y)) == pytest.approx(((300.0 + 0.5) / 8 - 0.5, (500.0 + 0.5) / 8 - 0.5), abs=1e-6)
+    cut = render_detector(150.0, 30.0, ra, dec, [1e6], SUN, fp, 12, sc, None, 3.9, window=(200, 450, 128, 96), **kw)
+    assert cut.image_e_per_s_per_pix.shape == (96, 128)
+    ref = full.image_e_per_s_per_pix[450:546, 200:328].astype(float)
+    assert np.abs(cut.image_e_per_s_per_pix - ref).max() <= 1e-6 * ref.max()
+    x, y = cut.wcs.world_to_pixel_values(ra[0], dec[0])
+    assert (float(x), float(y)) == pytest.approx((100.0, 50.0), abs=1e-6)
+
+
+def test_boresight_puts_target_on_the_chip_centre(parts):
+    """--center detector: the solved boresight's WCS maps the target to the chip's centre pixel."""
+    from straylight.image import boresight_for_target
+
+    fp = parts[0]
+    for det in (0, 12, 29):
+        ra, dec = boresight_for_target(101.2885, -16.7131, SUN, fp, det)
+        w = pointing_wcs(ra, dec, SUN, fp, det)
+        x, y = w.world_to_pixel_values(101.2885, -16.7131)
+        assert (float(x), float(y)) == pytest.approx(((fp.nx - 1) / 2, (fp.ny - 1) / 2), abs=1e-3)
+
+
+def test_named_stars_are_bright_in_the_default_catalog(campaign):
+    """Every IAU name of --star resolves to a Hipparcos star brighter than Hp = 2.6 (the list is of
+    first- and second-magnitude stars; Hipparcos Hp of Polaris, Algol and Alphard ~2.1-2.2)."""
+    from straylight.hipparcos import BRIGHT_STAR_HIP, read_hip2
+
+    hip = read_hip2()
+    vmag = dict(zip(hip["hip"], hip["hp_mag"]))
+    for name, number in BRIGHT_STAR_HIP.items():
+        assert number in vmag, name
+        assert vmag[number] < 2.6, (name, vmag[number])
+
+
+def test_image_cli_star_bin_and_empty_field(tmp_path, campaign):
+    """--star NAME with the default catalog, --bin 16, gzip, --background: a small file whose
+    background is the pointing table's total at the boresight; a field with no star gives a
+    warning and exit 1, and nothing is written unless --allow-empty."""
+    from astropy.io import fits
+    from astropy.table import Table
+
+    from straylight.catalog import default_catalog_path
+    from straylight.components import load_offfield_stars
+    from straylight.pointings import pointing_table
+
+    out = tmp_path / "sirius.fits"
+    r = run_cli("image", "--time", "2026-01-01T00:50:00", "--star", "Sirius", "--band", "g", "--bin", "16",
+                "--background", "--out", out, timeout=900)
+    assert r.returncode == 0, r.stderr
+    assert out.stat().st_size < 5e6
+    with fits.open(out) as h:
+        img = h["SCI"].data
+        assert img.shape == (9232 // 16, 9216 // 16)
+        assert np.unravel_index(np.argmax(img), img.shape) == pytest.approx((9232 // 32, 9216 // 32), abs=2)
+        hdr = h["SCI"].header
+        assert hdr["STAR"] == "Sirius"
+        sc = campaign.config["stars"]
+        stars = load_offfield_stars(default_catalog_path(campaign), ["g"], float(sc["offfield_mag_limit"]),
+                                    bool(sc.get("faint_map", True)))
+        cols = pointing_table(campaign, {"time": np.array(["2026-01-01T00:50:00"]), "ra": np.array([hdr["RA_PNT"]]),
+                                         "dec": np.array([hdr["DEC_PNT"]])}, ["g"], stars)
+        assert hdr["BKG_TOT"] == pytest.approx(float(cols["total_g"][0]), rel=1e-9)
+        assert img.min() >= hdr["BKG_TOT"] * (1 - 1e-6)
+    cat = tmp_path / "one.ecsv"
+    Table({"ra": [10.0], "dec": [-60.0], "mag_g": [5.0]}).write(cat)
+    empty = tmp_path / "empty.fits"
+    args = ("image", "--time", "2026-01-01T00:50:00", "--ra", 150, "--dec", 30, "--band", "g", "--catalog", cat,
+            "--out", empty, "--bin", "32")
+    r = run_cli(*args, timeout=600)
+    assert r.returncode == 1 and "no star" in r.stderr and "--allow-empty" in r.stderr and not empty.exists()
+    r = run_cli(*args, "--allow-empty", timeout=600)
+    assert r.returncode == 0 and empty.exists()

@@ -85,3 +85,65 @@ def test_rerun_does_nothing(tiny_run):
     r = snakemake("-s", str(REPO / "Snakefile"), "-d", str(out.parent.parent), "--configfile", str(cfg), "-n")
     assert r.returncode == 0
     assert "Nothing to be done" in r.stdout + r.stderr
+
+
+def _campaign_in_another_folder(tmp_path, **campaign):
+    """my.yaml in its own folder with relative paths: the instrument (copied into inst/) and a
+    HEALPix mask beside it, neither of which exists relative to config/."""
+    import shutil
+
+    import healpy as hp
+    import yaml
+
+    folder = tmp_path / "elsewhere"
+    shutil.copytree(REPO / "config" / "instruments", folder / "inst")
+    cfg = yaml.safe_load(tiny_config(tmp_path, **campaign).read_text())
+    cfg["instrument"] = "inst/csst.yaml"
+    mask = np.zeros(hp.nside2npix(4))
+    mask[: mask.size // 3] = 1
+    hp.write_map(str(folder / "mask.fits"), mask, dtype=np.float64)
+    cfg["footprint"]["mask_file"] = "mask.fits"
+    p = folder / "my.yaml"
+    p.write_text(yaml.safe_dump(cfg))
+    return p
+
+
+def test_configfile_paths_resolve_against_that_file(tmp_path):
+    """snakemake --configfile my.yaml from the repository (config/config.yaml loaded first):
+    instrument and mask are found beside my.yaml; the resolved config the rules see is absolute."""
+    from straylight.config import resolve_config_files
+
+    p = _campaign_in_another_folder(tmp_path)
+    r = snakemake("--configfile", str(p), "-n", "--quiet")
+    assert r.returncode == 0, r.stdout + r.stderr
+    import yaml
+
+    base = yaml.safe_load((REPO / "config" / "config.yaml").read_text())
+    merged = {**base, **yaml.safe_load(p.read_text())}
+    cfg, sources, last = resolve_config_files(merged, [REPO / "config" / "config.yaml", p])
+    assert last == p.resolve()
+    assert cfg["instrument"] == str(p.parent.resolve() / "inst" / "csst.yaml")
+    assert cfg["footprint"]["mask_file"] == str(p.parent.resolve() / "mask.fits")
+    assert sources["campaign.end"] == p.resolve()
+
+
+def test_configfile_error_names_that_file(tmp_path):
+    p = _campaign_in_another_folder(tmp_path, end="2025-01-01T00:00:00")
+    r = snakemake("--configfile", str(p), "-n", "--quiet")
+    assert r.returncode != 0
+    text = r.stdout + r.stderr
+    assert f"{p.resolve()}: campaign.end = '2025-01-01T00:00:00' must be after" in text, text
+    assert "config/config.yaml: campaign.end" not in text
+
+
+def test_configfile_in_another_folder_runs(tmp_path):
+    """One real tiny run from the repository's folder with my.yaml elsewhere: the footprint is
+    the mask beside my.yaml (its first third of the pixels at nside 4)."""
+    import healpy as hp
+
+    p = _campaign_in_another_folder(tmp_path)
+    r = snakemake("-s", str(REPO / "Snakefile"), "-d", str(tmp_path), "--configfile", str(p), "--cores", "2",
+                  "results/tiny/footprint.fits")
+    assert r.returncode == 0, r.stdout + r.stderr
+    m = hp.read_map(tmp_path / "results" / "tiny" / "footprint.fits")
+    assert m.sum() == hp.nside2npix(4) // 3

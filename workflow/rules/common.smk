@@ -1,11 +1,24 @@
 # Shared settings of the rules: where results go, which config file the run uses, the blocks.
+from pathlib import Path
+
 from straylight.config import campaign_from_dict as _campaign_from_dict
+from straylight.config import resolve_config_files as _resolve_config_files
 from straylight.timegrid import time_blocks as _time_blocks
 
-CONFIG_PATH = workflow.configfiles[-1]
+# Snakemake lists the workflow's own configfile after the command line's --configfile ones,
+# but merges the latter over it: the files in increasing precedence.
+_CLI_CONFIG_FILES = [str(Path(f).resolve()) for f in workflow.overwrite_configfiles]
+_CONFIG_FILES = [
+    f for f in workflow.configfiles if str(Path(f).resolve()) not in _CLI_CONFIG_FILES
+] + _CLI_CONFIG_FILES
+# relative paths (instrument, TLE, mask, Gaia files) against the file that set them; errors name it
+_RESOLVED, _CONFIG_SOURCES, CONFIG_PATH = _resolve_config_files(dict(config), _CONFIG_FILES)
+CONFIG_PATH = str(CONFIG_PATH)
+_CAMPAIGN = _campaign_from_dict(_RESOLVED, CONFIG_PATH, _CONFIG_SOURCES)
+config.clear()
+config.update(_CAMPAIGN.config)  # absolute paths and the schema's defaults, as the scripts see it
 RESULTS = f"results/{config['campaign']['name']}"
 LOGS = f"{RESULTS}/logs"
-_CAMPAIGN = _campaign_from_dict(dict(config), CONFIG_PATH)
 TIME_BLOCKS = list(
     range(
         len(

@@ -5,8 +5,8 @@ rule plots:
         limits=f"{RESULTS}/limits.zarr",
         config=CONFIG_PATH,
     output:
-        report(directory(f"{RESULTS}/plots"), patterns=["{name}.png"], caption="../report/plots.rst",
-               category="Maps and time series"),
+        report(directory(f"{RESULTS}/plots"), patterns=["{name}.png", "{name}.csv"], caption="../report/plots.rst",
+               category="Maps and time series", labels={"figure": "{name}"}),
     params:
         store=f"{RESULTS}/background.zarr",
     conda:

@@ -4,8 +4,8 @@ rule scheduling:
     input:
         config=CONFIG_PATH,
     output:
-        report(directory(f"{RESULTS}/scheduling"), patterns=["{name}.png"], caption="../report/scheduling.rst",
-               category="Scheduling tables"),
+        report(directory(f"{RESULTS}/scheduling"), patterns=["{name}.png", "{name}.csv"],
+               caption="../report/scheduling.rst", category="Scheduling tables", labels={"table": "{name}"}),
     conda:
         "../envs/straylight.yaml"
     log:

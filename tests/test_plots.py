@@ -1,0 +1,46 @@
+"""Report figures: colour ranges that show structure, rounded ticks, the depth table."""
+import numpy as np
+import pytest
+import xarray as xr
+
+from straylight.plots import _colour_range, _tick_format, depth_summary
+
+
+def test_ticks_are_few_and_rounded():
+    """A 0.01-mag span gets 3-5 ticks at round values with no more decimals than the step needs."""
+    loc, fmt = _tick_format(26.0581, 26.0689)
+    ticks = [t for t in loc.tick_values(26.0581, 26.0689) if 26.0581 <= t <= 26.0689]
+    assert 2 <= len(ticks) <= 5
+    labels = [fmt(t) for t in ticks]
+    assert all(len(s.split(".")[1]) <= 3 for s in labels), labels
+    assert all(abs(float(s) - t) < 1e-9 for s, t in zip(labels, ticks))
+    loc, fmt = _tick_format(4.03659, 19.3616)
+    assert [fmt(t) for t in loc.tick_values(4.03659, 19.3616)][:2] == ["0", "5"]
+
+
+def test_colour_range_follows_each_band_not_the_tail():
+    """Limit maps: 95 % of the sky within 0.02 mag and a 2-mag shallow tail near the Sun: the
+    10th-99.9th percentile range spans the bulk, so its structure shows."""
+    rng = np.random.default_rng(1)
+    bulk = 26.06 + 0.02 * rng.random(950)
+    tail = 24.0 + 2.0 * rng.random(50)
+    lo, hi = _colour_range(np.r_[bulk, tail, np.nan], (10.0, 99.9))
+    assert 26.05 < lo < 26.07 and hi == pytest.approx(bulk.max(), abs=1e-3)
+    lo, hi = _colour_range(np.full(10, 25.0))
+    assert hi - lo == pytest.approx(0.01)
+
+
+def test_depth_summary_numbers():
+    """The report's first-page table: median of the per-pixel medians, best of the per-pixel
+    bests (NaN pixels ignored), observable fraction of all samples."""
+    med = np.array([[25.0, 24.0], [26.0, 24.5], [np.nan, np.nan], [27.0, 25.0]])
+    best = med + 0.5
+    obs = np.zeros((4, 4), bool)
+    obs[0, :3] = True
+    ds = xr.Dataset({"limiting_mag_median": (("pixel", "band"), med),
+                     "limiting_mag_best": (("pixel", "band"), best),
+                     "observable": (("time", "pixel"), obs)}, coords={"band": ["g", "r"]})
+    rows = depth_summary(ds)
+    assert rows["g"]["median_depth_mag"] == 26.0 and rows["g"]["best_depth_mag"] == 27.5
+    assert rows["r"]["median_depth_mag"] == 24.5 and rows["r"]["best_depth_mag"] == 25.5
+    assert rows["g"]["observable_fraction"] == pytest.approx(3 / 16)
