@@ -75,6 +75,7 @@ def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None, stars=
     from .components import ComponentModel
     from .ephemeris import PLANETS
     from .geometry import radec_to_unit, violation_names
+    from .limits import point_source_limit, sky_zero_points
     from .sky import sample_geometry, scene
 
     sc = scene(campaign, time)
@@ -111,6 +112,7 @@ def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None, stars=
     model = ComponentModel(campaign)
     comps = model.evaluate(sc.satellite_km, sc.bodies_km, los, g1, bands or campaign.bands, stars=stars)
     record["models"] = model.models_record()
+    zero_points = sky_zero_points(campaign, list(comps))
     for name, res in comps.items():
         mag = res["_mag"]
         entry = {}
@@ -119,6 +121,9 @@ def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None, stars=
             e = float(np.ravel(res[comp])[0])
             m = float(np.ravel(mag(e))[0])
             entry[comp] = {"e_per_s_per_pix": e, "mag_per_arcsec2": m if np.isfinite(m) else None}
+        entry["mag_zero_point"] = zero_points[name]
+        entry["limit_mag"] = (float(point_source_limit(entry["total"]["e_per_s_per_pix"], name, campaign))
+                              if name != "V" else None)
         record["bands"][name] = entry
     first = next(iter(comps.values()))
     record["zodiacal_no_data_near_sun"] = bool(np.ravel(first["_zodiacal_no_data"])[0])
@@ -151,14 +156,29 @@ def cmd_sky(args) -> int:
         g = rec["geometry"]
         print(f"{rec['time']}  RA {rec['ra_deg']:.4f}  Dec {rec['dec_deg']:+.4f}")
         for k, val in g.items():
-            if k != "planet_angles_deg":
-                print(f"  {k:28s} {val}")
+            if k != "planet_angles_deg":  # angles (deg) and the Moon's lit fraction to 3 decimals
+                print(f"  {k:28s} {val:.3f}" if isinstance(val, float) else f"  {k:28s} {val}")
         print(f"  observable: {rec['observable']}  violations: {', '.join(rec['violations']) or 'none'}")
-        for name, comp in rec["bands"].items():
-            parts = "  ".join(f"{k} {v['e_per_s_per_pix']:.3g}" for k, v in comp.items()
-                              if k not in ("earthshine_direct", "earthshine_door"))
-            print(f"  {name:4s} e-/s/pix: {parts}")
+        print(_sky_band_table(rec["bands"]))
     return 0
+
+
+_SKY_COLUMNS = ("zodiacal", "earthshine", "moon", "sun", "planets", "stars", "total")
+
+
+def _sky_band_table(bands: dict) -> str:
+    """The per-band lines of `straylight sky`: each component in e-/s/pixel (3 significant
+    digits) and in AB mag/arcsec2 (2 decimals), then the 5-sigma limit (AB mag)."""
+    head = f"  {'band':4s} {'unit':14s}" + "".join(f"{c:>11s}" for c in _SKY_COLUMNS) + f"{'5-sigma lim':>13s}"
+    lines = [head]
+    for name, comp in bands.items():
+        rate = "".join(f"{comp[c]['e_per_s_per_pix']:>11.3g}" for c in _SKY_COLUMNS)
+        mags = "".join(f"{comp[c]['mag_per_arcsec2']:>11.2f}" if comp[c]["mag_per_arcsec2"] is not None
+                       else f"{'-':>11s}" for c in _SKY_COLUMNS)
+        lim = f"{comp['limit_mag']:>9.2f} mag" if comp.get("limit_mag") is not None else f"{'-':>13s}"
+        lines.append(f"  {name:4s} {'e-/s/pixel':14s}{rate}")
+        lines.append(f"  {'':4s} {'mag/arcsec2':14s}{mags}{lim}")
+    return "\n".join(lines)
 
 
 def _sky_table(args, campaign, bands, stars) -> int:

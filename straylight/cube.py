@@ -30,6 +30,7 @@ import xarray as xr
 from .config import Campaign
 from .errors import OutputError
 from .footprint import Footprint
+from .limits import ZERO_POINT_NAME, zero_point_coord
 from .geometry import VIOLATION_BITS, SceneRuns, TelescopeFrame, observing_geometry, radec_to_unit, telescope_frame
 
 CUBE_COMPONENTS = ("zodiacal", "earthshine", "moon", "sun", "planets", "stars")
@@ -92,6 +93,7 @@ def empty_cube(campaign: Campaign, fp: Footprint, times, stars_path=None, build_
             "ra_deg": ("pixel", fp.ra_deg, {"units": "deg", "long_name": "ICRS RA of pixel centre"}),
             "dec_deg": ("pixel", fp.dec_deg, {"units": "deg", "long_name": "ICRS Dec of pixel centre"}),
             "band": ("band", np.array(campaign.bands, dtype=object), {"long_name": "CSST band"}),
+            ZERO_POINT_NAME: zero_point_coord(campaign, campaign.bands),
         },
         attrs={
             "campaign": campaign.name,

@@ -51,6 +51,31 @@ def survey_exposure(campaign: Campaign, band_name: str) -> SurveyExposure:
                           campaign.instrument_value("detector", "dark_current_e_per_s"), np.pi * r80**2, zp_e)
 
 
+#: name of the (band) coordinate of background.zarr and limits.zarr holding each band's zero point
+ZERO_POINT_NAME = "mag_zero_point"
+
+
+def sky_zero_points(campaign: Campaign, bands=None) -> dict:
+    """Each band's AB surface-brightness zero point, mag/arcsec2 at 1 e-/s/pixel (see
+    :func:`straylight.offfield.sky_zero_point_mag_per_arcsec2`): the instrument's throughput,
+    aperture and pixel scale, nothing else."""
+    from .offfield import sky_zero_point_mag_per_arcsec2
+
+    d = campaign.instrument_value("telescope", "aperture_diameter_m")
+    pix = campaign.instrument_value("detector", "pixel_scale_arcsec")
+    return {b: sky_zero_point_mag_per_arcsec2(load_band(campaign.instrument, b, campaign.instrument_path.parent), d, pix)
+            for b in (bands or campaign.bands)}
+
+
+def zero_point_coord(campaign: Campaign, bands) -> tuple:
+    """The products' ``mag_zero_point`` (band) coordinate: mag/arcsec2 = zp - 2.5 log10(e-/s/pixel)."""
+    zp = sky_zero_points(campaign, [str(b) for b in bands])
+    return ("band", np.array([zp[str(b)] for b in bands], dtype=np.float64),
+            {"units": "mag(AB) arcsec-2",
+             "long_name": "AB surface brightness of a background of 1 e-/s/pixel; "
+                          "mag_per_arcsec2 = mag_zero_point - 2.5 log10(rate / (electron / (s pixel)))"})
+
+
 def point_source_limit(background_e_per_s_per_pix, band_name: str, campaign: Campaign) -> np.ndarray:
     """5-sigma AB limiting magnitude for the band's survey exposures at the given background."""
     x = survey_exposure(campaign, band_name)
@@ -101,7 +126,8 @@ def limits_dataset(campaign: Campaign, background) -> "xr.Dataset":
             "observable_fraction": (("pixel",), frac, {"units": "1", "long_name": "fraction of campaign times observable"}),
             "observable": (("time", "pixel"), observable, {"units": "1", "long_name": "pointing satisfies every constraint"}),
         },
-        coords={k: background[k] for k in ("time", "pixel", "ra_deg", "dec_deg", "band")},
+        coords={**{k: background[k] for k in ("time", "pixel", "ra_deg", "dec_deg", "band")},
+                ZERO_POINT_NAME: zero_point_coord(campaign, background["band"].values)},
         attrs={k: background.attrs[k] for k in ("healpix_nside", "healpix_ordering", "healpix_frame", "campaign")},
     )
     return ds

@@ -79,14 +79,20 @@ def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int
     from .sky import sample_geometry, scene
     from .timeutil import parse_utc
 
+    from astropy.time import Time
+
     bands = list(bands or campaign.bands)
-    iso = [str(v) for v in pointings["time"]]
-    try:
-        t_all = parse_utc(iso, f"{source}: time")
-    except InputError:  # find the first bad row to name it (one parse per row only on failure)
-        for i, v in enumerate(iso):
-            parse_utc(v, f"{source} row {i + 1}: time")
-        raise
+    if isinstance(pointings["time"], Time):  # the Python API's times: already parsed
+        t_all = parse_utc(pointings["time"], f"{source}: time").reshape(-1)
+        iso = list(t_all.isot)
+    else:
+        iso = [str(v) for v in pointings["time"]]
+        try:
+            t_all = parse_utc(iso, f"{source}: time")
+        except InputError:  # find the first bad row to name it (one parse per row only on failure)
+            for i, v in enumerate(iso):
+                parse_utc(v, f"{source} row {i + 1}: time")
+            raise
     n_rows = len(iso)
     eph = default_ephemeris()
     jd = t_all.tdb.jd
