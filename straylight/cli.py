@@ -376,7 +376,10 @@ def cmd_config_doc(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from . import __version__
+
     p = argparse.ArgumentParser(prog="straylight", description="CSST stray-light and sky-background pipeline")
+    p.add_argument("--version", action="version", version=f"straylight {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
 
     e = sub.add_parser("ephem", help="geocentric DE405 positions of the Sun, Moon and planets")
