@@ -273,7 +273,7 @@ def write_catalog(columns: dict, path, metadata: dict) -> None:
 
     path = Path(path)
     if path.suffix == ".parquet":
-        write_parquet(columns, path, metadata)
+        write_parquet(columns, path, metadata, units=CATALOG_UNITS)
         return
     if path.suffix not in (".fits", ".fit"):
         raise InputError(f"{path}: catalog output must end in .parquet or .fits")

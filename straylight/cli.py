@@ -183,7 +183,7 @@ def _sky_band_table(bands: dict) -> str:
 
 def _sky_table(args, campaign, bands, stars) -> int:
     from .gaia import write_parquet
-    from .pointings import pointing_table, read_pointings
+    from .pointings import column_units, pointing_table, read_pointings
 
     if not args.out or not str(args.out).endswith(".parquet"):
         raise InputError("--input needs --out FILE.parquet")
@@ -196,7 +196,8 @@ def _sky_table(args, campaign, bands, stars) -> int:
                                    "config": str(campaign.path), "stars_included": stars is not None,
                                    "models": models,
                                    "units": "components e-/s/pixel; total_mag_per_arcsec2 AB mag/arcsec2; "
-                                            "limit_mag 5-sigma AB for the band's survey exposures"})
+                                            "limit_mag 5-sigma AB for the band's survey exposures"},
+                  units=column_units(cols))
     n_obs = int(np.sum(cols["observable"]))
     print(f"{args.out}: {len(cols['time'])} pointings ({n_obs} observable), bands {', '.join(bands or campaign.bands)}")
     return 0

@@ -31,7 +31,7 @@ from .config import Campaign
 from .errors import OutputError
 from .footprint import Footprint
 from .limits import ZERO_POINT_NAME, zero_point_coord
-from .geometry import VIOLATION_BITS, SceneRuns, TelescopeFrame, observing_geometry, radec_to_unit, telescope_frame
+from .geometry import SceneRuns, TelescopeFrame, observing_geometry, radec_to_unit, telescope_frame, violation_mask_attrs
 
 CUBE_COMPONENTS = ("zodiacal", "earthshine", "moon", "sun", "planets", "stars")
 #: the cube's (time, pixel, band) variables, e-/s/pix: the components and their total
@@ -81,8 +81,7 @@ def empty_cube(campaign: Campaign, fp: Footprint, times, stars_path=None, build_
     data["observable"] = xr.Variable(("time", "pixel"), da.zeros((nt, npix), chunks=chunks2, dtype=bool),
                                      {"units": "1", "long_name": "pointing satisfies every constraint"})
     data["violations"] = xr.Variable(("time", "pixel"), da.zeros((nt, npix), chunks=chunks2, dtype=np.uint8),
-                                     {"units": "1", "long_name": "violated-constraint bit mask",
-                                      "flag_meanings": ", ".join(f"{v}={k}" for k, v in VIOLATION_BITS.items())})
+                                     violation_mask_attrs())
     data["door_opening_deg"] = xr.Variable(("time", "pixel"), da.zeros((nt, npix), chunks=chunks2, dtype=np.float32),
                                            {"units": "deg", "long_name": "aperture door opening (0 = no allowed state)"})
     ds = xr.Dataset(

@@ -127,7 +127,13 @@ def limits_dataset(campaign: Campaign, background) -> "xr.Dataset":
             "observable": (("time", "pixel"), observable, {"units": "1", "long_name": "pointing satisfies every constraint"}),
         },
         coords={**{k: background[k] for k in ("time", "pixel", "ra_deg", "dec_deg", "band")},
-                ZERO_POINT_NAME: zero_point_coord(campaign, background["band"].values)},
+                ZERO_POINT_NAME: zero_point_coord(campaign, background["band"].values),
+                "n_exposures": ("band", np.array([campaign.instrument["bands"][str(b)]["n_exposures"]
+                                                  for b in background["band"].values], np.int32),
+                                {"units": "1", "long_name": "survey exposures per field"}),
+                "exposure_s": ("band", np.array([campaign.instrument["bands"][str(b)]["exposure_s"]
+                                                 for b in background["band"].values], np.float64),
+                               {"units": "s", "long_name": "duration of one survey exposure"})},
         attrs={k: background.attrs[k] for k in ("healpix_nside", "healpix_ordering", "healpix_frame", "campaign")},
     )
     return ds
@@ -150,17 +156,32 @@ def write_limit_maps(ds, out_dir) -> list:
     pix = ds["pixel"].values
     written = []
 
-    def write(name, values, unit):
+    times = ds["time"].values
+    iso = (lambda t: str(np.datetime_as_string(t, unit="s"))) if times.dtype.kind == "M" else str
+    common = [("CAMPAIGN", str(ds.attrs["campaign"])[:68], "straylight campaign name"),
+              ("DATE-BEG", iso(times.min()), "first campaign time (UTC)"),
+              ("DATE-END", iso(times.max()), "last campaign time (UTC)"),
+              ("NTIMES", int(times.size), "campaign time samples")]
+
+    def write(name, values, unit, band=None):
         m = np.full(hp.nside2npix(nside), hp.UNSEEN, dtype=np.float32)
         m[pix] = np.where(np.isnan(values), hp.UNSEEN, values)
+        header = list(common)
+        if band is not None:
+            b = ds.sel(band=band)
+            header += [("BAND", str(band), "CSST band"),
+                       ("NEXP", int(b["n_exposures"]), "survey exposures per field"),
+                       ("EXPTIME", float(b["exposure_s"]), "[s] one survey exposure"),
+                       ("TEXPTIME", float(b["exposure_s"] * b["n_exposures"]), "[s] total survey exposure"),
+                       ("SNR", SNR, "point-source limit signal-to-noise (EE80 aperture)")]
         path = out_dir / f"{name}.fits"
         with atomic_path(path) as tmp:
             hp.write_map(str(tmp), m, nest=nest, coord="C", column_names=[name[:68].upper()],
-                         column_units=[unit], dtype=np.float32, overwrite=True)
+                         column_units=[unit], dtype=np.float32, overwrite=True, extra_header=header)
         written.append(path)
 
     for ib, b in enumerate(ds["band"].values):
-        write(f"limit_best_{b}", ds["limiting_mag_best"].values[:, ib], "mag(AB)")
-        write(f"limit_median_{b}", ds["limiting_mag_median"].values[:, ib], "mag(AB)")
+        write(f"limit_best_{b}", ds["limiting_mag_best"].values[:, ib], "mag(AB)", b)
+        write(f"limit_median_{b}", ds["limiting_mag_median"].values[:, ib], "mag(AB)", b)
     write("observable_fraction", ds["observable_fraction"].values, "1")
     return written

@@ -134,3 +134,17 @@ def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int
 
 UNITS = {"ra_deg": "deg", "dec_deg": "deg", "sun_angle_deg": "deg", "moon_angle_deg": "deg",
          "earth_limb_angle_deg": "deg", "door_opening_deg": "deg"}
+
+
+def column_units(cols) -> dict:
+    """Units of the pointing table's columns (Parquet field metadata ``unit``)."""
+    out = dict(UNITS)
+    for k in cols:
+        if k.startswith("total_mag_per_arcsec2_"):
+            out[k] = "mag(AB) arcsec-2"
+        elif k.startswith("limit_mag_"):
+            out[k] = "mag(AB)"
+        elif k.rsplit("_", 1)[0] in COMPONENTS:
+            out[k] = "electron / (s pixel)"
+    out["moon_illuminated_fraction"] = "1"
+    return out
