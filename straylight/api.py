@@ -105,8 +105,6 @@ def sky_background(time, coord, bands=None, config=None, catalog=None):
     from astropy.time import Time
 
     from .config import load_campaign
-    from .limits import sky_zero_points
-    from .pointings import pointing_table
 
     if not isinstance(time, Time):
         raise InputError(f"time: expected an astropy.time.Time, got {type(time).__name__}")
@@ -136,9 +134,19 @@ def sky_background(time, coord, bands=None, config=None, catalog=None):
 
         stars = load_offfield_stars(catalog, bands, float(campaign.config["stars"]["offfield_mag_limit"]),
                                     bool(campaign.config["stars"].get("faint_map", True)))
+    return background_table(campaign, t, ra, dec, bands, stars, source="sky_background")
+
+
+def background_table(campaign, t, ra_deg, dec_deg, bands, stars=None, source=""):
+    """:func:`sky_background`'s table for a loaded campaign and 1-D UTC times ``t`` with ICRS
+    ``ra_deg``, ``dec_deg`` (deg) of the same length, already checked; ``stars`` as
+    :func:`straylight.components.load_offfield_stars` gives them (None: stars = 0)."""
+    from .limits import sky_zero_points
+    from .pointings import pointing_table
+
     models: dict = {}
-    cols = pointing_table(campaign, {"time": t, "ra": ra % 360.0, "dec": dec}, bands, stars,
-                          source="sky_background", models=models)
+    cols = pointing_table(campaign, {"time": t, "ra": np.asarray(ra_deg, float) % 360.0,
+                                     "dec": np.asarray(dec_deg, float)}, bands, stars, source=source, models=models)
     return _qtable(cols, t, bands, sky_zero_points(campaign, bands), models)
 
 

@@ -369,6 +369,67 @@ def cmd_schedule(args) -> int:
     return 0
 
 
+def _writable_output(path, flag: str):
+    """Refuse an output whose folder is missing or not writable before any work (one line, exit 2)."""
+    import os
+
+    parent = Path(path).resolve().parent
+    if not parent.is_dir():
+        raise InputError(f"{flag} {path}: folder {parent} does not exist")
+    if not os.access(parent, os.W_OK):
+        raise InputError(f"{flag} {path}: folder {parent} is not writable")
+
+
+def cmd_visibility(args) -> int:
+    from .config import load_campaign
+    from .visibility import plot_visibility, visibility
+
+    campaign = load_campaign(args.config)
+    if not -90.0 <= args.dec <= 90.0:
+        raise InputError(f"--dec: must be within [-90, 90] deg, got {args.dec}")
+    if abs(args.ra) > 360.0:
+        raise InputError(f"--ra: must be within [-360, 360] deg, got {args.ra}")
+    for path, flag, suffixes in ((args.out, "--out", (".csv", ".ecsv")), (args.plot, "--plot", (".png", ".pdf", ".svg"))):
+        if path is not None:
+            if Path(path).suffix.lower() not in suffixes:
+                raise InputError(f"{flag} {path}: must end in {' or '.join(suffixes)}")
+            _writable_output(path, flag)
+    c = campaign.config["campaign"]
+    step_s = args.step_min * 60.0 if args.step_min is not None else float(c["cadence_s"])
+    res = visibility(campaign, args.ra % 360.0, args.dec, args.band, args.start or c["start"], args.end or c["end"],
+                     step_s, args.threshold)
+    s, w, d = res["samples"], res["windows"], res["days"]
+    n_obs = int(np.sum(s["observable"]))
+    print(f"RA {args.ra % 360.0:.4f} Dec {args.dec:+.4f} band {args.band}: {len(s)} samples every "
+          f"{step_s / 60:.3g} min from {s['time'][0].isot[:19]}; {n_obs} observable "
+          f"({100.0 * n_obs / len(s):.1f} %); {len(w)} observable windows")
+    if n_obs:
+        ok = np.asarray(s["observable"], bool)
+        print(f"  observable: background {np.median(s['total_mag_per_arcsec2'][ok].value):.2f} mag/arcsec2 (median), "
+              f"5-sigma limit median {np.median(s['limit_mag'][ok].value):.2f}, deepest "
+              f"{np.max(s['limit_mag'][ok].value):.2f} mag (AB)")
+    if args.threshold is not None:
+        deep = d[d["hours_deeper_than_threshold"].value > 0]
+        print(f"  days with the limit deeper than {args.threshold:.2f} mag: {len(deep)} of {len(d)}"
+              + (f" ({', '.join(deep['date'][:10])}{', ...' if len(deep) > 10 else ''})" if len(deep) else ""))
+    if args.out:
+        out = Path(args.out)
+        fmt = "ascii.ecsv" if out.suffix.lower() == ".ecsv" else "ascii.csv"
+        stem = out.with_suffix("")
+        for table, path in ((s, out), (w, Path(f"{stem}_windows{out.suffix}")), (d, Path(f"{stem}_days{out.suffix}"))):
+            from .io import atomic_path
+
+            with atomic_path(path) as tmp:
+                table.write(tmp, format=fmt, overwrite=True)
+            print(path)
+    else:
+        print(w if len(w) else "  no observable window")
+    if args.plot:
+        plot_visibility(res, args.plot, args.threshold)
+        print(args.plot)
+    return 0
+
+
 def cmd_config_doc(args) -> int:
     from .configdoc import config_reference
 
@@ -457,6 +518,22 @@ def build_parser() -> argparse.ArgumentParser:
                          "scheduling.fraction_of_zodiacal)")
     sh.add_argument("--config", default=None, help="campaign config (default: config/config.yaml)")
     sh.set_defaults(func=cmd_schedule)
+
+    v = sub.add_parser("visibility", help="a target's background, 5-sigma limit and observable windows over time")
+    v.add_argument("--ra", required=True, type=_finite_float("--ra"), help="ICRS right ascension, deg")
+    v.add_argument("--dec", required=True, type=_finite_float("--dec"), help="ICRS declination, deg")
+    v.add_argument("--band", required=True, help="band (NUV u g r i z y)")
+    v.add_argument("--start", default=None, help="UTC start, ISO 8601 (default: the campaign's start)")
+    v.add_argument("--end", default=None, help="UTC end, exclusive (default: the campaign's end)")
+    v.add_argument("--step-min", type=_finite_float("--step-min"), default=None,
+                   help="sampling step, minutes (default: the campaign's cadence)")
+    v.add_argument("--threshold", type=_finite_float("--threshold"), default=None,
+                   help="AB mag: list the days when the 5-sigma limit is at least this deep")
+    v.add_argument("--out", default=None,
+                   help="table of the samples (.csv or .ecsv); _windows and _days tables are written beside it")
+    v.add_argument("--plot", default=None, help="figure of background and limit against time (.png, .pdf, .svg)")
+    v.add_argument("--config", default=None, help="campaign config (default: config/config.yaml)")
+    v.set_defaults(func=cmd_visibility)
 
     cd = sub.add_parser("config-doc", help="print the campaign-config reference (Markdown) from the schema")
     cd.set_defaults(func=cmd_config_doc)
