@@ -1,6 +1,6 @@
 """Bright-star catalog in the CSST bands: template matching and synthetic photometry (issue #3).
 
-Pipeline (seed paper sect. 2.2 item 4, with the substitutions documented in the README):
+Pipeline (seed paper sect. 2.2 item 4, with the substitutions documented in docs/physics.md):
 
 1. Stars: Gaia DR2 rows from :mod:`straylight.gaia`, and/or the Hipparcos default of
    :mod:`straylight.hipparcos`.  With both, Hipparcos only fills the stars that have no Gaia

@@ -5,7 +5,8 @@ Layout of ``background.zarr`` (xarray Dataset):
 
 * dims (time, pixel, band); one float32 variable per component (e- s-1 pixel-1) plus ``total``;
   ``observable`` (bool) and ``violations`` (uint8 bit mask) and ``door_opening_deg`` on
-  (time, pixel); coords time (UTC), pixel (HEALPix index), ra_deg/dec_deg, band;
+  (time, pixel); coords time (UTC), pixel (HEALPix index), ra_deg/dec_deg, band, and
+  ``mag_zero_point`` (band): AB mag/arcsec2 = mag_zero_point - 2.5 log10(e-/s/pixel);
 * attrs: HEALPix nside, ordering and frame, campaign, models, provenance pointers.
 * chunks: one time block (``campaign.time_block_hours``) x ``footprint.pixel_block_size`` pixels
   x all bands.  A time-series read of one pointing then touches one chunk per time block, and a
