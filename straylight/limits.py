@@ -173,7 +173,7 @@ def write_limit_maps(ds, out_dir) -> list:
                        ("NEXP", int(b["n_exposures"]), "survey exposures per field"),
                        ("EXPTIME", float(b["exposure_s"]), "[s] one survey exposure"),
                        ("TEXPTIME", float(b["exposure_s"] * b["n_exposures"]), "[s] total survey exposure"),
-                       ("SNR", SNR, "point-source limit signal-to-noise (EE80 aperture)")]
+                       ("SNR", SNR, "S/N of the point-source limit (EE80)")]
         path = out_dir / f"{name}.fits"
         with atomic_path(path) as tmp:
             hp.write_map(str(tmp), m, nest=nest, coord="C", column_names=[name[:68].upper()],
