@@ -124,3 +124,24 @@ def test_open_campaign_and_mag_conversion(tmp_path, campaign):
         prod.limits
     with pytest.raises(straylight.InputError, match="not a campaign results folder"):
         straylight.open_campaign(tmp_path / "nope")
+
+
+def test_catalog_stars_enter_as_in_the_sky_command(tmp_path):
+    """With a catalog the star term is the cube's (stars.offfield_mag_limit split and faint map),
+    equal to `straylight sky --catalog`; a -1.5 mag star 5 deg off axis makes it non-zero."""
+    import astropy.units as u
+    from astropy.coordinates import SkyCoord
+    from astropy.time import Time
+
+    import straylight
+
+    cat = tmp_path / "stars.csv"
+    cat.write_text("ra,dec,mag_g,mag_r\n155.0,30.0,-1.5,-1.4\n20.0,-40.0,5.0,5.0\n")
+    sky = straylight.sky_background(Time(T0), SkyCoord(150.0, 30.0, unit="deg"), bands=["g", "r"], catalog=cat)
+    r = run_cli("sky", "--time", T0, "--ra", "150", "--dec", "30", "--bands", "g,r", "--catalog", cat, "--json")
+    assert r.returncode == 0, r.stderr
+    rec = json.loads(r.stdout)
+    for b in ("g", "r"):
+        stars = sky[f"stars_{b}"][0].to_value(u.electron / u.s / u.pix)
+        assert stars > 0
+        assert stars == pytest.approx(rec["bands"][b]["stars"]["e_per_s_per_pix"], rel=1e-6)
