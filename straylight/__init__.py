@@ -2,10 +2,14 @@
 
 Public API (small on purpose):
 
+* :func:`sky_background` - background components, total, 5-sigma depth and observability of any
+  (astropy ``Time``, ``SkyCoord``), as an astropy ``QTable`` with units.
+* :func:`open_campaign` - a finished campaign's products as xarray objects.
 * :func:`load_campaign` - a validated campaign config with its orbit, Earth model, constraints.
 * :class:`DE405` - the JPL DE405 ephemeris, vectorised over times.
 * :func:`scene`, :func:`sample_geometry` - positions and the observing geometry of samples.
 """
+from .api import CampaignProducts, open_campaign, sky_background
 from .config import Campaign, load_campaign
 from .ephemeris import BODIES, DE405
 from .errors import ConfigError, EphemerisRangeError, InputError, StraylightError
@@ -16,6 +20,7 @@ configure_offline()
 
 __version__ = "0.1.0"
 __all__ = [
-    "BODIES", "DE405", "Campaign", "ConfigError", "EphemerisRangeError", "InputError",
-    "StraylightError", "load_campaign", "sample_geometry", "scene",
+    "BODIES", "DE405", "Campaign", "CampaignProducts", "ConfigError", "EphemerisRangeError", "InputError",
+    "StraylightError", "load_campaign", "open_campaign", "sample_geometry", "scene",
+    "sky_background",
 ]

@@ -1,6 +1,6 @@
 """Bright-star catalog in the CSST bands: template matching and synthetic photometry (issue #3).
 
-Pipeline (seed paper sect. 2.2 item 4, with the substitutions documented in the README):
+Pipeline (seed paper sect. 2.2 item 4, with the substitutions documented in docs/physics.md):
 
 1. Stars: Gaia DR2 rows from :mod:`straylight.gaia`, and/or the Hipparcos default of
    :mod:`straylight.hipparcos`.  With both, Hipparcos only fills the stars that have no Gaia
@@ -276,7 +276,7 @@ def write_catalog(columns: dict, path, metadata: dict) -> None:
 
     path = Path(path)
     if path.suffix == ".parquet":
-        write_parquet(columns, path, metadata)
+        write_parquet(columns, path, metadata, units=CATALOG_UNITS)
         return
     if path.suffix not in (".fits", ".fit"):
         raise InputError(f"{path}: catalog output must end in .parquet or .fits")

@@ -83,6 +83,7 @@ def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None, stars=
     from .components import ComponentModel
     from .ephemeris import PLANETS
     from .geometry import radec_to_unit, violation_names
+    from .limits import point_source_limit, sky_zero_points
     from .sky import sample_geometry, scene
 
     sc = scene(campaign, time)
@@ -125,6 +126,7 @@ def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None, stars=
         {"body": k, "angle_deg": float(np.ravel(v["angle_deg"])[0]), "v_mag": float(np.ravel(v["v_mag"])[0]),
          "mag_ab": {b: float(np.ravel(m)[0]) for b, m in v["mag_ab"].items()}}
         for k, v in in_field.items() if bool(np.ravel(v["in_field"])[0])]
+    zero_points = sky_zero_points(campaign, list(comps))
     for name, res in comps.items():
         mag = res["_mag"]
         entry = {}
@@ -133,6 +135,9 @@ def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None, stars=
             e = float(np.ravel(res[comp])[0])
             m = float(np.ravel(mag(e))[0])
             entry[comp] = {"e_per_s_per_pix": e, "mag_per_arcsec2": m if np.isfinite(m) else None}
+        entry["mag_zero_point"] = zero_points[name]
+        entry["limit_mag"] = (float(point_source_limit(entry["total"]["e_per_s_per_pix"], name, campaign))
+                              if name != "V" else None)
         record["bands"][name] = entry
     first = next(iter(comps.values()))
     record["zodiacal_no_data_near_sun"] = bool(np.ravel(first["_zodiacal_no_data"])[0])
@@ -172,23 +177,38 @@ def cmd_sky(args) -> int:
         g = rec["geometry"]
         print(f"{rec['time']}  RA {rec['ra_deg']:.4f}  Dec {rec['dec_deg']:+.4f}")
         for k, val in g.items():
-            if k != "planet_angles_deg":
-                print(f"  {k:28s} {val}")
+            if k != "planet_angles_deg":  # angles (deg) and the Moon's lit fraction to 3 decimals
+                print(f"  {k:28s} {val:.3f}" if isinstance(val, float) else f"  {k:28s} {val}")
         print(f"  observable: {rec['observable']}  violations: {', '.join(rec['violations']) or 'none'}")
         for src in rec["in_field_point_sources"]:
             mags = "  ".join(f"{b} {m:.2f}" for b, m in src["mag_ab"].items())
             print(f"  in the field (a point source, not in the background): {src['body']} "
                   f"{src['angle_deg']:.3f} deg off axis, V {src['v_mag']:.2f}; AB {mags}")
-        for name, comp in rec["bands"].items():
-            parts = "  ".join(f"{k} {v['e_per_s_per_pix']:.3g}" for k, v in comp.items()
-                              if k not in ("earthshine_direct", "earthshine_door"))
-            print(f"  {name:4s} e-/s/pix: {parts}")
+        print(_sky_band_table(rec["bands"]))
     return 0
+
+
+_SKY_COLUMNS = ("zodiacal", "earthshine", "moon", "sun", "planets", "stars", "total")
+
+
+def _sky_band_table(bands: dict) -> str:
+    """The per-band lines of `straylight sky`: each component in e-/s/pixel (3 significant
+    digits) and in AB mag/arcsec2 (2 decimals), then the 5-sigma limit (AB mag)."""
+    head = f"  {'band':4s} {'unit':14s}" + "".join(f"{c:>11s}" for c in _SKY_COLUMNS) + f"{'5-sigma lim':>13s}"
+    lines = [head]
+    for name, comp in bands.items():
+        rate = "".join(f"{comp[c]['e_per_s_per_pix']:>11.3g}" for c in _SKY_COLUMNS)
+        mags = "".join(f"{comp[c]['mag_per_arcsec2']:>11.2f}" if comp[c]["mag_per_arcsec2"] is not None
+                       else f"{'-':>11s}" for c in _SKY_COLUMNS)
+        lim = f"{comp['limit_mag']:>9.2f} mag" if comp.get("limit_mag") is not None else f"{'-':>13s}"
+        lines.append(f"  {name:4s} {'e-/s/pixel':14s}{rate}")
+        lines.append(f"  {'':4s} {'mag/arcsec2':14s}{mags}{lim}")
+    return "\n".join(lines)
 
 
 def _sky_table(args, campaign, bands, stars) -> int:
     from .gaia import write_parquet
-    from .pointings import pointing_table, read_pointings
+    from .pointings import column_units, pointing_table, read_pointings
 
     p = read_pointings(args.input)
     models: dict = {}
@@ -199,7 +219,8 @@ def _sky_table(args, campaign, bands, stars) -> int:
                                    "config": str(campaign.path), "stars_included": stars is not None,
                                    "models": models,
                                    "units": "components e-/s/pixel; total_mag_per_arcsec2 AB mag/arcsec2; "
-                                            "limit_mag 5-sigma AB for the band's survey exposures"})
+                                            "limit_mag 5-sigma AB for the band's survey exposures"},
+                  units=column_units(cols))
     n_obs = int(np.sum(cols["observable"]))
     print(f"{args.out}: {len(cols['time'])} pointings ({n_obs} observable), bands {', '.join(bands or campaign.bands)}")
     return 0
@@ -527,6 +548,57 @@ def cmd_figure(args) -> int:
     return 0
 
 
+def cmd_visibility(args) -> int:
+    from .config import load_campaign
+    from .visibility import plot_visibility, visibility
+
+    ra_deg, dec_deg = _pointing(args)
+    for path, flag, suffixes in ((args.out, "--out", (".csv", ".ecsv")), (args.plot, "--plot", (".png", ".pdf", ".svg"))):
+        if path is not None:
+            if Path(path).suffix.lower() not in suffixes:
+                raise InputError(f"{flag} {path}: must end in {' or '.join(suffixes)}")
+            _check_out(args, path, flag)
+    if args.out:
+        stem, suffix = Path(args.out).with_suffix(""), Path(args.out).suffix
+        for extra in (f"{stem}_windows{suffix}", f"{stem}_days{suffix}"):
+            _check_out(args, extra, "--out")
+    campaign = load_campaign(args.config)
+    c = campaign.config["campaign"]
+    step_s = args.step_min * 60.0 if args.step_min is not None else float(c["cadence_s"])
+    res = visibility(campaign, ra_deg, dec_deg, args.band, args.start or c["start"], args.end or c["end"],
+                     step_s, args.threshold)
+    s, w, d = res["samples"], res["windows"], res["days"]
+    n_obs = int(np.sum(s["observable"]))
+    print(f"RA {ra_deg:.4f} Dec {dec_deg:+.4f} band {args.band}: {len(s)} samples every "
+          f"{step_s / 60:.3g} min from {s['time'][0].isot[:19]}; {n_obs} observable "
+          f"({100.0 * n_obs / len(s):.1f} %); {len(w)} observable windows")
+    if n_obs:
+        ok = np.asarray(s["observable"], bool)
+        print(f"  observable: background {np.median(s['total_mag_per_arcsec2'][ok].value):.2f} mag/arcsec2 (median), "
+              f"5-sigma limit median {np.median(s['limit_mag'][ok].value):.2f}, deepest "
+              f"{np.max(s['limit_mag'][ok].value):.2f} mag (AB)")
+    if args.threshold is not None:
+        deep = d[d["hours_deeper_than_threshold"].value > 0]
+        print(f"  days with the limit deeper than {args.threshold:.2f} mag: {len(deep)} of {len(d)}"
+              + (f" ({', '.join(deep['date'][:10])}{', ...' if len(deep) > 10 else ''})" if len(deep) else ""))
+    if args.out:
+        out = Path(args.out)
+        fmt = "ascii.ecsv" if out.suffix.lower() == ".ecsv" else "ascii.csv"
+        stem = out.with_suffix("")
+        for table, path in ((s, out), (w, Path(f"{stem}_windows{out.suffix}")), (d, Path(f"{stem}_days{out.suffix}"))):
+            from .io import atomic_path
+
+            with atomic_path(path) as tmp:
+                table.write(tmp, format=fmt, overwrite=True)
+            print(path)
+    else:
+        print(w if len(w) else "  no observable window")
+    if args.plot:
+        plot_visibility(res, args.plot, args.threshold)
+        print(args.plot)
+    return 0
+
+
 def cmd_config_doc(args) -> int:
     from .configdoc import config_reference
 
@@ -535,7 +607,10 @@ def cmd_config_doc(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from . import __version__
+
     p = argparse.ArgumentParser(prog="straylight", description="CSST stray-light and sky-background pipeline")
+    p.add_argument("--version", action="version", version=f"straylight {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
 
     e = sub.add_parser("ephem", help="geocentric DE405 positions of the Sun, Moon and planets")
@@ -652,6 +727,23 @@ def build_parser() -> argparse.ArgumentParser:
                     help="detector: star table (ra, dec, mag_NUV); default the Hipparcos catalog in the CSST bands")
     fg.add_argument("--config", default=None, help="campaign config (default: config/config.yaml)")
     fg.set_defaults(func=cmd_figure)
+
+    v = sub.add_parser("visibility", help="a target's background, 5-sigma limit and observable windows over time")
+    v.add_argument("--ra", required=True, help="ICRS right ascension, deg")
+    v.add_argument("--dec", required=True, help="ICRS declination, deg")
+    v.add_argument("--band", required=True, help="band (NUV u g r i z y)")
+    v.add_argument("--start", default=None, help="UTC start, ISO 8601 (default: the campaign's start)")
+    v.add_argument("--end", default=None, help="UTC end, exclusive (default: the campaign's end)")
+    v.add_argument("--step-min", type=_finite_float("--step-min"), default=None,
+                   help="sampling step, minutes (default: the campaign's cadence)")
+    v.add_argument("--threshold", type=_finite_float("--threshold"), default=None,
+                   help="AB mag: list the days when the 5-sigma limit is at least this deep")
+    v.add_argument("--out", default=None,
+                   help="table of the samples (.csv or .ecsv); _windows and _days tables are written beside it")
+    v.add_argument("--plot", default=None, help="figure of background and limit against time (.png, .pdf, .svg)")
+    v.add_argument("--config", default=None, help="campaign config (default: config/config.yaml)")
+    _add_output_flags(v)
+    v.set_defaults(func=cmd_visibility)
 
     cd = sub.add_parser("config-doc", help="print the campaign-config reference (Markdown) from the schema")
     cd.set_defaults(func=cmd_config_doc)

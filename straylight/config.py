@@ -21,7 +21,11 @@ import yaml
 from .errors import ConfigError, StraylightError
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
-CONFIG_DIR = REPO_ROOT / "config"
+# The default config and schemas: the repository's config/ (a source checkout, where Snakemake
+# reads the same files), else the copy an installed wheel carries as straylight/_config
+# (pyproject.toml maps config/ to that package).
+_PACKAGED_CONFIG = Path(__file__).resolve().parent / "_config"
+CONFIG_DIR = REPO_ROOT / "config" if (REPO_ROOT / "config" / "schema").is_dir() else _PACKAGED_CONFIG
 SCHEMA_DIR = CONFIG_DIR / "schema"
 CAMPAIGN_SCHEMA = SCHEMA_DIR / "config.schema.yaml"
 INSTRUMENT_SCHEMA = SCHEMA_DIR / "instrument.schema.yaml"

@@ -5,7 +5,8 @@ Layout of ``background.zarr`` (xarray Dataset):
 
 * dims (time, pixel, band); one float32 variable per component (e- s-1 pixel-1) plus ``total``;
   ``observable`` (bool) and ``violations`` (uint8 bit mask) and ``door_opening_deg`` on
-  (time, pixel); coords time (UTC), pixel (HEALPix index), ra_deg/dec_deg, band;
+  (time, pixel); coords time (UTC), pixel (HEALPix index), ra_deg/dec_deg, band, and
+  ``mag_zero_point`` (band): AB mag/arcsec2 = mag_zero_point - 2.5 log10(e-/s/pixel);
 * attrs: HEALPix nside, ordering and frame, campaign, models, provenance pointers.
 * chunks: one time block (``campaign.time_block_hours``) x ``footprint.pixel_block_size`` pixels
   x all bands.  A time-series read of one pointing then touches one chunk per time block, and a
@@ -30,7 +31,8 @@ import xarray as xr
 from .config import Campaign
 from .errors import OutputError
 from .footprint import Footprint
-from .geometry import VIOLATION_BITS, SceneRuns, TelescopeFrame, observing_geometry, radec_to_unit, telescope_frame
+from .limits import ZERO_POINT_NAME, zero_point_coord
+from .geometry import SceneRuns, TelescopeFrame, observing_geometry, radec_to_unit, telescope_frame, violation_mask_attrs
 
 CUBE_COMPONENTS = ("zodiacal", "earthshine", "moon", "sun", "planets", "stars")
 #: the cube's (time, pixel, band) variables, e-/s/pix: the components and their total
@@ -80,8 +82,7 @@ def empty_cube(campaign: Campaign, fp: Footprint, times, stars_path=None, build_
     data["observable"] = xr.Variable(("time", "pixel"), da.zeros((nt, npix), chunks=chunks2, dtype=bool),
                                      {"units": "1", "long_name": "pointing satisfies every constraint"})
     data["violations"] = xr.Variable(("time", "pixel"), da.zeros((nt, npix), chunks=chunks2, dtype=np.uint8),
-                                     {"units": "1", "long_name": "violated-constraint bit mask",
-                                      "flag_meanings": ", ".join(f"{v}={k}" for k, v in VIOLATION_BITS.items())})
+                                     violation_mask_attrs())
     data["door_opening_deg"] = xr.Variable(("time", "pixel"), da.zeros((nt, npix), chunks=chunks2, dtype=np.float32),
                                            {"units": "deg", "long_name": "aperture door opening (0 = no allowed state)"})
     ds = xr.Dataset(
@@ -92,6 +93,7 @@ def empty_cube(campaign: Campaign, fp: Footprint, times, stars_path=None, build_
             "ra_deg": ("pixel", fp.ra_deg, {"units": "deg", "long_name": "ICRS RA of pixel centre"}),
             "dec_deg": ("pixel", fp.dec_deg, {"units": "deg", "long_name": "ICRS Dec of pixel centre"}),
             "band": ("band", np.array(campaign.bands, dtype=object), {"long_name": "CSST band"}),
+            ZERO_POINT_NAME: zero_point_coord(campaign, campaign.bands),
         },
         attrs={
             "campaign": campaign.name,

@@ -157,8 +157,29 @@ def ingest_file(path: str | Path, g_limit: float) -> IngestResult:
     return IngestResult(stars, quarantine, summary)
 
 
-def write_parquet(columns: dict, path, metadata: dict | None = None) -> None:
-    """Atomic Parquet write with optional key/value metadata."""
+#: units of the Gaia archive's columns (Gaia DR2 data model), written as Parquet field metadata
+GAIA_UNITS = {"ra": "deg", "dec": "deg", "pmra": "mas/yr", "pmdec": "mas/yr", "parallax": "mas",
+              "ref_epoch": "yr", "phot_g_mean_mag": "mag", "phot_bp_mean_mag": "mag", "phot_rp_mean_mag": "mag"}
+
+
+def parquet_units(names, units: dict | None = None) -> dict:
+    """Each column's unit: ``units`` first, then the Gaia names, then a ``_deg`` suffix (deg) and
+    a ``mag_`` prefix (AB mag); columns without one (flags, ids, strings) get none."""
+    out = {}
+    for k in names:
+        u = (units or {}).get(k) or GAIA_UNITS.get(k)
+        if u is None and k.endswith("_deg"):
+            u = "deg"
+        if u is None and k.startswith("mag_"):
+            u = "mag(AB)"
+        if u:
+            out[k] = u
+    return out
+
+
+def write_parquet(columns: dict, path, metadata: dict | None = None, units: dict | None = None) -> None:
+    """Atomic Parquet write with optional key/value metadata; each column's unit (see
+    :func:`parquet_units`) goes in its field metadata under ``unit``."""
     import json
 
     import pyarrow as pa
@@ -166,7 +187,11 @@ def write_parquet(columns: dict, path, metadata: dict | None = None) -> None:
 
     from .io import atomic_path
 
-    table = pa.table({k: np.asarray(v) for k, v in columns.items()})
+    col_units = parquet_units(columns, units)
+    arrays = {k: np.asarray(v) for k, v in columns.items()}
+    table = pa.table(arrays)
+    table = table.cast(pa.schema([f.with_metadata({"unit": col_units[f.name]}) if f.name in col_units else f
+                                  for f in table.schema]))
     if metadata:
         table = table.replace_schema_metadata({k: json.dumps(v) for k, v in metadata.items()})
     with atomic_path(path) as tmp:

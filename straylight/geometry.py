@@ -30,6 +30,14 @@ from .errors import InputError
 VIOLATION_NAMES = ("sun", "moon", "bright_limb", "dark_limb", "earth_occultation")
 VIOLATION_BITS = {name: 1 << i for i, name in enumerate(VIOLATION_NAMES)}
 
+
+def violation_mask_attrs() -> dict:
+    """CF attributes of a violated-constraint bit mask: ``flag_masks`` with the bits and
+    ``flag_meanings`` with their names, blank-separated in the same order (CF 1.11 sect. 3.5)."""
+    return {"units": "1", "long_name": "violated-constraint bit mask (0 = no constraint violated)",
+            "flag_masks": np.array(list(VIOLATION_BITS.values()), dtype=np.uint8),
+            "flag_meanings": " ".join(VIOLATION_BITS)}
+
 _EPS = 1e-12
 
 

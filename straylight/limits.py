@@ -51,6 +51,31 @@ def survey_exposure(campaign: Campaign, band_name: str) -> SurveyExposure:
                           campaign.instrument_value("detector", "dark_current_e_per_s"), np.pi * r80**2, zp_e)
 
 
+#: name of the (band) coordinate of background.zarr and limits.zarr holding each band's zero point
+ZERO_POINT_NAME = "mag_zero_point"
+
+
+def sky_zero_points(campaign: Campaign, bands=None) -> dict:
+    """Each band's AB surface-brightness zero point, mag/arcsec2 at 1 e-/s/pixel (see
+    :func:`straylight.offfield.sky_zero_point_mag_per_arcsec2`): the instrument's throughput,
+    aperture and pixel scale, nothing else."""
+    from .offfield import sky_zero_point_mag_per_arcsec2
+
+    d = campaign.instrument_value("telescope", "aperture_diameter_m")
+    pix = campaign.pixel_scale_arcsec
+    return {b: sky_zero_point_mag_per_arcsec2(load_band(campaign.instrument, b, campaign.instrument_path.parent), d, pix)
+            for b in (bands or campaign.bands)}
+
+
+def zero_point_coord(campaign: Campaign, bands) -> tuple:
+    """The products' ``mag_zero_point`` (band) coordinate: mag/arcsec2 = zp - 2.5 log10(e-/s/pixel)."""
+    zp = sky_zero_points(campaign, [str(b) for b in bands])
+    return ("band", np.array([zp[str(b)] for b in bands], dtype=np.float64),
+            {"units": "mag(AB) arcsec-2",
+             "long_name": "AB surface brightness of a background of 1 e-/s/pixel; "
+                          "mag_per_arcsec2 = mag_zero_point - 2.5 log10(rate / (electron / (s pixel)))"})
+
+
 def point_source_limit(background_e_per_s_per_pix, band_name: str, campaign: Campaign) -> np.ndarray:
     """5-sigma AB limiting magnitude for the band's survey exposures at the given background."""
     x = survey_exposure(campaign, band_name)
@@ -101,7 +126,14 @@ def limits_dataset(campaign: Campaign, background) -> "xr.Dataset":
             "observable_fraction": (("pixel",), frac, {"units": "1", "long_name": "fraction of campaign times observable"}),
             "observable": (("time", "pixel"), observable, {"units": "1", "long_name": "pointing satisfies every constraint"}),
         },
-        coords={k: background[k] for k in ("time", "pixel", "ra_deg", "dec_deg", "band")},
+        coords={**{k: background[k] for k in ("time", "pixel", "ra_deg", "dec_deg", "band")},
+                ZERO_POINT_NAME: zero_point_coord(campaign, background["band"].values),
+                "n_exposures": ("band", np.array([campaign.instrument["bands"][str(b)]["n_exposures"]
+                                                  for b in background["band"].values], np.int32),
+                                {"units": "1", "long_name": "survey exposures per field"}),
+                "exposure_s": ("band", np.array([campaign.instrument["bands"][str(b)]["exposure_s"]
+                                                 for b in background["band"].values], np.float64),
+                               {"units": "s", "long_name": "duration of one survey exposure"})},
         attrs={k: background.attrs[k] for k in ("healpix_nside", "healpix_ordering", "healpix_frame", "campaign")},
     )
     return ds
@@ -124,17 +156,32 @@ def write_limit_maps(ds, out_dir) -> list:
     pix = ds["pixel"].values
     written = []
 
-    def write(name, values, unit):
+    times = ds["time"].values
+    iso = (lambda t: str(np.datetime_as_string(t, unit="s"))) if times.dtype.kind == "M" else str
+    common = [("CAMPAIGN", str(ds.attrs["campaign"])[:68], "straylight campaign name"),
+              ("DATE-BEG", iso(times.min()), "first campaign time (UTC)"),
+              ("DATE-END", iso(times.max()), "last campaign time (UTC)"),
+              ("NTIMES", int(times.size), "campaign time samples")]
+
+    def write(name, values, unit, band=None):
         m = np.full(hp.nside2npix(nside), hp.UNSEEN, dtype=np.float32)
         m[pix] = np.where(np.isnan(values), hp.UNSEEN, values)
+        header = list(common)
+        if band is not None:
+            b = ds.sel(band=band)
+            header += [("BAND", str(band), "CSST band"),
+                       ("NEXP", int(b["n_exposures"]), "survey exposures per field"),
+                       ("EXPTIME", float(b["exposure_s"]), "[s] one survey exposure"),
+                       ("TEXPTIME", float(b["exposure_s"] * b["n_exposures"]), "[s] total survey exposure"),
+                       ("SNR", SNR, "S/N of the point-source limit (EE80)")]
         path = out_dir / f"{name}.fits"
         with atomic_path(path) as tmp:
             hp.write_map(str(tmp), m, nest=nest, coord="C", column_names=[name[:68].upper()],
-                         column_units=[unit], dtype=np.float32, overwrite=True)
+                         column_units=[unit], dtype=np.float32, overwrite=True, extra_header=header)
         written.append(path)
 
     for ib, b in enumerate(ds["band"].values):
-        write(f"limit_best_{b}", ds["limiting_mag_best"].values[:, ib], "mag(AB)")
-        write(f"limit_median_{b}", ds["limiting_mag_median"].values[:, ib], "mag(AB)")
+        write(f"limit_best_{b}", ds["limiting_mag_best"].values[:, ib], "mag(AB)", b)
+        write(f"limit_median_{b}", ds["limiting_mag_median"].values[:, ib], "mag(AB)", b)
     write("observable_fraction", ds["observable_fraction"].values, "1")
     return written

@@ -472,9 +472,16 @@ class OffFieldModel:
                 c["door_sun"] * sun_irr + c["door_moon"] * moon_irr_at_earth)
 
 
+def sky_zero_point_mag_per_arcsec2(band: Band, aperture_diameter_m: float, pixel_scale_arcsec: float) -> float:
+    """AB surface brightness (mag/arcsec2) of a uniform background giving 1 e-/s/pixel, so that
+    ``mag_per_arcsec2 = zero_point - 2.5 log10(rate_e_per_s_per_pix)``: the band's AB photon
+    zero point times the aperture area, spread over one pixel's solid angle (arcsec2)."""
+    ref = band.ab_zero_point_photons_s_m2 * np.pi * aperture_diameter_m**2 / 4.0
+    return float(2.5 * np.log10(ref * pixel_scale_arcsec**2))
+
+
 def magnitude_per_arcsec2(e_per_s_per_pix, band: Band, aperture_diameter_m: float, pixel_scale_arcsec: float):
     """AB mag/arcsec2 of a uniform background giving ``e_per_s_per_pix`` (inf where zero)."""
-    rate = np.asarray(e_per_s_per_pix, dtype=float) / pixel_scale_arcsec**2
-    ref = band.ab_zero_point_photons_s_m2 * np.pi * aperture_diameter_m**2 / 4.0
+    zp = sky_zero_point_mag_per_arcsec2(band, aperture_diameter_m, pixel_scale_arcsec)
     with np.errstate(divide="ignore"):
-        return -2.5 * np.log10(rate / ref)
+        return zp - 2.5 * np.log10(np.asarray(e_per_s_per_pix, dtype=float))

@@ -96,14 +96,20 @@ def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int
     from .sky import sample_geometry, scene
     from .timeutil import parse_utc
 
+    from astropy.time import Time
+
     bands = list(bands or campaign.bands)
-    iso = [str(v) for v in pointings["time"]]
-    try:
-        t_all = parse_utc(iso, f"{source}: time")
-    except InputError:  # find the first bad row to name it (one parse per row only on failure)
-        for i, v in enumerate(iso):
-            parse_utc(v, f"{source} row {i + 1}: time")
-        raise
+    if isinstance(pointings["time"], Time):  # the Python API's times: already parsed
+        t_all = parse_utc(pointings["time"], f"{source}: time").reshape(-1)
+        iso = list(t_all.isot)
+    else:
+        iso = [str(v) for v in pointings["time"]]
+        try:
+            t_all = parse_utc(iso, f"{source}: time")
+        except InputError:  # find the first bad row to name it (one parse per row only on failure)
+            for i, v in enumerate(iso):
+                parse_utc(v, f"{source} row {i + 1}: time")
+            raise
     n_rows = len(iso)
     eph = default_ephemeris()
     jd = t_all.tdb.jd
@@ -153,3 +159,17 @@ def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int
 
 UNITS = {"ra_deg": "deg", "dec_deg": "deg", "sun_angle_deg": "deg", "moon_angle_deg": "deg",
          "earth_limb_angle_deg": "deg", "door_opening_deg": "deg", "planet_in_field_v_mag": "mag(Vega V)"}
+
+
+def column_units(cols) -> dict:
+    """Units of the pointing table's columns (Parquet field metadata ``unit``)."""
+    out = dict(UNITS)
+    for k in cols:
+        if k.startswith("total_mag_per_arcsec2_"):
+            out[k] = "mag(AB) arcsec-2"
+        elif k.startswith("limit_mag_"):
+            out[k] = "mag(AB)"
+        elif k.rsplit("_", 1)[0] in COMPONENTS:
+            out[k] = "electron / (s pixel)"
+    out["moon_illuminated_fraction"] = "1"
+    return out

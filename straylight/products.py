@@ -16,11 +16,11 @@ from .config import Campaign
 from .ephemeris import BODIES
 from .footprint import Footprint, footprint_from_config
 from .geometry import (
-    VIOLATION_BITS,
     earth_blocks,
     moon_phase,
     observing_geometry,
     radec_to_unit,
+    violation_mask_attrs,
 )
 from .sky import scene
 from .timegrid import time_blocks
@@ -117,12 +117,10 @@ def observability_dataset(campaign: Campaign, ephem: xr.Dataset, fp: Footprint) 
     bodies = {b: ephem["body_position_km"].sel(body=b).values[:, None, :] for b in ("sun", "moon")}
     los = radec_to_unit(fp.ra_deg, fp.dec_deg)[None, :, :]
     g = observing_geometry(sat, bodies, los, campaign.earth.radius_km, campaign.constraints)
-    bits = ", ".join(f"{v}={k}" for k, v in VIOLATION_BITS.items())
     ds = xr.Dataset(
         {
             "observable": _var(g["observable"], ("time", "pixel"), "1", "pointing satisfies every constraint"),
-            "violations": _var(g["violations"], ("time", "pixel"), "1", "violated-constraint bit mask",
-                               flag_meanings=bits),
+            "violations": xr.Variable(("time", "pixel"), g["violations"], violation_mask_attrs()),
             "sun_angle_deg": _var(g["sun_angle_deg"].astype(np.float32), ("time", "pixel"), "deg", "angle LOS-Sun"),
             "moon_angle_deg": _var(g["moon_angle_deg"].astype(np.float32), ("time", "pixel"), "deg", "angle LOS-Moon"),
             "earth_limb_angle_deg": _var(g["earth_limb_angle_deg"].astype(np.float32), ("time", "pixel"), "deg",

@@ -209,3 +209,12 @@ def test_never_observable_pixels_are_nan_in_zarr_and_unseen_in_fits(tmp_path):
     m = hp.read_map(tmp_path / "maps" / "limit_best_g.fits")
     assert m[0] == pytest.approx(expected.max(), abs=1e-5)
     assert m[1] == hp.UNSEEN and np.all(m[2:] == hp.UNSEEN)
+    # the maps say which campaign, time range, band and exposures they belong to
+    from astropy.io import fits
+
+    h = fits.getheader(tmp_path / "maps" / "limit_best_g.fits", 1)
+    b = c.instrument["bands"]["g"]
+    assert (h["CAMPAIGN"], h["BAND"], h["NEXP"], h["NTIMES"]) == ("test", "g", b["n_exposures"], 4)
+    assert h["EXPTIME"] == b["exposure_s"] and h["TEXPTIME"] == b["exposure_s"] * b["n_exposures"]
+    assert h["DATE-BEG"] == "0" and h["DATE-END"] == "3"
+    assert "BAND" not in fits.getheader(tmp_path / "maps" / "observable_fraction.fits", 1)

@@ -27,6 +27,13 @@ def test_table_matches_single_sample_sky(tmp_path):
             for c in ("zodiacal", "earthshine", "moon", "sun", "total"):
                 assert t[f"{c}_{b}"][i] == pytest.approx(rec["bands"][b][c]["e_per_s_per_pix"], rel=1e-6, abs=1e-12)
             assert np.isfinite(t[f"limit_mag_{b}"][i])
+            assert t[f"limit_mag_{b}"][i] == pytest.approx(rec["bands"][b]["limit_mag"], abs=1e-9)
+    # every physical column carries its unit (Parquet field metadata `unit`)
+    schema = pq.read_schema(out)
+    unit = {f.name: (f.metadata or {}).get(b"unit", b"").decode() for f in schema}
+    assert unit["total_g"] == unit["zodiacal_y"] == "electron / (s pixel)"
+    assert unit["total_mag_per_arcsec2_g"] == "mag(AB) arcsec-2" and unit["limit_mag_y"] == "mag(AB)"
+    assert unit["ra_deg"] == unit["sun_angle_deg"] == "deg" and unit["observable"] == ""
 
 
 @pytest.mark.parametrize("content, message", [

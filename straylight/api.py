@@ -1,0 +1,336 @@
+"""The Python API in astropy's terms: :func:`sky_background` and :func:`open_campaign`.
+
+* :func:`sky_background` - every background component, the total, the 5-sigma limit and the
+  observability of any (time, pointing), from astropy ``Time`` and ``SkyCoord``, as an astropy
+  ``QTable`` with units.  It runs the per-pointing table code of ``straylight sky --input``
+  (:func:`straylight.pointings.pointing_table`), vectorised over the samples.
+* :func:`open_campaign` - a finished campaign's products (``results/<campaign>/``) as xarray
+  objects, with :meth:`CampaignProducts.to_mag_per_arcsec2` for the conversion to surface
+  brightness through the zero points stored with the cube.
+
+Example (a dark-sky pointing in the default campaign's orbit)::
+
+    >>> from astropy.time import Time
+    >>> from astropy.coordinates import SkyCoord
+    >>> import straylight
+    >>> t = Time("2026-01-01T00:30:00", scale="utc")
+    >>> sky = straylight.sky_background(t, SkyCoord(150.0, 30.0, unit="deg"), bands=["g"])
+    >>> sky["total_g"].unit
+    Unit("electron / (pix s)")
+    >>> print(sky["time"][0], sky["observable"][0], sky["violations"][0] or "no violation")
+    2026-01-01T00:30:00.000 True no violation
+    >>> bool(21.5 < sky["total_mag_g"][0].value < 23.8)   # g-band dark sky, AB mag/arcsec2
+    True
+    >>> bool(25.5 < sky["limit_mag_g"][0].value < 27.5)   # 5-sigma point-source depth, AB mag
+    True
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+
+#: the background components of every band, e-/s/pixel (their sum is ``total``)
+COMPONENTS = ("zodiacal", "earthshine", "moon", "sun", "planets", "stars")
+
+
+def _units():
+    import astropy.units as u
+
+    rate = u.electron / (u.s * u.pix)
+    return rate, u.mag / u.arcsec**2
+
+
+def sky_background(time, coord, bands=None, config=None, catalog=None):
+    """Background, 5-sigma depth and observability at the given times and pointings.
+
+    Parameters
+    ----------
+    time : astropy.time.Time
+        Observation time(s), any scale (converted to UTC); scalar or array.  Valid within the
+        DE405 ephemeris range (1600-12-21 to 2200-02-02); the satellite follows the campaign's
+        orbit (``config``), so for a circular orbit only times near its epoch are meaningful.
+    coord : astropy.coordinates.SkyCoord
+        Pointing(s) (any frame; converted to ICRS); scalar or array, broadcast against ``time``.
+    bands : list of str, optional
+        Bands to evaluate (default: every band of the instrument); ``"V"`` is the Bessell V
+        diagnostic band (no limit for it).
+    config : str or path, optional
+        Campaign config (default: the packaged ``config/config.yaml``) giving the orbit, the
+        instrument and the models.
+    catalog : str or path, optional
+        Star table (``ra``, ``dec``, ``mag_<band>``; e.g. ``results/<campaign>/stars_csst.parquet``)
+        for the off-field star term, with the cube's selection (``stars.offfield_mag_limit``).
+        Without it the ``stars`` component is 0.
+
+    Returns
+    -------
+    astropy.table.QTable
+        One row per broadcast sample, columns:
+
+        * ``time`` (Time, UTC), ``ra``, ``dec`` (deg, ICRS);
+        * ``observable`` (bool) and ``violations`` (str: the violated constraints by name,
+          comma-separated: sun, moon, bright_limb, dark_limb, earth_occultation, door; empty
+          when observable);
+        * ``sun_angle``, ``moon_angle``, ``earth_limb_angle``, ``door_opening`` (deg);
+        * per band ``b``: ``<component>_<b>`` in electron / (s pix) for zodiacal, earthshine,
+          moon, sun, planets, stars and ``total``; ``<component>_mag_<b>`` the same in AB
+          mag/arcsec2 (inf where a component is 0); ``limit_mag_<b>`` the 5-sigma
+          point-source limit in AB mag for the band's survey exposures (EE80 aperture).
+
+        ``meta`` holds each band's zero point (``mag_zero_point``, mag/arcsec2 at
+        1 e-/s/pixel) and the record of which models ran.
+
+    Raises
+    ------
+    straylight.InputError
+        Arguments of the wrong type, non-finite coordinates, shapes that do not broadcast, a
+        time outside the ephemeris, an unknown band.
+    straylight.ConfigError
+        A config that does not validate (the message names the file, key and value).
+
+    Examples
+    --------
+    >>> import astropy.units as u
+    >>> from astropy.time import Time
+    >>> from astropy.coordinates import SkyCoord
+    >>> t = Time("2026-01-01T00:00:00") + [0, 30, 60] * u.min
+    >>> sky = sky_background(t, SkyCoord(150.0, 30.0, unit="deg"), bands=["g", "r"])
+    >>> len(sky), sky["zodiacal_r"].unit, sky["total_mag_r"].unit
+    (3, Unit("electron / (pix s)"), Unit("mag / arcsec2"))
+    """
+    from astropy.coordinates import SkyCoord
+    from astropy.time import Time
+
+    from .config import load_campaign
+
+    if not isinstance(time, Time):
+        raise InputError(f"time: expected an astropy.time.Time, got {type(time).__name__}")
+    if not isinstance(coord, SkyCoord):
+        raise InputError(f"coord: expected an astropy.coordinates.SkyCoord, got {type(coord).__name__}")
+    icrs = coord.icrs
+    ra = np.asarray(icrs.ra.deg, float)
+    dec = np.asarray(icrs.dec.deg, float)
+    try:
+        shape = np.broadcast_shapes(time.shape, ra.shape)
+    except ValueError:
+        raise InputError(f"time {time.shape} and coord {ra.shape}: shapes do not broadcast") from None
+    ra, dec = (np.broadcast_to(a, shape).ravel() for a in (ra, dec))
+    bad = np.flatnonzero(~(np.isfinite(ra) & np.isfinite(dec)))
+    if bad.size:
+        raise InputError(f"coord: sample {bad[0]}: ra = {ra[bad[0]]}, dec = {dec[bad[0]]} is not finite")
+    t = time.utc
+    t = Time(np.broadcast_to(t.jd1, shape).ravel(), np.broadcast_to(t.jd2, shape).ravel(), format="jd", scale="utc")
+    campaign = load_campaign(config)
+    bands = list(bands or campaign.bands)
+    unknown = [b for b in bands if b not in campaign.bands and b != "V"]
+    if unknown:
+        raise InputError(f"bands: unknown band {unknown[0]!r}; known: {', '.join(campaign.bands)}, V")
+    stars = None
+    if catalog is not None:
+        from .components import load_offfield_stars
+
+        stars = load_offfield_stars(catalog, bands, float(campaign.config["stars"]["offfield_mag_limit"]),
+                                    bool(campaign.config["stars"].get("faint_map", True)))
+    return background_table(campaign, t, ra, dec, bands, stars, source="sky_background")
+
+
+def background_table(campaign, t, ra_deg, dec_deg, bands, stars=None, source=""):
+    """:func:`sky_background`'s table for a loaded campaign and 1-D UTC times ``t`` with ICRS
+    ``ra_deg``, ``dec_deg`` (deg) of the same length, already checked; ``stars`` as
+    :func:`straylight.components.load_offfield_stars` gives them (None: stars = 0)."""
+    from .limits import sky_zero_points
+    from .pointings import pointing_table
+
+    models: dict = {}
+    cols = pointing_table(campaign, {"time": t, "ra": np.asarray(ra_deg, float) % 360.0,
+                                     "dec": np.asarray(dec_deg, float)}, bands, stars, source=source, models=models)
+    return _qtable(cols, t, bands, sky_zero_points(campaign, bands), models)
+
+
+def _qtable(cols: dict, t, bands, zero_points: dict, models: dict):
+    """The pointing table's columns as a QTable with units (see :func:`sky_background`)."""
+    import astropy.units as u
+    from astropy.table import QTable
+    from astropy.time import Time
+
+    from .geometry import violation_names
+
+    rate, surf = _units()
+    door = np.asarray(cols["door_opening_deg"], float)
+    reasons = [",".join(violation_names(int(v)) + ([] if d > 0 else ["door"]))
+               for v, d in zip(cols["violations"], door)]
+    out = QTable(meta={"mag_zero_point": {b: zero_points[b] * surf for b in bands}, "models": models})
+    out["time"] = Time(t, format="isot", precision=3)
+    out["ra"] = np.asarray(cols["ra_deg"], float) * u.deg
+    out["dec"] = np.asarray(cols["dec_deg"], float) * u.deg
+    out["observable"] = np.asarray(cols["observable"], bool)
+    out["violations"] = np.array(reasons, dtype=str)
+    for name in ("sun_angle", "moon_angle", "earth_limb_angle", "door_opening"):
+        out[name] = np.asarray(cols[f"{name}_deg"], float) * u.deg
+        out[name].info.format = ".3f"
+    for b in bands:
+        for c in COMPONENTS + ("total",):
+            out[f"{c}_{b}"] = np.asarray(cols[f"{c}_{b}"], float) * rate
+            out[f"{c}_{b}"].info.format = ".3g"
+        for c in COMPONENTS + ("total",):
+            with np.errstate(divide="ignore", invalid="ignore"):
+                out[f"{c}_mag_{b}"] = (zero_points[b] - 2.5 * np.log10(np.asarray(cols[f"{c}_{b}"], float))) * surf
+            out[f"{c}_mag_{b}"].info.format = ".3f"
+        if f"limit_mag_{b}" in cols:
+            out[f"limit_mag_{b}"] = np.asarray(cols[f"limit_mag_{b}"], float) * u.mag
+            out[f"limit_mag_{b}"].info.format = ".3f"
+            out[f"limit_mag_{b}"].info.description = "5-sigma point-source limit, AB, survey exposures"
+    return out
+
+
+class CampaignProducts:
+    """A finished campaign's products as xarray objects, opened lazily on first use.
+
+    Attributes (each raises :class:`straylight.InputError` naming the path if it is missing):
+
+    * ``background`` - ``background.zarr``: (time, pixel, band) components and total,
+      e-/s/pixel; observability on (time, pixel); the ``mag_zero_point`` (band) coordinate.
+    * ``limits`` - ``limits.zarr``: 5-sigma limits (AB mag) per sample and per pixel.
+    * ``observability`` - ``observability.zarr``: observable flag, violated-constraint mask, angles.
+    * ``ephemeris`` - ``ephemeris.zarr``: body and satellite positions on the time grid.
+    * ``footprint`` - ``footprint.fits`` as a (pixel) DataArray of the footprint's HEALPix
+      pixels (value 1), with ``nside`` and ``nest`` attributes.
+    * ``provenance`` - ``provenance.json`` as a dict.
+    """
+
+    def __init__(self, path):
+        self.path = Path(path)
+        if not self.path.is_dir():
+            raise InputError(f"{self.path}: not a campaign results folder (expected results/<campaign>/)")
+        self._cache: dict = {}
+
+    def _zarr(self, name):
+        import xarray as xr
+
+        if name not in self._cache:
+            p = self.path / name
+            if not p.exists():
+                raise InputError(f"{p}: product missing (has the campaign finished?)")
+            self._cache[name] = xr.open_zarr(p)
+        return self._cache[name]
+
+    @property
+    def background(self):
+        return self._zarr("background.zarr")
+
+    @property
+    def limits(self):
+        return self._zarr("limits.zarr")
+
+    @property
+    def observability(self):
+        return self._zarr("observability.zarr")
+
+    @property
+    def ephemeris(self):
+        return self._zarr("ephemeris.zarr")
+
+    @property
+    def footprint(self):
+        import healpy as hp
+        import xarray as xr
+        from astropy.io import fits
+
+        p = self.path / "footprint.fits"
+        if not p.exists():
+            raise InputError(f"{p}: product missing (has the campaign finished?)")
+        with fits.open(p) as hdul:
+            nest = str(hdul[1].header.get("ORDERING", "RING")).upper() == "NESTED"
+        m = hp.read_map(str(p), nest=nest)
+        pix = np.flatnonzero(m > 0)
+        nside = hp.npix2nside(m.size)
+        ra, dec = hp.pix2ang(nside, pix, nest=nest, lonlat=True)
+        return xr.DataArray(m[pix], dims="pixel", name="footprint",
+                            coords={"pixel": pix, "ra_deg": ("pixel", ra), "dec_deg": ("pixel", dec)},
+                            attrs={"units": "1", "long_name": "survey footprint (1 inside)", "nside": nside,
+                                   "nest": int(nest)})
+
+    @property
+    def provenance(self) -> dict:
+        import json
+
+        p = self.path / "provenance.json"
+        if not p.exists():
+            raise InputError(f"{p}: product missing (has the campaign finished?)")
+        return json.loads(p.read_text())
+
+    def to_mag_per_arcsec2(self, rate):
+        """AB mag/arcsec2 of a background DataArray in e-/s/pixel (``background[...]``), through
+        the ``mag_zero_point`` coordinate stored with the cube: ``zp - 2.5 log10(rate)``; +inf
+        where the rate is 0, NaN where it is NaN.  ``rate`` must keep its ``band`` dimension
+        (select bands with ``sel(band=[...])``, not ``sel(band="g")``) or carry the scalar
+        ``mag_zero_point`` coordinate."""
+        return to_mag_per_arcsec2(rate, self.background)
+
+    def __repr__(self):
+        return f"CampaignProducts({str(self.path)!r})"
+
+
+def to_mag_per_arcsec2(rate, background=None):
+    """AB mag/arcsec2 of an xarray background in e-/s/pixel, through its ``mag_zero_point``
+    coordinate (or ``background``'s, aligned on ``band``).  See
+    :meth:`CampaignProducts.to_mag_per_arcsec2`."""
+    from .limits import ZERO_POINT_NAME
+
+    if ZERO_POINT_NAME in rate.coords:
+        zp = rate.coords[ZERO_POINT_NAME]
+    elif background is not None and ZERO_POINT_NAME in background.coords and "band" in rate.coords:
+        zp = background[ZERO_POINT_NAME].sel(band=rate["band"])
+    else:
+        raise InputError(f"{getattr(rate, 'name', 'rate')}: no {ZERO_POINT_NAME} coordinate (products from an older "
+                         "straylight, or the band was dropped); re-run the campaign's background")
+    units = str(rate.attrs.get("units", "electron / (s pixel)"))
+    if units not in ("electron / (s pixel)", "e-/s/pixel"):
+        raise InputError(f"{getattr(rate, 'name', 'rate')}: units {units!r}, expected electron / (s pixel)")
+    import xarray as xr
+
+    mag = xr.apply_ufunc(_mag_of_rate, rate, zp.drop_vars(list(zp.coords)) if "band" not in zp.dims else zp,
+                         dask="parallelized", output_dtypes=[np.float64], keep_attrs=False)
+    mag = mag.transpose(*rate.dims).drop_vars(ZERO_POINT_NAME, errors="ignore")
+    long_name = rate.attrs.get("long_name", getattr(rate, "name", "background"))
+    mag.attrs = {"units": "mag(AB) arcsec-2", "long_name": f"{long_name}, AB surface brightness"}
+    return mag
+
+
+def _mag_of_rate(rate, zero_point):
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return zero_point - 2.5 * np.log10(rate)
+
+
+def open_campaign(path) -> CampaignProducts:
+    """A finished campaign's products (``results/<campaign>/``) as xarray objects.
+
+    Parameters
+    ----------
+    path : str or path
+        The campaign's results folder, ``results/<campaign.name>/`` of the Snakemake run.
+
+    Returns
+    -------
+    CampaignProducts
+        ``background``, ``limits``, ``observability``, ``ephemeris`` (xarray Datasets opened
+        lazily with dask), ``footprint`` (DataArray), ``provenance`` (dict) and
+        ``to_mag_per_arcsec2(rate)``.
+
+    Raises
+    ------
+    straylight.InputError
+        The folder does not exist, or (on access) a product is missing.
+
+    Examples
+    --------
+    >>> import straylight
+    >>> straylight.open_campaign("no/such/folder")
+    Traceback (most recent call last):
+    ...
+    straylight.errors.InputError: no/such/folder: not a campaign results folder (expected results/<campaign>/)
+    """
+    return CampaignProducts(path)
