@@ -87,7 +87,7 @@ def test_zero_point_matches_the_library_conversion(campaign):
 
     zp = sky_zero_points(campaign)
     d = campaign.instrument_value("telescope", "aperture_diameter_m")
-    pix = campaign.instrument_value("detector", "pixel_scale_arcsec")
+    pix = campaign.pixel_scale_arcsec
     for b in campaign.bands:
         band = load_band(campaign.instrument, b, campaign.instrument_path.parent)
         # by definition: 1 e-/s/pixel is zp; 0.1 e-/s/pixel is 2.5 mag fainter
