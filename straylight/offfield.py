@@ -24,9 +24,10 @@ Solar-like sources are converted with V_sun = -26.76 (Willmer 2018, ApJS 236, 47
 Earthshine (paper sect. 3.2): the Earth cap seen from the satellite is split into n_gamma x
 n_psi blocks of solid angle sin(gamma) dgamma dpsi about nadir; each is a Lambertian reflector of
 albedo A lit by the Sun (radiance A/pi E_sun cos z_sun) or, on the night side, by the Moon.
-EA1 = sum E_i Sp_i PST(theta_i, phi_i) (direct).  EA2 (door): each door block receives
-MP_i = sum_b L_b dOmega_b cos(incidence) from the Earth blocks in front of its inner face and
-re-emits as a Lambertian of reflectance r; the aperture points j receive
+EA1 = sum E_i Sp_i PST(theta_i, phi_i) (direct; Sp = 0 behind the aperture plane, theta > 90
+deg).  EA2 (door): each door block receives MP_i = sum_b L_b dOmega_b cos(incidence) from the
+Earth blocks in front of its inner face whose ray to it misses the telescope body
+(:meth:`OffFieldModel.door_lit_fraction`) and re-emits as a Lambertian of reflectance r; the aperture points j receive
 L_door A_i cos(e_ij) / d_ij^2 with PST(theta_ij, phi_ij), averaged over the aperture.  This is
 the paper's EA2 = sum_i MP_i r sum_j PST(theta_ij, phi_ij) / d_ij^2 with the block area, the
 emission cosine and 1/pi written out.
@@ -39,7 +40,7 @@ from functools import cached_property
 import numpy as np
 
 from .bandpass import Band
-from .door import Door, DoorTable, door_state_index
+from .door import Door, DoorTable, behind_aperture_plane, door_state_index
 from .errors import ConfigError
 from .geometry import dot, norm, perpendicular_towards, rows_at, scene_rows, shared_vectors, unit, wrap_360_deg
 from .gridinterp import LinearGrid
@@ -189,7 +190,7 @@ class OffFieldModel:
                                          np.asarray(opening_deg, float))
         states, grid = self._door_grid
         state, known = door_state_index(states, op)
-        return np.where(known, grid(*DoorTable.coordinates(th, ph), channel=state), 0.0)
+        return np.where(known & ~behind_aperture_plane(th), grid(*DoorTable.coordinates(th, ph), channel=state), 0.0)
 
     # -- point sources ----------------------------------------------------------------------
     def point_source(self, irradiance, theta_deg, phi_deg, earth_blocked, opening_deg) -> np.ndarray:
@@ -288,6 +289,35 @@ class OffFieldModel:
             w = area / np.pi * np.mean(cos_e * self.pst(theta, phi) / dist**2 * (u_in[..., 2] > 0), axis=-1)
             out[state] = (q.reshape(-1, 3), n_in, w.reshape(-1))
         return out
+
+    @cached_property
+    def _door_lit_fraction(self):
+        """Per door state: the fraction f(theta, phi) of the door's weight (:attr:`_door_weights`)
+        on door blocks that an Earth block in direction (theta, phi) of the telescope frame
+        lights, the ray from the door block towards it not passing through the body
+        (:meth:`Door.body_hits`), as a LinearGrid over theta 90-180 deg (1 deg) x phi 0-360 deg
+        (2 deg); a direction at theta <= 90 deg never meets the body below the aperture plane
+        (f = 1: the grid's clipped edge row).  None without a body."""
+        if self.door.body_radius_m <= 0 or self.door.body_length_m <= 0:
+            return None
+        theta = np.arange(90.0, 180.0 + 0.5, 1.0)
+        phi = np.arange(0.0, 360.0 + 1.0, 2.0)
+        th, ph = np.meshgrid(np.radians(theta), np.radians(phi), indexing="ij")
+        dirs = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], axis=-1).reshape(-1, 3)
+        out = {}
+        for state, (q, _, w) in self._door_weights.items():
+            lit = np.concatenate([(~self.door.body_hits(q, dirs[i:i + 2048])) @ w for i in range(0, len(dirs), 2048)])
+            out[state] = LinearGrid((theta, phi), (lit / np.sum(w)).reshape(th.shape))
+        return out
+
+    def door_lit_fraction(self, state: float, theta_deg, phi_deg) -> np.ndarray | float:
+        """f of :attr:`_door_lit_fraction` for door state ``state`` at directions (theta, phi),
+        deg (broadcast); 1.0 without a body."""
+        tables = self._door_lit_fraction
+        if tables is None:
+            return 1.0
+        th, ph = np.broadcast_arrays(np.asarray(theta_deg, float), np.asarray(phi_deg, float))
+        return tables[state](np.clip(th, 90.0, 180.0), wrap_360_deg(ph))
 
     def earth_in_field(self, sat_km, sun_km, moon_km, frame, earth_radius_km):
         """Where the line of sight hits the Earth, its surface is imaged like any extended
@@ -406,7 +436,8 @@ class OffFieldModel:
             sel = np.broadcast_to(known & (state_of == i), door_sun.shape)
             if not np.any(sel):
                 continue
-            cos_inc = np.maximum(dx * n_in[0] + dy * n_in[1] + dz * n_in[2], 0.0)  # d . n_in > 0: in front
+            # d . n_in > 0: in front of the inner face; f: the share of the door the body leaves lit
+            cos_inc = np.maximum(dx * n_in[0] + dy * n_in[1] + dz * n_in[2], 0.0) * self.door_lit_fraction(state, theta, phi)
             k = s.door_reflectance * np.sum(w) * self.pixel_area_m2
             door_sun = np.where(sel, k * np.sum(lum_sun * d_omega * cos_inc, axis=(-2, -1)), door_sun)
             door_moon = np.where(sel, k * np.sum(lum_moon * d_omega * cos_inc, axis=(-2, -1)), door_moon)
@@ -451,7 +482,8 @@ class OffFieldModel:
                     w[rows] *= self.door_tables[state](theta[rows], phi[rows])
                     q, n_in, wd = self._door_weights[state]
                     k = s.door_reflectance * np.sum(wd) * self.pixel_area_m2
-                    cos_inc = np.maximum(dx[rows] * n_in[0] + dy[rows] * n_in[1] + dz[rows] * n_in[2], 0.0)
+                    cos_inc = (np.maximum(dx[rows] * n_in[0] + dy[rows] * n_in[1] + dz[rows] * n_in[2], 0.0)
+                               * self.door_lit_fraction(state, theta[rows], phi[rows]))
                     door[start + np.flatnonzero(rows)] = k * (cos_inc @ lum)
                 direct[sl] = w @ lum
         return {"direct_sun": direct[:, 0].reshape(shape), "direct_moon": direct[:, 1].reshape(shape),
