@@ -252,6 +252,36 @@ class OffFieldModel:
         points = sat_km[..., None, None, :] + t[..., :, None, None] * d
         return d, np.broadcast_to(d_omega, d.shape[:-1]), points
 
+    def _cap_block_spans(self, sat_km, earth_radius_km, s: EarthshineSettings):
+        """Each cap block's extent as two vectors (..., G, P, 3): the change of its direction
+        across the block in nadir angle (d(dir)/d(gamma) dgamma) and in azimuth (d(dir)/d(psi)
+        dpsi), for :meth:`front_fraction`."""
+        nadir = -unit(sat_km)
+        e1 = perpendicular_towards(nadir, np.broadcast_to(np.array([0.0, 0.0, 1.0]), nadir.shape))
+        e2 = np.cross(nadir, e1)
+        gamma, dgamma = self._cap_nadir_angles(sat_km, earth_radius_km, s)  # (..., G)
+        psi = (np.arange(s.n_psi) + 0.5) * 2 * np.pi / s.n_psi
+        cg, sg = np.cos(gamma)[..., :, None, None], np.sin(gamma)[..., :, None, None]
+        cp, spp = np.cos(psi)[:, None], np.sin(psi)[:, None]
+        horiz = cp * e1[..., None, None, :] + spp * e2[..., None, None, :]
+        span_gamma = (-sg * nadir[..., None, None, :] + cg * horiz) * dgamma[..., :, None, None]
+        span_psi = sg * (-spp * e1[..., None, None, :] + cp * e2[..., None, None, :]) * (2 * np.pi / s.n_psi)
+        return span_gamma, span_psi
+
+    @staticmethod
+    def front_fraction(cos_theta, span_gamma_z, span_psi_z) -> np.ndarray:
+        """The fraction of a cap block in front of the aperture plane (cos theta > 0), from its
+        centre's cos theta and the change of cos theta across it in nadir angle and in azimuth
+        (its spans' z components): linear between the block wholly behind (0) and wholly in
+        front (1).  The aperture plane cuts the blocks near theta = 90 deg, where Sp steps to 0;
+        resolving the cut within the block keeps the Earth grid's sum converged there (a block
+        counted whole or not at all made the 24 x 48 grid's sum 4-10 % off 85-88 deg from the
+        limb)."""
+        half = 0.5 * (np.abs(span_gamma_z) + np.abs(span_psi_z))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            f = np.clip(0.5 + 0.5 * cos_theta / half, 0.0, 1.0)
+        return np.where(half > 0, f, (cos_theta > 0).astype(float))
+
     @staticmethod
     def lamp_cosines(points_km, sun_km, moon_km, earth_radius_km):
         """cos(zenith angle) of the Sun and of the Moon at surface points, clipped at 0."""
@@ -417,9 +447,12 @@ class OffFieldModel:
         phi = wrap_360_deg(np.degrees(np.arctan2(dy, dx)))
         op = np.broadcast_to(np.asarray(opening_deg, float)[..., None, None], theta.shape)
         # blocks inside the field are replaced by the in-field term (a grid block cannot resolve
-        # the 0.6 deg field, where the PST jumps to 1)
-        w_direct = (self.door_factor(theta, phi, op) * self.pst(theta, phi) * (theta > self.field_radius_deg)
-                    * d_omega * self.pixel_area_m2)
+        # the 0.6 deg field, where the PST jumps to 1); a block the aperture plane cuts counts
+        # its part in front, at the door's Sp from in front (theta <= 90 deg)
+        span_g, span_p = self._cap_block_spans(sat_km, earth_radius_km, s)
+        front = self.front_fraction(dz, dot(span_g, frame.z[..., None, None, :]), dot(span_p, frame.z[..., None, None, :]))
+        w_direct = (self.door_factor(np.minimum(theta, 90.0), phi, op) * front * self.pst(theta, phi)
+                    * (theta > self.field_radius_deg) * d_omega * self.pixel_area_m2)
         out = {"direct_sun": np.sum(lum_sun * w_direct, axis=(-2, -1)),
                "direct_moon": np.sum(lum_moon * w_direct, axis=(-2, -1))}
         if in_field:
@@ -460,6 +493,7 @@ class OffFieldModel:
             mu_sun = np.zeros_like(mu_moon)
         lit = (mu_sun > 0) | (mu_moon > 0)
         blocks = d[lit]  # (K, 3)
+        span_g, span_p = (v[lit] for v in self._cap_block_spans(sat, earth_radius_km, s))  # (K, 3) each
         lum = s.albedo / np.pi * np.stack([mu_sun[lit], mu_moon[lit]], axis=-1) * d_omega[lit][:, None]  # (K, 2)
         shape = np.broadcast_shapes(frame.z.shape[:-1], np.shape(opening_deg))
         fx, fy, fz = (np.broadcast_to(a, shape + (3,)).reshape(-1, 3) for a in (frame.x, frame.y, frame.z))
@@ -474,12 +508,13 @@ class OffFieldModel:
                 dx, dy, dz = fx[sl] @ blocks.T, fy[sl] @ blocks.T, fz[sl] @ blocks.T  # (n, K)
                 theta = np.degrees(np.arctan2(np.hypot(dx, dy), dz))
                 phi = wrap_360_deg(np.degrees(np.arctan2(dy, dx)))
-                w = self.pst(theta, phi) * (theta > self.field_radius_deg) * self.pixel_area_m2
+                front = self.front_fraction(dz, fz[sl] @ span_g.T, fz[sl] @ span_p.T)
+                w = self.pst(theta, phi) * front * (theta > self.field_radius_deg) * self.pixel_area_m2
                 for i, state in enumerate(states):  # per sample's door state (door.door_state_index)
                     rows = known[sl] & (state_of[sl] == i)
                     if not np.any(rows):
                         continue
-                    w[rows] *= self.door_tables[state](theta[rows], phi[rows])
+                    w[rows] *= self.door_tables[state](np.minimum(theta[rows], 90.0), phi[rows])
                     q, n_in, wd = self._door_weights[state]
                     k = s.door_reflectance * np.sum(wd) * self.pixel_area_m2
                     cos_inc = (np.maximum(dx[rows] * n_in[0] + dy[rows] * n_in[1] + dz[rows] * n_in[2], 0.0)
