@@ -418,10 +418,12 @@ def cmd_footprint(args) -> int:
 
 
 def cmd_scenario(args) -> int:
+    import json
+
     from astropy.table import Table
 
     from .config import load_campaign
-    from .scenarios import earthshine_scenario, plot_earthshine_scenario
+    from .scenarios import earthshine_scenario, hst_comparison, plot_earthshine_scenario, read_hst_curve, sunlit_limb
 
     if args.out is None:
         args.out, args.parents = "results/scenarios/earthshine.png", True
@@ -429,12 +431,22 @@ def cmd_scenario(args) -> int:
     _check_out(args, out)
     _check_out(args, out.with_suffix(".csv"))
     campaign = load_campaign(args.config)
+    if args.hst_curve:
+        _check_out(args, out.with_suffix(".json"))
+        read_hst_curve(args.hst_curve)  # a bad curve is refused before the work
     res = earthshine_scenario(campaign, band=args.band)
     cols = {k: v for k, v in res.items() if isinstance(v, np.ndarray)}
     Table(cols).write(out.with_suffix(".csv"), overwrite=True)
-    plot_earthshine_scenario(res, out, args.hst_csv)
-    sel = res["limb_is_bright"] & (res["earth_limb_angle_deg"] > 0)
+    comparison = hst_comparison(res, args.hst_curve) if args.hst_curve else None
+    plot_earthshine_scenario(res, out, args.hst_curve, comparison)
+    sel = sunlit_limb(res)
     print(f"{out}: {int(sel.sum())} sunlit-limb pointings of {sel.size}; table {out.with_suffix('.csv')}")
+    if comparison:
+        out.with_suffix(".json").write_text(json.dumps(comparison, indent=1) + "\n")
+        print(f"HST at {comparison['hst_limb_angle_deg']:g} deg from the bright limb: "
+              f"{comparison['hst_v_mag_per_arcsec2']:.2f} V mag/arcsec2; CSST's median earthshine ({res['band']}) "
+              f"falls to it {comparison['csst_crossing_limb_angle_deg']:.1f} deg from the bright limb "
+              f"(paper sect. 3.3: 70); {out.with_suffix('.json')}")
     return 0
 
 
@@ -694,7 +706,9 @@ def build_parser() -> argparse.ArgumentParser:
                          "folders created)")
     sc.add_argument("--band", default="V", help="band (default V, as the HST comparison)")
     _add_output_flags(sc)
-    sc.add_argument("--hst-csv", default=None, help="HST curve to overlay: limb_angle_deg, v_mag_per_arcsec2")
+    sc.add_argument("--hst-curve", default=None, metavar="PATH",
+                    help="HST earthshine curve (CSV: limb_angle_deg, v_mag_per_arcsec2) to overlay; prints and "
+                         "writes (JSON beside the CSV) the limb angle where CSST's median falls to HST's at 20 deg")
     sc.add_argument("--config", default=None, help="campaign config (default: config/config.yaml)")
     sc.set_defaults(func=cmd_scenario)
 

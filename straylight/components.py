@@ -101,13 +101,14 @@ class ComponentModel:
             pst_file = self.campaign.instrument_path.parent / pst_file
         es = self.campaign.config["models"].get("earthshine", {})
         dg = inst.get("door_geometry", {})
+        field_radius_deg = float(np.sqrt(self.campaign.instrument_value("detector", "field_of_view_deg2") / np.pi))
         return OffFieldModel(
-            pst=load_pst(pst_file),
+            pst=load_pst(pst_file, field_radius_deg),
             door=door_from_instrument(inst),
             door_states_deg=tuple(float(s["opening_deg"]) for s in inst["door"]["states"]),
             pixel_area_m2=(self.campaign.instrument_value("detector", "pixel_size_um") * 1e-6) ** 2,
             pixel_etendue_m2_sr=self.zodiacal.pixel_etendue_m2_sr,
-            field_radius_deg=float(np.sqrt(self.campaign.instrument_value("detector", "field_of_view_deg2") / np.pi)),
+            field_radius_deg=field_radius_deg,
             earthshine=EarthshineSettings(
                 n_gamma=int(es.get("n_gamma", 24)), n_psi=int(es.get("n_psi", 48)),
                 albedo=float(es.get("albedo", 0.3)), door_blocks=tuple(es.get("door_blocks", (24, 24))),
@@ -694,7 +695,8 @@ class ComponentModel:
 
     def faint_star_rates(self, stars: StarTable, los, bands, batch: int = 4096, los_batch: int = 1024) -> dict:
         """e-/s/pix per band from the faint stars: sum_s E_s PSTavg(theta_s) * pixel area over the
-        stars outside the field, for lines of sight ``los`` (..., 3).  Depends on the line of sight
+        stars outside the field and in front of the aperture plane (theta <= 90 deg, where the
+        door's Sp is not 0: :func:`~straylight.door.behind_aperture_plane`), for lines of sight ``los`` (..., 3).  Depends on the line of sight
         only, so it is computed once per distinct set of lines of sight (cached).  ``los_batch``
         lines of sight x ``batch`` stars at a time bound the temporaries (~34 MB each)."""
         import hashlib
@@ -718,7 +720,7 @@ class ComponentModel:
                 cosang = np.clip(flat[a:a + los_batch] @ s_all[i:i + batch].T, -1.0, 1.0)
                 x = np.degrees(np.arccos(cosang)) * per_deg  # position on the uniform grid
                 k = np.minimum(x.astype(np.intp), slope.size - 1)  # linear in ln PST, as np.interp on the grid
-                t = np.exp(ln_pst[k] + (x - k) * slope[k]) * (x > r_field * per_deg)
+                t = np.exp(ln_pst[k] + (x - k) * slope[k]) * ((x > r_field * per_deg) & (x <= 90.0 * per_deg))
                 out[a:a + los_batch] += t @ flux[i:i + batch]
         out *= self.offfield.pixel_area_m2
         res = {b: out[:, j].reshape(los.shape[:-1]) for j, b in enumerate(bands)}

@@ -14,7 +14,14 @@ L = 2R / ((tan 65 - 1) sin 45) = 2.472 R.  With this L the 105 deg door blocks t
 
 Sp(direction) is the fraction of the aperture NOT shaded by the door: rays from a grid of
 aperture points (``n_aperture`` points, a knob) towards the source are tested against the door
-rectangle.  Tables over (theta, phi) are precomputed per door state for speed.
+rectangle.  A source behind the aperture plane (theta > 90 deg) cannot light the aperture:
+Sp = 0 there, so nothing reaches the focal plane directly from behind the telescope (seed paper
+sect. 2.2: with the axis near the zenith, earthshine enters through the door).  Tables over
+(theta, phi) are precomputed per door state for speed.
+
+The telescope's body shades the door: the door's inner face is lit only by directions whose ray
+from the door point does not pass through the body, a solid cylinder of radius ``body_radius_m``
+about the axis from the aperture plane down to ``body_length_m`` below it (:meth:`Door.body_hits`).
 """
 from __future__ import annotations
 
@@ -63,10 +70,16 @@ class Door:
     length_m: float
     width_m: float
     n_aperture: int = 256
+    #: the telescope body below the aperture plane, a solid cylinder about the axis (m); 0: none
+    body_radius_m: float = 0.0
+    body_length_m: float = 0.0
 
     def __post_init__(self):
         if not (self.length_m > 0 and self.width_m > 0):
             raise ConfigError(f"door: length {self.length_m} m and width {self.width_m} m must be > 0")
+        if self.body_radius_m < 0 or self.body_length_m < 0:
+            raise ConfigError(f"door_geometry: body radius {self.body_radius_m} m and length {self.body_length_m} m "
+                              "must be >= 0")
         if self.width_m < 2 * self.aperture_radius_m or self.length_m < 2 * self.aperture_radius_m:
             raise ConfigError(
                 f"door: {self.length_m:.3f} x {self.width_m:.3f} m cannot close over an aperture of diameter "
@@ -108,6 +121,36 @@ class Door:
             out[start:start + 4096] = np.where(dd[:, 2] > 0, frac, 0.0)
         return out.reshape(shape)
 
+    def body_hits(self, points_m: np.ndarray, directions: np.ndarray) -> np.ndarray:
+        """Whether the ray from each point (M, 3) along each direction (N, 3) (unit vectors,
+        telescope frame, m) passes through the body: (N, M) bool.  The body is the solid cylinder
+        x^2 + y^2 < body_radius^2, -body_length < z < 0; no body (radius or length 0): all False."""
+        p = np.asarray(points_m, float)
+        d = np.asarray(directions, float)
+        if self.body_radius_m <= 0 or self.body_length_m <= 0:
+            return np.zeros((d.shape[0], p.shape[0]), bool)
+        dx, dy, dz = (d[:, k][:, None] for k in range(3))
+        px, py, pz = (p[:, k][None, :] for k in range(3))
+        # the ray's parameter interval inside the slab -L < z < 0 (t > 0: away from the point)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t1, t2 = (0.0 - pz) / dz, (-self.body_length_m - pz) / dz
+        inside_slab = (pz < 0.0) & (pz > -self.body_length_m)
+        z_lo = np.where(dz != 0.0, np.minimum(t1, t2), np.where(inside_slab, -np.inf, np.inf))
+        z_hi = np.where(dz != 0.0, np.maximum(t1, t2), np.where(inside_slab, np.inf, -np.inf))
+        # and inside the infinite cylinder: a t^2 + b t + c < 0
+        a = dx * dx + dy * dy
+        b = 2.0 * (px * dx + py * dy)
+        c = px * px + py * py - self.body_radius_m ** 2
+        disc = b * b - 4.0 * a * c
+        with np.errstate(divide="ignore", invalid="ignore"):
+            root = np.sqrt(np.maximum(disc, 0.0))
+            r_lo = np.where(a > 0, (-b - root) / (2.0 * a), np.where(c < 0, -np.inf, np.inf))
+            r_hi = np.where(a > 0, (-b + root) / (2.0 * a), np.where(c < 0, np.inf, -np.inf))
+        r_ok = np.where(a > 0, disc > 0, c < 0)
+        lo = np.maximum(np.maximum(z_lo, r_lo), 0.0)
+        hi = np.minimum(z_hi, r_hi)
+        return r_ok & (hi > lo)
+
     def table(self, opening_deg: float, theta_step_deg: float = 1.0, phi_step_deg: float = 2.0) -> "DoorTable":
         theta = np.arange(0.0, 90.0 + theta_step_deg / 2, theta_step_deg)
         phi = np.arange(0.0, 360.0 + phi_step_deg / 2, phi_step_deg)
@@ -122,10 +165,9 @@ class Door:
 class DoorTable:
     """Precomputed Sp(theta, phi) for one door state over theta 0-90 deg.
 
-    Beyond 90 deg the source is behind the aperture plane: what reaches the focal plane from
-    there is the PST's business (sunshade and baffle scatter), and the door shades it no more
-    than at 90 deg, so Sp continues at its 90 deg value (continuous, no step for the earthshine
-    grid to resolve)."""
+    Beyond 90 deg the source is behind the aperture plane and cannot light the aperture: Sp = 0
+    (as :meth:`Door.unshaded_fraction`), so the direct path takes nothing from there whatever
+    the PST's values behind the plane; light from there reaches the aperture only via the door."""
 
     theta_deg: np.ndarray
     phi_deg: np.ndarray
@@ -137,13 +179,21 @@ class DoorTable:
 
     @staticmethod
     def coordinates(theta_deg, phi_deg):
-        """The table's (theta, phi) of directions: theta clipped to 0-90 deg (Sp holds its 90 deg
-        value behind the aperture), phi wrapped to 0-360 deg."""
+        """The table's (theta, phi) of directions: theta clipped to 0-90 deg, phi wrapped to
+        0-360 deg (the caller zeroes theta > 90 deg: :func:`behind_aperture_plane`)."""
         th, ph = np.broadcast_arrays(np.asarray(theta_deg, float), np.asarray(phi_deg, float))
         return np.clip(th, 0.0, 90.0), wrap_360_deg(ph)
 
     def __call__(self, theta_deg, phi_deg) -> np.ndarray:
-        return self._interp(*self.coordinates(theta_deg, phi_deg))
+        th = np.asarray(theta_deg, float)
+        return np.where(behind_aperture_plane(th), 0.0, self._interp(*self.coordinates(th, phi_deg)))
+
+
+def behind_aperture_plane(theta_deg) -> np.ndarray:
+    """Whether directions at ``theta_deg`` off axis lie behind the aperture plane (theta > 90
+    deg; NaN: False), where Sp = 0."""
+    with np.errstate(invalid="ignore"):
+        return np.asarray(theta_deg, float) > 90.0
 
 
 def door_state_index(states_deg, opening_deg):
@@ -186,4 +236,7 @@ def door_from_instrument(instrument: dict) -> Door:
     length = float(d["length_m"]["value"]) if "length_m" in d else door_length_from_paper(r)
     width = float(d["width_m"]["value"]) if "width_m" in d else length
     n = int(d["n_aperture"]["value"]) if "n_aperture" in d else 256
-    return Door(aperture_radius_m=r, length_m=length, width_m=width, n_aperture=n)
+    body_r = float(d["body_radius_m"]["value"]) if "body_radius_m" in d else 0.0
+    body_l = float(d["body_length_m"]["value"]) if "body_length_m" in d else 0.0
+    return Door(aperture_radius_m=r, length_m=length, width_m=width, n_aperture=n, body_radius_m=body_r,
+                body_length_m=body_l)

@@ -46,7 +46,7 @@ from .offfield import MOON_APOGEE_KM, MOON_MEAN_DISTANCE_KM, MOON_PERIGEE_KM
 
 AU_KM = 1.495978707e8
 #: bumped whenever the table's content or layout changes: part of the cache key
-LUT_FORMAT = 3
+LUT_FORMAT = 4
 
 
 @dataclass(frozen=True)
@@ -599,7 +599,7 @@ def _digest(prefix: str, off, items: tuple) -> str:
 
 # -- the moonlit Earth --------------------------------------------------------------------------
 #: bumped whenever the moonlit table's content or layout changes: part of its cache key
-MOONLIT_FORMAT = 1
+MOONLIT_FORMAT = 2
 
 
 @dataclass(frozen=True)

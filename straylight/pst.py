@@ -27,41 +27,73 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
-from .errors import InputError
+from .errors import ConfigError, InputError
 from .geometry import wrap_360_deg
 from .gridinterp import AxisCells, LinearGrid
 
-# Anchors of the default PST (log10 PST vs theta, deg), azimuthally averaged.
-#  - theta <= 0.59 deg: inside the ~1.1 deg2 field, PST = 1 by definition (on-axis image);
-#  - just outside the field the out-of-field light is 4-6 orders below in-field (paper sect. 2.1):
-#    1e-4 at 1 deg, 1e-5 at 5 deg;
-#  - 1e-6 at 30 deg (paper sect. 2.1: "PST is approximately 1e-6" at 30 deg from the limb);
-#  - beyond, the baffle and sunshade keep falling (assumption: -0.04 dex/deg to 90 deg,
-#    then slower to 1e-10 behind the telescope, typical of baffled two-metre telescopes).
+#: radius of the default field (deg): the 1.1 deg2 field of view (seed paper sect. 1) as a disc,
+#: sqrt(1.1 / pi); :func:`load_pst` takes the instrument's own
+DEFAULT_FIELD_RADIUS_DEG = float(np.sqrt(1.1 / np.pi))
+
+# Anchors of the default PST, log10 PST (azimuthal mean) against theta (deg); log-linear between
+# them.  Each anchor, its source, and the part of the curve it fixes (docs/pst.md):
+#  - inside the field, PST = 1 by definition (the on-axis image); the field is imaged, not
+#    scattered, so the direct path never takes the PST there (offfield.py: theta > field radius);
+#  - field edge: out-of-field light 4-6 orders below in-field "at small incident angles" (paper
+#    sect. 2.1): the field stop, PST = 1e-4 at the field radius (the top of the range) and no
+#    ramp past it: PST <= 1e-4 everywhere outside the field;
+#  - 5 deg: 1e-5, the middle of the paper's 4-6 orders (assumption: log-linear between the
+#    edge and 30 deg would give 1e-4.2 at 5 deg; the baffle falls faster near the field);
+#  - 30 deg: 1e-6 (paper sect. 2.1: "30 deg separation from Earth's limb, where the PST value is
+#    approximately 1e-6");
+#  - 30-90 deg: the large-angle tail, one log-linear segment to TAIL_90_LOG10 at 90 deg, fixed by
+#    the paper's CSST-versus-HST conclusion (sect. 3.3): in the paper's scenario CSST's median
+#    earthshine falls to HST's at 20 deg from the bright limb (20.6 V mag/arcsec2, WFC3 IHB
+#    fig. 9.2) 70 deg from the bright limb; the Earth then fills theta 70-90 deg of the direct
+#    path, so this segment sets that crossing (straylight scenario; tests/test_offfield.py);
+#  - theta > 90 deg: behind the aperture plane, the door's Sp is 0 (door.py): these values are
+#    never used by the direct path; they continue the slope so that the PST's tail bounds
+#    (PST.tail_max, influence_radius_deg) stay tight.
+TAIL_90_LOG10 = -8.6
 DEFAULT_ANCHORS_DEG_LOG10 = (
-    (0.0, 0.0), (0.59, 0.0), (1.0, -4.0), (5.0, -5.0), (30.0, -6.0), (50.0, -6.7), (65.0, -7.3),
-    (90.0, -8.0), (120.0, -9.0), (180.0, -10.0),
+    (5.0, -5.0), (30.0, -6.0), (90.0, TAIL_90_LOG10), (180.0, TAIL_90_LOG10 - 3.6),
 )
+#: the field edge's step: PST 1 up to this far inside the field radius (deg), 1e-4 at the radius
+FIELD_EDGE_LOG10 = -4.0
+FIELD_EDGE_WIDTH_DEG = 0.01
 #: Door-side asymmetry: up to this many dex darker towards phi = 0 (assumption: the door and its
 #: frame shade the sunward half of the sunshade; the paper says the PST is asymmetric in phi).
 DEFAULT_DOOR_SIDE_DEX = 0.3
 
 
+def default_anchors(field_radius_deg: float = DEFAULT_FIELD_RADIUS_DEG) -> np.ndarray:
+    """The default PST's anchors (theta deg, log10 PST) for a field of radius ``field_radius_deg``:
+    PST 1 in the field, the field stop's step to 1e-4 at its edge, then :data:`DEFAULT_ANCHORS_DEG_LOG10`."""
+    r = float(field_radius_deg)
+    if not FIELD_EDGE_WIDTH_DEG < r < DEFAULT_ANCHORS_DEG_LOG10[0][0]:
+        raise ConfigError(f"detector.field_of_view_deg2: a field of radius {r:g} deg; the default PST needs "
+                          f"{FIELD_EDGE_WIDTH_DEG} < radius < {DEFAULT_ANCHORS_DEG_LOG10[0][0]} deg")
+    return np.array(((0.0, 0.0), (r - FIELD_EDGE_WIDTH_DEG, 0.0), (r, FIELD_EDGE_LOG10)) + DEFAULT_ANCHORS_DEG_LOG10)
+
+
 def default_pst_grid(theta_step_deg: float = 0.5, phi_step_deg: float = 5.0,
-                     door_side_dex: float = DEFAULT_DOOR_SIDE_DEX):
-    """The embedded default PST on a (theta, phi) grid: (theta_deg, phi_deg, pst[theta, phi])."""
-    a = np.array(DEFAULT_ANCHORS_DEG_LOG10)
+                     door_side_dex: float = DEFAULT_DOOR_SIDE_DEX,
+                     field_radius_deg: float = DEFAULT_FIELD_RADIUS_DEG):
+    """The embedded default PST on a (theta, phi) grid: (theta_deg, phi_deg, pst[theta, phi]);
+    its anchors: :func:`default_anchors` (assumptions with their sources beside them)."""
+    a = default_anchors(field_radius_deg)
     # the anchors and the asymmetry's break points are grid nodes: log10 PST is piecewise linear in
-    # theta between them, so the bilinear interpolation is exact in theta (a uniform 0.5 deg grid
-    # alone put PST 0.16 instead of 0.8 at 0.6 deg, just outside the field edge: bench/run.py)
+    # theta between them, so the bilinear interpolation is exact in theta (the field edge's step
+    # is not smeared over a grid cell)
     theta = np.union1d(np.arange(0.0, 180.0 + theta_step_deg / 2, theta_step_deg), np.r_[a[:, 0], 10.0, 170.0])
     phi = np.arange(0.0, 360.0 + phi_step_deg / 2, phi_step_deg)
     log_azavg = np.interp(theta, a[:, 0], a[:, 1])
-    # asymmetry grows from 0 in the field to its full value beyond 10 deg; the azimuthal mean of
-    # -(dex/2)(1 + cos phi) is -dex/2, so add dex/2 back to keep the azimuthal mean on the anchors
-    # and falls back to 0 over the last 10 deg: at theta = 180 phi is undefined (the pole of the
-    # frame), so a phi-dependent value there would make the PST jump with direction
-    ramp = (np.clip((theta - 0.59) / (10.0 - 0.59), 0.0, 1.0) * np.clip((180.0 - theta) / 10.0, 0.0, 1.0))[:, None]
+    # asymmetry grows from 0 at the field edge to its full value beyond 10 deg; the azimuthal mean
+    # of -(dex/2)(1 + cos phi) is -dex/2, so add dex/2 back to keep the azimuthal mean on the
+    # anchors; and falls back to 0 over the last 10 deg: at theta = 180 phi is undefined (the pole
+    # of the frame), so a phi-dependent value there would make the PST jump with direction
+    r = float(field_radius_deg)
+    ramp = (np.clip((theta - r) / (10.0 - r), 0.0, 1.0) * np.clip((180.0 - theta) / 10.0, 0.0, 1.0))[:, None]
     asym = door_side_dex * ramp * (0.5 - 0.5 * (1.0 + np.cos(np.radians(phi)))[None, :])
     return theta, phi, 10.0 ** (log_azavg[:, None] + asym)
 
@@ -172,10 +204,11 @@ class PST:
         return self(np.asarray(theta_deg)[..., None], phi).mean(axis=-1)
 
 
-def load_pst(path: str | Path | None) -> PST:
-    """Read a PST matrix file (see module doc); ``None`` gives the embedded default."""
+def load_pst(path: str | Path | None, field_radius_deg: float = DEFAULT_FIELD_RADIUS_DEG) -> PST:
+    """Read a PST matrix file (see module doc); ``None`` gives the embedded default for a field of
+    radius ``field_radius_deg`` (deg)."""
     if path is None:
-        th, ph, v = default_pst_grid()
+        th, ph, v = default_pst_grid(field_radius_deg=field_radius_deg)
         return PST(th, ph, v, source="default (assumption, straylight.pst.default_pst_grid)")
     p = Path(path)
     if not p.exists():
@@ -216,7 +249,7 @@ def load_pst(path: str | Path | None) -> PST:
 
 def write_pst_csv(pst: PST, path: str | Path) -> None:
     th, ph = np.meshgrid(pst.theta_deg, pst.phi_deg, indexing="ij")
-    lines = ["theta_deg,phi_deg,pst"] + [f"{a:g},{b:g},{c:.6e}" for a, b, c in zip(th.ravel(), ph.ravel(), pst.values.ravel())]
+    lines = ["theta_deg,phi_deg,pst"] + [f"{a:.12g},{b:.12g},{c:.6e}" for a, b, c in zip(th.ravel(), ph.ravel(), pst.values.ravel())]
     Path(path).write_text("\n".join(lines) + "\n")
 
 

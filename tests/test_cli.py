@@ -200,3 +200,32 @@ def test_utc_offsets_in_a_pointing_table(tmp_path, campaign):
     cols = pointing_table(campaign, read_pointings(p), ["g"])
     assert list(cols["time"]) == ["2026-01-01T00:50:00.000"] * 3
     assert cols["total_g"][0] == cols["total_g"][1] == cols["total_g"][2]
+
+
+def test_scenario_overlays_hst_and_writes_the_crossing_angle(tmp_path):
+    """`straylight scenario --hst-curve PATH` (paper sect. 3.3): prints, and writes to a JSON beside
+    its CSV, the limb angle at which CSST's median earthshine falls to HST's at 20 deg (the WFC3
+    IHB fig. 9.2 curve: 20.6 V mag/arcsec2); the paper: 70 deg; the default instrument: 69.4."""
+    from conftest import SHARED_DATA
+
+    curve = SHARED_DATA / "hst_sky" / "wfc3_earthshine_v_vs_limb_angle.csv"
+    if not curve.exists():
+        pytest.skip(f"{curve} is absent: the HST WFC3 earthshine curve is test and validation only "
+                    "(shared/data/DATA.md)")
+    out = tmp_path / "es.png"
+    r = run_cli("scenario", "--hst-curve", curve, "--out", out, timeout=900)
+    assert r.returncode == 0, r.stderr
+    res = json.loads(out.with_suffix(".json").read_text())
+    assert res["hst_v_mag_per_arcsec2"] == pytest.approx(20.6, abs=0.05)
+    assert res["csst_crossing_limb_angle_deg"] == pytest.approx(70.0, abs=5.0)
+    assert f"{res['csst_crossing_limb_angle_deg']:.1f} deg from the bright limb" in r.stdout
+    assert out.with_suffix(".csv").exists() and out.stat().st_size > 10000
+
+
+def test_scenario_refuses_a_bad_hst_curve_before_the_work(tmp_path):
+    bad = tmp_path / "hst.csv"
+    bad.write_text("angle,mag\n10,15\n30,21\n")
+    r = run_cli("scenario", "--hst-curve", bad, "--out", tmp_path / "es.png")
+    assert r.returncode == 2
+    assert f"{bad}: missing column(s) limb_angle_deg, v_mag_per_arcsec2" in r.stderr
+    assert "Traceback" not in r.stderr and not (tmp_path / "es.csv").exists()

@@ -250,6 +250,15 @@ def test_save_load_round_trip_and_cache_key(coarse, tmp_path, campaign):
 
     assert k != lut_key(replace(off, earthshine=replace(off.earthshine, albedo=0.31)), 6378.137,
                         (6778.137, 6778.137), LUTSettings(5, 5, 20), 1e-20)
+    # the tables are built from the PST and the door (with the body that shades it): another PST
+    # or body is another table
+    from straylight.pst import PST
+
+    darker = PST(off.pst.theta_deg, off.pst.phi_deg, off.pst.values * np.where(off.pst.theta_deg > 60.0, 0.5, 1.0)[:, None])
+    assert k != lut_key(replace(off, pst=darker), 6378.137, (6778.137, 6778.137), LUTSettings(5, 5, 20), 1e-20)
+    assert k != lut_key(replace(off, door=replace(off.door, body_radius_m=1.5)), 6378.137, (6778.137, 6778.137),
+                        LUTSettings(5, 5, 20), 1e-20)
+    assert k == lut_key(replace(off), 6378.137, (6778.137, 6778.137), LUTSettings(5, 5, 20), 1e-20)
     (tmp_path / "bad.npz").write_bytes(b"not a table")
     from straylight.errors import InputError
 
