@@ -52,8 +52,8 @@ DEFAULT_FIELD_RADIUS_DEG = float(np.sqrt(1.1 / np.pi))
 #    fig. 9.2) 70 deg from the bright limb; the Earth then fills theta 70-90 deg of the direct
 #    path, so this segment sets that crossing (straylight scenario; tests/test_offfield.py);
 #  - theta > 90 deg: behind the aperture plane, the door's Sp is 0 (door.py): these values are
-#    never used by the direct path; they continue the slope so that the PST's tail bounds
-#    (PST.tail_max, influence_radius_deg) stay tight.
+#    never used by the direct path; they keep falling (to 10^-12.2 at 180 deg) so that the PST's
+#    tail bounds (PST.tail_max, influence_radius_deg) stay tight.
 TAIL_90_LOG10 = -8.6
 DEFAULT_ANCHORS_DEG_LOG10 = (
     (5.0, -5.0), (30.0, -6.0), (90.0, TAIL_90_LOG10), (180.0, TAIL_90_LOG10 - 3.6),
