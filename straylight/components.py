@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 from numba import njit
+from threadpoolctl import threadpool_limits
 
 from .bandpass import load_band
 from .config import Campaign
@@ -712,9 +713,22 @@ class ComponentModel:
         flux = np.array([self.photometry(b).from_ab(stars.faint_mag_ab[b]) for b in bands]).T  # (S, B)
         theta_grid, ln_pst, slope = self._pst_azimuthal_table
         per_deg = (theta_grid.size - 1) / theta_grid[-1]
-        r_field = self.offfield.field_radius_deg
         out = np.zeros((flat.shape[0], len(bands)))
         s_all = stars.faint_unit
+        # one BLAS thread: the products' summation order, and so the map's last bits, must not
+        # depend on how many cores the job was given (Snakemake sets OPENBLAS_NUM_THREADS per job)
+        with threadpool_limits(limits=1, user_api="blas"):
+            self._faint_star_sums(flat, s_all, flux, ln_pst, slope, per_deg, out, batch, los_batch)
+        out *= self.offfield.pixel_area_m2
+        res = {b: out[:, j].reshape(los.shape[:-1]) for j, b in enumerate(bands)}
+        if len(cache) > 64:
+            cache.clear()
+        cache[key] = res
+        return res
+
+    def _faint_star_sums(self, flat, s_all, flux, ln_pst, slope, per_deg, out, batch, los_batch) -> None:
+        """Adds sum_s flux_s PSTavg(theta_s) over the faint stars to ``out`` (lines of sight x bands)."""
+        r_field = self.offfield.field_radius_deg
         for a in range(0, flat.shape[0], los_batch):
             for i in range(0, len(s_all), batch):
                 cosang = np.clip(flat[a:a + los_batch] @ s_all[i:i + batch].T, -1.0, 1.0)
@@ -722,12 +736,6 @@ class ComponentModel:
                 k = np.minimum(x.astype(np.intp), slope.size - 1)  # linear in ln PST, as np.interp on the grid
                 t = np.exp(ln_pst[k] + (x - k) * slope[k]) * ((x > r_field * per_deg) & (x <= 90.0 * per_deg))
                 out[a:a + los_batch] += t @ flux[i:i + batch]
-        out *= self.offfield.pixel_area_m2
-        res = {b: out[:, j].reshape(los.shape[:-1]) for j, b in enumerate(bands)}
-        if len(cache) > 64:
-            cache.clear()
-        cache[key] = res
-        return res
 
     #: the star skip's floor levels, in units of the darkest zodiacal light: a sample's floor
     #: is rounded down to one of them, so each sky cell's candidates are chosen once per level

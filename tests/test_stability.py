@@ -209,3 +209,42 @@ def test_ghosts_as_the_marginal_ray_angle_goes_to_zero(campaign):
         assert np.allclose(gu.radii_mm() / u, g.radii_mm() / g.u_rad)  # radii shrink linearly
     with pytest.raises(InputError, match="u is 0"):
         replace(g, u_rad=0.0).irradiance_relative_to_image_per_mm2()
+
+
+_FAINT_MAP_SCRIPT = """
+import sys
+import numpy as np
+from straylight.components import ComponentModel, StarTable
+from straylight.config import load_campaign
+rng = np.random.default_rng(5)
+n = 20000
+BANDS = ("NUV", "u", "g", "r", "i", "z", "y")
+stars = StarTable(np.zeros(0), np.zeros(0), {}, faint_ra_deg=rng.uniform(0, 360, n),
+                  faint_dec_deg=np.degrees(np.arcsin(rng.uniform(-1, 1, n))),
+                  faint_mag_ab={b: rng.uniform(6, 12, n) for b in BANDS})
+los = rng.normal(size=(602, 3))
+los /= np.linalg.norm(los, axis=1)[:, None]
+res = ComponentModel(load_campaign()).faint_star_rates(stars, los, list(BANDS))
+np.save(sys.argv[1], np.stack([res[b] for b in BANDS]))
+"""
+
+
+def test_faint_star_map_does_not_depend_on_the_jobs_cores(tmp_path):
+    """The faint-star map is a sum of BLAS matrix products; OpenBLAS started with 1 or 2 threads
+    (Snakemake sets OPENBLAS_NUM_THREADS to a job's cores) sums in different orders and changed
+    the map's last bits, so a 1-core SLURM job and a 2-core local run differed.  The sums now run
+    on one BLAS thread whatever the process was started with: bit-identical maps."""
+    import os
+    import subprocess
+    import sys
+
+    maps = []
+    for threads in ("1", "2"):
+        out = tmp_path / f"faint_{threads}.npy"
+        env = dict(os.environ, OPENBLAS_NUM_THREADS=threads, OMP_NUM_THREADS=threads)
+        r = subprocess.run([sys.executable, "-c", _FAINT_MAP_SCRIPT, str(out)], env=env, capture_output=True,
+                           text=True, timeout=300)
+        assert r.returncode == 0, r.stderr[-2000:]
+        maps.append(np.load(out))
+    assert np.all(maps[0] > 0)
+    np.testing.assert_array_equal(maps[0], maps[1])
