@@ -39,17 +39,19 @@ from _results import write_results  # noqa: E402
 PRODUCTS = ("background.zarr", "limits.zarr", "observability.zarr")
 
 
-def campaign_config(days: float, nside: int, cadence_s: float, name: str = "bench") -> dict:
-    """config/config.yaml with the campaign's length (days from its start), cadence and nside
-    changed, the instrument path made absolute."""
+def campaign_config(days: float, nside: int, cadence_s: float, name: str = "bench",
+                    base: Path = REPO / "config" / "config.yaml") -> dict:
+    """The ``base`` config (config/config.yaml) with the campaign's length (days from its start),
+    cadence and nside changed, the instrument path made absolute."""
     import yaml
 
-    cfg = yaml.safe_load((REPO / "config" / "config.yaml").read_text())
+    base = Path(base).resolve()
+    cfg = yaml.safe_load(base.read_text())
     start = datetime.fromisoformat(cfg["campaign"]["start"])
     cfg["campaign"].update(name=name, cadence_s=cadence_s,
                            end=(start + timedelta(days=days)).isoformat(timespec="seconds"))
     cfg["footprint"]["nside"] = int(nside)
-    cfg["instrument"] = str((REPO / "config" / cfg["instrument"]).resolve())
+    cfg["instrument"] = str((base.parent / cfg["instrument"]).resolve())
     return cfg
 
 
@@ -125,13 +127,14 @@ def directory_bytes(path: Path) -> int:
     return sum(p.stat().st_size for p in Path(path).rglob("*") if p.is_file()) if Path(path).exists() else 0
 
 
-def run_campaign(days: float, nside: int, cadence_s: float, cores: int, keep: Path | None = None) -> dict:
+def run_campaign(days: float, nside: int, cadence_s: float, cores: int, keep: Path | None = None,
+                 base: Path = REPO / "config" / "config.yaml") -> dict:
     """Run the campaign end to end in a temporary directory; the figures above (no kernel)."""
     import yaml
 
     tmp = Path(tempfile.mkdtemp(prefix="straylight-pipeline-bench-"))
     try:
-        cfg = campaign_config(days, nside, cadence_s)
+        cfg = campaign_config(days, nside, cadence_s, base=base)
         cfg_path = tmp / "bench.yaml"
         cfg_path.write_text(yaml.safe_dump(cfg))
         snakemake = str(Path(sys.executable).with_name("snakemake"))
@@ -155,7 +158,7 @@ def run_campaign(days: float, nside: int, cadence_s: float, cores: int, keep: Pa
         for rec in rules.values():
             rec["share_of_wall"] = rec["seconds"] / wall
         result = {
-            "campaign": {"days": days, "nside": nside, "cadence_s": cadence_s, "times": int(init["times"]),
+            "campaign": {"base_config": str(base), "days": days, "nside": nside, "cadence_s": cadence_s, "times": int(init["times"]),
                          "pixels": int(init["pixels"]), "bands": len(init["bands"]), "samples": samples,
                          "chunks": init["chunks"]},
             "cores": cores,
@@ -200,12 +203,14 @@ def main(argv=None) -> dict:
     ap.add_argument("--nside", type=int, default=32, help="HEALPix nside (default 32)")
     ap.add_argument("--cadence-s", type=float, default=300.0, help="cadence, seconds (default 300)")
     ap.add_argument("--cores", type=int, default=2, help="snakemake --cores (default 2)")
+    ap.add_argument("--base", type=Path, default=REPO / "config" / "config.yaml",
+                    help="the config the campaign is derived from (default config/config.yaml)")
     ap.add_argument("--no-kernel", action="store_true", help="skip the kernel figure (a smoke run)")
     ap.add_argument("--keep", type=Path, default=None, help="copy the campaign's results here")
     ap.add_argument("--out", type=Path, default=None,
                     help="results file (default bench/results/pipeline.json)")
     args = ap.parse_args(argv)
-    result = run_campaign(args.days, args.nside, args.cadence_s, args.cores, args.keep)
+    result = run_campaign(args.days, args.nside, args.cadence_s, args.cores, args.keep, args.base)
     result["kernel"] = None if args.no_kernel else kernel_figure()
     c = result["campaign"]
     print(f"pipeline, wall to wall: {c['samples']:,} samples ({args.days:g} days, nside {args.nside}, "
