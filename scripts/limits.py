@@ -1,4 +1,4 @@
-"""Snakemake adapter: rule `limits` -> limits.zarr and maps/*.fits."""
+"""Snakemake adapter: rule `limits` -> limits.zarr and maps/*.fits (streamed over the cube's chunks)."""
 import sys
 from pathlib import Path
 
@@ -14,8 +14,10 @@ from straylight.limits import limits_dataset, write_limit_maps  # noqa: E402
 log = setup_logging(snakemake)  # noqa: F821
 c = campaign(snakemake)  # noqa: F821
 with xr.open_zarr(snakemake.params.store, consolidated=True) as bg:  # noqa: F821
-    ds = limits_dataset(c, bg.load())
-write_zarr_atomic(ds, snakemake.output.limits, storage=c.config["storage"])  # noqa: F821
+    write_zarr_atomic(limits_dataset(c, bg), snakemake.output.limits, storage=c.config["storage"])  # noqa: F821
+# the maps and the log from the per-pixel summaries just written (small: pixel x band)
+with xr.open_zarr(snakemake.output.limits, consolidated=True) as written:  # noqa: F821
+    ds = written.drop_vars(["limiting_mag", "observable"]).load()
 with atomic_path(snakemake.output.maps) as tmp:  # noqa: F821
     maps = write_limit_maps(ds, tmp)
 for b in ds["band"].values:

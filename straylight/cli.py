@@ -452,7 +452,7 @@ def cmd_scenario(args) -> int:
 
 def cmd_plan(args) -> int:
     from .config import load_campaign
-    from .cube import CUBE_COMPONENTS, cube_chunks, estimated_cost
+    from .cube import CUBE_COMPONENTS, PRODUCT_BYTES_PER_SAMPLE, cube_chunks, estimated_cost
     from .footprint import footprint_from_config
     from .timegrid import time_blocks
 
@@ -474,8 +474,15 @@ def cmd_plan(args) -> int:
           f"x {nb} bands")
     print(f"samples (time, pointing): {n:,}; evaluated: {cost['evaluated_samples']:,} "
           f"(models.unobservable_samples: {cost['unobservable_samples']})")
-    print(f"time blocks (Snakemake jobs): {len(tb)}; chunks {cube_chunks(campaign, nt, npix)}")
-    print(f"output size (uncompressed): background.zarr {cube_bytes / 1e9:.2f} GB, limits.zarr {limits_bytes / 1e9:.2f} GB")
+    print(f"time blocks: {len(tb)}; chunks {cube_chunks(campaign, nt, npix)}")
+    print(f"products on disk: {cost['product_bytes'] / 1e9:.2f} GB at {PRODUCT_BYTES_PER_SAMPLE:g} bytes/sample "
+          f"(straylight.cube.PRODUCT_BYTES_PER_SAMPLE); uncompressed: background.zarr {cube_bytes / 1e9:.2f} GB, "
+          f"limits.zarr {limits_bytes / 1e9:.2f} GB")
+    cores = 2
+    print(f"estimated cost, wall to wall: {cost['pipeline_core_hours']:.3g} core-hours, "
+          f"{cost['pipeline_core_hours'] / cores:.3g} h on {cores} cores, at the pipeline's "
+          f"{cost['pipeline_samples_per_s_per_core']:,.0f} samples/s/core ({cost['pipeline_rate_source']})"
+          + (", the earthshine tables' build included" if cost["table_build_seconds"] else ""))
     method = {"lut": "look-up table", "direct": "direct Earth-grid sum"}[cost["earthshine_method"]]
     table = ""
     if cost["earthshine_method"] == "lut":
@@ -493,7 +500,7 @@ def cmd_plan(args) -> int:
         how = "this code's figures on the 2-core development machine (straylight.cube.CUBE_*; bench/run.py --only cube)"
         if speed:
             how += f" x{speed['factor']:.2f} for this machine (--calibrate)"
-    print(f"estimated cost: {cost['core_hours']:.2f} core-hours at {how}")
+    print(f"the cube's kernel alone: {cost['core_hours']:.2f} core-hours at {how}")
     return 0
 
 

@@ -12,10 +12,13 @@ Layout of ``background.zarr`` (xarray Dataset):
   x all bands.  A time-series read of one pointing then touches one chunk per time block, and a
   whole-sky read at one time one chunk per pixel block (see bench/cube_chunks.py for timings).
 
-Work split: Snakemake runs one job per time block; inside it Dask computes the pixel blocks, and
-every task writes its own region of the store exactly once.  A block is marked done by a
-sentinel file only after all its regions are written, so a killed job is redone as a whole and,
-the computation being deterministic, gives identical bytes.
+Work split: one Snakemake job computes many time blocks (:func:`run_time_blocks`: all of them,
+or ``compute.time_blocks_per_job``) with a pool of worker processes started once per job; each
+worker builds the model (PST, door tables, stars, earthshine tables) once and reuses it for every
+(time block, pixel block) region it is given, and every region is written to its own part of the
+store exactly once.  A time block is marked done by its own sentinel file only after all its
+regions are written, so a killed job redoes only the unfinished time blocks and, the computation
+being deterministic, gives identical bytes.
 """
 from __future__ import annotations
 
@@ -198,6 +201,41 @@ CUBE_SCREEN_SECONDS_PER_SAMPLE = 1.05e-6
 CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE = 10.3e-6
 
 
+#: Bytes on disk per (time, pixel) sample of the whole product set (background.zarr, limits.zarr,
+#: observability.zarr), all bands: the compressed stores' budget (issue 32: at most 25 bytes per
+#: sample).  The one figure `straylight plan` sizes a campaign's products with.
+PRODUCT_BYTES_PER_SAMPLE = 25.0
+#: The pipeline's speed wall to wall (samples / wall seconds / cores: `snakemake` to the last
+#: product, every rule included, the earthshine tables cached), when neither
+#: compute.pipeline_samples_per_s_per_core nor bench/results/pipeline.json gives one:
+#: bench/pipeline.py on one month of config/cycle.yaml (nside 64, 5-minute cadence, 183,081,600
+#: samples) on 2 cores, 108,753 samples/s/core, on the 2-core development machine shared with
+#: other jobs.  Per-run costs (job start-up, figures) weigh less in longer campaigns: one month
+#: at nside 32 (45,671,040 samples) ran at 61,575 on the same machine.
+PIPELINE_SAMPLES_PER_S_PER_CORE = 108_753.0
+#: where bench/pipeline.py writes its figures
+PIPELINE_BENCH_RESULTS = Path(__file__).resolve().parents[1] / "bench" / "results" / "pipeline.json"
+
+
+def pipeline_rate(campaign: Campaign, bench_results=PIPELINE_BENCH_RESULTS) -> tuple[float, str]:
+    """The pipeline's wall-to-wall samples/s/core and where it comes from: the config's
+    compute.pipeline_samples_per_s_per_core, else the last bench/pipeline.py run's figure
+    (``bench_results``), else PIPELINE_SAMPLES_PER_S_PER_CORE."""
+    configured = (campaign.config.get("compute") or {}).get("pipeline_samples_per_s_per_core")
+    if configured:
+        return float(configured), "compute.pipeline_samples_per_s_per_core"
+    path = Path(bench_results)
+    if path.exists():
+        try:
+            rec = json.loads(path.read_text())
+            c = rec["campaign"]
+            return float(rec["samples_per_s_per_core"]), (
+                f"{path.name}: {c['days']:g} days at nside {c['nside']}, {c['cadence_s']:g} s, {rec['cores']} cores")
+        except (ValueError, KeyError, TypeError):
+            pass  # an unreadable or partial file: the stated default below
+    return PIPELINE_SAMPLES_PER_S_PER_CORE, "straylight.cube.PIPELINE_SAMPLES_PER_S_PER_CORE"
+
+
 def cube_compute_seconds(samples: int, evaluated: int, earthshine_method: str, skip: bool,
                          seconds_per_evaluated_sample: float | None = None, speed_factor: float = 1.0) -> float:
     """Seconds on one core to compute a cube of ``samples`` (time, pixel) samples of which
@@ -257,7 +295,11 @@ def estimated_cost(campaign: Campaign, fp: Footprint, seconds_per_evaluated_samp
     """What the campaign's cube will cost before it runs: its samples, the samples it
     evaluates (:func:`evaluated_samples`), the sunlit earthshine model ``auto`` picks
     (ComponentModel.earthshine_choice, nothing built), the table's build when it is not cached
-    yet, and the compute (:func:`cube_compute_seconds`).  Seconds on one core.  The figures are
+    yet, and the compute (:func:`cube_compute_seconds`).  Seconds on one core.  Also the
+    whole run, wall to wall, at the measured pipeline figure (:func:`pipeline_rate`, measured
+    on the table path; on the direct sum the kernel's compute where that is slower; the table's build added
+    when it is not cached), and the products' bytes
+    (PRODUCT_BYTES_PER_SAMPLE).  The figures are
     this code's on a 2-core development machine (single runs wander by 20-40 %), times
     ``speed_factor`` (:func:`machine_speed`) for this one."""
     from .components import ComponentModel, unobservable_samples
@@ -277,10 +319,16 @@ def estimated_cost(campaign: Campaign, fp: Footprint, seconds_per_evaluated_samp
         table_cached = sunlit_cached and moonlit_cached
         build_s = speed_factor * ((0.0 if sunlit_cached else choice["build_seconds_estimate"] - moonlit_s)
                                   + (0.0 if moonlit_cached else moonlit_s))
+    rate, rate_source = pipeline_rate(campaign)
     return {"samples": n, "evaluated_samples": n_eval, "unobservable_samples": "skip" if skip else "evaluate",
             "earthshine_method": choice["method"], "earthshine_reason": choice["reason"],
             "table_cached": table_cached, "table_build_seconds": build_s, "compute_seconds": compute_s,
-            "core_hours": (compute_s + build_s) / 3600.0, "speed_factor": speed_factor}
+            "core_hours": (compute_s + build_s) / 3600.0, "speed_factor": speed_factor,
+            "pipeline_samples_per_s_per_core": rate, "pipeline_rate_source": rate_source,
+            # the figure is measured on the table path; the direct sum's kernel alone is slower
+            "pipeline_core_hours": ((n / rate if choice["method"] == "lut" else max(n / rate, compute_s))
+                                    + build_s) / 3600.0,
+            "product_bytes": n * PRODUCT_BYTES_PER_SAMPLE}
 
 
 def _component_model(campaign: Campaign, fp: Footprint, build_workers: int = 1):
@@ -442,15 +490,16 @@ def _by_step(values, k: int, npix: int) -> np.ndarray:
 
 
 def write_region(campaign: Campaign, fp: Footprint, store, t_slice: slice, p_slice: slice,
-                 stars_path=None, scene=None) -> float:
+                 stars_path=None, scene=None, faint_map=None) -> float:
     """Compute one (time block, pixel block) region and write it to its Zarr region; seconds.
-    ``scene``: the time block's positions, shared by its pixel blocks (None: computed here)."""
+    ``scene``: the time block's positions, shared by its pixel blocks (None: computed here);
+    ``faint_map``: the store's faint-star map at these pixels, (pixel, band) e-/s/pix, when the
+    caller has read it (None: read from the store here when there is a star catalog)."""
     t0 = _time.perf_counter()
-    faint = None
-    if stars_path is not None:
-        with xr.open_zarr(store, consolidated=False) as skeleton:
-            if "faint_star_map" in skeleton:
-                faint = skeleton["faint_star_map"][p_slice].values
+    faint = faint_map
+    if faint is None and stars_path is not None:
+        faint = _stored_faint_map(store)
+        faint = None if faint is None else faint[p_slice]
     ds = compute_region(campaign, fp, t_slice, p_slice, stars_path=stars_path, faint_map=faint, scene=scene)
     try:
         ds.to_zarr(store, region={"time": t_slice, "pixel": p_slice, "band": slice(None)}, mode="r+",
@@ -511,3 +560,128 @@ def run_time_block(campaign: Campaign, fp: Footprint, store, block_index: int, c
             note(futures[fut], fut.result())
     n = (t_slice.stop - t_slice.start) * fp.pixels.size
     return BlockReport(block_index, len(p_blocks), n, _time.perf_counter() - t0)
+
+
+def _stored_faint_map(store) -> np.ndarray | None:
+    """The store's faint_star_map, (pixel, band) e-/s/pix, or None when it has none."""
+    with xr.open_zarr(store, consolidated=False) as skeleton:
+        return skeleton["faint_star_map"].values if "faint_star_map" in skeleton else None
+
+
+def block_sentinel(done_dir, block_index: int) -> Path:
+    """The file marking time block ``block_index`` done (its BlockReport as JSON)."""
+    return Path(done_dir) / f"block_{block_index}.json"
+
+
+def clear_block_sentinels(done_dir) -> int:
+    """Remove every time block's sentinel from ``done_dir`` (a fresh store has no block done);
+    returns how many were removed."""
+    removed = 0
+    for p in Path(done_dir).glob("block_*.json"):
+        p.unlink()
+        removed += 1
+    return removed
+
+
+#: the worker process's campaign, footprint, store and catalog (set once by _pool_init)
+_WORKER: dict = {}
+
+
+def _pool_init(campaign: Campaign, fp: Footprint, store: str, stars_path) -> None:
+    """Pool worker start-up: keep the job's inputs and build the model now, once per process
+    (every region this process computes reuses it)."""
+    _WORKER.update(campaign=campaign, fp=fp, store=store, stars_path=stars_path)
+    _component_model(campaign, fp)
+    _offfield_stars(campaign, stars_path)
+
+
+def _pool_region(t_slice: slice, p_slice: slice, scene, faint_map) -> float:
+    """One region in a pool worker, with the inputs _pool_init kept; seconds."""
+    w = _WORKER
+    return write_region(w["campaign"], w["fp"], w["store"], t_slice, p_slice, w["stars_path"], scene, faint_map)
+
+
+class _InProcess:
+    """An executor running each region at once in this process (one worker, no pool)."""
+
+    def __init__(self, campaign, fp, store, stars_path):
+        _pool_init(campaign, fp, store, stars_path)
+
+    def submit_region(self, t_slice: slice, p_slice: slice, scene, faint_map):
+        from concurrent.futures import Future
+
+        fut = Future()
+        try:
+            fut.set_result(_pool_region(t_slice, p_slice, scene, faint_map))
+        except BaseException as exc:  # noqa: BLE001 - handed to the caller by fut.result()
+            fut.set_exception(exc)
+        return fut
+
+
+def run_time_blocks(campaign: Campaign, fp: Footprint, store, blocks, done_dir, workers: int = 1,
+                    scheduler_address: str | None = None, log=None, stars_path=None) -> list[BlockReport]:
+    """Compute the time blocks ``blocks`` (indices) of the cube into ``store``, each marked done
+    by its sentinel in ``done_dir`` (:func:`block_sentinel`) once all its pixel blocks are
+    written; blocks already marked done are skipped (resume).  Regions run on ``workers``
+    processes started once for all the blocks (``straylight.daskutil.region_pool``: each builds
+    the model once), in this process when ``workers`` is 1, or on the Dask cluster at
+    ``scheduler_address`` when given (its workers keep the model between tasks and jobs).
+    ``log`` (a logging.Logger) gets one line per finished region.  Returns every requested
+    block's report (a skipped one's from its sentinel)."""
+    from concurrent.futures import FIRST_COMPLETED
+
+    from .daskutil import region_pool
+    from .io import write_json_atomic
+    from .sky import scene
+    from .timegrid import time_blocks
+
+    c = campaign.config["campaign"]
+    tb = time_blocks(len(campaign.times), float(c["cadence_s"]), float(c.get("time_block_hours", 6)))
+    blocks = [int(b) for b in blocks]
+    bad = [b for b in blocks if not 0 <= b < len(tb)]
+    if bad:
+        raise IndexError(f"time block {bad[0]} outside 0..{len(tb) - 1}")
+    store = str(Path(store).resolve())  # workers (other hosts, other cwd) need an absolute path
+    stars_path = str(Path(stars_path).resolve()) if stars_path else None
+    todo = [b for b in blocks if not block_sentinel(done_dir, b).exists()]
+    if log is not None and len(todo) < len(blocks):
+        log.info("%d of %d time blocks already done (sentinels in %s): skipped", len(blocks) - len(todo),
+                 len(blocks), done_dir)
+    p_blocks = [slice(a, b) for a, b in fp.blocks(int(campaign.config["footprint"].get("pixel_block_size", 1024)))]
+    faint = _stored_faint_map(store) if (stars_path is not None and todo) else None
+    if todo:
+        with region_pool(campaign, fp, store, stars_path, workers, scheduler_address) as (submit, wait):
+            # a bounded window of regions in flight: the next time block's scene is computed
+            # while the workers are busy, and memory does not grow with the campaign
+            window = 2 * max(1, int(workers)) + 1
+            pending: dict = {}
+            left = {b: len(p_blocks) for b in todo}
+            started: dict = {}
+
+            def finish(done):
+                for fut in done:
+                    b, ps, t_slice = pending.pop(fut)
+                    seconds = fut.result()
+                    if log is not None:
+                        log.info("chunk time %d:%d pixels %d:%d done in %.2f s", t_slice.start, t_slice.stop,
+                                 ps.start, ps.stop, seconds)
+                    left[b] -= 1
+                    if left[b] == 0:
+                        n = (t_slice.stop - t_slice.start) * fp.pixels.size
+                        rep = BlockReport(b, len(p_blocks), n, _time.perf_counter() - started[b])
+                        write_json_atomic(rep.__dict__, block_sentinel(done_dir, b))
+
+            for b in todo:
+                t_slice = slice(*tb[b])
+                # the satellite's and the bodies' positions once per time block, shared by its
+                # pixel blocks (~20 kB for 72 steps, sent with each region)
+                sc = scene(campaign, campaign.times[t_slice])
+                started[b] = _time.perf_counter()
+                for ps in p_blocks:
+                    while len(pending) >= window:
+                        finish(wait(list(pending), return_when=FIRST_COMPLETED)[0])
+                    fut = submit(t_slice, ps, sc, None if faint is None else faint[ps])
+                    pending[fut] = (b, ps, t_slice)
+            while pending:
+                finish(wait(list(pending), return_when=FIRST_COMPLETED)[0])
+    return [BlockReport(**json.loads(block_sentinel(done_dir, b).read_text())) for b in blocks]

@@ -78,7 +78,11 @@ def zero_point_coord(campaign: Campaign, bands) -> tuple:
 
 def point_source_limit(background_e_per_s_per_pix, band_name: str, campaign: Campaign) -> np.ndarray:
     """5-sigma AB limiting magnitude for the band's survey exposures at the given background."""
-    x = survey_exposure(campaign, band_name)
+    return _limit_mag(background_e_per_s_per_pix, survey_exposure(campaign, band_name))
+
+
+def _limit_mag(background_e_per_s_per_pix, x: SurveyExposure) -> np.ndarray:
+    """5-sigma AB limiting magnitude for the exposures ``x`` at the background (e-/s/pix)."""
     t_tot = x.total_s
     bkg = np.asarray(background_e_per_s_per_pix, dtype=float)
     n_b = x.n_pix * (bkg * t_tot + x.dark_e_per_s * t_tot + x.n_exposures * x.read_noise_e**2)
@@ -86,45 +90,66 @@ def point_source_limit(background_e_per_s_per_pix, band_name: str, campaign: Cam
     return -2.5 * np.log10(s / (EE_FRACTION * t_tot * x.zero_point_e_per_s))
 
 
+#: pixels per task of the per-pixel summaries, which need every time of a pixel at once: a
+#: month at 5-minute cadence, 7 bands, float32 is 62 MB per task
+SUMMARY_PIXELS_PER_TASK = 256
+
+
 def limits_dataset(campaign: Campaign, background) -> "xr.Dataset":
     """(time, pixel, band) 5-sigma limits from background.zarr's ``total``, plus per-pixel
     campaign summaries over observable times (best, median) and the observable fraction.
     Pixels never observable get NaN in the summaries (the HEALPix FITS maps turn it into
     healpy's UNSEEN: :func:`write_limit_maps`).  A float sentinel here would pass as a
-    magnitude: a plot's colour range or a mean over pixels would take -1.6e30 mag."""
+    magnitude: a plot's colour range or a mean over pixels would take -1.6e30 mag.
+
+    ``background`` may be lazy (``xr.open_zarr``): the result is then lazy too, and writing it
+    streams over the cube's chunks (the limits chunk by chunk, the summaries
+    SUMMARY_PIXELS_PER_TASK pixels at a time over all times) instead of holding the campaign."""
     import xarray as xr
 
-    total = background["total"]
-    observable = background["observable"].values
-    lim = np.empty(total.shape, np.float32)
-    for ib, b in enumerate(background["band"].values):
-        lim[:, :, ib] = point_source_limit(total.isel(band=ib).values, str(b), campaign)
-    masked = np.where(observable[:, :, None], lim, np.nan)
-    any_obs = observable.any(axis=0)
-    with np.errstate(all="ignore"):
+    bands = [str(b) for b in background["band"].values]
+    exposures = [survey_exposure(campaign, b) for b in bands]
+
+    def limits(total):  # (..., band) e-/s/pix -> mag(AB), float32
+        out = np.empty(total.shape, np.float32)
+        for ib, x in enumerate(exposures):
+            out[..., ib] = _limit_mag(total[..., ib], x)
+        return out
+
+    def best_and_median(lim, observable):  # (pixel, band, time), (pixel, 1, time) -> (pixel, band, 2)
         import warnings
 
-        with warnings.catch_warnings():
+        masked = np.where(observable, lim, np.nan)
+        with np.errstate(all="ignore"), warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
-            best = np.nanmax(masked, axis=0)
-            median = np.nanmedian(masked, axis=0)
-    best = np.where(any_obs[:, None], best, np.nan).astype(np.float32)
-    median = np.where(any_obs[:, None], median, np.nan).astype(np.float32)
-    frac = observable.mean(axis=0).astype(np.float32)
-    desc = ", ".join(f"{b}: {campaign.instrument['bands'][str(b)]['n_exposures']} x "
-                     f"{campaign.instrument['bands'][str(b)]['exposure_s']} s" for b in background["band"].values)
+            best = np.nanmax(masked, axis=-1)
+            median = np.nanmedian(masked, axis=-1)
+        seen = observable.any(axis=-1)
+        return np.stack([np.where(seen, best, np.nan), np.where(seen, median, np.nan)], axis=-1).astype(np.float32)
+
+    lim = xr.apply_ufunc(limits, background["total"], dask="parallelized", output_dtypes=[np.float32])
+    observable = background["observable"]
+    whole_times = {"time": -1, "pixel": SUMMARY_PIXELS_PER_TASK}
+    lim_t, obs_t = (lim, observable) if lim.chunks is None else (lim.chunk(whole_times), observable.chunk(whole_times))
+    summary = xr.apply_ufunc(best_and_median, lim_t, obs_t, input_core_dims=[["time"], ["time"]],
+                             output_core_dims=[["stat"]], dask="parallelized", output_dtypes=[np.float32],
+                             dask_gufunc_kwargs={"output_sizes": {"stat": 2}})
+    frac = observable.mean("time").astype(np.float32)
+    desc = ", ".join(f"{b}: {campaign.instrument['bands'][b]['n_exposures']} x "
+                     f"{campaign.instrument['bands'][b]['exposure_s']} s" for b in bands)
     ds = xr.Dataset(
         {
-            "limiting_mag": (("time", "pixel", "band"), lim,
+            "limiting_mag": (("time", "pixel", "band"), lim.data,
                              {"units": "mag(AB)", "long_name": f"5-sigma point-source limit in the EE80 aperture ({desc})"}),
-            "limiting_mag_best": (("pixel", "band"), best,
+            "limiting_mag_best": (("pixel", "band"), summary.isel(stat=0).transpose("pixel", "band").data,
                                   {"units": "mag(AB)",
                                    "long_name": "deepest limit over observable times (NaN: never observable)"}),
-            "limiting_mag_median": (("pixel", "band"), median,
+            "limiting_mag_median": (("pixel", "band"), summary.isel(stat=1).transpose("pixel", "band").data,
                                     {"units": "mag(AB)",
                                      "long_name": "median limit over observable times (NaN: never observable)"}),
-            "observable_fraction": (("pixel",), frac, {"units": "1", "long_name": "fraction of campaign times observable"}),
-            "observable": (("time", "pixel"), observable, {"units": "1", "long_name": "pointing satisfies every constraint"}),
+            "observable_fraction": (("pixel",), frac.data, {"units": "1", "long_name": "fraction of campaign times observable"}),
+            "observable": (("time", "pixel"), observable.data,
+                           {"units": "1", "long_name": "pointing satisfies every constraint"}),
         },
         coords={**{k: background[k] for k in ("time", "pixel", "ra_deg", "dec_deg", "band")},
                 ZERO_POINT_NAME: zero_point_coord(campaign, background["band"].values),

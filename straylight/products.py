@@ -111,21 +111,47 @@ def write_footprint_fits(fp: Footprint, path) -> None:
                      column_units=["1"], dtype=np.float32, overwrite=True)
 
 
-def observability_dataset(campaign: Campaign, ephem: xr.Dataset, fp: Footprint) -> xr.Dataset:
-    """(time, pixel) observability over the footprint from the ephemeris product."""
-    sat = ephem["satellite_position_km"].values[:, None, :]
-    bodies = {b: ephem["body_position_km"].sel(body=b).values[:, None, :] for b in ("sun", "moon")}
-    los = radec_to_unit(fp.ra_deg, fp.dec_deg)[None, :, :]
-    g = observing_geometry(sat, bodies, los, campaign.earth.radius_km, campaign.constraints)
+def observability_dataset(campaign: Campaign, ephem: xr.Dataset, fp: Footprint, chunks: dict | None = None) -> xr.Dataset:
+    """(time, pixel) observability over the footprint from the ephemeris product.  ``chunks``
+    ({"time": n, "pixel": m}): the variables are lazy (dask), each chunk's geometry computed
+    when it is written, so a campaign is never held whole; None: computed here at once.  Each
+    sample's geometry depends on that sample alone, so both give the same values."""
+    sat_all = ephem["satellite_position_km"].values
+    bodies_all = {b: ephem["body_position_km"].sel(body=b).values for b in ("sun", "moon")}
+    los_all = radec_to_unit(fp.ra_deg, fp.dec_deg)
+
+    def geometry(ts: slice, ps: slice) -> dict:
+        g = observing_geometry(sat_all[ts, None, :], {b: v[ts, None, :] for b, v in bodies_all.items()},
+                               los_all[None, ps, :], campaign.earth.radius_km, campaign.constraints)
+        return {"observable": g["observable"], "violations": g["violations"],
+                **{k: g[k].astype(np.float32) for k in ("sun_angle_deg", "moon_angle_deg", "earth_limb_angle_deg",
+                                                        "door_opening_deg")}}
+
+    if chunks is None:
+        g = geometry(slice(None), slice(None))
+    else:
+        import dask
+        import dask.array as da
+
+        nt, npix = sat_all.shape[0], los_all.shape[0]
+        dtypes = {k: v.dtype for k, v in geometry(slice(0, 1), slice(0, 1)).items()}
+        t_edges = list(range(0, nt, int(chunks["time"]))) + [nt]
+        p_edges = list(range(0, npix, int(chunks["pixel"]))) + [npix]
+        parts = [[dask.delayed(geometry, pure=True)(slice(t0, t1), slice(p0, p1))
+                  for p0, p1 in zip(p_edges[:-1], p_edges[1:])] for t0, t1 in zip(t_edges[:-1], t_edges[1:])]
+        g = {k: da.block([[da.from_delayed(part[k], (t1 - t0, p1 - p0), dt)
+                           for part, p0, p1 in zip(row, p_edges[:-1], p_edges[1:])]
+                          for row, t0, t1 in zip(parts, t_edges[:-1], t_edges[1:])])
+             for k, dt in dtypes.items()}
     ds = xr.Dataset(
         {
             "observable": _var(g["observable"], ("time", "pixel"), "1", "pointing satisfies every constraint"),
             "violations": xr.Variable(("time", "pixel"), g["violations"], violation_mask_attrs()),
-            "sun_angle_deg": _var(g["sun_angle_deg"].astype(np.float32), ("time", "pixel"), "deg", "angle LOS-Sun"),
-            "moon_angle_deg": _var(g["moon_angle_deg"].astype(np.float32), ("time", "pixel"), "deg", "angle LOS-Moon"),
-            "earth_limb_angle_deg": _var(g["earth_limb_angle_deg"].astype(np.float32), ("time", "pixel"), "deg",
+            "sun_angle_deg": _var(g["sun_angle_deg"], ("time", "pixel"), "deg", "angle LOS-Sun"),
+            "moon_angle_deg": _var(g["moon_angle_deg"], ("time", "pixel"), "deg", "angle LOS-Moon"),
+            "earth_limb_angle_deg": _var(g["earth_limb_angle_deg"], ("time", "pixel"), "deg",
                                          "LOS elevation above the Earth limb"),
-            "door_opening_deg": _var(g["door_opening_deg"].astype(np.float32), ("time", "pixel"), "deg",
+            "door_opening_deg": _var(g["door_opening_deg"], ("time", "pixel"), "deg",
                                      "aperture door opening (0 = no allowed state)"),
         },
         coords={

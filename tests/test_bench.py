@@ -76,3 +76,31 @@ def test_goal_check_reads_the_production_figures_and_flags_each_goal():
     partial = goal_check({"cube": {"lut": {"samples_per_s_per_core": 1.2e6}}})
     assert partial["met"] == {"rate_production_campaign": None, "rate_production_time_block": None,
                               "rate_day_spread_batch": True, "error": None, "speedup": None}
+
+
+def test_pipeline_bench_writes_its_figures(tmp_path):
+    """bench/pipeline.py end to end on a tiny campaign (2 hours at 10 minutes, nside 4, one
+    core, no kernel figure): the results file holds the wall-to-wall rate, each rule's time,
+    peak memory and bytes per sample, consistent with each other (no timed assertion)."""
+    import json
+    import subprocess
+
+    out = tmp_path / "pipeline.json"
+    bench = Path(__file__).resolve().parents[1] / "bench" / "pipeline.py"
+    r = subprocess.run([sys.executable, str(bench), "--days", str(2 / 24), "--nside", "4", "--cadence-s", "600",
+                        "--cores", "1", "--no-kernel", "--out", str(out)], capture_output=True, text=True, timeout=900)
+    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+    rec = json.loads(out.read_text())
+    c = rec["campaign"]
+    assert (c["times"], c["nside"], c["bands"]) == (12, 4, 7)
+    assert c["samples"] == 12 * c["pixels"] and 0 < c["pixels"] < 192  # nside 4: 192 pixels on the sky
+    assert rec["samples_per_s_per_core"] == c["samples"] / rec["wall_seconds"] / rec["cores"]
+    assert {"background_blocks", "background_init", "limits", "observability", "plots"} <= set(rec["rules"])
+    for name, rule in rec["rules"].items():
+        assert rule["jobs"] >= 1 and 0.0 <= rule["seconds"] <= rec["wall_seconds"] + 1.0, name
+        assert rule["share_of_wall"] == rule["seconds"] / rec["wall_seconds"]
+    assert rec["peak_memory_bytes"] > 50 * 2**20  # at least one Python process with numpy loaded
+    assert all(rec["products_bytes"][p] > 0 for p in ("background.zarr", "limits.zarr", "observability.zarr"))
+    assert rec["bytes_per_sample"] == sum(rec["products_bytes"].values()) / c["samples"]
+    assert rec["kernel"] is None and rec["table_build_seconds_before_run"] >= 0.0
+    assert "samples/s/core" in r.stdout

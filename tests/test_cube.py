@@ -120,21 +120,30 @@ def test_rerun_recomputes_only_what_is_missing(cube_run):
     from straylight.provenance import sha256_path
 
     digest = sha256_path(before)
-    # as after a crash inside time block 1: its sentinel and everything downstream are missing
-    (out / "background_blocks" / "block_1.json").unlink()
-    for p in ("background_summary.json", "provenance.json"):
+    # as after a crash inside time block 1: its sentinel, the cube job's record and everything
+    # downstream are missing
+    blocks = out / "background_blocks"
+    (blocks / "block_1.json").unlink()
+    for p in ("background_summary.json", "provenance.json", "background_blocks/part_0.json"):
         (out / p).unlink()
     for d in ("limits.zarr", "maps"):
         shutil.rmtree(out / d)
+    finished = {p.name: p.stat().st_mtime_ns for p in blocks.glob("block_*.json")}
+    assert finished  # block 0 (of the two half-hour blocks) stays done
     r = _run(tmp, cfg, "-n")
     text = r.stdout + r.stderr
-    assert "background_block" in text and "background_init" not in text
+    assert "background_blocks" in text and "background_init" not in text
     import re
 
     counts = {m.group(1): int(m.group(2)) for m in re.finditer(r"^(\w+)\s+(\d+)$", text, re.M)}
-    assert counts.get("background_block") == 1  # only the block that was not finished
+    assert counts.get("background_blocks") == 1
     r = _run(tmp, cfg, "results/cube/provenance.json")
     assert r.returncode == 0
+    # only the block that was not finished is recomputed: the others' sentinels are untouched
+    assert {p: (blocks / p).stat().st_mtime_ns for p in finished} == finished
+    assert (blocks / "block_1.json").exists()
+    log = (out / "logs" / "background_blocks_0.log").read_text()
+    assert f"{len(finished)} of {len(finished) + 1} time blocks already done" in log
     assert sha256_path(out / "background.zarr") == digest  # recomputed block is bit-identical
 
 
@@ -219,6 +228,46 @@ def test_plan_prints_samples_size_and_cost():
     assert "samples (time, pointing): 380,160; evaluated: 380,160" in r.stdout
     assert "sunlit earthshine: direct Earth-grid sum (auto: 380160 samples save" in r.stdout
     assert "core-hours" in r.stdout and "GB" in r.stdout
+
+
+def test_pipeline_rate_from_config_then_bench_results_then_default(campaign, tmp_path):
+    """cube.pipeline_rate: compute.pipeline_samples_per_s_per_core when set, else the figure
+    bench/pipeline.py wrote, else the stated default; estimated_cost costs a table-path
+    campaign at samples / that rate and sizes its products at PRODUCT_BYTES_PER_SAMPLE."""
+    from straylight import cube as cu
+    from straylight.footprint import footprint_from_config
+
+    bench = tmp_path / "pipeline.json"
+    assert cu.pipeline_rate(campaign, bench) == (cu.PIPELINE_SAMPLES_PER_S_PER_CORE,
+                                                 "straylight.cube.PIPELINE_SAMPLES_PER_S_PER_CORE")
+    bench.write_text(json.dumps({"samples_per_s_per_core": 123456.0, "cores": 2,
+                                 "campaign": {"days": 30, "nside": 32, "cadence_s": 300}}))
+    rate, source = cu.pipeline_rate(campaign, bench)
+    assert rate == 123456.0 and "30 days at nside 32" in source
+    configured = _campaign_with(campaign, {"compute": {"pipeline_samples_per_s_per_core": 2.5e5}})
+    assert cu.pipeline_rate(configured, bench) == (2.5e5, "compute.pipeline_samples_per_s_per_core")
+    month = _campaign_with(campaign, {"campaign": {"end": "2026-01-31T00:00:00"},
+                                      "compute": {"pipeline_samples_per_s_per_core": 2.5e5}})
+    fp = footprint_from_config(month.config["footprint"])
+    cost = cu.estimated_cost(month, fp)
+    assert cost["earthshine_method"] == "lut"
+    assert cost["pipeline_core_hours"] * 3600 == pytest.approx(cost["samples"] / 2.5e5 + cost["table_build_seconds"],
+                                                               rel=1e-12)
+    assert cost["product_bytes"] == cost["samples"] * cu.PRODUCT_BYTES_PER_SAMPLE
+
+
+def test_cycle_config_is_valid_and_planned_from_the_pipeline_figure():
+    """config/cycle.yaml (half a year at nside 64, 5-minute cadence) passes the schema, and
+    `straylight plan` costs it wall to wall at the pipeline's figure: 182.5 days x 288 steps x
+    its footprint's pixels."""
+    from straylight.config import load_campaign
+
+    c = load_campaign(REPO / "config" / "cycle.yaml")
+    assert len(c.times) == 52_560 and c.config["footprint"]["nside"] == 64
+    r = run_cli("plan", REPO / "config" / "cycle.yaml", timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert "estimated cost, wall to wall: " in r.stdout and "samples/s/core" in r.stdout
+    assert "products on disk: " in r.stdout
 
 
 def test_plan_calibrate_scales_the_figures_by_this_machines_speed():

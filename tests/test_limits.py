@@ -218,3 +218,35 @@ def test_never_observable_pixels_are_nan_in_zarr_and_unseen_in_fits(tmp_path):
     assert h["EXPTIME"] == b["exposure_s"] and h["TEXPTIME"] == b["exposure_s"] * b["n_exposures"]
     assert h["DATE-BEG"] == "0" and h["DATE-END"] == "3"
     assert "BAND" not in fits.getheader(tmp_path / "maps" / "observable_fraction.fits", 1)
+
+
+def test_limits_stream_over_chunks_with_the_eager_values(tmp_path):
+    """limits_dataset on a lazy cube (dask chunks, as the limits rule opens background.zarr)
+    gives the same bytes as on the cube in memory: the limits chunk by chunk, the per-pixel
+    summaries a few pixels at a time over all times."""
+    import xarray as xr
+
+    from straylight.config import load_campaign
+    from straylight.limits import limits_dataset
+
+    c = load_campaign()
+    bands = list(c.bands)
+    rng = np.random.default_rng(3)
+    nt, npix = 30, 600
+    total = rng.lognormal(0.0, 1.0, (nt, npix, len(bands))).astype(np.float32)
+    observable = rng.random((nt, npix)) < 0.3
+    observable[:, :5] = False  # never observable: NaN summaries
+    background = xr.Dataset(
+        {"total": (("time", "pixel", "band"), total), "observable": (("time", "pixel"), observable)},
+        coords={"time": np.arange(nt), "pixel": np.arange(npix), "ra_deg": ("pixel", np.zeros(npix)),
+                "dec_deg": ("pixel", np.zeros(npix)), "band": bands},
+        attrs={"healpix_nside": 8, "healpix_ordering": "RING", "healpix_frame": "ICRS", "campaign": "test"})
+    eager = limits_dataset(c, background)
+    lazy = limits_dataset(c, background.chunk({"time": 7, "pixel": 100}))
+    assert lazy["limiting_mag"].chunks is not None  # nothing computed yet
+    lazy.to_zarr(tmp_path / "lazy.zarr")
+    back = xr.open_zarr(tmp_path / "lazy.zarr").load()
+    for name in ("limiting_mag", "limiting_mag_best", "limiting_mag_median", "observable_fraction", "observable"):
+        np.testing.assert_array_equal(back[name].values, eager[name].values, err_msg=name)
+        assert back[name].dtype == eager[name].dtype
+    assert np.isnan(back["limiting_mag_best"].values[:5]).all()

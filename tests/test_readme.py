@@ -107,6 +107,17 @@ def test_plain_blocks_run(tmp_path, clone):
     assert (work / "vis.png").stat().st_size > 10_000 and (work / "vis_windows.csv").exists()
 
 
+def test_slurm_block_dry_run(clone):
+    """The cluster block as written: the plugin installed, the profile read, the cycle's jobs
+    planned (-n); tests/test_slurm.py submits a campaign to a real SLURM."""
+    _, found = blocks()
+    (how, lang, code), = [b for b in found if b[0].startswith("run as a dry run")]
+    assert "snakemake -n --profile workflow/profiles/slurm" in code
+    r = _run(lang, code, clone)
+    assert r.returncode == 0, code + r.stdout[-2000:] + r.stderr[-3000:]
+    assert "background_blocks" in r.stdout + r.stderr
+
+
 @pytest.mark.slow
 def test_tiny_campaign_products_follow_the_conventions(campaign_run):
     """CF flags on the violation mask, zero points with the cube, units in Parquet, FITS keywords."""

@@ -19,33 +19,36 @@ rule background_init:
         "../../scripts/background_init.py"
 
 
-rule background_block:
-    """One time block of the cube: Dask computes the pixel blocks, each written to its region."""
+rule background_blocks:
+    """A group of time blocks of the cube (all of them by default): a pool of worker processes,
+    started once, computes their pixel blocks, each written to its region; a time block's sentinel
+    (background_blocks/block_<i>.json) marks it done, so a re-run redoes only unfinished ones."""
     input:
         f"{RESULTS}/background_blocks/init.json",
         config=CONFIG_PATH,
         stars=f"{RESULTS}/stars_csst.parquet",
     output:
-        f"{RESULTS}/background_blocks/block_{{block}}.json",
+        f"{RESULTS}/background_blocks/part_{{part}}.json",
     params:
         store=f"{RESULTS}/background.zarr",
-    # 2 Dask workers per time block; Snakemake lowers it to --cores, runs several blocks at once
-    # on bigger machines, and the SLURM profile raises it (set-threads)
+        blocks=lambda wildcards: CUBE_JOBS[int(wildcards.part)],
+    # worker processes of the job's pool; Snakemake lowers it to --cores, and the SLURM profile
+    # raises it (set-threads)
     threads: 2
     resources:
         mem_mb=4000,
     conda:
         "../envs/straylight.yaml"
     log:
-        f"{LOGS}/background_block_{{block}}.log",
+        f"{LOGS}/background_blocks_{{part}}.log",
     script:
-        "../../scripts/background_block.py"
+        "../../scripts/background_blocks.py"
 
 
 rule background:
     """All time blocks done: consolidate the store's metadata and summarise the run."""
     input:
-        expand(f"{RESULTS}/background_blocks/block_{{block}}.json", block=TIME_BLOCKS),
+        expand(f"{RESULTS}/background_blocks/part_{{part}}.json", part=range(len(CUBE_JOBS))),
     output:
         f"{RESULTS}/background_summary.json",
     params:

@@ -30,3 +30,7 @@ TIME_BLOCKS = list(
         )
     )
 )
+#: the time blocks of each cube job (rule background_blocks): all in one job, or
+#: compute.time_blocks_per_job per job
+_PER_JOB = (config.get("compute") or {}).get("time_blocks_per_job") or max(1, len(TIME_BLOCKS))
+CUBE_JOBS = [TIME_BLOCKS[i:i + _PER_JOB] for i in range(0, len(TIME_BLOCKS), _PER_JOB)]
