@@ -20,8 +20,8 @@ def check_output_path(path, flag: str = "--out", overwrite: bool = False, parent
     The parent folder must exist (created when ``parents``), be a folder and accept a new file
     (probed by creating and removing a temporary file, so read-only file systems and missing
     permissions are caught whoever runs); an existing file is refused unless ``overwrite``.
-    ``folder``: ``path`` is an output folder (it may exist; files in it are replaced only with
-    ``overwrite``).  Raises :class:`~straylight.errors.InputError` naming ``flag`` and the path.
+    ``folder``: ``path`` is an output folder, created here when its parent exists (or with
+    ``parents``); an existing one's files are replaced only with ``overwrite``.  Raises :class:`~straylight.errors.InputError` naming ``flag`` and the path.
     """
     from .errors import InputError
 
@@ -39,6 +39,8 @@ def check_output_path(path, flag: str = "--out", overwrite: bool = False, parent
             raise InputError(f"{flag} {p}: file exists; pass --overwrite to replace it")
         target = p.parent
     if not target.exists():
+        if folder and target.parent.is_dir():
+            parents = True  # the output folder itself: made like a file would be
         if not parents:
             raise InputError(f"{flag} {p}: folder {target} does not exist; create it or pass --parents")
         try:

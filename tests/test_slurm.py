@@ -91,16 +91,16 @@ def test_profile_takes_site_settings_from_the_environment(monkeypatch):
     default = read()
     assert default["executor"] == "slurm"
     assert {"slurm_partition=normal", "slurm_account=csst"} <= set(default["default-resources"])
-    assert "background_block=16" in default["set-threads"]
-    assert "background_block:mem_mb=32000" in default["set-resources"]
+    assert "background_blocks=16" in default["set-threads"]
+    assert "background_blocks:mem_mb=32000" in default["set-resources"]
     monkeypatch.setenv("STRAYLIGHT_SLURM_PARTITION", "debug")
     monkeypatch.setenv("STRAYLIGHT_SLURM_ACCOUNT", "")
     monkeypatch.setenv("STRAYLIGHT_SLURM_CPUS", "2")
     site = read()
     assert "slurm_partition=debug" in site["default-resources"]
     assert not any(r.startswith("slurm_account") for r in site["default-resources"])
-    assert "background_block=2" in site["set-threads"]
-    assert {"background_block:cpus_per_task=2", "background_block:mem_mb=4000"} <= set(site["set-resources"])
+    assert "background_blocks=2" in site["set-threads"]
+    assert {"background_blocks:cpus_per_task=2", "background_blocks:mem_mb=4000"} <= set(site["set-resources"])
 
 
 @pytest.mark.slow
