@@ -243,8 +243,9 @@ class OffFieldModel:
         dgamma = rho[..., None] * 0.5 * np.pi * np.cos(0.5 * np.pi * u) / s.n_gamma
         return gamma, dgamma
 
-    def _cap_grid(self, sat_km, earth_radius_km, s: EarthshineSettings):
-        """Block directions (..., G, P, 3), solid angles, surface points for each sample."""
+    def _cap_axes(self, sat_km, earth_radius_km, s: EarthshineSettings):
+        """The cap grid's frame and nodes: nadir, e1, e2 (..., 3); gamma, dgamma (..., G);
+        cos and sin of gamma (..., G, 1, 1) and of the block-centre azimuths psi (P, 1)."""
         nadir = -unit(sat_km)
         e1 = perpendicular_towards(nadir, np.broadcast_to(np.array([0.0, 0.0, 1.0]), nadir.shape))
         e2 = np.cross(nadir, e1)
@@ -252,6 +253,11 @@ class OffFieldModel:
         psi = (np.arange(s.n_psi) + 0.5) * 2 * np.pi / s.n_psi
         cg, sg = np.cos(gamma)[..., :, None, None], np.sin(gamma)[..., :, None, None]
         cp, spp = np.cos(psi)[:, None], np.sin(psi)[:, None]
+        return nadir, e1, e2, gamma, dgamma, cg, sg, cp, spp
+
+    def _cap_grid(self, sat_km, earth_radius_km, s: EarthshineSettings):
+        """Block directions (..., G, P, 3), solid angles, surface points for each sample."""
+        nadir, e1, e2, gamma, dgamma, cg, sg, cp, spp = self._cap_axes(sat_km, earth_radius_km, s)
         d = cg * nadir[..., None, None, :] + sg * (cp * e1[..., None, None, :] + spp * e2[..., None, None, :])
         d_omega = (np.sin(gamma) * dgamma)[..., :, None] * (2 * np.pi / s.n_psi)
         rr = norm(sat_km)[..., None]  # (..., 1)
@@ -263,13 +269,7 @@ class OffFieldModel:
         """Each cap block's extent as two vectors (..., G, P, 3): the change of its direction
         across the block in nadir angle (d(dir)/d(gamma) dgamma) and in azimuth (d(dir)/d(psi)
         dpsi), for :meth:`front_fraction`."""
-        nadir = -unit(sat_km)
-        e1 = perpendicular_towards(nadir, np.broadcast_to(np.array([0.0, 0.0, 1.0]), nadir.shape))
-        e2 = np.cross(nadir, e1)
-        gamma, dgamma = self._cap_nadir_angles(sat_km, earth_radius_km, s)  # (..., G)
-        psi = (np.arange(s.n_psi) + 0.5) * 2 * np.pi / s.n_psi
-        cg, sg = np.cos(gamma)[..., :, None, None], np.sin(gamma)[..., :, None, None]
-        cp, spp = np.cos(psi)[:, None], np.sin(psi)[:, None]
+        nadir, e1, e2, gamma, dgamma, cg, sg, cp, spp = self._cap_axes(sat_km, earth_radius_km, s)
         horiz = cp * e1[..., None, None, :] + spp * e2[..., None, None, :]
         span_gamma = (-sg * nadir[..., None, None, :] + cg * horiz) * dgamma[..., :, None, None]
         span_psi = sg * (-spp * e1[..., None, None, :] + cp * e2[..., None, None, :]) * (2 * np.pi / s.n_psi)
