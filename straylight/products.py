@@ -137,7 +137,12 @@ def observability_dataset(campaign: Campaign, ephem: xr.Dataset, fp: Footprint, 
         dtypes = {k: v.dtype for k, v in geometry(slice(0, 1), slice(0, 1)).items()}
         t_edges = list(range(0, nt, int(chunks["time"]))) + [nt]
         p_edges = list(range(0, npix, int(chunks["pixel"]))) + [npix]
-        parts = [[dask.delayed(geometry, pure=True)(slice(t0, t1), slice(p0, p1))
+        # one token for the whole product (its inputs), each chunk's key from its slices: tokenizing
+        # the geometry closure per chunk (cloudpickle of the campaign and arrays) costs more than the chunk
+        token = dask.base.tokenize(sat_all, bodies_all, los_all, campaign.earth.radius_km,
+                                   repr(campaign.constraints), t_edges, p_edges)
+        parts = [[dask.delayed(geometry, pure=True)(slice(t0, t1), slice(p0, p1),
+                                                    dask_key_name=f"observability-{token}-{t0}-{p0}")
                   for p0, p1 in zip(p_edges[:-1], p_edges[1:])] for t0, t1 in zip(t_edges[:-1], t_edges[1:])]
         g = {k: da.block([[da.from_delayed(part[k], (t1 - t0, p1 - p0), dt)
                            for part, p0, p1 in zip(row, p_edges[:-1], p_edges[1:])]
