@@ -7,7 +7,9 @@ shown as AB mag/arcsec2 (brighter = smaller), the unit planners compare with sky
 """
 from __future__ import annotations
 
+from contextlib import contextmanager
 from pathlib import Path
+from unittest.mock import patch
 
 import numpy as np
 
@@ -75,6 +77,17 @@ def _mollview_with_unit(fig, values, unit: str, **kw) -> None:
     hp.graticule(dpar=30, dmer=60, color="0.3", alpha=0.5, lw=0.4)
 
 
+@contextmanager
+def _no_intermediate_draws():
+    """healpy's mollview and graticule end with ``pylab.draw()``, which on the Agg backend renders
+    the whole figure: an 8-panel page was drawn 16 times before it was saved.  Only the save
+    needs to render, so inside this block those calls do nothing (the saved image is the same)."""
+    import pylab
+
+    with patch.object(pylab, "draw", lambda: None):
+        yield
+
+
 def _save(fig, path: Path) -> Path:
     from .io import atomic_path
 
@@ -106,12 +119,14 @@ def sky_maps(ds, campaign, out_dir, n_times: int = 2, bands=None, times=()) -> l
     written = []
     for it in idx:
         t = str(ds["time"].values[it])[:16]
+        # every component at this time, all bands, in one read (each chunk decompressed once)
+        snap = ds[list(CUBE_BAND_VARIABLES) + ["observable"]].isel(time=it).compute()
         for ib, band in enumerate(ds["band"].values):
             if bands is not None and str(band) not in bands:
                 continue
             maps, zero = [], []
             for comp in CUBE_BAND_VARIABLES:
-                e = np.asarray(ds[comp].isel(time=it, band=ib), float)
+                e = np.asarray(snap[comp].isel(band=ib), float)
                 if not np.any(np.isfinite(e) & (e > 0)):
                     zero.append(comp)  # no panel: say so in the title instead
                     continue
@@ -124,7 +139,7 @@ def sky_maps(ds, campaign, out_dir, n_times: int = 2, bands=None, times=()) -> l
                 _mollview_with_unit(fig, _full_sky(ds, mag), "AB mag/arcsec2 (brighter: yellow)", nest=nest,
                                     sub=(nrow, ncol, k + 1), title=comp, min=lo, max=hi, cmap="viridis_r",
                                     notext=True)
-            obs = np.asarray(ds["observable"].isel(time=it), float)
+            obs = np.asarray(snap["observable"], float)
             hp.mollview(_full_sky(ds, obs), nest=nest, fig=fig.number, sub=(nrow, ncol, len(maps) + 1),
                         title="observable", min=0, max=1, cmap="RdYlGn", cbar=False, notext=True)
             hp.graticule(dpar=30, dmer=60, color="0.3", alpha=0.5, lw=0.4)
@@ -168,10 +183,12 @@ def time_series(ds, campaign, out_dir, n_pointings: int = 3, pointings=()) -> li
         pix_idx = np.unique(np.linspace(0, ds.sizes["pixel"] - 1, n_pointings).round().astype(int))
     t = ds["time"].values
     minutes = (t - t[0]) / np.timedelta64(1, "m")
+    # the chosen pixels' whole series, every component and band, in one pass over the cube's chunks
+    series = ds[list(CUBE_BAND_VARIABLES) + ["observable"]].isel(pixel=pix_idx).compute()
     written = []
-    for ip in pix_idx:
+    for k_pix, ip in enumerate(pix_idx):
         ra, dec = float(ds["ra_deg"][ip]), float(ds["dec_deg"][ip])
-        sub = ds.isel(pixel=ip)
+        sub = series.isel(pixel=k_pix)
         obs = np.asarray(sub["observable"], bool)
         for span, sel in (("orbit", minutes <= ORBIT_MINUTES), ("campaign", np.ones(minutes.size, bool))):
             bands = list(ds["band"].values)
@@ -253,7 +270,8 @@ def limit_maps(limits_ds, campaign, out_dir) -> list:
 def depth_summary(limits_ds) -> dict:
     """Per band: the median over the footprint of each pixel's median 5-sigma limit, the best
     pixel's best limit (AB mag), and the observable fraction of all (time, pixel) samples."""
-    obs = float(np.asarray(limits_ds["observable"], bool).mean())
+    # counted chunk by chunk (an exact integer, so the same fraction as the mean of the whole array)
+    obs = int(limits_ds["observable"].sum()) / limits_ds["observable"].size
     rows = {}
     for ib, band in enumerate(limits_ds["band"].values):
         med = np.asarray(limits_ds["limiting_mag_median"].isel(band=ib), float)
@@ -357,7 +375,9 @@ def campaign_figures(background_path, limits_path, campaign, out_dir) -> list:
 
         raise ConfigError(f"{campaign.path}: report.sky_map_bands: {', '.join(unknown)} not among the cube's bands "
                           f"{', '.join(str(b) for b in ds['band'].values)}")
-    written = (sky_maps(ds, campaign, out, int(rc["sky_map_times"]), rc.get("sky_map_bands"), rc.get("times") or ())
-               + time_series(ds, campaign, out, int(rc["series_pointings"]), rc.get("pointings") or ()))
     limits_ds = xr.open_zarr(limits_path)
-    return written + limit_maps(limits_ds, campaign, out) + write_summary(limits_ds, campaign, out)
+    with _no_intermediate_draws():
+        written = (sky_maps(ds, campaign, out, int(rc["sky_map_times"]), rc.get("sky_map_bands"), rc.get("times") or ())
+                   + time_series(ds, campaign, out, int(rc["series_pointings"]), rc.get("pointings") or ())
+                   + limit_maps(limits_ds, campaign, out))
+    return written + write_summary(limits_ds, campaign, out)
