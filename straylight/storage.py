@@ -1,7 +1,8 @@
 """How the products store their variables on disk (Zarr v3 codecs).
 
 Floating-point data variables are bit-rounded, byte-shuffled and zstd-compressed:
-``numcodecs.bitround`` keeps ``storage.float_keepbits`` mantissa bits, rounding to nearest, so a
+``numcodecs.bitround`` keeps ``storage.float_keepbits`` mantissa bits (``storage.magnitude_keepbits`` in variables whose
+units are magnitudes, e.g. 16 bits: within 2.4e-4 mag of a 30-mag value), rounding to nearest, so a
 stored float differs from the computed one by at most half a unit in the last kept place,
 2^-(keepbits + 1) of its magnitude (exactly 0, NaN and inf are kept as they are); the byte
 shuffle then groups the exponent bytes and the zeroed mantissa bytes, which zstd packs.
@@ -49,11 +50,14 @@ def encoded(dataset, settings: dict, lossless: tuple = ()):
     ``dataset``, encoding).
     """
     keepbits = int(settings["float_keepbits"])
+    mag_keepbits = int(settings.get("magnitude_keepbits", keepbits))
     level = int(settings["zstd_level"])
     out = dataset.copy(deep=False)
     encoding = {}
     for name, var in out.data_vars.items():
-        encoding[name], described, error = _codecs(var.dtype, name in lossless, keepbits, level)
+        # magnitudes are read to a fixed number of decimals, not to a fraction of themselves
+        bits = mag_keepbits if str(var.attrs.get("units", "")).startswith("mag") else keepbits
+        encoding[name], described, error = _codecs(var.dtype, name in lossless, bits, level)
         # a new attrs dict: the caller's dataset is left as it was
         out[name] = var.copy(deep=False)
         out[name].attrs = {**var.attrs, COMPRESSION_ATTR: described, MAX_RELATIVE_ERROR_ATTR: error}
