@@ -449,7 +449,7 @@ class ComponentModel:
                     "moonlit_build_seconds_estimate": 0.0}
         lut_cfg = es.get("lut", {})
         settings = LUTSettings(float(lut_cfg.get("sun_zenith_step_deg", 0.5)),
-                               float(lut_cfg.get("los_zenith_step_deg", 2.0)),
+                               float(lut_cfg.get("los_zenith_step_deg", 1.0)),
                                float(lut_cfg.get("azimuth_step_deg", 2.5)),
                                int(lut_cfg.get("n_radius", 1)))
         node_states = self.lut_node_states(settings)
