@@ -608,7 +608,7 @@ def _digest(prefix: str, off, items: tuple) -> str:
 
 # -- the moonlit Earth --------------------------------------------------------------------------
 #: bumped whenever the moonlit table's content or layout changes: part of its cache key
-MOONLIT_FORMAT = 2
+MOONLIT_FORMAT = 3
 
 
 @dataclass(frozen=True)

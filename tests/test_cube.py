@@ -193,7 +193,11 @@ def _campaign_with(campaign, over: dict):
     return campaign_from_dict(deep_merge(campaign.config, over), campaign.path)
 
 
-WEEK = {"campaign": {"end": "2026-01-08T00:00:00"}}  # seven days of the default campaign
+#: three weeks of the default campaign (8.0 million samples): past the default earthshine
+#: table's break-even (~5.4 million: 1,840,841 nodes x 2 door states at
+#: LUT_BUILD_SECONDS_PER_NODE against LUT_SAVED_SECONDS_PER_SAMPLE)
+WEEKS = {"campaign": {"end": "2026-01-22T00:00:00"}}
+N_DAYS = 21
 
 
 def test_evaluated_samples_skipping_counts_the_observable_ones(campaign):
@@ -296,7 +300,7 @@ def test_machine_speed_and_its_factor(campaign, tmp_path, monkeypatch):
     assert speed["measured_seconds"] > 0.0
     assert speed["factor"] == pytest.approx(speed["measured_seconds"] / speed["assumed_seconds"], rel=1e-12)
     monkeypatch.setenv("STRAYLIGHT_CACHE", str(tmp_path))  # an empty cache: the build is counted
-    week = _campaign_with(campaign, WEEK)
+    week = _campaign_with(campaign, WEEKS)
     base, fast = cu.estimated_cost(week, fp), cu.estimated_cost(week, fp, speed_factor=0.25)
     assert fast["compute_seconds"] == pytest.approx(0.25 * base["compute_seconds"], rel=1e-12)
     assert base["table_build_seconds"] > 0.0
@@ -307,11 +311,11 @@ def test_machine_speed_and_its_factor(campaign, tmp_path, monkeypatch):
 def test_plan_costs_the_model_auto_picks(campaign, tmp_path, monkeypatch):
     """straylight plan (cube.estimated_cost) costs the earthshine model the cube will run, on
     the samples it evaluates, without building anything: the default day takes the direct sum;
-    a week of it the table, whose build (782,633 nodes x 2 door states at
+    three weeks of it the table, whose build (1,840,841 nodes x 2 door states at
     components.LUT_BUILD_SECONDS_PER_NODE, the default table's node count, and the moonlit
-    table's 439,375 x 2 at MOONLIT_LUT_BUILD_SECONDS_PER_NODE) is counted while it is not
-    cached, each table on its own; the same week skipping the unobservable samples (~16.5 %) is short of the
-    table's break-even (~2.3 million samples) again."""
+    table's 534,375 x 2 at MOONLIT_LUT_BUILD_SECONDS_PER_NODE) is counted while it is not
+    cached, each table on its own; the same weeks skipping the unobservable samples (~16.5 %) are
+    short of the table's break-even (~5.4 million samples) again."""
     from straylight import components as comp
     from straylight import cube as cu
     from straylight.footprint import footprint_from_config
@@ -325,20 +329,20 @@ def test_plan_costs_the_model_auto_picks(campaign, tmp_path, monkeypatch):
     assert day["compute_seconds"] == pytest.approx(380_160 * per_sample, rel=1e-12)
 
     def week(unobservable):
-        return cu.estimated_cost(_campaign_with(campaign, {**WEEK, "models": {"unobservable_samples": unobservable}}), fp)
+        return cu.estimated_cost(_campaign_with(campaign, {**WEEKS, "models": {"unobservable_samples": unobservable}}), fp)
 
     evaluating = week("evaluate")
-    assert (evaluating["samples"], evaluating["earthshine_method"]) == (7 * 380_160, "lut")
+    assert (evaluating["samples"], evaluating["earthshine_method"]) == (N_DAYS * 380_160, "lut")
     assert not evaluating["table_cached"]
-    sunlit_s = 782_633 * 2 * comp.LUT_BUILD_SECONDS_PER_NODE
-    moonlit_s = 439_375 * 2 * comp.MOONLIT_LUT_BUILD_SECONDS_PER_NODE  # (Moon zenith, zenith, azimuth, roll) nodes
+    sunlit_s = 1_840_841 * 2 * comp.LUT_BUILD_SECONDS_PER_NODE
+    moonlit_s = 534_375 * 2 * comp.MOONLIT_LUT_BUILD_SECONDS_PER_NODE  # (Moon zenith, zenith, azimuth, roll) nodes
     assert evaluating["table_build_seconds"] == pytest.approx(sunlit_s + moonlit_s, rel=1e-12)
-    assert 0.02 < moonlit_s / sunlit_s < 0.05  # measured 4.6 s against 129 s
+    assert 0.01 < moonlit_s / sunlit_s < 0.03  # measured: 4.6 s against 129 s for a 782,633-node sunlit table (~300 s at 1,840,841)
     assert evaluating["core_hours"] * 3600 == pytest.approx(
-        7 * 380_160 * cu.CUBE_TABLE_SECONDS_PER_SAMPLE + evaluating["table_build_seconds"], rel=1e-12)
+        N_DAYS * 380_160 * cu.CUBE_TABLE_SECONDS_PER_SAMPLE + evaluating["table_build_seconds"], rel=1e-12)
     # each table counted only while it is not cached: with the sunlit one in the cache, the moonlit
-    week_model = comp.ComponentModel(_campaign_with(campaign, {**WEEK, "models": {"unobservable_samples": "evaluate"}}),
-                                     expected_samples=7 * 380_160)
+    week_model = comp.ComponentModel(_campaign_with(campaign, {**WEEKS, "models": {"unobservable_samples": "evaluate"}}),
+                                     expected_samples=N_DAYS * 380_160)
     week_model.earthshine_lut_path().write_bytes(b"")  # only its existence is checked
     one_left = week("evaluate")
     assert not one_left["table_cached"]
@@ -349,7 +353,7 @@ def test_plan_costs_the_model_auto_picks(campaign, tmp_path, monkeypatch):
     assert 0.12 < skipping["evaluated_samples"] / skipping["samples"] < 0.2  # the default day: 16.5 %
     assert skipping["earthshine_method"] == "direct" and skipping["table_build_seconds"] == 0.0
     assert skipping["compute_seconds"] == pytest.approx(
-        7 * 380_160 * cu.CUBE_SCREEN_SECONDS_PER_SAMPLE
+        N_DAYS * 380_160 * cu.CUBE_SCREEN_SECONDS_PER_SAMPLE
         + skipping["evaluated_samples"] * (cu.CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE + comp.LUT_SAVED_SECONDS_PER_SAMPLE),
         rel=1e-12)
 

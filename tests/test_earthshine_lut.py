@@ -305,9 +305,9 @@ def test_automatic_choice_turns_at_the_build_cost(coarse):
     loose = campaign_from_dict(raw, c.path)
     settings = LUTSettings(**COARSE)
     n_nodes = ComponentModel(loose).lut_node_states(settings)
-    # the coarse table's nodes (LUTSettings.nodes: 18 Sun zenith x 29 line-of-sight zenith x 10
-    # azimuth) x 2 door states
-    assert n_nodes == 18 * 29 * 10 * 2
+    # the coarse table's nodes (LUTSettings.nodes: 18 Sun zenith x 36 line-of-sight zenith, 29 at
+    # the coarse step and 7 over the rise above the aperture plane, x 10 azimuth) x 2 door states
+    assert n_nodes == 18 * 36 * 10 * 2
     # the moonlit table is built on the table path too: its nodes weigh in, at their own cost
     moonlit_nodes = ComponentModel(loose).moonlit_node_states()
     assert moonlit_nodes > 0
