@@ -6,8 +6,8 @@ def random_samples(campaign, n: int, seed: int):
     """n random campaign times paired with n pointings uniform on the sky.
 
     Returns (scene, line-of-sight unit vectors (n, 3), observing geometry dict)."""
-    from straylight.geometry import observing_geometry, radec_to_unit
-    from straylight.sky import scene
+    from straylight.sky.geometry import observing_geometry, radec_to_unit
+    from straylight.sky.observing import scene
 
     rng = np.random.default_rng(seed)
     sc = scene(campaign, campaign.times[rng.integers(0, len(campaign.times), n)])

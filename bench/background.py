@@ -25,9 +25,9 @@ def main():
     import xarray as xr
 
     from straylight.config import campaign_from_dict, load_campaign
-    from straylight.cube import init_store, run_time_block
-    from straylight.daskutil import dask_client
-    from straylight.footprint import footprint_from_config
+    from straylight.survey.cube import init_store, run_time_block
+    from straylight.util.daskutil import dask_client
+    from straylight.survey.footprint import footprint_from_config
 
     base = load_campaign()
     raw = copy.deepcopy(base.config)

@@ -42,7 +42,7 @@ def best_seconds(fn) -> float:
 
 def limb_numpy(r, los, sun, earth_radius_km):
     """geometry.limb_geometry as it was in numpy (ca4022e): (limb, zenith, lit, bright, dark)."""
-    from straylight.geometry import _limb_scene, dot, norm, perpendicular_towards, scene_runs, unit
+    from straylight.sky.geometry import _limb_scene, dot, norm, perpendicular_towards, scene_runs, unit
 
     los = unit(los)
     runs = scene_runs(r, sun)
@@ -74,7 +74,7 @@ def limb_numpy(r, los, sun, earth_radius_km):
 
 def theta_phi_numpy(frame, d):
     """TelescopeFrame.theta_phi_deg as it was in numpy, on gathered directions d (B, N, 3)."""
-    from straylight.geometry import dot
+    from straylight.sky.geometry import dot
 
     dx, dy, dz = dot(d, frame.x), dot(d, frame.y), dot(d, frame.z)
     theta = np.degrees(np.arctan2(np.hypot(dx, dy), dz))
@@ -85,10 +85,10 @@ def theta_phi_numpy(frame, d):
 
 def main() -> int:
     from straylight.config import load_campaign
-    from straylight.cube import cube_chunks
-    from straylight.footprint import footprint_from_config
-    from straylight.geometry import limb_geometry, radec_to_unit, scene_runs, telescope_frame, unit
-    from straylight.sky import scene
+    from straylight.survey.cube import cube_chunks
+    from straylight.survey.footprint import footprint_from_config
+    from straylight.sky.geometry import limb_geometry, radec_to_unit, scene_runs, telescope_frame, unit
+    from straylight.sky.observing import scene
 
     campaign = load_campaign()
     fp = footprint_from_config(campaign.config["footprint"])

@@ -31,10 +31,10 @@ def best_of(fn, repeat=3):
 
 def main():
     from straylight.config import load_campaign
-    from straylight.ephemeris import BODIES, DE405
-    from straylight.geometry import observing_geometry, radec_to_unit
-    from straylight.sky import scene
-    from straylight.timeutil import utc_to_tdb_jd
+    from straylight.sky.ephemeris import BODIES, DE405
+    from straylight.sky.geometry import observing_geometry, radec_to_unit
+    from straylight.sky.observing import scene
+    from straylight.sky.timeutil import utc_to_tdb_jd
 
     eph = DE405()
     n = 1_000_000

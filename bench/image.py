@@ -21,9 +21,9 @@ from _results import write_results  # noqa: E402
 
 def main():
     from straylight.config import load_campaign
-    from straylight.ghosts import ghost_model_from_instrument
-    from straylight.image import FocalPlane, RenderSettings, focal_plane_from_instrument, pointing_wcs, render_detector
-    from straylight.scatter import scatter_model_from_instrument
+    from straylight.optics.ghosts import ghost_model_from_instrument
+    from straylight.image.detector import FocalPlane, RenderSettings, focal_plane_from_instrument, pointing_wcs, render_detector
+    from straylight.optics.scatter import scatter_model_from_instrument
 
     c = load_campaign()
     fp = focal_plane_from_instrument(c.instrument)

@@ -23,8 +23,8 @@ from _samples import random_samples  # noqa: E402
 def main():
     from straylight.components import ComponentModel
     from straylight.config import load_campaign
-    from straylight.geometry import telescope_frame
-    from straylight.offfield import BandPhotometry, EarthshineSettings
+    from straylight.sky.geometry import telescope_frame
+    from straylight.sources.offfield import BandPhotometry, EarthshineSettings
 
     c = load_campaign()
     cm = ComponentModel(c)

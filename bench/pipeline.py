@@ -134,8 +134,8 @@ def build_tables(cfg_path: Path, workers: int) -> float:
     does, and the build (once per machine and model settings) is reported on its own.
     Seconds taken (~0 when cached)."""
     from straylight.config import load_campaign
-    from straylight.cube import _component_model
-    from straylight.footprint import footprint_from_config
+    from straylight.survey.cube import _component_model
+    from straylight.survey.footprint import footprint_from_config
 
     t0 = time.perf_counter()
     c = load_campaign(cfg_path)
@@ -200,9 +200,9 @@ def kernel_figure() -> dict:
     compute alone over the default campaign's time blocks on the table path, one core."""
     from run import Bench, production_region_rates
 
-    from straylight.catalog import write_catalog
+    from straylight.catalog.build import write_catalog
     from straylight.config import load_campaign
-    from straylight.footprint import footprint_from_config
+    from straylight.survey.footprint import footprint_from_config
 
     base = load_campaign()
     fp = footprint_from_config(base.config["footprint"])

@@ -62,7 +62,7 @@ def max_rel_error(res, ref, bands):
 
 class Bench:
     def __init__(self, n_samples: int, seed: int = 5):
-        from straylight.catalog import make_catalog
+        from straylight.catalog.build import make_catalog
         from straylight.components import ComponentModel
         from straylight.config import load_campaign
 
@@ -93,7 +93,7 @@ class Bench:
 
         from straylight.components import ComponentModel
         from straylight.config import campaign_from_dict
-        from straylight.pst import PST, default_pst_grid
+        from straylight.optics.pst import PST, default_pst_grid
 
         raw = copy.deepcopy(self.campaign.config)
         if tolerance is not None:
@@ -189,8 +189,8 @@ def time_cadence_rows(bench):
     interpolated in time, and the error-checked adaptive sampling (:func:`adaptive_in_time`)
     from each coarse cadence; error over samples observable at the fine cadence."""
     from straylight.components import ComponentModel
-    from straylight.geometry import observing_geometry, radec_to_unit
-    from straylight.sky import scene
+    from straylight.sky.geometry import observing_geometry, radec_to_unit
+    from straylight.sky.observing import scene
     from astropy.time import Time, TimeDelta
 
     c = bench.campaign
@@ -256,8 +256,8 @@ def nside_rows(bench):
     import healpy as hp
 
     from straylight.components import ComponentModel
-    from straylight.geometry import observing_geometry, radec_to_unit
-    from straylight.sky import scene
+    from straylight.sky.geometry import observing_geometry, radec_to_unit
+    from straylight.sky.observing import scene
 
     c = bench.campaign
     cm = ComponentModel(c)
@@ -320,9 +320,9 @@ def moonlit_grid_rows(bench, day: str = "2026-01-03", time_step: int = 24, n_tim
     (best of three; the table's build, once and cached, not included)."""
     from dataclasses import astuple
 
-    from straylight.cube import compute_region
-    from straylight.earthshine_lut import MoonlitSettings
-    from straylight.footprint import footprint_from_config
+    from straylight.survey.cube import compute_region
+    from straylight.sources.earthshine_lut import MoonlitSettings
+    from straylight.survey.footprint import footprint_from_config
 
     base = bench.campaign
     fp = footprint_from_config(base.config["footprint"])
@@ -368,10 +368,10 @@ def cube_summary(catalog, time_step: int = 24, n_times: int = 12) -> dict:
     path's."""
     import tempfile
 
-    from straylight.catalog import write_catalog
+    from straylight.catalog.build import write_catalog
     from straylight.config import load_campaign
-    from straylight.cube import compute_region
-    from straylight.footprint import footprint_from_config
+    from straylight.survey.cube import compute_region
+    from straylight.survey.footprint import footprint_from_config
 
     base = load_campaign()
     fp = footprint_from_config(base.config["footprint"])
@@ -429,8 +429,8 @@ def production_region_rates(base, fp, stars_path) -> dict:
     time block of the campaign so, each the best of its own repeats: the whole default campaign's
     samples over the sum of its blocks' times (``campaign``; the first block alone could be a
     cheaper scene than the others)."""
-    from straylight.cube import compute_region, cube_chunks
-    from straylight.sky import scene
+    from straylight.survey.cube import compute_region, cube_chunks
+    from straylight.sky.observing import scene
 
     n_times = len(base.times)
     ch = cube_chunks(base, n_times, int(fp.pixels.size))
@@ -468,14 +468,14 @@ def production_region_rates(base, fp, stars_path) -> dict:
 
 
 def plan_cost_model(base, fp, t_slice, cube: dict) -> dict:
-    """``straylight plan``'s figures (straylight.cube.CUBE_*) against this run: the table path
+    """``straylight plan``'s figures (straylight.survey.cube.CUBE_*) against this run: the table path
     per sample; the skip mode's screen per sample (the Sun's and the Moon's geometry of every
     sample, timed here through cube.evaluated_samples on the same steps and pixels) and per
     observable sample (the rest of the skip run); then each of the four runs' seconds as the
     plan's formula gives them from the assumed figures, against the measured ones."""
     from astropy.time import TimeDelta
 
-    from straylight import cube as cu
+    from straylight.survey import cube as cu
     from straylight.config import campaign_from_dict, deep_merge
 
     steps = range(*t_slice.indices(len(base.times)))

@@ -26,11 +26,11 @@ from _samples import random_samples  # noqa: E402
 
 
 def main():
-    from straylight.catalog import TemplatePhotometry, build_catalog, make_catalog, select_templates
+    from straylight.catalog.build import TemplatePhotometry, build_catalog, make_catalog, select_templates
     from straylight.components import ComponentModel, split_stars
     from straylight.config import campaign_from_dict, load_campaign
-    from straylight.hipparcos import hipparcos_stars
-    from straylight.sed import load_pickles
+    from straylight.catalog.hipparcos import hipparcos_stars
+    from straylight.catalog.sed import load_pickles
 
     c = load_campaign()
     cm = ComponentModel(c)

@@ -115,7 +115,7 @@ def _write_uncompressed(reference_dir: Path, out_dir: Path) -> None:
 
 def _time_writes(reference_dir: Path, storage: dict, repeat: int, tmp: Path) -> dict:
     """ms and us per sample to write the reference's first background time block three ways."""
-    from straylight.storage import encoded
+    from straylight.survey.storage import encoded
 
     with _open(reference_dir / "background.zarr") as bg:
         step = int(bg["total"].chunks[0][0])

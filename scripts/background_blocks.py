@@ -11,9 +11,9 @@ def main(snakemake):
     sys.path.insert(0, str(Path(snakemake.scriptdir)))
     from _common import campaign, setup_logging
 
-    from straylight.cube import run_time_blocks
-    from straylight.footprint import footprint_from_config
-    from straylight.io import write_json_atomic
+    from straylight.survey.cube import run_time_blocks
+    from straylight.survey.footprint import footprint_from_config
+    from straylight.util.io import write_json_atomic
 
     log = setup_logging(snakemake)
     c = campaign(snakemake)

@@ -8,7 +8,7 @@ from _common import setup_logging  # noqa: E402
 
 import zarr  # noqa: E402
 
-from straylight.io import write_json_atomic  # noqa: E402
+from straylight.util.io import write_json_atomic  # noqa: E402
 
 log = setup_logging(snakemake)  # noqa: F821
 zarr.consolidate_metadata(snakemake.params.store)  # noqa: F821

@@ -7,9 +7,9 @@ from pathlib import Path
 sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821 - injected by Snakemake
 from _common import campaign, setup_logging  # noqa: E402
 
-from straylight.cube import clear_block_sentinels, cube_chunks, init_store  # noqa: E402
-from straylight.footprint import footprint_from_config  # noqa: E402
-from straylight.io import write_json_atomic  # noqa: E402
+from straylight.survey.cube import clear_block_sentinels, cube_chunks, init_store  # noqa: E402
+from straylight.survey.footprint import footprint_from_config  # noqa: E402
+from straylight.util.io import write_json_atomic  # noqa: E402
 
 log = setup_logging(snakemake)  # noqa: F821
 c = campaign(snakemake)  # noqa: F821

@@ -7,8 +7,8 @@ from _common import campaign as campaign_from_snakemake, setup_logging  # noqa: 
 
 import pyarrow.parquet as pq  # noqa: E402
 
-from straylight.catalog import catalog_for_campaign, write_catalog  # noqa: E402
-from straylight.io import write_json_atomic  # noqa: E402
+from straylight.catalog.build import catalog_for_campaign, write_catalog  # noqa: E402
+from straylight.util.io import write_json_atomic  # noqa: E402
 
 log = setup_logging(snakemake)  # noqa: F821
 campaign = campaign_from_snakemake(snakemake)  # noqa: F821

@@ -10,8 +10,8 @@ import numpy as np  # noqa: E402
 import pyarrow as pa  # noqa: E402
 import pyarrow.parquet as pq  # noqa: E402
 
-from straylight.gaia import write_parquet  # noqa: E402
-from straylight.io import write_json_atomic  # noqa: E402
+from straylight.catalog.gaia import write_parquet  # noqa: E402
+from straylight.util.io import write_json_atomic  # noqa: E402
 
 log = setup_logging(snakemake)  # noqa: F821
 tables = [pq.read_table(p) for p in snakemake.input.stars]  # noqa: F821

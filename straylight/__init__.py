@@ -9,12 +9,12 @@ Public API (small on purpose):
 * :class:`DE405` - the JPL DE405 ephemeris, vectorised over times.
 * :func:`scene`, :func:`sample_geometry` - positions and the observing geometry of samples.
 """
-from .api import CampaignProducts, open_campaign, sky_background
-from .config import Campaign, load_campaign
-from .ephemeris import BODIES, DE405
-from .errors import ConfigError, EphemerisRangeError, InputError, StraylightError
-from .sky import sample_geometry, scene
-from .timeutil import configure_offline
+from straylight.api import CampaignProducts, open_campaign, sky_background
+from straylight.config import Campaign, load_campaign
+from straylight.sky.ephemeris import BODIES, DE405
+from straylight.errors import ConfigError, EphemerisRangeError, InputError, StraylightError
+from straylight.sky.observing import sample_geometry, scene
+from straylight.sky.timeutil import configure_offline
 
 configure_offline()
 

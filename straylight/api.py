@@ -3,7 +3,7 @@
 * :func:`sky_background` - every background component, the total, the 5-sigma limit and the
   observability of any (time, pointing), from astropy ``Time`` and ``SkyCoord``, as an astropy
   ``QTable`` with units.  It runs the per-pointing table code of ``straylight sky --input``
-  (:func:`straylight.pointings.pointing_table`), vectorised over the samples.
+  (:func:`straylight.survey.pointings.pointing_table`), vectorised over the samples.
 * :func:`open_campaign` - a finished campaign's products (``results/<campaign>/``) as xarray
   objects, with :meth:`CampaignProducts.to_mag_per_arcsec2` for the conversion to surface
   brightness through the zero points stored with the cube.
@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
+from straylight.errors import InputError
 
 #: the background components of every band, e-/s/pixel (their sum is ``total``)
 COMPONENTS = ("zodiacal", "earthshine", "moon", "sun", "planets", "stars")
@@ -104,7 +104,7 @@ def sky_background(time, coord, bands=None, config=None, catalog=None):
     from astropy.coordinates import SkyCoord
     from astropy.time import Time
 
-    from .config import load_campaign
+    from straylight.config import load_campaign
 
     if not isinstance(time, Time):
         raise InputError(f"time: expected an astropy.time.Time, got {type(time).__name__}")
@@ -130,7 +130,7 @@ def sky_background(time, coord, bands=None, config=None, catalog=None):
         raise InputError(f"bands: unknown band {unknown[0]!r}; known: {', '.join(campaign.bands)}, V")
     stars = None
     if catalog is not None:
-        from .components import load_offfield_stars
+        from straylight.components import load_offfield_stars
 
         stars = load_offfield_stars(catalog, bands, float(campaign.config["stars"]["offfield_mag_limit"]),
                                     bool(campaign.config["stars"].get("faint_map", True)))
@@ -141,8 +141,8 @@ def background_table(campaign, t, ra_deg, dec_deg, bands, stars=None, source="")
     """:func:`sky_background`'s table for a loaded campaign and 1-D UTC times ``t`` with ICRS
     ``ra_deg``, ``dec_deg`` (deg) of the same length, already checked; ``stars`` as
     :func:`straylight.components.load_offfield_stars` gives them (None: stars = 0)."""
-    from .limits import sky_zero_points
-    from .pointings import pointing_table
+    from straylight.survey.limits import sky_zero_points
+    from straylight.survey.pointings import pointing_table
 
     models: dict = {}
     cols = pointing_table(campaign, {"time": t, "ra": np.asarray(ra_deg, float) % 360.0,
@@ -156,7 +156,7 @@ def _qtable(cols: dict, t, bands, zero_points: dict, models: dict):
     from astropy.table import QTable
     from astropy.time import Time
 
-    from .geometry import violation_names
+    from straylight.sky.geometry import violation_names
 
     rate, surf = _units()
     door = np.asarray(cols["door_opening_deg"], float)
@@ -278,7 +278,7 @@ def to_mag_per_arcsec2(rate, background=None):
     """AB mag/arcsec2 of an xarray background in e-/s/pixel, through its ``mag_zero_point``
     coordinate (or ``background``'s, aligned on ``band``).  See
     :meth:`CampaignProducts.to_mag_per_arcsec2`."""
-    from .limits import ZERO_POINT_NAME
+    from straylight.survey.limits import ZERO_POINT_NAME
 
     if ZERO_POINT_NAME in rate.coords:
         zp = rate.coords[ZERO_POINT_NAME]

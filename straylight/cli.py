@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError, StraylightError
+from straylight.errors import InputError, StraylightError
 
 
 def _finite_float(name):
@@ -45,8 +45,8 @@ def _print_json(obj) -> None:
 
 def _check_out(args, path, flag: str = "--out", folder: bool = False) -> Path:
     """Check an output path before any work (parent exists or --parents, writable, no silent
-    overwrite); see :func:`straylight.io.check_output_path`."""
-    from .io import check_output_path
+    overwrite); see :func:`straylight.util.io.check_output_path`."""
+    from straylight.util.io import check_output_path
 
     return check_output_path(path, flag, overwrite=getattr(args, "overwrite", False),
                              parents=getattr(args, "parents", False), folder=folder)
@@ -59,7 +59,7 @@ def _add_output_flags(parser) -> None:
 
 def _pointing(args) -> tuple[float, float]:
     """--ra/--dec checked by the rule the pointing table's rows obey (RA wrapped to [0, 360))."""
-    from .pointings import check_radec
+    from straylight.survey.pointings import check_radec
 
     ra, dec = check_radec([args.ra], [args.dec], names=("--ra", "--dec"))
     return float(ra[0]), float(dec[0])
@@ -67,8 +67,8 @@ def _pointing(args) -> tuple[float, float]:
 
 # -- commands ---------------------------------------------------------------------------------
 def cmd_ephem(args) -> int:
-    from .ephemeris import BODIES, default_ephemeris, radec_distance
-    from .timeutil import parse_utc
+    from straylight.sky.ephemeris import BODIES, default_ephemeris, radec_distance
+    from straylight.sky.timeutil import parse_utc
 
     bodies = [b.strip().lower() for b in args.bodies.split(",") if b.strip()] if args.bodies else list(BODIES)
     unknown = [b for b in bodies if b not in BODIES]
@@ -95,11 +95,11 @@ def cmd_ephem(args) -> int:
 
 def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None, stars=None) -> dict:
     """The ``straylight sky`` JSON record for one time and pointing (grows with the physics)."""
-    from .components import ComponentModel
-    from .ephemeris import PLANETS
-    from .geometry import radec_to_unit, violation_names
-    from .limits import point_source_limit, sky_zero_points
-    from .sky import sample_geometry, scene
+    from straylight.components import ComponentModel
+    from straylight.sky.ephemeris import PLANETS
+    from straylight.sky.geometry import radec_to_unit, violation_names
+    from straylight.survey.limits import point_source_limit, sky_zero_points
+    from straylight.sky.observing import sample_geometry, scene
 
     sc = scene(campaign, time)
     g = sample_geometry(campaign, sc, np.array([ra_deg]), np.array([dec_deg]), grid=False)
@@ -161,7 +161,7 @@ def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None, stars=
 
 
 def cmd_sky(args) -> int:
-    from .config import load_campaign
+    from straylight.config import load_campaign
 
     if args.input:
         if not args.out or not str(args.out).endswith(".parquet"):
@@ -170,7 +170,7 @@ def cmd_sky(args) -> int:
     elif args.time is None or args.ra is None or args.dec is None:
         raise InputError("give --time, --ra and --dec, or --input TABLE --out FILE")
     else:
-        from .timeutil import parse_utc
+        from straylight.sky.timeutil import parse_utc
 
         pointing = _pointing(args)
         args.time = parse_utc(args.time, "--time")  # ISO 8601, with or without a UTC offset
@@ -178,7 +178,7 @@ def cmd_sky(args) -> int:
     bands = [b.strip() for b in args.bands.split(",") if b.strip()] if args.bands else None
     stars = None
     if args.catalog:  # the cube's star model: stars brighter than stars.offfield_mag_limit
-        from .components import load_offfield_stars
+        from straylight.components import load_offfield_stars
 
         stars = load_offfield_stars(args.catalog, bands or campaign.bands,
                                     float(campaign.config["stars"]["offfield_mag_limit"]),
@@ -222,13 +222,13 @@ def _sky_band_table(bands: dict) -> str:
 
 
 def _sky_table(args, campaign, bands, stars) -> int:
-    from .gaia import write_parquet
-    from .pointings import column_units, pointing_table, read_pointings
+    from straylight.catalog.gaia import write_parquet
+    from straylight.survey.pointings import column_units, pointing_table, read_pointings
 
     p = read_pointings(args.input)
     models: dict = {}
     cols = pointing_table(campaign, p, bands, stars, source=str(args.input), models=models)
-    from . import __version__
+    from straylight import __version__
 
     write_parquet(cols, args.out, {"straylight_version": __version__, "input": str(args.input),
                                    "config": str(campaign.path), "stars_included": stars is not None,
@@ -243,8 +243,8 @@ def _sky_table(args, campaign, bands, stars) -> int:
 
 def _resolve_star(catalog: dict, source_id: np.ndarray, text: str) -> int:
     """Row of the catalog star named ``text``: a HIP number (or a catalog source_id) or an IAU
-    proper name of :data:`straylight.hipparcos.BRIGHT_STAR_HIP`."""
-    from .hipparcos import BRIGHT_STAR_HIP
+    proper name of :data:`straylight.catalog.hipparcos.BRIGHT_STAR_HIP`."""
+    from straylight.catalog.hipparcos import BRIGHT_STAR_HIP
 
     key = text.strip().lower().replace("hip", "").strip() if text.strip().lower().startswith("hip") else text.strip()
     if key.isdigit():
@@ -278,14 +278,14 @@ def _read_source_ids(path) -> np.ndarray:
 
 def cmd_image(args) -> int:
     out = _check_out(args, args.out)
-    from .bandpass import load_band
-    from .config import load_campaign
-    from .ghosts import ghost_model_from_instrument
-    from .image import (RenderSettings, bodies_as_stars, boresight_for_target, focal_plane_from_instrument,
+    from straylight.optics.bandpass import load_band
+    from straylight.config import load_campaign
+    from straylight.optics.ghosts import ghost_model_from_instrument
+    from straylight.image.detector import (RenderSettings, bodies_as_stars, boresight_for_target, focal_plane_from_instrument,
                         read_star_table, render_detector, select_stars, star_fluxes_e_per_s, sun_direction_at,
                         write_fits)
-    from .scatter import scatter_model_from_instrument
-    from .timeutil import parse_utc
+    from straylight.optics.scatter import scatter_model_from_instrument
+    from straylight.sky.timeutil import parse_utc
 
     if args.star is None and (args.ra is None or args.dec is None):
         raise InputError("give --ra and --dec, or --star HIP|NAME")
@@ -314,7 +314,7 @@ def cmd_image(args) -> int:
     fp.detector_offset_px(args.detector)  # checks the index
     catalog = args.catalog
     if catalog is None:
-        from .catalog import default_catalog_path
+        from straylight.catalog.build import default_catalog_path
 
         catalog = default_catalog_path(campaign)
     band = load_band(inst, args.band, campaign.instrument_path.parent)
@@ -365,7 +365,7 @@ def cmd_image(args) -> int:
         ghost_model_from_instrument(inst, args.band), float(inst["ghosts"]["chief_ray_angle_deg"]["value"]),
         settings, window=window, bin_factor=args.bin,
     )
-    from . import __version__
+    from straylight import __version__
 
     prov = {
         "DATE-OBS": t.isot, "RA_PNT": bore_ra, "DEC_PNT": bore_dec, "RA_TARG": target[0], "DEC_TARG": target[1],
@@ -394,9 +394,9 @@ def cmd_image(args) -> int:
 def _image_background(campaign, t, ra_deg: float, dec_deg: float, band: str, catalog) -> dict:
     """Diffuse background (zodiacal, earthshine, Moon, Sun, planets, off-field stars) at the
     boresight and time, e-/s/pixel, through the pointing-table evaluation."""
-    from .components import load_offfield_stars
-    from .geometry import violation_names
-    from .pointings import pointing_table
+    from straylight.components import load_offfield_stars
+    from straylight.sky.geometry import violation_names
+    from straylight.survey.pointings import pointing_table
 
     stars = load_offfield_stars(catalog, [band], float(campaign.config["stars"]["offfield_mag_limit"]),
                                 bool(campaign.config["stars"].get("faint_map", True)))
@@ -408,8 +408,8 @@ def _image_background(campaign, t, ra_deg: float, dec_deg: float, band: str, cat
 
 
 def cmd_footprint(args) -> int:
-    from .config import load_campaign
-    from .footprint import footprint_from_config
+    from straylight.config import load_campaign
+    from straylight.survey.footprint import footprint_from_config
 
     campaign = load_campaign(args.config)
     fp = footprint_from_config(campaign.config["footprint"], campaign.path.parent)
@@ -422,8 +422,8 @@ def cmd_scenario(args) -> int:
 
     from astropy.table import Table
 
-    from .config import load_campaign
-    from .scenarios import earthshine_scenario, hst_comparison, plot_earthshine_scenario, read_hst_curve, sunlit_limb
+    from straylight.config import load_campaign
+    from straylight.paper.scenarios import earthshine_scenario, hst_comparison, plot_earthshine_scenario, read_hst_curve, sunlit_limb
 
     if args.out is None:
         args.out, args.parents = "results/scenarios/earthshine.png", True
@@ -451,10 +451,10 @@ def cmd_scenario(args) -> int:
 
 
 def cmd_plan(args) -> int:
-    from .config import load_campaign
-    from .cube import CUBE_COMPONENTS, PRODUCT_BYTES_PER_SAMPLE, cube_chunks, estimated_cost
-    from .footprint import footprint_from_config
-    from .timegrid import time_blocks
+    from straylight.config import load_campaign
+    from straylight.survey.cube import CUBE_COMPONENTS, PRODUCT_BYTES_PER_SAMPLE, cube_chunks, estimated_cost
+    from straylight.survey.footprint import footprint_from_config
+    from straylight.survey.timegrid import time_blocks
 
     campaign = load_campaign(args.config)
     fp = footprint_from_config(campaign.config["footprint"], campaign.path.parent)
@@ -463,7 +463,7 @@ def cmd_plan(args) -> int:
     tb = time_blocks(nt, float(c["cadence_s"]), float(c.get("time_block_hours", 6)))
     speed = None
     if args.calibrate:
-        from .cube import machine_speed
+        from straylight.survey.cube import machine_speed
 
         speed = machine_speed(campaign, fp)
     cost = estimated_cost(campaign, fp, args.seconds_per_sample, speed["factor"] if speed else 1.0)
@@ -476,7 +476,7 @@ def cmd_plan(args) -> int:
           f"(models.unobservable_samples: {cost['unobservable_samples']})")
     print(f"time blocks: {len(tb)}; chunks {cube_chunks(campaign, nt, npix)}")
     print(f"products on disk: {cost['product_bytes'] / 1e9:.2f} GB at {PRODUCT_BYTES_PER_SAMPLE:g} bytes/sample "
-          f"(straylight.cube.PRODUCT_BYTES_PER_SAMPLE); uncompressed: background.zarr {cube_bytes / 1e9:.2f} GB, "
+          f"(straylight.survey.cube.PRODUCT_BYTES_PER_SAMPLE); uncompressed: background.zarr {cube_bytes / 1e9:.2f} GB, "
           f"limits.zarr {limits_bytes / 1e9:.2f} GB")
     cores = 2
     print(f"estimated cost, wall to wall: {cost['pipeline_core_hours']:.3g} core-hours, "
@@ -497,7 +497,7 @@ def cmd_plan(args) -> int:
     if args.seconds_per_sample is not None:
         how = f"{args.seconds_per_sample * 1e3:.3g} ms per evaluated sample (--seconds-per-sample)"
     else:
-        how = "this code's figures on the 2-core development machine (straylight.cube.CUBE_*; bench/run.py --only cube)"
+        how = "this code's figures on the 2-core development machine (straylight.survey.cube.CUBE_*; bench/run.py --only cube)"
         if speed:
             how += f" x{speed['factor']:.2f} for this machine (--calibrate)"
     print(f"the cube's kernel alone: {cost['core_hours']:.2f} core-hours at {how}")
@@ -505,9 +505,9 @@ def cmd_plan(args) -> int:
 
 
 def cmd_catalog(args) -> int:
-    from .catalog import catalog_for_campaign, ingest_many, write_catalog
-    from .config import load_campaign
-    from .gaia import write_parquet
+    from straylight.catalog.build import catalog_for_campaign, ingest_many, write_catalog
+    from straylight.config import load_campaign
+    from straylight.catalog.gaia import write_parquet
 
     out = Path(args.out)
     if out.suffix not in (".parquet", ".fits"):
@@ -538,18 +538,18 @@ def cmd_catalog(args) -> int:
 
 
 def cmd_pst(args) -> int:
-    from .pst import load_pst, write_pst_csv
+    from straylight.optics.pst import load_pst, write_pst_csv
 
     _check_out(args, args.write_default, "--write-default")
     write_pst_csv(load_pst(None), args.write_default)
-    print(f"{args.write_default}: embedded default PST (assumption; see straylight.pst.default_pst_grid)")
+    print(f"{args.write_default}: embedded default PST (assumption; see straylight.optics.pst.default_pst_grid)")
     return 0
 
 
 def cmd_schedule(args) -> int:
-    from .components import ComponentModel
-    from .config import load_campaign
-    from .scheduling import write_tables
+    from straylight.components import ComponentModel
+    from straylight.config import load_campaign
+    from straylight.survey.scheduling import write_tables
 
     _check_out(args, args.out, folder=True)
     campaign = load_campaign(args.config)
@@ -562,8 +562,8 @@ def cmd_schedule(args) -> int:
 
 
 def cmd_figure(args) -> int:
-    from .config import load_campaign
-    from .paperfigs import make_figure
+    from straylight.config import load_campaign
+    from straylight.paper.figures import make_figure
 
     campaign = load_campaign(args.config)
     out = args.out or f"docs/img/paper_{args.name.replace('-', '_')}.png"
@@ -583,8 +583,8 @@ def cmd_figure(args) -> int:
 
 
 def cmd_visibility(args) -> int:
-    from .config import load_campaign
-    from .visibility import plot_visibility, visibility
+    from straylight.config import load_campaign
+    from straylight.survey.visibility import plot_visibility, visibility
 
     ra_deg, dec_deg = _pointing(args)
     for path, flag, suffixes in ((args.out, "--out", (".csv", ".ecsv")), (args.plot, "--plot", (".png", ".pdf", ".svg"))):
@@ -620,7 +620,7 @@ def cmd_visibility(args) -> int:
         fmt = "ascii.ecsv" if out.suffix.lower() == ".ecsv" else "ascii.csv"
         stem = out.with_suffix("")
         for table, path in ((s, out), (w, Path(f"{stem}_windows{out.suffix}")), (d, Path(f"{stem}_days{out.suffix}"))):
-            from .io import atomic_path
+            from straylight.util.io import atomic_path
 
             with atomic_path(path) as tmp:
                 table.write(tmp, format=fmt, overwrite=True)
@@ -634,14 +634,14 @@ def cmd_visibility(args) -> int:
 
 
 def cmd_config_doc(args) -> int:
-    from .configdoc import config_reference
+    from straylight.configdoc import config_reference
 
     sys.stdout.write(config_reference())
     return 0
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from . import __version__
+    from straylight import __version__
 
     p = argparse.ArgumentParser(prog="straylight", description="CSST stray-light and sky-background pipeline")
     p.add_argument("--version", action="version", version=f"straylight {__version__}")

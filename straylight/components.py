@@ -15,16 +15,16 @@ import numpy as np
 from numba import njit
 from threadpoolctl import threadpool_limits
 
-from .bandpass import load_band
-from .config import Campaign
-from .door import door_from_instrument
-from .ephemeris import PLANETS
-from .geometry import (TelescopeFrame, body_geometry, earth_blocks, norm, rows_at, scene_rows, scene_runs,
+from straylight.optics.bandpass import load_band
+from straylight.config import Campaign
+from straylight.optics.door import door_from_instrument
+from straylight.sky.ephemeris import PLANETS
+from straylight.sky.geometry import (TelescopeFrame, body_geometry, earth_blocks, norm, rows_at, scene_rows, scene_runs,
                        telescope_frame, tiled_period, unit)
-from .offfield import (AU_KM, BandPhotometry, EarthshineSettings, OffFieldModel, magnitude_per_arcsec2,
+from straylight.sources.offfield import (AU_KM, BandPhotometry, EarthshineSettings, OffFieldModel, magnitude_per_arcsec2,
                        V_SUN_VEGA, moon_v_magnitude, planet_v_magnitudes, solar_like_fraction)
-from .pst import load_pst
-from .zodiacal import zodiacal_model_from_instrument
+from straylight.optics.pst import load_pst
+from straylight.sources.zodiacal import zodiacal_model_from_instrument
 
 # Shares of models.tolerance (a fraction of the total) held by each fast path; they add up to 1.
 # The earthshine table must validate within its share; the moonlit Earth has two: the samples
@@ -66,13 +66,13 @@ class StarTable:
     @cached_property
     def unit(self) -> np.ndarray:
         """ICRS unit vectors (S, 3), computed once (the cube reuses the table for every time step)."""
-        from .geometry import radec_to_unit
+        from straylight.sky.geometry import radec_to_unit
 
         return np.atleast_2d(radec_to_unit(self.ra_deg, self.dec_deg, "star catalog"))
 
     @cached_property
     def faint_unit(self) -> np.ndarray:
-        from .geometry import radec_to_unit
+        from straylight.sky.geometry import radec_to_unit
 
         if not len(self.faint_ra_deg):
             return np.zeros((0, 3))
@@ -145,7 +145,7 @@ class ComponentModel:
         the field is a point source, imaged with its halo and ghosts like a star.  Returns
         body -> {"in_field": bool, "angle_deg": deg from the line of sight, "v_mag": V (Vega),
         "mag_ab": {band: AB magnitude through the band (solar spectrum)}}, arrays over the
-        samples; ``geometry``: :func:`~straylight.sky.sample_geometry`'s (the Moon's phase)."""
+        samples; ``geometry``: :func:`~straylight.sky.observing.sample_geometry`'s (the Moon's phase)."""
         sat = np.asarray(satellite_km, float)
         z = unit(np.asarray(los, float))
         out = {}
@@ -185,7 +185,7 @@ class ComponentModel:
         samples flattened, bands)), e.g. a cube region's float32 block, that receives those
         components (the result's arrays are then views of it, and the other components are
         not computed); ``runs``: the samples' scene runs when the caller knows them
-        (:class:`~straylight.geometry.SceneRuns`, e.g. a cube's time steps: runs of samples
+        (:class:`~straylight.sky.geometry.SceneRuns`, e.g. a cube's time steps: runs of samples
         that share the satellite and every body in ``bodies_km``), else found where needed.
         ValueError for an unknown name or an array of another shape."""
         off = self.offfield
@@ -283,7 +283,7 @@ class ComponentModel:
         """e-/s/pix of the zodiacal light at the darkest point of the Leinert (1998) table, in a
         band: the floor of any total background (scheduling tables, error budgets).  Cached per
         band (every evaluation's skips read it)."""
-        from .zodiacal import LEINERT_UNIT_W_M2_SR_UM, leinert_table
+        from straylight.sources.zodiacal import LEINERT_UNIT_W_M2_SR_UM, leinert_table
 
         cache = self.__dict__.setdefault("_darkest_zodiacal", {})
         if band not in cache:
@@ -315,7 +315,7 @@ class ComponentModel:
     def _skippable_transfer(self, sun_fraction, angle_deg, phi_deg, earth_blocked, door, bands, floor_ratio=1.0):
         """The band-independent transfer (as OffFieldModel.point_source with E = 1) of the Moon or
         a planet, a solar-spectrum source whose irradiance is ``sun_fraction`` of the Sun's at
-        1 AU (:func:`~straylight.offfield.solar_like_fraction` of its V magnitude), skipped (0) where its upper
+        1 AU (:func:`~straylight.sources.offfield.solar_like_fraction` of its V magnitude), skipped (0) where its upper
         bound (the PST at its maximum over phi from the source's angle out, Se = Sp = 1) stays
         below 1/9 of the moon_and_planets_skip share (tolerance / 72) of the sample's floor in
         every band, so the Moon and the eight planets together stay within it.  The floor is
@@ -403,14 +403,14 @@ class ComponentModel:
 
     def lut_node_states(self, settings) -> int:
         """How many (node, door state) pairs the sunlit earthshine table with these
-        :class:`~straylight.earthshine_lut.LUTSettings` sums, each an Earth-grid sum."""
+        :class:`~straylight.sources.earthshine_lut.LUTSettings` sums, each an Earth-grid sum."""
         r = self.campaign.orbit_radius_range_km
         return settings.node_count(r[0], self.campaign.earth.radius_km) * len(self.offfield.door_states_deg)
 
     def moonlit_node_states(self) -> int:
         """How many (node, door state) pairs the moonlit Earth's table (:attr:`moonlit_model`)
         sums, each a coarse Earth-grid sum; 0 with models.earthshine.moonlit_method = direct."""
-        from .earthshine_lut import _mirror_symmetric
+        from straylight.sources.earthshine_lut import _mirror_symmetric
 
         settings = self._moonlit_settings()
         if settings is None:
@@ -420,9 +420,9 @@ class ComponentModel:
         return int(np.prod([a.size for a in nodes])) * len(self.offfield.door_states_deg)
 
     def _moonlit_settings(self):
-        """The moonlit table's :class:`~straylight.earthshine_lut.MoonlitSettings` from the
+        """The moonlit table's :class:`~straylight.sources.earthshine_lut.MoonlitSettings` from the
         config, or None when the moonlit Earth is summed directly (moonlit_method = direct)."""
-        from .earthshine_lut import MoonlitSettings
+        from straylight.sources.earthshine_lut import MoonlitSettings
 
         es = self.campaign.config["models"].get("earthshine", {})
         if es.get("moonlit_method", "lut") == "direct":
@@ -433,13 +433,13 @@ class ComponentModel:
     def earthshine_choice(self) -> dict:
         """Which sunlit earthshine model :attr:`earthshine_model` will run, decided without
         building anything (``straylight plan`` reads it).  Keys: method ('lut' or 'direct'),
-        requested (models.earthshine.method), reason, settings (:class:`~straylight.earthshine_lut.LUTSettings`), node_states and
+        requested (models.earthshine.method), reason, settings (:class:`~straylight.sources.earthshine_lut.LUTSettings`), node_states and
         build_seconds_estimate (the sunlit table's build at LUT_BUILD_SECONDS_PER_NODE, plus the
         moonlit one's at MOONLIT_LUT_BUILD_SECONDS_PER_NODE, which the table path builds too:
         moonlit_build_seconds_estimate; 0 for 'direct' by config).  With 'auto' the table still
         falls back to the direct sum when its validated error, known once it is built, exceeds
         its share of the tolerance."""
-        from .earthshine_lut import LUTSettings
+        from straylight.sources.earthshine_lut import LUTSettings
 
         es = self.campaign.config["models"].get("earthshine", {})
         method = es.get("method", "auto")
@@ -476,8 +476,8 @@ class ComponentModel:
 
     def earthshine_lut_path(self) -> Path:
         """Where the sunlit table of :attr:`earthshine_choice`'s settings is cached (it may not
-        exist yet): the path :func:`~straylight.earthshine_lut.load_or_build` reads or writes."""
-        from .earthshine_lut import cache_path, lut_key
+        exist yet): the path :func:`~straylight.sources.earthshine_lut.load_or_build` reads or writes."""
+        from straylight.sources.earthshine_lut import cache_path, lut_key
 
         key = lut_key(self.offfield, self.campaign.earth.radius_km, self.campaign.orbit_radius_range_km,
                       self.earthshine_choice["settings"], self.earthshine_floor, self._lut_avoidance_deg)
@@ -492,7 +492,7 @@ class ComponentModel:
         error, build time and node steps."""
         import logging
 
-        from .earthshine_lut import load_or_build
+        from straylight.sources.earthshine_lut import load_or_build
 
         choice = self.earthshine_choice
         if choice["method"] == "direct":
@@ -523,7 +523,7 @@ class ComponentModel:
         sum.  Keys: method, lut, and for the table its file, validated error and steps."""
         import logging
 
-        from .earthshine_lut import load_or_build_moonlit
+        from straylight.sources.earthshine_lut import load_or_build_moonlit
 
         settings = self._moonlit_settings()
         if settings is None:
@@ -540,11 +540,11 @@ class ComponentModel:
         return {"method": "lut", "lut": lut, **info}
 
     def _moonlit_table_inputs(self, settings) -> tuple:
-        """The arguments of :func:`~straylight.earthshine_lut.load_or_build_moonlit` (and of its
+        """The arguments of :func:`~straylight.sources.earthshine_lut.load_or_build_moonlit` (and of its
         cache key) before the logger: the model, the Earth, the orbit, the settings, the grid, the
         darkest sky and the brightest Moon (full, at perigee) per unit solar irradiance at 1 AU,
         and the dark-limb angle."""
-        from .offfield import MOON_PERIGEE_KM
+        from straylight.sources.offfield import MOON_PERIGEE_KM
 
         moon_max = float(solar_like_fraction(moon_v_magnitude(0.0, MOON_PERIGEE_KM, self.offfield.moon_law, 180.0)))
         return (self.offfield, self.campaign.earth.radius_km, self.campaign.orbit_radius_range_km, settings,
@@ -553,7 +553,7 @@ class ComponentModel:
     def moonlit_lut_path(self) -> Path | None:
         """Where the moonlit table of the configured settings is cached (it may not exist yet);
         None when the moonlit Earth is summed directly."""
-        from .earthshine_lut import cache_path, moonlit_key
+        from straylight.sources.earthshine_lut import cache_path, moonlit_key
 
         settings = self._moonlit_settings()
         return None if settings is None else cache_path("moonlit_lut", moonlit_key(*self._moonlit_table_inputs(settings)))
@@ -697,7 +697,7 @@ class ComponentModel:
     def faint_star_rates(self, stars: StarTable, los, bands, batch: int = 4096, los_batch: int = 1024) -> dict:
         """e-/s/pix per band from the faint stars: sum_s E_s PSTavg(theta_s) * pixel area over the
         stars outside the field and in front of the aperture plane (theta <= 90 deg, where the
-        door's Sp is not 0: :func:`~straylight.door.behind_aperture_plane`), for lines of sight ``los`` (..., 3).  Depends on the line of sight
+        door's Sp is not 0: :func:`~straylight.optics.door.behind_aperture_plane`), for lines of sight ``los`` (..., 3).  Depends on the line of sight
         only, so it is computed once per distinct set of lines of sight (cached).  ``los_batch``
         lines of sight x ``batch`` stars at a time bound the temporaries (~34 MB each)."""
         import hashlib
@@ -744,7 +744,7 @@ class ComponentModel:
     def star_bound_scale(self, stars: StarTable) -> np.ndarray:
         """Per direct star, (S,), its e-/s/pix at PST = 1 (Se = Sp = 1) as a fraction of the
         darkest zodiacal light, in the band where that fraction is largest: times the PST's
-        bound at a line of sight (:meth:`~straylight.pst.PST.tail_max`), an upper bound of the
+        bound at a line of sight (:meth:`~straylight.optics.pst.PST.tail_max`), an upper bound of the
         star's share of any total in every band."""
         rel = np.zeros(len(stars.ra_deg))
         for b in self.campaign.bands:
@@ -774,7 +774,7 @@ class ComponentModel:
         """Per sky cell (HEALPix ring order, :attr:`STAR_CELL_NSIDE`) and floor level
         (:attr:`STAR_FLOOR_LEVELS`), the direct stars summed at the cell's lines of sight; the
         others are skipped.  Each star's bound over the cell is its :meth:`star_bound_scale`
-        times the PST's :meth:`~straylight.pst.PST.tail_max` from its angle to the cell's
+        times the PST's :meth:`~straylight.optics.pst.PST.tail_max` from its angle to the cell's
         nearest point (the angle to the centre less the cell's radius; :meth:`_cell_bound_table`):
         the stars of smallest bound are skipped for as long as their bounds add up to no more
         than the stars_skip share of the tolerance (1/8) times the level, and the rest are the
@@ -871,7 +871,7 @@ class ComponentModel:
     STAR_BOUND_DEPTH_DEX = 8
 
     def _cell_bound_table(self, margin_rad: float) -> np.ndarray:
-        """The PST's :meth:`~straylight.pst.PST.tail_max` from ``margin_rad`` short of the angle
+        """The PST's :meth:`~straylight.optics.pst.PST.tail_max` from ``margin_rad`` short of the angle
         whose cosine is each of :attr:`STAR_BOUND_COS_NODES` evenly spaced nodes from -1 to 1: at
         a cosine, the node at or above it (a smaller angle) bounds the tail maximum there.
         Cached per margin."""
@@ -1049,7 +1049,7 @@ def _star_pairs_kernel(first, stop, fz, fx, fy, s, level, cell, start, count, ce
 def _near_runs_kernel(fz, directions, run_index, cos_limit):
     """(bodies, samples) bool: sample n's line of sight ``fz[n]`` has a cosine over
     ``cos_limit[b]`` with body b's direction in the sample's run, ``directions[b, run_index[n]]``
-    (the products summed in :func:`~straylight.geometry.dot`'s order, so the same cosines)."""
+    (the products summed in :func:`~straylight.sky.geometry.dot`'s order, so the same cosines)."""
     n_bodies, n = directions.shape[0], fz.shape[0]
     out = np.zeros((n_bodies, n), np.bool_)
     for b in range(n_bodies):
@@ -1094,7 +1094,7 @@ def load_offfield_stars(path, bands, mag_limit: float, faint_map: bool = False) 
     """Catalog stars (``stars_csst.parquet`` or any table with ra, dec, mag_<band>), split by
     :func:`split_stars`.  Positions are taken at the catalog epoch: proper motions move bright
     stars by < 1 arcmin in a century, far below the PST's angular structure."""
-    from .image import read_star_columns
+    from straylight.image.detector import read_star_columns
 
     bands = [b for b in bands if b != "V"]
     if not bands:

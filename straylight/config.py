@@ -18,7 +18,7 @@ from typing import Any
 
 import yaml
 
-from .errors import ConfigError, StraylightError
+from straylight.errors import ConfigError, StraylightError
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 # The default config and schemas: the repository's config/ (a source checkout, where Snakemake
@@ -142,14 +142,14 @@ class Campaign:
 
     @cached_property
     def earth(self):
-        from .orbit import EarthModel
+        from straylight.sky.orbit import EarthModel
 
         e = self.config["earth"]
         return EarthModel(radius_km=float(e["radius_km"]), gm_km3_s2=float(e["gm_km3_s2"]), j2=float(e["j2"]))
 
     @cached_property
     def orbit(self):
-        from .orbit import orbit_from_config
+        from straylight.sky.orbit import orbit_from_config
 
         orbit_cfg = copy.deepcopy(self.config["orbit"])
         tle = orbit_cfg.get("tle") or {}
@@ -161,7 +161,7 @@ class Campaign:
     def orbit_radius_range_km(self) -> tuple[float, float]:
         """The satellite's smallest and largest geocentric distance over the campaign, km
         (one value for a circular orbit; sampled at the campaign times for a TLE)."""
-        from .orbit import CircularOrbit
+        from straylight.sky.orbit import CircularOrbit
 
         if isinstance(self.orbit, CircularOrbit):
             r = self.earth.radius_km + self.orbit.altitude_km
@@ -173,7 +173,7 @@ class Campaign:
 
     @cached_property
     def constraints(self):
-        from .geometry import Constraints, DoorState
+        from straylight.sky.geometry import Constraints, DoorState
 
         av = self.instrument["avoidance"]
         states = tuple(
@@ -195,7 +195,7 @@ class Campaign:
     @cached_property
     def times(self):
         """The campaign's UTC sample times (astropy Time, 1-D)."""
-        from .timegrid import campaign_times
+        from straylight.survey.timegrid import campaign_times
 
         c = self.config["campaign"]
         return campaign_times(c["start"], c["end"], float(c["cadence_s"]))
@@ -210,8 +210,8 @@ class Campaign:
 
 
 def _check_campaign(cfg: dict, source: str, sources: dict | None = None) -> None:
-    from .ephemeris import default_ephemeris
-    from .timeutil import parse_utc
+    from straylight.sky.ephemeris import default_ephemeris
+    from straylight.sky.timeutil import parse_utc
 
     def src(key):
         return _source_of(sources, key, source)

@@ -4,7 +4,7 @@ allowed values or range, default and description.  ``straylight config-doc`` pri
 docs/config.md holds a copy (tests/test_config.py checks they agree)."""
 from __future__ import annotations
 
-from .config import CAMPAIGN_SCHEMA, load_schema
+from straylight.config import CAMPAIGN_SCHEMA, load_schema
 
 
 def _type(node: dict) -> str:

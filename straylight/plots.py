@@ -17,8 +17,8 @@ ORBIT_MINUTES = 92.6  # ~400 km circular orbit: the first-orbit panel spans this
 
 
 def _mag(ds, e_per_s, band: str, campaign):
-    from .bandpass import load_band
-    from .offfield import magnitude_per_arcsec2
+    from straylight.optics.bandpass import load_band
+    from straylight.sources.offfield import magnitude_per_arcsec2
 
     b = load_band(campaign.instrument, band, campaign.instrument_path.parent)
     return magnitude_per_arcsec2(e_per_s, b, campaign.instrument_value("telescope", "aperture_diameter_m"),
@@ -89,7 +89,7 @@ def _no_intermediate_draws():
 
 
 def _save(fig, path: Path) -> Path:
-    from .io import atomic_path
+    from straylight.util.io import atomic_path
 
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=90, format="png", bbox_inches="tight")  # healpy's colour-bar labels overhang the axes
@@ -105,11 +105,11 @@ def sky_maps(ds, campaign, out_dir, n_times: int = 2, bands=None, times=()) -> l
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .cube import CUBE_BAND_VARIABLES
+    from straylight.survey.cube import CUBE_BAND_VARIABLES
 
     nest = str(ds.attrs["healpix_ordering"]).upper() == "NESTED"
     if times:
-        from .timeutil import parse_utc
+        from straylight.sky.timeutil import parse_utc
 
         wanted = np.asarray(parse_utc(list(times), "report.times").datetime64, dtype="datetime64[ns]")
         t_all = ds["time"].values
@@ -171,10 +171,10 @@ def time_series(ds, campaign, out_dir, n_pointings: int = 3, pointings=()) -> li
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .cube import CUBE_BAND_VARIABLES
+    from straylight.survey.cube import CUBE_BAND_VARIABLES
 
     if pointings:
-        from .geometry import radec_to_unit
+        from straylight.sky.geometry import radec_to_unit
 
         centres = radec_to_unit(np.asarray(ds["ra_deg"]), np.asarray(ds["dec_deg"]))
         wanted = np.atleast_2d(radec_to_unit(*np.asarray(pointings, float).T, "report.pointings"))
@@ -287,7 +287,7 @@ def depth_summary(limits_ds) -> dict:
 def write_summary(limits_ds, campaign, out_dir) -> list:
     """``summary.csv`` (the depth table) and ``summary.rst`` (the report's first page: the
     campaign, the table and a guide to the figures; rendered by Snakemake's Jinja)."""
-    from .io import atomic_path
+    from straylight.util.io import atomic_path
 
     rows = depth_summary(limits_ds)
     out = Path(out_dir)
@@ -371,7 +371,7 @@ def campaign_figures(background_path, limits_path, campaign, out_dir) -> list:
     rc = campaign.config["report"]
     unknown = sorted(set(rc.get("sky_map_bands") or ()) - {str(b) for b in ds["band"].values})
     if unknown:
-        from .errors import ConfigError
+        from straylight.errors import ConfigError
 
         raise ConfigError(f"{campaign.path}: report.sky_map_bands: {', '.join(unknown)} not among the cube's bands "
                           f"{', '.join(str(b) for b in ds['band'].values)}")

@@ -13,7 +13,7 @@ PICKLES_SHARED = SHARED_DATA / "pickles1998"
 
 @pytest.fixture(scope="module")
 def responses():
-    from straylight.bandpass import load_band
+    from straylight.optics.bandpass import load_band
 
     inst = yaml.safe_load((REPO / "config" / "instruments" / "csst.yaml").read_text())
     return {b: load_band(inst, b).response for b in inst["bands"]}
@@ -21,15 +21,15 @@ def responses():
 
 @pytest.fixture(scope="module")
 def photometry(responses):
-    from straylight.catalog import TemplatePhotometry, select_templates
-    from straylight.sed import load_pickles
+    from straylight.catalog.build import TemplatePhotometry, select_templates
+    from straylight.catalog.sed import load_pickles
 
     return TemplatePhotometry(select_templates(load_pickles(), ("V", "IV", "III")), responses)
 
 
 @pytest.fixture(scope="module")
 def default_catalog(responses):
-    from straylight.catalog import make_catalog
+    from straylight.catalog.build import make_catalog
 
     return make_catalog(responses)
 
@@ -38,7 +38,7 @@ def test_embedded_library_matches_the_original_5A_spectra():
     """The 10 A resampled copy against the CDS Pickles spectra (shared mirror, test-only)."""
     if not PICKLES_SHARED.exists():
         pytest.skip(f"{PICKLES_SHARED} absent (test-only Pickles mirror)")
-    from straylight.sed import ab_magnitudes, load_pickles
+    from straylight.catalog.sed import ab_magnitudes, load_pickles
 
     lib = load_pickles()
     filters = ["sdss2010-u", "sdss2010-g", "sdss2010-r", "sdss2010-i", "sdss2010-z", "gaiadr2-BP", "gaiadr2-RP"]
@@ -63,8 +63,8 @@ def test_g2v_template_has_solar_colours():
     Table 3: M_g 5.11, M_r 4.65, M_i 4.53, M_z 4.50); Gaia BP - RP = 0.82 (Casagrande &
     VandenBerg 2018, MNRAS 479, L102).  G2V is a type, the Sun one star: 0.05 mag allowed.
     """
-    from straylight.sed import AB_MINUS_VEGA, ab_magnitudes, load_pickles
-    from straylight.zodiacal import solar_spectrum
+    from straylight.catalog.sed import AB_MINUS_VEGA, ab_magnitudes, load_pickles
+    from straylight.sources.zodiacal import solar_spectrum
 
     lib = load_pickles()
     k = list(lib.template).index("G2V")
@@ -97,7 +97,7 @@ def test_template_teff_follows_the_published_spectral_type_scales():
     K2 4455, K3 4285, K5 3950 K (their sigma 55-245 K; DJ87's polynomial reproduces its own
     tables to a few per cent): within 250 K.  Giants and supergiants after M4, where DJ87 turns
     over, have no Teff (NaN) rather than a wrong one."""
-    from straylight.sed import load_pickles, parse_spectral_type
+    from straylight.catalog.sed import load_pickles, parse_spectral_type
 
     lib = load_pickles()
     teff = dict(zip(lib.template, lib.teff_k))
@@ -122,7 +122,7 @@ def test_template_teff_follows_the_published_spectral_type_scales():
 def test_frozen_template_teff_table_is_reproduced_by_its_derivation():
     """data/pickles1998_template_teff.csv (read by runs, which need no PyAstronomy) equals
     teff_from_spectral_type to its 1 K rounding."""
-    from straylight.sed import load_pickles, teff_from_spectral_type
+    from straylight.catalog.sed import load_pickles, teff_from_spectral_type
 
     lib = load_pickles()
     derived = teff_from_spectral_type(lib.template)
@@ -134,7 +134,7 @@ def test_frozen_template_teff_table_is_reproduced_by_its_derivation():
 def test_spectral_type_names_parse_and_bad_ones_fail_clearly():
     """Pickles' names: two digits are a subtype range (B5-7 V), M10 is M10."""
     from straylight.errors import InputError
-    from straylight.sed import parse_spectral_type
+    from straylight.catalog.sed import parse_spectral_type
 
     assert parse_spectral_type("B57V") == ("B", 6.0, "V")
     assert parse_spectral_type("K01II") == ("K", 0.5, "II")
@@ -149,7 +149,7 @@ def test_hp_to_v_agrees_with_bessell_2000():
 
     Rows: BT - VT, del(B - V) = (B - V) - (BT - VT), V - Hp.
     """
-    from straylight.hipparcos import V_MINUS_HP_VERIFIED_BV, v_minus_hp
+    from straylight.catalog.hipparcos import V_MINUS_HP_VERIFIED_BV, v_minus_hp
 
     rows = np.array([
         (-0.20, 0.021, 0.051), (-0.15, 0.011, 0.036), (-0.10, 0.005, 0.021), (-0.05, 0.002, 0.006),
@@ -170,13 +170,13 @@ def test_hp_to_v_agrees_with_bessell_2000():
 
 
 def test_template_g_minus_v_follows_the_gaia_johnson_relation():
-    """Synthetic G - V of FGK templates (speclite passbands, Vega offsets of straylight.sed) against
+    """Synthetic G - V of FGK templates (speclite passbands, Vega offsets of straylight.catalog.sed) against
     the Riello et al. (2021) G - V = f(V - Ic) relation used for Hipparcos.  Measured: G - V is
     0.044 mag redder synthetically (median over the FGK templates) - the two routes to G for
     Hipparcos stars agree to that level, which bounds the systematic error of the default catalog."""
     from pygaia.photometry.transformations import gbrminv_from_vminic
 
-    from straylight.sed import load_pickles, vega_magnitudes
+    from straylight.catalog.sed import load_pickles, vega_magnitudes
 
     lib = load_pickles()
     v = vega_magnitudes(lib, ["gaiadr2-G", "gaiadr2-BP", "gaiadr2-RP", "bessell-V", "bessell-I"])
@@ -194,7 +194,7 @@ def test_template_g_minus_v_follows_the_gaia_johnson_relation():
 def test_dr2_sdss_polynomials_agree_with_template_synthetic_sdss(photometry):
     """Gaia DR2 doc Table 5.8 relations against synthetic SDSS of the templates, within the
     documented scatter (sigma g 0.165, r 0.067, i 0.099) over each relation's validity range."""
-    from straylight.gaia import SDSS_RELATIONS, sdss_from_gaia
+    from straylight.catalog.gaia import SDSS_RELATIONS, sdss_from_gaia
 
     g = np.zeros(photometry.bp_rp.size)
     poly = sdss_from_gaia(g, photometry.bp_rp)
@@ -209,7 +209,7 @@ def test_dr2_sdss_polynomials_agree_with_template_synthetic_sdss(photometry):
 
 
 def test_default_catalog_round_trip_and_speed(default_catalog, photometry):
-    from straylight.catalog import round_trip
+    from straylight.catalog.build import round_trip
 
     cols, summary = default_catalog
     rt = round_trip(cols, photometry)
@@ -230,7 +230,7 @@ def test_default_catalog_round_trip_and_speed(default_catalog, photometry):
 
 
 def test_cross_match_fills_only_stars_missing_from_gaia():
-    from straylight.catalog import cross_match_fill
+    from straylight.catalog.build import cross_match_fill
 
     hip = {"ra": np.array([10.0, 50.0, 200.0]), "dec": np.array([20.0, -30.0, 89.9]),
            "pmra": np.array([100.0, 0.0, 500.0]), "pmdec": np.array([-200.0, 0.0, 300.0]),
@@ -247,13 +247,13 @@ def test_cross_match_fills_only_stars_missing_from_gaia():
 
 
 def test_population_route_takes_parameters_of_the_nearest_mock_star(responses, photometry):
-    from straylight.catalog import build_catalog
+    from straylight.catalog.build import build_catalog
 
     stars = {"source_id": np.array([1, 2]), "ra": np.array([0.0, 1.0]), "dec": np.array([0.0, 1.0]),
              "pmra": np.zeros(2), "pmdec": np.zeros(2), "ref_epoch": np.full(2, 2015.5),
              "phot_g_mean_mag": np.array([8.0, 9.0]), "phot_bp_mean_mag": np.array([8.3, 10.0]),
              "phot_rp_mean_mag": np.array([7.5, 7.9])}
-    from straylight.gaia import sdss_from_gaia
+    from straylight.catalog.gaia import sdss_from_gaia
 
     s = sdss_from_gaia(stars["phot_g_mean_mag"], stars["phot_bp_mean_mag"] - stars["phot_rp_mean_mag"])
     pop = {"teff": np.array([5800.0, 3600.0, 9000.0]), "logg": np.array([4.4, 1.2, 4.0]),
@@ -268,7 +268,7 @@ def test_population_route_takes_parameters_of_the_nearest_mock_star(responses, p
 
 def test_btsettl_loader_reads_the_standard_files(tmp_path):
     from straylight.errors import InputError
-    from straylight.sed import ab_magnitudes, load_btsettl, load_pickles
+    from straylight.catalog.sed import ab_magnitudes, load_btsettl, load_pickles
 
     lib = load_pickles()
     k = list(lib.template).index("G2V")
@@ -311,7 +311,7 @@ def test_catalog_cli_writes_parquet_and_fits_with_provenance(tmp_path):
 
 
 def test_population_file_errors_name_the_file_and_column(tmp_path):
-    from straylight.catalog import read_population
+    from straylight.catalog.build import read_population
     from straylight.errors import InputError
 
     p = tmp_path / "pop.csv"
@@ -322,7 +322,7 @@ def test_population_file_errors_name_the_file_and_column(tmp_path):
 
 def test_offfield_stars_keep_only_stars_brighter_than_the_limit_in_each_band(tmp_path):
     from straylight.components import load_offfield_stars
-    from straylight.gaia import write_parquet
+    from straylight.catalog.gaia import write_parquet
 
     p = tmp_path / "cat.parquet"
     write_parquet({"ra": np.array([1.0, 2.0, 3.0]), "dec": np.zeros(3), "mag_g": np.array([3.0, 5.0, 7.0]),
@@ -338,8 +338,8 @@ def test_g2v_magnitudes_through_the_default_and_the_real_curves(responses):
     """Issue #3 item 6: a G2V star's AB magnitudes (normalised to G = 0) through the parametric
     default against the real CSST curves (Wen et al. 2024, test-only).  AB magnitudes do not depend
     on the throughput's level, only on its shape, so this is the colour error of the default."""
-    from straylight.bandpass import Band, read_throughput_file
-    from straylight.sed import load_pickles, template_magnitudes
+    from straylight.optics.bandpass import Band, read_throughput_file
+    from straylight.catalog.sed import load_pickles, template_magnitudes
 
     lib = load_pickles().subset(np.array([n == "G2V" for n in load_pickles().template]))
     real = {}

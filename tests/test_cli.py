@@ -9,7 +9,7 @@ from conftest import REPO, run_cli
 
 
 def test_ephem_json_matches_library():
-    from straylight.ephemeris import default_ephemeris
+    from straylight.sky.ephemeris import default_ephemeris
 
     r = run_cli("ephem", "--time", "2026-01-01T00:50:00", "--bodies", "sun,moon,jupiter", "--json")
     assert r.returncode == 0, r.stderr
@@ -41,7 +41,7 @@ def test_sky_json_has_the_documented_fields():
 
 def test_sky_gives_magnitudes_and_the_limit_in_text_and_json(campaign):
     """mag/arcsec2 = zero point - 2.5 log10(e-/s/pixel), the limit = limits.point_source_limit."""
-    from straylight.limits import point_source_limit, sky_zero_points
+    from straylight.survey.limits import point_source_limit, sky_zero_points
 
     args = ("sky", "--time", "2026-01-01T00:30:00", "--ra", "150", "--dec", "30", "--bands", "g,y")
     r = run_cli(*args, "--json")
@@ -172,7 +172,7 @@ def test_schedule_folder_not_empty_is_refused(tmp_path):
 
 def test_check_output_path_unit(tmp_path):
     from straylight.errors import InputError
-    from straylight.io import check_output_path
+    from straylight.util.io import check_output_path
 
     assert check_output_path(tmp_path / "a.fits") == tmp_path / "a.fits"
     with pytest.raises(InputError, match="is a folder"):
@@ -192,7 +192,7 @@ def test_utc_offset_is_converted():
 
 
 def test_utc_offsets_in_a_pointing_table(tmp_path, campaign):
-    from straylight.pointings import pointing_table, read_pointings
+    from straylight.survey.pointings import pointing_table, read_pointings
 
     p = tmp_path / "p.csv"
     p.write_text("time,ra,dec\n2026-01-01T08:50:00+08:00,10,30\n2026-01-01T00:50:00Z,10,30\n"

@@ -52,7 +52,7 @@ def test_cube_layout_units_and_attrs(cube_run):
     assert ds.attrs["healpix_nside"] == 4 and ds.attrs["healpix_ordering"] == "RING"
     assert ds["total"].encoding["chunks"] == (3, 40, 7)
     parts = sum(ds[v].values.astype(float) for v in ("zodiacal", "earthshine", "moon", "sun", "planets", "stars"))
-    # each stored within its bound of the computed value (straylight/storage.py), the total and the
+    # each stored within its bound of the computed value (straylight/survey/storage.py), the total and the
     # (nonnegative) parts each: the sum of the stored parts within twice the bound of the total
     bound = ds["total"].attrs["max_relative_error"]
     assert 0 < bound <= 1e-3 and ds.attrs["float_max_relative_error"] == bound
@@ -67,7 +67,7 @@ def test_cube_layout_units_and_attrs(cube_run):
 
 def test_cube_value_equals_sky_command(cube_run):
     """A cube value equals `straylight sky --catalog` (the run's star catalog) for the same time and
-    pointing (to the stored values' bound, straylight/storage.py); the star term is the same
+    pointing (to the stored values' bound, straylight/survey/storage.py); the star term is the same
     model (stars.offfield_mag_limit)."""
     _, cfg, out = cube_run
     from conftest import sky_at
@@ -117,7 +117,7 @@ def test_rerun_recomputes_only_what_is_missing(cube_run):
     r = _run(tmp, cfg, "-n")
     assert "Nothing to be done" in r.stdout + r.stderr
     before = (out / "background.zarr")
-    from straylight.provenance import sha256_path
+    from straylight.survey.provenance import sha256_path
 
     digest = sha256_path(before)
     # as after a crash inside time block 1: its sentinel, the cube job's record and everything
@@ -180,7 +180,7 @@ def test_dask_scheduler_address_gives_the_same_products(tmp_path, cube_run):
             if p is not None:
                 p.terminate()
                 p.wait(timeout=30)
-    from straylight.provenance import sha256_path
+    from straylight.survey.provenance import sha256_path
 
     _, _, ref = cube_run
     assert sha256_path(tmp_path / "results" / "cube" / "background.zarr") == sha256_path(ref / "background.zarr")
@@ -205,10 +205,10 @@ def test_evaluated_samples_skipping_counts_the_observable_ones(campaign):
     unobservable_samples: skip, the observable ones, estimated from 144 times x 660 pixels; on
     the default day (288 times x 1320 pixels, 16.5 % observable) against the exact count from
     the geometry of every sample, and every sample without skipping."""
-    from straylight.cube import evaluated_samples
-    from straylight.footprint import footprint_from_config
-    from straylight.geometry import observing_geometry, radec_to_unit
-    from straylight.sky import scene
+    from straylight.survey.cube import evaluated_samples
+    from straylight.survey.footprint import footprint_from_config
+    from straylight.sky.geometry import observing_geometry, radec_to_unit
+    from straylight.sky.observing import scene
 
     fp = footprint_from_config(campaign.config["footprint"])
     n = len(campaign.times) * fp.pixels.size
@@ -238,12 +238,12 @@ def test_pipeline_rate_from_config_then_bench_results_then_default(campaign, tmp
     """cube.pipeline_rate: compute.pipeline_samples_per_s_per_core when set, else the figure
     bench/pipeline.py wrote, else the stated default; estimated_cost costs a table-path
     campaign at samples / that rate and sizes its products at PRODUCT_BYTES_PER_SAMPLE."""
-    from straylight import cube as cu
-    from straylight.footprint import footprint_from_config
+    from straylight.survey import cube as cu
+    from straylight.survey.footprint import footprint_from_config
 
     bench = tmp_path / "pipeline.json"
     assert cu.pipeline_rate(campaign, bench) == (cu.PIPELINE_SAMPLES_PER_S_PER_CORE,
-                                                 "straylight.cube.PIPELINE_SAMPLES_PER_S_PER_CORE")
+                                                 "straylight.survey.cube.PIPELINE_SAMPLES_PER_S_PER_CORE")
     bench.write_text(json.dumps({"samples_per_s_per_core": 123456.0, "cores": 2,
                                  "campaign": {"days": 30, "nside": 32, "cadence_s": 300}}))
     rate, source = cu.pipeline_rate(campaign, bench)
@@ -290,8 +290,8 @@ def test_machine_speed_and_its_factor(campaign, tmp_path, monkeypatch):
     """cube.machine_speed: the measured seconds of a small direct-path cube against the
     figures' seconds for it (cube_compute_seconds, the direct sum evaluating every sample);
     estimated_cost scales the compute and the table's build by the factor, nothing else."""
-    from straylight import cube as cu
-    from straylight.footprint import footprint_from_config
+    from straylight.survey import cube as cu
+    from straylight.survey.footprint import footprint_from_config
 
     fp = footprint_from_config(campaign.config["footprint"])
     speed = cu.machine_speed(campaign, fp, n_times=1, n_pixels=66, repeats=1)
@@ -317,8 +317,8 @@ def test_plan_costs_the_model_auto_picks(campaign, tmp_path, monkeypatch):
     cached, each table on its own; the same weeks skipping the unobservable samples (~16.5 %) are
     short of the table's break-even (~5.4 million samples) again."""
     from straylight import components as comp
-    from straylight import cube as cu
-    from straylight.footprint import footprint_from_config
+    from straylight.survey import cube as cu
+    from straylight.survey.footprint import footprint_from_config
 
     monkeypatch.setenv("STRAYLIGHT_CACHE", str(tmp_path))  # an empty cache: the table is not built
     fp = footprint_from_config(campaign.config["footprint"])
@@ -366,7 +366,7 @@ def test_kill_9_at_random_moments_then_resume_is_bit_identical(tmp_path, cube_ru
     over, so the kills keep landing in real work)."""
     import signal
 
-    from straylight.provenance import sha256_path
+    from straylight.survey.provenance import sha256_path
 
     cfg = _config(tmp_path, name="cube")
     env = {**os.environ, "PATH": f"{BIN}:{os.environ['PATH']}"}

@@ -11,8 +11,8 @@ import pytest
 
 from straylight.components import ComponentModel
 from straylight.config import campaign_from_dict
-from straylight.earthshine_lut import EarthshineLUT, LUTSettings, lut_key
-from straylight.geometry import telescope_frame
+from straylight.sources.earthshine_lut import EarthshineLUT, LUTSettings, lut_key
+from straylight.sky.geometry import telescope_frame
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
 from _samples import random_samples  # noqa: E402
@@ -61,7 +61,7 @@ def test_rotation_about_the_vertical_changes_nothing(coarse):
     sat, sun, los = sc.satellite_km[obs], sc.bodies_km["sun"][obs], los[obs]
     lut = info["lut"]
     r, zs, zl, a = lut.coordinates(sat, sun, los)
-    from straylight.earthshine_lut import _sun_coefficients_direct
+    from straylight.sources.earthshine_lut import _sun_coefficients_direct
 
     off = cm.offfield
     door = g["door_opening_deg"][obs]
@@ -86,8 +86,8 @@ def test_night_side_samples_skip_the_look_up_and_get_exactly_what_it_gives(coars
     steps over a whole orbit (day, twilight and night steps), with and without known runs, it
     equals the look-up at every sample bit for bit; the skipped samples are there, and the
     table really is 0 at every node beyond the angle."""
-    from straylight.geometry import SceneRuns, radec_to_unit
-    from straylight.sky import scene
+    from straylight.sky.geometry import SceneRuns, radec_to_unit
+    from straylight.sky.observing import scene
 
     c, _, info = coarse
     lut = info["lut"]
@@ -120,8 +120,8 @@ def test_moonlit_earth_is_left_out_where_the_moon_is_down_and_changes_nothing(mo
     dark_moon_zenith_deg (the table is 0 at every node from there on) skip the moonlit Earth,
     bound and all.  Over one orbit with the Moon up and down the components equal, bit for bit,
     those computed with nothing left out (the angle set to inf)."""
-    from straylight.geometry import SceneRuns, observing_geometry, radec_to_unit
-    from straylight.sky import scene
+    from straylight.sky.geometry import SceneRuns, observing_geometry, radec_to_unit
+    from straylight.sky.observing import scene
 
     c, cm, mlut = moonlit
     dark = mlut.dark_moon_zenith_deg
@@ -205,8 +205,8 @@ def test_moonlit_earth_stays_within_its_share_of_the_tolerance(campaign):
     so the difference is the moonlit treatment alone.  Measured 3.9e-4 of the total (bench
     moonlit_grid row 6 x 12)."""
     from straylight.components import ERROR_BUDGET_SHARES
-    from straylight.cube import compute_region
-    from straylight.footprint import footprint_from_config
+    from straylight.survey.cube import compute_region
+    from straylight.survey.footprint import footprint_from_config
 
     raw = copy.deepcopy(campaign.config)
     raw["campaign"].update(start="2026-01-03T00:00:00", end="2026-01-03T23:59:59")
@@ -252,7 +252,7 @@ def test_save_load_round_trip_and_cache_key(coarse, tmp_path, campaign):
                         (6778.137, 6778.137), LUTSettings(5, 5, 20), 1e-20)
     # the tables are built from the PST and the door (with the body that shades it): another PST
     # or body is another table
-    from straylight.pst import PST
+    from straylight.optics.pst import PST
 
     darker = PST(off.pst.theta_deg, off.pst.phi_deg, off.pst.values * np.where(off.pst.theta_deg > 60.0, 0.5, 1.0)[:, None])
     assert k != lut_key(replace(off, pst=darker), 6378.137, (6778.137, 6778.137), LUTSettings(5, 5, 20), 1e-20)
@@ -349,8 +349,8 @@ def test_moonlit_table_reproduces_the_coarse_sum_at_its_nodes(moonlit):
     """At a node (Moon zenith, line-of-sight zenith, azimuth, roll) the table returns the coarse
     grid's direct sum it stored, for every door state: the table's coordinates invert the
     scene it was built from (including the roll, measured from the upward vertical)."""
-    from straylight.earthshine_lut import _moonlit_scene
-    from straylight.offfield import MOON_MEAN_DISTANCE_KM
+    from straylight.sources.earthshine_lut import _moonlit_scene
+    from straylight.sources.offfield import MOON_MEAN_DISTANCE_KM
 
     c, cm, lut = moonlit
     off = cm.offfield
@@ -375,7 +375,7 @@ def test_moonlit_table_matches_the_coarse_sum_in_real_scenes(moonlit):
     the error taken at full Moon at perigee as a fraction of the total (the table's validation
     measure; its recorded validation, 400 random scenes, within the same share)."""
     from straylight.components import ERROR_BUDGET_SHARES
-    from straylight.offfield import MOON_PERIGEE_KM, moon_v_magnitude, solar_like_fraction
+    from straylight.sources.offfield import MOON_PERIGEE_KM, moon_v_magnitude, solar_like_fraction
 
     c, cm, lut = moonlit
     sc, los, g = random_samples(c, 2000, seed=12)
@@ -400,7 +400,7 @@ def test_moonlit_table_matches_the_coarse_sum_in_real_scenes(moonlit):
 def test_moonlit_table_is_finite_at_the_singular_directions(moonlit):
     """Line of sight at the zenith and the nadir (the roll's reference undefined), the Moon at
     the zenith and on the line of sight: finite, non-negative coefficients."""
-    from straylight.geometry import telescope_frame as tf
+    from straylight.sky.geometry import telescope_frame as tf
 
     c, cm, lut = moonlit
     r = np.mean(c.orbit_radius_range_km)
@@ -413,7 +413,7 @@ def test_moonlit_table_is_finite_at_the_singular_directions(moonlit):
 
 
 def test_moonlit_table_save_load_round_trip(moonlit, tmp_path):
-    from straylight.earthshine_lut import MoonlitLUT
+    from straylight.sources.earthshine_lut import MoonlitLUT
 
     c, cm, lut = moonlit
     p = tmp_path / "m.npz"
@@ -433,8 +433,8 @@ def test_a_batch_of_time_steps_equals_each_step_alone(coarse):
     star) once per step (geometry.scene_runs).  The batch must give what each step alone gives,
     to float rounding: nothing may leak from one step's scene into another's."""
     from straylight.components import split_stars
-    from straylight.geometry import SceneRuns, observing_geometry, radec_to_unit
-    from straylight.sky import scene
+    from straylight.sky.geometry import SceneRuns, observing_geometry, radec_to_unit
+    from straylight.sky.observing import scene
 
     c, cm, _ = coarse
     rng = np.random.default_rng(11)
@@ -477,10 +477,10 @@ def test_a_batch_of_time_steps_equals_each_step_alone(coarse):
 def test_cube_region_batches_steps_in_time_pixel_order(coarse):
     """compute_region on the table's path (its steps in one batch) puts each value at its own
     time and pixel: the same as evaluating each step alone."""
-    from straylight.cube import compute_region
-    from straylight.footprint import footprint_from_config
-    from straylight.geometry import observing_geometry, radec_to_unit
-    from straylight.sky import scene
+    from straylight.survey.cube import compute_region
+    from straylight.survey.footprint import footprint_from_config
+    from straylight.sky.geometry import observing_geometry, radec_to_unit
+    from straylight.sky.observing import scene
 
     c, cm, _ = coarse
     fp = footprint_from_config(c.config["footprint"])
@@ -501,7 +501,7 @@ def test_cube_region_batches_steps_in_time_pixel_order(coarse):
 def test_step_batches_are_even_and_within_the_cap():
     """cube._step_batches: consecutive slices covering every step once, each within the cap
     (or one step where a step alone exceeds it), sizes within one step of each other."""
-    from straylight.cube import _step_batches
+    from straylight.survey.cube import _step_batches
 
     for n_steps, n_pixels, cap in [(72, 1024, 65536), (72, 660, 131072), (7, 60, 150), (5, 10**6, 1000),
                                    (72, 1024, 131072), (13, 1, 4), (0, 660, 65536)]:
@@ -518,8 +518,8 @@ def test_step_batches_are_even_and_within_the_cap():
 def test_cube_region_split_into_calls_gives_the_same_values(coarse, monkeypatch):
     """A region evaluated in several calls (a small SAMPLES_PER_EVALUATION) equals the region in
     one call, value for value: each sample depends on that sample alone."""
-    import straylight.cube as cube
-    from straylight.footprint import footprint_from_config
+    import straylight.survey.cube as cube
+    from straylight.survey.footprint import footprint_from_config
 
     c, cm, _ = coarse
     fp = footprint_from_config(c.config["footprint"])
@@ -535,9 +535,9 @@ def test_cube_region_split_into_calls_gives_the_same_values(coarse, monkeypatch)
 def test_cube_region_with_its_time_blocks_scene_gives_the_same_values(coarse):
     """A pixel block given its time block's scene (cube.run_time_block computes it once for
     all its pixel blocks) equals one that computes its own; a scene at other times is refused."""
-    import straylight.cube as cube
-    from straylight.footprint import footprint_from_config
-    from straylight.sky import scene
+    import straylight.survey.cube as cube
+    from straylight.survey.footprint import footprint_from_config
+    from straylight.sky.observing import scene
 
     c, cm, _ = coarse
     fp = footprint_from_config(c.config["footprint"])
@@ -559,8 +559,8 @@ def test_evaluate_into_a_given_array_writes_the_same_values(coarse):
     asked-for component's values, in the order asked, the float64 ones of a plain call rounded
     to float32, and returns no other; an unknown name or a wrongly shaped array is refused."""
     from straylight.components import BAND_COMPONENTS
-    from straylight.geometry import observing_geometry, radec_to_unit
-    from straylight.sky import scene
+    from straylight.sky.geometry import observing_geometry, radec_to_unit
+    from straylight.sky.observing import scene
 
     c, cm, _ = coarse
     sc = scene(c, c.times[0:20:5])
@@ -595,8 +595,8 @@ def test_cube_region_skipping_unobservable_samples_changes_no_observable_value(c
     """models.unobservable_samples: skip evaluates only the observable samples: they come out
     bit-identical to evaluating every sample, every other sample is NaN in every component, and
     the flags are the same."""
-    from straylight.cube import CUBE_COMPONENTS, compute_region
-    from straylight.footprint import footprint_from_config
+    from straylight.survey.cube import CUBE_COMPONENTS, compute_region
+    from straylight.survey.footprint import footprint_from_config
 
     c, cm, _ = coarse
     raw = copy.deepcopy(c.config)
@@ -620,7 +620,7 @@ def test_cube_region_skipping_unobservable_samples_changes_no_observable_value(c
 
 
 def test_scene_runs_group_consecutive_samples_that_share_a_scene():
-    from straylight.geometry import scene_runs, shared_vectors
+    from straylight.sky.geometry import scene_runs, shared_vectors
 
     a = np.repeat(np.array([[1.0, 0, 0], [0, 1.0, 0], [1.0, 0, 0]]), 4, axis=0)  # 3 runs; the third repeats the first
     b = np.repeat(np.array([[0, 0, 1.0], [0, 0, 1.0], [0, 0, 2.0]]), 4, axis=0)
@@ -643,7 +643,7 @@ def test_known_runs_read_what_the_scan_finds():
     the vectors finds: the same vectors, index and starts; restricted to a subset of the
     samples (SceneRuns.at), the runs that scanning the subset finds; the wrong number of
     samples is refused."""
-    from straylight.geometry import SceneRuns, scene_rows, scene_runs
+    from straylight.sky.geometry import SceneRuns, scene_rows, scene_runs
 
     rng = np.random.default_rng(5)
     steps, per_step = 4, 6

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from straylight.ephemeris import BODIES, DE405, radec_distance
+from straylight.sky.ephemeris import BODIES, DE405, radec_distance
 from straylight.errors import EphemerisRangeError
 
 JD_1950 = 2433282.5

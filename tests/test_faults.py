@@ -7,10 +7,10 @@ import pytest
 
 from conftest import tiny_config
 from straylight.config import load_campaign
-from straylight.cube import init_store, run_time_block
+from straylight.survey.cube import init_store, run_time_block
 from straylight.errors import OutputError
-from straylight.footprint import footprint_from_config
-from straylight.provenance import sha256_path
+from straylight.survey.footprint import footprint_from_config
+from straylight.survey.provenance import sha256_path
 
 
 @pytest.fixture(scope="module")

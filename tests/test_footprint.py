@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from straylight.errors import InputError
-from straylight.footprint import footprint_from_config, latitude_cut_mask
+from straylight.survey.footprint import footprint_from_config, latitude_cut_mask
 
 
 def test_default_cuts_give_about_17500_deg2(campaign):

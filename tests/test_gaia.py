@@ -8,7 +8,7 @@ import pytest
 from astropy.table import Table
 
 from straylight.errors import InputError
-from straylight.gaia import SDSS_RELATIONS, ingest_file, sdss_from_gaia, write_parquet
+from straylight.catalog.gaia import SDSS_RELATIONS, ingest_file, sdss_from_gaia, write_parquet
 
 GAIA_DATA = Path(str(resources.files("astroquery") / "gaia" / "tests" / "data"))
 

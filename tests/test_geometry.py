@@ -4,7 +4,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from straylight.geometry import (
+from straylight.sky.geometry import (
     VIOLATION_BITS,
     Constraints,
     DoorState,
@@ -184,7 +184,7 @@ def test_door_states_follow_the_paper():
 
 
 def test_moon_phase_full_and_new():
-    from straylight.geometry import moon_phase
+    from straylight.sky.geometry import moon_phase
 
     sun = np.array([AU, 0, 0])
     obs = np.zeros(3)
@@ -206,7 +206,7 @@ def test_nan_and_out_of_range_pointings_are_refused():
 
 
 def test_grid_shapes(campaign):
-    from straylight.sky import sample_geometry, scene
+    from straylight.sky.observing import sample_geometry, scene
 
     sc = scene(campaign, campaign.times[:5])
     g = sample_geometry(campaign, sc, np.array([0.0, 90.0, 180.0]), np.array([0.0, 45.0, -89.0]))
@@ -233,8 +233,8 @@ def test_tiled_period_finds_repeated_lines_of_sight_exactly():
     the period only when every step's rows equal the first step's bit for bit (one ulp off, a
     step of another length, or a single run: None), so work done on the first step's rows and
     tiled is the same as per sample (here the zodiacal light's coordinates, compared exactly)."""
-    from straylight.geometry import scene_runs, tiled_period
-    from straylight.zodiacal import _ecliptic_lon_lat_deg, helioecliptic_coordinates
+    from straylight.sky.geometry import scene_runs, tiled_period
+    from straylight.sources.zodiacal import _ecliptic_lon_lat_deg, helioecliptic_coordinates
 
     rng = np.random.default_rng(3)
     steps, pixels = 5, 7

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 from scipy.interpolate import RegularGridInterpolator
 
-from straylight.gridinterp import LinearGrid
+from straylight.util.gridinterp import LinearGrid
 
 
 @pytest.mark.parametrize("ndim", [2, 3, 4])

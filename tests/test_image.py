@@ -4,9 +4,9 @@ import pytest
 
 from conftest import run_cli
 from straylight.errors import InputError
-from straylight.ghosts import ghost_model_from_instrument
-from straylight.image import FocalPlane, RenderSettings, focal_plane_from_instrument, pointing_wcs, render_detector
-from straylight.scatter import scatter_model_from_instrument
+from straylight.optics.ghosts import ghost_model_from_instrument
+from straylight.image.detector import FocalPlane, RenderSettings, focal_plane_from_instrument, pointing_wcs, render_detector
+from straylight.optics.scatter import scatter_model_from_instrument
 
 SUN = np.array([1.0, 0.0, 0.0])
 N = 768
@@ -105,7 +105,7 @@ def test_wcs_roll_follows_the_sun(parts):
     small = parts[1]
     w = pointing_wcs(150.0, 30.0, SUN, small, 12)
     assert proj_plane_pixel_scales(w)[0] * 3600 == pytest.approx(10e-6 / 28.0 * 206264.806247, rel=1e-9)  # p / f
-    from straylight.geometry import radec_to_unit
+    from straylight.sky.geometry import radec_to_unit
 
     c0 = radec_to_unit(*w.pixel_to_world_values(100.0, 100.0))
     c1 = radec_to_unit(*w.pixel_to_world_values(200.0, 100.0))
@@ -123,7 +123,7 @@ def test_image_cli_end_to_end(tmp_path, campaign):
     from astropy.table import Table
     from astropy.wcs import WCS
 
-    from straylight.image import sun_direction_at
+    from straylight.image.detector import sun_direction_at
 
     fp = parts_fp = focal_plane_from_instrument(campaign.instrument)
     w = pointing_wcs(150.0, 30.0, sun_direction_at(campaign, "2026-01-01T00:50:00"), parts_fp, 12)
@@ -159,7 +159,7 @@ def test_image_cli_bad_catalog(tmp_path):
 
 def test_strips_equal_whole_image(parts, monkeypatch):
     """Rendering in row strips (memory bound) gives the whole-image result to FFT round-off."""
-    import straylight.image as image
+    import straylight.image.detector as image
 
     xy, flux = [[100.0, 120.0], [400.0, 700.0], [700.0, 30.0], [N + 150.0, 300.0]], [1e8, 1e6, 1e7, 1e9]
     gh = parts[3]
@@ -193,7 +193,7 @@ def test_bin_and_cutout_keep_units_and_wcs(parts):
 
 def test_boresight_puts_target_on_the_chip_centre(parts):
     """--center detector: the solved boresight's WCS maps the target to the chip's centre pixel."""
-    from straylight.image import boresight_for_target
+    from straylight.image.detector import boresight_for_target
 
     fp = parts[0]
     for det in (0, 12, 29):
@@ -206,7 +206,7 @@ def test_boresight_puts_target_on_the_chip_centre(parts):
 def test_named_stars_are_bright_in_the_default_catalog(campaign):
     """Every IAU name of --star resolves to a Hipparcos star brighter than Hp = 2.6 (the list is of
     first- and second-magnitude stars; Hipparcos Hp of Polaris, Algol and Alphard ~2.1-2.2)."""
-    from straylight.hipparcos import BRIGHT_STAR_HIP, read_hip2
+    from straylight.catalog.hipparcos import BRIGHT_STAR_HIP, read_hip2
 
     hip = read_hip2()
     vmag = dict(zip(hip["hip"], hip["hp_mag"]))
@@ -222,9 +222,9 @@ def test_image_cli_star_bin_and_empty_field(tmp_path, campaign):
     from astropy.io import fits
     from astropy.table import Table
 
-    from straylight.catalog import default_catalog_path
+    from straylight.catalog.build import default_catalog_path
     from straylight.components import load_offfield_stars
-    from straylight.pointings import pointing_table
+    from straylight.survey.pointings import pointing_table
 
     out = tmp_path / "sirius.fits"
     r = run_cli("image", "--time", "2026-01-01T00:50:00", "--star", "Sirius", "--band", "g", "--bin", "16",

@@ -21,10 +21,10 @@ def _high_latitude_limits(campaign):
     """Limits over observable samples at ecliptic |beta| >= 60 deg (the darkest zodiacal light),
     a 10 x 10 deg grid of pointings every 30 min of the default campaign day, full model."""
     from straylight.components import ComponentModel
-    from straylight.geometry import radec_to_unit
-    from straylight.limits import point_source_limit
-    from straylight.sky import sample_geometry, scene
-    from straylight.zodiacal import icrs_to_ecliptic_matrix
+    from straylight.sky.geometry import radec_to_unit
+    from straylight.survey.limits import point_source_limit
+    from straylight.sky.observing import sample_geometry, scene
+    from straylight.sources.zodiacal import icrs_to_ecliptic_matrix
 
     ra, dec = np.meshgrid(np.arange(0.0, 360.0, 10.0), np.arange(-80.0, 81.0, 10.0))
     ra, dec = ra.ravel(), dec.ravel()
@@ -58,7 +58,7 @@ def test_default_zero_points_are_the_published_ones(campaign):
     """Issue 35 item 6: the default bands' AB zero points (1 e-/s through the 2 m aperture) equal
     the published CSST ones (g r i z; sim_csst_lens csst_setting.yaml, DATA.md) within 0.02 mag.
     The flat-top curve at the peak throughput gave g 26.51, r 26.15, i 25.83, z 25.85."""
-    from straylight.bandpass import aperture_area_m2, load_band, zero_point_ab_mag
+    from straylight.optics.bandpass import aperture_area_m2, load_band, zero_point_ab_mag
 
     area = aperture_area_m2(campaign.instrument)
     assert area == pytest.approx(np.pi, rel=1e-12)  # D = 2 m
@@ -73,7 +73,7 @@ def test_a_measured_curve_is_scaled_to_the_given_zero_point(tmp_path, campaign):
     400-550 nm peaking at 0.5 gets the published g zero point, 26.23, exactly."""
     import copy
 
-    from straylight.bandpass import aperture_area_m2, load_band, zero_point_ab_mag
+    from straylight.optics.bandpass import aperture_area_m2, load_band, zero_point_ab_mag
 
     wl = np.linspace(400.0, 550.0, 151)
     t = 0.6 * np.clip((wl - 400.0) / 20.0, 0, 1) * np.clip((550.0 - wl) / 20.0, 0, 1)
@@ -95,7 +95,7 @@ def test_unpublished_zero_points_against_the_real_curves(campaign):
     Check against the real CSST curves (Wen et al. 2024; test-only): measured default - real =
     +0.27 (NUV), +0.19 (u), +0.00 (y) mag, documented in docs/assumptions.md; and the published
     g r i z zero points sit 0.09 (g), 0.14 (r), 0.11 (i), 0.00 (z) mag below the real curves'."""
-    from straylight.bandpass import Band, aperture_area_m2, load_band, read_throughput_file, zero_point_ab_mag
+    from straylight.optics.bandpass import Band, aperture_area_m2, load_band, read_throughput_file, zero_point_ab_mag
 
     area = aperture_area_m2(campaign.instrument)
     d = {}
@@ -113,9 +113,9 @@ def test_one_pixel_scale_for_rates_and_surface_brightness(campaign):
     """Issue 35 item 7: the zodiacal light's e-/s/pixel (pixel etendue pi D^2/4 (p/f)^2) turned
     back into mag/arcsec2 with the campaign's pixel scale gives the zodiacal model's own
     mag/arcsec2: both use p / f = 10 um / 28 m = 0.073665 arcsec (0.074 gave 0.0097 mag)."""
-    from straylight.bandpass import load_band
-    from straylight.offfield import magnitude_per_arcsec2
-    from straylight.zodiacal import zodiacal_model_from_instrument
+    from straylight.optics.bandpass import load_band
+    from straylight.sources.offfield import magnitude_per_arcsec2
+    from straylight.sources.zodiacal import zodiacal_model_from_instrument
 
     assert campaign.pixel_scale_arcsec == pytest.approx(10e-6 / 28.0 * 206264.806247, rel=1e-9)
     zm = zodiacal_model_from_instrument(campaign.instrument)
@@ -125,14 +125,14 @@ def test_one_pixel_scale_for_rates_and_surface_brightness(campaign):
         back = magnitude_per_arcsec2(z["e_per_s_per_pix"], band, 2.0, campaign.pixel_scale_arcsec)
         assert float(np.ravel(back)[0]) == pytest.approx(float(np.ravel(z["mag_per_arcsec2"])[0]), abs=1e-9)
     # the aperture: 0.15 arcsec EE80 radius over 0.073665 arcsec pixels
-    from straylight.limits import survey_exposure
+    from straylight.survey.limits import survey_exposure
 
     assert survey_exposure(campaign, "g").n_pix == pytest.approx(np.pi * (0.15 / 0.073665) ** 2, rel=1e-4)
 
 
 def _depth_with_published_assumptions(campaign, band):
-    """Our noise model (straylight.limits) fed the published CSST sky and zero point."""
-    from straylight.limits import point_source_limit
+    """Our noise model (straylight.survey.limits) fed the published CSST sky and zero point."""
+    from straylight.survey.limits import point_source_limit
 
     sky_e = 10 ** (-0.4 * (PUBLISHED_SKY_MAG_ARCSEC2[band] - PUBLISHED_ZERO_POINT_MAG[band])) * campaign.pixel_scale_arcsec**2
     return float(point_source_limit(sky_e, band, campaign)), sky_e
@@ -156,7 +156,7 @@ def test_depth_gap_term_by_term(campaign):
     """The gap between our dark high-latitude depth and the published one, term by term (the table
     in docs/assumptions.md): (1) our sky at |beta| >= 60 deg against the published sky level,
     (2) the remainder with the published assumptions.  The sky term is most of the gap."""
-    from straylight.limits import point_source_limit
+    from straylight.survey.limits import point_source_limit
 
     lims = _high_latitude_limits(campaign)
     for b, ref in PUBLISHED_DEPTH_MAG.items():
@@ -180,8 +180,8 @@ def test_never_observable_pixels_are_nan_in_zarr_and_unseen_in_fits(tmp_path):
     import xarray as xr
 
     from straylight.config import load_campaign
-    from straylight.io import write_zarr_atomic
-    from straylight.limits import limits_dataset, point_source_limit, write_limit_maps
+    from straylight.util.io import write_zarr_atomic
+    from straylight.survey.limits import limits_dataset, point_source_limit, write_limit_maps
 
     c = load_campaign()
     bands = list(c.bands)
@@ -227,7 +227,7 @@ def test_limits_stream_over_chunks_with_the_eager_values(tmp_path):
     import xarray as xr
 
     from straylight.config import load_campaign
-    from straylight.limits import limits_dataset
+    from straylight.survey.limits import limits_dataset
 
     c = load_campaign()
     bands = list(c.bands)

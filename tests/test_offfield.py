@@ -3,11 +3,11 @@ import numpy as np
 import pytest
 
 from straylight.components import ComponentModel, StarTable
-from straylight.door import Door, door_length_from_paper
+from straylight.optics.door import Door, door_length_from_paper
 from straylight.errors import ConfigError, InputError
-from straylight.geometry import TelescopeFrame, observing_geometry, radec_to_unit, telescope_frame
-from straylight.offfield import EarthshineSettings, moon_v_magnitude, planet_v_magnitude, solar_like_fraction
-from straylight.pst import PST, default_pst_grid, load_pst, write_pst_csv
+from straylight.sky.geometry import TelescopeFrame, observing_geometry, radec_to_unit, telescope_frame
+from straylight.sources.offfield import EarthshineSettings, moon_v_magnitude, planet_v_magnitude, solar_like_fraction
+from straylight.optics.pst import PST, default_pst_grid, load_pst, write_pst_csv
 
 from conftest import SHARED_DATA
 
@@ -33,7 +33,7 @@ def test_default_pst_anchors():
 def test_default_pst_is_at_most_1e_4_just_outside_the_field():
     """Paper sect. 2.1: out-of-field light is 4-6 orders below in-field at small incident angles,
     so PST <= 1e-4 from the field stop out, at every azimuth (no ramp from 1 past the edge)."""
-    from straylight.pst import DEFAULT_FIELD_RADIUS_DEG
+    from straylight.optics.pst import DEFAULT_FIELD_RADIUS_DEG
 
     pst = load_pst(None)
     r = DEFAULT_FIELD_RADIUS_DEG
@@ -52,7 +52,7 @@ def test_uniform_sky_out_of_field_light_is_negligible():
     only the in-field part needs to be considered.  Integrated over a uniform sky in front of the
     aperture plane, the default PST lets in 1.15 % of the in-field light (5-30 deg: 0.8 %);
     asserted below 2 %."""
-    from straylight.pst import DEFAULT_FIELD_RADIUS_DEG as r
+    from straylight.optics.pst import DEFAULT_FIELD_RADIUS_DEG as r
 
     pst = load_pst(None)
     th = np.linspace(r + 1e-9, 90.0, 100001)
@@ -185,8 +185,8 @@ def test_all_planets_at_once_equal_meeus_per_planet():
     """planet_v_magnitudes (every planet over many steps in one pass, as a cube batch calls it)
     against Meeus (1998) ch. 41 written out per planet here (V(1,0), the phase polynomial and
     Saturn's ring term), at DE405 positions over a year: to 1e-12 mag."""
-    from straylight.ephemeris import BODIES, default_ephemeris
-    from straylight.offfield import PLANET_V, SATURN_POLE_RA_DEC_DEG, planet_v_magnitudes
+    from straylight.sky.ephemeris import BODIES, default_ephemeris
+    from straylight.sources.offfield import PLANET_V, SATURN_POLE_RA_DEC_DEG, planet_v_magnitudes
 
     planets = [b for b in BODIES if b in PLANET_V]
     pos = default_ephemeris().positions([f"2026-{m:02d}-15T00:00:00" for m in range(1, 13)])
@@ -282,7 +282,7 @@ def test_star_term_sums_off_field_stars(campaign, comp_model, exact_model):
 
 
 def test_star_skipping_stays_within_its_budget(campaign, comp_model, exact_model):
-    """The embedded bright-star catalog (straylight.catalog.make_catalog) at 400 random samples,
+    """The embedded bright-star catalog (straylight.catalog.build.make_catalog) at 400 random samples,
     observable or not: skipping the stars of smallest bound (ComponentModel.star_cells, sized on
     each sample's floor, a lower bound of its total) changes the star term by at most tolerance / 8
     of the exact total in every band (the budget the skip is sized for), while summing the same
@@ -290,7 +290,7 @@ def test_star_skipping_stays_within_its_budget(campaign, comp_model, exact_model
     import sys
     from pathlib import Path
 
-    from straylight.catalog import make_catalog
+    from straylight.catalog.build import make_catalog
     from straylight.components import split_stars
 
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
@@ -324,7 +324,7 @@ def _star_skip_check(model, stars, frame, sat, door, floor_ratio, pairs):
     at its maximum beyond the star's angle, no door) and as exact transfers.  Returns the
     skipped bounds' largest sum as a fraction of that budget, and the number of pairs that count."""
     from straylight.components import ERROR_BUDGET_SHARES
-    from straylight.geometry import earth_blocks
+    from straylight.sky.geometry import earth_blocks
 
     n_stars = len(stars.ra_deg)
     r, k, t = pairs
@@ -363,7 +363,7 @@ def test_star_sky_cells_skip_within_the_budget_at_every_line_of_sight(campaign, 
     pairs summed are those of the uncapped lists (the passes) or more (the caps)."""
     import healpy as hp
 
-    from straylight.catalog import make_catalog
+    from straylight.catalog.build import make_catalog
     from straylight.components import split_stars
 
     monkeypatch.setattr(ComponentModel, "STAR_CELL_NSIDE", nside)
@@ -457,7 +457,7 @@ def test_moon_and_planet_skipping_stays_within_its_budget(campaign, comp_model, 
     import sys
     from pathlib import Path
 
-    from straylight.ephemeris import PLANETS
+    from straylight.sky.ephemeris import PLANETS
 
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
     from _samples import random_samples
@@ -529,7 +529,7 @@ def test_planet_angles_only_where_they_can_count_change_no_transfer(campaign, co
     everywhere), for Venus 0.7-170 deg from the lines of sight, in a batch of two shared scenes (a
     cube's time steps) and in one with a scene per sample, at the darkest floor and at varied
     floors."""
-    from straylight.geometry import body_geometry, scene_runs
+    from straylight.sky.geometry import body_geometry, scene_runs
 
     rng = np.random.default_rng(12)
     n = 600
@@ -567,7 +567,7 @@ def test_planets_together_are_the_sum_of_each_planets_per_sample_rule(campaign, 
     the per-sample rule on every sample's angles times the planet's fraction of the Sun, for
     lines of sight 0.7-170 deg from Venus and from Jupiter, in a batch of two shared scenes (a
     cube's time steps), in one with a scene per sample, and at varied floors."""
-    from straylight.geometry import body_geometry
+    from straylight.sky.geometry import body_geometry
 
     rng = np.random.default_rng(21)
     n = 800
@@ -787,7 +787,7 @@ def test_negative_albedo_in_config_is_refused(tmp_path):
 
 @pytest.fixture(scope="module")
 def paper_scenario(campaign):
-    from straylight.scenarios import earthshine_scenario
+    from straylight.paper.scenarios import earthshine_scenario
 
     return earthshine_scenario(campaign)
 
@@ -795,7 +795,7 @@ def paper_scenario(campaign):
 def test_earthshine_scenario_of_the_paper(paper_scenario, tmp_path):
     """Sect. 3.3 scenario: earthshine falls with the bright-limb angle and reaches the zodiacal
     level only far from the limb (CSST's bright-limb constraint is 80 deg)."""
-    from straylight.scenarios import plot_earthshine_scenario, sunlit_limb
+    from straylight.paper.scenarios import plot_earthshine_scenario, sunlit_limb
 
     res = paper_scenario
     sel = sunlit_limb(res)
@@ -820,7 +820,7 @@ def test_scenario_reaches_hsts_20_deg_earthshine_70_deg_from_the_bright_limb(pap
     Handbook's fig. 9.2 (V, 20.6 mag/arcsec2 at 20 deg); the scenario's binned median CSST
     earthshine (V) falls to it 70 +/- 5 deg from the bright limb with the default instrument
     (measured 69.4 deg; the default PST's 30-90 deg tail is anchored on it)."""
-    from straylight.scenarios import hst_comparison, plot_earthshine_scenario
+    from straylight.paper.scenarios import hst_comparison, plot_earthshine_scenario
 
     if not HST_CURVE.exists():
         pytest.skip(f"{HST_CURVE} is absent: the HST WFC3 earthshine curve is test and validation only "
@@ -833,7 +833,7 @@ def test_scenario_reaches_hsts_20_deg_earthshine_70_deg_from_the_bright_limb(pap
 
 
 def test_crossing_angle_interpolates_between_bin_centres():
-    from straylight.scenarios import crossing_angle_deg
+    from straylight.paper.scenarios import crossing_angle_deg
 
     centres = np.array([5.0, 15.0, 25.0, 35.0])
     assert crossing_angle_deg(centres, np.array([14.0, 16.0, 18.0, 20.0]), 17.0) == pytest.approx(20.0)
@@ -909,7 +909,7 @@ def test_door_state_index_matches_numpys_searchsorted():
     """door.door_state_index (a compiled scan) against the numpy formulation it replaced
     (searchsorted, first state >= the opening): the same index wherever the opening is a state
     or none is allowed, the same flags everywhere; NaN is no state; no states is an error."""
-    from straylight.door import door_state_index
+    from straylight.optics.door import door_state_index
 
     rng = np.random.default_rng(7)
     for states in ([90.0], [45.0, 135.0], [30.0, 60.0, 90.0, 135.0]):
@@ -956,9 +956,9 @@ def test_planet_in_the_field_is_a_point_source_not_a_background(campaign, tmp_pa
     Table 1 quotes -2.9 at its brightest) and its band AB magnitude.  Just outside the field
     the PST applies as before."""
     from straylight.cli import sky_record
-    from straylight.geometry import unit
-    from straylight.pointings import pointing_table
-    from straylight.sky import scene
+    from straylight.sky.geometry import unit
+    from straylight.survey.pointings import pointing_table
+    from straylight.sky.observing import scene
 
     t = "2026-01-01T00:50:00"
     sc = scene(campaign, t)
@@ -982,7 +982,7 @@ def test_planet_in_the_field_is_a_point_source_not_a_background(campaign, tmp_pa
     assert np.isnan(cols["planet_in_field_v_mag"][1])
     assert cols["planets_g"][0] == 0.0
     # straylight image draws it as a star at its position, with its band magnitude
-    from straylight.image import bodies_as_stars
+    from straylight.image.detector import bodies_as_stars
 
     b_ra, b_dec, b_mag, names = bodies_as_stars(campaign, t, ra, dec, "g")
     assert names == ["jupiter"] and b_ra[0] == pytest.approx(ra, abs=1e-9) and b_dec[0] == pytest.approx(dec, abs=1e-9)
@@ -1041,7 +1041,7 @@ def test_nothing_enters_the_direct_path_from_behind_the_aperture_plane(campaign,
 def _door_term_exact(off, sat, sun, los, opening, body: bool):
     """The door path summed door block by door block: each block lit by the Earth blocks in front
     of its inner face whose ray to it misses the body (Door.body_hits), times its weight W_i."""
-    from straylight.geometry import dot, unit
+    from straylight.sky.geometry import dot, unit
 
     s = off.earthshine
     frame = telescope_frame(los, sun - sat)

@@ -4,7 +4,7 @@ import pytest
 from astropy.time import Time, TimeDelta
 
 from straylight.errors import ConfigError, InputError
-from straylight.orbit import CircularOrbit, EarthModel, TLEOrbit
+from straylight.sky.orbit import CircularOrbit, EarthModel, TLEOrbit
 
 EARTH = EarthModel(radius_km=6378.137, gm_km3_s2=398600.4418, j2=1.08262668e-3)
 # ISS TLE (public NORAD element set, 2008 example from the CelesTrak documentation)

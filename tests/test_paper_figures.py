@@ -1,4 +1,4 @@
-"""The paper's in-field figures (``straylight figure NAME``, straylight/paperfigs.py) against the
+"""The paper's in-field figures (``straylight figure NAME``, straylight/paper/figures.py) against the
 numbers the paper states about them.  The earthshine figure of sect. 3.3 is tested with
 ``straylight scenario`` (tests of the scenario)."""
 import numpy as np
@@ -11,7 +11,7 @@ def test_zodiacal_map_sect_4_1(campaign):
     darkest value is HST's "low" zodiacal light (V 23.3 mag/arcsec2, STScI ETC levels) and its
     median the paper's Table 1 level, ~3e-18 erg s-1 cm-2 A-1 arcsec-2 = V 22.7 (HST "average"),
     within 0.3 mag; brightest towards the Sun."""
-    from straylight.paperfigs import zodiacal_map_data
+    from straylight.paper.figures import zodiacal_map_data
 
     d = zodiacal_map_data(campaign, nside=32)
     v = d["v_mag_per_arcsec2"]
@@ -32,7 +32,7 @@ def test_scattering_curve_sect_4_2(campaign):
     scattered light is ~1e-4 of the image's peak at 10 pixels and ~1e-6 at 100 pixels (sect.
     4.4; within a factor 3, read off the paper's plot); the blend is the core near the image and
     the halo far from it."""
-    from straylight.paperfigs import scattering_data
+    from straylight.paper.figures import scattering_data
 
     d = scattering_data(campaign)
     assert d["tis_per_mirror"] == pytest.approx(0.02, rel=0.01)
@@ -48,7 +48,7 @@ def test_nuv_ghost_figure_sect_4_3(campaign):
     """Sect. 4.3: the NUV example (D1 = 5 mm, D2 = 8 mm, T = 0.825, R = 0.0093, Rd = 0.15,
     3.9 deg): ghosts at or below ~1e-6 of the star image (max 1.15e-6, path 2); centres at
     2 D1 theta / n, 2 D2 theta, their sum (46.6, 109.1, 155.7 pixels of 10 um)."""
-    from straylight.paperfigs import ghost_example_data
+    from straylight.paper.figures import ghost_example_data
 
     d = ghost_example_data(campaign)
     rel = d["ghost_relative_to_peak"]
@@ -65,7 +65,7 @@ def test_partial_nuv_detector_image_sect_4_4(campaign):
     to the star's peak pixel, the image is ~1e-4 at 10 pixels and ~1e-6 at 100 pixels (factor
     3), its brightest ghost ~1e-6 (the paper's "approximately 1e-6": within a factor 2; the
     peak pixel of a star between pixel centres holds less than the analytic peak, 1.15e-6)."""
-    from straylight.paperfigs import detector_catalog, detector_image_data
+    from straylight.paper.figures import detector_catalog, detector_image_data
 
     cat, ra, dec = detector_catalog(campaign)
     d = detector_image_data(campaign, cat, ra, dec, size_px=512)

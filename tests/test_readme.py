@@ -127,7 +127,7 @@ def test_tiny_campaign_products_follow_the_conventions(campaign_run):
     from astropy.io import fits
 
     from straylight.config import load_campaign
-    from straylight.limits import sky_zero_points
+    from straylight.survey.limits import sky_zero_points
 
     run = campaign_run
     bg = xr.open_zarr(run / "background.zarr")

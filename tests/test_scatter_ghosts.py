@@ -4,8 +4,8 @@ import pytest
 from scipy import integrate
 
 from straylight.errors import ConfigError, InputError
-from straylight.ghosts import GhostModel, ghost_model_from_instrument
-from straylight.scatter import HarveyBRDF, scatter_model_from_instrument
+from straylight.optics.ghosts import GhostModel, ghost_model_from_instrument
+from straylight.optics.scatter import HarveyBRDF, scatter_model_from_instrument
 
 PIXEL_M = 10e-6
 

@@ -6,8 +6,8 @@ import pytest
 
 from conftest import run_cli
 from straylight.components import ComponentModel
-from straylight.limits import point_source_limit
-from straylight.scheduling import (bright_limb_table, exposure_time_factor,
+from straylight.survey.limits import point_source_limit
+from straylight.survey.scheduling import (bright_limb_table, exposure_time_factor,
                                    moon_avoidance_table)
 
 
@@ -53,7 +53,7 @@ def test_moon_avoidance_angle_is_the_exact_threshold(model):
     g = t["min_moon_angle_deg_g"]
     assert np.all(np.diff(g) <= 0)  # a thinner Moon needs less distance
     assert g[0] > 40.0  # the paper's fixed 40 deg is not enough at full Moon for 10 % of the darkest sky
-    from straylight.offfield import MOON_MEAN_DISTANCE_KM, moon_v_magnitude
+    from straylight.sources.offfield import MOON_MEAN_DISTANCE_KM, moon_v_magnitude
 
     limit = fraction * model.darkest_zodiacal_e_per_s("g")
     off = model.offfield
@@ -72,7 +72,7 @@ def _rotated_scene_rate(campaign, model, sun_zenith_deg: float, elevation_deg: f
     sight ``elevation_deg`` above the limb at ``azimuth_deg`` from the Sun's, in a real
     (rotated, not the local-frame) scene: the satellite over (30 N, 70 E), the Sun at
     ``sun_zenith_deg`` there."""
-    from straylight.geometry import observing_geometry, telescope_frame
+    from straylight.sky.geometry import observing_geometry, telescope_frame
 
     re = campaign.earth.radius_km
     r = 0.5 * sum(campaign.orbit_radius_range_km)

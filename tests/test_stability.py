@@ -8,8 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from straylight.components import ComponentModel, StarTable
-from straylight.geometry import observing_geometry, radec_to_unit
-from straylight.sky import scene
+from straylight.sky.geometry import observing_geometry, radec_to_unit
+from straylight.sky.observing import scene
 
 COMPONENTS = ("zodiacal", "sun", "moon", "planets", "stars", "earthshine_direct", "earthshine_door", "total")
 
@@ -125,7 +125,7 @@ def test_pst_and_door_at_theta_0_and_180(model):
 
 
 def test_a_matrix_whose_pole_row_varies_with_phi_is_regularised(caplog):
-    from straylight.pst import PST, default_pst_grid
+    from straylight.optics.pst import PST, default_pst_grid
 
     th, ph, v = default_pst_grid(theta_step_deg=5.0, phi_step_deg=30.0)
     v = v.copy()
@@ -167,7 +167,7 @@ def test_moon_in_total_eclipse(campaign, model):
     g, res, _ = _eval(campaign, model, "2026-03-03T11:33:00", los)
     _assert_sane(res)
     _, res_before, _ = _eval(campaign, model, "2026-03-03T06:33:00", los)
-    from straylight.geometry import earth_blocks
+    from straylight.sky.geometry import earth_blocks
 
     sc = scene(campaign, ["2026-03-03T11:33:00"])
     moon, sun = sc.bodies_km["moon"][0], sc.bodies_km["sun"][0]
@@ -177,7 +177,7 @@ def test_moon_in_total_eclipse(campaign, model):
 def test_ephemeris_block_boundary_is_continuous(campaign, model):
     from astropy.time import Time, TimeDelta
 
-    from straylight.ephemeris import default_ephemeris
+    from straylight.sky.ephemeris import default_ephemeris
 
     jd = default_ephemeris().block_boundaries_jd
     b = jd[np.searchsorted(jd, Time("2026-06-01", scale="tdb").jd)]
@@ -197,7 +197,7 @@ def test_ghosts_as_the_marginal_ray_angle_goes_to_zero(campaign):
     from dataclasses import replace
 
     from straylight.errors import InputError
-    from straylight.ghosts import ghost_model_from_instrument
+    from straylight.optics.ghosts import ghost_model_from_instrument
 
     g = ghost_model_from_instrument(campaign.instrument, "g")
     fractions = g.energy_fractions()

@@ -1,4 +1,4 @@
-"""The products' lossy storage (issue #32, straylight/storage.py) on a real block of the default
+"""The products' lossy storage (issue #32, straylight/survey/storage.py) on a real block of the default
 campaign: every stored float within its recorded bound of the computed one, the bound within the
 1e-3 relative the issue asks, and the whole product set under 25 bytes per (time, pixel) sample."""
 import numpy as np
@@ -6,12 +6,12 @@ import pytest
 import xarray as xr
 
 from straylight.config import campaign_from_dict, deep_merge
-from straylight.cube import CUBE_BAND_VARIABLES, compute_region, init_store, write_region
-from straylight.footprint import footprint_from_config
-from straylight.io import write_zarr_atomic
-from straylight.limits import limits_dataset
-from straylight.products import ephemeris_dataset, observability_dataset
-from straylight.storage import encoded, max_relative_error
+from straylight.survey.cube import CUBE_BAND_VARIABLES, compute_region, init_store, write_region
+from straylight.survey.footprint import footprint_from_config
+from straylight.util.io import write_zarr_atomic
+from straylight.survey.limits import limits_dataset
+from straylight.survey.products import ephemeris_dataset, observability_dataset
+from straylight.survey.storage import encoded, max_relative_error
 
 #: issue #32: stored values within 1e-3 relative of the computed ones, all products together at
 #: most 25 bytes per (time, pixel) sample

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 from astropy.time import Time
 
-from straylight.timeutil import DTDB_DIRECT_MAX, parse_utc, utc_to_tdb_jd
+from straylight.sky.timeutil import DTDB_DIRECT_MAX, parse_utc, utc_to_tdb_jd
 from straylight.errors import InputError
 
 

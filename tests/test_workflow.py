@@ -67,7 +67,7 @@ def test_end_to_end_products(tiny_run):
 
 def test_cube_value_equals_sky_command(tiny_run):
     """An observability value equals `straylight sky` for the same time and pointing (to the
-    stored values' bound, straylight/storage.py)."""
+    stored values' bound, straylight/survey/storage.py)."""
     from conftest import sky_at
 
     out, cfg = tiny_run

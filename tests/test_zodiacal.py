@@ -3,8 +3,8 @@ import numpy as np
 import pytest
 
 from conftest import SHARED_DATA
-from straylight.bandpass import load_band
-from straylight.zodiacal import (
+from straylight.optics.bandpass import load_band
+from straylight.sources.zodiacal import (
     SPECTRA,
     ecliptic_lon_lat_deg,
     helioecliptic_coordinates,
@@ -68,7 +68,7 @@ def test_ecliptic_frame_matches_astropy():
     rng = np.random.default_rng(5)
     ra, dec = rng.uniform(0, 360, 200), np.degrees(np.arcsin(rng.uniform(-1, 1, 200)))
     c = SkyCoord(ra * u.deg, dec * u.deg).transform_to(BarycentricMeanEcliptic(equinox="J2000"))
-    from straylight.geometry import radec_to_unit
+    from straylight.sky.geometry import radec_to_unit
 
     lon, lat = ecliptic_lon_lat_deg(radec_to_unit(ra, dec))
     # 0.18" measured: astropy adds the ICRS frame bias and the dynamical-equinox offset; the
@@ -133,7 +133,7 @@ def test_e_per_s_is_L_pi_D2_over_4f2_times_pixel_area(campaign):
 def test_parametric_default_against_real_throughputs(campaign):
     """Measure and print the parametric default's error against the real CSST curves (Wen et al.
     2024, test-only): AB zero points and the dark-sky zodiacal level per band."""
-    from straylight.bandpass import Band, read_throughput_file
+    from straylight.optics.bandpass import Band, read_throughput_file
 
     zm = zodiacal_model_from_instrument(campaign.instrument)
     worst = 0.0

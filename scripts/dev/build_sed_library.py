@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 from astropy.io import fits
 
-from straylight.sed import bin_average
+from straylight.catalog.sed import bin_average
 
 OUT = Path(__file__).resolve().parents[2] / "straylight" / "data" / "pickles1998_uvk_sed.fits"
 PREFIX = "EXOSIMS/TargetList/dat_uvk/"

@@ -1,5 +1,5 @@
 """Rebuild straylight/data/pickles1998_template_teff.csv: the Teff of every embedded Pickles
-template from its spectral type (straylight.sed.teff_from_spectral_type: Pecaut & Mamajek 2013
+template from its spectral type (straylight.catalog.sed.teff_from_spectral_type: Pecaut & Mamajek 2013
 for class V, de Jager & Nieuwenhuijzen 1987 via PyAstronomy for classes IV-I).
 
 Usage::
@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from astropy.io import fits
 
-from straylight.sed import PICKLES_FILE, PICKLES_TEFF_FILE, teff_from_spectral_type, teff_scale
+from straylight.catalog.sed import PICKLES_FILE, PICKLES_TEFF_FILE, teff_from_spectral_type, teff_scale
 
 HEADER = """\
 # Teff of the embedded Pickles (1998) templates from their spectral type and luminosity class.

@@ -3,7 +3,7 @@ from pathlib import Path
 
 from straylight.config import campaign_from_dict as _campaign_from_dict
 from straylight.config import resolve_config_files as _resolve_config_files
-from straylight.timegrid import time_blocks as _time_blocks
+from straylight.survey.timegrid import time_blocks as _time_blocks
 
 # Snakemake lists the workflow's own configfile after the command line's --configfile ones,
 # but merges the latter over it: the files in increasing precedence.

@@ -1,0 +1,555 @@
+"""Stray-light images of a detector from the stars in and near the field (seed paper sect. 4).
+
+For a pointing, time, band and detector, every catalog star within the detector plus a margin
+is placed on the focal plane through a TAN (gnomonic) WCS whose roll follows the telescope frame
+(+x towards the Sun's projection, the door side; see :mod:`straylight.sky.geometry`).  The image is
+star map (e-/s) convolved with the star image (:class:`~straylight.optics.scatter.ScatterModel`):
+
+* near field (r <= ``near_radius_px``): full-resolution FFT convolution (scipy ``oaconvolve``)
+  with the core + halo kernel, tapered to zero between near_radius/2 and near_radius;
+* far field: the rest of the halo, smooth, convolved on a grid binned by ``far_bin`` pixels
+  (FFT, ``fftconvolve``) and interpolated back bilinearly.  ``far_bin = 1`` is the exact
+  reference; the error of larger bins is measured in tests and bench/image.py.
+
+A star off the chip is kept when its halo still exceeds ``halo_floor_e_per_s_per_pix`` somewhere
+on the chip (bright stars reach far, faint ones not at all), up to ``margin_arcsec``; the binned
+grid extends only as far as the kept stars need.
+
+Ghost discs (:mod:`straylight.optics.ghosts`) are returned as a table and, optionally, painted in as
+uniform discs holding exactly each ghost's energy.
+
+Units: the image is in e- s-1 pixel-1; star fluxes from AB magnitudes with the band's AB zero
+point and the unobstructed aperture pi D^2 / 4.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import signal
+
+from straylight.optics.bandpass import Band
+from straylight.config import pixel_scale_arcsec
+from straylight.errors import InputError
+from straylight.sky.geometry import radec_to_unit, telescope_frame, unit
+from straylight.optics.ghosts import GhostModel
+from straylight.optics.scatter import ScatterModel, check_fluxes
+
+
+@dataclass(frozen=True)
+class FocalPlane:
+    nx: int
+    ny: int
+    pixel_scale_arcsec: float
+    pixel_size_mm: float
+    columns: int
+    rows: int
+    gap_px: float
+
+    @property
+    def n_detectors(self) -> int:
+        return self.columns * self.rows
+
+    def detector_offset_px(self, detector: int) -> tuple[float, float]:
+        """Centre of detector ``detector`` (0-based, row-major) from the optical axis, pixels."""
+        if not 0 <= detector < self.n_detectors:
+            raise InputError(f"--detector {detector}: must be within 0..{self.n_detectors - 1}")
+        row, col = divmod(detector, self.columns)
+        pitch_x, pitch_y = self.nx + self.gap_px, self.ny + self.gap_px
+        return ((col - (self.columns - 1) / 2) * pitch_x, (row - (self.rows - 1) / 2) * pitch_y)
+
+
+def focal_plane_from_instrument(instrument: dict) -> FocalPlane:
+    d = instrument["detector"]
+    nx, ny = int(d["nx_pixels"]["value"]), int(d["ny_pixels"]["value"])
+    if nx <= 0 or ny <= 0:
+        raise InputError(f"detector size {nx} x {ny}: must be positive")
+    return FocalPlane(
+        nx=nx, ny=ny, pixel_scale_arcsec=pixel_scale_arcsec(instrument),
+        pixel_size_mm=float(d["pixel_size_um"]["value"]) / 1000.0,
+        columns=int(d["layout_columns"]["value"]), rows=int(d["layout_rows"]["value"]),
+        gap_px=float(d["layout_gap_pixels"]["value"]),
+    )
+
+
+def pointing_wcs(ra_deg: float, dec_deg: float, sun_direction: np.ndarray, fp: FocalPlane, detector: int):
+    """astropy WCS of one detector: TAN about the boresight, axes along the telescope frame."""
+    from astropy.wcs import WCS
+
+    z = radec_to_unit(ra_deg, dec_deg)
+    frame = telescope_frame(z, np.asarray(sun_direction, dtype=float))
+    a, d = np.radians(ra_deg), np.radians(dec_deg)
+    east = np.array([-np.sin(a), np.cos(a), 0.0])
+    north = np.array([-np.sin(d) * np.cos(a), -np.sin(d) * np.sin(a), np.cos(d)])
+    scale_deg = fp.pixel_scale_arcsec / 3600.0
+    cd = scale_deg * np.array([[frame.x @ east, frame.y @ east], [frame.x @ north, frame.y @ north]])
+    ox, oy = fp.detector_offset_px(detector)
+    w = WCS(naxis=2)
+    w.wcs.ctype = ["RA---TAN", "DEC--TAN"]
+    w.wcs.crval = [ra_deg % 360.0, dec_deg]
+    # boresight falls at pixel (centre - offset); FITS pixels are 1-based
+    w.wcs.crpix = [(fp.nx + 1) / 2.0 - ox, (fp.ny + 1) / 2.0 - oy]
+    w.wcs.cd = cd
+    w.wcs.cunit = ["deg", "deg"]
+    return w
+
+
+def star_fluxes_e_per_s(mag_ab, band: Band, aperture_diameter_m: float) -> np.ndarray:
+    """e-/s of stars of AB magnitude ``mag_ab`` in ``band`` through the full aperture."""
+    m = np.asarray(mag_ab, dtype=float)
+    if not np.all(np.isfinite(m)):
+        i = int(np.flatnonzero(~np.isfinite(m))[0])
+        raise InputError(f"mag_{band.name}: row {i} is {m[i]!r}; magnitudes must be finite")
+    area = np.pi * aperture_diameter_m**2 / 4.0
+    return 10.0 ** (-0.4 * m) * band.ab_zero_point_photons_s_m2 * area
+
+
+def _profile_table(fn, r_max_px: float, p_m: float):
+    """fn(r_m) tabulated on a log-spaced radius grid (px) for fast interpolation."""
+    r = np.concatenate([[0.0], np.geomspace(0.01, max(r_max_px, 1.0) * 1.5, 4000)])
+    return r, fn(r * p_m)
+
+
+def _interp_profile(table, r_px):
+    r, v = table
+    return np.interp(r_px, r, v)
+
+
+def _reach_px(table, flux_e_per_s, floor, p_m):
+    """Distance (px) beyond which a star's halo per pixel falls below ``floor``."""
+    r, v = table
+    per_pix = v * p_m * p_m  # fraction per pixel; beyond its peak it never increases
+    k = int(np.argmax(per_pix))
+    tail_r, tail_v = r[k:], per_pix[k:]
+    threshold = floor / np.maximum(np.asarray(flux_e_per_s, float), 1e-300)
+    # number of tail radii whose value reaches each star's threshold (tail is non-increasing)
+    n_above = np.searchsorted(-tail_v, -threshold, side="right")
+    return np.where(n_above > 0, tail_r[np.maximum(n_above - 1, 0)], 0.0)
+
+
+def _linear_upsample_matrix(n_fine: int, n_coarse: int, offset: float, b: int):
+    """Sparse (n_fine x n_coarse) bilinear weights; fine pixel i sits at coarse (i + offset + 0.5) / b - 0.5."""
+    from scipy import sparse
+
+    pos = (np.arange(n_fine) + offset + 0.5) / b - 0.5
+    j0 = np.clip(np.floor(pos).astype(int), 0, n_coarse - 2)
+    w1 = np.clip(pos - j0, 0.0, 1.0)
+    rows = np.repeat(np.arange(n_fine), 2)
+    cols = np.stack([j0, j0 + 1], axis=1).ravel()
+    vals = np.stack([1.0 - w1, w1], axis=1).ravel()
+    return sparse.csr_matrix((vals, (rows, cols)), shape=(n_fine, n_coarse))
+
+
+def _radial_grid(half: int, step_px: float = 1.0) -> np.ndarray:
+    y, x = np.mgrid[-half:half + 1, -half:half + 1].astype(float) * step_px
+    return np.hypot(x, y)
+
+
+def _taper_up(r, r0, r1):
+    x = np.clip((r - r0) / (r1 - r0), 0.0, 1.0)
+    return 0.5 - 0.5 * np.cos(np.pi * x)
+
+
+def _deposit(shape, x, y, w) -> np.ndarray:
+    """Cloud-in-cell deposit of weights at (x, y) (0-based pixel centres) on a grid."""
+    grid = np.zeros(shape, dtype=np.float64)
+    x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
+    fx, fy = x - x0, y - y0
+    for dx, dy, ww in ((0, 0, (1 - fx) * (1 - fy)), (1, 0, fx * (1 - fy)), (0, 1, (1 - fx) * fy), (1, 1, fx * fy)):
+        xi, yi = x0 + dx, y0 + dy
+        ok = (xi >= 0) & (xi < shape[1]) & (yi >= 0) & (yi < shape[0])
+        np.add.at(grid, (yi[ok], xi[ok]), (w * ww)[ok])
+    return grid
+
+
+@dataclass
+class RenderSettings:
+    """Approximation knobs of the renderer (each has a measured error, see bench/image.py)."""
+
+    near_radius_px: int = 128
+    far_bin: int = 8
+    margin_arcsec: float = 1800.0  # hard cap on how far off the chip a star may sit
+    halo_floor_e_per_s_per_pix: float = 1e-4  # a star counts where its halo exceeds this
+    paint_ghosts: bool = True
+    ghost_min_e_per_s_per_pix: float = 0.0
+
+
+@dataclass
+class DetectorImage:
+    image_e_per_s_per_pix: np.ndarray
+    ghosts: dict  # column -> array
+    stars: dict  # column -> array (stars used)
+    wcs: object
+    meta: dict = field(default_factory=dict)
+
+
+@dataclass
+class StarSelection:
+    """The stars that reach a detector (see :func:`select_stars`): catalog indices, chip pixel
+    positions (0-based, full chip) and fluxes (e-/s)."""
+
+    wcs: object
+    index: np.ndarray
+    x_pix: np.ndarray
+    y_pix: np.ndarray
+    flux_e_per_s: np.ndarray
+    used_margin_px: float
+    halo_table: tuple
+
+    @property
+    def n_on_chip(self) -> int:
+        """Stars whose centre falls on the chip (0-based pixel centres, edges at -0.5 and n - 0.5)."""
+        nx = self.wcs.pixel_shape[0] if self.wcs.pixel_shape else None
+        ny = self.wcs.pixel_shape[1] if self.wcs.pixel_shape else None
+        return int(np.sum((self.x_pix >= -0.5) & (self.x_pix < nx - 0.5) & (self.y_pix >= -0.5) & (self.y_pix < ny - 0.5)))
+
+
+def select_stars(ra_deg, dec_deg, star_ra_deg, star_dec_deg, star_flux_e_per_s, sun_direction, fp: FocalPlane,
+                 detector: int, scatter: ScatterModel, settings: RenderSettings) -> StarSelection:
+    """Stars within the detector plus margin whose halo still exceeds the floor on the chip
+    (or that sit within the near-field radius of it).  Cheap: no image is made."""
+    s = settings
+    flux = check_fluxes(star_flux_e_per_s, "star flux (e-/s)")
+    wcs = pointing_wcs(ra_deg, dec_deg, sun_direction, fp, detector)
+    wcs.pixel_shape = (fp.nx, fp.ny)
+    ny, nx = fp.ny, fp.nx
+    p_m = fp.pixel_size_mm / 1000.0
+    sra, sdec = np.asarray(star_ra_deg, float), np.asarray(star_dec_deg, float)
+    if sra.size:
+        cen = wcs.pixel_to_world_values((nx - 1) / 2.0, (ny - 1) / 2.0)
+        cvec = radec_to_unit(float(cen[0]), float(cen[1]))
+        svec = radec_to_unit(sra, sdec, "star catalog")
+        radius_deg = (np.hypot(nx, ny) / 2 * fp.pixel_scale_arcsec + s.margin_arcsec) / 3600.0
+        near = svec @ cvec > np.cos(np.radians(min(radius_deg, 30.0)))
+    else:
+        near = np.zeros(0, bool)
+    idx = np.flatnonzero(near)
+    x, y = wcs.world_to_pixel_values(sra[idx], sdec[idx]) if idx.size else (np.zeros(0), np.zeros(0))
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    margin_px = s.margin_arcsec / fp.pixel_scale_arcsec
+    inside = (x > -margin_px) & (x < nx - 1 + margin_px) & (y > -margin_px) & (y < ny - 1 + margin_px)
+    idx, x, y = idx[inside], x[inside], y[inside]
+    f = flux[idx]
+    halo_tab = _profile_table(scatter.halo_profile, np.hypot(nx, ny) + margin_px, p_m)
+    reach = np.minimum(_reach_px(halo_tab, f, s.halo_floor_e_per_s_per_pix, p_m), margin_px)
+    dx = np.maximum(np.maximum(-x, x - (nx - 1)), 0.0)
+    dy = np.maximum(np.maximum(-y, y - (ny - 1)), 0.0)
+    keep = np.hypot(dx, dy) <= np.maximum(reach, s.near_radius_px)
+    used_margin_px = float(np.max(np.hypot(dx, dy)[keep], initial=0.0)) + s.near_radius_px
+    return StarSelection(wcs, idx[keep], x[keep], y[keep], f[keep], used_margin_px, halo_tab)
+
+
+#: Rows of the chip rendered at a time: bounds memory to ~ (rows + 2 near_radius) x width
+#: float64 arrays, a few hundred MB for a 9216-pixel-wide chip, whatever the chip's height.
+STRIP_ROWS = 512
+
+
+def render_detector(
+    ra_deg, dec_deg, star_ra_deg, star_dec_deg, star_flux_e_per_s, sun_direction, fp: FocalPlane, detector: int,
+    scatter: ScatterModel, ghosts: GhostModel | None, chief_ray_angle_deg: float,
+    settings: RenderSettings | None = None, size_override: tuple[int, int] | None = None,
+    window: tuple[int, int, int, int] | None = None, bin_factor: int = 1,
+) -> DetectorImage:
+    """Render the in-field stray light (core + scattering halo, ghosts) of one detector.
+
+    ``size_override`` (ny, nx) renders a smaller image with the same pixel scale (tests).
+    ``window`` (x0, y0, width, height), 0-based chip pixels: render only that cutout.
+    ``bin_factor`` N: the image is the mean of N x N pixels (still e-/s per chip pixel); the
+    window is trimmed to a multiple of N.  The WCS follows the window and the binning.
+    The chip is rendered in strips of :data:`STRIP_ROWS` rows, so memory does not grow with
+    the chip's height; the result equals a whole-chip rendering to FFT round-off.
+    """
+    s = settings or RenderSettings()
+    if s.far_bin < 1 or s.near_radius_px < 4:
+        raise InputError(f"render settings far_bin={s.far_bin}, near_radius_px={s.near_radius_px} out of range")
+    if size_override:
+        fp = FocalPlane(size_override[1], size_override[0], fp.pixel_scale_arcsec, fp.pixel_size_mm,
+                        fp.columns, fp.rows, fp.gap_px)
+    nb = int(bin_factor)
+    if nb < 1:
+        raise InputError(f"--bin {bin_factor}: must be a positive integer")
+    sel = select_stars(ra_deg, dec_deg, star_ra_deg, star_dec_deg, star_flux_e_per_s, sun_direction, fp,
+                       detector, scatter, s)
+    wcs, idx, x, y, f = sel.wcs, sel.index, sel.x_pix, sel.y_pix, sel.flux_e_per_s
+    ny, nx = fp.ny, fp.nx
+    p_m = fp.pixel_size_mm / 1000.0
+    wx0, wy0, ww, wh = window if window is not None else (0, 0, nx, ny)
+    wx0, wy0 = max(int(wx0), 0), max(int(wy0), 0)
+    ww, wh = min(int(ww), nx - wx0), min(int(wh), ny - wy0)
+    ww, wh = ww - ww % nb, wh - wh % nb
+    if ww <= 0 or wh <= 0:
+        raise InputError(f"cutout {window} with --bin {nb}: no pixel of the {nx} x {ny} chip left")
+
+    # near-field kernel, full resolution
+    rn = s.near_radius_px
+    r_px = _radial_grid(rn)
+    # float64: the core's peak is ~1e7 x the kernel's tail, beyond float32 FFT round-off
+    k_near = scatter.profile(r_px * p_m) * p_m * p_m * (1.0 - _taper_up(r_px, rn / 2, rn))
+    del r_px
+
+    # far field, binned grid covering detector + the margin the kept stars need
+    b = s.far_bin
+    mpx = int(np.ceil(sel.used_margin_px))
+    cny, cnx = int(np.ceil((ny + 2 * mpx) / b)) + 1, int(np.ceil((nx + 2 * mpx) / b)) + 1
+    coarse_map = _deposit((cny, cnx), (x + mpx + 0.5) / b - 0.5, (y + mpx + 0.5) / b - 0.5, f)
+    half_y = int(np.ceil((ny + mpx) / b)) + 1
+    half_x = int(np.ceil((nx + mpx) / b)) + 1
+    rc = np.hypot(np.arange(-half_x, half_x + 1, dtype=float)[None, :] * b,
+                  np.arange(-half_y, half_y + 1, dtype=float)[:, None] * b)
+    k_far = _interp_profile(sel.halo_table, rc)
+    k_far *= (b * p_m) ** 2
+    k_far *= _taper_up(rc, rn / 2, rn)
+    del rc
+    far_coarse = signal.fftconvolve(coarse_map, k_far, mode="same") / (b * b)  # per fine pixel
+    del k_far, coarse_map
+    wy = _linear_upsample_matrix(ny, cny, mpx, b)
+    wx = _linear_upsample_matrix(nx, cnx, mpx, b)[wx0:wx0 + ww]
+
+    # ghosts: the table of every disc; painted strip by strip below
+    gtab = {k: np.zeros(0) for k in ("star_index", "path", "x_pix", "y_pix", "radius_pix", "e_per_s_per_pix", "energy_e_per_s")}
+    if ghosts is not None and idx.size:
+        ox, oy = fp.detector_offset_px(detector)
+        fx, fy = x - (nx - 1) / 2.0 + ox, y - (ny - 1) / 2.0 + oy  # focal-plane position from the axis
+        rr = np.hypot(fx, fy)
+        ux = np.where(rr > 0, fx / np.where(rr > 0, rr, 1), 1.0)
+        uy = np.where(rr > 0, fy / np.where(rr > 0, rr, 1), 0.0)
+        th = np.radians(chief_ray_angle_deg)
+        off = ghosts.centre_offsets_mm(th * ux, th * uy) / fp.pixel_size_mm  # (3, 2, n)
+        radii = ghosts.radii_mm() / fp.pixel_size_mm
+        # f is the detected rate (filter included): ghosts relative to the nominal image
+        irr = ghosts.irradiance_relative_to_image_per_mm2() * fp.pixel_size_mm**2
+        frac = ghosts.energy_relative_to_image()
+        rows = []
+        for k in range(3):
+            rows.append(dict(
+                star_index=idx, path=np.full(idx.size, k + 1), x_pix=x + off[k, 0], y_pix=y + off[k, 1],
+                radius_pix=np.full(idx.size, radii[k]), e_per_s_per_pix=f * irr[k], energy_e_per_s=f * frac[k],
+            ))
+        gtab = {c: np.concatenate([r[c] for r in rows]) for c in rows[0]}
+
+    out = np.zeros((wh // nb, ww // nb), dtype=np.float32)
+    strip = max(nb, STRIP_ROWS // nb * nb)
+    for y0 in range(wy0, wy0 + wh, strip):
+        y1 = min(y0 + strip, wy0 + wh)
+        # near field: stars within rn of the strip, on a grid padded by rn
+        gy0, gx0 = y0 - rn, wx0 - rn
+        near = (y >= gy0 - 1) & (y < y1 + rn + 1) & (x >= gx0 - 1) & (x < wx0 + ww + rn + 1)
+        grid = _deposit((y1 - y0 + 2 * rn, ww + 2 * rn), x[near] - gx0, y[near] - gy0, f[near])
+        part = signal.oaconvolve(grid, k_near, mode="same")[rn:rn + y1 - y0, rn:rn + ww]
+        del grid
+        part += (wx @ (wy[y0:y1] @ far_coarse).T).T
+        if ghosts is not None and s.paint_ghosts and idx.size:
+            part += _paint_discs(ny, nx, gtab, s.ghost_min_e_per_s_per_pix, rows=(y0, y1), cols=(wx0, wx0 + ww))
+        if nb > 1:
+            part = part.reshape((y1 - y0) // nb, nb, ww // nb, nb).mean(axis=(1, 3))
+        out[(y0 - wy0) // nb:(y1 - wy0) // nb] = part
+        del part
+    del far_coarse
+
+    if window is not None or nb > 1:
+        wcs = wcs.deepcopy()
+        wcs.wcs.crpix = [(wcs.wcs.crpix[0] - wx0 - 0.5) / nb + 0.5, (wcs.wcs.crpix[1] - wy0 - 0.5) / nb + 0.5]
+        wcs.wcs.cd = wcs.wcs.cd * nb
+    wcs.pixel_shape = (out.shape[1], out.shape[0])
+    stars = {"catalog_index": idx, "x_pix": x, "y_pix": y, "flux_e_per_s": f}
+    return DetectorImage(out, gtab, stars, wcs,
+                         meta={"far_bin": b, "near_radius_px": rn, "margin_arcsec": s.margin_arcsec,
+                               "halo_floor": s.halo_floor_e_per_s_per_pix, "bin": nb, "cut_x0": wx0,
+                               "cut_y0": wy0})
+
+
+def _paint_discs(ny, nx, g, min_irr, rows=None, cols=None) -> np.ndarray:
+    """Uniform discs; each holds exactly its energy over the pixels whose centres it covers
+    (on the whole chip).  ``rows`` (y0, y1) and ``cols`` (x0, x1) restrict the returned array
+    to that part of the chip."""
+    ry0, ry1 = rows if rows is not None else (0, ny)
+    rx0, rx1 = cols if cols is not None else (0, nx)
+    out = np.zeros((ry1 - ry0, rx1 - rx0))
+    for xc, yc, r, e in zip(g["x_pix"], g["y_pix"], g["radius_pix"], g["energy_e_per_s"]):
+        if e / (np.pi * r * r) < min_irr:
+            continue
+        x0, x1 = int(np.floor(xc - r)), int(np.ceil(xc + r)) + 1
+        y0, y1 = int(np.floor(yc - r)), int(np.ceil(yc + r)) + 1
+        if y1 <= ry0 or y0 >= ry1 or x1 <= rx0 or x0 >= rx1:
+            continue
+        yy, xx = np.mgrid[y0:y1, x0:x1]
+        disc = (xx - xc) ** 2 + (yy - yc) ** 2 <= r * r
+        n_in = disc.sum()
+        if n_in == 0:
+            continue
+        ok = disc & (xx >= max(rx0, 0)) & (xx < min(rx1, nx)) & (yy >= max(ry0, 0)) & (yy < min(ry1, ny))
+        out[yy[ok] - ry0, xx[ok] - rx0] += e / n_in
+    return out
+
+
+def bodies_as_stars(campaign, time, ra_deg: float, dec_deg: float, band: str) -> tuple:
+    """The Sun, Moon and planets inside the field at ``time`` as extra catalog stars:
+    (ra_deg, dec_deg, mag_ab, names), arrays; a body in the field is a point source, left out of
+    the background (:meth:`~straylight.components.ComponentModel.in_field_point_sources`)."""
+    from straylight.components import ComponentModel
+    from straylight.sky.observing import sample_geometry, scene
+
+    sc = scene(campaign, time)
+    g = sample_geometry(campaign, sc, np.array([ra_deg]), np.array([dec_deg]), grid=False)
+    los = radec_to_unit(np.array([ra_deg]), np.array([dec_deg]))
+    found = ComponentModel(campaign).in_field_point_sources(sc.satellite_km, sc.bodies_km, los, g, [band])
+    names = [k for k, v in found.items() if bool(np.ravel(v["in_field"])[0])]
+    ra, dec = [], []
+    for k in names:
+        d = unit(sc.bodies_km[k][0] - sc.satellite_km[0])
+        ra.append(float(np.degrees(np.arctan2(d[1], d[0])) % 360.0))
+        dec.append(float(np.degrees(np.arcsin(d[2]))))
+    mags = [float(np.ravel(found[k]["mag_ab"][band])[0]) for k in names]
+    return np.array(ra), np.array(dec), np.array(mags), names
+
+
+def sun_direction_at(campaign, time) -> np.ndarray:
+    """Unit vector from the satellite to the Sun at ``time`` (for the roll)."""
+    from straylight.sky.observing import scene
+
+    sc = scene(campaign, time)
+    return unit(sc.bodies_km["sun"][0] - sc.satellite_km[0])
+
+
+def boresight_for_target(target_ra_deg: float, target_dec_deg: float, sun_direction, fp: FocalPlane,
+                         detector: int, tol_arcsec: float = 1e-4) -> tuple[float, float]:
+    """The boresight (RA, Dec, deg) that puts ``target`` on the centre of ``detector``.
+
+    The roll follows the Sun (:func:`pointing_wcs`), so the boresight is found by iteration:
+    move it by the offset still left between the chip centre and the target, until that offset
+    is below ``tol_arcsec``.  Converges in a few steps (the detector offsets are < 1 deg).
+    """
+    from astropy.coordinates import SkyCoord
+    import astropy.units as u
+
+    target = SkyCoord(target_ra_deg * u.deg, target_dec_deg * u.deg)
+    ra, dec = float(target_ra_deg), float(target_dec_deg)
+    for _ in range(20):
+        w = pointing_wcs(ra, dec, sun_direction, fp, detector)
+        c = w.pixel_to_world_values((fp.nx - 1) / 2.0, (fp.ny - 1) / 2.0)
+        centre = SkyCoord(float(c[0]) * u.deg, float(c[1]) * u.deg)
+        sep = centre.separation(target)
+        if sep.to_value(u.arcsec) < tol_arcsec:
+            break
+        bore = SkyCoord(ra * u.deg, dec * u.deg).directional_offset_by(centre.position_angle(target), sep)
+        ra, dec = float(bore.ra.deg), float(bore.dec.deg)
+    else:  # pragma: no cover - the map is a near-rigid rotation
+        raise InputError(f"cannot put RA {target_ra_deg}, Dec {target_dec_deg} on detector {detector}")
+    return ra, dec
+
+
+#: FITS image compression choices of :func:`write_fits` (``--compress``).
+COMPRESSIONS = ("gzip", "rice", "none")
+
+GHOST_UNITS = {"star_index": ("", "row of the input star catalog"), "path": ("", "ghost path 1-3 (seed paper sect. 4.2)"),
+               "x_pix": ("pix", "disc centre, 0-based chip column"), "y_pix": ("pix", "disc centre, 0-based chip row"),
+               "radius_pix": ("pix", "disc radius"), "e_per_s_per_pix": ("electron/s", "irradiance per chip pixel"),
+               "energy_e_per_s": ("electron/s", "energy in the disc")}
+STAR_UNITS = {"catalog_index": ("", "row of the input star catalog"),
+              "x_pix": ("pix", "0-based chip column"), "y_pix": ("pix", "0-based chip row"),
+              "flux_e_per_s": ("electron/s", "star flux through the full aperture")}
+
+
+def _table_hdu(columns: dict, units: dict, name: str):
+    """A FITS table with TUNITn (unit strings as written, e.g. ``electron/s``, which FITS readers
+    pass through) and each column's meaning as the TTYPEn comment."""
+    from astropy.io import fits
+    from astropy.table import Table
+
+    hdu = fits.BinTableHDU(Table(columns), name=name)
+    for i, c in enumerate(hdu.columns.names, start=1):
+        unit, desc = units.get(c, ("", ""))
+        if unit:
+            hdu.header[f"TUNIT{i}"] = unit
+        if desc:
+            hdu.header[f"TTYPE{i}"] = (c, desc[:80 - 14 - len(c)])
+    return hdu
+
+
+def write_fits(result: DetectorImage, path, provenance: dict, compress: str = "gzip",
+               quantize_step: float | None = None) -> None:
+    """FITS: the image (e-/s per chip pixel) with WCS and provenance; GHOSTS and STARS tables
+    with a unit on every column.
+
+    ``compress``: ``gzip`` (GZIP_2 tile compression, lossless: no quantisation), ``rice``
+    (RICE_1 on values quantised to ``quantize_step`` e-/s/pixel; the error is at most half a
+    step) or ``none`` (plain primary image).  A compressed image sits in extension 1
+    (``SCI``); astropy and ``fitsio`` read it transparently.
+    """
+    from astropy.io import fits
+
+    from straylight.util.io import atomic_path
+
+    hdr = result.wcs.to_header()
+    hdr["BUNIT"] = ("electron/s", "per chip pixel; binned: mean of BIN x BIN")
+    for k, v in provenance.items():
+        key = k.upper()[:8]
+        hdr[key] = v if not isinstance(v, float) else float(v)
+    for k, v in result.meta.items():
+        hdr[k.upper()[:8]] = v
+    data = result.image_e_per_s_per_pix
+    if compress == "none":
+        hdus = [fits.PrimaryHDU(data, header=hdr)]
+    elif compress == "gzip":
+        hdr["COMPNOTE"] = "GZIP_2 lossless, no quantisation"
+        hdus = [fits.PrimaryHDU(), fits.CompImageHDU(data, header=hdr, name="SCI", compression_type="GZIP_2",
+                                                     quantize_level=0)]
+    elif compress == "rice":
+        step = float(quantize_step if quantize_step is not None else 1e-4)
+        if not (np.isfinite(step) and step > 0):
+            raise InputError(f"--quantize-step {quantize_step}: must be a positive number of e-/s/pixel")
+        hdr["QSTEP"] = (step, "e-/s/pixel quantisation step (error <= QSTEP/2)")
+        hdr["COMPNOTE"] = "RICE_1 on values quantised to QSTEP, lossy"
+        hdus = [fits.PrimaryHDU(), fits.CompImageHDU(data, header=hdr, name="SCI", compression_type="RICE_1",
+                                                     quantize_level=-step, quantize_method=1)]
+    else:
+        raise InputError(f"--compress {compress!r}: one of {', '.join(COMPRESSIONS)}")
+    hdus += [_table_hdu(result.ghosts, GHOST_UNITS, "GHOSTS"), _table_hdu(result.stars, STAR_UNITS, "STARS")]
+    with atomic_path(path) as tmp:
+        fits.HDUList(hdus).writeto(tmp)
+
+
+def read_star_columns(path, bands) -> tuple[np.ndarray, np.ndarray, dict]:
+    """Read ra, dec and mag_<band> for every band in one pass (Parquet, FITS, CSV, ECSV);
+    returns (ra_deg, dec_deg, {band: mag}); clear errors otherwise."""
+    from pathlib import Path
+
+    from astropy.table import Table
+
+    p = Path(path)
+    if not p.exists():
+        raise InputError(f"{p}: star catalog does not exist")
+    try:
+        if p.suffix.lower() == ".parquet":
+            import pyarrow.parquet as pq
+
+            t = pq.read_table(p)
+            names = t.column_names
+        else:
+            t = Table.read(p)
+            names = t.colnames
+    except Exception as exc:
+        raise InputError(f"{p}: cannot read star catalog ({exc})") from exc
+    cols = {c.lower(): c for c in names}
+    need = ["ra", "dec"] + [f"mag_{b.lower()}" for b in bands]
+    missing = [c for c in need if c not in cols]
+    if missing:
+        raise InputError(f"{p}: missing column(s) {', '.join(missing)}; have {', '.join(cols.values())}")
+
+    def get(c):
+        col = t[cols[c]]
+        return np.asarray(col.to_numpy() if hasattr(col, "to_numpy") else col, dtype=float)
+
+    ra, dec = get("ra"), get("dec")
+    for name, v, lo, hi in (("ra", ra, -360.0, 360.0), ("dec", dec, -90.0, 90.0)):
+        bad = np.flatnonzero(~np.isfinite(v) | (v < lo) | (v > hi))
+        if bad.size:
+            raise InputError(f"{p}: row {bad[0]}: {cols[name]} = {v[bad[0]]} must be finite and within "
+                             f"[{lo:g}, {hi:g}] deg")
+    return ra % 360.0, dec, {b: get(f"mag_{b.lower()}") for b in bands}
+
+
+def read_star_table(path, band: str):
+    """Read ra, dec and mag_<band> columns (Parquet, FITS, CSV, ECSV); clear errors otherwise."""
+    ra, dec, mags = read_star_columns(path, [band])
+    return ra, dec, mags[band]

@@ -1,0 +1,554 @@
+"""Off-field stray light through the PST (seed paper sects. 2.2, 3.1-3.2).
+
+Point sources (paper eq. 14):  E_p = sum_i E_i Se_i Sp_i PST(theta_i, phi_i), with E_i the band
+photon irradiance at the aperture (photons s-1 m-2), Se_i = 0 when the Earth hides the source
+(two-condition test), Sp_i the door's unshaded fraction (:mod:`straylight.optics.door`) and PST from
+:mod:`straylight.optics.pst`.  The focal-plane rate is E * PST * (pixel area), with the band's total
+throughput (mirrors x filter x QE) turning photons into electrons; the PST is taken as the
+geometric transfer.
+
+Sources and their published brightness laws:
+
+* Sun: ASTM E490-00a spectrum at 1 AU scaled by (1 AU / d)^2.
+* Moon: solar spectrum scaled to V(alpha) = -12.73 + 0.026 |alpha| + 4e-9 alpha^4 at the mean
+  distance 384400 km (Krisciunas & Schaefer 1991, PASP 103, 1033, eq. 9; alpha = phase angle,
+  deg), or the paper's proportional rule (full-Moon brightness times elongation / 180);
+  x (384400 km / d)^2; an eclipsed Moon (inside the Earth's shadow cylinder) is dimmed by
+  ``moon_eclipse_factor``.
+* Planets: V = V0 + 5 log10(r Delta) + phase terms (Meeus 1998, "Astronomical Algorithms",
+  2nd ed., ch. 41, after the Astronomical Almanac 1984), with Saturn's ring term; solar spectrum.
+* Stars: AB magnitudes per band from a catalog.
+
+Solar-like sources are converted with V_sun = -26.76 (Willmer 2018, ApJS 236, 47).
+
+Earthshine (paper sect. 3.2): the Earth cap seen from the satellite is split into n_gamma x
+n_psi blocks of solid angle sin(gamma) dgamma dpsi about nadir; each is a Lambertian reflector of
+albedo A lit by the Sun (radiance A/pi E_sun cos z_sun) or, on the night side, by the Moon.
+EA1 = sum E_i Sp_i PST(theta_i, phi_i) (direct; Sp = 0 behind the aperture plane, theta > 90
+deg).  EA2 (door): each door block receives MP_i = sum_b L_b dOmega_b cos(incidence) from the
+Earth blocks in front of its inner face whose ray to it misses the telescope body
+(:meth:`OffFieldModel.door_lit_fraction`) and re-emits as a Lambertian of reflectance r; the aperture points j receive
+L_door A_i cos(e_ij) / d_ij^2 with PST(theta_ij, phi_ij), averaged over the aperture.  This is
+the paper's EA2 = sum_i MP_i r sum_j PST(theta_ij, phi_ij) / d_ij^2 with the block area, the
+emission cosine and 1/pi written out.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from functools import cached_property
+
+import numpy as np
+
+from straylight.optics.bandpass import Band
+from straylight.optics.door import Door, DoorTable, behind_aperture_plane, door_state_index
+from straylight.errors import ConfigError
+from straylight.sky.geometry import dot, norm, perpendicular_towards, rows_at, scene_rows, shared_vectors, unit, wrap_360_deg
+from straylight.util.gridinterp import LinearGrid
+from straylight.optics.pst import PST
+from straylight.sources.zodiacal import solar_spectrum
+
+AU_KM = 1.495978707e8
+V_SUN_VEGA = -26.76
+MOON_MEAN_DISTANCE_KM = 384400.0
+#: the Moon's nearest perigee in 2000-2100, km (~356,400; Meeus 1998, ch. 50): the brightest Moon
+MOON_PERIGEE_KM = 356400.0
+#: the Moon's farthest apogee in 2000-2100, km (~406,700; Meeus 1998, ch. 50)
+MOON_APOGEE_KM = 406700.0
+SATURN_POLE_RA_DEC_DEG = (40.589, 83.537)  # IAU WGCCRE 2015 (Archinal et al. 2018)
+
+# Meeus (1998) ch. 41: V0 and phase coefficients (i in degrees)
+PLANET_V = {
+    "mercury": (-0.42, (0.0380, -0.000273, 0.000002)),
+    "venus": (-4.40, (0.0009, 0.000239, -0.00000065)),
+    "mars": (-1.52, (0.016, 0.0, 0.0)),
+    "jupiter": (-9.40, (0.005, 0.0, 0.0)),
+    "saturn": (-8.88, (0.0, 0.0, 0.0)),
+    "uranus": (-7.19, (0.0, 0.0, 0.0)),
+    "neptune": (-6.87, (0.0, 0.0, 0.0)),
+    "pluto": (-1.00, (0.0, 0.0, 0.0)),
+}
+
+
+def moon_v_magnitude(phase_angle_deg, distance_km, law: str = "krisciunas_schaefer", elongation_deg=None):
+    """Lunar V magnitude at ``distance_km`` for the phase angle (deg, 0 = full)."""
+    a = np.abs(np.asarray(phase_angle_deg, dtype=float))
+    dist_term = 5.0 * np.log10(np.asarray(distance_km, dtype=float) / MOON_MEAN_DISTANCE_KM)
+    if law == "krisciunas_schaefer":
+        return -12.73 + 0.026 * a + 4e-9 * a**4 + dist_term
+    if law == "proportional":
+        e = np.asarray(elongation_deg if elongation_deg is not None else 180.0 - a, dtype=float)
+        ratio = np.clip(e / 180.0, 1e-6, 1.0)
+        return -12.73 - 2.5 * np.log10(ratio) + dist_term
+    raise ConfigError(f"moon phase law {law!r} is not one of 'krisciunas_schaefer', 'proportional'")
+
+
+def planet_v_magnitude(name: str, planet_km, sun_km, observer_km) -> np.ndarray:
+    """Meeus (1998) ch. 41 V magnitude of a planet (geocentric inputs, km)."""
+    return planet_v_magnitudes([name], np.asarray(planet_km, float)[None], sun_km, observer_km)[0]
+
+
+def planet_v_magnitudes(names, planets_km, sun_km, observer_km) -> np.ndarray:
+    """:func:`planet_v_magnitude` of several planets at once: ``planets_km`` (planets, ..., 3),
+    one row per name, -> (planets, ...) (one numpy pass per step for all of them, not one per
+    planet: a cube batch's per-step magnitudes cost ~80 us a planet in small-array overheads)."""
+    v0 = np.array([PLANET_V[n][0] for n in names], float)
+    c1, c2, c3 = np.array([PLANET_V[n][1] for n in names], float).T
+    planet = np.asarray(planets_km, float)
+    sun, observer = np.asarray(sun_km, float), np.asarray(observer_km, float)
+    extra = (slice(None),) + (None,) * (planet.ndim - 2)  # each planet's constants over its samples
+    v0, c1, c2, c3 = v0[extra], c1[extra], c2[extra], c3[extra]
+    r = norm(planet - sun) / AU_KM
+    delta = norm(planet - observer) / AU_KM
+    i = np.degrees(np.arctan2(norm(np.cross(sun - planet, observer - planet)), dot(sun - planet, observer - planet)))
+    v = v0 + 5.0 * np.log10(r * delta) + c1 * i + c2 * i**2 + c3 * i**3
+    if "saturn" in names:
+        k = list(names).index("saturn")
+        ra, de = np.radians(SATURN_POLE_RA_DEC_DEG)
+        pole = np.array([np.cos(de) * np.cos(ra), np.cos(de) * np.sin(ra), np.sin(de)])
+        sin_b = np.abs(dot(unit(observer - planet[k]), pole))
+        v[k] = v[k] - 2.60 * sin_b + 1.25 * sin_b**2
+    return v
+
+
+def solar_like_fraction(v_mag) -> np.ndarray:
+    """Irradiance of a source with the Sun's spectrum and V magnitude ``v_mag`` as a fraction of
+    the Sun's at 1 AU, in any band (the same spectrum, so the same fraction in every band)."""
+    return 10.0 ** (-0.4 * (np.asarray(v_mag, dtype=float) - V_SUN_VEGA))
+
+
+@dataclass
+class BandPhotometry:
+    """Photon irradiances through one band for the solar-spectrum sources."""
+
+    band: Band
+
+    @cached_property
+    def sun_at_1au_photons_s_m2(self) -> float:
+        wl, flux = solar_spectrum()
+        return float(self.band.photon_rate(wl, flux))
+
+    def solar_like_from_v(self, v_mag) -> np.ndarray:
+        """Photon irradiance of a source with the Sun's spectrum and V magnitude ``v_mag``."""
+        return self.sun_at_1au_photons_s_m2 * solar_like_fraction(v_mag)
+
+    def from_ab(self, mag_ab) -> np.ndarray:
+        return self.band.ab_zero_point_photons_s_m2 * 10.0 ** (-0.4 * np.asarray(mag_ab, dtype=float))
+
+
+@dataclass
+class EarthshineSettings:
+    n_gamma: int = 24  # nadir-angle blocks of the visible cap
+    n_psi: int = 48  # azimuth blocks
+    albedo: float = 0.30
+    door_blocks: tuple[int, int] = (24, 24)  # along x across the door plate
+    door_reflectance: float = 0.05
+    n_aperture_door: int = 128  # aperture points for the door-to-aperture path
+
+    def __post_init__(self):
+        if self.n_gamma < 2 or self.n_psi < 4:
+            raise ConfigError(f"earthshine grid {self.n_gamma} x {self.n_psi}: needs n_gamma >= 2, n_psi >= 4")
+        if not 0 <= self.albedo <= 1:
+            raise ConfigError(f"earthshine albedo = {self.albedo}: must be within [0, 1]")
+        if not 0 <= self.door_reflectance <= 1:
+            raise ConfigError(f"door reflectance = {self.door_reflectance}: must be within [0, 1]")
+
+
+@dataclass
+class OffFieldModel:
+    """Everything needed to evaluate the off-field terms of one band."""
+
+    pst: PST
+    door: Door
+    door_states_deg: tuple[float, ...]
+    pixel_area_m2: float
+    pixel_etendue_m2_sr: float = 0.0  # pi D^2 / 4 * (p / f)^2, for the Earth seen inside the field
+    field_radius_deg: float = 0.59  # radius of the field of view, sqrt(FoV / pi); from the instrument
+    earthshine: EarthshineSettings = field(default_factory=EarthshineSettings)
+    moon_law: str = "krisciunas_schaefer"
+    moon_eclipse_factor: float = 1e-4
+
+    @cached_property
+    def door_tables(self) -> dict[float, DoorTable]:
+        return {s: self.door.table(s) for s in self.door_states_deg}
+
+    @cached_property
+    def _door_grid(self):
+        """(door states ascending, one LinearGrid holding every state's Sp table as a channel):
+        the tables share their (theta, phi) nodes, so a batch with mixed door states locates
+        its points once."""
+        states = np.array(sorted(self.door_tables), float)
+        tables = [self.door_tables[s] for s in states]
+        for t in tables[1:]:
+            if not (np.array_equal(t.theta_deg, tables[0].theta_deg) and np.array_equal(t.phi_deg, tables[0].phi_deg)):
+                raise ValueError("door tables of different states must share their theta and phi nodes")
+        return states, LinearGrid((tables[0].theta_deg, tables[0].phi_deg), np.stack([t.values for t in tables], -1))
+
+    def door_factor(self, theta_deg, phi_deg, opening_deg) -> np.ndarray:
+        """Sp for each sample's door state; the narrowest state when none is allowed (door 0);
+        0 for an opening that is none of the door states."""
+        th, ph, op = np.broadcast_arrays(np.asarray(theta_deg, float), np.asarray(phi_deg, float),
+                                         np.asarray(opening_deg, float))
+        states, grid = self._door_grid
+        state, known = door_state_index(states, op)
+        return np.where(known & ~behind_aperture_plane(th), grid(*DoorTable.coordinates(th, ph), channel=state), 0.0)
+
+    # -- point sources ----------------------------------------------------------------------
+    def point_source(self, irradiance, theta_deg, phi_deg, earth_blocked, opening_deg) -> np.ndarray:
+        """e-/s/pix of point sources: E * Se * Sp * PST * pixel area (broadcast arrays); the door
+        table is looked up only where the Earth does not hide the source (Se = 1), and the PST
+        only where the door lets it in (Sp > 0): the Sun, whose angle sets the door's state,
+        gets past the door at ~5 % of a default region's samples.
+
+        A source inside the field (theta <= field_radius_deg) adds nothing here: it is imaged
+        as a point source with its own scattering halo and ghosts (:mod:`straylight.image.detector`),
+        not spread as a uniform background (PST = 1 over every pixel); it is reported by
+        :meth:`~straylight.components.ComponentModel.in_field_point_sources`."""
+        in_field = np.asarray(theta_deg, float) <= self.field_radius_deg
+        th, ph, blocked, op = np.broadcast_arrays(theta_deg, phi_deg, np.asarray(earth_blocked, bool) | in_field,
+                                                  opening_deg)
+        if not np.any(blocked):  # nothing hidden (every star pair): no masked copies
+            t = self._door_times_pst(th, ph, op)
+        else:
+            seen = np.flatnonzero(~blocked)
+            t = np.zeros(th.shape)
+            if seen.size:
+                t.reshape(-1)[seen] = self._door_times_pst(np.take(th, seen), np.take(ph, seen), np.take(op, seen))
+        return np.asarray(irradiance) * t * self.pixel_area_m2
+
+    def _door_times_pst(self, theta_deg, phi_deg, opening_deg) -> np.ndarray:
+        """Sp * PST (new array), the PST looked up only where the door lets the source in."""
+        t = self.door_factor(theta_deg, phi_deg, opening_deg)
+        lit = np.flatnonzero(t > 0.0)
+        if lit.size == t.size:  # the door hides none (the Moon, mostly; every star pair)
+            t *= self.pst(theta_deg, phi_deg)
+        elif lit.size:
+            flat = t.reshape(-1)
+            flat[lit] *= self.pst(np.take(theta_deg, lit), np.take(phi_deg, lit))
+        return t
+
+    # -- earthshine -------------------------------------------------------------------------
+    @staticmethod
+    def _cap_nadir_angles(sat_km, earth_radius_km, s: EarthshineSettings):
+        """The cap grid's nadir angles gamma and their widths (rad, (..., G)): packed towards
+        the limb, where the Earth lies closest to an allowed line of sight and the terminator
+        crosses it: gamma = rho sin(pi u / 2), u uniform."""
+        return OffFieldModel._cap_nadir_angles_at(norm(sat_km), earth_radius_km, s)
+
+    @staticmethod
+    def _cap_nadir_angles_at(radius_km, earth_radius_km, s: EarthshineSettings):
+        """:meth:`_cap_nadir_angles` of satellites at ``radius_km`` from the Earth's centre."""
+        rho = np.arcsin(np.clip(earth_radius_km / radius_km, 0, 1))
+        u = (np.arange(s.n_gamma) + 0.5) / s.n_gamma
+        gamma = rho[..., None] * np.sin(0.5 * np.pi * u)
+        dgamma = rho[..., None] * 0.5 * np.pi * np.cos(0.5 * np.pi * u) / s.n_gamma
+        return gamma, dgamma
+
+    def _cap_axes(self, sat_km, earth_radius_km, s: EarthshineSettings):
+        """The cap grid's frame and nodes: nadir, e1, e2 (..., 3); gamma, dgamma (..., G);
+        cos and sin of gamma (..., G, 1, 1) and of the block-centre azimuths psi (P, 1)."""
+        nadir = -unit(sat_km)
+        e1 = perpendicular_towards(nadir, np.broadcast_to(np.array([0.0, 0.0, 1.0]), nadir.shape))
+        e2 = np.cross(nadir, e1)
+        gamma, dgamma = self._cap_nadir_angles(sat_km, earth_radius_km, s)  # (..., G)
+        psi = (np.arange(s.n_psi) + 0.5) * 2 * np.pi / s.n_psi
+        cg, sg = np.cos(gamma)[..., :, None, None], np.sin(gamma)[..., :, None, None]
+        cp, spp = np.cos(psi)[:, None], np.sin(psi)[:, None]
+        return nadir, e1, e2, gamma, dgamma, cg, sg, cp, spp
+
+    def _cap_grid(self, sat_km, earth_radius_km, s: EarthshineSettings):
+        """Block directions (..., G, P, 3), solid angles, surface points for each sample."""
+        nadir, e1, e2, gamma, dgamma, cg, sg, cp, spp = self._cap_axes(sat_km, earth_radius_km, s)
+        d = cg * nadir[..., None, None, :] + sg * (cp * e1[..., None, None, :] + spp * e2[..., None, None, :])
+        d_omega = (np.sin(gamma) * dgamma)[..., :, None] * (2 * np.pi / s.n_psi)
+        rr = norm(sat_km)[..., None]  # (..., 1)
+        t = rr * np.cos(gamma) - np.sqrt(np.maximum(earth_radius_km**2 - (rr * np.sin(gamma)) ** 2, 0))
+        points = sat_km[..., None, None, :] + t[..., :, None, None] * d
+        return d, np.broadcast_to(d_omega, d.shape[:-1]), points
+
+    def _cap_block_spans(self, sat_km, earth_radius_km, s: EarthshineSettings):
+        """Each cap block's extent as two vectors (..., G, P, 3): the change of its direction
+        across the block in nadir angle (d(dir)/d(gamma) dgamma) and in azimuth (d(dir)/d(psi)
+        dpsi), for :meth:`front_fraction`."""
+        nadir, e1, e2, gamma, dgamma, cg, sg, cp, spp = self._cap_axes(sat_km, earth_radius_km, s)
+        horiz = cp * e1[..., None, None, :] + spp * e2[..., None, None, :]
+        span_gamma = (-sg * nadir[..., None, None, :] + cg * horiz) * dgamma[..., :, None, None]
+        span_psi = sg * (-spp * e1[..., None, None, :] + cp * e2[..., None, None, :]) * (2 * np.pi / s.n_psi)
+        return span_gamma, span_psi
+
+    @staticmethod
+    def front_fraction(cos_theta, span_gamma_z, span_psi_z) -> np.ndarray:
+        """The fraction of a cap block in front of the aperture plane (cos theta > 0), from its
+        centre's cos theta and the change of cos theta across it in nadir angle and in azimuth
+        (its spans' z components): linear between the block wholly behind (0) and wholly in
+        front (1).  The aperture plane cuts the blocks near theta = 90 deg, where Sp steps to 0;
+        resolving the cut within the block keeps the Earth grid's sum converged there (a block
+        counted whole or not at all made the 24 x 48 grid's sum 4-10 % off 85-88 deg from the
+        limb)."""
+        half = 0.5 * (np.abs(span_gamma_z) + np.abs(span_psi_z))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            f = np.clip(0.5 + 0.5 * cos_theta / half, 0.0, 1.0)
+        return np.where(half > 0, f, (cos_theta > 0).astype(float))
+
+    @staticmethod
+    def lamp_cosines(points_km, sun_km, moon_km, earth_radius_km):
+        """cos(zenith angle) of the Sun and of the Moon at surface points, clipped at 0."""
+        n = points_km / earth_radius_km
+        # the Sun is at 23,000 Earth radii: its direction is the same from every point (< 0.003 deg)
+        mu_sun = np.maximum(dot(n, unit(sun_km)[..., None, None, :]), 0.0)
+        mu_moon = np.maximum(dot(n, unit(moon_km[..., None, None, :] - points_km)), 0.0)
+        return mu_sun, mu_moon
+
+    @cached_property
+    def _door_weights(self):
+        """Per door state: (door block positions, inner normal, weight W_i) with
+        W_i = A_i / pi * mean_j [cos(e_ij) PST(theta_ij, phi_ij) / d_ij^2] (m-2 sr-1 * m2)."""
+        from straylight.optics.door import aperture_points
+
+        s = self.earthshine
+        out = {}
+        nu, nv = s.door_blocks
+        ap = aperture_points(self.door.aperture_radius_m, s.n_aperture_door)
+        ap3 = np.concatenate([ap, np.zeros((ap.shape[0], 1))], axis=1)
+        for state in self.door_states_deg:
+            hinge, along, axis = self.door.plate(state)
+            a = np.radians(state)
+            n_in = np.array([-np.sin(a), 0.0, -np.cos(a)])
+            uu = (np.arange(nu) + 0.5) / nu * self.door.length_m
+            vv = ((np.arange(nv) + 0.5) / nv - 0.5) * self.door.width_m
+            q = hinge + uu[:, None, None] * along + vv[None, :, None] * axis  # (nu, nv, 3)
+            area = self.door.length_m * self.door.width_m / (nu * nv)
+            vec = q[:, :, None, :] - ap3[None, None, :, :]  # aperture -> door block
+            dist = norm(vec)
+            u_in = vec / dist[..., None]  # incoming direction as seen from the aperture point
+            cos_e = np.maximum(dot(-u_in, n_in), 0.0)
+            theta = np.degrees(np.arccos(np.clip(u_in[..., 2], -1, 1)))
+            phi = np.degrees(np.arctan2(u_in[..., 1], u_in[..., 0])) % 360.0
+            w = area / np.pi * np.mean(cos_e * self.pst(theta, phi) / dist**2 * (u_in[..., 2] > 0), axis=-1)
+            out[state] = (q.reshape(-1, 3), n_in, w.reshape(-1))
+        return out
+
+    @cached_property
+    def _door_lit_fraction(self):
+        """Per door state: the fraction f(theta, phi) of the door's weight (:attr:`_door_weights`)
+        on door blocks that an Earth block in direction (theta, phi) of the telescope frame
+        lights, the ray from the door block towards it not passing through the body
+        (:meth:`Door.body_hits`), as a LinearGrid over theta 90-180 deg (1 deg) x phi 0-360 deg
+        (2 deg); a direction at theta <= 90 deg never meets the body below the aperture plane
+        (f = 1: the grid's clipped edge row).  None without a body."""
+        if self.door.body_radius_m <= 0 or self.door.body_length_m <= 0:
+            return None
+        theta = np.arange(90.0, 180.0 + 0.5, 1.0)
+        phi = np.arange(0.0, 360.0 + 1.0, 2.0)
+        th, ph = np.meshgrid(np.radians(theta), np.radians(phi), indexing="ij")
+        dirs = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], axis=-1).reshape(-1, 3)
+        out = {}
+        for state, (q, _, w) in self._door_weights.items():
+            lit = np.concatenate([(~self.door.body_hits(q, dirs[i:i + 2048])) @ w for i in range(0, len(dirs), 2048)])
+            out[state] = LinearGrid((theta, phi), (lit / np.sum(w)).reshape(th.shape))
+        return out
+
+    def door_lit_fraction(self, state: float, theta_deg, phi_deg) -> np.ndarray | float:
+        """f of :attr:`_door_lit_fraction` for door state ``state`` at directions (theta, phi),
+        deg (broadcast); 1.0 without a body."""
+        tables = self._door_lit_fraction
+        if tables is None:
+            return 1.0
+        th, ph = np.broadcast_arrays(np.asarray(theta_deg, float), np.asarray(phi_deg, float))
+        return tables[state](np.clip(th, 90.0, 180.0), wrap_360_deg(ph))
+
+    def earth_in_field(self, sat_km, sun_km, moon_km, frame, earth_radius_km):
+        """Where the line of sight hits the Earth, its surface is imaged like any extended
+        source: radiance x pixel etendue.  Returns (per unit solar irradiance, per unit lunar
+        irradiance at the Earth), e-/s/pix per photon s-1 m-2, both lamps in one pass over the
+        samples that hit the Earth; 0 elsewhere."""
+        los = np.broadcast_to(frame.z, np.broadcast(np.asarray(sat_km), frame.z).shape)
+        sat = np.broadcast_to(np.asarray(sat_km, float), los.shape)
+        b = dot(sat, los)
+        c = dot(sat, sat) - earth_radius_km**2
+        disc = b * b - c
+        hits = (disc > 0) & (b < 0)
+        per_sun, per_moon = np.zeros(hits.shape), np.zeros(hits.shape)
+        at = np.flatnonzero(hits)  # the rows by index (geometry.rows_at: ~4x a boolean mask's)
+        if at.size:
+            shape = hits.shape
+            t = -b.ravel()[at] - np.sqrt(disc.ravel()[at])
+            pts = rows_at(sat, shape, at) + t[:, None] * rows_at(los, shape, at)
+            sun, moon = rows_at(sun_km, shape, at), rows_at(moon_km, shape, at)
+            mu_sun, mu_moon = self.lamp_cosines(pts[:, None, None, :], sun, moon, earth_radius_km)
+            lambert = self.earthshine.albedo / np.pi  # Lambertian radiance per unit irradiance and cos z
+            per_sun.ravel()[at] = lambert * mu_sun[:, 0, 0] * self.pixel_etendue_m2_sr
+            per_moon.ravel()[at] = lambert * mu_moon[:, 0, 0] * self.pixel_etendue_m2_sr
+        return per_sun, per_moon
+
+    def earthshine_lamp_bound(self, sat_km, lamp_direction, los, earth_radius_km) -> np.ndarray:
+        """Upper bound of the direct coefficient of a cap lit from ``lamp_direction`` (unit
+        vector, the lamp at infinity) whatever the telescope's roll and door: radiance
+        albedo/pi cos(z_lamp), the PST at its maximum over phi (larger neighbouring theta row),
+        Sp = 1."""
+        s = self.earthshine
+        d, d_omega, pts = self._cap_grid(np.asarray(sat_km, float), earth_radius_km, s)
+        mu = np.maximum(dot(pts / earth_radius_km, np.asarray(lamp_direction, float)[..., None, None, :]), 0.0)
+        cosang = np.clip(dot(d, unit(np.asarray(los, float))[..., None, None, :]), -1.0, 1.0)
+        theta = np.degrees(np.arccos(cosang))
+        th = self.pst.theta_deg
+        row_max = self.pst.values.max(axis=1)
+        i = np.clip(np.searchsorted(th, theta), 1, th.size - 1)
+        pst_max = np.maximum(row_max[i - 1], row_max[i])
+        return np.sum(s.albedo / np.pi * mu * pst_max * (theta > self.field_radius_deg) * d_omega,
+                      axis=(-2, -1)) * self.pixel_area_m2
+
+    def earthshine_cap_bound(self, sat_km, earth_radius_km, grid: tuple[int, int], runs=None) -> np.ndarray:
+        """Upper bound of the direct coefficient (outside the field) that the sum on an Earth-cap
+        ``grid`` (n_gamma, n_psi) gives for any line of sight, lamp and roll: the whole cap
+        fully lit (cos z = 1), at the PST's largest value outside the field, Sp = 1, times the
+        grid's own solid angle (so the bound holds for the sum, not only for the integral).
+        ``runs``: the samples' scene runs when known."""
+        s = replace(self.earthshine, n_gamma=int(grid[0]), n_psi=int(grid[1]))
+        # it depends on the satellite's radius alone: once per run of samples sharing the
+        # satellite (a cube's time step)
+        rows = scene_rows(np.asarray(sat_km, float), runs=runs)
+        gamma, dgamma = self._cap_nadir_angles_at(norm(rows.vectors[0]), earth_radius_km, s)
+        cap_sr = 2.0 * np.pi * np.sum(np.sin(gamma) * dgamma, axis=-1)  # the grid's sum of d_omega
+        return np.array(rows.expand(self.earthshine.albedo / np.pi * self._pst_max_outside_field * cap_sr
+                                    * self.pixel_area_m2))  # a writable array, as before
+
+    @cached_property
+    def _pst_max_outside_field(self) -> float:
+        """The PST's largest node from the field's edge out (the interpolant is bounded by its
+        cell's corners, so the node before the edge is included)."""
+        th = self.pst.theta_deg
+        first = max(int(np.searchsorted(th, self.field_radius_deg, side="right")) - 1, 0)
+        return float(self.pst.values[first:].max())
+
+    def earthshine_coefficients(self, sat_km, sun_km, moon_km, frame, opening_deg, earth_radius_km,
+                                in_field: bool = True, moon: bool = True, sun: bool = True,
+                                grid: tuple[int, int] | None = None) -> dict:
+        """Band-independent earthshine per unit photon irradiance of the Sun and of the Moon (at
+        the Earth): keys direct_sun, direct_moon, door_sun, door_moon, in e-/s/pix per
+        (photons s-1 m-2).  The albedo is grey, so a band's earthshine is
+        c_sun * E_sun,band + c_moon * E_moon,band; the geometry is computed once for all bands.
+        ``in_field=False`` leaves out the line of sight hitting the Earth; ``moon=False`` the
+        moonlit terms (zeros), as the look-up table does (:mod:`straylight.sources.earthshine_lut`);
+        ``sun=False`` the sunlit ones (the table's path sums only the moonlit Earth directly);
+        ``grid`` = (n_gamma, n_psi) replaces the configured Earth-cap grid."""
+        s = self.earthshine if grid is None else replace(self.earthshine, n_gamma=int(grid[0]), n_psi=int(grid[1]))
+        one = shared_vectors(sat_km, sun_km, moon_km)
+        if one is not None:
+            out = self._earthshine_one_scene(*one, frame, opening_deg, earth_radius_km, moon, sun, s)
+            if in_field:
+                per_sun, per_moon = self.earth_in_field(sat_km, sun_km, moon_km, frame, earth_radius_km)
+                out["direct_sun"] = out["direct_sun"] + per_sun
+                out["direct_moon"] = out["direct_moon"] + per_moon
+            return out
+        d, d_omega, pts = self._cap_grid(sat_km, earth_radius_km, s)
+        mu_sun, mu_moon = self.lamp_cosines(pts, sun_km, moon_km, earth_radius_km)
+        if not moon:
+            mu_moon = np.zeros_like(mu_sun)
+        if not sun:
+            mu_sun = np.zeros_like(mu_moon)
+        lum_sun, lum_moon = s.albedo / np.pi * mu_sun, s.albedo / np.pi * mu_moon
+        dx = dot(d, frame.x[..., None, None, :])
+        dy = dot(d, frame.y[..., None, None, :])
+        dz = dot(d, frame.z[..., None, None, :])
+        theta = np.degrees(np.arctan2(np.hypot(dx, dy), dz))
+        phi = wrap_360_deg(np.degrees(np.arctan2(dy, dx)))
+        op = np.broadcast_to(np.asarray(opening_deg, float)[..., None, None], theta.shape)
+        # blocks inside the field are replaced by the in-field term (a grid block cannot resolve
+        # the 0.6 deg field, where the PST jumps to 1); a block the aperture plane cuts counts
+        # its part in front, at the door's Sp from in front (theta <= 90 deg)
+        span_g, span_p = self._cap_block_spans(sat_km, earth_radius_km, s)
+        front = self.front_fraction(dz, dot(span_g, frame.z[..., None, None, :]), dot(span_p, frame.z[..., None, None, :]))
+        w_direct = (self.door_factor(np.minimum(theta, 90.0), phi, op) * front * self.pst(theta, phi)
+                    * (theta > self.field_radius_deg) * d_omega * self.pixel_area_m2)
+        out = {"direct_sun": np.sum(lum_sun * w_direct, axis=(-2, -1)),
+               "direct_moon": np.sum(lum_moon * w_direct, axis=(-2, -1))}
+        if in_field:
+            per_sun, per_moon = self.earth_in_field(sat_km, sun_km, moon_km, frame, earth_radius_km)
+            out["direct_sun"] = out["direct_sun"] + per_sun
+            out["direct_moon"] = out["direct_moon"] + per_moon
+        # door path: irradiance on the door's inner face from the Earth blocks in front of it
+        door_sun = np.zeros(out["direct_sun"].shape)
+        door_moon = np.zeros(out["direct_sun"].shape)
+        states = sorted(self._door_weights)
+        state_of, known = door_state_index(states, opening_deg)
+        for i, state in enumerate(states):
+            _, n_in, w = self._door_weights[state]
+            sel = np.broadcast_to(known & (state_of == i), door_sun.shape)
+            if not np.any(sel):
+                continue
+            # d . n_in > 0: in front of the inner face; f: the share of the door the body leaves lit
+            cos_inc = np.maximum(dx * n_in[0] + dy * n_in[1] + dz * n_in[2], 0.0) * self.door_lit_fraction(state, theta, phi)
+            k = s.door_reflectance * np.sum(w) * self.pixel_area_m2
+            door_sun = np.where(sel, k * np.sum(lum_sun * d_omega * cos_inc, axis=(-2, -1)), door_sun)
+            door_moon = np.where(sel, k * np.sum(lum_moon * d_omega * cos_inc, axis=(-2, -1)), door_moon)
+        out["door_sun"], out["door_moon"] = door_sun, door_moon
+        return out
+
+    def _earthshine_one_scene(self, sat, sun, moon, frame, opening_deg, earth_radius_km, with_moon: bool,
+                              with_sun: bool = True, s: EarthshineSettings | None = None, batch: int = 1024) -> dict:
+        """earthshine_coefficients (without the in-field term) for many lines of sight sharing one
+        satellite, Sun and Moon (a time step of a survey cube): the Earth cap is gridded once and
+        its dark blocks (lit by neither lamp) are dropped before the per-line-of-sight work, which
+        becomes matrix products.  Same sums as the general path, so the same values up to
+        rounding (tests/test_offfield.py)."""
+        s = s or self.earthshine
+        d, d_omega, pts = self._cap_grid(sat, earth_radius_km, s)
+        mu_sun, mu_moon = self.lamp_cosines(pts, sun, moon, earth_radius_km)
+        if not with_moon:
+            mu_moon = np.zeros_like(mu_sun)
+        if not with_sun:
+            mu_sun = np.zeros_like(mu_moon)
+        lit = (mu_sun > 0) | (mu_moon > 0)
+        blocks = d[lit]  # (K, 3)
+        span_g, span_p = (v[lit] for v in self._cap_block_spans(sat, earth_radius_km, s))  # (K, 3) each
+        lum = s.albedo / np.pi * np.stack([mu_sun[lit], mu_moon[lit]], axis=-1) * d_omega[lit][:, None]  # (K, 2)
+        shape = np.broadcast_shapes(frame.z.shape[:-1], np.shape(opening_deg))
+        fx, fy, fz = (np.broadcast_to(a, shape + (3,)).reshape(-1, 3) for a in (frame.x, frame.y, frame.z))
+        op = np.broadcast_to(np.asarray(opening_deg, float), shape).ravel()
+        direct = np.zeros((op.size, 2))
+        door = np.zeros((op.size, 2))
+        if blocks.shape[0]:
+            states = sorted(self.door_tables)
+            state_of, known = door_state_index(states, op)
+            for start in range(0, op.size, batch):
+                sl = slice(start, start + batch)
+                dx, dy, dz = fx[sl] @ blocks.T, fy[sl] @ blocks.T, fz[sl] @ blocks.T  # (n, K)
+                theta = np.degrees(np.arctan2(np.hypot(dx, dy), dz))
+                phi = wrap_360_deg(np.degrees(np.arctan2(dy, dx)))
+                front = self.front_fraction(dz, fz[sl] @ span_g.T, fz[sl] @ span_p.T)
+                w = self.pst(theta, phi) * front * (theta > self.field_radius_deg) * self.pixel_area_m2
+                for i, state in enumerate(states):  # per sample's door state (door.door_state_index)
+                    rows = known[sl] & (state_of[sl] == i)
+                    if not np.any(rows):
+                        continue
+                    w[rows] *= self.door_tables[state](np.minimum(theta[rows], 90.0), phi[rows])
+                    q, n_in, wd = self._door_weights[state]
+                    k = s.door_reflectance * np.sum(wd) * self.pixel_area_m2
+                    cos_inc = (np.maximum(dx[rows] * n_in[0] + dy[rows] * n_in[1] + dz[rows] * n_in[2], 0.0)
+                               * self.door_lit_fraction(state, theta[rows], phi[rows]))
+                    door[start + np.flatnonzero(rows)] = k * (cos_inc @ lum)
+                direct[sl] = w @ lum
+        return {"direct_sun": direct[:, 0].reshape(shape), "direct_moon": direct[:, 1].reshape(shape),
+                "door_sun": door[:, 0].reshape(shape), "door_moon": door[:, 1].reshape(shape)}
+
+    def earthshine_terms(self, sat_km, sun_km, moon_km, frame, opening_deg, sun_irr, moon_irr_at_earth,
+                         earth_radius_km) -> tuple[np.ndarray, np.ndarray]:
+        """(EA1 direct, EA2 via the door) in e-/s/pix for samples (leading shapes broadcast)."""
+        c = self.earthshine_coefficients(sat_km, sun_km, moon_km, frame, opening_deg, earth_radius_km)
+        return (c["direct_sun"] * sun_irr + c["direct_moon"] * moon_irr_at_earth,
+                c["door_sun"] * sun_irr + c["door_moon"] * moon_irr_at_earth)
+
+
+def sky_zero_point_mag_per_arcsec2(band: Band, aperture_diameter_m: float, pixel_scale_arcsec: float) -> float:
+    """AB surface brightness (mag/arcsec2) of a uniform background giving 1 e-/s/pixel, so that
+    ``mag_per_arcsec2 = zero_point - 2.5 log10(rate_e_per_s_per_pix)``: the band's AB photon
+    zero point times the aperture area, spread over one pixel's solid angle (arcsec2)."""
+    ref = band.ab_zero_point_photons_s_m2 * np.pi * aperture_diameter_m**2 / 4.0
+    return float(2.5 * np.log10(ref * pixel_scale_arcsec**2))
+
+
+def magnitude_per_arcsec2(e_per_s_per_pix, band: Band, aperture_diameter_m: float, pixel_scale_arcsec: float):
+    """AB mag/arcsec2 of a uniform background giving ``e_per_s_per_pix`` (inf where zero)."""
+    zp = sky_zero_point_mag_per_arcsec2(band, aperture_diameter_m, pixel_scale_arcsec)
+    with np.errstate(divide="ignore"):
+        return zp - 2.5 * np.log10(np.asarray(e_per_s_per_pix, dtype=float))

@@ -1,0 +1,248 @@
+"""Zodiacal light in the field of view (seed paper sect. 4.1).
+
+Brightness at 500 nm: Leinert et al. (1998) Table 17, interpolated bilinearly in log10 of the
+brightness over |helioecliptic longitude| (0-180 deg) and |ecliptic latitude| (0-90 deg), so it
+is exact at the table's nodes, continuous, and symmetric in both angles.  Near the Sun the table
+has no data (marked 1e6); those nodes are filled with the nearest valid value at higher latitude
+in the same longitude row (a lower bound, never an extrapolation) and every sample touching one
+is flagged ``no_data``.  The Sun-avoidance angle (50 deg) keeps survey pointings out of it.
+
+Spectrum: V(lambda) = B_500 * S(lambda) / S(500 nm), with S either
+
+* ``solar_leinert``: the ASTM E490 solar spectrum times Leinert's colour correction, i.e. the
+  ratio of Leinert's Table 19 zodiacal spectrum to the (50 nm smoothed) solar spectrum at the
+  Table 19 wavelengths, interpolated linearly in log(lambda) (the zodiacal light is slightly
+  redder than the Sun);
+* ``hst``: the HST/STScI zodiacal spectrum (``Zodi.fits``).
+
+Band integration and focal plane (paper eqs. 2-3): L = integral V(lambda) T(lambda) d lambda,
+E = L pi D^2 / (4 f^2); per pixel, photons s-1 = N_photon * pi D^2 / 4 * (p / f)^2, which is
+the same thing counted in photons, with T the total throughput including QE, so the result is
+in e- s-1 pixel-1.
+
+Ecliptic coordinates: the mean ecliptic and equinox of J2000 (IAU 2006 obliquity).  Leinert's
+table is a function of the longitude difference to the Sun, which precession leaves unchanged.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property, lru_cache
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from straylight.optics.bandpass import Band
+from straylight.errors import ConfigError
+from straylight.sky.geometry import scene_rows, tiled_period
+from straylight.util.gridinterp import LinearGrid
+
+NO_DATA = 1.0e6
+LEINERT_UNIT_W_M2_SR_UM = 1.0e-8
+OBLIQUITY_J2000_RAD = np.radians(84381.406 / 3600.0)  # IAU 2006 (Hilton et al. 2006)
+ARCSEC2_PER_SR = (180.0 / np.pi * 3600.0) ** 2
+SPECTRA = ("solar_leinert", "hst")
+
+
+def _data_path(name: str) -> Path:
+    return Path(resources.files("straylight") / "data" / name)
+
+
+def icrs_to_ecliptic_matrix() -> np.ndarray:
+    """Rotation from ICRS (equatorial J2000) to the J2000 mean ecliptic."""
+    ce, se = np.cos(OBLIQUITY_J2000_RAD), np.sin(OBLIQUITY_J2000_RAD)
+    return np.array([[1.0, 0.0, 0.0], [0.0, ce, se], [0.0, -se, ce]])
+
+
+def _ecliptic_lon_lat_deg(vectors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Ecliptic longitude in (-180, 180] and latitude (deg) of ICRS vectors (..., 3)."""
+    e = np.asarray(vectors, dtype=float) @ icrs_to_ecliptic_matrix().T
+    return (np.degrees(np.arctan2(e[..., 1], e[..., 0])),
+            np.degrees(np.arctan2(e[..., 2], np.hypot(e[..., 0], e[..., 1]))))
+
+
+def ecliptic_lon_lat_deg(vectors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Ecliptic longitude [0, 360) and latitude (deg) of ICRS vectors (..., 3)."""
+    lon, lat = _ecliptic_lon_lat_deg(vectors)
+    return lon % 360.0, lat
+
+
+def helioecliptic_coordinates(los: np.ndarray, sun_direction: np.ndarray, runs=None) -> tuple[np.ndarray, np.ndarray]:
+    """(|lambda - lambda_sun| in [0, 180], |beta| in [0, 90]) for lines of sight, deg (their
+    longitudes' difference folded without a modulo); ``runs``: the samples' scene runs when
+    known (:class:`~straylight.sky.geometry.SceneRuns`)."""
+    rows = scene_rows(sun_direction, runs=runs)  # a cube's time step shares the Sun: its longitude once per step
+    # and a cube batch repeats its lines of sight at every step: theirs once per pixel
+    period = tiled_period(los, rows) if np.shape(los) == np.shape(sun_direction) else None
+    if period is None:
+        lon, lat = _ecliptic_lon_lat_deg(los)
+    else:
+        lon, lat = (np.tile(v, rows.count).reshape(np.shape(los)[:-1])
+                    for v in _ecliptic_lon_lat_deg(np.asarray(los, float).reshape(-1, 3)[:period]))
+    lon_sun = rows.expand(_ecliptic_lon_lat_deg(rows.vectors[0])[0])
+    d = np.abs(lon - lon_sun)
+    return np.where(d > 180.0, 360.0 - d, d), np.abs(lat)  # d in [0, 360]: the angle between them
+
+
+@dataclass(frozen=True)
+class LeinertTable:
+    lon_deg: np.ndarray  # helioecliptic longitude nodes
+    lat_deg: np.ndarray  # ecliptic latitude nodes
+    values: np.ndarray  # 1e-8 W m-2 sr-1 um-1, NO_DATA where missing
+
+    @classmethod
+    def load(cls, path: Path | None = None) -> "LeinertTable":
+        path = path or _data_path("leinert1998_table17.csv")
+        rows = [ln for ln in Path(path).read_text().splitlines() if ln and not ln.startswith("#")]
+        header = rows[0].split(",")
+        lat = np.array([float(h.split("_")[1]) for h in header[1:]])
+        data = np.array([[float(x) for x in r.split(",")] for r in rows[1:]])
+        return cls(lon_deg=data[:, 0], lat_deg=lat, values=data[:, 1:])
+
+    @cached_property
+    def no_data(self) -> np.ndarray:
+        return self.values >= NO_DATA
+
+    @cached_property
+    def filled(self) -> np.ndarray:
+        """No-data nodes replaced by the first valid value at higher latitude in their row."""
+        v = self.values.copy()
+        for i in range(v.shape[0]):
+            for j in range(v.shape[1] - 1, -1, -1):
+                if v[i, j] >= NO_DATA:
+                    v[i, j] = v[i, j + 1]
+        return v
+
+    @cached_property
+    def _interp(self):
+        """The log of the filled table and the no-data nodes (as 0/1) on one grid, two channels
+        (the natural log: bilinear in it is bilinear in log10, and exp is cheaper than 10**)."""
+        return LinearGrid((self.lon_deg, self.lat_deg), np.stack([np.log(self.filled), self.no_data], axis=-1))
+
+    def brightness_500nm(self, dlon_deg, beta_deg) -> tuple[np.ndarray, np.ndarray]:
+        """Brightness at 500 nm, W m-2 sr-1 um-1, and the no-data flag (any no-data node among
+        the sample's cell corners that carry weight), for |dlon|, |beta| in deg."""
+        dlon = np.clip(np.abs(np.asarray(dlon_deg, dtype=float)), 0.0, 180.0)
+        beta = np.clip(np.abs(np.asarray(beta_deg, dtype=float)), 0.0, 90.0)
+        both = self._interp(dlon, beta)
+        return np.exp(both[..., 0]) * LEINERT_UNIT_W_M2_SR_UM, both[..., 1] > 0.0
+
+
+@lru_cache(maxsize=1)
+def leinert_table() -> LeinertTable:
+    return LeinertTable.load()
+
+
+@lru_cache(maxsize=1)
+def solar_spectrum() -> tuple[np.ndarray, np.ndarray]:
+    """ASTM E490-00a solar spectral irradiance at 1 AU: (wavelength A, W m-2 um-1)."""
+    data = np.loadtxt(_data_path("e490_00a.dat"), comments="#")
+    return data[:, 0] * 1.0e4, data[:, 1]
+
+
+@lru_cache(maxsize=1)
+def leinert_colour_correction() -> tuple[np.ndarray, np.ndarray]:
+    """Leinert Table 19 over the smoothed solar spectrum, normalised to 1 at 500 nm.
+
+    Returns (wavelength_um, factor) at the Table 19 wavelengths.
+    """
+    lines = _data_path("leinert1998_table19.csv").read_text().splitlines()
+    t19 = np.array([[float(x) for x in ln.split(",")] for ln in lines
+                    if ln and not ln.startswith("#") and not ln.startswith("wavelength")])
+    wl_a, sun = solar_spectrum()
+    sun_smooth = np.array([
+        np.mean(sun[(wl_a >= w * 1e4 - 250.0) & (wl_a <= w * 1e4 + 250.0)]) for w in t19[:, 0]
+    ])
+    ratio = (t19[:, 1] / sun_smooth)
+    i500 = int(np.argmin(np.abs(t19[:, 0] - 0.5)))
+    return t19[:, 0], ratio / ratio[i500]
+
+
+@lru_cache(maxsize=4)
+def zodiacal_spectrum_shape(kind: str) -> tuple[np.ndarray, np.ndarray]:
+    """Relative zodiacal spectrum S(lambda)/S(500 nm): (wavelength A, dimensionless)."""
+    if kind == "solar_leinert":
+        wl_a, sun = solar_spectrum()
+        wl_cc, cc = leinert_colour_correction()
+        factor = np.interp(np.log(wl_a / 1e4), np.log(wl_cc), cc)
+        s = sun * factor
+    elif kind == "hst":
+        from astropy.io import fits
+
+        with fits.open(_data_path("hst_zodi.fits")) as h:
+            wl_a = np.asarray(h[1].data["WAVELENGTH"], dtype=float)
+            s = np.asarray(h[1].data["FLUX"], dtype=float)
+    else:
+        raise ConfigError(f"zodiacal spectrum {kind!r} is not one of {SPECTRA}")
+    # normalise by the mean over 495-505 nm (the Leinert reference wavelength)
+    sel = (wl_a >= 4950.0) & (wl_a <= 5050.0)
+    return wl_a, s / np.mean(s[sel])
+
+
+_BAND_FACTOR_CACHE: dict = {}
+
+
+@dataclass(frozen=True)
+class ZodiacalModel:
+    """Zodiacal light per band for one instrument."""
+
+    aperture_diameter_m: float
+    focal_length_m: float
+    pixel_size_m: float
+    spectrum: str = "solar_leinert"
+
+    def band_factors(self, band: Band) -> tuple[float, float]:
+        """For B_500 = 1 W m-2 sr-1 um-1: (photons s-1 m-2 sr-1 in band, AB mag/arcsec2)."""
+        key = (band.name, band.origin, hash(np.asarray(band.throughput).tobytes()), self.spectrum)
+        if key not in _BAND_FACTOR_CACHE:
+            _BAND_FACTOR_CACHE[key] = self._band_factors(band)
+        return _BAND_FACTOR_CACHE[key]
+
+    def _band_factors(self, band: Band) -> tuple[float, float]:
+        wl, shape = zodiacal_spectrum_shape(self.spectrum)
+        lo, hi = band.wavelength_angstrom[0], band.wavelength_angstrom[-1]
+        if wl[0] > lo or wl[-1] < hi:
+            raise ConfigError(f"band {band.name}: {lo:.0f}-{hi:.0f} A is outside the zodiacal spectrum's range")
+        rate_sr = float(band.photon_rate(wl, shape))
+        rate_arcsec2 = rate_sr / ARCSEC2_PER_SR
+        mag = -2.5 * np.log10(rate_arcsec2 / band.ab_zero_point_photons_s_m2)
+        return rate_sr, float(mag)
+
+    @property
+    def pixel_etendue_m2_sr(self) -> float:
+        """Aperture area times pixel solid angle: pi D^2 / 4 * (p / f)^2."""
+        return np.pi * self.aperture_diameter_m**2 / 4.0 * (self.pixel_size_m / self.focal_length_m) ** 2
+
+    @staticmethod
+    def brightness_500nm(los: np.ndarray, sun_direction: np.ndarray, runs=None):
+        """Band-independent part: (B_500 in W m-2 sr-1 um-1, no-data flag) for the samples."""
+        dlon, beta = helioecliptic_coordinates(los, sun_direction, runs)
+        return leinert_table().brightness_500nm(dlon, beta)
+
+    def e_per_s_per_pix(self, band: Band, brightness_500nm) -> np.ndarray:
+        """e-/s/pixel in ``band`` for a 500 nm brightness B_500 (W m-2 sr-1 um-1)."""
+        return np.asarray(brightness_500nm) * self.band_factors(band)[0] * self.pixel_etendue_m2_sr
+
+    def evaluate(self, band: Band, los: np.ndarray, sun_direction: np.ndarray) -> dict:
+        """Zodiacal light for lines of sight and Sun directions (ICRS vectors, broadcast).
+
+        Returns dict with ``e_per_s_per_pix``, ``mag_per_arcsec2``, ``brightness_500nm_w_m2_sr_um``
+        and ``no_data`` (True where the table has no data near the Sun).
+        """
+        b500, flag = self.brightness_500nm(los, sun_direction)
+        rate_sr, mag_unit = self.band_factors(band)
+        return {
+            "e_per_s_per_pix": self.e_per_s_per_pix(band, b500),
+            "mag_per_arcsec2": mag_unit - 2.5 * np.log10(b500),
+            "brightness_500nm_w_m2_sr_um": b500,
+            "no_data": flag,
+        }
+
+
+def zodiacal_model_from_instrument(instrument: dict, spectrum: str = "solar_leinert") -> ZodiacalModel:
+    return ZodiacalModel(
+        aperture_diameter_m=float(instrument["telescope"]["aperture_diameter_m"]["value"]),
+        focal_length_m=float(instrument["telescope"]["focal_length_m"]["value"]),
+        pixel_size_m=float(instrument["detector"]["pixel_size_um"]["value"]) * 1e-6,
+        spectrum=spectrum,
+    )

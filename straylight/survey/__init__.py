@@ -1,0 +1,7 @@
+"""From the model to the survey's products: the footprint and time grid, background cubes, 5-sigma
+limits, observability and scheduling tables, per-pointing tables, the plan's cost, storage codecs
+and provenance.
+
+May import everything below it (sky, optics, sources, catalog, util); nothing imports it but the
+CLI, the API, the plots, the paper reproductions and ``scripts/``.
+"""

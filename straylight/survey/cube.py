@@ -1,0 +1,687 @@
+"""Survey-wide background cubes: every footprint pixel at every campaign time, every component
+in every band (issue #6).
+
+Layout of ``background.zarr`` (xarray Dataset):
+
+* dims (time, pixel, band); one float32 variable per component (e- s-1 pixel-1) plus ``total``;
+  ``observable`` (bool) and ``violations`` (uint8 bit mask) and ``door_opening_deg`` on
+  (time, pixel); coords time (UTC), pixel (HEALPix index), ra_deg/dec_deg, band, and
+  ``mag_zero_point`` (band): AB mag/arcsec2 = mag_zero_point - 2.5 log10(e-/s/pixel);
+* attrs: HEALPix nside, ordering and frame, campaign, models, provenance pointers.
+* chunks: one time block (``campaign.time_block_hours``) x ``footprint.pixel_block_size`` pixels
+  x all bands.  A time-series read of one pointing then touches one chunk per time block, and a
+  whole-sky read at one time one chunk per pixel block (see bench/cube_chunks.py for timings).
+
+Work split: one Snakemake job computes many time blocks (:func:`run_time_blocks`: all of them,
+or ``compute.time_blocks_per_job``) with a pool of worker processes started once per job; each
+worker builds the model (PST, door tables, stars, earthshine tables) once and reuses it for every
+(time block, pixel block) region it is given, and every region is written to its own part of the
+store exactly once.  A time block is marked done by its own sentinel file only after all its
+regions are written, so a killed job redoes only the unfinished time blocks and, the computation
+being deterministic, gives identical bytes.
+"""
+from __future__ import annotations
+
+import json
+import time as _time
+from dataclasses import dataclass
+
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from straylight.config import Campaign
+from straylight.errors import OutputError
+from straylight.survey.footprint import Footprint
+from straylight.survey.limits import ZERO_POINT_NAME, zero_point_coord
+from straylight.sky.geometry import SceneRuns, TelescopeFrame, observing_geometry, radec_to_unit, telescope_frame, violation_mask_attrs
+
+CUBE_COMPONENTS = ("zodiacal", "earthshine", "moon", "sun", "planets", "stars")
+#: the cube's (time, pixel, band) variables, e-/s/pix: the components and their total
+CUBE_BAND_VARIABLES = CUBE_COMPONENTS + ("total",)
+#: samples per evaluation on the table path (whole time steps of a pixel block): large enough
+#: that numpy's per-call cost is paid rarely: a default production region (72 steps x 660
+#: pixels) in one call, 53-54 ms against 57-66 ms in three calls of 16,384 (three interleaved
+#: rounds; peak memory 854 against 830 MB, the tables most of it).  A region of 72 steps x
+#: 1024 pixels (the schema's default pixel block) in one call: 71-74 ms against 75-79 ms in two
+#: (three interleaved rounds), 116 against 105 MB traced at the peak (~1.6 kB a sample)
+SAMPLES_PER_EVALUATION = 131072
+LONG_NAMES = {
+    "zodiacal": "in-field zodiacal light (Leinert 1998)",
+    "earthshine": "earthshine through the PST, direct + via the aperture door",
+    "moon": "moonlight through the PST",
+    "sun": "sunlight through the PST (door-shaded)",
+    "planets": "planets (Mercury-Pluto) through the PST",
+    "stars": "off-field bright stars through the PST",
+    "total": "total stray light and sky background",
+}
+
+
+def cube_chunks(campaign: Campaign, n_times: int, n_pixels: int) -> dict:
+    from straylight.survey.timegrid import time_blocks
+
+    c = campaign.config["campaign"]
+    tb = time_blocks(n_times, float(c["cadence_s"]), float(c.get("time_block_hours", 6)))
+    t_chunk = tb[0][1] - tb[0][0]
+    p_chunk = min(int(campaign.config["footprint"].get("pixel_block_size", 1024)), n_pixels)
+    return {"time": t_chunk, "pixel": p_chunk, "band": len(campaign.bands)}
+
+
+def empty_cube(campaign: Campaign, fp: Footprint, times, stars_path=None, build_workers: int = 1) -> xr.Dataset:
+    """The cube's skeleton backed by lazy dask zeros (for writing metadata only); the models
+    record it carries builds the earthshine table if one runs and is not cached
+    (``build_workers`` processes)."""
+    import dask.array as da
+
+    nt, npix, nb = len(times), fp.pixels.size, len(campaign.bands)
+    ch = cube_chunks(campaign, nt, npix)
+    chunks3 = (ch["time"], ch["pixel"], ch["band"])
+    chunks2 = (ch["time"], ch["pixel"])
+    data = {}
+    for comp in CUBE_BAND_VARIABLES:
+        data[comp] = xr.Variable(("time", "pixel", "band"), da.zeros((nt, npix, nb), chunks=chunks3, dtype=np.float32),
+                                 {"units": "electron / (s pixel)", "long_name": LONG_NAMES[comp]})
+    data["observable"] = xr.Variable(("time", "pixel"), da.zeros((nt, npix), chunks=chunks2, dtype=bool),
+                                     {"units": "1", "long_name": "pointing satisfies every constraint"})
+    data["violations"] = xr.Variable(("time", "pixel"), da.zeros((nt, npix), chunks=chunks2, dtype=np.uint8),
+                                     violation_mask_attrs())
+    data["door_opening_deg"] = xr.Variable(("time", "pixel"), da.zeros((nt, npix), chunks=chunks2, dtype=np.float32),
+                                           {"units": "deg", "long_name": "aperture door opening (0 = no allowed state)"})
+    ds = xr.Dataset(
+        data,
+        coords={
+            "time": ("time", times.datetime64, {"long_name": "UTC sample time"}),
+            "pixel": ("pixel", fp.pixels, {"long_name": "HEALPix pixel index"}),
+            "ra_deg": ("pixel", fp.ra_deg, {"units": "deg", "long_name": "ICRS RA of pixel centre"}),
+            "dec_deg": ("pixel", fp.dec_deg, {"units": "deg", "long_name": "ICRS Dec of pixel centre"}),
+            "band": ("band", np.array(campaign.bands, dtype=object), {"long_name": "CSST band"}),
+            ZERO_POINT_NAME: zero_point_coord(campaign, campaign.bands),
+        },
+        attrs={
+            "campaign": campaign.name,
+            "healpix_nside": fp.nside,
+            "healpix_ordering": fp.ordering.upper(),
+            "healpix_frame": "ICRS",
+            "zodiacal_spectrum": campaign.config["models"].get("zodiacal_spectrum"),
+            "moon_phase_law": campaign.config["models"].get("moon_phase_law"),
+            "pst_source": str(campaign.instrument.get("pst", {}).get("source", "")),
+            "stars_included": int(len(_offfield_stars(campaign, stars_path).ra_deg)) if stars_path else 0,
+            "stars_in_faint_map": int(len(_offfield_stars(campaign, stars_path).faint_ra_deg)) if stars_path else 0,
+            "stars_catalog": Path(stars_path).name if stars_path else "none",
+            "stars_offfield_mag_limit": float(campaign.config["stars"].get("offfield_mag_limit", 2.0)),
+            "stars_faint_map": int(bool(campaign.config["stars"].get("faint_map", True))),
+            "chunking": "time block x pixel block x all bands",
+            # which models ran and their error budget (the earthshine table is built here, once,
+            # before the time-block jobs start)
+            "models": json.dumps(_component_model(campaign, fp, build_workers).models_record(),
+                                 sort_keys=True),
+        },
+    )
+    return ds
+
+
+def faint_star_map(campaign: Campaign, fp: Footprint, stars_path) -> xr.Variable | None:
+    """The faint stars' smoothed map at every footprint pixel, (pixel, band), e-/s/pix: it
+    depends on the line of sight only, so the cube computes it once (in :func:`init_store`)
+    and every time block reads it.  None without a catalog or with no faint stars."""
+    stars = _offfield_stars(campaign, stars_path)
+    if stars is None or not len(stars.faint_ra_deg):
+        return None
+    rates = _component_model(campaign, fp).faint_star_rates(stars, radec_to_unit(fp.ra_deg, fp.dec_deg),
+                                                            campaign.bands)
+    values = np.zeros((fp.pixels.size, len(campaign.bands)))
+    for i, band in enumerate(campaign.bands):
+        if band in rates:
+            values[:, i] = rates[band]
+    return xr.Variable(("pixel", "band"), values,
+                       {"units": "electron / (s pixel)",
+                        "long_name": "faint off-field stars: smoothed map (azimuth-averaged PST), part of stars"})
+
+
+def init_store(campaign: Campaign, fp: Footprint, store, stars_path=None, build_workers: int = 1) -> None:
+    """Write the skeleton (metadata and coordinates, no data chunks) to ``store``, and the
+    faint-star map (computed here once for the whole campaign); an earthshine table the
+    campaign needs is built here too, before the time blocks start (``build_workers``
+    processes)."""
+    from straylight.survey.storage import encoded
+
+    ds = empty_cube(campaign, fp, campaign.times, stars_path, build_workers)
+    faint = faint_star_map(campaign, fp, stars_path)
+    if faint is not None:
+        ds["faint_star_map"] = faint
+    # the products' codecs (bit-rounded floats); the faint map exactly, the time blocks read it
+    ds, encoding = encoded(ds, campaign.config["storage"], lossless=("faint_star_map",))
+    ds.to_zarr(store, mode="w", compute=False, consolidated=False, encoding=encoding)
+
+
+_MODELS: dict = {}
+
+
+def evaluated_samples(campaign: Campaign, fp: Footprint, max_times: int = 144, max_pixels: int = 660) -> int:
+    """How many samples the campaign's cube evaluates: every (time, pixel) one, or with
+    models.unobservable_samples: skip the observable ones, their fraction estimated from an
+    even subsample of at most ``max_times`` x ``max_pixels`` (deterministic: the same config
+    gives the same count, and so the same earthshine model, on every machine; exact when the
+    campaign is no bigger).  On the default day (16.5 % observable) 144 x 660 of its 288 x 1320
+    samples give the fraction to 0.1 % of the samples in 0.15 s; 48 x 256 erred by 2.4 % (every
+    sixth step, 30 minutes apart, meets the 92-minute orbit in a pattern)."""
+    from straylight.components import unobservable_samples
+    from straylight.sky.observing import scene
+
+    n = len(campaign.times) * int(fp.pixels.size)
+    if unobservable_samples(campaign) != "skip" or n == 0:
+        return n
+    t_idx = np.unique(np.linspace(0, len(campaign.times) - 1, min(max_times, len(campaign.times))).round().astype(int))
+    p_idx = np.unique(np.linspace(0, fp.pixels.size - 1, min(max_pixels, fp.pixels.size)).round().astype(int))
+    sc = scene(campaign, campaign.times[t_idx])
+    los = radec_to_unit(fp.ra_deg[p_idx], fp.dec_deg[p_idx])
+    g = observing_geometry(sc.satellite_km[:, None], {b: sc.bodies_km[b][:, None] for b in ("sun", "moon")},
+                           los[None], campaign.earth.radius_km, campaign.constraints)
+    return int(round(n * float(np.mean(g["observable"]))))
+
+
+#: The cube's cost on one core, all bands, per sample, as ``straylight plan`` predicts it: the
+#: table path evaluating every sample, and with models.unobservable_samples: skip the screen
+#: (the Sun's and the Moon's geometry, every sample) and each observable sample evaluated (they
+#: cost ~1.7x the average sample: more moonlit-Earth sums and star pairs); the direct earthshine
+#: sum adds components.LUT_SAVED_SECONDS_PER_SAMPLE per evaluated sample.  In the units of the
+#: machine those were measured on: bench/run.py on the default day (12 steps x 1320 pixels,
+#: best of three) measured, in two runs on a machine whose direct path ran x0.209 and x0.223 of
+#: that figure, 1.31 / 1.42 us, 0.29 / 0.30 us, 2.42 / 3.03 us: 6.3 / 6.4, 1.4 / 1.35, 11.6 /
+#: 13.6 us in these units (until this cycle's compiled geometry and table coordinates 8, 1.9
+#: and 14 us; until the star skip's shared budget 10, 1.2 and 20 us).  Since the per-band
+#: compiled pass and the compiled door states and skip radii (a later cycle, best of seven, on
+#: a machine whose direct path ran x0.263 and x0.265 of the figure): 1.26 / 1.26 us, 0.28 /
+#: 0.28 us, 2.58 / 2.86 us, i.e. 4.8, 1.05 and 9.8 / 10.8 us in these units (6.3, 1.4 and 12.5
+#: until then).  The bench prints them again as cube.plan_cost_model, and the four runs'
+#: predicted seconds against the measured ones, so a drift shows.
+CUBE_TABLE_SECONDS_PER_SAMPLE = 4.8e-6
+CUBE_SCREEN_SECONDS_PER_SAMPLE = 1.05e-6
+CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE = 10.3e-6
+
+
+#: Bytes on disk per (time, pixel) sample of the whole product set (background.zarr, limits.zarr,
+#: observability.zarr), all bands: the compressed stores' budget (issue 32: at most 25 bytes per
+#: sample).  The one figure `straylight plan` sizes a campaign's products with.
+PRODUCT_BYTES_PER_SAMPLE = 25.0
+#: The pipeline's speed wall to wall (samples / wall seconds / cores: `snakemake` to the last
+#: product, every rule included, the earthshine tables cached), when neither
+#: compute.pipeline_samples_per_s_per_core nor bench/results/pipeline.json gives one:
+#: bench/pipeline.py on one month of config/cycle.yaml (nside 64, 5-minute cadence, 183,081,600
+#: samples) on 2 cores, 108,753 samples/s/core, on the 2-core development machine shared with
+#: other jobs.  Per-run costs (job start-up, figures) weigh less in longer campaigns: one month
+#: at nside 32 (45,671,040 samples) ran at 61,575 on the same machine.
+PIPELINE_SAMPLES_PER_S_PER_CORE = 108_753.0
+#: where bench/pipeline.py writes its figures
+PIPELINE_BENCH_RESULTS = Path(__file__).resolve().parents[2] / "bench" / "results" / "pipeline.json"
+
+
+def pipeline_rate(campaign: Campaign, bench_results=PIPELINE_BENCH_RESULTS) -> tuple[float, str]:
+    """The pipeline's wall-to-wall samples/s/core and where it comes from: the config's
+    compute.pipeline_samples_per_s_per_core, else the last bench/pipeline.py run's figure
+    (``bench_results``), else PIPELINE_SAMPLES_PER_S_PER_CORE."""
+    configured = (campaign.config.get("compute") or {}).get("pipeline_samples_per_s_per_core")
+    if configured:
+        return float(configured), "compute.pipeline_samples_per_s_per_core"
+    path = Path(bench_results)
+    if path.exists():
+        try:
+            rec = json.loads(path.read_text())
+            c = rec["campaign"]
+            return float(rec["samples_per_s_per_core"]), (
+                f"{path.name}: {c['days']:g} days at nside {c['nside']}, {c['cadence_s']:g} s, {rec['cores']} cores")
+        except (ValueError, KeyError, TypeError):
+            pass  # an unreadable or partial file: the stated default below
+    return PIPELINE_SAMPLES_PER_S_PER_CORE, "straylight.survey.cube.PIPELINE_SAMPLES_PER_S_PER_CORE"
+
+
+def cube_compute_seconds(samples: int, evaluated: int, earthshine_method: str, skip: bool,
+                         seconds_per_evaluated_sample: float | None = None, speed_factor: float = 1.0) -> float:
+    """Seconds on one core to compute a cube of ``samples`` (time, pixel) samples of which
+    ``evaluated`` are evaluated (all, or with ``skip`` the observable ones), with the sunlit
+    earthshine ``earthshine_method`` ('lut' or 'direct'), at the CUBE_* and
+    components.LUT_SAVED_SECONDS_PER_SAMPLE figures above times ``speed_factor`` (this machine
+    against the one they were measured on, :func:`machine_speed`); or at
+    ``seconds_per_evaluated_sample`` per evaluated sample when given (another machine)."""
+    from straylight.components import LUT_SAVED_SECONDS_PER_SAMPLE
+
+    if seconds_per_evaluated_sample is not None:
+        return evaluated * seconds_per_evaluated_sample
+    per_eval = CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE if skip else CUBE_TABLE_SECONDS_PER_SAMPLE
+    if earthshine_method == "direct":
+        per_eval += LUT_SAVED_SECONDS_PER_SAMPLE
+    return speed_factor * (evaluated * per_eval + (samples * CUBE_SCREEN_SECONDS_PER_SAMPLE if skip else 0.0))
+
+
+def machine_speed(campaign: Campaign, fp: Footprint, n_times: int = 4, n_pixels: int = 1320, repeats: int = 2) -> dict:
+    """This machine's speed against the one the cost figures (CUBE_*, components.LUT_*) were
+    measured on: ``n_times`` cube time steps spread over the campaign at ~``n_pixels`` footprint
+    pixels spread over it (one step, or a few hundred pixels, weigh the per-step costs too
+    much), on the direct earthshine sum, every sample evaluated, without stars (~1 % of that
+    path's cost), best of ``repeats`` after a full-size warm-up, against
+    :func:`cube_compute_seconds` for it.  Returns the samples, ``measured_seconds``,
+    ``assumed_seconds`` and ``factor`` (measured / assumed: below 1 on a faster machine).  One
+    factor for every figure: on the development machine it read x0.24 with the compiled
+    look-ups (x0.39-0.42 before), the cube bench's four paths x0.21-0.33 against the same
+    figures, so it errs by -12 % to +40 % per path (README)."""
+    from straylight.components import ComponentModel
+    from straylight.config import campaign_from_dict, deep_merge
+
+    direct = campaign_from_dict(deep_merge(campaign.config, {"models": {"earthshine": {"method": "direct"},
+                                                                        "unobservable_samples": "evaluate"}}),
+                                campaign.path)
+    model = ComponentModel(direct, expected_samples=1)
+    nt = len(direct.times)
+    t_slice = slice(0, nt, max(1, nt // max(1, n_times)))
+    p_slice = slice(0, None, max(1, int(fp.pixels.size) // max(1, n_pixels)))
+    n = len(range(*t_slice.indices(nt))) * len(range(*p_slice.indices(int(fp.pixels.size))))
+    if n == 0:  # no time or no pixel: nothing to time, the figures stand
+        return {"samples": 0, "measured_seconds": 0.0, "assumed_seconds": 0.0, "factor": 1.0}
+    # warm-up at full size: door tables, bands, and glibc's mmap threshold, which rises only after
+    # the first large arrays are freed (the first call ran 1.4x slower)
+    compute_region(direct, fp, t_slice, p_slice, model=model)
+    best = np.inf
+    for _ in range(max(1, repeats)):
+        t0 = _time.perf_counter()
+        compute_region(direct, fp, t_slice, p_slice, model=model)
+        best = min(best, _time.perf_counter() - t0)
+    assumed = cube_compute_seconds(n, n, "direct", False)
+    return {"samples": n, "measured_seconds": best, "assumed_seconds": assumed, "factor": best / assumed}
+
+
+def estimated_cost(campaign: Campaign, fp: Footprint, seconds_per_evaluated_sample: float | None = None,
+                   speed_factor: float = 1.0) -> dict:
+    """What the campaign's cube will cost before it runs: its samples, the samples it
+    evaluates (:func:`evaluated_samples`), the sunlit earthshine model ``auto`` picks
+    (ComponentModel.earthshine_choice, nothing built), the table's build when it is not cached
+    yet, and the compute (:func:`cube_compute_seconds`).  Seconds on one core.  Also the
+    whole run, wall to wall, at the measured pipeline figure (:func:`pipeline_rate`, measured
+    on the table path; on the direct sum the kernel's compute where that is slower; the table's build added
+    when it is not cached), and the products' bytes
+    (PRODUCT_BYTES_PER_SAMPLE).  The figures are
+    this code's on a 2-core development machine (single runs wander by 20-40 %), times
+    ``speed_factor`` (:func:`machine_speed`) for this one."""
+    from straylight.components import ComponentModel, unobservable_samples
+
+    n = len(campaign.times) * int(fp.pixels.size)
+    n_eval = evaluated_samples(campaign, fp)
+    model = ComponentModel(campaign, expected_samples=n_eval)
+    choice = model.earthshine_choice
+    skip = unobservable_samples(campaign) == "skip"
+    compute_s = cube_compute_seconds(n, n_eval, choice["method"], skip, seconds_per_evaluated_sample, speed_factor)
+    build_s, table_cached = 0.0, False
+    if choice["method"] == "lut":  # the sunlit table and the moonlit one, each unless cached
+        moonlit_s = choice["moonlit_build_seconds_estimate"]
+        sunlit_cached = model.earthshine_lut_path().exists()
+        moonlit_path = model.moonlit_lut_path()
+        moonlit_cached = moonlit_path is None or moonlit_path.exists()
+        table_cached = sunlit_cached and moonlit_cached
+        build_s = speed_factor * ((0.0 if sunlit_cached else choice["build_seconds_estimate"] - moonlit_s)
+                                  + (0.0 if moonlit_cached else moonlit_s))
+    rate, rate_source = pipeline_rate(campaign)
+    return {"samples": n, "evaluated_samples": n_eval, "unobservable_samples": "skip" if skip else "evaluate",
+            "earthshine_method": choice["method"], "earthshine_reason": choice["reason"],
+            "table_cached": table_cached, "table_build_seconds": build_s, "compute_seconds": compute_s,
+            "core_hours": (compute_s + build_s) / 3600.0, "speed_factor": speed_factor,
+            "pipeline_samples_per_s_per_core": rate, "pipeline_rate_source": rate_source,
+            # the figure is measured on the table path; the direct sum's kernel alone is slower
+            "pipeline_core_hours": ((n / rate if choice["method"] == "lut" else max(n / rate, compute_s))
+                                    + build_s) / 3600.0,
+            "product_bytes": n * PRODUCT_BYTES_PER_SAMPLE}
+
+
+def _component_model(campaign: Campaign, fp: Footprint, build_workers: int = 1):
+    """One ComponentModel per process and campaign: its door tables, bands and earthshine table
+    are built once, not once per Dask task (the campaign arrives pickled, so key on its content).
+    It expects the samples the cube evaluates (:func:`evaluated_samples`)."""
+    from straylight.components import ComponentModel
+
+    key = (json.dumps(campaign.config, sort_keys=True, default=str), str(campaign.instrument_path), fp.pixels.size)
+    if key not in _MODELS:
+        _MODELS[key] = ComponentModel(campaign, expected_samples=evaluated_samples(campaign, fp),
+                                      build_workers=build_workers)
+    return _MODELS[key]
+
+
+_STARS: dict = {}
+
+
+def _offfield_stars(campaign: Campaign, stars_path):
+    """The catalog's off-field stars (brighter than stars.offfield_mag_limit), once per process."""
+    if stars_path is None:
+        return None
+    from straylight.components import load_offfield_stars
+
+    limit = float(campaign.config["stars"].get("offfield_mag_limit", 2.0))
+    faint = bool(campaign.config["stars"].get("faint_map", True))
+    key = (str(stars_path), tuple(campaign.bands), limit, faint)
+    if key not in _STARS:
+        _STARS[key] = load_offfield_stars(stars_path, campaign.bands, limit, faint)
+    return _STARS[key]
+
+
+def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: slice, model=None,
+                   stars_path=None, faint_map=None, scene=None) -> xr.Dataset:
+    """Compute the cube values of times t_slice x pixels p_slice (numpy-backed Dataset);
+    ``stars_path``: the star catalog for the off-field star term (None: stars = 0);
+    ``faint_map``: the faint stars' map at these pixels, (pixel, band) e-/s/pix, as
+    :func:`faint_star_map` gives it (None: computed here); ``scene``: the satellite's and the
+    bodies' positions at these times (:func:`straylight.sky.observing.scene`), when already computed for
+    another pixel block of the same times (None: computed here).  ValueError if ``scene`` is
+    not at exactly these times."""
+    from straylight.sky import observing
+    from straylight.components import unobservable_samples
+
+    model = model or _component_model(campaign, fp)
+    stars = _offfield_stars(campaign, stars_path)
+    times = campaign.times[t_slice]
+    sc = observing.scene(campaign, times) if scene is None else _checked_scene(scene, times)
+    los = radec_to_unit(fp.ra_deg[p_slice], fp.dec_deg[p_slice])
+    nt, npix, nb = len(times), los.shape[0], len(campaign.bands)
+    faint = None if faint_map is None else {b: np.asarray(faint_map)[:, i] for i, b in enumerate(campaign.bands)}
+    if faint is None and stars is not None and len(stars.faint_ra_deg):
+        # once per pixel, not per sample of a many-step batch (it depends on the line of sight only)
+        faint = model.faint_star_rates(stars, los, campaign.bands)
+    # one allocation for every component: numpy asks the kernel for huge pages on arrays of 4 MiB
+    # or more (a default region's 9.3 MB).  Seven fresh 1.3 MB arrays took 3.6 ms of page faults
+    # in a micro-benchmark; in a run of regions, where freed memory is reused, it gained ~0.6 %
+    names = CUBE_BAND_VARIABLES
+    block = np.zeros((len(names), nt, npix, nb), np.float32)
+    out = dict(zip(names, block))
+    obs = np.zeros((nt, npix), bool)
+    viol = np.zeros((nt, npix), np.uint8)
+    door = np.zeros((nt, npix), np.float32)
+    # Steps are evaluated together, as one flat batch of samples: numpy's per-call cost is then
+    # paid once per batch, not once per step (1.5-1.7x on the table path).  The direct earthshine
+    # sum grids the Earth per sample, so there one step per call bounds its memory (the star
+    # pairs bound their own: ComponentModel.STAR_PAIRS_PER_PASS).
+    max_samples = npix if model.earthshine_model["lut"] is None else SAMPLES_PER_EVALUATION
+    skip_unobservable = unobservable_samples(campaign) == "skip"  # the campaign's, not the model's
+    for steps in _step_batches(nt, npix, max_samples):
+        k = steps.stop - steps.start
+        # each step's scene repeated over its pixels: the samples' scene runs are the steps,
+        # known here, so no function reads every sample's vectors to find them again (twelve
+        # scans of 0.1-0.2 ms each on a region's 47,520 samples)
+        runs = SceneRuns.steps(k, npix)
+        sat = np.repeat(sc.satellite_km[steps], npix, axis=0)
+        los_k = np.broadcast_to(los[None], (k,) + los.shape).reshape(-1, 3)
+        # the constraints need the Sun's and the Moon's angles only; the background finds the
+        # planets' where they can matter (ComponentModel._planets_fraction)
+        bodies = {b: np.repeat(sc.bodies_km[b][steps], npix, axis=0)
+                  for b in (("sun", "moon") if skip_unobservable else sc.bodies_km)}
+        frame = telescope_frame(los_k, bodies["sun"] - sat)  # once for the geometry and the background
+        g = observing_geometry(sat, {b: bodies[b] for b in ("sun", "moon")}, los_k, campaign.earth.radius_km,
+                               campaign.constraints, frame=frame, runs=runs)
+        if skip_unobservable:
+            _evaluate_observable(model, campaign, sc, los, faint, g, frame, stars, out, steps, runs)
+        else:
+            faint_k = None if faint is None else {b: np.tile(v, k) for b, v in faint.items()}
+            # written straight into the region's float32 block: a view (the steps are consecutive,
+            # so step and pixel merge into the batch's step-major samples)
+            into = (names, block[:, steps].reshape(len(names), k * npix, nb))
+            model.evaluate(sat, bodies, los_k, g, campaign.bands, stars, faint_rates=faint_k, frame=frame, into=into,
+                           runs=runs)
+        obs[steps], viol[steps], door[steps] = (_by_step(g[v], k, npix)
+                                                for v in ("observable", "violations", "door_opening_deg"))
+    data = {k: (("time", "pixel", "band"), v) for k, v in out.items()}
+    data["observable"] = (("time", "pixel"), obs)
+    data["violations"] = (("time", "pixel"), viol)
+    data["door_opening_deg"] = (("time", "pixel"), door)
+    return xr.Dataset(data)
+
+
+def _checked_scene(sc, times):
+    """``sc`` if it is at exactly ``times`` (the same UTC Julian dates), else ValueError: a
+    scene from other times would put every body in the wrong place without a sign."""
+    t = sc.times
+    same = (len(t) == len(times) and np.array_equal(t.utc.jd1, times.utc.jd1)
+            and np.array_equal(t.utc.jd2, times.utc.jd2))
+    if not same:
+        raise ValueError(f"scene at {len(t)} times ({t[0].isot if len(t) else '-'} ...) is not at the region's "
+                         f"{len(times)} times ({times[0].isot if len(times) else '-'} ...)")
+    return sc
+
+
+def _evaluate_observable(model, campaign: Campaign, sc, los, faint, screen: dict, frame, stars, out, steps, runs):
+    """Evaluate the observable samples (flat, step-major) of the time steps ``steps`` of the
+    scene ``sc`` at the lines of sight ``los`` (pixel, 3) only, and write them into ``out`` at
+    ``steps``; the other samples get NaN.  ``screen``: the batch's geometry with the Sun and
+    the Moon (:func:`observing_geometry`), ``frame`` its telescope frame: the observable samples
+    take their values (the background finds the planets' angles itself).  Each sample's values
+    depend on that sample alone, so the observable ones come out as they do in a whole batch
+    (tests/test_earthshine_lut.py).  ``faint``: band -> per-pixel faint-star rates; ``runs``:
+    the batch's scene runs (its steps)."""
+    npix = los.shape[0]
+    sel = np.flatnonzero(screen["observable"])
+    for comp in CUBE_BAND_VARIABLES:
+        out[comp][steps] = np.nan
+    if sel.size == 0:
+        return
+    t_idx, p_idx = np.divmod(sel, npix)
+    # rows by index with np.take (3-4x numpy's fancy indexing of (N, 3) rows)
+    sat = np.take(sc.satellite_km[steps], t_idx, axis=0)
+    bodies = {b: np.take(v[steps], t_idx, axis=0) for b, v in sc.bodies_km.items()}
+    sub = TelescopeFrame(*(np.take(a, sel, axis=0) for a in (frame.x, frame.y, frame.z)))
+    g = {name: np.asarray(v)[sel] for name, v in screen.items()}
+    names = CUBE_BAND_VARIABLES
+    values = np.empty((len(names), sel.size, len(campaign.bands)), np.float32)
+    model.evaluate(sat, bodies, np.take(los, p_idx, axis=0), g, campaign.bands, stars,
+                   faint_rates=None if faint is None else {b: v[p_idx] for b, v in faint.items()}, frame=sub,
+                   into=(names, values), runs=runs.at(sel))
+    for comp, v in zip(names, values):  # every band of a sample at once
+        out[comp][steps.start + t_idx, p_idx] = v
+
+
+def _step_batches(n_steps: int, n_pixels: int, max_samples: int) -> list[slice]:
+    """The time steps of one evaluation each: as few as keep each within ``max_samples``
+    samples (at least one step), sized within one step of each other, so no call is a small
+    remainder paying the per-call cost for a few steps (72 steps of 1024 pixels within 65,536:
+    two calls of 36, not 64 and 8)."""
+    steps_max = max(1, max_samples // max(n_pixels, 1))
+    n_calls = -(-n_steps // steps_max)
+    bounds = [n_steps * i // n_calls for i in range(n_calls + 1)] if n_calls else [0]
+    return [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
+
+
+def _by_step(values, k: int, npix: int) -> np.ndarray:
+    """A batch's k * npix samples (step-major) as (k, npix)."""
+    return np.broadcast_to(values, (k * npix,)).reshape(k, npix)
+
+
+def write_region(campaign: Campaign, fp: Footprint, store, t_slice: slice, p_slice: slice,
+                 stars_path=None, scene=None, faint_map=None) -> float:
+    """Compute one (time block, pixel block) region and write it to its Zarr region; seconds.
+    ``scene``: the time block's positions, shared by its pixel blocks (None: computed here);
+    ``faint_map``: the store's faint-star map at these pixels, (pixel, band) e-/s/pix, when the
+    caller has read it (None: read from the store here when there is a star catalog)."""
+    t0 = _time.perf_counter()
+    faint = faint_map
+    if faint is None and stars_path is not None:
+        faint = _stored_faint_map(store)
+        faint = None if faint is None else faint[p_slice]
+    ds = compute_region(campaign, fp, t_slice, p_slice, stars_path=stars_path, faint_map=faint, scene=scene)
+    try:
+        ds.to_zarr(store, region={"time": t_slice, "pixel": p_slice, "band": slice(None)}, mode="r+",
+                   consolidated=False)
+    except OSError as exc:  # ENOSPC, EDQUOT, EACCES...: the block's sentinel is not written
+        raise OutputError(f"{store}: writing times {t_slice.start}:{t_slice.stop} x pixels {p_slice.start}:"
+                          f"{p_slice.stop} failed ({exc.strerror or exc}); finished time blocks are kept, "
+                          "free space and re-run to redo this block") from exc
+    return _time.perf_counter() - t0
+
+
+@dataclass
+class BlockReport:
+    time_block: int
+    pixel_blocks: int
+    samples: int
+    seconds: float
+
+
+def run_time_block(campaign: Campaign, fp: Footprint, store, block_index: int, client=None, log=None,
+                   stars_path=None) -> BlockReport:
+    """Compute every pixel block of one time block with Dask (``client``) or serially; ``log``
+    (a logging.Logger) gets one line per finished chunk."""
+    from straylight.survey.timegrid import time_blocks
+
+    c = campaign.config["campaign"]
+    tb = time_blocks(len(campaign.times), float(c["cadence_s"]), float(c.get("time_block_hours", 6)))
+    if not 0 <= block_index < len(tb):
+        raise IndexError(f"time block {block_index} outside 0..{len(tb) - 1}")
+    t_slice = slice(*tb[block_index])
+    from pathlib import Path
+
+    store = str(Path(store).resolve())  # workers (other hosts, other cwd) need an absolute path
+    stars_path = str(Path(stars_path).resolve()) if stars_path else None
+    p_blocks = [slice(a, b) for a, b in fp.blocks(int(campaign.config["footprint"].get("pixel_block_size", 1024)))]
+    t0 = _time.perf_counter()
+    # the satellite's and the bodies' positions once per time block, not once per pixel block
+    # (1.4 ms for 72 steps: astropy's time scales and the DE405 series; a default time block of
+    # two pixel blocks 97.1 -> 94.6 ms best)
+    from straylight.sky.observing import scene
+
+    sc = scene(campaign, campaign.times[t_slice])
+
+    def note(ps, seconds):
+        if log is not None:
+            log.info("chunk time %d:%d pixels %d:%d done in %.1f s", t_slice.start, t_slice.stop, ps.start, ps.stop, seconds)
+
+    if client is None:
+        for ps in p_blocks:
+            note(ps, write_region(campaign, fp, store, t_slice, ps, stars_path, sc))
+    else:
+        from distributed import as_completed
+
+        # the scene is small (~20 kB for 72 steps): sent with each task
+        futures = {client.submit(write_region, campaign, fp, store, t_slice, ps, stars_path, sc, pure=False): ps
+                   for ps in p_blocks}
+        for fut in as_completed(futures):
+            note(futures[fut], fut.result())
+    n = (t_slice.stop - t_slice.start) * fp.pixels.size
+    return BlockReport(block_index, len(p_blocks), n, _time.perf_counter() - t0)
+
+
+def _stored_faint_map(store) -> np.ndarray | None:
+    """The store's faint_star_map, (pixel, band) e-/s/pix, or None when it has none."""
+    with xr.open_zarr(store, consolidated=False) as skeleton:
+        return skeleton["faint_star_map"].values if "faint_star_map" in skeleton else None
+
+
+def block_sentinel(done_dir, block_index: int) -> Path:
+    """The file marking time block ``block_index`` done (its BlockReport as JSON)."""
+    return Path(done_dir) / f"block_{block_index}.json"
+
+
+def clear_block_sentinels(done_dir) -> int:
+    """Remove every time block's sentinel from ``done_dir`` (a fresh store has no block done);
+    returns how many were removed."""
+    removed = 0
+    for p in Path(done_dir).glob("block_*.json"):
+        p.unlink()
+        removed += 1
+    return removed
+
+
+#: the worker process's campaign, footprint, store and catalog (set once by _pool_init)
+_WORKER: dict = {}
+
+
+def _pool_init(campaign: Campaign, fp: Footprint, store: str, stars_path) -> None:
+    """Pool worker start-up: keep the job's inputs and build the model now, once per process
+    (every region this process computes reuses it)."""
+    _WORKER.update(campaign=campaign, fp=fp, store=store, stars_path=stars_path)
+    _component_model(campaign, fp)
+    _offfield_stars(campaign, stars_path)
+
+
+def _pool_region(t_slice: slice, p_slice: slice, scene, faint_map) -> float:
+    """One region in a pool worker, with the inputs _pool_init kept; seconds."""
+    w = _WORKER
+    return write_region(w["campaign"], w["fp"], w["store"], t_slice, p_slice, w["stars_path"], scene, faint_map)
+
+
+class _InProcess:
+    """An executor running each region at once in this process (one worker, no pool)."""
+
+    def __init__(self, campaign, fp, store, stars_path):
+        _pool_init(campaign, fp, store, stars_path)
+
+    def submit_region(self, t_slice: slice, p_slice: slice, scene, faint_map):
+        from concurrent.futures import Future
+
+        fut = Future()
+        try:
+            fut.set_result(_pool_region(t_slice, p_slice, scene, faint_map))
+        except BaseException as exc:  # noqa: BLE001 - handed to the caller by fut.result()
+            fut.set_exception(exc)
+        return fut
+
+
+def run_time_blocks(campaign: Campaign, fp: Footprint, store, blocks, done_dir, workers: int = 1,
+                    scheduler_address: str | None = None, log=None, stars_path=None) -> list[BlockReport]:
+    """Compute the time blocks ``blocks`` (indices) of the cube into ``store``, each marked done
+    by its sentinel in ``done_dir`` (:func:`block_sentinel`) once all its pixel blocks are
+    written; blocks already marked done are skipped (resume).  Regions run on ``workers``
+    processes started once for all the blocks (``straylight.util.daskutil.region_pool``: each builds
+    the model once), in this process when ``workers`` is 1, or on the Dask cluster at
+    ``scheduler_address`` when given (its workers keep the model between tasks and jobs).
+    ``log`` (a logging.Logger) gets one line per finished region.  Returns every requested
+    block's report (a skipped one's from its sentinel)."""
+    from concurrent.futures import FIRST_COMPLETED
+
+    from straylight.util.daskutil import region_pool
+    from straylight.util.io import write_json_atomic
+    from straylight.sky.observing import scene
+    from straylight.survey.timegrid import time_blocks
+
+    c = campaign.config["campaign"]
+    tb = time_blocks(len(campaign.times), float(c["cadence_s"]), float(c.get("time_block_hours", 6)))
+    blocks = [int(b) for b in blocks]
+    bad = [b for b in blocks if not 0 <= b < len(tb)]
+    if bad:
+        raise IndexError(f"time block {bad[0]} outside 0..{len(tb) - 1}")
+    store = str(Path(store).resolve())  # workers (other hosts, other cwd) need an absolute path
+    stars_path = str(Path(stars_path).resolve()) if stars_path else None
+    todo = [b for b in blocks if not block_sentinel(done_dir, b).exists()]
+    if log is not None and len(todo) < len(blocks):
+        log.info("%d of %d time blocks already done (sentinels in %s): skipped", len(blocks) - len(todo),
+                 len(blocks), done_dir)
+    p_blocks = [slice(a, b) for a, b in fp.blocks(int(campaign.config["footprint"].get("pixel_block_size", 1024)))]
+    faint = _stored_faint_map(store) if (stars_path is not None and todo) else None
+    if todo:
+        with region_pool(campaign, fp, store, stars_path, workers, scheduler_address) as (submit, wait):
+            # a bounded window of regions in flight: the next time block's scene is computed
+            # while the workers are busy, and memory does not grow with the campaign
+            window = 2 * max(1, int(workers)) + 1
+            pending: dict = {}
+            left = {b: len(p_blocks) for b in todo}
+            started: dict = {}
+
+            def finish(done):
+                for fut in done:
+                    b, ps, t_slice = pending.pop(fut)
+                    seconds = fut.result()
+                    if log is not None:
+                        log.info("chunk time %d:%d pixels %d:%d done in %.2f s", t_slice.start, t_slice.stop,
+                                 ps.start, ps.stop, seconds)
+                    left[b] -= 1
+                    if left[b] == 0:
+                        n = (t_slice.stop - t_slice.start) * fp.pixels.size
+                        rep = BlockReport(b, len(p_blocks), n, _time.perf_counter() - started[b])
+                        write_json_atomic(rep.__dict__, block_sentinel(done_dir, b))
+
+            for b in todo:
+                t_slice = slice(*tb[b])
+                # the satellite's and the bodies' positions once per time block, shared by its
+                # pixel blocks (~20 kB for 72 steps, sent with each region)
+                sc = scene(campaign, campaign.times[t_slice])
+                started[b] = _time.perf_counter()
+                for ps in p_blocks:
+                    while len(pending) >= window:
+                        finish(wait(list(pending), return_when=FIRST_COMPLETED)[0])
+                    fut = submit(t_slice, ps, sc, None if faint is None else faint[ps])
+                    pending[fut] = (b, ps, t_slice)
+            while pending:
+                finish(wait(list(pending), return_when=FIRST_COMPLETED)[0])
+    return [BlockReport(**json.loads(block_sentinel(done_dir, b).read_text())) for b in blocks]

@@ -1,0 +1,101 @@
+"""The survey footprint on a HEALPix grid (ICRS pixel centres) and its work plan."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import healpy as hp
+import numpy as np
+
+from straylight.errors import ConfigError, InputError
+
+
+@dataclass
+class Footprint:
+    """Pixels of the survey footprint.
+
+    ``pixels`` are HEALPix indices in ``ordering`` at ``nside``; ``ra_deg``/``dec_deg`` their
+    ICRS centres.
+    """
+
+    nside: int
+    ordering: str
+    pixels: np.ndarray
+    ra_deg: np.ndarray
+    dec_deg: np.ndarray
+
+    @property
+    def nest(self) -> bool:
+        return self.ordering == "nested"
+
+    @property
+    def area_deg2(self) -> float:
+        return float(self.pixels.size * hp.nside2pixarea(self.nside, degrees=True))
+
+    def blocks(self, block_size: int) -> list[tuple[int, int]]:
+        """(start, stop) index ranges into ``pixels`` of at most ``block_size`` pixels."""
+        n = self.pixels.size
+        return [(i, min(i + block_size, n)) for i in range(0, n, block_size)]
+
+
+def pixel_centres(nside: int, nest: bool, pixels=None) -> tuple[np.ndarray, np.ndarray]:
+    if pixels is None:
+        pixels = np.arange(hp.nside2npix(nside))
+    ra, dec = hp.pix2ang(nside, pixels, nest=nest, lonlat=True)
+    return ra, dec
+
+
+def latitude_cut_mask(nside: int, nest: bool, galactic_min_deg: float, ecliptic_min_deg: float) -> np.ndarray:
+    """Boolean map: |b| >= galactic_min_deg and |ecliptic latitude| >= ecliptic_min_deg.
+
+    Galactic latitude from astropy's Galactic frame; ecliptic latitude from the mean ecliptic
+    and equinox of J2000 (``BarycentricMeanEcliptic``; the geocentric and barycentric
+    directions of a star are the same).
+    """
+    import astropy.units as u
+    from astropy.coordinates import BarycentricMeanEcliptic, SkyCoord
+
+    ra, dec = pixel_centres(nside, nest)
+    c = SkyCoord(ra * u.deg, dec * u.deg, frame="icrs")
+    b = c.galactic.b.deg
+    beta = c.transform_to(BarycentricMeanEcliptic()).lat.deg
+    return (np.abs(b) >= galactic_min_deg) & (np.abs(beta) >= ecliptic_min_deg)
+
+
+def read_mask(path: str | Path, nside: int, nest: bool) -> np.ndarray:
+    """A user's HEALPix FITS mask, resampled to ``nside``/ordering; non-zero = in footprint."""
+    path = Path(path)
+    if not path.exists():
+        raise InputError(f"footprint.mask_file: {path} does not exist")
+    try:
+        m = hp.read_map(str(path), nest=nest, dtype=np.float64)
+    except Exception as exc:
+        raise InputError(f"footprint.mask_file: {path} is not a HEALPix FITS map ({exc})") from exc
+    if not np.all(np.isfinite(m) | (m == hp.UNSEEN)):
+        raise InputError(f"footprint.mask_file: {path} holds non-finite values")
+    m = np.where(m == hp.UNSEEN, 0.0, m)
+    if hp.get_nside(m) != nside:
+        m = hp.ud_grade(m, nside, order_in="NESTED" if nest else "RING", order_out="NESTED" if nest else "RING")
+    return m > 0.5
+
+
+def footprint_from_config(fp_cfg: dict, config_dir: Path | None = None) -> Footprint:
+    nside = int(fp_cfg["nside"])
+    ordering = fp_cfg.get("ordering", "ring")
+    nest = ordering == "nested"
+    mask_file = fp_cfg.get("mask_file")
+    if mask_file:
+        p = Path(mask_file)
+        if not p.is_absolute() and config_dir is not None:
+            p = config_dir / p
+        mask = read_mask(p, nside, nest)
+    else:
+        mask = latitude_cut_mask(
+            nside, nest, float(fp_cfg.get("galactic_latitude_min_deg", 20.0)),
+            float(fp_cfg.get("ecliptic_latitude_min_deg", 18.0)),
+        )
+    pixels = np.flatnonzero(mask)
+    if pixels.size == 0:
+        raise ConfigError("footprint: the cuts or mask leave no pixel in the footprint")
+    ra, dec = pixel_centres(nside, nest, pixels)
+    return Footprint(nside=nside, ordering=ordering, pixels=pixels, ra_deg=ra, dec_deg=dec)

@@ -1,0 +1,175 @@
+"""Per-pointing background table for a list of planned pointings and times (issue #8).
+
+``straylight sky --input pointings.csv --out table.parquet``: each row of the input (columns
+``time`` (UTC ISO 8601), ``ra`` and ``dec`` (ICRS deg); ``ra_deg``/``dec_deg``/``utc`` accepted) gets
+its geometry, observability, every background component per band in e-/s/pixel, the total in
+AB mag/arcsec2 and the 5-sigma point-source limit for the band's survey exposures;
+``planet_in_field`` names the brightest Sun, Moon or planet inside the field ("" if none) and
+``planet_in_field_v_mag`` its V magnitude: such a body is a point source (imaged like a star),
+not part of the background components.  Samples are
+evaluated vectorised in batches (same code path as the cube), so thousands of rows take seconds.
+A bad row stops the run with the file, row, field and value; nothing is written.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from straylight.errors import InputError
+
+COMPONENTS = ("zodiacal", "earthshine", "moon", "sun", "planets", "stars", "total")
+ALIASES = {"time": ("time", "utc", "time_utc"), "ra": ("ra", "ra_deg"), "dec": ("dec", "dec_deg")}
+
+
+def read_pointings(path) -> dict:
+    from astropy.table import Table
+
+    path = Path(path)
+    if not path.exists():
+        raise InputError(f"{path}: pointing table does not exist")
+    fmt = {".csv": "ascii.csv", ".ecsv": "ascii.ecsv", ".parquet": "parquet", ".fits": "fits"}.get(path.suffix.lower())
+    if fmt is None:
+        raise InputError(f"{path}: unknown format; expected .csv, .ecsv, .parquet or .fits")
+    try:
+        t = Table.read(path, format=fmt)
+    except Exception as exc:
+        raise InputError(f"{path}: cannot read ({type(exc).__name__}: {exc})") from exc
+    if len(t) == 0:
+        raise InputError(f"{path}: no rows")
+    cols = {c.lower(): c for c in t.colnames}
+    out = {}
+    for key, names in ALIASES.items():
+        found = next((cols[n] for n in names if n in cols), None)
+        if found is None:
+            raise InputError(f"{path}: missing column {key!r} (accepted: {', '.join(names)}); found {', '.join(t.colnames)}")
+        out[key] = np.asarray(np.ma.filled(t[found], np.nan) if key != "time" else t[found])
+    out["ra"], out["dec"] = check_radec(out["ra"], out["dec"], lambda i: f"{path}: row {i + 1}: ")
+    return out
+
+
+def check_radec(ra, dec, where=lambda i: "", names=("ra", "dec")) -> tuple[np.ndarray, np.ndarray]:
+    """The rule every pointing obeys (table rows and the command line alike): RA and Dec are
+    numbers, finite, Dec within [-90, 90] deg, RA within [-360, 360] deg (a wrap is fine, 1e308
+    is a mistake).  Returns (RA wrapped to [0, 360), Dec) in deg as float arrays.
+
+    ``where(i)`` prefixes the message for element ``i`` (e.g. the file and row); ``names`` are
+    the field names used in messages (e.g. ``("--ra", "--dec")``).
+    """
+    vals = {}
+    for key, name, v in (("ra", names[0], ra), ("dec", names[1], dec)):
+        v = np.atleast_1d(np.asarray(v, dtype=object) if not isinstance(v, np.ndarray) else v)
+        try:
+            arr = v.astype(float)
+        except (TypeError, ValueError):
+            bad = next(i for i, x in enumerate(v) if not _is_number(x))
+            raise InputError(f"{where(bad)}{name} = {str(v[bad])!r} is not a number") from None
+        bad = np.flatnonzero(~np.isfinite(arr))
+        if bad.size:
+            raise InputError(f"{where(bad[0])}{name} = {arr[bad[0]]} is not finite")
+        vals[key] = arr
+    bad = np.flatnonzero(np.abs(vals["dec"]) > 90.0)
+    if bad.size:
+        raise InputError(f"{where(bad[0])}{names[1]} = {vals['dec'][bad[0]]} outside [-90, 90] deg")
+    bad = np.flatnonzero(np.abs(vals["ra"]) > 360.0)
+    if bad.size:
+        raise InputError(f"{where(bad[0])}{names[0]} = {vals['ra'][bad[0]]} outside [-360, 360] deg")
+    return vals["ra"] % 360.0, vals["dec"]
+
+
+def _is_number(v) -> bool:
+    try:
+        float(v)
+        return True
+    except (TypeError, ValueError):
+        return False
+
+
+def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int = 256, source="",
+                   models: dict | None = None) -> dict:
+    """Columns of the per-pointing background table (see the module docstring); ``models``, if
+    given, receives the record of which models ran and their error budget."""
+    from straylight.components import ComponentModel
+    from straylight.sky.ephemeris import default_ephemeris
+    from straylight.sky.geometry import radec_to_unit
+    from straylight.survey.limits import point_source_limit
+    from straylight.sky.observing import sample_geometry, scene
+    from straylight.sky.timeutil import parse_utc
+
+    from astropy.time import Time
+
+    bands = list(bands or campaign.bands)
+    if isinstance(pointings["time"], Time):  # the Python API's times: already parsed
+        t_all = parse_utc(pointings["time"], f"{source}: time").reshape(-1)
+        iso = list(t_all.isot)
+    else:
+        iso = [str(v) for v in pointings["time"]]
+        try:
+            t_all = parse_utc(iso, f"{source}: time")
+        except InputError:  # find the first bad row to name it (one parse per row only on failure)
+            for i, v in enumerate(iso):
+                parse_utc(v, f"{source} row {i + 1}: time")
+            raise
+    n_rows = len(iso)
+    eph = default_ephemeris()
+    jd = t_all.tdb.jd
+    out_of_range = np.flatnonzero((jd < eph.jd_start) | (jd > eph.jd_end))
+    if out_of_range.size:
+        i = int(out_of_range[0])
+        raise InputError(f"{source} row {i + 1}: time = {iso[i]} is outside the DE405 range (1600-12-21 to "
+                         f"2200-02-02); {out_of_range.size} of {len(iso)} rows are out of range")
+    model = ComponentModel(campaign, expected_samples=n_rows)
+    if models is not None:
+        models.update(model.models_record())
+    n = len(t_all)
+    cols: dict = {"time": np.asarray(t_all.isot, dtype=object), "ra_deg": pointings["ra"],
+                  "dec_deg": pointings["dec"]}
+    geo_keys = ("observable", "violations", "sun_angle_deg", "moon_angle_deg", "moon_illuminated_fraction",
+                "earth_limb_angle_deg", "limb_is_bright", "door_opening_deg")
+    acc = {k: [] for k in geo_keys + ("planet_in_field", "planet_in_field_v_mag")}
+    acc.update({f"{c}_{b}": [] for b in bands for c in COMPONENTS})
+    acc.update({f"total_mag_per_arcsec2_{b}": [] for b in bands})
+    for a in range(0, n, batch):
+        sl = slice(a, min(a + batch, n))
+        sc = scene(campaign, t_all[sl])
+        g = sample_geometry(campaign, sc, pointings["ra"][sl], pointings["dec"][sl], grid=False)
+        los = radec_to_unit(pointings["ra"][sl], pointings["dec"][sl])
+        res = model.evaluate(sc.satellite_km, sc.bodies_km, np.atleast_2d(los), g, bands, stars)
+        for k in geo_keys:
+            acc[k].append(np.asarray(g[k]))
+        # the brightest Sun, Moon or planet inside the field (a point source, not in the background)
+        bodies = model.in_field_point_sources(sc.satellite_km, sc.bodies_km, np.atleast_2d(los), g, [])
+        v_in = np.stack([np.where(v["in_field"], v["v_mag"], np.inf) for v in bodies.values()])
+        brightest = np.argmin(v_in, axis=0)
+        names = np.array(list(bodies), dtype=object)
+        found = np.isfinite(np.min(v_in, axis=0))
+        acc["planet_in_field"].append(np.where(found, names[brightest], ""))
+        acc["planet_in_field_v_mag"].append(np.where(found, np.min(v_in, axis=0), np.nan))
+        for b in bands:
+            for c in COMPONENTS:
+                acc[f"{c}_{b}"].append(np.asarray(res[b][c], float))
+            acc[f"total_mag_per_arcsec2_{b}"].append(np.asarray(res[b]["_mag"](res[b]["total"]), float))
+    for k, v in acc.items():
+        cols[k] = np.concatenate(v)
+    for b in bands:
+        if b != "V":
+            cols[f"limit_mag_{b}"] = point_source_limit(cols[f"total_{b}"], b, campaign)
+    return cols
+
+
+UNITS = {"ra_deg": "deg", "dec_deg": "deg", "sun_angle_deg": "deg", "moon_angle_deg": "deg",
+         "earth_limb_angle_deg": "deg", "door_opening_deg": "deg", "planet_in_field_v_mag": "mag(Vega V)"}
+
+
+def column_units(cols) -> dict:
+    """Units of the pointing table's columns (Parquet field metadata ``unit``)."""
+    out = dict(UNITS)
+    for k in cols:
+        if k.startswith("total_mag_per_arcsec2_"):
+            out[k] = "mag(AB) arcsec-2"
+        elif k.startswith("limit_mag_"):
+            out[k] = "mag(AB)"
+        elif k.rsplit("_", 1)[0] in COMPONENTS:
+            out[k] = "electron / (s pixel)"
+    out["moon_illuminated_fraction"] = "1"
+    return out

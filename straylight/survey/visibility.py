@@ -1,0 +1,133 @@
+"""A target's visibility over a time range (``straylight visibility``), for planners.
+
+For one ICRS pointing and one band: the background (e-/s/pixel and AB mag/arcsec2) and the
+5-sigma point-source limit sampled every ``step`` over ``[start, end)``, through the same
+vectorised per-pointing path as ``straylight sky --input`` and :func:`straylight.sky_background`;
+the observable windows (runs of observable samples; times resolved to ``step``); and per UTC
+day the observable time, the deepest limit, and the time the limit is deeper than a threshold.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from straylight.errors import InputError
+
+#: more samples than this are refused (a year at 1 min is 525,960): ask for a coarser --step
+MAX_SAMPLES = 600_000
+
+
+def visibility(campaign, ra_deg: float, dec_deg: float, band: str, start, end, step_s: float,
+               threshold_mag: float | None = None) -> dict:
+    """Samples, observable windows and daily summary of one pointing.
+
+    Parameters
+    ----------
+    campaign : straylight.config.Campaign (orbit, instrument, models)
+    ra_deg, dec_deg : ICRS pointing, deg (dec within [-90, 90])
+    band : one of the campaign's bands
+    start, end : UTC times (ISO 8601 or Time); ``end`` exclusive
+    step_s : sampling step, s (> 0); window edges are known to this resolution
+    threshold_mag : AB mag; days list the observable time with a limit at least this deep
+
+    Returns
+    -------
+    dict of astropy QTables: ``samples`` (time, observable, violations, total_e_per_s_per_pix,
+    total_mag_per_arcsec2 (AB), limit_mag (5-sigma, AB)), ``windows`` (start, end, duration_h)
+    and ``days`` (date, observable_hours, limit_mag_best, hours_deeper_than_threshold).
+
+    Raises
+    ------
+    InputError
+        Unparsable or reversed times, a non-positive step, too many samples, an unknown band.
+    """
+    import astropy.units as u
+    from astropy.table import QTable
+    from astropy.time import Time
+
+    from straylight.api import background_table
+    from straylight.sky.timeutil import parse_utc
+
+    if band not in campaign.bands:
+        raise InputError(f"--band: {band!r} is not one of {', '.join(campaign.bands)}")
+    t0, t1 = parse_utc(start, "--start"), parse_utc(end, "--end")
+    if not t1 > t0:
+        raise InputError(f"--end {t1.isot} must be after --start {t0.isot}")
+    if not (np.isfinite(step_s) and step_s > 0):
+        raise InputError(f"--step-min: must be > 0, got {step_s / 60.0}")
+    n = int(np.ceil((t1 - t0).to_value(u.s) / step_s - 1e-9))
+    if n > MAX_SAMPLES:
+        raise InputError(f"--start/--end/--step-min: {n:,} samples, more than {MAX_SAMPLES:,}; use a larger --step-min")
+    t = t0 + np.arange(n) * step_s * u.s
+    sky = background_table(campaign, t, np.full(n, ra_deg), np.full(n, dec_deg), [band], source="visibility")
+    samples = QTable({"time": sky["time"], "observable": sky["observable"], "violations": sky["violations"],
+                      "total_e_per_s_per_pix": sky[f"total_{band}"],
+                      "total_mag_per_arcsec2": sky[f"total_mag_{band}"], "limit_mag": sky[f"limit_mag_{band}"]},
+                     meta={"ra_deg": float(ra_deg), "dec_deg": float(dec_deg), "band": band, "step_s": float(step_s),
+                           "mag_zero_point": sky.meta["mag_zero_point"][band]})
+    obs = np.asarray(samples["observable"], bool)
+    # runs of observable samples: each sample stands for [t, t + step)
+    edges = np.diff(np.concatenate([[0], obs.astype(np.int8), [0]]))
+    first, last = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    w_start = t[first] if first.size else Time([], format="isot", scale="utc")
+    w_end = t0 + last * step_s * u.s if last.size else Time([], format="isot", scale="utc")
+    windows = QTable({"start": Time(w_start, format="isot", precision=0),
+                      "end": Time(w_end, format="isot", precision=0),
+                      "duration_h": ((last - first) * step_s / 3600.0) * u.h})
+    windows["duration_h"].info.format = ".2f"
+    day = np.array([s[:10] for s in t.isot])
+    days_u, idx = np.unique(day, return_inverse=True)
+    lim = np.asarray(samples["limit_mag"].value, float)
+    step_h = step_s / 3600.0
+    best = np.full(days_u.size, np.nan)
+    obs_h = np.bincount(idx, weights=obs, minlength=days_u.size) * step_h
+    for k in np.unique(idx[obs]):
+        best[k] = lim[obs & (idx == k)].max()
+    days = QTable({"date": days_u, "observable_hours": obs_h * u.h, "limit_mag_best": best * u.mag})
+    days["observable_hours"].info.format = ".2f"
+    days["limit_mag_best"].info.format = ".3f"
+    if threshold_mag is not None:
+        deep = obs & (lim >= threshold_mag)
+        days["hours_deeper_than_threshold"] = np.bincount(idx, weights=deep, minlength=days_u.size) * step_h * u.h
+        days["hours_deeper_than_threshold"].info.format = ".2f"
+        days.meta["threshold_mag"] = float(threshold_mag)
+    return {"samples": samples, "windows": windows, "days": days}
+
+
+def plot_visibility(result: dict, path, threshold_mag: float | None = None) -> None:
+    """Background (AB mag/arcsec2) and 5-sigma limit (AB mag) against time, observable samples
+    in colour, the others grey, the windows shaded, the threshold dashed."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from straylight.util.io import atomic_path
+
+    s = result["samples"]
+    t = s["time"].datetime64
+    obs = np.asarray(s["observable"], bool)
+    fig, (ax1, ax2) = plt.subplots(2, 1, sharex=True, figsize=(9, 5.5), constrained_layout=True)
+    for ax, col, label in ((ax1, "total_mag_per_arcsec2", "sky + stray light (AB mag/arcsec$^2$)"),
+                           (ax2, "limit_mag", "5-sigma limit (AB mag)")):
+        y = np.asarray(s[col].value, float)
+        ax.plot(t[~obs], y[~obs], ".", ms=2, color="0.7", label="not observable")
+        ax.plot(t[obs], y[obs], ".", ms=2, color="C0", label="observable")
+        for w in result["windows"]:
+            ax.axvspan(w["start"].datetime64, w["end"].datetime64, color="C2", alpha=0.12, lw=0)
+        if obs.any():  # the observable samples set the range; Earth-occulted ones are far off it
+            lo, hi = np.nanmin(y[obs]), np.nanmax(y[obs])
+            pad = max(0.25, 0.15 * (hi - lo))
+            ax.set_ylim(lo - pad, hi + pad)
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    if threshold_mag is not None:
+        ax2.axhline(threshold_mag, ls="--", color="C3", label=f"threshold {threshold_mag:.2f} mag")
+    ax2.legend(loc="lower right", fontsize=8, markerscale=4)
+    ax2.set_xlabel("time (UTC)")
+    m = s.meta
+    ax1.set_title(f"RA {m['ra_deg']:.3f} deg, Dec {m['dec_deg']:+.3f} deg, band {m['band']} "
+                  f"(step {m['step_s'] / 60:.3g} min; shaded: observable windows)", fontsize=10)
+    fig.autofmt_xdate()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=110, format=str(path).rsplit(".", 1)[-1])
+    plt.close(fig)

@@ -1,0 +1,97 @@
+"""Writing products safely: a product appears complete or not at all.
+
+Every writer goes to a temporary sibling path and is renamed into place, so a crash (or a full
+disk) never leaves a half-written product under the final name, and a re-run simply redoes it.
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+from contextlib import contextmanager
+from pathlib import Path
+
+
+def check_output_path(path, flag: str = "--out", overwrite: bool = False, parents: bool = False,
+                      folder: bool = False) -> Path:
+    """Check, before any work, that ``path`` can be written; return it as a Path.
+
+    The parent folder must exist (created when ``parents``), be a folder and accept a new file
+    (probed by creating and removing a temporary file, so read-only file systems and missing
+    permissions are caught whoever runs); an existing file is refused unless ``overwrite``.
+    ``folder``: ``path`` is an output folder, created here when its parent exists (or with
+    ``parents``); an existing one's files are replaced only with ``overwrite``.  Raises :class:`~straylight.errors.InputError` naming ``flag`` and the path.
+    """
+    from straylight.errors import InputError
+
+    p = Path(path)
+    if folder:
+        if p.exists() and not p.is_dir():
+            raise InputError(f"{flag} {p}: exists and is not a folder")
+        if p.is_dir() and any(p.iterdir()) and not overwrite:
+            raise InputError(f"{flag} {p}: folder exists and is not empty; pass --overwrite to replace its files")
+        target = p
+    else:
+        if p.is_dir():
+            raise InputError(f"{flag} {p}: is a folder, expected a file name")
+        if (p.exists() or p.is_symlink()) and not overwrite:
+            raise InputError(f"{flag} {p}: file exists; pass --overwrite to replace it")
+        target = p.parent
+    if not target.exists():
+        if folder and target.parent.is_dir():
+            parents = True  # the output folder itself: made like a file would be
+        if not parents:
+            raise InputError(f"{flag} {p}: folder {target} does not exist; create it or pass --parents")
+        try:
+            target.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise InputError(f"{flag} {p}: cannot create folder {target}: {exc.strerror or exc}") from None
+    if not target.is_dir():
+        raise InputError(f"{flag} {p}: {target} is not a folder")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".straylight-write-check.", dir=target)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise InputError(f"{flag} {p}: cannot write in {target}: {exc.strerror or exc}") from None
+    return p
+
+
+@contextmanager
+def atomic_path(final: str | os.PathLike):
+    """Yield a temporary path next to ``final``; on success move it into place."""
+    final = Path(final)
+    final.parent.mkdir(parents=True, exist_ok=True)
+    # temporaries of an earlier writer killed with SIGKILL (its `finally` never ran)
+    for stale in final.parent.glob(f".{final.name}.*"):
+        shutil.rmtree(stale, ignore_errors=True)
+    tmpdir = Path(tempfile.mkdtemp(prefix=f".{final.name}.", dir=final.parent))
+    tmp = tmpdir / final.name
+    try:
+        yield tmp
+        if final.is_dir() and not final.is_symlink():
+            shutil.rmtree(final)
+        elif final.exists():
+            final.unlink()
+        os.replace(tmp, final)
+    finally:
+        shutil.rmtree(tmpdir, ignore_errors=True)
+
+
+def write_zarr_atomic(dataset, path: str | os.PathLike, storage: dict | None = None) -> None:
+    """Write an xarray Dataset to a Zarr store at ``path`` atomically (consolidated metadata);
+    with ``storage`` (a campaign's storage section) through the products' codecs
+    (:func:`straylight.survey.storage.encoded`), else xarray's default (lossless) ones."""
+    encoding = None
+    if storage is not None:
+        from straylight.survey.storage import encoded
+
+        dataset, encoding = encoded(dataset, storage)
+    with atomic_path(path) as tmp:
+        dataset.to_zarr(tmp, mode="w", consolidated=True, encoding=encoding)
+
+
+def write_json_atomic(obj, path: str | os.PathLike) -> None:
+    with atomic_path(path) as tmp:
+        tmp.write_text(json.dumps(obj, indent=2, sort_keys=False) + "\n", encoding="utf-8")
