@@ -60,7 +60,7 @@ def bright_limb_table(model: ComponentModel, fraction: float = 0.1, sun_zenith_s
     within 90 deg of the limb, NaN where no line of sight clears the Sun avoidance angle.  Sun
     zenith angles every ``sun_zenith_step_deg`` up to 90 deg, then every ``terminator_step_deg``
     until the visible cap is dark (the limb's zenith angle, ~110 deg at 400 km), where the
-    answer changes fastest: on the default instrument from inf at 99 deg to 0 at 107."""
+    answer changes fastest."""
     from straylight.sources.earthshine_lut import _sun_coefficients_direct
 
     c: Campaign = model.campaign
