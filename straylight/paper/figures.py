@@ -258,7 +258,7 @@ def detector_catalog(campaign: Campaign, catalog_path=None) -> tuple[dict, float
     given (its brightest NUV star is centred), else the Hipparcos catalog in the CSST bands
     (:func:`straylight.catalog.build.catalog_for_campaign`) centred on delta Leo."""
     if catalog_path is not None:
-        from straylight.image.detector import read_star_table
+        from straylight.catalog.star_table import read_star_table
 
         ra, dec, mag = read_star_table(catalog_path, "NUV")
         k = int(np.argmin(mag))

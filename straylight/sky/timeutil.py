@@ -12,10 +12,10 @@ import re
 import warnings
 
 import numpy as np
-from astropy.time import Time
+from astropy.time import Time, TimeDelta
 from astropy.utils import iers
 
-from straylight.errors import InputError
+from straylight.errors import ConfigError, InputError
 
 _CONFIGURED = False
 
@@ -140,3 +140,14 @@ def utc_to_tdb_jd(times, field: str = "time") -> tuple[np.ndarray, np.ndarray]:
     jd1 = np.asarray(tt.jd1, dtype=float)
     jd2 = np.asarray(tt.jd2, dtype=float)
     return jd1, jd2 + tdb_minus_tt_s(jd1, jd2) / 86400.0
+
+
+def campaign_times(start, end, cadence_s: float) -> Time:
+    """UTC times start, start + cadence, ... strictly before end."""
+    t0 = parse_utc(start, "campaign.start")
+    t1 = parse_utc(end, "campaign.end")
+    span_s = float((t1 - t0).to_value("s"))
+    if span_s <= 0:
+        raise ConfigError(f"campaign.end {t1.isot} must be after campaign.start {t0.isot}")
+    n = int(np.ceil(span_s / cadence_s - 1e-9))
+    return t0 + TimeDelta(np.arange(n) * cadence_s, format="sec")

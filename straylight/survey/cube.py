@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import json
 import time as _time
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 from pathlib import Path
@@ -618,19 +619,65 @@ class _InProcess:
         return fut
 
 
+@contextmanager
+def region_pool(campaign, fp, store: str, stars_path, workers: int, scheduler_address: str | None = None):
+    """Yield ``(submit, wait)`` for the cube's regions: ``submit(t_slice, p_slice, scene,
+    faint_map)`` returns a future of the region's seconds (:func:`write_region`),
+    ``wait`` is the matching ``wait(futures, return_when=...)``.
+
+    * ``scheduler_address``: the regions run on that Dask cluster (campaign and footprint sent
+      to every worker once); its workers keep the model between regions, time blocks and jobs.
+    * else ``workers`` > 1: a pool of that many spawned processes (:func:`worker_environment`),
+      each building the model once, at its start, for all the regions it computes.
+    * else: in this process, one region after the other.
+    """
+    from concurrent.futures import ProcessPoolExecutor
+    from concurrent.futures import wait as wait_local
+    from multiprocessing import get_context
+
+    from straylight.util.daskutil import temporary_environment, worker_environment
+
+    if scheduler_address:
+        from distributed import Client
+        from distributed import wait as wait_dask
+
+        with Client(scheduler_address, timeout="30s") as client:
+            c_fut, fp_fut = client.scatter([campaign, fp], broadcast=True)
+
+            def submit(t_slice, p_slice, scene, faint_map):
+                return client.submit(write_region, c_fut, fp_fut, store, t_slice, p_slice, stars_path, scene,
+                                     faint_map, pure=False)
+
+            yield submit, wait_dask
+        return
+    if int(workers) <= 1:
+        yield _InProcess(campaign, fp, store, stars_path).submit_region, wait_local
+        return
+    with temporary_environment(worker_environment()), \
+            ProcessPoolExecutor(max_workers=int(workers), mp_context=get_context("spawn"),
+                                initializer=_pool_init, initargs=(campaign, fp, store, stars_path)) as pool:
+        def submit(t_slice, p_slice, scene, faint_map):
+            return pool.submit(_pool_region, t_slice, p_slice, scene, faint_map)
+
+        try:
+            yield submit, wait_local
+        except BaseException:
+            pool.shutdown(wait=True, cancel_futures=True)
+            raise
+
+
 def run_time_blocks(campaign: Campaign, fp: Footprint, store, blocks, done_dir, workers: int = 1,
                     scheduler_address: str | None = None, log=None, stars_path=None) -> list[BlockReport]:
     """Compute the time blocks ``blocks`` (indices) of the cube into ``store``, each marked done
     by its sentinel in ``done_dir`` (:func:`block_sentinel`) once all its pixel blocks are
     written; blocks already marked done are skipped (resume).  Regions run on ``workers``
-    processes started once for all the blocks (``straylight.util.daskutil.region_pool``: each builds
+    processes started once for all the blocks (:func:`region_pool`: each builds
     the model once), in this process when ``workers`` is 1, or on the Dask cluster at
     ``scheduler_address`` when given (its workers keep the model between tasks and jobs).
     ``log`` (a logging.Logger) gets one line per finished region.  Returns every requested
     block's report (a skipped one's from its sentinel)."""
     from concurrent.futures import FIRST_COMPLETED
 
-    from straylight.util.daskutil import region_pool
     from straylight.util.io import write_json_atomic
     from straylight.sky.observing import scene
     from straylight.survey.timegrid import time_blocks
