@@ -1,4 +1,6 @@
-"""Config validation: wrong keys, types and values are refused with key, value and what's allowed."""
+"""Config validation: wrong keys, types and values are refused with key, value and what's allowed.
+
+Reference numbers: the instrument's published values (the paper; Gong et al. 2019)."""
 import copy
 
 import pytest

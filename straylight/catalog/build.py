@@ -321,7 +321,7 @@ def catalog_for_campaign(campaign, gaia_stars: dict | None = None) -> tuple[dict
         population=population, library=library)
     metadata = {"straylight_version": __version__, "campaign": campaign.name,
                 # the file name and content digest, not the absolute path: the product's bytes must
-                # not depend on where the campaign runs (determinism check, tests/test_cube.py)
+                # not depend on where the campaign runs (determinism check, tests/survey/test_cube.py)
                 "config": campaign.path.name, "config_sha256": sha256_path(campaign.path),
                 "stars_settings": sc, "summary": summary,
                 "magnitude_systems": "mag_<band>: AB through the instrument's throughput; G, BP, RP: Gaia DR2 Vega",

@@ -13,7 +13,7 @@ pipeline's own models, with the numbers the paper states about it:
   the catalog's stars.
 
 The CSST-versus-HST earthshine figure of sect. 3.3 is ``straylight scenario``.
-Each ``*_data`` function returns the numbers (tested in tests/test_paper_figures.py); each
+Each ``*_data`` function returns the numbers (tested in tests/paper/test_paper_figures.py); each
 ``plot_*`` draws them.
 """
 from __future__ import annotations

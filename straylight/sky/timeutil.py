@@ -103,7 +103,7 @@ def _parse_iso_with_offsets(times) -> Time:
 #: Above this many times, TDB-TT is interpolated from a grid instead of the full series.
 DTDB_DIRECT_MAX = 4096
 #: Grid step of the interpolated TDB-TT, days (its shortest geocentric terms have periods of
-#: days; the spline error is measured in tests/test_timeutil.py).
+#: days; the spline error is measured in tests/sky/test_timeutil.py).
 DTDB_GRID_STEP_D = 0.25
 
 

@@ -344,7 +344,7 @@ def _lamp_bound_chunk(off, sat, lamp, los, earth_radius_km, batch):
 def _map(fn, tasks: list, workers: int) -> list:
     """fn(*task) for every task, in ``workers`` forked processes; serially with one worker or
     where fork is not available.  Each task's result does not depend on the split, so the table
-    is the same byte for byte whatever ``workers`` is (tests/test_earthshine_lut.py)."""
+    is the same byte for byte whatever ``workers`` is (tests/sources/test_earthshine_lut.py)."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 

@@ -451,7 +451,7 @@ def _evaluate_observable(model, campaign: Campaign, sc, los, faint, screen: dict
     the Moon (:func:`observing_geometry`), ``frame`` its telescope frame: the observable samples
     take their values (the background finds the planets' angles itself).  Each sample's values
     depend on that sample alone, so the observable ones come out as they do in a whole batch
-    (tests/test_earthshine_lut.py).  ``faint``: band -> per-pixel faint-star rates; ``runs``:
+    (tests/sources/test_earthshine_lut.py).  ``faint``: band -> per-pixel faint-star rates; ``runs``:
     the batch's scene runs (its steps)."""
     npix = los.shape[0]
     sel = np.flatnonzero(screen["observable"])

@@ -40,7 +40,7 @@ def provenance_record(campaign, inputs: dict, outputs: dict) -> dict:
     }
     rec["outputs_sha256"] = {k: sha256_path(v) for k, v in outputs.items()}
     # one digest for the whole campaign: two runs from the same config and inputs must agree
-    # (tests/test_cube.py compares it after ten kill -9 and resumes)
+    # (tests/survey/test_cube.py compares it after ten kill -9 and resumes)
     rec["outputs_digest_sha256"] = hashlib.sha256(
         "".join(f"{k}:{v}\n" for k, v in sorted(rec["outputs_sha256"].items())).encode()).hexdigest()
     return rec

@@ -1,4 +1,6 @@
-"""Orbit models: circular with J2, and TLE through SGP4."""
+"""Orbit models: circular with J2, and TLE through SGP4.
+
+Reference values: the sgp4 library for TLEs; the analytic J2 nodal rate (Vallado 2013, eq. 9-41)."""
 import numpy as np
 import pytest
 from astropy.time import Time, TimeDelta
