@@ -1,4 +1,4 @@
-"""The benchmark's error-checked adaptive time sampling (bench/run.py, issue #7): what it
+"""The benchmark's error-checked adaptive time sampling (bench/knobs/sampling.py, issue #7): what it
 computes and what it fills in, on series whose answer is known in closed form."""
 import sys
 from pathlib import Path
@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
-from run import adaptive_in_time  # noqa: E402
+from knobs.sampling import adaptive_in_time  # noqa: E402
 
 
 def _series(values):
