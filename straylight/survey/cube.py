@@ -186,17 +186,13 @@ def evaluated_samples(campaign: Campaign, fp: Footprint, max_times: int = 144, m
 #: table path evaluating every sample, and with models.unobservable_samples: skip the screen
 #: (the Sun's and the Moon's geometry, every sample) and each observable sample evaluated (they
 #: cost ~1.7x the average sample: more moonlit-Earth sums and star pairs); the direct earthshine
-#: sum adds components.LUT_SAVED_SECONDS_PER_SAMPLE per evaluated sample.  In the units of the
-#: machine those were measured on: bench/run.py on the default day (12 steps x 1320 pixels,
-#: best of three) measured, in two runs on a machine whose direct path ran x0.209 and x0.223 of
-#: that figure, 1.31 / 1.42 us, 0.29 / 0.30 us, 2.42 / 3.03 us: 6.3 / 6.4, 1.4 / 1.35, 11.6 /
-#: 13.6 us in these units (until this cycle's compiled geometry and table coordinates 8, 1.9
-#: and 14 us; until the star skip's shared budget 10, 1.2 and 20 us).  Since the per-band
-#: compiled pass and the compiled door states and skip radii (a later cycle, best of seven, on
-#: a machine whose direct path ran x0.263 and x0.265 of the figure): 1.26 / 1.26 us, 0.28 /
-#: 0.28 us, 2.58 / 2.86 us, i.e. 4.8, 1.05 and 9.8 / 10.8 us in these units (6.3, 1.4 and 12.5
-#: until then).  The bench prints them again as cube.plan_cost_model, and the four runs'
-#: predicted seconds against the measured ones, so a drift shows.
+#: sum adds components.LUT_SAVED_SECONDS_PER_SAMPLE per evaluated sample.  Seconds, in the units
+#: of the reference machine those figures are given for (:func:`machine_speed` scales them to
+#: another): ``bench/run.py --only cube`` on the default day (12 steps x 1320 pixels, best of
+#: seven), two runs on a machine whose direct path ran x0.263 and x0.265 of the reference, gave
+#: 1.26 / 1.26 us, 0.28 / 0.28 us and 2.58 / 2.86 us, i.e. 4.8, 1.05 and 9.8 / 10.8 us (mean
+#: 10.3) in these units.  The bench prints them again as cube.plan_cost_model, with the four
+#: runs' predicted seconds against the measured ones, so a drift shows.
 CUBE_TABLE_SECONDS_PER_SAMPLE = 4.8e-6
 CUBE_SCREEN_SECONDS_PER_SAMPLE = 1.05e-6
 CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE = 10.3e-6
@@ -263,9 +259,9 @@ def machine_speed(campaign: Campaign, fp: Footprint, n_times: int = 4, n_pixels:
     path's cost), best of ``repeats`` after a full-size warm-up, against
     :func:`cube_compute_seconds` for it.  Returns the samples, ``measured_seconds``,
     ``assumed_seconds`` and ``factor`` (measured / assumed: below 1 on a faster machine).  One
-    factor for every figure: on the development machine it read x0.24 with the compiled
-    look-ups (x0.39-0.42 before), the cube bench's four paths x0.21-0.33 against the same
-    figures, so it errs by -12 % to +40 % per path (README)."""
+    factor for every figure: on the development machine it reads x0.24 where the cube bench's
+    four paths read x0.21-0.33 against the same figures, so it errs by -12 % to +40 % per path
+    (README)."""
     from straylight.components import ComponentModel
     from straylight.config import campaign_from_dict, deep_merge
 
