@@ -108,7 +108,7 @@ def test_missing_config_file_is_clear(tmp_path):
 
 
 def test_tle_orbit_from_config(tmp_path):
-    from test_orbit import ISS_L1, ISS_L2
+    from conftest import ISS_L1, ISS_L2
 
     (tmp_path / "iss.tle").write_text(f"ISS\n{ISS_L1}\n{ISS_L2}\n")
     cfg = copy.deepcopy(BASE)
