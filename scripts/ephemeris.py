@@ -6,7 +6,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821 - injected by Snakemake
 from _common import campaign, setup_logging  # noqa: E402
 
-from straylight.util.io import write_zarr_atomic  # noqa: E402
+from straylight.survey.storage import write_zarr_atomic  # noqa: E402
 from straylight.survey.products import ephemeris_dataset  # noqa: E402
 
 log = setup_logging(snakemake)  # noqa: F821

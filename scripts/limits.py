@@ -8,7 +8,8 @@ from _common import campaign, setup_logging  # noqa: E402
 import numpy as np  # noqa: E402
 import xarray as xr  # noqa: E402
 
-from straylight.util.io import atomic_path, write_zarr_atomic  # noqa: E402
+from straylight.survey.storage import write_zarr_atomic  # noqa: E402
+from straylight.util.io import atomic_path  # noqa: E402
 from straylight.survey.limits import limits_dataset, write_limit_maps  # noqa: E402
 
 log = setup_logging(snakemake)  # noqa: F821

@@ -9,7 +9,7 @@ from _common import campaign, setup_logging  # noqa: E402
 import xarray as xr  # noqa: E402
 
 from straylight.survey.cube import cube_chunks  # noqa: E402
-from straylight.util.io import write_zarr_atomic  # noqa: E402
+from straylight.survey.storage import write_zarr_atomic  # noqa: E402
 from straylight.survey.products import footprint_products, observability_dataset  # noqa: E402
 
 log = setup_logging(snakemake)  # noqa: F821

@@ -9,6 +9,7 @@ Public API (small on purpose):
 * :class:`DE405` - the JPL DE405 ephemeris, vectorised over times.
 * :func:`scene`, :func:`sample_geometry` - positions and the observing geometry of samples.
 """
+from straylight._version import __version__
 from straylight.api import CampaignProducts, open_campaign, sky_background
 from straylight.config import Campaign, load_campaign
 from straylight.sky.ephemeris import BODIES, DE405
@@ -18,7 +19,6 @@ from straylight.sky.timeutil import configure_offline
 
 configure_offline()
 
-__version__ = "0.1.0"
 __all__ = [
     "BODIES", "DE405", "Campaign", "CampaignProducts", "ConfigError", "EphemerisRangeError", "InputError",
     "StraylightError", "load_campaign", "open_campaign", "sample_geometry", "scene",

@@ -281,9 +281,9 @@ def cmd_image(args) -> int:
     from straylight.optics.bandpass import load_band
     from straylight.config import load_campaign
     from straylight.optics.ghosts import ghost_model_from_instrument
+    from straylight.catalog.star_table import read_star_table
     from straylight.image.detector import (RenderSettings, bodies_as_stars, boresight_for_target, focal_plane_from_instrument,
-                        read_star_table, render_detector, select_stars, star_fluxes_e_per_s, sun_direction_at,
-                        write_fits)
+                        render_detector, select_stars, star_fluxes_e_per_s, sun_direction_at, write_fits)
     from straylight.optics.scatter import scatter_model_from_instrument
     from straylight.sky.timeutil import parse_utc
 

@@ -1094,7 +1094,7 @@ def load_offfield_stars(path, bands, mag_limit: float, faint_map: bool = False) 
     """Catalog stars (``stars_csst.parquet`` or any table with ra, dec, mag_<band>), split by
     :func:`split_stars`.  Positions are taken at the catalog epoch: proper motions move bright
     stars by < 1 arcmin in a century, far below the PST's angular structure."""
-    from straylight.image.detector import read_star_columns
+    from straylight.catalog.star_table import read_star_columns
 
     bands = [b for b in bands if b != "V"]
     if not bands:

@@ -195,7 +195,7 @@ class Campaign:
     @cached_property
     def times(self):
         """The campaign's UTC sample times (astropy Time, 1-D)."""
-        from straylight.survey.timegrid import campaign_times
+        from straylight.sky.timeutil import campaign_times
 
         c = self.config["campaign"]
         return campaign_times(c["start"], c["end"], float(c["cadence_s"]))

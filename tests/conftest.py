@@ -10,6 +10,9 @@ REPO = Path(__file__).resolve().parents[1]
 # tests keep their earthshine look-up tables to themselves (subprocesses inherit this)
 os.environ["STRAYLIGHT_CACHE"] = tempfile.mkdtemp(prefix="straylight-test-cache-")
 SHARED_DATA = REPO.parent / "shared" / "data"
+# ISS TLE (public NORAD element set, 2008 example from the CelesTrak documentation)
+ISS_L1 = "1 25544U 98067A   08264.51782528 -.00002182  00000-0 -11606-4 0  2927"
+ISS_L2 = "2 25544  51.6416 247.4627 0006703 130.5360 325.0288 15.72125391563537"
 
 
 @pytest.fixture(scope="session")

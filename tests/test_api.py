@@ -1,5 +1,7 @@
 """The Python API (straylight.api): sky_background against `straylight sky`, broadcasting, bad
-input, open_campaign and the zero-point conversion, and the module's doctests."""
+input, open_campaign and the zero-point conversion, and the module's doctests.
+
+Reference values: `straylight sky` for the same samples (the CLI's own path) and astropy's units."""
 import doctest
 import json
 

@@ -1,4 +1,6 @@
-"""Config validation: wrong keys, types and values are refused with key, value and what's allowed."""
+"""Config validation: wrong keys, types and values are refused with key, value and what's allowed.
+
+Reference numbers: the instrument's published values (the paper; Gong et al. 2019)."""
 import copy
 
 import pytest
@@ -106,7 +108,7 @@ def test_missing_config_file_is_clear(tmp_path):
 
 
 def test_tle_orbit_from_config(tmp_path):
-    from test_orbit import ISS_L1, ISS_L2
+    from conftest import ISS_L1, ISS_L2
 
     (tmp_path / "iss.tle").write_text(f"ISS\n{ISS_L1}\n{ISS_L2}\n")
     cfg = copy.deepcopy(BASE)

@@ -1,4 +1,6 @@
-"""Report figures: colour ranges that show structure, rounded ticks, the depth table."""
+"""Report figures: colour ranges that show structure, rounded ticks, the depth table.
+
+Reference values: synthetic fields whose ranges and ticks are known."""
 import numpy as np
 import pytest
 import xarray as xr

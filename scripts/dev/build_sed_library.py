@@ -13,7 +13,7 @@ Johnson-Cousins B-I with margin, and writes one FITS file:
 - HDU 2 ``WAVELENGTH``: float64 bin centres in Angstrom;
 - HDU 3 ``TEMPLATES``: name (spectral type), luminosity class, source file.
 
-The resampling error on synthetic magnitudes is measured by tests/test_sed.py against the
+The resampling error on synthetic magnitudes is measured by tests/catalog/test_catalog.py against the
 original 5 A spectra when the shared Pickles mirror is present (< 1 mmag).
 
 Usage::

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# A real single-node SLURM on localhost, for testing the SLURM profile (tests/test_slurm.py).
+# A real single-node SLURM on localhost, for testing the SLURM profile (tests/workflow/test_slurm.py).
 #
 #   scripts/dev/slurm_local.sh start [DIR]   install slurm-wlm and munge if missing (apt-get, as root),
 #                                            write DIR/slurm.conf, start munged, slurmctld and slurmd,

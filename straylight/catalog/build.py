@@ -32,7 +32,7 @@ from scipy.spatial import cKDTree
 from straylight.errors import InputError
 from straylight.catalog.gaia import sdss_from_gaia
 from straylight.catalog.hipparcos import FLAG_VI_RELATION_EXTRAPOLATED
-from straylight.survey.provenance import sha256_path
+from straylight.util.io import sha256_path
 from straylight.catalog.sed import AB_MINUS_VEGA, TemplateLibrary, ab_magnitudes, load_pickles, template_magnitudes
 
 FLAG_SDSS = {"g": 1, "r": 2, "i": 4}
@@ -298,7 +298,7 @@ def write_catalog(columns: dict, path, metadata: dict) -> None:
 
 def catalog_for_campaign(campaign, gaia_stars: dict | None = None) -> tuple[dict, dict, dict]:
     """Catalog for a campaign's instrument and ``stars`` settings; returns (columns, summary, metadata)."""
-    from straylight import __version__
+    from straylight._version import __version__
     from straylight.optics.bandpass import load_band
 
     sc = campaign.config["stars"]
@@ -321,7 +321,7 @@ def catalog_for_campaign(campaign, gaia_stars: dict | None = None) -> tuple[dict
         population=population, library=library)
     metadata = {"straylight_version": __version__, "campaign": campaign.name,
                 # the file name and content digest, not the absolute path: the product's bytes must
-                # not depend on where the campaign runs (determinism check, tests/test_cube.py)
+                # not depend on where the campaign runs (determinism check, tests/survey/test_cube.py)
                 "config": campaign.path.name, "config_sha256": sha256_path(campaign.path),
                 "stars_settings": sc, "summary": summary,
                 "magnitude_systems": "mag_<band>: AB through the instrument's throughput; G, BP, RP: Gaia DR2 Vega",
@@ -335,12 +335,12 @@ def catalog_for_campaign(campaign, gaia_stars: dict | None = None) -> tuple[dict
 
 def default_catalog_path(campaign) -> Path:
     """The campaign's default catalog (Hipparcos, ``straylight catalog`` without ``--input``),
-    built once and kept in the table cache (:func:`straylight.sources.earthshine_lut.cache_dir`) under a
+    built once and kept in the table cache (:func:`straylight.util.io.cache_dir`) under a
     key of the star settings, the instrument and the code version; ~10 s to build."""
     import hashlib
 
-    from straylight import __version__
-    from straylight.sources.earthshine_lut import cache_dir
+    from straylight._version import __version__
+    from straylight.util.io import cache_dir
 
     settings = {k: v for k, v in campaign.config["stars"].items() if k != "gaia_files"}
     key = hashlib.sha256(json.dumps({"stars": settings, "instrument": campaign.instrument,

@@ -9,7 +9,7 @@ Transformations (each star records which ones held):
 1. Hp -> Johnson V from B - V (b):  V - Hp = -(0.304 b - 0.202 b^2 + 0.107 b^3 - 0.045 b^4),
    the Hipparcos-catalogue relation (ESA 1997, SP-1200 vol. 1, sect. 1.3).  Checked against the
    independent V - Hp table of Bessell (2000, PASP 112, 961, Table 2) to 0.015 mag over
-   -0.2 < B - V < 1.05 (tests/test_catalog.py); outside that range the polynomial diverges
+   -0.2 < B - V < 1.05 (tests/catalog/test_catalog.py); outside that range the polynomial diverges
    (B - V reaches 5.5 for carbon stars and Miras), so B - V is clamped to the verified range
    and the star is flagged.
 2. V, V - Ic -> G, BP, RP with the Johnson-Cousins relations of Riello et al. (2021, A&A 649, A3,

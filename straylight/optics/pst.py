@@ -50,7 +50,7 @@ DEFAULT_FIELD_RADIUS_DEG = float(np.sqrt(1.1 / np.pi))
 #    the paper's CSST-versus-HST conclusion (sect. 3.3): in the paper's scenario CSST's median
 #    earthshine falls to HST's at 20 deg from the bright limb (20.6 V mag/arcsec2, WFC3 IHB
 #    fig. 9.2) 70 deg from the bright limb; the Earth then fills theta 70-90 deg of the direct
-#    path, so this segment sets that crossing (straylight scenario; tests/test_offfield.py);
+#    path, so this segment sets that crossing (straylight scenario; tests/sources/test_offfield.py);
 #  - theta > 90 deg: behind the aperture plane, the door's Sp is 0 (door.py): these values are
 #    never used by the direct path; they keep falling (to 10^-12.2 at 180 deg) so that the PST's
 #    tail bounds (PST.tail_max, influence_radius_deg) stay tight.

@@ -13,7 +13,7 @@ pipeline's own models, with the numbers the paper states about it:
   the catalog's stars.
 
 The CSST-versus-HST earthshine figure of sect. 3.3 is ``straylight scenario``.
-Each ``*_data`` function returns the numbers (tested in tests/test_paper_figures.py); each
+Each ``*_data`` function returns the numbers (tested in tests/paper/test_paper_figures.py); each
 ``plot_*`` draws them.
 """
 from __future__ import annotations
@@ -258,7 +258,7 @@ def detector_catalog(campaign: Campaign, catalog_path=None) -> tuple[dict, float
     given (its brightest NUV star is centred), else the Hipparcos catalog in the CSST bands
     (:func:`straylight.catalog.build.catalog_for_campaign`) centred on delta Leo."""
     if catalog_path is not None:
-        from straylight.image.detector import read_star_table
+        from straylight.catalog.star_table import read_star_table
 
         ra, dec, mag = read_star_table(catalog_path, "NUV")
         k = int(np.argmin(mag))

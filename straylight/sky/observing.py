@@ -6,14 +6,17 @@ This is the Python API behind ``straylight sky`` and the pipeline's cubes.  Late
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from astropy.time import Time
 
-from straylight.config import Campaign
 from straylight.sky.ephemeris import BODIES, default_ephemeris
 from straylight.sky.geometry import observing_geometry, radec_to_unit
 from straylight.sky.timeutil import parse_utc, utc_to_tdb_jd
+
+if TYPE_CHECKING:  # the type only: config builds on sky
+    from straylight.config import Campaign
 
 
 @dataclass

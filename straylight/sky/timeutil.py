@@ -12,10 +12,10 @@ import re
 import warnings
 
 import numpy as np
-from astropy.time import Time
+from astropy.time import Time, TimeDelta
 from astropy.utils import iers
 
-from straylight.errors import InputError
+from straylight.errors import ConfigError, InputError
 
 _CONFIGURED = False
 
@@ -103,7 +103,7 @@ def _parse_iso_with_offsets(times) -> Time:
 #: Above this many times, TDB-TT is interpolated from a grid instead of the full series.
 DTDB_DIRECT_MAX = 4096
 #: Grid step of the interpolated TDB-TT, days (its shortest geocentric terms have periods of
-#: days; the spline error is measured in tests/test_timeutil.py).
+#: days; the spline error is measured in tests/sky/test_timeutil.py).
 DTDB_GRID_STEP_D = 0.25
 
 
@@ -140,3 +140,14 @@ def utc_to_tdb_jd(times, field: str = "time") -> tuple[np.ndarray, np.ndarray]:
     jd1 = np.asarray(tt.jd1, dtype=float)
     jd2 = np.asarray(tt.jd2, dtype=float)
     return jd1, jd2 + tdb_minus_tt_s(jd1, jd2) / 86400.0
+
+
+def campaign_times(start, end, cadence_s: float) -> Time:
+    """UTC times start, start + cadence, ... strictly before end."""
+    t0 = parse_utc(start, "campaign.start")
+    t1 = parse_utc(end, "campaign.end")
+    span_s = float((t1 - t0).to_value("s"))
+    if span_s <= 0:
+        raise ConfigError(f"campaign.end {t1.isot} must be after campaign.start {t0.isot}")
+    n = int(np.ceil(span_s / cadence_s - 1e-9))
+    return t0 + TimeDelta(np.arange(n) * cadence_s, format="sec")

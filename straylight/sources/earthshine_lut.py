@@ -42,6 +42,7 @@ from straylight.optics.door import door_state_index
 from straylight.errors import InputError
 from straylight.sky.geometry import _any_perpendicular_xyz, _unit_xyz, dot, norm, rows_at, scene_rows, telescope_frame, unit
 from straylight.util.gridinterp import LinearGrid
+from straylight.util.io import cache_dir
 from straylight.sources.offfield import MOON_APOGEE_KM, MOON_MEAN_DISTANCE_KM, MOON_PERIGEE_KM
 
 AU_KM = 1.495978707e8
@@ -343,7 +344,7 @@ def _lamp_bound_chunk(off, sat, lamp, los, earth_radius_km, batch):
 def _map(fn, tasks: list, workers: int) -> list:
     """fn(*task) for every task, in ``workers`` forked processes; serially with one worker or
     where fork is not available.  Each task's result does not depend on the split, so the table
-    is the same byte for byte whatever ``workers`` is (tests/test_earthshine_lut.py)."""
+    is the same byte for byte whatever ``workers`` is (tests/sources/test_earthshine_lut.py)."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
@@ -568,14 +569,6 @@ class EarthshineLUT:
         return cls(z["radius_km"], z["sun_zenith_deg"], z["los_zenith_deg"], z["azimuth_deg"], direct, door,
                    z["moon_direct_bound"], float(meta["moon_door_bound"]), bool(meta["symmetric"]),
                    float(meta["scale"]), float(meta["validation_max_rel_error"]), float(meta["build_seconds"]))
-
-
-def cache_dir() -> Path:
-    """Where tables are kept: $STRAYLIGHT_CACHE, else $XDG_CACHE_HOME/straylight, else
-    ~/.cache/straylight.  Tables are named by the digest of everything they depend on."""
-    if os.environ.get("STRAYLIGHT_CACHE"):
-        return Path(os.environ["STRAYLIGHT_CACHE"])
-    return Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "straylight"
 
 
 def load_or_build(off, earth_radius_km, radius_range_km, settings: LUTSettings, floor: float, log=None,

@@ -490,7 +490,7 @@ class OffFieldModel:
         satellite, Sun and Moon (a time step of a survey cube): the Earth cap is gridded once and
         its dark blocks (lit by neither lamp) are dropped before the per-line-of-sight work, which
         becomes matrix products.  Same sums as the general path, so the same values up to
-        rounding (tests/test_offfield.py)."""
+        rounding (tests/sources/test_offfield.py)."""
         s = s or self.earthshine
         d, d_omega, pts = self._cap_grid(sat, earth_radius_km, s)
         mu_sun, mu_moon = self.lamp_cosines(pts, sun, moon, earth_radius_km)

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import json
 import time as _time
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 from pathlib import Path
@@ -185,17 +186,13 @@ def evaluated_samples(campaign: Campaign, fp: Footprint, max_times: int = 144, m
 #: table path evaluating every sample, and with models.unobservable_samples: skip the screen
 #: (the Sun's and the Moon's geometry, every sample) and each observable sample evaluated (they
 #: cost ~1.7x the average sample: more moonlit-Earth sums and star pairs); the direct earthshine
-#: sum adds components.LUT_SAVED_SECONDS_PER_SAMPLE per evaluated sample.  In the units of the
-#: machine those were measured on: bench/run.py on the default day (12 steps x 1320 pixels,
-#: best of three) measured, in two runs on a machine whose direct path ran x0.209 and x0.223 of
-#: that figure, 1.31 / 1.42 us, 0.29 / 0.30 us, 2.42 / 3.03 us: 6.3 / 6.4, 1.4 / 1.35, 11.6 /
-#: 13.6 us in these units (until this cycle's compiled geometry and table coordinates 8, 1.9
-#: and 14 us; until the star skip's shared budget 10, 1.2 and 20 us).  Since the per-band
-#: compiled pass and the compiled door states and skip radii (a later cycle, best of seven, on
-#: a machine whose direct path ran x0.263 and x0.265 of the figure): 1.26 / 1.26 us, 0.28 /
-#: 0.28 us, 2.58 / 2.86 us, i.e. 4.8, 1.05 and 9.8 / 10.8 us in these units (6.3, 1.4 and 12.5
-#: until then).  The bench prints them again as cube.plan_cost_model, and the four runs'
-#: predicted seconds against the measured ones, so a drift shows.
+#: sum adds components.LUT_SAVED_SECONDS_PER_SAMPLE per evaluated sample.  Seconds, in the units
+#: of the reference machine those figures are given for (:func:`machine_speed` scales them to
+#: another): ``bench/run.py --only cube`` on the default day (12 steps x 1320 pixels, best of
+#: seven), two runs on a machine whose direct path ran x0.263 and x0.265 of the reference, gave
+#: 1.26 / 1.26 us, 0.28 / 0.28 us and 2.58 / 2.86 us, i.e. 4.8, 1.05 and 9.8 / 10.8 us (mean
+#: 10.3) in these units.  The bench prints them again as cube.plan_cost_model, with the four
+#: runs' predicted seconds against the measured ones, so a drift shows.
 CUBE_TABLE_SECONDS_PER_SAMPLE = 4.8e-6
 CUBE_SCREEN_SECONDS_PER_SAMPLE = 1.05e-6
 CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE = 10.3e-6
@@ -262,9 +259,9 @@ def machine_speed(campaign: Campaign, fp: Footprint, n_times: int = 4, n_pixels:
     path's cost), best of ``repeats`` after a full-size warm-up, against
     :func:`cube_compute_seconds` for it.  Returns the samples, ``measured_seconds``,
     ``assumed_seconds`` and ``factor`` (measured / assumed: below 1 on a faster machine).  One
-    factor for every figure: on the development machine it read x0.24 with the compiled
-    look-ups (x0.39-0.42 before), the cube bench's four paths x0.21-0.33 against the same
-    figures, so it errs by -12 % to +40 % per path (README)."""
+    factor for every figure: on the development machine it reads x0.24 where the cube bench's
+    four paths read x0.21-0.33 against the same figures, so it errs by -12 % to +40 % per path
+    (README)."""
     from straylight.components import ComponentModel
     from straylight.config import campaign_from_dict, deep_merge
 
@@ -450,7 +447,7 @@ def _evaluate_observable(model, campaign: Campaign, sc, los, faint, screen: dict
     the Moon (:func:`observing_geometry`), ``frame`` its telescope frame: the observable samples
     take their values (the background finds the planets' angles itself).  Each sample's values
     depend on that sample alone, so the observable ones come out as they do in a whole batch
-    (tests/test_earthshine_lut.py).  ``faint``: band -> per-pixel faint-star rates; ``runs``:
+    (tests/sources/test_earthshine_lut.py).  ``faint``: band -> per-pixel faint-star rates; ``runs``:
     the batch's scene runs (its steps)."""
     npix = los.shape[0]
     sel = np.flatnonzero(screen["observable"])
@@ -618,19 +615,65 @@ class _InProcess:
         return fut
 
 
+@contextmanager
+def region_pool(campaign, fp, store: str, stars_path, workers: int, scheduler_address: str | None = None):
+    """Yield ``(submit, wait)`` for the cube's regions: ``submit(t_slice, p_slice, scene,
+    faint_map)`` returns a future of the region's seconds (:func:`write_region`),
+    ``wait`` is the matching ``wait(futures, return_when=...)``.
+
+    * ``scheduler_address``: the regions run on that Dask cluster (campaign and footprint sent
+      to every worker once); its workers keep the model between regions, time blocks and jobs.
+    * else ``workers`` > 1: a pool of that many spawned processes (:func:`worker_environment`),
+      each building the model once, at its start, for all the regions it computes.
+    * else: in this process, one region after the other.
+    """
+    from concurrent.futures import ProcessPoolExecutor
+    from concurrent.futures import wait as wait_local
+    from multiprocessing import get_context
+
+    from straylight.util.daskutil import temporary_environment, worker_environment
+
+    if scheduler_address:
+        from distributed import Client
+        from distributed import wait as wait_dask
+
+        with Client(scheduler_address, timeout="30s") as client:
+            c_fut, fp_fut = client.scatter([campaign, fp], broadcast=True)
+
+            def submit(t_slice, p_slice, scene, faint_map):
+                return client.submit(write_region, c_fut, fp_fut, store, t_slice, p_slice, stars_path, scene,
+                                     faint_map, pure=False)
+
+            yield submit, wait_dask
+        return
+    if int(workers) <= 1:
+        yield _InProcess(campaign, fp, store, stars_path).submit_region, wait_local
+        return
+    with temporary_environment(worker_environment()), \
+            ProcessPoolExecutor(max_workers=int(workers), mp_context=get_context("spawn"),
+                                initializer=_pool_init, initargs=(campaign, fp, store, stars_path)) as pool:
+        def submit(t_slice, p_slice, scene, faint_map):
+            return pool.submit(_pool_region, t_slice, p_slice, scene, faint_map)
+
+        try:
+            yield submit, wait_local
+        except BaseException:
+            pool.shutdown(wait=True, cancel_futures=True)
+            raise
+
+
 def run_time_blocks(campaign: Campaign, fp: Footprint, store, blocks, done_dir, workers: int = 1,
                     scheduler_address: str | None = None, log=None, stars_path=None) -> list[BlockReport]:
     """Compute the time blocks ``blocks`` (indices) of the cube into ``store``, each marked done
     by its sentinel in ``done_dir`` (:func:`block_sentinel`) once all its pixel blocks are
     written; blocks already marked done are skipped (resume).  Regions run on ``workers``
-    processes started once for all the blocks (``straylight.util.daskutil.region_pool``: each builds
+    processes started once for all the blocks (:func:`region_pool`: each builds
     the model once), in this process when ``workers`` is 1, or on the Dask cluster at
     ``scheduler_address`` when given (its workers keep the model between tasks and jobs).
     ``log`` (a logging.Logger) gets one line per finished region.  Returns every requested
     block's report (a skipped one's from its sentinel)."""
     from concurrent.futures import FIRST_COMPLETED
 
-    from straylight.util.daskutil import region_pool
     from straylight.util.io import write_json_atomic
     from straylight.sky.observing import scene
     from straylight.survey.timegrid import time_blocks

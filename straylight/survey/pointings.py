@@ -173,3 +173,58 @@ def column_units(cols) -> dict:
             out[k] = "electron / (s pixel)"
     out["moon_illuminated_fraction"] = "1"
     return out
+
+
+def background_table(campaign, t, ra_deg, dec_deg, bands, stars=None, source=""):
+    """:func:`straylight.sky_background`'s table for a loaded campaign and 1-D UTC times ``t`` with ICRS
+    ``ra_deg``, ``dec_deg`` (deg) of the same length, already checked; ``stars`` as
+    :func:`straylight.components.load_offfield_stars` gives them (None: stars = 0)."""
+    from straylight.survey.limits import sky_zero_points
+
+    models: dict = {}
+    cols = pointing_table(campaign, {"time": t, "ra": np.asarray(ra_deg, float) % 360.0,
+                                     "dec": np.asarray(dec_deg, float)}, bands, stars, source=source, models=models)
+    return _qtable(cols, t, bands, sky_zero_points(campaign, bands), models)
+
+
+def _qtable(cols: dict, t, bands, zero_points: dict, models: dict):
+    """The pointing table's columns as a QTable with units (see :func:`straylight.sky_background`)."""
+    import astropy.units as u
+    from astropy.table import QTable
+    from astropy.time import Time
+
+    from straylight.sky.geometry import violation_names
+
+    rate, surf = _units()
+    door = np.asarray(cols["door_opening_deg"], float)
+    reasons = [",".join(violation_names(int(v)) + ([] if d > 0 else ["door"]))
+               for v, d in zip(cols["violations"], door)]
+    out = QTable(meta={"mag_zero_point": {b: zero_points[b] * surf for b in bands}, "models": models})
+    out["time"] = Time(t, format="isot", precision=3)
+    out["ra"] = np.asarray(cols["ra_deg"], float) * u.deg
+    out["dec"] = np.asarray(cols["dec_deg"], float) * u.deg
+    out["observable"] = np.asarray(cols["observable"], bool)
+    out["violations"] = np.array(reasons, dtype=str)
+    for name in ("sun_angle", "moon_angle", "earth_limb_angle", "door_opening"):
+        out[name] = np.asarray(cols[f"{name}_deg"], float) * u.deg
+        out[name].info.format = ".3f"
+    for b in bands:
+        for c in COMPONENTS:
+            out[f"{c}_{b}"] = np.asarray(cols[f"{c}_{b}"], float) * rate
+            out[f"{c}_{b}"].info.format = ".3g"
+        for c in COMPONENTS:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                out[f"{c}_mag_{b}"] = (zero_points[b] - 2.5 * np.log10(np.asarray(cols[f"{c}_{b}"], float))) * surf
+            out[f"{c}_mag_{b}"].info.format = ".3f"
+        if f"limit_mag_{b}" in cols:
+            out[f"limit_mag_{b}"] = np.asarray(cols[f"limit_mag_{b}"], float) * u.mag
+            out[f"limit_mag_{b}"].info.format = ".3f"
+            out[f"limit_mag_{b}"].info.description = "5-sigma point-source limit, AB, survey exposures"
+    return out
+
+
+def _units():
+    import astropy.units as u
+
+    rate = u.electron / (u.s * u.pix)
+    return rate, u.mag / u.arcsec**2

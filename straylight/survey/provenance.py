@@ -7,21 +7,10 @@ import sys
 from importlib import metadata
 from pathlib import Path
 
+from straylight.util.io import sha256_path
+
 PACKAGES = ("straylight", "numpy", "scipy", "astropy", "healpy", "xarray", "zarr", "dask", "distributed",
             "snakemake", "de405", "sgp4", "speclite", "erfa", "pyerfa")
-
-
-def sha256_path(path: str | Path) -> str:
-    """SHA-256 of a file, or of a directory tree (relative paths and file contents, sorted)."""
-    p = Path(path)
-    h = hashlib.sha256()
-    if p.is_dir():
-        for f in sorted(x for x in p.rglob("*") if x.is_file()):
-            h.update(str(f.relative_to(p)).encode())
-            h.update(f.read_bytes())
-    else:
-        h.update(p.read_bytes())
-    return h.hexdigest()
 
 
 def versions() -> dict:
@@ -51,7 +40,7 @@ def provenance_record(campaign, inputs: dict, outputs: dict) -> dict:
     }
     rec["outputs_sha256"] = {k: sha256_path(v) for k, v in outputs.items()}
     # one digest for the whole campaign: two runs from the same config and inputs must agree
-    # (tests/test_cube.py compares it after ten kill -9 and resumes)
+    # (tests/survey/test_cube.py compares it after ten kill -9 and resumes)
     rec["outputs_digest_sha256"] = hashlib.sha256(
         "".join(f"{k}:{v}\n" for k, v in sorted(rec["outputs_sha256"].items())).encode()).hexdigest()
     return rec

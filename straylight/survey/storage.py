@@ -24,7 +24,11 @@ implementation needs numcodecs' codecs to read them.
 """
 from __future__ import annotations
 
+import os
+
 import numpy as np
+
+from straylight.util.io import atomic_path
 
 #: attribute names recording the codec and its bound
 COMPRESSION_ATTR = "compression"
@@ -91,3 +95,14 @@ def _codecs(dtype, lossless: bool, keepbits: int, level: int) -> tuple[dict, str
         return ({"filters": [BitRound(keepbits=keepbits)], "compressors": [shuffle, zstd]},
                 f"numcodecs.bitround(keepbits={keepbits}) + numcodecs.shuffle(elementsize={dtype.itemsize})"
                 f" + zstd(level={level})", error)
+
+
+def write_zarr_atomic(dataset, path: str | os.PathLike, storage: dict | None = None) -> None:
+    """Write an xarray Dataset to a Zarr store at ``path`` atomically (consolidated metadata);
+    with ``storage`` (a campaign's storage section) through the products' codecs
+    (:func:`encoded`), else xarray's default (lossless) ones."""
+    encoding = None
+    if storage is not None:
+        dataset, encoding = encoded(dataset, storage)
+    with atomic_path(path) as tmp:
+        dataset.to_zarr(tmp, mode="w", consolidated=True, encoding=encoding)

@@ -44,7 +44,7 @@ def visibility(campaign, ra_deg: float, dec_deg: float, band: str, start, end, s
     from astropy.table import QTable
     from astropy.time import Time
 
-    from straylight.api import background_table
+    from straylight.survey.pointings import background_table
     from straylight.sky.timeutil import parse_utc
 
     if band not in campaign.bands:

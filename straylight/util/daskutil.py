@@ -1,5 +1,6 @@
-"""Workers for the cube's regions inside a pipeline job: a process pool started once per job,
-or an existing Dask cluster (``compute.dask_scheduler``)."""
+"""Worker processes: their environment (threads, malloc settings) and a Dask client, local or
+on an existing cluster (``compute.dask_scheduler``).  The cube's region pool built on them is
+:func:`straylight.survey.cube.region_pool`."""
 from __future__ import annotations
 
 import os
@@ -25,7 +26,7 @@ def worker_environment() -> dict:
 
 
 @contextmanager
-def _environment(values: dict):
+def temporary_environment(values: dict):
     """``os.environ`` with ``values`` set, restored afterwards (children started inside inherit it)."""
     saved = {k: os.environ.get(k) for k in values}
     os.environ.update(values)
@@ -37,53 +38,6 @@ def _environment(values: dict):
                 os.environ.pop(k, None)
             else:
                 os.environ[k] = v
-
-
-@contextmanager
-def region_pool(campaign, fp, store: str, stars_path, workers: int, scheduler_address: str | None = None):
-    """Yield ``(submit, wait)`` for the cube's regions: ``submit(t_slice, p_slice, scene,
-    faint_map)`` returns a future of the region's seconds (:func:`straylight.survey.cube.write_region`),
-    ``wait`` is the matching ``wait(futures, return_when=...)``.
-
-    * ``scheduler_address``: the regions run on that Dask cluster (campaign and footprint sent
-      to every worker once); its workers keep the model between regions, time blocks and jobs.
-    * else ``workers`` > 1: a pool of that many spawned processes (:func:`worker_environment`),
-      each building the model once, at its start, for all the regions it computes.
-    * else: in this process, one region after the other.
-    """
-    from concurrent.futures import ProcessPoolExecutor
-    from concurrent.futures import wait as wait_local
-    from multiprocessing import get_context
-
-    from straylight.survey import cube
-
-    if scheduler_address:
-        from distributed import Client
-        from distributed import wait as wait_dask
-
-        with Client(scheduler_address, timeout="30s") as client:
-            c_fut, fp_fut = client.scatter([campaign, fp], broadcast=True)
-
-            def submit(t_slice, p_slice, scene, faint_map):
-                return client.submit(cube.write_region, c_fut, fp_fut, store, t_slice, p_slice, stars_path, scene,
-                                     faint_map, pure=False)
-
-            yield submit, wait_dask
-        return
-    if int(workers) <= 1:
-        yield cube._InProcess(campaign, fp, store, stars_path).submit_region, wait_local
-        return
-    with _environment(worker_environment()), \
-            ProcessPoolExecutor(max_workers=int(workers), mp_context=get_context("spawn"),
-                                initializer=cube._pool_init, initargs=(campaign, fp, store, stars_path)) as pool:
-        def submit(t_slice, p_slice, scene, faint_map):
-            return pool.submit(cube._pool_region, t_slice, p_slice, scene, faint_map)
-
-        try:
-            yield submit, wait_local
-        except BaseException:
-            pool.shutdown(wait=True, cancel_futures=True)
-            raise
 
 
 @contextmanager

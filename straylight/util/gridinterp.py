@@ -1,7 +1,7 @@
 """Multilinear interpolation on a rectilinear grid, for the hot loops (PST, door, earthshine table).
 
 It computes exactly what ``scipy.interpolate.RegularGridInterpolator(method="linear")`` computes
-(tests/test_gridinterp.py checks agreement to 1e-12), faster on the earthshine sum's millions
+(tests/util/test_gridinterp.py checks agreement to 1e-12), faster on the earthshine sum's millions
 of points per time step (measured in the cube: 0.7 s instead of 1.0 s for the PST and door
 look-ups of 2 x 1320 lines of sight x 1152 Earth blocks): scipy locates cells with a binary
 search and validates its input on every call; here each axis gets, once, a table of bins of
@@ -41,7 +41,7 @@ def _interpolate(points, lo, hi, uniform, inv_width, n_bins, bin_cell, nodes, n_
     the axes packed by :class:`LinearGrid`.  Each point is clipped to the grid and its cell found
     per axis (:class:`AxisCells`); on an evenly spaced axis the cell can be one off the exact one
     only where the point lies within rounding of a node, and t is then ~1 in the cell below
-    (or ~0 just below the node): the same value to rounding (1e-15; tests/test_gridinterp.py).
+    (or ~0 just below the node): the same value to rounding (1e-15; tests/util/test_gridinterp.py).
     Then the cell's corners: on two, three and four axes written out as nested linear steps,
     the last axis first (the cube's PST, door, zodiacal and earthshine tables: 2.1x faster than
     the general loop over corners on the sunlit table, which stays for other dimensions).

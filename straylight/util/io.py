@@ -1,10 +1,11 @@
-"""Writing products safely: a product appears complete or not at all.
+"""Files: writing products safely, their digests, and the table cache's folder.
 
 Every writer goes to a temporary sibling path and is renamed into place, so a crash (or a full
 disk) never leaves a half-written product under the final name, and a re-run simply redoes it.
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import shutil
@@ -79,19 +80,27 @@ def atomic_path(final: str | os.PathLike):
         shutil.rmtree(tmpdir, ignore_errors=True)
 
 
-def write_zarr_atomic(dataset, path: str | os.PathLike, storage: dict | None = None) -> None:
-    """Write an xarray Dataset to a Zarr store at ``path`` atomically (consolidated metadata);
-    with ``storage`` (a campaign's storage section) through the products' codecs
-    (:func:`straylight.survey.storage.encoded`), else xarray's default (lossless) ones."""
-    encoding = None
-    if storage is not None:
-        from straylight.survey.storage import encoded
-
-        dataset, encoding = encoded(dataset, storage)
-    with atomic_path(path) as tmp:
-        dataset.to_zarr(tmp, mode="w", consolidated=True, encoding=encoding)
-
-
 def write_json_atomic(obj, path: str | os.PathLike) -> None:
     with atomic_path(path) as tmp:
         tmp.write_text(json.dumps(obj, indent=2, sort_keys=False) + "\n", encoding="utf-8")
+
+
+def sha256_path(path: str | Path) -> str:
+    """SHA-256 of a file, or of a directory tree (relative paths and file contents, sorted)."""
+    p = Path(path)
+    h = hashlib.sha256()
+    if p.is_dir():
+        for f in sorted(x for x in p.rglob("*") if x.is_file()):
+            h.update(str(f.relative_to(p)).encode())
+            h.update(f.read_bytes())
+    else:
+        h.update(p.read_bytes())
+    return h.hexdigest()
+
+
+def cache_dir() -> Path:
+    """Where tables are kept: $STRAYLIGHT_CACHE, else $XDG_CACHE_HOME/straylight, else
+    ~/.cache/straylight.  Tables are named by the digest of everything they depend on."""
+    if os.environ.get("STRAYLIGHT_CACHE"):
+        return Path(os.environ["STRAYLIGHT_CACHE"])
+    return Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "straylight"

@@ -1,15 +1,15 @@
-"""Orbit models: circular with J2, and TLE through SGP4."""
+"""Orbit models: circular with J2, and TLE through SGP4.
+
+Reference values: the sgp4 library for TLEs; the analytic J2 nodal rate (Vallado 2013, eq. 9-41)."""
 import numpy as np
 import pytest
 from astropy.time import Time, TimeDelta
 
+from conftest import ISS_L1, ISS_L2
 from straylight.errors import ConfigError, InputError
 from straylight.sky.orbit import CircularOrbit, EarthModel, TLEOrbit
 
 EARTH = EarthModel(radius_km=6378.137, gm_km3_s2=398600.4418, j2=1.08262668e-3)
-# ISS TLE (public NORAD element set, 2008 example from the CelesTrak documentation)
-ISS_L1 = "1 25544U 98067A   08264.51782528 -.00002182  00000-0 -11606-4 0  2927"
-ISS_L2 = "2 25544  51.6416 247.4627 0006703 130.5360 325.0288 15.72125391563537"
 
 
 def orbit(**kw):

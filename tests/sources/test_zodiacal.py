@@ -1,4 +1,6 @@
-"""Zodiacal light: Leinert table interpolation, spectra, band integration."""
+"""Zodiacal light: Leinert table interpolation, spectra, band integration.
+
+Reference numbers: Leinert et al. (1998) Tables 17 and 19; astropy's ecliptic frame."""
 import numpy as np
 import pytest
 

@@ -1,4 +1,6 @@
-"""`straylight sky --input pointings --out table.parquet` (#8): values, and bad rows."""
+"""`straylight sky --input pointings --out table.parquet` (#8): values, and bad rows.
+
+Reference values: `straylight sky` for each row, one sample at a time."""
 import json
 
 import numpy as np

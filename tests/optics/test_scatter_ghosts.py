@@ -1,4 +1,6 @@
-"""Mirror scattering (Harvey-Shack) and filter-detector ghosts: the paper's numbers."""
+"""Mirror scattering (Harvey-Shack) and filter-detector ghosts: the paper's numbers.
+
+Reference numbers: the seed paper, sect. 4.2-4.4, quoted in each test."""
 import numpy as np
 import pytest
 from scipy import integrate

@@ -1,4 +1,6 @@
-"""Survey cubes through the real Snakemake workflow: values, resume, Dask scheduler, limits."""
+"""Survey cubes through the real Snakemake workflow: values, resume, Dask scheduler, limits.
+
+Reference values: `straylight sky` at the same time and pixel, an uninterrupted run (resume, Dask)."""
 import json
 import os
 import shutil

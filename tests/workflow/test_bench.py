@@ -1,12 +1,12 @@
-"""The benchmark's error-checked adaptive time sampling (bench/run.py, issue #7): what it
+"""The benchmark's error-checked adaptive time sampling (bench/knobs/sampling.py, issue #7): what it
 computes and what it fills in, on series whose answer is known in closed form."""
 import sys
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
-from run import adaptive_in_time  # noqa: E402
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
+from knobs.sampling import adaptive_in_time  # noqa: E402
 
 
 def _series(values):
@@ -86,7 +86,7 @@ def test_pipeline_bench_writes_its_figures(tmp_path):
     import subprocess
 
     out = tmp_path / "pipeline.json"
-    bench = Path(__file__).resolve().parents[1] / "bench" / "pipeline.py"
+    bench = Path(__file__).resolve().parents[2] / "bench" / "pipeline.py"
     r = subprocess.run([sys.executable, str(bench), "--days", str(2 / 24), "--nside", "4", "--cadence-s", "600",
                         "--cores", "1", "--no-kernel", "--out", str(out)], capture_output=True, text=True, timeout=900)
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]

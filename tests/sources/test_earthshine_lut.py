@@ -14,7 +14,7 @@ from straylight.config import campaign_from_dict
 from straylight.sources.earthshine_lut import EarthshineLUT, LUTSettings, lut_key
 from straylight.sky.geometry import telescope_frame
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
 from _samples import random_samples  # noqa: E402
 
 COARSE = {"sun_zenith_step_deg": 5.0, "los_zenith_step_deg": 5.0, "azimuth_step_deg": 20.0}

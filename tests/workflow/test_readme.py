@@ -109,7 +109,7 @@ def test_plain_blocks_run(tmp_path, clone):
 
 def test_slurm_block_dry_run(clone):
     """The cluster block as written: the plugin installed, the profile read, the cycle's jobs
-    planned (-n); tests/test_slurm.py submits a campaign to a real SLURM."""
+    planned (-n); tests/workflow/test_slurm.py submits a campaign to a real SLURM."""
     _, found = blocks()
     (how, lang, code), = [b for b in found if b[0].startswith("run as a dry run")]
     assert "snakemake -n --profile workflow/profiles/slurm" in code

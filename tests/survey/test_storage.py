@@ -8,10 +8,9 @@ import xarray as xr
 from straylight.config import campaign_from_dict, deep_merge
 from straylight.survey.cube import CUBE_BAND_VARIABLES, compute_region, init_store, write_region
 from straylight.survey.footprint import footprint_from_config
-from straylight.util.io import write_zarr_atomic
 from straylight.survey.limits import limits_dataset
 from straylight.survey.products import ephemeris_dataset, observability_dataset
-from straylight.survey.storage import encoded, max_relative_error
+from straylight.survey.storage import encoded, max_relative_error, write_zarr_atomic
 
 #: issue #32: stored values within 1e-3 relative of the computed ones, all products together at
 #: most 25 bytes per (time, pixel) sample

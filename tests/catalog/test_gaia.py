@@ -1,4 +1,6 @@
-"""Gaia ingest on real archive files (astroquery's test data) and bad-input cases."""
+"""Gaia ingest on real archive files (astroquery's test data) and bad-input cases.
+
+Reference numbers: the Gaia DR2 photometric relations (Evans et al. 2018, Table A.1)."""
 import gzip
 from importlib import resources
 from pathlib import Path

@@ -180,7 +180,7 @@ def test_never_observable_pixels_are_nan_in_zarr_and_unseen_in_fits(tmp_path):
     import xarray as xr
 
     from straylight.config import load_campaign
-    from straylight.util.io import write_zarr_atomic
+    from straylight.survey.storage import write_zarr_atomic
     from straylight.survey.limits import limits_dataset, point_source_limit, write_limit_maps
 
     c = load_campaign()

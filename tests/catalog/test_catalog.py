@@ -1,4 +1,7 @@
-"""Star catalog (#3): SED library, Hipparcos default, template matching, synthetic photometry, CLI."""
+"""Star catalog (#3): SED library, Hipparcos default, template matching, synthetic photometry, CLI.
+
+Reference numbers: the CDS Pickles (1998) spectra, the E490 solar spectrum, published solar
+colours and spectral-type Teff scales, each cited in its test."""
 import gzip
 import json
 

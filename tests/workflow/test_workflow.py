@@ -1,4 +1,6 @@
-"""The Snakemake spine: dry run, lint, schema validation and a small end-to-end run."""
+"""The Snakemake spine: dry run, lint, schema validation and a small end-to-end run.
+
+Reference values: `straylight sky` at the products' samples."""
 import subprocess
 import sys
 from pathlib import Path

@@ -1,4 +1,7 @@
-"""The CLI as a user runs it: JSON content, and clear errors without tracebacks."""
+"""The CLI as a user runs it: JSON content, and clear errors without tracebacks.
+
+Reference values: the library's API for the same inputs (ephemeris, zero points, limits) and,
+for the scenario, the paper's sect. 3.3."""
 import json
 from pathlib import Path
 

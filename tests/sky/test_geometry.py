@@ -1,4 +1,7 @@
-"""Geometry: ranges and finiteness (hypothesis), exact thresholds, limb graze, cross-checks."""
+"""Geometry: ranges and finiteness (hypothesis), exact thresholds, limb graze, cross-checks.
+
+Reference values: exact angles built by construction, and the paper's Earth-blockage test and
+door states."""
 import numpy as np
 import pytest
 from hypothesis import given, settings

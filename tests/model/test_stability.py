@@ -83,7 +83,7 @@ def test_sun_exactly_at_each_avoidance_and_door_angle(campaign, model, angle):
     g, res, _ = _eval(campaign, model, TIME, los)
     _assert_sane(res)
     assert g["sun_angle_deg"][1] == pytest.approx(angle, abs=1e-9)
-    # (the exact threshold itself is tested with exact angles in tests/test_geometry.py)
+    # (the exact threshold itself is tested with exact angles in tests/sky/test_geometry.py)
     if angle == 65.0:  # 105 deg opening up to 65 deg, 135 deg beyond (paper sect. 2.2)
         assert g["door_opening_deg"][0] == 105.0 and g["door_opening_deg"][2] == 135.0
     else:  # below 50 deg no door state is allowed
