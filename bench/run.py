@@ -63,13 +63,13 @@ def max_rel_error(res, ref, bands):
 class Bench:
     def __init__(self, n_samples: int, seed: int = 5):
         from straylight.catalog.build import make_catalog
-        from straylight.components import ComponentModel
+        from straylight.model import BackgroundModel
         from straylight.config import load_campaign
 
         self.campaign = load_campaign()
         self.bands = list(self.campaign.bands)
-        base = ComponentModel(self.campaign)
-        self.catalog, _ = make_catalog({b: base.band(b).response for b in self.bands})
+        base = BackgroundModel(self.campaign)
+        self.catalog, _ = make_catalog({b: base.context.band(b).response for b in self.bands})
         sc, los, g = random_samples(self.campaign, 12 * n_samples, seed=seed)
         obs = np.flatnonzero(g["observable"])[:n_samples]
         self.sat, self.los = sc.satellite_km[obs], los[obs]
@@ -78,7 +78,7 @@ class Bench:
         self.n = len(obs)
 
     def stars(self, limit: float, faint: bool):
-        from straylight.components import split_stars
+        from straylight.sources.stars import split_stars
 
         return split_stars(self.catalog["ra"], self.catalog["dec"],
                            {b: self.catalog[f"mag_{b}"] for b in self.bands}, limit, faint)
@@ -91,7 +91,7 @@ class Bench:
         skipping on their bound; 1e-12 skips nothing)."""
         import copy
 
-        from straylight.components import ComponentModel
+        from straylight.model import BackgroundModel
         from straylight.config import campaign_from_dict
         from straylight.optics.pst import PST, default_pst_grid
 
@@ -104,8 +104,8 @@ class Bench:
         else:
             es["method"] = "lut"
             es["lut"] = dict(zip(("sun_zenith_step_deg", "los_zenith_step_deg", "azimuth_step_deg"), lut_steps))
-        cm = ComponentModel(campaign_from_dict(raw, self.campaign.path), expected_samples=10**6)
-        off = cm.offfield
+        cm = BackgroundModel(campaign_from_dict(raw, self.campaign.path), expected_samples=10**6)
+        off = cm.context.offfield
         es = replace(off.earthshine, n_gamma=n_gamma, n_psi=n_psi, door_blocks=tuple(door_blocks),
                      n_aperture_door=n_aperture_door)
         pst = off.pst if tuple(pst_step) == (0.5, 5.0) else PST(*default_pst_grid(*pst_step), source="bench")
@@ -129,14 +129,14 @@ def sweep(bench, ref, name, settings):
     rows = []
     for label, kwargs, stars in settings:
         cm = bench.model(**kwargs)
-        info = cm.earthshine_model  # builds the look-up table if one is asked for (or loads it)
+        info = cm.sunlit_earth.model  # builds the look-up table if one is asked for (or loads it)
         res, dt = timed(lambda: bench.evaluate(cm, stars))
         err = max_rel_error(res, ref, bench.bands)
         row = {"setting": label, "max_rel_error": err, "seconds_per_sample": dt / bench.n}
         extra = ""
         if info["method"] == "lut":
             # the tables' own recorded build times: a cached table loads in milliseconds
-            mlut = cm.moonlit_model["lut"]
+            mlut = cm.moonlit_earth.model["lut"]
             row["lut_build_seconds"] = info["lut"].build_seconds + (mlut.build_seconds if mlut is not None else 0.0)
             row["lut_validation_max_rel_error"] = info["lut_validation_max_rel_error"]
             extra = f"  (table built in {row['lut_build_seconds']:.0f} s)"
@@ -188,13 +188,13 @@ def time_cadence_rows(bench):
     """Background over 6 h at 60 s for 40 random pointings; coarser cadences linearly
     interpolated in time, and the error-checked adaptive sampling (:func:`adaptive_in_time`)
     from each coarse cadence; error over samples observable at the fine cadence."""
-    from straylight.components import ComponentModel
+    from straylight.model import BackgroundModel
     from straylight.sky.geometry import observing_geometry, radec_to_unit
     from straylight.sky.observing import scene
     from astropy.time import Time, TimeDelta
 
     c = bench.campaign
-    cm = ComponentModel(c)
+    cm = BackgroundModel(c)
     stars = bench.stars(*DEFAULT_STARS)
     t0 = Time("2026-01-01T00:00:00", scale="utc")
     fine_s = 60.0
@@ -255,12 +255,12 @@ def nside_rows(bench):
     value at their pixel's centre, at one time."""
     import healpy as hp
 
-    from straylight.components import ComponentModel
+    from straylight.model import BackgroundModel
     from straylight.sky.geometry import observing_geometry, radec_to_unit
     from straylight.sky.observing import scene
 
     c = bench.campaign
-    cm = ComponentModel(c)
+    cm = BackgroundModel(c)
     stars = bench.stars(*DEFAULT_STARS)
     sc = scene(c, ["2026-01-01T03:00:00"])
     rng = np.random.default_rng(4)
@@ -293,11 +293,11 @@ def nside_rows(bench):
 def _cube_model(base, campaign: dict | None = None, earthshine: dict | None = None, models: dict | None = None,
                 **model_kw):
     """A campaign from ``base`` with ``campaign``, ``models.earthshine`` and ``models``
-    overrides, and its ComponentModel for cube-sized runs, the earthshine table built or loaded
+    overrides, and its BackgroundModel for cube-sized runs, the earthshine table built or loaded
     before timing."""
     import copy
 
-    from straylight.components import ComponentModel
+    from straylight.model import BackgroundModel
     from straylight.config import campaign_from_dict
 
     raw = copy.deepcopy(base.config)
@@ -305,8 +305,8 @@ def _cube_model(base, campaign: dict | None = None, earthshine: dict | None = No
     raw["models"].update(models or {})
     raw["models"].setdefault("earthshine", {}).update(earthshine or {})
     c = campaign_from_dict(raw, base.path)
-    model = ComponentModel(c, expected_samples=10**9, **model_kw)
-    model.earthshine_model
+    model = BackgroundModel(c, expected_samples=10**9, **model_kw)
+    model.sunlit_earth.model
     return c, model
 
 
@@ -333,7 +333,7 @@ def moonlit_grid_rows(bench, day: str = "2026-01-03", time_step: int = 24, n_tim
         if steps:
             es["moonlit_lut"] = vars(MoonlitSettings(*steps))
         c, model = _cube_model(base, {"start": f"{day}T00:00:00", "end": f"{day}T23:59:59"}, es, **kw)
-        model.moonlit_model  # built (or loaded) before timing
+        model.moonlit_earth.model  # built (or loaded) before timing
         return timed(lambda: compute_region(c, fp, t_slice, slice(None), model=model), repeats=1 if kw else 3)
 
     ref, _ = run((48, 96), "direct", moonlit_skip_share=0.0)
@@ -512,11 +512,11 @@ def auto_cost_model(lut_model, cube: dict) -> dict:
     """models.earthshine.method = auto's two constants against this run: the seconds a cube
     sample saves on the table path (measured just now) and the table's build seconds per node
     and door state (as recorded when the cached table was built, on whatever cores it had).
-    A measured figure far from the assumed one means the constants in straylight/components.py
+    A measured figure far from the assumed one means the constants in straylight/model/fidelity.py
     want updating."""
-    from straylight import components as comp
+    from straylight.model import fidelity as comp
 
-    es = lut_model.earthshine_model
+    es = lut_model.sunlit_earth.model
     saved = 1.0 / cube["direct"]["samples_per_s_per_core"] - 1.0 / cube["lut"]["samples_per_s_per_core"]
     build = es["lut_build_seconds"] / es["lut_node_states"]
     out = {"saved_seconds_per_sample": {"measured": saved, "assumed": comp.LUT_SAVED_SECONDS_PER_SAMPLE},

@@ -130,7 +130,7 @@ def sky_background(time, coord, bands=None, config=None, catalog=None):
         raise InputError(f"bands: unknown band {unknown[0]!r}; known: {', '.join(campaign.bands)}, V")
     stars = None
     if catalog is not None:
-        from straylight.components import load_offfield_stars
+        from straylight.sources.stars import load_offfield_stars
 
         stars = load_offfield_stars(catalog, bands, float(campaign.config["stars"]["offfield_mag_limit"]),
                                     bool(campaign.config["stars"].get("faint_map", True)))
@@ -140,7 +140,7 @@ def sky_background(time, coord, bands=None, config=None, catalog=None):
 def background_table(campaign, t, ra_deg, dec_deg, bands, stars=None, source=""):
     """:func:`sky_background`'s table for a loaded campaign and 1-D UTC times ``t`` with ICRS
     ``ra_deg``, ``dec_deg`` (deg) of the same length, already checked; ``stars`` as
-    :func:`straylight.components.load_offfield_stars` gives them (None: stars = 0)."""
+    :func:`straylight.sources.stars.load_offfield_stars` gives them (None: stars = 0)."""
     from straylight.survey.limits import sky_zero_points
     from straylight.survey.pointings import pointing_table
 

@@ -202,7 +202,7 @@ class OffFieldModel:
         A source inside the field (theta <= field_radius_deg) adds nothing here: it is imaged
         as a point source with its own scattering halo and ghosts (:mod:`straylight.image.detector`),
         not spread as a uniform background (PST = 1 over every pixel); it is reported by
-        :meth:`~straylight.components.ComponentModel.in_field_point_sources`."""
+        :meth:`~straylight.sources.bodies.InFieldBodies.find`."""
         in_field = np.asarray(theta_deg, float) <= self.field_radius_deg
         th, ph, blocked, op = np.broadcast_arrays(theta_deg, phi_deg, np.asarray(earth_blocked, bool) | in_field,
                                                   opening_deg)
