@@ -128,7 +128,7 @@ def faint_star_map(campaign: Campaign, fp: Footprint, stars_path) -> xr.Variable
     stars = _offfield_stars(campaign, stars_path)
     if stars is None or not len(stars.faint_ra_deg):
         return None
-    rates = _component_model(campaign, fp).faint_star_rates(stars, radec_to_unit(fp.ra_deg, fp.dec_deg),
+    rates = _component_model(campaign, fp).stars.faint_star_rates(stars, radec_to_unit(fp.ra_deg, fp.dec_deg),
                                                             campaign.bands)
     values = np.zeros((fp.pixels.size, len(campaign.bands)))
     for i, band in enumerate(campaign.bands):
