@@ -173,17 +173,13 @@ class OffFieldStars:
 
     #: HEALPix nside of the sky cells whose lines of sight share a list of candidate direct
     #: stars (:meth:`star_cells`): a cell's radius (1.9 deg at 32) loosens every star's bound
-    #: over the cell, so finer cells sum fewer pairs but cost more to build.  Measured on a
-    #: cube batch (15,840 samples, 212 direct stars), with each cell's bounds sorted: 0.68,
-    #: 0.47, 0.38 candidates per sample at nside 16, 32, 64 (a per-sample choice would need
-    #: 0.23), built in 0.04, 0.2, 1.8 s (once per star table), the batch's time within noise
-    #: across the three; 32 the balance
+    #: over the cell, so finer cells sum fewer pairs but cost more to build (the lists: once per
+    #: star table); at 16, 32 and 64 a cube batch's time is the same within noise, 32 the balance
     STAR_CELL_NSIDE = 32
     #: the cells' lists hold this many entries at most (int32: 64 MB; while they are built, 16
     #: bytes an entry): beyond, the stars listed in most cells are summed at every line of
-    #: sight at every level instead (a deep catalog at a tiny tolerance: the benchmark's
-    #: reference, 117,598 stars at 1e-12, lists 9.0 million entries and sums 116,861-117,238
-    #: stars everywhere, built in ~55 s)
+    #: sight at every level instead (a deep catalog at a tiny tolerance, where nearly every
+    #: star is needed nearly everywhere)
     STAR_CELL_ENTRIES = 16_000_000
     #: candidate (sample, star) pairs tested at once: bounds the memory of a deep catalog
     STAR_PAIRS_PER_PASS = 1 << 20
@@ -199,9 +195,10 @@ class OffFieldStars:
         candidates.  So at every line of sight of the cell the skipped stars together stay below
         that share of the sample's floor (a lower bound of its total) in every
         band, the Earth and the door only lowering them further.  One budget shared by all the
-        stars rather than split evenly among them: a line of sight sees few stars close, so a
-        cube batch sums 0.42 pairs per sample instead of 5.4 (a radius per star, each held to
-        1/212 of the budget, tested 8 candidates per sample).  The smallest bounds are found
+        stars rather than split evenly among them: a line of sight sees few stars close, so
+        most stars' bounds are far below the budget and the few near ones may take it all
+        (an even split would hold each star to a tiny share and sum many more pairs).  The
+        smallest bounds are found
         without sorting: they are binned by :attr:`STAR_BOUND_BINS_PER_DEX` and whole bins are
         skipped, from the smallest, while their sum stays within the budget.
 
@@ -282,8 +279,7 @@ class OffFieldStars:
     #: :meth:`star_cells`' bounds: the cosine nodes of its PST table, and the bins (per dex,
     #: from this many dex below the smallest budget) whose sums decide which stars are skipped.
     #: Coarser bins skip fewer stars (whole bins only): at 25 per dex (10 % wide) the default
-    #: catalog's cells list 19,835 entries where sorting every bound gave 19,309, and a cube
-    #: batch sums 6580 pairs instead of 6378; the 212 stars' lists build in 0.2 s
+    #: catalog's cells list ~3 % more entries than sorting every bound would, and build far faster
     STAR_BOUND_COS_NODES = 2_000_001
     STAR_BOUND_BINS_PER_DEX = 25
     STAR_BOUND_DEPTH_DEX = 8
