@@ -24,7 +24,8 @@ def main():
     from straylight.model import BackgroundModel
     from straylight.config import load_campaign
     from straylight.sky.geometry import telescope_frame
-    from straylight.sources.offfield import BandPhotometry, EarthshineSettings
+    from straylight.sources.photometry import BandPhotometry
+    from straylight.sources.offfield import EarthshineSettings
 
     c = load_campaign()
     cm = BackgroundModel(c)

@@ -350,7 +350,7 @@ def test_moonlit_table_reproduces_the_coarse_sum_at_its_nodes(moonlit):
     grid's direct sum it stored, for every door state: the table's coordinates invert the
     scene it was built from (including the roll, measured from the upward vertical)."""
     from straylight.sources.earthshine_lut import _moonlit_scene
-    from straylight.sources.offfield import MOON_MEAN_DISTANCE_KM
+    from straylight.sources.bodies import MOON_MEAN_DISTANCE_KM
 
     c, cm, lut = moonlit
     off = cm.context.offfield
@@ -375,7 +375,8 @@ def test_moonlit_table_matches_the_coarse_sum_in_real_scenes(moonlit):
     the error taken at full Moon at perigee as a fraction of the total (the table's validation
     measure; its recorded validation, 400 random scenes, within the same share)."""
     from straylight.model import ERROR_BUDGET_SHARES
-    from straylight.sources.offfield import MOON_PERIGEE_KM, moon_v_magnitude, solar_like_fraction
+    from straylight.sources.bodies import MOON_PERIGEE_KM, moon_v_magnitude
+    from straylight.sources.photometry import solar_like_fraction
 
     c, cm, lut = moonlit
     sc, los, g = random_samples(c, 2000, seed=12)

@@ -114,7 +114,7 @@ def test_one_pixel_scale_for_rates_and_surface_brightness(campaign):
     back into mag/arcsec2 with the campaign's pixel scale gives the zodiacal model's own
     mag/arcsec2: both use p / f = 10 um / 28 m = 0.073665 arcsec (0.074 gave 0.0097 mag)."""
     from straylight.optics.bandpass import load_band
-    from straylight.sources.offfield import magnitude_per_arcsec2
+    from straylight.sources.photometry import magnitude_per_arcsec2
     from straylight.sources.zodiacal import zodiacal_model_from_instrument
 
     assert campaign.pixel_scale_arcsec == pytest.approx(10e-6 / 28.0 * 206264.806247, rel=1e-9)

@@ -7,7 +7,9 @@ from straylight.sources.stars import OffFieldStars, StarTable
 from straylight.optics.door import Door, door_length_from_paper
 from straylight.errors import ConfigError, InputError
 from straylight.sky.geometry import TelescopeFrame, observing_geometry, radec_to_unit, telescope_frame
-from straylight.sources.offfield import EarthshineSettings, moon_v_magnitude, planet_v_magnitude, solar_like_fraction
+from straylight.sources.offfield import EarthshineSettings
+from straylight.sources.bodies import moon_v_magnitude, planet_v_magnitude
+from straylight.sources.photometry import solar_like_fraction
 from straylight.optics.pst import PST, default_pst_grid, load_pst, write_pst_csv
 
 from conftest import SHARED_DATA
@@ -187,7 +189,7 @@ def test_all_planets_at_once_equal_meeus_per_planet():
     against Meeus (1998) ch. 41 written out per planet here (V(1,0), the phase polynomial and
     Saturn's ring term), at DE405 positions over a year: to 1e-12 mag."""
     from straylight.sky.ephemeris import BODIES, default_ephemeris
-    from straylight.sources.offfield import PLANET_V, SATURN_POLE_RA_DEC_DEG, planet_v_magnitudes
+    from straylight.sources.bodies import PLANET_V, SATURN_POLE_RA_DEC_DEG, planet_v_magnitudes
 
     planets = [b for b in BODIES if b in PLANET_V]
     pos = default_ephemeris().positions([f"2026-{m:02d}-15T00:00:00" for m in range(1, 13)])

@@ -22,7 +22,7 @@ from straylight.sky.geometry import telescope_frame, unit
 from straylight.sources.bodies import InFieldBodies, Moon, Planets, SolarBodySkip, Sun
 from straylight.sources.context import Samples, SourceContext
 from straylight.sources.moonlit_earth import MoonlitEarth
-from straylight.sources.offfield import magnitude_per_arcsec2
+from straylight.sources.photometry import magnitude_per_arcsec2
 from straylight.sources.stars import OffFieldStars, StarTable
 from straylight.sources.sunlit_earth import SunlitEarth
 

@@ -4,19 +4,91 @@ field, which the background leaves out (:class:`InFieldBodies`).
 
 Each body's rate is band-independent until multiplied by a band's solar photon irradiance at
 1 AU: the Moon and the planets have the Sun's spectrum, so their irradiance is a fraction of the
-Sun's (:func:`~straylight.sources.offfield.solar_like_fraction` of their V magnitude).  The Sun
+Sun's (:func:`~straylight.sources.photometry.solar_like_fraction` of their V magnitude).  The Sun
 is never skipped; the Moon and each planet are skipped where their upper bound stays below 1/9
-of the moon_and_planets_skip budget times the sample's floor (:class:`SolarBodySkip`)."""
+of the moon_and_planets_skip budget times the sample's floor (:class:`SolarBodySkip`).
+
+Published brightness laws:
+
+* Sun: ASTM E490-00a spectrum at 1 AU scaled by (1 AU / d)^2 (:mod:`straylight.sources.photometry`).
+* Moon: solar spectrum scaled to V(alpha) = -12.73 + 0.026 |alpha| + 4e-9 alpha^4 at the mean
+  distance 384400 km (Krisciunas & Schaefer 1991, PASP 103, 1033, eq. 9; alpha = phase angle,
+  deg), or the paper's proportional rule (full-Moon brightness times elongation / 180);
+  x (384400 km / d)^2; an eclipsed Moon (inside the Earth's shadow cylinder) is dimmed by
+  models.moon_eclipse_factor.
+* Planets: V = V0 + 5 log10(r Delta) + phase terms (Meeus 1998, "Astronomical Algorithms",
+  2nd ed., ch. 41, after the Astronomical Almanac 1984), with Saturn's ring term; solar spectrum.
+"""
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
 
+from straylight.errors import ConfigError
 from straylight.sky.ephemeris import PLANETS
-from straylight.sky.geometry import TelescopeFrame, body_geometry, earth_blocks, norm, rows_at, scene_rows, unit
+from straylight.sky.geometry import TelescopeFrame, body_geometry, dot, earth_blocks, norm, rows_at, scene_rows, unit
 from straylight.sources.context import Samples, SourceContext
-from straylight.sources.offfield import (AU_KM, V_SUN_VEGA, moon_v_magnitude, planet_v_magnitudes,
-                                         solar_like_fraction)
+from straylight.sources.photometry import AU_KM, V_SUN_VEGA, solar_like_fraction
+
+MOON_MEAN_DISTANCE_KM = 384400.0
+#: the Moon's nearest perigee in 2000-2100, km (~356,400; Meeus 1998, ch. 50): the brightest Moon
+MOON_PERIGEE_KM = 356400.0
+#: the Moon's farthest apogee in 2000-2100, km (~406,700; Meeus 1998, ch. 50)
+MOON_APOGEE_KM = 406700.0
+SATURN_POLE_RA_DEC_DEG = (40.589, 83.537)  # IAU WGCCRE 2015 (Archinal et al. 2018)
+
+# Meeus (1998) ch. 41: V0 and phase coefficients (i in degrees)
+PLANET_V = {
+    "mercury": (-0.42, (0.0380, -0.000273, 0.000002)),
+    "venus": (-4.40, (0.0009, 0.000239, -0.00000065)),
+    "mars": (-1.52, (0.016, 0.0, 0.0)),
+    "jupiter": (-9.40, (0.005, 0.0, 0.0)),
+    "saturn": (-8.88, (0.0, 0.0, 0.0)),
+    "uranus": (-7.19, (0.0, 0.0, 0.0)),
+    "neptune": (-6.87, (0.0, 0.0, 0.0)),
+    "pluto": (-1.00, (0.0, 0.0, 0.0)),
+}
+
+
+def moon_v_magnitude(phase_angle_deg, distance_km, law: str = "krisciunas_schaefer", elongation_deg=None):
+    """Lunar V magnitude at ``distance_km`` for the phase angle (deg, 0 = full)."""
+    a = np.abs(np.asarray(phase_angle_deg, dtype=float))
+    dist_term = 5.0 * np.log10(np.asarray(distance_km, dtype=float) / MOON_MEAN_DISTANCE_KM)
+    if law == "krisciunas_schaefer":
+        return -12.73 + 0.026 * a + 4e-9 * a**4 + dist_term
+    if law == "proportional":
+        e = np.asarray(elongation_deg if elongation_deg is not None else 180.0 - a, dtype=float)
+        ratio = np.clip(e / 180.0, 1e-6, 1.0)
+        return -12.73 - 2.5 * np.log10(ratio) + dist_term
+    raise ConfigError(f"moon phase law {law!r} is not one of 'krisciunas_schaefer', 'proportional'")
+
+
+def planet_v_magnitude(name: str, planet_km, sun_km, observer_km) -> np.ndarray:
+    """Meeus (1998) ch. 41 V magnitude of a planet (geocentric inputs, km)."""
+    return planet_v_magnitudes([name], np.asarray(planet_km, float)[None], sun_km, observer_km)[0]
+
+
+def planet_v_magnitudes(names, planets_km, sun_km, observer_km) -> np.ndarray:
+    """:func:`planet_v_magnitude` of several planets at once: ``planets_km`` (planets, ..., 3),
+    one row per name, -> (planets, ...) (one numpy pass for all of them, not one per planet:
+    a cube batch's per-step magnitudes are small arrays, where numpy's per-call cost dominates)."""
+    v0 = np.array([PLANET_V[n][0] for n in names], float)
+    c1, c2, c3 = np.array([PLANET_V[n][1] for n in names], float).T
+    planet = np.asarray(planets_km, float)
+    sun, observer = np.asarray(sun_km, float), np.asarray(observer_km, float)
+    extra = (slice(None),) + (None,) * (planet.ndim - 2)  # each planet's constants over its samples
+    v0, c1, c2, c3 = v0[extra], c1[extra], c2[extra], c3[extra]
+    r = norm(planet - sun) / AU_KM
+    delta = norm(planet - observer) / AU_KM
+    i = np.degrees(np.arctan2(norm(np.cross(sun - planet, observer - planet)), dot(sun - planet, observer - planet)))
+    v = v0 + 5.0 * np.log10(r * delta) + c1 * i + c2 * i**2 + c3 * i**3
+    if "saturn" in names:
+        k = list(names).index("saturn")
+        ra, de = np.radians(SATURN_POLE_RA_DEC_DEG)
+        pole = np.array([np.cos(de) * np.cos(ra), np.cos(de) * np.sin(ra), np.sin(de)])
+        sin_b = np.abs(dot(unit(observer - planet[k]), pole))
+        v[k] = v[k] - 2.60 * sin_b + 1.25 * sin_b**2
+    return v
 
 
 class Sun:

@@ -15,7 +15,8 @@ from straylight.optics.bandpass import Band, load_band
 from straylight.optics.door import door_from_instrument
 from straylight.optics.pst import load_pst
 from straylight.sky.geometry import TelescopeFrame
-from straylight.sources.offfield import BandPhotometry, EarthshineSettings, OffFieldModel
+from straylight.sources.photometry import BandPhotometry
+from straylight.sources.offfield import EarthshineSettings, OffFieldModel
 from straylight.sources.zodiacal import ZodiacalModel, zodiacal_model_from_instrument
 
 

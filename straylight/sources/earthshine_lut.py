@@ -42,7 +42,7 @@ from straylight.optics.door import door_state_index
 from straylight.errors import InputError
 from straylight.sky.geometry import _any_perpendicular_xyz, _unit_xyz, dot, norm, rows_at, scene_rows, telescope_frame, unit
 from straylight.util.gridinterp import LinearGrid
-from straylight.sources.offfield import MOON_APOGEE_KM, MOON_MEAN_DISTANCE_KM, MOON_PERIGEE_KM
+from straylight.sources.bodies import MOON_APOGEE_KM, MOON_MEAN_DISTANCE_KM, MOON_PERIGEE_KM
 
 AU_KM = 1.495978707e8
 #: bumped whenever the table's content or layout changes: part of the cache key

@@ -15,7 +15,8 @@ import numpy as np
 
 from straylight.sky.geometry import TelescopeFrame, rows_at, scene_rows
 from straylight.sources.context import Samples, SourceContext
-from straylight.sources.offfield import MOON_PERIGEE_KM, moon_v_magnitude, solar_like_fraction
+from straylight.sources.bodies import MOON_PERIGEE_KM, moon_v_magnitude
+from straylight.sources.photometry import solar_like_fraction
 
 
 class MoonlitEarth:

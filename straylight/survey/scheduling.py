@@ -24,7 +24,7 @@ import numpy as np
 from straylight.model import BackgroundModel
 from straylight.config import Campaign
 from straylight.survey.limits import SNR, survey_exposure
-from straylight.sources.offfield import MOON_MEAN_DISTANCE_KM, moon_v_magnitude
+from straylight.sources.bodies import MOON_MEAN_DISTANCE_KM, moon_v_magnitude
 
 
 def _pst_max_over_phi(model: BackgroundModel, theta_deg: np.ndarray) -> np.ndarray:
