@@ -89,8 +89,8 @@ class BackgroundModel:
         # the terms never skipped make each sample's floor (the band-independent sums once)
         per_sun = t_sun + es_coeff["direct_sun"] + es_coeff["door_sun"]
         per_moon = es_coeff["direct_moon"] + es_coeff["door_moon"]
-        floor = {name: self._floor(zodi[name] + per_sun * sun_irr[name] + per_moon * moon_at_earth_unit[name], name, shape)
-                 for name in bands}
+        floor = {name: self._floor(zodi[name] + per_sun * sun_irr[name] + per_moon * moon_at_earth_unit[name], name,
+                                   shape) for name in bands}
         if self.sunlit_earth.lut is not None:
             self.moonlit_earth.add(es_coeff, samples, self.sunlit_earth.lut, moon_at_earth_unit, floor)
         # the floor in units of the darkest zodiacal light, worst band: what the skip radii scale with
@@ -148,8 +148,10 @@ class BackgroundModel:
                                              f"sample's floor")},
                 "moon_and_planets_skipped": (f"where the bound of each is < {shares['moon_and_planets_skip']:g} / "
                                              f"{1 + len(PLANETS)} x tolerance x the sample's floor"),
-                "error_budget": {"earthshine_lut_validated": es.get("lut_validation_max_rel_error") if lut_runs else 0.0,
-                                 "moonlit_earthshine_skip_max": policy.moonlit_skip_share * tolerance if lut_runs else 0.0,
+                "error_budget": {"earthshine_lut_validated": es.get("lut_validation_max_rel_error")
+                                 if lut_runs else 0.0,
+                                 "moonlit_earthshine_skip_max": policy.moonlit_skip_share * tolerance
+                                 if lut_runs else 0.0,
                                  "moonlit_earthshine_grid_share": shares["moonlit_earthshine_grid"] * tolerance
                                  if lut_runs else 0.0,
                                  "moonlit_earthshine_lut_validated": moonlit.model["lut_validation_max_rel_error"]

@@ -236,10 +236,12 @@ class Planets:
         """:meth:`SolarBodySkip.transfer` of a planet at the samples ``near`` (flat indices),
         there only, (len(near),); ``fraction_near``: its fraction of the Sun's irradiance there;
         ``runs_near``: the scene runs of the samples ``near``, when known."""
-        sat, planet, fx, fy, fz = (rows_at(v, shape, near) for v in (satellite_km, planet_km, frame.x, frame.y, frame.z))
+        sat, planet, fx, fy, fz = (rows_at(v, shape, near)
+                                   for v in (satellite_km, planet_km, frame.x, frame.y, frame.z))
         g = body_geometry(sat, {"planet": planet}, TelescopeFrame(fx, fy, fz), self.context.campaign.earth.radius_km,
                           runs=runs_near)
-        door_near, floor_near = (np.broadcast_to(np.asarray(v, float), shape).ravel()[near] for v in (door, floor_ratio))
+        door_near, floor_near = (np.broadcast_to(np.asarray(v, float), shape).ravel()[near]
+                                 for v in (door, floor_ratio))
         return self.skip.transfer(fraction_near, g["planet_angle_deg"], g["planet_phi_deg"],
                                   g["planet_earth_blocked"], door_near, bands, floor_near)
 

@@ -39,7 +39,8 @@ class MoonlitEarth:
         es = self.context.campaign.config["models"].get("earthshine", {})
         if es.get("moonlit_method", "lut") == "direct":
             return None
-        return MoonlitSettings(**{k: float(v) for k, v in es.get("moonlit_lut", {}).items()})  # keys checked by the schema
+        # the keys are checked by the schema
+        return MoonlitSettings(**{k: float(v) for k, v in es.get("moonlit_lut", {}).items()})
 
     def node_states(self) -> int:
         """How many (node, door state) pairs the table sums, each a coarse Earth-grid sum; 0

@@ -115,8 +115,9 @@ class OffFieldStars:
     def faint_star_rates(self, stars: StarTable, los, bands, batch: int = 4096, los_batch: int = 1024) -> dict:
         """e-/s/pix per band from the faint stars: sum_s E_s PSTavg(theta_s) * pixel area over the
         stars outside the field and in front of the aperture plane (theta <= 90 deg, where the
-        door's Sp is not 0: :func:`~straylight.optics.door.behind_aperture_plane`), for lines of sight ``los`` (..., 3).  Depends on the line of sight
-        only, so it is computed once per distinct set of lines of sight (cached).  ``los_batch``
+        door's Sp is not 0: :func:`~straylight.optics.door.behind_aperture_plane`), for lines of
+        sight ``los`` (..., 3).  Depends on the line of sight only, so it is computed once per
+        distinct set of lines of sight (cached).  ``los_batch``
         lines of sight x ``batch`` stars at a time bound the temporaries (~34 MB each)."""
         import hashlib
 

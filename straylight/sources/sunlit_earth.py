@@ -102,7 +102,8 @@ class SunlitEarth:
                                   workers=self.build_workers)
         info = {"lut_file": str(path.name), "lut_validation_max_rel_error": lut.validation_max_rel_error,
                 "lut_build_seconds": lut.build_seconds, "lut_node_states": choice["node_states"],
-                "lut_steps_deg": [settings.sun_zenith_step_deg, settings.los_zenith_step_deg, settings.azimuth_step_deg]}
+                "lut_steps_deg": [settings.sun_zenith_step_deg, settings.los_zenith_step_deg,
+                                  settings.azimuth_step_deg]}
         share = self.policy.share("earthshine_lut")
         if choice["requested"] == "auto" and not self.policy.accepts_table("earthshine_lut",
                                                                            lut.validation_max_rel_error):
