@@ -312,7 +312,7 @@ class OffFieldModel:
         gamma, dgamma = self._cap_nadir_angles_at(norm(rows.vectors[0]), earth_radius_km, s)
         cap_sr = 2.0 * np.pi * np.sum(np.sin(gamma) * dgamma, axis=-1)  # the grid's sum of d_omega
         return np.array(rows.expand(self.earthshine.albedo / np.pi * self._pst_max_outside_field * cap_sr
-                                    * self.pixel_area_m2))  # a writable array, as before
+                                    * self.pixel_area_m2))  # a writable array, not a read-only view
 
     @cached_property
     def _pst_max_outside_field(self) -> float:
