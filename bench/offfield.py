@@ -21,13 +21,14 @@ from _samples import random_samples  # noqa: E402
 
 
 def main():
-    from straylight.components import ComponentModel
+    from straylight.model import BackgroundModel
     from straylight.config import load_campaign
     from straylight.sky.geometry import telescope_frame
-    from straylight.sources.offfield import BandPhotometry, EarthshineSettings
+    from straylight.sources.photometry import BandPhotometry
+    from straylight.sources.offfield import EarthshineSettings
 
     c = load_campaign()
-    cm = ComponentModel(c)
+    cm = BackgroundModel(c)
     n = 400
     sc, los, g = random_samples(c, n, seed=11)
     cm.evaluate(sc.satellite_km[:2], {k: v[:2] for k, v in sc.bodies_km.items()}, los[:2],
@@ -35,9 +36,9 @@ def main():
     t0 = time.perf_counter()
     out = cm.evaluate(sc.satellite_km, sc.bodies_km, los, g, ["g"])
     t_all = time.perf_counter() - t0
-    off = cm.offfield
+    off = cm.context.offfield
     frame = telescope_frame(los, sc.bodies_km["sun"] - sc.satellite_km)
-    phot = BandPhotometry(cm.band("g"))
+    phot = BandPhotometry(cm.context.band("g"))
     sun_irr = np.full(n, phot.sun_at_1au_photons_s_m2)
     moon_irr = sun_irr * 10 ** (-0.4 * 14.0)
     results = {"samples": n, "band": "g", "all_terms_s_per_sample_one_band": t_all / n, "earthshine": {}}

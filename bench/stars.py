@@ -27,14 +27,15 @@ from _samples import random_samples  # noqa: E402
 
 def main():
     from straylight.catalog.build import TemplatePhotometry, build_catalog, make_catalog, select_templates
-    from straylight.components import ComponentModel, split_stars
+    from straylight.model import BackgroundModel
+    from straylight.sources.stars import split_stars
     from straylight.config import campaign_from_dict, load_campaign
     from straylight.catalog.hipparcos import hipparcos_stars
     from straylight.catalog.sed import load_pickles
 
     c = load_campaign()
-    cm = ComponentModel(c)
-    responses = {b: cm.band(b).response for b in c.bands}
+    cm = BackgroundModel(c)
+    responses = {b: cm.context.band(b).response for b in c.bands}
     out = {}
 
     # conversion stage: template matching + magnitudes, per star (templates precomputed)
@@ -73,7 +74,7 @@ def main():
     # the reference: every star with its exact transfer (tolerance 1e-12: no pair skipped on its bound)
     raw = copy.deepcopy(c.config)
     raw["models"]["tolerance"] = 1e-12
-    exact = ComponentModel(campaign_from_dict(raw, c.path))
+    exact = BackgroundModel(campaign_from_dict(raw, c.path))
     exact.evaluate(sat, bodies, los, g, bands)
     ref, t_ref, n_ref, _ = run(99.0, model=exact)
     rows = []

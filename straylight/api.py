@@ -121,7 +121,7 @@ def sky_background(time, coord, bands=None, config=None, catalog=None):
         raise InputError(f"bands: unknown band {unknown[0]!r}; known: {', '.join(campaign.bands)}, V")
     stars = None
     if catalog is not None:
-        from straylight.components import load_offfield_stars
+        from straylight.sources.stars import load_offfield_stars
 
         stars = load_offfield_stars(catalog, bands, float(campaign.config["stars"]["offfield_mag_limit"]),
                                     bool(campaign.config["stars"].get("faint_map", True)))

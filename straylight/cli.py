@@ -95,7 +95,7 @@ def cmd_ephem(args) -> int:
 
 def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None, stars=None) -> dict:
     """The ``straylight sky`` JSON record for one time and pointing (grows with the physics)."""
-    from straylight.components import ComponentModel
+    from straylight.model import BackgroundModel
     from straylight.sky.ephemeris import PLANETS
     from straylight.sky.geometry import radec_to_unit, violation_names
     from straylight.survey.limits import point_source_limit, sky_zero_points
@@ -132,11 +132,11 @@ def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None, stars=
     }
     g1 = {k: np.asarray(a).reshape(1) for k, a in g.items()}
     los = radec_to_unit(np.array([ra_deg]), np.array([dec_deg]))
-    model = ComponentModel(campaign)
+    model = BackgroundModel(campaign)
     comps = model.evaluate(sc.satellite_km, sc.bodies_km, los, g1, bands or campaign.bands, stars=stars)
     record["models"] = model.models_record()
     # bodies inside the field: point sources, left out of the background and listed here
-    in_field = model.in_field_point_sources(sc.satellite_km, sc.bodies_km, los, g1, bands or campaign.bands)
+    in_field = model.in_field.find(sc.satellite_km, sc.bodies_km, los, g1, bands or campaign.bands)
     record["in_field_point_sources"] = [
         {"body": k, "angle_deg": float(np.ravel(v["angle_deg"])[0]), "v_mag": float(np.ravel(v["v_mag"])[0]),
          "mag_ab": {b: float(np.ravel(m)[0]) for b, m in v["mag_ab"].items()}}
@@ -178,7 +178,7 @@ def cmd_sky(args) -> int:
     bands = [b.strip() for b in args.bands.split(",") if b.strip()] if args.bands else None
     stars = None
     if args.catalog:  # the cube's star model: stars brighter than stars.offfield_mag_limit
-        from straylight.components import load_offfield_stars
+        from straylight.sources.stars import load_offfield_stars
 
         stars = load_offfield_stars(args.catalog, bands or campaign.bands,
                                     float(campaign.config["stars"]["offfield_mag_limit"]),
@@ -394,7 +394,7 @@ def cmd_image(args) -> int:
 def _image_background(campaign, t, ra_deg: float, dec_deg: float, band: str, catalog) -> dict:
     """Diffuse background (zodiacal, earthshine, Moon, Sun, planets, off-field stars) at the
     boresight and time, e-/s/pixel, through the pointing-table evaluation."""
-    from straylight.components import load_offfield_stars
+    from straylight.sources.stars import load_offfield_stars
     from straylight.sky.geometry import violation_names
     from straylight.survey.pointings import pointing_table
 
@@ -547,7 +547,7 @@ def cmd_pst(args) -> int:
 
 
 def cmd_schedule(args) -> int:
-    from straylight.components import ComponentModel
+    from straylight.model import BackgroundModel
     from straylight.config import load_campaign
     from straylight.survey.scheduling import write_tables
 
@@ -556,7 +556,7 @@ def cmd_schedule(args) -> int:
     fraction = float(args.fraction if args.fraction is not None else campaign.config["scheduling"]["fraction_of_zodiacal"])
     if not 0 < fraction <= 10:
         raise InputError(f"--fraction {fraction}: must be within (0, 10]")
-    for p in write_tables(ComponentModel(campaign), args.out, fraction):
+    for p in write_tables(BackgroundModel(campaign), args.out, fraction):
         print(p)
     return 0
 

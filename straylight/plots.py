@@ -18,7 +18,7 @@ ORBIT_MINUTES = 92.6  # ~400 km circular orbit: the first-orbit panel spans this
 
 def _mag(ds, e_per_s, band: str, campaign):
     from straylight.optics.bandpass import load_band
-    from straylight.sources.offfield import magnitude_per_arcsec2
+    from straylight.sources.photometry import magnitude_per_arcsec2
 
     b = load_band(campaign.instrument, band, campaign.instrument_path.parent)
     return magnitude_per_arcsec2(e_per_s, b, campaign.instrument_value("telescope", "aperture_diameter_m"),

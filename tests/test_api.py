@@ -85,7 +85,7 @@ def test_zero_point_matches_the_library_conversion(campaign):
     """The stored zero point converts e-/s/pixel to the same mag/arcsec2 as offfield's function."""
     from straylight.optics.bandpass import load_band
     from straylight.survey.limits import sky_zero_points
-    from straylight.sources.offfield import magnitude_per_arcsec2
+    from straylight.sources.photometry import magnitude_per_arcsec2
 
     zp = sky_zero_points(campaign)
     d = campaign.instrument_value("telescope", "aperture_diameter_m")

@@ -30,8 +30,6 @@ LAYERS = (
     ("straylight",),
     ("cli",),
 )
-#: modules that belong to another name's layer: the background model while it is still one module
-SAME_LAYER = {"components": "model"}
 RANK = {name: i for i, layer in enumerate(LAYERS) for name in layer}
 
 
@@ -39,7 +37,7 @@ def _unit(module: str) -> str:
     """The sub-package (or top-level module) a dotted module name belongs to."""
     parts = module.split(".")
     name = parts[1] if len(parts) > 1 else "straylight"
-    return SAME_LAYER.get(name, name)
+    return name
 
 
 def _modules() -> dict:

@@ -35,13 +35,13 @@ def max_rel_error(res, ref, bands):
 class Bench:
     def __init__(self, n_samples: int, seed: int = 5):
         from straylight.catalog.build import make_catalog
-        from straylight.components import ComponentModel
+        from straylight.model import BackgroundModel
         from straylight.config import load_campaign
 
         self.campaign = load_campaign()
         self.bands = list(self.campaign.bands)
-        base = ComponentModel(self.campaign)
-        self.catalog, _ = make_catalog({b: base.band(b).response for b in self.bands})
+        base = BackgroundModel(self.campaign)
+        self.catalog, _ = make_catalog({b: base.context.band(b).response for b in self.bands})
         sc, los, g = random_samples(self.campaign, 12 * n_samples, seed=seed)
         obs = np.flatnonzero(g["observable"])[:n_samples]
         self.sat, self.los = sc.satellite_km[obs], los[obs]
@@ -50,7 +50,7 @@ class Bench:
         self.n = len(obs)
 
     def stars(self, limit: float, faint: bool):
-        from straylight.components import split_stars
+        from straylight.sources.stars import split_stars
 
         return split_stars(self.catalog["ra"], self.catalog["dec"],
                            {b: self.catalog[f"mag_{b}"] for b in self.bands}, limit, faint)
@@ -63,7 +63,7 @@ class Bench:
         skipping on their bound; 1e-12 skips nothing)."""
         import copy
 
-        from straylight.components import ComponentModel
+        from straylight.model import BackgroundModel
         from straylight.config import campaign_from_dict
         from straylight.optics.pst import PST, default_pst_grid
 
@@ -76,8 +76,8 @@ class Bench:
         else:
             es["method"] = "lut"
             es["lut"] = dict(zip(("sun_zenith_step_deg", "los_zenith_step_deg", "azimuth_step_deg"), lut_steps))
-        cm = ComponentModel(campaign_from_dict(raw, self.campaign.path), expected_samples=10**6)
-        off = cm.offfield
+        cm = BackgroundModel(campaign_from_dict(raw, self.campaign.path), expected_samples=10**6)
+        off = cm.context.offfield
         es = replace(off.earthshine, n_gamma=n_gamma, n_psi=n_psi, door_blocks=tuple(door_blocks),
                      n_aperture_door=n_aperture_door)
         pst = off.pst if tuple(pst_step) == (0.5, 5.0) else PST(*default_pst_grid(*pst_step), source="bench")
@@ -101,14 +101,14 @@ def sweep(bench, ref, name, settings):
     rows = []
     for label, kwargs, stars in settings:
         cm = bench.model(**kwargs)
-        info = cm.earthshine_model  # builds the look-up table if one is asked for (or loads it)
+        info = cm.sunlit_earth.model  # builds the look-up table if one is asked for (or loads it)
         res, dt = timed(lambda: bench.evaluate(cm, stars))
         err = max_rel_error(res, ref, bench.bands)
         row = {"setting": label, "max_rel_error": err, "seconds_per_sample": dt / bench.n}
         extra = ""
         if info["method"] == "lut":
             # the tables' own recorded build times: a cached table loads in milliseconds
-            mlut = cm.moonlit_model["lut"]
+            mlut = cm.moonlit_earth.model["lut"]
             row["lut_build_seconds"] = info["lut"].build_seconds + (mlut.build_seconds if mlut is not None else 0.0)
             row["lut_validation_max_rel_error"] = info["lut_validation_max_rel_error"]
             extra = f"  (table built in {row['lut_build_seconds']:.0f} s)"
@@ -120,11 +120,11 @@ def sweep(bench, ref, name, settings):
 def cube_model(base, campaign: dict | None = None, earthshine: dict | None = None, models: dict | None = None,
                 **model_kw):
     """A campaign from ``base`` with ``campaign``, ``models.earthshine`` and ``models``
-    overrides, and its ComponentModel for cube-sized runs, the earthshine table built or loaded
+    overrides, and its BackgroundModel for cube-sized runs, the earthshine table built or loaded
     before timing."""
     import copy
 
-    from straylight.components import ComponentModel
+    from straylight.model import BackgroundModel
     from straylight.config import campaign_from_dict
 
     raw = copy.deepcopy(base.config)
@@ -132,8 +132,8 @@ def cube_model(base, campaign: dict | None = None, earthshine: dict | None = Non
     raw["models"].update(models or {})
     raw["models"].setdefault("earthshine", {}).update(earthshine or {})
     c = campaign_from_dict(raw, base.path)
-    model = ComponentModel(c, expected_samples=10**9, **model_kw)
-    model.earthshine_model
+    model = BackgroundModel(c, expected_samples=10**9, **model_kw)
+    model.sunlit_earth.model
     return c, model
 
 

@@ -169,11 +169,11 @@ def auto_cost_model(lut_model, cube: dict) -> dict:
     """models.earthshine.method = auto's two constants against this run: the seconds a cube
     sample saves on the table path (measured just now) and the table's build seconds per node
     and door state (as recorded when the cached table was built, on whatever cores it had).
-    A measured figure far from the assumed one means the constants in straylight/components.py
+    A measured figure far from the assumed one means the constants in straylight/model/fidelity.py
     want updating."""
-    from straylight import components as comp
+    from straylight.model import fidelity as comp
 
-    es = lut_model.earthshine_model
+    es = lut_model.sunlit_earth.model
     saved = 1.0 / cube["direct"]["samples_per_s_per_core"] - 1.0 / cube["lut"]["samples_per_s_per_core"]
     build = es["lut_build_seconds"] / es["lut_node_states"]
     out = {"saved_seconds_per_sample": {"measured": saved, "assumed": comp.LUT_SAVED_SECONDS_PER_SAMPLE},

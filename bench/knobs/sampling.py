@@ -54,13 +54,13 @@ def time_cadence_rows(bench):
     """Background over 6 h at 60 s for 40 random pointings; coarser cadences linearly
     interpolated in time, and the error-checked adaptive sampling (:func:`adaptive_in_time`)
     from each coarse cadence; error over samples observable at the fine cadence."""
-    from straylight.components import ComponentModel
+    from straylight.model import BackgroundModel
     from straylight.sky.geometry import observing_geometry, radec_to_unit
     from straylight.sky.observing import scene
     from astropy.time import Time, TimeDelta
 
     c = bench.campaign
-    cm = ComponentModel(c)
+    cm = BackgroundModel(c)
     stars = bench.stars(*DEFAULT_STARS)
     t0 = Time("2026-01-01T00:00:00", scale="utc")
     fine_s = 60.0
@@ -121,12 +121,12 @@ def nside_rows(bench):
     value at their pixel's centre, at one time."""
     import healpy as hp
 
-    from straylight.components import ComponentModel
+    from straylight.model import BackgroundModel
     from straylight.sky.geometry import observing_geometry, radec_to_unit
     from straylight.sky.observing import scene
 
     c = bench.campaign
-    cm = ComponentModel(c)
+    cm = BackgroundModel(c)
     stars = bench.stars(*DEFAULT_STARS)
     sc = scene(c, ["2026-01-01T03:00:00"])
     rng = np.random.default_rng(4)

@@ -385,14 +385,15 @@ def _paint_discs(ny, nx, g, min_irr, rows=None, cols=None) -> np.ndarray:
 def bodies_as_stars(campaign, time, ra_deg: float, dec_deg: float, band: str) -> tuple:
     """The Sun, Moon and planets inside the field at ``time`` as extra catalog stars:
     (ra_deg, dec_deg, mag_ab, names), arrays; a body in the field is a point source, left out of
-    the background (:meth:`~straylight.components.ComponentModel.in_field_point_sources`)."""
-    from straylight.components import ComponentModel
+    the background (:meth:`~straylight.sources.bodies.InFieldBodies.find`)."""
     from straylight.sky.observing import sample_geometry, scene
+    from straylight.sources.bodies import InFieldBodies
+    from straylight.sources.context import SourceContext
 
     sc = scene(campaign, time)
     g = sample_geometry(campaign, sc, np.array([ra_deg]), np.array([dec_deg]), grid=False)
     los = radec_to_unit(np.array([ra_deg]), np.array([dec_deg]))
-    found = ComponentModel(campaign).in_field_point_sources(sc.satellite_km, sc.bodies_km, los, g, [band])
+    found = InFieldBodies(SourceContext(campaign)).find(sc.satellite_km, sc.bodies_km, los, g, [band])
     names = [k for k, v in found.items() if bool(np.ravel(v["in_field"])[0])]
     ra, dec = [], []
     for k in names:

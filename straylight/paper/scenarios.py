@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from straylight.components import ComponentModel
+from straylight.model import BackgroundModel
 from straylight.config import Campaign
 from straylight.errors import InputError
 from straylight.sky.geometry import radec_to_unit
@@ -41,7 +41,7 @@ def earthshine_scenario(campaign: Campaign, time: str = SCENARIO_TIME, band: str
     g = {k: np.asarray(v)[0] for k, v in g.items()}
     sat = np.broadcast_to(sc.satellite_km[0], (ra.size, 3))
     bodies = {k: np.broadcast_to(v[0], (ra.size, 3)) for k, v in sc.bodies_km.items()}
-    comps = ComponentModel(campaign).evaluate(sat, bodies, radec_to_unit(ra, dec), g, [band])[band]
+    comps = BackgroundModel(campaign).evaluate(sat, bodies, radec_to_unit(ra, dec), g, [band])[band]
     return {
         "ra_deg": ra, "dec_deg": dec,
         "earth_limb_angle_deg": g["earth_limb_angle_deg"],

@@ -1,6 +1,27 @@
-"""The sources of background light, each giving its e-/s/pixel per band for a batch of samples:
-zodiacal light, the Sun, the Moon and the planets, off-field stars, and the sunlit and moonlit Earth
-(its direct sum and its tables side by side).
+"""The sources of background light, one module each, every one asked the same thing by the
+background model (:class:`straylight.model.BackgroundModel`): its e-/s/pixel in each band for a
+batch of samples (:class:`~straylight.sources.context.Samples`), and, for those skipped where
+the scene's brighter light swamps them, the upper bound the skip is decided on.
+
+- ``zodiacal``: zodiacal light in the field (Leinert 1998 table), never skipped.
+- ``bodies``: the Sun (never skipped), the Moon and the planets (skipped on a PST bound), and
+  the same bodies inside the field, which the background leaves out (imaged as point sources).
+- ``stars``: off-field catalog stars, the bright ones pair by pair (skipped per sky cell on a
+  bound), the faint ones as a smoothed map.
+- ``sunlit_earth``: the sunlit Earth (direct and via the door), its direct sum or its table.
+- ``moonlit_earth``: the moonlit Earth on the table's path (skipped on a bound, else a coarse
+  grid, tabulated or summed).
+- ``earthshine_lut``: the two earthshine tables (build, cache, look-up, bounds).
+- ``offfield``: what the off-field sources share: the transfer (Se Sp PST x pixel area), the
+  Earth-grid sum, the Sun's, Moon's and planets' brightness laws, band photometry.
+- ``context``: the campaign's instrument as every source sees it, and the batch of samples.
+
+Solar-spectrum sources (the Sun, Moon, planets, both Earths) give band-independent rates, in
+e-/s/pix per photon s-1 m-2 of the Sun at 1 AU (or of their lamp), that each band's solar
+photon irradiance turns into e-/s/pix; the model does that product and the sum in one compiled
+pass.  The error a skip or a table may add is the fidelity policy's
+(:class:`straylight.model.FidelityPolicy`), handed to each source; sources never import
+``straylight.model``.
 
 Imports ``straylight.sky``, ``straylight.optics`` and ``straylight.util``; never ``straylight.survey``.
 """

@@ -43,9 +43,9 @@ from straylight.errors import InputError
 from straylight.sky.geometry import _any_perpendicular_xyz, _unit_xyz, dot, norm, rows_at, scene_rows, telescope_frame, unit
 from straylight.util.gridinterp import LinearGrid
 from straylight.util.io import cache_dir
-from straylight.sources.offfield import MOON_APOGEE_KM, MOON_MEAN_DISTANCE_KM, MOON_PERIGEE_KM
+from straylight.sources.bodies import MOON_APOGEE_KM, MOON_MEAN_DISTANCE_KM, MOON_PERIGEE_KM
+from straylight.sources.photometry import AU_KM
 
-AU_KM = 1.495978707e8
 #: bumped whenever the table's content or layout changes: part of the cache key
 LUT_FORMAT = 5
 
@@ -181,7 +181,7 @@ def _dark_lamp_zenith_deg(zenith_nodes_deg, tables, axis: int) -> float:
     """The lamp zenith angle beyond which ``tables`` (each with the lamp's zenith angle along
     ``axis``) are 0: the first node of the all-zero slabs that run to the axis' end, in every
     table, plus 1e-6 deg, so that a point within rounding of that node (which the cell finder
-    may place in the cell below) is looked up as before; inf when the last slab is not 0.
+    may place in the cell below) is still looked up; inf when the last slab is not 0.
     Beyond it the interpolation gives exactly 0 and no look-up is needed."""
     nonzero = np.zeros(zenith_nodes_deg.size, bool)
     for table in tables:

@@ -1,25 +1,14 @@
-"""Off-field stray light through the PST (seed paper sects. 2.2, 3.1-3.2).
+"""The off-field transfer every source outside the field goes through (seed paper sects. 2.2,
+3.1-3.2), and the Earth-grid sum of earthshine.
 
 Point sources (paper eq. 14):  E_p = sum_i E_i Se_i Sp_i PST(theta_i, phi_i), with E_i the band
 photon irradiance at the aperture (photons s-1 m-2), Se_i = 0 when the Earth hides the source
 (two-condition test), Sp_i the door's unshaded fraction (:mod:`straylight.optics.door`) and PST from
 :mod:`straylight.optics.pst`.  The focal-plane rate is E * PST * (pixel area), with the band's total
 throughput (mirrors x filter x QE) turning photons into electrons; the PST is taken as the
-geometric transfer.
-
-Sources and their published brightness laws:
-
-* Sun: ASTM E490-00a spectrum at 1 AU scaled by (1 AU / d)^2.
-* Moon: solar spectrum scaled to V(alpha) = -12.73 + 0.026 |alpha| + 4e-9 alpha^4 at the mean
-  distance 384400 km (Krisciunas & Schaefer 1991, PASP 103, 1033, eq. 9; alpha = phase angle,
-  deg), or the paper's proportional rule (full-Moon brightness times elongation / 180);
-  x (384400 km / d)^2; an eclipsed Moon (inside the Earth's shadow cylinder) is dimmed by
-  ``moon_eclipse_factor``.
-* Planets: V = V0 + 5 log10(r Delta) + phase terms (Meeus 1998, "Astronomical Algorithms",
-  2nd ed., ch. 41, after the Astronomical Almanac 1984), with Saturn's ring term; solar spectrum.
-* Stars: AB magnitudes per band from a catalog.
-
-Solar-like sources are converted with V_sun = -26.76 (Willmer 2018, ApJS 236, 47).
+geometric transfer.  The sources' brightness laws are with the sources: the Sun, Moon and
+planets in :mod:`straylight.sources.bodies`, the band photometry in
+:mod:`straylight.sources.photometry`, the stars in :mod:`straylight.sources.stars`.
 
 Earthshine (paper sect. 3.2): the Earth cap seen from the satellite is split into n_gamma x
 n_psi blocks of solid angle sin(gamma) dgamma dpsi about nadir; each is a Lambertian reflector of
@@ -30,7 +19,9 @@ Earth blocks in front of its inner face whose ray to it misses the telescope bod
 (:meth:`OffFieldModel.door_lit_fraction`) and re-emits as a Lambertian of reflectance r; the aperture points j receive
 L_door A_i cos(e_ij) / d_ij^2 with PST(theta_ij, phi_ij), averaged over the aperture.  This is
 the paper's EA2 = sum_i MP_i r sum_j PST(theta_ij, phi_ij) / d_ij^2 with the block area, the
-emission cosine and 1/pi written out.
+emission cosine and 1/pi written out.  The sunlit and moonlit Earth's sources
+(:mod:`straylight.sources.sunlit_earth`, :mod:`straylight.sources.moonlit_earth`) call this sum or
+its tables (:mod:`straylight.sources.earthshine_lut`).
 """
 from __future__ import annotations
 
@@ -39,101 +30,11 @@ from functools import cached_property
 
 import numpy as np
 
-from straylight.optics.bandpass import Band
 from straylight.optics.door import Door, DoorTable, behind_aperture_plane, door_state_index
 from straylight.errors import ConfigError
 from straylight.sky.geometry import dot, norm, perpendicular_towards, rows_at, scene_rows, shared_vectors, unit, wrap_360_deg
 from straylight.util.gridinterp import LinearGrid
 from straylight.optics.pst import PST
-from straylight.sources.zodiacal import solar_spectrum
-
-AU_KM = 1.495978707e8
-V_SUN_VEGA = -26.76
-MOON_MEAN_DISTANCE_KM = 384400.0
-#: the Moon's nearest perigee in 2000-2100, km (~356,400; Meeus 1998, ch. 50): the brightest Moon
-MOON_PERIGEE_KM = 356400.0
-#: the Moon's farthest apogee in 2000-2100, km (~406,700; Meeus 1998, ch. 50)
-MOON_APOGEE_KM = 406700.0
-SATURN_POLE_RA_DEC_DEG = (40.589, 83.537)  # IAU WGCCRE 2015 (Archinal et al. 2018)
-
-# Meeus (1998) ch. 41: V0 and phase coefficients (i in degrees)
-PLANET_V = {
-    "mercury": (-0.42, (0.0380, -0.000273, 0.000002)),
-    "venus": (-4.40, (0.0009, 0.000239, -0.00000065)),
-    "mars": (-1.52, (0.016, 0.0, 0.0)),
-    "jupiter": (-9.40, (0.005, 0.0, 0.0)),
-    "saturn": (-8.88, (0.0, 0.0, 0.0)),
-    "uranus": (-7.19, (0.0, 0.0, 0.0)),
-    "neptune": (-6.87, (0.0, 0.0, 0.0)),
-    "pluto": (-1.00, (0.0, 0.0, 0.0)),
-}
-
-
-def moon_v_magnitude(phase_angle_deg, distance_km, law: str = "krisciunas_schaefer", elongation_deg=None):
-    """Lunar V magnitude at ``distance_km`` for the phase angle (deg, 0 = full)."""
-    a = np.abs(np.asarray(phase_angle_deg, dtype=float))
-    dist_term = 5.0 * np.log10(np.asarray(distance_km, dtype=float) / MOON_MEAN_DISTANCE_KM)
-    if law == "krisciunas_schaefer":
-        return -12.73 + 0.026 * a + 4e-9 * a**4 + dist_term
-    if law == "proportional":
-        e = np.asarray(elongation_deg if elongation_deg is not None else 180.0 - a, dtype=float)
-        ratio = np.clip(e / 180.0, 1e-6, 1.0)
-        return -12.73 - 2.5 * np.log10(ratio) + dist_term
-    raise ConfigError(f"moon phase law {law!r} is not one of 'krisciunas_schaefer', 'proportional'")
-
-
-def planet_v_magnitude(name: str, planet_km, sun_km, observer_km) -> np.ndarray:
-    """Meeus (1998) ch. 41 V magnitude of a planet (geocentric inputs, km)."""
-    return planet_v_magnitudes([name], np.asarray(planet_km, float)[None], sun_km, observer_km)[0]
-
-
-def planet_v_magnitudes(names, planets_km, sun_km, observer_km) -> np.ndarray:
-    """:func:`planet_v_magnitude` of several planets at once: ``planets_km`` (planets, ..., 3),
-    one row per name, -> (planets, ...) (one numpy pass per step for all of them, not one per
-    planet: a cube batch's per-step magnitudes cost ~80 us a planet in small-array overheads)."""
-    v0 = np.array([PLANET_V[n][0] for n in names], float)
-    c1, c2, c3 = np.array([PLANET_V[n][1] for n in names], float).T
-    planet = np.asarray(planets_km, float)
-    sun, observer = np.asarray(sun_km, float), np.asarray(observer_km, float)
-    extra = (slice(None),) + (None,) * (planet.ndim - 2)  # each planet's constants over its samples
-    v0, c1, c2, c3 = v0[extra], c1[extra], c2[extra], c3[extra]
-    r = norm(planet - sun) / AU_KM
-    delta = norm(planet - observer) / AU_KM
-    i = np.degrees(np.arctan2(norm(np.cross(sun - planet, observer - planet)), dot(sun - planet, observer - planet)))
-    v = v0 + 5.0 * np.log10(r * delta) + c1 * i + c2 * i**2 + c3 * i**3
-    if "saturn" in names:
-        k = list(names).index("saturn")
-        ra, de = np.radians(SATURN_POLE_RA_DEC_DEG)
-        pole = np.array([np.cos(de) * np.cos(ra), np.cos(de) * np.sin(ra), np.sin(de)])
-        sin_b = np.abs(dot(unit(observer - planet[k]), pole))
-        v[k] = v[k] - 2.60 * sin_b + 1.25 * sin_b**2
-    return v
-
-
-def solar_like_fraction(v_mag) -> np.ndarray:
-    """Irradiance of a source with the Sun's spectrum and V magnitude ``v_mag`` as a fraction of
-    the Sun's at 1 AU, in any band (the same spectrum, so the same fraction in every band)."""
-    return 10.0 ** (-0.4 * (np.asarray(v_mag, dtype=float) - V_SUN_VEGA))
-
-
-@dataclass
-class BandPhotometry:
-    """Photon irradiances through one band for the solar-spectrum sources."""
-
-    band: Band
-
-    @cached_property
-    def sun_at_1au_photons_s_m2(self) -> float:
-        wl, flux = solar_spectrum()
-        return float(self.band.photon_rate(wl, flux))
-
-    def solar_like_from_v(self, v_mag) -> np.ndarray:
-        """Photon irradiance of a source with the Sun's spectrum and V magnitude ``v_mag``."""
-        return self.sun_at_1au_photons_s_m2 * solar_like_fraction(v_mag)
-
-    def from_ab(self, mag_ab) -> np.ndarray:
-        return self.band.ab_zero_point_photons_s_m2 * 10.0 ** (-0.4 * np.asarray(mag_ab, dtype=float))
-
 
 @dataclass
 class EarthshineSettings:
@@ -155,7 +56,8 @@ class EarthshineSettings:
 
 @dataclass
 class OffFieldModel:
-    """Everything needed to evaluate the off-field terms of one band."""
+    """The off-field transfer of one instrument (PST, door, pixel, field radius) and its Earth
+    grid: e-/s/pix per photon s-1 m-2 at the aperture, band-independent."""
 
     pst: PST
     door: Door
@@ -202,7 +104,7 @@ class OffFieldModel:
         A source inside the field (theta <= field_radius_deg) adds nothing here: it is imaged
         as a point source with its own scattering halo and ghosts (:mod:`straylight.image.detector`),
         not spread as a uniform background (PST = 1 over every pixel); it is reported by
-        :meth:`~straylight.components.ComponentModel.in_field_point_sources`."""
+        :meth:`~straylight.sources.bodies.InFieldBodies.find`."""
         in_field = np.asarray(theta_deg, float) <= self.field_radius_deg
         th, ph, blocked, op = np.broadcast_arrays(theta_deg, phi_deg, np.asarray(earth_blocked, bool) | in_field,
                                                   opening_deg)
@@ -410,7 +312,7 @@ class OffFieldModel:
         gamma, dgamma = self._cap_nadir_angles_at(norm(rows.vectors[0]), earth_radius_km, s)
         cap_sr = 2.0 * np.pi * np.sum(np.sin(gamma) * dgamma, axis=-1)  # the grid's sum of d_omega
         return np.array(rows.expand(self.earthshine.albedo / np.pi * self._pst_max_outside_field * cap_sr
-                                    * self.pixel_area_m2))  # a writable array, as before
+                                    * self.pixel_area_m2))  # a writable array, not a read-only view
 
     @cached_property
     def _pst_max_outside_field(self) -> float:
@@ -537,18 +439,3 @@ class OffFieldModel:
         c = self.earthshine_coefficients(sat_km, sun_km, moon_km, frame, opening_deg, earth_radius_km)
         return (c["direct_sun"] * sun_irr + c["direct_moon"] * moon_irr_at_earth,
                 c["door_sun"] * sun_irr + c["door_moon"] * moon_irr_at_earth)
-
-
-def sky_zero_point_mag_per_arcsec2(band: Band, aperture_diameter_m: float, pixel_scale_arcsec: float) -> float:
-    """AB surface brightness (mag/arcsec2) of a uniform background giving 1 e-/s/pixel, so that
-    ``mag_per_arcsec2 = zero_point - 2.5 log10(rate_e_per_s_per_pix)``: the band's AB photon
-    zero point times the aperture area, spread over one pixel's solid angle (arcsec2)."""
-    ref = band.ab_zero_point_photons_s_m2 * np.pi * aperture_diameter_m**2 / 4.0
-    return float(2.5 * np.log10(ref * pixel_scale_arcsec**2))
-
-
-def magnitude_per_arcsec2(e_per_s_per_pix, band: Band, aperture_diameter_m: float, pixel_scale_arcsec: float):
-    """AB mag/arcsec2 of a uniform background giving ``e_per_s_per_pix`` (inf where zero)."""
-    zp = sky_zero_point_mag_per_arcsec2(band, aperture_diameter_m, pixel_scale_arcsec)
-    with np.errstate(divide="ignore"):
-        return zp - 2.5 * np.log10(np.asarray(e_per_s_per_pix, dtype=float))

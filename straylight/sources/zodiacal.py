@@ -223,6 +223,17 @@ class ZodiacalModel:
         """e-/s/pixel in ``band`` for a 500 nm brightness B_500 (W m-2 sr-1 um-1)."""
         return np.asarray(brightness_500nm) * self.band_factors(band)[0] * self.pixel_etendue_m2_sr
 
+    def rates(self, bands: list, los: np.ndarray, sun_direction: np.ndarray, shape: tuple, runs=None) -> tuple:
+        """(e-/s/pixel per band, (bands, samples flattened); the no-data flag, the samples' shape)
+        for a batch of samples of ``shape``: the 500 nm brightness once, then each
+        :class:`~straylight.optics.bandpass.Band` of ``bands``.  Never skipped: it is the floor
+        every skip bound is measured against."""
+        b500, no_data = self.brightness_500nm(los, sun_direction, runs)
+        e = np.empty((len(bands), int(np.prod(shape))))
+        for ib, band in enumerate(bands):
+            e[ib] = np.broadcast_to(self.e_per_s_per_pix(band, b500), shape).ravel()
+        return e, np.broadcast_to(no_data, shape)
+
     def evaluate(self, band: Band, los: np.ndarray, sun_direction: np.ndarray) -> dict:
         """Zodiacal light for lines of sight and Sun directions (ICRS vectors, broadcast).
 

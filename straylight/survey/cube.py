@@ -129,7 +129,7 @@ def faint_star_map(campaign: Campaign, fp: Footprint, stars_path) -> xr.Variable
     stars = _offfield_stars(campaign, stars_path)
     if stars is None or not len(stars.faint_ra_deg):
         return None
-    rates = _component_model(campaign, fp).faint_star_rates(stars, radec_to_unit(fp.ra_deg, fp.dec_deg),
+    rates = _component_model(campaign, fp).stars.faint_star_rates(stars, radec_to_unit(fp.ra_deg, fp.dec_deg),
                                                             campaign.bands)
     values = np.zeros((fp.pixels.size, len(campaign.bands)))
     for i, band in enumerate(campaign.bands):
@@ -167,7 +167,7 @@ def evaluated_samples(campaign: Campaign, fp: Footprint, max_times: int = 144, m
     campaign is no bigger).  On the default day (16.5 % observable) 144 x 660 of its 288 x 1320
     samples give the fraction to 0.1 % of the samples in 0.15 s; 48 x 256 erred by 2.4 % (every
     sixth step, 30 minutes apart, meets the 92-minute orbit in a pattern)."""
-    from straylight.components import unobservable_samples
+    from straylight.model import unobservable_samples
     from straylight.sky.observing import scene
 
     n = len(campaign.times) * int(fp.pixels.size)
@@ -186,7 +186,7 @@ def evaluated_samples(campaign: Campaign, fp: Footprint, max_times: int = 144, m
 #: table path evaluating every sample, and with models.unobservable_samples: skip the screen
 #: (the Sun's and the Moon's geometry, every sample) and each observable sample evaluated (they
 #: cost ~1.7x the average sample: more moonlit-Earth sums and star pairs); the direct earthshine
-#: sum adds components.LUT_SAVED_SECONDS_PER_SAMPLE per evaluated sample.  Seconds, in the units
+#: sum adds straylight.model.fidelity.LUT_SAVED_SECONDS_PER_SAMPLE per evaluated sample.  Seconds, in the units
 #: of the reference machine those figures are given for (:func:`machine_speed` scales them to
 #: another): ``bench/run.py --only cube`` on the default day (12 steps x 1320 pixels, best of
 #: seven), two runs on a machine whose direct path ran x0.263 and x0.265 of the reference, gave
@@ -238,10 +238,10 @@ def cube_compute_seconds(samples: int, evaluated: int, earthshine_method: str, s
     """Seconds on one core to compute a cube of ``samples`` (time, pixel) samples of which
     ``evaluated`` are evaluated (all, or with ``skip`` the observable ones), with the sunlit
     earthshine ``earthshine_method`` ('lut' or 'direct'), at the CUBE_* and
-    components.LUT_SAVED_SECONDS_PER_SAMPLE figures above times ``speed_factor`` (this machine
+    straylight.model.fidelity.LUT_SAVED_SECONDS_PER_SAMPLE figures above times ``speed_factor`` (this machine
     against the one they were measured on, :func:`machine_speed`); or at
     ``seconds_per_evaluated_sample`` per evaluated sample when given (another machine)."""
-    from straylight.components import LUT_SAVED_SECONDS_PER_SAMPLE
+    from straylight.model import LUT_SAVED_SECONDS_PER_SAMPLE
 
     if seconds_per_evaluated_sample is not None:
         return evaluated * seconds_per_evaluated_sample
@@ -252,7 +252,7 @@ def cube_compute_seconds(samples: int, evaluated: int, earthshine_method: str, s
 
 
 def machine_speed(campaign: Campaign, fp: Footprint, n_times: int = 4, n_pixels: int = 1320, repeats: int = 2) -> dict:
-    """This machine's speed against the one the cost figures (CUBE_*, components.LUT_*) were
+    """This machine's speed against the one the cost figures (CUBE_*, fidelity.LUT_*) were
     measured on: ``n_times`` cube time steps spread over the campaign at ~``n_pixels`` footprint
     pixels spread over it (one step, or a few hundred pixels, weigh the per-step costs too
     much), on the direct earthshine sum, every sample evaluated, without stars (~1 % of that
@@ -262,13 +262,13 @@ def machine_speed(campaign: Campaign, fp: Footprint, n_times: int = 4, n_pixels:
     factor for every figure: on the development machine it reads x0.24 where the cube bench's
     four paths read x0.21-0.33 against the same figures, so it errs by -12 % to +40 % per path
     (README)."""
-    from straylight.components import ComponentModel
+    from straylight.model import BackgroundModel
     from straylight.config import campaign_from_dict, deep_merge
 
     direct = campaign_from_dict(deep_merge(campaign.config, {"models": {"earthshine": {"method": "direct"},
                                                                         "unobservable_samples": "evaluate"}}),
                                 campaign.path)
-    model = ComponentModel(direct, expected_samples=1)
+    model = BackgroundModel(direct, expected_samples=1)
     nt = len(direct.times)
     t_slice = slice(0, nt, max(1, nt // max(1, n_times)))
     p_slice = slice(0, None, max(1, int(fp.pixels.size) // max(1, n_pixels)))
@@ -291,7 +291,7 @@ def estimated_cost(campaign: Campaign, fp: Footprint, seconds_per_evaluated_samp
                    speed_factor: float = 1.0) -> dict:
     """What the campaign's cube will cost before it runs: its samples, the samples it
     evaluates (:func:`evaluated_samples`), the sunlit earthshine model ``auto`` picks
-    (ComponentModel.earthshine_choice, nothing built), the table's build when it is not cached
+    (SunlitEarth.choice, nothing built), the table's build when it is not cached
     yet, and the compute (:func:`cube_compute_seconds`).  Seconds on one core.  Also the
     whole run, wall to wall, at the measured pipeline figure (:func:`pipeline_rate`, measured
     on the table path; on the direct sum the kernel's compute where that is slower; the table's build added
@@ -299,19 +299,19 @@ def estimated_cost(campaign: Campaign, fp: Footprint, seconds_per_evaluated_samp
     (PRODUCT_BYTES_PER_SAMPLE).  The figures are
     this code's on a 2-core development machine (single runs wander by 20-40 %), times
     ``speed_factor`` (:func:`machine_speed`) for this one."""
-    from straylight.components import ComponentModel, unobservable_samples
+    from straylight.model import BackgroundModel, unobservable_samples
 
     n = len(campaign.times) * int(fp.pixels.size)
     n_eval = evaluated_samples(campaign, fp)
-    model = ComponentModel(campaign, expected_samples=n_eval)
-    choice = model.earthshine_choice
+    model = BackgroundModel(campaign, expected_samples=n_eval)
+    choice = model.sunlit_earth.choice
     skip = unobservable_samples(campaign) == "skip"
     compute_s = cube_compute_seconds(n, n_eval, choice["method"], skip, seconds_per_evaluated_sample, speed_factor)
     build_s, table_cached = 0.0, False
     if choice["method"] == "lut":  # the sunlit table and the moonlit one, each unless cached
         moonlit_s = choice["moonlit_build_seconds_estimate"]
-        sunlit_cached = model.earthshine_lut_path().exists()
-        moonlit_path = model.moonlit_lut_path()
+        sunlit_cached = model.sunlit_earth.lut_path().exists()
+        moonlit_path = model.moonlit_earth.lut_path()
         moonlit_cached = moonlit_path is None or moonlit_path.exists()
         table_cached = sunlit_cached and moonlit_cached
         build_s = speed_factor * ((0.0 if sunlit_cached else choice["build_seconds_estimate"] - moonlit_s)
@@ -329,14 +329,14 @@ def estimated_cost(campaign: Campaign, fp: Footprint, seconds_per_evaluated_samp
 
 
 def _component_model(campaign: Campaign, fp: Footprint, build_workers: int = 1):
-    """One ComponentModel per process and campaign: its door tables, bands and earthshine table
+    """One BackgroundModel per process and campaign: its door tables, bands and earthshine table
     are built once, not once per Dask task (the campaign arrives pickled, so key on its content).
     It expects the samples the cube evaluates (:func:`evaluated_samples`)."""
-    from straylight.components import ComponentModel
+    from straylight.model import BackgroundModel
 
     key = (json.dumps(campaign.config, sort_keys=True, default=str), str(campaign.instrument_path), fp.pixels.size)
     if key not in _MODELS:
-        _MODELS[key] = ComponentModel(campaign, expected_samples=evaluated_samples(campaign, fp),
+        _MODELS[key] = BackgroundModel(campaign, expected_samples=evaluated_samples(campaign, fp),
                                       build_workers=build_workers)
     return _MODELS[key]
 
@@ -348,7 +348,7 @@ def _offfield_stars(campaign: Campaign, stars_path):
     """The catalog's off-field stars (brighter than stars.offfield_mag_limit), once per process."""
     if stars_path is None:
         return None
-    from straylight.components import load_offfield_stars
+    from straylight.sources.stars import load_offfield_stars
 
     limit = float(campaign.config["stars"].get("offfield_mag_limit", 2.0))
     faint = bool(campaign.config["stars"].get("faint_map", True))
@@ -368,7 +368,7 @@ def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: s
     another pixel block of the same times (None: computed here).  ValueError if ``scene`` is
     not at exactly these times."""
     from straylight.sky import observing
-    from straylight.components import unobservable_samples
+    from straylight.model import unobservable_samples
 
     model = model or _component_model(campaign, fp)
     stars = _offfield_stars(campaign, stars_path)
@@ -379,7 +379,7 @@ def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: s
     faint = None if faint_map is None else {b: np.asarray(faint_map)[:, i] for i, b in enumerate(campaign.bands)}
     if faint is None and stars is not None and len(stars.faint_ra_deg):
         # once per pixel, not per sample of a many-step batch (it depends on the line of sight only)
-        faint = model.faint_star_rates(stars, los, campaign.bands)
+        faint = model.stars.faint_star_rates(stars, los, campaign.bands)
     # one allocation for every component: numpy asks the kernel for huge pages on arrays of 4 MiB
     # or more (a default region's 9.3 MB).  Seven fresh 1.3 MB arrays took 3.6 ms of page faults
     # in a micro-benchmark; in a run of regions, where freed memory is reused, it gained ~0.6 %
@@ -392,8 +392,8 @@ def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: s
     # Steps are evaluated together, as one flat batch of samples: numpy's per-call cost is then
     # paid once per batch, not once per step (1.5-1.7x on the table path).  The direct earthshine
     # sum grids the Earth per sample, so there one step per call bounds its memory (the star
-    # pairs bound their own: ComponentModel.STAR_PAIRS_PER_PASS).
-    max_samples = npix if model.earthshine_model["lut"] is None else SAMPLES_PER_EVALUATION
+    # pairs bound their own: OffFieldStars.STAR_PAIRS_PER_PASS).
+    max_samples = npix if model.sunlit_earth.model["lut"] is None else SAMPLES_PER_EVALUATION
     skip_unobservable = unobservable_samples(campaign) == "skip"  # the campaign's, not the model's
     for steps in _step_batches(nt, npix, max_samples):
         k = steps.stop - steps.start
@@ -404,7 +404,7 @@ def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: s
         sat = np.repeat(sc.satellite_km[steps], npix, axis=0)
         los_k = np.broadcast_to(los[None], (k,) + los.shape).reshape(-1, 3)
         # the constraints need the Sun's and the Moon's angles only; the background finds the
-        # planets' where they can matter (ComponentModel._planets_fraction)
+        # planets' where they can matter (sources.bodies.Planets)
         bodies = {b: np.repeat(sc.bodies_km[b][steps], npix, axis=0)
                   for b in (("sun", "moon") if skip_unobservable else sc.bodies_km)}
         frame = telescope_frame(los_k, bodies["sun"] - sat)  # once for the geometry and the background

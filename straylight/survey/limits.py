@@ -57,9 +57,9 @@ ZERO_POINT_NAME = "mag_zero_point"
 
 def sky_zero_points(campaign: Campaign, bands=None) -> dict:
     """Each band's AB surface-brightness zero point, mag/arcsec2 at 1 e-/s/pixel (see
-    :func:`straylight.sources.offfield.sky_zero_point_mag_per_arcsec2`): the instrument's throughput,
+    :func:`straylight.sources.photometry.sky_zero_point_mag_per_arcsec2`): the instrument's throughput,
     aperture and pixel scale, nothing else."""
-    from straylight.sources.offfield import sky_zero_point_mag_per_arcsec2
+    from straylight.sources.photometry import sky_zero_point_mag_per_arcsec2
 
     d = campaign.instrument_value("telescope", "aperture_diameter_m")
     pix = campaign.pixel_scale_arcsec

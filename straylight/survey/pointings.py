@@ -89,7 +89,7 @@ def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int
                    models: dict | None = None) -> dict:
     """Columns of the per-pointing background table (see the module docstring); ``models``, if
     given, receives the record of which models ran and their error budget."""
-    from straylight.components import ComponentModel
+    from straylight.model import BackgroundModel
     from straylight.sky.ephemeris import default_ephemeris
     from straylight.sky.geometry import radec_to_unit
     from straylight.survey.limits import point_source_limit
@@ -118,7 +118,7 @@ def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int
         i = int(out_of_range[0])
         raise InputError(f"{source} row {i + 1}: time = {iso[i]} is outside the DE405 range (1600-12-21 to "
                          f"2200-02-02); {out_of_range.size} of {len(iso)} rows are out of range")
-    model = ComponentModel(campaign, expected_samples=n_rows)
+    model = BackgroundModel(campaign, expected_samples=n_rows)
     if models is not None:
         models.update(model.models_record())
     n = len(t_all)
@@ -138,7 +138,7 @@ def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int
         for k in geo_keys:
             acc[k].append(np.asarray(g[k]))
         # the brightest Sun, Moon or planet inside the field (a point source, not in the background)
-        bodies = model.in_field_point_sources(sc.satellite_km, sc.bodies_km, np.atleast_2d(los), g, [])
+        bodies = model.in_field.find(sc.satellite_km, sc.bodies_km, np.atleast_2d(los), g, [])
         v_in = np.stack([np.where(v["in_field"], v["v_mag"], np.inf) for v in bodies.values()])
         brightest = np.argmin(v_in, axis=0)
         names = np.array(list(bodies), dtype=object)
@@ -178,7 +178,7 @@ def column_units(cols) -> dict:
 def background_table(campaign, t, ra_deg, dec_deg, bands, stars=None, source=""):
     """:func:`straylight.sky_background`'s table for a loaded campaign and 1-D UTC times ``t`` with ICRS
     ``ra_deg``, ``dec_deg`` (deg) of the same length, already checked; ``stars`` as
-    :func:`straylight.components.load_offfield_stars` gives them (None: stars = 0)."""
+    :func:`straylight.sources.stars.load_offfield_stars` gives them (None: stars = 0)."""
     from straylight.survey.limits import sky_zero_points
 
     models: dict = {}

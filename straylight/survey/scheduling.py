@@ -21,28 +21,28 @@ from __future__ import annotations
 
 import numpy as np
 
-from straylight.components import ComponentModel
+from straylight.model import BackgroundModel
 from straylight.config import Campaign
 from straylight.survey.limits import SNR, survey_exposure
-from straylight.sources.offfield import MOON_MEAN_DISTANCE_KM, moon_v_magnitude
+from straylight.sources.bodies import MOON_MEAN_DISTANCE_KM, moon_v_magnitude
 
 
-def _pst_max_over_phi(model: ComponentModel, theta_deg: np.ndarray) -> np.ndarray:
+def _pst_max_over_phi(model: BackgroundModel, theta_deg: np.ndarray) -> np.ndarray:
     phi = np.linspace(0.0, 360.0, 145)
-    return model.offfield.pst(np.asarray(theta_deg)[:, None], phi[None, :]).max(axis=1)
+    return model.context.offfield.pst(np.asarray(theta_deg)[:, None], phi[None, :]).max(axis=1)
 
 
-def moon_avoidance_table(model: ComponentModel, fraction: float = 0.1, phase_step_deg: float = 10.0,
+def moon_avoidance_table(model: BackgroundModel, fraction: float = 0.1, phase_step_deg: float = 10.0,
                          theta_step_deg: float = 0.25) -> dict:
     """Columns phase_angle_deg, illuminated_fraction and min_moon_angle_deg_<band> (deg)."""
     phases = np.arange(0.0, 180.0 + phase_step_deg / 2, phase_step_deg)
     theta = np.arange(0.0, 180.0 + theta_step_deg / 2, theta_step_deg)
-    transfer = _pst_max_over_phi(model, theta) * model.offfield.pixel_area_m2 * (theta > model.offfield.field_radius_deg)
+    transfer = _pst_max_over_phi(model, theta) * model.context.offfield.pixel_area_m2 * (theta > model.context.offfield.field_radius_deg)
     out = {"phase_angle_deg": phases, "illuminated_fraction": (1 + np.cos(np.radians(phases))) / 2}
-    v = moon_v_magnitude(phases, np.full(phases.size, MOON_MEAN_DISTANCE_KM), model.offfield.moon_law, 180.0 - phases)
+    v = moon_v_magnitude(phases, np.full(phases.size, MOON_MEAN_DISTANCE_KM), model.context.offfield.moon_law, 180.0 - phases)
     for b in model.campaign.bands:
-        limit = fraction * model.darkest_zodiacal_e_per_s(b)
-        irr = model.photometry(b).solar_like_from_v(v)  # photons s-1 m-2
+        limit = fraction * model.context.darkest_zodiacal_e_per_s(b)
+        irr = model.context.photometry(b).solar_like_from_v(v)  # photons s-1 m-2
         rate = irr[:, None] * transfer[None, :]  # (phase, theta)
         # the smallest angle beyond which the Moon stays below the limit at every larger angle
         above = rate > limit
@@ -51,7 +51,7 @@ def moon_avoidance_table(model: ComponentModel, fraction: float = 0.1, phase_ste
     return out
 
 
-def bright_limb_table(model: ComponentModel, fraction: float = 0.1, sun_zenith_step_deg: float = 10.0,
+def bright_limb_table(model: BackgroundModel, fraction: float = 0.1, sun_zenith_step_deg: float = 10.0,
                       azimuth_step_deg: float = 30.0, elevation_step_deg: float = 1.0,
                       terminator_step_deg: float = 1.0) -> dict:
     """Columns sun_zenith_deg and min_limb_elevation_deg_<band> (deg above the limb): the lowest
@@ -64,7 +64,7 @@ def bright_limb_table(model: ComponentModel, fraction: float = 0.1, sun_zenith_s
     from straylight.sources.earthshine_lut import _sun_coefficients_direct
 
     c: Campaign = model.campaign
-    off = model.offfield
+    off = model.context.offfield
     re_km = c.earth.radius_km
     r = 0.5 * sum(c.orbit_radius_range_km)
     limb_zeta = 90.0 + np.degrees(np.arccos(re_km / r))
@@ -91,8 +91,8 @@ def bright_limb_table(model: ComponentModel, fraction: float = 0.1, sun_zenith_s
             coeff[sel] = d + g
     out = {"sun_zenith_deg": zs}
     for b in c.bands:
-        limit = fraction * model.darkest_zodiacal_e_per_s(b)
-        rate = coeff * model.photometry(b).sun_at_1au_photons_s_m2  # e-/s/pix, Sun at 1 AU
+        limit = fraction * model.context.darkest_zodiacal_e_per_s(b)
+        rate = coeff * model.context.photometry(b).sun_at_1au_photons_s_m2  # e-/s/pix, Sun at 1 AU
         bad = ~(rate <= limit)  # too bright, or not allowed (NaN)
         allowed = ~np.isnan(coeff)
         need = np.full(zs.size, np.nan)
@@ -128,17 +128,17 @@ def exposure_time_factor(stray_e_per_s, nominal_background_e_per_s, band: str, c
     return t_needed / x.total_s
 
 
-def exposure_factor_table(model: ComponentModel, ratios=(0.0, 0.01, 0.03, 0.1, 0.3, 1.0, 3.0, 10.0)) -> dict:
+def exposure_factor_table(model: BackgroundModel, ratios=(0.0, 0.01, 0.03, 0.1, 0.3, 1.0, 3.0, 10.0)) -> dict:
     """Columns stray_to_zodiacal_ratio and exposure_time_factor_<band> at the darkest zodiacal sky."""
     r = np.asarray(ratios, float)
     out = {"stray_to_zodiacal_ratio": r}
     for b in model.campaign.bands:
-        z = model.darkest_zodiacal_e_per_s(b)
+        z = model.context.darkest_zodiacal_e_per_s(b)
         out[f"exposure_time_factor_{b}"] = exposure_time_factor(r * z, z, b, model.campaign)
     return out
 
 
-def write_tables(model: ComponentModel, out_dir, fraction: float = 0.1) -> list:
+def write_tables(model: BackgroundModel, out_dir, fraction: float = 0.1) -> list:
     """The three tables as CSV and PNG in ``out_dir``; returns the written paths."""
     from pathlib import Path
 

@@ -7,7 +7,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from straylight.components import ComponentModel, StarTable
+from straylight.model import BackgroundModel
+from straylight.sources.stars import StarTable
 from straylight.sky.geometry import observing_geometry, radec_to_unit
 from straylight.sky.observing import scene
 
@@ -16,7 +17,7 @@ COMPONENTS = ("zodiacal", "sun", "moon", "planets", "stars", "earthshine_direct"
 
 @pytest.fixture(scope="module")
 def model(campaign):
-    return ComponentModel(campaign)
+    return BackgroundModel(campaign)
 
 
 def _eval(campaign, model, time, los, stars=None):
@@ -116,11 +117,11 @@ def test_line_of_sight_tangent_to_the_limb(campaign, model):
 def test_pst_and_door_at_theta_0_and_180(model):
     phi = np.linspace(0.0, 360.0, 73)
     for theta in (0.0, 180.0):
-        v = model.offfield.pst(np.full_like(phi, theta), phi)
+        v = model.context.offfield.pst(np.full_like(phi, theta), phi)
         assert np.all(np.isfinite(v)) and np.all(v > 0)
         assert np.ptp(v) <= 1e-9 * v.max()  # a pole of the (theta, phi) grid: no phi dependence
-        for state in model.offfield.door_states_deg:
-            sp = model.offfield.door_factor(np.full_like(phi, theta), phi, state)
+        for state in model.context.offfield.door_states_deg:
+            sp = model.context.offfield.door_factor(np.full_like(phi, theta), phi, state)
             assert np.all((sp >= 0) & (sp <= 1))
 
 
@@ -151,7 +152,7 @@ def test_empty_catalog_one_star_on_the_axis_and_at_the_field_edge(campaign, mode
     _, empty, _ = _eval(campaign, model, TIME, los, StarTable(np.zeros(0), np.zeros(0), {}))
     on_axis = StarTable(np.array([200.0]), np.array([45.0]), {b: np.array([-1.0]) for b in campaign.bands})
     _, axis, _ = _eval(campaign, model, TIME, los, on_axis)
-    r_field = model.offfield.field_radius_deg
+    r_field = model.context.offfield.field_radius_deg
     edge = StarTable(np.array([200.0, 200.0]), np.array([45.0 + r_field, 45.0 + r_field + 1e-6]),
                      {b: np.array([0.0, 0.0]) for b in campaign.bands})
     _, at_edge, _ = _eval(campaign, model, TIME, los, edge)
@@ -214,7 +215,8 @@ def test_ghosts_as_the_marginal_ray_angle_goes_to_zero(campaign):
 _FAINT_MAP_SCRIPT = """
 import sys
 import numpy as np
-from straylight.components import ComponentModel, StarTable
+from straylight.model import BackgroundModel
+from straylight.sources.stars import StarTable
 from straylight.config import load_campaign
 rng = np.random.default_rng(5)
 n = 20000
@@ -224,7 +226,7 @@ stars = StarTable(np.zeros(0), np.zeros(0), {}, faint_ra_deg=rng.uniform(0, 360,
                   faint_mag_ab={b: rng.uniform(6, 12, n) for b in BANDS})
 los = rng.normal(size=(602, 3))
 los /= np.linalg.norm(los, axis=1)[:, None]
-res = ComponentModel(load_campaign()).faint_star_rates(stars, los, list(BANDS))
+res = BackgroundModel(load_campaign()).stars.faint_star_rates(stars, los, list(BANDS))
 np.save(sys.argv[1], np.stack([res[b] for b in BANDS]))
 """
 

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from straylight.components import ComponentModel
+from straylight.model import BackgroundModel
 from straylight.config import campaign_from_dict
 from straylight.sources.earthshine_lut import EarthshineLUT, LUTSettings, lut_key
 from straylight.sky.geometry import telescope_frame
@@ -29,15 +29,15 @@ def _campaign(campaign, **earthshine):
 @pytest.fixture(scope="module")
 def coarse(campaign):
     c = _campaign(campaign, method="lut", lut=COARSE)
-    cm = ComponentModel(c, expected_samples=10**6)
-    return c, cm, cm.earthshine_model
+    cm = BackgroundModel(c, expected_samples=10**6)
+    return c, cm, cm.sunlit_earth.model
 
 
 def test_table_reproduces_the_direct_sum_at_its_nodes(coarse):
     """At a node the table returns the direct sum it stored (to the asinh round trip)."""
     c, cm, info = coarse
     lut = info["lut"]
-    off = cm.offfield
+    off = cm.context.offfield
     r = lut.radius_km[0]
     iz, il, ia = 7, 10, 4
     z, l_, a = np.radians([lut.sun_zenith_deg[iz], lut.los_zenith_deg[il], lut.azimuth_deg[ia]])
@@ -63,13 +63,13 @@ def test_rotation_about_the_vertical_changes_nothing(coarse):
     r, zs, zl, a = lut.coordinates(sat, sun, los)
     from straylight.sources.earthshine_lut import _sun_coefficients_direct
 
-    off = cm.offfield
+    off = cm.context.offfield
     door = g["door_opening_deg"][obs]
     frame = telescope_frame(los, sun - sat)
     real = off.earthshine_coefficients(sat, sun, sc.bodies_km["moon"][obs], frame, door, c.earth.radius_km,
                                        in_field=False, moon=False)
     res = cm.evaluate(sat, {k: v[obs] for k, v in sc.bodies_km.items()}, los, {k: v[obs] for k, v in g.items()}, ["g"])
-    sun_irr = cm.photometry("g").sun_at_1au_photons_s_m2 * (1.495978707e8 / np.linalg.norm(sun - sat, axis=-1)) ** 2
+    sun_irr = cm.context.photometry("g").sun_at_1au_photons_s_m2 * (1.495978707e8 / np.linalg.norm(sun - sat, axis=-1)) ** 2
     for state in off.door_states_deg:
         sel = door == state
         if not sel.any():
@@ -164,7 +164,7 @@ def test_moonlit_bound_holds(coarse):
     sc, los, g = random_samples(c, 1500, seed=4)
     sat, sun, moon = sc.satellite_km, sc.bodies_km["sun"], sc.bodies_km["moon"]
     frame = telescope_frame(los, sun - sat)
-    co = cm.offfield.earthshine_coefficients(sat, sun, moon, frame, g["door_opening_deg"], c.earth.radius_km,
+    co = cm.context.offfield.earthshine_coefficients(sat, sun, moon, frame, g["door_opening_deg"], c.earth.radius_km,
                                              in_field=False)
     bound = info["lut"].moon_bound(sat, moon, los, c.earth.radius_km)
     fin = np.isfinite(bound)
@@ -189,9 +189,9 @@ def test_cap_bound_holds_for_any_line_of_sight(coarse):
     frame = telescope_frame(los, sun - sat)
     door = c.constraints.door_opening_deg(np.degrees(np.arccos(np.clip(
         np.sum(los * (sun - sat), axis=1) / np.linalg.norm(sun - sat, axis=1), -1, 1))))
-    co = cm.offfield.earthshine_coefficients(sat, sun, moon, frame, door, c.earth.radius_km, in_field=False,
-                                             sun=False, grid=cm.moonlit_grid)
-    bound = cm.offfield.earthshine_cap_bound(sat, c.earth.radius_km, cm.moonlit_grid) + info["lut"].moon_door_bound
+    co = cm.context.offfield.earthshine_coefficients(sat, sun, moon, frame, door, c.earth.radius_km, in_field=False,
+                                             sun=False, grid=cm.moonlit_earth.grid)
+    bound = cm.context.offfield.earthshine_cap_bound(sat, c.earth.radius_km, cm.moonlit_earth.grid) + info["lut"].moon_door_bound
     assert np.all(np.isfinite(bound)) and into.sum() > 400
     assert np.all(co["direct_moon"] + co["door_moon"] <= bound)
     assert np.max((co["direct_moon"] + co["door_moon"]) / bound) > 1e-3  # a bound, not a wild one
@@ -204,7 +204,7 @@ def test_moonlit_earth_stays_within_its_share_of_the_tolerance(campaign):
     its brightest), against a 48 x 96 grid with nothing skipped; both runs share the same table,
     so the difference is the moonlit treatment alone.  Measured 3.9e-4 of the total (bench
     moonlit_grid row 6 x 12)."""
-    from straylight.components import ERROR_BUDGET_SHARES
+    from straylight.model import ERROR_BUDGET_SHARES
     from straylight.survey.cube import compute_region
     from straylight.survey.footprint import footprint_from_config
 
@@ -221,7 +221,7 @@ def test_moonlit_earth_stays_within_its_share_of_the_tolerance(campaign):
         if "moonlit_method" in kw:
             raw2["models"]["earthshine"]["moonlit_method"] = kw.pop("moonlit_method")
         c = campaign_from_dict(raw2, campaign.path)
-        ds = compute_region(c, fp, t_slice, slice(None), model=ComponentModel(c, expected_samples=10**6, **kw))
+        ds = compute_region(c, fp, t_slice, slice(None), model=BackgroundModel(c, expected_samples=10**6, **kw))
         return ds["total"].values.astype(float), ds["observable"].values
 
     ref, obs = total(grid=(48, 96), moonlit_method="direct", moonlit_skip_share=0.0)
@@ -243,7 +243,7 @@ def test_save_load_round_trip_and_cache_key(coarse, tmp_path, campaign):
     for s in lut.direct:
         assert np.array_equal(back.direct[s], lut.direct[s]) and np.array_equal(back.door[s], lut.door[s])
     assert back.validation_max_rel_error == lut.validation_max_rel_error
-    off = cm.offfield
+    off = cm.context.offfield
     k = lut_key(off, 6378.137, (6778.137, 6778.137), LUTSettings(5, 5, 20), 1e-20)
     assert k != lut_key(off, 6378.137, (6778.137, 6778.137), LUTSettings(5, 5, 10), 1e-20)
     from dataclasses import replace
@@ -270,7 +270,7 @@ def test_parallel_build_gives_the_same_table(coarse):
     """Two worker processes build the same table, byte for byte, as one (the coarse steps)."""
     c, cm, info = coarse
     k = c.constraints
-    args = (cm.offfield, c.earth.radius_km, c.orbit_radius_range_km, LUTSettings(**COARSE), cm.earthshine_floor)
+    args = (cm.context.offfield, c.earth.radius_km, c.orbit_radius_range_km, LUTSettings(**COARSE), cm.context.earthshine_floor)
     kw = {"avoidance_deg": (k.dark_limb_min_deg, k.bright_limb_min_deg, k.sun_min_deg)}
     two = EarthshineLUT.build(*args, **kw, workers=2)
     one = info["lut"]
@@ -282,21 +282,21 @@ def test_parallel_build_gives_the_same_table(coarse):
 
 def test_automatic_choice(coarse, campaign):
     c, _, _ = coarse
-    one = ComponentModel(_campaign(campaign, method="auto", lut=COARSE), expected_samples=1).earthshine_model
+    one = BackgroundModel(_campaign(campaign, method="auto", lut=COARSE), expected_samples=1).sunlit_earth.model
     assert one["method"] == "direct" and "samples save" in one["reason"]  # one pointing: no table
-    many = ComponentModel(_campaign(campaign, method="auto", lut=COARSE), expected_samples=10**7).earthshine_model
+    many = BackgroundModel(_campaign(campaign, method="auto", lut=COARSE), expected_samples=10**7).sunlit_earth.model
     assert many["method"] == "direct" and "> 0.5 x the tolerance" in many["reason"]  # too coarse for 1 %
     raw = copy.deepcopy(c.config)
     raw["models"]["tolerance"] = 1.0
-    loose = ComponentModel(campaign_from_dict(raw, c.path), expected_samples=10**7).earthshine_model
+    loose = BackgroundModel(campaign_from_dict(raw, c.path), expected_samples=10**7).sunlit_earth.model
     assert loose["method"] == "lut"
 
 
 def test_automatic_choice_turns_at_the_build_cost(coarse):
     """auto takes the table exactly when the campaign's samples save more than it costs to
     build (the sunlit table and the moonlit one), at the measured per-node and per-sample
-    figures (components.LUT_*, MOONLIT_LUT_*)."""
-    from straylight import components as comp
+    figures (fidelity.LUT_*, MOONLIT_LUT_*)."""
+    from straylight.model import fidelity as comp
 
     c, _, _ = coarse
     raw = copy.deepcopy(c.config)
@@ -304,17 +304,17 @@ def test_automatic_choice_turns_at_the_build_cost(coarse):
     raw["models"]["earthshine"]["method"] = "auto"
     loose = campaign_from_dict(raw, c.path)
     settings = LUTSettings(**COARSE)
-    n_nodes = ComponentModel(loose).lut_node_states(settings)
+    n_nodes = BackgroundModel(loose).sunlit_earth.node_states(settings)
     # the coarse table's nodes (LUTSettings.nodes: 18 Sun zenith x 36 line-of-sight zenith, 29 at
     # the coarse step and 7 over the rise above the aperture plane, x 10 azimuth) x 2 door states
     assert n_nodes == 18 * 36 * 10 * 2
     # the moonlit table is built on the table path too: its nodes weigh in, at their own cost
-    moonlit_nodes = ComponentModel(loose).moonlit_node_states()
+    moonlit_nodes = BackgroundModel(loose).moonlit_earth.node_states()
     assert moonlit_nodes > 0
     turn = (comp.LUT_BUILD_SECONDS_PER_NODE * n_nodes + comp.MOONLIT_LUT_BUILD_SECONDS_PER_NODE * moonlit_nodes
             ) / comp.LUT_SAVED_SECONDS_PER_SAMPLE
-    below = ComponentModel(loose, expected_samples=int(turn) - 1).earthshine_model
-    above = ComponentModel(loose, expected_samples=int(turn) + 2).earthshine_model
+    below = BackgroundModel(loose, expected_samples=int(turn) - 1).sunlit_earth.model
+    above = BackgroundModel(loose, expected_samples=int(turn) + 2).sunlit_earth.model
     assert below["method"] == "direct" and "samples save" in below["reason"]
     assert above["method"] == "lut"
 
@@ -323,14 +323,14 @@ def test_lut_path_agrees_with_direct_within_its_validated_error(coarse, campaign
     """The whole model with the table against the direct sum, at random observable samples:
     the difference stays within the table's validated error (fraction of the total)."""
     c, cm, info = coarse
-    direct = ComponentModel(_campaign(campaign, method="direct"))
+    direct = BackgroundModel(_campaign(campaign, method="direct"))
     sc, los, g = random_samples(c, 1500, seed=8)
     obs = g["observable"]
     a = cm.evaluate(sc.satellite_km, sc.bodies_km, los, g, ["g", "z"])
     b = direct.evaluate(sc.satellite_km, sc.bodies_km, los, g, ["g", "z"])
     for band in ("g", "z"):
         err = np.abs(a[band]["total"] - b[band]["total"]) / b[band]["total"]
-        assert err[obs].max() <= info["lut_validation_max_rel_error"] + 0.25 * cm.tolerance
+        assert err[obs].max() <= info["lut_validation_max_rel_error"] + 0.25 * cm.policy.tolerance
         assert np.all(np.isfinite(a[band]["total"]))
     rec = cm.models_record()
     assert rec["earthshine"]["method"] == "lut" and "lut_build_seconds" not in rec["earthshine"]
@@ -340,7 +340,7 @@ def test_lut_path_agrees_with_direct_within_its_validated_error(coarse, campaign
 @pytest.fixture(scope="module")
 def moonlit(coarse):
     c, cm, _ = coarse
-    info = cm.moonlit_model
+    info = cm.moonlit_earth.model
     assert info["method"] == "lut", info.get("reason")
     return c, cm, info["lut"]
 
@@ -350,10 +350,10 @@ def test_moonlit_table_reproduces_the_coarse_sum_at_its_nodes(moonlit):
     grid's direct sum it stored, for every door state: the table's coordinates invert the
     scene it was built from (including the roll, measured from the upward vertical)."""
     from straylight.sources.earthshine_lut import _moonlit_scene
-    from straylight.sources.offfield import MOON_MEAN_DISTANCE_KM
+    from straylight.sources.bodies import MOON_MEAN_DISTANCE_KM
 
     c, cm, lut = moonlit
-    off = cm.offfield
+    off = cm.context.offfield
     r = np.array([np.mean(c.orbit_radius_range_km)])
     for iz, il, ia, ip in ((3, 5, 2, 4), (8, 12, 9, 17), (1, 20, 15, 11)):
         node = [np.radians([v[i]]) for v, i in ((lut.moon_zenith_deg, iz), (lut.los_zenith_deg, il),
@@ -362,7 +362,7 @@ def test_moonlit_table_reproduces_the_coarse_sum_at_its_nodes(moonlit):
         for state in off.door_states_deg:
             d, g = lut.coefficients(sat, moon, frame, np.array([state]))
             ref = off.earthshine_coefficients(sat, moon, moon, frame, np.array([state]), c.earth.radius_km,
-                                              in_field=False, sun=False, grid=cm.moonlit_grid)
+                                              in_field=False, sun=False, grid=cm.moonlit_earth.grid)
             assert d[0] == pytest.approx(ref["direct_moon"][0], rel=1e-9, abs=1e-40)
             assert g[0] == pytest.approx(ref["door_moon"][0], rel=1e-9, abs=1e-40)
 
@@ -374,8 +374,9 @@ def test_moonlit_table_matches_the_coarse_sum_in_real_scenes(moonlit):
     coarse grid's direct sum to within the moonlit grid's share of the tolerance (1/8 of 1 %),
     the error taken at full Moon at perigee as a fraction of the total (the table's validation
     measure; its recorded validation, 400 random scenes, within the same share)."""
-    from straylight.components import ERROR_BUDGET_SHARES
-    from straylight.sources.offfield import MOON_PERIGEE_KM, moon_v_magnitude, solar_like_fraction
+    from straylight.model import ERROR_BUDGET_SHARES
+    from straylight.sources.bodies import MOON_PERIGEE_KM, moon_v_magnitude
+    from straylight.sources.photometry import solar_like_fraction
 
     c, cm, lut = moonlit
     sc, los, g = random_samples(c, 2000, seed=12)
@@ -383,13 +384,13 @@ def test_moonlit_table_matches_the_coarse_sum_in_real_scenes(moonlit):
     sat, sun, moon = sc.satellite_km[obs], sc.bodies_km["sun"][obs], sc.bodies_km["moon"][obs]
     frame = telescope_frame(los[obs], sun - sat)
     door = g["door_opening_deg"][obs]
-    ref = cm.offfield.earthshine_coefficients(sat, sun, moon, frame, door, c.earth.radius_km, in_field=False,
-                                              sun=False, grid=cm.moonlit_grid)
+    ref = cm.context.offfield.earthshine_coefficients(sat, sun, moon, frame, door, c.earth.radius_km, in_field=False,
+                                              sun=False, grid=cm.moonlit_earth.grid)
     d, gd = lut.coefficients(sat, moon, frame, door)
     moon_max = solar_like_fraction(moon_v_magnitude(0.0, MOON_PERIGEE_KM))
     direct = ref["direct_moon"] + ref["door_moon"]
-    err = np.abs(d + gd - direct) * moon_max / (direct * moon_max + cm.earthshine_floor)
-    share = ERROR_BUDGET_SHARES["moonlit_earthshine_grid"] * cm.tolerance
+    err = np.abs(d + gd - direct) * moon_max / (direct * moon_max + cm.context.earthshine_floor)
+    share = ERROR_BUDGET_SHARES["moonlit_earthshine_grid"] * cm.policy.tolerance
     print(f"moonlit table vs coarse sum at {obs.size} observable samples: {err.max():.2e} (validated "
           f"{lut.validation_max_rel_error:.2e}, share {share:.2e})")
     assert obs.size == 300 and np.count_nonzero(direct > 0) > 100
@@ -432,7 +433,7 @@ def test_a_batch_of_time_steps_equals_each_step_alone(coarse):
     step's scene quantities (bodies' directions, planets' magnitudes, the Earth hiding each
     star) once per step (geometry.scene_runs).  The batch must give what each step alone gives,
     to float rounding: nothing may leak from one step's scene into another's."""
-    from straylight.components import split_stars
+    from straylight.sources.stars import split_stars
     from straylight.sky.geometry import SceneRuns, observing_geometry, radec_to_unit
     from straylight.sky.observing import scene
 
@@ -555,10 +556,10 @@ def test_cube_region_with_its_time_blocks_scene_gives_the_same_values(coarse):
 
 
 def test_evaluate_into_a_given_array_writes_the_same_values(coarse):
-    """ComponentModel.evaluate(into=(names, array)) (the cube's float32 region) writes each
+    """BackgroundModel.evaluate(into=(names, array)) (the cube's float32 region) writes each
     asked-for component's values, in the order asked, the float64 ones of a plain call rounded
     to float32, and returns no other; an unknown name or a wrongly shaped array is refused."""
-    from straylight.components import BAND_COMPONENTS
+    from straylight.model import BAND_COMPONENTS
     from straylight.sky.geometry import observing_geometry, radec_to_unit
     from straylight.sky.observing import scene
 
@@ -615,7 +616,7 @@ def test_cube_region_skipping_unobservable_samples_changes_no_observable_value(c
         assert np.all(np.isnan(skip[comp].values[~obs]))
     assert np.count_nonzero(every["moon"].values[obs]) > 0  # a skippable term was summed somewhere
     assert cm.models_record()["unobservable_samples"] == "evaluated"
-    assert ComponentModel(c_skip, expected_samples=10**6).models_record()["unobservable_samples"] == \
+    assert BackgroundModel(c_skip, expected_samples=10**6).models_record()["unobservable_samples"] == \
         "skipped: NaN in every component"
 
 

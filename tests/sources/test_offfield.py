@@ -5,11 +5,14 @@ and closed-form geometry."""
 import numpy as np
 import pytest
 
-from straylight.components import ComponentModel, StarTable
+from straylight.model import BackgroundModel
+from straylight.sources.stars import OffFieldStars, StarTable
 from straylight.optics.door import Door, door_length_from_paper
 from straylight.errors import ConfigError, InputError
 from straylight.sky.geometry import TelescopeFrame, observing_geometry, radec_to_unit, telescope_frame
-from straylight.sources.offfield import EarthshineSettings, moon_v_magnitude, planet_v_magnitude, solar_like_fraction
+from straylight.sources.offfield import EarthshineSettings
+from straylight.sources.bodies import moon_v_magnitude, planet_v_magnitude
+from straylight.sources.photometry import solar_like_fraction
 from straylight.optics.pst import PST, default_pst_grid, load_pst, write_pst_csv
 
 from conftest import SHARED_DATA
@@ -132,7 +135,7 @@ def test_door_factor_of_mixed_states_is_each_states_own_table(comp_model):
     """door_factor looks every door state up in one stacked grid: the same numbers as each
     state's own table (DoorTable), the narrowest state where no state is allowed (opening <= 0),
     and 0 for an opening that is no door state."""
-    off = comp_model.offfield
+    off = comp_model.context.offfield
     states = sorted(off.door_states_deg)
     rng = np.random.default_rng(5)
     n = 4000
@@ -189,7 +192,7 @@ def test_all_planets_at_once_equal_meeus_per_planet():
     against Meeus (1998) ch. 41 written out per planet here (V(1,0), the phase polynomial and
     Saturn's ring term), at DE405 positions over a year: to 1e-12 mag."""
     from straylight.sky.ephemeris import BODIES, default_ephemeris
-    from straylight.sources.offfield import PLANET_V, SATURN_POLE_RA_DEC_DEG, planet_v_magnitudes
+    from straylight.sources.bodies import PLANET_V, SATURN_POLE_RA_DEC_DEG, planet_v_magnitudes
 
     planets = [b for b in BODIES if b in PLANET_V]
     pos = default_ephemeris().positions([f"2026-{m:02d}-15T00:00:00" for m in range(1, 13)])
@@ -215,7 +218,7 @@ def test_all_planets_at_once_equal_meeus_per_planet():
 
 @pytest.fixture(scope="module")
 def comp_model(campaign):
-    return ComponentModel(campaign)
+    return BackgroundModel(campaign)
 
 
 @pytest.fixture(scope="module")
@@ -227,7 +230,7 @@ def exact_model(campaign):
 
     raw = copy.deepcopy(campaign.config)
     raw["models"]["tolerance"] = 1e-12
-    return ComponentModel(campaign_from_dict(raw, campaign.path))
+    return BackgroundModel(campaign_from_dict(raw, campaign.path))
 
 
 def _scene_sample(los, sat, sun, moon, campaign):
@@ -271,8 +274,8 @@ def test_star_term_sums_off_field_stars(campaign, comp_model, exact_model):
     ra, dec = np.array([30.0, 0.0]), np.array([0.0, 0.0])  # one at 30 deg off axis, one on axis
     stars = StarTable(ra, dec, {"g": np.array([0.0, 0.0])})
     out = exact_model.evaluate(sat, bodies, los, g, ["g"], stars=stars)
-    off = exact_model.offfield
-    band = exact_model.band("g")
+    off = exact_model.context.offfield
+    band = exact_model.context.band("g")
     frame = telescope_frame(los, sun - sat)
     th, ph = frame.theta_phi_deg(radec_to_unit(30.0, 0.0))
     expected = band.ab_zero_point_photons_s_m2 * off.pst(th, ph) * off.door_factor(th, ph, 135.0) * off.pixel_area_m2
@@ -281,12 +284,12 @@ def test_star_term_sums_off_field_stars(campaign, comp_model, exact_model):
     assert float(skipped["g"]["stars"][0]) == 0.0
     # skipping it is within the budget: its exact value is below tolerance / 8 of the darkest
     # zodiacal light (the share all skipped stars take together)
-    assert float(expected.ravel()[0]) < 0.125 * comp_model.tolerance * comp_model.darkest_zodiacal_e_per_s("g")
+    assert float(expected.ravel()[0]) < 0.125 * comp_model.policy.tolerance * comp_model.context.darkest_zodiacal_e_per_s("g")
 
 
 def test_star_skipping_stays_within_its_budget(campaign, comp_model, exact_model):
     """The embedded bright-star catalog (straylight.catalog.build.make_catalog) at 400 random samples,
-    observable or not: skipping the stars of smallest bound (ComponentModel.star_cells, sized on
+    observable or not: skipping the stars of smallest bound (OffFieldStars.star_cells, sized on
     each sample's floor, a lower bound of its total) changes the star term by at most tolerance / 8
     of the exact total in every band (the budget the skip is sized for), while summing the same
     stars."""
@@ -294,13 +297,13 @@ def test_star_skipping_stays_within_its_budget(campaign, comp_model, exact_model
     from pathlib import Path
 
     from straylight.catalog.build import make_catalog
-    from straylight.components import split_stars
+    from straylight.sources.stars import split_stars
 
     sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
     from _samples import random_samples
 
     bands = list(campaign.bands)
-    cat, _ = make_catalog({b: comp_model.band(b).response for b in bands})
+    cat, _ = make_catalog({b: comp_model.context.band(b).response for b in bands})
     stars = split_stars(cat["ra"], cat["dec"], {b: cat[f"mag_{b}"] for b in bands}, 2.0, False)
     sc, los, _ = random_samples(campaign, 400, seed=17)
     # half the lines of sight 0.7-10 deg from a direct star, where skipping decides most
@@ -315,38 +318,38 @@ def test_star_skipping_stays_within_its_budget(campaign, comp_model, exact_model
     fast, exact = comp_model.evaluate(*args), exact_model.evaluate(*args)
     for b in bands:
         err = np.abs(fast[b]["stars"] - exact[b]["stars"]) / exact[b]["total"]
-        assert err.max() <= 0.125 * comp_model.tolerance
+        assert err.max() <= 0.125 * comp_model.policy.tolerance
     assert max(np.max(exact[b]["stars"]) for b in bands) > 0.0
 
 
 def _star_skip_check(model, stars, frame, sat, door, floor_ratio, pairs):
-    """Every (sample, star) pair against the star term's ``pairs`` (:meth:`ComponentModel._star_pairs`):
+    """Every (sample, star) pair against the star term's ``pairs`` (:meth:`OffFieldStars.pairs`):
     the pairs are pairs that count (not behind the Earth, outside the field) with their exact
     transfers (1e-10), and the pairs that count but were skipped add up, in every band, to at
     most the stars_skip share of the tolerance times the sample's floor, both as bounds (the PST
     at its maximum beyond the star's angle, no door) and as exact transfers.  Returns the
     skipped bounds' largest sum as a fraction of that budget, and the number of pairs that count."""
-    from straylight.components import ERROR_BUDGET_SHARES
+    from straylight.model import ERROR_BUDGET_SHARES
     from straylight.sky.geometry import earth_blocks
 
     n_stars = len(stars.ra_deg)
     r, k, t = pairs
     theta, phi = TelescopeFrame(frame.x[:, None], frame.y[:, None], frame.z[:, None]).theta_phi_deg(stars.unit[None])
-    counts = ~earth_blocks(sat[:, None], stars.unit[None], RE) & (theta > model.offfield.field_radius_deg)
+    counts = ~earth_blocks(sat[:, None], stars.unit[None], RE) & (theta > model.context.offfield.field_radius_deg)
     assert np.all(counts[r, k])
     assert np.unique(r * n_stars + k).size == r.size  # no pair twice
-    np.testing.assert_allclose(t, model.offfield.point_source(1.0, theta[r, k], phi[r, k], False, door[r]),
+    np.testing.assert_allclose(t, model.context.offfield.point_source(1.0, theta[r, k], phi[r, k], False, door[r]),
                                rtol=1e-10, atol=0.0)  # the angles of a matrix product, not of one pair
     skipped = counts.copy()
     skipped[r, k] = False
-    budget = ERROR_BUDGET_SHARES["stars_skip"] * model.tolerance * floor_ratio
-    bound = model.star_bound_scale(stars)[None] * model.offfield.pst.tail_max(theta)
+    budget = ERROR_BUDGET_SHARES["stars_skip"] * model.policy.tolerance * floor_ratio
+    bound = model.stars.bound_scale(stars)[None] * model.context.offfield.pst.tail_max(theta)
     used = np.sum(np.where(skipped, bound, 0.0), axis=1) / budget
     assert used.max() <= 1.0
-    transfer = model.offfield.point_source(1.0, theta, phi, False, door[:, None])
+    transfer = model.context.offfield.point_source(1.0, theta, phi, False, door[:, None])
     for b in stars.mag_ab:
-        e = np.sum(np.where(skipped, transfer * model.photometry(b).from_ab(stars.mag_ab[b])[None], 0.0), axis=1)
-        assert np.all(e <= budget * model.darkest_zodiacal_e_per_s(b))
+        e = np.sum(np.where(skipped, transfer * model.context.photometry(b).from_ab(stars.mag_ab[b])[None], 0.0), axis=1)
+        assert np.all(e <= budget * model.context.darkest_zodiacal_e_per_s(b))
     return used.max(), int(counts.sum())
 
 
@@ -356,7 +359,7 @@ def _star_skip_check(model, stars, frame, sat, door, floor_ratio, pairs):
 def test_star_sky_cells_skip_within_the_budget_at_every_line_of_sight(campaign, comp_model, nside, pairs_per_pass,
                                                                      list_entries, monkeypatch):
     """The star term sums, per sky cell and floor level, the stars that the cell's bounds do not
-    let it skip (ComponentModel.star_cells): at lines of sight at the poles, on the RA wrap,
+    let it skip (OffFieldStars.star_cells): at lines of sight at the poles, on the RA wrap,
     near the stars themselves and on cell corners, at every floor level, whatever the cells'
     size, however the candidates are split into passes, and with the stars listed in most cells
     summed at every line of sight at every level instead (lists capped at 2000 entries, or
@@ -367,12 +370,12 @@ def test_star_sky_cells_skip_within_the_budget_at_every_line_of_sight(campaign, 
     import healpy as hp
 
     from straylight.catalog.build import make_catalog
-    from straylight.components import split_stars
+    from straylight.sources.stars import split_stars
 
-    monkeypatch.setattr(ComponentModel, "STAR_CELL_NSIDE", nside)
-    monkeypatch.setattr(ComponentModel, "STAR_PAIRS_PER_PASS", pairs_per_pass)
+    monkeypatch.setattr(OffFieldStars, "STAR_CELL_NSIDE", nside)
+    monkeypatch.setattr(OffFieldStars, "STAR_PAIRS_PER_PASS", pairs_per_pass)
     bands = list(campaign.bands)
-    cat, _ = make_catalog({b: comp_model.band(b).response for b in bands})
+    cat, _ = make_catalog({b: comp_model.context.band(b).response for b in bands})
     stars = split_stars(cat["ra"], cat["dec"], {b: cat[f"mag_{b}"] for b in bands}, 2.0, False)
     rng = np.random.default_rng(11)
     n = 3000
@@ -388,21 +391,21 @@ def test_star_sky_cells_skip_within_the_budget_at_every_line_of_sight(campaign, 
     sat *= (RE + 400.0) / np.linalg.norm(sat, axis=1, keepdims=True)
     sun = np.array([AU, 0.3 * AU, 0.1 * AU])
     frame = telescope_frame(los, sun - sat)
-    door = rng.choice(comp_model.offfield.door_states_deg, n)
+    door = rng.choice(comp_model.context.offfield.door_states_deg, n)
     floor_ratio = 10.0 ** rng.uniform(0.0, 7.5, n)  # every level, 1 to 4^11 and beyond
     floor_ratio[:100] = 1.0
-    shape, pairs = comp_model._star_pairs(stars, frame, sat, door, floor_ratio)
+    shape, pairs = comp_model.stars.pairs(stars, frame, sat, door, floor_ratio)
     assert shape == (n,)
     used, counting = _star_skip_check(comp_model, stars, frame, sat, door, floor_ratio, pairs)
     # of the 427,474 pairs that count, 482-5682 are summed (nside 64-4); the skipped ones take
     # 29-81 % of the budget at the sample where they take most
     assert pairs[0].size < counting / 50
     assert used > 0.2
-    monkeypatch.setattr(ComponentModel, "STAR_CELL_ENTRIES", list_entries)
+    monkeypatch.setattr(OffFieldStars, "STAR_CELL_ENTRIES", list_entries)
     stars.__dict__.pop("_cells_cache")
-    cells = comp_model.star_cells(stars)
+    cells = comp_model.stars.star_cells(stars)
     assert cells.stars.size <= list_entries
-    _, capped = comp_model._star_pairs(stars, frame, sat, door, floor_ratio)
+    _, capped = comp_model.stars.pairs(stars, frame, sat, door, floor_ratio)
     _star_skip_check(comp_model, stars, frame, sat, door, floor_ratio, capped)
     got, ref = set(zip(capped[0].tolist(), capped[1].tolist())), set(zip(pairs[0].tolist(), pairs[1].tolist()))
     assert got == ref if list_entries >= 16_000_000 else got >= ref
@@ -413,11 +416,11 @@ def test_star_sky_cells_skip_within_the_budget_at_every_line_of_sight(campaign, 
     # the darkest floor: it must be summed (its cell's list reaches it through the cell radius)
     m = 400
     mags = rng.uniform(-1.0, 3.0, m)
-    edge_scale = comp_model.star_bound_scale(StarTable(np.zeros(m), np.zeros(m), {b: mags for b in bands}))
-    from straylight.components import ERROR_BUDGET_SHARES
-    limit = ERROR_BUDGET_SHARES["stars_skip"] * comp_model.tolerance / edge_scale
-    radius = np.radians(comp_model.offfield.pst.influence_radius_deg(limit)) - 1e-7
-    assert np.all(comp_model.offfield.pst.tail_max(np.degrees(radius)) > limit)
+    edge_scale = comp_model.stars.bound_scale(StarTable(np.zeros(m), np.zeros(m), {b: mags for b in bands}))
+    from straylight.model import ERROR_BUDGET_SHARES
+    limit = ERROR_BUDGET_SHARES["stars_skip"] * comp_model.policy.tolerance / edge_scale
+    radius = np.radians(comp_model.context.offfield.pst.influence_radius_deg(limit)) - 1e-7
+    assert np.all(comp_model.context.offfield.pst.tail_max(np.degrees(radius)) > limit)
     cell = rng.integers(0, hp.nside2npix(nside), m)
     centre = np.array(hp.pix2vec(nside, cell)).T
     corner = hp.boundaries(nside, cell, step=1)[np.arange(m), :, rng.integers(0, 4, m)]
@@ -431,8 +434,8 @@ def test_star_sky_cells_skip_within_the_budget_at_every_line_of_sight(campaign, 
                      {b: mags for b in bands})
     sat = np.broadcast_to(-(RE + 400.0) * los[0], (m, 3))  # the Earth behind the first line of sight
     frame = telescope_frame(los, sun - sat)
-    door = np.full(m, comp_model.offfield.door_states_deg[-1])
-    _, edge_pairs = comp_model._star_pairs(edge, frame, sat, door, np.ones(m))
+    door = np.full(m, comp_model.context.offfield.door_states_deg[-1])
+    _, edge_pairs = comp_model.stars.pairs(edge, frame, sat, door, np.ones(m))
     _star_skip_check(comp_model, edge, frame, sat, door, np.ones(m), edge_pairs)
     own = edge_pairs[0] == edge_pairs[1]
     assert np.count_nonzero(own) > m / 3  # most constructed pairs count, and are summed
@@ -442,13 +445,13 @@ def test_star_cells_of_an_empty_catalog_and_of_no_candidates(campaign, comp_mode
     """No direct star: no cell has a candidate; a star too faint to reach any line of sight at
     the samples' floor: no pair, and the star term is exactly 0."""
     none = StarTable(np.zeros(0), np.zeros(0), {"g": np.zeros(0)})
-    cells = comp_model.star_cells(none)
+    cells = comp_model.stars.star_cells(none)
     assert cells.count.sum() == 0
     faint = StarTable(np.array([10.0]), np.array([0.0]), {"g": np.array([25.0])})
     los = radec_to_unit(np.array([12.0, 40.0]), np.array([0.0, 0.0]))
     sat = np.array([[RE + 400.0, 0.0, 0.0]])
     frame = telescope_frame(los, np.array([0.0, 0.0, AU]) - sat)
-    shape, (r, k, t) = comp_model._star_pairs(faint, frame, sat, 135.0, np.array([1.0, 1.0]))
+    shape, (r, k, t) = comp_model.stars.pairs(faint, frame, sat, 135.0, np.array([1.0, 1.0]))
     assert shape == (2,) and r.size == k.size == t.size == 0
 
 
@@ -482,7 +485,7 @@ def test_moon_and_planet_skipping_stays_within_its_budget(campaign, comp_model, 
     for b in bands:
         err = (np.abs(fast[b]["planets"] - exact[b]["planets"]) + np.abs(fast[b]["moon"] - exact[b]["moon"])) \
             / exact[b]["total"]
-        assert err.max() <= 0.125 * comp_model.tolerance
+        assert err.max() <= 0.125 * comp_model.policy.tolerance
         assert np.all(fast[b]["planets"] <= exact[b]["planets"] * (1 + 1e-12))  # skipping only removes
     assert np.count_nonzero(exact["g"]["planets"] > fast["g"]["planets"]) > 0  # some were skipped
 
@@ -492,12 +495,12 @@ def test_skip_radius_shrinks_with_the_samples_floor(comp_model):
     bound exceeds its share (tolerance / 72; README: Venus counts out to ~51 deg), so the exact
     transfer runs; where the sample's floor is 10^4 times the darkest sky (the bright limb, the
     Sun near) the same bound is below its share and the planet is skipped (0)."""
-    off = comp_model.offfield
+    off = comp_model.context.offfield
     args = (solar_like_fraction(-4.0), np.array([20.0]), np.array([30.0]), np.array([False]), np.array([135.0]),
             ["g"])
     exact = off.point_source(1.0, *args[1:5])
-    at_darkest = comp_model._skippable_transfer(*args, floor_ratio=np.array([1.0]))
-    bright = comp_model._skippable_transfer(*args, floor_ratio=np.array([1e4]))
+    at_darkest = comp_model.body_skip.transfer(*args, floor_ratio=np.array([1.0]))
+    bright = comp_model.body_skip.transfer(*args, floor_ratio=np.array([1e4]))
     assert float(exact[0]) > 0.0
     assert at_darkest[0] == pytest.approx(float(exact[0]), rel=1e-12)
     assert float(bright[0]) == 0.0
@@ -517,8 +520,8 @@ def test_skipping_a_source_for_a_whole_batch_is_the_per_sample_rule(comp_model):
     floor = 10.0 ** rng.uniform(0.0, 4.0, n)
     for lo in (60.0, 5.0):
         angle = rng.uniform(lo, 170.0, n)
-        batch = comp_model._skippable_transfer(frac, angle, phi, blocked, door, ["g", "z"], floor_ratio=floor)
-        alone = np.concatenate([comp_model._skippable_transfer(frac, angle[i:i + 1], phi[i:i + 1], blocked[i:i + 1],
+        batch = comp_model.body_skip.transfer(frac, angle, phi, blocked, door, ["g", "z"], floor_ratio=floor)
+        alone = np.concatenate([comp_model.body_skip.transfer(frac, angle[i:i + 1], phi[i:i + 1], blocked[i:i + 1],
                                                                door[i:i + 1], ["g", "z"], floor_ratio=floor[i:i + 1])
                                 for i in range(n)])
         assert np.array_equal(batch, alone)
@@ -527,7 +530,7 @@ def test_skipping_a_source_for_a_whole_batch_is_the_per_sample_rule(comp_model):
 
 def test_planet_angles_only_where_they_can_count_change_no_transfer(campaign, comp_model):
     """The planets' angles are computed only at the samples within the batch's widest skip radius
-    (ComponentModel._planets_fraction: a cosine per sample finds them): the planets' term is,
+    (Planets.fraction: a cosine per sample finds them): the planets' term is,
     sample by sample, exactly the per-sample rule on every sample's angles (geometry.body_geometry
     everywhere), for Venus 0.7-170 deg from the lines of sight, in a batch of two shared scenes (a
     cube's time steps) and in one with a scene per sample, at the darkest floor and at varied
@@ -556,16 +559,16 @@ def test_planet_angles_only_where_they_can_count_change_no_transfer(campaign, co
         runs = scene_runs(sat, sun, venus)
         assert (runs is None) == per_sample_scene
         for floor in (np.ones(n), 10.0 ** rng.uniform(0.0, 4.0, n)):
-            rule = comp_model._skippable_transfer(frac, g["venus_angle_deg"], g["venus_phi_deg"],
+            rule = comp_model.body_skip.transfer(frac, g["venus_angle_deg"], g["venus_phi_deg"],
                                                   g["venus_earth_blocked"], door, ["g", "z"], floor_ratio=floor)
-            lazy = comp_model._planets_fraction(sat, {"sun": sun, "venus": venus}, frame, door, ["g", "z"], floor,
+            lazy = comp_model.planets.fraction(sat, {"sun": sun, "venus": venus}, frame, door, ["g", "z"], floor,
                                                 (n,))
             assert np.array_equal(lazy, rule * frac)
             assert 0 < np.count_nonzero(rule) < n  # some samples near enough to count, some not
 
 
 def test_planets_together_are_the_sum_of_each_planets_per_sample_rule(campaign, comp_model):
-    """ComponentModel._planets_fraction (one compiled pass finds every planet's samples within its
+    """Planets.fraction (one compiled pass finds every planet's samples within its
     widest radius, magnitudes once per time step) equals, bit for bit, the sum over the planets of
     the per-sample rule on every sample's angles times the planet's fraction of the Sun, for
     lines of sight 0.7-170 deg from Venus and from Jupiter, in a batch of two shared scenes (a
@@ -596,10 +599,10 @@ def test_planets_together_are_the_sum_of_each_planets_per_sample_rule(campaign, 
             rule = np.zeros(n)
             for p in ("venus", "jupiter"):
                 fraction = solar_like_fraction(planet_v_magnitude(p, bodies[p], bodies["sun"], sat))
-                rule = rule + comp_model._skippable_transfer(fraction, g[f"{p}_angle_deg"], g[f"{p}_phi_deg"],
+                rule = rule + comp_model.body_skip.transfer(fraction, g[f"{p}_angle_deg"], g[f"{p}_phi_deg"],
                                                              g[f"{p}_earth_blocked"], door, bands,
                                                              floor_ratio=floor) * fraction
-            together = comp_model._planets_fraction(sat, bodies, frame, door, bands, floor, (n,))
+            together = comp_model.planets.fraction(sat, bodies, frame, door, bands, floor, (n,))
             np.testing.assert_array_equal(together, rule)
             assert 0 < np.count_nonzero(rule) < n
 
@@ -617,7 +620,7 @@ def test_new_moon_far_from_the_line_of_sight_is_skipped(campaign, comp_model, ex
     fast, exact = comp_model.evaluate(sat, bodies, los, g, ["g"]), exact_model.evaluate(sat, bodies, los, g, ["g"])
     assert float(g["moon_angle_deg"][0]) == pytest.approx(90.0, abs=0.1)
     assert float(fast["g"]["moon"][0]) == 0.0
-    assert 0.0 < float(exact["g"]["moon"][0]) < comp_model.tolerance / 72 * comp_model.darkest_zodiacal_e_per_s("g")
+    assert 0.0 < float(exact["g"]["moon"][0]) < comp_model.policy.tolerance / 72 * comp_model.context.darkest_zodiacal_e_per_s("g")
 
 
 def test_sun_term_is_never_skipped_on_its_bound(campaign, comp_model):
@@ -631,10 +634,10 @@ def test_sun_term_is_never_skipped_on_its_bound(campaign, comp_model):
 
     sc, los, g = random_samples(campaign, 3000, seed=9)
     out = comp_model.evaluate(sc.satellite_km, sc.bodies_km, los, g, ["g"])
-    t = comp_model.offfield.point_source(1.0, g["sun_angle_deg"], g["sun_phi_deg"], g["sun_earth_blocked"],
+    t = comp_model.context.offfield.point_source(1.0, g["sun_angle_deg"], g["sun_phi_deg"], g["sun_earth_blocked"],
                                          g["door_opening_deg"])
     d_au = np.linalg.norm(sc.bodies_km["sun"] - sc.satellite_km, axis=-1) / 1.495978707e8
-    expected = t * comp_model.photometry("g").sun_at_1au_photons_s_m2 / d_au**2
+    expected = t * comp_model.context.photometry("g").sun_at_1au_photons_s_m2 / d_au**2
     np.testing.assert_allclose(out["g"]["sun"], expected, rtol=1e-12, atol=0)
     assert np.count_nonzero(expected) > 100 and np.any(g["sun_earth_blocked"])
 
@@ -650,7 +653,7 @@ def test_point_source_is_se_sp_pst_wherever_it_looks_tables_up(campaign, comp_mo
     sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
     from _samples import random_samples
 
-    off = comp_model.offfield
+    off = comp_model.context.offfield
     _, _, g = random_samples(campaign, 3000, seed=9)
     door = g["door_opening_deg"]
     for body in ("sun", "moon"):
@@ -674,7 +677,7 @@ def test_faint_star_map_is_the_azimuth_averaged_pst_sum(campaign, comp_model):
     theta = np.array([0.3, 2.0, 40.0])
     stars = StarTable(np.zeros(0), np.zeros(0), {"g": np.zeros(0)}, theta, np.zeros(3), {"g": np.array([1.0, 2.0, 3.0])})
     out = comp_model.evaluate(sat, bodies, los, g, ["g"], stars=stars)
-    off, band = comp_model.offfield, comp_model.band("g")
+    off, band = comp_model.context.offfield, comp_model.context.band("g")
     flux = band.ab_zero_point_photons_s_m2 * 10 ** (-0.4 * np.array([2.0, 3.0]))
     expected = np.sum(flux * off.pst.azimuthal_mean(theta[1:])) * off.pixel_area_m2
     assert float(out["g"]["stars"][0]) == pytest.approx(expected, rel=2e-3)  # 0.01 deg table, log interpolation
@@ -712,7 +715,7 @@ def test_direct_plus_faint_map_matches_every_star_summed_directly(campaign, comp
 # -- earthshine --------------------------------------------------------------------------------
 def test_uniform_lambertian_cap_matches_analytic_irradiance(comp_model):
     """Sum of L dOmega cos(gamma) over the cap grid = pi L sin^2(rho) within 0.5 %."""
-    off = comp_model.offfield
+    off = comp_model.context.offfield
     sat = np.array([RE + 400.0, 0.0, 0.0])
     s = EarthshineSettings(n_gamma=24, n_psi=48)
     d, d_omega, pts = off._cap_grid(sat, RE, s)
@@ -727,7 +730,7 @@ def test_uniform_lambertian_cap_matches_analytic_irradiance(comp_model):
 def _earthshine(comp_model, campaign, limb_offset_deg, n_gamma=24, n_psi=48, moon_phase_full=False, sun_up=True):
     import copy
 
-    off = copy.copy(comp_model.offfield)
+    off = copy.copy(comp_model.context.offfield)
     off.earthshine = EarthshineSettings(n_gamma=n_gamma, n_psi=n_psi)
     sat = np.array([[RE + 400.0, 0.0, 0.0]])
     rho = np.degrees(np.arcsin(RE / (RE + 400.0)))
@@ -874,7 +877,7 @@ def test_pst_file_formats(tmp_path, fmt):
 
 def test_band_independent_earthshine_equals_per_band(comp_model):
     """Coefficients x irradiance equal the direct per-band evaluation (linearity in the lamps)."""
-    off = comp_model.offfield
+    off = comp_model.context.offfield
     sat = np.array([[RE + 400.0, 0.0, 0.0]])
     los = np.array([[0.3, 0.9, 0.3]]) / np.linalg.norm([0.3, 0.9, 0.3])
     sun, moon = np.array([[AU, 0.2 * AU, 0.0]]), np.array([[-2e5, 3e5, 1e4]])
@@ -889,7 +892,7 @@ def test_band_independent_earthshine_equals_per_band(comp_model):
 def test_one_scene_earthshine_equals_per_sample_sum(comp_model, sun_x):
     """The cube's path (lines of sight sharing one satellite, Sun and Moon: cap gridded once,
     dark blocks dropped, matrix products) gives the per-sample general sum's values."""
-    off = comp_model.offfield
+    off = comp_model.context.offfield
     rng = np.random.default_rng(3)
     los = rng.normal(size=(300, 3))
     los /= np.linalg.norm(los, axis=1)[:, None]
@@ -1004,7 +1007,7 @@ def test_paper_moon_rule_is_one_switch_away_and_its_difference(campaign):
     prop = moon_v_magnitude(90.0, 384400.0, "proportional", elongation_deg=90.0)
     assert ks - prop == pytest.approx(1.85, abs=0.01) and 10 ** (0.4 * (ks - prop)) == pytest.approx(5.5, abs=0.05)
     c = load_campaign(REPO / "config" / "config.yaml", overrides={"models": {"moon_phase_law": "proportional"}})
-    assert ComponentModel(c).offfield.moon_law == "proportional"
+    assert BackgroundModel(c).context.offfield.moon_law == "proportional"
 
 
 # -- behind the aperture plane, and the body's shadow on the door ------------------------------
@@ -1022,7 +1025,7 @@ def test_nothing_enters_the_direct_path_from_behind_the_aperture_plane(campaign,
     """Paper sect. 2.2: with the axis near the zenith earthshine enters through the door, not
     directly.  A source behind the aperture plane (theta > 90 deg) cannot light the aperture, so the
     direct path gives exactly 0 there (point sources and earthshine), whatever the PST's values."""
-    off = comp_model.offfield
+    off = comp_model.context.offfield
     th = np.array([90.001, 95.0, 120.0, 150.0, 179.0])
     for op in off.door_states_deg:
         assert np.all(off.point_source(1.0, th, 180.0, np.zeros(th.size, bool), op) == 0.0)
@@ -1070,7 +1073,7 @@ def test_the_body_shades_the_door(comp_model, tilt_deg, sun_zenith_deg):
     import copy
     import dataclasses
 
-    off = comp_model.offfield
+    off = comp_model.context.offfield
     assert (off.door.body_radius_m, off.door.body_length_m) == (1.0, 10.0)
     bare = copy.copy(off)
     bare.door = dataclasses.replace(off.door, body_radius_m=0.0)

@@ -156,7 +156,7 @@ def test_paper_zodiacal_colours_are_one_switch_away(campaign):
     """Issue 35 item 8: the paper's HST zodiacal ratios (sect. 4.1) are models.zodiacal_spectrum:
     hst; the default solar_leinert (E490 Sun with Leinert 1998's Table 19 colour) is fainter by
     NUV 0.457, r 0.103, i 0.197, z 0.224 mag and brighter in g by 0.036 (docs/assumptions.md)."""
-    from straylight.components import ComponentModel
+    from straylight.model import BackgroundModel
     from straylight.config import load_campaign
 
     from conftest import REPO
@@ -168,4 +168,4 @@ def test_paper_zodiacal_colours_are_one_switch_away(campaign):
         band = load_band(campaign.instrument, b)
         assert solar.band_factors(band)[1] - hst.band_factors(band)[1] == pytest.approx(d, abs=0.005), b
     c = load_campaign(REPO / "config" / "config.yaml", overrides={"models": {"zodiacal_spectrum": "hst"}})
-    assert ComponentModel(c).zodiacal.spectrum == "hst"
+    assert BackgroundModel(c).context.zodiacal.spectrum == "hst"

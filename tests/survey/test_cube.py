@@ -314,11 +314,11 @@ def test_plan_costs_the_model_auto_picks(campaign, tmp_path, monkeypatch):
     """straylight plan (cube.estimated_cost) costs the earthshine model the cube will run, on
     the samples it evaluates, without building anything: the default day takes the direct sum;
     three weeks of it the table, whose build (1,840,841 nodes x 2 door states at
-    components.LUT_BUILD_SECONDS_PER_NODE, the default table's node count, and the moonlit
+    fidelity.LUT_BUILD_SECONDS_PER_NODE, the default table's node count, and the moonlit
     table's 534,375 x 2 at MOONLIT_LUT_BUILD_SECONDS_PER_NODE) is counted while it is not
     cached, each table on its own; the same weeks skipping the unobservable samples (~16.5 %) are
     short of the table's break-even (~5.4 million samples) again."""
-    from straylight import components as comp
+    from straylight import model as comp
     from straylight.survey import cube as cu
     from straylight.survey.footprint import footprint_from_config
 
@@ -343,13 +343,13 @@ def test_plan_costs_the_model_auto_picks(campaign, tmp_path, monkeypatch):
     assert evaluating["core_hours"] * 3600 == pytest.approx(
         N_DAYS * 380_160 * cu.CUBE_TABLE_SECONDS_PER_SAMPLE + evaluating["table_build_seconds"], rel=1e-12)
     # each table counted only while it is not cached: with the sunlit one in the cache, the moonlit
-    week_model = comp.ComponentModel(_campaign_with(campaign, {**WEEKS, "models": {"unobservable_samples": "evaluate"}}),
+    week_model = comp.BackgroundModel(_campaign_with(campaign, {**WEEKS, "models": {"unobservable_samples": "evaluate"}}),
                                      expected_samples=N_DAYS * 380_160)
-    week_model.earthshine_lut_path().write_bytes(b"")  # only its existence is checked
+    week_model.sunlit_earth.lut_path().write_bytes(b"")  # only its existence is checked
     one_left = week("evaluate")
     assert not one_left["table_cached"]
     assert one_left["table_build_seconds"] == pytest.approx(moonlit_s, rel=1e-12)
-    week_model.moonlit_lut_path().write_bytes(b"")
+    week_model.moonlit_earth.lut_path().write_bytes(b"")
     assert week("evaluate")["table_cached"] and week("evaluate")["table_build_seconds"] == 0.0
     skipping = week("skip")
     assert 0.12 < skipping["evaluated_samples"] / skipping["samples"] < 0.2  # the default day: 16.5 %

@@ -20,7 +20,7 @@ THROUGHPUT = SHARED_DATA / "csst_throughput"
 def _high_latitude_limits(campaign):
     """Limits over observable samples at ecliptic |beta| >= 60 deg (the darkest zodiacal light),
     a 10 x 10 deg grid of pointings every 30 min of the default campaign day, full model."""
-    from straylight.components import ComponentModel
+    from straylight.model import BackgroundModel
     from straylight.sky.geometry import radec_to_unit
     from straylight.survey.limits import point_source_limit
     from straylight.sky.observing import sample_geometry, scene
@@ -36,7 +36,7 @@ def _high_latitude_limits(campaign):
     sat = np.broadcast_to(sc.satellite_km[:, None, :], shape)
     bodies = {k: np.broadcast_to(v[:, None, :], shape) for k, v in sc.bodies_km.items()}
     los = np.broadcast_to(radec_to_unit(ra, dec)[None], shape)
-    res = ComponentModel(campaign).evaluate(sat, bodies, los, g, campaign.bands)
+    res = BackgroundModel(campaign).evaluate(sat, bodies, los, g, campaign.bands)
     obs = g["observable"]
     assert obs.sum() > 100, "too few observable high-latitude samples"
     return {b: point_source_limit(res[b]["total"][obs], b, campaign) for b in campaign.bands}
@@ -114,7 +114,7 @@ def test_one_pixel_scale_for_rates_and_surface_brightness(campaign):
     back into mag/arcsec2 with the campaign's pixel scale gives the zodiacal model's own
     mag/arcsec2: both use p / f = 10 um / 28 m = 0.073665 arcsec (0.074 gave 0.0097 mag)."""
     from straylight.optics.bandpass import load_band
-    from straylight.sources.offfield import magnitude_per_arcsec2
+    from straylight.sources.photometry import magnitude_per_arcsec2
     from straylight.sources.zodiacal import zodiacal_model_from_instrument
 
     assert campaign.pixel_scale_arcsec == pytest.approx(10e-6 / 28.0 * 206264.806247, rel=1e-9)

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from conftest import run_cli
-from straylight.components import ComponentModel
+from straylight.model import BackgroundModel
 from straylight.survey.limits import point_source_limit
 from straylight.survey.scheduling import (bright_limb_table, exposure_time_factor,
                                    moon_avoidance_table)
@@ -13,7 +13,7 @@ from straylight.survey.scheduling import (bright_limb_table, exposure_time_facto
 
 @pytest.fixture(scope="module")
 def model(campaign):
-    return ComponentModel(campaign)
+    return BackgroundModel(campaign)
 
 
 def test_exposure_factor_reaches_the_nominal_depth(campaign, model):
@@ -23,7 +23,7 @@ def test_exposure_factor_reaches_the_nominal_depth(campaign, model):
     from scipy.optimize import brentq
 
     b = "g"
-    z = model.darkest_zodiacal_e_per_s(b)
+    z = model.context.darkest_zodiacal_e_per_s(b)
     assert exposure_time_factor(0.0, z, b, campaign) == pytest.approx(1.0, rel=1e-12)
     m_lim = float(point_source_limit(z, b, campaign))
     inst = campaign.instrument
@@ -33,7 +33,7 @@ def test_exposure_factor_reaches_the_nominal_depth(campaign, model):
     dark = campaign.instrument_value("detector", "dark_current_e_per_s")
     r80 = campaign.instrument_value("detector", "ee80_radius_arcsec") / campaign.pixel_scale_arcsec
     npix = np.pi * r80**2
-    band = model.band(b)
+    band = model.context.band(b)
     zp_e = band.ab_zero_point_photons_s_m2 * np.pi * campaign.instrument_value("telescope", "aperture_diameter_m") ** 2 / 4
     rate = 0.8 * zp_e * 10 ** (-0.4 * m_lim)
     for ratio in (0.1, 1.0, 10.0):
@@ -53,15 +53,15 @@ def test_moon_avoidance_angle_is_the_exact_threshold(model):
     g = t["min_moon_angle_deg_g"]
     assert np.all(np.diff(g) <= 0)  # a thinner Moon needs less distance
     assert g[0] > 40.0  # the paper's fixed 40 deg is not enough at full Moon for 10 % of the darkest sky
-    from straylight.sources.offfield import MOON_MEAN_DISTANCE_KM, moon_v_magnitude
+    from straylight.sources.bodies import MOON_MEAN_DISTANCE_KM, moon_v_magnitude
 
-    limit = fraction * model.darkest_zodiacal_e_per_s("g")
-    off = model.offfield
+    limit = fraction * model.context.darkest_zodiacal_e_per_s("g")
+    off = model.context.offfield
     phi = np.linspace(0.0, 360.0, 361)
     for alpha, theta in zip(t["phase_angle_deg"], g):
         if theta <= 1.0:
             continue
-        irr = model.photometry("g").solar_like_from_v(moon_v_magnitude(alpha, MOON_MEAN_DISTANCE_KM))
+        irr = model.context.photometry("g").solar_like_from_v(moon_v_magnitude(alpha, MOON_MEAN_DISTANCE_KM))
         at = irr * off.pst(theta, phi).max() * off.pixel_area_m2
         before = irr * off.pst(theta - 0.25, phi).max() * off.pixel_area_m2
         assert at <= limit * 1.01 and before > limit * 0.99
@@ -88,10 +88,10 @@ def _rotated_scene_rate(campaign, model, sun_zenith_deg: float, elevation_deg: f
     los = np.cos(zeta) * up + np.sin(zeta) * (np.cos(az) * east + np.sin(az) * north)
     bodies = {"sun": sun[None], "moon": (-1e6 * up)[None]}
     g = observing_geometry(sat[None], bodies, los[None], re, campaign.constraints)
-    c = model.offfield.earthshine_coefficients(sat[None], sun[None], bodies["moon"],
+    c = model.context.offfield.earthshine_coefficients(sat[None], sun[None], bodies["moon"],
                                                telescope_frame(los[None], sun[None] - sat[None]),
                                                g["door_opening_deg"], re, in_field=False, moon=False)
-    rate = (c["direct_sun"][0] + c["door_sun"][0]) * model.photometry("g").sun_at_1au_photons_s_m2
+    rate = (c["direct_sun"][0] + c["door_sun"][0]) * model.context.photometry("g").sun_at_1au_photons_s_m2
     return float(rate), float(g["door_opening_deg"][0])
 
 
@@ -109,7 +109,7 @@ def test_bright_limb_elevation_holds_in_a_rotated_scene(campaign, model):
                           terminator_step_deg=10.0)
     assert list(t["sun_zenith_deg"]) == [0.0, 50.0, 90.0, 100.0, 110.0]  # 110: past the limb's 109.8 deg
     need = t["min_limb_elevation_deg_g"][[0, 3]]
-    limit = fraction * model.darkest_zodiacal_e_per_s("g")
+    limit = fraction * model.context.darkest_zodiacal_e_per_s("g")
     # the Sun overhead: the avoidance cone (50 deg) starts 59.8 deg above the limb at 400 km
     assert need[0] == np.inf
     top = [_rotated_scene_rate(campaign, model, 0.0, 59.0, az) for az in np.arange(0.0, 360.0, 30.0)]

@@ -1,0 +1,141 @@
+"""What every source of light shares: the campaign, the off-field transfer (PST, door, Earth
+blocking: :class:`~straylight.sources.offfield.OffFieldModel`), each band's throughput and solar
+photometry, and the darkest sky every skip bound is measured against; and :class:`Samples`, the
+batch of (time, pointing) samples every source is asked about."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+
+from straylight.config import Campaign
+from straylight.optics.bandpass import Band, load_band
+from straylight.optics.door import door_from_instrument
+from straylight.optics.pst import load_pst
+from straylight.sky.geometry import TelescopeFrame
+from straylight.sources.photometry import BandPhotometry
+from straylight.sources.offfield import EarthshineSettings, OffFieldModel
+from straylight.sources.zodiacal import ZodiacalModel, zodiacal_model_from_instrument
+
+
+@dataclass
+class Samples:
+    """A batch of (time, pointing) samples, broadcastable arrays: ``satellite_km`` (..., 3) and
+    ``bodies_km`` (body -> (..., 3), geocentric ICRS km; at least the Sun and the Moon),
+    ``frame`` (the samples' ``telescope_frame(los, sun - satellite)``), ``geometry``
+    (:func:`~straylight.sky.observing.observing_geometry`'s: the Sun's and the Moon's angles,
+    the door's state), ``runs``: the samples' scene runs when the caller knows them
+    (:class:`~straylight.sky.geometry.SceneRuns`, e.g. a cube's time steps), else None."""
+
+    satellite_km: np.ndarray
+    bodies_km: dict
+    frame: TelescopeFrame
+    geometry: dict
+    runs: object = None
+
+    @property
+    def shape(self) -> tuple:
+        """The samples' shape."""
+        return self.geometry["sun_angle_deg"].shape
+
+    @property
+    def door_deg(self) -> np.ndarray:
+        """Each sample's door opening, deg."""
+        return self.geometry["door_opening_deg"]
+
+    @property
+    def sun_km(self) -> np.ndarray:
+        return self.bodies_km["sun"]
+
+    @property
+    def moon_km(self) -> np.ndarray:
+        return self.bodies_km["moon"]
+
+
+@dataclass
+class SourceContext:
+    """One campaign's instrument as the sources see it: the off-field transfer, the zodiacal
+    model (for the darkest sky), the bands and their solar photometry.  Built once per model;
+    everything is cached."""
+
+    campaign: Campaign
+
+    @cached_property
+    def zodiacal(self) -> ZodiacalModel:
+        """The zodiacal-light model (models.zodiacal_spectrum)."""
+        return zodiacal_model_from_instrument(self.campaign.instrument,
+                                              self.campaign.config["models"].get("zodiacal_spectrum", "solar_leinert"))
+
+    @cached_property
+    def offfield(self) -> OffFieldModel:
+        """The off-field transfer from the instrument (PST, door, pixel, field radius) and
+        models.earthshine's Earth grid, albedo and door reflection."""
+        inst = self.campaign.instrument
+        pst_file = inst.get("pst", {}).get("file")
+        if pst_file and not Path(pst_file).is_absolute():
+            pst_file = self.campaign.instrument_path.parent / pst_file
+        es = self.campaign.config["models"].get("earthshine", {})
+        dg = inst.get("door_geometry", {})
+        field_radius_deg = float(np.sqrt(self.campaign.instrument_value("detector", "field_of_view_deg2") / np.pi))
+        return OffFieldModel(
+            pst=load_pst(pst_file, field_radius_deg),
+            door=door_from_instrument(inst),
+            door_states_deg=tuple(float(s["opening_deg"]) for s in inst["door"]["states"]),
+            pixel_area_m2=(self.campaign.instrument_value("detector", "pixel_size_um") * 1e-6) ** 2,
+            pixel_etendue_m2_sr=self.zodiacal.pixel_etendue_m2_sr,
+            field_radius_deg=field_radius_deg,
+            earthshine=EarthshineSettings(
+                n_gamma=int(es.get("n_gamma", 24)), n_psi=int(es.get("n_psi", 48)),
+                albedo=float(es.get("albedo", 0.3)), door_blocks=tuple(es.get("door_blocks", (24, 24))),
+                door_reflectance=float(dg["reflectance"]["value"]) if "reflectance" in dg else 0.05,
+                n_aperture_door=int(es.get("n_aperture_door", 128)),
+            ),
+            moon_law=self.campaign.config["models"].get("moon_phase_law", "krisciunas_schaefer"),
+            moon_eclipse_factor=float(self.campaign.config["models"].get("moon_eclipse_factor", 1e-4)),
+        )
+
+    @cached_property
+    def _bands(self) -> dict:
+        return {}
+
+    def band(self, name) -> Band:
+        """The instrument's band ``name`` (throughput, zero points), loaded once."""
+        if name not in self._bands:
+            b = load_band(self.campaign.instrument, name, self.campaign.instrument_path.parent)
+            self._bands[name] = (b, BandPhotometry(b))
+        return self._bands[name][0]
+
+    def photometry(self, name) -> BandPhotometry:
+        """Band ``name``'s photometry: the Sun's photon irradiance at 1 AU through it, AB and
+        solar-like magnitudes to photons s-1 m-2."""
+        self.band(name)
+        return self._bands[name][1]
+
+    def darkest_zodiacal_e_per_s(self, band: str) -> float:
+        """e-/s/pix of the zodiacal light at the darkest point of the Leinert (1998) table, in a
+        band: the floor of any total background (scheduling tables, error budgets).  Cached per
+        band (every evaluation's skips read it)."""
+        from straylight.sources.zodiacal import LEINERT_UNIT_W_M2_SR_UM, leinert_table
+
+        cache = self.__dict__.setdefault("_darkest_zodiacal", {})
+        if band not in cache:
+            b_min = float(np.min(leinert_table().filled)) * LEINERT_UNIT_W_M2_SR_UM
+            cache[band] = float(self.zodiacal.e_per_s_per_pix(self.band(band), b_min))
+        return cache[band]
+
+    @cached_property
+    def earthshine_floor(self) -> float:
+        """The darkest sky background in earthshine-coefficient units (e-/s/pix per photon
+        s-1 m-2 of the Sun at 1 AU), over the instrument's bands: errors relative to it bound
+        errors relative to the total."""
+        return self.solar_floor(tuple(self.campaign.bands))
+
+    def solar_floor(self, bands: tuple) -> float:
+        """:attr:`earthshine_floor` over ``bands`` (cached per set of bands)."""
+        cache = self.__dict__.setdefault("_solar_floor", {})
+        if bands not in cache:
+            cache[bands] = min(self.darkest_zodiacal_e_per_s(b) / self.photometry(b).sun_at_1au_photons_s_m2
+                               for b in bands)
+        return cache[bands]

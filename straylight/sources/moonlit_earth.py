@@ -1,0 +1,179 @@
+"""The moonlit Earth (paper sect. 3.2, the night side lit by the Moon) on the table's path:
+~1e-5 of the sunlit Earth, so it is skipped where its upper bound (:meth:`MoonlitEarth.bound`)
+times the Moon's irradiance stays below the moonlit_earthshine_skip budget of the sample's
+floor, and elsewhere summed on a coarse Earth grid (models.earthshine.moonlit_grid), from its
+own table (:class:`~straylight.sources.earthshine_lut.MoonlitLUT`, models.earthshine.moonlit_method
+= lut, when it validates within the moonlit_earthshine_grid budget) or directly.  On the direct
+sum's path the sunlit Earth's grid carries the Moon's light too (:mod:`straylight.sources.sunlit_earth`)."""
+from __future__ import annotations
+
+import logging
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+
+from straylight.sky.geometry import TelescopeFrame, rows_at, scene_rows
+from straylight.sources.context import Samples, SourceContext
+from straylight.sources.bodies import MOON_PERIGEE_KM, moon_v_magnitude
+from straylight.sources.photometry import solar_like_fraction
+
+
+class MoonlitEarth:
+    """The moonlit Earth outside the field: its configuration, its table, its bound and its sum."""
+
+    def __init__(self, context: SourceContext, policy, build_workers: int = 1):
+        self.context, self.policy, self.build_workers = context, policy, build_workers
+
+    @cached_property
+    def grid(self) -> tuple[int, int]:
+        """models.earthshine.moonlit_grid: (n_gamma, n_psi) of the coarse Earth grid."""
+        return tuple(int(n) for n in self.context.campaign.config["models"].get("earthshine", {}).get("moonlit_grid",
+                                                                                                       (8, 16)))
+
+    def settings(self):
+        """The table's :class:`~straylight.sources.earthshine_lut.MoonlitSettings` from the config,
+        or None when the moonlit Earth is summed directly (moonlit_method = direct)."""
+        from straylight.sources.earthshine_lut import MoonlitSettings
+
+        es = self.context.campaign.config["models"].get("earthshine", {})
+        if es.get("moonlit_method", "lut") == "direct":
+            return None
+        # the keys are checked by the schema
+        return MoonlitSettings(**{k: float(v) for k, v in es.get("moonlit_lut", {}).items()})
+
+    def node_states(self) -> int:
+        """How many (node, door state) pairs the table sums, each a coarse Earth-grid sum; 0
+        with models.earthshine.moonlit_method = direct."""
+        from straylight.sources.earthshine_lut import _mirror_symmetric
+
+        settings = self.settings()
+        if settings is None:
+            return 0
+        c = self.context
+        r = c.campaign.orbit_radius_range_km
+        nodes = settings.nodes(float(r[0]), c.campaign.earth.radius_km, _mirror_symmetric(c.offfield))
+        return int(np.prod([a.size for a in nodes])) * len(c.offfield.door_states_deg)
+
+    def _table_inputs(self, settings) -> tuple:
+        """The arguments of :func:`~straylight.sources.earthshine_lut.load_or_build_moonlit` (and of
+        its cache key) before the logger: the model, the Earth, the orbit, the settings, the grid,
+        the darkest sky and the brightest Moon (full, at perigee) per unit solar irradiance at
+        1 AU, and the dark-limb angle."""
+        c = self.context
+        moon_max = float(solar_like_fraction(moon_v_magnitude(0.0, MOON_PERIGEE_KM, c.offfield.moon_law, 180.0)))
+        return (c.offfield, c.campaign.earth.radius_km, c.campaign.orbit_radius_range_km, settings,
+                self.grid, c.earthshine_floor, moon_max, c.campaign.constraints.dark_limb_min_deg)
+
+    def lut_path(self) -> Path | None:
+        """Where the table of the configured settings is cached (it may not exist yet); None
+        when the moonlit Earth is summed directly."""
+        from straylight.sources.earthshine_lut import cache_path, moonlit_key
+
+        settings = self.settings()
+        return None if settings is None else cache_path("moonlit_lut", moonlit_key(*self._table_inputs(settings)))
+
+    @cached_property
+    def model(self) -> dict:
+        """How the moonlit Earth is summed where its bound does not let it be skipped: 'lut', its
+        own table over (Moon zenith, line-of-sight zenith, azimuth from the Moon, roll) of the
+        coarse grid's sum, when its validated error (full Moon at perigee, a fraction of the
+        total) is within the moonlit grid's share of the tolerance, else (or with 'direct') the
+        coarse grid's direct sum.  Keys: method, lut, and for the table its file, validated error
+        and steps."""
+        from straylight.sources.earthshine_lut import load_or_build_moonlit
+
+        settings = self.settings()
+        if settings is None:
+            return {"method": "direct", "lut": None, "reason": "models.earthshine.moonlit_method = direct"}
+        lut, path = load_or_build_moonlit(*self._table_inputs(settings), logging.getLogger("straylight"),
+                                          self.build_workers)
+        info = {"lut_file": path.name, "lut_validation_max_rel_error": lut.validation_max_rel_error,
+                "lut_steps_deg": [settings.moon_zenith_step_deg, settings.los_zenith_step_deg,
+                                  settings.azimuth_step_deg, settings.roll_step_deg]}
+        if not self.policy.accepts_table("moonlit_earthshine_grid", lut.validation_max_rel_error):
+            return {"method": "direct", "lut": None, **info,
+                    "reason": f"table error {lut.validation_max_rel_error:.2g} > "
+                              f"{self.policy.share('moonlit_earthshine_grid'):g} x the tolerance"}
+        return {"method": "lut", "lut": lut, **info}
+
+    def bound(self, sunlit_lut, sat_km, moon_km, los, runs=None) -> np.ndarray:
+        """Upper bound of the moonlit Earth's coefficient (direct and door, e-/s/pix per photon
+        s-1 m-2 of the Moon at the Earth) at flat samples: the sunlit table's
+        :meth:`~straylight.sources.earthshine_lut.EarthshineLUT.moon_bound`; within 1 deg of the
+        limb and below it, where the table has none, the whole cap fully lit at the PST's largest
+        value outside the field."""
+        off, re_km = self.context.offfield, self.context.campaign.earth.radius_km
+        bound = sunlit_lut.moon_bound(sat_km, moon_km, los, re_km, runs)
+        no_bound = ~np.isfinite(bound)
+        if np.any(no_bound):  # the cap's bound only where needed (it grids each sample's cap)
+            unbounded = np.flatnonzero(no_bound)
+            bound[no_bound] = (off.earthshine_cap_bound(np.take(sat_km, unbounded, axis=0), re_km, self.grid,
+                                                        None if runs is None else runs.at(unbounded))
+                               + sunlit_lut.moon_door_bound)
+        return bound
+
+    def add(self, es_coeff: dict, samples: Samples, sunlit_lut, moon_at_earth_unit: dict, floor: dict) -> None:
+        """On the table's path, add the moonlit Earth outside the field to the earthshine
+        coefficients ``es_coeff`` (in place): skipped where :meth:`bound` times the Moon's
+        irradiance at the Earth (``moon_at_earth_unit``, band -> photons s-1 m-2) is below
+        ``moonlit_skip_share`` x the tolerance x the sample's floor (``floor``, band -> e-/s/pix,
+        a lower bound of its total) in every band, elsewhere the coarse grid's sum.  With the
+        table, samples whose Moon zenith angle lies beyond its ``dark_moon_zenith_deg`` (no
+        moonlit Earth in view: the table is 0 there) are left out from the start, bound and all:
+        they would add exactly 0."""
+        off, re_km = self.context.offfield, self.context.campaign.earth.radius_km
+        shape, frame, runs, mlut = samples.shape, samples.frame, samples.runs, self.model["lut"]
+        sat_b, sun_b, moon_b, los_b = (np.broadcast_to(np.asarray(v, float), shape + (3,)).reshape(-1, 3)
+                                       for v in (samples.satellite_km, samples.sun_km, samples.moon_km, frame.z))
+        door_b = np.broadcast_to(np.asarray(samples.door_deg, float), shape).reshape(-1)
+        floor_b = {b: np.broadcast_to(floor[b], shape).reshape(-1) for b in moon_at_earth_unit}
+        cand = None  # the samples considered (flat indices; None: all)
+        if mlut is not None:
+            runs = scene_rows(sat_b, moon_b, runs=runs)  # found once here if not known
+            dark = mlut.dark_runs(runs)
+            if np.all(dark):
+                return
+            if np.any(dark):
+                cand = np.flatnonzero(~np.take(dark, runs.index))
+                # (the Sun's rows serve the direct moonlit sum only, which has no dark test)
+                sat_b, moon_b, los_b = (np.take(v, cand, axis=0) for v in (sat_b, moon_b, los_b))
+                door_b = np.take(door_b, cand)
+                floor_b = {b: np.take(v, cand) for b, v in floor_b.items()}
+                runs = runs.at(cand)
+        bound = self.bound(sunlit_lut, sat_b, moon_b, los_b, runs)
+        need = np.zeros(bound.shape, bool)
+        for b, e_moon in moon_at_earth_unit.items():
+            e_moon = np.broadcast_to(e_moon, shape).reshape(-1)
+            need |= bound * (e_moon if cand is None else np.take(e_moon, cand)) > (
+                self.policy.moonlit_skip_share * self.policy.tolerance * floor_b[b])
+        if not np.any(need):
+            return
+        # a coarse grid is enough where a line of sight can be observable (>= the dark-limb angle
+        # above the limb).  Nearer the limb and below it no Earth grid converges (blocks next to
+        # the field edge meet the PST's jump), so the configured grid would cost 5x for numbers
+        # no better than indicative: the coarse grid runs there too.
+        at = np.flatnonzero(need)  # among the samples considered
+        sub = TelescopeFrame(*(rows_at(a, shape, at if cand is None else np.take(cand, at))
+                               for a in (frame.x, frame.y, frame.z)))
+        door_need = np.take(door_b, at)
+        if mlut is not None:  # the coarse grid's sum, tabulated
+            direct_moon, door_moon = mlut.coefficients(np.take(sat_b, at, axis=0), np.take(moon_b, at, axis=0), sub,
+                                                       door_need, None if runs is None else runs.at(at))
+        else:
+            c = off.earthshine_coefficients(*(np.take(v, at, axis=0) for v in (sat_b, sun_b, moon_b)), sub, door_need,
+                                            re_km, in_field=False, sun=False, grid=self.grid)
+            direct_moon, door_moon = c["direct_moon"], c["door_moon"]
+        flat = np.unravel_index(at if cand is None else np.take(cand, at), shape)
+        es_coeff["direct_moon"][flat] += direct_moon
+        es_coeff["door_moon"][flat] = door_moon
+
+    def record(self, sunlit_table_runs: bool) -> str:
+        """How the moonlit Earth was summed, for a product's attributes."""
+        if not sunlit_table_runs:
+            return "summed directly"
+        m = self.model
+        return (f"skipped where its bound < {self.policy.moonlit_skip_share:g} x tolerance x the sample's floor, else "
+                + (f"from its table of the grid {list(self.grid)} sum (steps {m['lut_steps_deg']} deg, validated "
+                   f"{m['lut_validation_max_rel_error']:.2g} of the total at full Moon)" if m["method"] == "lut" else
+                   f"summed directly on grid {list(self.grid)}"))

@@ -1,0 +1,58 @@
+"""Photometry of the sources through a band: the Sun's photon irradiance at 1 AU (ASTM E490-00a
+spectrum), a solar-spectrum source's from its V magnitude (V_sun = -26.76, Willmer 2018, ApJS
+236, 47), a star's from its AB magnitude, and a uniform background's surface brightness in AB
+mag/arcsec2.  A solar-spectrum source's irradiance is the same fraction of the Sun's in every
+band (:func:`solar_like_fraction`), which is why the Sun, Moon, planets and both Earths give
+band-independent rates."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from straylight.optics.bandpass import Band
+from straylight.sources.zodiacal import solar_spectrum
+
+AU_KM = 1.495978707e8
+V_SUN_VEGA = -26.76
+
+
+def solar_like_fraction(v_mag) -> np.ndarray:
+    """Irradiance of a source with the Sun's spectrum and V magnitude ``v_mag`` as a fraction of
+    the Sun's at 1 AU, in any band (the same spectrum, so the same fraction in every band)."""
+    return 10.0 ** (-0.4 * (np.asarray(v_mag, dtype=float) - V_SUN_VEGA))
+
+
+@dataclass
+class BandPhotometry:
+    """Photon irradiances through one band for the solar-spectrum sources."""
+
+    band: Band
+
+    @cached_property
+    def sun_at_1au_photons_s_m2(self) -> float:
+        wl, flux = solar_spectrum()
+        return float(self.band.photon_rate(wl, flux))
+
+    def solar_like_from_v(self, v_mag) -> np.ndarray:
+        """Photon irradiance of a source with the Sun's spectrum and V magnitude ``v_mag``."""
+        return self.sun_at_1au_photons_s_m2 * solar_like_fraction(v_mag)
+
+    def from_ab(self, mag_ab) -> np.ndarray:
+        return self.band.ab_zero_point_photons_s_m2 * 10.0 ** (-0.4 * np.asarray(mag_ab, dtype=float))
+
+
+def sky_zero_point_mag_per_arcsec2(band: Band, aperture_diameter_m: float, pixel_scale_arcsec: float) -> float:
+    """AB surface brightness (mag/arcsec2) of a uniform background giving 1 e-/s/pixel, so that
+    ``mag_per_arcsec2 = zero_point - 2.5 log10(rate_e_per_s_per_pix)``: the band's AB photon
+    zero point times the aperture area, spread over one pixel's solid angle (arcsec2)."""
+    ref = band.ab_zero_point_photons_s_m2 * np.pi * aperture_diameter_m**2 / 4.0
+    return float(2.5 * np.log10(ref * pixel_scale_arcsec**2))
+
+
+def magnitude_per_arcsec2(e_per_s_per_pix, band: Band, aperture_diameter_m: float, pixel_scale_arcsec: float):
+    """AB mag/arcsec2 of a uniform background giving ``e_per_s_per_pix`` (inf where zero)."""
+    zp = sky_zero_point_mag_per_arcsec2(band, aperture_diameter_m, pixel_scale_arcsec)
+    with np.errstate(divide="ignore"):
+        return zp - 2.5 * np.log10(np.asarray(e_per_s_per_pix, dtype=float))

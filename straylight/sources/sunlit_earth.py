@@ -1,0 +1,147 @@
+"""The sunlit Earth (paper sect. 3.2): earthshine reaching the aperture directly (EA1) and by
+the door's reflection (EA2), as coefficients in e-/s/pix per photon s-1 m-2 of the lamp's
+irradiance (the Sun's at the satellite, the Moon's at the Earth).
+
+Two ways side by side, chosen by models.earthshine.method and the fidelity policy: the direct
+sum over the Earth grid (:meth:`~straylight.sources.offfield.OffFieldModel.earthshine_coefficients`,
+which lights each block by the Sun and the Moon in one pass, so the moonlit Earth comes with it),
+or the look-up table of that sum (:class:`~straylight.sources.earthshine_lut.EarthshineLUT`,
+the Sun only; the moonlit Earth then adds its own, :mod:`straylight.sources.moonlit_earth`).
+``auto`` takes the table when the campaign's samples repay its build and it validates within
+the earthshine_lut share of the tolerance."""
+from __future__ import annotations
+
+import logging
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+
+from straylight.sources.context import Samples, SourceContext
+
+#: the keys of the earthshine coefficients (e-/s/pix per photon s-1 m-2 of the lamp): direct
+#: (EA1) and via the door (EA2), lit by the Sun and by the Moon
+COEFFICIENTS = ("direct_sun", "door_sun", "direct_moon", "door_moon")
+
+
+class SunlitEarth:
+    """The sunlit Earth's coefficients for a batch of samples (:meth:`rates`), by the model
+    :attr:`model` picks.  ``moonlit``: the moonlit Earth, whose table the table path builds
+    too (its cost counts in the choice); ``build_workers``: processes that build a table that
+    is not cached (the result does not depend on it)."""
+
+    def __init__(self, context: SourceContext, policy, moonlit, build_workers: int = 1):
+        self.context, self.policy, self.moonlit, self.build_workers = context, policy, moonlit, build_workers
+
+    def node_states(self, settings) -> int:
+        """How many (node, door state) pairs the sunlit table with these
+        :class:`~straylight.sources.earthshine_lut.LUTSettings` sums, each an Earth-grid sum."""
+        c = self.context.campaign
+        r = c.orbit_radius_range_km
+        return settings.node_count(r[0], c.earth.radius_km) * len(self.context.offfield.door_states_deg)
+
+    @cached_property
+    def choice(self) -> dict:
+        """Which model :attr:`model` will run, decided without building anything (``straylight
+        plan`` reads it).  Keys: method ('lut' or 'direct'), requested (models.earthshine.method),
+        reason, settings (:class:`~straylight.sources.earthshine_lut.LUTSettings`), node_states and
+        build_seconds_estimate (the sunlit table's build plus the moonlit one's,
+        moonlit_build_seconds_estimate, at the policy's cost figures; 0 for 'direct' by config).
+        With 'auto' the table still falls back to the direct sum when its validated error,
+        known once it is built, exceeds its share of the tolerance."""
+        from straylight.sources.earthshine_lut import LUTSettings
+
+        es = self.context.campaign.config["models"].get("earthshine", {})
+        method = es.get("method", "auto")
+        if method == "direct":
+            return {"method": "direct", "requested": method, "reason": "models.earthshine.method = direct",
+                    "settings": None, "node_states": 0, "build_seconds_estimate": 0.0,
+                    "moonlit_build_seconds_estimate": 0.0}
+        lut_cfg = es.get("lut", {})
+        settings = LUTSettings(float(lut_cfg.get("sun_zenith_step_deg", 0.5)),
+                               float(lut_cfg.get("los_zenith_step_deg", 1.0)),
+                               float(lut_cfg.get("azimuth_step_deg", 2.5)),
+                               int(lut_cfg.get("n_radius", 1)))
+        node_states = self.node_states(settings)
+        build_s, moonlit_s = self.policy.tables_build_seconds(node_states, self.moonlit.node_states())
+        chosen, reason = self.policy.earthshine_method(method, build_s)
+        return {"method": chosen, "requested": method, "reason": reason, "settings": settings,
+                "node_states": node_states, "build_seconds_estimate": build_s,
+                "moonlit_build_seconds_estimate": moonlit_s}
+
+    @property
+    def avoidance_deg(self) -> tuple:
+        """The avoidance angles the table depends on (dark limb, bright limb, Sun), deg."""
+        k = self.context.campaign.constraints
+        return (k.dark_limb_min_deg, k.bright_limb_min_deg, k.sun_min_deg)
+
+    def lut_path(self) -> Path:
+        """Where the table of :attr:`choice`'s settings is cached (it may not exist yet): the
+        path :func:`~straylight.sources.earthshine_lut.load_or_build` reads or writes."""
+        from straylight.sources.earthshine_lut import cache_path, lut_key
+
+        c = self.context
+        key = lut_key(c.offfield, c.campaign.earth.radius_km, c.campaign.orbit_radius_range_km,
+                      self.choice["settings"], c.earthshine_floor, self.avoidance_deg)
+        return cache_path("earthshine_lut", key)
+
+    @cached_property
+    def model(self) -> dict:
+        """The model that runs (:attr:`choice`, the table built or loaded): keys method, lut
+        (the :class:`~straylight.sources.earthshine_lut.EarthshineLUT` or None), reason, and for
+        the table its file, validated error, build time, node states and steps."""
+        from straylight.sources.earthshine_lut import load_or_build
+
+        choice = self.choice
+        if choice["method"] == "direct":
+            return {"method": "direct", "lut": None, "reason": choice["reason"]}
+        settings, c = choice["settings"], self.context
+        log = logging.getLogger("straylight")
+        lut, path = load_or_build(c.offfield, c.campaign.earth.radius_km, c.campaign.orbit_radius_range_km,
+                                  settings, c.earthshine_floor, log, avoidance_deg=self.avoidance_deg,
+                                  workers=self.build_workers)
+        info = {"lut_file": str(path.name), "lut_validation_max_rel_error": lut.validation_max_rel_error,
+                "lut_build_seconds": lut.build_seconds, "lut_node_states": choice["node_states"],
+                "lut_steps_deg": [settings.sun_zenith_step_deg, settings.los_zenith_step_deg,
+                                  settings.azimuth_step_deg]}
+        share = self.policy.share("earthshine_lut")
+        if choice["requested"] == "auto" and not self.policy.accepts_table("earthshine_lut",
+                                                                           lut.validation_max_rel_error):
+            reason = (f"auto: table error {lut.validation_max_rel_error:.2g} > {share:g} x the tolerance "
+                      f"{self.policy.tolerance:g}")
+            log.info("earthshine: %s: direct sum", reason)
+            return {"method": "direct", "lut": None, "reason": reason, **info}
+        return {"method": "lut", "lut": lut, "reason": choice["reason"], **info}
+
+    @property
+    def lut(self):
+        """The sunlit table when it runs, else None (the direct sum runs)."""
+        return self.model["lut"]
+
+    def rates(self, samples: Samples) -> dict:
+        """The earthshine coefficients (:data:`COEFFICIENTS`, arrays of the samples' shape).  The
+        direct sum gives every term; the table gives the sunlit Earth, and of the moonlit Earth
+        only the part inside the field (the rest: :meth:`MoonlitEarth.add
+        <straylight.sources.moonlit_earth.MoonlitEarth.add>`)."""
+        off, re_km = self.context.offfield, self.context.campaign.earth.radius_km
+        sat, sun, moon, frame, door = (samples.satellite_km, samples.sun_km, samples.moon_km, samples.frame,
+                                       samples.door_deg)
+        shape, lut = samples.shape, self.lut
+        if lut is None:
+            return off.earthshine_coefficients(sat, sun, moon, frame, door, re_km)
+        full = shape + (3,)
+        sat_b, sun_b, moon_b = (np.broadcast_to(np.asarray(v, float), full) for v in (sat, sun, moon))
+        d_sun, g_sun = lut.sun_coefficients(sat_b, sun_b, np.broadcast_to(frame.z, full),
+                                            np.broadcast_to(np.asarray(door, float), shape), samples.runs)
+        in_field_sun, in_field_moon = off.earth_in_field(sat_b, sun_b, moon_b, frame, re_km)
+        return {"direct_sun": d_sun + in_field_sun, "door_sun": g_sun, "direct_moon": in_field_moon,
+                "door_moon": np.zeros(shape)}
+
+    def record(self) -> dict:
+        """The model that ran and its Earth grid, for a product's attributes (JSON-able; the
+        build time left out: products' bytes must not vary run to run)."""
+        es = {k: v for k, v in self.model.items() if k not in ("lut", "lut_build_seconds", "lut_node_states")}
+        s = self.context.offfield.earthshine
+        es["earth_grid"] = [s.n_gamma, s.n_psi]
+        es["door_blocks"], es["aperture_points_door"] = list(s.door_blocks), s.n_aperture_door
+        return es
