@@ -191,6 +191,17 @@ class OffFieldModel:
             f = np.clip(0.5 + 0.5 * cos_theta / half, 0.0, 1.0)
         return np.where(half > 0, f, (cos_theta > 0).astype(float))
 
+    def _lit_cap(self, sat_km, earth_radius_km, s, sun_km, moon_km, with_sun: bool, with_moon: bool):
+        """The visible cap's blocks (:meth:`_cap_grid`: d, d_omega, pts) and their Sun and Moon
+        cosines (:meth:`lamp_cosines`), a lamp left out set to zero."""
+        d, d_omega, pts = self._cap_grid(sat_km, earth_radius_km, s)
+        mu_sun, mu_moon = self.lamp_cosines(pts, sun_km, moon_km, earth_radius_km)
+        if not with_moon:
+            mu_moon = np.zeros_like(mu_sun)
+        if not with_sun:
+            mu_sun = np.zeros_like(mu_moon)
+        return d, d_omega, pts, mu_sun, mu_moon
+
     @staticmethod
     def lamp_cosines(points_km, sun_km, moon_km, earth_radius_km):
         """cos(zenith angle) of the Sun and of the Moon at surface points, clipped at 0."""
@@ -342,12 +353,7 @@ class OffFieldModel:
                 out["direct_sun"] = out["direct_sun"] + per_sun
                 out["direct_moon"] = out["direct_moon"] + per_moon
             return out
-        d, d_omega, pts = self._cap_grid(sat_km, earth_radius_km, s)
-        mu_sun, mu_moon = self.lamp_cosines(pts, sun_km, moon_km, earth_radius_km)
-        if not moon:
-            mu_moon = np.zeros_like(mu_sun)
-        if not sun:
-            mu_sun = np.zeros_like(mu_moon)
+        d, d_omega, pts, mu_sun, mu_moon = self._lit_cap(sat_km, earth_radius_km, s, sun_km, moon_km, sun, moon)
         lum_sun, lum_moon = s.albedo / np.pi * mu_sun, s.albedo / np.pi * mu_moon
         dx = dot(d, frame.x[..., None, None, :])
         dy = dot(d, frame.y[..., None, None, :])
@@ -394,12 +400,7 @@ class OffFieldModel:
         becomes matrix products.  Same sums as the general path, so the same values up to
         rounding (tests/sources/test_offfield.py)."""
         s = s or self.earthshine
-        d, d_omega, pts = self._cap_grid(sat, earth_radius_km, s)
-        mu_sun, mu_moon = self.lamp_cosines(pts, sun, moon, earth_radius_km)
-        if not with_moon:
-            mu_moon = np.zeros_like(mu_sun)
-        if not with_sun:
-            mu_sun = np.zeros_like(mu_moon)
+        d, d_omega, pts, mu_sun, mu_moon = self._lit_cap(sat, earth_radius_km, s, sun, moon, with_sun, with_moon)
         lit = (mu_sun > 0) | (mu_moon > 0)
         blocks = d[lit]  # (K, 3)
         span_g, span_p = (v[lit] for v in self._cap_block_spans(sat, earth_radius_km, s))  # (K, 3) each
