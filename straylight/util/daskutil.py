@@ -40,10 +40,12 @@ def _environment(values: dict):
 
 
 @contextmanager
-def region_pool(campaign, fp, store: str, stars_path, workers: int, scheduler_address: str | None = None):
+def region_pool(campaign, fp, store: str, stars_path, workers: int, scheduler_address: str | None = None,
+                obs_store: str | None = None):
     """Yield ``(submit, wait)`` for the cube's regions: ``submit(t_slice, p_slice, scene,
     faint_map)`` returns a future of the region's seconds (:func:`straylight.survey.cube.write_region`),
-    ``wait`` is the matching ``wait(futures, return_when=...)``.
+    ``wait`` is the matching ``wait(futures, return_when=...)``; ``obs_store``: where each
+    region's observability goes too (None: not written).
 
     * ``scheduler_address``: the regions run on that Dask cluster (campaign and footprint sent
       to every worker once); its workers keep the model between regions, time blocks and jobs.
@@ -66,16 +68,16 @@ def region_pool(campaign, fp, store: str, stars_path, workers: int, scheduler_ad
 
             def submit(t_slice, p_slice, scene, faint_map):
                 return client.submit(cube.write_region, c_fut, fp_fut, store, t_slice, p_slice, stars_path, scene,
-                                     faint_map, pure=False)
+                                     faint_map, None, obs_store, pure=False)
 
             yield submit, wait_dask
         return
     if int(workers) <= 1:
-        yield cube._InProcess(campaign, fp, store, stars_path).submit_region, wait_local
+        yield cube._InProcess(campaign, fp, store, stars_path, obs_store).submit_region, wait_local
         return
     with _environment(worker_environment()), \
             ProcessPoolExecutor(max_workers=int(workers), mp_context=get_context("spawn"),
-                                initializer=cube._pool_init, initargs=(campaign, fp, store, stars_path)) as pool:
+                                initializer=cube._pool_init, initargs=(campaign, fp, store, stars_path, obs_store)) as pool:
         def submit(t_slice, p_slice, scene, faint_map):
             return pool.submit(cube._pool_region, t_slice, p_slice, scene, faint_map)
 
