@@ -16,7 +16,10 @@ Work split: one Snakemake job computes many time blocks (:func:`run_time_blocks`
 or ``compute.time_blocks_per_job``) with a pool of worker processes started once per job; each
 worker builds the model (PST, door tables, stars, earthshine tables) once and reuses it for every
 (time block, pixel block) region it is given, and every region is written to its own part of the
-store exactly once.  A time block is marked done by its own sentinel file only after all its
+store exactly once, through the store's arrays opened once per worker.  The region's geometry
+(observable, violations, the Sun, Moon and limb angles, the door) is observability.zarr's, so
+the worker writes that region of the observability store too (:func:`init_observability_store`,
+:func:`publish_observability`) instead of a later step computing the geometry again.  A time block is marked done by its own sentinel file only after all its
 regions are written, so a killed job redoes only the unfinished time blocks and, the computation
 being deterministic, gives identical bytes.
 """
@@ -578,7 +581,9 @@ def init_observability_store(campaign: Campaign, fp: Footprint, ephem: xr.Datase
 def publish_observability(work_store, product) -> None:
     """The observability store the cube's workers filled (``work_store``), its metadata
     consolidated, appears at ``product`` complete or not at all (hard links where the file
-    system allows, else copies: the working store stays for a re-run of this step)."""
+    system allows, else copies: the working store stays for a re-run of this step; zarr
+    replaces a chunk file by renaming a new one into place, so a later write to the working
+    store leaves the product's files as they are)."""
     import os
     import shutil
 
