@@ -382,7 +382,7 @@ def _figure_job(kind: str, background_path, limits_path, campaign, out_dir, band
 
 def campaign_figures(background_path, limits_path, campaign, out_dir, workers: int = 1) -> list:
     """Every figure of the report and its summary table, in ``out_dir``; the paths written.
-    The figures are drawn by ``workers`` processes (spawned; 1: in this process), shared out
+    The figures are drawn by ``workers`` processes (this one and ``workers`` - 1 spawned), shared out
     as the sky-map pages of each band, the time series and the limit maps: drawing, not
     reading, is most of their cost (a page of eight Mollweide panels with graticules ~2 s)."""
     import xarray as xr
@@ -408,10 +408,17 @@ def campaign_figures(background_path, limits_path, campaign, out_dir, workers: i
         from concurrent.futures import ProcessPoolExecutor
         from multiprocessing import get_context
 
-        with ProcessPoolExecutor(max_workers=min(int(workers), len(jobs)), mp_context=get_context("spawn")) as pool:
+        # this process draws too: the spawned ones take the shares from the front, this one from
+        # the back, each share it has not started yet (cancelled in the pool first)
+        with ProcessPoolExecutor(max_workers=min(int(workers) - 1, len(jobs)), mp_context=get_context("spawn")) as pool:
             futures = [pool.submit(_figure_job, kind, background_path, limits_path, campaign, out, bands)
                        for kind, bands in jobs]
-            results = [f.result() for f in futures]
+            results = [None] * len(jobs)
+            for i in reversed(range(len(jobs))):
+                if not futures[i].cancel():
+                    break
+                results[i] = _figure_job(jobs[i][0], background_path, limits_path, campaign, out, jobs[i][1])
+            results = [f.result() if r is None else r for f, r in zip(futures, results)]
     written = [p for r in results[1:-1] for p in r] + results[0] + results[-1]
     with xr.open_zarr(limits_path) as limits_ds:
         return written + write_summary(limits_ds, campaign, out)
