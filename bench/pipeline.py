@@ -7,6 +7,8 @@ length, nside and cadence changed, and writes to bench/results/pipeline.json:
   the campaign's earthshine tables built (and cached) before the run and timed on their own;
 * each rule's seconds and share of the wall time (from Snakemake's job start and finish lines,
   1 s resolution; jobs run side by side, so the shares can add up to more than 1);
+* CPU seconds (user + system) of every process of the run, and samples per CPU second: on a
+  machine shared with other jobs the wall time grows with their load, the CPU time much less;
 * peak memory: the largest sum of the resident set sizes of Snakemake and all its descendant
   processes, polled every 0.2 s (pages shared between processes are counted once per process);
 * bytes per sample of the products on disk (background.zarr, limits.zarr, observability.zarr);
@@ -23,6 +25,7 @@ import argparse
 import json
 import os
 import re
+import resource
 import shutil
 import subprocess
 import sys
@@ -139,7 +142,10 @@ def build_tables(cfg_path: Path, workers: int) -> float:
 
     t0 = time.perf_counter()
     c = load_campaign(cfg_path)
-    _component_model(c, footprint_from_config(c.config["footprint"], c.path.parent), build_workers=workers)
+    model = _component_model(c, footprint_from_config(c.config["footprint"], c.path.parent), build_workers=workers)
+    # the record the cube's skeleton stores names both tables: building it loads (or builds) the
+    # sunlit table and, on the table's path, the moonlit one, which is built lazily otherwise
+    model.models_record()
     return time.perf_counter() - t0
 
 
@@ -158,12 +164,17 @@ def run_campaign(days: float, nside: int, cadence_s: float, cores: int, keep: Pa
         cmd = [snakemake, "-s", str(REPO / "Snakefile"), "-d", str(tmp), "--configfile", str(cfg_path),
                "--cores", str(cores)]
         load_before = os.getloadavg()
+        cpu_before = resource.getrusage(resource.RUSAGE_CHILDREN)
         t0 = time.perf_counter()
         proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         mem = TreeMemory(proc.pid)
         log, _ = proc.communicate()
         wall = time.perf_counter() - t0
         peak = mem.stop()
+        # user + system seconds of Snakemake and every process it (and they) waited for: a
+        # figure the machine's other load moves much less than the wall time
+        cpu_after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        cpu = (cpu_after.ru_utime - cpu_before.ru_utime) + (cpu_after.ru_stime - cpu_before.ru_stime)
         if proc.returncode != 0:
             sys.stderr.write(log[-5000:])
             raise SystemExit(f"bench/pipeline.py: snakemake failed (exit {proc.returncode})")
@@ -182,6 +193,8 @@ def run_campaign(days: float, nside: int, cadence_s: float, cores: int, keep: Pa
             "table_build_seconds_before_run": table_s,
             "wall_seconds": wall,
             "samples_per_s_per_core": samples / wall / cores,
+            "cpu_seconds": cpu,
+            "samples_per_cpu_second": samples / cpu,
             "rules": dict(sorted(rules.items(), key=lambda kv: -kv[1]["seconds"])),
             "peak_memory_bytes": peak,
             "products_bytes": products,
@@ -234,6 +247,8 @@ def main(argv=None) -> dict:
     print(f"pipeline, wall to wall: {c['samples']:,} samples ({args.days:g} days, nside {args.nside}, "
           f"{args.cadence_s:g} s) in {result['wall_seconds']:.1f} s on {args.cores} cores = "
           f"{result['samples_per_s_per_core']:,.0f} samples/s/core")
+    print(f"CPU (user + system, every process of the run): {result['cpu_seconds']:.0f} s = "
+          f"{result['samples_per_cpu_second']:,.0f} samples per CPU second")
     print(f"earthshine tables built before the run (not in the wall time): {result['table_build_seconds_before_run']:.0f} s")
     if result["kernel"]:
         print(f"kernel (cube compute alone, one core): {result['kernel']['samples_per_s_per_core']:,.0f} samples/s/core")

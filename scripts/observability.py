@@ -1,26 +1,21 @@
-"""Snakemake adapter: rule `observability` -> observability.zarr (streamed: one cube chunk at a time)."""
+"""Snakemake adapter: rule `observability` -> observability.zarr, the store the cube's workers
+filled region by region beside the background (the same geometry), published whole."""
 import sys
 import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821 - injected by Snakemake
-from _common import campaign, setup_logging  # noqa: E402
+from _common import setup_logging  # noqa: E402
 
 import xarray as xr  # noqa: E402
 
-from straylight.survey.cube import cube_chunks  # noqa: E402
-from straylight.survey.storage import write_zarr_atomic  # noqa: E402
-from straylight.survey.products import footprint_products, observability_dataset  # noqa: E402
+from straylight.survey.cube import publish_observability  # noqa: E402
 
 log = setup_logging(snakemake)  # noqa: F821
 t0 = time.perf_counter()
-c = campaign(snakemake)  # noqa: F821
-fp, _ = footprint_products(c)
-with xr.open_zarr(snakemake.input.ephemeris) as ephem:  # noqa: F821
-    chunks = cube_chunks(c, ephem.sizes["time"], fp.pixels.size)
-    ds = observability_dataset(c, ephem.load(), fp, chunks=chunks)
-write_zarr_atomic(ds, snakemake.output[0], storage=c.config["storage"])  # noqa: F821
+publish_observability(snakemake.params.obs_store, snakemake.output[0])  # noqa: F821
 with xr.open_zarr(snakemake.output[0]) as written:  # noqa: F821 - read back, not computed again
     frac = float(written["observable"].mean())
+    sizes = dict(written.sizes)
 log.info("observability: %d times x %d pixels, observable fraction %.3f, %.2f s",
-         ds.sizes["time"], ds.sizes["pixel"], frac, time.perf_counter() - t0)
+         sizes["time"], sizes["pixel"], frac, time.perf_counter() - t0)

@@ -362,22 +362,63 @@ def _thumbnails(out: Path, width_px: int = 560) -> str:
     return "\n" + "\n".join(parts) if parts else ""
 
 
-def campaign_figures(background_path, limits_path, campaign, out_dir) -> list:
+def _figure_job(kind: str, background_path, limits_path, campaign, out_dir, bands=None) -> list:
+    """One share of :func:`campaign_figures`, run in a worker process or in this one: ``kind``
+    'sky' (the sky-map pages of ``bands`` at every map time), 'series' (every pointing's time
+    series) or 'limits' (the limit maps); each opens the stores itself and reads only what its
+    figures show."""
+    import xarray as xr
+
+    rc = campaign.config["report"]
+    with _no_intermediate_draws():
+        if kind == "limits":
+            with xr.open_zarr(limits_path) as limits_ds:
+                return limit_maps(limits_ds, campaign, out_dir)
+        with xr.open_zarr(background_path) as ds:
+            if kind == "sky":
+                return sky_maps(ds, campaign, out_dir, int(rc["sky_map_times"]), bands, rc.get("times") or ())
+            return time_series(ds, campaign, out_dir, int(rc["series_pointings"]), rc.get("pointings") or ())
+
+
+def campaign_figures(background_path, limits_path, campaign, out_dir, workers: int = 1) -> list:
+    """Every figure of the report and its summary table, in ``out_dir``; the paths written.
+    The figures are drawn by ``workers`` processes (this one and ``workers`` - 1 spawned), shared out
+    as the sky-map pages of each band, the time series and the limit maps: drawing, not
+    reading, is most of their cost (a page of eight Mollweide panels with graticules ~2 s)."""
     import xarray as xr
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    ds = xr.open_zarr(background_path)
     rc = campaign.config["report"]
-    unknown = sorted(set(rc.get("sky_map_bands") or ()) - {str(b) for b in ds["band"].values})
+    with xr.open_zarr(background_path) as ds:
+        cube_bands = [str(b) for b in ds["band"].values]
+    unknown = sorted(set(rc.get("sky_map_bands") or ()) - set(cube_bands))
     if unknown:
         from straylight.errors import ConfigError
 
         raise ConfigError(f"{campaign.path}: report.sky_map_bands: {', '.join(unknown)} not among the cube's bands "
-                          f"{', '.join(str(b) for b in ds['band'].values)}")
-    limits_ds = xr.open_zarr(limits_path)
-    with _no_intermediate_draws():
-        written = (sky_maps(ds, campaign, out, int(rc["sky_map_times"]), rc.get("sky_map_bands"), rc.get("times") or ())
-                   + time_series(ds, campaign, out, int(rc["series_pointings"]), rc.get("pointings") or ())
-                   + limit_maps(limits_ds, campaign, out))
-    return written + write_summary(limits_ds, campaign, out)
+                          f"{', '.join(cube_bands)}")
+    sky_bands = [b for b in cube_bands if b in set(rc.get("sky_map_bands") or cube_bands)]
+    # the longest share first (the series read every time block of their pixels), the sky pages
+    # band by band, so that the processes finish together
+    jobs = [("series", None)] + [("sky", [b]) for b in sky_bands] + [("limits", None)]
+    if int(workers) <= 1:
+        results = [_figure_job(kind, background_path, limits_path, campaign, out, bands) for kind, bands in jobs]
+    else:
+        from concurrent.futures import ProcessPoolExecutor
+        from multiprocessing import get_context
+
+        # this process draws too: the spawned ones take the shares from the front, this one from
+        # the back, each share it has not started yet (cancelled in the pool first)
+        with ProcessPoolExecutor(max_workers=min(int(workers) - 1, len(jobs)), mp_context=get_context("spawn")) as pool:
+            futures = [pool.submit(_figure_job, kind, background_path, limits_path, campaign, out, bands)
+                       for kind, bands in jobs]
+            results = [None] * len(jobs)
+            for i in reversed(range(len(jobs))):
+                if not futures[i].cancel():
+                    break
+                results[i] = _figure_job(jobs[i][0], background_path, limits_path, campaign, out, jobs[i][1])
+            results = [f.result() if r is None else r for f, r in zip(futures, results)]
+    written = [p for r in results[1:-1] for p in r] + results[0] + results[-1]
+    with xr.open_zarr(limits_path) as limits_ds:
+        return written + write_summary(limits_ds, campaign, out)

@@ -16,7 +16,10 @@ Work split: one Snakemake job computes many time blocks (:func:`run_time_blocks`
 or ``compute.time_blocks_per_job``) with a pool of worker processes started once per job; each
 worker builds the model (PST, door tables, stars, earthshine tables) once and reuses it for every
 (time block, pixel block) region it is given, and every region is written to its own part of the
-store exactly once.  A time block is marked done by its own sentinel file only after all its
+store exactly once, through the store's arrays opened once per worker.  The region's geometry
+(observable, violations, the Sun, Moon and limb angles, the door) is observability.zarr's, so
+the worker writes that region of the observability store too (:func:`init_observability_store`,
+:func:`publish_observability`) instead of a later step computing the geometry again.  A time block is marked done by its own sentinel file only after all its
 regions are written, so a killed job redoes only the unfinished time blocks and, the computation
 being deterministic, gives identical bytes.
 """
@@ -39,6 +42,11 @@ from straylight.survey.limits import ZERO_POINT_NAME, zero_point_coord
 from straylight.sky.geometry import SceneRuns, TelescopeFrame, observing_geometry, radec_to_unit, telescope_frame, violation_mask_attrs
 
 CUBE_COMPONENTS = ("zodiacal", "earthshine", "moon", "sun", "planets", "stars")
+#: observability.zarr's angles besides the cube's own (time, pixel) variables: the cube's
+#: geometry computes them for every sample, so its workers write observability.zarr too
+OBSERVABILITY_ANGLES = ("sun_angle_deg", "moon_angle_deg", "earth_limb_angle_deg")
+#: observability.zarr's data variables (straylight.survey.products.observability_dataset)
+OBSERVABILITY_VARIABLES = ("observable", "violations") + OBSERVABILITY_ANGLES + ("door_opening_deg",)
 #: the cube's (time, pixel, band) variables, e-/s/pix: the components and their total
 CUBE_BAND_VARIABLES = CUBE_COMPONENTS + ("total",)
 #: samples per evaluation on the table path (whole time steps of a pixel block): large enough
@@ -122,33 +130,79 @@ def empty_cube(campaign: Campaign, fp: Footprint, times, stars_path=None, build_
     return ds
 
 
-def faint_star_map(campaign: Campaign, fp: Footprint, stars_path) -> xr.Variable | None:
-    """The faint stars' smoothed map at every footprint pixel, (pixel, band), e-/s/pix: it
-    depends on the line of sight only, so the cube computes it once (in :func:`init_store`)
-    and every time block reads it.  None without a catalog or with no faint stars."""
+#: lines of sight per batch of the faint-star sums (OffFieldStars.faint_star_rates' los_batch):
+#: the map is split among processes at multiples of it, so every process sums exactly the
+#: batches one process would (the same BLAS calls on the same rows: the same bits)
+FAINT_MAP_LOS_BATCH = 1024
+
+
+def _faint_rows(campaign: Campaign, fp: Footprint, stars_path, rows: slice) -> np.ndarray:
+    """The faint-star map at footprint pixels ``rows``, (pixel, band) e-/s/pix (0 in a band
+    the catalog has no faint magnitudes in)."""
     stars = _offfield_stars(campaign, stars_path)
-    if stars is None or not len(stars.faint_ra_deg):
-        return None
-    rates = _component_model(campaign, fp).stars.faint_star_rates(stars, radec_to_unit(fp.ra_deg, fp.dec_deg),
-                                                            campaign.bands)
-    values = np.zeros((fp.pixels.size, len(campaign.bands)))
+    los = radec_to_unit(fp.ra_deg[rows], fp.dec_deg[rows])
+    rates = _component_model(campaign, fp).stars.faint_star_rates(stars, los, campaign.bands, los_batch=FAINT_MAP_LOS_BATCH)
+    values = np.zeros((los.shape[0], len(campaign.bands)))
     for i, band in enumerate(campaign.bands):
         if band in rates:
             values[:, i] = rates[band]
-    return xr.Variable(("pixel", "band"), values,
-                       {"units": "electron / (s pixel)",
-                        "long_name": "faint off-field stars: smoothed map (azimuth-averaged PST), part of stars"})
+    return values
+
+
+def _faint_row_slices(n_pixels: int, parts: int) -> list[slice]:
+    """``n_pixels`` rows in at most ``parts`` contiguous slices, each a whole number of
+    FAINT_MAP_LOS_BATCH batches but the last."""
+    batches = -(-n_pixels // FAINT_MAP_LOS_BATCH)
+    parts = max(1, min(int(parts), batches))
+    edges = [min(n_pixels, FAINT_MAP_LOS_BATCH * (batches * k // parts)) for k in range(parts + 1)]
+    return [slice(a, b) for a, b in zip(edges[:-1], edges[1:]) if b > a]
+
+
+def faint_star_map(campaign: Campaign, fp: Footprint, stars_path, workers: int = 1,
+                   before=None) -> xr.Variable | None:
+    """The faint stars' smoothed map at every footprint pixel, (pixel, band), e-/s/pix: it
+    depends on the line of sight only, so the cube computes it once (in :func:`init_store`)
+    and every time block reads it.  None without a catalog or with no faint stars.
+
+    ``workers`` processes share the pixels (this one and ``workers`` - 1 spawned ones, each
+    loading the catalog and the model once): the same values as one process
+    (FAINT_MAP_LOS_BATCH).  ``before``: a callable run in this process while the spawned ones
+    start (the skeleton's other work); its result is returned with the map as a pair then."""
+    stars = _offfield_stars(campaign, stars_path)
+    if stars is None or not len(stars.faint_ra_deg):
+        return None if before is None else (None, before())
+    parts = _faint_row_slices(int(fp.pixels.size), workers)
+    if len(parts) == 1:
+        other = None if before is None else before()
+        values = _faint_rows(campaign, fp, stars_path, parts[0])
+    else:
+        from concurrent.futures import ProcessPoolExecutor
+        from multiprocessing import get_context
+
+        from straylight.util.daskutil import temporary_environment, worker_environment
+
+        with temporary_environment(worker_environment()), \
+                ProcessPoolExecutor(max_workers=len(parts) - 1, mp_context=get_context("spawn")) as pool:
+            futures = [pool.submit(_faint_rows, campaign, fp, str(stars_path), rows) for rows in parts[1:]]
+            other = None if before is None else before()
+            values = np.concatenate([_faint_rows(campaign, fp, stars_path, parts[0])]
+                                    + [f.result() for f in futures])
+    var = xr.Variable(("pixel", "band"), values,
+                      {"units": "electron / (s pixel)",
+                       "long_name": "faint off-field stars: smoothed map (azimuth-averaged PST), part of stars"})
+    return var if before is None else (var, other)
 
 
 def init_store(campaign: Campaign, fp: Footprint, store, stars_path=None, build_workers: int = 1) -> None:
     """Write the skeleton (metadata and coordinates, no data chunks) to ``store``, and the
-    faint-star map (computed here once for the whole campaign); an earthshine table the
-    campaign needs is built here too, before the time blocks start (``build_workers``
-    processes)."""
+    faint-star map (computed here once for the whole campaign, on ``build_workers``
+    processes); an earthshine table the campaign needs is built here too, before the time
+    blocks start (``build_workers`` processes)."""
     from straylight.survey.storage import encoded
 
-    ds = empty_cube(campaign, fp, campaign.times, stars_path, build_workers)
-    faint = faint_star_map(campaign, fp, stars_path)
+    # the faint map's other processes start first and sum while this one lays down the skeleton
+    faint, ds = faint_star_map(campaign, fp, stars_path, build_workers,
+                               before=lambda: empty_cube(campaign, fp, campaign.times, stars_path, build_workers))
     if faint is not None:
         ds["faint_star_map"] = faint
     # the products' codecs (bit-rounded floats); the faint map exactly, the time blocks read it
@@ -359,13 +413,15 @@ def _offfield_stars(campaign: Campaign, stars_path):
 
 
 def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: slice, model=None,
-                   stars_path=None, faint_map=None, scene=None) -> xr.Dataset:
+                   stars_path=None, faint_map=None, scene=None, angles: dict | None = None) -> xr.Dataset:
     """Compute the cube values of times t_slice x pixels p_slice (numpy-backed Dataset);
     ``stars_path``: the star catalog for the off-field star term (None: stars = 0);
     ``faint_map``: the faint stars' map at these pixels, (pixel, band) e-/s/pix, as
     :func:`faint_star_map` gives it (None: computed here); ``scene``: the satellite's and the
     bodies' positions at these times (:func:`straylight.sky.observing.scene`), when already computed for
-    another pixel block of the same times (None: computed here).  ValueError if ``scene`` is
+    another pixel block of the same times (None: computed here); ``angles``: a dict that receives
+    the samples' other observability angles (:data:`OBSERVABILITY_ANGLES`, (time, pixel) float32
+    deg, the geometry the cube computes anyway; None: not kept).  ValueError if ``scene`` is
     not at exactly these times."""
     from straylight.sky import observing
     from straylight.model import unobservable_samples
@@ -389,6 +445,8 @@ def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: s
     obs = np.zeros((nt, npix), bool)
     viol = np.zeros((nt, npix), np.uint8)
     door = np.zeros((nt, npix), np.float32)
+    if angles is not None:
+        angles.update({k: np.zeros((nt, npix), np.float32) for k in OBSERVABILITY_ANGLES})
     # Steps are evaluated together, as one flat batch of samples: numpy's per-call cost is then
     # paid once per batch, not once per step (1.5-1.7x on the table path).  The direct earthshine
     # sum grids the Earth per sample, so there one step per call bounds its memory (the star
@@ -421,6 +479,9 @@ def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: s
                            runs=runs)
         obs[steps], viol[steps], door[steps] = (_by_step(g[v], k, npix)
                                                 for v in ("observable", "violations", "door_opening_deg"))
+        if angles is not None:
+            for name in OBSERVABILITY_ANGLES:
+                angles[name][steps] = _by_step(g[name], k, npix)
     data = {k: (("time", "pixel", "band"), v) for k, v in out.items()}
     data["observable"] = (("time", "pixel"), obs)
     data["violations"] = (("time", "pixel"), viol)
@@ -486,21 +547,93 @@ def _by_step(values, k: int, npix: int) -> np.ndarray:
     return np.broadcast_to(values, (k * npix,)).reshape(k, npix)
 
 
+def store_arrays(store, names=None) -> dict:
+    """The cube's data variables in ``store`` as zarr arrays opened for writing (name -> array):
+    a worker opens them once and writes every region through them (xarray's region write opens
+    the store and reads its metadata again each time, ~15 ms a region).  The same codecs encode
+    the same values, so the chunks' bytes are those xarray writes."""
+    import zarr
+
+    group = zarr.open_group(str(store), mode="r+", use_consolidated=False)
+    names = names or CUBE_BAND_VARIABLES + ("observable", "violations", "door_opening_deg")
+    return {name: group[name] for name in names}
+
+
+def init_observability_store(campaign: Campaign, fp: Footprint, ephem: xr.Dataset, store) -> None:
+    """Lay down observability.zarr's skeleton at ``store`` (metadata, coordinates, the products'
+    codecs; no data chunks), chunked as the cube: the cube's workers write each region's
+    observability beside its background (:func:`write_region`), and
+    :func:`publish_observability` makes it the product once every time block is done.  The
+    variables and attributes are those of
+    :func:`straylight.survey.products.observability_dataset` (``ephem``: the ephemeris product),
+    whose geometry the cube's is, sample by sample, bit for bit."""
+    from straylight.survey.products import observability_dataset
+    from straylight.survey.storage import encoded
+
+    chunks = cube_chunks(campaign, ephem.sizes["time"], fp.pixels.size)
+    ds, encoding = encoded(observability_dataset(campaign, ephem, fp, chunks=chunks), campaign.config["storage"])
+    ds.to_zarr(store, mode="w", compute=False, consolidated=False, encoding=encoding)
+
+
+def publish_observability(work_store, product) -> None:
+    """The observability store the cube's workers filled (``work_store``), its metadata
+    consolidated, appears at ``product`` complete or not at all (hard links where the file
+    system allows, else copies: the working store stays for a re-run of this step; zarr
+    replaces a chunk file by renaming a new one into place, so a later write to the working
+    store leaves the product's files as they are)."""
+    import os
+    import shutil
+
+    import zarr
+
+    from straylight.util.io import atomic_path
+
+    zarr.consolidate_metadata(str(work_store))
+
+    def link(src, dst):
+        try:
+            os.link(src, dst)
+        except OSError:
+            shutil.copy2(src, dst)
+
+    with atomic_path(product) as tmp:
+        shutil.copytree(work_store, tmp, copy_function=link)
+
+
 def write_region(campaign: Campaign, fp: Footprint, store, t_slice: slice, p_slice: slice,
-                 stars_path=None, scene=None, faint_map=None) -> float:
+                 stars_path=None, scene=None, faint_map=None, arrays=None, obs_store=None,
+                 obs_arrays=None) -> float:
     """Compute one (time block, pixel block) region and write it to its Zarr region; seconds.
     ``scene``: the time block's positions, shared by its pixel blocks (None: computed here);
     ``faint_map``: the store's faint-star map at these pixels, (pixel, band) e-/s/pix, when the
-    caller has read it (None: read from the store here when there is a star catalog)."""
+    caller has read it (None: read from the store here when there is a star catalog);
+    ``arrays``: the store's arrays (:func:`store_arrays`) when the caller keeps them open (None:
+    written through xarray); ``obs_store``: the observability store the region's observability
+    goes to as well (:func:`init_observability_store`; None: not written), ``obs_arrays`` its
+    arrays kept open."""
     t0 = _time.perf_counter()
     faint = faint_map
     if faint is None and stars_path is not None:
         faint = _stored_faint_map(store)
         faint = None if faint is None else faint[p_slice]
-    ds = compute_region(campaign, fp, t_slice, p_slice, stars_path=stars_path, faint_map=faint, scene=scene)
+    angles = None if obs_store is None else {}
+    ds = compute_region(campaign, fp, t_slice, p_slice, stars_path=stars_path, faint_map=faint, scene=scene,
+                        angles=angles)
     try:
-        ds.to_zarr(store, region={"time": t_slice, "pixel": p_slice, "band": slice(None)}, mode="r+",
-                   consolidated=False)
+        if arrays is None:
+            ds.to_zarr(store, region={"time": t_slice, "pixel": p_slice, "band": slice(None)}, mode="r+",
+                       consolidated=False)
+        else:
+            for name, var in ds.data_vars.items():
+                arrays[name][t_slice, p_slice] = var.values
+        if obs_store is not None:
+            obs = {**{k: ds[k].values for k in ("observable", "violations", "door_opening_deg")}, **angles}
+            if obs_arrays is None:
+                xr.Dataset({k: (("time", "pixel"), v) for k, v in obs.items()}).to_zarr(
+                    obs_store, region={"time": t_slice, "pixel": p_slice}, mode="r+", consolidated=False)
+            else:
+                for name, values in obs.items():
+                    obs_arrays[name][t_slice, p_slice] = values
     except OSError as exc:  # ENOSPC, EDQUOT, EACCES...: the block's sentinel is not written
         raise OutputError(f"{store}: writing times {t_slice.start}:{t_slice.stop} x pixels {p_slice.start}:"
                           f"{p_slice.stop} failed ({exc.strerror or exc}); finished time blocks are kept, "
@@ -584,25 +717,31 @@ def clear_block_sentinels(done_dir) -> int:
 _WORKER: dict = {}
 
 
-def _pool_init(campaign: Campaign, fp: Footprint, store: str, stars_path) -> None:
+def _pool_init(campaign: Campaign, fp: Footprint, store: str, stars_path, obs_store=None) -> None:
     """Pool worker start-up: keep the job's inputs and build the model now, once per process
     (every region this process computes reuses it)."""
-    _WORKER.update(campaign=campaign, fp=fp, store=store, stars_path=stars_path)
+    _WORKER.clear()
+    _WORKER.update(campaign=campaign, fp=fp, store=store, stars_path=stars_path, obs_store=obs_store)
     _component_model(campaign, fp)
     _offfield_stars(campaign, stars_path)
 
 
 def _pool_region(t_slice: slice, p_slice: slice, scene, faint_map) -> float:
-    """One region in a pool worker, with the inputs _pool_init kept; seconds."""
+    """One region in a pool worker, with the inputs _pool_init kept and the store's arrays
+    opened once; seconds."""
     w = _WORKER
-    return write_region(w["campaign"], w["fp"], w["store"], t_slice, p_slice, w["stars_path"], scene, faint_map)
+    if "arrays" not in w:
+        w["arrays"] = store_arrays(w["store"])
+        w["obs_arrays"] = None if w["obs_store"] is None else store_arrays(w["obs_store"], OBSERVABILITY_VARIABLES)
+    return write_region(w["campaign"], w["fp"], w["store"], t_slice, p_slice, w["stars_path"], scene, faint_map,
+                        w["arrays"], w["obs_store"], w["obs_arrays"])
 
 
 class _InProcess:
     """An executor running each region at once in this process (one worker, no pool)."""
 
-    def __init__(self, campaign, fp, store, stars_path):
-        _pool_init(campaign, fp, store, stars_path)
+    def __init__(self, campaign, fp, store, stars_path, obs_store=None):
+        _pool_init(campaign, fp, store, stars_path, obs_store)
 
     def submit_region(self, t_slice: slice, p_slice: slice, scene, faint_map):
         from concurrent.futures import Future
@@ -616,10 +755,12 @@ class _InProcess:
 
 
 @contextmanager
-def region_pool(campaign, fp, store: str, stars_path, workers: int, scheduler_address: str | None = None):
+def region_pool(campaign, fp, store: str, stars_path, workers: int, scheduler_address: str | None = None,
+                obs_store: str | None = None):
     """Yield ``(submit, wait)`` for the cube's regions: ``submit(t_slice, p_slice, scene,
     faint_map)`` returns a future of the region's seconds (:func:`write_region`),
-    ``wait`` is the matching ``wait(futures, return_when=...)``.
+    ``wait`` is the matching ``wait(futures, return_when=...)``; ``obs_store``: where each
+    region's observability goes too (None: not written).
 
     * ``scheduler_address``: the regions run on that Dask cluster (campaign and footprint sent
       to every worker once); its workers keep the model between regions, time blocks and jobs.
@@ -642,16 +783,16 @@ def region_pool(campaign, fp, store: str, stars_path, workers: int, scheduler_ad
 
             def submit(t_slice, p_slice, scene, faint_map):
                 return client.submit(write_region, c_fut, fp_fut, store, t_slice, p_slice, stars_path, scene,
-                                     faint_map, pure=False)
+                                     faint_map, None, obs_store, pure=False)
 
             yield submit, wait_dask
         return
     if int(workers) <= 1:
-        yield _InProcess(campaign, fp, store, stars_path).submit_region, wait_local
+        yield _InProcess(campaign, fp, store, stars_path, obs_store).submit_region, wait_local
         return
     with temporary_environment(worker_environment()), \
             ProcessPoolExecutor(max_workers=int(workers), mp_context=get_context("spawn"),
-                                initializer=_pool_init, initargs=(campaign, fp, store, stars_path)) as pool:
+                                initializer=_pool_init, initargs=(campaign, fp, store, stars_path, obs_store)) as pool:
         def submit(t_slice, p_slice, scene, faint_map):
             return pool.submit(_pool_region, t_slice, p_slice, scene, faint_map)
 
@@ -663,14 +804,17 @@ def region_pool(campaign, fp, store: str, stars_path, workers: int, scheduler_ad
 
 
 def run_time_blocks(campaign: Campaign, fp: Footprint, store, blocks, done_dir, workers: int = 1,
-                    scheduler_address: str | None = None, log=None, stars_path=None) -> list[BlockReport]:
+                    scheduler_address: str | None = None, log=None, stars_path=None,
+                    obs_store=None) -> list[BlockReport]:
     """Compute the time blocks ``blocks`` (indices) of the cube into ``store``, each marked done
     by its sentinel in ``done_dir`` (:func:`block_sentinel`) once all its pixel blocks are
     written; blocks already marked done are skipped (resume).  Regions run on ``workers``
     processes started once for all the blocks (:func:`region_pool`: each builds
     the model once), in this process when ``workers`` is 1, or on the Dask cluster at
     ``scheduler_address`` when given (its workers keep the model between tasks and jobs).
-    ``log`` (a logging.Logger) gets one line per finished region.  Returns every requested
+    ``log`` (a logging.Logger) gets one line per finished region.  ``obs_store``: each region's
+    observability is written there too (:func:`init_observability_store`), before its time
+    block's sentinel.  Returns every requested
     block's report (a skipped one's from its sentinel)."""
     from concurrent.futures import FIRST_COMPLETED
 
@@ -686,6 +830,7 @@ def run_time_blocks(campaign: Campaign, fp: Footprint, store, blocks, done_dir, 
         raise IndexError(f"time block {bad[0]} outside 0..{len(tb) - 1}")
     store = str(Path(store).resolve())  # workers (other hosts, other cwd) need an absolute path
     stars_path = str(Path(stars_path).resolve()) if stars_path else None
+    obs_store = str(Path(obs_store).resolve()) if obs_store else None
     todo = [b for b in blocks if not block_sentinel(done_dir, b).exists()]
     if log is not None and len(todo) < len(blocks):
         log.info("%d of %d time blocks already done (sentinels in %s): skipped", len(blocks) - len(todo),
@@ -693,7 +838,7 @@ def run_time_blocks(campaign: Campaign, fp: Footprint, store, blocks, done_dir, 
     p_blocks = [slice(a, b) for a, b in fp.blocks(int(campaign.config["footprint"].get("pixel_block_size", 1024)))]
     faint = _stored_faint_map(store) if (stars_path is not None and todo) else None
     if todo:
-        with region_pool(campaign, fp, store, stars_path, workers, scheduler_address) as (submit, wait):
+        with region_pool(campaign, fp, store, stars_path, workers, scheduler_address, obs_store) as (submit, wait):
             # a bounded window of regions in flight: the next time block's scene is computed
             # while the workers are busy, and memory does not grow with the campaign
             window = 2 * max(1, int(workers)) + 1

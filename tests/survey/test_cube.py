@@ -67,6 +67,41 @@ def test_cube_layout_units_and_attrs(cube_run):
     assert np.all(ds["stars"].values >= faint.values[None].astype(np.float32) * (1 - bound - 1e-6))
 
 
+
+def test_observability_from_the_cube_equals_its_own_geometry(cube_run, tmp_path):
+    """The cube's workers write observability.zarr beside the background (their geometry is the
+    observability's, sample by sample): identical, values and attributes, to the product computed
+    on its own from the ephemeris (straylight.survey.products.observability_dataset) and stored
+    through the same codecs; chunked as the cube."""
+    from straylight.config import load_campaign
+    from straylight.survey.products import footprint_products, observability_dataset
+    from straylight.survey.storage import write_zarr_atomic
+
+    _, cfg, out = cube_run
+    c = load_campaign(cfg)
+    fp, _ = footprint_products(c)
+    with xr.open_zarr(out / "ephemeris.zarr") as ephem:
+        write_zarr_atomic(observability_dataset(c, ephem.load(), fp), tmp_path / "obs.zarr", storage=c.config["storage"])
+    with xr.open_zarr(out / "observability.zarr") as got, xr.open_zarr(tmp_path / "obs.zarr") as want:
+        assert got["sun_angle_deg"].encoding["chunks"] == (3, 40)
+        xr.testing.assert_identical(got.load(), want.load())
+
+
+def test_faint_star_map_shared_among_processes_is_bit_identical(cube_run, campaign):
+    """background_init sums the faint-star map on its processes, split at whole batches of lines
+    of sight (cube.FAINT_MAP_LOS_BATCH): the same BLAS calls on the same rows, so the same bits
+    as one process.  The default footprint (1320 pixels) splits into 1024 + 296."""
+    from straylight.survey.cube import _faint_row_slices, faint_star_map
+    from straylight.survey.footprint import footprint_from_config
+
+    _, _, out = cube_run
+    fp = footprint_from_config(campaign.config["footprint"], campaign.path.parent)
+    assert _faint_row_slices(fp.pixels.size, 2) == [slice(0, 1024), slice(1024, fp.pixels.size)]
+    one = faint_star_map(campaign, fp, out / "stars_csst.parquet", workers=1)
+    two = faint_star_map(campaign, fp, out / "stars_csst.parquet", workers=2)
+    assert one.dims == two.dims == ("pixel", "band") and np.all(one.values > 0)
+    np.testing.assert_array_equal(one.values, two.values)
+
 def test_cube_value_equals_sky_command(cube_run):
     """A cube value equals `straylight sky --catalog` (the run's star catalog) for the same time and
     pointing (to the stored values' bound, straylight/survey/storage.py); the star term is the same

@@ -1,13 +1,16 @@
 rule background_init:
-    """Lay down background.zarr: coordinates, attributes and chunk layout, no data."""
+    """Lay down background.zarr and the observability store the cube's workers fill:
+    coordinates, attributes and chunk layout, no data."""
     input:
         config=CONFIG_PATH,
         mask=f"{RESULTS}/footprint.fits",
         stars=f"{RESULTS}/stars_csst.parquet",
+        ephemeris=f"{RESULTS}/ephemeris.zarr",
     output:
         f"{RESULTS}/background_blocks/init.json",
     params:
         store=f"{RESULTS}/background.zarr",
+        obs_store=OBSERVABILITY_WORK_STORE,
     # processes for the earthshine table's build, when the campaign needs one that is not cached
     # (lowered to --cores by Snakemake; the SLURM profile can raise it)
     threads: 2
@@ -21,7 +24,8 @@ rule background_init:
 
 rule background_blocks:
     """A group of time blocks of the cube (all of them by default): a pool of worker processes,
-    started once, computes their pixel blocks, each written to its region; a time block's sentinel
+    started once, computes their pixel blocks, each written to its region of background.zarr and
+    of the observability store (the same geometry); a time block's sentinel
     (background_blocks/block_<i>.json) marks it done, so a re-run redoes only unfinished ones."""
     input:
         f"{RESULTS}/background_blocks/init.json",
@@ -31,6 +35,7 @@ rule background_blocks:
         f"{RESULTS}/background_blocks/part_{{part}}.json",
     params:
         store=f"{RESULTS}/background.zarr",
+        obs_store=OBSERVABILITY_WORK_STORE,
         blocks=lambda wildcards: CUBE_JOBS[int(wildcards.part)],
     # worker processes of the job's pool; Snakemake lowers it to --cores, and the SLURM profile
     # raises it (set-threads)

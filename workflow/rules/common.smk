@@ -19,6 +19,9 @@ config.clear()
 config.update(_CAMPAIGN.config)  # absolute paths and the schema's defaults, as the scripts see it
 RESULTS = f"results/{config['campaign']['name']}"
 LOGS = f"{RESULTS}/logs"
+#: the observability store the cube's workers fill, published as observability.zarr once every
+#: time block is done (rule observability)
+OBSERVABILITY_WORK_STORE = f"{RESULTS}/background_blocks/observability.zarr"
 TIME_BLOCKS = list(
     range(
         len(

@@ -9,6 +9,8 @@ rule plots:
                category="Maps and time series", labels={"figure": "{name}"}),
     params:
         store=f"{RESULTS}/background.zarr",
+    # processes drawing the figures (Snakemake lowers it to --cores)
+    threads: 2
     conda:
         "../envs/straylight.yaml"
     log:
