@@ -33,7 +33,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
 from _results import write_results  # noqa: E402
-from run import timed  # noqa: E402  (its warm-up call is where numba compiles)
+from knobs.common import timed  # noqa: E402  (its warm-up call is where numba compiles)
 
 
 def best_seconds(fn) -> float:

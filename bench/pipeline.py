@@ -211,7 +211,8 @@ def run_campaign(days: float, nside: int, cadence_s: float, cores: int, keep: Pa
 def kernel_figure() -> dict:
     """The kernel's production figure, as bench/run.py --only cube measures it: the cube's
     compute alone over the default campaign's time blocks on the table path, one core."""
-    from run import Bench, production_region_rates
+    from knobs.common import Bench
+    from knobs.cube import production_region_rates
 
     from straylight.catalog.build import write_catalog
     from straylight.config import load_campaign
