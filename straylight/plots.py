@@ -80,7 +80,7 @@ def _mollview_with_unit(fig, values, unit: str, **kw) -> None:
 @contextmanager
 def _no_intermediate_draws():
     """healpy's mollview and graticule end with ``pylab.draw()``, which on the Agg backend renders
-    the whole figure: an 8-panel page was drawn 16 times before it was saved.  Only the save
+    the whole figure, so an 8-panel page would be drawn twice per panel.  Only the save
     needs to render, so inside this block those calls do nothing (the saved image is the same)."""
     import pylab
 

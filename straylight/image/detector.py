@@ -339,7 +339,7 @@ def render_detector(
         del grid
         part += (wx @ (wy[y0:y1] @ far_coarse).T).T
         if ghosts is not None and s.paint_ghosts and idx.size:
-            part += _paint_discs(ny, nx, gtab, s.ghost_min_e_per_s_per_pix, rows=(y0, y1), cols=(wx0, wx0 + ww))
+            part += paint_discs(ny, nx, gtab, s.ghost_min_e_per_s_per_pix, rows=(y0, y1), cols=(wx0, wx0 + ww))
         if nb > 1:
             part = part.reshape((y1 - y0) // nb, nb, ww // nb, nb).mean(axis=(1, 3))
         out[(y0 - wy0) // nb:(y1 - wy0) // nb] = part
@@ -358,7 +358,7 @@ def render_detector(
                                "cut_y0": wy0})
 
 
-def _paint_discs(ny, nx, g, min_irr, rows=None, cols=None) -> np.ndarray:
+def paint_discs(ny, nx, g, min_irr, rows=None, cols=None) -> np.ndarray:
     """Uniform discs; each holds exactly its energy over the pixels whose centres it covers
     (on the whole chip).  ``rows`` (y0, y1) and ``cols`` (x0, x1) restrict the returned array
     to that part of the chip."""

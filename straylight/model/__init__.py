@@ -1,7 +1,8 @@
 """The background model (:class:`BackgroundModel`: each source's e-/s/pixel per band, added) and
 its fidelity policy (:class:`FidelityPolicy`: the tolerance, its shares, the fast paths).
 
-Imports ``straylight.sources``, ``straylight.sky``, ``straylight.optics``; never ``straylight.survey``.
+Imports ``straylight.sources``, ``straylight.sky`` and ``straylight.config`` (the layers below it:
+docs/architecture.md); never ``straylight.survey``.
 """
 from straylight.model.background import BAND_COMPONENTS, BackgroundModel
 from straylight.model.fidelity import (ERROR_BUDGET_SHARES, LUT_BUILD_SECONDS_PER_NODE, LUT_SAVED_SECONDS_PER_SAMPLE,

@@ -185,8 +185,8 @@ def _band_components_kernel(zodi_e, t_sun, inverse_square, moon_fraction, planet
     ``out[slot[c], sample, band]`` (any float dtype and strides; not written where slot[c] is
     -1), from the band-independent per-sample terms and each band's solar photon irradiance
     at 1 AU; ``zodi_e`` and ``stars_e``: each band's zodiacal light and stars, (bands,
-    samples).  The arithmetic is the per-band numpy expressions it replaced, in the same
-    order, so the same float64 values (the cube's totals compared bit for bit), in one pass
+    samples).  The arithmetic is the plain per-band expression in a fixed order, so the float64
+    values do not depend on batch size (the cube's totals compare bit for bit), in one pass
     over the samples instead of ~25 numpy passes a band."""
     v = np.empty(len(BAND_COMPONENTS))
     for i in range(t_sun.shape[0]):

@@ -195,11 +195,11 @@ def detector_image_data(campaign: Campaign, catalog: dict, star_ra_deg: float, s
 
 def plot_detector_image(d: dict, out_png) -> None:
     """Left: the image (stars, halos, ghosts); right: its ghosts alone (the painted discs)."""
-    from straylight.image.detector import _paint_discs
+    from straylight.image.detector import paint_discs
 
     plt = _pyplot()
     img = np.asarray(d["image"], float)
-    ghosts = _paint_discs(img.shape[0], img.shape[1], d["ghosts"], 0.0)
+    ghosts = paint_discs(img.shape[0], img.shape[1], d["ghosts"], 0.0)
     fig, axes = plt.subplots(1, 2, figsize=(12, 5.4))
     floor = max(float(np.percentile(img[img > 0], 1)), 1e-8) if np.any(img > 0) else 1e-8
     im = axes[0].imshow(np.log10(np.maximum(img, floor)), origin="lower", cmap="magma")

@@ -100,7 +100,7 @@ def _any_perpendicular(v: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True, nogil=True)
-def _unit_xyz(x, y, z):
+def unit_xyz(x, y, z):
     """:func:`unit` of one 3-vector inside a compiled kernel, the same arithmetic: a zero or
     NaN vector gives the zero vector."""
     n = np.sqrt(x * x + y * y + z * z)
@@ -110,7 +110,7 @@ def _unit_xyz(x, y, z):
 
 
 @njit(cache=True, nogil=True)
-def _any_perpendicular_xyz(vx, vy, vz):
+def any_perpendicular_xyz(vx, vy, vz):
     """:func:`_any_perpendicular` of one unit vector inside a compiled kernel, the same
     arithmetic: (px, py, pz, length), not yet normalised."""
     px, py, pz = 0.0 - vz * vx, 0.0 - vz * vy, 1.0 - vz * vz
@@ -218,7 +218,7 @@ def _limb_kernel(los, index, sun, nadir, rho, tangent_len, cr, sr, a_term, out):
     deg = 180.0 / np.pi
     for p in range(los.shape[0]):
         q = index[p]
-        lx, ly, lz = _unit_xyz(los[p, 0], los[p, 1], los[p, 2])
+        lx, ly, lz = unit_xyz(los[p, 0], los[p, 1], los[p, 2])
         nx, ny, nz = nadir[q, 0], nadir[q, 1], nadir[q, 2]
         cx, cy, cz = ly * nz - lz * ny, lz * nx - lx * nz, lx * ny - ly * nx
         sin_g = np.sqrt(cx * cx + cy * cy + cz * cz)
@@ -229,12 +229,12 @@ def _limb_kernel(los, index, sun, nadir, rho, tangent_len, cr, sr, a_term, out):
         # the limb's azimuth origin: towards the line of sight, or the Sun where the line of
         # sight is along the vertical, or a fixed perpendicular where that too is (perpendicular_towards)
         sx, sy, sz = sun[q, 0], sun[q, 1], sun[q, 2]
-        tx, ty, tz = (lx, ly, lz) if sin_g > 1e-12 else _unit_xyz(sx, sy, sz)
+        tx, ty, tz = (lx, ly, lz) if sin_g > 1e-12 else unit_xyz(sx, sy, sz)
         tn = tx * nx + ty * ny + tz * nz
         px, py, pz = tx - tn * nx, ty - tn * ny, tz - tn * nz
         pn = np.sqrt(px * px + py * py + pz * pz)
         if not pn > 1e-9:
-            px, py, pz, pn = _any_perpendicular_xyz(nx, ny, nz)
+            px, py, pz, pn = any_perpendicular_xyz(nx, ny, nz)
         e1x, e1y, e1z = px / pn, py / pn, pz / pn
         e2x, e2y, e2z = ny * e1z - nz * e1y, nz * e1x - nx * e1z, nx * e1y - ny * e1x
         s1 = e1x * sx + e1y * sy + e1z * sz
@@ -371,13 +371,13 @@ def _frame_kernel(los, sun_direction, axes):
     z = unit(los), x = perpendicular_towards(z, sun_direction), y = z x x, operation for
     operation (the same numbers), in one pass instead of ~40 numpy passes."""
     for p in range(los.shape[0]):
-        zx, zy, zz = _unit_xyz(los[p, 0], los[p, 1], los[p, 2])
-        tx, ty, tz = _unit_xyz(sun_direction[p, 0], sun_direction[p, 1], sun_direction[p, 2])
+        zx, zy, zz = unit_xyz(los[p, 0], los[p, 1], los[p, 2])
+        tx, ty, tz = unit_xyz(sun_direction[p, 0], sun_direction[p, 1], sun_direction[p, 2])
         d = tx * zx + ty * zy + tz * zz
         px, py, pz = tx - d * zx, ty - d * zy, tz - d * zz
         n = np.sqrt(px * px + py * py + pz * pz)
         if not n > 1e-9:  # the Sun on or opposite the line of sight
-            px, py, pz, n = _any_perpendicular_xyz(zx, zy, zz)
+            px, py, pz, n = any_perpendicular_xyz(zx, zy, zz)
         px, py, pz = (px / n, py / n, pz / n) if n > 0.0 else (0.0, 0.0, 0.0)
         axes[0, p, 0], axes[0, p, 1], axes[0, p, 2] = px, py, pz
         axes[1, p, 0], axes[1, p, 1], axes[1, p, 2] = zy * pz - zz * py, zz * px - zx * pz, zx * py - zy * px

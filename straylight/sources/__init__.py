@@ -5,15 +5,17 @@ the scene's brighter light swamps them, the upper bound the skip is decided on.
 
 - ``zodiacal``: zodiacal light in the field (Leinert 1998 table), never skipped.
 - ``bodies``: the Sun (never skipped), the Moon and the planets (skipped on a PST bound), and
-  the same bodies inside the field, which the background leaves out (imaged as point sources).
+  the same bodies inside the field, which the background leaves out (imaged as point sources);
+  the Moon's and planets' brightness laws and distances.
 - ``stars``: off-field catalog stars, the bright ones pair by pair (skipped per sky cell on a
   bound), the faint ones as a smoothed map.
 - ``sunlit_earth``: the sunlit Earth (direct and via the door), its direct sum or its table.
 - ``moonlit_earth``: the moonlit Earth on the table's path (skipped on a bound, else a coarse
   grid, tabulated or summed).
 - ``earthshine_lut``: the two earthshine tables (build, cache, look-up, bounds).
-- ``offfield``: what the off-field sources share: the transfer (Se Sp PST x pixel area), the
-  Earth-grid sum, the Sun's, Moon's and planets' brightness laws, band photometry.
+- ``offfield``: what the off-field sources share: the transfer (Se Sp PST x pixel area) and the
+  Earth-grid sum (the sunlit and moonlit Earth summed directly over the visible cap).
+- ``photometry``: band photometry (solar and AB irradiances, magnitudes per arcsec2).
 - ``context``: the campaign's instrument as every source sees it, and the batch of samples.
 
 Solar-spectrum sources (the Sun, Moon, planets, both Earths) give band-independent rates, in
@@ -23,5 +25,6 @@ pass.  The error a skip or a table may add is the fidelity policy's
 (:class:`straylight.model.FidelityPolicy`), handed to each source; sources never import
 ``straylight.model``.
 
-Imports ``straylight.sky``, ``straylight.optics`` and ``straylight.util``; never ``straylight.survey``.
+Imports ``straylight.sky``, ``straylight.config``, ``straylight.optics``, ``straylight.catalog`` (star
+tables) and ``straylight.util``; never ``straylight.model`` or ``straylight.survey``.
 """

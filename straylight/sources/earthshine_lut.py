@@ -40,7 +40,7 @@ from numba import njit
 
 from straylight.optics.door import door_state_index
 from straylight.errors import InputError
-from straylight.sky.geometry import _any_perpendicular_xyz, _unit_xyz, dot, norm, rows_at, scene_rows, telescope_frame, unit
+from straylight.sky.geometry import any_perpendicular_xyz, unit_xyz, dot, norm, rows_at, scene_rows, telescope_frame, unit
 from straylight.util.gridinterp import LinearGrid
 from straylight.util.io import cache_dir
 from straylight.sources.bodies import MOON_APOGEE_KM, MOON_MEAN_DISTANCE_KM, MOON_PERIGEE_KM
@@ -270,7 +270,7 @@ def _los_components_kernel(los, x, y, index, up, lamp_h, up_x_lamp_h, out):
     roll = x.shape[0] > 0
     for p in range(los.shape[0]):
         q = index[p]
-        lx, ly, lz = _unit_xyz(los[p, 0], los[p, 1], los[p, 2])
+        lx, ly, lz = unit_xyz(los[p, 0], los[p, 1], los[p, 2])
         ux, uy, uz = up[q, 0], up[q, 1], up[q, 2]
         c = lx * ux + ly * uy + lz * uz
         out[0, p] = min(max(c, -1.0), 1.0)
@@ -279,7 +279,7 @@ def _los_components_kernel(los, x, y, index, up, lamp_h, up_x_lamp_h, out):
         if roll:
             px, py, pz = ux - c * lx, uy - c * ly, uz - c * lz
             if not np.sqrt(px * px + py * py + pz * pz) > 1e-9:
-                px, py, pz, _ = _any_perpendicular_xyz(lx, ly, lz)
+                px, py, pz, _ = any_perpendicular_xyz(lx, ly, lz)
             out[3, p] = -(px * y[p, 0] + py * y[p, 1] + pz * y[p, 2])
             out[4, p] = px * x[p, 0] + py * x[p, 1] + pz * x[p, 2]
 
@@ -296,7 +296,7 @@ def _moon_bound_kernel(los, index, up, cos_limit, zi, table, neg_cos_nodes, door
     last = neg_cos_nodes.size - 1
     for p in range(los.shape[0]):
         q = index[p]
-        lx, ly, lz = _unit_xyz(los[p, 0], los[p, 1], los[p, 2])
+        lx, ly, lz = unit_xyz(los[p, 0], los[p, 1], los[p, 2])
         c = min(max(up[q, 0] * lx + up[q, 1] * ly + up[q, 2] * lz, -1.0), 1.0)
         if not c > cos_limit[q]:
             out[p] = np.inf
@@ -314,7 +314,7 @@ def _local_scene(R, Z, L, A):
     return sat, sun, los
 
 
-def _sun_coefficients_direct(off, R, Z, L, A, state, earth_radius_km, batch):
+def sun_coefficients_direct(off, R, Z, L, A, state, earth_radius_km, batch):
     """Direct sums in the local frame (vertical +x, the Sun in the x-y plane): radius R (km),
     Sun zenith Z, line-of-sight zenith L and azimuth A (rad), one door state."""
     sat, sun, los = _local_scene(R, Z, L, A)
@@ -356,7 +356,7 @@ def _map(fn, tasks: list, workers: int) -> list:
         return list(ex.map(fn, *zip(*tasks)))
 
 
-def _mirror_symmetric(off) -> bool:
+def mirror_symmetric(off) -> bool:
     """PST(theta, phi) == PST(theta, -phi) and the door shade likewise (sampled check)."""
     th = np.r_[np.linspace(0.0, 89.0, 90), np.linspace(91.0, 180.0, 90)][:, None]  # 90: grazing, noise
     ph = np.linspace(0.0, 360.0, 73)[None, :]
@@ -422,7 +422,7 @@ class EarthshineLUT:
 
         t_start = time.perf_counter()
         s = settings
-        symmetric = _mirror_symmetric(off)
+        symmetric = mirror_symmetric(off)
         rr = np.linspace(radius_range_km[0], radius_range_km[1], s.n_radius) if s.n_radius > 1 \
             else np.array([0.5 * (radius_range_km[0] + radius_range_km[1])])
         zs, zl, az = s.nodes(float(rr.min()), earth_radius_km, symmetric)
@@ -436,7 +436,7 @@ class EarthshineLUT:
                  for g in np.array_split(np.arange(rr.size * zs.size), max(4 * workers, 1)) if g.size]
         tasks = [(off, R[p], Z[p], L[p], A[p], state, earth_radius_km, batch)
                  for state in off.door_states_deg for p in parts]
-        results = iter(_map(_sun_coefficients_direct, tasks, workers))
+        results = iter(_map(sun_coefficients_direct, tasks, workers))
         for state in off.door_states_deg:
             d_out, g_out = np.empty(R.size), np.empty(R.size)
             for p in parts:
@@ -462,7 +462,7 @@ class EarthshineLUT:
         vr, vz, vl, va = _observable_points(rr, earth_radius_km, symmetric, n_validation, avoidance_deg)
         errs = []
         for state in off.door_states_deg:
-            d_ref, g_ref = _sun_coefficients_direct(off, vr, *np.radians([vz, vl, va]), state, earth_radius_km, batch)
+            d_ref, g_ref = sun_coefficients_direct(off, vr, *np.radians([vz, vl, va]), state, earth_radius_km, batch)
             sat_v, sun_v, los_v = _local_scene(vr, *np.radians([vz, vl, va]))
             d_t, g_t = lut.sun_coefficients(sat_v, sun_v, los_v, np.full(n_validation, state))
             errs.append(np.abs((d_t + g_t) - (d_ref + g_ref)) / (d_ref + g_ref + floor))
@@ -712,7 +712,7 @@ class MoonlitLUT:
         import time
 
         t_start = time.perf_counter()
-        symmetric = _mirror_symmetric(off)
+        symmetric = mirror_symmetric(off)
         r0 = 0.5 * (radius_range_km[0] + radius_range_km[1])
         zm, zl, az, roll = settings.nodes(float(radius_range_km[0]), earth_radius_km, symmetric)
         Zm, L, A, P = (v.ravel() for v in np.meshgrid(*(np.radians(v) for v in (zm, zl, az, roll)), indexing="ij"))

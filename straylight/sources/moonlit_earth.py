@@ -45,14 +45,14 @@ class MoonlitEarth:
     def node_states(self) -> int:
         """How many (node, door state) pairs the table sums, each a coarse Earth-grid sum; 0
         with models.earthshine.moonlit_method = direct."""
-        from straylight.sources.earthshine_lut import _mirror_symmetric
+        from straylight.sources.earthshine_lut import mirror_symmetric
 
         settings = self.settings()
         if settings is None:
             return 0
         c = self.context
         r = c.campaign.orbit_radius_range_km
-        nodes = settings.nodes(float(r[0]), c.campaign.earth.radius_km, _mirror_symmetric(c.offfield))
+        nodes = settings.nodes(float(r[0]), c.campaign.earth.radius_km, mirror_symmetric(c.offfield))
         return int(np.prod([a.size for a in nodes])) * len(c.offfield.door_states_deg)
 
     def _table_inputs(self, settings) -> tuple:

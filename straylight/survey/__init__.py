@@ -2,6 +2,6 @@
 limits, observability and scheduling tables, per-pointing tables, the plan's cost, storage codecs
 and provenance.
 
-May import everything below it (sky, optics, sources, catalog, util); nothing imports it but the
+May import everything below it (util, sky, config, optics, catalog, sources, model); nothing imports it but the
 CLI, the API, the plots, the paper reproductions and ``scripts/``.
 """

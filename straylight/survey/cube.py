@@ -1,5 +1,5 @@
 """Survey-wide background cubes: every footprint pixel at every campaign time, every component
-in every band (issue #6).
+in every band.
 
 Layout of ``background.zarr`` (xarray Dataset):
 
@@ -10,7 +10,7 @@ Layout of ``background.zarr`` (xarray Dataset):
 * attrs: HEALPix nside, ordering and frame, campaign, models, provenance pointers.
 * chunks: one time block (``campaign.time_block_hours``) x ``footprint.pixel_block_size`` pixels
   x all bands.  A time-series read of one pointing then touches one chunk per time block, and a
-  whole-sky read at one time one chunk per pixel block (see bench/cube_chunks.py for timings).
+  whole-sky read at one time one chunk per pixel block (bench/storage.py times both).
 
 Work split: one Snakemake job computes many time blocks (:func:`run_time_blocks`: all of them,
 or ``compute.time_blocks_per_job``) with a pool of worker processes started once per job; each
@@ -123,7 +123,7 @@ def empty_cube(campaign: Campaign, fp: Footprint, times, stars_path=None, build_
             "chunking": "time block x pixel block x all bands",
             # which models ran and their error budget (the earthshine table is built here, once,
             # before the time-block jobs start)
-            "models": json.dumps(_component_model(campaign, fp, build_workers).models_record(),
+            "models": json.dumps(background_model_for(campaign, fp, build_workers).models_record(),
                                  sort_keys=True),
         },
     )
@@ -141,7 +141,7 @@ def _faint_rows(campaign: Campaign, fp: Footprint, stars_path, rows: slice) -> n
     the catalog has no faint magnitudes in)."""
     stars = _offfield_stars(campaign, stars_path)
     los = radec_to_unit(fp.ra_deg[rows], fp.dec_deg[rows])
-    rates = _component_model(campaign, fp).stars.faint_star_rates(stars, los, campaign.bands, los_batch=FAINT_MAP_LOS_BATCH)
+    rates = background_model_for(campaign, fp).stars.faint_star_rates(stars, los, campaign.bands, los_batch=FAINT_MAP_LOS_BATCH)
     values = np.zeros((los.shape[0], len(campaign.bands)))
     for i, band in enumerate(campaign.bands):
         if band in rates:
@@ -242,19 +242,17 @@ def evaluated_samples(campaign: Campaign, fp: Footprint, max_times: int = 144, m
 #: cost ~1.7x the average sample: more moonlit-Earth sums and star pairs); the direct earthshine
 #: sum adds straylight.model.fidelity.LUT_SAVED_SECONDS_PER_SAMPLE per evaluated sample.  Seconds, in the units
 #: of the reference machine those figures are given for (:func:`machine_speed` scales them to
-#: another): ``bench/run.py --only cube`` on the default day (12 steps x 1320 pixels, best of
-#: seven), two runs on a machine whose direct path ran x0.263 and x0.265 of the reference, gave
-#: 1.26 / 1.26 us, 0.28 / 0.28 us and 2.58 / 2.86 us, i.e. 4.8, 1.05 and 9.8 / 10.8 us (mean
-#: 10.3) in these units.  The bench prints them again as cube.plan_cost_model, with the four
-#: runs' predicted seconds against the measured ones, so a drift shows.
+#: another), from ``bench/run.py --only cube`` on the default day (12 steps x 1320 pixels, best
+#: of seven), which prints them again as cube.plan_cost_model with its runs' predicted seconds
+#: against the measured ones, so a drift shows.
 CUBE_TABLE_SECONDS_PER_SAMPLE = 4.8e-6
 CUBE_SCREEN_SECONDS_PER_SAMPLE = 1.05e-6
 CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE = 10.3e-6
 
 
 #: Bytes on disk per (time, pixel) sample of the whole product set (background.zarr, limits.zarr,
-#: observability.zarr), all bands: the compressed stores' budget (issue 32: at most 25 bytes per
-#: sample).  The one figure `straylight plan` sizes a campaign's products with.
+#: observability.zarr), all bands: the compressed stores' budget (at most 25 bytes per sample;
+#: docs/performance.md gives the measured figure).  The one figure `straylight plan` sizes a campaign's products with.
 PRODUCT_BYTES_PER_SAMPLE = 25.0
 #: The pipeline's speed wall to wall (samples / wall seconds / cores: `snakemake` to the last
 #: product, every rule included, the earthshine tables cached), when neither
@@ -382,7 +380,7 @@ def estimated_cost(campaign: Campaign, fp: Footprint, seconds_per_evaluated_samp
             "product_bytes": n * PRODUCT_BYTES_PER_SAMPLE}
 
 
-def _component_model(campaign: Campaign, fp: Footprint, build_workers: int = 1):
+def background_model_for(campaign: Campaign, fp: Footprint, build_workers: int = 1):
     """One BackgroundModel per process and campaign: its door tables, bands and earthshine table
     are built once, not once per Dask task (the campaign arrives pickled, so key on its content).
     It expects the samples the cube evaluates (:func:`evaluated_samples`)."""
@@ -426,7 +424,7 @@ def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: s
     from straylight.sky import observing
     from straylight.model import unobservable_samples
 
-    model = model or _component_model(campaign, fp)
+    model = model or background_model_for(campaign, fp)
     stars = _offfield_stars(campaign, stars_path)
     times = campaign.times[t_slice]
     sc = observing.scene(campaign, times) if scene is None else _checked_scene(scene, times)
@@ -722,7 +720,7 @@ def _pool_init(campaign: Campaign, fp: Footprint, store: str, stars_path, obs_st
     (every region this process computes reuses it)."""
     _WORKER.clear()
     _WORKER.update(campaign=campaign, fp=fp, store=store, stars_path=stars_path, obs_store=obs_store)
-    _component_model(campaign, fp)
+    background_model_for(campaign, fp)
     _offfield_stars(campaign, stars_path)
 
 

@@ -61,7 +61,7 @@ def bright_limb_table(model: BackgroundModel, fraction: float = 0.1, sun_zenith_
     zenith angles every ``sun_zenith_step_deg`` up to 90 deg, then every ``terminator_step_deg``
     until the visible cap is dark (the limb's zenith angle, ~110 deg at 400 km), where the
     answer changes fastest."""
-    from straylight.sources.earthshine_lut import _sun_coefficients_direct
+    from straylight.sources.earthshine_lut import sun_coefficients_direct
 
     c: Campaign = model.campaign
     off = model.context.offfield
@@ -86,7 +86,7 @@ def bright_limb_table(model: BackgroundModel, fraction: float = 0.1, sun_zenith_
     for st in off.door_states_deg:
         sel = door == st
         if sel.any():
-            d, g = _sun_coefficients_direct(off, np.full(sel.sum(), r), np.radians(Z[sel]), np.radians(L[sel]),
+            d, g = sun_coefficients_direct(off, np.full(sel.sum(), r), np.radians(Z[sel]), np.radians(L[sel]),
                                             np.radians(A[sel]), st, re_km, 1024)
             coeff[sel] = d + g
     out = {"sun_zenith_deg": zs}

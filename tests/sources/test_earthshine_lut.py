@@ -61,7 +61,7 @@ def test_rotation_about_the_vertical_changes_nothing(coarse):
     sat, sun, los = sc.satellite_km[obs], sc.bodies_km["sun"][obs], los[obs]
     lut = info["lut"]
     r, zs, zl, a = lut.coordinates(sat, sun, los)
-    from straylight.sources.earthshine_lut import _sun_coefficients_direct
+    from straylight.sources.earthshine_lut import sun_coefficients_direct
 
     off = cm.context.offfield
     door = g["door_opening_deg"][obs]
@@ -74,7 +74,7 @@ def test_rotation_about_the_vertical_changes_nothing(coarse):
         sel = door == state
         if not sel.any():
             continue
-        d, gd = _sun_coefficients_direct(off, r[sel], *np.radians([zs[sel], zl[sel], a[sel]]), state,
+        d, gd = sun_coefficients_direct(off, r[sel], *np.radians([zs[sel], zl[sel], a[sel]]), state,
                                          c.earth.radius_km, 256)
         err = np.abs(d + gd - real["direct_sun"][sel] - real["door_sun"][sel]) * sun_irr[sel] / res["g"]["total"][sel]
         assert err.max() < 1e-2
