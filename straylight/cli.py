@@ -497,7 +497,9 @@ def cmd_plan(args) -> int:
     if args.seconds_per_sample is not None:
         how = f"{args.seconds_per_sample * 1e3:.3g} ms per evaluated sample (--seconds-per-sample)"
     else:
-        how = "this code's figures on the 2-core development machine (straylight.survey.cube.CUBE_*; bench/run.py --only cube)"
+        how = ("this code's per-sample figures (straylight.survey.cube.CUBE_*, bench/run.py --only cube), in the "
+               "units of the machine they are given for; the development machine runs them about x0.25, "
+               "--calibrate measures this one")
         if speed:
             how += f" x{speed['factor']:.2f} for this machine (--calibrate)"
     print(f"the cube's kernel alone: {cost['core_hours']:.2f} core-hours at {how}")

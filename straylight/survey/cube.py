@@ -258,10 +258,9 @@ PRODUCT_BYTES_PER_SAMPLE = 25.0
 #: product, every rule included, the earthshine tables cached), when neither
 #: compute.pipeline_samples_per_s_per_core nor bench/results/pipeline.json gives one:
 #: bench/pipeline.py on one month of config/cycle.yaml (nside 64, 5-minute cadence, 183,081,600
-#: samples) on 2 cores, 108,753 samples/s/core, on the 2-core development machine shared with
-#: other jobs.  Per-run costs (job start-up, figures) weigh less in longer campaigns: one month
-#: at nside 32 (45,671,040 samples) ran at 61,575 on the same machine.
-PIPELINE_SAMPLES_PER_S_PER_CORE = 108_753.0
+#: samples) on the 2-core development machine.  Per-run costs (job start-up, the faint-star map,
+#: figures) weigh more in smaller campaigns (docs/performance.md gives both figures).
+PIPELINE_SAMPLES_PER_S_PER_CORE = 375_441.0
 #: where bench/pipeline.py writes its figures
 PIPELINE_BENCH_RESULTS = Path(__file__).resolve().parents[2] / "bench" / "results" / "pipeline.json"
 

@@ -1,0 +1,68 @@
+"""The background model's two jobs (straylight.model): the per-band sum of the sources, and the
+fidelity policy that splits models.tolerance among the fast paths and picks the earthshine path.
+
+Reference numbers: the sum is the seed paper's total background (sect. 2: the sum of the in-field
+and off-field contributions), checked against the components the model returns, to float64
+rounding; the budget's shares add up to 1 (the tolerance is the error allowed to all the fast
+paths together, docs/physics.md); the auto break-even follows from the two cost figures in
+straylight.model.fidelity (build seconds per node against seconds saved per sample)."""
+import numpy as np
+import pytest
+
+from straylight.config import campaign_from_dict, deep_merge
+from straylight.model import (BAND_COMPONENTS, ERROR_BUDGET_SHARES, LUT_BUILD_SECONDS_PER_NODE,
+                              LUT_SAVED_SECONDS_PER_SAMPLE, BackgroundModel, FidelityPolicy)
+from straylight.sky.geometry import observing_geometry, radec_to_unit
+from straylight.sky.observing import scene
+
+SUMMED = ("zodiacal", "sun", "moon", "planets", "stars", "earthshine_direct", "earthshine_door")
+
+
+def test_total_is_the_sum_of_the_sources_in_every_band(campaign):
+    """total = zodiacal + Sun + Moon + planets + stars + earthshine (direct and door), per band
+    and sample, to float64 rounding (1e-12 relative)."""
+    assert set(SUMMED) <= set(BAND_COMPONENTS)
+    model = BackgroundModel(campaign)
+    times = ["2026-01-01T00:50:00", "2026-01-01T03:10:00"]
+    sc = scene(campaign, times)
+    rng = np.random.default_rng(3)
+    ra, dec = rng.uniform(0, 360, 64), np.degrees(np.arcsin(rng.uniform(-1, 1, 64)))
+    los = radec_to_unit(ra, dec)[None, :, :]
+    sat = sc.satellite_km[:, None, :]
+    bodies = {k: v[:, None, :] for k, v in sc.bodies_km.items()}
+    g = observing_geometry(sat, bodies, los, campaign.earth.radius_km, campaign.constraints)
+    res = model.evaluate(sat, bodies, los, g, campaign.bands)
+    for band in campaign.bands:
+        parts = sum(np.asarray(res[band][c], float) for c in SUMMED)
+        total = np.asarray(res[band]["total"], float)
+        assert total.shape == (2, 64)
+        np.testing.assert_allclose(total, parts, rtol=1e-12, atol=0.0)
+        assert np.all(total > 0)
+
+
+def test_error_budget_shares_add_up_to_the_tolerance(campaign):
+    """The fast paths' shares add up to exactly the tolerance (models.tolerance, 0.01 by default)."""
+    assert sum(ERROR_BUDGET_SHARES.values()) == pytest.approx(1.0, abs=1e-15)
+    policy = FidelityPolicy(campaign)
+    assert policy.tolerance == pytest.approx(0.01)
+    assert sum(policy.budget(s) for s in ERROR_BUDGET_SHARES) == pytest.approx(policy.tolerance, rel=1e-12)
+    assert policy.accepts_table("earthshine_lut", 0.5 * policy.tolerance)
+    assert not policy.accepts_table("earthshine_lut", 0.5 * policy.tolerance * 1.001)
+
+
+def test_auto_takes_the_table_exactly_past_its_break_even(campaign):
+    """auto: the direct sum while the samples save less than the table's build, the table from
+    build / saved-per-sample samples on (the ratio of the two figures in model.fidelity)."""
+    build_s = LUT_BUILD_SECONDS_PER_NODE * 1_000_000
+    break_even = build_s / LUT_SAVED_SECONDS_PER_SAMPLE
+    below = FidelityPolicy(campaign, expected_samples=int(break_even * 0.99))
+    above = FidelityPolicy(campaign, expected_samples=int(break_even * 1.01) + 1)
+    assert below.earthshine_method("auto", build_s)[0] == "direct"
+    assert above.earthshine_method("auto", build_s)[0] == "lut"
+    assert below.earthshine_method("lut", build_s)[0] == "lut"
+    assert above.earthshine_method("direct", build_s)[0] == "direct"
+
+
+def test_tolerance_is_read_from_the_campaign(campaign):
+    tight = campaign_from_dict(deep_merge(campaign.config, {"models": {"tolerance": 0.002}}), campaign.path)
+    assert FidelityPolicy(tight).budget("stars_skip") == pytest.approx(0.125 * 0.002, rel=1e-12)
