@@ -17,6 +17,7 @@ outputs = {
     "ephemeris.zarr": snakemake.input.ephemeris,  # noqa: F821
     "footprint.fits": snakemake.input.footprint,  # noqa: F821
     "stars_csst.parquet": snakemake.input.stars,  # noqa: F821
+    "observability.zarr": snakemake.input.observability,  # noqa: F821
 }
 rec = provenance_record(c, {}, outputs)
 write_json_atomic(rec, snakemake.output[0])  # noqa: F821

@@ -26,6 +26,7 @@ rule provenance:
         ephemeris=f"{RESULTS}/ephemeris.zarr",
         footprint=f"{RESULTS}/footprint.fits",
         stars=f"{RESULTS}/stars_csst.parquet",
+        observability=f"{RESULTS}/observability.zarr",
     output:
         report(f"{RESULTS}/provenance.json", caption="../report/provenance.rst", category="Provenance"),
     params:
