@@ -81,7 +81,7 @@ class Bench:
         es = replace(off.earthshine, n_gamma=n_gamma, n_psi=n_psi, door_blocks=tuple(door_blocks),
                      n_aperture_door=n_aperture_door)
         pst = off.pst if tuple(pst_step) == (0.5, 5.0) else PST(*default_pst_grid(*pst_step), source="bench")
-        cm.__dict__["offfield"] = replace(off, earthshine=es, pst=pst)
+        cm.context.__dict__["offfield"] = replace(off, earthshine=es, pst=pst)  # before any source reads it
         return cm
 
     def evaluate(self, cm, stars, sl=slice(None)):
