@@ -55,7 +55,7 @@ class Bench:
         return split_stars(self.catalog["ra"], self.catalog["dec"],
                            {b: self.catalog[f"mag_{b}"] for b in self.bands}, limit, faint)
 
-    def model(self, n_gamma=24, n_psi=48, door_blocks=(24, 24), n_aperture_door=128, pst_step=(0.5, 5.0),
+    def model(self, n_gamma=24, n_psi=48, door_blocks=(24, 24), n_aperture_door=256, pst_step=(0.5, 5.0),
               lut_steps=None, tolerance=None):
         """A component model with these knobs; ``lut_steps`` (deg): the earthshine look-up table
         with these node steps instead of the direct sum (built on first use, cached);
@@ -90,7 +90,7 @@ class Bench:
         return cm.evaluate(self.sat[sl], bodies, self.los[sl], g, self.bands, stars)
 
 
-DEFAULT = dict(n_gamma=24, n_psi=48, door_blocks=(24, 24), n_aperture_door=128, pst_step=(0.5, 5.0))
+DEFAULT = dict(n_gamma=24, n_psi=48, door_blocks=(24, 24), n_aperture_door=256, pst_step=(0.5, 5.0))
 REFERENCE = dict(n_gamma=96, n_psi=192, door_blocks=(48, 48), n_aperture_door=512, pst_step=(0.1, 1.0),
                  tolerance=1e-12)
 DEFAULT_STARS = (2.0, True)

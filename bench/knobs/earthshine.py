@@ -24,7 +24,7 @@ def earthshine_lut_rows(bench, ref, stars, quick: bool):
 
 def door_rows(bench, ref, stars, quick: bool):
     """The door path's blocks and aperture points."""
-    d = [(8, 32), (24, 128)] if quick else [(2, 8), (4, 16), (8, 32), (16, 64), (24, 128), (32, 256)]
+    d = [(8, 32), (24, 128), (24, 256)] if quick else [(2, 8), (4, 16), (8, 32), (16, 64), (24, 128), (24, 256), (32, 512)]
     return sweep(bench, ref, "door", [(f"{a}x{a} blocks, {b} ap.", {**DEFAULT, "door_blocks": (a, a), "n_aperture_door": b}, stars)
                                       for a, b in d])
 

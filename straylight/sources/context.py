@@ -90,7 +90,7 @@ class SourceContext:
                 n_gamma=int(es.get("n_gamma", 24)), n_psi=int(es.get("n_psi", 48)),
                 albedo=float(es.get("albedo", 0.3)), door_blocks=tuple(es.get("door_blocks", (24, 24))),
                 door_reflectance=float(dg["reflectance"]["value"]) if "reflectance" in dg else 0.05,
-                n_aperture_door=int(es.get("n_aperture_door", 128)),
+                n_aperture_door=int(es.get("n_aperture_door", 256)),
             ),
             moon_law=self.campaign.config["models"].get("moon_phase_law", "krisciunas_schaefer"),
             moon_eclipse_factor=float(self.campaign.config["models"].get("moon_eclipse_factor", 1e-4)),

@@ -43,7 +43,7 @@ class EarthshineSettings:
     albedo: float = 0.30
     door_blocks: tuple[int, int] = (24, 24)  # along x across the door plate
     door_reflectance: float = 0.05
-    n_aperture_door: int = 128  # aperture points for the door-to-aperture path
+    n_aperture_door: int = 256  # aperture points for the door-to-aperture path (128: 0.5 % of the total off)
 
     def __post_init__(self):
         if self.n_gamma < 2 or self.n_psi < 4:
