@@ -105,3 +105,26 @@ def test_pipeline_bench_writes_its_figures(tmp_path):
     assert rec["bytes_per_sample"] == sum(rec["products_bytes"].values()) / c["samples"]
     assert rec["kernel"] is None and rec["table_build_seconds_before_run"] >= 0.0
     assert "samples/s/core" in r.stdout
+
+
+def test_the_bench_knobs_reach_the_model(campaign):
+    """bench/knobs/common.Bench.model's Earth grid and door settings are the ones the model
+    computes with (its SourceContext's off-field transfer), so a coarser grid gives another
+    earthshine: the sweeps and the converged reference in bench/run.py depend on it."""
+    from _samples import random_samples
+    from knobs.common import Bench
+
+    bench = object.__new__(Bench)  # the knobs only: no catalog
+    bench.campaign, bench.bands = campaign, ["g"]
+    sc, los, g = random_samples(campaign, 400, seed=5)
+    obs = np.flatnonzero(g["observable"])[:20]
+    bench.sat, bench.los = sc.satellite_km[obs], los[obs]
+    bench.bodies = {k: v[obs] for k, v in sc.bodies_km.items()}
+    bench.geometry = {k: v[obs] for k, v in g.items()}
+    coarse = bench.model(n_gamma=8, n_psi=16, door_blocks=(4, 4), n_aperture_door=16)
+    fine = bench.model(n_gamma=48, n_psi=96)
+    s = coarse.context.offfield.earthshine
+    assert (s.n_gamma, s.n_psi, tuple(s.door_blocks), s.n_aperture_door) == (8, 16, (4, 4), 16)
+    es = [bench.evaluate(m, None)["g"]["earthshine_direct"] for m in (coarse, fine)]
+    assert np.any(es[1] > 0)
+    assert np.max(np.abs(es[0] - es[1]) / np.maximum(es[1], 1e-30)) > 1e-3
