@@ -405,12 +405,11 @@ def campaign_figures(background_path, limits_path, campaign, out_dir, workers: i
     if int(workers) <= 1:
         results = [_figure_job(kind, background_path, limits_path, campaign, out, bands) for kind, bands in jobs]
     else:
-        from concurrent.futures import ProcessPoolExecutor
-        from multiprocessing import get_context
+        from straylight.util.daskutil import spawned_pool
 
         # this process draws too: the spawned ones take the shares from the front, this one from
         # the back, each share it has not started yet (cancelled in the pool first)
-        with ProcessPoolExecutor(max_workers=min(int(workers) - 1, len(jobs)), mp_context=get_context("spawn")) as pool:
+        with spawned_pool(min(int(workers) - 1, len(jobs))) as pool:
             futures = [pool.submit(_figure_job, kind, background_path, limits_path, campaign, out, bands)
                        for kind, bands in jobs]
             results = [None] * len(jobs)

@@ -176,13 +176,9 @@ def faint_star_map(campaign: Campaign, fp: Footprint, stars_path, workers: int =
         other = None if before is None else before()
         values = _faint_rows(campaign, fp, stars_path, parts[0])
     else:
-        from concurrent.futures import ProcessPoolExecutor
-        from multiprocessing import get_context
+        from straylight.util.daskutil import spawned_pool
 
-        from straylight.util.daskutil import temporary_environment, worker_environment
-
-        with temporary_environment(worker_environment()), \
-                ProcessPoolExecutor(max_workers=len(parts) - 1, mp_context=get_context("spawn")) as pool:
+        with spawned_pool(len(parts) - 1) as pool:
             futures = [pool.submit(_faint_rows, campaign, fp, str(stars_path), rows) for rows in parts[1:]]
             other = None if before is None else before()
             values = np.concatenate([_faint_rows(campaign, fp, stars_path, parts[0])]
@@ -310,9 +306,9 @@ def machine_speed(campaign: Campaign, fp: Footprint, n_times: int = 4, n_pixels:
     path's cost), best of ``repeats`` after a full-size warm-up, against
     :func:`cube_compute_seconds` for it.  Returns the samples, ``measured_seconds``,
     ``assumed_seconds`` and ``factor`` (measured / assumed: below 1 on a faster machine).  One
-    factor for every figure: on the development machine it reads x0.24 where the cube bench's
-    four paths read x0.21-0.33 against the same figures, so it errs by -12 % to +40 % per path
-    (README)."""
+    factor for every figure: on the development machine it reads about x0.24 where the cube
+    bench's four paths read x0.21-0.33 against the same figures, so it errs by -12 % to +40 %
+    per path."""
     from straylight.model import BackgroundModel
     from straylight.config import campaign_from_dict, deep_merge
 
@@ -347,8 +343,8 @@ def estimated_cost(campaign: Campaign, fp: Footprint, seconds_per_evaluated_samp
     whole run, wall to wall, at the measured pipeline figure (:func:`pipeline_rate`, measured
     on the table path; on the direct sum the kernel's compute where that is slower; the table's build added
     when it is not cached), and the products' bytes
-    (PRODUCT_BYTES_PER_SAMPLE).  The figures are
-    this code's on a 2-core development machine (single runs wander by 20-40 %), times
+    (PRODUCT_BYTES_PER_SAMPLE).  The compute and build seconds are in the units of the machine
+    the CUBE_* and fidelity.LUT_* figures are given for (single runs wander by 20-40 %), times
     ``speed_factor`` (:func:`machine_speed`) for this one."""
     from straylight.model import BackgroundModel, unobservable_samples
 
@@ -624,7 +620,7 @@ def write_region(campaign: Campaign, fp: Footprint, store, t_slice: slice, p_sli
             for name, var in ds.data_vars.items():
                 arrays[name][t_slice, p_slice] = var.values
         if obs_store is not None:
-            obs = {**{k: ds[k].values for k in ("observable", "violations", "door_opening_deg")}, **angles}
+            obs = {k: angles[k] if k in angles else ds[k].values for k in OBSERVABILITY_VARIABLES}
             if obs_arrays is None:
                 xr.Dataset({k: (("time", "pixel"), v) for k, v in obs.items()}).to_zarr(
                     obs_store, region={"time": t_slice, "pixel": p_slice}, mode="r+", consolidated=False)
@@ -765,11 +761,9 @@ def region_pool(campaign, fp, store: str, stars_path, workers: int, scheduler_ad
       each building the model once, at its start, for all the regions it computes.
     * else: in this process, one region after the other.
     """
-    from concurrent.futures import ProcessPoolExecutor
     from concurrent.futures import wait as wait_local
-    from multiprocessing import get_context
 
-    from straylight.util.daskutil import temporary_environment, worker_environment
+    from straylight.util.daskutil import spawned_pool
 
     if scheduler_address:
         from distributed import Client
@@ -787,9 +781,7 @@ def region_pool(campaign, fp, store: str, stars_path, workers: int, scheduler_ad
     if int(workers) <= 1:
         yield _InProcess(campaign, fp, store, stars_path, obs_store).submit_region, wait_local
         return
-    with temporary_environment(worker_environment()), \
-            ProcessPoolExecutor(max_workers=int(workers), mp_context=get_context("spawn"),
-                                initializer=_pool_init, initargs=(campaign, fp, store, stars_path, obs_store)) as pool:
+    with spawned_pool(workers, _pool_init, (campaign, fp, store, stars_path, obs_store)) as pool:
         def submit(t_slice, p_slice, scene, faint_map):
             return pool.submit(_pool_region, t_slice, p_slice, scene, faint_map)
 

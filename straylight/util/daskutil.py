@@ -1,5 +1,5 @@
-"""Worker processes: their environment (threads, malloc settings) and a Dask client, local or
-on an existing cluster (``compute.dask_scheduler``).  The cube's region pool built on them is
+"""Worker processes: their environment (threads, malloc settings), a pool of spawned ones, and a
+Dask client, local or on an existing cluster (``compute.dask_scheduler``).  The cube's region pool built on them is
 :func:`straylight.survey.cube.region_pool`."""
 from __future__ import annotations
 
@@ -38,6 +38,19 @@ def temporary_environment(values: dict):
                 os.environ.pop(k, None)
             else:
                 os.environ[k] = v
+
+
+@contextmanager
+def spawned_pool(max_workers: int, initializer=None, initargs: tuple = ()):
+    """A ``ProcessPoolExecutor`` of ``max_workers`` spawned processes (not forked: none inherits
+    this process's threads or open stores) started with :func:`worker_environment`."""
+    from concurrent.futures import ProcessPoolExecutor
+    from multiprocessing import get_context
+
+    with temporary_environment(worker_environment()), \
+            ProcessPoolExecutor(max_workers=int(max_workers), mp_context=get_context("spawn"),
+                                initializer=initializer, initargs=initargs) as pool:
+        yield pool
 
 
 @contextmanager
