@@ -98,11 +98,11 @@ class TreeMemory:
 _STAMP = re.compile(r"^\[(\w{3} \w{3} +\d+ \d\d:\d\d:\d\d \d{4})\]$")
 
 
-def rule_seconds(snakemake_log: str) -> dict:
-    """Seconds per rule from Snakemake's log: each job from the time stamp before its
-    ``rule <name>:`` block to the one before its ``Finished jobid: <id>`` line."""
+def job_spans(snakemake_log: str) -> list[tuple[str, datetime, datetime]]:
+    """(rule, start, finish) of every job in Snakemake's log: from the time stamp before its
+    ``rule <name>:`` block to the one before its ``Finished jobid: <id>`` line (1 s resolution)."""
     stamp, pending_rule, started, rule_of = None, None, {}, {}
-    out: dict = {}
+    spans = []
     for line in snakemake_log.splitlines():
         line = line.strip()
         m = _STAMP.match(line)
@@ -120,11 +120,26 @@ def rule_seconds(snakemake_log: str) -> dict:
             continue
         m = re.match(r"^Finished jobid: (\d+)", line)
         if m and m.group(1) in started and stamp is not None:
-            name = rule_of[m.group(1)]
-            rec = out.setdefault(name, {"jobs": 0, "seconds": 0.0})
-            rec["jobs"] += 1
-            rec["seconds"] += (stamp - started[m.group(1)]).total_seconds()
+            spans.append((rule_of[m.group(1)], started[m.group(1)], stamp))
+    return spans
+
+
+def rule_seconds(snakemake_log: str) -> dict:
+    """Seconds per rule from Snakemake's log (:func:`job_spans`), summed over the rule's jobs."""
+    out: dict = {}
+    for name, start, finish in job_spans(snakemake_log):
+        rec = out.setdefault(name, {"jobs": 0, "seconds": 0.0})
+        rec["jobs"] += 1
+        rec["seconds"] += (finish - start).total_seconds()
     return out
+
+
+def timeline(snakemake_log: str, started: datetime) -> list[dict]:
+    """Every job's rule, start and finish in seconds after ``started`` (the command's start,
+    local time as Snakemake stamps it), in order of start: where the wall time went."""
+    return [{"rule": name, "start_s": round((a - started).total_seconds(), 1),
+             "finish_s": round((b - started).total_seconds(), 1)}
+            for name, a, b in sorted(job_spans(snakemake_log), key=lambda j: (j[1], j[0]))]
 
 
 def directory_bytes(path: Path) -> int:
@@ -166,6 +181,7 @@ def run_campaign(days: float, nside: int, cadence_s: float, cores: int, keep: Pa
         load_before = os.getloadavg()
         cpu_before = resource.getrusage(resource.RUSAGE_CHILDREN)
         t0 = time.perf_counter()
+        started = datetime.now().replace(microsecond=0)
         proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         mem = TreeMemory(proc.pid)
         log, _ = proc.communicate()
@@ -196,6 +212,7 @@ def run_campaign(days: float, nside: int, cadence_s: float, cores: int, keep: Pa
             "cpu_seconds": cpu,
             "samples_per_cpu_second": samples / cpu,
             "rules": dict(sorted(rules.items(), key=lambda kv: -kv[1]["seconds"])),
+            "timeline": timeline(log, started),
             "peak_memory_bytes": peak,
             "products_bytes": products,
             "bytes_per_sample": sum(products.values()) / samples,
@@ -203,6 +220,7 @@ def run_campaign(days: float, nside: int, cadence_s: float, cores: int, keep: Pa
         }
         if keep is not None:
             shutil.copytree(out, keep, dirs_exist_ok=True)
+            (Path(keep) / "snakemake.log").write_text(log)
         return result
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -257,6 +275,9 @@ def main(argv=None) -> dict:
           f"{sum(result['products_bytes'].values()) / 1e9:.3f} GB = {result['bytes_per_sample']:.1f} bytes/sample")
     for name, rec in result["rules"].items():
         print(f"  {name:<18} {rec['jobs']:3d} job(s) {rec['seconds']:8.0f} s  {100 * rec['share_of_wall']:5.1f} % of wall")
+    print("timeline (s after the command):")
+    for job in result["timeline"]:
+        print(f"  {job['start_s']:6.0f} {job['finish_s']:6.0f}  {job['rule']}")
     if args.out is None:
         write_results("pipeline", result)
     else:

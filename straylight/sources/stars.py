@@ -14,7 +14,6 @@ from functools import cached_property
 
 import numpy as np
 from numba import njit
-from threadpoolctl import threadpool_limits
 
 from straylight.sky.geometry import earth_blocks, scene_runs, tiled_period
 from straylight.sources.context import Samples, SourceContext
@@ -112,13 +111,14 @@ class OffFieldStars:
         ln_pst = np.log(self.context.offfield.pst.azimuthal_mean(theta))
         return theta, ln_pst, np.diff(ln_pst)
 
-    def faint_star_rates(self, stars: StarTable, los, bands, batch: int = 4096, los_batch: int = 1024) -> dict:
+    def faint_star_rates(self, stars: StarTable, los, bands) -> dict:
         """e-/s/pix per band from the faint stars: sum_s E_s PSTavg(theta_s) * pixel area over the
         stars outside the field and in front of the aperture plane (theta <= 90 deg, where the
         door's Sp is not 0: :func:`~straylight.optics.door.behind_aperture_plane`), for lines of
         sight ``los`` (..., 3).  Depends on the line of sight only, so it is computed once per
-        distinct set of lines of sight (cached).  ``los_batch``
-        lines of sight x ``batch`` stars at a time bound the temporaries (~34 MB each)."""
+        distinct set of lines of sight (cached).  Each line of sight's sum runs over the stars
+        in catalog order (:func:`_faint_star_kernel`), so a line of sight's value does not
+        depend on which others are computed with it, or in which process."""
         import hashlib
 
         los = np.asarray(los, float)
@@ -127,34 +127,21 @@ class OffFieldStars:
         cache = stars.__dict__.setdefault("_faint_cache", {})
         if key in cache:
             return cache[key]
-        flat = los.reshape(-1, 3)
+        flat = np.ascontiguousarray(los.reshape(-1, 3))
         bands = [b for b in bands if b in stars.faint_mag_ab]
-        flux = np.array([self.context.photometry(b).from_ab(stars.faint_mag_ab[b]) for b in bands]).T  # (S, B)
+        flux = np.ascontiguousarray(
+            np.array([self.context.photometry(b).from_ab(stars.faint_mag_ab[b]) for b in bands]).T)  # (S, B)
         theta_grid, ln_pst, slope = self._pst_azimuthal_table
         per_deg = (theta_grid.size - 1) / theta_grid[-1]
         out = np.zeros((flat.shape[0], len(bands)))
-        s_all = stars.faint_unit
-        # one BLAS thread: the products' summation order, and so the map's last bits, must not
-        # depend on how many cores the job was given (Snakemake sets OPENBLAS_NUM_THREADS per job)
-        with threadpool_limits(limits=1, user_api="blas"):
-            self._faint_star_sums(flat, s_all, flux, ln_pst, slope, per_deg, out, batch, los_batch)
+        _faint_star_kernel(flat, np.ascontiguousarray(stars.faint_unit, dtype=float), flux, ln_pst, slope, per_deg,
+                           self.context.offfield.field_radius_deg * per_deg, 90.0 * per_deg, out)
         out *= self.context.offfield.pixel_area_m2
         res = {b: out[:, j].reshape(los.shape[:-1]) for j, b in enumerate(bands)}
         if len(cache) > 64:
             cache.clear()
         cache[key] = res
         return res
-
-    def _faint_star_sums(self, flat, s_all, flux, ln_pst, slope, per_deg, out, batch, los_batch) -> None:
-        """Adds sum_s flux_s PSTavg(theta_s) over the faint stars to ``out`` (lines of sight x bands)."""
-        r_field = self.context.offfield.field_radius_deg
-        for a in range(0, flat.shape[0], los_batch):
-            for i in range(0, len(s_all), batch):
-                cosang = np.clip(flat[a:a + los_batch] @ s_all[i:i + batch].T, -1.0, 1.0)
-                x = np.degrees(np.arccos(cosang)) * per_deg  # position on the uniform grid
-                k = np.minimum(x.astype(np.intp), slope.size - 1)  # linear in ln PST, as np.interp on the grid
-                t = np.exp(ln_pst[k] + (x - k) * slope[k]) * ((x > r_field * per_deg) & (x <= 90.0 * per_deg))
-                out[a:a + los_batch] += t @ flux[i:i + batch]
 
     #: the star skip's floor levels, in units of the darkest zodiacal light: a sample's floor
     #: is rounded down to one of them, so each sky cell's candidates are chosen once per level
@@ -364,6 +351,35 @@ class OffFieldStars:
         if not parts:
             return shape, (np.zeros(0, np.intp), np.zeros(0, np.intp), np.zeros(0))
         return shape, tuple(np.concatenate(x) for x in zip(*parts))
+
+
+@njit(cache=True, nogil=True)
+def _faint_star_kernel(los, star_unit, flux, ln_pst, slope, per_deg, x_field, x_max, out):
+    """:meth:`OffFieldStars.faint_star_rates`' sums: ``out[a] += sum_s flux[s] PSTavg(theta_as)``
+    over the stars with ``x_field < theta * per_deg <= x_max``, PSTavg linear in ln on the
+    uniform theta grid (``ln_pst``, ``slope``: per-node values and per-cell differences, as
+    np.interp on that grid).  One pass per (line of sight, star) instead of numpy's pass per
+    operation over every pair; the stars of each line of sight in catalog order."""
+    nb = flux.shape[1]
+    last = slope.size - 1
+    to_grid = 180.0 / np.pi * per_deg
+    acc = np.empty(nb)
+    for a in range(los.shape[0]):
+        lx, ly, lz = los[a, 0], los[a, 1], los[a, 2]
+        acc[:] = 0.0
+        for s in range(star_unit.shape[0]):
+            c = lx * star_unit[s, 0] + ly * star_unit[s, 1] + lz * star_unit[s, 2]
+            if c < -1e-6:  # well behind the aperture plane (theta > 90 deg): no acos needed
+                continue
+            x = np.arccos(min(max(c, -1.0), 1.0)) * to_grid  # position on the uniform grid
+            if not (x > x_field and x <= x_max):
+                continue
+            k = min(int(x), last)
+            t = np.exp(ln_pst[k] + (x - k) * slope[k])
+            for b in range(nb):
+                acc[b] += t * flux[s, b]
+        for b in range(nb):
+            out[a, b] += acc[b]
 
 
 @njit(cache=True, nogil=True)

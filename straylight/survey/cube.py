@@ -130,32 +130,17 @@ def empty_cube(campaign: Campaign, fp: Footprint, times, stars_path=None, build_
     return ds
 
 
-#: lines of sight per batch of the faint-star sums (OffFieldStars.faint_star_rates' los_batch):
-#: the map is split among processes at multiples of it, so every process sums exactly the
-#: batches one process would (the same BLAS calls on the same rows: the same bits)
-FAINT_MAP_LOS_BATCH = 1024
-
-
 def _faint_rows(campaign: Campaign, fp: Footprint, stars_path, rows: slice) -> np.ndarray:
     """The faint-star map at footprint pixels ``rows``, (pixel, band) e-/s/pix (0 in a band
     the catalog has no faint magnitudes in)."""
     stars = _offfield_stars(campaign, stars_path)
     los = radec_to_unit(fp.ra_deg[rows], fp.dec_deg[rows])
-    rates = background_model_for(campaign, fp).stars.faint_star_rates(stars, los, campaign.bands, los_batch=FAINT_MAP_LOS_BATCH)
+    rates = background_model_for(campaign, fp).stars.faint_star_rates(stars, los, campaign.bands)
     values = np.zeros((los.shape[0], len(campaign.bands)))
     for i, band in enumerate(campaign.bands):
         if band in rates:
             values[:, i] = rates[band]
     return values
-
-
-def _faint_row_slices(n_pixels: int, parts: int) -> list[slice]:
-    """``n_pixels`` rows in at most ``parts`` contiguous slices, each a whole number of
-    FAINT_MAP_LOS_BATCH batches but the last."""
-    batches = -(-n_pixels // FAINT_MAP_LOS_BATCH)
-    parts = max(1, min(int(parts), batches))
-    edges = [min(n_pixels, FAINT_MAP_LOS_BATCH * (batches * k // parts)) for k in range(parts + 1)]
-    return [slice(a, b) for a, b in zip(edges[:-1], edges[1:]) if b > a]
 
 
 def faint_star_map(campaign: Campaign, fp: Footprint, stars_path, workers: int = 1,
@@ -165,13 +150,14 @@ def faint_star_map(campaign: Campaign, fp: Footprint, stars_path, workers: int =
     and every time block reads it.  None without a catalog or with no faint stars.
 
     ``workers`` processes share the pixels (this one and ``workers`` - 1 spawned ones, each
-    loading the catalog and the model once): the same values as one process
-    (FAINT_MAP_LOS_BATCH).  ``before``: a callable run in this process while the spawned ones
+    loading the catalog and the model once): the same values as one process (each pixel's sum
+    is computed on its own).  ``before``: a callable run in this process while the spawned ones
     start (the skeleton's other work); its result is returned with the map as a pair then."""
     stars = _offfield_stars(campaign, stars_path)
     if stars is None or not len(stars.faint_ra_deg):
         return None if before is None else (None, before())
-    parts = _faint_row_slices(int(fp.pixels.size), workers)
+    edges = np.linspace(0, fp.pixels.size, max(1, min(int(workers), fp.pixels.size)) + 1).round().astype(int)
+    parts = [slice(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:])]
     if len(parts) == 1:
         other = None if before is None else before()
         values = _faint_rows(campaign, fp, stars_path, parts[0])
@@ -194,7 +180,7 @@ def init_store(campaign: Campaign, fp: Footprint, store, stars_path=None, build_
     faint-star map (computed here once for the whole campaign, on ``build_workers``
     processes); an earthshine table the campaign needs is built here too, before the time
     blocks start (``build_workers`` processes)."""
-    from straylight.survey.storage import encoded
+    from straylight.survey.storage import write_skeleton
 
     # the faint map's other processes start first and sum while this one lays down the skeleton
     faint, ds = faint_star_map(campaign, fp, stars_path, build_workers,
@@ -202,8 +188,8 @@ def init_store(campaign: Campaign, fp: Footprint, store, stars_path=None, build_
     if faint is not None:
         ds["faint_star_map"] = faint
     # the products' codecs (bit-rounded floats); the faint map exactly, the time blocks read it
-    ds, encoding = encoded(ds, campaign.config["storage"], lossless=("faint_star_map",))
-    ds.to_zarr(store, mode="w", compute=False, consolidated=False, encoding=encoding)
+    write_skeleton(ds, store, campaign.config["storage"], cube_chunks(campaign, len(campaign.times), fp.pixels.size),
+                   lossless=("faint_star_map",))
 
 
 _MODELS: dict = {}
@@ -561,11 +547,10 @@ def init_observability_store(campaign: Campaign, fp: Footprint, ephem: xr.Datase
     :func:`straylight.survey.products.observability_dataset` (``ephem``: the ephemeris product),
     whose geometry the cube's is, sample by sample, bit for bit."""
     from straylight.survey.products import observability_dataset
-    from straylight.survey.storage import encoded
+    from straylight.survey.storage import write_skeleton
 
     chunks = cube_chunks(campaign, ephem.sizes["time"], fp.pixels.size)
-    ds, encoding = encoded(observability_dataset(campaign, ephem, fp, chunks=chunks), campaign.config["storage"])
-    ds.to_zarr(store, mode="w", compute=False, consolidated=False, encoding=encoding)
+    write_skeleton(observability_dataset(campaign, ephem, fp, chunks=chunks), store, campaign.config["storage"], chunks)
 
 
 def publish_observability(work_store, product) -> None:

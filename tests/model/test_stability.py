@@ -232,10 +232,10 @@ np.save(sys.argv[1], np.stack([res[b] for b in BANDS]))
 
 
 def test_faint_star_map_does_not_depend_on_the_jobs_cores(tmp_path):
-    """The faint-star map is a sum of BLAS matrix products; OpenBLAS started with 1 or 2 threads
-    (Snakemake sets OPENBLAS_NUM_THREADS to a job's cores) sums in different orders and changed
-    the map's last bits, so a 1-core SLURM job and a 2-core local run differed.  The sums now run
-    on one BLAS thread whatever the process was started with: bit-identical maps."""
+    """A 1-core SLURM job and a 2-core local run must give the same faint-star map to the bit
+    (Snakemake sets OPENBLAS_NUM_THREADS and OMP_NUM_THREADS to a job's cores; a BLAS sum
+    changes its order, and so its last bits, with them): processes started with 1 and with 2
+    threads give bit-identical maps."""
     import os
     import subprocess
     import sys

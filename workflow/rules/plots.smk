@@ -23,6 +23,8 @@ rule bench_charts:
     """The speed-against-accuracy charts of bench/run.py, when they have been made."""
     input:
         charts=lambda wildcards: sorted(str(p) for p in Path(workflow.basedir, "bench", "results").glob("pareto_*.png")),
+    # off the products' critical path: run when a core is free
+    priority: -1
     output:
         report(directory(f"{RESULTS}/bench_charts"), patterns=["{name}.png"], caption="../report/bench.rst",
                category="Speed against accuracy"),
