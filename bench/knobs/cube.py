@@ -75,7 +75,7 @@ def cube_summary(catalog, time_step: int = 24, n_times: int = 12) -> dict:
 
 def production_region_rates(base, fp, stars_path) -> dict:
     """The table path (every sample, and observable samples only) on what one task of a
-    production run computes (cube.run_time_block): one time block of consecutive steps
+    production run computes (cube.run_time_blocks): one time block of consecutive steps
     (campaign.time_block_hours, 72 at the default 5-minute cadence) x one pixel block
     (footprint.pixel_block_size, 660 by default), the day's first, with the star catalog at
     ``stars_path``; samples per second on one core, the best of :data:`FAST_REPEATS` after a

@@ -627,49 +627,6 @@ class BlockReport:
     seconds: float
 
 
-def run_time_block(campaign: Campaign, fp: Footprint, store, block_index: int, client=None, log=None,
-                   stars_path=None) -> BlockReport:
-    """Compute every pixel block of one time block with Dask (``client``) or serially; ``log``
-    (a logging.Logger) gets one line per finished chunk."""
-    from straylight.survey.timegrid import time_blocks
-
-    c = campaign.config["campaign"]
-    tb = time_blocks(len(campaign.times), float(c["cadence_s"]), float(c.get("time_block_hours", 6)))
-    if not 0 <= block_index < len(tb):
-        raise IndexError(f"time block {block_index} outside 0..{len(tb) - 1}")
-    t_slice = slice(*tb[block_index])
-    from pathlib import Path
-
-    store = str(Path(store).resolve())  # workers (other hosts, other cwd) need an absolute path
-    stars_path = str(Path(stars_path).resolve()) if stars_path else None
-    p_blocks = [slice(a, b) for a, b in fp.blocks(int(campaign.config["footprint"].get("pixel_block_size", 1024)))]
-    t0 = _time.perf_counter()
-    # the satellite's and the bodies' positions once per time block, not once per pixel block
-    # (1.4 ms for 72 steps: astropy's time scales and the DE405 series; a default time block of
-    # two pixel blocks 97.1 -> 94.6 ms best)
-    from straylight.sky.observing import scene
-
-    sc = scene(campaign, campaign.times[t_slice])
-
-    def note(ps, seconds):
-        if log is not None:
-            log.info("chunk time %d:%d pixels %d:%d done in %.1f s", t_slice.start, t_slice.stop, ps.start, ps.stop, seconds)
-
-    if client is None:
-        for ps in p_blocks:
-            note(ps, write_region(campaign, fp, store, t_slice, ps, stars_path, sc))
-    else:
-        from distributed import as_completed
-
-        # the scene is small (~20 kB for 72 steps): sent with each task
-        futures = {client.submit(write_region, campaign, fp, store, t_slice, ps, stars_path, sc, pure=False): ps
-                   for ps in p_blocks}
-        for fut in as_completed(futures):
-            note(futures[fut], fut.result())
-    n = (t_slice.stop - t_slice.start) * fp.pixels.size
-    return BlockReport(block_index, len(p_blocks), n, _time.perf_counter() - t0)
-
-
 def _stored_faint_map(store) -> np.ndarray | None:
     """The store's faint_star_map, (pixel, band) e-/s/pix, or None when it has none."""
     with xr.open_zarr(store, consolidated=False) as skeleton:

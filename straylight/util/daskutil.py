@@ -1,5 +1,5 @@
-"""Worker processes: their environment (threads, malloc settings), a pool of spawned ones, and a
-Dask client, local or on an existing cluster (``compute.dask_scheduler``).  The cube's region pool built on them is
+"""Worker processes: their environment (threads, malloc settings) and a pool of spawned ones.
+The cube's region pool built on them (or on an existing Dask cluster, ``compute.dask_scheduler``) is
 :func:`straylight.survey.cube.region_pool`."""
 from __future__ import annotations
 
@@ -51,29 +51,3 @@ def spawned_pool(max_workers: int, initializer=None, initargs: tuple = ()):
             ProcessPoolExecutor(max_workers=int(max_workers), mp_context=get_context("spawn"),
                                 initializer=initializer, initargs=initargs) as pool:
         yield pool
-
-
-@contextmanager
-def dask_client(scheduler_address: str | None, threads: int, mem_mb: int | None = None):
-    """Yield a ``distributed.Client``: connected to ``scheduler_address`` when given, else to a
-    LocalCluster of ``threads`` single-threaded worker processes sharing ``mem_mb`` (with
-    :func:`worker_environment`)."""
-    from distributed import Client, LocalCluster
-
-    if scheduler_address:
-        client = Client(scheduler_address, timeout="30s")
-        try:
-            yield client
-        finally:
-            client.close()
-        return
-    import dask
-
-    n = max(1, int(threads))
-    mem = f"{int(mem_mb / n)}MiB" if mem_mb else "auto"
-    env = dict(dask.config.get("distributed.nanny.pre-spawn-environ", {}) or {})
-    env.update(worker_environment())
-    with dask.config.set({"distributed.nanny.pre-spawn-environ": env}), \
-            LocalCluster(n_workers=n, threads_per_worker=1, processes=True, memory_limit=mem,
-                         dashboard_address=None) as cluster, Client(cluster) as client:
-        yield client

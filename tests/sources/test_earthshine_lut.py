@@ -534,7 +534,7 @@ def test_cube_region_split_into_calls_gives_the_same_values(coarse, monkeypatch)
 
 
 def test_cube_region_with_its_time_blocks_scene_gives_the_same_values(coarse):
-    """A pixel block given its time block's scene (cube.run_time_block computes it once for
+    """A pixel block given its time block's scene (cube.run_time_blocks computes it once for
     all its pixel blocks) equals one that computes its own; a scene at other times is refused."""
     import straylight.survey.cube as cube
     from straylight.survey.footprint import footprint_from_config

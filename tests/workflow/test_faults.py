@@ -7,7 +7,7 @@ import pytest
 
 from conftest import tiny_config
 from straylight.config import load_campaign
-from straylight.survey.cube import init_store, run_time_block
+from straylight.survey.cube import init_store, run_time_blocks
 from straylight.errors import OutputError
 from straylight.survey.footprint import footprint_from_config
 from straylight.survey.provenance import sha256_path
@@ -22,8 +22,7 @@ def small(tmp_path_factory):
     fp = footprint_from_config(c.config["footprint"], c.path.parent)
     ref = tmp / "reference.zarr"
     init_store(c, fp, ref)
-    for b in (0, 1):
-        run_time_block(c, fp, ref, b)
+    run_time_blocks(c, fp, ref, [0, 1], tmp / "reference_done")
     return tmp, c, fp, sha256_path(ref)
 
 
@@ -36,9 +35,9 @@ def test_disk_full_during_a_zarr_write_then_rerun(small, tmp_path, monkeypatch, 
     import zarr.storage._local as local
 
     _, c, fp, ref_digest = small
-    store = tmp_path / "background.zarr"
+    store, done = tmp_path / "background.zarr", tmp_path / "done"
     init_store(c, fp, store)
-    run_time_block(c, fp, store, 0)
+    run_time_blocks(c, fp, store, [0], done)
     block0 = _files(store)
 
     real_put = local._put
@@ -56,13 +55,14 @@ def test_disk_full_during_a_zarr_write_then_rerun(small, tmp_path, monkeypatch, 
 
     monkeypatch.setattr(local, "_put", full_disk_put)
     with pytest.raises(OutputError) as err:
-        run_time_block(c, fp, store, 1)
+        run_time_blocks(c, fp, store, [0, 1], done)
     msg = str(err.value)
     assert str(store) in msg and "No space left on device" in msg and "re-run" in msg
     assert "times 3:6" in msg  # the failed block's region is named
     after = _files(store)
     # the finished block 0 is untouched: every file it wrote still has its bytes
     assert all(after.get(k) == v for k, v in block0.items() if "/c/0/" in k or k.endswith("zarr.json"))
+    assert not (done / "block_1.json").exists()  # the failed block is not marked done
     monkeypatch.setattr(local, "_put", real_put)  # space freed
-    run_time_block(c, fp, store, 1)
+    run_time_blocks(c, fp, store, [0, 1], done)  # block 0 skipped (its sentinel), block 1 redone
     assert sha256_path(store) == ref_digest
