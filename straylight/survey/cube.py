@@ -8,8 +8,8 @@ Layout of ``background.zarr`` (xarray Dataset):
   (time, pixel); coords time (UTC), pixel (HEALPix index), ra_deg/dec_deg, band, and
   ``mag_zero_point`` (band): AB mag/arcsec2 = mag_zero_point - 2.5 log10(e-/s/pixel);
 * attrs: HEALPix nside, ordering and frame, campaign, models, provenance pointers.
-* chunks: one time block (``campaign.time_block_hours``) x ``footprint.pixel_block_size`` pixels
-  x all bands.  A time-series read of one pointing then touches one chunk per time block, and a
+* chunks: one time block (``campaign.time_block_hours``) x about ``footprint.pixel_block_size``
+  pixels (equal blocks: :func:`~straylight.survey.footprint.pixel_block_length`) x all bands.  A time-series read of one pointing then touches one chunk per time block, and a
   whole-sky read at one time one chunk per pixel block (bench/storage.py times both).
 
 Work split: one Snakemake job computes many time blocks (:func:`run_time_blocks`: all of them,
@@ -37,7 +37,7 @@ import xarray as xr
 
 from straylight.config import Campaign
 from straylight.errors import OutputError
-from straylight.survey.footprint import Footprint
+from straylight.survey.footprint import Footprint, pixel_block_length
 from straylight.survey.limits import ZERO_POINT_NAME, zero_point_coord
 from straylight.sky.geometry import SceneRuns, TelescopeFrame, observing_geometry, radec_to_unit, telescope_frame, violation_mask_attrs
 
@@ -73,7 +73,7 @@ def cube_chunks(campaign: Campaign, n_times: int, n_pixels: int) -> dict:
     c = campaign.config["campaign"]
     tb = time_blocks(n_times, float(c["cadence_s"]), float(c.get("time_block_hours", 6)))
     t_chunk = tb[0][1] - tb[0][0]
-    p_chunk = min(int(campaign.config["footprint"].get("pixel_block_size", 1024)), n_pixels)
+    p_chunk = pixel_block_length(n_pixels, int(campaign.config["footprint"].get("pixel_block_size", 1024)))
     return {"time": t_chunk, "pixel": p_chunk, "band": len(campaign.bands)}
 
 

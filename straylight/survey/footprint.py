@@ -33,9 +33,21 @@ class Footprint:
         return float(self.pixels.size * hp.nside2pixarea(self.nside, degrees=True))
 
     def blocks(self, block_size: int) -> list[tuple[int, int]]:
-        """(start, stop) index ranges into ``pixels`` of at most ``block_size`` pixels."""
+        """(start, stop) index ranges into ``pixels`` of :func:`pixel_block_length` pixels each
+        (the last one shorter when they do not divide the footprint)."""
         n = self.pixels.size
-        return [(i, min(i + block_size, n)) for i in range(0, n, block_size)]
+        step = pixel_block_length(n, block_size)
+        return [(i, min(i + step, n)) for i in range(0, n, step)]
+
+
+def pixel_block_length(n_pixels: int, block_size: int) -> int:
+    """Pixels per block (and per Zarr chunk) of a footprint of ``n_pixels`` split in blocks of
+    about ``block_size`` (``footprint.pixel_block_size``): round(n_pixels / block_size) blocks,
+    at least one, of equal length.  So no block is a sliver (5286 pixels at 660 are 8 blocks of
+    661, not 8 of 660 and one of 6): a chunk costs nearly as much to encode and write however
+    few of its pixels are filled."""
+    n_blocks = max(1, round(int(n_pixels) / int(block_size)))
+    return max(1, -(-int(n_pixels) // n_blocks))
 
 
 def pixel_centres(nside: int, nest: bool, pixels=None) -> tuple[np.ndarray, np.ndarray]:

@@ -47,3 +47,19 @@ def test_bad_mask_file(tmp_path):
         footprint_from_config({"nside": 16, "mask_file": str(p)})
     with pytest.raises(InputError, match="does not exist"):
         footprint_from_config({"nside": 16, "mask_file": str(tmp_path / "none.fits")})
+
+
+def test_pixel_blocks_are_equal_and_never_a_sliver():
+    """round(n / size) blocks of equal length (survey.footprint.pixel_block_length): 5286 pixels
+    (nside 32's footprint) at 660 are 8 blocks of 661, not 8 of 660 and a chunk of 6 pixels that
+    costs nearly a whole chunk to encode; an exact multiple keeps the size asked."""
+    from straylight.survey.footprint import pixel_block_length
+
+    assert pixel_block_length(5286, 660) == 661
+    assert pixel_block_length(1320, 660) == 660
+    assert pixel_block_length(100, 660) == 100
+    for n, size in ((5286, 660), (21100, 1024), (86, 40), (7, 3)):
+        step = pixel_block_length(n, size)
+        lengths = np.diff(list(range(0, n, step)) + [n])
+        assert lengths.sum() == n and lengths.max() == step
+        assert lengths.min() >= step - len(lengths)  # the last block short by fewer pixels than there are blocks
