@@ -162,6 +162,11 @@ SUMMARY_VARIABLES = ("limiting_mag_best", "limiting_mag_median", "observable_fra
 #: decoded bytes of limits per task of :func:`store_limit_summaries` at most (a month at
 #: 5-minute cadence x 660 pixels x 7 bands, float32, is 160 MB: one cube pixel block a task)
 SUMMARY_TASK_BYTES = 256 * 2**20
+#: decoded bytes of limits that justify one more process for the summaries: a spawned process
+#: costs ~1.5 CPU s to start (importing straylight), and the summaries take ~2.5 CPU ns a
+#: decoded byte (decoding and the medians: 0.35 s for 8640 times x 660 pixels x 7 bands), so a
+#: month at nside 32 (1.3 GB: 3.3 CPU s) is summarised in the job's own process
+SUMMARY_BYTES_PER_PROCESS = 2 * 2**30
 
 
 def _store_summary_task(store: str, pixels: slice) -> tuple:
@@ -177,8 +182,9 @@ def _store_summary_task(store: str, pixels: slice) -> tuple:
 def store_limit_summaries(store, workers: int = 1) -> dict:
     """The per-pixel summaries (SUMMARY_VARIABLES -> array) of the limits in ``store`` (a limits
     store the cube's workers filled: ``limiting_mag`` and ``observable``), streamed over its
-    pixel blocks (each split so a task decodes at most SUMMARY_TASK_BYTES) on ``workers``
-    spawned processes (in this one when 1)."""
+    pixel blocks (each split so a task decodes at most SUMMARY_TASK_BYTES) in this process and,
+    for every SUMMARY_BYTES_PER_PROCESS of limits beyond the first, one more spawned process,
+    ``workers`` processes at most."""
     import zarr
 
     from straylight.util.daskutil import spawned_pool
@@ -201,13 +207,19 @@ def store_limit_summaries(store, workers: int = 1) -> dict:
         out["limiting_mag_best"][pixels], out["limiting_mag_median"][pixels] = best, median
         out["observable_fraction"][pixels] = frac
 
-    if int(workers) <= 1 or len(tasks) == 1:
+    processes = max(1, min(int(workers), len(tasks), -(-n_pix * per_pixel // SUMMARY_BYTES_PER_PROCESS)))
+    if processes == 1:
         for pixels in tasks:
             keep(_store_summary_task(store, pixels))
-    else:
-        with spawned_pool(min(int(workers), len(tasks))) as pool:
-            for result in pool.map(_store_summary_task, [store] * len(tasks), tasks):
-                keep(result)
+        return out
+    # this process takes its share from the front while the spawned ones start
+    own = len(tasks) // processes
+    with spawned_pool(processes - 1) as pool:
+        futures = [pool.submit(_store_summary_task, store, pixels) for pixels in tasks[own:]]
+        for pixels in tasks[:own]:
+            keep(_store_summary_task(store, pixels))
+        for fut in futures:
+            keep(fut.result())
     return out
 
 

@@ -176,6 +176,29 @@ def test_fused_limits_equal_limits_dataset_within_the_propagated_bound(cube_run,
         assert stored["observable_fraction"].encoding["chunks"] == (40,)
 
 
+def test_limit_summaries_on_processes_equal_the_published_ones(cube_run, monkeypatch):
+    """store_limit_summaries split among spawned processes (one more per
+    SUMMARY_BYTES_PER_PROCESS, here lowered so the tiny store takes two) and in one process
+    gives the published summaries' bits (limits.zarr decoded: the summaries are stored
+    bit-rounded, so compared after the same rounding)."""
+    from numcodecs import BitRound
+
+    from straylight.survey import limits as lm
+
+    _, _, out = cube_run
+    work = out / "background_blocks" / "limits.zarr"
+    one = lm.store_limit_summaries(work, workers=1)
+    monkeypatch.setattr(lm, "SUMMARY_BYTES_PER_PROCESS", 1024)
+    two = lm.store_limit_summaries(work, workers=2)
+    with xr.open_zarr(out / "limits.zarr") as published:
+        for name in lm.SUMMARY_VARIABLES:
+            np.testing.assert_array_equal(two[name], one[name], err_msg=name)
+            keepbits = int(published[name].attrs["compression"].split("keepbits=")[1].split(")")[0])
+            rounded = BitRound(keepbits=keepbits).decode(BitRound(keepbits=keepbits).encode(one[name]))
+            np.testing.assert_array_equal(np.asarray(rounded).reshape(one[name].shape), published[name].values,
+                                          err_msg=name)
+
+
 def test_provenance_records_checksums(cube_run):
     _, _, out = cube_run
     prov = json.loads((out / "provenance.json").read_text())
