@@ -22,7 +22,8 @@ def main(snakemake):
     done_dir = Path(snakemake.output[0]).parent
     reports = run_time_blocks(c, fp, snakemake.params.store, blocks, done_dir, workers=snakemake.threads,
                               scheduler_address=(c.config.get("compute") or {}).get("dask_scheduler"), log=log,
-                              stars_path=snakemake.input.stars, obs_store=snakemake.params.obs_store)
+                              stars_path=snakemake.input.stars, obs_store=snakemake.params.obs_store,
+                              lim_store=snakemake.params.lim_store)
     write_json_atomic({"blocks": [r.__dict__ for r in reports]}, snakemake.output[0])
     n = sum(r.samples for r in reports)
     log.info("time blocks %d-%d: %d samples", blocks[0], blocks[-1], n)

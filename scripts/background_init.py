@@ -1,7 +1,8 @@
-"""Snakemake adapter: rule `background_init` -> background.zarr skeleton, the observability
-store's skeleton (filled by the cube's workers) + init.json.
+"""Snakemake adapter: rule `background_init` -> background.zarr skeleton, the observability and
+limits stores' skeletons (filled by the cube's workers) + init.json.
 
-A fresh store has no time block done: the blocks' sentinels beside init.json are removed first.
+A fresh store has no time block done: the blocks' sentinels beside init.json are removed first,
+and the three stores are laid down afresh (no chunk of an earlier run is kept).
 The body is guarded by __main__: the faint-star map's worker processes are spawned and
 re-import the main module, which must then not run the job again."""
 import sys
@@ -26,7 +27,8 @@ def main(snakemake):
         log.info("removed %d time-block sentinels of an earlier store", cleared)
     with xr.open_zarr(snakemake.input.ephemeris) as ephem:
         init_observability_store(c, fp, ephem.load(), snakemake.params.obs_store)
-    init_store(c, fp, snakemake.params.store, snakemake.input.stars, build_workers=snakemake.threads)
+    init_store(c, fp, snakemake.params.store, snakemake.input.stars, build_workers=snakemake.threads,
+               limits_store=snakemake.params.lim_store)
     chunks = cube_chunks(c, len(c.times), fp.pixels.size)
     write_json_atomic({"store": snakemake.params.store, "times": len(c.times), "pixels": int(fp.pixels.size),
                        "bands": c.bands, "chunks": chunks}, snakemake.output[0])

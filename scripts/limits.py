@@ -1,31 +1,43 @@
-"""Snakemake adapter: rule `limits` -> limits.zarr and maps/*.fits (streamed over the cube's chunks)."""
+"""Snakemake adapter: rule `limits` -> limits.zarr and maps/*.fits.
+
+The cube's workers wrote every sample's limit to the limits work store; this step computes the
+per-pixel summaries from it (streamed over pixel blocks on the job's processes), publishes the
+store with them as limits.zarr, and writes the maps.  The body is guarded by __main__: the
+pool's worker processes are spawned and re-import the main module, which must then not run the
+job again."""
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821 - injected by Snakemake
-from _common import campaign, setup_logging  # noqa: E402
 
-import numpy as np  # noqa: E402
-import xarray as xr  # noqa: E402
+def main(snakemake):
+    sys.path.insert(0, str(Path(snakemake.scriptdir)))
+    from _common import setup_logging
 
-from straylight.survey.storage import write_zarr_atomic  # noqa: E402
-from straylight.util.io import atomic_path  # noqa: E402
-from straylight.survey.limits import limits_dataset, write_limit_maps  # noqa: E402
+    import numpy as np
+    import xarray as xr
 
-log = setup_logging(snakemake)  # noqa: F821
-c = campaign(snakemake)  # noqa: F821
-with xr.open_zarr(snakemake.params.store, consolidated=True) as bg:  # noqa: F821
-    write_zarr_atomic(limits_dataset(c, bg), snakemake.output.limits, storage=c.config["storage"])  # noqa: F821
-# the maps and the log from the per-pixel summaries just written (small: pixel x band)
-with xr.open_zarr(snakemake.output.limits, consolidated=True) as written:  # noqa: F821
-    ds = written.drop_vars(["limiting_mag", "observable"]).load()
-with atomic_path(snakemake.output.maps) as tmp:  # noqa: F821
-    maps = write_limit_maps(ds, tmp)
-for b in ds["band"].values:
-    best = ds["limiting_mag_best"].sel(band=b).values
-    seen = best[np.isfinite(best)]  # NaN: never observable
-    if seen.size:
-        log.info("band %-4s: deepest limit %.2f, median of pixel bests %.2f mag (AB)", b, seen.max(), np.median(seen))
-    else:
-        log.info("band %-4s: no observable pixel", b)
-log.info("wrote %d HEALPix maps", len(maps))
+    from straylight.survey.cube import LIMITS_REGION_VARIABLES, publish_limits
+    from straylight.survey.limits import store_limit_summaries, write_limit_maps
+    from straylight.util.io import atomic_path
+
+    log = setup_logging(snakemake)
+    summaries = store_limit_summaries(snakemake.params.lim_store, workers=snakemake.threads)
+    publish_limits(snakemake.params.lim_store, snakemake.output.limits, summaries)
+    # the maps and the log from the per-pixel summaries just written (small: pixel x band)
+    with xr.open_zarr(snakemake.output.limits, consolidated=True) as written:
+        ds = written.drop_vars(list(LIMITS_REGION_VARIABLES)).load()
+    with atomic_path(snakemake.output.maps) as tmp:
+        maps = write_limit_maps(ds, tmp)
+    for b in ds["band"].values:
+        best = ds["limiting_mag_best"].sel(band=b).values
+        seen = best[np.isfinite(best)]  # NaN: never observable
+        if seen.size:
+            log.info("band %-4s: deepest limit %.2f, median of pixel bests %.2f mag (AB)", b, seen.max(),
+                     np.median(seen))
+        else:
+            log.info("band %-4s: no observable pixel", b)
+    log.info("wrote %d HEALPix maps", len(maps))
+
+
+if __name__ == "__main__":
+    main(snakemake)  # noqa: F821 - injected by Snakemake

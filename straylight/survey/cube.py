@@ -19,7 +19,10 @@ worker builds the model (PST, door tables, stars, earthshine tables) once and re
 store exactly once, through the store's arrays opened once per worker.  The region's geometry
 (observable, violations, the Sun, Moon and limb angles, the door) is observability.zarr's, so
 the worker writes that region of the observability store too (:func:`init_observability_store`,
-:func:`publish_observability`) instead of a later step computing the geometry again.  A time block is marked done by its own sentinel file only after all its
+:func:`publish_observability`) instead of a later step computing the geometry again, and the
+region's 5-sigma limits, from the total it has just computed, to the limits store
+(:func:`init_limits_store`, :func:`publish_limits`) instead of a later step reading the total
+back.  A time block is marked done by its own sentinel file only after all its
 regions are written, so a killed job redoes only the unfinished time blocks and, the computation
 being deterministic, gives identical bytes.
 """
@@ -49,6 +52,8 @@ OBSERVABILITY_ANGLES = ("sun_angle_deg", "moon_angle_deg", "earth_limb_angle_deg
 OBSERVABILITY_VARIABLES = ("observable", "violations") + OBSERVABILITY_ANGLES + ("door_opening_deg",)
 #: the cube's (time, pixel, band) variables, e-/s/pix: the components and their total
 CUBE_BAND_VARIABLES = CUBE_COMPONENTS + ("total",)
+#: limits.zarr's variables the cube's workers write, region by region (:func:`region_limits`)
+LIMITS_REGION_VARIABLES = ("limiting_mag", "observable")
 #: samples per evaluation on the table path (whole time steps of a pixel block): large enough
 #: that numpy's per-call cost is paid rarely: a default production region (72 steps x 660
 #: pixels) in one call, 53-54 ms against 57-66 ms in three calls of 16,384 (three interleaved
@@ -175,16 +180,20 @@ def faint_star_map(campaign: Campaign, fp: Footprint, stars_path, workers: int =
     return var if before is None else (var, other)
 
 
-def init_store(campaign: Campaign, fp: Footprint, store, stars_path=None, build_workers: int = 1) -> None:
+def init_store(campaign: Campaign, fp: Footprint, store, stars_path=None, build_workers: int = 1,
+               limits_store=None) -> None:
     """Write the skeleton (metadata and coordinates, no data chunks) to ``store``, and the
     faint-star map (computed here once for the whole campaign, on ``build_workers``
     processes); an earthshine table the campaign needs is built here too, before the time
-    blocks start (``build_workers`` processes)."""
+    blocks start (``build_workers`` processes).  ``limits_store``: where the limits' skeleton
+    goes too (:func:`init_limits_store`; None: not laid down)."""
     from straylight.survey.storage import write_skeleton
 
     # the faint map's other processes start first and sum while this one lays down the skeleton
     faint, ds = faint_star_map(campaign, fp, stars_path, build_workers,
                                before=lambda: empty_cube(campaign, fp, campaign.times, stars_path, build_workers))
+    if limits_store is not None:
+        init_limits_store(campaign, ds, limits_store)
     if faint is not None:
         ds["faint_star_map"] = faint
     # the products' codecs (bit-rounded floats); the faint map exactly, the time blocks read it
@@ -553,12 +562,34 @@ def init_observability_store(campaign: Campaign, fp: Footprint, ephem: xr.Datase
     write_skeleton(observability_dataset(campaign, ephem, fp, chunks=chunks), store, campaign.config["storage"], chunks)
 
 
-def publish_observability(work_store, product) -> None:
-    """The observability store the cube's workers filled (``work_store``), its metadata
-    consolidated, appears at ``product`` complete or not at all (hard links where the file
-    system allows, else copies: the working store stays for a re-run of this step; zarr
-    replaces a chunk file by renaming a new one into place, so a later write to the working
-    store leaves the product's files as they are)."""
+def init_limits_store(campaign: Campaign, cube, store) -> None:
+    """Lay down limits.zarr's skeleton at ``store`` (metadata, coordinates, the products' codecs;
+    no data chunks) from the cube's skeleton ``cube`` (:func:`empty_cube`): the variables,
+    attributes and chunks of :func:`straylight.survey.limits.limits_dataset` on the cube.  The
+    cube's workers write each region's ``limiting_mag`` and ``observable`` (:func:`write_region`);
+    the limits rule adds the per-pixel summaries in :func:`publish_limits`."""
+    from straylight.survey.limits import limits_dataset
+    from straylight.survey.storage import write_skeleton
+
+    write_skeleton(limits_dataset(campaign, cube), store, campaign.config["storage"],
+                   cube_chunks(campaign, cube.sizes["time"], cube.sizes["pixel"]))
+
+
+def region_limits(campaign: Campaign, region: xr.Dataset) -> dict:
+    """A computed region's limits.zarr variables (name -> (time, pixel[, band]) array): the
+    5-sigma limits of its computed ``total`` (:func:`straylight.survey.limits.band_limits`),
+    and its ``observable``."""
+    from straylight.survey.limits import band_limits, campaign_exposures
+
+    return {"limiting_mag": band_limits(region["total"].values, campaign_exposures(campaign)),
+            "observable": region["observable"].values}
+
+
+def _publish_work_store(work_store, product, summaries: dict | None = None) -> None:
+    """``work_store``'s metadata consolidated, its files hard-linked (copied where links fail)
+    into a new store that appears at ``product`` complete or not at all, ``summaries`` (name ->
+    the whole array of a variable the work store lays down but has no chunk of) written there
+    only: the work store stays as it was, for a re-run of the publishing step."""
     import os
     import shutil
 
@@ -576,11 +607,32 @@ def publish_observability(work_store, product) -> None:
 
     with atomic_path(product) as tmp:
         shutil.copytree(work_store, tmp, copy_function=link)
+        if summaries:
+            group = zarr.open_group(str(tmp), mode="r+", use_consolidated=False)
+            for name, values in summaries.items():
+                group[name][...] = values  # new chunk files only: no linked file is written
+
+
+def publish_limits(work_store, product, summaries: dict) -> None:
+    """The limits store the cube's workers filled (``work_store``: :func:`init_limits_store`)
+    with the per-pixel ``summaries`` (name -> array,
+    :func:`straylight.survey.limits.store_limit_summaries`) added, at ``product`` complete or
+    not at all; the work store's files are hard-linked as in :func:`publish_observability`."""
+    _publish_work_store(work_store, product, summaries)
+
+
+def publish_observability(work_store, product) -> None:
+    """The observability store the cube's workers filled (``work_store``), its metadata
+    consolidated, appears at ``product`` complete or not at all (hard links where the file
+    system allows, else copies: the working store stays for a re-run of this step; zarr
+    replaces a chunk file by renaming a new one into place, so a later write to the working
+    store leaves the product's files as they are)."""
+    _publish_work_store(work_store, product)
 
 
 def write_region(campaign: Campaign, fp: Footprint, store, t_slice: slice, p_slice: slice,
                  stars_path=None, scene=None, faint_map=None, arrays=None, obs_store=None,
-                 obs_arrays=None) -> float:
+                 obs_arrays=None, lim_store=None, lim_arrays=None) -> float:
     """Compute one (time block, pixel block) region and write it to its Zarr region; seconds.
     ``scene``: the time block's positions, shared by its pixel blocks (None: computed here);
     ``faint_map``: the store's faint-star map at these pixels, (pixel, band) e-/s/pix, when the
@@ -588,7 +640,9 @@ def write_region(campaign: Campaign, fp: Footprint, store, t_slice: slice, p_sli
     ``arrays``: the store's arrays (:func:`store_arrays`) when the caller keeps them open (None:
     written through xarray); ``obs_store``: the observability store the region's observability
     goes to as well (:func:`init_observability_store`; None: not written), ``obs_arrays`` its
-    arrays kept open."""
+    arrays kept open; ``lim_store``: the limits store the region's limits, computed from its
+    computed total (:func:`region_limits`), go to (:func:`init_limits_store`; None: not
+    computed), ``lim_arrays`` its arrays kept open."""
     t0 = _time.perf_counter()
     faint = faint_map
     if faint is None and stars_path is not None:
@@ -597,6 +651,7 @@ def write_region(campaign: Campaign, fp: Footprint, store, t_slice: slice, p_sli
     angles = None if obs_store is None else {}
     ds = compute_region(campaign, fp, t_slice, p_slice, stars_path=stars_path, faint_map=faint, scene=scene,
                         angles=angles)
+    lim = None if lim_store is None else region_limits(campaign, ds)
     try:
         if arrays is None:
             ds.to_zarr(store, region={"time": t_slice, "pixel": p_slice, "band": slice(None)}, mode="r+",
@@ -612,6 +667,14 @@ def write_region(campaign: Campaign, fp: Footprint, store, t_slice: slice, p_sli
             else:
                 for name, values in obs.items():
                     obs_arrays[name][t_slice, p_slice] = values
+        if lim is not None:
+            if lim_arrays is None:
+                xr.Dataset({k: (("time", "pixel", "band")[:v.ndim], v) for k, v in lim.items()}).to_zarr(
+                    lim_store, region={"time": t_slice, "pixel": p_slice, "band": slice(None)}, mode="r+",
+                    consolidated=False)
+            else:
+                for name, values in lim.items():
+                    lim_arrays[name][t_slice, p_slice] = values
     except OSError as exc:  # ENOSPC, EDQUOT, EACCES...: the block's sentinel is not written
         raise OutputError(f"{store}: writing times {t_slice.start}:{t_slice.stop} x pixels {p_slice.start}:"
                           f"{p_slice.stop} failed ({exc.strerror or exc}); finished time blocks are kept, "
@@ -652,11 +715,12 @@ def clear_block_sentinels(done_dir) -> int:
 _WORKER: dict = {}
 
 
-def _pool_init(campaign: Campaign, fp: Footprint, store: str, stars_path, obs_store=None) -> None:
+def _pool_init(campaign: Campaign, fp: Footprint, store: str, stars_path, obs_store=None, lim_store=None) -> None:
     """Pool worker start-up: keep the job's inputs and build the model now, once per process
     (every region this process computes reuses it)."""
     _WORKER.clear()
-    _WORKER.update(campaign=campaign, fp=fp, store=store, stars_path=stars_path, obs_store=obs_store)
+    _WORKER.update(campaign=campaign, fp=fp, store=store, stars_path=stars_path, obs_store=obs_store,
+                   lim_store=lim_store)
     background_model_for(campaign, fp)
     _offfield_stars(campaign, stars_path)
 
@@ -668,15 +732,16 @@ def _pool_region(t_slice: slice, p_slice: slice, scene, faint_map) -> float:
     if "arrays" not in w:
         w["arrays"] = store_arrays(w["store"])
         w["obs_arrays"] = None if w["obs_store"] is None else store_arrays(w["obs_store"], OBSERVABILITY_VARIABLES)
+        w["lim_arrays"] = None if w["lim_store"] is None else store_arrays(w["lim_store"], LIMITS_REGION_VARIABLES)
     return write_region(w["campaign"], w["fp"], w["store"], t_slice, p_slice, w["stars_path"], scene, faint_map,
-                        w["arrays"], w["obs_store"], w["obs_arrays"])
+                        w["arrays"], w["obs_store"], w["obs_arrays"], w["lim_store"], w["lim_arrays"])
 
 
 class _InProcess:
     """An executor running each region at once in this process (one worker, no pool)."""
 
-    def __init__(self, campaign, fp, store, stars_path, obs_store=None):
-        _pool_init(campaign, fp, store, stars_path, obs_store)
+    def __init__(self, campaign, fp, store, stars_path, obs_store=None, lim_store=None):
+        _pool_init(campaign, fp, store, stars_path, obs_store, lim_store)
 
     def submit_region(self, t_slice: slice, p_slice: slice, scene, faint_map):
         from concurrent.futures import Future
@@ -691,11 +756,11 @@ class _InProcess:
 
 @contextmanager
 def region_pool(campaign, fp, store: str, stars_path, workers: int, scheduler_address: str | None = None,
-                obs_store: str | None = None):
+                obs_store: str | None = None, lim_store: str | None = None):
     """Yield ``(submit, wait)`` for the cube's regions: ``submit(t_slice, p_slice, scene,
     faint_map)`` returns a future of the region's seconds (:func:`write_region`),
-    ``wait`` is the matching ``wait(futures, return_when=...)``; ``obs_store``: where each
-    region's observability goes too (None: not written).
+    ``wait`` is the matching ``wait(futures, return_when=...)``; ``obs_store``, ``lim_store``:
+    where each region's observability and limits go too (None: not written).
 
     * ``scheduler_address``: the regions run on that Dask cluster (campaign and footprint sent
       to every worker once); its workers keep the model between regions, time blocks and jobs.
@@ -716,14 +781,14 @@ def region_pool(campaign, fp, store: str, stars_path, workers: int, scheduler_ad
 
             def submit(t_slice, p_slice, scene, faint_map):
                 return client.submit(write_region, c_fut, fp_fut, store, t_slice, p_slice, stars_path, scene,
-                                     faint_map, None, obs_store, pure=False)
+                                     faint_map, None, obs_store, None, lim_store, pure=False)
 
             yield submit, wait_dask
         return
     if int(workers) <= 1:
-        yield _InProcess(campaign, fp, store, stars_path, obs_store).submit_region, wait_local
+        yield _InProcess(campaign, fp, store, stars_path, obs_store, lim_store).submit_region, wait_local
         return
-    with spawned_pool(workers, _pool_init, (campaign, fp, store, stars_path, obs_store)) as pool:
+    with spawned_pool(workers, _pool_init, (campaign, fp, store, stars_path, obs_store, lim_store)) as pool:
         def submit(t_slice, p_slice, scene, faint_map):
             return pool.submit(_pool_region, t_slice, p_slice, scene, faint_map)
 
@@ -736,7 +801,7 @@ def region_pool(campaign, fp, store: str, stars_path, workers: int, scheduler_ad
 
 def run_time_blocks(campaign: Campaign, fp: Footprint, store, blocks, done_dir, workers: int = 1,
                     scheduler_address: str | None = None, log=None, stars_path=None,
-                    obs_store=None) -> list[BlockReport]:
+                    obs_store=None, lim_store=None) -> list[BlockReport]:
     """Compute the time blocks ``blocks`` (indices) of the cube into ``store``, each marked done
     by its sentinel in ``done_dir`` (:func:`block_sentinel`) once all its pixel blocks are
     written; blocks already marked done are skipped (resume).  Regions run on ``workers``
@@ -744,8 +809,8 @@ def run_time_blocks(campaign: Campaign, fp: Footprint, store, blocks, done_dir, 
     the model once), in this process when ``workers`` is 1, or on the Dask cluster at
     ``scheduler_address`` when given (its workers keep the model between tasks and jobs).
     ``log`` (a logging.Logger) gets one line per finished region.  ``obs_store``: each region's
-    observability is written there too (:func:`init_observability_store`), before its time
-    block's sentinel.  Returns every requested
+    observability is written there too (:func:`init_observability_store`), and to ``lim_store``
+    its limits (:func:`init_limits_store`), before its time block's sentinel.  Returns every requested
     block's report (a skipped one's from its sentinel)."""
     from concurrent.futures import FIRST_COMPLETED
 
@@ -762,6 +827,7 @@ def run_time_blocks(campaign: Campaign, fp: Footprint, store, blocks, done_dir, 
     store = str(Path(store).resolve())  # workers (other hosts, other cwd) need an absolute path
     stars_path = str(Path(stars_path).resolve()) if stars_path else None
     obs_store = str(Path(obs_store).resolve()) if obs_store else None
+    lim_store = str(Path(lim_store).resolve()) if lim_store else None
     todo = [b for b in blocks if not block_sentinel(done_dir, b).exists()]
     if log is not None and len(todo) < len(blocks):
         log.info("%d of %d time blocks already done (sentinels in %s): skipped", len(blocks) - len(todo),
@@ -769,7 +835,8 @@ def run_time_blocks(campaign: Campaign, fp: Footprint, store, blocks, done_dir, 
     p_blocks = [slice(a, b) for a, b in fp.blocks(int(campaign.config["footprint"].get("pixel_block_size", 1024)))]
     faint = _stored_faint_map(store) if (stars_path is not None and todo) else None
     if todo:
-        with region_pool(campaign, fp, store, stars_path, workers, scheduler_address, obs_store) as (submit, wait):
+        with region_pool(campaign, fp, store, stars_path, workers, scheduler_address, obs_store,
+                         lim_store) as (submit, wait):
             # a bounded window of regions in flight: the next time block's scene is computed
             # while the workers are busy, and memory does not grow with the campaign
             window = 2 * max(1, int(workers)) + 1

@@ -10,10 +10,13 @@ Booleans and integers (``observable``, ``violations``) are zstd-compressed lossl
 Coordinates keep xarray's default (lossless) encoding, and ephemeris.zarr is stored losslessly:
 observability.zarr is computed from its positions.
 
-A bound holds against the values the writing step computed.  limits.zarr is computed from the
-stored background, so against a run stored losslessly its magnitudes differ by up to its own
-bound plus the background's propagated: the limit's signal grows at most as the square root of
-the background, so a relative error e of the total moves the limit by at most
+A bound holds against the values the writing step computed.  limits.zarr's ``limiting_mag`` is
+computed by the cube's workers from the total they computed, before it is bit-rounded, so it is
+within its own bound of the limit of the computed total; its per-pixel summaries are computed
+from the stored ``limiting_mag``.  A limit computed from the stored background instead
+(``straylight.survey.limits.limits_dataset`` on a re-read background.zarr) carries the
+background's propagated bound too: the limit's signal grows at most as the square root of the
+background, so a relative error e of the total moves the limit by at most
 2.5 / ln 10 * e / 2 mag (2.7e-4 mag at 10 bits; 1.8e-5 of a 15-mag limit).
 
 The codec and the bound are recorded in each variable's attributes (``compression``,

@@ -138,6 +138,66 @@ def test_limits_and_maps(cube_run):
     assert np.all((frac[frac != hp.UNSEEN] >= 0) & (frac[frac != hp.UNSEEN] <= 1))
 
 
+def test_fused_limits_equal_limits_dataset_within_the_propagated_bound(cube_run, tmp_path):
+    """The cube's workers compute limits.zarr's limiting_mag from the total they computed, before
+    it is bit-rounded (straylight/survey/storage.py); limits_dataset on the stored background
+    differs from it by at most: the stored total's relative error e (its max_relative_error,
+    2^-11 at 10 kept bits) propagated to the limit, 2.5 / ln 10 * e / 2 mag (the limit's signal
+    grows at most as the square root of the background: 2.65e-4 mag), plus the stored limit's own
+    rounding (its max_relative_error of the magnitude, 2^-17 at 16 bits: 2.0e-4 of a 26-mag
+    limit) and float32's (< 4e-6 mag).  The per-pixel summaries are limits_dataset's of the stored
+    limiting_mag, through the same codecs: identical, values and attributes."""
+    from straylight.config import load_campaign
+    from straylight.survey.limits import limits_dataset
+    from straylight.survey.storage import write_zarr_atomic
+
+    _, cfg, out = cube_run
+    c = load_campaign(cfg)
+    with xr.open_zarr(out / "background.zarr") as bg, xr.open_zarr(out / "limits.zarr") as got:
+        background = bg.drop_vars("faint_star_map").load()
+        got = got.load()
+    ref = limits_dataset(c, background)
+    e_total = background["total"].attrs["max_relative_error"]
+    e_mag = got["limiting_mag"].attrs["max_relative_error"]
+    assert e_total == 2.0**-11 and e_mag == 2.0**-17
+    diff = np.abs(got["limiting_mag"].values.astype(float) - ref["limiting_mag"].values)
+    bound = 2.5 / np.log(10) * e_total / 2 + e_mag * np.abs(ref["limiting_mag"].values) + 4e-6
+    assert np.all(np.isfinite(diff)) and np.all(diff <= bound), float((diff - bound).max())
+    assert diff.max() > 0  # computed from different totals: not the same bits everywhere
+    write_zarr_atomic(limits_dataset(c, background, limiting_mag=got["limiting_mag"]), tmp_path / "ref.zarr",
+                      storage=c.config["storage"])
+    with xr.open_zarr(tmp_path / "ref.zarr") as want, xr.open_zarr(out / "limits.zarr") as stored:
+        xr.testing.assert_identical(stored.load(), want.load())
+        # chunked as the cube (time block x pixel block), the summaries SUMMARY_PIXELS_PER_TASK pixels
+        assert stored["limiting_mag"].encoding["chunks"] == (3, 40, 7)
+        assert stored["observable"].encoding["chunks"] == (3, 40)
+        assert stored["limiting_mag_best"].encoding["chunks"] == (86, 7)
+        assert stored["observable_fraction"].encoding["chunks"] == (40,)
+
+
+def test_limit_summaries_on_processes_equal_the_published_ones(cube_run, monkeypatch):
+    """store_limit_summaries split among spawned processes (one more per
+    SUMMARY_BYTES_PER_PROCESS, here lowered so the tiny store takes two) and in one process
+    gives the published summaries' bits (limits.zarr decoded: the summaries are stored
+    bit-rounded, so compared after the same rounding)."""
+    from numcodecs import BitRound
+
+    from straylight.survey import limits as lm
+
+    _, _, out = cube_run
+    work = out / "background_blocks" / "limits.zarr"
+    one = lm.store_limit_summaries(work, workers=1)
+    monkeypatch.setattr(lm, "SUMMARY_BYTES_PER_PROCESS", 1024)
+    two = lm.store_limit_summaries(work, workers=2)
+    with xr.open_zarr(out / "limits.zarr") as published:
+        for name in lm.SUMMARY_VARIABLES:
+            np.testing.assert_array_equal(two[name], one[name], err_msg=name)
+            keepbits = int(published[name].attrs["compression"].split("keepbits=")[1].split(")")[0])
+            rounded = BitRound(keepbits=keepbits).decode(BitRound(keepbits=keepbits).encode(one[name]))
+            np.testing.assert_array_equal(np.asarray(rounded).reshape(one[name].shape), published[name].values,
+                                          err_msg=name)
+
+
 def test_provenance_records_checksums(cube_run):
     _, _, out = cube_run
     prov = json.loads((out / "provenance.json").read_text())
@@ -156,6 +216,8 @@ def test_rerun_recomputes_only_what_is_missing(cube_run):
     from straylight.survey.provenance import sha256_path
 
     digest = sha256_path(before)
+    limits_work = out / "background_blocks" / "limits.zarr"
+    limits_digests = (sha256_path(limits_work), sha256_path(out / "limits.zarr"))
     # as after a crash inside time block 1: its sentinel, the cube job's record and everything
     # downstream are missing
     blocks = out / "background_blocks"
@@ -181,6 +243,8 @@ def test_rerun_recomputes_only_what_is_missing(cube_run):
     log = (out / "logs" / "background_blocks_0.log").read_text()
     assert f"{len(finished)} of {len(finished) + 1} time blocks already done" in log
     assert sha256_path(out / "background.zarr") == digest  # recomputed block is bit-identical
+    # and so are its limits (written before the block's sentinel) and the published limits.zarr
+    assert (sha256_path(limits_work), sha256_path(out / "limits.zarr")) == limits_digests
 
 
 def _free_port():

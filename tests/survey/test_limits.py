@@ -250,3 +250,36 @@ def test_limits_stream_over_chunks_with_the_eager_values(tmp_path):
         np.testing.assert_array_equal(back[name].values, eager[name].values, err_msg=name)
         assert back[name].dtype == eager[name].dtype
     assert np.isnan(back["limiting_mag_best"].values[:5]).all()
+
+
+@pytest.mark.parametrize("n_times", [40, 700])
+def test_limit_summaries_equal_nanmax_and_nanmedian_over_observable_times(n_times):
+    """limit_summaries (pixel by pixel over the observable times, np.median's partition) gives
+    the bits of numpy's own NaN-ignoring reductions over the times with the unobservable ones
+    masked as NaN: np.nanmax, and np.nanmedian (below 600 times through masked arrays, from 600
+    on row by row), odd and even counts, a NaN limit at an observable time ignored, NaN where a
+    pixel is never observable (or a band has no finite limit)."""
+    import warnings
+
+    from straylight.survey.limits import limit_summaries
+
+    rng = np.random.default_rng(7)
+    n_pix, n_band = 50, 3
+    lim = rng.normal(25.0, 0.5, (n_times, n_pix, n_band)).astype(np.float32)
+    observable = rng.random((n_times, n_pix)) < 0.4
+    observable[:, 0] = False  # never observable
+    observable[:, 1] = False
+    observable[:2, 1] = True  # an even count: the mean of the two middle values
+    observable[:, 2] = False
+    observable[:3, 2] = True  # odd
+    lim[rng.random(lim.shape) < 0.05] = np.nan  # NaN limits, some at observable times
+    lim[:, 3, 1] = np.nan  # a band with no finite limit at an observable pixel
+    best, median = limit_summaries(lim, observable)
+    masked = np.where(observable[:, :, None], lim, np.nan)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        want_best, want_median = np.nanmax(masked, axis=0), np.nanmedian(np.moveaxis(masked, 0, -1), axis=-1)
+    assert best.dtype == median.dtype == np.float32
+    np.testing.assert_array_equal(best, want_best.astype(np.float32))
+    np.testing.assert_array_equal(median, want_median.astype(np.float32))
+    assert np.isnan(best[0]).all() and np.isnan(median[3, 1]) and np.isfinite(median[3, 0])

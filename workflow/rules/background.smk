@@ -1,5 +1,5 @@
 rule background_init:
-    """Lay down background.zarr and the observability store the cube's workers fill:
+    """Lay down background.zarr and the observability and limits stores the cube's workers fill:
     coordinates, attributes and chunk layout, no data."""
     input:
         config=CONFIG_PATH,
@@ -11,6 +11,7 @@ rule background_init:
     params:
         store=f"{RESULTS}/background.zarr",
         obs_store=OBSERVABILITY_WORK_STORE,
+        lim_store=LIMITS_WORK_STORE,
     # processes for the earthshine table's build, when the campaign needs one that is not cached
     # (lowered to --cores by Snakemake; the SLURM profile can raise it)
     threads: 2
@@ -24,8 +25,9 @@ rule background_init:
 
 rule background_blocks:
     """A group of time blocks of the cube (all of them by default): a pool of worker processes,
-    started once, computes their pixel blocks, each written to its region of background.zarr and
-    of the observability store (the same geometry); a time block's sentinel
+    started once, computes their pixel blocks, each written to its region of background.zarr, of
+    the observability store (the same geometry) and of the limits store (the limits of the
+    computed total); a time block's sentinel
     (background_blocks/block_<i>.json) marks it done, so a re-run redoes only unfinished ones."""
     input:
         f"{RESULTS}/background_blocks/init.json",
@@ -36,6 +38,7 @@ rule background_blocks:
     params:
         store=f"{RESULTS}/background.zarr",
         obs_store=OBSERVABILITY_WORK_STORE,
+        lim_store=LIMITS_WORK_STORE,
         blocks=lambda wildcards: CUBE_JOBS[int(wildcards.part)],
     # worker processes of the job's pool; Snakemake lowers it to --cores, and the SLURM profile
     # raises it (set-threads)

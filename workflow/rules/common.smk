@@ -22,6 +22,9 @@ LOGS = f"{RESULTS}/logs"
 #: the observability store the cube's workers fill, published as observability.zarr once every
 #: time block is done (rule observability)
 OBSERVABILITY_WORK_STORE = f"{RESULTS}/background_blocks/observability.zarr"
+#: the limits store the cube's workers fill (every sample's limit), published as limits.zarr with
+#: the per-pixel summaries added (rule limits)
+LIMITS_WORK_STORE = f"{RESULTS}/background_blocks/limits.zarr"
 TIME_BLOCKS = list(
     range(
         len(

@@ -1,5 +1,7 @@
 rule limits:
-    """5-sigma limiting magnitudes per sample, and per-pixel campaign summaries as HEALPix maps."""
+    """limits.zarr: the 5-sigma limits the cube's workers wrote to the limits store (every time
+    block done), published with the per-pixel campaign summaries added; the summaries as HEALPix
+    maps."""
     input:
         summary=f"{RESULTS}/background_summary.json",
         config=CONFIG_PATH,
@@ -7,7 +9,9 @@ rule limits:
         limits=directory(f"{RESULTS}/limits.zarr"),
         maps=directory(f"{RESULTS}/maps"),
     params:
-        store=f"{RESULTS}/background.zarr",
+        lim_store=LIMITS_WORK_STORE,
+    # processes of the per-pixel summaries (lowered to --cores by Snakemake)
+    threads: 2
     conda:
         "../envs/straylight.yaml"
     log:
