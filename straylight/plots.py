@@ -128,6 +128,10 @@ def _mollweide_panel(fig, full_sky, nest: bool, sub: tuple, title: str, vmin: fl
     extent = (c / ncols + margins[0], 1.0 - (r + 1) / nrows + margins[1],
               1.0 / ncols - margins[2] - margins[0], 1.0 / nrows - margins[3] - margins[1])
     ax = PA.HpxMollweideAxes(fig, extent, flipconv="astro")
+    # the axes are off (healpy): hidden x and y axes also spare the tick layout that placing the
+    # title would otherwise make at every draw
+    ax.xaxis.set_visible(False)
+    ax.yaxis.set_visible(False)
     fig.add_axes(ax)
     m = np.asarray(full_sky, float)
     index = _mollweide_pixel_index(hp.npix2nside(m.size), bool(nest))
@@ -233,15 +237,9 @@ def sky_maps(ds, campaign, out_dir, time_indices, bands=None) -> list:
     return written
 
 
-def time_series(ds, campaign, out_dir, n_pointings: int = 3, pointings=()) -> list:
-    """For chosen pointings (``pointings``: [ra, dec] deg, nearest footprint pixel; else
-    ``n_pointings`` evenly spread pixels): total and components in each band against time, over
-    the first orbit and over the whole campaign; unobservable times shaded."""
-    from matplotlib.figure import Figure
-    from matplotlib.ticker import MaxNLocator
-
-    from straylight.survey.cube import CUBE_BAND_VARIABLES
-
+def series_pixel_indices(ds, n_pointings: int = 3, pointings=()) -> list[int]:
+    """Indices into ``ds.pixel`` of the time series' pointings: the footprint pixels nearest
+    ``pointings`` ([ra, dec] deg) if given, else ``n_pointings`` pixels evenly spread."""
     if pointings:
         from straylight.sky.geometry import radec_to_unit
 
@@ -250,6 +248,20 @@ def time_series(ds, campaign, out_dir, n_pointings: int = 3, pointings=()) -> li
         pix_idx = np.unique(np.argmax(wanted @ centres.T, axis=1))
     else:
         pix_idx = np.unique(np.linspace(0, ds.sizes["pixel"] - 1, n_pointings).round().astype(int))
+    return [int(i) for i in pix_idx]
+
+
+def time_series(ds, campaign, out_dir, pixel_indices) -> list:
+    """For the pointings ``pixel_indices`` (into ``ds.pixel``, see :func:`series_pixel_indices`):
+    total and components in each band against time, over the first orbit and over the whole
+    campaign; unobservable times shaded."""
+    from matplotlib.figure import Figure
+    from matplotlib.patches import PathPatch
+    from matplotlib.ticker import MaxNLocator
+
+    from straylight.survey.cube import CUBE_BAND_VARIABLES
+
+    pix_idx = list(pixel_indices)
     t = ds["time"].values
     minutes = (t - t[0]) / np.timedelta64(1, "m")
     # the chosen pixels' whole series, every component and band, in one pass over the cube's chunks
@@ -276,8 +288,9 @@ def time_series(ds, campaign, out_dir, n_pointings: int = 3, pointings=()) -> li
                                     color="k" if comp == "total" else f"C{k}", label=comp)
                     shown[comp] = line
                 # each run of unobservable samples, first to last sample, over the axes' height
-                ax.fill_between(minutes[sel], 0, 1, where=~obs[sel], color="0.88", lw=0,
-                                transform=ax.get_xaxis_transform())
+                # (an artist, not a patch: the data limits come from the lines)
+                ax.add_artist(PathPatch(_span_path(minutes[sel], ~obs[sel]), facecolor="0.88", lw=0,
+                                        transform=ax.get_xaxis_transform()))
                 total = np.asarray(sub["total"].isel(band=ib), float)[sel]
                 tmag = zp - 2.5 * np.log10(total[total > 0]) if np.any(total > 0) else np.array([20.0])
                 # brighter up; the faint end a few magnitudes below the total's faintest value
@@ -298,6 +311,19 @@ def time_series(ds, campaign, out_dir, n_pointings: int = 3, pointings=()) -> li
             fig.tight_layout(rect=(0, 0, 1, 0.95))
             written.append(_save(fig, Path(out_dir) / f"series_{span}_ra{ra:06.2f}_dec{dec:+06.2f}.png"))
     return written
+
+
+def _span_path(x, mask):
+    """One compound path of rectangles from ``x`` at the first to ``x`` at the last sample of
+    each run of True in ``mask``, from y 0 to 1 (the axes' height under an x-axis transform)."""
+    from matplotlib.path import Path as MplPath
+
+    edges = np.flatnonzero(np.diff(np.r_[0, np.asarray(mask, np.int8), 0]))
+    x0, x1 = np.asarray(x, float)[edges[::2]], np.asarray(x, float)[edges[1::2] - 1]
+    zero, one = np.zeros_like(x0), np.ones_like(x0)
+    verts = np.stack([np.c_[x0, zero], np.c_[x0, one], np.c_[x1, one], np.c_[x1, zero], np.c_[x0, zero]], axis=1)
+    codes = np.tile([MplPath.MOVETO, MplPath.LINETO, MplPath.LINETO, MplPath.LINETO, MplPath.CLOSEPOLY], x0.size)
+    return MplPath(verts.reshape(-1, 2), codes.astype(MplPath.code_type))
 
 
 def limit_maps(limits_ds, campaign, out_dir) -> list:
@@ -343,12 +369,12 @@ def depth_summary(limits_ds) -> dict:
     return rows
 
 
-def write_summary(limits_ds, campaign, out_dir) -> list:
-    """``summary.csv`` (the depth table) and ``summary.rst`` (the report's first page: the
-    campaign, the table and a guide to the figures; rendered by Snakemake's Jinja)."""
+def write_summary(rows: dict, campaign, out_dir) -> list:
+    """``summary.csv`` (the depth table ``rows`` of :func:`depth_summary`) and ``summary.rst`` (the
+    report's first page: the campaign, the table and a guide to the figures, with thumbnails of
+    those already in ``out_dir``; rendered by Snakemake's Jinja)."""
     from straylight.util.io import atomic_path
 
-    rows = depth_summary(limits_ds)
     out = Path(out_dir)
     with atomic_path(out / "summary.csv") as tmp:
         lines = ["band,median_depth_mag,best_depth_mag,observable_fraction"]
@@ -421,27 +447,30 @@ def _thumbnails(out: Path, width_px: int = 560) -> str:
     return "\n" + "\n".join(parts) if parts else ""
 
 
-def _figure_job(kind: str, background_path, limits_path, campaign, out_dir, part=None, bands=None) -> list:
+def _figure_job(kind: str, background_path, limits_path, campaign, out_dir, part=None, bands=None) -> tuple:
     """One share of :func:`campaign_figures`, run in a worker process or in this one: ``kind``
-    'sky' (the sky-map pages of ``bands`` at the time of index ``part``), 'series' (every
-    pointing's time series) or 'limits' (the limit maps); each opens the stores itself and reads
-    only what its figures show."""
+    'sky' (the sky-map pages of ``bands`` at the time of index ``part``), 'series' (the time
+    series of the pointing of pixel index ``part``) or 'limits' (the limit maps and the depth
+    table); each opens the stores itself and reads only what its figures show.  Returns the
+    paths written and, for 'limits', the rows of :func:`depth_summary`."""
+    import dask
     import xarray as xr
 
-    rc = campaign.config["report"]
-    if kind == "limits":
-        with xr.open_zarr(limits_path) as limits_ds:
-            return limit_maps(limits_ds, campaign, out_dir)
-    with xr.open_zarr(background_path) as ds:
-        if kind == "sky":
-            return sky_maps(ds, campaign, out_dir, [part], bands)
-        return time_series(ds, campaign, out_dir, int(rc["series_pointings"]), rc.get("pointings") or ())
+    # one thread: the figures' processes are the parallelism (dask's threads only add overhead)
+    with dask.config.set(scheduler="synchronous"):
+        if kind == "limits":
+            with xr.open_zarr(limits_path) as limits_ds:
+                return limit_maps(limits_ds, campaign, out_dir), depth_summary(limits_ds)
+        with xr.open_zarr(background_path) as ds:
+            if kind == "sky":
+                return sky_maps(ds, campaign, out_dir, [part], bands), None
+            return time_series(ds, campaign, out_dir, [part]), None
 
 
 def campaign_figures(background_path, limits_path, campaign, out_dir, workers: int = 1) -> list:
     """Every figure of the report and its summary table, in ``out_dir``; the paths written.
     The figures are drawn by ``workers`` processes (this one and ``workers`` - 1 spawned), shared out
-    as the time series (the longest share: they read every time block of their pixels), the
+    as the time series of each pointing (each reads every time block of its pixel's chunks), the
     sky-map pages of each map time (one read of that time for all bands) and the limit maps."""
     import xarray as xr
 
@@ -450,16 +479,17 @@ def campaign_figures(background_path, limits_path, campaign, out_dir, workers: i
     rc = campaign.config["report"]
     with xr.open_zarr(background_path) as ds:
         cube_bands = [str(b) for b in ds["band"].values]
-        time_indices = map_time_indices(ds, int(rc["sky_map_times"]), rc.get("times") or ())
-    unknown = sorted(set(rc.get("sky_map_bands") or ()) - set(cube_bands))
-    if unknown:
-        from straylight.errors import ConfigError
+        unknown = sorted(set(rc.get("sky_map_bands") or ()) - set(cube_bands))
+        if unknown:
+            from straylight.errors import ConfigError
 
-        raise ConfigError(f"{campaign.path}: report.sky_map_bands: {', '.join(unknown)} not among the cube's bands "
-                          f"{', '.join(cube_bands)}")
+            raise ConfigError(f"{campaign.path}: report.sky_map_bands: {', '.join(unknown)} not among the cube's "
+                              f"bands {', '.join(cube_bands)}")
+        time_indices = map_time_indices(ds, int(rc["sky_map_times"]), rc.get("times") or ())
+        pixel_indices = series_pixel_indices(ds, int(rc["series_pointings"]), rc.get("pointings") or ())
     sky_bands = [b for b in cube_bands if b in set(rc.get("sky_map_bands") or cube_bands)]
-    # the longest share first, so that the processes finish together
-    jobs = [("series", None)] + [("sky", it) for it in time_indices] + [("limits", None)]
+    # the series (the longest shares) first, so that the processes finish together
+    jobs = [("series", ip) for ip in pixel_indices] + [("sky", it) for it in time_indices] + [("limits", None)]
     if int(workers) <= 1:
         results = [_figure_job(kind, background_path, limits_path, campaign, out, part, sky_bands)
                    for kind, part in jobs]
@@ -475,8 +505,9 @@ def campaign_figures(background_path, limits_path, campaign, out_dir, workers: i
             for i in reversed(range(len(jobs))):
                 if not futures[i].cancel():
                     break
-                results[i] = _figure_job(jobs[i][0], background_path, limits_path, campaign, out, jobs[i][1], sky_bands)
+                results[i] = _figure_job(jobs[i][0], background_path, limits_path, campaign, out, jobs[i][1],
+                                         sky_bands)
             results = [f.result() if r is None else r for f, r in zip(futures, results)]
-    written = [p for r in results[1:-1] for p in r] + results[0] + results[-1]
-    with xr.open_zarr(limits_path) as limits_ds:
-        return written + write_summary(limits_ds, campaign, out)
+    order = {"sky": 0, "series": 1, "limits": 2}  # sky pages, series, limit maps
+    written = [p for (kind, _), (paths, _) in sorted(zip(jobs, results), key=lambda j: order[j[0][0]]) for p in paths]
+    return written + write_summary(results[-1][1], campaign, out)
