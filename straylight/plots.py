@@ -488,26 +488,64 @@ def campaign_figures(background_path, limits_path, campaign, out_dir, workers: i
         time_indices = map_time_indices(ds, int(rc["sky_map_times"]), rc.get("times") or ())
         pixel_indices = series_pixel_indices(ds, int(rc["series_pointings"]), rc.get("pointings") or ())
     sky_bands = [b for b in cube_bands if b in set(rc.get("sky_map_bands") or cube_bands)]
-    # the series (the longest shares) first, so that the processes finish together
-    jobs = [("series", ip) for ip in pixel_indices] + [("sky", it) for it in time_indices] + [("limits", None)]
-    if int(workers) <= 1:
-        results = [_figure_job(kind, background_path, limits_path, campaign, out, part, sky_bands)
-                   for kind, part in jobs]
-    else:
-        from straylight.util.daskutil import spawned_pool
-
-        # this process draws too: the spawned ones take the shares from the front, this one from
-        # the back, each share it has not started yet (cancelled in the pool first)
-        with spawned_pool(min(int(workers) - 1, len(jobs))) as pool:
-            futures = [pool.submit(_figure_job, kind, background_path, limits_path, campaign, out, part, sky_bands)
-                       for kind, part in jobs]
-            results = [None] * len(jobs)
-            for i in reversed(range(len(jobs))):
-                if not futures[i].cancel():
-                    break
-                results[i] = _figure_job(jobs[i][0], background_path, limits_path, campaign, out, jobs[i][1],
-                                         sky_bands)
-            results = [f.result() if r is None else r for f, r in zip(futures, results)]
+    # the longest shares first (a pointing's series ~2 CPU-s, the limit maps with the depth table),
+    # then the sky pages a few bands at a time (~0.3 CPU-s a page): the processes finish together
+    groups = [sky_bands[i:i + SKY_BANDS_PER_JOB] for i in range(0, len(sky_bands), SKY_BANDS_PER_JOB)]
+    jobs = ([("series", ip, None) for ip in pixel_indices] + [("limits", None, None)]
+            + [("sky", it, g) for it in time_indices for g in groups])
+    results = _share_out(_figure_job, [(kind, background_path, limits_path, campaign, out, part, bands)
+                                       for kind, part, bands in jobs], int(workers))
     order = {"sky": 0, "series": 1, "limits": 2}  # sky pages, series, limit maps
-    written = [p for (kind, _), (paths, _) in sorted(zip(jobs, results), key=lambda j: order[j[0][0]]) for p in paths]
-    return written + write_summary(results[-1][1], campaign, out)
+    written = [p for job, (paths, _) in sorted(zip(jobs, results), key=lambda j: order[j[0][0]]) for p in paths]
+    rows = next(rows for (kind, _, _), (_, rows) in zip(jobs, results) if kind == "limits")
+    return written + write_summary(rows, campaign, out)
+
+
+#: Sky-map pages (bands) drawn by one job of :func:`campaign_figures`: shares small enough to
+#: even out the processes' ends, each reading its map time once
+SKY_BANDS_PER_JOB = 3
+
+
+def _share_out(run, jobs: list, workers: int) -> list:
+    """``run(*job)`` for every job (``run`` a module-level function, the jobs' arguments
+    picklable), in this process and ``workers`` - 1 spawned ones, each process taking the next job
+    of the list whenever it is free; the results in the jobs' order.  A failed job stops the
+    handing out and its error is raised once the running ones are done."""
+    if workers <= 1 or len(jobs) <= 1:
+        return [run(*job) for job in jobs]
+    import threading
+
+    from straylight.util.daskutil import spawned_pool
+
+    lock = threading.Lock()
+    queue = list(range(len(jobs)))
+    results, errors = [None] * len(jobs), []
+
+    def take():
+        with lock:
+            return None if errors or not queue else queue.pop(0)
+
+    def feed(pool):  # one thread per spawned process: hands it one job at a time
+        while (i := take()) is not None:
+            try:
+                results[i] = pool.submit(run, *jobs[i]).result()
+            except BaseException as exc:  # noqa: BLE001 - re-raised in the calling thread
+                with lock:
+                    errors.append(exc)
+
+    n_spawned = min(workers - 1, len(jobs) - 1)
+    with spawned_pool(n_spawned) as pool:
+        feeders = [threading.Thread(target=feed, args=(pool,), daemon=True) for _ in range(n_spawned)]
+        for t in feeders:
+            t.start()
+        try:
+            while (i := take()) is not None:
+                results[i] = run(*jobs[i])
+        except BaseException as exc:
+            with lock:
+                errors.append(exc)
+        for t in feeders:
+            t.join()
+    if errors:
+        raise errors[0]
+    return results
