@@ -91,3 +91,15 @@ def test_mollweide_panel_puts_each_pixel_where_healpy_projects_it(nest):
         col, row = ax.transData.transform(np.array(xy, float).reshape(1, 2))[0]
         drawn = rgba[int(height - row), int(col)] / 255.0
         assert drawn == pytest.approx(colour, abs=2 / 255), (ra, dec)
+
+
+def test_share_out_returns_results_in_job_order_and_raises_a_failed_job():
+    """The figure jobs shared between this process and a spawned one: every result in its job's
+    place whichever process ran it (2**k), and a job's error reaches the caller."""
+    import operator
+
+    from straylight.plots import _share_out
+
+    assert _share_out(pow, [(2, k) for k in range(7)], 2) == [2 ** k for k in range(7)]
+    with pytest.raises(ZeroDivisionError):
+        _share_out(operator.truediv, [(1, 2), (3, 0), (5, 4), (7, 8)], 2)
