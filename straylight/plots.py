@@ -59,8 +59,9 @@ def _colour_range(values, percentiles=(2.0, 98.0), min_span: float = 0.01) -> tu
     return lo, hi
 
 
-#: Width in image pixels of a Mollweide panel's projected map: healpy mollview's default, ~0.45 deg
-#: per image pixel at the equator, finer than an nside-64 pixel (0.9 deg).
+#: Width in image pixels of a Mollweide panel's projected map (0.9 deg per image pixel at the
+#: equator): about the map's width on a 4-panel-wide page at 90 dpi (~345 pixels), so that the
+#: image is not projected finer than it is shown (healpy mollview's default is 800).
 MOLLWEIDE_XSIZE = 400
 
 
@@ -91,8 +92,8 @@ def _graticule_segments(dpar_deg: float = 30.0, dmer_deg: float = 60.0, step: in
     """healpy's Mollweide graticule (parallels every ``dpar_deg``, meridians every ``dmer_deg``) and
     its border, as (line style, line width, colour, alpha, vertices) groups in the axes' data
     coordinates: projected once by ``SphericalProjAxes.graticule`` on a scratch axes.  healpy
-    samples the lines every 0.1 deg; every ``step``-th vertex (and the last) is kept, < 0.5 pixel
-    off the curve at the panels' size."""
+    samples the lines every 0.1 deg; every ``step``-th vertex (and the last) is kept: vertices
+    ~1 page pixel apart on a 4-panel-wide page, the same curves as drawn."""
     import healpy.projaxes as PA
     from matplotlib.figure import Figure
 
@@ -105,7 +106,6 @@ def _graticule_segments(dpar_deg: float = 30.0, dmer_deg: float = 60.0, step: in
         key = (line.get_linestyle(), line.get_linewidth(), line.get_color(), line.get_alpha())
         groups.setdefault(key, []).append(xy[keep])
     return tuple((*key, tuple(segs)) for key, segs in groups.items())
-
 
 
 def _mollweide_panel(fig, full_sky, nest: bool, sub: tuple, title: str, vmin: float, vmax: float, cmap: str,
