@@ -7,9 +7,8 @@ shown as AB mag/arcsec2 (brighter = smaller), the unit planners compare with sky
 """
 from __future__ import annotations
 
-from contextlib import contextmanager
+from functools import lru_cache
 from pathlib import Path
-from unittest.mock import patch
 
 import numpy as np
 
@@ -60,54 +59,120 @@ def _colour_range(values, percentiles=(2.0, 98.0), min_span: float = 0.01) -> tu
     return lo, hi
 
 
-def _mollview_with_unit(fig, values, unit: str, **kw) -> None:
-    """healpy's mollview with a 30-deg graticule, a colour bar of a few rounded ticks, and the
-    unit below the tick labels (healpy puts it over the labels on a 2 x 4 page)."""
+#: Width in image pixels of a Mollweide panel's projected map (0.9 deg per image pixel at the
+#: equator): about the map's width on a 4-panel-wide page at 90 dpi (~345 pixels), so that the
+#: image is not projected finer than it is shown (healpy mollview's default is 800).
+MOLLWEIDE_XSIZE = 400
+
+
+@lru_cache(maxsize=8)
+def _mollweide_pixel_index(nside: int, nest: bool, xsize: int = MOLLWEIDE_XSIZE) -> np.ndarray:
+    """The HEALPix pixel seen at each pixel of healpy's Mollweide image (``xsize`` x ``xsize``/2,
+    origin lower left, east to the left as in ``mollview``), -1 outside the ellipse: the
+    projection healpy's ``projmap`` makes for every map, made once per nside and ordering."""
     import healpy as hp
-    import matplotlib.pyplot as plt
+    from healpy.projector import MollweideProj
 
-    hp.mollview(values, fig=fig.number, unit="", cbar=True, **kw)
-    cax, ax = fig.axes[-1], fig.axes[-2]  # mollview adds the map, then its colour bar
-    loc, fmt = _tick_format(kw["min"], kw["max"])
-    cax.xaxis.set_major_locator(loc)
-    cax.xaxis.set_major_formatter(fmt)
-    cax.tick_params(labelsize=8)
-    cax.set_xlabel(unit, fontsize=9, labelpad=2)
-    plt.sca(ax)
-    hp.graticule(dpar=30, dmer=60, color="0.3", alpha=0.5, lw=0.4)
+    proj = MollweideProj(xsize=xsize, flipconv="astro")
+    x, y = proj.ij2xy()
+    inside = ~np.ma.getmaskarray(x)
+    index = np.full(x.shape, -1, dtype=np.int64)
+    vec = proj.xy2vec(np.asarray(x[inside]), np.asarray(y[inside]))
+    index[inside] = hp.vec2pix(nside, vec[0], vec[1], vec[2], nest=nest)
+    index.setflags(write=False)
+    return index
 
 
-@contextmanager
-def _no_intermediate_draws():
-    """healpy's mollview and graticule end with ``pylab.draw()``, which on the Agg backend renders
-    the whole figure, so an 8-panel page would be drawn twice per panel.  Only the save
-    needs to render, so inside this block those calls do nothing (the saved image is the same)."""
-    import pylab
+#: The maps' graticule lines: colour, opacity, width (points)
+GRATICULE_COLOUR, GRATICULE_ALPHA, GRATICULE_LW = "0.3", 0.5, 0.4
 
-    with patch.object(pylab, "draw", lambda: None):
-        yield
+
+@lru_cache(maxsize=1)
+def _graticule_segments(dpar_deg: float = 30.0, dmer_deg: float = 60.0, step: int = 8) -> tuple:
+    """healpy's Mollweide graticule (parallels every ``dpar_deg``, meridians every ``dmer_deg``) and
+    its border, as (line style, line width, colour, alpha, vertices) groups in the axes' data
+    coordinates: projected once by ``SphericalProjAxes.graticule`` on a scratch axes.  healpy
+    samples the lines every 0.1 deg; every ``step``-th vertex (and the last) is kept: vertices
+    ~1 page pixel apart on a 4-panel-wide page, the same curves as drawn."""
+    import healpy.projaxes as PA
+    from matplotlib.figure import Figure
+
+    ax = PA.HpxMollweideAxes(Figure(), (0.0, 0.0, 1.0, 1.0), flipconv="astro")
+    ax.graticule(dpar=dpar_deg, dmer=dmer_deg, color=GRATICULE_COLOUR, alpha=GRATICULE_ALPHA, lw=GRATICULE_LW)
+    groups = {}
+    for line in ax.lines:
+        xy = line.get_xydata()
+        keep = np.unique(np.r_[np.arange(0, len(xy), step), len(xy) - 1])
+        key = (line.get_linestyle(), line.get_linewidth(), line.get_color(), line.get_alpha())
+        groups.setdefault(key, []).append(xy[keep])
+    return tuple((*key, tuple(segs)) for key, segs in groups.items())
+
+
+def _mollweide_panel(fig, full_sky, nest: bool, sub: tuple, title: str, vmin: float, vmax: float, cmap: str,
+                     unit: str | None):
+    """One Mollweide panel at subplot ``sub`` (rows, columns, index from 1) of ``fig``, laid out,
+    coloured and annotated as healpy's ``mollview(..., notext=True)`` with a 30/60-deg graticule:
+    the image is the cached pixel index of :func:`_mollweide_pixel_index` applied to
+    ``full_sky`` (a full HEALPix map; ``UNSEEN`` grey), drawn with imshow.  With ``unit``, a
+    colour bar of a few rounded ticks and the unit below the labels.  Returns the axes."""
+    import healpy as hp
+    import healpy.projaxes as PA
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.collections import LineCollection
+    from matplotlib.colors import Normalize
+
+    # mollview's subplot extent and margins (left, bottom, right, top), in figure fractions
+    nrows, ncols, idx = sub
+    c, r = (idx - 1) % ncols, (idx - 1) // ncols
+    margins = (0.01, 0.0, 0.0, 0.02)
+    extent = (c / ncols + margins[0], 1.0 - (r + 1) / nrows + margins[1],
+              1.0 / ncols - margins[2] - margins[0], 1.0 / nrows - margins[3] - margins[1])
+    ax = PA.HpxMollweideAxes(fig, extent, flipconv="astro")
+    # the axes are off (healpy): hidden x and y axes also spare the tick layout that placing the
+    # title would otherwise make at every draw
+    ax.xaxis.set_visible(False)
+    ax.yaxis.set_visible(False)
+    fig.add_axes(ax)
+    m = np.asarray(full_sky, float)
+    index = _mollweide_pixel_index(hp.npix2nside(m.size), bool(nest))
+    img = np.full(index.shape, -np.inf)  # outside the ellipse: healpy's background colour
+    img[index >= 0] = m[index[index >= 0]]
+    seen = np.isfinite(img) & ~hp.mask_bad(img)
+    cm, norm = PA.get_color_table(vmin, vmax, img[seen], cmap=cmap, badcolor="gray", bgcolor="white")
+    ax.imshow(np.ma.masked_values(img, hp.UNSEEN), extent=ax.proj.get_extent(), cmap=cm, norm=norm,
+              interpolation="nearest", origin="lower")
+    ax.set_xlim(-2.01, 2.01)
+    ax.set_ylim(-1.01, 1.01)
+    for style, lw, colour, alpha, segments in _graticule_segments():
+        ax.add_collection(LineCollection(segments, linestyles=style, linewidths=lw, colors=colour, alpha=alpha),
+                          autolim=False)
+    ax.set_title(title)
+    if unit is not None:
+        # mollview's colour bar: 256 solid steps between the limits, under the map
+        bounds = norm.inverse(np.linspace(0, 1, cm.N + 1))
+        cb = fig.colorbar(ScalarMappable(norm=Normalize(vmin=norm.vmin, vmax=norm.vmax), cmap=cmap), ax=ax,
+                          orientation="horizontal", shrink=0.5, aspect=25, pad=0.05, fraction=0.1,
+                          boundaries=bounds, values=np.linspace(norm.vmin, norm.vmax, cm.N))
+        cb.solids.set_rasterized(True)
+        loc, fmt = _tick_format(vmin, vmax)
+        cb.ax.xaxis.set_major_locator(loc)
+        cb.ax.xaxis.set_major_formatter(fmt)
+        cb.ax.tick_params(labelsize=8)
+        cb.ax.set_xlabel(unit, fontsize=9, labelpad=2)
+    return ax
 
 
 def _save(fig, path: Path) -> Path:
     from straylight.util.io import atomic_path
 
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=90, format="png", bbox_inches="tight")  # healpy's colour-bar labels overhang the axes
+        fig.savefig(tmp, dpi=90, format="png", bbox_inches="tight")  # the colour bars' labels overhang the axes
     return path
 
 
-def sky_maps(ds, campaign, out_dir, n_times: int = 2, bands=None, times=()) -> list:
-    """Per chosen time (``times``, UTC ISO, nearest sample; else ``n_times`` evenly spread) and
-    band: a 2 x 4 page of Mollweide maps, one per component, the total and the observability."""
-    import healpy as hp
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from straylight.survey.cube import CUBE_BAND_VARIABLES
-
-    nest = str(ds.attrs["healpix_ordering"]).upper() == "NESTED"
+def map_time_indices(ds, n_times: int = 2, times=()) -> list[int]:
+    """Indices into ``ds.time`` of the sky maps' times: the samples nearest ``times`` (UTC ISO)
+    if given, else ``n_times`` evenly spread over the campaign."""
     if times:
         from straylight.sky.timeutil import parse_utc
 
@@ -116,8 +181,21 @@ def sky_maps(ds, campaign, out_dir, n_times: int = 2, bands=None, times=()) -> l
         idx = np.unique([int(np.argmin(np.abs(t_all - w))) for w in wanted])
     else:
         idx = np.unique(np.linspace(0, ds.sizes["time"] - 1, n_times).round().astype(int))
+    return [int(i) for i in idx]
+
+
+def sky_maps(ds, campaign, out_dir, time_indices, bands=None) -> list:
+    """Per time (``time_indices`` into ``ds.time``, see :func:`map_time_indices`) and band (all,
+    or ``bands``): a 2 x 4 page of Mollweide maps, one per component, the total and the
+    observability."""
+    from matplotlib import colormaps
+    from matplotlib.figure import Figure
+
+    from straylight.survey.cube import CUBE_BAND_VARIABLES
+
+    nest = str(ds.attrs["healpix_ordering"]).upper() == "NESTED"
     written = []
-    for it in idx:
+    for it in time_indices:
         t = str(ds["time"].values[it])[:16]
         # every component at this time, all bands, in one read (each chunk decompressed once)
         snap = ds[list(CUBE_BAND_VARIABLES) + ["observable"]].isel(time=it).compute()
@@ -133,22 +211,20 @@ def sky_maps(ds, campaign, out_dir, n_times: int = 2, bands=None, times=()) -> l
                 maps.append((comp, e, _mag(ds, e, str(band), campaign)))
             ncol = 4
             nrow = int(np.ceil((len(maps) + 1) / ncol))
-            fig = plt.figure(figsize=(16, 3.3 * nrow))
+            fig = Figure(figsize=(16, 3.3 * nrow))
             for k, (comp, e, mag) in enumerate(maps):
                 lo, hi = _colour_range(mag)
-                _mollview_with_unit(fig, _full_sky(ds, mag), "AB mag/arcsec2 (brighter: yellow)", nest=nest,
-                                    sub=(nrow, ncol, k + 1), title=comp, min=lo, max=hi, cmap="viridis_r",
-                                    notext=True)
+                _mollweide_panel(fig, _full_sky(ds, mag), nest, (nrow, ncol, k + 1), comp, lo, hi, "viridis_r",
+                                 "AB mag/arcsec2 (brighter: yellow)")
             obs = np.asarray(snap["observable"], float)
-            hp.mollview(_full_sky(ds, obs), nest=nest, fig=fig.number, sub=(nrow, ncol, len(maps) + 1),
-                        title="observable", min=0, max=1, cmap="RdYlGn", cbar=False, notext=True)
-            hp.graticule(dpar=30, dmer=60, color="0.3", alpha=0.5, lw=0.4)
+            obs_ax = _mollweide_panel(fig, _full_sky(ds, obs), nest, (nrow, ncol, len(maps) + 1), "observable", 0, 1,
+                                      "RdYlGn", None)
             from matplotlib.patches import Patch
 
-            fig.axes[-1].legend(handles=[Patch(color=plt.cm.RdYlGn(1.0), label="observable"),
-                                         Patch(color=plt.cm.RdYlGn(0.0), label="not observable"),
-                                         Patch(color="0.5", label="outside the footprint")],
-                                loc="upper center", bbox_to_anchor=(0.5, -0.02), ncol=3, fontsize=8, frameon=False)
+            obs_ax.legend(handles=[Patch(color=colormaps["RdYlGn"](1.0), label="observable"),
+                                   Patch(color=colormaps["RdYlGn"](0.0), label="not observable"),
+                                   Patch(color="0.5", label="outside the footprint")],
+                          loc="upper center", bbox_to_anchor=(0.5, -0.02), ncol=3, fontsize=8, frameon=False)
             # models.unobservable_samples: skip leaves NaN where not observable (e: the total here)
             # a component's 0 (blocked, or skipped below its share of the tolerance) has no magnitude
             grey = "outside the footprint, or a component's 0" + (", or not evaluated (not observable)"
@@ -158,21 +234,12 @@ def sky_maps(ds, campaign, out_dir, n_times: int = 2, bands=None, times=()) -> l
                          f"and 60 deg in RA; colours: 2nd-98th percentile per panel; grey: {grey}{note})",
                          fontsize=10)
             written.append(_save(fig, Path(out_dir) / f"sky_{band}_{t.replace(':', '').replace('-', '')}.png"))
-            plt.close(fig)
     return written
 
 
-def time_series(ds, campaign, out_dir, n_pointings: int = 3, pointings=()) -> list:
-    """For chosen pointings (``pointings``: [ra, dec] deg, nearest footprint pixel; else
-    ``n_pointings`` evenly spread pixels): total and components in each band against time, over
-    the first orbit and over the whole campaign; unobservable times shaded."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from straylight.survey.cube import CUBE_BAND_VARIABLES
-
+def series_pixel_indices(ds, n_pointings: int = 3, pointings=()) -> list[int]:
+    """Indices into ``ds.pixel`` of the time series' pointings: the footprint pixels nearest
+    ``pointings`` ([ra, dec] deg) if given, else ``n_pointings`` pixels evenly spread."""
     if pointings:
         from straylight.sky.geometry import radec_to_unit
 
@@ -181,6 +248,20 @@ def time_series(ds, campaign, out_dir, n_pointings: int = 3, pointings=()) -> li
         pix_idx = np.unique(np.argmax(wanted @ centres.T, axis=1))
     else:
         pix_idx = np.unique(np.linspace(0, ds.sizes["pixel"] - 1, n_pointings).round().astype(int))
+    return [int(i) for i in pix_idx]
+
+
+def time_series(ds, campaign, out_dir, pixel_indices) -> list:
+    """For the pointings ``pixel_indices`` (into ``ds.pixel``, see :func:`series_pixel_indices`):
+    total and components in each band against time, over the first orbit and over the whole
+    campaign; unobservable times shaded."""
+    from matplotlib.figure import Figure
+    from matplotlib.patches import PathPatch
+    from matplotlib.ticker import MaxNLocator
+
+    from straylight.survey.cube import CUBE_BAND_VARIABLES
+
+    pix_idx = list(pixel_indices)
     t = ds["time"].values
     minutes = (t - t[0]) / np.timedelta64(1, "m")
     # the chosen pixels' whole series, every component and band, in one pass over the cube's chunks
@@ -192,7 +273,8 @@ def time_series(ds, campaign, out_dir, n_pointings: int = 3, pointings=()) -> li
         obs = np.asarray(sub["observable"], bool)
         for span, sel in (("orbit", minutes <= ORBIT_MINUTES), ("campaign", np.ones(minutes.size, bool))):
             bands = list(ds["band"].values)
-            fig, axes = plt.subplots(len(bands), 1, figsize=(10, 2.2 * len(bands)), sharex=True)
+            fig = Figure(figsize=(10, 2.2 * len(bands)))
+            axes = fig.subplots(len(bands), 1, sharex=True)
             shown = {}
             for ax, band in zip(np.atleast_1d(axes), bands):
                 ib = bands.index(band)
@@ -205,14 +287,16 @@ def time_series(ds, campaign, out_dir, n_pointings: int = 3, pointings=()) -> li
                     line, = ax.plot(minutes[sel], mag, lw=1.8 if comp == "total" else 1.0,
                                     color="k" if comp == "total" else f"C{k}", label=comp)
                     shown[comp] = line
-                for a, b in _runs(~obs[sel]):
-                    ax.axvspan(minutes[sel][a], minutes[sel][b], color="0.88", lw=0)
+                # each run of unobservable samples, first to last sample, over the axes' height
+                # (an artist, not a patch: the data limits come from the lines)
+                ax.add_artist(PathPatch(_span_path(minutes[sel], ~obs[sel]), facecolor="0.88", lw=0,
+                                        transform=ax.get_xaxis_transform()))
                 total = np.asarray(sub["total"].isel(band=ib), float)[sel]
                 tmag = zp - 2.5 * np.log10(total[total > 0]) if np.any(total > 0) else np.array([20.0])
                 # brighter up; the faint end a few magnitudes below the total's faintest value
                 ax.set_ylim(min(float(np.nanmax(tmag)) + 4.0, 32.0), float(np.nanmin(tmag)) - 1.0)
                 ax.set_ylabel(f"{band}\nmag/arcsec2", fontsize=9)
-                ax.yaxis.set_major_locator(plt.MaxNLocator(4, integer=True))
+                ax.yaxis.set_major_locator(MaxNLocator(4, integer=True))
                 ax.grid(alpha=0.3, lw=0.5)
                 # the band's zero point: e-/s/pixel = 10^(-0.4 (mag - zp))
                 ax.text(1.005, 0.5, f"zero point\n{zp:.2f}\n(1 e-/s/pix)", transform=ax.transAxes, fontsize=7,
@@ -226,22 +310,25 @@ def time_series(ds, campaign, out_dir, n_pointings: int = 3, pointings=()) -> li
                          "brighter up; e-/s/pixel = 10^(-0.4 (mag - zero point)))", fontsize=10)
             fig.tight_layout(rect=(0, 0, 1, 0.95))
             written.append(_save(fig, Path(out_dir) / f"series_{span}_ra{ra:06.2f}_dec{dec:+06.2f}.png"))
-            plt.close(fig)
     return written
 
 
-def _runs(mask):
-    """(start, end) index pairs of the True runs of a boolean array."""
-    idx = np.flatnonzero(np.diff(np.r_[0, mask.astype(int), 0]))
-    return [(a, max(b - 1, a)) for a, b in zip(idx[::2], idx[1::2])]
+def _span_path(x, mask):
+    """One compound path of rectangles from ``x`` at the first to ``x`` at the last sample of
+    each run of True in ``mask``, from y 0 to 1 (the axes' height under an x-axis transform)."""
+    from matplotlib.path import Path as MplPath
+
+    edges = np.flatnonzero(np.diff(np.r_[0, np.asarray(mask, np.int8), 0]))
+    x0, x1 = np.asarray(x, float)[edges[::2]], np.asarray(x, float)[edges[1::2] - 1]
+    zero, one = np.zeros_like(x0), np.ones_like(x0)
+    verts = np.stack([np.c_[x0, zero], np.c_[x0, one], np.c_[x1, one], np.c_[x1, zero], np.c_[x0, zero]], axis=1)
+    codes = np.tile([MplPath.MOVETO, MplPath.LINETO, MplPath.LINETO, MplPath.LINETO, MplPath.CLOSEPOLY], x0.size)
+    return MplPath(verts.reshape(-1, 2), codes.astype(MplPath.code_type))
 
 
 def limit_maps(limits_ds, campaign, out_dir) -> list:
     """Best and median 5-sigma limiting magnitude over the campaign, per band (Mollweide)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
 
     nest = str(limits_ds.attrs.get("healpix_ordering", "RING")).upper() == "NESTED"
     written = []
@@ -249,21 +336,19 @@ def limit_maps(limits_ds, campaign, out_dir) -> list:
         var = f"limiting_mag_{stat}"
         if var not in limits_ds:
             continue
-        fig = plt.figure(figsize=(16, 6.5))
+        fig = Figure(figsize=(16, 6.5))
         for ib, band in enumerate(limits_ds["band"].values):
             v = np.asarray(limits_ds[var].isel(band=ib), float)
             # the bulk of the sky sits within a few 0.01 mag of the best; the shallow tail near the Sun
             # and Moon would take the whole scale: the range is the 10th-99.9th percentile per band
             lo, hi = _colour_range(v, (10.0, 99.9))
             med = float(np.nanmedian(v)) if np.isfinite(v).any() else float("nan")
-            _mollview_with_unit(fig, _full_sky(limits_ds, v), "AB mag (5 sigma), deeper: brighter",
-                                nest=nest, sub=(2, 4, ib + 1), title=f"{band} (median {med:.2f})", min=lo, max=hi,
-                                cmap="magma", notext=True)
+            _mollweide_panel(fig, _full_sky(limits_ds, v), nest, (2, 4, ib + 1), f"{band} (median {med:.2f})", lo, hi,
+                             "magma", "AB mag (5 sigma), deeper: brighter")
         fig.suptitle(f"{campaign.name}: {stat} 5-sigma point-source limit over the campaign (survey exposures; "
                      "colours: 10th-99.9th percentile per band, shallower pixels black; graticule 30/60 deg; "
                      "grey: outside the footprint or never observable)", fontsize=10)
         written.append(_save(fig, Path(out_dir) / f"limits_{stat}.png"))
-        plt.close(fig)
     return written
 
 
@@ -284,12 +369,12 @@ def depth_summary(limits_ds) -> dict:
     return rows
 
 
-def write_summary(limits_ds, campaign, out_dir) -> list:
-    """``summary.csv`` (the depth table) and ``summary.rst`` (the report's first page: the
-    campaign, the table and a guide to the figures; rendered by Snakemake's Jinja)."""
+def write_summary(rows: dict, campaign, out_dir) -> list:
+    """``summary.csv`` (the depth table ``rows`` of :func:`depth_summary`) and ``summary.rst`` (the
+    report's first page: the campaign, the table and a guide to the figures, with thumbnails of
+    those already in ``out_dir``; rendered by Snakemake's Jinja)."""
     from straylight.util.io import atomic_path
 
-    rows = depth_summary(limits_ds)
     out = Path(out_dir)
     with atomic_path(out / "summary.csv") as tmp:
         lines = ["band,median_depth_mag,best_depth_mag,observable_fraction"]
@@ -362,29 +447,31 @@ def _thumbnails(out: Path, width_px: int = 560) -> str:
     return "\n" + "\n".join(parts) if parts else ""
 
 
-def _figure_job(kind: str, background_path, limits_path, campaign, out_dir, bands=None) -> list:
+def _figure_job(kind: str, background_path, limits_path, campaign, out_dir, part=None, bands=None) -> tuple:
     """One share of :func:`campaign_figures`, run in a worker process or in this one: ``kind``
-    'sky' (the sky-map pages of ``bands`` at every map time), 'series' (every pointing's time
-    series) or 'limits' (the limit maps); each opens the stores itself and reads only what its
-    figures show."""
+    'sky' (the sky-map pages of ``bands`` at the time of index ``part``), 'series' (the time
+    series of the pointing of pixel index ``part``) or 'limits' (the limit maps and the depth
+    table); each opens the stores itself and reads only what its figures show.  Returns the
+    paths written and, for 'limits', the rows of :func:`depth_summary`."""
+    import dask
     import xarray as xr
 
-    rc = campaign.config["report"]
-    with _no_intermediate_draws():
+    # one thread: the figures' processes are the parallelism (dask's threads only add overhead)
+    with dask.config.set(scheduler="synchronous"):
         if kind == "limits":
             with xr.open_zarr(limits_path) as limits_ds:
-                return limit_maps(limits_ds, campaign, out_dir)
+                return limit_maps(limits_ds, campaign, out_dir), depth_summary(limits_ds)
         with xr.open_zarr(background_path) as ds:
             if kind == "sky":
-                return sky_maps(ds, campaign, out_dir, int(rc["sky_map_times"]), bands, rc.get("times") or ())
-            return time_series(ds, campaign, out_dir, int(rc["series_pointings"]), rc.get("pointings") or ())
+                return sky_maps(ds, campaign, out_dir, [part], bands), None
+            return time_series(ds, campaign, out_dir, [part]), None
 
 
 def campaign_figures(background_path, limits_path, campaign, out_dir, workers: int = 1) -> list:
     """Every figure of the report and its summary table, in ``out_dir``; the paths written.
     The figures are drawn by ``workers`` processes (this one and ``workers`` - 1 spawned), shared out
-    as the sky-map pages of each band, the time series and the limit maps: drawing, not
-    reading, is most of their cost (a page of eight Mollweide panels with graticules ~2 s)."""
+    as the time series of each pointing (each reads every time block of its pixel's chunks), the
+    sky-map pages of each map time (one read of that time for all bands) and the limit maps."""
     import xarray as xr
 
     out = Path(out_dir)
@@ -392,32 +479,73 @@ def campaign_figures(background_path, limits_path, campaign, out_dir, workers: i
     rc = campaign.config["report"]
     with xr.open_zarr(background_path) as ds:
         cube_bands = [str(b) for b in ds["band"].values]
-    unknown = sorted(set(rc.get("sky_map_bands") or ()) - set(cube_bands))
-    if unknown:
-        from straylight.errors import ConfigError
+        unknown = sorted(set(rc.get("sky_map_bands") or ()) - set(cube_bands))
+        if unknown:
+            from straylight.errors import ConfigError
 
-        raise ConfigError(f"{campaign.path}: report.sky_map_bands: {', '.join(unknown)} not among the cube's bands "
-                          f"{', '.join(cube_bands)}")
+            raise ConfigError(f"{campaign.path}: report.sky_map_bands: {', '.join(unknown)} not among the cube's "
+                              f"bands {', '.join(cube_bands)}")
+        time_indices = map_time_indices(ds, int(rc["sky_map_times"]), rc.get("times") or ())
+        pixel_indices = series_pixel_indices(ds, int(rc["series_pointings"]), rc.get("pointings") or ())
     sky_bands = [b for b in cube_bands if b in set(rc.get("sky_map_bands") or cube_bands)]
-    # the longest share first (the series read every time block of their pixels), the sky pages
-    # band by band, so that the processes finish together
-    jobs = [("series", None)] + [("sky", [b]) for b in sky_bands] + [("limits", None)]
-    if int(workers) <= 1:
-        results = [_figure_job(kind, background_path, limits_path, campaign, out, bands) for kind, bands in jobs]
-    else:
-        from straylight.util.daskutil import spawned_pool
+    # the longest shares first (a pointing's series ~2 CPU-s, the limit maps with the depth table),
+    # then the sky pages a few bands at a time (~0.3 CPU-s a page): the processes finish together
+    groups = [sky_bands[i:i + SKY_BANDS_PER_JOB] for i in range(0, len(sky_bands), SKY_BANDS_PER_JOB)]
+    jobs = ([("series", ip, None) for ip in pixel_indices] + [("limits", None, None)]
+            + [("sky", it, g) for it in time_indices for g in groups])
+    results = _share_out(_figure_job, [(kind, background_path, limits_path, campaign, out, part, bands)
+                                       for kind, part, bands in jobs], int(workers))
+    order = {"sky": 0, "series": 1, "limits": 2}  # sky pages, series, limit maps
+    written = [p for job, (paths, _) in sorted(zip(jobs, results), key=lambda j: order[j[0][0]]) for p in paths]
+    rows = next(rows for (kind, _, _), (_, rows) in zip(jobs, results) if kind == "limits")
+    return written + write_summary(rows, campaign, out)
 
-        # this process draws too: the spawned ones take the shares from the front, this one from
-        # the back, each share it has not started yet (cancelled in the pool first)
-        with spawned_pool(min(int(workers) - 1, len(jobs))) as pool:
-            futures = [pool.submit(_figure_job, kind, background_path, limits_path, campaign, out, bands)
-                       for kind, bands in jobs]
-            results = [None] * len(jobs)
-            for i in reversed(range(len(jobs))):
-                if not futures[i].cancel():
-                    break
-                results[i] = _figure_job(jobs[i][0], background_path, limits_path, campaign, out, jobs[i][1])
-            results = [f.result() if r is None else r for f, r in zip(futures, results)]
-    written = [p for r in results[1:-1] for p in r] + results[0] + results[-1]
-    with xr.open_zarr(limits_path) as limits_ds:
-        return written + write_summary(limits_ds, campaign, out)
+
+#: Sky-map pages (bands) drawn by one job of :func:`campaign_figures`: shares small enough to
+#: even out the processes' ends, each reading its map time once
+SKY_BANDS_PER_JOB = 3
+
+
+def _share_out(run, jobs: list, workers: int) -> list:
+    """``run(*job)`` for every job (``run`` a module-level function, the jobs' arguments
+    picklable), in this process and ``workers`` - 1 spawned ones, each process taking the next job
+    of the list whenever it is free; the results in the jobs' order.  A failed job stops the
+    handing out and its error is raised once the running ones are done."""
+    if workers <= 1 or len(jobs) <= 1:
+        return [run(*job) for job in jobs]
+    import threading
+
+    from straylight.util.daskutil import spawned_pool
+
+    lock = threading.Lock()
+    queue = list(range(len(jobs)))
+    results, errors = [None] * len(jobs), []
+
+    def take():
+        with lock:
+            return None if errors or not queue else queue.pop(0)
+
+    def feed(pool):  # one thread per spawned process: hands it one job at a time
+        while (i := take()) is not None:
+            try:
+                results[i] = pool.submit(run, *jobs[i]).result()
+            except BaseException as exc:  # noqa: BLE001 - re-raised in the calling thread
+                with lock:
+                    errors.append(exc)
+
+    n_spawned = min(workers - 1, len(jobs) - 1)
+    with spawned_pool(n_spawned) as pool:
+        feeders = [threading.Thread(target=feed, args=(pool,), daemon=True) for _ in range(n_spawned)]
+        for t in feeders:
+            t.start()
+        try:
+            while (i := take()) is not None:
+                results[i] = run(*jobs[i])
+        except BaseException as exc:
+            with lock:
+                errors.append(exc)
+        for t in feeders:
+            t.join()
+    if errors:
+        raise errors[0]
+    return results

@@ -46,3 +46,79 @@ def test_depth_summary_numbers():
     assert rows["g"]["median_depth_mag"] == 26.0 and rows["g"]["best_depth_mag"] == 27.5
     assert rows["r"]["median_depth_mag"] == 24.5 and rows["r"]["best_depth_mag"] == 25.5
     assert rows["g"]["observable_fraction"] == pytest.approx(3 / 16)
+
+
+@pytest.mark.parametrize("nest", [False, True])
+def test_mollweide_panel_puts_each_pixel_where_healpy_projects_it(nest):
+    """A panel's image is healpy's own Mollweide projection of the map (the image
+    ``healpy.projector.MollweideProj.projmap`` makes, which ``mollview`` draws), and on the
+    rendered page the point at a chosen RA/Dec has the colour of the map's pixel there: one
+    bright pixel at (RA 45, Dec 15) is drawn at healpy's projected position of that point, the
+    mirror point (RA 315) keeps the background value (east to the left, as in mollview), an
+    UNSEEN pixel is grey."""
+    import healpy as hp
+    from healpy.projector import MollweideProj
+    from matplotlib import colormaps
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from straylight.plots import MOLLWEIDE_XSIZE, _mollweide_panel
+
+    nside = 8
+    m = np.zeros(hp.nside2npix(nside))
+    lit = hp.ang2pix(nside, 45.0, 15.0, nest=nest, lonlat=True)
+    mirror = hp.ang2pix(nside, 315.0, 15.0, nest=nest, lonlat=True)
+    unseen = hp.ang2pix(nside, 200.0, -40.0, nest=nest, lonlat=True)
+    m[lit], m[unseen] = 1.0, hp.UNSEEN
+    fig = Figure(figsize=(16, 3.3))
+    FigureCanvasAgg(fig)
+    ax = _mollweide_panel(fig, m, nest, (1, 4, 2), "t", 0.0, 1.0, "viridis", None)
+
+    reference = MollweideProj(xsize=MOLLWEIDE_XSIZE, flipconv="astro")
+    expected = reference.projmap(m, lambda x, y, z: hp.vec2pix(nside, x, y, z, nest=nest))
+    image = ax.get_images()[0].get_array()
+    assert np.array_equal(np.ma.getdata(image), expected)
+    # masked: UNSEEN (grey) and, as in mollview, the -inf outside the ellipse (background)
+    assert np.array_equal(np.ma.getmaskarray(image), (expected == hp.UNSEEN) | np.isinf(expected))
+
+    fig.canvas.draw()
+    rgba = np.asarray(fig.canvas.buffer_rgba())
+    height = rgba.shape[0]
+    for pix, colour in ((lit, colormaps["viridis"](1.0)), (mirror, colormaps["viridis"](0.0)),
+                        (unseen, (0.5, 0.5, 0.5, 1.0))):
+        ra, dec = hp.pix2ang(nside, pix, nest=nest, lonlat=True)  # the pixel's centre
+        xy = reference.ang2xy(ra, dec, lonlat=True)
+        col, row = ax.transData.transform(np.array(xy, float).reshape(1, 2))[0]
+        drawn = rgba[int(height - row), int(col)] / 255.0
+        assert drawn == pytest.approx(colour, abs=2 / 255), (ra, dec)
+
+
+def _tagged(k):
+    """Job of the tests below: ``k`` and whether it ran in a spawned process, 0.3 s later (slow
+    enough that both processes take jobs)."""
+    import multiprocessing
+    import time
+
+    time.sleep(0.3)
+    return k, multiprocessing.parent_process() is not None
+
+
+def _fails_when_spawned(k):
+    import multiprocessing
+
+    if multiprocessing.parent_process() is not None:
+        raise RuntimeError(f"job {k} failed in the spawned process")
+    return _tagged(k)
+
+
+def test_share_out_returns_results_in_job_order_and_raises_a_failed_job():
+    """The figure jobs shared between this process and a spawned one: every result in its job's
+    place whichever process ran it, both processes took jobs, and an error in the spawned
+    process reaches the caller."""
+    from straylight.plots import _share_out
+
+    results = _share_out(_tagged, [(k,) for k in range(6)], 2)
+    assert [k for k, _ in results] == list(range(6))
+    assert {spawned for _, spawned in results} == {True, False}
+    with pytest.raises(RuntimeError, match="in the spawned process"):
+        _share_out(_fails_when_spawned, [(k,) for k in range(4)], 2)
