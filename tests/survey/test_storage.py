@@ -132,7 +132,8 @@ def _edge_values(dtype) -> np.ndarray:
     patterns = np.random.default_rng(7).integers(0, np.iinfo(uint).max, 100_000, dtype=uint, endpoint=True)
     edges = np.array([0.0, -0.0, np.nan, -np.nan, np.inf, -np.inf, info.max, -info.max, info.tiny, -info.tiny,
                       info.smallest_subnormal, -info.smallest_subnormal, 1.0, -1.0, 1.5, 3.0e-8, -7.25e12], dtype)
-    normal = (np.random.default_rng(8).standard_normal(10_000) * 10.0 ** np.arange(-20, 20, 4).repeat(1000)).astype(dtype)
+    scales = 10.0 ** np.arange(-20, 20, 4).repeat(1000)
+    normal = (np.random.default_rng(8).standard_normal(10_000) * scales).astype(dtype)
     values = np.concatenate([patterns.view(dtype), edges, normal])
     assert values.dtype == dtype
     return values
