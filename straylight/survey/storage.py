@@ -148,8 +148,14 @@ def _rounded_copy(data, keepbits: int | None):
     if keepbits is None:
         return data
     if hasattr(data, "map_blocks"):  # dask: rounded chunk by chunk when computed
-        return data.map_blocks(lambda block: bitround(np.array(block, order="C"), keepbits), dtype=data.dtype)
-    return bitround(np.array(data, order="C"), keepbits)
+        return data.map_blocks(_rounded_block, keepbits, dtype=data.dtype)
+    return _rounded_block(data, keepbits)
+
+
+def _rounded_block(block, keepbits: int) -> np.ndarray:
+    """A C-ordered copy of ``block`` bit-rounded to ``keepbits`` (a module function: dask
+    pickles it to its workers)."""
+    return bitround(np.array(block, order="C"), keepbits)
 
 
 def _codecs(dtype, lossless: bool, keepbits: int, level: int) -> tuple[dict, str, float]:

@@ -211,3 +211,20 @@ def test_stored_values_rounds_as_the_attributes_record():
     np.testing.assert_array_equal(rounded, bitround(values.copy(), 10))
     assert not np.array_equal(rounded, values)
     np.testing.assert_array_equal(stored_values(values.copy(), {"max_relative_error": 0.0}), values)
+
+
+def test_encoded_rounds_dask_data_chunk_by_chunk(campaign):
+    """A streamed (dask) dataset, as the limits rule writes one, is rounded lazily to the bits
+    numcodecs.BitRound gives, and the caller's data is left as it was."""
+    import dask.array as da
+    from numcodecs import BitRound
+
+    values = np.random.default_rng(4).random((10, 8)).astype(np.float32)
+    ds = xr.Dataset({"a": (("time", "pixel"), da.from_array(values.copy(), chunks=(3, 4)),
+                           {"units": "electron / (s pixel)"})})
+    out, enc = encoded(ds, campaign.config["storage"])
+    bits = campaign.config["storage"]["float_keepbits"]
+    assert out["a"].chunks == ds["a"].chunks and "filters" not in enc["a"]
+    np.testing.assert_array_equal(out["a"].values.view(np.uint32),
+                                  BitRound(bits).encode(values).view(np.uint32).reshape(values.shape))
+    np.testing.assert_array_equal(ds["a"].values, values)
