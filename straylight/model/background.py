@@ -78,23 +78,20 @@ class BackgroundModel:
         moon_lamp = self.moon.lamp(samples)
         zodi_e, zodi_no_data = c.zodiacal.rates([c.band(name) for name in bands], frame.z, unit(sun - sat), shape,
                                                 runs)  # (bands, samples)
-        zodi = {name: zodi_e[ib].reshape(shape) for ib, name in enumerate(bands)}
         # the solar-spectrum sources' rates are band-independent until multiplied by each band's
         # photon irradiance of the Sun at 1 AU
         sun_at_1au = {name: c.photometry(name).sun_at_1au_photons_s_m2 for name in bands}
         moon_at_earth_unit = {name: sun_at_1au[name] * moon_lamp["at_earth"] for name in bands}
         t_sun, inverse_square = self.sun.rates(samples)
-        sun_irr = {name: sun_at_1au[name] * inverse_square for name in bands}
         es_coeff = self.sunlit_earth.rates(samples)
-        # the terms never skipped make each sample's floor (the band-independent sums once)
+        # the terms never skipped make each sample's floor (the band-independent sums once), and
+        # the floor in units of the darkest zodiacal light, worst band: what the skip radii scale with
         per_sun = t_sun + es_coeff["direct_sun"] + es_coeff["door_sun"]
         per_moon = es_coeff["direct_moon"] + es_coeff["door_moon"]
-        floor = {name: self._floor(zodi[name] + per_sun * sun_irr[name] + per_moon * moon_at_earth_unit[name], name,
-                                   shape) for name in bands}
+        floor, floor_ratio = self._floor(zodi_e, per_sun, inverse_square, per_moon, moon_lamp["at_earth"],
+                                         [sun_at_1au[name] for name in bands], bands, shape)
         if self.sunlit_earth.lut is not None:
             self.moonlit_earth.add(es_coeff, samples, self.sunlit_earth.lut, moon_at_earth_unit, floor)
-        # the floor in units of the darkest zodiacal light, worst band: what the skip radii scale with
-        floor_ratio = np.min([floor[name] / c.darkest_zodiacal_e_per_s(name) for name in bands], axis=0)
         moon_fraction = self.moon.rates(samples, moon_lamp, bands, floor_ratio)
         planets_fraction = self.planets.rates(samples, bands, floor_ratio)
         stars_e = self.stars.rates(samples, stars, bands, floor_ratio, faint_rates)  # (bands, samples)
@@ -120,11 +117,21 @@ class BackgroundModel:
             out[name] = res
         return out
 
-    def _floor(self, partial_total, band: str, shape) -> np.ndarray:
-        """A lower bound of the samples' total in ``band`` (e-/s/pix): the terms computed before
-        the skippable ones, never below the darkest zodiacal light (nor NaN)."""
-        return np.fmax(np.broadcast_to(np.asarray(partial_total, float), shape),
-                       self.context.darkest_zodiacal_e_per_s(band))
+    def _floor(self, zodi_e, per_sun, inverse_square, per_moon, moon_at_earth_fraction, sun_at_1au: list, bands,
+               shape) -> tuple[dict, np.ndarray]:
+        """A lower bound of the samples' total per band (band -> e-/s/pix, arrays of ``shape``):
+        the terms computed before the skippable ones, zodi_e[band] + per_sun * (sun_at_1au[band]
+        * inverse_square) + per_moon * (sun_at_1au[band] * moon_at_earth_fraction), never below
+        the band's darkest zodiacal light (nor NaN); and its smallest ratio to that darkest light
+        over the bands, per sample.  One compiled pass (:func:`_floor_kernel`)."""
+        n = int(np.prod(shape))
+        flat = [np.ascontiguousarray(np.broadcast_to(np.asarray(v, float), shape).ravel()) for v in
+                (per_sun, inverse_square, per_moon, moon_at_earth_fraction)]
+        darkest = np.array([self.context.darkest_zodiacal_e_per_s(name) for name in bands], float)
+        floor, ratio = np.empty((len(bands), n)), np.empty(n)
+        _floor_kernel(np.asarray(zodi_e, float).reshape(len(bands), n), *flat, np.asarray(sun_at_1au, float), darkest,
+                      floor, ratio)
+        return {name: floor[ib].reshape(shape) for ib, name in enumerate(bands)}, ratio.reshape(shape)
 
     def models_record(self) -> dict:
         """Which models ran and their error budget, for a product's attributes (JSON-able)."""
@@ -179,6 +186,25 @@ BAND_COMPONENTS = ("zodiacal", "sun", "moon", "planets", "stars", "earthshine_di
 
 
 @njit(cache=True, nogil=True)
+def _floor_kernel(zodi_e, per_sun, inverse_square, per_moon, moon_at_earth_fraction, sun_at_1au, darkest, floor,
+                  ratio):
+    """:meth:`BackgroundModel._floor` per sample: ``floor[band, sample]`` and ``ratio[sample]``,
+    the numpy expression's operations in its order (the same bits), np.fmax's rule for NaN."""
+    for i in range(per_sun.shape[0]):
+        smallest = np.inf
+        for ib in range(sun_at_1au.shape[0]):
+            s1 = sun_at_1au[ib]
+            partial = (zodi_e[ib, i] + per_sun[i] * (s1 * inverse_square[i])
+                       + per_moon[i] * (s1 * moon_at_earth_fraction[i]))
+            f = partial if partial >= darkest[ib] else darkest[ib]  # np.fmax: NaN gives the darkest
+            floor[ib, i] = f
+            q = f / darkest[ib]
+            if q < smallest:
+                smallest = q
+        ratio[i] = smallest
+
+
+@njit(cache=True, nogil=True)
 def _band_components_kernel(zodi_e, t_sun, inverse_square, moon_fraction, planets_fraction, direct_sun, door_sun,
                             direct_moon, door_moon, moon_at_earth_fraction, stars_e, sun_at_1au, slot, out):
     """Every band's :data:`BAND_COMPONENTS` (e-/s/pix) per sample, component ``c`` into
@@ -188,21 +214,43 @@ def _band_components_kernel(zodi_e, t_sun, inverse_square, moon_fraction, planet
     samples).  The arithmetic is the plain per-band expression in a fixed order, so the float64
     values do not depend on batch size (the cube's totals compare bit for bit), in one pass
     over the samples instead of ~25 numpy passes a band."""
-    v = np.empty(len(BAND_COMPONENTS))
+    # the components in scalars, not a scratch array: the compiler keeps them in registers
+    # (stores into ``out`` could alias an array): 1.6-2x faster on a region's 47,520 x 7 samples
+    s0, s1, s2, s3, s4, s5, s6, s7, s8 = (slot[0], slot[1], slot[2], slot[3], slot[4], slot[5], slot[6], slot[7],
+                                          slot[8])
     for i in range(t_sun.shape[0]):
+        t_s, inv_sq, m_f, p_f = t_sun[i], inverse_square[i], moon_fraction[i], planets_fraction[i]
+        d_s, g_s, d_m, g_m = direct_sun[i], door_sun[i], direct_moon[i], door_moon[i]
+        m_e = moon_at_earth_fraction[i]
         for ib in range(sun_at_1au.shape[0]):
-            s1 = sun_at_1au[ib]
-            sun_irr = s1 * inverse_square[i]
-            moon_irr_earth = s1 * moon_at_earth_fraction[i]
-            v[0] = zodi_e[ib, i]
-            v[1] = t_sun[i] * sun_irr
-            v[2] = moon_fraction[i] * s1
-            v[3] = planets_fraction[i] * s1
-            v[4] = stars_e[ib, i]
-            v[5] = direct_sun[i] * sun_irr + direct_moon[i] * moon_irr_earth
-            v[6] = door_sun[i] * sun_irr + door_moon[i] * moon_irr_earth
-            v[7] = v[5] + v[6]
-            v[8] = v[0] + v[1] + v[2] + v[3] + v[4] + v[7]
-            for c in range(len(BAND_COMPONENTS)):
-                if slot[c] >= 0:
-                    out[slot[c], i, ib] = v[c]
+            sun_1au = sun_at_1au[ib]
+            sun_irr = sun_1au * inv_sq
+            moon_irr_earth = sun_1au * m_e
+            zodiacal = zodi_e[ib, i]
+            sun = t_s * sun_irr
+            moon = m_f * sun_1au
+            planets = p_f * sun_1au
+            stars = stars_e[ib, i]
+            direct = d_s * sun_irr + d_m * moon_irr_earth
+            door = g_s * sun_irr + g_m * moon_irr_earth
+            earthshine = direct + door
+            total = zodiacal + sun + moon + planets + stars + earthshine
+            # BAND_COMPONENTS' order
+            if s0 >= 0:
+                out[s0, i, ib] = zodiacal
+            if s1 >= 0:
+                out[s1, i, ib] = sun
+            if s2 >= 0:
+                out[s2, i, ib] = moon
+            if s3 >= 0:
+                out[s3, i, ib] = planets
+            if s4 >= 0:
+                out[s4, i, ib] = stars
+            if s5 >= 0:
+                out[s5, i, ib] = direct
+            if s6 >= 0:
+                out[s6, i, ib] = door
+            if s7 >= 0:
+                out[s7, i, ib] = earthshine
+            if s8 >= 0:
+                out[s8, i, ib] = total

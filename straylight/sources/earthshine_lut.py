@@ -512,11 +512,11 @@ class EarthshineLUT:
         """:meth:`sun_coefficients` by look-up at every sample."""
         r, z_sun, zeta, a = self.coordinates(sat, sun, los, runs)
         shape = z_sun.shape
-        pts = np.stack([z_sun, zeta, a], axis=-1)
+        # one flat array per axis, as the grid reads them (no (samples, axes) stack to copy)
+        coords = [v.ravel() for v in (z_sun, zeta, a)]
         if self.radius_km.size > 1:
-            pts = np.concatenate([np.clip(r, self.radius_km[0], self.radius_km[-1])[..., None], pts], axis=-1)
-        pts = pts.reshape(-1, pts.shape[-1])
-        return _per_door_state(self._interpolators(), pts.T, opening_deg, shape, self.scale)
+            coords.insert(0, np.clip(r, self.radius_km[0], self.radius_km[-1]).ravel())
+        return _per_door_state(self._interpolators(), coords, opening_deg, shape, self.scale)
 
     @cached_property
     def dark_sun_zenith_deg(self) -> float:

@@ -42,6 +42,7 @@ from straylight.config import Campaign
 from straylight.errors import OutputError
 from straylight.survey.footprint import Footprint, pixel_block_length
 from straylight.survey.limits import ZERO_POINT_NAME, zero_point_coord
+from straylight.survey.storage import stored_values
 from straylight.sky.geometry import SceneRuns, TelescopeFrame, observing_geometry, radec_to_unit, telescope_frame, violation_mask_attrs
 
 CUBE_COMPONENTS = ("zodiacal", "earthshine", "moon", "sun", "planets", "stars")
@@ -638,7 +639,7 @@ def write_region(campaign: Campaign, fp: Footprint, store, t_slice: slice, p_sli
     ``faint_map``: the store's faint-star map at these pixels, (pixel, band) e-/s/pix, when the
     caller has read it (None: read from the store here when there is a star catalog);
     ``arrays``: the store's arrays (:func:`store_arrays`) when the caller keeps them open (None:
-    written through xarray); ``obs_store``: the observability store the region's observability
+    opened here); ``obs_store``: the observability store the region's observability
     goes to as well (:func:`init_observability_store`; None: not written), ``obs_arrays`` its
     arrays kept open; ``lim_store``: the limits store the region's limits, computed from its
     computed total (:func:`region_limits`), go to (:func:`init_limits_store`; None: not
@@ -653,28 +654,19 @@ def write_region(campaign: Campaign, fp: Footprint, store, t_slice: slice, p_sli
                         angles=angles)
     lim = None if lim_store is None else region_limits(campaign, ds)
     try:
-        if arrays is None:
-            ds.to_zarr(store, region={"time": t_slice, "pixel": p_slice, "band": slice(None)}, mode="r+",
-                       consolidated=False)
-        else:
-            for name, var in ds.data_vars.items():
-                arrays[name][t_slice, p_slice] = var.values
+        # written through the stores' arrays, each rounded as its attributes record (storage.stored_values)
+        arrays = arrays or store_arrays(store, tuple(ds.data_vars))
+        for name, var in ds.data_vars.items():
+            arrays[name][t_slice, p_slice] = stored_values(var.values, arrays[name].attrs)
         if obs_store is not None:
-            obs = {k: angles[k] if k in angles else ds[k].values for k in OBSERVABILITY_VARIABLES}
-            if obs_arrays is None:
-                xr.Dataset({k: (("time", "pixel"), v) for k, v in obs.items()}).to_zarr(
-                    obs_store, region={"time": t_slice, "pixel": p_slice}, mode="r+", consolidated=False)
-            else:
-                for name, values in obs.items():
-                    obs_arrays[name][t_slice, p_slice] = values
+            obs_arrays = obs_arrays or store_arrays(obs_store, OBSERVABILITY_VARIABLES)
+            for name in OBSERVABILITY_VARIABLES:
+                values = angles[name] if name in angles else ds[name].values
+                obs_arrays[name][t_slice, p_slice] = stored_values(values, obs_arrays[name].attrs)
         if lim is not None:
-            if lim_arrays is None:
-                xr.Dataset({k: (("time", "pixel", "band")[:v.ndim], v) for k, v in lim.items()}).to_zarr(
-                    lim_store, region={"time": t_slice, "pixel": p_slice, "band": slice(None)}, mode="r+",
-                    consolidated=False)
-            else:
-                for name, values in lim.items():
-                    lim_arrays[name][t_slice, p_slice] = values
+            lim_arrays = lim_arrays or store_arrays(lim_store, tuple(lim))
+            for name, values in lim.items():
+                lim_arrays[name][t_slice, p_slice] = stored_values(values, lim_arrays[name].attrs)
     except OSError as exc:  # ENOSPC, EDQUOT, EACCES...: the block's sentinel is not written
         raise OutputError(f"{store}: writing times {t_slice.start}:{t_slice.stop} x pixels {p_slice.start}:"
                           f"{p_slice.stop} failed ({exc.strerror or exc}); finished time blocks are kept, "

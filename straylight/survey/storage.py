@@ -1,14 +1,18 @@
 """How the products store their variables on disk (Zarr v3 codecs).
 
-Floating-point data variables are bit-rounded, byte-shuffled and zstd-compressed:
-``numcodecs.bitround`` keeps ``storage.float_keepbits`` mantissa bits (``storage.magnitude_keepbits`` in variables whose
-units are magnitudes, e.g. 16 bits: within 2.4e-4 mag of a 30-mag value), rounding to nearest, so a
-stored float differs from the computed one by at most half a unit in the last kept place,
-2^-(keepbits + 1) of its magnitude (exactly 0, NaN and inf are kept as they are); the byte
-shuffle then groups the exponent bytes and the zeroed mantissa bytes, which zstd packs.
-Booleans and integers (``observable``, ``violations``) are zstd-compressed losslessly.
-Coordinates keep xarray's default (lossless) encoding, and ephemeris.zarr is stored losslessly:
-observability.zarr is computed from its positions.
+Floating-point data variables are bit-rounded before they are written, then byte-shuffled and
+zstd-compressed: :func:`bitround` keeps ``storage.float_keepbits`` mantissa bits
+(``storage.magnitude_keepbits`` in variables whose units are magnitudes, e.g. 16 bits: within
+2.4e-4 mag of a 30-mag value), rounding to nearest (ties to even kept bits, as
+``numcodecs.BitRound`` does, bit for bit), so a stored float differs from the computed one by at
+most half a unit in the last kept place, 2^-(keepbits + 1) of its magnitude (exactly 0, NaN and
+inf are kept as they are); the byte shuffle then groups the exponent bytes and the zeroed
+mantissa bytes, which zstd packs.  The rounding is done by the writer, in one compiled pass
+(:func:`encoded` for a whole dataset, :func:`stored_values` for a region written into an existing
+store), so the stores' codec pipelines are lossless (shuffle + zstd) and a reader needs no
+rounding codec.  Booleans and integers (``observable``, ``violations``) are zstd-compressed
+losslessly.  Coordinates keep xarray's default (lossless) encoding, and ephemeris.zarr is stored
+losslessly: observability.zarr is computed from its positions.
 
 A bound holds against the values the writing step computed.  limits.zarr's ``limiting_mag`` is
 computed by the cube's workers from the total they computed, before it is bit-rounded, so it is
@@ -19,17 +23,20 @@ background's propagated bound too: the limit's signal grows at most as the squar
 background, so a relative error e of the total moves the limit by at most
 2.5 / ln 10 * e / 2 mag (2.7e-4 mag at 10 bits; 1.8e-5 of a 15-mag limit).
 
-The codec and the bound are recorded in each variable's attributes (``compression``,
-``max_relative_error``) and the bound in the dataset's (``float_max_relative_error``).
-Zarr-python reads the stores with no extra setting; ``numcodecs.bitround`` and
-``numcodecs.shuffle`` are numcodecs codecs, outside the Zarr v3 specification, so another Zarr
-implementation needs numcodecs' codecs to read them.
+The rounding and its bound are recorded in each variable's attributes (``compression``,
+``max_relative_error``) and the bound in the dataset's (``float_max_relative_error``); a region
+writer reads the bits to keep back from ``max_relative_error`` (:func:`recorded_keepbits`).
+Zarr-python reads the stores with no extra setting; ``numcodecs.shuffle`` is a numcodecs codec,
+outside the Zarr v3 specification, so another Zarr implementation needs numcodecs' shuffle to
+read them.
 """
 from __future__ import annotations
 
+import math
 import os
 
 import numpy as np
+from numba import njit
 
 from straylight.util.io import atomic_path
 
@@ -47,9 +54,70 @@ def max_relative_error(keepbits: int, dtype=np.float32) -> float:
     return 2.0 ** -(int(keepbits) + 1)
 
 
+#: unsigned integer of each float's width, and its mantissa bits
+_BITS = {np.dtype(np.float32): (np.uint32, 23), np.dtype(np.float64): (np.uint64, 52)}
+
+
+@njit(cache=True, nogil=True)
+def _bitround_bits(bits, maskbits, one, half_quantum1, mask):
+    """Round the floats whose bit patterns ``bits`` (flat, unsigned) holds to ``maskbits`` fewer
+    mantissa bits, in place: numcodecs.BitRound.encode's integer steps (modulo 2^width, as its
+    signed integers wrap), one pass; the scalars are of ``bits``' type."""
+    for i in range(bits.size):
+        b = bits[i]
+        bits[i] = (b + ((b >> maskbits) & one) + half_quantum1) & mask
+
+
+def bitround(values: np.ndarray, keepbits: int | None) -> np.ndarray:
+    """``values`` (float32 or float64) rounded to ``keepbits`` mantissa bits, the bits
+    ``numcodecs.BitRound(keepbits).encode`` gives (round to nearest, ties to an even last kept
+    bit; a carry can reach the exponent, so the largest finite floats round to inf and a NaN with
+    a payload only in the dropped bits to inf, as there).  In place when ``values`` is a writeable
+    C-contiguous float array, else on a copy; returned either way.  ``keepbits`` None or at least
+    the type's mantissa bits (float32: 23, float64: 52): ``values`` as they are."""
+    values = np.asarray(values)
+    if keepbits is None or values.dtype.kind != "f":
+        return values
+    if values.dtype not in _BITS:
+        raise TypeError(f"bit-rounding needs float32 or float64 values, not {values.dtype}")
+    uint, nmant = _BITS[values.dtype]
+    if int(keepbits) < 0:
+        raise ValueError(f"keepbits must be zero or positive, not {keepbits}")
+    if int(keepbits) >= nmant:
+        return values
+    if not (values.flags.c_contiguous and values.flags.writeable):
+        values = np.array(values, order="C")
+    maskbits = nmant - int(keepbits)
+    all_set = np.iinfo(uint).max
+    _bitround_bits(values.reshape(-1).view(uint), uint(maskbits), uint(1), uint((1 << (maskbits - 1)) - 1),
+                   uint((all_set >> maskbits) << maskbits))
+    return values
+
+
+def recorded_keepbits(attrs) -> int | None:
+    """The mantissa bits a stored variable keeps, from the bound :func:`encoded` recorded in its
+    attributes (``max_relative_error`` = 2^-(keepbits + 1)); None when it is stored exactly
+    (bound 0, or no bound recorded: a store written without the products' codecs)."""
+    error = float(attrs.get(MAX_RELATIVE_ERROR_ATTR, 0.0))
+    if error == 0.0:
+        return None
+    mantissa, exponent = math.frexp(error)  # error = 0.5 * 2^exponent
+    if mantissa != 0.5 or exponent > 0:
+        raise ValueError(f"{MAX_RELATIVE_ERROR_ATTR} = {error} is not a bit-rounding bound 2^-(keepbits + 1)")
+    return -exponent
+
+
+def stored_values(values: np.ndarray, attrs) -> np.ndarray:
+    """``values`` as a variable whose stored attributes are ``attrs`` keeps them on disk
+    (:func:`bitround` to :func:`recorded_keepbits`; in place where it can): what a region writer
+    puts into an existing store's array (its codecs are lossless)."""
+    return bitround(values, recorded_keepbits(attrs))
+
+
 def encoded(dataset, settings: dict, lossless: tuple = ()):
-    """``dataset`` with the codecs recorded in its attributes, and the ``encoding`` dict that
-    stores its data variables so (``Dataset.to_zarr(..., encoding=...)``).
+    """``dataset`` with its float data variables bit-rounded (:func:`bitround`; lazily for dask
+    arrays) and the rounding recorded in their attributes, and the ``encoding`` dict that
+    stores its data variables (``Dataset.to_zarr(..., encoding=...)``: shuffle + zstd, lossless).
 
     ``settings``: the campaign's ``storage`` section (``float_keepbits``: mantissa bits kept in
     every float data variable, ``zstd_level``); ``lossless``: float data variables stored
@@ -65,16 +133,32 @@ def encoded(dataset, settings: dict, lossless: tuple = ()):
         # magnitudes are read to a fixed number of decimals, not to a fraction of themselves
         bits = mag_keepbits if str(var.attrs.get("units", "")).startswith("mag") else keepbits
         encoding[name], described, error = _codecs(var.dtype, name in lossless, bits, level)
-        # a new attrs dict: the caller's dataset is left as it was
-        out[name] = var.copy(deep=False)
+        # new data and a new attrs dict: the caller's dataset is left as it was
+        out[name] = var.copy(deep=False, data=_rounded_copy(var.data, None if error == 0.0 else bits))
         out[name].attrs = {**var.attrs, COMPRESSION_ATTR: described, MAX_RELATIVE_ERROR_ATTR: error}
     out.attrs = {**dataset.attrs, "float_max_relative_error": max(
                      (out[n].attrs[MAX_RELATIVE_ERROR_ATTR] for n in out.data_vars), default=0.0),
-                 "compression": f"float data variables bit-rounded to {keepbits} mantissa bits (numcodecs BitRound)"
+                 "compression": f"float data variables bit-rounded to {keepbits} mantissa bits (as numcodecs BitRound)"
                                 + (f" but {', '.join(lossless)}" if lossless else "")
                                 + f", byte-shuffled and zstd level {level}; the others zstd level {level}, lossless"
                                 " (each variable's compression and max_relative_error attributes)"}
     return out, encoding
+
+
+def _rounded_copy(data, keepbits: int | None):
+    """``data`` (numpy or dask) bit-rounded to ``keepbits`` on a copy; ``data`` itself when it
+    keeps every bit."""
+    if keepbits is None:
+        return data
+    if hasattr(data, "map_blocks"):  # dask: rounded chunk by chunk when computed
+        return data.map_blocks(_rounded_block, keepbits, dtype=data.dtype)
+    return _rounded_block(data, keepbits)
+
+
+def _rounded_block(block, keepbits: int) -> np.ndarray:
+    """A C-ordered copy of ``block`` bit-rounded to ``keepbits`` (a module function: dask
+    pickles it to its workers)."""
+    return bitround(np.array(block, order="C"), keepbits)
 
 
 def _codecs(dtype, lossless: bool, keepbits: int, level: int) -> tuple[dict, str, float]:
@@ -82,7 +166,7 @@ def _codecs(dtype, lossless: bool, keepbits: int, level: int) -> tuple[dict, str
     import warnings
 
     from zarr.codecs import ZstdCodec
-    from zarr.codecs.numcodecs import BitRound, Shuffle
+    from zarr.codecs.numcodecs import Shuffle
 
     dtype = np.dtype(dtype)
     zstd = ZstdCodec(level=level)
@@ -92,12 +176,11 @@ def _codecs(dtype, lossless: bool, keepbits: int, level: int) -> tuple[dict, str
     with warnings.catch_warnings():  # zarr: numcodecs codecs are outside the v3 spec (module docstring)
         warnings.filterwarnings("ignore", message="Numcodecs codecs are not in the Zarr version 3")
         shuffle = Shuffle(elementsize=dtype.itemsize)
-        if error == 0.0:
-            return ({"compressors": [shuffle, zstd]},
-                    f"numcodecs.shuffle(elementsize={dtype.itemsize}) + zstd(level={level}), lossless", 0.0)
-        return ({"filters": [BitRound(keepbits=keepbits)], "compressors": [shuffle, zstd]},
-                f"numcodecs.bitround(keepbits={keepbits}) + numcodecs.shuffle(elementsize={dtype.itemsize})"
-                f" + zstd(level={level})", error)
+    pipeline = f"numcodecs.shuffle(elementsize={dtype.itemsize}) + zstd(level={level})"
+    if error == 0.0:
+        return {"compressors": [shuffle, zstd]}, f"{pipeline}, lossless", 0.0
+    # rounded by the writer (encoded, stored_values), the bits numcodecs.bitround would give
+    return {"compressors": [shuffle, zstd]}, f"bitround(keepbits={keepbits}) before writing + {pipeline}", error
 
 
 def write_zarr_atomic(dataset, path: str | os.PathLike, storage: dict | None = None) -> None:

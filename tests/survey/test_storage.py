@@ -10,7 +10,8 @@ from straylight.survey.cube import CUBE_BAND_VARIABLES, compute_region, init_sto
 from straylight.survey.footprint import footprint_from_config
 from straylight.survey.limits import limits_dataset
 from straylight.survey.products import ephemeris_dataset, observability_dataset
-from straylight.survey.storage import encoded, max_relative_error, write_zarr_atomic
+from straylight.survey.storage import (bitround, encoded, max_relative_error, recorded_keepbits, stored_values,
+                                       write_zarr_atomic)
 
 #: issue #32: stored values within 1e-3 relative of the computed ones, all products together at
 #: most 25 bytes per (time, pixel) sample
@@ -121,3 +122,109 @@ def test_too_few_bits_break_the_required_bound(block, tmp_path, bits):
         errs = [_max_relative_error(stored[v].values, computed[v].values) for v in CUBE_BAND_VARIABLES]
     assert max(errs) > REQUIRED_RELATIVE_ERROR
     assert max(errs) <= max_relative_error(bits)
+
+
+def _edge_values(dtype) -> np.ndarray:
+    """Random bit patterns (every sign, exponent, NaN payload) and the edge cases: zeros, NaN,
+    inf, subnormals, the largest and smallest normal floats, ties."""
+    info = np.finfo(dtype)
+    uint = np.uint32 if np.dtype(dtype).itemsize == 4 else np.uint64
+    patterns = np.random.default_rng(7).integers(0, np.iinfo(uint).max, 100_000, dtype=uint, endpoint=True)
+    edges = np.array([0.0, -0.0, np.nan, -np.nan, np.inf, -np.inf, info.max, -info.max, info.tiny, -info.tiny,
+                      info.smallest_subnormal, -info.smallest_subnormal, 1.0, -1.0, 1.5, 3.0e-8, -7.25e12], dtype)
+    scales = 10.0 ** np.arange(-20, 20, 4).repeat(1000)
+    normal = (np.random.default_rng(8).standard_normal(10_000) * scales).astype(dtype)
+    values = np.concatenate([patterns.view(dtype), edges, normal])
+    assert values.dtype == dtype
+    return values
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_bitround_is_numcodecs_bitround_bit_for_bit(dtype):
+    """The writer's compiled rounding gives the bits numcodecs.BitRound.encode gives (the codec
+    the stores applied on write before), on every kind of float."""
+    from numcodecs import BitRound
+
+    values = _edge_values(dtype)
+    uint = np.uint32 if np.dtype(dtype).itemsize == 4 else np.uint64
+    nmant = np.finfo(dtype).nmant
+    for keepbits in (0, 1, 7, 10, 16, nmant - 1, nmant):
+        expected = BitRound(keepbits).encode(values.copy()).view(uint)
+        got = bitround(values.copy(), keepbits)
+        assert got.dtype == values.dtype
+        np.testing.assert_array_equal(got.view(uint), expected, err_msg=f"{dtype.__name__}, keepbits {keepbits}")
+
+
+def test_bitround_in_place_or_on_a_copy():
+    values = np.linspace(1.0, 2.0, 12, dtype=np.float32).reshape(3, 4)
+    strided = values.T  # not C-contiguous: rounded on a copy, the input left as it was
+    before = strided.copy()
+    out = bitround(strided, 3)
+    np.testing.assert_array_equal(strided, before)
+    assert out.shape == (4, 3) and not np.array_equal(out, before)
+    assert bitround(values, 3) is values and np.array_equal(values, out.T)  # contiguous: in place
+    assert bitround(values, None) is values and bitround(values, 23) is values
+
+
+def test_keepbits_read_back_from_the_recorded_bound(campaign):
+    bits = campaign.config["storage"]["float_keepbits"]
+    for keepbits in (0, 1, bits, 16, 22):
+        assert recorded_keepbits({"max_relative_error": max_relative_error(keepbits)}) == keepbits
+    assert recorded_keepbits({"max_relative_error": 0.0}) is None and recorded_keepbits({}) is None
+    with pytest.raises(ValueError):
+        recorded_keepbits({"max_relative_error": 3e-4})
+
+
+def test_every_stored_float_keeps_only_its_bits(block):
+    """The stores' codecs are lossless and every stored float was rounded by the writer: its
+    dropped mantissa bits are zero (read raw through zarr), the stored value is the computed one
+    rounded as numcodecs.BitRound rounds it, and no rounding codec is in the pipeline."""
+    import zarr
+    from numcodecs import BitRound
+
+    checked = 0
+    for product, computed in block["computed"].items():
+        group = zarr.open_group(str(block["dir"] / product), mode="r")
+        for name, var in computed.data_vars.items():
+            array = group[name]
+            codecs = [type(c).__name__ for c in (*array.filters, *array.compressors)]
+            assert not any("BitRound" in c for c in codecs), (product, name, codecs)
+            keepbits = recorded_keepbits(array.attrs)
+            if var.dtype.kind != "f":
+                assert keepbits is None
+                continue
+            region = (block["times"], block["pixels"]) if product == "background.zarr" else (slice(None),)
+            stored = np.ascontiguousarray(array[region])
+            uint = np.dtype(f"u{stored.dtype.itemsize}")
+            dropped = (1 << (np.finfo(stored.dtype).nmant - keepbits)) - 1
+            assert not np.any(stored.view(uint) & uint.type(dropped)), (product, name)
+            expected = BitRound(keepbits).encode(np.ascontiguousarray(var.values, stored.dtype))
+            np.testing.assert_array_equal(stored.view(uint), expected.reshape(stored.shape).view(uint),
+                                          err_msg=f"{product} {name}")
+            checked += 1
+    assert checked == len(CUBE_BAND_VARIABLES) + 1 + 4 + 4
+
+
+def test_stored_values_rounds_as_the_attributes_record():
+    values = np.random.default_rng(3).random(50).astype(np.float32)
+    rounded = stored_values(values.copy(), {"max_relative_error": max_relative_error(10)})
+    np.testing.assert_array_equal(rounded, bitround(values.copy(), 10))
+    assert not np.array_equal(rounded, values)
+    np.testing.assert_array_equal(stored_values(values.copy(), {"max_relative_error": 0.0}), values)
+
+
+def test_encoded_rounds_dask_data_chunk_by_chunk(campaign):
+    """A streamed (dask) dataset, as the limits rule writes one, is rounded lazily to the bits
+    numcodecs.BitRound gives, and the caller's data is left as it was."""
+    import dask.array as da
+    from numcodecs import BitRound
+
+    values = np.random.default_rng(4).random((10, 8)).astype(np.float32)
+    ds = xr.Dataset({"a": (("time", "pixel"), da.from_array(values.copy(), chunks=(3, 4)),
+                           {"units": "electron / (s pixel)"})})
+    out, enc = encoded(ds, campaign.config["storage"])
+    bits = campaign.config["storage"]["float_keepbits"]
+    assert out["a"].chunks == ds["a"].chunks and "filters" not in enc["a"]
+    np.testing.assert_array_equal(out["a"].values.view(np.uint32),
+                                  BitRound(bits).encode(values).view(np.uint32).reshape(values.shape))
+    np.testing.assert_array_equal(ds["a"].values, values)
