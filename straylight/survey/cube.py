@@ -198,8 +198,7 @@ def init_store(campaign: Campaign, fp: Footprint, store, stars_path=None, build_
     if faint is not None:
         ds["faint_star_map"] = faint
     # the products' codecs (bit-rounded floats); the faint map exactly, the time blocks read it
-    write_skeleton(ds, store, campaign.config["storage"], cube_chunks(campaign, len(campaign.times), fp.pixels.size),
-                   lossless=("faint_star_map",))
+    write_skeleton(ds, store, campaign.config["storage"], lossless=("faint_star_map",))
 
 
 _MODELS: dict = {}
@@ -560,7 +559,7 @@ def init_observability_store(campaign: Campaign, fp: Footprint, ephem: xr.Datase
     from straylight.survey.storage import write_skeleton
 
     chunks = cube_chunks(campaign, ephem.sizes["time"], fp.pixels.size)
-    write_skeleton(observability_dataset(campaign, ephem, fp, chunks=chunks), store, campaign.config["storage"], chunks)
+    write_skeleton(observability_dataset(campaign, ephem, fp, chunks=chunks), store, campaign.config["storage"])
 
 
 def init_limits_store(campaign: Campaign, cube, store) -> None:
@@ -572,8 +571,7 @@ def init_limits_store(campaign: Campaign, cube, store) -> None:
     from straylight.survey.limits import limits_dataset
     from straylight.survey.storage import write_skeleton
 
-    write_skeleton(limits_dataset(campaign, cube), store, campaign.config["storage"],
-                   cube_chunks(campaign, cube.sizes["time"], cube.sizes["pixel"]))
+    write_skeleton(limits_dataset(campaign, cube), store, campaign.config["storage"])
 
 
 def region_limits(campaign: Campaign, region: xr.Dataset) -> dict:
@@ -611,7 +609,9 @@ def _publish_work_store(work_store, product, summaries: dict | None = None) -> N
         if summaries:
             group = zarr.open_group(str(tmp), mode="r+", use_consolidated=False)
             for name, values in summaries.items():
-                group[name][...] = values  # new chunk files only: no linked file is written
+                # rounded as the variable's attributes record (the codecs are lossless); new chunk
+                # files only: no linked file is written
+                group[name][...] = stored_values(np.array(values), group[name].attrs)
 
 
 def publish_limits(work_store, product, summaries: dict) -> None:

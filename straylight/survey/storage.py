@@ -194,21 +194,21 @@ def write_zarr_atomic(dataset, path: str | os.PathLike, storage: dict | None = N
         dataset.to_zarr(tmp, mode="w", consolidated=True, encoding=encoding)
 
 
-def write_skeleton(dataset, store: str | os.PathLike, settings: dict, chunks: dict, lossless: tuple = ()) -> None:
+def write_skeleton(dataset, store: str | os.PathLike, settings: dict, lossless: tuple = ()) -> None:
     """Lay down a Zarr store for ``dataset`` through the products' codecs (:func:`encoded`):
     metadata, coordinates and the in-memory data variables written; the lazy (dask) data
-    variables chunked by ``chunks`` ({dimension: size}) and left empty, for writers to fill
-    region by region.  The lazy variables are replaced by one-chunk lazy arrays first, so no
-    graph of the store's chunks is built (seconds for a month's thousands of chunks)."""
+    variables chunked as their dask arrays are and left empty, for writers to fill region by
+    region.  The lazy variables are replaced by one-chunk lazy arrays first, so no graph of the
+    store's chunks is built (seconds for a month's thousands of chunks)."""
     import dask.array as da
 
     template = dataset.copy(deep=False)
-    lazy = [name for name, var in dataset.data_vars.items() if isinstance(var.data, da.Array)]
-    for name in lazy:
-        var = dataset[name].variable
-        template[name] = var.copy(deep=False, data=da.zeros(var.shape, dtype=var.dtype, chunks=-1))
+    chunks = {}
+    for name, var in dataset.data_vars.items():
+        if isinstance(var.data, da.Array):
+            chunks[name] = tuple(int(c) for c in var.data.chunksize)
+            template[name] = var.variable.copy(deep=False, data=da.zeros(var.shape, dtype=var.dtype, chunks=-1))
     template, encoding = encoded(template, settings, lossless)
-    for name in lazy:
-        var = template[name]
-        encoding[name]["chunks"] = tuple(int(min(chunks.get(d, n), n)) for d, n in zip(var.dims, var.shape))
+    for name, shape in chunks.items():
+        encoding[name]["chunks"] = shape
     template.to_zarr(store, mode="w", compute=False, consolidated=False, encoding=encoding)
