@@ -1,4 +1,6 @@
-"""Snakemake adapter: rule `background` -> consolidated metadata and a run summary table."""
+"""Snakemake adapter: rule `background` -> consolidated metadata, a run summary table, and
+observability.zarr (the store the cube's workers filled region by region beside the background,
+published whole)."""
 import json
 import sys
 from pathlib import Path
@@ -8,6 +10,7 @@ from _common import setup_logging  # noqa: E402
 
 import zarr  # noqa: E402
 
+from straylight.survey.cube import publish_observability  # noqa: E402
 from straylight.util.io import write_json_atomic  # noqa: E402
 
 log = setup_logging(snakemake)  # noqa: F821
@@ -20,4 +23,6 @@ for b in blocks:
     log.info("%-10d %12d %8d %10.1f", b["time_block"], b["pixel_blocks"], b["samples"], b["seconds"])
 log.info("%-10s %12s %8d %10.1f  (seconds from each block's first region to its last, blocks overlap)",
          "total", "", total_n, total_s)
-write_json_atomic({"blocks": blocks, "samples": total_n, "seconds": total_s}, snakemake.output[0])  # noqa: F821
+write_json_atomic({"blocks": blocks, "samples": total_n, "seconds": total_s}, snakemake.output.summary)  # noqa: F821
+publish_observability(snakemake.params.obs_store, snakemake.output.observability)  # noqa: F821
+log.info("published %s", snakemake.output.observability)  # noqa: F821

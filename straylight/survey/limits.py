@@ -169,6 +169,13 @@ SUMMARY_TASK_BYTES = 256 * 2**20
 SUMMARY_BYTES_PER_PROCESS = 2 * 2**30
 
 
+def summary_processes(n_limits: int, workers: int) -> int:
+    """How many processes :func:`store_limit_summaries` uses for ``n_limits`` float32 limits
+    (times x pixels x bands): one per SUMMARY_BYTES_PER_PROCESS decoded, ``workers`` at most
+    (rule limits asks that many cores)."""
+    return max(1, min(int(workers), -(-int(n_limits) * 4 // SUMMARY_BYTES_PER_PROCESS)))
+
+
 def _store_summary_task(store: str, pixels: slice) -> tuple:
     """The per-pixel summaries of ``pixels`` of a limits store: every time, decoded at once."""
     import zarr
@@ -207,7 +214,7 @@ def store_limit_summaries(store, workers: int = 1) -> dict:
         out["limiting_mag_best"][pixels], out["limiting_mag_median"][pixels] = best, median
         out["observable_fraction"][pixels] = frac
 
-    processes = max(1, min(int(workers), len(tasks), -(-n_pix * per_pixel // SUMMARY_BYTES_PER_PROCESS)))
+    processes = min(summary_processes(n_time * n_pix * n_band, workers), len(tasks))
     if processes == 1:
         for pixels in tasks:
             keep(_store_summary_task(store, pixels))

@@ -69,7 +69,7 @@ def _site_env(env):
 LOCAL_CLUSTER_ARGS = ("--slurm-status-command", "squeue", "--slurm-init-seconds-before-status-checks", "1",
                       "--latency-wait", "5", "--jobs", "3",
                       "--groups", "footprint=prepare", "stars_catalog=prepare", "background_init=prepare",
-                      "background=finish", "observability=finish", "limits=finish", "provenance=finish")
+                      "background=finish", "limits=finish", "provenance=finish")
 
 
 def _command(workdir, cfg, *args):

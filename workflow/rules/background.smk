@@ -54,13 +54,17 @@ rule background_blocks:
 
 
 rule background:
-    """All time blocks done: consolidate the store's metadata and summarise the run."""
+    """All time blocks done: consolidate background.zarr's metadata, summarise the run, and
+    publish the observability store the cube's workers filled as observability.zarr (the
+    (time, pixel) observability and violated constraints over the footprint)."""
     input:
         expand(f"{RESULTS}/background_blocks/part_{{part}}.json", part=range(len(CUBE_JOBS))),
     output:
-        f"{RESULTS}/background_summary.json",
+        summary=f"{RESULTS}/background_summary.json",
+        observability=directory(f"{RESULTS}/observability.zarr"),
     params:
         store=f"{RESULTS}/background.zarr",
+        obs_store=OBSERVABILITY_WORK_STORE,
     conda:
         "../envs/straylight.yaml"
     log:

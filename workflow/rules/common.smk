@@ -3,6 +3,8 @@ from pathlib import Path
 
 from straylight.config import campaign_from_dict as _campaign_from_dict
 from straylight.config import resolve_config_files as _resolve_config_files
+from straylight.survey.footprint import footprint_from_config as _footprint_from_config
+from straylight.survey.limits import summary_processes as _summary_processes
 from straylight.survey.timegrid import time_blocks as _time_blocks
 
 # Snakemake lists the workflow's own configfile after the command line's --configfile ones,
@@ -20,7 +22,7 @@ config.update(_CAMPAIGN.config)  # absolute paths and the schema's defaults, as 
 RESULTS = f"results/{config['campaign']['name']}"
 LOGS = f"{RESULTS}/logs"
 #: the observability store the cube's workers fill, published as observability.zarr once every
-#: time block is done (rule observability)
+#: time block is done (rule background)
 OBSERVABILITY_WORK_STORE = f"{RESULTS}/background_blocks/observability.zarr"
 #: the limits store the cube's workers fill (every sample's limit), published as limits.zarr with
 #: the per-pixel summaries added (rule limits)
@@ -40,3 +42,7 @@ TIME_BLOCKS = list(
 #: compute.time_blocks_per_job per job
 _PER_JOB = (config.get("compute") or {}).get("time_blocks_per_job") or max(1, len(TIME_BLOCKS))
 CUBE_JOBS = [TIME_BLOCKS[i:i + _PER_JOB] for i in range(0, len(TIME_BLOCKS), _PER_JOB)]
+#: processes (cores) of rule limits' per-pixel summaries: 1 for a month at nside 32, 2 from a few
+#: GB of limits on (limits.summary_processes); a core it does not need runs another rule
+_N_PIXELS = _footprint_from_config(config["footprint"], Path(CONFIG_PATH).parent).pixels.size
+LIMITS_PROCESSES = _summary_processes(len(_CAMPAIGN.times) * _N_PIXELS * len(_CAMPAIGN.bands), 2)

@@ -10,8 +10,8 @@ rule limits:
         maps=directory(f"{RESULTS}/maps"),
     params:
         lim_store=LIMITS_WORK_STORE,
-    # processes of the per-pixel summaries (lowered to --cores by Snakemake)
-    threads: 2
+    # processes of the per-pixel summaries (common.smk; lowered to --cores by Snakemake)
+    threads: LIMITS_PROCESSES
     conda:
         "../envs/straylight.yaml"
     log:

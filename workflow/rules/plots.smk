@@ -28,6 +28,8 @@ rule bench_charts:
     output:
         report(directory(f"{RESULTS}/bench_charts"), patterns=["{name}.png"], caption="../report/bench.rst",
                category="Speed against accuracy"),
+    conda:
+        "../envs/straylight.yaml"
     log:
         f"{LOGS}/bench_charts.log",
     # a shell command, not a run block: a run block starts a Python process with Snakemake in it
