@@ -111,14 +111,21 @@ class OffFieldStars:
         ln_pst = np.log(self.context.offfield.pst.azimuthal_mean(theta))
         return theta, ln_pst, np.diff(ln_pst)
 
-    def faint_star_rates(self, stars: StarTable, los, bands) -> dict:
+    def faint_star_rates(self, stars: StarTable, los, bands, saved: bool = False) -> dict:
         """e-/s/pix per band from the faint stars: sum_s E_s PSTavg(theta_s) * pixel area over the
         stars outside the field and in front of the aperture plane (theta <= 90 deg, where the
         door's Sp is not 0: :func:`~straylight.optics.door.behind_aperture_plane`), for lines of
         sight ``los`` (..., 3).  Depends on the line of sight only, so it is computed once per
         distinct set of lines of sight (cached).  Each line of sight's sum runs over the stars
         in catalog order (:func:`_faint_star_kernel`), so a line of sight's value does not
-        depend on which others are computed with it, or in which process."""
+        depend on which others are computed with it, or in which process.
+
+        ``saved``: the sums are also kept on disk (``faint_star_map_<key>.npy`` in the tables'
+        cache folder, :func:`~straylight.util.io.cache_dir`), keyed by a digest of every number
+        they are computed from (lines of sight, stars, fluxes, the PST table, the field and the
+        kernel's :data:`FAINT_MAP_FORMAT`), and read back when the same map is asked again: a
+        footprint's map (the cube's, ~11 CPU s at nside 32) is the same for every campaign
+        with the same catalog and instrument."""
         import hashlib
 
         los = np.asarray(los, float)
@@ -133,10 +140,29 @@ class OffFieldStars:
             np.array([self.context.photometry(b).from_ab(stars.faint_mag_ab[b]) for b in bands]).T)  # (S, B)
         theta_grid, ln_pst, slope = self._pst_azimuthal_table
         per_deg = (theta_grid.size - 1) / theta_grid[-1]
-        out = np.zeros((flat.shape[0], len(bands)))
-        _faint_star_kernel(flat, np.ascontiguousarray(stars.faint_unit, dtype=float), flux, ln_pst, slope, per_deg,
-                           self.context.offfield.field_radius_deg * per_deg, 90.0 * per_deg, out)
-        out *= self.context.offfield.pixel_area_m2
+        star_unit = np.ascontiguousarray(stars.faint_unit, dtype=float)
+        grid = (per_deg, self.context.offfield.field_radius_deg * per_deg, 90.0 * per_deg)
+        area = self.context.offfield.pixel_area_m2
+        path = None
+        if saved:
+            from straylight.util.io import cache_dir
+
+            h = hashlib.sha256(f"format {FAINT_MAP_FORMAT} {grid!r} {area!r}".encode())
+            for a in (flat, star_unit, flux, ln_pst, slope):
+                h.update(np.ascontiguousarray(a).tobytes())
+            path = cache_dir() / f"faint_star_map_{h.hexdigest()[:16]}.npy"
+        if path is not None and path.exists():
+            out = np.load(path)
+        else:
+            out = np.zeros((flat.shape[0], len(bands)))
+            _faint_star_kernel(flat, star_unit, flux, ln_pst, slope, *grid, out)
+            out *= area
+            if path is not None:
+                from straylight.util.io import atomic_path
+
+                with atomic_path(path) as tmp:
+                    with open(tmp, "wb") as f:  # np.save on a path would append ".npy"
+                        np.save(f, out)
         res = {b: out[:, j].reshape(los.shape[:-1]) for j, b in enumerate(bands)}
         if len(cache) > 64:
             cache.clear()
@@ -351,6 +377,11 @@ class OffFieldStars:
         if not parts:
             return shape, (np.zeros(0, np.intp), np.zeros(0, np.intp), np.zeros(0))
         return shape, tuple(np.concatenate(x) for x in zip(*parts))
+
+
+#: bumped whenever :func:`_faint_star_kernel`'s arithmetic changes: part of the key of the faint
+#: maps kept on disk (:meth:`OffFieldStars.faint_star_rates`)
+FAINT_MAP_FORMAT = 1
 
 
 @njit(cache=True, nogil=True)

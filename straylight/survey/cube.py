@@ -141,7 +141,7 @@ def _faint_rows(campaign: Campaign, fp: Footprint, stars_path, rows: slice) -> n
     the catalog has no faint magnitudes in)."""
     stars = _offfield_stars(campaign, stars_path)
     los = radec_to_unit(fp.ra_deg[rows], fp.dec_deg[rows])
-    rates = background_model_for(campaign, fp).stars.faint_star_rates(stars, los, campaign.bands)
+    rates = background_model_for(campaign, fp).stars.faint_star_rates(stars, los, campaign.bands, saved=True)
     values = np.zeros((los.shape[0], len(campaign.bands)))
     for i, band in enumerate(campaign.bands):
         if band in rates:

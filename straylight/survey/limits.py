@@ -248,7 +248,7 @@ def limits_dataset(campaign: Campaign, background, limiting_mag=None) -> "xr.Dat
     import xarray as xr
 
     bands = [str(b) for b in background["band"].values]
-    exposures = [survey_exposure(campaign, b) for b in bands]
+    exposures = campaign_exposures(campaign, bands)
 
     def best_and_median(lim, observable):  # (pixel, band, time), (pixel, 1, time) -> (pixel, band, 2)
         best, median = limit_summaries(np.moveaxis(lim, -1, 0), np.moveaxis(observable[:, 0, :], -1, 0))

@@ -683,6 +683,35 @@ def test_faint_star_map_is_the_azimuth_averaged_pst_sum(campaign, comp_model):
     assert float(out["g"]["stars"][0]) == pytest.approx(expected, rel=2e-3)  # 0.01 deg table, log interpolation
 
 
+def test_faint_star_map_kept_on_disk_is_read_back_only_for_the_same_inputs(comp_model, tmp_path, monkeypatch):
+    """A footprint's faint-star map kept on disk (faint_star_rates(saved=True), as the cube's
+    skeleton asks) is read back bit for bit by a new star table with the same stars; a star one
+    magnitude brighter, or other lines of sight, are other keys: computed, not read."""
+    monkeypatch.setenv("STRAYLIGHT_CACHE", str(tmp_path))
+    rng = np.random.default_rng(8)
+    n = 500
+
+    def table(mag):
+        return StarTable(np.zeros(0), np.zeros(0), {"g": np.zeros(0)}, ra, dec,
+                         {"g": mag})
+
+    ra, dec, mag = rng.uniform(0, 360, n), np.degrees(np.arcsin(rng.uniform(-1, 1, n))), rng.uniform(5, 9, n)
+    los = rng.normal(size=(50, 3))
+    los /= np.linalg.norm(los, axis=1)[:, None]
+    stars = comp_model.stars
+    first = stars.faint_star_rates(table(mag), los, ["g"], saved=True)["g"]
+    assert len(list(tmp_path.glob("faint_star_map_*.npy"))) == 1 and np.all(first > 0)
+    again = stars.faint_star_rates(table(mag), los, ["g"], saved=True)["g"]
+    np.testing.assert_array_equal(again, first)
+    np.testing.assert_array_equal(stars.faint_star_rates(table(mag), los, ["g"])["g"], first)  # computed
+    brighter = mag.copy()
+    brighter[0] -= 1.0
+    changed = stars.faint_star_rates(table(brighter), los, ["g"], saved=True)["g"]
+    assert len(list(tmp_path.glob("faint_star_map_*.npy"))) == 2 and np.any(changed > first)
+    stars.faint_star_rates(table(mag), los[:20], ["g"], saved=True)
+    assert len(list(tmp_path.glob("faint_star_map_*.npy"))) == 3
+
+
 def test_direct_plus_faint_map_matches_every_star_summed_directly(campaign, comp_model, exact_model):
     """3000 random stars of 2-9 mag: direct limit 4 + map against all of them summed with the exact
     transfer, at 60 observable samples: within 1 % of the total (bench/stars.py measures 0.04 % on
