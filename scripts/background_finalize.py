@@ -10,7 +10,7 @@ from _common import setup_logging  # noqa: E402
 
 import zarr  # noqa: E402
 
-from straylight.survey.cube import publish_observability  # noqa: E402
+from straylight.survey.cube import publish_work_store  # noqa: E402
 from straylight.util.io import write_json_atomic  # noqa: E402
 
 log = setup_logging(snakemake)  # noqa: F821
@@ -24,5 +24,5 @@ for b in blocks:
 log.info("%-10s %12s %8d %10.1f  (seconds from each block's first region to its last, blocks overlap)",
          "total", "", total_n, total_s)
 write_json_atomic({"blocks": blocks, "samples": total_n, "seconds": total_s}, snakemake.output.summary)  # noqa: F821
-publish_observability(snakemake.params.obs_store, snakemake.output.observability)  # noqa: F821
+publish_work_store(snakemake.params.obs_store, snakemake.output.observability)  # noqa: F821
 log.info("published %s", snakemake.output.observability)  # noqa: F821

@@ -16,13 +16,13 @@ def main(snakemake):
     import numpy as np
     import xarray as xr
 
-    from straylight.survey.cube import LIMITS_REGION_VARIABLES, publish_limits
+    from straylight.survey.cube import LIMITS_REGION_VARIABLES, publish_work_store
     from straylight.survey.limits import store_limit_summaries, write_limit_maps
     from straylight.util.io import atomic_path
 
     log = setup_logging(snakemake)
     summaries = store_limit_summaries(snakemake.params.lim_store, workers=snakemake.threads)
-    publish_limits(snakemake.params.lim_store, snakemake.output.limits, summaries)
+    publish_work_store(snakemake.params.lim_store, snakemake.output.limits, summaries)
     # the maps and the log from the per-pixel summaries just written (small: pixel x band)
     with xr.open_zarr(snakemake.output.limits, consolidated=True) as written:
         ds = written.drop_vars(list(LIMITS_REGION_VARIABLES)).load()

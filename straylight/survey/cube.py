@@ -9,7 +9,8 @@ Layout of ``background.zarr`` (xarray Dataset):
   ``mag_zero_point`` (band): AB mag/arcsec2 = mag_zero_point - 2.5 log10(e-/s/pixel);
 * attrs: HEALPix nside, ordering and frame, campaign, models, provenance pointers.
 * chunks: one time block (``campaign.time_block_hours``) x about ``footprint.pixel_block_size``
-  pixels (equal blocks: :func:`~straylight.survey.footprint.pixel_block_length`) x all bands.  A time-series read of one pointing then touches one chunk per time block, and a
+  pixels (equal blocks: :func:`~straylight.survey.footprint.pixel_block_length`) x all bands.
+  A time-series read of one pointing then touches one chunk per time block, and a
   whole-sky read at one time one chunk per pixel block (bench/storage.py times both).
 
 Work split: one Snakemake job computes many time blocks (:func:`run_time_blocks`: all of them,
@@ -19,9 +20,9 @@ worker builds the model (PST, door tables, stars, earthshine tables) once and re
 store exactly once, through the store's arrays opened once per worker.  The region's geometry
 (observable, violations, the Sun, Moon and limb angles, the door) is observability.zarr's, so
 the worker writes that region of the observability store too (:func:`init_observability_store`,
-:func:`publish_observability`) instead of a later step computing the geometry again, and the
+:func:`publish_work_store`) instead of a later step computing the geometry again, and the
 region's 5-sigma limits, from the total it has just computed, to the limits store
-(:func:`init_limits_store`, :func:`publish_limits`) instead of a later step reading the total
+(:func:`init_limits_store`, :func:`publish_work_store`) instead of a later step reading the total
 back.  A time block is marked done by its own sentinel file only after all its
 regions are written, so a killed job redoes only the unfinished time blocks and, the computation
 being deterministic, gives identical bytes.
@@ -551,7 +552,7 @@ def init_observability_store(campaign: Campaign, fp: Footprint, ephem: xr.Datase
     """Lay down observability.zarr's skeleton at ``store`` (metadata, coordinates, the products'
     codecs; no data chunks), chunked as the cube: the cube's workers write each region's
     observability beside its background (:func:`write_region`), and
-    :func:`publish_observability` makes it the product once every time block is done.  The
+    :func:`publish_work_store` makes it the product once every time block is done.  The
     variables and attributes are those of
     :func:`straylight.survey.products.observability_dataset` (``ephem``: the ephemeris product),
     whose geometry the cube's is, sample by sample, bit for bit."""
@@ -567,7 +568,7 @@ def init_limits_store(campaign: Campaign, cube, store) -> None:
     no data chunks) from the cube's skeleton ``cube`` (:func:`empty_cube`): the variables,
     attributes and chunks of :func:`straylight.survey.limits.limits_dataset` on the cube.  The
     cube's workers write each region's ``limiting_mag`` and ``observable`` (:func:`write_region`);
-    the limits rule adds the per-pixel summaries in :func:`publish_limits`."""
+    the limits rule adds the per-pixel summaries in :func:`publish_work_store`."""
     from straylight.survey.limits import limits_dataset
     from straylight.survey.storage import write_skeleton
 
@@ -584,11 +585,14 @@ def region_limits(campaign: Campaign, region: xr.Dataset) -> dict:
             "observable": region["observable"].values}
 
 
-def _publish_work_store(work_store, product, summaries: dict | None = None) -> None:
-    """``work_store``'s metadata consolidated, its files hard-linked (copied where links fail)
-    into a new store that appears at ``product`` complete or not at all, ``summaries`` (name ->
-    the whole array of a variable the work store lays down but has no chunk of) written there
-    only: the work store stays as it was, for a re-run of the publishing step."""
+def publish_work_store(work_store, product, summaries: dict | None = None) -> None:
+    """A store the cube's workers filled (``work_store``: the observability or the limits one),
+    its metadata consolidated, appears at ``product`` complete or not at all: its files
+    hard-linked (copied where links fail), and ``summaries`` (name -> the whole array of a
+    variable the work store lays down but has no chunk of: the limits' per-pixel summaries)
+    written there only.  The work store stays as it was, for a re-run of the publishing step;
+    zarr replaces a chunk file by renaming a new one into place, so a later write to the work
+    store leaves the product's files as they are."""
     import os
     import shutil
 
@@ -612,23 +616,6 @@ def _publish_work_store(work_store, product, summaries: dict | None = None) -> N
                 # rounded as the variable's attributes record (the codecs are lossless); new chunk
                 # files only: no linked file is written
                 group[name][...] = stored_values(np.array(values), group[name].attrs)
-
-
-def publish_limits(work_store, product, summaries: dict) -> None:
-    """The limits store the cube's workers filled (``work_store``: :func:`init_limits_store`)
-    with the per-pixel ``summaries`` (name -> array,
-    :func:`straylight.survey.limits.store_limit_summaries`) added, at ``product`` complete or
-    not at all; the work store's files are hard-linked as in :func:`publish_observability`."""
-    _publish_work_store(work_store, product, summaries)
-
-
-def publish_observability(work_store, product) -> None:
-    """The observability store the cube's workers filled (``work_store``), its metadata
-    consolidated, appears at ``product`` complete or not at all (hard links where the file
-    system allows, else copies: the working store stays for a re-run of this step; zarr
-    replaces a chunk file by renaming a new one into place, so a later write to the working
-    store leaves the product's files as they are)."""
-    _publish_work_store(work_store, product)
 
 
 def write_region(campaign: Campaign, fp: Footprint, store, t_slice: slice, p_slice: slice,

@@ -244,7 +244,7 @@ def limits_dataset(campaign: Campaign, background, limiting_mag=None) -> "xr.Dat
     limits store), summarised instead of computing them from ``total``.
 
     The pipeline's limits rule writes the same dataset from the limits the cube's workers
-    computed (:func:`straylight.survey.cube.init_limits_store`, :func:`publish_limits`)."""
+    computed (:func:`straylight.survey.cube.init_limits_store`, :func:`straylight.survey.cube.publish_work_store`)."""
     import xarray as xr
 
     bands = [str(b) for b in background["band"].values]
