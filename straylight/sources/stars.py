@@ -134,23 +134,8 @@ class OffFieldStars:
         cache = stars.__dict__.setdefault("_faint_cache", {})
         if key in cache:
             return cache[key]
-        flat = np.ascontiguousarray(los.reshape(-1, 3))
-        bands = [b for b in bands if b in stars.faint_mag_ab]
-        flux = np.ascontiguousarray(
-            np.array([self.context.photometry(b).from_ab(stars.faint_mag_ab[b]) for b in bands]).T)  # (S, B)
-        theta_grid, ln_pst, slope = self._pst_azimuthal_table
-        per_deg = (theta_grid.size - 1) / theta_grid[-1]
-        star_unit = np.ascontiguousarray(stars.faint_unit, dtype=float)
-        grid = (per_deg, self.context.offfield.field_radius_deg * per_deg, 90.0 * per_deg)
-        area = self.context.offfield.pixel_area_m2
-        path = None
-        if saved:
-            from straylight.util.io import cache_dir
-
-            h = hashlib.sha256(f"format {FAINT_MAP_FORMAT} {grid!r} {area!r}".encode())
-            for a in (flat, star_unit, flux, ln_pst, slope):
-                h.update(np.ascontiguousarray(a).tobytes())
-            path = cache_dir() / f"faint_star_map_{h.hexdigest()[:16]}.npy"
+        flat, bands, star_unit, flux, (ln_pst, slope), grid, area = self._faint_sum_inputs(stars, los, bands)
+        path = self._saved_faint_map(flat, star_unit, flux, ln_pst, slope, grid, area) if saved else None
         if path is not None and path.exists():
             out = np.load(path)
         else:
@@ -168,6 +153,39 @@ class OffFieldStars:
             cache.clear()
         cache[key] = res
         return res
+
+    def faint_star_map_saved(self, stars: StarTable, los, bands) -> bool:
+        """Whether :meth:`faint_star_rates` (``saved=True``) finds the map of these lines of
+        sight kept on disk, so that asking for it reads a file instead of summing."""
+        flat, _, star_unit, flux, (ln_pst, slope), grid, area = self._faint_sum_inputs(stars, los, bands)
+        return self._saved_faint_map(flat, star_unit, flux, ln_pst, slope, grid, area).exists()
+
+    def _faint_sum_inputs(self, stars: StarTable, los, bands) -> tuple:
+        """What the faint stars' sums are computed from: the lines of sight (N, 3), the bands
+        the catalog has faint magnitudes in, the stars' unit vectors, their fluxes (S, B), the
+        azimuth-averaged PST's ln and slope tables, the grid (per deg, field edge, 90 deg) and
+        the pixel area, m2."""
+        flat = np.ascontiguousarray(np.asarray(los, float).reshape(-1, 3))
+        bands = [b for b in bands if b in stars.faint_mag_ab]
+        flux = np.ascontiguousarray(
+            np.array([self.context.photometry(b).from_ab(stars.faint_mag_ab[b]) for b in bands]).T)  # (S, B)
+        theta_grid, ln_pst, slope = self._pst_azimuthal_table
+        per_deg = (theta_grid.size - 1) / theta_grid[-1]
+        star_unit = np.ascontiguousarray(stars.faint_unit, dtype=float)
+        grid = (per_deg, self.context.offfield.field_radius_deg * per_deg, 90.0 * per_deg)
+        return flat, bands, star_unit, flux, (ln_pst, slope), grid, self.context.offfield.pixel_area_m2
+
+    @staticmethod
+    def _saved_faint_map(flat, star_unit, flux, ln_pst, slope, grid, area):
+        """The file a faint-star map of these inputs is kept in (:meth:`faint_star_rates`)."""
+        import hashlib
+
+        from straylight.util.io import cache_dir
+
+        h = hashlib.sha256(f"format {FAINT_MAP_FORMAT} {grid!r} {area!r}".encode())
+        for a in (flat, star_unit, flux, ln_pst, slope):
+            h.update(np.ascontiguousarray(a).tobytes())
+        return cache_dir() / f"faint_star_map_{h.hexdigest()[:16]}.npy"
 
     #: the star skip's floor levels, in units of the darkest zodiacal light: a sample's floor
     #: is rounded down to one of them, so each sky cell's candidates are chosen once per level

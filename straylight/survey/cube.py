@@ -150,6 +150,13 @@ def _faint_rows(campaign: Campaign, fp: Footprint, stars_path, rows: slice) -> n
     return values
 
 
+def _faint_rows_saved(campaign: Campaign, fp: Footprint, stars, rows: slice) -> bool:
+    """Whether the faint-star map at footprint pixels ``rows`` is kept on disk (:func:`_faint_rows`
+    reads it instead of summing)."""
+    los = radec_to_unit(fp.ra_deg[rows], fp.dec_deg[rows])
+    return background_model_for(campaign, fp).stars.faint_star_map_saved(stars, los, campaign.bands)
+
+
 def faint_star_map(campaign: Campaign, fp: Footprint, stars_path, workers: int = 1,
                    before=None) -> xr.Variable | None:
     """The faint stars' smoothed map at every footprint pixel, (pixel, band), e-/s/pix: it
@@ -165,9 +172,10 @@ def faint_star_map(campaign: Campaign, fp: Footprint, stars_path, workers: int =
         return None if before is None else (None, before())
     edges = np.linspace(0, fp.pixels.size, max(1, min(int(workers), fp.pixels.size)) + 1).round().astype(int)
     parts = [slice(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:])]
-    if len(parts) == 1:
+    if len(parts) == 1 or all(_faint_rows_saved(campaign, fp, stars, rows) for rows in parts):
+        # one process, or every part's sums kept on disk (read here: no process to start)
         other = None if before is None else before()
-        values = _faint_rows(campaign, fp, stars_path, parts[0])
+        values = np.concatenate([_faint_rows(campaign, fp, stars_path, rows) for rows in parts])
     else:
         from straylight.util.daskutil import spawned_pool
 
@@ -537,15 +545,18 @@ def _by_step(values, k: int, npix: int) -> np.ndarray:
 
 
 def store_arrays(store, names=None) -> dict:
-    """The cube's data variables in ``store`` as zarr arrays opened for writing (name -> array):
-    a worker opens them once and writes every region through them (xarray's region write opens
-    the store and reads its metadata again each time, ~15 ms a region).  The same codecs encode
-    the same values, so the chunks' bytes are those xarray writes."""
+    """The cube's data variables in ``store`` opened for writing whole chunks (name ->
+    :class:`~straylight.survey.storage.ChunkWriter`): a worker opens them once and writes every
+    region through them (xarray's region write opens the store and reads its metadata again
+    each time, ~15 ms a region).  The same codecs encode the same values, so the chunks' bytes
+    are those xarray writes."""
     import zarr
+
+    from straylight.survey.storage import ChunkWriter
 
     group = zarr.open_group(str(store), mode="r+", use_consolidated=False)
     names = names or CUBE_BAND_VARIABLES + ("observable", "violations", "door_opening_deg")
-    return {name: group[name] for name in names}
+    return {name: ChunkWriter(group[name]) for name in names}
 
 
 def init_observability_store(campaign: Campaign, fp: Footprint, ephem: xr.Dataset, store) -> None:

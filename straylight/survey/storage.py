@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import math
 import os
+from pathlib import Path
 
 import numpy as np
 from numba import njit
@@ -212,3 +213,117 @@ def write_skeleton(dataset, store: str | os.PathLike, settings: dict, lossless: 
     for name, shape in chunks.items():
         encoding[name]["chunks"] = shape
     template.to_zarr(store, mode="w", compute=False, consolidated=False, encoding=encoding)
+
+
+class ChunkWriter:
+    """One Zarr v3 array of a local store, written a whole chunk at a time in this thread: the
+    cube's workers write every region through it (a region is one chunk).
+
+    A region that is exactly one chunk (the in-bounds part of an edge chunk included) is encoded
+    here by the array's own codecs, mapped to numcodecs (the bytes codec's endianness, then each
+    bytes-to-bytes codec: zstd and numcodecs' shuffle), and written to a temporary file renamed
+    onto the chunk's key, as zarr writes it; a chunk holding only the fill value is removed
+    instead when the array does not write empty chunks, as zarr does.  The files are the ones
+    zarr writes, byte for byte (tests/survey/test_storage.py), at about half zarr's CPU cost per
+    region (zarr's asynchronous pipeline hands every chunk to its event loop and threads).  Any
+    other region, codec, store or zarr format is written by zarr itself.
+
+    ``attrs`` are the array's; ``writer[region] = values`` writes (``region`` a tuple of slices,
+    trailing dimensions whole).  Raises OSError as the file system does (no space, no access)."""
+
+    def __init__(self, array):
+        self.array = array
+        self.attrs = array.attrs
+        self._codecs = _numcodecs_chain(array)
+
+    def __setitem__(self, region, values) -> None:
+        coords = None if self._codecs is None else self._chunk_coords(region)
+        if coords is None:
+            self.array[region] = values
+            return
+        meta = self.array.metadata
+        chunk_shape = meta.chunk_grid.chunk_shape
+        values = np.asarray(values, dtype=meta.data_type.to_native_dtype())
+        if values.shape != chunk_shape:  # an edge chunk: zarr pads it with the fill value
+            chunk = np.full(chunk_shape, meta.fill_value, dtype=values.dtype)
+            chunk[tuple(slice(0, n) for n in values.shape)] = values
+            values = chunk
+        path = Path(self.array.store.root) / self.array.path / meta.encode_chunk_key(coords)
+        if not self.array.config.write_empty_chunks and _all_fill(values, meta.fill_value):
+            path.unlink(missing_ok=True)
+            return
+        byteorder, chain = self._codecs
+        data = np.ascontiguousarray(values, dtype=values.dtype.newbyteorder(byteorder))
+        for codec in chain:
+            data = codec.encode(data)
+        _write_file(path, data)
+
+    def _chunk_coords(self, region) -> tuple | None:
+        """The chunk ``region`` is exactly (its in-bounds part), or None."""
+        shape, chunks = self.array.shape, self.array.metadata.chunk_grid.chunk_shape
+        region = tuple(region) + (slice(None),) * (len(shape) - len(tuple(region)))
+        if len(region) != len(shape) or not all(isinstance(s, slice) for s in region):
+            return None
+        coords = []
+        for s, n, c in zip(region, shape, chunks):
+            start, stop, step = s.indices(n)
+            if step != 1 or start % c or stop != min(start + c, n):
+                return None
+            coords.append(start // c)
+        return tuple(coords)
+
+
+def _numcodecs_chain(array) -> tuple[str, list] | None:
+    """The byte order ('<', '>' or '|') and the numcodecs codecs that encode a chunk of ``array``
+    as its Zarr v3 codecs do, or None where :class:`ChunkWriter` leaves the array to zarr (another
+    format, store, order or codec)."""
+    import numcodecs
+    from zarr.codecs import BytesCodec, ZstdCodec
+    from zarr.codecs.numcodecs._codecs import _NumcodecsBytesBytesCodec
+    from zarr.storage import LocalStore
+
+    meta = array.metadata
+    if (meta.zarr_format != 3 or not isinstance(array.store, LocalStore) or array.config.order != "C"
+            or type(meta.chunk_grid).__name__ != "RegularChunkGrid"):
+        return None
+    first, *rest = meta.codecs
+    if not isinstance(first, BytesCodec):
+        return None
+    byteorder = {"little": "<", "big": ">", None: "|"}[getattr(first.endian, "value", first.endian)]
+    chain = []
+    for codec in rest:
+        if isinstance(codec, ZstdCodec):
+            chain.append(numcodecs.Zstd(level=codec.level, checksum=codec.checksum))
+        elif isinstance(codec, _NumcodecsBytesBytesCodec):
+            chain.append(numcodecs.get_codec({"id": codec.codec_name.removeprefix("numcodecs."), **codec.codec_config}))
+        else:
+            return None
+    return byteorder, chain
+
+
+def _all_fill(values: np.ndarray, fill_value) -> bool:
+    """Whether ``values`` hold only ``fill_value``, as zarr decides it (NaN equal to NaN, and
+    0.0 and -0.0 told apart)."""
+    from zarr.core.buffer import default_buffer_prototype
+
+    return bool(default_buffer_prototype().nd_buffer.from_numpy_array(values).all_equal(fill_value))
+
+
+def _write_file(path: Path, data) -> None:
+    """``data`` (bytes-like) to ``path`` through a temporary sibling renamed into place, so a
+    reader never meets half a chunk."""
+    import uuid
+
+    tmp = path.with_suffix(f".{uuid.uuid4().hex}.partial")
+    try:
+        try:
+            f = tmp.open("wb")
+        except FileNotFoundError:  # the chunk's first file in its folder
+            path.parent.mkdir(parents=True, exist_ok=True)
+            f = tmp.open("wb")
+        with f:
+            f.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise

@@ -228,3 +228,57 @@ def test_encoded_rounds_dask_data_chunk_by_chunk(campaign):
     np.testing.assert_array_equal(out["a"].values.view(np.uint32),
                                   BitRound(bits).encode(values).view(np.uint32).reshape(values.shape))
     np.testing.assert_array_equal(ds["a"].values, values)
+
+
+def _chunk_files(store):
+    return {str(p.relative_to(store)): p.read_bytes() for p in sorted(store.rglob("*")) if p.is_file()}
+
+
+def test_chunk_writer_writes_the_files_zarr_writes(tmp_path):
+    """ChunkWriter (the cube workers' writes) against zarr's own ``array[region] = values`` on
+    twin stores with the products' codecs: every file byte for byte the same, for whole chunks,
+    edge chunks (padded with the fill value), chunks of only the fill value (no file, and an
+    existing one removed, as zarr's write_empty_chunks=False does), -0.0 in a float chunk, and a
+    region that is not one chunk (left to zarr)."""
+    import dask.array as da
+    import zarr
+
+    from straylight.survey.storage import ChunkWriter, write_skeleton
+
+    shape, chunks = (10, 7, 3), (4, 3, 3)  # edge chunks along time (2 of 4) and pixel (1 of 3)
+    ds = xr.Dataset({"f": (("time", "pixel", "band"), da.zeros(shape, chunks=chunks, dtype=np.float32)),
+                     "b": (("time", "pixel"), da.zeros(shape[:2], chunks=chunks[:2], dtype=bool)),
+                     "u": (("time", "pixel"), da.zeros(shape[:2], chunks=chunks[:2], dtype=np.uint8))})
+    settings = {"float_keepbits": 10, "zstd_level": 2}
+    for name in ("zarr", "writer"):
+        write_skeleton(ds, tmp_path / f"{name}.zarr", settings)
+    # every array takes the writer's own path (not zarr's) for a region that is one chunk
+    assert all(ChunkWriter(zarr.open_array(str(tmp_path / "writer.zarr" / n)))._chunk_coords((slice(8, 10), slice(6, 7)))
+               == (2, 2, 0)[:len(shape) - (n != "f")] and ChunkWriter(zarr.open_array(str(tmp_path / "writer.zarr" / n)))._codecs
+               for n in ("f", "b", "u"))
+    rng = np.random.default_rng(7)
+    regions = [(slice(0, 4), slice(0, 3)), (slice(8, 10), slice(6, 7)), (slice(4, 8), slice(3, 6)),
+               (slice(0, 4), slice(6, 7)), (slice(8, 10), slice(0, 3)), (slice(0, 4), slice(3, 6))]
+    for step in range(2):  # the second pass overwrites (and empties) chunks the first wrote
+        for k, (ts, ps) in enumerate(regions):
+            n = (ts.stop - ts.start, ps.stop - ps.start)
+            empty = (k + step) % 3 == 0
+            f = np.full(n + (3,), np.nan, np.float32) if empty else (10 ** rng.normal(0, 2, n + (3,))).astype(np.float32)
+            if not empty:
+                f.reshape(-1)[0] = -0.0
+            values = {"f": stored_values(f, {"max_relative_error": 2.0 ** -11}),
+                      "b": np.zeros(n, bool) if empty else rng.random(n) > 0.5,
+                      "u": np.zeros(n, np.uint8) if empty else rng.integers(0, 255, n).astype(np.uint8)}
+            for name, v in values.items():
+                zarr.open_array(str(tmp_path / "zarr.zarr" / name), mode="r+")[ts, ps] = v
+                ChunkWriter(zarr.open_array(str(tmp_path / "writer.zarr" / name), mode="r+"))[ts, ps] = v
+    # not one chunk: across two chunks, and part of one
+    for ts, ps in ((slice(2, 6), slice(0, 3)), (slice(0, 2), slice(0, 2))):
+        v = rng.random((ts.stop - ts.start, ps.stop - ps.start)) > 0.5
+        zarr.open_array(str(tmp_path / "zarr.zarr" / "b"), mode="r+")[ts, ps] = v
+        ChunkWriter(zarr.open_array(str(tmp_path / "writer.zarr" / "b"), mode="r+"))[ts, ps] = v
+    ours, theirs = _chunk_files(tmp_path / "writer.zarr"), _chunk_files(tmp_path / "zarr.zarr")
+    assert sorted(ours) == sorted(theirs)
+    assert sum("/c/" in k for k in ours) >= 10  # chunks were written, and some left out as empty
+    assert all(ours[k] == theirs[k] for k in theirs)
+    assert not any(k.endswith(".partial") for k in ours)

@@ -32,7 +32,7 @@ def _files(store):
 
 @pytest.mark.parametrize("fail_after_writes", [0, 2, 5, 11])
 def test_disk_full_during_a_zarr_write_then_rerun(small, tmp_path, monkeypatch, fail_after_writes):
-    import zarr.storage._local as local
+    import straylight.survey.storage as storage
 
     _, c, fp, ref_digest = small
     store, done = tmp_path / "background.zarr", tmp_path / "done"
@@ -40,20 +40,21 @@ def test_disk_full_during_a_zarr_write_then_rerun(small, tmp_path, monkeypatch, 
     run_time_blocks(c, fp, store, [0], done)
     block0 = _files(store)
 
-    real_put = local._put
+    # the workers' chunk files go through storage._write_file (storage.ChunkWriter)
+    real_write = storage._write_file
     calls = {"n": 0}
 
-    def full_disk_put(path, value, exclusive=False):
+    def full_disk_write(path, data):
         # worst case for a non-atomic file system: half the chunk reaches the disk, then ENOSPC
         calls["n"] += 1
         if calls["n"] > fail_after_writes:
-            data = bytes(value.as_buffer_like())
+            data = bytes(memoryview(data).cast("B"))
             path.parent.mkdir(parents=True, exist_ok=True)
             path.write_bytes(data[: len(data) // 2])
             raise OSError(errno.ENOSPC, "No space left on device", str(path))
-        return real_put(path, value, exclusive=exclusive)
+        return real_write(path, data)
 
-    monkeypatch.setattr(local, "_put", full_disk_put)
+    monkeypatch.setattr(storage, "_write_file", full_disk_write)
     with pytest.raises(OutputError) as err:
         run_time_blocks(c, fp, store, [0, 1], done)
     msg = str(err.value)
@@ -63,6 +64,6 @@ def test_disk_full_during_a_zarr_write_then_rerun(small, tmp_path, monkeypatch, 
     # the finished block 0 is untouched: every file it wrote still has its bytes
     assert all(after.get(k) == v for k, v in block0.items() if "/c/0/" in k or k.endswith("zarr.json"))
     assert not (done / "block_1.json").exists()  # the failed block is not marked done
-    monkeypatch.setattr(local, "_put", real_put)  # space freed
+    monkeypatch.setattr(storage, "_write_file", real_write)  # space freed
     run_time_blocks(c, fp, store, [0, 1], done)  # block 0 skipped (its sentinel), block 1 redone
     assert sha256_path(store) == ref_digest
