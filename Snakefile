@@ -21,12 +21,12 @@ include: "workflow/rules/background.smk"
 include: "workflow/rules/limits.smk"
 include: "workflow/rules/stars.smk"
 include: "workflow/rules/scheduling.smk"
-include: "workflow/rules/plots.smk"
+include: "workflow/rules/figures.smk"
 
 
-# the report's first page: the campaign's depth table written by rule plots once it has run
-# (snakemake --report), else the generic description
-_REPORT_FRONT = Path(RESULTS, "plots", "summary.rst").resolve()
+# the report's first page: the campaign's depth table and thumbnails written by rule report_front
+# once it has run (snakemake --report), else the generic description
+_REPORT_FRONT = Path(RESULTS, "summary.rst").resolve()
 
 
 report: str(_REPORT_FRONT) if _REPORT_FRONT.exists() else "workflow/report/workflow.rst"
@@ -44,6 +44,8 @@ rule all:
         f"{RESULTS}/provenance.json",
         f"{RESULTS}/stars_csst.parquet",
         f"{RESULTS}/scheduling",
-        f"{RESULTS}/plots",
+        f"{RESULTS}/sky",
+        f"{RESULTS}/series",
+        f"{RESULTS}/summary.rst",
         f"{RESULTS}/bench_charts",
         [f"{RESULTS}/stars_gaia.parquet"] if config.get("stars", {}).get("gaia_files") else [],

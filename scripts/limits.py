@@ -1,8 +1,9 @@
-"""Snakemake adapter: rule `limits` -> limits.zarr and maps/*.fits.
+"""Snakemake adapter: rule `limits` -> limits.zarr and maps/ (the HEALPix maps, the limit-map
+figures and the depth table).
 
 The cube's workers wrote every sample's limit to the limits work store; this step computes the
 per-pixel summaries from it (streamed over pixel blocks on the job's processes), publishes the
-store with them as limits.zarr, and writes the maps.  The body is guarded by __main__: the
+store with them as limits.zarr, and writes the maps and their figures.  The body is guarded by __main__: the
 pool's worker processes are spawned and re-import the main module, which must then not run the
 job again."""
 import sys
@@ -11,11 +12,12 @@ from pathlib import Path
 
 def main(snakemake):
     sys.path.insert(0, str(Path(snakemake.scriptdir)))
-    from _common import setup_logging
+    from _common import campaign, setup_logging
 
     import numpy as np
     import xarray as xr
 
+    from straylight.plots import limit_figures
     from straylight.survey.cube import LIMITS_REGION_VARIABLES, publish_work_store
     from straylight.survey.limits import store_limit_summaries, write_limit_maps
     from straylight.util.io import atomic_path
@@ -28,6 +30,7 @@ def main(snakemake):
         ds = written.drop_vars(list(LIMITS_REGION_VARIABLES)).load()
     with atomic_path(snakemake.output.maps) as tmp:
         maps = write_limit_maps(ds, tmp)
+        figures = limit_figures(snakemake.output.limits, campaign(snakemake), tmp)
     for b in ds["band"].values:
         best = ds["limiting_mag_best"].sel(band=b).values
         seen = best[np.isfinite(best)]  # NaN: never observable
@@ -36,7 +39,7 @@ def main(snakemake):
                      np.median(seen))
         else:
             log.info("band %-4s: no observable pixel", b)
-    log.info("wrote %d HEALPix maps", len(maps))
+    log.info("wrote %d HEALPix maps and %s", len(maps), ", ".join(p.name for p in figures))
 
 
 if __name__ == "__main__":

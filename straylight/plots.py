@@ -369,18 +369,38 @@ def depth_summary(limits_ds) -> dict:
     return rows
 
 
-def write_summary(rows: dict, campaign, out_dir) -> list:
-    """``summary.csv`` (the depth table ``rows`` of :func:`depth_summary`) and ``summary.rst`` (the
-    report's first page: the campaign, the table and a guide to the figures, with thumbnails of
-    those already in ``out_dir``; rendered by Snakemake's Jinja)."""
+#: The depth table's file name (written with the limit maps: :func:`limit_figures`)
+DEPTH_TABLE = "depth_summary.csv"
+
+
+def write_depth_table(rows: dict, path) -> Path:
+    """The depth table ``rows`` of :func:`depth_summary` as CSV at ``path``: per band, the
+    median and best 5-sigma depth (AB mag) and the observable fraction of all samples."""
     from straylight.util.io import atomic_path
 
-    out = Path(out_dir)
-    with atomic_path(out / "summary.csv") as tmp:
+    path = Path(path)
+    with atomic_path(path) as tmp:
         lines = ["band,median_depth_mag,best_depth_mag,observable_fraction"]
         lines += [f"{b},{r['median_depth_mag']:.2f},{r['best_depth_mag']:.2f},{r['observable_fraction']:.3f}"
                   for b, r in rows.items()]
         tmp.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def read_depth_table(path) -> dict:
+    """The rows :func:`write_depth_table` wrote (band -> the three numbers, as written)."""
+    import csv
+
+    with open(path, newline="") as f:
+        return {r["band"]: {k: float(v) for k, v in r.items() if k != "band"} for r in csv.DictReader(f)}
+
+
+def write_report_front(rows: dict, campaign, path, figure_dirs=()) -> Path:
+    """``path`` (the report's first page, RST rendered by Snakemake's Jinja): the campaign, the
+    depth table ``rows`` (:func:`read_depth_table`) and a guide to the figures, with thumbnails
+    of those found in ``figure_dirs`` (the limit maps' and the plots' folders)."""
+    from straylight.util.io import atomic_path
+
     c = campaign.config["campaign"]
     table = ["   * - band", "     - median depth (AB mag)", "     - best depth (AB mag)",
              "     - observable fraction"]
@@ -398,18 +418,19 @@ def write_summary(rows: dict, campaign, out_dir) -> list:
 
 {chr(10).join(table)}
 
-**Figures** (in *Maps and time series*): ``limits_median`` and ``limits_best`` map the depth;
-``sky_<band>_<time>`` show each background component at one time in AB mag/arcsec2 (components zero
-everywhere are listed in the title instead of drawn); ``series_orbit_*`` and ``series_campaign_*``
-follow three pointings in mag/arcsec2 (grey: not observable). **Scheduling tables** (CSV and PNG):
-the Moon angle and bright-limb elevation that keep stray light below a fraction of the darkest
-zodiacal light, and the exposure-time factor. Provenance (config, software versions, checksums)
-is in provenance.json.
+**Figures** (in *Maps and time series*): ``limits_median`` and ``limits_best`` map the depth
+(``{DEPTH_TABLE}`` holds this table); ``sky_<band>_<time>`` show each background component at one
+time in AB mag/arcsec2 (components zero everywhere are listed in the title instead of drawn);
+``series_orbit_*`` and ``series_campaign_*`` follow three pointings in mag/arcsec2 (grey: not
+observable). **Scheduling tables** (CSV and PNG): the Moon angle and bright-limb elevation that
+keep stray light below a fraction of the darkest zodiacal light, and the exposure-time factor.
+Provenance (config, software versions, checksums) is in provenance.json.
 """
-    text += _thumbnails(out)
-    with atomic_path(out / "summary.rst") as tmp:
+    text += _thumbnails([Path(d) for d in figure_dirs])
+    path = Path(path)
+    with atomic_path(path) as tmp:
         tmp.write_text(text)
-    return [out / "summary.csv", out / "summary.rst"]
+    return path
 
 
 #: The figures shown on the report's first page as thumbnails (file-name prefix, caption).
@@ -419,9 +440,9 @@ THUMBNAILS = (("limits_median", "Median 5-sigma depth per band over the campaign
               ("series_orbit_", "One pointing over the first orbit, every band (AB mag/arcsec2; grey: not observable)."))
 
 
-def _thumbnails(out: Path, width_px: int = 560) -> str:
-    """RST figures of :data:`THUMBNAILS` as embedded PNG thumbnails (data URIs: the report is
-    one self-contained file)."""
+def _thumbnails(dirs: list, width_px: int = 560) -> str:
+    """RST figures of :data:`THUMBNAILS` found in ``dirs`` as embedded PNG thumbnails (data URIs:
+    the report is one self-contained file)."""
     import base64
     import io
 
@@ -429,7 +450,7 @@ def _thumbnails(out: Path, width_px: int = 560) -> str:
 
     parts = []
     for prefix, caption in THUMBNAILS:
-        found = sorted(out.glob(f"{prefix}*.png"))
+        found = sorted(p for d in dirs for p in d.glob(f"{prefix}*.png"))
         if not found:
             continue
         img = Image.open(found[0])
@@ -447,37 +468,20 @@ def _thumbnails(out: Path, width_px: int = 560) -> str:
     return "\n" + "\n".join(parts) if parts else ""
 
 
-def _figure_job(kind: str, background_path, limits_path, campaign, out_dir, part=None, bands=None) -> tuple:
-    """One share of :func:`campaign_figures`, run in a worker process or in this one: ``kind``
-    'sky' (the sky-map pages of ``bands`` at the time of index ``part``), 'series' (the time
-    series of the pointing of pixel index ``part``) or 'limits' (the limit maps and the depth
-    table); each opens the stores itself and reads only what its figures show.  Returns the
-    paths written and, for 'limits', the rows of :func:`depth_summary`."""
+def sky_map_figures(background_path, campaign, out_dir) -> list:
+    """The sky-map pages (:func:`sky_maps`) of the background cube at ``background_path`` in
+    ``out_dir``, at the report's map times (``report.times``, else ``report.sky_map_times``
+    spread over the campaign) in its bands (``report.sky_map_bands``, else all): each time read
+    once for all its bands.  Returns the paths written; ConfigError naming the config file for a
+    band the cube does not have."""
     import dask
-    import xarray as xr
-
-    # one thread: the figures' processes are the parallelism (dask's threads only add overhead)
-    with dask.config.set(scheduler="synchronous"):
-        if kind == "limits":
-            with xr.open_zarr(limits_path) as limits_ds:
-                return limit_maps(limits_ds, campaign, out_dir), depth_summary(limits_ds)
-        with xr.open_zarr(background_path) as ds:
-            if kind == "sky":
-                return sky_maps(ds, campaign, out_dir, [part], bands), None
-            return time_series(ds, campaign, out_dir, [part]), None
-
-
-def campaign_figures(background_path, limits_path, campaign, out_dir, workers: int = 1) -> list:
-    """Every figure of the report and its summary table, in ``out_dir``; the paths written.
-    The figures are drawn by ``workers`` processes (this one and ``workers`` - 1 spawned), shared out
-    as the time series of each pointing (each reads every time block of its pixel's chunks), the
-    sky-map pages of each map time (one read of that time for all bands) and the limit maps."""
     import xarray as xr
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     rc = campaign.config["report"]
-    with xr.open_zarr(background_path) as ds:
+    # one thread: the figure rules run side by side (dask's threads only add overhead)
+    with dask.config.set(scheduler="synchronous"), xr.open_zarr(background_path) as ds:
         cube_bands = [str(b) for b in ds["band"].values]
         unknown = sorted(set(rc.get("sky_map_bands") or ()) - set(cube_bands))
         if unknown:
@@ -485,67 +489,32 @@ def campaign_figures(background_path, limits_path, campaign, out_dir, workers: i
 
             raise ConfigError(f"{campaign.path}: report.sky_map_bands: {', '.join(unknown)} not among the cube's "
                               f"bands {', '.join(cube_bands)}")
-        time_indices = map_time_indices(ds, int(rc["sky_map_times"]), rc.get("times") or ())
-        pixel_indices = series_pixel_indices(ds, int(rc["series_pointings"]), rc.get("pointings") or ())
-    sky_bands = [b for b in cube_bands if b in set(rc.get("sky_map_bands") or cube_bands)]
-    # the longest shares first (a pointing's series ~2 CPU-s, the limit maps with the depth table),
-    # then the sky pages a few bands at a time (~0.3 CPU-s a page): the processes finish together
-    groups = [sky_bands[i:i + SKY_BANDS_PER_JOB] for i in range(0, len(sky_bands), SKY_BANDS_PER_JOB)]
-    jobs = ([("series", ip, None) for ip in pixel_indices] + [("limits", None, None)]
-            + [("sky", it, g) for it in time_indices for g in groups])
-    results = _share_out(_figure_job, [(kind, background_path, limits_path, campaign, out, part, bands)
-                                       for kind, part, bands in jobs], int(workers))
-    order = {"sky": 0, "series": 1, "limits": 2}  # sky pages, series, limit maps
-    written = [p for job, (paths, _) in sorted(zip(jobs, results), key=lambda j: order[j[0][0]]) for p in paths]
-    rows = next(rows for (kind, _, _), (_, rows) in zip(jobs, results) if kind == "limits")
-    return written + write_summary(rows, campaign, out)
+        bands = [b for b in cube_bands if b in set(rc.get("sky_map_bands") or cube_bands)]
+        times = map_time_indices(ds, int(rc["sky_map_times"]), rc.get("times") or ())
+        return sky_maps(ds, campaign, out, times, bands)
 
 
-#: Sky-map pages (bands) drawn by one job of :func:`campaign_figures`: shares small enough to
-#: even out the processes' ends, each reading its map time once
-SKY_BANDS_PER_JOB = 3
+def time_series_figures(background_path, campaign, out_dir) -> list:
+    """The time series (:func:`time_series`) of the report's pointings (``report.pointings``,
+    else ``report.series_pointings`` spread over the footprint) in ``out_dir``, each pointing's
+    whole series read in one pass over its pixel's chunks.  Returns the paths written."""
+    import dask
+    import xarray as xr
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    rc = campaign.config["report"]
+    with dask.config.set(scheduler="synchronous"), xr.open_zarr(background_path) as ds:
+        pixels = series_pixel_indices(ds, int(rc["series_pointings"]), rc.get("pointings") or ())
+        return time_series(ds, campaign, out, pixels)
 
 
-def _share_out(run, jobs: list, workers: int) -> list:
-    """``run(*job)`` for every job (``run`` a module-level function, the jobs' arguments
-    picklable), in this process and ``workers`` - 1 spawned ones, each process taking the next job
-    of the list whenever it is free; the results in the jobs' order.  A failed job stops the
-    handing out and its error is raised once the running ones are done."""
-    if workers <= 1 or len(jobs) <= 1:
-        return [run(*job) for job in jobs]
-    import threading
+def limit_figures(limits_path, campaign, out_dir) -> list:
+    """The limits' figures in ``out_dir``: the best and median limit maps (:func:`limit_maps`)
+    and the depth table (:data:`DEPTH_TABLE`, :func:`depth_summary`); the paths written."""
+    import dask
+    import xarray as xr
 
-    from straylight.util.daskutil import spawned_pool
-
-    lock = threading.Lock()
-    queue = list(range(len(jobs)))
-    results, errors = [None] * len(jobs), []
-
-    def take():
-        with lock:
-            return None if errors or not queue else queue.pop(0)
-
-    def feed(pool):  # one thread per spawned process: hands it one job at a time
-        while (i := take()) is not None:
-            try:
-                results[i] = pool.submit(run, *jobs[i]).result()
-            except BaseException as exc:  # noqa: BLE001 - re-raised in the calling thread
-                with lock:
-                    errors.append(exc)
-
-    n_spawned = min(workers - 1, len(jobs) - 1)
-    with spawned_pool(n_spawned) as pool:
-        feeders = [threading.Thread(target=feed, args=(pool,), daemon=True) for _ in range(n_spawned)]
-        for t in feeders:
-            t.start()
-        try:
-            while (i := take()) is not None:
-                results[i] = run(*jobs[i])
-        except BaseException as exc:
-            with lock:
-                errors.append(exc)
-        for t in feeders:
-            t.join()
-    if errors:
-        raise errors[0]
-    return results
+    with dask.config.set(scheduler="synchronous"), xr.open_zarr(limits_path) as limits_ds:
+        written = limit_maps(limits_ds, campaign, out_dir)
+        return written + [write_depth_table(depth_summary(limits_ds), Path(out_dir) / DEPTH_TABLE)]

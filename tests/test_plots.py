@@ -91,34 +91,3 @@ def test_mollweide_panel_puts_each_pixel_where_healpy_projects_it(nest):
         col, row = ax.transData.transform(np.array(xy, float).reshape(1, 2))[0]
         drawn = rgba[int(height - row), int(col)] / 255.0
         assert drawn == pytest.approx(colour, abs=2 / 255), (ra, dec)
-
-
-def _tagged(k):
-    """Job of the tests below: ``k`` and whether it ran in a spawned process, 0.3 s later (slow
-    enough that both processes take jobs)."""
-    import multiprocessing
-    import time
-
-    time.sleep(0.3)
-    return k, multiprocessing.parent_process() is not None
-
-
-def _fails_when_spawned(k):
-    import multiprocessing
-
-    if multiprocessing.parent_process() is not None:
-        raise RuntimeError(f"job {k} failed in the spawned process")
-    return _tagged(k)
-
-
-def test_share_out_returns_results_in_job_order_and_raises_a_failed_job():
-    """The figure jobs shared between this process and a spawned one: every result in its job's
-    place whichever process ran it, both processes took jobs, and an error in the spawned
-    process reaches the caller."""
-    from straylight.plots import _share_out
-
-    results = _share_out(_tagged, [(k,) for k in range(6)], 2)
-    assert [k for k, _ in results] == list(range(6))
-    assert {spawned for _, spawned in results} == {True, False}
-    with pytest.raises(RuntimeError, match="in the spawned process"):
-        _share_out(_fails_when_spawned, [(k,) for k in range(4)], 2)

@@ -517,12 +517,13 @@ def test_kill_9_at_random_moments_then_resume_is_bit_identical(tmp_path, cube_ru
 def test_html_report_holds_maps_series_tables_and_provenance(cube_run):
     """`snakemake --report` after a run: one self-contained HTML file with the figures."""
     tmp, cfg, out = cube_run
-    plots = sorted(p.name for p in (out / "plots").glob("*.png"))
+    plots = sorted(p.name for d in ("sky", "series") for p in (out / d).glob("*.png"))
     # the test config chooses one time (00:30), one band (g) and one pointing (near RA 150, Dec 30)
     assert [p for p in plots if p.startswith("sky_")] == ["sky_g_20260101T0030.png"]
     series = [p for p in plots if p.startswith("series_")]
     assert len(series) == 2 and all("_ra1" in p for p in series)
-    assert {"limits_best.png", "limits_median.png"} <= set(plots)
+    # the limit maps' figures and the depth table beside the HEALPix maps (rule limits)
+    assert {"limits_best.png", "limits_median.png", "depth_summary.csv"} <= {p.name for p in (out / "maps").iterdir()}
     assert (out / "scheduling" / "moon_avoidance.png").exists()
     report = tmp / "report.html"
     r = _run(tmp, cfg, "--report", str(report))
@@ -531,8 +532,9 @@ def test_html_report_holds_maps_series_tables_and_provenance(cube_run):
     assert report.stat().st_size > 100_000
     for needle in ("Maps and time series", "Scheduling tables", "Provenance", "sky_g_", "moon_avoidance"):
         assert needle in text, needle
-    # the first page: the depth table (from plots/summary.rst) and thumbnails; the CSVs attached
-    assert (out / "plots" / "summary.csv").exists()
-    for needle in ("median depth (AB mag)", "observable fraction", "limits_median</b>", "moon_avoidance.csv",
-                   "summary.csv"):
+    # the first page: the depth table (from summary.rst, rule report_front) and thumbnails of the
+    # limit maps, a sky page and a series; the CSVs attached
+    assert (out / "summary.rst").exists()
+    for needle in ("median depth (AB mag)", "observable fraction", "limits_median</b>", "sky_g_20260101T0030</b>",
+                   "series_orbit_", "moon_avoidance.csv", "depth_summary.csv"):
         assert needle in text, needle

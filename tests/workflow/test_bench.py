@@ -96,7 +96,7 @@ def test_pipeline_bench_writes_its_figures(tmp_path):
     assert c["samples"] == 12 * c["pixels"] and 0 < c["pixels"] < 192  # nside 4: 192 pixels on the sky
     assert rec["samples_per_s_per_core"] == c["samples"] / rec["wall_seconds"] / rec["cores"]
     assert rec["cpu_seconds"] > 0 and rec["samples_per_cpu_second"] == c["samples"] / rec["cpu_seconds"]
-    assert {"background_blocks", "background_init", "background", "limits", "plots"} <= set(rec["rules"])
+    assert {"background_blocks", "background_init", "background", "limits", "sky_maps", "time_series"} <= set(rec["rules"])
     for name, rule in rec["rules"].items():
         assert rule["jobs"] >= 1 and 0.0 <= rule["seconds"] <= rec["wall_seconds"] + 1.0, name
         assert rule["share_of_wall"] == rule["seconds"] / rec["wall_seconds"]

@@ -46,3 +46,7 @@ CUBE_JOBS = [TIME_BLOCKS[i:i + _PER_JOB] for i in range(0, len(TIME_BLOCKS), _PE
 #: GB of limits on (limits.summary_processes); a core it does not need runs another rule
 _N_PIXELS = _footprint_from_config(config["footprint"], Path(CONFIG_PATH).parent).pixels.size
 LIMITS_PROCESSES = _summary_processes(len(_CAMPAIGN.times) * _N_PIXELS * len(_CAMPAIGN.bands), 2)
+#: the order in which the jobs after the cube start when cores are few (higher first): the limits
+#: and the time series (the longest job) first, then the sky maps ahead of provenance, which needs
+#: the limits only: on 2 cores the three jobs and provenance then end about together
+FIGURE_PRIORITY = {"limits": 2, "time_series": 2, "sky_maps": 1}

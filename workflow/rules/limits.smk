@@ -1,17 +1,20 @@
 rule limits:
     """limits.zarr: the 5-sigma limits the cube's workers wrote to the limits store (every time
     block done), published with the per-pixel campaign summaries added; the summaries as HEALPix
-    maps."""
+    maps, their figures and the depth table (maps/)."""
     input:
         summary=f"{RESULTS}/background_summary.json",
         config=CONFIG_PATH,
     output:
         limits=directory(f"{RESULTS}/limits.zarr"),
-        maps=directory(f"{RESULTS}/maps"),
+        maps=report(directory(f"{RESULTS}/maps"), patterns=["{name}.png", "{name}.csv"],
+                    caption="../report/plots.rst", category="Maps and time series", labels={"figure": "{name}"}),
     params:
         lim_store=LIMITS_WORK_STORE,
     # processes of the per-pixel summaries (common.smk; lowered to --cores by Snakemake)
     threads: LIMITS_PROCESSES
+    # before the sky maps: provenance waits for it (common.smk: FIGURE_PRIORITY)
+    priority: FIGURE_PRIORITY["limits"]
     conda:
         "../envs/straylight.yaml"
     log:
