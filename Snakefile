@@ -44,6 +44,7 @@ rule all:
         f"{RESULTS}/provenance.json",
         f"{RESULTS}/stars_csst.parquet",
         f"{RESULTS}/scheduling",
+        f"{RESULTS}/depth",
         f"{RESULTS}/sky",
         f"{RESULTS}/series",
         f"{RESULTS}/summary.rst",

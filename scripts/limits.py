@@ -1,5 +1,5 @@
-"""Snakemake adapter: rule `limits` -> limits.zarr and maps/ (the HEALPix maps, the limit-map
-figures and the depth table).
+"""Snakemake adapter: rule `limits` -> limits.zarr, maps/ (the HEALPix maps) and depth/ (the
+limit maps' figures and the depth table).
 
 The cube's workers wrote every sample's limit to the limits work store; this step computes the
 per-pixel summaries from it (streamed over pixel blocks on the job's processes), publishes the
@@ -30,6 +30,7 @@ def main(snakemake):
         ds = written.drop_vars(list(LIMITS_REGION_VARIABLES)).load()
     with atomic_path(snakemake.output.maps) as tmp:
         maps = write_limit_maps(ds, tmp)
+    with atomic_path(snakemake.output.depth) as tmp:
         figures = limit_figures(snakemake.output.limits, campaign(snakemake), tmp)
     for b in ds["band"].values:
         best = ds["limiting_mag_best"].sel(band=b).values

@@ -9,7 +9,7 @@ from _common import campaign, setup_logging  # noqa: E402
 from straylight.plots import DEPTH_TABLE, read_depth_table, write_report_front  # noqa: E402
 
 log = setup_logging(snakemake)  # noqa: F821
-rows = read_depth_table(Path(snakemake.input.maps, DEPTH_TABLE))  # noqa: F821
+rows = read_depth_table(Path(snakemake.input.depth, DEPTH_TABLE))  # noqa: F821
 path = write_report_front(rows, campaign(snakemake), snakemake.output[0],  # noqa: F821
-                          [snakemake.input.maps, snakemake.input.sky, snakemake.input.series])  # noqa: F821
+                          [snakemake.input.depth, snakemake.input.sky, snakemake.input.series])  # noqa: F821
 log.info("wrote %s", path)

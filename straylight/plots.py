@@ -398,7 +398,7 @@ def read_depth_table(path) -> dict:
 def write_report_front(rows: dict, campaign, path, figure_dirs=()) -> Path:
     """``path`` (the report's first page, RST rendered by Snakemake's Jinja): the campaign, the
     depth table ``rows`` (:func:`read_depth_table`) and a guide to the figures, with thumbnails
-    of those found in ``figure_dirs`` (the limit maps' and the plots' folders)."""
+    of those found in ``figure_dirs`` (depth/, sky/ and series/ of the campaign's results)."""
     from straylight.util.io import atomic_path
 
     c = campaign.config["campaign"]

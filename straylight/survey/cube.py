@@ -150,11 +150,12 @@ def _faint_rows(campaign: Campaign, fp: Footprint, stars_path, rows: slice) -> n
     return values
 
 
-def _faint_rows_saved(campaign: Campaign, fp: Footprint, stars, rows: slice) -> bool:
+def _faint_rows_saved(campaign: Campaign, fp: Footprint, stars, rows: slice, build_workers: int) -> bool:
     """Whether the faint-star map at footprint pixels ``rows`` is kept on disk (:func:`_faint_rows`
-    reads it instead of summing)."""
+    reads it instead of summing); the process's model is made here with ``build_workers`` for
+    an earthshine table it may build later."""
     los = radec_to_unit(fp.ra_deg[rows], fp.dec_deg[rows])
-    return background_model_for(campaign, fp).stars.faint_star_map_saved(stars, los, campaign.bands)
+    return background_model_for(campaign, fp, build_workers).stars.faint_star_map_saved(stars, los, campaign.bands)
 
 
 def faint_star_map(campaign: Campaign, fp: Footprint, stars_path, workers: int = 1,
@@ -172,7 +173,7 @@ def faint_star_map(campaign: Campaign, fp: Footprint, stars_path, workers: int =
         return None if before is None else (None, before())
     edges = np.linspace(0, fp.pixels.size, max(1, min(int(workers), fp.pixels.size)) + 1).round().astype(int)
     parts = [slice(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:])]
-    if len(parts) == 1 or all(_faint_rows_saved(campaign, fp, stars, rows) for rows in parts):
+    if len(parts) == 1 or all(_faint_rows_saved(campaign, fp, stars, rows, workers) for rows in parts):
         # one process, or every part's sums kept on disk (read here: no process to start)
         other = None if before is None else before()
         values = np.concatenate([_faint_rows(campaign, fp, stars_path, rows) for rows in parts])
@@ -602,13 +603,15 @@ def publish_work_store(work_store, product, summaries: dict | None = None) -> No
     hard-linked (copied where links fail), and ``summaries`` (name -> the whole array of a
     variable the work store lays down but has no chunk of: the limits' per-pixel summaries)
     written there only.  The work store stays as it was, for a re-run of the publishing step;
-    zarr replaces a chunk file by renaming a new one into place, so a later write to the work
-    store leaves the product's files as they are."""
+    its writers (:class:`~straylight.survey.storage.ChunkWriter`, zarr) replace a chunk file by
+    renaming a new one into place, so a later write to the work store leaves the product's files
+    as they are."""
     import os
     import shutil
 
     import zarr
 
+    from straylight.survey.storage import PARTIAL_SUFFIX
     from straylight.util.io import atomic_path
 
     zarr.consolidate_metadata(str(work_store))
@@ -620,7 +623,9 @@ def publish_work_store(work_store, product, summaries: dict | None = None) -> No
             shutil.copy2(src, dst)
 
     with atomic_path(product) as tmp:
-        shutil.copytree(work_store, tmp, copy_function=link)
+        # every time block is done, so no chunk is being written: a *.partial file is a killed
+        # writer's, never part of the store
+        shutil.copytree(work_store, tmp, copy_function=link, ignore=shutil.ignore_patterns(f"*{PARTIAL_SUFFIX}"))
         if summaries:
             group = zarr.open_group(str(tmp), mode="r+", use_consolidated=False)
             for name, values in summaries.items():
@@ -806,6 +811,7 @@ def run_time_blocks(campaign: Campaign, fp: Footprint, store, blocks, done_dir, 
 
     from straylight.util.io import write_json_atomic
     from straylight.sky.observing import scene
+    from straylight.survey.storage import remove_partial_chunks
     from straylight.survey.timegrid import time_blocks
 
     c = campaign.config["campaign"]
@@ -824,6 +830,10 @@ def run_time_blocks(campaign: Campaign, fp: Footprint, store, blocks, done_dir, 
                  len(blocks), done_dir)
     p_blocks = [slice(a, b) for a, b in fp.blocks(int(campaign.config["footprint"].get("pixel_block_size", 1024)))]
     faint = _stored_faint_map(store) if (stars_path is not None and todo) else None
+    # a time block is a time chunk: its half-written chunk files of a killed run go before it is redone
+    removed = sum(remove_partial_chunks(s, todo) for s in (store, obs_store, lim_store) if s is not None)
+    if log is not None and removed:
+        log.info("removed %d half-written chunk files of an earlier run", removed)
     if todo:
         with region_pool(campaign, fp, store, stars_path, workers, scheduler_address, obs_store,
                          lim_store) as (submit, wait):

@@ -229,7 +229,7 @@ class ChunkWriter:
     other region, codec, store or zarr format is written by zarr itself.
 
     ``attrs`` are the array's; ``writer[region] = values`` writes (``region`` a tuple of slices,
-    trailing dimensions whole).  Raises OSError as the file system does (no space, no access)."""
+    trailing dimensions whole; ``values`` of the region's shape take this path, others zarr's).  Raises OSError as the file system does (no space, no access)."""
 
     def __init__(self, array):
         self.array = array
@@ -238,7 +238,8 @@ class ChunkWriter:
 
     def __setitem__(self, region, values) -> None:
         coords = None if self._codecs is None else self._chunk_coords(region)
-        if coords is None:
+        values = np.asarray(values)
+        if coords is None or values.shape != self._region_shape(region):  # zarr broadcasts or refuses
             self.array[region] = values
             return
         meta = self.array.metadata
@@ -257,6 +258,11 @@ class ChunkWriter:
         for codec in chain:
             data = codec.encode(data)
         _write_file(path, data)
+
+    def _region_shape(self, region) -> tuple:
+        """The shape of the array's values at ``region`` (a tuple of slices)."""
+        region = tuple(region) + (slice(None),) * (self.array.ndim - len(tuple(region)))
+        return tuple(len(range(*s.indices(n))) for s, n in zip(region, self.array.shape))
 
     def _chunk_coords(self, region) -> tuple | None:
         """The chunk ``region`` is exactly (its in-bounds part), or None."""
@@ -313,12 +319,30 @@ def _all_fill(values: np.ndarray, fill_value) -> bool:
     return values.size == 0 or (all_equal(values.reshape(-1)[:1]) and all_equal(values))
 
 
+#: the suffix of a chunk file being written (:func:`_write_file`, as zarr's own writes name it)
+PARTIAL_SUFFIX = ".partial"
+
+
+def remove_partial_chunks(store, time_chunks) -> int:
+    """Remove the chunk files a killed writer left half written (``*.partial``, never renamed into
+    place) in ``store``'s chunks at time-chunk indices ``time_chunks`` (the first chunk
+    coordinate), of every array; how many were removed.  Only those chunks': another job may be
+    writing other time chunks of the same store."""
+    removed = 0
+    for array_dir in (p for p in Path(store).iterdir() if (p / "c").is_dir()):
+        for t in time_chunks:
+            for partial in (array_dir / "c" / str(int(t))).rglob(f"*{PARTIAL_SUFFIX}"):
+                partial.unlink(missing_ok=True)
+                removed += 1
+    return removed
+
+
 def _write_file(path: Path, data) -> None:
     """``data`` (bytes-like) to ``path`` through a temporary sibling renamed into place, so a
     reader never meets half a chunk."""
     import uuid
 
-    tmp = path.with_suffix(f".{uuid.uuid4().hex}.partial")
+    tmp = path.with_suffix(f".{uuid.uuid4().hex}{PARTIAL_SUFFIX}")
     try:
         try:
             f = tmp.open("wb")

@@ -686,7 +686,9 @@ def test_faint_star_map_is_the_azimuth_averaged_pst_sum(campaign, comp_model):
 def test_faint_star_map_kept_on_disk_is_read_back_only_for_the_same_inputs(comp_model, tmp_path, monkeypatch):
     """A footprint's faint-star map kept on disk (faint_star_rates(saved=True), as the cube's
     skeleton asks) is read back bit for bit by a new star table with the same stars; a star one
-    magnitude brighter, or other lines of sight, are other keys: computed, not read."""
+    magnitude brighter, or other lines of sight, are other keys: computed, not read.
+    faint_star_map_saved (which the cube's init asks before starting processes) says so for
+    each: False before the map is kept, True after, False for the other keys."""
     monkeypatch.setenv("STRAYLIGHT_CACHE", str(tmp_path))
     rng = np.random.default_rng(8)
     n = 500
@@ -699,13 +701,17 @@ def test_faint_star_map_kept_on_disk_is_read_back_only_for_the_same_inputs(comp_
     los = rng.normal(size=(50, 3))
     los /= np.linalg.norm(los, axis=1)[:, None]
     stars = comp_model.stars
+    assert not stars.faint_star_map_saved(table(mag), los, ["g"])
     first = stars.faint_star_rates(table(mag), los, ["g"], saved=True)["g"]
     assert len(list(tmp_path.glob("faint_star_map_*.npy"))) == 1 and np.all(first > 0)
+    assert stars.faint_star_map_saved(table(mag), los, ["g"])
     again = stars.faint_star_rates(table(mag), los, ["g"], saved=True)["g"]
     np.testing.assert_array_equal(again, first)
     np.testing.assert_array_equal(stars.faint_star_rates(table(mag), los, ["g"])["g"], first)  # computed
     brighter = mag.copy()
     brighter[0] -= 1.0
+    assert not stars.faint_star_map_saved(table(brighter), los, ["g"])
+    assert not stars.faint_star_map_saved(table(mag), los[:20], ["g"])
     changed = stars.faint_star_rates(table(brighter), los, ["g"], saved=True)["g"]
     assert len(list(tmp_path.glob("faint_star_map_*.npy"))) == 2 and np.any(changed > first)
     stars.faint_star_rates(table(mag), los[:20], ["g"], saved=True)

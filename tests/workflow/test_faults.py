@@ -65,5 +65,10 @@ def test_disk_full_during_a_zarr_write_then_rerun(small, tmp_path, monkeypatch, 
     assert all(after.get(k) == v for k, v in block0.items() if "/c/0/" in k or k.endswith("zarr.json"))
     assert not (done / "block_1.json").exists()  # the failed block is not marked done
     monkeypatch.setattr(storage, "_write_file", real_write)  # space freed
+    # and a chunk file a killed writer left half written (never renamed into place) in block 1
+    partial = store / "total" / "c" / "1" / "0" / f"0.0123abcd{storage.PARTIAL_SUFFIX}"
+    partial.parent.mkdir(parents=True, exist_ok=True)
+    partial.write_bytes(b"half a chunk")
     run_time_blocks(c, fp, store, [0, 1], done)  # block 0 skipped (its sentinel), block 1 redone
+    assert not partial.exists()
     assert sha256_path(store) == ref_digest

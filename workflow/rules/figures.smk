@@ -38,10 +38,16 @@ rule time_series:
         "../../scripts/figures.py"
 
 
+# a few milliseconds of work: on a cluster, not worth a job of its own
+localrules:
+    report_front,
+    bench_charts,
+
+
 rule report_front:
     """The report's first page: the campaign, its depth table and thumbnails of the figures."""
     input:
-        maps=f"{RESULTS}/maps",
+        depth=f"{RESULTS}/depth",
         sky=f"{RESULTS}/sky",
         series=f"{RESULTS}/series",
         config=CONFIG_PATH,

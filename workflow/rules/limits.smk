@@ -1,14 +1,15 @@
 rule limits:
     """limits.zarr: the 5-sigma limits the cube's workers wrote to the limits store (every time
     block done), published with the per-pixel campaign summaries added; the summaries as HEALPix
-    maps, their figures and the depth table (maps/)."""
+    maps (maps/), their figures and the depth table (depth/)."""
     input:
         summary=f"{RESULTS}/background_summary.json",
         config=CONFIG_PATH,
     output:
         limits=directory(f"{RESULTS}/limits.zarr"),
-        maps=report(directory(f"{RESULTS}/maps"), patterns=["{name}.png", "{name}.csv"],
-                    caption="../report/plots.rst", category="Maps and time series", labels={"figure": "{name}"}),
+        maps=directory(f"{RESULTS}/maps"),
+        depth=report(directory(f"{RESULTS}/depth"), patterns=["{name}.png", "{name}.csv"],
+                     caption="../report/plots.rst", category="Maps and time series", labels={"figure": "{name}"}),
     params:
         lim_store=LIMITS_WORK_STORE,
     # processes of the per-pixel summaries (common.smk; lowered to --cores by Snakemake)
