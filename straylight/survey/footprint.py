@@ -4,7 +4,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-import healpy as hp
 import numpy as np
 
 from straylight.errors import ConfigError, InputError
@@ -30,6 +29,8 @@ class Footprint:
 
     @property
     def area_deg2(self) -> float:
+        import healpy as hp
+
         return float(self.pixels.size * hp.nside2pixarea(self.nside, degrees=True))
 
     def blocks(self, block_size: int) -> list[tuple[int, int]]:
@@ -51,6 +52,10 @@ def pixel_block_length(n_pixels: int, block_size: int) -> int:
 
 
 def pixel_centres(nside: int, nest: bool, pixels=None) -> tuple[np.ndarray, np.ndarray]:
+    # healpy where it is used (its import, with matplotlib's, ~0.3 s): a worker that receives a
+    # footprint, and the jobs that only read one, do without it
+    import healpy as hp
+
     if pixels is None:
         pixels = np.arange(hp.nside2npix(nside))
     ra, dec = hp.pix2ang(nside, pixels, nest=nest, lonlat=True)
@@ -76,6 +81,8 @@ def latitude_cut_mask(nside: int, nest: bool, galactic_min_deg: float, ecliptic_
 
 def read_mask(path: str | Path, nside: int, nest: bool) -> np.ndarray:
     """A user's HEALPix FITS mask, resampled to ``nside``/ordering; non-zero = in footprint."""
+    import healpy as hp
+
     path = Path(path)
     if not path.exists():
         raise InputError(f"footprint.mask_file: {path} does not exist")

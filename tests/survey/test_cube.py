@@ -523,7 +523,7 @@ def test_html_report_holds_maps_series_tables_and_provenance(cube_run):
     series = [p for p in plots if p.startswith("series_")]
     assert len(series) == 2 and all("_ra1" in p for p in series)
     # the limit maps' figures and the depth table (rule limits)
-    assert {p.name for p in (out / "depth").iterdir()} == {"limits_best.png", "limits_median.png", "depth_summary.csv"}
+    assert {"limits_best.png", "limits_median.png", "depth_summary.csv"} <= {p.name for p in (out / "depth").iterdir()}
     assert (out / "scheduling" / "moon_avoidance.png").exists()
     report = tmp / "report.html"
     r = _run(tmp, cfg, "--report", str(report))
