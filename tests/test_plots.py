@@ -91,3 +91,29 @@ def test_mollweide_panel_puts_each_pixel_where_healpy_projects_it(nest):
         col, row = ax.transData.transform(np.array(xy, float).reshape(1, 2))[0]
         drawn = rgba[int(height - row), int(col)] / 255.0
         assert drawn == pytest.approx(colour, abs=2 / 255), (ra, dec)
+
+
+def test_depth_table_round_trip_and_report_front(campaign, tmp_path):
+    """The depth table the limits rule writes (depth/depth_summary.csv) is read back as written
+    (mags to 0.01, the fraction to 0.001), and the report's first page built from it shows each
+    row and a thumbnail of each figure found in the folders it is given (depth/, sky/, series/),
+    the limit map first."""
+    from PIL import Image
+
+    from straylight.plots import DEPTH_TABLE, read_depth_table, write_depth_table, write_report_front
+
+    rows = {"g": {"median_depth_mag": 26.5349, "best_depth_mag": 26.6151, "observable_fraction": 0.16549},
+            "y": {"median_depth_mag": 24.8461, "best_depth_mag": float("nan"), "observable_fraction": 0.16549}}
+    depth, sky = tmp_path / "depth", tmp_path / "sky"
+    for d in (depth, sky):
+        d.mkdir()
+    back = read_depth_table(write_depth_table(rows, depth / DEPTH_TABLE))
+    assert back["g"] == {"median_depth_mag": 26.53, "best_depth_mag": 26.62, "observable_fraction": 0.165}
+    assert back["y"]["median_depth_mag"] == 24.85 and np.isnan(back["y"]["best_depth_mag"])
+    Image.new("RGB", (80, 40), "red").save(depth / "limits_median.png")
+    Image.new("RGB", (80, 40), "blue").save(sky / "sky_g_20260101T0000.png")
+    text = write_report_front(back, campaign, tmp_path / "summary.rst", [depth, sky]).read_text()
+    assert "     - 26.53" in text and "     - 16.5 %" in text and "     - nan" in text
+    shown = [line for line in text.splitlines() if "<b>" in line]
+    assert [s.split("<b>")[1].split("</b>")[0] for s in shown] == ["limits_median", "sky_g_20260101T0000"]
+    assert text.count("data:image/png;base64") == 2
