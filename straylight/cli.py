@@ -452,7 +452,8 @@ def cmd_scenario(args) -> int:
 
 def cmd_plan(args) -> int:
     from straylight.config import load_campaign
-    from straylight.survey.cube import CUBE_COMPONENTS, PRODUCT_BYTES_PER_SAMPLE, cube_chunks, estimated_cost
+    from straylight.survey.cube import CUBE_COMPONENTS, cube_chunks
+    from straylight.survey.plan import PRODUCT_BYTES_PER_SAMPLE, estimated_cost
     from straylight.survey.footprint import footprint_from_config
     from straylight.survey.timegrid import time_blocks
 
@@ -463,7 +464,7 @@ def cmd_plan(args) -> int:
     tb = time_blocks(nt, float(c["cadence_s"]), float(c.get("time_block_hours", 6)))
     speed = None
     if args.calibrate:
-        from straylight.survey.cube import machine_speed
+        from straylight.survey.plan import machine_speed
 
         speed = machine_speed(campaign, fp)
     cost = estimated_cost(campaign, fp, args.seconds_per_sample, speed["factor"] if speed else 1.0)
@@ -476,7 +477,7 @@ def cmd_plan(args) -> int:
           f"(models.unobservable_samples: {cost['unobservable_samples']})")
     print(f"time blocks: {len(tb)}; chunks {cube_chunks(campaign, nt, npix)}")
     print(f"products on disk: {cost['product_bytes'] / 1e9:.2f} GB at {PRODUCT_BYTES_PER_SAMPLE:g} bytes/sample "
-          f"(straylight.survey.cube.PRODUCT_BYTES_PER_SAMPLE); uncompressed: background.zarr {cube_bytes / 1e9:.2f} GB, "
+          f"(straylight.survey.plan.PRODUCT_BYTES_PER_SAMPLE); uncompressed: background.zarr {cube_bytes / 1e9:.2f} GB, "
           f"limits.zarr {limits_bytes / 1e9:.2f} GB")
     cores = 2
     print(f"estimated cost, wall to wall: {cost['pipeline_core_hours']:.3g} core-hours, "
@@ -497,7 +498,7 @@ def cmd_plan(args) -> int:
     if args.seconds_per_sample is not None:
         how = f"{args.seconds_per_sample * 1e3:.3g} ms per evaluated sample (--seconds-per-sample)"
     else:
-        how = ("this code's per-sample figures (straylight.survey.cube.CUBE_*, bench/run.py --only cube), in the "
+        how = ("this code's per-sample figures (straylight.survey.plan.CUBE_*, bench/run.py --only cube), in the "
                "units of the machine they are given for; the development machine runs them about x0.25, "
                "--calibrate measures this one")
         if speed:

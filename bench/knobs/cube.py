@@ -125,14 +125,14 @@ def production_region_rates(base, fp, stars_path) -> dict:
 
 
 def plan_cost_model(base, fp, t_slice, cube: dict) -> dict:
-    """``straylight plan``'s figures (straylight.survey.cube.CUBE_*) against this run: the table path
+    """``straylight plan``'s figures (straylight.survey.plan.CUBE_*) against this run: the table path
     per sample; the skip mode's screen per sample (the Sun's and the Moon's geometry of every
-    sample, timed here through cube.evaluated_samples on the same steps and pixels) and per
+    sample, timed here through plan.evaluated_samples on the same steps and pixels) and per
     observable sample (the rest of the skip run); then each of the four runs' seconds as the
     plan's formula gives them from the assumed figures, against the measured ones."""
     from astropy.time import TimeDelta
 
-    from straylight.survey import cube as cu
+    from straylight.survey import plan
     from straylight.config import campaign_from_dict, deep_merge
 
     steps = range(*t_slice.indices(len(base.times)))
@@ -142,20 +142,20 @@ def plan_cost_model(base, fp, t_slice, cube: dict) -> dict:
                          "cadence_s": steps.step * float(base.config["campaign"]["cadence_s"])}}
     sub = campaign_from_dict(deep_merge(base.config, over), base.path)  # the same steps as a campaign of their own
     assert len(sub.times) == len(steps)
-    _, screen = timed(lambda: cu.evaluated_samples(sub, fp, max_times=len(sub.times), max_pixels=fp.pixels.size))
+    _, screen = timed(lambda: plan.evaluated_samples(sub, fp, max_times=len(sub.times), max_pixels=fp.pixels.size))
     n = len(steps) * fp.pixels.size
     n_obs = cube["observable_samples"]
     measured = {"table_seconds_per_sample": 1.0 / cube["lut"]["samples_per_s_per_core"],
                 "screen_seconds_per_sample": screen / n}
     measured["table_seconds_per_observable_sample"] = (
         (n / cube["lut_observable_only"]["samples_per_s_per_core"] - n * measured["screen_seconds_per_sample"]) / n_obs)
-    assumed = {"table_seconds_per_sample": cu.CUBE_TABLE_SECONDS_PER_SAMPLE,
-               "screen_seconds_per_sample": cu.CUBE_SCREEN_SECONDS_PER_SAMPLE,
-               "table_seconds_per_observable_sample": cu.CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE}
-    predicted = {"lut": cu.cube_compute_seconds(n, n, "lut", False),
-                 "direct": cu.cube_compute_seconds(n, n, "direct", False),
-                 "lut_observable_only": cu.cube_compute_seconds(n, n_obs, "lut", True),
-                 "direct_observable_only": cu.cube_compute_seconds(n, n_obs, "direct", True)}
+    assumed = {"table_seconds_per_sample": plan.CUBE_TABLE_SECONDS_PER_SAMPLE,
+               "screen_seconds_per_sample": plan.CUBE_SCREEN_SECONDS_PER_SAMPLE,
+               "table_seconds_per_observable_sample": plan.CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE}
+    predicted = {"lut": plan.cube_compute_seconds(n, n, "lut", False),
+                 "direct": plan.cube_compute_seconds(n, n, "direct", False),
+                 "lut_observable_only": plan.cube_compute_seconds(n, n_obs, "lut", True),
+                 "direct_observable_only": plan.cube_compute_seconds(n, n_obs, "direct", True)}
     runs = {k: {"predicted_seconds": v, "measured_seconds": n / cube[k]["samples_per_s_per_core"]}
             for k, v in predicted.items()}
     for k, v in measured.items():

@@ -305,7 +305,7 @@ def test_evaluated_samples_skipping_counts_the_observable_ones(campaign):
     unobservable_samples: skip, the observable ones, estimated from 144 times x 660 pixels; on
     the default day (288 times x 1320 pixels, 16.5 % observable) against the exact count from
     the geometry of every sample, and every sample without skipping."""
-    from straylight.survey.cube import evaluated_samples
+    from straylight.survey.plan import evaluated_samples
     from straylight.survey.footprint import footprint_from_config
     from straylight.sky.geometry import observing_geometry, radec_to_unit
     from straylight.sky.observing import scene
@@ -335,29 +335,29 @@ def test_plan_prints_samples_size_and_cost():
 
 
 def test_pipeline_rate_from_config_then_bench_results_then_default(campaign, tmp_path):
-    """cube.pipeline_rate: compute.pipeline_samples_per_s_per_core when set, else the figure
+    """plan.pipeline_rate: compute.pipeline_samples_per_s_per_core when set, else the figure
     bench/pipeline.py wrote, else the stated default; estimated_cost costs a table-path
     campaign at samples / that rate and sizes its products at PRODUCT_BYTES_PER_SAMPLE."""
-    from straylight.survey import cube as cu
+    from straylight.survey import plan
     from straylight.survey.footprint import footprint_from_config
 
     bench = tmp_path / "pipeline.json"
-    assert cu.pipeline_rate(campaign, bench) == (cu.PIPELINE_SAMPLES_PER_S_PER_CORE,
-                                                 "straylight.survey.cube.PIPELINE_SAMPLES_PER_S_PER_CORE")
+    assert plan.pipeline_rate(campaign, bench) == (plan.PIPELINE_SAMPLES_PER_S_PER_CORE,
+                                                 "straylight.survey.plan.PIPELINE_SAMPLES_PER_S_PER_CORE")
     bench.write_text(json.dumps({"samples_per_s_per_core": 123456.0, "cores": 2,
                                  "campaign": {"days": 30, "nside": 32, "cadence_s": 300}}))
-    rate, source = cu.pipeline_rate(campaign, bench)
+    rate, source = plan.pipeline_rate(campaign, bench)
     assert rate == 123456.0 and "30 days at nside 32" in source
     configured = _campaign_with(campaign, {"compute": {"pipeline_samples_per_s_per_core": 2.5e5}})
-    assert cu.pipeline_rate(configured, bench) == (2.5e5, "compute.pipeline_samples_per_s_per_core")
+    assert plan.pipeline_rate(configured, bench) == (2.5e5, "compute.pipeline_samples_per_s_per_core")
     month = _campaign_with(campaign, {"campaign": {"end": "2026-01-31T00:00:00"},
                                       "compute": {"pipeline_samples_per_s_per_core": 2.5e5}})
     fp = footprint_from_config(month.config["footprint"])
-    cost = cu.estimated_cost(month, fp)
+    cost = plan.estimated_cost(month, fp)
     assert cost["earthshine_method"] == "lut"
     assert cost["pipeline_core_hours"] * 3600 == pytest.approx(cost["samples"] / 2.5e5 + cost["table_build_seconds"],
                                                                rel=1e-12)
-    assert cost["product_bytes"] == cost["samples"] * cu.PRODUCT_BYTES_PER_SAMPLE
+    assert cost["product_bytes"] == cost["samples"] * plan.PRODUCT_BYTES_PER_SAMPLE
 
 
 def test_cycle_config_is_valid_and_planned_from_the_pipeline_figure():
@@ -387,21 +387,21 @@ def test_plan_calibrate_scales_the_figures_by_this_machines_speed():
 
 
 def test_machine_speed_and_its_factor(campaign, tmp_path, monkeypatch):
-    """cube.machine_speed: the measured seconds of a small direct-path cube against the
+    """plan.machine_speed: the measured seconds of a small direct-path cube against the
     figures' seconds for it (cube_compute_seconds, the direct sum evaluating every sample);
     estimated_cost scales the compute and the table's build by the factor, nothing else."""
-    from straylight.survey import cube as cu
+    from straylight.survey import plan
     from straylight.survey.footprint import footprint_from_config
 
     fp = footprint_from_config(campaign.config["footprint"])
-    speed = cu.machine_speed(campaign, fp, n_times=1, n_pixels=66, repeats=1)
+    speed = plan.machine_speed(campaign, fp, n_times=1, n_pixels=66, repeats=1)
     assert speed["samples"] == 66  # every 20th of the 1320 pixels at the first step
-    assert speed["assumed_seconds"] == pytest.approx(cu.cube_compute_seconds(66, 66, "direct", False), rel=1e-12)
+    assert speed["assumed_seconds"] == pytest.approx(plan.cube_compute_seconds(66, 66, "direct", False), rel=1e-12)
     assert speed["measured_seconds"] > 0.0
     assert speed["factor"] == pytest.approx(speed["measured_seconds"] / speed["assumed_seconds"], rel=1e-12)
     monkeypatch.setenv("STRAYLIGHT_CACHE", str(tmp_path))  # an empty cache: the build is counted
     week = _campaign_with(campaign, WEEKS)
-    base, fast = cu.estimated_cost(week, fp), cu.estimated_cost(week, fp, speed_factor=0.25)
+    base, fast = plan.estimated_cost(week, fp), plan.estimated_cost(week, fp, speed_factor=0.25)
     assert fast["compute_seconds"] == pytest.approx(0.25 * base["compute_seconds"], rel=1e-12)
     assert base["table_build_seconds"] > 0.0
     assert fast["table_build_seconds"] == pytest.approx(0.25 * base["table_build_seconds"], rel=1e-12)
@@ -409,7 +409,7 @@ def test_machine_speed_and_its_factor(campaign, tmp_path, monkeypatch):
 
 
 def test_plan_costs_the_model_auto_picks(campaign, tmp_path, monkeypatch):
-    """straylight plan (cube.estimated_cost) costs the earthshine model the cube will run, on
+    """straylight plan (plan.estimated_cost) costs the earthshine model the cube will run, on
     the samples it evaluates, without building anything: the default day takes the direct sum;
     three weeks of it the table, whose build (1,840,841 nodes x 2 door states at
     fidelity.LUT_BUILD_SECONDS_PER_NODE, the default table's node count, and the moonlit
@@ -417,19 +417,19 @@ def test_plan_costs_the_model_auto_picks(campaign, tmp_path, monkeypatch):
     cached, each table on its own; the same weeks skipping the unobservable samples (~16.5 %) are
     short of the table's break-even (~5.4 million samples) again."""
     from straylight import model as comp
-    from straylight.survey import cube as cu
+    from straylight.survey import plan
     from straylight.survey.footprint import footprint_from_config
 
     monkeypatch.setenv("STRAYLIGHT_CACHE", str(tmp_path))  # an empty cache: the table is not built
     fp = footprint_from_config(campaign.config["footprint"])
-    day = cu.estimated_cost(campaign, fp)
+    day = plan.estimated_cost(campaign, fp)
     assert (day["samples"], day["evaluated_samples"], day["earthshine_method"]) == (380_160, 380_160, "direct")
     assert day["table_build_seconds"] == 0.0
-    per_sample = cu.CUBE_TABLE_SECONDS_PER_SAMPLE + comp.LUT_SAVED_SECONDS_PER_SAMPLE
+    per_sample = plan.CUBE_TABLE_SECONDS_PER_SAMPLE + comp.LUT_SAVED_SECONDS_PER_SAMPLE
     assert day["compute_seconds"] == pytest.approx(380_160 * per_sample, rel=1e-12)
 
     def week(unobservable):
-        return cu.estimated_cost(_campaign_with(campaign, {**WEEKS, "models": {"unobservable_samples": unobservable}}), fp)
+        return plan.estimated_cost(_campaign_with(campaign, {**WEEKS, "models": {"unobservable_samples": unobservable}}), fp)
 
     evaluating = week("evaluate")
     assert (evaluating["samples"], evaluating["earthshine_method"]) == (N_DAYS * 380_160, "lut")
@@ -439,7 +439,7 @@ def test_plan_costs_the_model_auto_picks(campaign, tmp_path, monkeypatch):
     assert evaluating["table_build_seconds"] == pytest.approx(sunlit_s + moonlit_s, rel=1e-12)
     assert 0.01 < moonlit_s / sunlit_s < 0.03  # measured: 4.6 s against 129 s for a 782,633-node sunlit table (~300 s at 1,840,841)
     assert evaluating["core_hours"] * 3600 == pytest.approx(
-        N_DAYS * 380_160 * cu.CUBE_TABLE_SECONDS_PER_SAMPLE + evaluating["table_build_seconds"], rel=1e-12)
+        N_DAYS * 380_160 * plan.CUBE_TABLE_SECONDS_PER_SAMPLE + evaluating["table_build_seconds"], rel=1e-12)
     # each table counted only while it is not cached: with the sunlit one in the cache, the moonlit
     week_model = comp.BackgroundModel(_campaign_with(campaign, {**WEEKS, "models": {"unobservable_samples": "evaluate"}}),
                                      expected_samples=N_DAYS * 380_160)
@@ -453,8 +453,8 @@ def test_plan_costs_the_model_auto_picks(campaign, tmp_path, monkeypatch):
     assert 0.12 < skipping["evaluated_samples"] / skipping["samples"] < 0.2  # the default day: 16.5 %
     assert skipping["earthshine_method"] == "direct" and skipping["table_build_seconds"] == 0.0
     assert skipping["compute_seconds"] == pytest.approx(
-        N_DAYS * 380_160 * cu.CUBE_SCREEN_SECONDS_PER_SAMPLE
-        + skipping["evaluated_samples"] * (cu.CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE + comp.LUT_SAVED_SECONDS_PER_SAMPLE),
+        N_DAYS * 380_160 * plan.CUBE_SCREEN_SECONDS_PER_SAMPLE
+        + skipping["evaluated_samples"] * (plan.CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE + comp.LUT_SAVED_SECONDS_PER_SAMPLE),
         rel=1e-12)
 
 
