@@ -3,9 +3,9 @@ limit maps' figures and the depth table).
 
 The cube's workers wrote every sample's limit to the limits work store; this step computes the
 per-pixel summaries from it (streamed over pixel blocks on the job's processes), publishes the
-store with them as limits.zarr, and writes the maps and their figures.  The body is guarded by __main__: the
-pool's worker processes are spawned and re-import the main module, which must then not run the
-job again."""
+store with them as limits.zarr, and writes the maps and their figures.  The body is guarded by
+__main__: the pool's worker processes are spawned and re-import the main module, which must then
+not run the job again."""
 import sys
 from pathlib import Path
 
