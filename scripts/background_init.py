@@ -25,7 +25,7 @@ def main(snakemake):
     cleared = clear_block_sentinels(Path(snakemake.output[0]).parent)
     if cleared:
         log.info("removed %d time-block sentinels of an earlier store", cleared)
-    with xr.open_zarr(snakemake.input.ephemeris) as ephem:
+    with xr.open_zarr(snakemake.input.ephemeris, chunks=None) as ephem:  # read at once: no dask
         init_observability_store(c, fp, ephem.load(), snakemake.params.obs_store)
     init_store(c, fp, snakemake.params.store, snakemake.input.stars, build_workers=snakemake.threads,
                limits_store=snakemake.params.lim_store)

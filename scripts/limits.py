@@ -26,7 +26,7 @@ def main(snakemake):
     summaries = store_limit_summaries(snakemake.params.lim_store, workers=snakemake.threads)
     publish_work_store(snakemake.params.lim_store, snakemake.output.limits, summaries)
     # the maps and the log from the per-pixel summaries just written (small: pixel x band)
-    with xr.open_zarr(snakemake.output.limits, consolidated=True) as written:
+    with xr.open_zarr(snakemake.output.limits, consolidated=True, chunks=None) as written:
         ds = written.drop_vars(list(LIMITS_REGION_VARIABLES)).load()
     with atomic_path(snakemake.output.maps) as tmp:
         maps = write_limit_maps(ds, tmp)

@@ -8,19 +8,33 @@ Public API (small on purpose):
 * :func:`load_campaign` - a validated campaign config with its orbit, Earth model, constraints.
 * :class:`DE405` - the JPL DE405 ephemeris, vectorised over times.
 * :func:`scene`, :func:`sample_geometry` - positions and the observing geometry of samples.
+
+The names are imported when first used (PEP 562), so a process that needs one module of the
+package (a pipeline step, a worker) does not import astropy, numba and xarray for the others.
 """
+from importlib import import_module
+
 from straylight._version import __version__
-from straylight.api import CampaignProducts, open_campaign, sky_background
-from straylight.config import Campaign, load_campaign
-from straylight.sky.ephemeris import BODIES, DE405
 from straylight.errors import ConfigError, EphemerisRangeError, InputError, StraylightError
-from straylight.sky.observing import sample_geometry, scene
-from straylight.sky.timeutil import configure_offline
 
-configure_offline()
+#: public name -> the module that defines it
+_LAZY = {
+    "CampaignProducts": "straylight.api", "open_campaign": "straylight.api", "sky_background": "straylight.api",
+    "Campaign": "straylight.config", "load_campaign": "straylight.config",
+    "BODIES": "straylight.sky.ephemeris", "DE405": "straylight.sky.ephemeris",
+    "sample_geometry": "straylight.sky.observing", "scene": "straylight.sky.observing",
+}
 
-__all__ = [
-    "BODIES", "DE405", "Campaign", "CampaignProducts", "ConfigError", "EphemerisRangeError", "InputError",
-    "StraylightError", "load_campaign", "open_campaign", "sample_geometry", "scene",
-    "sky_background",
-]
+__all__ = sorted(["ConfigError", "EphemerisRangeError", "InputError", "StraylightError", *_LAZY])
+
+
+def __getattr__(name: str):
+    if name not in _LAZY:
+        raise AttributeError(f"module 'straylight' has no attribute {name!r}")
+    value = getattr(import_module(_LAZY[name]), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list:
+    return sorted(set(globals()) | set(_LAZY))

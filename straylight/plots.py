@@ -251,10 +251,26 @@ def series_pixel_indices(ds, n_pointings: int = 3, pointings=()) -> list[int]:
     return [int(i) for i in pix_idx]
 
 
-def time_series(ds, campaign, out_dir, pixel_indices) -> list:
-    """For the pointings ``pixel_indices`` (into ``ds.pixel``, see :func:`series_pixel_indices`):
-    total and components in each band against time, over the first orbit and over the whole
-    campaign; unobservable times shaded."""
+def pointing_series(background_path, pixel_indices) -> list[dict]:
+    """Per pointing of ``pixel_indices`` (into the cube's ``pixel``), its whole series in the
+    background cube at ``background_path``: name -> (time[, band]) array of every component,
+    the total (:data:`~straylight.survey.cube.CUBE_BAND_VARIABLES`) and ``observable``.  Read
+    chunk by chunk in this thread (:func:`~straylight.survey.storage.read_region`)."""
+    import zarr
+
+    from straylight.survey.cube import CUBE_BAND_VARIABLES
+    from straylight.survey.storage import read_region
+
+    group = zarr.open_group(str(background_path), mode="r")
+    names = list(CUBE_BAND_VARIABLES) + ["observable"]
+    return [{n: read_region(group[n], (slice(None), slice(ip, ip + 1)))[:, 0] for n in names}
+            for ip in pixel_indices]
+
+
+def time_series(ds, campaign, out_dir, pixel_indices, series: list[dict]) -> list:
+    """For the pointings ``pixel_indices`` (into ``ds.pixel``, see :func:`series_pixel_indices`)
+    and their ``series`` (:func:`pointing_series`): total and components in each band against
+    time, over the first orbit and over the whole campaign; unobservable times shaded."""
     from matplotlib.figure import Figure
     from matplotlib.patches import PathPatch
     from matplotlib.ticker import MaxNLocator
@@ -264,12 +280,9 @@ def time_series(ds, campaign, out_dir, pixel_indices) -> list:
     pix_idx = list(pixel_indices)
     t = ds["time"].values
     minutes = (t - t[0]) / np.timedelta64(1, "m")
-    # the chosen pixels' whole series, every component and band, in one pass over the cube's chunks
-    series = ds[list(CUBE_BAND_VARIABLES) + ["observable"]].isel(pixel=pix_idx).compute()
     written = []
-    for k_pix, ip in enumerate(pix_idx):
+    for ip, sub in zip(pix_idx, series):
         ra, dec = float(ds["ra_deg"][ip]), float(ds["dec_deg"][ip])
-        sub = series.isel(pixel=k_pix)
         obs = np.asarray(sub["observable"], bool)
         for span, sel in (("orbit", minutes <= ORBIT_MINUTES), ("campaign", np.ones(minutes.size, bool))):
             bands = list(ds["band"].values)
@@ -280,7 +293,7 @@ def time_series(ds, campaign, out_dir, pixel_indices) -> list:
                 ib = bands.index(band)
                 zp = float(_mag(ds, np.array([1.0]), str(band), campaign)[0])  # mag/arcsec2 at 1 e-/s/pix
                 for k, comp in enumerate(CUBE_BAND_VARIABLES):
-                    y = np.asarray(sub[comp].isel(band=ib), float)[sel]
+                    y = np.asarray(sub[comp][:, ib], float)[sel]
                     if not np.any(y > 0):
                         continue  # zero all along: no line (listed in the title)
                     mag = np.where(y > 0, zp - 2.5 * np.log10(np.where(y > 0, y, 1.0)), np.nan)
@@ -291,7 +304,7 @@ def time_series(ds, campaign, out_dir, pixel_indices) -> list:
                 # (an artist, not a patch: the data limits come from the lines)
                 ax.add_artist(PathPatch(_span_path(minutes[sel], ~obs[sel]), facecolor="0.88", lw=0,
                                         transform=ax.get_xaxis_transform()))
-                total = np.asarray(sub["total"].isel(band=ib), float)[sel]
+                total = np.asarray(sub["total"][:, ib], float)[sel]
                 tmag = zp - 2.5 * np.log10(total[total > 0]) if np.any(total > 0) else np.array([20.0])
                 # brighter up; the faint end a few magnitudes below the total's faintest value
                 ax.set_ylim(min(float(np.nanmax(tmag)) + 4.0, 32.0), float(np.nanmin(tmag)) - 1.0)
@@ -474,14 +487,13 @@ def sky_map_figures(background_path, campaign, out_dir) -> list:
     spread over the campaign) in its bands (``report.sky_map_bands``, else all): each time read
     once for all its bands.  Returns the paths written; ConfigError naming the config file for a
     band the cube does not have."""
-    import dask
     import xarray as xr
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     rc = campaign.config["report"]
-    # one thread: the figure rules run side by side (dask's threads only add overhead)
-    with dask.config.set(scheduler="synchronous"), xr.open_zarr(background_path) as ds:
+    # chunks=None: no dask (the figure rules run side by side; its threads only add overhead)
+    with xr.open_zarr(background_path, chunks=None) as ds:
         cube_bands = [str(b) for b in ds["band"].values]
         unknown = sorted(set(rc.get("sky_map_bands") or ()) - set(cube_bands))
         if unknown:
@@ -497,24 +509,28 @@ def sky_map_figures(background_path, campaign, out_dir) -> list:
 def time_series_figures(background_path, campaign, out_dir) -> list:
     """The time series (:func:`time_series`) of the report's pointings (``report.pointings``,
     else ``report.series_pointings`` spread over the footprint) in ``out_dir``, each pointing's
-    whole series read in one pass over its pixel's chunks.  Returns the paths written."""
-    import dask
+    whole series read in one pass over its pixel's chunks (:func:`pointing_series`).  Returns
+    the paths written."""
     import xarray as xr
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     rc = campaign.config["report"]
-    with dask.config.set(scheduler="synchronous"), xr.open_zarr(background_path) as ds:
+    # chunks=None: no dask, the coordinates read as they are needed
+    with xr.open_zarr(background_path, chunks=None) as ds:
         pixels = series_pixel_indices(ds, int(rc["series_pointings"]), rc.get("pointings") or ())
-        return time_series(ds, campaign, out, pixels)
+        return time_series(ds, campaign, out, pixels, pointing_series(background_path, pixels))
 
 
 def limit_figures(limits_path, campaign, out_dir) -> list:
     """The limits' figures in ``out_dir``: the best and median limit maps (:func:`limit_maps`)
     and the depth table (:data:`DEPTH_TABLE`, :func:`depth_summary`); the paths written."""
     import dask
+    import dask.local
     import xarray as xr
 
-    with dask.config.set(scheduler="synchronous"), xr.open_zarr(limits_path) as limits_ds:
+    # dask for the observable count (chunk by chunk); its synchronous scheduler given as the
+    # function: named by a string, dask imports distributed to look for a client (~0.3 s)
+    with dask.config.set(scheduler=dask.local.get_sync), xr.open_zarr(limits_path) as limits_ds:
         written = limit_maps(limits_ds, campaign, out_dir)
         return written + [write_depth_table(depth_summary(limits_ds), Path(out_dir) / DEPTH_TABLE)]

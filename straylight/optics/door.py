@@ -104,18 +104,18 @@ class Door:
         normal = np.cross(along, axis)
         pts = aperture_points(self.aperture_radius_m, self.n_aperture)
         p = np.concatenate([pts, np.zeros((pts.shape[0], 1))], axis=1)  # (M, 3)
+        # the hit point p + t d on the plate's plane, in the plate's coordinates (u along the
+        # door from the hinge, v along the hinge): (p - hinge) . e + t (d . e), outer sums
+        # instead of (n, M, 3) arrays
+        num = (hinge - p) @ normal  # (M,)
+        p_along, p_axis = (p - hinge) @ along, (p - hinge) @ axis  # (M,)
         out = np.empty(d.shape[0])
         for start in range(0, d.shape[0], 4096):
             dd = d[start:start + 4096]  # (n, 3)
-            denom = dd @ normal  # (n,)
-            num = (hinge - p) @ normal  # (M,)
             with np.errstate(divide="ignore", invalid="ignore"):
-                t = num[None, :] / denom[:, None]  # (n, M)
-            with np.errstate(invalid="ignore"):
-                hit = p[None, :, :] + t[..., None] * dd[:, None, :]
-            rel = hit - hinge
-            u = rel @ along
-            v = rel @ axis
+                t = num[None, :] / (dd @ normal)[:, None]  # (n, M)
+                u = p_along[None, :] + t * (dd @ along)[:, None]
+                v = p_axis[None, :] + t * (dd @ axis)[:, None]
             blocked = (t > 0) & (u >= 0) & (u <= self.length_m) & (np.abs(v) <= self.width_m / 2) & np.isfinite(t)
             frac = 1.0 - blocked.mean(axis=1)
             out[start:start + 4096] = np.where(dd[:, 2] > 0, frac, 0.0)

@@ -32,6 +32,10 @@ def configure_offline() -> None:
     _CONFIGURED = True
 
 
+# every module of the package that computes with astropy times or frames imports this one
+configure_offline()
+
+
 def parse_utc(times, field: str = "time") -> Time:
     """Parse ISO strings, a :class:`~astropy.time.Time`, or UTC Julian dates into a UTC Time.
 

@@ -522,7 +522,7 @@ class BlockReport:
 
 def _stored_faint_map(store) -> np.ndarray | None:
     """The store's faint_star_map, (pixel, band) e-/s/pix, or None when it has none."""
-    with xr.open_zarr(store, consolidated=False) as skeleton:
+    with xr.open_zarr(store, consolidated=False, chunks=None) as skeleton:
         return skeleton["faint_star_map"].values if "faint_star_map" in skeleton else None
 
 

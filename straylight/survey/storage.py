@@ -277,6 +277,50 @@ class ChunkWriter:
         return tuple(coords), tuple(part)
 
 
+def read_region(array, region) -> np.ndarray:
+    """``array[region]`` (a Zarr v3 array; ``region`` a tuple of step-1 slices, trailing
+    dimensions whole) read in this thread: each chunk it meets decoded by the array's own codecs
+    mapped to numcodecs (:class:`ChunkWriter`'s, in reverse), a chunk without a file the fill
+    value.  The values zarr reads, without its asynchronous pipeline: for a narrow region (one
+    pixel's month, 120 chunks of 72 times x 661 pixels x 7 bands a variable; the report's three
+    pointings, 8 variables) 1.7 CPU s here against 4.3 through zarr.  A wide one is better left
+    to zarr, which decodes into the output (a pixel block's month: 0.27 against 0.46 CPU s).
+    Any other region, codec, store or zarr format is read by zarr itself."""
+    chain = _numcodecs_chain(array)
+    shape = array.shape
+    region = tuple(region) + (slice(None),) * (len(shape) - len(tuple(region)))
+    if chain is None or len(region) != len(shape) or not all(isinstance(s, slice) for s in region):
+        return np.asarray(array[region])
+    bounds = [s.indices(n) for s, n in zip(region, shape)]
+    if any(step != 1 for _, _, step in bounds):
+        return np.asarray(array[region])
+    meta = array.metadata
+    chunk_shape = meta.chunk_grid.chunk_shape
+    byteorder, codecs = chain
+    dtype = meta.data_type.to_native_dtype()
+    out = np.full([max(0, stop - start) for start, stop, _ in bounds], meta.fill_value, dtype=dtype)
+    root = Path(array.store.root) / array.path
+    ranges = [range(start // c, -(-stop // c)) for (start, stop, _), c in zip(bounds, chunk_shape)]
+    for coords in np.ndindex(*[len(r) for r in ranges]):
+        coords = tuple(r[i] for r, i in zip(ranges, coords))
+        try:
+            data = (root / meta.encode_chunk_key(coords)).read_bytes()
+        except FileNotFoundError:  # never written, or only the fill value: out holds it
+            continue
+        for codec in reversed(codecs):
+            data = codec.decode(data)
+        chunk = np.frombuffer(data, dtype=dtype.newbyteorder(byteorder)).reshape(chunk_shape)
+        # this chunk's part of the region, in the chunk's and in the output's indices
+        inner, outer = [], []
+        for k, (start, stop, _) in zip(coords, bounds):
+            c = chunk_shape[len(inner)]
+            a, b = max(start, k * c), min(stop, (k + 1) * c)
+            inner.append(slice(a - k * c, b - k * c))
+            outer.append(slice(a - start, b - start))
+        out[tuple(outer)] = chunk[tuple(inner)]
+    return out
+
+
 def _numcodecs_chain(array) -> tuple[str, list] | None:
     """The byte order ('<', '>' or '|') and the numcodecs codecs that encode a chunk of ``array``
     as its Zarr v3 codecs do, or None where :class:`ChunkWriter` leaves the array to zarr (another

@@ -286,3 +286,14 @@ def test_chunk_writer_writes_the_files_zarr_writes(tmp_path):
     assert "f/c/1/1/0" not in ours and "f/c/0/1/0" not in ours and "f/c/0/0/0" in ours and "f/c/2/2/0" in ours
     assert all(ours[k] == theirs[k] for k in theirs)
     assert not any(k.endswith(".partial") for k in ours)
+    # and read_region reads back what zarr reads, over chunk edges, missing (fill-value) chunks
+    # and the array's edge, for every dtype
+    from straylight.survey.storage import read_region
+
+    for name in ("f", "b", "u"):
+        array = zarr.open_array(str(tmp_path / "writer.zarr" / name), mode="r")
+        for region in ((slice(None), slice(None)), (slice(1, 9), slice(2, 5)), (slice(3, 4), slice(6, 7)),
+                       (slice(0, 10), slice(1, 2)), (slice(5, 5), slice(0, 7)), (slice(0, 10, 2), slice(0, 3))):
+            got, want = read_region(array, region), array[region]
+            assert got.dtype == want.dtype and got.shape == want.shape
+            np.testing.assert_array_equal(got, want)
