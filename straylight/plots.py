@@ -368,8 +368,13 @@ def limit_maps(limits_ds, campaign, out_dir) -> list:
 def depth_summary(limits_ds) -> dict:
     """Per band: the median over the footprint of each pixel's median 5-sigma limit, the best
     pixel's best limit (AB mag), and the observable fraction of all (time, pixel) samples."""
-    # counted chunk by chunk (an exact integer, so the same fraction as the mean of the whole array)
-    obs = int(limits_ds["observable"].sum()) / limits_ds["observable"].size
+    # counted a pixel block at a time (an exact integer, so the same fraction as the mean of the
+    # whole array), as stored: never the whole (time, pixel) array at once
+    observable = limits_ds["observable"]
+    block = int((observable.encoding.get("chunks") or observable.shape)[1])
+    count = sum(int(np.count_nonzero(observable.isel(pixel=slice(a, a + block)).values))
+                for a in range(0, observable.shape[1], block))
+    obs = count / observable.size
     rows = {}
     for ib, band in enumerate(limits_ds["band"].values):
         med = np.asarray(limits_ds["limiting_mag_median"].isel(band=ib), float)
@@ -525,12 +530,9 @@ def time_series_figures(background_path, campaign, out_dir) -> list:
 def limit_figures(limits_path, campaign, out_dir) -> list:
     """The limits' figures in ``out_dir``: the best and median limit maps (:func:`limit_maps`)
     and the depth table (:data:`DEPTH_TABLE`, :func:`depth_summary`); the paths written."""
-    import dask
-    import dask.local
     import xarray as xr
 
-    # dask for the observable count (chunk by chunk); its synchronous scheduler given as the
-    # function: named by a string, dask imports distributed to look for a client (~0.3 s)
-    with dask.config.set(scheduler=dask.local.get_sync), xr.open_zarr(limits_path) as limits_ds:
+    # chunks=None: no dask, each variable read as it is needed
+    with xr.open_zarr(limits_path, chunks=None) as limits_ds:
         written = limit_maps(limits_ds, campaign, out_dir)
         return written + [write_depth_table(depth_summary(limits_ds), Path(out_dir) / DEPTH_TABLE)]
