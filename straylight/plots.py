@@ -108,58 +108,87 @@ def _graticule_segments(dpar_deg: float = 30.0, dmer_deg: float = 60.0, step: in
     return tuple((*key, tuple(segs)) for key, segs in groups.items())
 
 
-def _mollweide_panel(fig, full_sky, nest: bool, sub: tuple, title: str, vmin: float, vmax: float, cmap: str,
-                     unit: str | None):
+class MollweidePanel:
     """One Mollweide panel at subplot ``sub`` (rows, columns, index from 1) of ``fig``, laid out,
-    coloured and annotated as healpy's ``mollview(..., notext=True)`` with a 30/60-deg graticule:
-    the image is the cached pixel index of :func:`_mollweide_pixel_index` applied to
-    ``full_sky`` (a full HEALPix map; ``UNSEEN`` grey), drawn with imshow.  With ``unit``, a
-    colour bar of a few rounded ticks and the unit below the labels.  Returns the axes."""
-    import healpy as hp
-    import healpy.projaxes as PA
-    from matplotlib.cm import ScalarMappable
-    from matplotlib.collections import LineCollection
-    from matplotlib.colors import Normalize
+    coloured and annotated as healpy's ``mollview(..., notext=True)`` with a 30/60-deg graticule,
+    and with ``unit`` a colour bar of a few rounded ticks with the unit below; :meth:`show` draws
+    a map in it, and may be called again for the next map (pages of the same layout share their
+    panels: making the axes and colour bars costs more than drawing a map)."""
 
-    # mollview's subplot extent and margins (left, bottom, right, top), in figure fractions
-    nrows, ncols, idx = sub
-    c, r = (idx - 1) % ncols, (idx - 1) // ncols
-    margins = (0.01, 0.0, 0.0, 0.02)
-    extent = (c / ncols + margins[0], 1.0 - (r + 1) / nrows + margins[1],
-              1.0 / ncols - margins[2] - margins[0], 1.0 / nrows - margins[3] - margins[1])
-    ax = PA.HpxMollweideAxes(fig, extent, flipconv="astro")
-    # the axes are off (healpy): hidden x and y axes also spare the tick layout that placing the
-    # title would otherwise make at every draw
-    ax.xaxis.set_visible(False)
-    ax.yaxis.set_visible(False)
-    fig.add_axes(ax)
-    m = np.asarray(full_sky, float)
-    index = _mollweide_pixel_index(hp.npix2nside(m.size), bool(nest))
-    img = np.full(index.shape, -np.inf)  # outside the ellipse: healpy's background colour
-    img[index >= 0] = m[index[index >= 0]]
-    seen = np.isfinite(img) & ~hp.mask_bad(img)
-    cm, norm = PA.get_color_table(vmin, vmax, img[seen], cmap=cmap, badcolor="gray", bgcolor="white")
-    ax.imshow(np.ma.masked_values(img, hp.UNSEEN), extent=ax.proj.get_extent(), cmap=cm, norm=norm,
-              interpolation="nearest", origin="lower")
-    ax.set_xlim(-2.01, 2.01)
-    ax.set_ylim(-1.01, 1.01)
-    for style, lw, colour, alpha, segments in _graticule_segments():
-        ax.add_collection(LineCollection(segments, linestyles=style, linewidths=lw, colors=colour, alpha=alpha),
-                          autolim=False)
-    ax.set_title(title)
-    if unit is not None:
-        # mollview's colour bar: 256 solid steps between the limits, under the map
-        bounds = norm.inverse(np.linspace(0, 1, cm.N + 1))
-        cb = fig.colorbar(ScalarMappable(norm=Normalize(vmin=norm.vmin, vmax=norm.vmax), cmap=cmap), ax=ax,
-                          orientation="horizontal", shrink=0.5, aspect=25, pad=0.05, fraction=0.1,
-                          boundaries=bounds, values=np.linspace(norm.vmin, norm.vmax, cm.N))
-        cb.solids.set_rasterized(True)
+    def __init__(self, fig, sub: tuple, cmap: str, unit: str | None):
+        import healpy.projaxes as PA
+        from matplotlib.collections import LineCollection
+
+        # mollview's subplot extent and margins (left, bottom, right, top), in figure fractions
+        nrows, ncols, idx = sub
+        c, r = (idx - 1) % ncols, (idx - 1) // ncols
+        margins = (0.01, 0.0, 0.0, 0.02)
+        extent = (c / ncols + margins[0], 1.0 - (r + 1) / nrows + margins[1],
+                  1.0 / ncols - margins[2] - margins[0], 1.0 / nrows - margins[3] - margins[1])
+        self.fig, self.cmap, self.unit = fig, cmap, unit
+        self.ax = PA.HpxMollweideAxes(fig, extent, flipconv="astro")
+        # the axes are off (healpy): hidden x and y axes also spare the tick layout that placing
+        # the title would otherwise make at every draw
+        self.ax.xaxis.set_visible(False)
+        self.ax.yaxis.set_visible(False)
+        fig.add_axes(self.ax)
+        self.ax.set_xlim(-2.01, 2.01)
+        self.ax.set_ylim(-1.01, 1.01)
+        for style, lw, colour, alpha, segments in _graticule_segments():
+            self.ax.add_collection(LineCollection(segments, linestyles=style, linewidths=lw, colors=colour,
+                                                  alpha=alpha), autolim=False)
+        self.image = self.colour_bar = None
+
+    def show(self, full_sky, nest: bool, title: str, vmin: float, vmax: float) -> "MollweidePanel":
+        """Draw ``full_sky`` (a full HEALPix map; ``UNSEEN`` grey) between ``vmin`` and ``vmax``:
+        the image is the cached pixel index of :func:`_mollweide_pixel_index` applied to it,
+        drawn with imshow."""
+        import healpy as hp
+        import healpy.projaxes as PA
+
+        m = np.asarray(full_sky, float)
+        index = _mollweide_pixel_index(hp.npix2nside(m.size), bool(nest))
+        img = np.full(index.shape, -np.inf)  # outside the ellipse: healpy's background colour
+        img[index >= 0] = m[index[index >= 0]]
+        seen = np.isfinite(img) & ~hp.mask_bad(img)
+        cm, norm = PA.get_color_table(vmin, vmax, img[seen], cmap=self.cmap, badcolor="gray", bgcolor="white")
+        data = np.ma.masked_values(img, hp.UNSEEN)
+        if self.image is None:
+            self.image = self.ax.imshow(data, extent=self.ax.proj.get_extent(), cmap=cm, norm=norm,
+                                        interpolation="nearest", origin="lower")
+            self.ax.set_xlim(-2.01, 2.01)  # imshow sets the limits to the image's extent
+            self.ax.set_ylim(-1.01, 1.01)
+        else:
+            self.image.set_data(data)
+            self.image.set_cmap(cm)
+            self.image.set_norm(norm)
+        self.ax.set_title(title)
+        if self.unit is not None:
+            self._colour_bar(norm, vmin, vmax, cm.N)
+        return self
+
+    def _colour_bar(self, norm, vmin: float, vmax: float, n_colours: int) -> None:
+        """mollview's colour bar: ``n_colours`` solid steps between the limits, under the map."""
+        from matplotlib.cm import ScalarMappable
+        from matplotlib.colors import Normalize
+
+        bounds = norm.inverse(np.linspace(0, 1, n_colours + 1))
+        values = np.linspace(norm.vmin, norm.vmax, n_colours)
+        bar_norm = Normalize(vmin=norm.vmin, vmax=norm.vmax)
+        if self.colour_bar is None:
+            self.colour_bar = self.fig.colorbar(ScalarMappable(norm=bar_norm, cmap=self.cmap), ax=self.ax,
+                                                orientation="horizontal", shrink=0.5, aspect=25, pad=0.05,
+                                                fraction=0.1, boundaries=bounds, values=values)
+            self.colour_bar.ax.tick_params(labelsize=8)
+            self.colour_bar.ax.set_xlabel(self.unit, fontsize=9, labelpad=2)
+        else:
+            # the new steps, then the norm: its change redraws the bar (and resets its ticks)
+            self.colour_bar.boundaries, self.colour_bar.values = bounds, values
+            self.colour_bar.mappable.set_norm(bar_norm)
+        self.colour_bar.solids.set_rasterized(True)
         loc, fmt = _tick_format(vmin, vmax)
-        cb.ax.xaxis.set_major_locator(loc)
-        cb.ax.xaxis.set_major_formatter(fmt)
-        cb.ax.tick_params(labelsize=8)
-        cb.ax.set_xlabel(unit, fontsize=9, labelpad=2)
-    return ax
+        self.colour_bar.ax.xaxis.set_major_locator(loc)
+        self.colour_bar.ax.xaxis.set_major_formatter(fmt)
 
 
 def _save(fig, path: Path) -> Path:
@@ -188,13 +217,11 @@ def sky_maps(ds, campaign, out_dir, time_indices, bands=None) -> list:
     """Per time (``time_indices`` into ``ds.time``, see :func:`map_time_indices`) and band (all,
     or ``bands``): a 2 x 4 page of Mollweide maps, one per component, the total and the
     observability."""
-    from matplotlib import colormaps
-    from matplotlib.figure import Figure
-
     from straylight.survey.cube import CUBE_BAND_VARIABLES
 
     nest = str(ds.attrs["healpix_ordering"]).upper() == "NESTED"
     written = []
+    pages = {}  # number of component panels -> (figure, their panels, the observability panel)
     for it in time_indices:
         t = str(ds["time"].values[it])[:16]
         # every component at this time, all bands, in one read (each chunk decompressed once)
@@ -209,22 +236,14 @@ def sky_maps(ds, campaign, out_dir, time_indices, bands=None) -> list:
                     zero.append(comp)  # no panel: say so in the title instead
                     continue
                 maps.append((comp, e, _mag(ds, e, str(band), campaign)))
-            ncol = 4
-            nrow = int(np.ceil((len(maps) + 1) / ncol))
-            fig = Figure(figsize=(16, 3.3 * nrow))
-            for k, (comp, e, mag) in enumerate(maps):
+            # the pages with as many panels share one figure, redrawn for each
+            if len(maps) not in pages:
+                pages[len(maps)] = _sky_page(len(maps))
+            fig, panels, obs_panel = pages[len(maps)]
+            for panel, (comp, e, mag) in zip(panels, maps):
                 lo, hi = _colour_range(mag)
-                _mollweide_panel(fig, _full_sky(ds, mag), nest, (nrow, ncol, k + 1), comp, lo, hi, "viridis_r",
-                                 "AB mag/arcsec2 (brighter: yellow)")
-            obs = np.asarray(snap["observable"], float)
-            obs_ax = _mollweide_panel(fig, _full_sky(ds, obs), nest, (nrow, ncol, len(maps) + 1), "observable", 0, 1,
-                                      "RdYlGn", None)
-            from matplotlib.patches import Patch
-
-            obs_ax.legend(handles=[Patch(color=colormaps["RdYlGn"](1.0), label="observable"),
-                                   Patch(color=colormaps["RdYlGn"](0.0), label="not observable"),
-                                   Patch(color="0.5", label="outside the footprint")],
-                          loc="upper center", bbox_to_anchor=(0.5, -0.02), ncol=3, fontsize=8, frameon=False)
+                panel.show(_full_sky(ds, mag), nest, comp, lo, hi)
+            obs_panel.show(_full_sky(ds, np.asarray(snap["observable"], float)), nest, "observable", 0, 1)
             # models.unobservable_samples: skip leaves NaN where not observable (e: the total here)
             # a component's 0 (blocked, or skipped below its share of the tolerance) has no magnitude
             grey = "outside the footprint, or a component's 0" + (", or not evaluated (not observable)"
@@ -235,6 +254,26 @@ def sky_maps(ds, campaign, out_dir, time_indices, bands=None) -> list:
                          fontsize=10)
             written.append(_save(fig, Path(out_dir) / f"sky_{band}_{t.replace(':', '').replace('-', '')}.png"))
     return written
+
+
+def _sky_page(n_maps: int) -> tuple:
+    """A sky-map page's figure (4 panels a row) with ``n_maps`` component panels and the
+    observability panel after them, with its legend: (figure, panels, observability panel)."""
+    from matplotlib import colormaps
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Patch
+
+    ncol = 4
+    nrow = int(np.ceil((n_maps + 1) / ncol))
+    fig = Figure(figsize=(16, 3.3 * nrow))
+    panels = [MollweidePanel(fig, (nrow, ncol, k + 1), "viridis_r", "AB mag/arcsec2 (brighter: yellow)")
+              for k in range(n_maps)]
+    obs_panel = MollweidePanel(fig, (nrow, ncol, n_maps + 1), "RdYlGn", None)
+    obs_panel.ax.legend(handles=[Patch(color=colormaps["RdYlGn"](1.0), label="observable"),
+                                 Patch(color=colormaps["RdYlGn"](0.0), label="not observable"),
+                                 Patch(color="0.5", label="outside the footprint")],
+                        loc="upper center", bbox_to_anchor=(0.5, -0.02), ncol=3, fontsize=8, frameon=False)
+    return fig, panels, obs_panel
 
 
 def series_pixel_indices(ds, n_pointings: int = 3, pointings=()) -> list[int]:
@@ -356,8 +395,8 @@ def limit_maps(limits_ds, campaign, out_dir) -> list:
             # and Moon would take the whole scale: the range is the 10th-99.9th percentile per band
             lo, hi = _colour_range(v, (10.0, 99.9))
             med = float(np.nanmedian(v)) if np.isfinite(v).any() else float("nan")
-            _mollweide_panel(fig, _full_sky(limits_ds, v), nest, (2, 4, ib + 1), f"{band} (median {med:.2f})", lo, hi,
-                             "magma", "AB mag (5 sigma), deeper: brighter")
+            MollweidePanel(fig, (2, 4, ib + 1), "magma", "AB mag (5 sigma), deeper: brighter").show(
+                _full_sky(limits_ds, v), nest, f"{band} (median {med:.2f})", lo, hi)
         fig.suptitle(f"{campaign.name}: {stat} 5-sigma point-source limit over the campaign (survey exposures; "
                      "colours: 10th-99.9th percentile per band, shallower pixels black; graticule 30/60 deg; "
                      "grey: outside the footprint or never observable)", fontsize=10)

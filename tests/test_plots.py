@@ -62,7 +62,7 @@ def test_mollweide_panel_puts_each_pixel_where_healpy_projects_it(nest):
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from straylight.plots import MOLLWEIDE_XSIZE, _mollweide_panel
+    from straylight.plots import MOLLWEIDE_XSIZE, MollweidePanel
 
     nside = 8
     m = np.zeros(hp.nside2npix(nside))
@@ -72,7 +72,7 @@ def test_mollweide_panel_puts_each_pixel_where_healpy_projects_it(nest):
     m[lit], m[unseen] = 1.0, hp.UNSEEN
     fig = Figure(figsize=(16, 3.3))
     FigureCanvasAgg(fig)
-    ax = _mollweide_panel(fig, m, nest, (1, 4, 2), "t", 0.0, 1.0, "viridis", None)
+    ax = MollweidePanel(fig, (1, 4, 2), "viridis", None).show(m, nest, "t", 0.0, 1.0).ax
 
     reference = MollweideProj(xsize=MOLLWEIDE_XSIZE, flipconv="astro")
     expected = reference.projmap(m, lambda x, y, z: hp.vec2pix(nside, x, y, z, nest=nest))
