@@ -180,9 +180,11 @@ def _store_summary_task(store: str, pixels: slice) -> tuple:
     """The per-pixel summaries of ``pixels`` of a limits store: every time, decoded at once."""
     import zarr
 
+    from straylight.survey.storage import read_region
+
     group = zarr.open_group(str(store), mode="r", use_consolidated=False)
-    observable = group["observable"][:, pixels]
-    best, median = limit_summaries(group["limiting_mag"][:, pixels, :], observable)
+    observable = read_region(group["observable"], (slice(None), pixels))
+    best, median = limit_summaries(read_region(group["limiting_mag"], (slice(None), pixels)), observable)
     return pixels, best, median, observable_fraction(observable)
 
 

@@ -1,7 +1,7 @@
 """How the products store their variables on disk (Zarr v3 codecs).
 
 Floating-point data variables are bit-rounded before they are written, then byte-shuffled and
-zstd-compressed: :func:`bitround` keeps ``storage.float_keepbits`` mantissa bits
+zstd-compressed (Zarr v3's blosc codec): :func:`bitround` keeps ``storage.float_keepbits`` mantissa bits
 (``storage.magnitude_keepbits`` in variables whose units are magnitudes, e.g. 16 bits: within
 2.4e-4 mag of a 30-mag value), rounding to nearest (ties to even kept bits, as
 ``numcodecs.BitRound`` does, bit for bit), so a stored float differs from the computed one by at
@@ -9,9 +9,9 @@ most half a unit in the last kept place, 2^-(keepbits + 1) of its magnitude (exa
 inf are kept as they are); the byte shuffle then groups the exponent bytes and the zeroed
 mantissa bytes, which zstd packs.  The rounding is done by the writer, in one compiled pass
 (:func:`encoded` for a whole dataset, :func:`stored_values` for a region written into an existing
-store), so the stores' codec pipelines are lossless (shuffle + zstd) and a reader needs no
-rounding codec.  Booleans and integers (``observable``, ``violations``) are zstd-compressed
-losslessly.  Coordinates keep xarray's default (lossless) encoding, and ephemeris.zarr is stored
+store), so the stores' codec pipelines are lossless (blosc: shuffle + zstd) and a reader needs
+no rounding codec.  Booleans and integers (``observable``, ``violations``) are zstd-compressed
+losslessly (blosc without the shuffle).  Coordinates keep xarray's default (lossless) encoding, and ephemeris.zarr is stored
 losslessly: observability.zarr is computed from its positions.
 
 A bound holds against the values the writing step computed.  limits.zarr's ``limiting_mag`` is
@@ -26,9 +26,8 @@ background, so a relative error e of the total moves the limit by at most
 The rounding and its bound are recorded in each variable's attributes (``compression``,
 ``max_relative_error``) and the bound in the dataset's (``float_max_relative_error``); a region
 writer reads the bits to keep back from ``max_relative_error`` (:func:`recorded_keepbits`).
-Zarr-python reads the stores with no extra setting; ``numcodecs.shuffle`` is a numcodecs codec,
-outside the Zarr v3 specification, so another Zarr implementation needs numcodecs' shuffle to
-read them.
+Every codec is in the Zarr v3 specification (bytes, blosc), so any Zarr v3 implementation reads
+the stores.
 """
 from __future__ import annotations
 
@@ -118,16 +117,16 @@ def stored_values(values: np.ndarray, attrs) -> np.ndarray:
 def encoded(dataset, settings: dict, lossless: tuple = ()):
     """``dataset`` with its float data variables bit-rounded (:func:`bitround`; lazily for dask
     arrays) and the rounding recorded in their attributes, and the ``encoding`` dict that
-    stores its data variables (``Dataset.to_zarr(..., encoding=...)``: shuffle + zstd, lossless).
+    stores its data variables (``Dataset.to_zarr(..., encoding=...)``: blosc, lossless).
 
     ``settings``: the campaign's ``storage`` section (``float_keepbits``: mantissa bits kept in
-    every float data variable, ``zstd_level``); ``lossless``: float data variables stored
+    every float data variable, ``blosc_clevel``); ``lossless``: float data variables stored
     exactly all the same (inputs a later step computes from).  Returns (a shallow copy of
     ``dataset``, encoding).
     """
     keepbits = int(settings["float_keepbits"])
     mag_keepbits = int(settings.get("magnitude_keepbits", keepbits))
-    level = int(settings["zstd_level"])
+    level = int(settings["blosc_clevel"])
     out = dataset.copy(deep=False)
     encoding = {}
     for name, var in out.data_vars.items():
@@ -162,26 +161,28 @@ def _rounded_block(block, keepbits: int) -> np.ndarray:
     return bitround(np.array(block, order="C"), keepbits)
 
 
+#: blosc's block: at least a cube chunk (72 times x 661 pixels x 7 bands of float32 is 1.3 MB),
+#: so a chunk is shuffled and compressed whole, as one zstd frame; blosc's own choice (blocks of
+#: a few hundred kB compressed apart) stores the cube's floats in 1.7x the bytes
+BLOSC_BLOCK_BYTES = 16 * 2**20
+
+
 def _codecs(dtype, lossless: bool, keepbits: int, level: int) -> tuple[dict, str, float]:
     """One variable's encoding, its description and its bound (relative, 0: lossless)."""
-    import warnings
-
-    from zarr.codecs import ZstdCodec
-    from zarr.codecs.numcodecs import Shuffle
+    from zarr.codecs import BloscCodec
 
     dtype = np.dtype(dtype)
-    zstd = ZstdCodec(level=level)
-    if dtype.kind != "f":  # bool, integers
-        return {"compressors": [zstd]}, f"zstd(level={level}), lossless", 0.0
-    error = 0.0 if lossless else max_relative_error(keepbits, dtype)
-    with warnings.catch_warnings():  # zarr: numcodecs codecs are outside the v3 spec (module docstring)
-        warnings.filterwarnings("ignore", message="Numcodecs codecs are not in the Zarr version 3")
-        shuffle = Shuffle(elementsize=dtype.itemsize)
-    pipeline = f"numcodecs.shuffle(elementsize={dtype.itemsize}) + zstd(level={level})"
+    floats = dtype.kind == "f"
+    # byte-shuffled floats (the exponent bytes together, then the rounded mantissas'); bool and
+    # integers (one byte) as they are
+    blosc = BloscCodec(typesize=dtype.itemsize, cname="zstd", clevel=level, shuffle="shuffle" if floats else "noshuffle",
+                       blocksize=BLOSC_BLOCK_BYTES)
+    pipeline = f"blosc(zstd, clevel={level}{', byte shuffle' if floats else ''})"
+    error = max_relative_error(keepbits, dtype) if floats and not lossless else 0.0
     if error == 0.0:
-        return {"compressors": [shuffle, zstd]}, f"{pipeline}, lossless", 0.0
+        return {"compressors": [blosc]}, f"{pipeline}, lossless", 0.0
     # rounded by the writer (encoded, stored_values), the bits numcodecs.bitround would give
-    return {"compressors": [shuffle, zstd]}, f"bitround(keepbits={keepbits}) before writing + {pipeline}", error
+    return {"compressors": [blosc]}, f"bitround(keepbits={keepbits}) before writing + {pipeline}", error
 
 
 def write_zarr_atomic(dataset, path: str | os.PathLike, storage: dict | None = None) -> None:
@@ -221,7 +222,7 @@ class ChunkWriter:
 
     A region that is exactly one chunk (the in-bounds part of an edge chunk included) is encoded
     here by the array's own codecs, mapped to numcodecs (the bytes codec's endianness, then each
-    bytes-to-bytes codec: zstd and numcodecs' shuffle), and written to a temporary file renamed
+    bytes-to-bytes codec: blosc, zstd), and written to a temporary file renamed
     onto the chunk's key, as zarr writes it; a chunk holding only the fill value is removed
     instead when the array does not write empty chunks, as zarr does.  The files are the ones
     zarr writes, byte for byte (tests/survey/test_storage.py); a cube region's 18 chunks cost
@@ -281,13 +282,11 @@ def read_region(array, region) -> np.ndarray:
     """``array[region]`` (a Zarr v3 array; ``region`` a tuple of step-1 slices, trailing
     dimensions whole) read in this thread: each chunk it meets decoded by the array's own codecs
     mapped to numcodecs (:class:`ChunkWriter`'s, in reverse), a chunk without a file the fill
-    value; from a byte-shuffled chunk, a part under 1/8 of it is gathered from the shuffled
-    bytes rather than the chunk unshuffled.  The values zarr reads, without its asynchronous
-    pipeline: for narrow regions (the report's three pointings' month, 8 variables: 2880
-    chunks of 72 times x 661 pixels [x 7 bands]) 0.85 CPU s here against 4.5 through zarr.  A
-    wide region is better left to zarr, which decodes into the output (a pixel block's month of
-    limits: 0.27 against 0.46 CPU s).  Any other region, codec, store or zarr format is read by
-    zarr itself."""
+    value.  The values zarr reads, without its asynchronous pipeline, which hands every chunk to
+    its event loop and threads: the report's three pointings' month (8 variables, 2880 chunks of
+    72 times x 661 pixels [x 7 bands]) in 0.8 CPU s against 1.8 through zarr, a pixel block's
+    month of limits (120 chunks) in 0.09 against 0.48.  Any other region, codec, store or zarr
+    format is read by zarr itself."""
     chain = _numcodecs_chain(array)
     shape = array.shape
     region = tuple(region) + (slice(None),) * (len(shape) - len(tuple(region)))
@@ -302,10 +301,6 @@ def read_region(array, region) -> np.ndarray:
     dtype = meta.data_type.to_native_dtype()
     out = np.full([max(0, stop - start) for start, stop, _ in bounds], meta.fill_value, dtype=dtype)
     root = Path(array.store.root) / array.path
-    # a byte-shuffled array (shuffle the first bytes-to-bytes codec): a chunk's small part is
-    # gathered from the shuffled bytes, not the whole chunk unshuffled
-    first = codecs[0] if codecs else None
-    shuffled = getattr(first, "codec_id", None) == "shuffle" and first.elementsize == dtype.itemsize
     ranges = [range(start // c, -(-stop // c)) for (start, stop, _), c in zip(bounds, chunk_shape)]
     for coords in np.ndindex(*[len(r) for r in ranges]):
         coords = tuple(r[i] for r, i in zip(ranges, coords))
@@ -319,18 +314,10 @@ def read_region(array, region) -> np.ndarray:
             a, b = max(start, k * c), min(stop, (k + 1) * c)
             inner.append(slice(a - k * c, b - k * c))
             outer.append(slice(a - start, b - start))
-        gather = shuffled and math.prod(s.stop - s.start for s in inner) * 8 < math.prod(chunk_shape)
-        for codec in reversed(codecs[1:] if gather else codecs):
+        for codec in reversed(codecs):
             data = codec.decode(data)
-        if gather:
-            # byte j of element i sits at j * n + i: the part's elements' bytes only
-            part = np.ravel_multi_index(np.ix_(*[np.arange(s.start, s.stop) for s in inner]), chunk_shape)
-            planes = np.frombuffer(data, np.uint8).reshape(dtype.itemsize, -1)
-            values = np.ascontiguousarray(planes[:, part.reshape(-1)].T).view(dtype.newbyteorder(byteorder))
-            out[tuple(outer)] = values.reshape(part.shape)
-        else:
-            chunk = np.frombuffer(data, dtype=dtype.newbyteorder(byteorder)).reshape(chunk_shape)
-            out[tuple(outer)] = chunk[tuple(inner)]
+        chunk = np.frombuffer(data, dtype=dtype.newbyteorder(byteorder)).reshape(chunk_shape)
+        out[tuple(outer)] = chunk[tuple(inner)]
     return out
 
 
@@ -339,8 +326,7 @@ def _numcodecs_chain(array) -> tuple[str, list] | None:
     as its Zarr v3 codecs do, or None where :class:`ChunkWriter` leaves the array to zarr (another
     format, store, order or codec)."""
     import numcodecs
-    from zarr.codecs import BytesCodec, ZstdCodec
-    from zarr.codecs.numcodecs._codecs import _NumcodecsBytesBytesCodec
+    from zarr.codecs import BloscCodec, BytesCodec, ZstdCodec
     from zarr.storage import LocalStore
 
     meta = array.metadata
@@ -353,10 +339,13 @@ def _numcodecs_chain(array) -> tuple[str, list] | None:
     byteorder = {"little": "<", "big": ">", None: "|"}[getattr(first.endian, "value", first.endian)]
     chain = []
     for codec in rest:
-        if isinstance(codec, ZstdCodec):
+        if isinstance(codec, BloscCodec):
+            shuffle = {"noshuffle": numcodecs.Blosc.NOSHUFFLE, "shuffle": numcodecs.Blosc.SHUFFLE,
+                       "bitshuffle": numcodecs.Blosc.BITSHUFFLE}[codec.shuffle.value]
+            chain.append(numcodecs.Blosc(cname=codec.cname.value, clevel=codec.clevel, shuffle=shuffle,
+                                         blocksize=codec.blocksize, typesize=codec.typesize))
+        elif isinstance(codec, ZstdCodec):
             chain.append(numcodecs.Zstd(level=codec.level, checksum=codec.checksum))
-        elif isinstance(codec, _NumcodecsBytesBytesCodec):
-            chain.append(numcodecs.get_codec({"id": codec.codec_name.removeprefix("numcodecs."), **codec.codec_config}))
         else:
             return None
     return byteorder, chain

@@ -249,7 +249,7 @@ def test_chunk_writer_writes_the_files_zarr_writes(tmp_path):
     ds = xr.Dataset({"f": (("time", "pixel", "band"), da.zeros(shape, chunks=chunks, dtype=np.float32)),
                      "b": (("time", "pixel"), da.zeros(shape[:2], chunks=chunks[:2], dtype=bool)),
                      "u": (("time", "pixel"), da.zeros(shape[:2], chunks=chunks[:2], dtype=np.uint8))})
-    settings = {"float_keepbits": 10, "zstd_level": 2}
+    settings = {"float_keepbits": 10, "blosc_clevel": 2}
     for name in ("zarr", "writer"):
         write_skeleton(ds, tmp_path / f"{name}.zarr", settings)
     # every array takes the writer's own path (not zarr's) for a region that is one chunk
