@@ -5,6 +5,7 @@ A fresh store has no time block done: the blocks' sentinels beside init.json are
 and the three stores are laid down afresh (no chunk of an earlier run is kept).
 The body is guarded by __main__: the faint-star map's worker processes are spawned and
 re-import the main module, which must then not run the job again."""
+import os
 import sys
 from pathlib import Path
 
@@ -27,7 +28,11 @@ def main(snakemake):
         log.info("removed %d time-block sentinels of an earlier store", cleared)
     with xr.open_zarr(snakemake.input.ephemeris, chunks=None) as ephem:  # read at once: no dask
         init_observability_store(c, fp, ephem.load(), snakemake.params.obs_store)
-    init_store(c, fp, snakemake.params.store, snakemake.input.stars, build_workers=snakemake.threads,
+    # processes for an earthshine table or faint-star map not kept on disk: the job's threads
+    # where a profile raises them (SLURM), else every CPU this process may run on
+    threads = int(snakemake.threads)
+    build_workers = threads if threads > 1 else len(os.sched_getaffinity(0))
+    init_store(c, fp, snakemake.params.store, snakemake.input.stars, build_workers=build_workers,
                limits_store=snakemake.params.lim_store)
     chunks = cube_chunks(c, len(c.times), fp.pixels.size)
     write_json_atomic({"store": snakemake.params.store, "times": len(c.times), "pixels": int(fp.pixels.size),

@@ -12,9 +12,11 @@ rule background_init:
         store=f"{RESULTS}/background.zarr",
         obs_store=OBSERVABILITY_WORK_STORE,
         lim_store=LIMITS_WORK_STORE,
-    # processes for the earthshine table's build, when the campaign needs one that is not cached
-    # (lowered to --cores by Snakemake; the SLURM profile can raise it)
-    threads: 2
+    # one process: with the earthshine table and the faint-star map kept on disk (every run after
+    # the first of a model and footprint) the step is one process's work, and a core it does not
+    # use runs the small jobs beside it.  A table or map it must compute takes every CPU the job
+    # may run on (scripts/background_init.py); the SLURM profile asks a node's share for it.
+    threads: 1
     conda:
         "../envs/straylight.yaml"
     log:
