@@ -117,3 +117,28 @@ def test_depth_table_round_trip_and_report_front(campaign, tmp_path):
     shown = [line for line in text.splitlines() if "<b>" in line]
     assert [s.split("<b>")[1].split("</b>")[0] for s in shown] == ["limits_median", "sky_g_20260101T0000"]
     assert text.count("data:image/png;base64") == 2
+
+
+def test_mollweide_panel_redrawn_is_the_panel_drawn_afresh():
+    """Sky-map pages share their figure (plots.sky_maps): a panel that showed one map and then
+    another renders, pixel for pixel, as a new panel showing only the second (image, colour
+    range, colour bar's steps and ticks, title)."""
+    import healpy as hp
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from straylight.plots import MollweidePanel
+
+    rng = np.random.default_rng(3)
+    first, second = (rng.normal(20.0, 1.0, hp.nside2npix(8)) for _ in range(2))
+    second[:50] = hp.UNSEEN
+    pages = []
+    for maps in ((first, second), (second,)):
+        fig = Figure(figsize=(8, 3.3))
+        FigureCanvasAgg(fig)
+        panel = MollweidePanel(fig, (1, 2, 1), "viridis_r", "mag")
+        for m, (lo, hi) in zip(maps, ((17.0, 23.0), (19.5, 20.25))[-len(maps):]):
+            panel.show(m, False, f"map {lo}", lo, hi)
+        fig.canvas.draw()
+        pages.append(np.asarray(fig.canvas.buffer_rgba()).copy())
+    assert np.array_equal(pages[0], pages[1])
