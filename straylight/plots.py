@@ -300,7 +300,7 @@ def pointing_series(background_path, pixel_indices) -> list[dict]:
     from straylight.survey.cube import CUBE_BAND_VARIABLES
     from straylight.survey.storage import read_region
 
-    group = zarr.open_group(str(background_path), mode="r")
+    group = zarr.open_group(str(background_path), mode="r", use_consolidated=False)
     names = list(CUBE_BAND_VARIABLES) + ["observable"]
     return [{n: read_region(group[n], (slice(None), slice(ip, ip + 1)))[:, 0] for n in names}
             for ip in pixel_indices]
@@ -536,8 +536,9 @@ def sky_map_figures(background_path, campaign, out_dir) -> list:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     rc = campaign.config["report"]
-    # chunks=None: no dask (the figure rules run side by side; its threads only add overhead)
-    with xr.open_zarr(background_path, chunks=None) as ds:
+    # chunks=None: no dask (the figure rules run side by side; its threads only add overhead);
+    # the arrays' own metadata (rule background may be consolidating it meanwhile)
+    with xr.open_zarr(background_path, chunks=None, consolidated=False) as ds:
         cube_bands = [str(b) for b in ds["band"].values]
         unknown = sorted(set(rc.get("sky_map_bands") or ()) - set(cube_bands))
         if unknown:
@@ -560,8 +561,9 @@ def time_series_figures(background_path, campaign, out_dir) -> list:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     rc = campaign.config["report"]
-    # chunks=None: no dask, the coordinates read as they are needed
-    with xr.open_zarr(background_path, chunks=None) as ds:
+    # chunks=None: no dask, the coordinates read as they are needed; the arrays' own metadata
+    # (rule background may be consolidating it meanwhile)
+    with xr.open_zarr(background_path, chunks=None, consolidated=False) as ds:
         pixels = series_pixel_indices(ds, int(rc["series_pointings"]), rc.get("pointings") or ())
         return time_series(ds, campaign, out, pixels, pointing_series(background_path, pixels))
 

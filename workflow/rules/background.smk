@@ -60,7 +60,7 @@ rule background:
     publish the observability store the cube's workers filled as observability.zarr (the
     (time, pixel) observability and violated constraints over the footprint)."""
     input:
-        expand(f"{RESULTS}/background_blocks/part_{{part}}.json", part=range(len(CUBE_JOBS))),
+        CUBE_PARTS,
     output:
         summary=f"{RESULTS}/background_summary.json",
         observability=directory(f"{RESULTS}/observability.zarr"),

@@ -42,6 +42,9 @@ TIME_BLOCKS = list(
 #: compute.time_blocks_per_job per job
 _PER_JOB = (config.get("compute") or {}).get("time_blocks_per_job") or max(1, len(TIME_BLOCKS))
 CUBE_JOBS = [TIME_BLOCKS[i:i + _PER_JOB] for i in range(0, len(TIME_BLOCKS), _PER_JOB)]
+#: the cube jobs' outputs: every time block of the three stores written once all exist (the
+#: limits and the figures start from them, beside rule background)
+CUBE_PARTS = [f"{RESULTS}/background_blocks/part_{i}.json" for i in range(len(CUBE_JOBS))]
 #: processes (cores) of rule limits' per-pixel summaries: 1 for a month at nside 32, 2 from a few
 #: GB of limits on (limits.summary_processes); a core it does not need runs another rule
 _N_PIXELS = _footprint_from_config(config["footprint"], Path(CONFIG_PATH).parent).pixels.size

@@ -2,7 +2,7 @@ rule sky_maps:
     """Sky-map pages of the background cube: every component, the total and the observability
     as Mollweide maps per band at the report's map times."""
     input:
-        summary=f"{RESULTS}/background_summary.json",
+        parts=CUBE_PARTS,
         config=CONFIG_PATH,
     output:
         report(directory(f"{RESULTS}/sky"), patterns=["{name}.png"], caption="../report/plots.rst",
@@ -22,7 +22,7 @@ rule time_series:
     """Time series of the report's pointings: total and components per band over the first orbit
     and the whole campaign."""
     input:
-        summary=f"{RESULTS}/background_summary.json",
+        parts=CUBE_PARTS,
         config=CONFIG_PATH,
     output:
         report(directory(f"{RESULTS}/series"), patterns=["{name}.png"], caption="../report/plots.rst",

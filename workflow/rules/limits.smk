@@ -3,7 +3,7 @@ rule limits:
     block done), published with the per-pixel campaign summaries added; the summaries as HEALPix
     maps (maps/), their figures and the depth table (depth/)."""
     input:
-        summary=f"{RESULTS}/background_summary.json",
+        parts=CUBE_PARTS,
         config=CONFIG_PATH,
     output:
         limits=directory(f"{RESULTS}/limits.zarr"),
