@@ -3,27 +3,45 @@
 The body is guarded by __main__: the pool's worker processes are spawned and re-import the main
 module, which must then not run the job again.
 """
+import os
 import sys
 from pathlib import Path
 
 
 def main(snakemake):
     sys.path.insert(0, str(Path(snakemake.scriptdir)))
-    from _common import campaign, setup_logging
+    from contextlib import nullcontext
 
-    from straylight.survey.cube import run_time_blocks
-    from straylight.survey.footprint import footprint_from_config
-    from straylight.util.io import write_json_atomic
+    stores = dict(stars_path=snakemake.input.stars, obs_store=snakemake.params.obs_store,
+                  lim_store=snakemake.params.lim_store)
+    scheduler = (snakemake.config.get("compute") or {}).get("dask_scheduler")
+    workers = int(snakemake.threads)
+    if workers > 1 and not scheduler:
+        # the pool's workers start first: they load the campaign and build the model while this
+        # process imports and loads its own
+        from straylight.survey.workers import start_region_workers
 
-    log = setup_logging(snakemake)
-    c = campaign(snakemake)
-    fp = footprint_from_config(c.config["footprint"], c.path.parent)
-    blocks = list(snakemake.params.blocks)
-    done_dir = Path(snakemake.output[0]).parent
-    reports = run_time_blocks(c, fp, snakemake.params.store, blocks, done_dir, workers=snakemake.threads,
-                              scheduler_address=(c.config.get("compute") or {}).get("dask_scheduler"), log=log,
-                              stars_path=snakemake.input.stars, obs_store=snakemake.params.obs_store,
-                              lim_store=snakemake.params.lim_store)
+        starting = start_region_workers(workers, dict(snakemake.config), snakemake.input.config,
+                                        snakemake.params.store, **stores)
+    else:
+        starting = nullcontext()
+    with starting as pool:
+        if pool is not None:
+            for _ in range(workers):
+                pool.submit(os.getpid)  # a process is spawned at a task's submission
+        from _common import campaign, setup_logging
+
+        from straylight.survey.cube import run_time_blocks
+        from straylight.survey.footprint import footprint_from_config
+        from straylight.util.io import write_json_atomic
+
+        log = setup_logging(snakemake)
+        c = campaign(snakemake)
+        fp = footprint_from_config(c.config["footprint"], c.path.parent)
+        blocks = list(snakemake.params.blocks)
+        done_dir = Path(snakemake.output[0]).parent
+        reports = run_time_blocks(c, fp, snakemake.params.store, blocks, done_dir, workers=workers,
+                                  scheduler_address=scheduler, log=log, pool=pool, **stores)
     write_json_atomic({"blocks": [r.__dict__ for r in reports]}, snakemake.output[0])
     n = sum(r.samples for r in reports)
     log.info("time blocks %d-%d: %d samples", blocks[0], blocks[-1], n)

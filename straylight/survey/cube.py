@@ -555,6 +555,24 @@ def _pool_init(campaign: Campaign, fp: Footprint, store: str, stars_path, obs_st
     _offfield_stars(campaign, stars_path)
 
 
+def _pool_init_from_config(config: dict, config_path: str, store: str, stars_path, obs_store=None,
+                           lim_store=None) -> None:
+    """Pool worker start-up for workers started before the job has loaded its campaign
+    (:func:`straylight.survey.workers.start_region_workers`): the campaign and footprint from the job's config, then
+    :func:`_pool_init`, then one sample computed so that every part of the model is built (the
+    tables read, the star cells listed, the compiled kernels loaded) before the first region
+    arrives."""
+    from straylight.config import campaign_from_dict
+    from straylight.survey.footprint import footprint_from_config
+
+    campaign = campaign_from_dict(dict(config), config_path)
+    fp = footprint_from_config(campaign.config["footprint"], campaign.path.parent)
+    _pool_init(campaign, fp, store, stars_path, obs_store, lim_store)
+    # (the faint stars' map comes with each region: zeros here)
+    compute_region(campaign, fp, slice(0, 1), slice(0, 1), stars_path=stars_path,
+                   faint_map=np.zeros((1, len(campaign.bands))))
+
+
 def _pool_region(t_slice: slice, p_slice: slice, scene, faint_map) -> float:
     """One region in a pool worker, with the inputs _pool_init kept and the store's arrays
     opened once; seconds."""
@@ -586,7 +604,7 @@ class _InProcess:
 
 @contextmanager
 def region_pool(campaign, fp, store: str, stars_path, workers: int, scheduler_address: str | None = None,
-                obs_store: str | None = None, lim_store: str | None = None):
+                obs_store: str | None = None, lim_store: str | None = None, pool=None):
     """Yield ``(submit, wait)`` for the cube's regions: ``submit(t_slice, p_slice, scene,
     faint_map)`` returns a future of the region's seconds (:func:`write_region`),
     ``wait`` is the matching ``wait(futures, return_when=...)``; ``obs_store``, ``lim_store``:
@@ -594,6 +612,8 @@ def region_pool(campaign, fp, store: str, stars_path, workers: int, scheduler_ad
 
     * ``scheduler_address``: the regions run on that Dask cluster (campaign and footprint sent
       to every worker once); its workers keep the model between regions, time blocks and jobs.
+    * else ``pool``: that pool of processes
+      (:func:`~straylight.survey.workers.start_region_workers`), left running.
     * else ``workers`` > 1: a pool of that many spawned processes (:func:`worker_environment`),
       each building the model once, at its start, for all the regions it computes.
     * else: in this process, one region after the other.
@@ -615,6 +635,12 @@ def region_pool(campaign, fp, store: str, stars_path, workers: int, scheduler_ad
 
             yield submit, wait_dask
         return
+    if pool is not None:
+        def submit(t_slice, p_slice, scene, faint_map):
+            return pool.submit(_pool_region, t_slice, p_slice, scene, faint_map)
+
+        yield submit, wait_local
+        return
     if int(workers) <= 1:
         yield _InProcess(campaign, fp, store, stars_path, obs_store, lim_store).submit_region, wait_local
         return
@@ -631,7 +657,7 @@ def region_pool(campaign, fp, store: str, stars_path, workers: int, scheduler_ad
 
 def run_time_blocks(campaign: Campaign, fp: Footprint, store, blocks, done_dir, workers: int = 1,
                     scheduler_address: str | None = None, log=None, stars_path=None,
-                    obs_store=None, lim_store=None) -> list[BlockReport]:
+                    obs_store=None, lim_store=None, pool=None) -> list[BlockReport]:
     """Compute the time blocks ``blocks`` (indices) of the cube into ``store``, each marked done
     by its sentinel in ``done_dir`` (:func:`block_sentinel`) once all its pixel blocks are
     written; blocks already marked done are skipped (resume).  Regions run on ``workers``
@@ -640,8 +666,10 @@ def run_time_blocks(campaign: Campaign, fp: Footprint, store, blocks, done_dir, 
     ``scheduler_address`` when given (its workers keep the model between tasks and jobs).
     ``log`` (a logging.Logger) gets one line per finished region.  ``obs_store``: each region's
     observability is written there too (:func:`init_observability_store`), and to ``lim_store``
-    its limits (:func:`init_limits_store`), before its time block's sentinel.  Returns every requested
-    block's report (a skipped one's from its sentinel)."""
+    its limits (:func:`init_limits_store`), before its time block's sentinel.  ``pool``: workers
+    already started for these stores (:func:`~straylight.survey.workers.start_region_workers`),
+    used instead of new ones.
+    Returns every requested block's report (a skipped one's from its sentinel)."""
     from concurrent.futures import FIRST_COMPLETED
 
     from straylight.util.io import write_json_atomic
@@ -671,7 +699,7 @@ def run_time_blocks(campaign: Campaign, fp: Footprint, store, blocks, done_dir, 
         log.info("removed %d half-written chunk files of an earlier run", removed)
     if todo:
         with region_pool(campaign, fp, store, stars_path, workers, scheduler_address, obs_store,
-                         lim_store) as (submit, wait):
+                         lim_store, pool) as (submit, wait):
             # a bounded window of regions in flight: the next time block's scene is computed
             # while the workers are busy, and memory does not grow with the campaign
             window = 2 * max(1, int(workers)) + 1

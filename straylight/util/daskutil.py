@@ -51,3 +51,14 @@ def spawned_pool(max_workers: int, initializer=None, initargs: tuple = ()):
             ProcessPoolExecutor(max_workers=int(max_workers), mp_context=get_context("spawn"),
                                 initializer=initializer, initargs=initargs) as pool:
         yield pool
+
+
+def call_by_name(target: str, *args):
+    """Call ``target`` ("package.module:function") with ``args``, importing its module here: a
+    pool's initializer named by a process that has not imported that module (spawned workers
+    unpickle a function by importing its module; this one is light)."""
+    from importlib import import_module
+
+    module, name = target.split(":")
+    return getattr(import_module(module), name)(*args)
+
