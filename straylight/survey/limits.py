@@ -16,6 +16,7 @@ import numpy as np
 
 from straylight.optics.bandpass import load_band
 from straylight.config import Campaign
+from straylight.util.daskutil import dask_rechunk_by_tasks
 
 if TYPE_CHECKING:
     import xarray as xr
@@ -267,7 +268,10 @@ def limits_dataset(campaign: Campaign, background, limiting_mag=None) -> "xr.Dat
     observable = background["observable"]
     whole_times = {"time": -1, "pixel": SUMMARY_PIXELS_PER_TASK}
     lazy = lim.chunks is not None or observable.chunks is not None
-    lim_t, obs_t = (lim.chunk(whole_times), observable.chunk(whole_times)) if lazy else (lim, observable)
+    # dask's task rechunk, named: left to choose, dask imports distributed to look for a
+    # cluster (~0.3 s of every process that lays down a skeleton)
+    with dask_rechunk_by_tasks():
+        lim_t, obs_t = (lim.chunk(whole_times), observable.chunk(whole_times)) if lazy else (lim, observable)
     summary = xr.apply_ufunc(best_and_median, lim_t, obs_t,
                              input_core_dims=[["time"], ["time"]],
                              output_core_dims=[["stat"]], dask="parallelized", output_dtypes=[np.float32],
@@ -275,7 +279,8 @@ def limits_dataset(campaign: Campaign, background, limiting_mag=None) -> "xr.Dat
     frac = xr.apply_ufunc(fraction, obs_t, input_core_dims=[["time"]], dask="parallelized",
                           output_dtypes=[np.float32])
     if observable.chunks is not None:  # the cube's pixel blocks, as the observable's
-        frac = frac.chunk({"pixel": observable.chunks[1]})
+        with dask_rechunk_by_tasks():
+            frac = frac.chunk({"pixel": observable.chunks[1]})
     return _limits_product(campaign, background, lim, summary.isel(stat=0).transpose("pixel", "band"),
                            summary.isel(stat=1).transpose("pixel", "band"), frac, observable, exposures)
 

@@ -62,3 +62,11 @@ def call_by_name(target: str, *args):
     module, name = target.split(":")
     return getattr(import_module(module), name)(*args)
 
+
+def dask_rechunk_by_tasks():
+    """A context in which dask rechunks by tasks, its choice outside a distributed cluster, without
+    importing distributed to find that out (~0.3 s)."""
+    import dask
+
+    return dask.config.set({"array.rechunk.method": "tasks"})
+
