@@ -1,9 +1,9 @@
 """How the products store their variables on disk (Zarr v3 codecs).
 
 Floating-point data variables are bit-rounded before they are written, then byte-shuffled and
-zstd-compressed (Zarr v3's blosc codec): :func:`bitround` keeps ``storage.float_keepbits`` mantissa bits
-(``storage.magnitude_keepbits`` in variables whose units are magnitudes, e.g. 16 bits: within
-2.4e-4 mag of a 30-mag value), rounding to nearest (ties to even kept bits, as
+zstd-compressed (Zarr v3's blosc codec): :func:`bitround` keeps ``storage.float_keepbits``
+mantissa bits (``storage.magnitude_keepbits`` in variables whose units are magnitudes, e.g. 16
+bits: within 2.4e-4 mag of a 30-mag value), rounding to nearest (ties to even kept bits, as
 ``numcodecs.BitRound`` does, bit for bit), so a stored float differs from the computed one by at
 most half a unit in the last kept place, 2^-(keepbits + 1) of its magnitude (exactly 0, NaN and
 inf are kept as they are); the byte shuffle then groups the exponent bytes and the zeroed
@@ -11,8 +11,8 @@ mantissa bytes, which zstd packs.  The rounding is done by the writer, in one co
 (:func:`encoded` for a whole dataset, :func:`stored_values` for a region written into an existing
 store), so the stores' codec pipelines are lossless (blosc: shuffle + zstd) and a reader needs
 no rounding codec.  Booleans and integers (``observable``, ``violations``) are zstd-compressed
-losslessly (blosc without the shuffle).  Coordinates keep xarray's default (lossless) encoding, and ephemeris.zarr is stored
-losslessly: observability.zarr is computed from its positions.
+losslessly (blosc without the shuffle).  Coordinates keep xarray's default (lossless) encoding,
+and ephemeris.zarr is stored losslessly: observability.zarr is computed from its positions.
 
 A bound holds against the values the writing step computed.  limits.zarr's ``limiting_mag`` is
 computed by the cube's workers from the total they computed, before it is bit-rounded, so it is
@@ -175,8 +175,8 @@ def _codecs(dtype, lossless: bool, keepbits: int, level: int) -> tuple[dict, str
     floats = dtype.kind == "f"
     # byte-shuffled floats (the exponent bytes together, then the rounded mantissas'); bool and
     # integers (one byte) as they are
-    blosc = BloscCodec(typesize=dtype.itemsize, cname="zstd", clevel=level, shuffle="shuffle" if floats else "noshuffle",
-                       blocksize=BLOSC_BLOCK_BYTES)
+    blosc = BloscCodec(typesize=dtype.itemsize, cname="zstd", clevel=level,
+                       shuffle="shuffle" if floats else "noshuffle", blocksize=BLOSC_BLOCK_BYTES)
     pipeline = f"blosc(zstd, clevel={level}{', byte shuffle' if floats else ''})"
     error = max_relative_error(keepbits, dtype) if floats and not lossless else 0.0
     if error == 0.0:
@@ -222,7 +222,7 @@ class ChunkWriter:
 
     A region that is exactly one chunk (the in-bounds part of an edge chunk included) is encoded
     here by the array's own codecs, mapped to numcodecs (the bytes codec's endianness, then each
-    bytes-to-bytes codec: blosc, zstd), and written to a temporary file renamed
+    bytes-to-bytes codec: blosc, the products' only one), and written to a temporary file renamed
     onto the chunk's key, as zarr writes it; a chunk holding only the fill value is removed
     instead when the array does not write empty chunks, as zarr does.  The files are the ones
     zarr writes, byte for byte (tests/survey/test_storage.py); a cube region's 18 chunks cost
@@ -326,7 +326,7 @@ def _numcodecs_chain(array) -> tuple[str, list] | None:
     as its Zarr v3 codecs do, or None where :class:`ChunkWriter` leaves the array to zarr (another
     format, store, order or codec)."""
     import numcodecs
-    from zarr.codecs import BloscCodec, BytesCodec, ZstdCodec
+    from zarr.codecs import BloscCodec, BytesCodec
     from zarr.storage import LocalStore
 
     meta = array.metadata
@@ -344,8 +344,6 @@ def _numcodecs_chain(array) -> tuple[str, list] | None:
                        "bitshuffle": numcodecs.Blosc.BITSHUFFLE}[codec.shuffle.value]
             chain.append(numcodecs.Blosc(cname=codec.cname.value, clevel=codec.clevel, shuffle=shuffle,
                                          blocksize=codec.blocksize, typesize=codec.typesize))
-        elif isinstance(codec, ZstdCodec):
-            chain.append(numcodecs.Zstd(level=codec.level, checksum=codec.checksum))
         else:
             return None
     return byteorder, chain
