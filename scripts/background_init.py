@@ -29,9 +29,11 @@ def main(snakemake):
     with xr.open_zarr(snakemake.input.ephemeris, chunks=None) as ephem:  # read at once: no dask
         init_observability_store(c, fp, ephem.load(), snakemake.params.obs_store)
     # processes for an earthshine table or faint-star map not kept on disk: the job's threads
-    # where a profile raises them (SLURM), else every CPU this process may run on
+    # where a profile raises them (SLURM), else the run's cores, at most the CPUs it may run on
     threads = int(snakemake.threads)
-    build_workers = threads if threads > 1 else len(os.sched_getaffinity(0))
+    cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    cores = int(getattr(snakemake.resources, "build_processes", 1))
+    build_workers = threads if threads > 1 else min(cpus, cores)
     init_store(c, fp, snakemake.params.store, snakemake.input.stars, build_workers=build_workers,
                limits_store=snakemake.params.lim_store)
     chunks = cube_chunks(c, len(c.times), fp.pixels.size)

@@ -19,7 +19,8 @@ from straylight.errors import ConfigError, EphemerisRangeError, InputError, Stra
 
 #: public name -> the module that defines it
 _LAZY = {
-    "CampaignProducts": "straylight.api", "open_campaign": "straylight.api", "sky_background": "straylight.api",
+    "CampaignProducts": "straylight.api", "open_campaign": "straylight.api",
+    "sky_background": "straylight.api",
     "Campaign": "straylight.config", "load_campaign": "straylight.config",
     "BODIES": "straylight.sky.ephemeris", "DE405": "straylight.sky.ephemeris",
     "sample_geometry": "straylight.sky.observing", "scene": "straylight.sky.observing",

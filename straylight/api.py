@@ -94,6 +94,10 @@ def sky_background(time, coord, bands=None, config=None, catalog=None):
     from astropy.coordinates import SkyCoord
     from astropy.time import Time
 
+    from straylight.sky.timeutil import configure_offline
+
+    configure_offline()  # before the scale conversion below: no leap-second download
+
     from straylight.config import load_campaign
     from straylight.survey.pointings import background_table
 

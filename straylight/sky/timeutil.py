@@ -32,7 +32,8 @@ def configure_offline() -> None:
     _CONFIGURED = True
 
 
-# every module of the package that computes with astropy times or frames imports this one
+# the package's modules that compute with astropy times import this one (the public API calls
+# configure_offline before its first conversion)
 configure_offline()
 
 

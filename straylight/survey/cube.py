@@ -639,7 +639,11 @@ def region_pool(campaign, fp, store: str, stars_path, workers: int, scheduler_ad
         def submit(t_slice, p_slice, scene, faint_map):
             return pool.submit(_pool_region, t_slice, p_slice, scene, faint_map)
 
-        yield submit, wait_local
+        try:
+            yield submit, wait_local
+        except BaseException:
+            pool.shutdown(wait=True, cancel_futures=True)  # the queued regions are not run
+            raise
         return
     if int(workers) <= 1:
         yield _InProcess(campaign, fp, store, stars_path, obs_store, lim_store).submit_region, wait_local

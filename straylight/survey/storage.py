@@ -26,8 +26,8 @@ background, so a relative error e of the total moves the limit by at most
 The rounding and its bound are recorded in each variable's attributes (``compression``,
 ``max_relative_error``) and the bound in the dataset's (``float_max_relative_error``); a region
 writer reads the bits to keep back from ``max_relative_error`` (:func:`recorded_keepbits`).
-Every codec is in the Zarr v3 specification (bytes, blosc), so any Zarr v3 implementation reads
-the stores.
+The data variables' codecs (bytes, blosc) are in the Zarr v3 specification; the coordinates keep
+zarr-python's defaults (zstd, and vlen-utf8 for the band names).
 """
 from __future__ import annotations
 
@@ -162,8 +162,10 @@ def _rounded_block(block, keepbits: int) -> np.ndarray:
 
 
 #: blosc's block: at least a cube chunk (72 times x 661 pixels x 7 bands of float32 is 1.3 MB),
-#: so a chunk is shuffled and compressed whole, as one zstd frame; blosc's own choice (blocks of
-#: a few hundred kB compressed apart) stores the cube's floats in 1.7x the bytes
+#: so a chunk up to 16 MiB is shuffled and compressed whole, as one zstd frame; blosc's own
+#: choice (blocks of a few hundred kB compressed apart) stores the cube's floats in 1.7x the
+#: bytes.  Larger chunks are split in blocks of this size, in order: zarr and the chunk writer
+#: run blosc in one thread (zarr turns numcodecs' blosc threads off), so the bytes are the same.
 BLOSC_BLOCK_BYTES = 16 * 2**20
 
 

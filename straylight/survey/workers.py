@@ -24,6 +24,6 @@ def start_region_workers(workers: int, config: dict, config_path, store, stars_p
     def resolved(path):
         return str(Path(path).resolve()) if path else None
 
-    init = ("straylight.survey.cube:_pool_init_from_config", dict(config), str(config_path), resolved(store),
-            resolved(stars_path), resolved(obs_store), resolved(lim_store))
+    init = ("straylight.survey.cube:_pool_init_from_config", dict(config), str(config_path),
+            resolved(store), resolved(stars_path), resolved(obs_store), resolved(lim_store))
     return spawned_pool(workers, call_by_name, init)

@@ -14,9 +14,11 @@ rule background_init:
         lim_store=LIMITS_WORK_STORE,
     # one process: with the earthshine table and the faint-star map kept on disk (every run after
     # the first of a model and footprint) the step is one process's work, and a core it does not
-    # use runs the small jobs beside it.  A table or map it must compute takes every CPU the job
-    # may run on (scripts/background_init.py); the SLURM profile asks a node's share for it.
+    # use runs the small jobs beside it.  A table or map it must compute takes the run's cores
+    # (build_processes; scripts/background_init.py); the SLURM profile raises the threads instead.
     threads: 1
+    resources:
+        build_processes=INIT_BUILD_PROCESSES,
     conda:
         "../envs/straylight.yaml"
     log:

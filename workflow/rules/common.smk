@@ -1,6 +1,8 @@
 # Shared settings of the rules: where results go, which config file the run uses, the blocks.
 from pathlib import Path
 
+from snakemake.exceptions import WorkflowError
+
 from straylight.config import campaign_from_dict as _campaign_from_dict
 from straylight.config import resolve_config_files as _resolve_config_files
 from straylight.survey.footprint import footprint_from_config as _footprint_from_config
@@ -42,6 +44,13 @@ TIME_BLOCKS = list(
 #: compute.time_blocks_per_job per job
 _PER_JOB = (config.get("compute") or {}).get("time_blocks_per_job") or max(1, len(TIME_BLOCKS))
 CUBE_JOBS = [TIME_BLOCKS[i:i + _PER_JOB] for i in range(0, len(TIME_BLOCKS), _PER_JOB)]
+#: processes rule background_init may use for an earthshine table or faint-star map it must
+#: compute (once per model and footprint): the run's --cores; 1 where none is given (a cluster
+#: run, whose profile raises the rule's threads instead)
+try:
+    INIT_BUILD_PROCESSES = max(1, int(workflow.cores))
+except WorkflowError:
+    INIT_BUILD_PROCESSES = 1
 #: the cube jobs' outputs: every time block of the three stores written once all exist (the
 #: limits and the figures start from them, beside rule background)
 CUBE_PARTS = [f"{RESULTS}/background_blocks/part_{i}.json" for i in range(len(CUBE_JOBS))]
