@@ -132,8 +132,6 @@ class MollweidePanel:
         self.ax.xaxis.set_visible(False)
         self.ax.yaxis.set_visible(False)
         fig.add_axes(self.ax)
-        self.ax.set_xlim(-2.01, 2.01)
-        self.ax.set_ylim(-1.01, 1.01)
         for style, lw, colour, alpha, segments in _graticule_segments():
             self.ax.add_collection(LineCollection(segments, linestyles=style, linewidths=lw, colors=colour,
                                                   alpha=alpha), autolim=False)
@@ -156,7 +154,8 @@ class MollweidePanel:
         if self.image is None:
             self.image = self.ax.imshow(data, extent=self.ax.proj.get_extent(), cmap=cm, norm=norm,
                                         interpolation="nearest", origin="lower")
-            self.ax.set_xlim(-2.01, 2.01)  # imshow sets the limits to the image's extent
+            # the limits after imshow, which sets them to the image's extent
+            self.ax.set_xlim(-2.01, 2.01)
             self.ax.set_ylim(-1.01, 1.01)
         else:
             self.image.set_data(data)
