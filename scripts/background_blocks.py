@@ -32,12 +32,12 @@ def main(snakemake):
         from _common import campaign, setup_logging
 
         from straylight.survey.cube import run_time_blocks
-        from straylight.survey.footprint import footprint_from_config
+        from straylight.survey.footprint import footprint_from_store
         from straylight.util.io import write_json_atomic
 
         log = setup_logging(snakemake)
         c = campaign(snakemake)
-        fp = footprint_from_config(c.config["footprint"], c.path.parent)
+        fp = footprint_from_store(snakemake.params.store)  # the skeleton background_init laid down
         blocks = list(snakemake.params.blocks)
         done_dir = Path(snakemake.output[0]).parent
         reports = run_time_blocks(c, fp, snakemake.params.store, blocks, done_dir, workers=workers,

@@ -22,7 +22,9 @@ def main(snakemake):
 
     log = setup_logging(snakemake)
     c = campaign(snakemake)
-    fp = footprint_from_config(c.config["footprint"], c.path.parent)
+    # the footprint rule's mask (its product, this rule's input): the same pixels, without
+    # recomputing the latitude cuts
+    fp = footprint_from_config({**c.config["footprint"], "mask_file": str(Path(snakemake.input.mask).resolve())})
     cleared = clear_block_sentinels(Path(snakemake.output[0]).parent)
     if cleared:
         log.info("removed %d time-block sentinels of an earlier store", cleared)

@@ -181,9 +181,12 @@ class CampaignProducts:
 
     @property
     def footprint(self):
-        import healpy as hp
         import xarray as xr
         from astropy.io import fits
+
+        from straylight.util.healpix import healpy
+
+        hp = healpy()
 
         p = self.path / "footprint.fits"
         if not p.exists():

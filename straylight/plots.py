@@ -16,6 +16,13 @@ ORBIT_MINUTES = 92.6  # ~400 km circular orbit: the first-orbit panel spans this
 
 
 def _mag(ds, e_per_s, band: str, campaign):
+    """AB mag/arcsec2 of ``e_per_s`` (e-/s/pix) in ``band``: through the product's own
+    ``mag_zero_point`` coordinate where ``ds`` has it (the number a reader of the store uses,
+    computed from the instrument as below), else from the campaign's instrument."""
+    if "mag_zero_point" in ds.coords:
+        zp = float(ds["mag_zero_point"].sel(band=band))
+        with np.errstate(divide="ignore"):
+            return zp - 2.5 * np.log10(np.asarray(e_per_s, dtype=float))
     from straylight.optics.bandpass import load_band
     from straylight.sources.photometry import magnitude_per_arcsec2
 

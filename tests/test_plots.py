@@ -142,3 +142,19 @@ def test_mollweide_panel_redrawn_is_the_panel_drawn_afresh():
         fig.canvas.draw()
         pages.append(np.asarray(fig.canvas.buffer_rgba()).copy())
     assert np.array_equal(pages[0], pages[1])
+
+
+def test_magnitudes_through_the_products_zero_point_equal_the_instruments(campaign):
+    """The figures turn e-/s/pix into AB mag/arcsec2 through the store's mag_zero_point
+    coordinate (limits.zero_point_coord) where it has one: the numbers the instrument's
+    throughput gives (sources.photometry.magnitude_per_arcsec2), bit for bit."""
+    from straylight.plots import _mag
+    from straylight.survey.limits import ZERO_POINT_NAME, zero_point_coord
+
+    bands = list(campaign.bands)
+    rates = np.array([0.0, 1e-3, 0.37, 1.0, 25.0])
+    with_zp = xr.Dataset(coords={"band": bands, ZERO_POINT_NAME: zero_point_coord(campaign, bands)})
+    without = xr.Dataset(coords={"band": bands})
+    for band in bands:
+        a, b = _mag(with_zp, rates, band, campaign), _mag(without, rates, band, campaign)
+        assert np.array_equal(a, b) and np.isinf(a[0]) and 15 < a[3] < 30

@@ -12,8 +12,6 @@ def read_star_columns(path, bands) -> tuple[np.ndarray, np.ndarray, dict]:
     returns (ra_deg, dec_deg, {band: mag}); clear errors otherwise."""
     from pathlib import Path
 
-    from astropy.table import Table
-
     p = Path(path)
     if not p.exists():
         raise InputError(f"{p}: star catalog does not exist")
@@ -21,9 +19,11 @@ def read_star_columns(path, bands) -> tuple[np.ndarray, np.ndarray, dict]:
         if p.suffix.lower() == ".parquet":
             import pyarrow.parquet as pq
 
-            t = pq.read_table(p)
+            t = pq.ParquetFile(p).read()  # one file: without read_table's dataset layer (and pandas)
             names = t.column_names
         else:
+            from astropy.table import Table
+
             t = Table.read(p)
             names = t.colnames
     except Exception as exc:

@@ -63,14 +63,15 @@ def zodiacal_map_data(campaign: Campaign, time: str = FIGURE_TIME, nside: int = 
 
 def plot_zodiacal_map(d: dict, out_png) -> None:
     import healpy as hp
+    from healpy import visufunc  # by name: a process may have loaded healpy without it (util.healpix)
 
     plt = _pyplot()
     fig = plt.figure(figsize=(8, 5))
     m = np.where(np.isnan(d["v_mag_per_arcsec2"]), hp.UNSEEN, d["v_mag_per_arcsec2"])
-    hp.mollview(m, fig=fig.number, title=f"Zodiacal light, V (AB mag/arcsec$^2$), {d['time']} UTC (paper sect. 4.1)",
-                unit="V mag / arcsec$^2$", cmap="viridis_r", min=21.0, max=23.6, flip="astro")
-    hp.graticule(dpar=30, dmer=60, alpha=0.4)
-    hp.projplot(d["sun_ra_deg"], d["sun_dec_deg"], "r*", lonlat=True, markersize=16, label="Sun")
+    visufunc.mollview(m, fig=fig.number, title=f"Zodiacal light, V (AB mag/arcsec$^2$), {d['time']} UTC (paper sect. 4.1)",
+                      unit="V mag / arcsec$^2$", cmap="viridis_r", min=21.0, max=23.6, flip="astro")
+    visufunc.graticule(dpar=30, dmer=60, alpha=0.4)
+    visufunc.projplot(d["sun_ra_deg"], d["sun_dec_deg"], "r*", lonlat=True, markersize=16, label="Sun")
     plt.legend(loc="lower right", fontsize=8)
     fig.savefig(out_png, dpi=90)
     plt.close(fig)

@@ -66,7 +66,9 @@ class StarCells:
 
     def cell_of(self, unit_vectors) -> np.ndarray:
         """The sky cell of each unit vector (N, 3)."""
-        import healpy as hp
+        from straylight.util.healpix import healpy
+
+        hp = healpy()
 
         v = np.asarray(unit_vectors, float)
         return hp.vec2pix(self.nside, v[:, 0], v[:, 1], v[:, 2])
@@ -238,7 +240,9 @@ class OffFieldStars:
         candidates are a prefix of the cell's list.  A star that every cell needs at a level (a
         bright star against the darkest floors, or every star at a tiny tolerance) is listed
         once for the whole sky there instead of in every cell.  Cached on the star table."""
-        import healpy as hp
+        from straylight.util.healpix import healpy
+
+        hp = healpy()
 
         key = (id(self), tuple(self.context.campaign.bands), self.policy.tolerance, self.STAR_CELL_NSIDE)
         cache = stars.__dict__.setdefault("_cells_cache", {})

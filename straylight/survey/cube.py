@@ -35,9 +35,9 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import xarray as xr
 
 from straylight.config import Campaign
 from straylight.errors import OutputError
@@ -45,6 +45,9 @@ from straylight.survey.footprint import Footprint, pixel_block_length
 from straylight.survey.limits import ZERO_POINT_NAME, zero_point_coord
 from straylight.survey.storage import stored_values
 from straylight.sky.geometry import SceneRuns, TelescopeFrame, observing_geometry, radec_to_unit, telescope_frame, violation_mask_attrs
+
+if TYPE_CHECKING:  # xarray where a Dataset is made: a worker computing regions does without it
+    import xarray as xr
 
 CUBE_COMPONENTS = ("zodiacal", "earthshine", "moon", "sun", "planets", "stars")
 #: observability.zarr's angles besides the cube's own (time, pixel) variables: the cube's
@@ -89,6 +92,7 @@ def empty_cube(campaign: Campaign, fp: Footprint, times, stars_path=None, build_
     record it carries builds the earthshine table if one runs and is not cached
     (``build_workers`` processes)."""
     import dask.array as da
+    import xarray as xr
 
     nt, npix, nb = len(times), fp.pixels.size, len(campaign.bands)
     ch = cube_chunks(campaign, nt, npix)
@@ -168,6 +172,8 @@ def faint_star_map(campaign: Campaign, fp: Footprint, stars_path, workers: int =
     loading the catalog and the model once): the same values as one process (each pixel's sum
     is computed on its own).  ``before``: a callable run in this process while the spawned ones
     start (the skeleton's other work); its result is returned with the map as a pair then."""
+    import xarray as xr
+
     stars = _offfield_stars(campaign, stars_path)
     if stars is None or not len(stars.faint_ra_deg):
         return None if before is None else (None, before())
@@ -256,6 +262,17 @@ def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: s
     the samples' other observability angles (:data:`OBSERVABILITY_ANGLES`, (time, pixel) float32
     deg, the geometry the cube computes anyway; None: not kept).  ValueError if ``scene`` is
     not at exactly these times."""
+    import xarray as xr
+
+    values = region_values(campaign, fp, t_slice, p_slice, model, stars_path, faint_map, scene, angles)
+    return xr.Dataset({name: (("time", "pixel", "band") if name in CUBE_BAND_VARIABLES else ("time", "pixel"), v)
+                       for name, v in values.items()})
+
+
+def region_values(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: slice, model=None,
+                  stars_path=None, faint_map=None, scene=None, angles: dict | None = None) -> dict:
+    """:func:`compute_region`'s variables as numpy arrays (name -> (time, pixel[, band]) array),
+    without the Dataset: what a worker writes."""
     from straylight.sky import observing
     from straylight.model import unobservable_samples
 
@@ -315,11 +332,7 @@ def compute_region(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: s
         if angles is not None:
             for name in OBSERVABILITY_ANGLES:
                 angles[name][steps] = _by_step(g[name], k, npix)
-    data = {k: (("time", "pixel", "band"), v) for k, v in out.items()}
-    data["observable"] = (("time", "pixel"), obs)
-    data["violations"] = (("time", "pixel"), viol)
-    data["door_opening_deg"] = (("time", "pixel"), door)
-    return xr.Dataset(data)
+    return {**out, "observable": obs, "violations": viol, "door_opening_deg": door}
 
 
 def _checked_scene(sc, times):
@@ -422,14 +435,15 @@ def init_limits_store(campaign: Campaign, cube, store) -> None:
     write_skeleton(limits_dataset(campaign, cube), store, campaign.config["storage"])
 
 
-def region_limits(campaign: Campaign, region: xr.Dataset) -> dict:
+def region_limits(campaign: Campaign, region) -> dict:
     """A computed region's limits.zarr variables (name -> (time, pixel[, band]) array): the
     5-sigma limits of its computed ``total`` (:func:`straylight.survey.limits.band_limits`),
-    and its ``observable``."""
+    and its ``observable``; ``region``: :func:`compute_region`'s Dataset or
+    :func:`region_values`' arrays."""
     from straylight.survey.limits import band_limits, campaign_exposures
 
-    return {"limiting_mag": band_limits(region["total"].values, campaign_exposures(campaign)),
-            "observable": region["observable"].values}
+    return {"limiting_mag": band_limits(np.asarray(region["total"]), campaign_exposures(campaign)),
+            "observable": np.asarray(region["observable"])}
 
 
 def publish_work_store(work_store, product, summaries: dict | None = None) -> None:
@@ -488,18 +502,18 @@ def write_region(campaign: Campaign, fp: Footprint, store, t_slice: slice, p_sli
         faint = _stored_faint_map(store)
         faint = None if faint is None else faint[p_slice]
     angles = None if obs_store is None else {}
-    ds = compute_region(campaign, fp, t_slice, p_slice, stars_path=stars_path, faint_map=faint, scene=scene,
-                        angles=angles)
-    lim = None if lim_store is None else region_limits(campaign, ds)
+    region = region_values(campaign, fp, t_slice, p_slice, stars_path=stars_path, faint_map=faint, scene=scene,
+                           angles=angles)
+    lim = None if lim_store is None else region_limits(campaign, region)
     try:
         # written through the stores' arrays, each rounded as its attributes record (storage.stored_values)
-        arrays = arrays or store_arrays(store, tuple(ds.data_vars))
-        for name, var in ds.data_vars.items():
-            arrays[name][t_slice, p_slice] = stored_values(var.values, arrays[name].attrs)
+        arrays = arrays or store_arrays(store, tuple(region))
+        for name, values in region.items():
+            arrays[name][t_slice, p_slice] = stored_values(values, arrays[name].attrs)
         if obs_store is not None:
             obs_arrays = obs_arrays or store_arrays(obs_store, OBSERVABILITY_VARIABLES)
             for name in OBSERVABILITY_VARIABLES:
-                values = angles[name] if name in angles else ds[name].values
+                values = angles[name] if name in angles else region[name]
                 obs_arrays[name][t_slice, p_slice] = stored_values(values, obs_arrays[name].attrs)
         if lim is not None:
             lim_arrays = lim_arrays or store_arrays(lim_store, tuple(lim))
@@ -522,8 +536,10 @@ class BlockReport:
 
 def _stored_faint_map(store) -> np.ndarray | None:
     """The store's faint_star_map, (pixel, band) e-/s/pix, or None when it has none."""
-    with xr.open_zarr(store, consolidated=False, chunks=None) as skeleton:
-        return skeleton["faint_star_map"].values if "faint_star_map" in skeleton else None
+    import zarr
+
+    group = zarr.open_group(str(store), mode="r", use_consolidated=False)
+    return group["faint_star_map"][...] if "faint_star_map" in group else None
 
 
 def block_sentinel(done_dir, block_index: int) -> Path:
@@ -558,19 +574,20 @@ def _pool_init(campaign: Campaign, fp: Footprint, store: str, stars_path, obs_st
 def _pool_init_from_config(config: dict, config_path: str, store: str, stars_path, obs_store=None,
                            lim_store=None) -> None:
     """Pool worker start-up for workers started before the job has loaded its campaign
-    (:func:`straylight.survey.workers.start_region_workers`): the campaign and footprint from
-    the job's config, then :func:`_pool_init`, then one sample computed so that every part of
+    (:func:`straylight.survey.workers.start_region_workers`): the campaign from the job's
+    config, the footprint from the store's skeleton (:func:`~straylight.survey.footprint.footprint_from_store`),
+    then :func:`_pool_init`, then one sample computed so that every part of
     the model is built (the tables read, the star cells listed, the compiled kernels loaded)
     before the first region arrives."""
     from straylight.config import campaign_from_dict
-    from straylight.survey.footprint import footprint_from_config
+    from straylight.survey.footprint import footprint_from_store
 
     campaign = campaign_from_dict(dict(config), config_path)
-    fp = footprint_from_config(campaign.config["footprint"], campaign.path.parent)
+    fp = footprint_from_store(store)  # the skeleton's: no healpy, no astropy frames
     _pool_init(campaign, fp, store, stars_path, obs_store, lim_store)
     # (the faint stars' map comes with each region: zeros here)
-    compute_region(campaign, fp, slice(0, 1), slice(0, 1), stars_path=stars_path,
-                   faint_map=np.zeros((1, len(campaign.bands))))
+    region_values(campaign, fp, slice(0, 1), slice(0, 1), stars_path=stars_path,
+                  faint_map=np.zeros((1, len(campaign.bands))))
 
 
 def _pool_region(t_slice: slice, p_slice: slice, scene, faint_map) -> float:

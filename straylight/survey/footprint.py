@@ -29,7 +29,9 @@ class Footprint:
 
     @property
     def area_deg2(self) -> float:
-        import healpy as hp
+        from straylight.util.healpix import healpy
+
+        hp = healpy()
 
         return float(self.pixels.size * hp.nside2pixarea(self.nside, degrees=True))
 
@@ -54,7 +56,9 @@ def pixel_block_length(n_pixels: int, block_size: int) -> int:
 def pixel_centres(nside: int, nest: bool, pixels=None) -> tuple[np.ndarray, np.ndarray]:
     # healpy where it is used (its import, with matplotlib's, ~0.3 s): a worker that receives a
     # footprint, and the jobs that only read one, do without it
-    import healpy as hp
+    from straylight.util.healpix import healpy
+
+    hp = healpy()
 
     if pixels is None:
         pixels = np.arange(hp.nside2npix(nside))
@@ -81,7 +85,9 @@ def latitude_cut_mask(nside: int, nest: bool, galactic_min_deg: float, ecliptic_
 
 def read_mask(path: str | Path, nside: int, nest: bool) -> np.ndarray:
     """A user's HEALPix FITS mask, resampled to ``nside``/ordering; non-zero = in footprint."""
-    import healpy as hp
+    from straylight.util.healpix import healpy
+
+    hp = healpy()
 
     path = Path(path)
     if not path.exists():
@@ -118,3 +124,16 @@ def footprint_from_config(fp_cfg: dict, config_dir: Path | None = None) -> Footp
         raise ConfigError("footprint: the cuts or mask leave no pixel in the footprint")
     ra, dec = pixel_centres(nside, nest, pixels)
     return Footprint(nside=nside, ordering=ordering, pixels=pixels, ra_deg=ra, dec_deg=dec)
+
+
+def footprint_from_store(store) -> Footprint:
+    """The footprint a product store was laid down for (background.zarr's skeleton once
+    ``background_init`` has written it): its ``pixel``, ``ra_deg`` and ``dec_deg`` coordinates,
+    stored exactly, and its ``healpix_nside`` and ``healpix_ordering`` attributes.  The values
+    :func:`footprint_from_config` computed, read without healpy or astropy's frames (a cube
+    worker's start).  KeyError if the store lacks one of them."""
+    import zarr
+
+    group = zarr.open_group(str(store), mode="r", use_consolidated=False)
+    return Footprint(nside=int(group.attrs["healpix_nside"]), ordering=str(group.attrs["healpix_ordering"]).lower(),
+                     pixels=group["pixel"][...], ra_deg=group["ra_deg"][...], dec_deg=group["dec_deg"][...])

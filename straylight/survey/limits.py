@@ -323,9 +323,10 @@ def write_limit_maps(ds, out_dir) -> list:
     observable), the HEALPix convention for a missing pixel."""
     from pathlib import Path
 
-    import healpy as hp
-
+    from straylight.util.healpix import healpy
     from straylight.util.io import atomic_path
+
+    hp = healpy()
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)

@@ -100,9 +100,10 @@ def footprint_products(campaign: Campaign) -> tuple[Footprint, dict]:
 
 def write_footprint_fits(fp: Footprint, path) -> None:
     """The footprint as a HEALPix FITS map (1 inside, 0 outside), readable by healpy."""
-    import healpy as hp
-
+    from straylight.util.healpix import healpy
     from straylight.util.io import atomic_path
+
+    hp = healpy()
 
     m = np.zeros(hp.nside2npix(fp.nside), dtype=np.float32)
     m[fp.pixels] = 1.0

@@ -538,3 +538,22 @@ def test_html_report_holds_maps_series_tables_and_provenance(cube_run):
     for needle in ("median depth (AB mag)", "observable fraction", "limits_median</b>", "sky_g_20260101T0030</b>",
                    "series_orbit_ra1", "moon_avoidance.csv", "per band, the median and best 5-sigma depth"):
         assert needle in text, needle
+
+
+def test_cube_jobs_footprint_is_the_configs_bit_for_bit(cube_run):
+    """The cube job and its workers take the footprint from the skeleton's coordinates
+    (footprint_from_store) and background_init from the footprint rule's mask: the pixels and
+    centres footprint_from_config computes from the latitude cuts, bit for bit (the cube's
+    values depend on them)."""
+    from straylight.config import load_campaign
+    from straylight.survey.footprint import footprint_from_config, footprint_from_store
+
+    _, cfg, out = cube_run
+    c = load_campaign(cfg)
+    ref = footprint_from_config(c.config["footprint"], c.path.parent)
+    for fp in (footprint_from_store(out / "background.zarr"),
+               footprint_from_config({**c.config["footprint"], "mask_file": str(out / "footprint.fits")})):
+        assert (fp.nside, fp.ordering) == (ref.nside, ref.ordering)
+        for name in ("pixels", "ra_deg", "dec_deg"):
+            a, b = getattr(fp, name), getattr(ref, name)
+            assert a.dtype == b.dtype and np.array_equal(a, b), name

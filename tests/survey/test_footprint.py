@@ -63,3 +63,24 @@ def test_pixel_blocks_are_equal_and_never_a_sliver():
         lengths = np.diff(list(range(0, n, step)) + [n])
         assert lengths.sum() == n and lengths.max() == step
         assert lengths.min() >= step - len(lengths)  # the last block short by fewer pixels than there are blocks
+
+
+def test_healpy_without_its_plotting_functions_gives_the_same_pixels():
+    """straylight.util.healpix imports healpy without matplotlib in a process that has not drawn
+    (a cube worker, the footprint): the same pix2ang as healpy whole, no matplotlib loaded, and
+    the plotting module still importable by name afterwards."""
+    import subprocess
+    import sys
+
+    code = ("import sys, numpy as np\n"
+            "from straylight.util.healpix import healpy\n"
+            "hp = healpy()\n"
+            "assert 'matplotlib' not in sys.modules\n"
+            "ra, dec = hp.pix2ang(32, np.arange(12 * 32**2), lonlat=True)\n"
+            "from healpy import visufunc\n"
+            "assert callable(visufunc.mollview) and 'matplotlib' in sys.modules\n"
+            "print(repr(ra.tobytes().hex()[:64]), float(ra.sum()), float(dec.sum()))\n")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr[-2000:]
+    ra, dec = hp.pix2ang(32, np.arange(12 * 32**2), lonlat=True)  # healpy whole (matplotlib loaded here)
+    assert r.stdout.split() == [repr(ra.tobytes().hex()[:64]), repr(float(ra.sum())), repr(float(dec.sum()))]
