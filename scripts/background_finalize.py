@@ -6,7 +6,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821 - injected by Snakemake
-from _common import setup_logging  # noqa: E402
+from _common import end_job, setup_logging  # noqa: E402
 
 import zarr  # noqa: E402
 
@@ -26,3 +26,4 @@ log.info("%-10s %12s %8d %10.1f  (seconds from each block's first region to its 
 write_json_atomic({"blocks": blocks, "samples": total_n, "seconds": total_s}, snakemake.output.summary)  # noqa: F821
 publish_work_store(snakemake.params.obs_store, snakemake.output.observability)  # noqa: F821
 log.info("published %s", snakemake.output.observability)  # noqa: F821
+end_job()

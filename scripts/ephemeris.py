@@ -4,7 +4,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821 - injected by Snakemake
-from _common import campaign, setup_logging  # noqa: E402
+from _common import campaign, end_job, setup_logging  # noqa: E402
 
 from straylight.survey.storage import write_zarr_atomic  # noqa: E402
 from straylight.survey.products import ephemeris_dataset  # noqa: E402
@@ -15,3 +15,4 @@ c = campaign(snakemake)  # noqa: F821
 ds = ephemeris_dataset(c)
 write_zarr_atomic(ds, snakemake.output[0])  # noqa: F821
 log.info("ephemeris: %d times x %d bodies in %.2f s", ds.sizes["time"], ds.sizes["body"], time.perf_counter() - t0)
+end_job()

@@ -4,7 +4,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821 - injected by Snakemake
-from _common import campaign, setup_logging  # noqa: E402
+from _common import campaign, end_job, setup_logging  # noqa: E402
 
 from straylight.plots import sky_map_figures, time_series_figures  # noqa: E402
 
@@ -12,3 +12,4 @@ log = setup_logging(snakemake)  # noqa: F821
 draw = {"sky_maps": sky_map_figures, "time_series": time_series_figures}[snakemake.rule]  # noqa: F821
 for p in draw(snakemake.params.store, campaign(snakemake), snakemake.output[0]):  # noqa: F821
     log.info("wrote %s", p)
+end_job()

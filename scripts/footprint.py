@@ -3,7 +3,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821 - injected by Snakemake
-from _common import campaign, setup_logging  # noqa: E402
+from _common import campaign, end_job, setup_logging  # noqa: E402
 
 from straylight.util.io import write_json_atomic  # noqa: E402
 from straylight.survey.products import footprint_products, write_footprint_fits  # noqa: E402
@@ -17,3 +17,4 @@ log.info(
     "footprint: %d pixels at nside %d, %.0f deg2; %d time blocks x %d pixel blocks",
     plan["n_pixels"], plan["nside"], plan["area_deg2"], len(plan["time_blocks"]), len(plan["pixel_blocks"]),
 )
+end_job()

@@ -45,3 +45,6 @@ def main(snakemake):
 
 if __name__ == "__main__":
     main(snakemake)  # noqa: F821 - injected by Snakemake
+    from _common import end_job
+
+    end_job()

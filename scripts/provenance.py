@@ -3,7 +3,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821 - injected by Snakemake
-from _common import campaign, setup_logging  # noqa: E402
+from _common import campaign, end_job, setup_logging  # noqa: E402
 
 from straylight.util.io import write_json_atomic  # noqa: E402
 from straylight.survey.provenance import provenance_record  # noqa: E402
@@ -23,3 +23,4 @@ rec = provenance_record(c, {}, outputs)
 write_json_atomic(rec, snakemake.output[0])  # noqa: F821
 for k, v in rec["outputs_sha256"].items():
     log.info("%-16s sha256 %s", k, v)
+end_job()

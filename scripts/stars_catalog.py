@@ -3,7 +3,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821 - injected by Snakemake
-from _common import campaign as campaign_from_snakemake, setup_logging  # noqa: E402
+from _common import campaign as campaign_from_snakemake, end_job, setup_logging  # noqa: E402
 
 import pyarrow.parquet as pq  # noqa: E402
 
@@ -23,3 +23,4 @@ write_json_atomic(summary, snakemake.output.summary)  # noqa: F821
 rt = summary["round_trip_bp_rp_mag"]
 log.info("%d stars %s; template BP-RP round trip median %.3f p90 %.3f p99 %.3f mag", summary["stars"],
          summary["by_source"], rt["median_abs_bp_rp_mag"], rt["p90_abs_bp_rp_mag"], rt["p99_abs_bp_rp_mag"])
+end_job()

@@ -3,7 +3,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821 - injected by Snakemake
-from _common import campaign, setup_logging  # noqa: E402
+from _common import campaign, end_job, setup_logging  # noqa: E402
 
 from straylight.catalog.gaia import ingest_file, write_parquet  # noqa: E402
 from straylight.util.io import write_json_atomic  # noqa: E402
@@ -17,3 +17,4 @@ write_json_atomic(res.summary, snakemake.output.summary)  # noqa: F821
 log.info("%s: %d rows, %d kept, %d fainter than the limit, %d quarantined %s", res.summary["file"],
          res.summary["rows"], res.summary["kept"], res.summary["fainter_than_limit"], res.summary["quarantined"],
          res.summary["quarantine_reasons"])
+end_job()

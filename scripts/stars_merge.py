@@ -4,7 +4,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821 - injected by Snakemake
-from _common import setup_logging  # noqa: E402
+from _common import end_job, setup_logging  # noqa: E402
 
 import numpy as np  # noqa: E402
 import pyarrow as pa  # noqa: E402
@@ -31,3 +31,4 @@ total = {"files": summaries, "stars": int(n - dups), "duplicates_across_files": 
 write_json_atomic(total, snakemake.output.summary)  # noqa: F821
 log.info("%d files: %d stars, %d quarantined rows, %d duplicates across files", len(summaries), total["stars"],
          total["quarantined"], dups)
+end_job()

@@ -197,11 +197,29 @@ class MollweidePanel:
         self.colour_bar.ax.xaxis.set_major_formatter(fmt)
 
 
+#: the figures' resolution (dots per inch)
+FIGURE_DPI = 90
+
+
 def _save(fig, path: Path) -> Path:
+    """``fig`` to ``path`` as PNG, cropped to its artists' tight box (the colour bars' labels
+    overhang the axes) with matplotlib's padding.  The box is measured here, at the saving
+    resolution, and handed to ``savefig``: ``bbox_inches="tight"`` would first run a whole draw
+    (every panel's image resampled) only to measure it."""
+    import matplotlib as mpl
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
     from straylight.util.io import atomic_path
 
+    canvas = fig.canvas if isinstance(fig.canvas, FigureCanvasAgg) else FigureCanvasAgg(fig)  # savefig's PNG one
+    dpi = fig.dpi
+    fig.dpi = FIGURE_DPI
+    try:
+        bbox = fig.get_tightbbox(canvas.get_renderer()).padded(mpl.rcParams["savefig.pad_inches"])
+    finally:
+        fig.dpi = dpi
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=90, format="png", bbox_inches="tight")  # the colour bars' labels overhang the axes
+        fig.savefig(tmp, dpi=FIGURE_DPI, format="png", bbox_inches=bbox)
     return path
 
 
@@ -458,19 +476,20 @@ def read_depth_table(path) -> dict:
         return {r["band"]: {k: float(v) for k, v in r.items() if k != "band"} for r in csv.DictReader(f)}
 
 
-def write_report_front(rows: dict, campaign, path, figure_dirs=()) -> Path:
-    """``path`` (the report's first page, RST rendered by Snakemake's Jinja): the campaign, the
-    depth table ``rows`` (:func:`read_depth_table`) and a guide to the figures, with thumbnails
-    of those found in ``figure_dirs`` (depth/, sky/ and series/ of the campaign's results)."""
+def write_report_front(rows: dict, config: dict, path, figure_dirs=()) -> Path:
+    """``path`` (the report's first page, RST rendered by Snakemake's Jinja): the campaign of
+    ``config`` (a validated campaign config: ``Campaign.config``, or the workflow's), the depth
+    table ``rows`` (:func:`read_depth_table`) and a guide to the figures, with thumbnails of
+    those found in ``figure_dirs`` (depth/, sky/ and series/ of the campaign's results)."""
     from straylight.util.io import atomic_path
 
-    c = campaign.config["campaign"]
+    c = config["campaign"]
     table = ["   * - band", "     - median depth (AB mag)", "     - best depth (AB mag)",
              "     - observable fraction"]
     for b, r in rows.items():
         table += [f"   * - {b}", f"     - {r['median_depth_mag']:.2f}", f"     - {r['best_depth_mag']:.2f}",
                   f"     - {100 * r['observable_fraction']:.1f} %"]
-    text = f"""Stray-light and sky-background products of the campaign **{campaign.name}**
+    text = f"""Stray-light and sky-background products of the campaign **{c['name']}**
 ({c['start']} to {c['end']} UTC, every {float(c['cadence_s']):g} s) for the CSST survey camera
 (straylight; method of Xian et al., the seed paper).
 

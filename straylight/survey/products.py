@@ -135,7 +135,10 @@ def observability_dataset(campaign: Campaign, ephem: xr.Dataset, fp: Footprint, 
         import dask.array as da
 
         nt, npix = sat_all.shape[0], los_all.shape[0]
-        dtypes = {k: v.dtype for k, v in geometry(slice(0, 1), slice(0, 1)).items()}
+        # geometry()'s dtypes, declared: a skeleton (background_init) computes no sample
+        dtypes = {"observable": np.dtype(bool), "violations": np.dtype(np.uint8),
+                  **{k: np.dtype(np.float32) for k in ("sun_angle_deg", "moon_angle_deg", "earth_limb_angle_deg",
+                                                        "door_opening_deg")}}
         t_edges = list(range(0, nt, int(chunks["time"]))) + [nt]
         p_edges = list(range(0, npix, int(chunks["pixel"]))) + [npix]
         # one graph built directly: a geometry task per chunk (its key from one token of the
