@@ -428,16 +428,20 @@ def limit_maps(limits_ds, campaign, out_dir) -> list:
     return written
 
 
-def depth_summary(limits_ds) -> dict:
+def depth_summary(limits_ds, observable_fraction: float | None = None) -> dict:
     """Per band: the median over the footprint of each pixel's median 5-sigma limit, the best
-    pixel's best limit (AB mag), and the observable fraction of all (time, pixel) samples."""
-    # counted a pixel block at a time (an exact integer, so the same fraction as the mean of the
-    # whole array), as stored: never the whole (time, pixel) array at once
-    observable = limits_ds["observable"]
-    block = int((observable.encoding.get("chunks") or observable.shape)[1])
-    count = sum(int(np.count_nonzero(observable.isel(pixel=slice(a, a + block)).values))
-                for a in range(0, observable.shape[1], block))
-    obs = count / observable.size
+    pixel's best limit (AB mag), and the observable fraction of all (time, pixel) samples
+    (``observable_fraction`` where the caller has counted it, else counted here from
+    ``limits_ds["observable"]``)."""
+    obs = observable_fraction
+    if obs is None:
+        # counted a pixel block at a time (an exact integer, so the same fraction as the mean of
+        # the whole array), as stored: never the whole (time, pixel) array at once
+        observable = limits_ds["observable"]
+        block = int((observable.encoding.get("chunks") or observable.shape)[1])
+        count = sum(int(np.count_nonzero(observable.isel(pixel=slice(a, a + block)).values))
+                    for a in range(0, observable.shape[1], block))
+        obs = count / observable.size
     rows = {}
     for ib, band in enumerate(limits_ds["band"].values):
         med = np.asarray(limits_ds["limiting_mag_median"].isel(band=ib), float)
@@ -597,8 +601,19 @@ def limit_figures(limits_path, campaign, out_dir) -> list:
     """The limits' figures in ``out_dir``: the best and median limit maps (:func:`limit_maps`)
     and the depth table (:data:`DEPTH_TABLE`, :func:`depth_summary`); the paths written."""
     import xarray as xr
+    import zarr
 
-    # chunks=None: no dask, each variable read as it is needed
-    with xr.open_zarr(limits_path, chunks=None) as limits_ds:
-        written = limit_maps(limits_ds, campaign, out_dir)
-        return written + [write_depth_table(depth_summary(limits_ds), Path(out_dir) / DEPTH_TABLE)]
+    from straylight.survey.storage import read_region
+
+    # the per-pixel summaries (pixel x band: small) read once, not once a band and map
+    with xr.open_zarr(limits_path, chunks=None) as stored:
+        summaries = stored[[v for v in stored.data_vars if "time" not in stored[v].dims]].load()
+    # the observable samples counted from the store's chunks, a pixel block at a time (an exact
+    # integer: the fraction depth_summary would count, without zarr's pipeline per chunk)
+    observable = zarr.open_group(str(limits_path), mode="r", use_consolidated=False)["observable"]
+    block = int(observable.chunks[1])
+    count = sum(int(np.count_nonzero(read_region(observable, (slice(None), slice(a, a + block)))))
+                for a in range(0, observable.shape[1], block))
+    written = limit_maps(summaries, campaign, out_dir)
+    rows = depth_summary(summaries, count / observable.size)
+    return written + [write_depth_table(rows, Path(out_dir) / DEPTH_TABLE)]

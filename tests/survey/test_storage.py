@@ -297,3 +297,27 @@ def test_chunk_writer_writes_the_files_zarr_writes(tmp_path):
             got, want = read_region(array, region), array[region]
             assert got.dtype == want.dtype and got.shape == want.shape
             np.testing.assert_array_equal(got, want)
+
+
+@pytest.mark.parametrize("dtype, fill, chunk", [
+    (np.float32, np.nan, [np.nan, np.nan, np.nan]),     # all the fill value: no file
+    (np.float32, np.nan, [np.nan, 1.0, np.nan]),        # the first value the fill's, not the rest
+    (np.float32, 0.0, [-0.0, -0.0, -0.0]),              # -0.0 is not the fill 0.0 (bit for bit)
+    (np.float32, -0.0, [-0.0, -0.0, -0.0]),
+    (np.float32, 0.0, [0.0, 0.0, 0.0]),
+    (np.float64, np.nan, [2.0, np.nan, np.nan]),
+    (bool, False, [False, False, True]),
+    (bool, False, [False, False, False]),
+    (np.uint8, 0, [0, 0, 0]),
+    (np.uint8, 0, [1, 0, 0]),
+])
+def test_chunk_of_only_the_fill_value_as_zarr_decides_it(dtype, fill, chunk):
+    """storage._all_fill (the chunk writer skips such a chunk's file, as zarr does with
+    write_empty_chunks=False) against zarr's own comparison of the whole chunk."""
+    from zarr.core.buffer import default_buffer_prototype
+
+    from straylight.survey.storage import _all_fill
+
+    values = np.array(chunk, dtype=dtype)
+    want = bool(default_buffer_prototype().nd_buffer.from_numpy_array(values).all_equal(fill))
+    assert _all_fill(values, fill) == want
