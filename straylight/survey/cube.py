@@ -575,10 +575,10 @@ def _pool_init_from_config(config: dict, config_path: str, store: str, stars_pat
                            lim_store=None) -> None:
     """Pool worker start-up for workers started before the job has loaded its campaign
     (:func:`straylight.survey.workers.start_region_workers`): the campaign from the job's
-    config, the footprint from the store's skeleton (:func:`~straylight.survey.footprint.footprint_from_store`),
-    then :func:`_pool_init`, then one sample computed so that every part of
-    the model is built (the tables read, the star cells listed, the compiled kernels loaded)
-    before the first region arrives."""
+    config, the footprint from the store's skeleton
+    (:func:`~straylight.survey.footprint.footprint_from_store`), then :func:`_pool_init`, then
+    one sample computed so that every part of the model is built (the tables read, the star
+    cells listed, the compiled kernels loaded) before the first region arrives."""
     from straylight.config import campaign_from_dict
     from straylight.survey.footprint import footprint_from_store
 

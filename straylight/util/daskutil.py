@@ -1,4 +1,5 @@
-"""Worker processes: their environment (threads, malloc settings) and a pool of spawned ones.
+"""Worker processes: their environment (threads, malloc settings), a pool of spawned ones, and
+ending a process without the interpreter's teardown.
 The cube's region pool built on them (or on an existing Dask cluster, ``compute.dask_scheduler``) is
 :func:`straylight.survey.cube.region_pool`."""
 from __future__ import annotations
