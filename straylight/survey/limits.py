@@ -14,7 +14,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from straylight.optics.bandpass import load_band
 from straylight.config import Campaign
 from straylight.util.daskutil import dask_rechunk_by_tasks
 
@@ -42,6 +41,9 @@ class SurveyExposure:
 
 
 def survey_exposure(campaign: Campaign, band_name: str) -> SurveyExposure:
+    # bandpass (scipy's erf) where it is used: the workflow's parse imports this module
+    from straylight.optics.bandpass import load_band
+
     inst = campaign.instrument
     b = inst["bands"][band_name]
     r80 = campaign.instrument_value("detector", "ee80_radius_arcsec") / campaign.pixel_scale_arcsec
@@ -60,6 +62,7 @@ def sky_zero_points(campaign: Campaign, bands=None) -> dict:
     """Each band's AB surface-brightness zero point, mag/arcsec2 at 1 e-/s/pixel (see
     :func:`straylight.sources.photometry.sky_zero_point_mag_per_arcsec2`): the instrument's throughput,
     aperture and pixel scale, nothing else."""
+    from straylight.optics.bandpass import load_band
     from straylight.sources.photometry import sky_zero_point_mag_per_arcsec2
 
     d = campaign.instrument_value("telescope", "aperture_diameter_m")
