@@ -55,9 +55,9 @@ def _campaign(tmp):
 
 def _site_env(env):
     """The profile's site settings for this one 2-CPU node (as a site sets them): the local
-    partition, no account, 2 cores per background job, as many as the local run gives them.  (The
-    cores matter: Snakemake sets OPENBLAS_NUM_THREADS to a job's threads, and the faint-star map's
-    matrix products sum in a thread-dependent order, so with 1 core it differs in the last bit.)"""
+    partition, no account, 2 cores per background job, as many as the local run gives them (the
+    products do not depend on it: each region, and each pixel's faint-star sum, is computed on
+    its own, in a fixed order)."""
     return {**env, "STRAYLIGHT_SLURM_PARTITION": env["SLURM_LOCAL_PARTITION"], "STRAYLIGHT_SLURM_ACCOUNT": "",
             "STRAYLIGHT_SLURM_CPUS": "2"}
 
