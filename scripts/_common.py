@@ -10,7 +10,35 @@ def setup_logging(snakemake) -> logging.Logger:
         handlers.append(logging.FileHandler(log_path, mode="w"))
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s", handlers=handlers, force=True)
     logging.getLogger("healpy").setLevel(logging.WARNING)  # read_map reports a mask's header at INFO
-    return logging.getLogger(f"straylight.{snakemake.rule}")
+    log = logging.getLogger(f"straylight.{snakemake.rule}")
+    sys.excepthook = _job_error_hook(log)
+    return log
+
+
+def _job_error_hook(log):
+    """The job's handler of an uncaught exception: a user's mistake (StraylightError) or the file
+    system's refusal of a named file (OSError: no space, no permission) logged as one line
+    ("error: ..."), exit status 2, as the CLI does; the files being written are temporary ones
+    (util.io.atomic_path), so every finished product is kept.  Anything else is a bug and keeps
+    its traceback."""
+
+    def hook(exc_type, exc, tb):
+        from straylight.errors import StraylightError
+
+        if isinstance(exc, StraylightError):
+            line = str(exc)
+        elif isinstance(exc, OSError) and exc.filename is not None:
+            line = (f"{exc.filename}: {exc.strerror or exc}; the products finished so far are kept: free space "
+                    "(or fix the access) and re-run")
+        else:
+            sys.__excepthook__(exc_type, exc, tb)
+            return
+        log.error("error: %s", line)
+        from straylight.util.daskutil import exit_without_teardown
+
+        exit_without_teardown(2)
+
+    return hook
 
 
 def campaign(snakemake):

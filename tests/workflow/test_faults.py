@@ -72,3 +72,34 @@ def test_disk_full_during_a_zarr_write_then_rerun(small, tmp_path, monkeypatch, 
     run_time_blocks(c, fp, store, [0, 1], done)  # block 0 skipped (its sentinel), block 1 redone
     assert not partial.exists()
     assert sha256_path(store) == ref_digest
+
+
+def test_job_script_reports_a_full_disk_in_one_line(tmp_path):
+    """A job script's uncaught OSError naming a file (here ENOSPC) or StraylightError: one line
+    "error: ..." on stderr and in the rule's log, exit status 2, no traceback
+    (scripts/_common.setup_logging's hook); any other exception keeps its traceback."""
+    import subprocess
+    import sys
+
+    from conftest import REPO
+
+    def job(raise_line):
+        log = tmp_path / "rule.log"
+        code = ("import errno, sys, types\n"
+                f"sys.path.insert(0, {str(REPO / 'scripts')!r})\n"
+                "from _common import setup_logging\n"
+                f"log = setup_logging(types.SimpleNamespace(log=[{str(log)!r}], rule='report_front'))\n"
+                "log.info('started')\n"
+                f"{raise_line}\n")
+        r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+        return r, log.read_text()
+
+    r, log = job("raise OSError(errno.ENOSPC, 'No space left on device', '/results/x/summary.rst.tmp')")
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    errors = [ln for ln in r.stderr.splitlines() if "error:" in ln]
+    assert len(errors) == 1 and "/results/x/summary.rst.tmp: No space left on device" in errors[0]
+    assert errors[0].split("straylight.report_front ", 1)[1] in log
+    r, _ = job("from straylight.errors import InputError; raise InputError('gaia_0.csv.gz: row 3: ra = nan')")
+    assert r.returncode == 2 and "Traceback" not in r.stderr and "error: gaia_0.csv.gz: row 3: ra = nan" in r.stderr
+    r, _ = job("raise ValueError('a bug')")
+    assert r.returncode == 1 and "Traceback" in r.stderr and "ValueError: a bug" in r.stderr
