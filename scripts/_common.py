@@ -4,6 +4,11 @@ import sys
 
 
 def setup_logging(snakemake) -> logging.Logger:
+    """The rule's logger (its log file and stderr), with the job's error hook; also the job's
+    healpy, without plotting functions (straylight.util.healpix)."""
+    from straylight.util.healpix import load_without_plotting
+
+    load_without_plotting()
     log_path = snakemake.log[0] if snakemake.log else None
     handlers = [logging.StreamHandler(sys.stderr)]
     if log_path:
@@ -17,17 +22,20 @@ def setup_logging(snakemake) -> logging.Logger:
 
 def _job_error_hook(log):
     """The job's handler of an uncaught exception: a user's mistake (StraylightError) or the file
-    system's refusal of a named file (OSError: no space, no permission) logged as one line
-    ("error: ..."), exit status 2, as the CLI does; the files being written are temporary ones
-    (util.io.atomic_path), so every finished product is kept.  Anything else is a bug and keeps
-    its traceback."""
+    system's refusal of a named file (OSError: no space, over quota, no permission, read-only)
+    logged as one line ("error: ..."), exit status 2, as the CLI does; the files being written
+    are temporary ones (util.io.atomic_path), so every finished product is kept.  Anything else
+    (a missing file is a wrong path: a bug) keeps its traceback."""
+    import errno
+
+    refusals = {errno.ENOSPC, errno.EDQUOT, errno.EACCES, errno.EPERM, errno.EROFS}
 
     def hook(exc_type, exc, tb):
         from straylight.errors import StraylightError
 
         if isinstance(exc, StraylightError):
             line = str(exc)
-        elif isinstance(exc, OSError) and exc.filename is not None:
+        elif isinstance(exc, OSError) and exc.filename is not None and exc.errno in refusals:
             line = (f"{exc.filename}: {exc.strerror or exc}; the products finished so far are kept: free space "
                     "(or fix the access) and re-run")
         else:

@@ -581,9 +581,11 @@ def _pool_init_from_config(config: dict, config_path: str, store: str, stars_pat
     cells listed, the compiled kernels loaded) before the first region arrives."""
     from straylight.config import campaign_from_dict
     from straylight.survey.footprint import footprint_from_store
+    from straylight.util.healpix import load_without_plotting
 
+    load_without_plotting()  # the star cells' healpy: a worker draws nothing
     campaign = campaign_from_dict(dict(config), config_path)
-    fp = footprint_from_store(store)  # the skeleton's: no healpy, no astropy frames
+    fp = footprint_from_store(store)  # the skeleton's coordinates: no astropy frames, no cuts again
     _pool_init(campaign, fp, store, stars_path, obs_store, lim_store)
     # (the faint stars' map comes with each region: zeros here)
     region_values(campaign, fp, slice(0, 1), slice(0, 1), stars_path=stars_path,

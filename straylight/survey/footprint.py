@@ -54,8 +54,8 @@ def pixel_block_length(n_pixels: int, block_size: int) -> int:
 
 
 def pixel_centres(nside: int, nest: bool, pixels=None) -> tuple[np.ndarray, np.ndarray]:
-    # healpy where it is used (its import, with matplotlib's, ~0.3 s): a worker that receives a
-    # footprint, and the jobs that only read one, do without it
+    # healpy where it is used (its import takes ~0.45-0.8 s): the jobs that read a footprint
+    # from a store (footprint_from_store) do without it
     from straylight.util.healpix import healpy
 
     hp = healpy()
@@ -84,7 +84,8 @@ def latitude_cut_mask(nside: int, nest: bool, galactic_min_deg: float, ecliptic_
 
 
 def read_mask(path: str | Path, nside: int, nest: bool) -> np.ndarray:
-    """A user's HEALPix FITS mask, resampled to ``nside``/ordering; non-zero = in footprint."""
+    """A HEALPix FITS mask (a user's, or the footprint rule's footprint.fits), resampled to
+    ``nside``/ordering; non-zero = in footprint."""
     from straylight.util.healpix import healpy
 
     hp = healpy()

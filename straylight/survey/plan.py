@@ -65,8 +65,8 @@ PRODUCT_BYTES_PER_SAMPLE = 25.0
 #: compute.pipeline_samples_per_s_per_core nor bench/results/pipeline.json gives one:
 #: bench/pipeline.py on one month of config/cycle.yaml (nside 64, 5-minute cadence, 183,081,600
 #: samples; the run that computes the footprint's faint-star map) on the 2-core development
-#: machine.  Per-run costs (job start-up, the faint-star map,
-#: figures) weigh more in smaller campaigns (docs/performance.md gives both figures).
+#: machine.  Per-run costs (job start-up, the faint-star map, figures) weigh more in smaller
+#: campaigns (docs/performance.md gives both figures).
 PIPELINE_SAMPLES_PER_S_PER_CORE = 617_175.0
 #: where bench/pipeline.py writes its figures
 PIPELINE_BENCH_RESULTS = Path(__file__).resolve().parents[2] / "bench" / "results" / "pipeline.json"

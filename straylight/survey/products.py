@@ -121,12 +121,13 @@ def observability_dataset(campaign: Campaign, ephem: xr.Dataset, fp: Footprint, 
     bodies_all = {b: ephem["body_position_km"].sel(body=b).values for b in ("sun", "moon")}
     los_all = radec_to_unit(fp.ra_deg, fp.dec_deg)
 
+    floats = ("sun_angle_deg", "moon_angle_deg", "earth_limb_angle_deg", "door_opening_deg")  # float32, deg
+
     def geometry(ts: slice, ps: slice) -> dict:
         g = observing_geometry(sat_all[ts, None, :], {b: v[ts, None, :] for b, v in bodies_all.items()},
                                los_all[None, ps, :], campaign.earth.radius_km, campaign.constraints)
         return {"observable": g["observable"], "violations": g["violations"],
-                **{k: g[k].astype(np.float32) for k in ("sun_angle_deg", "moon_angle_deg", "earth_limb_angle_deg",
-                                                        "door_opening_deg")}}
+                **{k: g[k].astype(np.float32) for k in floats}}
 
     if chunks is None:
         g = geometry(slice(None), slice(None))
@@ -137,8 +138,7 @@ def observability_dataset(campaign: Campaign, ephem: xr.Dataset, fp: Footprint, 
         nt, npix = sat_all.shape[0], los_all.shape[0]
         # geometry()'s dtypes, declared: a skeleton (background_init) computes no sample
         dtypes = {"observable": np.dtype(bool), "violations": np.dtype(np.uint8),
-                  **{k: np.dtype(np.float32) for k in ("sun_angle_deg", "moon_angle_deg", "earth_limb_angle_deg",
-                                                        "door_opening_deg")}}
+                  **{k: np.dtype(np.float32) for k in floats}}
         t_edges = list(range(0, nt, int(chunks["time"]))) + [nt]
         p_edges = list(range(0, npix, int(chunks["pixel"]))) + [npix]
         # one graph built directly: a geometry task per chunk (its key from one token of the

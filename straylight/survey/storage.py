@@ -362,7 +362,7 @@ def _all_fill(values: np.ndarray, fill_value) -> bool:
     if values.size == 0:
         return True
     # the first value decides most chunks at once, compared here as zarr compares (a whole
-    # chunk's comparison costs ~0.1 ms, one value's through zarr's buffer ~0.05)
+    # chunk's comparison costs ~0.1 ms, one value's through zarr's buffer ~0.05 ms)
     first = values.reshape(-1)[0]
     fill = np.asarray(fill_value, dtype=values.dtype)
     if values.dtype.kind in "fc" and np.isnan(first) and np.isnan(fill):

@@ -1,30 +1,48 @@
-"""healpy for the pixel functions, without its plotting functions where nothing has drawn yet.
+"""healpy for the pixel functions, without its plotting functions in a pipeline process.
 
 healpy imports its plotting functions (``healpy.visufunc``: matplotlib's axes and fonts) only
-when ``import matplotlib`` succeeds.  A process that computes (the footprint, the cube's workers,
-the limits' FITS maps, the workflow's own parse) needs none of them, and importing them costs
-~0.35 s of the ~0.8 s that ``import healpy`` takes on the development machine.  The figures
-import ``healpy.visufunc`` or ``healpy.projaxes`` by name, which works either way.
+when ``import matplotlib`` succeeds.  A pipeline job or worker that computes (the footprint, the
+cube's workers, the limits' FITS maps, the workflow's own parse) needs none of them, and
+importing them costs ~0.35 s of the ~0.8 s ``import healpy`` takes on the development machine.
+Such a process opts in with :func:`load_without_plotting` at its start; everywhere else (the
+Python API, a notebook) :func:`healpy` is ``import healpy``.  The figures import
+``healpy.visufunc`` or ``healpy.projaxes`` by name, which works either way.
 """
 from __future__ import annotations
 
 import sys
+import threading
+
+_PLOTLESS = {"asked": False}
+_LOCK = threading.Lock()
+
+
+def load_without_plotting() -> None:
+    """Have :func:`healpy` load healpy without its plotting functions in this process: a
+    pipeline job or worker, called at its start (before anything imports healpy).  A process
+    that has loaded healpy or matplotlib already keeps them as they are."""
+    _PLOTLESS["asked"] = True
 
 
 def healpy():
-    """The healpy module: imported here, if no process code has imported it yet, with
-    matplotlib hidden from it unless matplotlib is already loaded (then healpy comes whole, as
-    ``import healpy`` gives it).  Its pixel functions are the same either way; only
-    ``healpy.mollview`` and the other plotting names may be missing from its namespace."""
-    if "healpy" in sys.modules:
-        return sys.modules["healpy"]
-    if "matplotlib" in sys.modules:
-        import healpy as hp
+    """The healpy module.  In a process that asked for it (:func:`load_without_plotting`) and
+    has not loaded healpy or matplotlib yet, healpy is imported with matplotlib hidden from it:
+    the same pixel functions, without ``healpy.mollview`` and the other plotting names in its
+    namespace.  Thread-safe (a Dask worker's threads may ask at once)."""
+    with _LOCK:
+        if not _PLOTLESS["asked"] or "healpy" in sys.modules or "matplotlib" in sys.modules:
+            import healpy as hp
 
+            return hp
+        # astropy's modules that note at import whether matplotlib is installed, loaded first
+        # with matplotlib visible (astropy.time's plot_date format); healpy loads them anyway
+        import astropy.coordinates  # noqa: F401
+        import astropy.io.fits  # noqa: F401
+        import astropy.time  # noqa: F401
+
+        sys.modules["matplotlib"] = None  # `import matplotlib` raises ImportError while healpy loads
+        try:
+            import healpy as hp
+        finally:
+            del sys.modules["matplotlib"]
         return hp
-    sys.modules["matplotlib"] = None  # `import matplotlib` raises ImportError while healpy loads
-    try:
-        import healpy as hp
-    finally:
-        del sys.modules["matplotlib"]
-    return hp

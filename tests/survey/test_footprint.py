@@ -66,16 +66,20 @@ def test_pixel_blocks_are_equal_and_never_a_sliver():
 
 
 def test_healpy_without_its_plotting_functions_gives_the_same_pixels():
-    """straylight.util.healpix imports healpy without matplotlib in a process that has not drawn
-    (a cube worker, the footprint): the same pix2ang as healpy whole, no matplotlib loaded, and
-    the plotting module still importable by name afterwards."""
+    """straylight.util.healpix: a pipeline process that asks (load_without_plotting) gets healpy
+    without matplotlib: the same pix2ang as healpy whole, matplotlib not loaded, astropy.time
+    still noting matplotlib as installed, and the plotting module importable by name afterwards.
+    A process that does not ask (the Python API) gets healpy whole."""
     import subprocess
     import sys
 
     code = ("import sys, numpy as np\n"
-            "from straylight.util.healpix import healpy\n"
+            "from straylight.util.healpix import healpy, load_without_plotting\n"
+            "load_without_plotting()\n"
             "hp = healpy()\n"
-            "assert 'matplotlib' not in sys.modules\n"
+            "assert 'matplotlib' not in sys.modules and not hasattr(hp, 'mollview')\n"
+            "import astropy.time.formats as f\n"
+            "assert f.HAS_MATPLOTLIB\n"
             "ra, dec = hp.pix2ang(32, np.arange(12 * 32**2), lonlat=True)\n"
             "from healpy import visufunc\n"
             "assert callable(visufunc.mollview) and 'matplotlib' in sys.modules\n"
@@ -84,3 +88,7 @@ def test_healpy_without_its_plotting_functions_gives_the_same_pixels():
     assert r.returncode == 0, r.stderr[-2000:]
     ra, dec = hp.pix2ang(32, np.arange(12 * 32**2), lonlat=True)  # healpy whole (matplotlib loaded here)
     assert r.stdout.split() == [repr(ra.tobytes().hex()[:64]), repr(float(ra.sum())), repr(float(dec.sum()))]
+    whole = ("from straylight.util.healpix import healpy\n"
+             "assert callable(healpy().mollview)\n")
+    r = subprocess.run([sys.executable, "-c", whole], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr[-2000:]

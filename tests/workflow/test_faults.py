@@ -75,9 +75,10 @@ def test_disk_full_during_a_zarr_write_then_rerun(small, tmp_path, monkeypatch, 
 
 
 def test_job_script_reports_a_full_disk_in_one_line(tmp_path):
-    """A job script's uncaught OSError naming a file (here ENOSPC) or StraylightError: one line
-    "error: ..." on stderr and in the rule's log, exit status 2, no traceback
-    (scripts/_common.setup_logging's hook); any other exception keeps its traceback."""
+    """A job script's uncaught StraylightError, or OSError refusing a named file (here ENOSPC):
+    one line "error: ..." on stderr and in the rule's log, exit status 2, no traceback
+    (scripts/_common.setup_logging's hook); any other exception (a bug, a wrong path) keeps its
+    traceback."""
     import subprocess
     import sys
 
@@ -103,3 +104,5 @@ def test_job_script_reports_a_full_disk_in_one_line(tmp_path):
     assert r.returncode == 2 and "Traceback" not in r.stderr and "error: gaia_0.csv.gz: row 3: ra = nan" in r.stderr
     r, _ = job("raise ValueError('a bug')")
     assert r.returncode == 1 and "Traceback" in r.stderr and "ValueError: a bug" in r.stderr
+    r, _ = job("open('/nonexistent/folder/file.png')")  # a wrong path is a bug, not the disk's refusal
+    assert r.returncode == 1 and "Traceback" in r.stderr and "FileNotFoundError" in r.stderr

@@ -8,6 +8,9 @@ from straylight.config import resolve_config_files as _resolve_config_files
 from straylight.survey.footprint import footprint_from_config as _footprint_from_config
 from straylight.survey.limits import summary_processes as _summary_processes
 from straylight.survey.timegrid import time_blocks as _time_blocks
+from straylight.util.healpix import load_without_plotting as _load_healpy_without_plotting
+
+_load_healpy_without_plotting()  # the parse's footprint needs healpy's pixel functions only
 
 # Snakemake lists the workflow's own configfile after the command line's --configfile ones,
 # but merges the latter over it: the files in increasing precedence.
