@@ -13,7 +13,7 @@ from __future__ import annotations
 import sys
 import threading
 
-_PLOTLESS = {"asked": False}
+_PLOTLESS = False  # set by load_without_plotting
 _LOCK = threading.Lock()
 
 
@@ -21,7 +21,8 @@ def load_without_plotting() -> None:
     """Have :func:`healpy` load healpy without its plotting functions in this process: a
     pipeline job or worker, called at its start (before anything imports healpy).  A process
     that has loaded healpy or matplotlib already keeps them as they are."""
-    _PLOTLESS["asked"] = True
+    global _PLOTLESS
+    _PLOTLESS = True
 
 
 def healpy():
@@ -30,7 +31,7 @@ def healpy():
     the same pixel functions, without ``healpy.mollview`` and the other plotting names in its
     namespace.  Thread-safe (a Dask worker's threads may ask at once)."""
     with _LOCK:
-        if not _PLOTLESS["asked"] or "healpy" in sys.modules or "matplotlib" in sys.modules:
+        if not _PLOTLESS or "healpy" in sys.modules or "matplotlib" in sys.modules:
             import healpy as hp
 
             return hp
