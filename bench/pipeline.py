@@ -176,7 +176,7 @@ def run_campaign(days: float, nside: int, cadence_s: float, cores: int, keep: Pa
         cfg_path.write_text(yaml.safe_dump(cfg))
         table_s = build_tables(cfg_path, cores)
         snakemake = str(Path(sys.executable).with_name("snakemake"))
-        cmd = [snakemake, "-s", str(REPO / "Snakefile"), "-d", str(tmp), "--configfile", str(cfg_path),
+        cmd = [snakemake, "-s", str(REPO / "workflow" / "Snakefile"), "-d", str(tmp), "--configfile", str(cfg_path),
                "--cores", str(cores)]
         load_before = os.getloadavg()
         cpu_before = resource.getrusage(resource.RUSAGE_CHILDREN)

@@ -131,7 +131,7 @@ def test_stars_rules_ingest_real_files_in_parallel_jobs(tmp_path):
                   "g_limit_mag": 21.0}
     cfg.write_text(yaml.safe_dump(c))
     snakemake = str(Path(sys.executable).with_name("snakemake"))
-    r = subprocess.run([snakemake, "-s", str(REPO / "Snakefile"), "-d", str(tmp_path), "--configfile", str(cfg),
+    r = subprocess.run([snakemake, "-s", str(REPO / "workflow" / "Snakefile"), "-d", str(tmp_path), "--configfile", str(cfg),
                         "--cores", "2", "results/stars/stars_gaia.parquet"], capture_output=True, text=True,
                        timeout=600, env={**os.environ, "PATH": f"{Path(sys.executable).parent}:{os.environ['PATH']}"})
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]

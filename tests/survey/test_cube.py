@@ -28,7 +28,7 @@ def _config(tmp, name="cube", **compute):
 
 
 def _run(tmp, cfg, *extra):
-    r = subprocess.run([SNAKEMAKE, "-s", str(REPO / "Snakefile"), "-d", str(tmp), "--configfile", str(cfg),
+    r = subprocess.run([SNAKEMAKE, "-s", str(REPO / "workflow" / "Snakefile"), "-d", str(tmp), "--configfile", str(cfg),
                         "--cores", "2", *extra], capture_output=True, text=True, timeout=900,
                        env={**os.environ, "PATH": f"{BIN}:{os.environ['PATH']}"})
     return r
@@ -470,7 +470,7 @@ def test_kill_9_at_random_moments_then_resume_is_bit_identical(tmp_path, cube_ru
 
     cfg = _config(tmp_path, name="cube")
     env = {**os.environ, "PATH": f"{BIN}:{os.environ['PATH']}"}
-    base = [SNAKEMAKE, "-s", str(REPO / "Snakefile"), "-d", str(tmp_path), "--configfile", str(cfg)]
+    base = [SNAKEMAKE, "-s", str(REPO / "workflow" / "Snakefile"), "-d", str(tmp_path), "--configfile", str(cfg)]
     # the products compared below (the sky maps, time series and scheduling tables are left out to save time)
     # the target after a fixed-arity option: --configfile and -q would swallow it
     cmd = base + ["--cores", "2", "results/cube/provenance.json", "--rerun-incomplete", "-q"]

@@ -87,7 +87,7 @@ def test_job_script_reports_a_full_disk_in_one_line(tmp_path):
     def job(raise_line):
         log = tmp_path / "rule.log"
         code = ("import errno, sys, types\n"
-                f"sys.path.insert(0, {str(REPO / 'scripts')!r})\n"
+                f"sys.path.insert(0, {str(REPO / 'workflow' / 'scripts')!r})\n"
                 "from _common import setup_logging\n"
                 f"log = setup_logging(types.SimpleNamespace(log=[{str(log)!r}], rule='report_front'))\n"
                 "log.info('started')\n"

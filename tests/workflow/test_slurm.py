@@ -74,7 +74,7 @@ LOCAL_CLUSTER_ARGS = ("--slurm-status-command", "squeue", "--slurm-init-seconds-
 
 def _command(workdir, cfg, *args):
     # the target first: options taking several values (--groups, --configfile) would swallow it
-    return [SNAKEMAKE, TARGET, "-s", str(REPO / "Snakefile"), "-d", str(workdir), "--configfile", str(cfg), *args]
+    return [SNAKEMAKE, TARGET, "-s", str(REPO / "workflow" / "Snakefile"), "-d", str(workdir), "--configfile", str(cfg), *args]
 
 
 def test_profile_takes_site_settings_from_the_environment(monkeypatch):

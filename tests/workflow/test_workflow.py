@@ -37,7 +37,7 @@ def tiny_config(tmp_path, **campaign):
 
 def test_snakemake_validate_refuses_bad_config(tmp_path):
     p = tiny_config(tmp_path, cadence_s=-5)
-    r = snakemake("-s", str(REPO / "Snakefile"), "-d", str(tmp_path), "--configfile", str(p), "-n")
+    r = snakemake("-s", str(REPO / "workflow" / "Snakefile"), "-d", str(tmp_path), "--configfile", str(p), "-n")
     assert r.returncode != 0
     assert "cadence_s" in r.stdout + r.stderr
 
@@ -46,7 +46,7 @@ def test_snakemake_validate_refuses_bad_config(tmp_path):
 def tiny_run(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("wf")
     p = tiny_config(tmp)
-    r = snakemake("-s", str(REPO / "Snakefile"), "-d", str(tmp), "--configfile", str(p), "--cores", "2")
+    r = snakemake("-s", str(REPO / "workflow" / "Snakefile"), "-d", str(tmp), "--configfile", str(p), "--cores", "2")
     assert r.returncode == 0, r.stdout + r.stderr
     return tmp / "results" / "tiny", p
 
@@ -84,7 +84,7 @@ def test_cube_value_equals_sky_command(tiny_run):
 
 def test_rerun_does_nothing(tiny_run):
     out, cfg = tiny_run
-    r = snakemake("-s", str(REPO / "Snakefile"), "-d", str(out.parent.parent), "--configfile", str(cfg), "-n")
+    r = snakemake("-s", str(REPO / "workflow" / "Snakefile"), "-d", str(out.parent.parent), "--configfile", str(cfg), "-n")
     assert r.returncode == 0
     assert "Nothing to be done" in r.stdout + r.stderr
 
@@ -144,7 +144,7 @@ def test_configfile_in_another_folder_runs(tmp_path):
     import healpy as hp
 
     p = _campaign_in_another_folder(tmp_path)
-    r = snakemake("-s", str(REPO / "Snakefile"), "-d", str(tmp_path), "--configfile", str(p), "--cores", "2",
+    r = snakemake("-s", str(REPO / "workflow" / "Snakefile"), "-d", str(tmp_path), "--configfile", str(p), "--cores", "2",
                   "results/tiny/footprint.fits")
     assert r.returncode == 0, r.stdout + r.stderr
     m = hp.read_map(tmp_path / "results" / "tiny" / "footprint.fits")

@@ -24,7 +24,7 @@ rule background_init:
     log:
         f"{LOGS}/background_init.log",
     script:
-        "../../scripts/background_init.py"
+        "../scripts/background_init.py"
 
 
 rule background_blocks:
@@ -54,7 +54,7 @@ rule background_blocks:
     log:
         f"{LOGS}/background_blocks_{{part}}.log",
     script:
-        "../../scripts/background_blocks.py"
+        "../scripts/background_blocks.py"
 
 
 rule background:
@@ -74,4 +74,4 @@ rule background:
     log:
         f"{LOGS}/background.log",
     script:
-        "../../scripts/background_finalize.py"
+        "../scripts/background_finalize.py"

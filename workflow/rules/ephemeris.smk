@@ -9,4 +9,4 @@ rule ephemeris:
     log:
         f"{LOGS}/ephemeris.log",
     script:
-        "../../scripts/ephemeris.py"
+        "../scripts/ephemeris.py"

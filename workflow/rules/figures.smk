@@ -15,7 +15,7 @@ rule sky_maps:
     log:
         f"{LOGS}/sky_maps.log",
     script:
-        "../../scripts/figures.py"
+        "../scripts/figures.py"
 
 
 rule time_series:
@@ -35,7 +35,7 @@ rule time_series:
     log:
         f"{LOGS}/time_series.log",
     script:
-        "../../scripts/figures.py"
+        "../scripts/figures.py"
 
 
 # a few milliseconds of work: on a cluster, not worth a job of its own
@@ -58,7 +58,7 @@ rule report_front:
     log:
         f"{LOGS}/report_front.log",
     script:
-        "../../scripts/report_front.py"
+        "../scripts/report_front.py"
 
 
 rule bench_charts:

@@ -10,4 +10,4 @@ rule footprint:
     log:
         f"{LOGS}/footprint.log",
     script:
-        "../../scripts/footprint.py"
+        "../scripts/footprint.py"

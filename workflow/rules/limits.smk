@@ -21,7 +21,7 @@ rule limits:
     log:
         f"{LOGS}/limits.log",
     script:
-        "../../scripts/limits.py"
+        "../scripts/limits.py"
 
 
 rule provenance:
@@ -44,4 +44,4 @@ rule provenance:
     log:
         f"{LOGS}/provenance.log",
     script:
-        "../../scripts/provenance.py"
+        "../scripts/provenance.py"

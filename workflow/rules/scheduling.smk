@@ -13,4 +13,4 @@ rule scheduling:
     log:
         f"{LOGS}/scheduling.log",
     script:
-        "../../scripts/scheduling.py"
+        "../scripts/scheduling.py"

@@ -18,7 +18,7 @@ rule stars_ingest:
     log:
         f"{LOGS}/stars_ingest_{{index}}.log",
     script:
-        "../../scripts/stars_ingest.py"
+        "../scripts/stars_ingest.py"
 
 
 rule stars_gaia:
@@ -34,7 +34,7 @@ rule stars_gaia:
     log:
         f"{LOGS}/stars_gaia.log",
     script:
-        "../../scripts/stars_merge.py"
+        "../scripts/stars_merge.py"
 
 
 rule stars_catalog:
@@ -51,4 +51,4 @@ rule stars_catalog:
     log:
         f"{LOGS}/stars_catalog.log",
     script:
-        "../../scripts/stars_catalog.py"
+        "../scripts/stars_catalog.py"
