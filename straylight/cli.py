@@ -643,6 +643,12 @@ def cmd_config_doc(args) -> int:
     return 0
 
 
+def cmd_run(args) -> int:
+    from straylight.runner import run_campaign
+
+    return run_campaign(args.config, args.cores, args.snakemake_args)
+
+
 def build_parser() -> argparse.ArgumentParser:
     from straylight import __version__
 
@@ -790,12 +796,23 @@ def build_parser() -> argparse.ArgumentParser:
     f = sub.add_parser("footprint", help="print the survey footprint of a campaign")
     f.add_argument("--config", default=None, help="campaign config (default: config/config.yaml)")
     f.set_defaults(func=cmd_footprint)
+
+    # arguments it does not know go to Snakemake (main: parse_known_args)
+    ru = sub.add_parser("run", help="run a campaign (the packaged workflow through Snakemake) in the current directory",
+                        usage="straylight run CONFIG [--cores N] [Snakemake arguments: -n, --report report.html ...]")
+    ru.add_argument("config", metavar="CONFIG", help="campaign config; products go to ./results/<campaign name>/")
+    ru.add_argument("--cores", type=int, default=None,
+                    help="cores Snakemake may use (default: every CPU this process may run on)")
+    ru.set_defaults(func=cmd_run, snakemake_args=[])
     return p
 
 
 def main(argv=None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, extra = parser.parse_known_args(argv)
+    if extra and args.func is not cmd_run:
+        parser.error(f"unrecognized arguments: {' '.join(extra)}")
+    args.snakemake_args = extra
     try:
         return args.func(args)
     except StraylightError as exc:

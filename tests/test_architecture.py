@@ -15,6 +15,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "straylight"
 #: the layers, lowest first: a sub-package (or top-level module) may import the packages of
 #: earlier layers only.  "straylight" is the package's own ``__init__`` (the public facade).
 LAYERS = (
+    ("_scm_version",),
     ("errors", "_version"),
     ("util",),
     ("sky",),
@@ -26,7 +27,7 @@ LAYERS = (
     ("survey", "image"),
     ("paper",),
     ("api",),
-    ("plots", "configdoc"),
+    ("plots", "configdoc", "runner"),
     ("straylight",),
     ("cli",),
 )

@@ -24,8 +24,22 @@ rule limits:
         "../scripts/limits.py"
 
 
+import sys
+
+from straylight.survey.provenance import snakemake_run as _snakemake_run
+
+try:
+    _RUN_CORES = workflow.cores
+except WorkflowError:  # no --cores: a cluster run, whose jobs have their own
+    _RUN_CORES = None
+#: the command line and cores provenance.json records: Snakemake's main process's, also in the
+#: jobs a cluster executor starts (passed on through the environment)
+PROVENANCE_RUN = _snakemake_run(sys.argv, _RUN_CORES, workflow.is_main_process)
+
+
 rule provenance:
-    """Config, software versions, input and output checksums of the campaign."""
+    """Config, software versions, the code's commit, the run's command line and cores, input and
+    output checksums of the campaign."""
     input:
         config=CONFIG_PATH,
         limits=f"{RESULTS}/limits.zarr",
@@ -39,6 +53,8 @@ rule provenance:
         report(f"{RESULTS}/provenance.json", caption="../report/provenance.rst", category="Provenance"),
     params:
         store=f"{RESULTS}/background.zarr",
+        # a RunInfo: not compared with the last run's params (a resumed or dry run keeps the record)
+        run=PROVENANCE_RUN,
     conda:
         "../envs/straylight.yaml"
     log:

@@ -1,4 +1,4 @@
-"""Snakemake adapter: rule `provenance` -> provenance.json (config, versions, checksums)."""
+"""Snakemake adapter: rule `provenance` -> provenance.json (config, code, run, checksums)."""
 import sys
 from pathlib import Path
 
@@ -19,8 +19,12 @@ outputs = {
     "stars_csst.parquet": snakemake.input.stars,  # noqa: F821
     "observability.zarr": snakemake.input.observability,  # noqa: F821
 }
-rec = provenance_record(c, {}, outputs)
+# paths relative to the results folder (provenance.json's), the workflow's as straylight:workflow/...
+rec = provenance_record(c, {}, outputs, results=Path(snakemake.output[0]).parent,  # noqa: F821
+                        run=snakemake.params.run, workflow_dir=Path(snakemake.scriptdir).parent)  # noqa: F821
 write_json_atomic(rec, snakemake.output[0])  # noqa: F821
+log.info("code %s (%s %s%s); run: %s", rec["source"]["version"], rec["source"]["from"], rec["source"]["commit"],
+         ", uncommitted changes" if rec["source"]["dirty"] else "", " ".join(rec["run"]["command"]))
 for k, v in rec["outputs_sha256"].items():
     log.info("%-16s sha256 %s", k, v)
 end_job()

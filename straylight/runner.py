@@ -1,0 +1,82 @@
+"""``straylight run CONFIG``: a campaign through Snakemake, from a checkout or an install.
+
+The workflow is the checkout's ``workflow/`` when straylight runs from one (where Snakemake's
+own command line uses the same files), else the copy an installed package carries as
+``straylight/_workflow`` (pyproject.toml maps ``workflow/`` to that package).  The run's folder is
+the current directory: the products go to ``./results/<campaign name>/``, Snakemake's state to
+``./.snakemake/``, as a ``snakemake`` started there does.
+"""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+from straylight.errors import InputError
+
+_CHECKOUT_WORKFLOW = Path(__file__).resolve().parents[1] / "workflow"
+_PACKAGED_WORKFLOW = Path(__file__).resolve().parent / "_workflow"
+
+
+def workflow_dir() -> Path:
+    """The folder of the Snakefile: the checkout's ``workflow/``, else the packaged copy."""
+    if (_CHECKOUT_WORKFLOW / "Snakefile").is_file():
+        return _CHECKOUT_WORKFLOW
+    return _PACKAGED_WORKFLOW
+
+
+def available_cores() -> int:
+    """The CPUs this process may run on (its affinity: a cluster job's or taskset's share)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):  # no affinity on this platform
+        return os.cpu_count() or 1
+
+
+def snakemake_command(config, cores: int | None = None, extra=(), workdir=None) -> list[str]:
+    """The Snakemake command that runs the campaign ``config`` in ``workdir`` (default: the
+    current directory), resuming what a killed run left unfinished; ``extra`` arguments go to
+    Snakemake as they are (``-n``, ``--report report.html``, ...)."""
+    workdir = Path(workdir) if workdir is not None else Path.cwd()
+    cores = available_cores() if cores is None else cores
+    return [sys.executable, "-m", "snakemake", "-s", str(workflow_dir() / "Snakefile"), "-d", str(workdir.resolve()),
+            "--configfile", str(Path(config).resolve()), "--cores", str(cores), "--rerun-incomplete", *extra]
+
+
+def check_campaign(config):
+    """The campaign Snakemake will run from ``config``: the file merged over the default config
+    (the Snakefile's configfile; a campaign file may hold only the keys it changes), each file's
+    relative paths against its own folder, validated.  A mistake raises
+    :class:`~straylight.errors.ConfigError` naming the file, key and value."""
+    import yaml
+
+    from straylight.config import DEFAULT_CONFIG, campaign_from_dict, deep_merge, resolve_config_files
+
+    files = [DEFAULT_CONFIG, Path(config)]
+    resolve_config_files({}, files)  # each file readable and a mapping, else one line naming it
+    merged: dict = {}
+    for f in files:
+        merged = deep_merge(merged, yaml.safe_load(Path(f).read_text(encoding="utf-8")))
+    resolved, sources, path = resolve_config_files(merged, files)
+    return campaign_from_dict(resolved, path, sources)
+
+
+def run_campaign(config, cores: int | None = None, extra=(), argv=None) -> int:
+    """Check the campaign ``config`` (one line on a mistake: :class:`~straylight.errors.StraylightError`),
+    then run Snakemake on it in the current directory; returns Snakemake's exit status.
+    ``argv``: the ``straylight`` command line, recorded in provenance.json."""
+    if cores is not None and cores < 1:
+        raise InputError(f"--cores must be at least 1, got {cores}")
+    check_campaign(config)
+    cmd = snakemake_command(config, cores, extra)
+    from straylight.survey.provenance import LAUNCHER_ENV
+
+    env = dict(os.environ)
+    env[LAUNCHER_ENV] = json.dumps(["straylight", *(argv if argv is not None else sys.argv[1:])])
+    proc = subprocess.Popen(cmd, env=env)
+    try:
+        return proc.wait()
+    except KeyboardInterrupt:  # Ctrl-C reached Snakemake too (same process group): let it stop its jobs
+        return proc.wait()
