@@ -20,11 +20,24 @@ $(VENV)/.installed-test: pyproject.toml $(VENV)/.installed
 	$(BIN)/python -m pip install --quiet -e ".[test]"
 	touch $@
 
-# A run killed with kill -9 leaves Snakemake's lock behind: clear it, but only when no
-# Snakemake of this .venv is running, then resume (finished time blocks are kept).
+# A Snakemake process: its command line starts with the program, `[python] [-m] [dir/]snakemake`
+# (what pgrep -f matches: the arguments joined by spaces).  Anchored at the program, the pattern
+# cannot match this recipe's own shell (`/bin/sh -c ...`), whose command line contains it.
+SNAKEMAKE_PROCESS := ^([^ ]*/)?(python[0-9.]* (-m )?([^ ]*/)?)?snakemake( |$$)
+
+# Snakemake's lock (.snakemake/locks) names no owner: a run killed with kill -9 leaves it behind
+# and the next run stops with a LockException.  Clear it only when no Snakemake that takes the
+# lock runs in this checkout: none of this user's Snakemake processes working in this folder,
+# dry runs and unlocks aside (they take no lock); without /proc (not Linux), none at all.  Then
+# resume: finished time blocks are kept, the killed run's jobs and workers have died with it.
 run: $(VENV)/.installed
-	@if ! pgrep -f "$(abspath $(BIN))/snakemake" >/dev/null; then \
-		PATH="$(abspath $(BIN)):$$PATH" $(BIN)/snakemake --unlock -q >/dev/null 2>&1 || true; fi
+	@running=; for p in $$(pgrep -u "$$(id -u)" -f '$(SNAKEMAKE_PROCESS)'); do \
+		if [ -d /proc/self ]; then \
+			[ "$$(readlink /proc/$$p/cwd 2>/dev/null)" = "$(CURDIR)" ] || continue; \
+			tr '\0' '\n' </proc/$$p/cmdline 2>/dev/null | grep -qxE -- '-n|--dry-?run|--unlock' && continue; \
+		fi; running="$$running $$p"; done; \
+	if [ -z "$$running" ]; then PATH="$(abspath $(BIN)):$$PATH" $(BIN)/snakemake --unlock -q >/dev/null 2>&1 || true; \
+	else echo "make run: Snakemake is running here (pid$$running): its lock is kept"; fi
 	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/snakemake --cores $(CORES) --rerun-incomplete
 
 # the whole suite, slow tests included (this is what CI runs)

@@ -1,10 +1,13 @@
-"""Worker processes: their environment (threads, malloc settings), a pool of spawned ones, and
-ending a process without the interpreter's teardown.
+"""Worker processes: their environment (threads, malloc settings), a pool of spawned ones, ending
+a process without the interpreter's teardown, and the hygiene of a process tree (a process that
+dies with its parent; SIGINT and SIGTERM stopping a pool's workers).
 The cube's region pool built on them (or on an existing Dask cluster, ``compute.dask_scheduler``) is
 :func:`straylight.survey.cube.region_pool`."""
 from __future__ import annotations
 
 import os
+import signal
+import sys
 from contextlib import contextmanager
 
 #: glibc malloc settings for worker processes (bytes), see worker_environment
@@ -46,25 +49,143 @@ def spawned_pool(max_workers: int, initializer=None, initargs: tuple = ()):
     """A ``ProcessPoolExecutor`` of ``max_workers`` spawned processes (not forked: none inherits
     this process's threads or open stores) started with :func:`worker_environment`.  Each runs
     ``initializer(*initargs)`` first and, once the pool shuts down, ends without the
-    interpreter's teardown (:func:`exit_without_teardown`), which the pool's shutdown waits for."""
+    interpreter's teardown (:func:`exit_without_teardown`), which the pool's shutdown waits for.
+
+    The workers die with this process (:func:`die_with_parent`, SIGKILL: whatever they were
+    writing is redone by a re-run, the stores being written through temporary files) and ignore
+    SIGINT (a Ctrl-C reaches the terminal's whole process group: this process decides).  All of
+    them are started here, from the thread that opens the pool, which outlives it (Linux sends
+    the parent-death signal when the creating *thread* ends).  Left by :class:`Stopped` or
+    KeyboardInterrupt, the pool kills its workers instead of waiting for their running tasks."""
     from concurrent.futures import ProcessPoolExecutor
     from multiprocessing import get_context
 
+    n = int(max_workers)
     with temporary_environment(worker_environment()), \
-            ProcessPoolExecutor(max_workers=int(max_workers), mp_context=get_context("spawn"),
-                                initializer=_pool_worker_start, initargs=(initializer, initargs)) as pool:
-        yield pool
+            ProcessPoolExecutor(max_workers=n, mp_context=get_context("spawn"), initializer=_pool_worker_start,
+                                initargs=(initializer, initargs, os.getpid())) as pool:
+        try:
+            for _ in range(n):
+                pool.submit(os.getpid)  # a spawned process starts at a submission that finds none idle
+            yield pool
+        except (Stopped, KeyboardInterrupt):
+            kill_pool_workers(pool)
+            raise
 
 
-def _pool_worker_start(initializer, initargs: tuple) -> None:
-    """A :func:`spawned_pool` process's start: its exit made immediate, then ``initializer``.
-    The pool's tasks have returned their results, and closed the files they wrote, before the
-    process exits."""
+def _pool_worker_start(initializer, initargs: tuple, parent_pid: int | None = None) -> None:
+    """A :func:`spawned_pool` process's start: SIGKILL when its parent (``parent_pid``) dies,
+    SIGINT ignored, its exit made immediate, then ``initializer``.  The pool's tasks have
+    returned their results, and closed the files they wrote, before the process exits."""
     import atexit
 
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    die_with_parent(signal.SIGKILL, parent_pid)
     atexit.register(exit_without_teardown)  # the last registered runs first: nothing after it
     if initializer is not None:
         initializer(*initargs)
+
+
+#: prctl(2)'s option setting the signal a process gets when its parent dies (linux/prctl.h)
+_PR_SET_PDEATHSIG = 1
+#: seconds between two looks at the parent where prctl is not available
+PARENT_POLL_SECONDS = 1.0
+
+
+def die_with_parent(sig: int = signal.SIGTERM, parent_pid: int | None = None) -> None:
+    """Have this process receive ``sig`` when its parent process dies, so that a killed
+    Snakemake, job or pool leaves no orphan still computing and writing to the stores.
+    ``parent_pid``: the parent it was started by (None: the present one); a parent already gone
+    sends ``sig`` at once.
+
+    On Linux the kernel sends it (prctl PR_SET_PDEATHSIG), at the moment the parent's thread
+    that started this process ends, which for a process started from the main thread, or from a
+    thread waiting for it (Snakemake's job threads), is the parent's death.  Elsewhere, or if
+    prctl fails, a daemon thread looks at the parent every :data:`PARENT_POLL_SECONDS`."""
+    parent = os.getppid() if parent_pid is None else int(parent_pid)
+    watched = False
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        try:
+            watched = ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, int(sig), 0, 0, 0) == 0
+        except (OSError, AttributeError):  # no prctl in this libc
+            watched = False
+    if not watched:
+        import threading
+
+        threading.Thread(target=_watch_parent, args=(parent, int(sig)), daemon=True,
+                         name="die-with-parent").start()
+    if os.getppid() != parent:  # died before the signal was armed: reparented already
+        os.kill(os.getpid(), sig)
+
+
+def _watch_parent(parent: int, sig: int) -> None:
+    import time
+
+    while os.getppid() == parent:
+        time.sleep(PARENT_POLL_SECONDS)
+    os.kill(os.getpid(), sig)
+
+
+class Stopped(BaseException):
+    """Raised in the main thread by :func:`stop_on_signals`' handler: the process was asked to
+    stop (SIGINT, SIGTERM; ``signum``).  A BaseException, as KeyboardInterrupt, so that no
+    ``except Exception`` takes it for a task's failure."""
+
+    def __init__(self, signum: int):
+        super().__init__(f"stopped by {signal.Signals(signum).name}")
+        self.signum = int(signum)
+
+
+def kill_pool_workers(pool) -> None:
+    """SIGKILL every worker process of the ``ProcessPoolExecutor`` ``pool`` now, without waiting
+    for them (safe in a signal handler: no lock taken).  Their running tasks end unfinished, and
+    the pool's manager thread, finding them gone, fails their futures (BrokenProcessPool), so a
+    shutdown of the pool returns at once instead of after the running tasks."""
+    for pid in list(getattr(pool, "_processes", None) or {}):
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):  # gone already
+            pass
+
+
+#: seconds within which stop_on_signals takes a further signal for a repeat of the first
+REPEATED_SIGNAL_SECONDS = 2.0
+
+
+@contextmanager
+def stop_on_signals(signals=(signal.SIGINT, signal.SIGTERM)):
+    """SIGINT and SIGTERM stop this process cleanly: at the first one the workers of every pool
+    put in the yielded list are killed (:func:`kill_pool_workers`) and :class:`Stopped` is raised
+    in the main thread, so that the ``with`` blocks unwind (the queued tasks cancelled, nothing
+    marked done that was not) and the caller exits non-zero (128 + the signal's number, as a
+    shell reports a process killed by it).  A further signal within :data:`REPEATED_SIGNAL_SECONDS`
+    is ignored: the kernel sends the parent-death signal (:func:`die_with_parent`) again as each
+    thread of a dying parent exits, which must not cut the unwinding short; a later one (a second
+    Ctrl-C) ends the process at once.  Only in the main thread (Python runs signal handlers
+    there)."""
+    import time
+
+    pools: list = []
+    first: list = []
+
+    def handler(signum, frame):
+        for pool in pools:
+            kill_pool_workers(pool)
+        if first:
+            if time.monotonic() - first[0] > REPEATED_SIGNAL_SECONDS:
+                exit_without_teardown(128 + signum)
+            return
+        first.append(time.monotonic())
+        raise Stopped(signum)
+
+    previous = {s: signal.signal(s, handler) for s in signals}
+    try:
+        yield pools
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)
 
 
 def exit_without_teardown(code: int = 0) -> None:
@@ -75,7 +196,6 @@ def exit_without_teardown(code: int = 0) -> None:
     the process's work is done: every file it wrote closed (and renamed into place), every
     child process joined."""
     import logging
-    import sys
 
     logging.shutdown()
     for stream in (sys.stdout, sys.stderr):

@@ -5,9 +5,11 @@ import sys
 
 def setup_logging(snakemake) -> logging.Logger:
     """The rule's logger (its log file and stderr), with the job's error hook; also the job's
-    healpy, without plotting functions (straylight.util.healpix)."""
+    healpy, without plotting functions (straylight.util.healpix), and the job's death with
+    Snakemake (die_with_snakemake)."""
     from straylight.util.healpix import load_without_plotting
 
+    die_with_snakemake()
     load_without_plotting()
     log_path = snakemake.log[0] if snakemake.log else None
     handlers = [logging.StreamHandler(sys.stderr)]
@@ -18,6 +20,18 @@ def setup_logging(snakemake) -> logging.Logger:
     log = logging.getLogger(f"straylight.{snakemake.rule}")
     sys.excepthook = _job_error_hook(log)
     return log
+
+
+def die_with_snakemake() -> None:
+    """SIGTERM to this job when Snakemake, its parent, dies (killed with SIGKILL, it cannot stop
+    its jobs): the job stops instead of running on as an orphan, writing to the stores a resumed
+    run writes too (straylight.util.daskutil.die_with_parent; Snakemake runs a script job as its
+    own child, the shell exec'ing python).  The job's pool workers die with the job in turn."""
+    import signal
+
+    from straylight.util.daskutil import die_with_parent
+
+    die_with_parent(signal.SIGTERM)
 
 
 def _job_error_hook(log):

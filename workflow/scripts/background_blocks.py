@@ -2,6 +2,11 @@
 
 The body is guarded by __main__: the pool's worker processes are spawned and re-import the main
 module, which must then not run the job again.
+
+SIGTERM or SIGINT (Snakemake stopping, a Ctrl-C, Snakemake's death: _common.die_with_snakemake)
+stops the job cleanly: its workers killed, the queued regions cancelled, no time block marked done
+that is not (a block's sentinel is written after all its regions), exit status 128 + the
+signal's number.  A re-run redoes the unfinished blocks.
 """
 import os
 import sys
@@ -10,6 +15,17 @@ from pathlib import Path
 
 def main(snakemake):
     sys.path.insert(0, str(Path(snakemake.scriptdir)))
+    from _common import die_with_snakemake
+
+    from straylight.util.daskutil import stop_on_signals
+
+    die_with_snakemake()  # before the workers start: none is left behind by a killed Snakemake
+    with stop_on_signals() as stopping:
+        _run(snakemake, stopping)
+
+
+def _run(snakemake, stopping):
+    """The job's body; ``stopping``: the list of pools whose workers a SIGTERM or SIGINT kills."""
     from contextlib import nullcontext
 
     stores = dict(stars_path=snakemake.input.stars, obs_store=snakemake.params.obs_store,
@@ -27,6 +43,7 @@ def main(snakemake):
         starting = nullcontext()
     with starting as pool:
         if pool is not None:
+            stopping.append(pool)
             for _ in range(workers):
                 pool.submit(os.getpid)  # a process is spawned at a task's submission
         from _common import campaign, setup_logging
@@ -48,7 +65,18 @@ def main(snakemake):
 
 
 if __name__ == "__main__":
-    main(snakemake)  # noqa: F821 - injected by Snakemake
+    from straylight.util.daskutil import Stopped
+
+    try:
+        main(snakemake)  # noqa: F821 - injected by Snakemake
+    except Stopped as stop:
+        import logging
+
+        from straylight.util.daskutil import exit_without_teardown
+
+        logging.getLogger(f"straylight.{snakemake.rule}").error(  # noqa: F821
+            "%s: workers stopped, unfinished time blocks not marked done; re-run to resume", stop)
+        exit_without_teardown(128 + stop.signum)
     from _common import end_job
 
     end_job()
