@@ -206,6 +206,19 @@ def test_provenance_records_checksums(cube_run):
         assert len(prov["outputs_sha256"][k]) == 64
     assert len(prov["outputs_digest_sha256"]) == 64
     assert "numpy" in prov["versions"] and "config" in prov["inputs_sha256"]
+    # the code (this checkout's commit), the run's command line and cores, portable paths
+    head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=REPO, capture_output=True, text=True).stdout.strip()
+    assert prov["source"]["from"] == "checkout" and isinstance(prov["source"]["dirty"], bool)
+    import straylight
+
+    assert prov["source"]["commit"] == head and prov["source"]["version"] == straylight.__version__
+    assert prov["run"]["cores"] == 2 and prov["run"]["started_by"] is None
+    assert prov["run"]["command"] == ["snakemake", "-s", "straylight:workflow/Snakefile", "-d", "../..",
+                                      "--configfile", "../../cube.yaml", "--cores", "2"]
+    assert prov["config_file"] == "../../cube.yaml"
+    assert prov["config"]["instrument"] == "straylight:config/instruments/csst.yaml"
+    text = (out / "provenance.json").read_text()
+    assert str(out.parents[1]) not in text and str(REPO) not in text and '"/' not in text
 
 
 def test_rerun_recomputes_only_what_is_missing(cube_run):
