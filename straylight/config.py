@@ -42,10 +42,23 @@ def _read_yaml(path: Path, what: str) -> Any:
         text = Path(path).read_text(encoding="utf-8")
     except OSError as exc:
         raise ConfigError(f"{path}: cannot read {what}: {exc.strerror or exc}") from exc
+    except UnicodeDecodeError as exc:  # a binary file, or another encoding: YAML is UTF-8 here
+        raise ConfigError(f"{path}: cannot read {what}: not UTF-8 text (byte 0x{exc.object[exc.start]:02x} at "
+                          f"offset {exc.start}); expected a YAML file") from None
     try:
         return yaml.load(text, Loader=_YAML_LOADER)  # noqa: S506 - a safe loader
     except yaml.YAMLError as exc:
-        raise ConfigError(f"{path}: not valid YAML: {exc}") from exc
+        raise ConfigError(f"{path}: not valid YAML: {_yaml_problem(exc)}") from None
+
+
+def _yaml_problem(exc: yaml.YAMLError) -> str:
+    """PyYAML's message on one line: where (line, column), what, and in what construct."""
+    mark, problem = getattr(exc, "problem_mark", None), getattr(exc, "problem", None)
+    if problem is None:  # a reader's error (a control character): its text, without the stream's name
+        return " ".join(str(exc).replace(' in "<unicode string>",', " at").split())
+    where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark is not None else ""
+    context = getattr(exc, "context", None)
+    return f"{where}{problem}" + (f" ({context})" if context else "")
 
 
 def load_schema(path: Path) -> dict:
@@ -216,7 +229,7 @@ class Campaign:
 
 def _check_campaign(cfg: dict, source: str, sources: dict | None = None) -> None:
     from straylight.sky.ephemeris import default_ephemeris
-    from straylight.sky.timeutil import parse_utc
+    from straylight.sky.timeutil import parse_utc, quiet_dubious_years
 
     def src(key):
         return _source_of(sources, key, source)
@@ -234,7 +247,8 @@ def _check_campaign(cfg: dict, source: str, sources: dict | None = None) -> None
                           f"{c['start']!r}")
     eph = default_ephemeris()
     for key, t in (("start", start), ("end", end)):
-        jd = float(t.tdb.jd)
+        with quiet_dubious_years():  # our line below, not ERFA's warnings before it
+            jd = float(t.tdb.jd)
         if not eph.jd_start <= jd <= eph.jd_end:
             raise ConfigError(
                 f"{src('campaign.' + key)}: campaign.{key} = {c[key]!r} is outside the DE405 range "
@@ -244,6 +258,16 @@ def _check_campaign(cfg: dict, source: str, sources: dict | None = None) -> None
         raise ConfigError(f"{src('orbit.model')}: orbit.model is 'circular' but orbit.circular is missing")
     if cfg["orbit"]["model"] == "tle" and not cfg["orbit"].get("tle"):
         raise ConfigError(f"{src('orbit.model')}: orbit.model is 'tle' but orbit.tle is missing")
+    # an orbit propagated far from its epoch: a warning, before any work (the TLE read once more
+    # when the orbit is built)
+    from straylight.sky.orbit import warn_if_epoch_far
+
+    orbit_cfg = copy.deepcopy(cfg["orbit"])
+    tle = orbit_cfg.get("tle") or {}
+    if "file" in tle and not os.path.isabs(tle["file"]):  # as Campaign.orbit resolves it
+        tle["file"] = str(Path(source).parent / tle["file"])
+    key = "orbit.circular.epoch" if orbit_cfg["model"] == "circular" else "orbit.tle"
+    warn_if_epoch_far(orbit_cfg, start, end, src(key))
 
 
 def _check_instrument(inst: dict, source: str) -> None:
@@ -308,7 +332,18 @@ def campaign_from_dict(raw: dict, path: str | os.PathLike, sources: dict | None 
     if not inst_path.is_absolute():
         inst_path = path.parent / inst_path
     instrument = load_instrument(inst_path)
+    _check_report(cfg, list(instrument["bands"]), str(path), sources)
     return Campaign(config=cfg, instrument=instrument, path=path, instrument_path=inst_path)
+
+
+def _check_report(cfg: dict, bands: list[str], source: str, sources: dict | None = None) -> None:
+    """The report's bands are the instrument's (the schema cannot know them): refused here, not
+    after the cube is computed."""
+    chosen = (cfg.get("report") or {}).get("sky_map_bands") or []
+    unknown = [b for b in chosen if b not in bands]
+    if unknown:
+        raise ConfigError(f"{_source_of(sources, 'report.sky_map_bands', source)}: report.sky_map_bands = {chosen!r}: "
+                          f"{unknown[0]!r} is not a band of the instrument ({', '.join(bands)})")
 
 
 #: Config keys holding file paths; relative ones are relative to the file that set them.

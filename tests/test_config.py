@@ -136,3 +136,106 @@ def test_config_reference_is_generated_from_the_schema_and_covers_the_default_co
 
     for k in keys(BASE):
         assert f"| `{k}` |" in ref, k
+
+
+def test_a_config_of_random_bytes_is_one_line_naming_the_file(tmp_path):
+    """Not text: one ConfigError naming the file and the first byte that is not UTF-8 (the
+    campaign, the instrument and Snakemake's merged files all go through the same reader)."""
+    import random
+
+    from straylight.config import resolve_config_files
+
+    noise = tmp_path / "noise.yaml"
+    noise.write_bytes(b"campaign:\n" + random.Random(5).randbytes(2000))
+    for call in (lambda: load_campaign(noise), lambda: load_instrument(noise),
+                 lambda: resolve_config_files({}, [noise])):
+        with pytest.raises(ConfigError) as err:
+            call()
+        msg = str(err.value)
+        assert msg.startswith(f"{noise}: ") and "not UTF-8 text" in msg and "\n" not in msg, msg
+
+
+def test_broken_yaml_is_one_line():
+    """YAML's own message spans lines: the reader makes it one, with the line and column."""
+    from straylight.config import _read_yaml
+
+    import tempfile
+    from pathlib import Path
+
+    with tempfile.TemporaryDirectory() as d:
+        p = Path(d) / "broken.yaml"
+        p.write_text("campaign: {name: x\n  start: [\n")
+        with pytest.raises(ConfigError) as err:
+            _read_yaml(p, "campaign config")
+    msg = str(err.value)
+    assert "\n" not in msg and msg.startswith(f"{p}: not valid YAML") and "line 2, column 8" in msg, msg
+
+
+def test_report_bands_must_be_the_instruments(tmp_path):
+    """report.sky_map_bands is checked with the config, not after the cube is computed."""
+    cfg = copy.deepcopy(BASE)
+    cfg["report"] = {"sky_map_bands": ["g", "Q"]}
+    p = write(tmp_path, cfg)
+    with pytest.raises(ConfigError) as err:
+        load_campaign(p)
+    assert str(err.value) == (f"{p}: report.sky_map_bands = ['g', 'Q']: 'Q' is not a band of the instrument "
+                              f"(NUV, u, g, r, i, z, y)")
+    cfg["report"] = {"sky_map_bands": ["g", "r"]}
+    assert load_campaign(write(tmp_path, cfg)).config["report"]["sky_map_bands"] == ["g", "r"]
+
+
+def _tle_with_epoch(epoch: str) -> tuple[str, str]:
+    """The conftest ISS element set with its epoch (YYDDD.DDDDDDDD, columns 19-32) replaced."""
+    from conftest import ISS_L1, ISS_L2
+
+    body = ISS_L1[:18] + epoch + ISS_L1[32:68]
+    return body + str((sum(int(c) for c in body if c.isdigit()) + body.count("-")) % 10), ISS_L2
+
+
+@pytest.fixture
+def fresh_epoch_warnings(monkeypatch):
+    from straylight.sky.orbit import EPOCH_WARNED_ENV
+
+    monkeypatch.delenv(EPOCH_WARNED_ENV, raising=False)
+
+
+def test_a_tle_far_from_the_campaign_warns_once(tmp_path, caplog, fresh_epoch_warnings):
+    """A 7-year-old TLE: SGP4 that far from its epoch is unreliable; one warning line naming the
+    epoch, the campaign's start and the gap, at validation (before any propagation)."""
+    line1, line2 = _tle_with_epoch("19001.00000000")
+    (tmp_path / "old.tle").write_text(f"CSS\n{line1}\n{line2}\n")
+    cfg = copy.deepcopy(BASE)
+    cfg["orbit"] = {"model": "tle", "tle": {"file": "old.tle"}}
+    p = write(tmp_path, cfg)
+    with caplog.at_level("WARNING"):
+        load_campaign(p)
+        load_campaign(p)  # the same campaign again (a job of the same run): not repeated
+    lines = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
+    assert len(lines) == 1 and "\n" not in lines[0], lines
+    assert (f"{p}: orbit.tle ({tmp_path / 'old.tle'}) epoch 2019-01-01T00:00:00 is 2557 days before "
+            "campaign.start 2026-01-01T00:00:00 (up to 2558 days over the campaign)") in lines[0]
+    assert "beyond 30 days" in lines[0]
+
+
+def test_a_recent_tle_gives_no_warning(tmp_path, caplog, fresh_epoch_warnings):
+    line1, line2 = _tle_with_epoch("25355.00000000")  # 2025-12-21: 11 days before the start
+    cfg = copy.deepcopy(BASE)
+    cfg["orbit"] = {"model": "tle", "tle": {"line1": line1, "line2": line2}}
+    with caplog.at_level("WARNING"):
+        load_campaign(write(tmp_path, cfg))
+    assert not [r for r in caplog.records if r.levelname == "WARNING"]
+
+
+@pytest.mark.parametrize("epoch, warns", [("2024-06-01T00:00:00", True), ("2025-06-01T00:00:00", False),
+                                          ("2027-03-01T00:00:00", True)])
+def test_a_circular_orbit_epoch_more_than_a_year_away_warns(tmp_path, caplog, fresh_epoch_warnings, epoch, warns):
+    cfg = copy.deepcopy(BASE)
+    cfg["orbit"]["circular"]["epoch"] = epoch
+    p = write(tmp_path, cfg)
+    with caplog.at_level("WARNING"):
+        load_campaign(p)
+    lines = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
+    assert len(lines) == int(warns), lines
+    if warns:
+        assert f"{p}: orbit.circular.epoch {epoch} is" in lines[0] and "campaign.start 2026-01-01T00:00:00" in lines[0]
+        assert "beyond 365 days" in lines[0]

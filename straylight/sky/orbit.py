@@ -10,10 +10,15 @@ Two models:
 * :class:`TLEOrbit` - a two-line element set propagated with SGP4 (the ``sgp4`` package), TEME
   rotated to GCRS with astropy.
 
-Both give ``position_gcrs_km(times) -> (..., 3)``.
+Both give ``position_gcrs_km(times) -> (..., 3)``, ``epoch_time`` and ``period_s``.  A campaign
+far from the orbit's epoch is warned about when its config is validated
+(:func:`warn_if_epoch_far`).
 """
 from __future__ import annotations
 
+import hashlib
+import logging
+import os
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -21,6 +26,22 @@ import numpy as np
 
 from straylight.errors import ConfigError, InputError
 from straylight.sky.timeutil import parse_utc
+
+#: Days between a TLE's epoch and a campaign time beyond which we warn.  A TLE's mean elements
+#: put a low orbit within about a km at epoch, but SGP4 cannot predict the drag (solar activity),
+#: whose along-track error grows with time: after weeks it reaches the order of a minute of the
+#: orbit (hundreds of km), which moves the Earth-limb angles and the observable windows' edges.
+#: A warning threshold, not a model parameter (the positions do not depend on it).
+TLE_EPOCH_WARN_DAYS = 30.0
+#: Days between a circular orbit's epoch and a campaign time beyond which we warn.  The circular
+#: model is mean elements with J2 alone (no drag, no reboosts): over a year its node regresses
+#: ~2200 deg at 400 km and 41.5 deg, so a 10 km difference of altitude (the station's decay and
+#: reboosts) moves the node by ~11 deg, and the phase along the orbit is lost entirely.
+#: A warning threshold, not a model parameter.
+CIRCULAR_EPOCH_WARN_DAYS = 365.0
+#: Environment variable holding the last epoch warning's key: a warning given by the workflow's
+#: parse (or `straylight run`) is not repeated by every job and worker process it starts.
+EPOCH_WARNED_ENV = "STRAYLIGHT_ORBIT_EPOCH_WARNED"
 
 
 @dataclass(frozen=True)
@@ -107,6 +128,11 @@ class CircularOrbit:
         """The epoch as an astropy Time, parsed once (a cube region asks for it once)."""
         return parse_utc(self.epoch, "orbit.circular.epoch")
 
+    @property
+    def epoch_time(self):
+        """The epoch (UTC Time)."""
+        return self._epoch_time
+
     def position_gcrs_km(self, times) -> np.ndarray:
         """Position (km, GCRS axes) for UTC times of any shape -> shape + (3,)."""
         t = parse_utc(times)
@@ -163,6 +189,18 @@ class TLEOrbit:
             raise InputError(f"{source}: cannot parse TLE ({exc})") from exc
         self.line1, self.line2 = line1, line2
 
+    @property
+    def epoch_time(self):
+        """The element set's epoch (UTC Time; SGP4 counts its epochs in UTC)."""
+        from astropy.time import Time
+
+        return Time(self.satrec.jdsatepoch, self.satrec.jdsatepochF, format="jd", scale="utc")
+
+    @property
+    def period_s(self) -> float:
+        """Period from the TLE's mean motion (SGP4's no_kozai, rad/min), s."""
+        return float(2 * np.pi / self.satrec.no_kozai * 60.0)
+
     def position_teme_km(self, times) -> np.ndarray:
         """SGP4 position in TEME, km, shape + (3,)."""
         t = parse_utc(times)
@@ -205,19 +243,69 @@ def orbit_from_config(orbit_cfg: dict, earth: EarthModel):
             earth=earth,
         )
     if model == "tle":
-        tle = orbit_cfg.get("tle") or {}
-        if "file" in tle:
-            path = tle["file"]
-            try:
-                lines = [ln for ln in open(path, encoding="ascii").read().splitlines() if ln.strip()]
-            except OSError as exc:
-                raise ConfigError(f"orbit.tle.file: cannot read {path!r}: {exc}") from exc
-            ones = [ln for ln in lines if ln.startswith("1 ")]
-            twos = [ln for ln in lines if ln.startswith("2 ")]
-            if not ones or not twos:
-                raise InputError(f"{path}: no TLE line pair (lines starting '1 ' and '2 ') found")
-            return TLEOrbit(ones[0], twos[0], source=str(path))
-        if "line1" in tle and "line2" in tle:
-            return TLEOrbit(tle["line1"], tle["line2"], source="orbit.tle")
-        raise ConfigError("orbit.tle: give either 'file' or both 'line1' and 'line2'")
+        return TLEOrbit(*_tle_lines(orbit_cfg.get("tle") or {}))
     raise ConfigError(f"orbit.model: {model!r} is not one of 'circular', 'tle'")
+
+
+def _tle_lines(tle: dict) -> tuple[str, str, str]:
+    """(line 1, line 2, source) of the config's ``orbit.tle``: a file (its path absolute or as
+    the caller resolved it) or the two lines."""
+    if "file" in tle:
+        path = tle["file"]
+        try:
+            lines = [ln for ln in open(path, encoding="ascii").read().splitlines() if ln.strip()]
+        except OSError as exc:
+            raise ConfigError(f"orbit.tle.file: cannot read {path!r}: {exc}") from exc
+        ones = [ln for ln in lines if ln.startswith("1 ")]
+        twos = [ln for ln in lines if ln.startswith("2 ")]
+        if not ones or not twos:
+            raise InputError(f"{path}: no TLE line pair (lines starting '1 ' and '2 ') found")
+        return ones[0], twos[0], str(path)
+    if "line1" in tle and "line2" in tle:
+        return tle["line1"], tle["line2"], "orbit.tle"
+    raise ConfigError("orbit.tle: give either 'file' or both 'line1' and 'line2'")
+
+
+def epoch_gap_warning(what: str, epoch, start, end, limit_days: float, reason: str) -> str | None:
+    """The warning for a campaign [start, end] whose farthest time is more than ``limit_days``
+    from the orbit's ``epoch`` (Times), else None: ``what`` (e.g. ``orbit.tle epoch``), the
+    epoch, its gap to campaign.start and the largest gap, then ``reason``."""
+    to_start = float((start - epoch).to_value("day"))
+    largest = max(abs(to_start), abs(float((end - epoch).to_value("day"))))
+    if largest <= limit_days:
+        return None
+    side = "before" if to_start >= 0 else "after"
+    return (f"{what} {epoch.isot[:19]} is {abs(to_start):.0f} days {side} campaign.start {start.isot[:19]} "
+            f"(up to {largest:.0f} days over the campaign): {reason}")
+
+
+def warn_if_epoch_far(orbit_cfg: dict, start, end, where: str) -> str | None:
+    """Warn (one logged line) when the campaign [start, end] reaches farther from the orbit's
+    epoch than :data:`TLE_EPOCH_WARN_DAYS` (a TLE) or :data:`CIRCULAR_EPOCH_WARN_DAYS` (a
+    circular orbit); ``where`` (the config file) starts the line.  Once per run: a process that
+    inherits :data:`EPOCH_WARNED_ENV` with this warning's key stays quiet.  Returns the warning.
+
+    ``orbit_cfg``: the config's ``orbit``, a TLE file's path already resolved.
+    """
+    if orbit_cfg["model"] == "circular":
+        epoch = parse_utc(orbit_cfg["circular"]["epoch"], "orbit.circular.epoch")
+        msg = epoch_gap_warning(
+            "orbit.circular.epoch", epoch, start, end, CIRCULAR_EPOCH_WARN_DAYS,
+            f"the circular orbit is propagated from its epoch with J2 alone (no drag, no reboosts), so beyond "
+            f"{CIRCULAR_EPOCH_WARN_DAYS:g} days its node and phase say little about the real orbit; set the "
+            "epoch near the campaign")
+    else:
+        line1, line2, source = _tle_lines(orbit_cfg.get("tle") or {})
+        label = "orbit.tle epoch" if source == "orbit.tle" else f"orbit.tle ({source}) epoch"
+        msg = epoch_gap_warning(
+            label, TLEOrbit(line1, line2, source).epoch_time, start, end, TLE_EPOCH_WARN_DAYS,
+            f"SGP4 positions of a low orbit are unreliable beyond {TLE_EPOCH_WARN_DAYS:g} days of the TLE's "
+            "epoch (the drag it cannot predict); use a TLE from the campaign's weeks")
+    if msg is None:
+        return None
+    msg = f"{where}: {msg}"
+    key = hashlib.sha256(msg.encode()).hexdigest()[:16]
+    if os.environ.get(EPOCH_WARNED_ENV) != key:
+        logging.getLogger(__name__).warning("warning: %s", msg)
+        os.environ[EPOCH_WARNED_ENV] = key
+    return msg

@@ -5,11 +5,16 @@ run on machines without internet, so :func:`configure_offline` turns downloads o
 astropy use its bundled tables (``astropy-iers-data``), warning instead of failing where they
 do not reach.  The UTC->TT step only needs the leap-second table; TT->TDB is the analytic
 series of ERFA (geocentric), so no Earth-orientation data enter the ephemeris path.
+
+Parsing and the UTC->TDB step run without ERFA's "dubious year" warnings
+(:func:`quiet_dubious_years`): a time outside the ephemeris is refused by our own one line
+(:func:`check_in_ephemeris`), which the warnings would otherwise precede.
 """
 from __future__ import annotations
 
 import re
 import warnings
+from contextlib import contextmanager
 
 import numpy as np
 from astropy.time import Time, TimeDelta
@@ -37,6 +42,55 @@ def configure_offline() -> None:
 configure_offline()
 
 
+@contextmanager
+def quiet_dubious_years():
+    """Silence ERFA's "dubious year" warnings inside the block.
+
+    ERFA flags UTC before 1960 (there was no UTC: it takes TAI - UTC = 0) and beyond its
+    leap-second table's horizon (it holds the last offset).  Outside DE405 we refuse the time in
+    one line of our own; for the survey's years the error is the leap seconds not yet announced
+    (seconds: a few km along the orbit), which the background does not resolve.  Not
+    thread-safe (warnings.catch_warnings).
+    """
+    import erfa
+
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=".*dubious year", category=erfa.ErfaWarning)
+        yield
+
+
+#: the span of the JPL DE405 ephemeris, for messages (the exact bounds: DE405.jd_start, jd_end)
+DE405_SPAN = "1600-12-21 to 2200-02-02"
+
+
+def check_in_ephemeris(t: Time, field: str, given=None) -> None:
+    """Refuse times outside DE405 in one line, without ERFA's warnings before it.
+
+    ``field`` names the input (``--time``, ``time``); for several times the message names the
+    first one out of range by its index (``sample i``).  ``given``: the text the user typed,
+    quoted in place of the parsed time.
+
+    Raises
+    ------
+    EphemerisRangeError
+    """
+    from straylight.errors import EphemerisRangeError
+    from straylight.sky.ephemeris import default_ephemeris
+
+    eph = default_ephemeris()
+    with quiet_dubious_years():
+        jd = np.ravel(t.tdb.jd)
+        bad = np.flatnonzero(~((jd >= eph.jd_start) & (jd <= eph.jd_end)))
+        if not bad.size:
+            return
+        i = int(bad[0])
+        value = given if given is not None else t.ravel()[i].isot if t.shape else t.isot
+    where = f"{field}: sample {i}" if jd.size > 1 else field
+    count = f"; {bad.size} of {jd.size} samples are outside it" if jd.size > 1 else ""
+    raise EphemerisRangeError(f"{where} = {value} is outside the DE405 range ({DE405_SPAN}){count}")
+
+
+
 def parse_utc(times, field: str = "time") -> Time:
     """Parse ISO strings, a :class:`~astropy.time.Time`, or UTC Julian dates into a UTC Time.
 
@@ -51,17 +105,16 @@ def parse_utc(times, field: str = "time") -> Time:
         When the value cannot be parsed as a time or is not finite.
     """
     configure_offline()
-    if isinstance(times, Time):
-        t = times.utc
-    else:
+    with quiet_dubious_years():
+        if isinstance(times, Time):
+            return times.utc
         try:
             arr = np.asarray(times)
             if arr.dtype.kind in "fi":
                 if not np.all(np.isfinite(arr)):
                     raise InputError(f"{field}: times must be finite, got {times!r}")
-                t = Time(arr, format="jd", scale="utc")
-            else:
-                t = _parse_iso_with_offsets(times)
+                return Time(arr, format="jd", scale="utc")
+            return _parse_iso_with_offsets(times)
         except InputError:
             raise
         except Exception as exc:  # astropy raises ValueError with a long message
@@ -69,7 +122,6 @@ def parse_utc(times, field: str = "time") -> Time:
                 f"{field}: cannot parse {times!r} as a UTC time "
                 "(expected ISO 8601, e.g. 2026-01-01T00:50:00 or 2026-01-01T08:50:00+08:00)"
             ) from exc
-    return t
 
 
 
@@ -141,7 +193,8 @@ def utc_to_tdb_jd(times, field: str = "time") -> tuple[np.ndarray, np.ndarray]:
     UTC -> TT by astropy (leap seconds); TT -> TDB by :func:`tdb_minus_tt_s`.  Two parts keep
     sub-microsecond precision over the whole DE405 range.
     """
-    tt = parse_utc(times, field).tt
+    with quiet_dubious_years():
+        tt = parse_utc(times, field).tt
     jd1 = np.asarray(tt.jd1, dtype=float)
     jd2 = np.asarray(tt.jd2, dtype=float)
     return jd1, jd2 + tdb_minus_tt_s(jd1, jd2) / 86400.0
@@ -155,4 +208,5 @@ def campaign_times(start, end, cadence_s: float) -> Time:
     if span_s <= 0:
         raise ConfigError(f"campaign.end {t1.isot} must be after campaign.start {t0.isot}")
     n = int(np.ceil(span_s / cadence_s - 1e-9))
-    return t0 + TimeDelta(np.arange(n) * cadence_s, format="sec")
+    with quiet_dubious_years():
+        return t0 + TimeDelta(np.arange(n) * cadence_s, format="sec")

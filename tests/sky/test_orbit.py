@@ -117,3 +117,29 @@ def test_decayed_tle_reports_sgp4_error():
 def test_bad_circular_elements(kw, match):
     with pytest.raises((ConfigError, InputError), match=match):
         orbit(**kw)
+
+
+def test_tle_epoch_and_period():
+    """The TLE's epoch (2008 day 264.51782528) and its period from the mean motion
+    (15.72125391 rev/day: 91.60 min)."""
+    orb = TLEOrbit(ISS_L1, ISS_L2)
+    expected = Time("2008-01-01T00:00:00", scale="utc") + TimeDelta(263.51782528, format="jd")
+    assert abs((orb.epoch_time - expected).to_value("s")) < 1e-3
+    assert orb.period_s == pytest.approx(86400.0 / 15.72125391, rel=1e-6)
+
+
+def test_epoch_gap_warning_text():
+    """One line: the epoch, campaign.start, the gap to it and the largest over the campaign; no
+    warning within the threshold."""
+    from straylight.sky.orbit import TLE_EPOCH_WARN_DAYS, epoch_gap_warning
+
+    epoch = Time("2026-01-01T00:00:00")
+    assert epoch_gap_warning("orbit.tle epoch", epoch, Time("2026-01-10T00:00:00"), Time("2026-01-20T00:00:00"),
+                             TLE_EPOCH_WARN_DAYS, "reason") is None
+    msg = epoch_gap_warning("orbit.tle epoch", epoch, Time("2026-01-10T00:00:00"), Time("2026-03-01T00:00:00"),
+                            TLE_EPOCH_WARN_DAYS, "reason")
+    assert msg == ("orbit.tle epoch 2026-01-01T00:00:00 is 9 days before campaign.start 2026-01-10T00:00:00 "
+                   "(up to 59 days over the campaign): reason")
+    msg = epoch_gap_warning("orbit.tle epoch", Time("2026-06-01T00:00:00"), Time("2026-01-01T00:00:00"),
+                            Time("2026-01-02T00:00:00"), TLE_EPOCH_WARN_DAYS, "reason")
+    assert "151 days after campaign.start 2026-01-01T00:00:00 (up to 151 days" in msg
