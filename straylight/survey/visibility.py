@@ -3,10 +3,16 @@
 For one ICRS pointing and one band: the background (e-/s/pixel and AB mag/arcsec2) and the
 5-sigma point-source limit sampled every ``step`` over ``[start, end)``, through the same
 vectorised per-pointing path as ``straylight sky --input`` and :func:`straylight.sky_background`;
-the observable windows (runs of observable samples; times resolved to ``step``); and per UTC
-day the observable time, the deepest limit, and the time the limit is deeper than a threshold.
+the observable windows (runs of observable samples; times resolved to ``step``, cut at ``end``);
+and per UTC day the observable time, the deepest limit, and the time the limit is deeper than a
+threshold.  Observability changes within an orbit (the Earth occults the target and its limbs
+pass by every ~92 min), so a step longer than :data:`MAX_STEP_ORBIT_FRACTION` of the orbital
+period is warned about: windows can fall between its samples, and near a multiple of the period
+every sample sees the same orbital phase (aliasing).
 """
 from __future__ import annotations
+
+import logging
 
 import numpy as np
 
@@ -14,6 +20,13 @@ from straylight.errors import InputError
 
 #: more samples than this are refused (a year at 1 min is 525,960): ask for a coarser --step
 MAX_SAMPLES = 600_000
+#: steps longer than this fraction of the orbital period are warned about: an observable window
+#: lasts a fraction of an orbit (between Earth occultations; ~35 min of the 92-min orbit for a
+#: target away from the orbit's pole, less near the constraints), so a quarter-orbit step gives
+#: such a window at least one sample
+MAX_STEP_ORBIT_FRACTION = 0.25
+#: a step within this fraction of a whole number of orbital periods is named as aliasing
+ALIAS_TOLERANCE = 0.03
 
 
 def visibility(campaign, ra_deg: float, dec_deg: float, band: str, start, end, step_s: float,
@@ -45,16 +58,23 @@ def visibility(campaign, ra_deg: float, dec_deg: float, band: str, start, end, s
     from astropy.time import Time
 
     from straylight.survey.pointings import background_table
-    from straylight.sky.timeutil import parse_utc
+    from straylight.sky.timeutil import check_in_ephemeris, parse_utc
 
     if band not in campaign.bands:
         raise InputError(f"--band: {band!r} is not one of {', '.join(campaign.bands)}")
     t0, t1 = parse_utc(start, "--start"), parse_utc(end, "--end")
+    check_in_ephemeris(t0, "--start", start if isinstance(start, str) else None)
+    check_in_ephemeris(t1, "--end", end if isinstance(end, str) else None)
     if not t1 > t0:
         raise InputError(f"--end {t1.isot} must be after --start {t0.isot}")
     if not (np.isfinite(step_s) and step_s > 0):
         raise InputError(f"--step-min: must be > 0, got {step_s / 60.0}")
-    n = int(np.ceil((t1 - t0).to_value(u.s) / step_s - 1e-9))
+    span_s = float((t1 - t0).to_value(u.s))
+    if step_s > span_s:
+        raise InputError(f"--step-min {step_s / 60.0:g}: longer than the window --start {t0.isot[:19]} to --end "
+                         f"{t1.isot[:19]} ({span_s / 60.0:g} min); use a step of at most that")
+    warn_if_step_aliases(step_s, float(campaign.orbit.period_s))
+    n = int(np.ceil(span_s / step_s - 1e-9))
     if n > MAX_SAMPLES:
         raise InputError(f"--start/--end/--step-min: {n:,} samples, more than {MAX_SAMPLES:,}; use a larger --step-min")
     t = t0 + np.arange(n) * step_s * u.s
@@ -65,21 +85,22 @@ def visibility(campaign, ra_deg: float, dec_deg: float, band: str, start, end, s
                      meta={"ra_deg": float(ra_deg), "dec_deg": float(dec_deg), "band": band, "step_s": float(step_s),
                            "mag_zero_point": sky.meta["mag_zero_point"][band]})
     obs = np.asarray(samples["observable"], bool)
-    # runs of observable samples: each sample stands for [t, t + step)
+    # runs of observable samples: each sample stands for [t, t + step), the last one cut at end
+    offset_s = np.minimum(np.arange(n + 1) * step_s, span_s)
     edges = np.diff(np.concatenate([[0], obs.astype(np.int8), [0]]))
     first, last = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
     w_start = t[first] if first.size else Time([], format="isot", scale="utc")
-    w_end = t0 + last * step_s * u.s if last.size else Time([], format="isot", scale="utc")
+    w_end = t0 + offset_s[last] * u.s if last.size else Time([], format="isot", scale="utc")
     windows = QTable({"start": Time(w_start, format="isot", precision=0),
                       "end": Time(w_end, format="isot", precision=0),
-                      "duration_h": ((last - first) * step_s / 3600.0) * u.h})
+                      "duration_h": ((offset_s[last] - offset_s[first]) / 3600.0) * u.h})
     windows["duration_h"].info.format = ".2f"
     day = np.array([s[:10] for s in t.isot])
     days_u, idx = np.unique(day, return_inverse=True)
     lim = np.asarray(samples["limit_mag"].value, float)
-    step_h = step_s / 3600.0
+    sample_h = np.diff(offset_s) / 3600.0  # the step, the last sample's cut at end
     best = np.full(days_u.size, np.nan)
-    obs_h = np.bincount(idx, weights=obs, minlength=days_u.size) * step_h
+    obs_h = np.bincount(idx, weights=obs * sample_h, minlength=days_u.size)
     for k in np.unique(idx[obs]):
         best[k] = lim[obs & (idx == k)].max()
     days = QTable({"date": days_u, "observable_hours": obs_h * u.h, "limit_mag_best": best * u.mag})
@@ -87,10 +108,33 @@ def visibility(campaign, ra_deg: float, dec_deg: float, band: str, start, end, s
     days["limit_mag_best"].info.format = ".3f"
     if threshold_mag is not None:
         deep = obs & (lim >= threshold_mag)
-        days["hours_deeper_than_threshold"] = np.bincount(idx, weights=deep, minlength=days_u.size) * step_h * u.h
+        days["hours_deeper_than_threshold"] = np.bincount(idx, weights=deep * sample_h, minlength=days_u.size) * u.h
         days["hours_deeper_than_threshold"].info.format = ".2f"
         days.meta["threshold_mag"] = float(threshold_mag)
     return {"samples": samples, "windows": windows, "days": days}
+
+
+def warn_if_step_aliases(step_s: float, period_s: float) -> str | None:
+    """Warn (one logged line) when the step is longer than :data:`MAX_STEP_ORBIT_FRACTION` of the
+    orbital period, naming aliasing when it is within :data:`ALIAS_TOLERANCE` of a whole number of
+    periods; returns the warning.  A warning, not a refusal: a coarse look over months is a fair
+    request, as long as the user knows windows are missed."""
+    quarter_min = MAX_STEP_ORBIT_FRACTION * period_s / 60.0
+    if step_s <= MAX_STEP_ORBIT_FRACTION * period_s:
+        return None
+    k = max(1, int(round(step_s / period_s)))
+    off = abs(step_s / (k * period_s) - 1.0)
+    head = f"--step-min {step_s / 60.0:g}: "
+    if off <= ALIAS_TOLERANCE:
+        msg = (f"{head}within {100 * off:.1f} % of {k} x the orbital period ({period_s / 60.0:.1f} min): every sample "
+               f"sees nearly the same orbital phase (aliasing), so observability looks constant and windows are "
+               f"missed; use --step-min {quarter_min:.1f} or less")
+    else:
+        msg = (f"{head}longer than a quarter of the orbital period ({period_s / 60.0:.1f} min): observability "
+               f"changes within an orbit and windows can fall between samples; use --step-min {quarter_min:.1f} "
+               "or less")
+    logging.getLogger(__name__).warning("warning: %s", msg)
+    return msg
 
 
 def plot_visibility(result: dict, path, threshold_mag: float | None = None) -> None:
