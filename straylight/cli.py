@@ -170,12 +170,13 @@ def cmd_sky(args) -> int:
     elif args.time is None or args.ra is None or args.dec is None:
         raise InputError("give --time, --ra and --dec, or --input TABLE --out FILE")
     else:
-        from straylight.sky.timeutil import parse_utc
+        from straylight.sky.timeutil import check_in_ephemeris, parse_utc
 
         pointing = _pointing(args)
-        args.time = parse_utc(args.time, "--time")  # ISO 8601, with or without a UTC offset
+        given, args.time = args.time, parse_utc(args.time, "--time")  # ISO 8601, with or without a UTC offset
+        check_in_ephemeris(args.time, "--time", given)
     campaign = load_campaign(args.config)
-    bands = [b.strip() for b in args.bands.split(",") if b.strip()] if args.bands else None
+    bands = _sky_bands(args.bands, campaign)
     stars = None
     if args.catalog:  # the cube's star model: stars brighter than stars.offfield_mag_limit
         from straylight.sources.stars import load_offfield_stars
@@ -203,6 +204,24 @@ def cmd_sky(args) -> int:
     return 0
 
 
+def _sky_bands(text, campaign) -> list[str] | None:
+    """--bands as a list (None when not given: the instrument's); an empty list or an unknown
+    band is refused before any work."""
+    from straylight.optics.bandpass import DIAGNOSTIC_BANDS
+
+    if text is None:
+        return None
+    bands = [b.strip() for b in text.split(",") if b.strip()]
+    known = [*campaign.bands, *DIAGNOSTIC_BANDS]
+    if not bands:
+        raise InputError(f"--bands {text!r}: no band given; valid bands: {', '.join(known)} "
+                         "(leave --bands out for all the instrument's)")
+    unknown = [b for b in bands if b not in known]
+    if unknown:
+        raise InputError(f"--bands: unknown band {unknown[0]!r}; valid bands: {', '.join(known)}")
+    return bands
+
+
 _SKY_COLUMNS = ("zodiacal", "earthshine", "moon", "sun", "planets", "stars", "total")
 
 
@@ -223,11 +242,18 @@ def _sky_band_table(bands: dict) -> str:
 
 def _sky_table(args, campaign, bands, stars) -> int:
     from straylight.catalog.gaia import write_parquet
+    from straylight.sky.timeutil import quiet_dubious_years
     from straylight.survey.pointings import column_units, pointing_table, read_pointings
 
     p = read_pointings(args.input)
+    # a masked time (ECSV, Parquet, FITS Time columns) has no value to compute at: refused by row
+    masked = [i for i, v in enumerate(p["time"]) if np.any(getattr(v, "mask", False))]
+    if masked:
+        raise InputError(f"{args.input}: row {masked[0] + 1}: time is masked (no value); {len(masked)} of "
+                         f"{len(p['time'])} rows are masked: fill or drop them")
     models: dict = {}
-    cols = pointing_table(campaign, p, bands, stars, source=str(args.input), models=models)
+    with quiet_dubious_years():  # a time outside DE405 is refused in one line of ours, without ERFA's
+        cols = pointing_table(campaign, p, bands, stars, source=str(args.input), models=models)
     from straylight import __version__
 
     write_parquet(cols, args.out, {"straylight_version": __version__, "input": str(args.input),
@@ -285,7 +311,7 @@ def cmd_image(args) -> int:
     from straylight.image.detector import (RenderSettings, bodies_as_stars, boresight_for_target, focal_plane_from_instrument,
                         render_detector, select_stars, star_fluxes_e_per_s, sun_direction_at, write_fits)
     from straylight.optics.scatter import scatter_model_from_instrument
-    from straylight.sky.timeutil import parse_utc
+    from straylight.sky.timeutil import check_in_ephemeris, parse_utc
 
     if args.star is None and (args.ra is None or args.dec is None):
         raise InputError("give --ra and --dec, or --star HIP|NAME")
@@ -294,6 +320,12 @@ def cmd_image(args) -> int:
     target = _pointing(args) if args.star is None else None
     if args.bin < 1:
         raise InputError(f"--bin {args.bin}: must be a positive integer")
+    if args.quantize_step is not None:  # checked here, not after the rendering
+        if args.compress != "rice":
+            raise InputError(f"--quantize-step {args.quantize_step:g}: applies only with --compress rice (this image "
+                             f"is written with --compress {args.compress}, which does not quantise)")
+        if not (math.isfinite(args.quantize_step) and args.quantize_step > 0):
+            raise InputError(f"--quantize-step {args.quantize_step:g}: must be a positive number of e-/s/pixel")
     cutout = None
     if args.cutout:
         try:
@@ -310,6 +342,7 @@ def cmd_image(args) -> int:
     if args.band not in campaign.bands:
         raise InputError(f"--band: {args.band!r} is not one of {', '.join(campaign.bands)}")
     t = parse_utc(args.time, "--time")
+    check_in_ephemeris(t, "--time", args.time)
     fp = focal_plane_from_instrument(inst)
     fp.detector_offset_px(args.detector)  # checks the index
     catalog = args.catalog
