@@ -42,6 +42,7 @@ def sky_background(time, coord, bands=None, config=None, catalog=None):
         Observation time(s), any scale (converted to UTC); scalar or array.  Valid within the
         DE405 ephemeris range (1600-12-21 to 2200-02-02); the satellite follows the campaign's
         orbit (``config``), so for a circular orbit only times near its epoch are meaningful.
+        A masked entry is refused (there is no time to compute at): drop or fill it first.
     coord : astropy.coordinates.SkyCoord
         Pointing(s) (any frame; converted to ICRS); scalar or array, broadcast against ``time``.
     bands : list of str, optional
@@ -73,11 +74,15 @@ def sky_background(time, coord, bands=None, config=None, catalog=None):
         ``meta`` holds each band's zero point (``mag_zero_point``, mag/arcsec2 at
         1 e-/s/pixel) and the record of which models ran.
 
+        No samples (an empty ``time`` or ``coord``) give an empty table with the same columns
+        and units, so a scheduler's loop needs no special case; the config and bands are still
+        checked, no model runs and ``meta["models"]`` is empty.
+
     Raises
     ------
     straylight.InputError
-        Arguments of the wrong type, non-finite coordinates, shapes that do not broadcast, a
-        time outside the ephemeris, an unknown band.
+        Arguments of the wrong type, non-finite coordinates, a masked time, shapes that do not
+        broadcast, a time outside the ephemeris, an unknown band or an empty list of bands.
     straylight.ConfigError
         A config that does not validate (the message names the file, key and value).
 
@@ -94,7 +99,7 @@ def sky_background(time, coord, bands=None, config=None, catalog=None):
     from astropy.coordinates import SkyCoord
     from astropy.time import Time
 
-    from straylight.sky.timeutil import configure_offline
+    from straylight.sky.timeutil import check_in_ephemeris, configure_offline, quiet_dubious_years
 
     configure_offline()  # before the scale conversion below: no leap-second download
 
@@ -116,13 +121,26 @@ def sky_background(time, coord, bands=None, config=None, catalog=None):
     bad = np.flatnonzero(~(np.isfinite(ra) & np.isfinite(dec)))
     if bad.size:
         raise InputError(f"coord: sample {bad[0]}: ra = {ra[bad[0]]}, dec = {dec[bad[0]]} is not finite")
-    t = time.utc
-    t = Time(np.broadcast_to(t.jd1, shape).ravel(), np.broadcast_to(t.jd2, shape).ravel(), format="jd", scale="utc")
+    masked = np.flatnonzero(np.broadcast_to(np.asarray(time.mask, bool), shape).ravel())
+    if masked.size:
+        raise InputError(f"time: sample {masked[0]} is masked ({masked.size} of {ra.size} samples): no time to "
+                         "compute at; drop or fill the masked entries")
+    with quiet_dubious_years():  # a time outside DE405 gets our line below, not ERFA's warnings first
+        t = time.utc
+        t = Time(np.broadcast_to(t.jd1, shape).ravel(), np.broadcast_to(t.jd2, shape).ravel(), format="jd",
+                 scale="utc")
+    if t.size:
+        check_in_ephemeris(t, "time")
     campaign = load_campaign(config)
+    if bands is not None and len(bands) == 0:
+        raise InputError(f"bands: no band given; valid bands: {', '.join(campaign.bands)}, V "
+                         "(None for all the instrument's)")
     bands = list(bands or campaign.bands)
     unknown = [b for b in bands if b not in campaign.bands and b != "V"]
     if unknown:
         raise InputError(f"bands: unknown band {unknown[0]!r}; known: {', '.join(campaign.bands)}, V")
+    if not t.size:
+        return _empty_table(campaign, t, bands)
     stars = None
     if catalog is not None:
         from straylight.sources.stars import load_offfield_stars
@@ -130,6 +148,23 @@ def sky_background(time, coord, bands=None, config=None, catalog=None):
         stars = load_offfield_stars(catalog, bands, float(campaign.config["stars"]["offfield_mag_limit"]),
                                     bool(campaign.config["stars"].get("faint_map", True)))
     return background_table(campaign, t, ra, dec, bands, stars, source="sky_background")
+
+
+def _empty_table(campaign, t, bands):
+    """:func:`sky_background`'s table with no rows: the pointing table's columns, empty, through
+    the same conversion to a QTable (so columns and units cannot differ from a computed one's)."""
+    from straylight.survey.limits import sky_zero_points
+    from straylight.survey.pointings import COMPONENTS, _qtable
+
+    none = np.zeros(0)
+    cols = {k: none for k in ("ra_deg", "dec_deg", "sun_angle_deg", "moon_angle_deg", "earth_limb_angle_deg",
+                              "door_opening_deg")}
+    cols.update(observable=np.zeros(0, bool), violations=np.zeros(0, np.int64))
+    for b in bands:
+        cols.update({f"{c}_{b}": none for c in COMPONENTS})
+        if b != "V":  # the diagnostic band has no limit
+            cols[f"limit_mag_{b}"] = none
+    return _qtable(cols, t, bands, sky_zero_points(campaign, bands), {})
 
 
 class CampaignProducts:

@@ -147,3 +147,75 @@ def test_catalog_stars_enter_as_in_the_sky_command(tmp_path):
         stars = sky[f"stars_{b}"][0].to_value(u.electron / u.s / u.pix)
         assert stars > 0
         assert stars == pytest.approx(rec["bands"][b]["stars"]["e_per_s_per_pix"], rel=1e-6)
+
+
+def test_empty_time_and_coord_give_an_empty_table_with_the_columns():
+    """Zero samples (a scheduler's empty batch) give an empty QTable with the columns and units
+    of a non-empty call, without running the model; the bands and config are still checked."""
+    import astropy.units as u
+    from astropy.coordinates import SkyCoord
+    from astropy.time import Time
+
+    import straylight
+
+    one = straylight.sky_background(Time(T0), SkyCoord(150.0, 30.0, unit="deg"), bands=["g", "V"])
+    empty_t = Time(np.array([], float), format="jd", scale="utc")
+    empty_c = SkyCoord(np.array([]), np.array([]), unit="deg")
+    for t, c in ((empty_t, empty_c), (empty_t, SkyCoord(150.0, 30.0, unit="deg")),
+                 (Time([T0] * 3)[:, None], empty_c[None, :])):
+        sky = straylight.sky_background(t, c, bands=["g", "V"])
+        assert len(sky) == 0
+        assert sky.colnames == one.colnames
+        for name in one.colnames:
+            assert getattr(sky[name], "unit", None) == getattr(one[name], "unit", None), name
+        assert sky.meta["mag_zero_point"]["g"] == one.meta["mag_zero_point"]["g"]
+    with pytest.raises(straylight.InputError, match="unknown band 'w'"):
+        straylight.sky_background(empty_t, empty_c, bands=["w"])
+    assert u.Quantity(sky["total_g"]).size == 0
+
+
+def test_an_empty_band_list_is_refused():
+    from astropy.coordinates import SkyCoord
+    from astropy.time import Time
+
+    import straylight
+
+    with pytest.raises(straylight.InputError, match=r"bands: no band given.*NUV, u, g, r, i, z, y"):
+        straylight.sky_background(Time(T0), SkyCoord(150.0, 30.0, unit="deg"), bands=[])
+
+
+def test_a_masked_time_is_refused_naming_the_sample():
+    """A masked entry has no time to compute at: refused (as a non-finite coordinate is), naming
+    the sample in the broadcast, rather than computed at the value hidden under the mask."""
+    from astropy.coordinates import SkyCoord
+    from astropy.time import Time
+
+    import straylight
+
+    t = Time([T0, "2026-01-01T00:40:00", "2026-01-01T00:50:00"])
+    t[1] = np.ma.masked
+    with pytest.raises(straylight.InputError, match=r"time: sample 1 is masked \(1 of 3 samples\)"):
+        straylight.sky_background(t, SkyCoord(150.0, 30.0, unit="deg"), bands=["g"])
+    c = SkyCoord([150.0, 160.0], [30.0, 30.0], unit="deg")
+    with pytest.raises(straylight.InputError, match=r"time: sample 2 is masked \(2 of 6 samples\)"):
+        straylight.sky_background(t[:, None], c[None, :], bands=["g"])
+
+
+def test_a_time_outside_de405_is_one_error_without_erfa_warnings():
+    """ERFA's "dubious year" warnings would precede the refusal of a time outside DE405."""
+    import warnings
+
+    from astropy.coordinates import SkyCoord
+    from astropy.time import Time
+
+    import straylight
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the test's own Time in 2300
+        t = Time(["2026-01-01T00:30:00", "2300-01-01T00:00:00"])
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        with pytest.raises(straylight.InputError, match=r"time: sample 1 = 2300-01-01T00:00:00.000 is outside the "
+                                                        r"DE405 range \(1600-12-21 to 2200-02-02\); 1 of 2 samples are outside it"):
+            straylight.sky_background(t, SkyCoord(150.0, 30.0, unit="deg"), bands=["g"])
+    assert not [w for w in caught if "dubious year" in str(w.message)]
