@@ -41,7 +41,9 @@ def snakemake_command(config, cores: int | None = None, extra=(), workdir=None) 
     Snakemake as they are (``-n``, ``--report report.html``, ...)."""
     workdir = Path(workdir) if workdir is not None else Path.cwd()
     cores = available_cores() if cores is None else cores
-    return [sys.executable, "-m", "snakemake", "-s", str(workflow_dir() / "Snakefile"), "-d", str(workdir.resolve()),
+    # -P: not the current directory on sys.path, which Snakemake hands on to the jobs: a folder
+    # named straylight where the campaign runs (a checkout) would shadow the installed package
+    return [sys.executable, "-P", "-m", "snakemake", "-s", str(workflow_dir() / "Snakefile"), "-d", str(workdir.resolve()),
             "--configfile", str(Path(config).resolve()), "--cores", str(cores), "--rerun-incomplete", *extra]
 
 

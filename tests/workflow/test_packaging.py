@@ -53,8 +53,8 @@ def test_run_command_is_snakemake_on_the_workflow_in_the_current_directory(tmp_p
 
     assert workflow_dir() == REPO / "workflow"  # a checkout runs its own workflow/
     cmd = snakemake_command("tiny.yaml", extra=["-n", "--report", "r.html"], workdir=tmp_path)
-    assert cmd[:3] == [sys.executable, "-m", "snakemake"]
-    assert cmd[3:] == ["-s", str(REPO / "workflow" / "Snakefile"), "-d", str(tmp_path), "--configfile",
+    assert cmd[:4] == [sys.executable, "-P", "-m", "snakemake"]
+    assert cmd[4:] == ["-s", str(REPO / "workflow" / "Snakefile"), "-d", str(tmp_path), "--configfile",
                        str(Path("tiny.yaml").resolve()), "--cores", str(available_cores()), "--rerun-incomplete",
                        "-n", "--report", "r.html"]
     assert available_cores() == len(os.sched_getaffinity(0))
