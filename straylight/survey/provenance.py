@@ -67,11 +67,11 @@ def source_revision() -> dict:
     the commit it was built from when known (setuptools-scm's short id)."""
     if (SOURCE_ROOT / ".git").exists():
         commit = _git("rev-parse", "HEAD")
-        status = _git("status", "--porcelain", "--untracked-files=no")
-        if commit is not None:
-            modified = sorted(line[3:] for line in (status or "").splitlines() if line.strip())
-            return {"version": __version__, "from": "checkout", "commit": commit.strip(),
-                    "dirty": bool(modified) if status is not None else None, "modified": modified}
+        status = _git("status", "--porcelain", "--untracked-files=no") if commit is not None else None
+        modified = sorted(line[3:] for line in (status or "").splitlines() if line.strip())
+        # no git here (or it refuses the folder): a checkout all the same, its commit unknown
+        return {"version": __version__, "from": "checkout", "commit": commit.strip() if commit else None,
+                "dirty": bool(modified) if status is not None else None, "modified": modified}
     commit = build_commit[1:] if build_commit and build_commit.startswith("g") else build_commit
     return {"version": __version__, "from": "install", "commit": commit, "dirty": None}
 

@@ -65,6 +65,14 @@ def test_source_revision_from_this_checkout():
     assert rev["dirty"] == bool(status.strip()) and len(rev["modified"]) == len(status.splitlines())
 
 
+def test_source_revision_without_git_is_still_a_checkout(monkeypatch):
+    from straylight.survey import provenance as pv
+
+    monkeypatch.setenv("PATH", "/nonexistent")  # no git program
+    assert pv.source_revision() == {"version": pv.__version__, "from": "checkout", "commit": None, "dirty": None,
+                                    "modified": []}
+
+
 def test_record_keeps_checksums_and_no_absolute_path(tmp_path):
     import yaml
 
