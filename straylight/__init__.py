@@ -4,6 +4,8 @@ Public API (small on purpose):
 
 * :func:`sky_background` - background components, total, 5-sigma depth and observability of any
   (astropy ``Time``, ``SkyCoord``), as an astropy ``QTable`` with units.
+* :class:`SkyModel` - the same from a model built once, for a scheduler's loop
+  (``SkyModel(config).background(time, coord, bands)``).
 * :func:`open_campaign` - a finished campaign's products as xarray objects.
 * :func:`load_campaign` - a validated campaign config with its orbit, Earth model, constraints.
 * :class:`DE405` - the JPL DE405 ephemeris, vectorised over times.
@@ -20,7 +22,7 @@ from straylight.errors import ConfigError, EphemerisRangeError, InputError, Stra
 #: public name -> the module that defines it
 _LAZY = {
     "CampaignProducts": "straylight.api", "open_campaign": "straylight.api",
-    "sky_background": "straylight.api",
+    "sky_background": "straylight.api", "SkyModel": "straylight.skymodel",
     "Campaign": "straylight.config", "load_campaign": "straylight.config",
     "BODIES": "straylight.sky.ephemeris", "DE405": "straylight.sky.ephemeris",
     "sample_geometry": "straylight.sky.observing", "scene": "straylight.sky.observing",

@@ -3,7 +3,9 @@
 * :func:`sky_background` - every background component, the total, the 5-sigma limit and the
   observability of any (time, pointing), from astropy ``Time`` and ``SkyCoord``, as an astropy
   ``QTable`` with units.  It runs the per-pointing table code of ``straylight sky --input``
-  (:func:`straylight.survey.pointings.pointing_table`), vectorised over the samples.
+  (:func:`straylight.survey.pointings.pointing_table`), vectorised over the samples, on a
+  :class:`~straylight.skymodel.SkyModel` kept warm per config and catalog (the first call
+  builds it; later ones only compute).
 * :func:`open_campaign` - a finished campaign's products (``results/<campaign>/``) as xarray
   objects, with :meth:`CampaignProducts.to_mag_per_arcsec2` for the conversion to surface
   brightness through the zero points stored with the cube.
@@ -96,75 +98,9 @@ def sky_background(time, coord, bands=None, config=None, catalog=None):
     >>> len(sky), sky["zodiacal_r"].unit, sky["total_mag_r"].unit
     (3, Unit("electron / (pix s)"), Unit("mag / arcsec2"))
     """
-    from astropy.coordinates import SkyCoord
-    from astropy.time import Time
+    from straylight.skymodel import cached_sky_model
 
-    from straylight.sky.timeutil import check_in_ephemeris, configure_offline, quiet_dubious_years
-
-    configure_offline()  # before the scale conversion below: no leap-second download
-
-    from straylight.config import load_campaign
-    from straylight.survey.pointings import background_table
-
-    if not isinstance(time, Time):
-        raise InputError(f"time: expected an astropy.time.Time, got {type(time).__name__}")
-    if not isinstance(coord, SkyCoord):
-        raise InputError(f"coord: expected an astropy.coordinates.SkyCoord, got {type(coord).__name__}")
-    icrs = coord.icrs
-    ra = np.asarray(icrs.ra.deg, float)
-    dec = np.asarray(icrs.dec.deg, float)
-    try:
-        shape = np.broadcast_shapes(time.shape, ra.shape)
-    except ValueError:
-        raise InputError(f"time {time.shape} and coord {ra.shape}: shapes do not broadcast") from None
-    ra, dec = (np.broadcast_to(a, shape).ravel() for a in (ra, dec))
-    bad = np.flatnonzero(~(np.isfinite(ra) & np.isfinite(dec)))
-    if bad.size:
-        raise InputError(f"coord: sample {bad[0]}: ra = {ra[bad[0]]}, dec = {dec[bad[0]]} is not finite")
-    masked = np.flatnonzero(np.broadcast_to(np.asarray(time.mask, bool), shape).ravel())
-    if masked.size:
-        raise InputError(f"time: sample {masked[0]} is masked ({masked.size} of {ra.size} samples): no time to "
-                         "compute at; drop or fill the masked entries")
-    with quiet_dubious_years():  # a time outside DE405 gets our line below, not ERFA's warnings first
-        t = time.utc
-        t = Time(np.broadcast_to(t.jd1, shape).ravel(), np.broadcast_to(t.jd2, shape).ravel(), format="jd",
-                 scale="utc")
-    if t.size:
-        check_in_ephemeris(t, "time")
-    campaign = load_campaign(config)
-    if bands is not None and len(bands) == 0:
-        raise InputError(f"bands: no band given; valid bands: {', '.join(campaign.bands)}, V "
-                         "(None for all the instrument's)")
-    bands = list(bands or campaign.bands)
-    unknown = [b for b in bands if b not in campaign.bands and b != "V"]
-    if unknown:
-        raise InputError(f"bands: unknown band {unknown[0]!r}; known: {', '.join(campaign.bands)}, V")
-    if not t.size:
-        return _empty_table(campaign, t, bands)
-    stars = None
-    if catalog is not None:
-        from straylight.sources.stars import load_offfield_stars
-
-        stars = load_offfield_stars(catalog, bands, float(campaign.config["stars"]["offfield_mag_limit"]),
-                                    bool(campaign.config["stars"].get("faint_map", True)))
-    return background_table(campaign, t, ra, dec, bands, stars, source="sky_background")
-
-
-def _empty_table(campaign, t, bands):
-    """:func:`sky_background`'s table with no rows: the pointing table's columns, empty, through
-    the same conversion to a QTable (so columns and units cannot differ from a computed one's)."""
-    from straylight.survey.limits import sky_zero_points
-    from straylight.survey.pointings import COMPONENTS, _qtable
-
-    none = np.zeros(0)
-    cols = {k: none for k in ("ra_deg", "dec_deg", "sun_angle_deg", "moon_angle_deg", "earth_limb_angle_deg",
-                              "door_opening_deg")}
-    cols.update(observable=np.zeros(0, bool), violations=np.zeros(0, np.int64))
-    for b in bands:
-        cols.update({f"{c}_{b}": none for c in COMPONENTS})
-        if b != "V":  # the diagnostic band has no limit
-            cols[f"limit_mag_{b}"] = none
-    return _qtable(cols, t, bands, sky_zero_points(campaign, bands), {})
+    return cached_sky_model(config, catalog).background(time, coord, bands)
 
 
 class CampaignProducts:

@@ -93,8 +93,10 @@ def cmd_ephem(args) -> int:
     return 0
 
 
-def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None, stars=None) -> dict:
-    """The ``straylight sky`` JSON record for one time and pointing (grows with the physics)."""
+def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None, stars=None, model=None) -> dict:
+    """The ``straylight sky`` JSON record for one time and pointing (grows with the physics);
+    ``model``: the campaign's :class:`~straylight.model.BackgroundModel` (the SkyModel's, as
+    the API evaluates with), else one built for this sample."""
     from straylight.model import BackgroundModel
     from straylight.sky.ephemeris import PLANETS
     from straylight.sky.geometry import radec_to_unit, violation_names
@@ -132,7 +134,7 @@ def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None, stars=
     }
     g1 = {k: np.asarray(a).reshape(1) for k, a in g.items()}
     los = radec_to_unit(np.array([ra_deg]), np.array([dec_deg]))
-    model = BackgroundModel(campaign)
+    model = model if model is not None else BackgroundModel(campaign)
     comps = model.evaluate(sc.satellite_km, sc.bodies_km, los, g1, bands or campaign.bands, stars=stars)
     record["models"] = model.models_record()
     # bodies inside the field: point sources, left out of the background and listed here
@@ -177,6 +179,10 @@ def cmd_sky(args) -> int:
         check_in_ephemeris(args.time, "--time", given)
     campaign = load_campaign(args.config)
     bands = _sky_bands(args.bands, campaign)
+    # the API's model (the earthshine tables under auto), so the command and sky_background agree
+    from straylight.skymodel import cached_sky_model
+
+    model = cached_sky_model(args.config).model
     stars = None
     if args.catalog:  # the cube's star model: stars brighter than stars.offfield_mag_limit
         from straylight.sources.stars import load_offfield_stars
@@ -185,8 +191,8 @@ def cmd_sky(args) -> int:
                                     float(campaign.config["stars"]["offfield_mag_limit"]),
                                     bool(campaign.config["stars"].get("faint_map", True)))
     if args.input:
-        return _sky_table(args, campaign, bands, stars)
-    rec = sky_record(campaign, args.time, pointing[0], pointing[1], bands, stars)
+        return _sky_table(args, campaign, bands, stars, model)
+    rec = sky_record(campaign, args.time, pointing[0], pointing[1], bands, stars, model)
     if args.json:
         _print_json(rec)
     else:
@@ -240,7 +246,7 @@ def _sky_band_table(bands: dict) -> str:
     return "\n".join(lines)
 
 
-def _sky_table(args, campaign, bands, stars) -> int:
+def _sky_table(args, campaign, bands, stars, model) -> int:
     from straylight.catalog.gaia import write_parquet
     from straylight.sky.timeutil import quiet_dubious_years
     from straylight.survey.pointings import column_units, pointing_table, read_pointings
@@ -253,7 +259,7 @@ def _sky_table(args, campaign, bands, stars) -> int:
                          f"{len(p['time'])} rows are masked: fill or drop them")
     models: dict = {}
     with quiet_dubious_years():  # a time outside DE405 is refused in one line of ours, without ERFA's
-        cols = pointing_table(campaign, p, bands, stars, source=str(args.input), models=models)
+        cols = pointing_table(campaign, p, bands, stars, source=str(args.input), models=models, model=model)
     from straylight import __version__
 
     write_parquet(cols, args.out, {"straylight_version": __version__, "input": str(args.input),

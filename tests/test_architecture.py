@@ -26,6 +26,7 @@ LAYERS = (
     ("model",),
     ("survey", "image"),
     ("paper",),
+    ("skymodel",),
     ("api",),
     ("plots", "configdoc", "runner"),
     ("straylight",),

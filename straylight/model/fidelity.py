@@ -10,6 +10,8 @@ from dataclasses import dataclass
 from functools import cached_property
 
 from straylight.config import Campaign
+# the tables' build per (node, door state) is given with the tables
+from straylight.sources.earthshine_lut import LUT_BUILD_SECONDS_PER_NODE, MOONLIT_LUT_BUILD_SECONDS_PER_NODE
 
 #: Shares of models.tolerance (a fraction of the total) held by each fast path; they add up to 1.
 #: The earthshine table must validate within its share; the moonlit Earth has two: the samples
@@ -18,15 +20,13 @@ from straylight.config import Campaign
 ERROR_BUDGET_SHARES = {"earthshine_lut": 0.5, "moonlit_earthshine_skip": 0.125, "moonlit_earthshine_grid": 0.125,
                        "stars_skip": 0.125, "moon_and_planets_skip": 0.125}
 
-#: models.earthshine.method = auto weighs the sunlit table's build against what it saves, both
-#: in seconds on one core: the build per (node, door state), and the saving per evaluated
-#: sample of the table path over the direct sum.  Their ratio is what decides, and it does not
-#: move with the machine (``bench/run.py --only cube`` prints both as cube.auto_cost_model).
-LUT_BUILD_SECONDS_PER_NODE = 0.39e-3
-LUT_SAVED_SECONDS_PER_SAMPLE = 0.27e-3
-#: The moonlit Earth's table (the table path builds it too), per (node, door state), in the
-#: same units: its coarse grid (8 x 16 blocks) makes a node 0.063 of a sunlit one.
-MOONLIT_LUT_BUILD_SECONDS_PER_NODE = 0.063 * LUT_BUILD_SECONDS_PER_NODE
+#: models.earthshine.method = auto weighs reading the cached tables (a build is a one-time cost
+#: per model and machine, which every later command and campaign reuses) against what the table
+#: saves per evaluated sample over the direct sum, both in seconds on one core; their ratio is
+#: the fewest samples for which auto takes the table (bench/earthshine_tables.py measures both).
+LUT_LOAD_SECONDS = 1.0
+LUT_SAVED_SECONDS_PER_SAMPLE = 0.08e-3
+AUTO_TABLE_MIN_SAMPLES = int(round(LUT_LOAD_SECONDS / LUT_SAVED_SECONDS_PER_SAMPLE))
 
 
 def unobservable_samples(campaign) -> str:
@@ -78,17 +78,16 @@ class FidelityPolicy:
         moonlit_s = MOONLIT_LUT_BUILD_SECONDS_PER_NODE * moonlit_node_states
         return LUT_BUILD_SECONDS_PER_NODE * sunlit_node_states + moonlit_s, moonlit_s
 
-    def earthshine_method(self, requested: str, build_seconds: float) -> tuple[str, str]:
+    def earthshine_method(self, requested: str) -> tuple[str, str]:
         """(method, reason): 'lut' or 'direct' for the sunlit Earth, from models.earthshine.method
-        (``requested``: auto | lut | direct) and, for auto, the tables' build (``build_seconds``
-        at the figures above) against what the table saves over :attr:`expected_samples`.  Blind
-        to the cache on purpose: the same config gives the same products on every machine,
-        whether or not a table was built there before."""
+        (``requested``: auto | lut | direct) and, for auto, :attr:`expected_samples` against
+        :data:`AUTO_TABLE_MIN_SAMPLES` (below it the direct sum is done before the cached tables
+        are read).  Blind to the cache on purpose: the same config and samples give the same
+        products on every machine, whether or not a table was built there before; a table that
+        is not cached yet is built once (``straylight plan`` says so, with its time)."""
         if requested == "direct":
             return "direct", "models.earthshine.method = direct"
-        if requested == "auto":
-            saved_s = LUT_SAVED_SECONDS_PER_SAMPLE * self.expected_samples
-            if saved_s < build_seconds:
-                return "direct", (f"auto: {self.expected_samples} samples save ~{saved_s:.0f} s, "
-                                  f"the table costs ~{build_seconds:.0f} s")
+        if requested == "auto" and self.expected_samples < AUTO_TABLE_MIN_SAMPLES:
+            return "direct", (f"auto: {self.expected_samples} samples, fewer than the {AUTO_TABLE_MIN_SAMPLES} "
+                              f"that repay reading the tables")
         return "lut", f"{requested}: {self.expected_samples} samples"

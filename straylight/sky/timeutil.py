@@ -79,7 +79,8 @@ def check_in_ephemeris(t: Time, field: str, given=None) -> None:
 
     eph = default_ephemeris()
     with quiet_dubious_years():
-        jd = np.ravel(t.tdb.jd)
+        jd1, jd2 = utc_to_tdb_jd(t, field)  # TDB through the spline of tdb_minus_tt_s for many times
+        jd = np.ravel(jd1 + jd2)
         bad = np.flatnonzero(~((jd >= eph.jd_start) & (jd <= eph.jd_end)))
         if not bad.size:
             return

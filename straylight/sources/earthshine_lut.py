@@ -31,7 +31,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 from pathlib import Path
 
@@ -48,6 +48,13 @@ from straylight.sources.photometry import AU_KM
 
 #: bumped whenever the table's content or layout changes: part of the cache key
 LUT_FORMAT = 5
+
+#: The tables' build, in seconds on one core per (node, door state): the sunlit table's nodes
+#: each sum the full Earth grid, the moonlit table's its coarse grid (8 x 16 blocks).  The build
+#: is announced with the time they give, and ``straylight plan`` quotes it;
+#: bench/earthshine_tables.py measures them.
+LUT_BUILD_SECONDS_PER_NODE = 0.028e-3
+MOONLIT_LUT_BUILD_SECONDS_PER_NODE = 0.006e-3
 
 
 @dataclass(frozen=True)
@@ -164,13 +171,18 @@ def cache_path(prefix: str, key: str) -> Path:
     return cache_dir() / f"{prefix}_{key}.npz"
 
 
-def _cached(prefix: str, key: str, what: str, load, build, log):
-    """load(path) of the cached table ``prefix_key.npz``, else build(), saved there."""
+def _cached(prefix: str, key: str, what: str, load, build, log, expected_cpu_s: float | None = None,
+            workers: int = 1):
+    """load(path) of the cached table ``prefix_key.npz``, else build(), saved there.  A build is
+    announced once, as a warning (so a command with no logging set up shows it too), with its
+    expected time from ``expected_cpu_s`` (seconds on one core) over ``workers`` cores."""
     path = cache_path(prefix, key)
     if path.exists():
         return load(path), path
     if log is not None:
-        log.info("building the %s look-up table %s (once; cached in %s)", what, key, path.parent)
+        eta = f", ~{expected_cpu_s / max(workers, 1):.0f} s on {workers} core{'s' if workers > 1 else ''}" \
+            if expected_cpu_s else ""
+        log.warning("building the %s look-up table once%s; later runs read it from %s", what, eta, path.parent)
     lut = build()
     path.parent.mkdir(parents=True, exist_ok=True)
     lut.save(path)
@@ -314,46 +326,72 @@ def _local_scene(R, Z, L, A):
     return sat, sun, los
 
 
-def sun_coefficients_direct(off, R, Z, L, A, state, earth_radius_km, batch):
+def sun_coefficients_direct(off, R, Z, L, A, state, earth_radius_km):
     """Direct sums in the local frame (vertical +x, the Sun in the x-y plane): radius R (km),
     Sun zenith Z, line-of-sight zenith L and azimuth A (rad), one door state."""
     sat, sun, los = _local_scene(R, Z, L, A)
-    moon = np.broadcast_to([0.0, 0.0, -1e9], sat.shape)  # unused: the Moon's terms are not tabulated
     d_out, g_out = np.empty(R.size), np.empty(R.size)
+    state_index = sorted(off.door_states_deg).index(state)
     # samples sharing a (radius, Sun zenith) share one scene: one cap grid, dark blocks dropped
     groups = {}
     for i, key in enumerate(zip(R.tolist(), Z.tolist())):
         groups.setdefault(key, []).append(i)
     for idx in groups.values():
         idx = np.asarray(idx)
-        for j in range(0, idx.size, batch):
-            sl = idx[j:j + batch]
-            frame = telescope_frame(los[sl], sun[sl] - sat[sl])
-            c = off.earthshine_coefficients(sat[sl], sun[sl], moon[sl], frame, np.full(sl.size, state),
-                                            earth_radius_km, in_field=False, moon=False)
-            d_out[sl], g_out[sl] = c["direct_sun"], c["door_sun"]
+        frame = telescope_frame(los[idx], sun[idx] - sat[idx])
+        d, g = off.earthshine_scene_sums(sat[idx[0]], sun[idx[0]], _NO_MOON_KM, frame, earth_radius_km,
+                                         np.full((idx.size, 1), state_index), with_moon=False)
+        d_out[idx], g_out[idx] = d[:, 0, 0], g[:, 0, 0]
     return d_out, g_out
 
 
-def _lamp_bound_chunk(off, sat, lamp, los, earth_radius_km, batch):
-    """off.earthshine_lamp_bound over rows, ``batch`` rows at a time (bounds memory)."""
-    return np.concatenate([off.earthshine_lamp_bound(sat[j:j + batch], lamp[j:j + batch], los[j:j + batch],
-                                                     earth_radius_km) for j in range(0, len(sat), batch)])
+#: a Moon far away, for sums that leave the Moon out (its position must still be finite)
+_NO_MOON_KM = np.array([0.0, 0.0, -1e9])
 
 
-def _map(fn, tasks: list, workers: int) -> list:
-    """fn(*task) for every task, in ``workers`` forked processes; serially with one worker or
-    where fork is not available.  Each task's result does not depend on the split, so the table
-    is the same byte for byte whatever ``workers`` is (tests/sources/test_earthshine_lut.py)."""
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
+def _sunlit_scene(off, r_km: float, sun_zenith_rad: float, los_zenith_rad, azimuth_rad, earth_radius_km: float):
+    """One (radius, Sun zenith) scene of the sunlit table over every (line-of-sight zenith,
+    azimuth) node (flattened, zenith-major): (direct, door) per unit solar irradiance, (nodes,
+    door states ascending), and the moonlit Earth's direct bound with the Moon where the Sun is
+    (:meth:`OffFieldModel.lamp_bound_one_scene`), (nodes,)."""
+    L, A = (v.ravel() for v in np.meshgrid(los_zenith_rad, azimuth_rad, indexing="ij"))
+    sat, sun, los = _local_scene(np.full(L.size, r_km), np.full(L.size, sun_zenith_rad), L, A)
+    frame = telescope_frame(los, sun - sat)
+    n_states = len(off.door_states_deg)
+    d, g = off.earthshine_scene_sums(sat[0], sun[0], _NO_MOON_KM, frame, earth_radius_km,
+                                     np.broadcast_to(np.arange(n_states), (L.size, n_states)), with_moon=False)
+    bound = off.lamp_bound_one_scene(sat[0], unit(sun[0]), los, earth_radius_km)
+    return d[:, :, 0], g[:, :, 0], bound
 
-    if workers <= 1 or len(tasks) <= 1 or "fork" not in multiprocessing.get_all_start_methods():
-        return [fn(*t) for t in tasks]
-    # fork, not spawn: spawn re-imports the caller's main module, which in a Snakemake script
-    # would run the job again
-    with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("fork")) as ex:
-        return list(ex.map(fn, *zip(*tasks)))
+
+def _run_scenes(fn, tasks: list, workers: int, what: str, log=None) -> list:
+    """fn(*task) for every task (a scene each), in ``workers`` threads (the sums are compiled
+    and release the GIL), with a progress bar on standard error once it runs for more than a
+    few seconds.  Each task's result does not depend on the threads, so the table is the same
+    byte for byte whatever ``workers`` is (tests/sources/test_earthshine_lut.py)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from tqdm import tqdm
+
+    results = [None] * len(tasks)
+    import sys
+
+    tty = sys.stderr.isatty()
+    with tqdm(total=len(tasks), desc=what, unit="scene", delay=3.0, mininterval=1.0 if tty else 60.0,
+              leave=not tty, file=sys.stderr) as bar:
+        if workers <= 1 or len(tasks) <= 1:
+            for i, t in enumerate(tasks):
+                results[i] = fn(*t)
+                bar.update()
+        else:
+            with ThreadPoolExecutor(max_workers=workers) as ex:
+                futures = {ex.submit(fn, *t): i for i, t in enumerate(tasks)}
+                from concurrent.futures import as_completed
+
+                for f in as_completed(futures):
+                    results[futures[f]] = f.result()
+                    bar.update()
+    return results
 
 
 def mirror_symmetric(off) -> bool:
@@ -408,7 +446,7 @@ class EarthshineLUT:
     # -- construction ---------------------------------------------------------------------------
     @classmethod
     def build(cls, off, earth_radius_km: float, radius_range_km: tuple[float, float],
-              settings: LUTSettings = LUTSettings(), floor: float = 0.0, batch: int = 1024,
+              settings: LUTSettings = LUTSettings(), floor: float = 0.0,
               n_validation: int = 400, avoidance_deg: tuple = (30.0, 80.0, 50.0),
               workers: int = 1) -> "EarthshineLUT":
         """Tabulate ``off.earthshine_coefficients`` (an :class:`OffFieldModel`), then validate:
@@ -416,8 +454,8 @@ class EarthshineLUT:
         the minimum angles from the dark limb, the bright limb and the Sun, as the campaign's
         constraints) the largest |table - direct| / (direct + floor), with ``floor`` the darkest
         sky background in the same units (so the error is a fraction of the total, and a
-        pessimistic one).  ``workers`` processes share the node sums (one per core: the build
-        is ~9 min on one core with the default steps)."""
+        pessimistic one).  ``workers`` threads share the scenes (one per core; the sums are
+        compiled, :mod:`straylight.sources.earthshine_kernel`)."""
         import time
 
         t_start = time.perf_counter()
@@ -426,34 +464,20 @@ class EarthshineLUT:
         rr = np.linspace(radius_range_km[0], radius_range_km[1], s.n_radius) if s.n_radius > 1 \
             else np.array([0.5 * (radius_range_km[0] + radius_range_km[1])])
         zs, zl, az = s.nodes(float(rr.min()), earth_radius_km, symmetric)
-        R, Z, L, A = np.meshgrid(rr, np.radians(zs), np.radians(zl), np.radians(az), indexing="ij")
-        shape = R.shape
-        R, Z, L, A = (v.ravel() for v in (R, Z, L, A))
+        shape = (rr.size, zs.size, zl.size, az.size)
+        # one task per (radius, Sun zenith) scene: its cap grid once, every door state at once
+        tasks = [(off, float(r), float(z), np.radians(zl), np.radians(az), earth_radius_km)
+                 for r in rr for z in np.radians(zs)]
+        results = _run_scenes(_sunlit_scene, tasks, workers, "earthshine table")
+        ascending = sorted(off.door_states_deg)
         direct, door = {}, {}
-        # whole (radius, Sun zenith) scenes per task: the nodes of one scene are contiguous
-        per_scene = zl.size * az.size
-        parts = [slice(g[0] * per_scene, (g[-1] + 1) * per_scene)
-                 for g in np.array_split(np.arange(rr.size * zs.size), max(4 * workers, 1)) if g.size]
-        tasks = [(off, R[p], Z[p], L[p], A[p], state, earth_radius_km, batch)
-                 for state in off.door_states_deg for p in parts]
-        results = iter(_map(sun_coefficients_direct, tasks, workers))
         for state in off.door_states_deg:
-            d_out, g_out = np.empty(R.size), np.empty(R.size)
-            for p in parts:
-                d_out[p], g_out[p] = next(results)
-            direct[state], door[state] = d_out.reshape(shape), g_out.reshape(shape)
+            j = ascending.index(state)
+            direct[state] = np.stack([res[0][:, j] for res in results]).reshape(shape)
+            door[state] = np.stack([res[1][:, j] for res in results]).reshape(shape)
         # moonlit-Earth bound over (radius, Moon zenith, line-of-sight zenith): the PST at its
         # maximum over phi, Sp = 1, maximised over the azimuth nodes
-        bound = np.zeros((rr.size, zs.size, zl.size))
-        Zg, Lg, Ag = np.meshgrid(np.radians(zs), np.radians(zl), np.radians(az), indexing="ij")
-        for i, r in enumerate(rr):
-            Rg = np.full(Zg.size, r)
-            sat1, lamp, los1 = _local_scene(Rg, Zg.ravel(), Lg.ravel(), Ag.ravel())
-            lamp = unit(lamp)
-            cuts = np.array_split(np.arange(Rg.size), max(4 * workers, 1))
-            vals = np.concatenate(_map(_lamp_bound_chunk, [(off, sat1[c], lamp[c], los1[c], earth_radius_km, batch)
-                                                           for c in cuts if c.size], workers))
-            bound[i] = vals.reshape(Zg.shape).max(axis=-1)
+        bound = np.stack([res[2] for res in results]).reshape(shape).max(axis=-1)
         moon_door = max(off.earthshine.door_reflectance * float(np.sum(w)) * off.pixel_area_m2
                         for _, _, w in off._door_weights.values()) * off.earthshine.albedo
         scale = _asinh_scale(direct, door)
@@ -462,7 +486,7 @@ class EarthshineLUT:
         vr, vz, vl, va = _observable_points(rr, earth_radius_km, symmetric, n_validation, avoidance_deg)
         errs = []
         for state in off.door_states_deg:
-            d_ref, g_ref = sun_coefficients_direct(off, vr, *np.radians([vz, vl, va]), state, earth_radius_km, batch)
+            d_ref, g_ref = sun_coefficients_direct(off, vr, *np.radians([vz, vl, va]), state, earth_radius_km)
             sat_v, sun_v, los_v = _local_scene(vr, *np.radians([vz, vl, va]))
             d_t, g_t = lut.sun_coefficients(sat_v, sun_v, los_v, np.full(n_validation, state))
             errs.append(np.abs((d_t + g_t) - (d_ref + g_ref)) / (d_ref + g_ref + floor))
@@ -576,9 +600,11 @@ def load_or_build(off, earth_radius_km, radius_range_km, settings: LUTSettings, 
     """The table for these inputs from the cache, built (by ``workers`` processes) and stored
     there if missing."""
     key = lut_key(off, earth_radius_km, radius_range_km, settings, floor, avoidance_deg)
+    expected = LUT_BUILD_SECONDS_PER_NODE * settings.node_count(radius_range_km[0], earth_radius_km) \
+        * len(off.door_states_deg)
     return _cached("earthshine_lut", key, "earthshine", EarthshineLUT.load,
                    lambda: EarthshineLUT.build(off, earth_radius_km, radius_range_km, settings, floor,
-                                               avoidance_deg=avoidance_deg, workers=workers), log)
+                                               avoidance_deg=avoidance_deg, workers=workers), log, expected, workers)
 
 
 def lut_key(off, earth_radius_km, radius_range_km, settings: LUTSettings, floor: float = 0.0,
@@ -658,23 +684,25 @@ def _moonlit_scene(R, D, Zm, L, A, P):
     return sat, moon, TelescopeFrame(x=x, y=np.cross(los, x), z=los)
 
 
-def _moon_coefficients_direct(off, R, D, Zm, L, A, P, state, earth_radius_km, grid, batch):
+def _moon_coefficients_direct(off, R, D, Zm, L, A, P, state, earth_radius_km, grid):
     """(direct_moon, door_moon) of the moonlit Earth on the Earth-cap ``grid``, per unit lunar
-    irradiance at the Earth, for scenes in the local frame (rad, km), one door state; samples
-    sharing (R, D, Zm) share one cap grid."""
-    d_out, g_out = np.empty(R.size), np.empty(R.size)
+    irradiance at the Earth, for scenes in the local frame (rad, km), one door state (or,
+    ``state`` None, every door state: arrays (samples, door states ascending)); samples sharing
+    (R, D, Zm) share one cap grid."""
+    n_states = len(off.door_states_deg)
+    sel = (np.arange(n_states) if state is None else np.array([sorted(off.door_states_deg).index(state)]))
+    d_out, g_out = np.empty((R.size, sel.size)), np.empty((R.size, sel.size))
     groups = {}
     for i, key in enumerate(zip(R.tolist(), D.tolist(), Zm.tolist())):
         groups.setdefault(key, []).append(i)
+    es = replace(off.earthshine, n_gamma=int(grid[0]), n_psi=int(grid[1]))
     for idx in groups.values():
         idx = np.asarray(idx)
-        for j in range(0, idx.size, batch):
-            sl = idx[j:j + batch]
-            sat, moon, frame = _moonlit_scene(R[sl], D[sl], Zm[sl], L[sl], A[sl], P[sl])
-            c = off.earthshine_coefficients(sat, moon, moon, frame, np.full(sl.size, state), earth_radius_km,
-                                            in_field=False, sun=False, grid=grid)
-            d_out[sl], g_out[sl] = c["direct_moon"], c["door_moon"]
-    return d_out, g_out
+        sat, moon, frame = _moonlit_scene(R[idx], D[idx], Zm[idx], L[idx], A[idx], P[idx])
+        d, g = off.earthshine_scene_sums(sat[0], moon[0], moon[0], frame, earth_radius_km,
+                                         np.broadcast_to(sel, (idx.size, sel.size)), with_sun=False, s=es)
+        d_out[idx], g_out[idx] = d[:, :, 1], g[:, :, 1]
+    return (d_out[:, 0], g_out[:, 0]) if state is not None else (d_out, g_out)
 
 
 @dataclass
@@ -701,7 +729,7 @@ class MoonlitLUT:
     @classmethod
     def build(cls, off, earth_radius_km: float, radius_range_km: tuple[float, float],
               settings: MoonlitSettings = MoonlitSettings(), grid: tuple[int, int] = (8, 16),
-              floor: float = 0.0, moon_max: float = 0.0, dark_limb_min_deg: float = 30.0, batch: int = 4096,
+              floor: float = 0.0, moon_max: float = 0.0, dark_limb_min_deg: float = 30.0,
               n_validation: int = 400, workers: int = 1) -> "MoonlitLUT":
         """Tabulate, then validate at ``n_validation`` random points whose line of sight is at
         least ``dark_limb_min_deg`` above the limb (any Moon, roll, radius in the orbit's range
@@ -720,18 +748,16 @@ class MoonlitLUT:
         # parallax this ignores is inside the validated error
         R, D = np.full(Zm.size, r0), np.full(Zm.size, MOON_MEAN_DISTANCE_KM)
         per_zm = zl.size * az.size * roll.size  # nodes of one Moon zenith are contiguous: one scene
-        parts = [slice(g[0] * per_zm, (g[-1] + 1) * per_zm)
-                 for g in np.array_split(np.arange(zm.size), max(4 * workers, 1)) if g.size]
-        tasks = [(off, R[p], D[p], Zm[p], L[p], A[p], P[p], state, earth_radius_km, tuple(grid), batch)
-                 for state in off.door_states_deg for p in parts]
-        results = iter(_map(_moon_coefficients_direct, tasks, workers))
+        tasks = [(off, R[p], D[p], Zm[p], L[p], A[p], P[p], None, earth_radius_km, tuple(grid))
+                 for p in (slice(i * per_zm, (i + 1) * per_zm) for i in range(zm.size))]
+        results = _run_scenes(_moon_coefficients_direct, tasks, workers, "moonlit-Earth table")
         shape = (zm.size, zl.size, az.size, roll.size)
+        ascending = sorted(off.door_states_deg)
         direct, door = {}, {}
         for state in off.door_states_deg:
-            d_out, g_out = np.empty(Zm.size), np.empty(Zm.size)
-            for p in parts:
-                d_out[p], g_out[p] = next(results)
-            direct[state], door[state] = d_out.reshape(shape), g_out.reshape(shape)
+            j = ascending.index(state)
+            direct[state] = np.concatenate([res[0][:, j] for res in results]).reshape(shape)
+            door[state] = np.concatenate([res[1][:, j] for res in results]).reshape(shape)
         scale = _asinh_scale(direct, door)
         lut = cls(zm, zl, az, roll, direct, door, symmetric, scale, tuple(int(g) for g in grid))
         rng = np.random.default_rng(20261122)
@@ -744,7 +770,7 @@ class MoonlitLUT:
         sat_v, moon_v, frame_v = _moonlit_scene(vr, vd, vz, vl, va, vp)
         errs = []
         for state in off.door_states_deg:
-            d_ref, g_ref = _moon_coefficients_direct(off, vr, vd, vz, vl, va, vp, state, earth_radius_km, grid, batch)
+            d_ref, g_ref = _moon_coefficients_direct(off, vr, vd, vz, vl, va, vp, state, earth_radius_km, grid)
             d_t, g_t = lut.coefficients(sat_v, moon_v, frame_v, np.full(n, state))
             errs.append(np.abs((d_t + g_t) - (d_ref + g_ref)) * moon_max / ((d_ref + g_ref) * moon_max + floor))
         lut.validation_max_rel_error = float(np.max(errs)) if floor > 0 else float("nan")
@@ -806,6 +832,9 @@ def load_or_build_moonlit(off, earth_radius_km, radius_range_km, settings: Moonl
                           moon_max: float, dark_limb_min_deg: float = 30.0, log=None, workers: int = 1):
     """The moonlit table for these inputs from the cache, built and stored there if missing."""
     key = moonlit_key(off, earth_radius_km, radius_range_km, settings, grid, floor, moon_max, dark_limb_min_deg)
+    nodes = int(np.prod([a.size for a in settings.nodes(float(radius_range_km[0]), earth_radius_km,
+                                                        mirror_symmetric(off))]))
+    expected = MOONLIT_LUT_BUILD_SECONDS_PER_NODE * nodes * len(off.door_states_deg)
     return _cached("moonlit_lut", key, "moonlit-Earth", MoonlitLUT.load,
                    lambda: MoonlitLUT.build(off, earth_radius_km, radius_range_km, settings, grid, floor, moon_max,
-                                            dark_limb_min_deg, workers=workers), log)
+                                            dark_limb_min_deg, workers=workers), log, expected, workers)

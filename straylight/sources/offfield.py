@@ -393,46 +393,97 @@ class OffFieldModel:
         return out
 
     def _earthshine_one_scene(self, sat, sun, moon, frame, opening_deg, earth_radius_km, with_moon: bool,
-                              with_sun: bool = True, s: EarthshineSettings | None = None, batch: int = 1024) -> dict:
+                              with_sun: bool = True, s: EarthshineSettings | None = None) -> dict:
         """earthshine_coefficients (without the in-field term) for many lines of sight sharing one
-        satellite, Sun and Moon (a time step of a survey cube): the Earth cap is gridded once and
-        its dark blocks (lit by neither lamp) are dropped before the per-line-of-sight work, which
-        becomes matrix products.  Same sums as the general path, so the same values up to
-        rounding (tests/sources/test_offfield.py)."""
+        satellite, Sun and Moon (a time step of a survey cube): the Earth cap is gridded once,
+        its dark blocks (lit by neither lamp) dropped, and the sums over the rest compiled
+        (:func:`~straylight.sources.earthshine_kernel.cap_sums`).  Same sums as the general path,
+        so the same values up to rounding (tests/sources/test_offfield.py)."""
+        shape = np.broadcast_shapes(frame.z.shape[:-1], np.shape(opening_deg))
+        op = np.broadcast_to(np.asarray(opening_deg, float), shape).ravel()
+        state_of, known = door_state_index(sorted(self.door_tables), op)
+        direct, door = self.earthshine_scene_sums(sat, sun, moon, frame, earth_radius_km,
+                                                  np.where(known, state_of, -1)[:, None], with_sun, with_moon, s)
+        return {"direct_sun": direct[:, 0, 0].reshape(shape), "direct_moon": direct[:, 0, 1].reshape(shape),
+                "door_sun": door[:, 0, 0].reshape(shape), "door_moon": door[:, 0, 1].reshape(shape)}
+
+    def lit_cap_blocks(self, sat, sun, moon, earth_radius_km, s: EarthshineSettings | None = None,
+                       with_sun: bool = True, with_moon: bool = True):
+        """The cap blocks of one scene (satellite, Sun, Moon: (3,) km) lit by either lamp: their
+        directions from the satellite, their spans (:meth:`_cap_block_spans`), all (K, 3), and
+        their luminance times solid angle per lamp, albedo / pi cos(zenith) dOmega (K, 2: Sun,
+        Moon; sr per unit irradiance)."""
         s = s or self.earthshine
         d, d_omega, pts, mu_sun, mu_moon = self._lit_cap(sat, earth_radius_km, s, sun, moon, with_sun, with_moon)
         lit = (mu_sun > 0) | (mu_moon > 0)
-        blocks = d[lit]  # (K, 3)
-        span_g, span_p = (v[lit] for v in self._cap_block_spans(sat, earth_radius_km, s))  # (K, 3) each
-        lum = s.albedo / np.pi * np.stack([mu_sun[lit], mu_moon[lit]], axis=-1) * d_omega[lit][:, None]  # (K, 2)
-        shape = np.broadcast_shapes(frame.z.shape[:-1], np.shape(opening_deg))
-        fx, fy, fz = (np.broadcast_to(a, shape + (3,)).reshape(-1, 3) for a in (frame.x, frame.y, frame.z))
-        op = np.broadcast_to(np.asarray(opening_deg, float), shape).ravel()
-        direct = np.zeros((op.size, 2))
-        door = np.zeros((op.size, 2))
-        if blocks.shape[0]:
-            states = sorted(self.door_tables)
-            state_of, known = door_state_index(states, op)
-            for start in range(0, op.size, batch):
-                sl = slice(start, start + batch)
-                dx, dy, dz = fx[sl] @ blocks.T, fy[sl] @ blocks.T, fz[sl] @ blocks.T  # (n, K)
-                theta = np.degrees(np.arctan2(np.hypot(dx, dy), dz))
-                phi = wrap_360_deg(np.degrees(np.arctan2(dy, dx)))
-                front = self.front_fraction(dz, fz[sl] @ span_g.T, fz[sl] @ span_p.T)
-                w = self.pst(theta, phi) * front * (theta > self.field_radius_deg) * self.pixel_area_m2
-                for i, state in enumerate(states):  # per sample's door state (door.door_state_index)
-                    rows = known[sl] & (state_of[sl] == i)
-                    if not np.any(rows):
-                        continue
-                    w[rows] *= self.door_tables[state](np.minimum(theta[rows], 90.0), phi[rows])
-                    q, n_in, wd = self._door_weights[state]
-                    k = s.door_reflectance * np.sum(wd) * self.pixel_area_m2
-                    cos_inc = (np.maximum(dx[rows] * n_in[0] + dy[rows] * n_in[1] + dz[rows] * n_in[2], 0.0)
-                               * self.door_lit_fraction(state, theta[rows], phi[rows]))
-                    door[start + np.flatnonzero(rows)] = k * (cos_inc @ lum)
-                direct[sl] = w @ lum
-        return {"direct_sun": direct[:, 0].reshape(shape), "direct_moon": direct[:, 1].reshape(shape),
-                "door_sun": door[:, 0].reshape(shape), "door_moon": door[:, 1].reshape(shape)}
+        span_g, span_p = (np.ascontiguousarray(v[lit]) for v in self._cap_block_spans(sat, earth_radius_km, s))
+        lum = s.albedo / np.pi * np.stack([mu_sun[lit], mu_moon[lit]], axis=-1) * d_omega[lit][:, None]
+        return np.ascontiguousarray(d[lit]), span_g, span_p, np.ascontiguousarray(lum)
+
+    def earthshine_scene_sums(self, sat, sun, moon, frame, earth_radius_km, state_sel, with_sun: bool = True,
+                              with_moon: bool = True, s: EarthshineSettings | None = None):
+        """(direct, door) coefficients (M, J, 2: lit by the Sun, by the Moon), e-/s/pix per photon
+        s-1 m-2 of the lamp, outside the field, for M lines of sight of one scene (``frame``'s
+        axes broadcast to (M, 3)) and J door states each (``state_sel`` (M, J): indices into the
+        ascending door states, -1 for none, which gives 0)."""
+        blocks, span_g, span_p, lum = self.lit_cap_blocks(sat, sun, moon, earth_radius_km, s, with_sun, with_moon)
+        sel = np.ascontiguousarray(np.asarray(state_sel, np.intp))
+        n = sel.shape[0]
+        fx, fy, fz = (np.ascontiguousarray(np.broadcast_to(a, (n, 3)), dtype=float) for a in (frame.x, frame.y, frame.z))
+        direct, door = np.zeros((n, sel.shape[1], 2)), np.zeros((n, sel.shape[1], 2))
+        if blocks.shape[0] and n:
+            from straylight.sources.earthshine_kernel import cap_sums
+
+            normals, door_k, pst, sp, lit = self._kernel_tables
+            cap_sums(fx, fy, fz, blocks, span_g, span_p, lum, sel, normals, door_k, float(self.field_radius_deg),
+                     float(self.pixel_area_m2), *pst, *sp, *lit, direct, door)
+        return direct, door
+
+    @cached_property
+    def _kernel_tables(self):
+        """What :func:`~straylight.sources.earthshine_kernel.cap_sums` reads, door states ascending:
+        the door's inner normals (S, 3), its factor k (reflectance x sum of the door's weights x
+        pixel area) per state, the PST's and the Sp tables' grids, and the lit-fraction tables'
+        grids with whether there is a body (else the lit fraction is 1) and their value in front
+        of the aperture plane (:func:`~straylight.sources.earthshine_kernel.cap_sums`)."""
+        from straylight.sources.earthshine_kernel import GridPack
+
+        states = sorted(self.door_tables)
+        normals = np.ascontiguousarray([self._door_weights[st][1] for st in states], dtype=float)
+        door_k = np.array([self.earthshine.door_reflectance * np.sum(self._door_weights[st][2]) * self.pixel_area_m2
+                           for st in states])
+        sp = GridPack([self.door_tables[st]._interp for st in states]).arrays()
+        lit_tables = self._door_lit_fraction
+        lit = sp if lit_tables is None else GridPack([lit_tables[st] for st in states]).arrays()
+        # the lit fraction in front of the aperture plane: its grid's first row (theta 90 deg),
+        # where that row is constant in phi (the body cannot shade a direction from there)
+        at_plane = np.full(len(states), -1.0)
+        if lit_tables is not None:
+            for i, st in enumerate(states):
+                row = lit_tables[st](np.full(361, 90.0), np.linspace(0.0, 360.0, 361))
+                if np.ptp(row) == 0.0:
+                    at_plane[i] = float(row[0])
+        return normals, door_k, GridPack([self.pst._interp]).arrays(), sp, (*lit, lit_tables is not None, at_plane)
+
+    def lamp_bound_one_scene(self, sat, lamp_direction, los, earth_radius_km) -> np.ndarray:
+        """:meth:`earthshine_lamp_bound` for lines of sight ``los`` (M, 3, unit) sharing one
+        satellite and lamp direction ((3,)), compiled
+        (:func:`~straylight.sources.earthshine_kernel.lamp_bound_sums`)."""
+        from straylight.sources.earthshine_kernel import lamp_bound_sums
+
+        s = self.earthshine
+        sat = np.asarray(sat, float)
+        d, d_omega, pts = self._cap_grid(sat, earth_radius_km, s)
+        mu = np.maximum(dot(pts / earth_radius_km, np.asarray(lamp_direction, float)), 0.0)
+        lit = mu > 0
+        lum = s.albedo / np.pi * mu[lit] * d_omega[lit] * self.pixel_area_m2
+        out = np.zeros(len(los))
+        if lum.size:
+            row_max = np.ascontiguousarray(self.pst.values.max(axis=1))
+            lamp_bound_sums(np.ascontiguousarray(los, dtype=float), np.ascontiguousarray(d[lit]), lum,
+                            float(np.cos(np.radians(self.field_radius_deg))),
+                            -np.cos(np.radians(self.pst.theta_deg)), row_max, out)
+        return out
 
     def earthshine_terms(self, sat_km, sun_km, moon_km, frame, opening_deg, sun_irr, moon_irr_at_earth,
                          earth_radius_km) -> tuple[np.ndarray, np.ndarray]:

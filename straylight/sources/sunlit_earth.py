@@ -64,7 +64,7 @@ class SunlitEarth:
                                int(lut_cfg.get("n_radius", 1)))
         node_states = self.node_states(settings)
         build_s, moonlit_s = self.policy.tables_build_seconds(node_states, self.moonlit.node_states())
-        chosen, reason = self.policy.earthshine_method(method, build_s)
+        chosen, reason = self.policy.earthshine_method(method)
         return {"method": chosen, "requested": method, "reason": reason, "settings": settings,
                 "node_states": node_states, "build_seconds_estimate": build_s,
                 "moonlit_build_seconds_estimate": moonlit_s}

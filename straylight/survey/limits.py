@@ -40,7 +40,21 @@ class SurveyExposure:
         return self.n_exposures * self.exposure_s
 
 
+def _derived(campaign: Campaign, key: tuple, compute):
+    """``compute()``, kept on the campaign under ``key``: a value derived from its config alone
+    (a campaign is not changed once loaded), computed once however often it is asked for."""
+    memo = campaign.__dict__.setdefault("_derived", {})
+    if key not in memo:
+        memo[key] = compute()
+    return memo[key]
+
+
 def survey_exposure(campaign: Campaign, band_name: str) -> SurveyExposure:
+    """The band's survey exposures and the noise model's inputs (:class:`SurveyExposure`)."""
+    return _derived(campaign, ("survey_exposure", band_name), lambda: _survey_exposure(campaign, band_name))
+
+
+def _survey_exposure(campaign: Campaign, band_name: str) -> SurveyExposure:
     # bandpass (scipy's erf) where it is used: the workflow's parse imports this module
     from straylight.optics.bandpass import load_band
 
@@ -67,8 +81,11 @@ def sky_zero_points(campaign: Campaign, bands=None) -> dict:
 
     d = campaign.instrument_value("telescope", "aperture_diameter_m")
     pix = campaign.pixel_scale_arcsec
-    return {b: sky_zero_point_mag_per_arcsec2(load_band(campaign.instrument, b, campaign.instrument_path.parent), d, pix)
-            for b in (bands or campaign.bands)}
+
+    def zero_point(b):
+        return sky_zero_point_mag_per_arcsec2(load_band(campaign.instrument, b, campaign.instrument_path.parent), d, pix)
+
+    return {b: _derived(campaign, ("sky_zero_point", b), lambda b=b: zero_point(b)) for b in (bands or campaign.bands)}
 
 
 def zero_point_coord(campaign: Campaign, bands) -> tuple:

@@ -85,23 +85,26 @@ def _is_number(v) -> bool:
         return False
 
 
-def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int = 256, source="",
-                   models: dict | None = None) -> dict:
+def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int = 8192, source="",
+                   models: dict | None = None, model=None) -> dict:
     """Columns of the per-pointing background table (see the module docstring); ``models``, if
-    given, receives the record of which models ran and their error budget."""
+    given, receives the record of which models ran and their error budget; ``model``: the
+    campaign's :class:`~straylight.model.BackgroundModel` when the caller keeps one warm (else
+    one is built for this table's rows).  The satellite and the bodies are computed once per
+    distinct time, for all of them at once; the samples are evaluated ``batch`` at a time."""
     from straylight.model import BackgroundModel
     from straylight.sky.ephemeris import default_ephemeris
     from straylight.sky.geometry import radec_to_unit
     from straylight.survey.limits import point_source_limit
-    from straylight.sky.observing import sample_geometry, scene
-    from straylight.sky.timeutil import parse_utc
+    from straylight.sky.observing import Scene, sample_geometry, scene
+    from straylight.sky.timeutil import parse_utc, utc_to_tdb_jd
 
     from astropy.time import Time
 
     bands = list(bands or campaign.bands)
-    if isinstance(pointings["time"], Time):  # the Python API's times: already parsed
+    if isinstance(pointings["time"], Time):  # the Python API's times: already parsed (and checked)
         t_all = parse_utc(pointings["time"], f"{source}: time").reshape(-1)
-        iso = list(t_all.isot)
+        iso = None
     else:
         iso = [str(v) for v in pointings["time"]]
         try:
@@ -110,28 +113,38 @@ def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int
             for i, v in enumerate(iso):
                 parse_utc(v, f"{source} row {i + 1}: time")
             raise
-    n_rows = len(iso)
-    eph = default_ephemeris()
-    jd = t_all.tdb.jd
-    out_of_range = np.flatnonzero((jd < eph.jd_start) | (jd > eph.jd_end))
-    if out_of_range.size:
-        i = int(out_of_range[0])
-        raise InputError(f"{source} row {i + 1}: time = {iso[i]} is outside the DE405 range (1600-12-21 to "
-                         f"2200-02-02); {out_of_range.size} of {len(iso)} rows are out of range")
-    model = BackgroundModel(campaign, expected_samples=n_rows)
+    n_rows = len(t_all)
+    if iso is not None:
+        eph = default_ephemeris()
+        jd1, jd2 = utc_to_tdb_jd(t_all)
+        jd = jd1 + jd2
+        out_of_range = np.flatnonzero((jd < eph.jd_start) | (jd > eph.jd_end))
+        if out_of_range.size:
+            i = int(out_of_range[0])
+            raise InputError(f"{source} row {i + 1}: time = {iso[i]} is outside the DE405 range (1600-12-21 to "
+                             f"2200-02-02); {out_of_range.size} of {len(iso)} rows are out of range")
+    if model is None:
+        model = BackgroundModel(campaign, expected_samples=n_rows)
     if models is not None:
         models.update(model.models_record())
     n = len(t_all)
-    cols: dict = {"time": np.asarray(t_all.isot, dtype=object), "ra_deg": pointings["ra"],
+    cols: dict = {"time": t_all if iso is None else np.asarray(iso, dtype=object), "ra_deg": pointings["ra"],
                   "dec_deg": pointings["dec"]}
     geo_keys = ("observable", "violations", "sun_angle_deg", "moon_angle_deg", "moon_illuminated_fraction",
                 "earth_limb_angle_deg", "limb_is_bright", "door_opening_deg")
     acc = {k: [] for k in geo_keys + ("planet_in_field", "planet_in_field_v_mag")}
     acc.update({f"{c}_{b}": [] for b in bands for c in COMPONENTS})
     acc.update({f"total_mag_per_arcsec2_{b}": [] for b in bands})
+    # the scene once per distinct time (a scheduler asks for many pointings at few times)
+    _, first, inverse = np.unique(np.stack([t_all.jd1, t_all.jd2], axis=-1), axis=0, return_index=True,
+                                  return_inverse=True)
+    inverse = inverse.reshape(-1)
+    distinct = scene(campaign, t_all[first])
     for a in range(0, n, batch):
         sl = slice(a, min(a + batch, n))
-        sc = scene(campaign, t_all[sl])
+        at = inverse[sl]
+        sc = Scene(times=t_all[sl], satellite_km=distinct.satellite_km[at],
+                   bodies_km={k: v[at] for k, v in distinct.bodies_km.items()})
         g = sample_geometry(campaign, sc, pointings["ra"][sl], pointings["dec"][sl], grid=False)
         los = radec_to_unit(pointings["ra"][sl], pointings["dec"][sl])
         res = model.evaluate(sc.satellite_km, sc.bodies_km, np.atleast_2d(los), g, bands, stars)
@@ -175,15 +188,17 @@ def column_units(cols) -> dict:
     return out
 
 
-def background_table(campaign, t, ra_deg, dec_deg, bands, stars=None, source=""):
+def background_table(campaign, t, ra_deg, dec_deg, bands, stars=None, source="", model=None):
     """:func:`straylight.sky_background`'s table for a loaded campaign and 1-D UTC times ``t`` with ICRS
     ``ra_deg``, ``dec_deg`` (deg) of the same length, already checked; ``stars`` as
-    :func:`straylight.sources.stars.load_offfield_stars` gives them (None: stars = 0)."""
+    :func:`straylight.sources.stars.load_offfield_stars` gives them (None: stars = 0); ``model``:
+    the campaign's warm :class:`~straylight.model.BackgroundModel`, if any."""
     from straylight.survey.limits import sky_zero_points
 
     models: dict = {}
     cols = pointing_table(campaign, {"time": t, "ra": np.asarray(ra_deg, float) % 360.0,
-                                     "dec": np.asarray(dec_deg, float)}, bands, stars, source=source, models=models)
+                                     "dec": np.asarray(dec_deg, float)}, bands, stars, source=source, models=models,
+                          model=model)
     return _qtable(cols, t, bands, sky_zero_points(campaign, bands), models)
 
 
@@ -197,29 +212,40 @@ def _qtable(cols: dict, t, bands, zero_points: dict, models: dict):
 
     rate, surf = _units()
     door = np.asarray(cols["door_opening_deg"], float)
-    reasons = [",".join(violation_names(int(v)) + ([] if d > 0 else ["door"]))
-               for v, d in zip(cols["violations"], door)]
-    out = QTable(meta={"mag_zero_point": {b: zero_points[b] * surf for b in bands}, "models": models})
-    out["time"] = Time(t, format="isot", precision=3)
-    out["ra"] = np.asarray(cols["ra_deg"], float) * u.deg
-    out["dec"] = np.asarray(cols["dec_deg"], float) * u.deg
-    out["observable"] = np.asarray(cols["observable"], bool)
-    out["violations"] = np.array(reasons, dtype=str)
+    # the names once per distinct (constraint mask, door) pair
+    pairs, inverse = np.unique(np.stack([np.asarray(cols["violations"], np.int64), (door > 0).astype(np.int64)]),
+                               axis=1, return_inverse=True)
+    names = np.array([",".join(violation_names(int(v)) + ([] if d else ["door"])) for v, d in pairs.T] or [""],
+                     dtype=str)
+    reasons = names[inverse.reshape(-1)] if door.size else np.zeros(0, dtype=str)
+    # the columns made first and the table once (adding them one by one costs more than computing them)
+    columns = {"time": Time(t, format="isot", precision=3), "ra": u.Quantity(np.asarray(cols["ra_deg"], float), u.deg),
+               "dec": u.Quantity(np.asarray(cols["dec_deg"], float), u.deg),
+               "observable": np.asarray(cols["observable"], bool), "violations": reasons}
+    formats = {}
     for name in ("sun_angle", "moon_angle", "earth_limb_angle", "door_opening"):
-        out[name] = np.asarray(cols[f"{name}_deg"], float) * u.deg
-        out[name].info.format = ".3f"
+        columns[name] = u.Quantity(np.asarray(cols[f"{name}_deg"], float), u.deg)
+        formats[name] = ".3f"
+    descriptions = {}
     for b in bands:
         for c in COMPONENTS:
-            out[f"{c}_{b}"] = np.asarray(cols[f"{c}_{b}"], float) * rate
-            out[f"{c}_{b}"].info.format = ".3g"
+            columns[f"{c}_{b}"] = u.Quantity(np.asarray(cols[f"{c}_{b}"], float), rate)
+            formats[f"{c}_{b}"] = ".3g"
         for c in COMPONENTS:
             with np.errstate(divide="ignore", invalid="ignore"):
-                out[f"{c}_mag_{b}"] = (zero_points[b] - 2.5 * np.log10(np.asarray(cols[f"{c}_{b}"], float))) * surf
-            out[f"{c}_mag_{b}"].info.format = ".3f"
+                columns[f"{c}_mag_{b}"] = u.Quantity(zero_points[b] - 2.5 * np.log10(np.asarray(cols[f"{c}_{b}"], float)),
+                                                     surf)
+            formats[f"{c}_mag_{b}"] = ".3f"
         if f"limit_mag_{b}" in cols:
-            out[f"limit_mag_{b}"] = np.asarray(cols[f"limit_mag_{b}"], float) * u.mag
-            out[f"limit_mag_{b}"].info.format = ".3f"
-            out[f"limit_mag_{b}"].info.description = "5-sigma point-source limit, AB, survey exposures"
+            columns[f"limit_mag_{b}"] = u.Quantity(np.asarray(cols[f"limit_mag_{b}"], float), u.mag)
+            formats[f"limit_mag_{b}"] = ".3f"
+            descriptions[f"limit_mag_{b}"] = "5-sigma point-source limit, AB, survey exposures"
+    out = QTable(columns, copy=False,
+                 meta={"mag_zero_point": {b: zero_points[b] * surf for b in bands}, "models": models})
+    for name, f in formats.items():
+        out[name].info.format = f
+    for name, d in descriptions.items():
+        out[name].info.description = d
     return out
 
 

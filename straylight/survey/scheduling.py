@@ -87,7 +87,7 @@ def bright_limb_table(model: BackgroundModel, fraction: float = 0.1, sun_zenith_
         sel = door == st
         if sel.any():
             d, g = sun_coefficients_direct(off, np.full(sel.sum(), r), np.radians(Z[sel]), np.radians(L[sel]),
-                                            np.radians(A[sel]), st, re_km, 1024)
+                                            np.radians(A[sel]), st, re_km)
             coeff[sel] = d + g
     out = {"sun_zenith_deg": zs}
     for b in c.bands:

@@ -75,7 +75,7 @@ def test_rotation_about_the_vertical_changes_nothing(coarse):
         if not sel.any():
             continue
         d, gd = sun_coefficients_direct(off, r[sel], *np.radians([zs[sel], zl[sel], a[sel]]), state,
-                                         c.earth.radius_km, 256)
+                                         c.earth.radius_km)
         err = np.abs(d + gd - real["direct_sun"][sel] - real["door_sun"][sel]) * sun_irr[sel] / res["g"]["total"][sel]
         assert err.max() < 1e-2
 

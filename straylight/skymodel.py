@@ -1,0 +1,186 @@
+"""A warm background model for callers that ask many times: :class:`SkyModel`.
+
+A scheduler asks for the sky thousands of times a night.  :class:`SkyModel` loads the campaign,
+builds its :class:`~straylight.model.BackgroundModel` and reads the earthshine tables once; each
+:meth:`SkyModel.background` call then only computes.  :func:`straylight.sky_background` keeps
+one per (config, catalog) and reuses it.
+"""
+from __future__ import annotations
+
+import os
+import threading
+from pathlib import Path
+
+import numpy as np
+
+from straylight.errors import InputError
+
+__all__ = ["SkyModel", "cached_sky_model"]
+
+
+class SkyModel:
+    """The background of one campaign's orbit, instrument and models, built once.
+
+    Parameters
+    ----------
+    config : str or path, optional
+        Campaign config (default: the packaged ``config/config.yaml``): the orbit, the
+        instrument and the models.
+    catalog : str or path, optional
+        Star table (``ra``, ``dec``, ``mag_<band>``) for the off-field star term, read once per
+        set of bands asked for; without it the ``stars`` component is 0.
+
+    Notes
+    -----
+    Under ``models.earthshine.method: auto`` a SkyModel takes the earthshine tables (it is made
+    for many calls): the first SkyModel on a machine builds them once (the log says so, with
+    the expected time) and every later one reads them from the cache (``STRAYLIGHT_CACHE``).
+    A SkyModel is safe to share between threads of one process: its state is read-only once
+    built.
+
+    Examples
+    --------
+    >>> from astropy.time import Time
+    >>> from astropy.coordinates import SkyCoord
+    >>> sky = SkyModel()
+    >>> t = Time("2026-01-01T00:30:00", scale="utc")
+    >>> row = sky.background(t, SkyCoord(150.0, 30.0, unit="deg"), bands=["g"])
+    >>> bool(25.5 < row["limit_mag_g"][0].value < 27.5)   # 5-sigma point-source depth, AB mag
+    True
+    """
+
+    def __init__(self, config=None, catalog=None):
+        from straylight.config import load_campaign
+        from straylight.model import AUTO_TABLE_MIN_SAMPLES, BackgroundModel
+        from straylight.sky.timeutil import configure_offline
+
+        configure_offline()
+        self.campaign = load_campaign(config)
+        # a table not cached yet is built on every core this process may use
+        self.model = BackgroundModel(self.campaign, expected_samples=AUTO_TABLE_MIN_SAMPLES,
+                                     build_workers=len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+                                     else (os.cpu_count() or 1))
+        self.model.sunlit_earth.model  # the tables read (or built) now, not on the first call
+        self.model.moonlit_earth.model
+        self.catalog = catalog
+        self._stars: dict = {}
+        self._stars_lock = threading.Lock()
+
+    @property
+    def bands(self) -> list[str]:
+        """The instrument's bands (``"V"``, the Bessell V diagnostic band, is accepted too)."""
+        return list(self.campaign.bands)
+
+    def background(self, time, coord, bands=None):
+        """Background, 5-sigma depth and observability at the given times and pointings.
+
+        Parameters, result and errors: :func:`straylight.sky_background` (without its
+        ``config`` and ``catalog``, which this model holds).
+        """
+        from astropy.coordinates import SkyCoord
+        from astropy.time import Time
+
+        from straylight.sky.timeutil import check_in_ephemeris, quiet_dubious_years
+        from straylight.survey.pointings import background_table
+
+        if not isinstance(time, Time):
+            raise InputError(f"time: expected an astropy.time.Time, got {type(time).__name__}")
+        if not isinstance(coord, SkyCoord):
+            raise InputError(f"coord: expected an astropy.coordinates.SkyCoord, got {type(coord).__name__}")
+        icrs = coord.icrs
+        ra = np.asarray(icrs.ra.deg, float)
+        dec = np.asarray(icrs.dec.deg, float)
+        try:
+            shape = np.broadcast_shapes(time.shape, ra.shape)
+        except ValueError:
+            raise InputError(f"time {time.shape} and coord {ra.shape}: shapes do not broadcast") from None
+        ra, dec = (np.broadcast_to(a, shape).ravel() for a in (ra, dec))
+        bad = np.flatnonzero(~(np.isfinite(ra) & np.isfinite(dec)))
+        if bad.size:
+            raise InputError(f"coord: sample {bad[0]}: ra = {ra[bad[0]]}, dec = {dec[bad[0]]} is not finite")
+        masked = np.flatnonzero(np.broadcast_to(np.asarray(time.mask, bool), shape).ravel())
+        if masked.size:
+            raise InputError(f"time: sample {masked[0]} is masked ({masked.size} of {ra.size} samples): no time to "
+                             "compute at; drop or fill the masked entries")
+        with quiet_dubious_years():  # a time outside DE405 gets our line below, not ERFA's warnings first
+            t = time.utc
+            t = Time(np.broadcast_to(t.jd1, shape).ravel(), np.broadcast_to(t.jd2, shape).ravel(), format="jd",
+                     scale="utc")
+        if t.size:
+            check_in_ephemeris(t, "time")
+        campaign = self.campaign
+        if bands is not None and len(bands) == 0:
+            raise InputError(f"bands: no band given; valid bands: {', '.join(campaign.bands)}, V "
+                             "(None for all the instrument's)")
+        bands = list(bands or campaign.bands)
+        unknown = [b for b in bands if b not in campaign.bands and b != "V"]
+        if unknown:
+            raise InputError(f"bands: unknown band {unknown[0]!r}; known: {', '.join(campaign.bands)}, V")
+        if not t.size:
+            return _empty_table(campaign, t, bands)
+        return background_table(campaign, t, ra, dec, bands, self._stars_for(bands), source="sky_background",
+                                model=self.model)
+
+    def _stars_for(self, bands: list[str]):
+        """The catalog's off-field stars for these bands (read once per band set), or None."""
+        if self.catalog is None:
+            return None
+        key = tuple(bands)
+        with self._stars_lock:
+            if key not in self._stars:
+                from straylight.sources.stars import load_offfield_stars
+
+                sc = self.campaign.config["stars"]
+                self._stars[key] = load_offfield_stars(self.catalog, bands, float(sc["offfield_mag_limit"]),
+                                                       bool(sc.get("faint_map", True)))
+            return self._stars[key]
+
+
+def _empty_table(campaign, t, bands):
+    """:meth:`SkyModel.background`'s table with no rows: the pointing table's columns, empty,
+    through the same conversion to a QTable (so columns and units cannot differ from a computed
+    one's)."""
+    from straylight.survey.limits import sky_zero_points
+    from straylight.survey.pointings import COMPONENTS, _qtable
+
+    none = np.zeros(0)
+    cols = {k: none for k in ("ra_deg", "dec_deg", "sun_angle_deg", "moon_angle_deg", "earth_limb_angle_deg",
+                              "door_opening_deg")}
+    cols.update(observable=np.zeros(0, bool), violations=np.zeros(0, np.int64))
+    for b in bands:
+        cols.update({f"{c}_{b}": none for c in COMPONENTS})
+        if b != "V":  # the diagnostic band has no limit
+            cols[f"limit_mag_{b}"] = none
+    return _qtable(cols, t, bands, sky_zero_points(campaign, bands), {})
+
+
+_MODELS: dict = {}
+_MODELS_LOCK = threading.Lock()
+#: SkyModels kept by :func:`cached_sky_model` (each holds the earthshine tables, ~60 MB)
+_MAX_CACHED_MODELS = 4
+
+
+def _file_key(path) -> tuple | None:
+    """(resolved path, modification time, size) of a file, so that an edited file gives a new model."""
+    if path is None:
+        return None
+    p = Path(path).resolve()
+    try:
+        st = os.stat(p)
+    except OSError:
+        return (str(p), None, None)  # let the loader name the missing file
+    return (str(p), st.st_mtime_ns, st.st_size)
+
+
+def cached_sky_model(config=None, catalog=None) -> SkyModel:
+    """The :class:`SkyModel` of this config and catalog, built on first use and kept (a config
+    or catalog file edited since gives a new one)."""
+    key = (_file_key(config), _file_key(catalog))
+    with _MODELS_LOCK:
+        model = _MODELS.get(key)
+        if model is None:
+            model = SkyModel(config, catalog)
+            if len(_MODELS) >= _MAX_CACHED_MODELS:
+                _MODELS.pop(next(iter(_MODELS)))
+            _MODELS[key] = model
+        return model

@@ -1,0 +1,205 @@
+"""The Earth-cap sum of one scene, compiled: the inner loop of the direct earthshine
+(:meth:`~straylight.sources.offfield.OffFieldModel.earthshine_coefficients` for lines of sight
+sharing a satellite and lamps) and of the earthshine tables' builds
+(:mod:`straylight.sources.earthshine_lut`).
+
+For each line of sight m (its telescope frame x, y, z) and each lit cap block k (unit direction
+d_k from the satellite, spans across the block, luminance-times-solid-angle L_kc per lamp c):
+
+* direct (EA1): sum_k L_kc PST(theta, phi) Sp_s(min(theta, 90), phi) front_k [theta > field]
+  x pixel area, with theta, phi the block's direction in the telescope frame, front_k the part
+  of the block in front of the aperture plane (:meth:`OffFieldModel.front_fraction`);
+* door (EA2): k_s sum_k L_kc max(d_k . n_s, 0) f_s(theta, phi), with n_s the door's inner normal,
+  f_s the share of the door the telescope body leaves lit and k_s = reflectance x sum of the
+  door's weights x pixel area, per door state s.
+
+The look-ups are those of :class:`~straylight.util.gridinterp.LinearGrid` (clipped, bilinear),
+written for two axes; the PST is interpolated in its natural log, as :class:`~straylight.optics.pst.PST`.
+Each line of sight asks for one or more door states (``state_sel``, -1: none, which gives 0 for
+both terms, as :meth:`OffFieldModel.door_factor` does for an opening that is no state): the
+table builds ask for every state at once, so the geometry and the PST are computed once per
+block and line of sight for all of them.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+__all__ = ["GridPack", "cap_sums", "lamp_bound_sums"]
+
+_DEG = 180.0 / math.pi
+
+
+class GridPack:
+    """A two-axis :class:`~straylight.util.gridinterp.LinearGrid`'s cell finders as flat arrays
+    for :func:`cap_sums`, with the values of one or more grids sharing those axes as rows of
+    ``values`` (grids, nodes)."""
+
+    def __init__(self, grids):
+        g0 = grids[0]
+        if len(g0.axes) != 2:
+            raise ValueError("GridPack needs two-axis grids")
+        for g in grids[1:]:
+            if not all(np.array_equal(a.nodes, b.nodes) for a, b in zip(g.axes, g0.axes)):
+                raise ValueError("the grids of a GridPack must share their nodes")
+        self.lo, self.hi = g0._lo, g0._hi
+        self.uniform = np.array([a.uniform for a in g0.axes])
+        self.inv_width, self.n_bins, self.bin_cell = g0._inv_width, g0._n_bins, g0._bin_cell
+        self.nodes, self.n_nodes, self.inv_step = g0._nodes, g0._n_nodes, g0._inv_step
+        self.stride0 = int(g0._strides[0])
+        self.values = np.ascontiguousarray(np.stack([np.asarray(g._flat, float).ravel() for g in grids]))
+
+    def arrays(self) -> tuple:
+        """The arrays :func:`cap_sums` takes for this grid, in its argument order."""
+        return (self.lo, self.hi, self.uniform, self.inv_width, self.n_bins, self.bin_cell, self.nodes,
+                self.n_nodes, self.inv_step, self.stride0, self.values)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _cell(k, x, lo, hi, uniform, inv_width, n_bins, bin_cell, nodes, n_nodes, inv_step):
+    """(cell index, fraction) of ``x`` on axis ``k``, as gridinterp._interpolate finds them."""
+    x = min(max(x, lo[k]), hi[k])
+    last = n_nodes[k] - 2
+    if uniform[k]:
+        i = min(int((x - lo[k]) * inv_step[k, 0]), last)
+    else:
+        i = bin_cell[k, min(int((x - lo[k]) * inv_width[k]), n_bins[k])]
+        if x >= nodes[k, min(i + 1, last + 1)]:
+            i = min(i + 1, last)
+    return i, (x - nodes[k, i]) * inv_step[k, i]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _bilinear_at(values, row, base, s0, ta, tb):
+    """Row ``row`` of ``values`` interpolated in the cell at flat node ``base``."""
+    return ((values[row, base] * (1 - tb) + values[row, base + 1] * tb) * (1 - ta)
+            + (values[row, base + s0] * (1 - tb) + values[row, base + s0 + 1] * tb) * ta)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=True)
+def cap_sums(fx, fy, fz, blocks, span_g, span_p, lum, state_sel, door_normal, door_k, field_radius_deg,
+             pixel_area_m2,
+             p_lo, p_hi, p_uni, p_iw, p_nb, p_bc, p_nodes, p_nn, p_is, p_s0, p_val,
+             d_lo, d_hi, d_uni, d_iw, d_nb, d_bc, d_nodes, d_nn, d_is, d_s0, d_val,
+             f_lo, f_hi, f_uni, f_iw, f_nb, f_bc, f_nodes, f_nn, f_is, f_s0, f_val, has_body, lit_at_plane,
+             direct, door):
+    """The module's sums into ``direct`` and ``door`` (M, J, C), zeroed here.
+
+    fx, fy, fz: (M, 3) the telescope frames; blocks, span_g, span_p: (K, 3) the lit blocks'
+    directions and spans; lum: (K, C) albedo / pi x cos(lamp zenith) x solid angle, per lamp;
+    state_sel: (M, J) door state indices (-1: none); door_normal (S, 3), door_k (S,) per state;
+    the PST's grid (p_*, values: one row, natural log of the PST), the door's Sp grids (d_*,
+    one row per state) and the lit-fraction grids (f_*, one row per state; ``has_body`` False:
+    1 everywhere; ``lit_at_plane`` (S,): their value at theta <= 90 deg, where the grid is
+    clipped to its first row, when that row is constant in phi, else -1: a direction in front
+    of the aperture plane then needs no angles for the door's term)."""
+    n_los, n_sel = state_sel.shape
+    n_blocks, n_lamps = lum.shape
+    direct[:] = 0.0
+    door[:] = 0.0
+    for m in range(n_los):
+        x0, x1, x2 = fx[m, 0], fx[m, 1], fx[m, 2]
+        y0, y1, y2 = fy[m, 0], fy[m, 1], fy[m, 2]
+        z0, z1, z2 = fz[m, 0], fz[m, 1], fz[m, 2]
+        for k in range(n_blocks):
+            bx, by, bz = blocks[k, 0], blocks[k, 1], blocks[k, 2]
+            dx = x0 * bx + x1 * by + x2 * bz
+            dy = y0 * bx + y1 * by + y2 * bz
+            dz = z0 * bx + z1 * by + z2 * bz
+            # the part of the block in front of the aperture plane
+            gz = abs(z0 * span_g[k, 0] + z1 * span_g[k, 1] + z2 * span_g[k, 2])
+            pz = abs(z0 * span_p[k, 0] + z1 * span_p[k, 1] + z2 * span_p[k, 2])
+            half = 0.5 * (gz + pz)
+            if half > 0.0:
+                front = min(max(0.5 + 0.5 * dz / half, 0.0), 1.0)
+            else:
+                front = 1.0 if dz > 0.0 else 0.0
+            # the door's inner faces it lights; the angles only where a term needs them
+            lights_door = False
+            door_angles = False  # the door's term needs the angles (the lit fraction's look-up)
+            for j in range(n_sel):
+                s = state_sel[m, j]
+                if s >= 0 and dx * door_normal[s, 0] + dy * door_normal[s, 1] + dz * door_normal[s, 2] > 0.0:
+                    lights_door = True
+                    if has_body and not (dz >= 0.0 and lit_at_plane[s] >= 0.0):
+                        door_angles = True
+            if not (front > 0.0 or lights_door):
+                continue
+            theta = math.atan2(math.sqrt(dx * dx + dy * dy), dz) * _DEG
+            w = 0.0
+            in_view = front > 0.0 and theta > field_radius_deg
+            if not (in_view or door_angles):
+                phi = 0.0  # not needed: the door's terms without a body take no angle
+            else:
+                phi = math.atan2(dy, dx) * _DEG
+                if phi < 0.0:
+                    phi += 360.0
+            if in_view:
+                i0, t0 = _cell(0, theta, p_lo, p_hi, p_uni, p_iw, p_nb, p_bc, p_nodes, p_nn, p_is)
+                i1, t1 = _cell(1, phi, p_lo, p_hi, p_uni, p_iw, p_nb, p_bc, p_nodes, p_nn, p_is)
+                w = math.exp(_bilinear_at(p_val, 0, i0 * p_s0 + i1, p_s0, t0, t1)) * front * pixel_area_m2
+            sp_ready = False
+            lit_ready = False
+            di0, dt0, di1, dt1, fi0, ft0, fi1, ft1 = 0, 0.0, 0, 0.0, 0, 0.0, 0, 0.0
+            for j in range(n_sel):
+                s = state_sel[m, j]
+                if s < 0:
+                    continue
+                if w > 0.0:
+                    if not sp_ready:
+                        di0, dt0 = _cell(0, min(theta, 90.0), d_lo, d_hi, d_uni, d_iw, d_nb, d_bc, d_nodes, d_nn, d_is)
+                        di1, dt1 = _cell(1, phi, d_lo, d_hi, d_uni, d_iw, d_nb, d_bc, d_nodes, d_nn, d_is)
+                        sp_ready = True
+                    ws = w * _bilinear_at(d_val, s, di0 * d_s0 + di1, d_s0, dt0, dt1)
+                    for c in range(n_lamps):
+                        direct[m, j, c] += lum[k, c] * ws
+                if not lights_door:
+                    continue
+                cos_inc = dx * door_normal[s, 0] + dy * door_normal[s, 1] + dz * door_normal[s, 2]
+                if cos_inc > 0.0:
+                    if has_body and dz >= 0.0 and lit_at_plane[s] >= 0.0:
+                        cos_inc *= lit_at_plane[s]  # theta <= 90: the grid's first row, constant in phi
+                    elif has_body:
+                        if not lit_ready:
+                            fi0, ft0 = _cell(0, min(max(theta, 90.0), 180.0), f_lo, f_hi, f_uni, f_iw, f_nb, f_bc,
+                                             f_nodes, f_nn, f_is)
+                            fi1, ft1 = _cell(1, phi, f_lo, f_hi, f_uni, f_iw, f_nb, f_bc, f_nodes, f_nn, f_is)
+                            lit_ready = True
+                        cos_inc *= _bilinear_at(f_val, s, fi0 * f_s0 + fi1, f_s0, ft0, ft1)
+                    for c in range(n_lamps):
+                        door[m, j, c] += lum[k, c] * cos_inc
+        for j in range(n_sel):
+            s = state_sel[m, j]
+            if s >= 0:
+                for c in range(n_lamps):
+                    door[m, j, c] *= door_k[s]
+
+
+@njit(cache=True, nogil=True)
+def lamp_bound_sums(los, blocks, lum, cos_field, neg_cos_nodes, pst_row_max, out):
+    """:meth:`OffFieldModel.earthshine_lamp_bound`'s sum for lines of sight ``los`` (M, 3, unit)
+    over blocks (K, 3) with ``lum`` (K,) = albedo / pi x cos(lamp zenith) x solid angle x pixel
+    area: sum_k lum_k max(PST row maxima at the theta nodes either side of theta_k) over the
+    blocks outside the field (cos theta < ``cos_field``), into ``out`` (M,).  In cosines: the
+    node is found in ``neg_cos_nodes`` (minus the cosines of the PST's theta nodes, increasing)."""
+    n_th = neg_cos_nodes.size
+    for m in range(los.shape[0]):
+        lx, ly, lz = los[m, 0], los[m, 1], los[m, 2]
+        total = 0.0
+        i = 0
+        for k in range(blocks.shape[0]):
+            c = min(max(lx * blocks[k, 0] + ly * blocks[k, 1] + lz * blocks[k, 2], -1.0), 1.0)
+            if not c < cos_field:
+                continue
+            # np.searchsorted(neg_cos_nodes, -c), walked from the previous block's node: the
+            # blocks run around rings of the cap, so their angles change little from one to the next
+            x = -c
+            while i < n_th and neg_cos_nodes[i] < x:
+                i += 1
+            while i > 0 and neg_cos_nodes[i - 1] >= x:
+                i -= 1
+            j = min(max(i, 1), n_th - 1)
+            total += lum[k] * max(pst_row_max[j - 1], pst_row_max[j])
+        out[m] = total
