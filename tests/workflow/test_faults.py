@@ -1,6 +1,8 @@
 """Faults while writing (issue #9): a disk that fills during a Zarr write.  The failure is one
 clear error naming the store and region, finished time blocks keep their bytes, and re-running
-the failed block gives a store bit-identical to an uninterrupted run."""
+the failed block gives a store bit-identical to an uninterrupted run.  And kills: Snakemake
+killed in the middle of the cube leaves no process behind, and the resumed run's products are
+bit-identical; the cube job stopped by SIGTERM or SIGINT stops its workers and exits non-zero."""
 import errno
 
 import pytest
@@ -106,3 +108,224 @@ def test_job_script_reports_a_full_disk_in_one_line(tmp_path):
     assert r.returncode == 1 and "Traceback" in r.stderr and "ValueError: a bug" in r.stderr
     r, _ = job("open('/nonexistent/folder/file.png')")  # a wrong path is a bug, not the disk's refusal
     assert r.returncode == 1 and "Traceback" in r.stderr and "FileNotFoundError" in r.stderr
+
+
+def _snakemake_cmd(workdir, cfg, name):
+    """The workflow on ``cfg`` in ``workdir`` up to the cube's products the workers write: the
+    background (with observability.zarr) and the limits (the figures and report left out)."""
+    import sys
+    from pathlib import Path
+
+    from conftest import REPO
+
+    snakemake = str(Path(sys.executable).with_name("snakemake"))
+    base = [snakemake, "-s", str(REPO / "workflow" / "Snakefile"), "-d", str(workdir), "--configfile", str(cfg)]
+    # the targets after a fixed-arity option: --configfile would swallow them
+    return base, base + ["--cores", "2", f"results/{name}/background_summary.json", f"results/{name}/limits.zarr",
+                         "--rerun-incomplete", "-q"]
+
+
+def _env():
+    import os
+    import sys
+    from pathlib import Path
+
+    return {**os.environ, "PATH": f"{Path(sys.executable).parent}:{os.environ['PATH']}"}
+
+
+def _kill_campaign(folder):
+    """The kill tests' campaign in ``folder``: a day at 10 min in one-hour time blocks, 24 time
+    blocks x 3 pixel blocks, on the converged Earth grid (96 x 192, 16 times the default's
+    cost per sample): the cube lasts well over 10 s after its first block, so that processes
+    a killed run left behind would still be running when the test looks."""
+    import yaml
+
+    from conftest import tiny_config
+
+    folder.mkdir()
+    path = tiny_config(folder, name="killed", campaign={"end": "2026-01-02T00:00:00", "time_block_hours": 1},
+                       footprint={"pixel_block_size": 30})
+    cfg = yaml.safe_load(path.read_text())
+    cfg["models"]["earthshine"].update(n_gamma=96, n_psi=192, method="direct")
+    path.write_text(yaml.safe_dump(cfg))
+    return path
+
+
+#: the products the cube's workers write, compared with an uninterrupted run's
+KILL_PRODUCTS = ("background.zarr", "observability.zarr", "limits.zarr", "maps")
+
+
+@pytest.fixture(scope="module")
+def uninterrupted(tmp_path_factory):
+    """An uninterrupted run of the kill tests' campaign: its folder, config, and its products'
+    SHA-256, taken at once (test_cube_job_stops_cleanly_on_a_signal reruns the cube in the
+    folder afterwards)."""
+    import subprocess
+
+    folder = tmp_path_factory.mktemp("uninterrupted") / "run"
+    cfg = _kill_campaign(folder)
+    _, cmd = _snakemake_cmd(folder, cfg, "killed")
+    r = subprocess.run(cmd, capture_output=True, text=True, env=_env(), timeout=900)
+    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+    return folder, cfg, {p: sha256_path(folder / "results" / "killed" / p) for p in KILL_PRODUCTS}
+
+
+def _run_until_a_block_is_done(cmd, out, output):
+    """Start Snakemake (``cmd``, its output to the file ``output``: a pipe would be held open
+    by any process the run leaves behind) and return (its Popen, every process of the run seen
+    so far as psutil knows it) once the cube job has marked a time block done (its sentinel),
+    its workers then on the next block."""
+    import subprocess
+    import time
+
+    import psutil
+
+    with open(output, "w") as f:
+        proc = subprocess.Popen(cmd, stdout=f, stderr=subprocess.STDOUT, env=_env())
+    seen: dict = {}  # pid -> psutil.Process, which knows a reused pid is not its process
+    snake = psutil.Process(proc.pid)
+    deadline = time.monotonic() + 600
+    try:
+        while not list((out / "background_blocks").glob("block_*.json")):
+            assert proc.poll() is None, "the run ended before the cube finished a time block"
+            assert time.monotonic() < deadline, "no time block done in 600 s"
+            for p in snake.children(recursive=True):
+                seen.setdefault(p.pid, p)
+            time.sleep(0.05)
+        for p in snake.children(recursive=True):
+            seen.setdefault(p.pid, p)
+    except BaseException:
+        proc.kill()
+        proc.wait()
+        raise
+    return proc, seen
+
+
+def _alive(processes, folder=None) -> dict:
+    """pid -> process of ``processes`` still running (a zombie waiting for its reaper is not),
+    and of any other process whose command line names ``folder``."""
+    import os
+
+    import psutil
+
+    def running(p):
+        try:
+            return p.is_running() and p.status() != psutil.STATUS_ZOMBIE
+        except psutil.NoSuchProcess:
+            return False
+
+    alive = {p.pid: p for p in processes if running(p)}
+    if folder is not None:
+        for p in psutil.process_iter(["pid", "cmdline"]):
+            if p.pid != os.getpid() and str(folder) in " ".join(p.info["cmdline"] or ()) and running(p):
+                alive[p.pid] = p
+    return alive
+
+
+def _wait_gone(processes, folder=None, seconds=10.0) -> dict:
+    """Wait up to ``seconds`` for ``processes`` (and any process naming ``folder``) to end; the
+    ones left, killed so that a failing test does not leave them running."""
+    import time
+
+    import psutil
+
+    t0 = time.monotonic()
+    while _alive(processes, folder) and time.monotonic() - t0 < seconds:
+        time.sleep(0.1)
+    left = _alive(processes, folder)
+    described = {}
+    for pid, p in left.items():
+        try:
+            described[pid] = " ".join(p.cmdline())[:150]
+            p.kill()
+        except psutil.NoSuchProcess:
+            pass
+    return described
+
+
+def _cmdline(p) -> str:
+    import psutil
+
+    try:
+        return " ".join(p.cmdline())
+    except psutil.NoSuchProcess:
+        return ""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("signame", ["SIGTERM", "SIGINT"])
+def test_cube_job_stops_cleanly_on_a_signal(uninterrupted, signame):
+    """SIGTERM or SIGINT to the cube job (Snakemake stopping it, a Ctrl-C) in the middle of the
+    cube: the job kills its workers, runs no queued region, marks no time block done that has a
+    region missing, logs one line and exits with 128 + the signal's number, which Snakemake
+    reports; its workers are gone at once."""
+    import re
+    import signal
+
+    folder, cfg, _ = uninterrupted
+    out = folder / "results" / "killed"
+    # the cube redone in the uninterrupted run's folder (its products' digests already taken)
+    for p in [out / "background_blocks" / "part_0.json", *(out / "background_blocks").glob("block_*.json")]:
+        p.unlink(missing_ok=True)
+    _, cmd = _snakemake_cmd(folder, cfg, "killed")
+    cmd += ["--forcerun", "background_blocks"]  # its products downstream are there
+    proc, seen = _run_until_a_block_is_done(cmd, out, folder / f"snakemake_{signame}.out")
+    job = [p for p in seen.values() if "background_blocks.py" in _cmdline(p)]
+    workers = [p for p in seen.values() if "--multiprocessing-fork" in _cmdline(p)]
+    assert len(job) == 1 and len(workers) == 2, [_cmdline(p) for p in seen.values()]
+    sig = getattr(signal, signame)
+    job[0].send_signal(sig)
+    left = _wait_gone([job[0], *workers], seconds=10.0)
+    assert proc.wait(timeout=300) != 0
+    assert not left, left
+    said = (folder / f"snakemake_{signame}.out").read_text()
+    assert f"returned non-zero exit status {128 + sig}" in said, said[-3000:]
+    log = (out / "logs" / "background_blocks_0.log").read_text()
+    assert f"stopped by {signame}: workers stopped" in log
+    assert "chunk time" not in log.split(f"stopped by {signame}")[1]  # no region after the stop
+    assert not (out / "background_blocks" / "part_0.json").exists()
+    # every time block marked done has all its regions written (3 pixel blocks of 6 times each)
+    regions = re.findall(r"chunk time (\d+):\d+ pixels", log)
+    done = sorted((out / "background_blocks").glob("block_*.json"))
+    assert 1 <= len(done) < 24
+    for sentinel in done:
+        b = int(sentinel.stem.split("_")[1])
+        assert regions.count(str(6 * b)) == 3, (sentinel.name, log)
+
+
+@pytest.mark.slow
+def test_snakemake_killed_mid_cube_leaves_no_process_and_resumes_bit_identical(uninterrupted, tmp_path):
+    """SIGKILL Snakemake alone (not its process group: its jobs get no signal from the killer)
+    while the cube's workers compute regions: within 10 s no process of the killed run is left
+    (the cube job dies with Snakemake, its pool workers with the job:
+    util.daskutil.die_with_parent), none still writing to the stores a resumed run writes; the
+    run resumed with the same command (after --unlock, as `make run` does) skips the finished
+    time blocks and gives products bit-identical to an uninterrupted run's."""
+    import signal
+    import subprocess
+    import time
+
+    _, _, reference = uninterrupted
+    work = tmp_path / "killed"
+    cfg = _kill_campaign(work)
+    base, cmd = _snakemake_cmd(work, cfg, "killed")
+    out = work / "results" / "killed"
+    proc, seen = _run_until_a_block_is_done(cmd, out, tmp_path / "snakemake.out")
+    workers = [p for p in seen.values() if "--multiprocessing-fork" in _cmdline(p)]
+    proc.send_signal(signal.SIGKILL)  # Snakemake alone
+    proc.wait()
+    assert len(workers) == 2, [_cmdline(p) for p in seen.values()]
+    time.sleep(1.0)  # the job's and its workers' stop
+    done_at_kill = sorted(p.name for p in (out / "background_blocks").glob("block_*.json"))
+    orphans = _wait_gone(seen.values(), folder=tmp_path, seconds=9.0)
+    assert not orphans, f"alive 10 s after Snakemake was killed: {orphans}"
+    # and none went on writing meanwhile: no time block marked done since
+    assert sorted(p.name for p in (out / "background_blocks").glob("block_*.json")) == done_at_kill
+    assert len(done_at_kill) < 24 and not (out / "background_summary.json").exists()  # killed in the middle
+
+    subprocess.run(base + ["--unlock", "-q"], capture_output=True, env=_env(), timeout=120)
+    r = subprocess.run(cmd, capture_output=True, text=True, env=_env(), timeout=900)
+    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+    assert "time blocks already done" in (out / "logs" / "background_blocks_0.log").read_text()
+    for product in KILL_PRODUCTS:
+        assert sha256_path(out / product) == reference[product], product
