@@ -35,9 +35,10 @@ RUN_ENV = "STRAYLIGHT_RUN"
 #: environment variable in which ``straylight run`` hands its own command line to Snakemake
 LAUNCHER_ENV = "STRAYLIGHT_RUN_COMMAND"
 
-PATHS_NOTE = ("config_file and run.command: relative to this file's folder (the campaign's results folder); "
-              "instrument_file and the config's files: relative to the config file's folder; straylight:config/... "
-              "and straylight:workflow/...: files shipped with straylight (source.version)")
+PATHS_NOTE = ("config_file, and the paths given absolute in run's command lines: relative to this file's folder "
+              "(the campaign's results folder; the command lines' other paths are as typed, relative to the folder "
+              "the run started in); instrument_file and the config's files: relative to the config file's folder; "
+              "straylight:config/... and straylight:workflow/...: files shipped with straylight (source.version)")
 
 
 def versions() -> dict:
