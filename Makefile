@@ -29,8 +29,8 @@ SNAKEMAKE_PROCESS := ^([^ ]*/)?(python[0-9.]* (-m )?([^ ]*/)?)?snakemake( |$$)
 # and the next run stops with a LockException.  Clear it only when no Snakemake that takes the
 # lock runs in this checkout: none of this user's Snakemake processes working in this folder,
 # dry runs and unlocks aside (they take no lock); without /proc (not Linux): none of the
-# user's Snakemake processes anywhere.  Then
-# resume: finished time blocks are kept, the killed run's jobs and workers have died with it.
+# user's Snakemake processes anywhere.  Then resume: finished time blocks are kept, the killed
+# run's jobs and workers have died with it.
 run: $(VENV)/.installed
 	@running=; for p in $$(pgrep -u "$$(id -u)" -f '$(SNAKEMAKE_PROCESS)'); do \
 		if [ -d /proc/self ]; then \
