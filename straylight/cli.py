@@ -506,7 +506,8 @@ def cmd_plan(args) -> int:
         from straylight.survey.plan import machine_speed
 
         speed = machine_speed(campaign, fp)
-    cost = estimated_cost(campaign, fp, args.seconds_per_sample, speed["factor"] if speed else 1.0)
+    cores = args.cores or _available_cores()
+    cost = estimated_cost(campaign, fp, args.seconds_per_sample, speed["factor"] if speed else 1.0, cores)
     n = cost["samples"]
     cube_bytes = n * nb * 4 * (len(CUBE_COMPONENTS) + 1) + n * 6
     limits_bytes = n * nb * 4 + n
@@ -518,32 +519,45 @@ def cmd_plan(args) -> int:
     print(f"products on disk: {cost['product_bytes'] / 1e9:.2f} GB at {PRODUCT_BYTES_PER_SAMPLE:g} bytes/sample "
           f"(straylight.survey.plan.PRODUCT_BYTES_PER_SAMPLE); uncompressed: background.zarr {cube_bytes / 1e9:.2f} GB, "
           f"limits.zarr {limits_bytes / 1e9:.2f} GB")
-    cores = 2
-    print(f"estimated cost, wall to wall: {cost['pipeline_core_hours']:.3g} core-hours, "
-          f"{cost['pipeline_core_hours'] / cores:.3g} h on {cores} cores, at the pipeline's "
-          f"{cost['pipeline_samples_per_s_per_core']:,.0f} samples/s/core ({cost['pipeline_rate_source']})"
-          + (", the earthshine tables' build included" if cost["table_build_seconds"] else ""))
-    method = {"lut": "look-up table", "direct": "direct Earth-grid sum"}[cost["earthshine_method"]]
-    table = ""
     if cost["earthshine_method"] == "lut":
-        table = ("; its tables (sunlit and moonlit Earth) are cached" if cost["table_cached"] else
-                 f"; building its tables (sunlit and moonlit Earth, those not cached) takes "
-                 f"~{cost['table_build_seconds'] / 3600:.2f} core-hours, once")
-    print(f"sunlit earthshine: {method} ({cost['earthshine_reason']}){table}")
+        table = ("its tables are cached" if cost["table_cached"] else
+                 f"its tables are not cached yet: built once, ~{cost['table_build_seconds'] / cores:.0f} s on "
+                 f"{cores} cores, then kept for every later run")
+        print(f"earthshine: look-up tables ({cost['earthshine_reason']}); {table}")
+    else:
+        print(f"earthshine: direct Earth-grid sum ({cost['earthshine_reason']})")
+    per = (f"{args.seconds_per_sample * 1e3:.3g} ms per evaluated sample (--seconds-per-sample)"
+           if args.seconds_per_sample is not None else
+           f"{cost['pipeline_samples_per_s_per_core']:,.0f} samples/s/core ({cost['pipeline_rate_source']})")
+    build = f" + the tables' build {cost['table_build_seconds'] / cores:.0f} s" if cost["table_build_seconds"] else ""
+    print(f"estimated wall time on {cores} cores: {_duration(cost['wall_seconds'])} = start-up, set-up and figures "
+          f"{cost['fixed_seconds']:.0f} s + the samples {cost['samples_seconds']:.0f} s at {per}{build}; "
+          f"{cost['pipeline_core_hours']:.3g} core-hours")
+    if cost["faint_map_first_seconds"]:
+        print(f"a footprint's first campaign also sums its faint-star map, kept for later ones: "
+              f"~{cost['faint_map_first_seconds']:.0f} s more")
     if speed:
         print(f"this machine: {speed['samples']} cube samples on the direct sum took "
-              f"{speed['measured_seconds']:.3f} s against {speed['assumed_seconds']:.3f} s at the figures "
-              f"(x{speed['factor']:.2f})")
-    if args.seconds_per_sample is not None:
-        how = f"{args.seconds_per_sample * 1e3:.3g} ms per evaluated sample (--seconds-per-sample)"
-    else:
-        how = ("this code's per-sample figures (straylight.survey.plan.CUBE_*, bench/run.py --only cube), in the "
-               "units of the machine they are given for; the development machine runs them about x0.25, "
-               "--calibrate measures this one")
-        if speed:
-            how += f" x{speed['factor']:.2f} for this machine (--calibrate)"
-    print(f"the cube's kernel alone: {cost['core_hours']:.2f} core-hours at {how}")
+              f"{speed['measured_seconds']:.3f} s against {speed['assumed_seconds']:.3f} s on the development machine "
+              f"(x{speed['factor']:.2f}); every figure above is scaled by it")
+    print(f"the cube's compute alone: {cost['core_hours']:.3g} core-hours (straylight.survey.plan.CUBE_*)")
     return 0
+
+
+def _available_cores() -> int:
+    """The CPUs this process may run on."""
+    import os
+
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
+def _duration(seconds: float) -> str:
+    """A duration for people: seconds, minutes or hours."""
+    if seconds < 120:
+        return f"{seconds:.0f} s"
+    if seconds < 7200:
+        return f"{seconds / 60:.1f} min"
+    return f"{seconds / 3600:.2f} h"
 
 
 def cmd_catalog(args) -> int:
@@ -776,6 +790,8 @@ def build_parser() -> argparse.ArgumentParser:
                           "auto picks)")
     how.add_argument("--calibrate", action="store_true",
                      help="time a few cube steps on this machine (seconds) and scale the figures by it")
+    pl.add_argument("--cores", type=int, default=None,
+                    help="cores the campaign will run on (default: the CPUs this process may use)")
     pl.set_defaults(func=cmd_plan)
 
     ca = sub.add_parser("catalog", help="bright-star catalog in the CSST bands (Gaia DR2 files, or Hipparcos)")

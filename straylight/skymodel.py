@@ -32,9 +32,10 @@ class SkyModel:
 
     Notes
     -----
-    Under ``models.earthshine.method: auto`` a SkyModel takes the earthshine tables (it is made
-    for many calls): the first SkyModel on a machine builds them once (the log says so, with
-    the expected time) and every later one reads them from the cache (``STRAYLIGHT_CACHE``).
+    Under ``models.earthshine.method: auto`` the earthshine comes from its tables, as in the
+    campaigns' products: the first use on a machine builds them once (a warning says so, with
+    the expected time, and a progress bar follows) and every later one reads them from the
+    cache (``STRAYLIGHT_CACHE``, else ``~/.cache/straylight``).
     A SkyModel is safe to share between threads of one process: its state is read-only once
     built.
 
@@ -51,13 +52,13 @@ class SkyModel:
 
     def __init__(self, config=None, catalog=None):
         from straylight.config import load_campaign
-        from straylight.model import AUTO_TABLE_MIN_SAMPLES, BackgroundModel
+        from straylight.model import BackgroundModel
         from straylight.sky.timeutil import configure_offline
 
         configure_offline()
         self.campaign = load_campaign(config)
         # a table not cached yet is built on every core this process may use
-        self.model = BackgroundModel(self.campaign, expected_samples=AUTO_TABLE_MIN_SAMPLES,
+        self.model = BackgroundModel(self.campaign,
                                      build_workers=len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
                                      else (os.cpu_count() or 1))
         self.model.sunlit_earth.model  # the tables read (or built) now, not on the first call

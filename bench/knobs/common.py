@@ -76,7 +76,7 @@ class Bench:
         else:
             es["method"] = "lut"
             es["lut"] = dict(zip(("sun_zenith_step_deg", "los_zenith_step_deg", "azimuth_step_deg"), lut_steps))
-        cm = BackgroundModel(campaign_from_dict(raw, self.campaign.path), expected_samples=10**6)
+        cm = BackgroundModel(campaign_from_dict(raw, self.campaign.path))
         off = cm.context.offfield
         es = replace(off.earthshine, n_gamma=n_gamma, n_psi=n_psi, door_blocks=tuple(door_blocks),
                      n_aperture_door=n_aperture_door)
@@ -132,7 +132,7 @@ def cube_model(base, campaign: dict | None = None, earthshine: dict | None = Non
     raw["models"].update(models or {})
     raw["models"].setdefault("earthshine", {}).update(earthshine or {})
     c = campaign_from_dict(raw, base.path)
-    model = BackgroundModel(c, expected_samples=10**9, **model_kw)
+    model = BackgroundModel(c, **model_kw)
     model.sunlit_earth.model
     return c, model
 

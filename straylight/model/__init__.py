@@ -5,9 +5,8 @@ Imports ``straylight.sources``, ``straylight.sky`` and ``straylight.config`` (th
 docs/architecture.md); never ``straylight.survey``.
 """
 from straylight.model.background import BAND_COMPONENTS, BackgroundModel
-from straylight.model.fidelity import (AUTO_TABLE_MIN_SAMPLES, ERROR_BUDGET_SHARES, LUT_BUILD_SECONDS_PER_NODE,
-                                       LUT_LOAD_SECONDS, LUT_SAVED_SECONDS_PER_SAMPLE,
+from straylight.model.fidelity import (ERROR_BUDGET_SHARES, LUT_BUILD_SECONDS_PER_NODE, LUT_SAVED_SECONDS_PER_SAMPLE,
                                        MOONLIT_LUT_BUILD_SECONDS_PER_NODE, FidelityPolicy, unobservable_samples)
 
-__all__ = ["AUTO_TABLE_MIN_SAMPLES", "BAND_COMPONENTS", "BackgroundModel", "ERROR_BUDGET_SHARES", "FidelityPolicy", "LUT_BUILD_SECONDS_PER_NODE",
-           "LUT_LOAD_SECONDS", "LUT_SAVED_SECONDS_PER_SAMPLE", "MOONLIT_LUT_BUILD_SECONDS_PER_NODE", "unobservable_samples"]
+__all__ = ["BAND_COMPONENTS", "BackgroundModel", "ERROR_BUDGET_SHARES", "FidelityPolicy", "LUT_BUILD_SECONDS_PER_NODE",
+           "LUT_SAVED_SECONDS_PER_SAMPLE", "MOONLIT_LUT_BUILD_SECONDS_PER_NODE", "unobservable_samples"]

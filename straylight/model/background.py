@@ -28,17 +28,14 @@ from straylight.sources.sunlit_earth import SunlitEarth
 
 
 class BackgroundModel:
-    """The background of one campaign: its sources and its fidelity policy.
-    ``expected_samples``: how many (time, pointing) samples this model will evaluate (the cube:
-    the whole campaign; a pointing table: its rows; one pointing: 1), which decides whether the
-    earthshine table pays off (models.earthshine.method = auto); ``build_workers``: processes
-    that build a table that is not cached (the result does not depend on it);
-    ``moonlit_skip_share``: see :class:`~straylight.model.fidelity.FidelityPolicy`."""
+    """The background of one campaign: its sources and its fidelity policy.  ``build_workers``:
+    threads that build an earthshine table that is not cached (the result does not depend on
+    it); ``moonlit_skip_share``: see :class:`~straylight.model.fidelity.FidelityPolicy`."""
 
-    def __init__(self, campaign: Campaign, expected_samples: int = 1, build_workers: int = 1,
+    def __init__(self, campaign: Campaign, build_workers: int = 1,
                  moonlit_skip_share: float = ERROR_BUDGET_SHARES["moonlit_earthshine_skip"]):
         self.campaign = campaign
-        self.policy = FidelityPolicy(campaign, expected_samples, moonlit_skip_share)
+        self.policy = FidelityPolicy(campaign, moonlit_skip_share)
         self.context = SourceContext(campaign)
         self.sun = Sun(self.context)
         self.body_skip = SolarBodySkip(self.context, self.policy)

@@ -1,6 +1,6 @@
 """The fidelity policy: how much error each fast path may add (models.tolerance split into
 :data:`ERROR_BUDGET_SHARES`), which samples are evaluated (models.unobservable_samples), and
-whether the sunlit earthshine table pays off (models.earthshine.method = auto).
+which earthshine model runs (models.earthshine.method).
 
 The sources hold their fast paths (tables, skips on bounds); this object tells each what error
 it may spend, so the shares are set, and add up, in one place."""
@@ -20,13 +20,10 @@ from straylight.sources.earthshine_lut import LUT_BUILD_SECONDS_PER_NODE, MOONLI
 ERROR_BUDGET_SHARES = {"earthshine_lut": 0.5, "moonlit_earthshine_skip": 0.125, "moonlit_earthshine_grid": 0.125,
                        "stars_skip": 0.125, "moon_and_planets_skip": 0.125}
 
-#: models.earthshine.method = auto weighs reading the cached tables (a build is a one-time cost
-#: per model and machine, which every later command and campaign reuses) against what the table
-#: saves per evaluated sample over the direct sum, both in seconds on one core; their ratio is
-#: the fewest samples for which auto takes the table (bench/earthshine_tables.py measures both).
-LUT_LOAD_SECONDS = 1.0
+#: What the sunlit table saves per evaluated sample over the direct sum, seconds on one core
+#: (``straylight plan`` prices a campaign on the direct sum with it; bench/earthshine_tables.py
+#: measures it).
 LUT_SAVED_SECONDS_PER_SAMPLE = 0.08e-3
-AUTO_TABLE_MIN_SAMPLES = int(round(LUT_LOAD_SECONDS / LUT_SAVED_SECONDS_PER_SAMPLE))
 
 
 def unobservable_samples(campaign) -> str:
@@ -37,14 +34,11 @@ def unobservable_samples(campaign) -> str:
 
 @dataclass
 class FidelityPolicy:
-    """One campaign's error budget and fast-path choices.  ``expected_samples``: how many
-    (time, pointing) samples the model will evaluate (the cube: the whole campaign; a pointing
-    table: its rows; one pointing: 1), which decides whether the sunlit table pays off;
-    ``moonlit_skip_share``: the fraction of the tolerance the moonlit Earth's skipped samples
-    may take (0: none skipped, as the benchmark's reference runs)."""
+    """One campaign's error budget and fast-path choices.  ``moonlit_skip_share``: the fraction
+    of the tolerance the moonlit Earth's skipped samples may take (0: none skipped, as the
+    benchmark's reference runs)."""
 
     campaign: Campaign
-    expected_samples: int = 1
     moonlit_skip_share: float = ERROR_BUDGET_SHARES["moonlit_earthshine_skip"]
 
     @cached_property
@@ -78,16 +72,15 @@ class FidelityPolicy:
         moonlit_s = MOONLIT_LUT_BUILD_SECONDS_PER_NODE * moonlit_node_states
         return LUT_BUILD_SECONDS_PER_NODE * sunlit_node_states + moonlit_s, moonlit_s
 
-    def earthshine_method(self, requested: str) -> tuple[str, str]:
+    @staticmethod
+    def earthshine_method(requested: str) -> tuple[str, str]:
         """(method, reason): 'lut' or 'direct' for the sunlit Earth, from models.earthshine.method
-        (``requested``: auto | lut | direct) and, for auto, :attr:`expected_samples` against
-        :data:`AUTO_TABLE_MIN_SAMPLES` (below it the direct sum is done before the cached tables
-        are read).  Blind to the cache on purpose: the same config and samples give the same
-        products on every machine, whether or not a table was built there before; a table that
-        is not cached yet is built once (``straylight plan`` says so, with its time)."""
+        (``requested``: auto | lut | direct).  auto takes the table whatever the campaign's size:
+        a sample then has the same value in a campaign of any size, in ``straylight sky`` and
+        in the API, and the table's build is a one-time cost per model and machine that every
+        later command and campaign reuses (``straylight plan`` and the build itself say when it
+        is due, with its time).  The direct sum is the reference, on request.  Blind to the
+        cache on purpose: the same config gives the same products on every machine."""
         if requested == "direct":
             return "direct", "models.earthshine.method = direct"
-        if requested == "auto" and self.expected_samples < AUTO_TABLE_MIN_SAMPLES:
-            return "direct", (f"auto: {self.expected_samples} samples, fewer than the {AUTO_TABLE_MIN_SAMPLES} "
-                              f"that repay reading the tables")
-        return "lut", f"{requested}: {self.expected_samples} samples"
+        return "lut", f"models.earthshine.method = {requested}"

@@ -229,7 +229,7 @@ def background_model_for(campaign: Campaign, fp: Footprint, build_workers: int =
 
     key = (json.dumps(campaign.config, sort_keys=True, default=str), str(campaign.instrument_path), fp.pixels.size)
     if key not in _MODELS:
-        _MODELS[key] = BackgroundModel(campaign, expected_samples=evaluated_samples(campaign, fp),
+        _MODELS[key] = BackgroundModel(campaign,
                                       build_workers=build_workers)
     return _MODELS[key]
 

@@ -124,7 +124,7 @@ def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int
             raise InputError(f"{source} row {i + 1}: time = {iso[i]} is outside the DE405 range (1600-12-21 to "
                              f"2200-02-02); {out_of_range.size} of {len(iso)} rows are out of range")
     if model is None:
-        model = BackgroundModel(campaign, expected_samples=n_rows)
+        model = BackgroundModel(campaign)
     if models is not None:
         models.update(model.models_record())
     n = len(t_all)

@@ -10,8 +10,7 @@ import numpy as np
 import pytest
 
 from straylight.config import campaign_from_dict, deep_merge
-from straylight.model import (AUTO_TABLE_MIN_SAMPLES, BAND_COMPONENTS, ERROR_BUDGET_SHARES, LUT_LOAD_SECONDS,
-                              LUT_SAVED_SECONDS_PER_SAMPLE, BackgroundModel, FidelityPolicy)
+from straylight.model import BAND_COMPONENTS, ERROR_BUDGET_SHARES, BackgroundModel, FidelityPolicy
 from straylight.sky.geometry import observing_geometry, radec_to_unit
 from straylight.sky.observing import scene
 
@@ -50,21 +49,13 @@ def test_error_budget_shares_add_up_to_the_tolerance(campaign):
     assert not policy.accepts_table("earthshine_lut", 0.5 * policy.tolerance * 1.001)
 
 
-def test_auto_takes_the_table_exactly_past_its_break_even(campaign):
-    """auto: the direct sum while the samples save less than reading the cached tables costs, the
-    table from load / saved-per-sample samples on (the ratio of the two figures in
-    model.fidelity); the build, a one-time cost, does not enter (the choice is the same on a
-    machine that has the table and one that has not)."""
-    break_even = LUT_LOAD_SECONDS / LUT_SAVED_SECONDS_PER_SAMPLE
-    assert AUTO_TABLE_MIN_SAMPLES == round(break_even)
-    below = FidelityPolicy(campaign, expected_samples=int(break_even * 0.99))
-    above = FidelityPolicy(campaign, expected_samples=int(break_even * 1.01) + 1)
-    assert below.earthshine_method("auto")[0] == "direct"
-    assert above.earthshine_method("auto")[0] == "lut"
-    assert below.earthshine_method("lut")[0] == "lut"
-    assert above.earthshine_method("direct")[0] == "direct"
-    # a few thousand samples: a 3-day campaign at nside 32 (4.6 million) takes the table
-    assert 1_000 <= AUTO_TABLE_MIN_SAMPLES <= 50_000
+def test_auto_takes_the_table(campaign):
+    """auto: the table whatever the campaign (one sample, as `straylight sky`, or a survey), so
+    a sample has the same value everywhere; direct only on request (fidelity.earthshine_method)."""
+    policy = FidelityPolicy(campaign)
+    assert policy.earthshine_method("auto")[0] == "lut"
+    assert policy.earthshine_method("lut")[0] == "lut"
+    assert policy.earthshine_method("direct")[0] == "direct"
 
 
 def test_tolerance_is_read_from_the_campaign(campaign):

@@ -29,7 +29,7 @@ def _campaign(campaign, **earthshine):
 @pytest.fixture(scope="module")
 def coarse(campaign):
     c = _campaign(campaign, method="lut", lut=COARSE)
-    cm = BackgroundModel(c, expected_samples=10**6)
+    cm = BackgroundModel(c)
     return c, cm, cm.sunlit_earth.model
 
 
@@ -221,7 +221,7 @@ def test_moonlit_earth_stays_within_its_share_of_the_tolerance(campaign):
         if "moonlit_method" in kw:
             raw2["models"]["earthshine"]["moonlit_method"] = kw.pop("moonlit_method")
         c = campaign_from_dict(raw2, campaign.path)
-        ds = compute_region(c, fp, t_slice, slice(None), model=BackgroundModel(c, expected_samples=10**6, **kw))
+        ds = compute_region(c, fp, t_slice, slice(None), model=BackgroundModel(c, **kw))
         return ds["total"].values.astype(float), ds["observable"].values
 
     ref, obs = total(grid=(48, 96), moonlit_method="direct", moonlit_skip_share=0.0)
@@ -281,42 +281,37 @@ def test_parallel_build_gives_the_same_table(coarse):
 
 
 def test_automatic_choice(coarse, campaign):
+    """auto takes the table for one pointing as for a survey, unless the table's validated error
+    exceeds its share of the tolerance (then the direct sum, with the reason)."""
     c, _, _ = coarse
-    one = BackgroundModel(_campaign(campaign, method="auto", lut=COARSE), expected_samples=1).sunlit_earth.model
-    assert one["method"] == "direct" and "samples save" in one["reason"]  # one pointing: no table
-    many = BackgroundModel(_campaign(campaign, method="auto", lut=COARSE), expected_samples=10**7).sunlit_earth.model
-    assert many["method"] == "direct" and "> 0.5 x the tolerance" in many["reason"]  # too coarse for 1 %
+    coarse_auto = BackgroundModel(_campaign(campaign, method="auto", lut=COARSE)).sunlit_earth.model
+    assert coarse_auto["method"] == "direct" and "> 0.5 x the tolerance" in coarse_auto["reason"]  # too coarse for 1 %
     raw = copy.deepcopy(c.config)
     raw["models"]["tolerance"] = 1.0
-    loose = BackgroundModel(campaign_from_dict(raw, c.path), expected_samples=10**7).sunlit_earth.model
+    raw["models"]["earthshine"]["method"] = "auto"
+    loose = BackgroundModel(campaign_from_dict(raw, c.path)).sunlit_earth.model
     assert loose["method"] == "lut"
 
 
-def test_automatic_choice_turns_at_the_build_cost(coarse):
-    """auto takes the table exactly when the campaign's samples save more than it costs to
-    build (the sunlit table and the moonlit one), at the measured per-node and per-sample
-    figures (fidelity.LUT_*, MOONLIT_LUT_*)."""
-    from straylight.model import fidelity as comp
+def test_build_estimate_counts_both_tables(coarse):
+    """The build's estimate (plan, the build's announcement): the sunlit table's (node, door
+    state) pairs and the moonlit table's, each at its per-node figure (earthshine_lut.*_PER_NODE)."""
+    from straylight.sources import earthshine_lut as lut_mod
 
     c, _, _ = coarse
     raw = copy.deepcopy(c.config)
-    raw["models"]["tolerance"] = 1.0  # the coarse table's error passes: only the cost decides
     raw["models"]["earthshine"]["method"] = "auto"
-    loose = campaign_from_dict(raw, c.path)
+    model = BackgroundModel(campaign_from_dict(raw, c.path))
     settings = LUTSettings(**COARSE)
-    n_nodes = BackgroundModel(loose).sunlit_earth.node_states(settings)
+    n_nodes = model.sunlit_earth.node_states(settings)
     # the coarse table's nodes (LUTSettings.nodes: 18 Sun zenith x 36 line-of-sight zenith, 29 at
     # the coarse step and 7 over the rise above the aperture plane, x 10 azimuth) x 2 door states
     assert n_nodes == 18 * 36 * 10 * 2
-    # the moonlit table is built on the table path too: its nodes weigh in, at their own cost
-    moonlit_nodes = BackgroundModel(loose).moonlit_earth.node_states()
+    moonlit_nodes = model.moonlit_earth.node_states()
     assert moonlit_nodes > 0
-    turn = (comp.LUT_BUILD_SECONDS_PER_NODE * n_nodes + comp.MOONLIT_LUT_BUILD_SECONDS_PER_NODE * moonlit_nodes
-            ) / comp.LUT_SAVED_SECONDS_PER_SAMPLE
-    below = BackgroundModel(loose, expected_samples=int(turn) - 1).sunlit_earth.model
-    above = BackgroundModel(loose, expected_samples=int(turn) + 2).sunlit_earth.model
-    assert below["method"] == "direct" and "samples save" in below["reason"]
-    assert above["method"] == "lut"
+    both, moonlit = model.policy.tables_build_seconds(n_nodes, moonlit_nodes)
+    assert moonlit == pytest.approx(lut_mod.MOONLIT_LUT_BUILD_SECONDS_PER_NODE * moonlit_nodes, rel=1e-12)
+    assert both == pytest.approx(lut_mod.LUT_BUILD_SECONDS_PER_NODE * n_nodes + moonlit, rel=1e-12)
 
 
 def test_lut_path_agrees_with_direct_within_its_validated_error(coarse, campaign):
@@ -616,7 +611,7 @@ def test_cube_region_skipping_unobservable_samples_changes_no_observable_value(c
         assert np.all(np.isnan(skip[comp].values[~obs]))
     assert np.count_nonzero(every["moon"].values[obs]) > 0  # a skippable term was summed somewhere
     assert cm.models_record()["unobservable_samples"] == "evaluated"
-    assert BackgroundModel(c_skip, expected_samples=10**6).models_record()["unobservable_samples"] == \
+    assert BackgroundModel(c_skip).models_record()["unobservable_samples"] == \
         "skipped: NaN in every component"
 
 
