@@ -128,7 +128,8 @@ def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int
     if models is not None:
         models.update(model.models_record())
     n = len(t_all)
-    cols: dict = {"time": t_all if iso is None else np.asarray(iso, dtype=object), "ra_deg": pointings["ra"],
+    # a table's times as UTC ISO text (offsets resolved); the API's stay a Time (its table converts them)
+    cols: dict = {"time": t_all if iso is None else np.asarray(t_all.isot, dtype=object), "ra_deg": pointings["ra"],
                   "dec_deg": pointings["dec"]}
     geo_keys = ("observable", "violations", "sun_angle_deg", "moon_angle_deg", "moon_illuminated_fraction",
                 "earth_limb_angle_deg", "limb_is_bright", "door_opening_deg")

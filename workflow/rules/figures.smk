@@ -64,7 +64,7 @@ rule report_front:
 rule bench_charts:
     """The speed-against-accuracy charts of bench/run.py, when they have been made."""
     input:
-        charts=lambda wildcards: sorted(str(p) for p in Path(workflow.basedir, "bench", "results").glob("pareto_*.png")),
+        charts=lambda wildcards: sorted(str(p) for p in Path(workflow.basedir).parent.joinpath("bench", "results").glob("pareto_*.png")),
     # off the products' critical path: run when a core is free
     priority: -1
     output:
