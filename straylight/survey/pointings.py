@@ -137,9 +137,7 @@ def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int
     acc.update({f"{c}_{b}": [] for b in bands for c in COMPONENTS})
     acc.update({f"total_mag_per_arcsec2_{b}": [] for b in bands})
     # the scene once per distinct time (a scheduler asks for many pointings at few times)
-    _, first, inverse = np.unique(np.stack([t_all.jd1, t_all.jd2], axis=-1), axis=0, return_index=True,
-                                  return_inverse=True)
-    inverse = inverse.reshape(-1)
+    first, inverse = _distinct_times(np.asarray(t_all.jd1, float).ravel(), np.asarray(t_all.jd2, float).ravel())
     distinct = scene(campaign, t_all[first])
     for a in range(0, n, batch):
         sl = slice(a, min(a + batch, n))
@@ -169,6 +167,18 @@ def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int
         if b != "V":
             cols[f"limit_mag_{b}"] = point_source_limit(cols[f"total_{b}"], b, campaign)
     return cols
+
+
+def _distinct_times(jd1: np.ndarray, jd2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(index of each distinct two-part Julian date, in increasing order; each sample's distinct
+    time): np.unique over the (jd1, jd2) pairs, by one lexsort."""
+    order = np.lexsort((jd2, jd1))
+    a, b = jd1[order], jd2[order]
+    new = np.ones(order.size, bool)
+    new[1:] = (a[1:] != a[:-1]) | (b[1:] != b[:-1])
+    inverse = np.empty(order.size, np.intp)
+    inverse[order] = np.cumsum(new) - 1
+    return order[new], inverse
 
 
 UNITS = {"ra_deg": "deg", "dec_deg": "deg", "sun_angle_deg": "deg", "moon_angle_deg": "deg",
@@ -214,9 +224,8 @@ def _qtable(cols: dict, t, bands, zero_points: dict, models: dict):
     rate, surf = _units()
     door = np.asarray(cols["door_opening_deg"], float)
     # the names once per distinct (constraint mask, door) pair
-    pairs, inverse = np.unique(np.stack([np.asarray(cols["violations"], np.int64), (door > 0).astype(np.int64)]),
-                               axis=1, return_inverse=True)
-    names = np.array([",".join(violation_names(int(v)) + ([] if d else ["door"])) for v, d in pairs.T] or [""],
+    keys, inverse = np.unique(2 * np.asarray(cols["violations"], np.int64) + (door > 0), return_inverse=True)
+    names = np.array([",".join(violation_names(int(k) >> 1) + ([] if k & 1 else ["door"])) for k in keys] or [""],
                      dtype=str)
     reasons = names[inverse.reshape(-1)] if door.size else np.zeros(0, dtype=str)
     # the columns made first and the table once (adding them one by one costs more than computing them)
