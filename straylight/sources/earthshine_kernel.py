@@ -27,6 +27,8 @@ import math
 import numpy as np
 from numba import njit
 
+from straylight.util.gridinterp import cell_of
+
 __all__ = ["GridPack", "cap_sums", "lamp_bound_sums"]
 
 _DEG = 180.0 / math.pi
@@ -55,20 +57,6 @@ class GridPack:
         """The arrays :func:`cap_sums` takes for this grid, in its argument order."""
         return (self.lo, self.hi, self.uniform, self.inv_width, self.n_bins, self.bin_cell, self.nodes,
                 self.n_nodes, self.inv_step, self.stride0, self.values)
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _cell(k, x, lo, hi, uniform, inv_width, n_bins, bin_cell, nodes, n_nodes, inv_step):
-    """(cell index, fraction) of ``x`` on axis ``k``, as gridinterp._interpolate finds them."""
-    x = min(max(x, lo[k]), hi[k])
-    last = n_nodes[k] - 2
-    if uniform[k]:
-        i = min(int((x - lo[k]) * inv_step[k, 0]), last)
-    else:
-        i = bin_cell[k, min(int((x - lo[k]) * inv_width[k]), n_bins[k])]
-        if x >= nodes[k, min(i + 1, last + 1)]:
-            i = min(i + 1, last)
-    return i, (x - nodes[k, i]) * inv_step[k, i]
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -137,8 +125,8 @@ def cap_sums(fx, fy, fz, blocks, span_g, span_p, lum, state_sel, door_normal, do
                 if phi < 0.0:
                     phi += 360.0
             if in_view:
-                i0, t0 = _cell(0, theta, p_lo, p_hi, p_uni, p_iw, p_nb, p_bc, p_nodes, p_nn, p_is)
-                i1, t1 = _cell(1, phi, p_lo, p_hi, p_uni, p_iw, p_nb, p_bc, p_nodes, p_nn, p_is)
+                i0, t0 = cell_of(0, theta, p_lo, p_hi, p_uni, p_iw, p_nb, p_bc, p_nodes, p_nn, p_is)
+                i1, t1 = cell_of(1, phi, p_lo, p_hi, p_uni, p_iw, p_nb, p_bc, p_nodes, p_nn, p_is)
                 w = math.exp(_bilinear_at(p_val, 0, i0 * p_s0 + i1, p_s0, t0, t1)) * front * pixel_area_m2
             sp_ready = False
             lit_ready = False
@@ -149,8 +137,8 @@ def cap_sums(fx, fy, fz, blocks, span_g, span_p, lum, state_sel, door_normal, do
                     continue
                 if w > 0.0:
                     if not sp_ready:
-                        di0, dt0 = _cell(0, min(theta, 90.0), d_lo, d_hi, d_uni, d_iw, d_nb, d_bc, d_nodes, d_nn, d_is)
-                        di1, dt1 = _cell(1, phi, d_lo, d_hi, d_uni, d_iw, d_nb, d_bc, d_nodes, d_nn, d_is)
+                        di0, dt0 = cell_of(0, min(theta, 90.0), d_lo, d_hi, d_uni, d_iw, d_nb, d_bc, d_nodes, d_nn, d_is)
+                        di1, dt1 = cell_of(1, phi, d_lo, d_hi, d_uni, d_iw, d_nb, d_bc, d_nodes, d_nn, d_is)
                         sp_ready = True
                     ws = w * _bilinear_at(d_val, s, di0 * d_s0 + di1, d_s0, dt0, dt1)
                     for c in range(n_lamps):
@@ -163,9 +151,9 @@ def cap_sums(fx, fy, fz, blocks, span_g, span_p, lum, state_sel, door_normal, do
                         cos_inc *= lit_at_plane[s]  # theta <= 90: the grid's first row, constant in phi
                     elif has_body:
                         if not lit_ready:
-                            fi0, ft0 = _cell(0, min(max(theta, 90.0), 180.0), f_lo, f_hi, f_uni, f_iw, f_nb, f_bc,
+                            fi0, ft0 = cell_of(0, min(max(theta, 90.0), 180.0), f_lo, f_hi, f_uni, f_iw, f_nb, f_bc,
                                              f_nodes, f_nn, f_is)
-                            fi1, ft1 = _cell(1, phi, f_lo, f_hi, f_uni, f_iw, f_nb, f_bc, f_nodes, f_nn, f_is)
+                            fi1, ft1 = cell_of(1, phi, f_lo, f_hi, f_uni, f_iw, f_nb, f_bc, f_nodes, f_nn, f_is)
                             lit_ready = True
                         cos_inc *= _bilinear_at(f_val, s, fi0 * f_s0 + fi1, f_s0, ft0, ft1)
                     for c in range(n_lamps):

@@ -7,8 +7,8 @@ sum over the Earth grid (:meth:`~straylight.sources.offfield.OffFieldModel.earth
 which lights each block by the Sun and the Moon in one pass, so the moonlit Earth comes with it),
 or the look-up table of that sum (:class:`~straylight.sources.earthshine_lut.EarthshineLUT`,
 the Sun only; the moonlit Earth then adds its own, :mod:`straylight.sources.moonlit_earth`).
-``auto`` takes the table when the campaign's samples repay its build and it validates within
-the earthshine_lut share of the tolerance."""
+``auto`` takes the table whenever it validates within the earthshine_lut share of the
+tolerance."""
 from __future__ import annotations
 
 import logging
@@ -27,8 +27,8 @@ COEFFICIENTS = ("direct_sun", "door_sun", "direct_moon", "door_moon")
 class SunlitEarth:
     """The sunlit Earth's coefficients for a batch of samples (:meth:`rates`), by the model
     :attr:`model` picks.  ``moonlit``: the moonlit Earth, whose table the table path builds
-    too (its cost counts in the choice); ``build_workers``: processes that build a table that
-    is not cached (the result does not depend on it)."""
+    too (its build is counted in the estimate); ``build_workers``: threads that build a table
+    that is not cached (the result does not depend on it)."""
 
     def __init__(self, context: SourceContext, policy, moonlit, build_workers: int = 1):
         self.context, self.policy, self.moonlit, self.build_workers = context, policy, moonlit, build_workers

@@ -34,6 +34,22 @@ def _bilinear(flat, b, ch, sa, sb, ta, tb):
             + (flat[b + sa, ch] * (1 - tb) + flat[b + sa + sb, ch] * tb) * ta)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def cell_of(k, x, lo, hi, uniform, inv_width, n_bins, bin_cell, nodes, n_nodes, inv_step):
+    """(cell index, fraction within it) of ``x`` on axis ``k`` of the packed axes (see
+    :class:`LinearGrid`): clipped to the axis; on an evenly spaced axis one multiplication, else
+    the bin's cell or the next (:class:`AxisCells`)."""
+    x = min(max(x, lo[k]), hi[k])
+    last = n_nodes[k] - 2
+    if uniform[k]:
+        i = min(int((x - lo[k]) * inv_step[k, 0]), last)
+    else:
+        i = bin_cell[k, min(int((x - lo[k]) * inv_width[k]), n_bins[k])]
+        if x >= nodes[k, min(i + 1, last + 1)]:
+            i = min(i + 1, last)
+    return i, (x - nodes[k, i]) * inv_step[k, i]
+
+
 @njit(cache=True, nogil=True)
 def _interpolate(points, lo, hi, uniform, inv_width, n_bins, bin_cell, nodes, n_nodes, inv_step, strides, flat,
                  channel, group_rows, out):
@@ -60,15 +76,7 @@ def _interpolate(points, lo, hi, uniform, inv_width, n_bins, bin_cell, nodes, n_
             if x != x:  # NaN in, NaN out
                 missing = True
                 break
-            x = min(max(x, lo[k]), hi[k])
-            last = n_nodes[k] - 2
-            if uniform[k]:
-                i = min(int((x - lo[k]) * inv_step[k, 0]), last)
-            else:
-                i = bin_cell[k, min(int((x - lo[k]) * inv_width[k]), n_bins[k])]
-                if x >= nodes[k, min(i + 1, last + 1)]:
-                    i = min(i + 1, last)
-            frac[k] = (x - nodes[k, i]) * inv_step[k, i]
+            i, frac[k] = cell_of(k, x, lo, hi, uniform, inv_width, n_bins, bin_cell, nodes, n_nodes, inv_step)
             base += i * strides[k]
         if missing:
             out[p, :] = np.nan

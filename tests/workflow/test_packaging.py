@@ -1,11 +1,13 @@
-"""The wheel as a user installs it: built from the source tree, installed with its dependencies
-into a fresh virtual environment (no editable install of this checkout), and used from an empty
-folder: the CLI, the Python API, and a campaign through the packaged workflow with its report."""
+"""The wheel as a user installs it: built from the source tree, installed into a fresh virtual
+environment (no editable install of this checkout; the dependencies lent by this environment,
+each declared by the wheel: checked from its imports), and used from an empty folder: the CLI,
+the Python API, and a campaign through the packaged workflow with its report."""
 import json
 import os
 import shutil
 import subprocess
 import sys
+import sysconfig
 import textwrap
 import zipfile
 from pathlib import Path
@@ -102,9 +104,15 @@ def installed(tmp_path_factory):
     venv = tmp / "venv"
     r = subprocess.run([sys.executable, "-m", "venv", str(venv)], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
-    # the dependencies from PyPI (or pip's cache): none of this environment's packages
-    r = subprocess.run([str(venv / "bin" / "python"), "-m", "pip", "install", "-q", str(wheel)],
-                       capture_output=True, text=True, timeout=1800)
+    # The dependencies are this environment's installed distributions, reached through a plain
+    # path line: Python does not run the .pth files of a folder added that way, so this checkout's
+    # editable install (its import finder) stays out, and straylight comes from the wheel alone.
+    # That the wheel declares every distribution its code imports is checked on its own
+    # (test_wheel_declares_every_distribution_it_imports).
+    site = next((venv / "lib").glob("python3*/site-packages"))
+    (site / "dependencies_of_the_test.pth").write_text(sysconfig.get_paths()["purelib"] + "\n")
+    r = subprocess.run([str(venv / "bin" / "python"), "-m", "pip", "install", "-q", "--no-deps", str(wheel)],
+                       capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr[-3000:]
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV", "PYTHONHOME")}
     env["PATH"] = f"{venv / 'bin'}{os.pathsep}{env.get('PATH', '')}"
@@ -133,6 +141,81 @@ def test_wheel_holds_the_package_workflow_and_shipped_configs_only(installed):
     # the version from git (setuptools-scm), not a number written by hand
     assert commit[:7] in version and version != "0.1.0"
     assert f"__version__ = version = '{version}'" in zipfile.ZipFile(wheel).read("straylight/_scm_version.py").decode()
+
+
+def _top_level_imports(source: str) -> set[str]:
+    """The top-level module names a Python source imports (absolute imports only)."""
+    import ast
+
+    names = set()
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Import):
+            names.update(a.name.split(".")[0] for a in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            names.add(node.module.split(".")[0])
+    return names
+
+
+def _norm(name: str) -> str:
+    import re
+
+    return re.sub(r"[-_.]+", "-", name).lower()
+
+
+def _active(requirements, extras=frozenset()) -> list:
+    """The requirements (packaging Requirement objects) that apply with these extras on this
+    platform (no extra: only the unconditional ones)."""
+    from packaging.requirements import Requirement
+
+    out = []
+    for text in requirements or ():
+        req = Requirement(text)
+        if req.marker is None or any(req.marker.evaluate({"extra": e}) for e in {"", *extras}):
+            out.append(req)
+    return out
+
+
+#: imported by the package but not needed to run it: module -> why
+NOT_RUNTIME = {"PyAstronomy": "catalog.sed.teff_from_spectral_type re-derives a frozen table; a test dependency"}
+
+
+@pytest.mark.slow
+def test_wheel_declares_every_distribution_it_imports(installed):
+    """Every module the wheel's code imports is the standard library's, straylight's, or comes
+    from a distribution its metadata requires (directly, with their extras, or through them):
+    the test's environment lends the dependencies, so a missing requirement is caught here."""
+    import importlib.metadata as md
+    import re
+
+    wheel = installed[0]
+    z = zipfile.ZipFile(wheel)
+    meta = next(n for n in z.namelist() if n.endswith(".dist-info/METADATA"))
+    todo = [(_norm(r.name), frozenset(r.extras))
+            for r in _active(re.findall(r"^Requires-Dist: (.+)$", z.read(meta).decode(), re.M))]
+    assert {"numpy", "astropy", "tqdm", "pygments", "numba"} <= {n for n, _ in todo}
+    # the requirements' own requirements (with the extras asked for), as this environment has them
+    closure, seen = set(), set()
+    while todo:
+        name, extras = todo.pop()
+        if (name, extras) in seen:
+            continue
+        seen.add((name, extras))
+        closure.add(name)
+        try:
+            todo.extend((_norm(r.name), frozenset(r.extras)) for r in _active(md.requires(name), extras))
+        except md.PackageNotFoundError:
+            pass
+    providers = {mod: {_norm(d) for d in dists} for mod, dists in md.packages_distributions().items()}
+    missing = {}
+    for name in z.namelist():
+        if not name.endswith(".py"):
+            continue
+        for mod in _top_level_imports(z.read(name).decode()):
+            if mod in sys.stdlib_module_names or mod in ("straylight", "_common", "__future__") or mod in NOT_RUNTIME:
+                continue
+            if not providers.get(mod, set()) & closure:
+                missing.setdefault(mod, []).append(name)
+    assert not missing, f"imported but not required by the wheel: {missing}"
 
 
 @pytest.mark.slow
