@@ -78,7 +78,7 @@ def sky_background(time, coord, bands=None, config=None, catalog=None):
 
         No samples (an empty ``time`` or ``coord``) give an empty table with the same columns
         and units, so a scheduler's loop needs no special case; the config and bands are still
-        checked, no model runs and ``meta["models"]`` is empty.
+        checked, nothing is evaluated and ``meta["models"]`` is empty.
 
     Raises
     ------
@@ -98,8 +98,9 @@ def sky_background(time, coord, bands=None, config=None, catalog=None):
     >>> len(sky), sky["zodiacal_r"].unit, sky["total_mag_r"].unit
     (3, Unit("electron / (pix s)"), Unit("mag / arcsec2"))
     """
-    from straylight.skymodel import cached_sky_model
+    from straylight.skymodel import cached_sky_model, checked_samples
 
+    checked_samples(time, coord)  # bad input refused before a model (or its tables) is built
     return cached_sky_model(config, catalog).background(time, coord, bands)
 
 

@@ -179,10 +179,6 @@ def cmd_sky(args) -> int:
         check_in_ephemeris(args.time, "--time", given)
     campaign = load_campaign(args.config)
     bands = _sky_bands(args.bands, campaign)
-    # the API's model (the earthshine tables under auto), so the command and sky_background agree
-    from straylight.skymodel import cached_sky_model
-
-    model = cached_sky_model(args.config).model
     stars = None
     if args.catalog:  # the cube's star model: stars brighter than stars.offfield_mag_limit
         from straylight.sources.stars import load_offfield_stars
@@ -191,8 +187,8 @@ def cmd_sky(args) -> int:
                                     float(campaign.config["stars"]["offfield_mag_limit"]),
                                     bool(campaign.config["stars"].get("faint_map", True)))
     if args.input:
-        return _sky_table(args, campaign, bands, stars, model)
-    rec = sky_record(campaign, args.time, pointing[0], pointing[1], bands, stars, model)
+        return _sky_table(args, campaign, bands, stars)
+    rec = sky_record(campaign, args.time, pointing[0], pointing[1], bands, stars, _sky_model(args.config))
     if args.json:
         _print_json(rec)
     else:
@@ -246,7 +242,15 @@ def _sky_band_table(bands: dict) -> str:
     return "\n".join(lines)
 
 
-def _sky_table(args, campaign, bands, stars, model) -> int:
+def _sky_model(config):
+    """The API's model of this config (the earthshine tables under auto), so that the command and
+    sky_background agree; built after the command's input is checked."""
+    from straylight.skymodel import cached_sky_model
+
+    return cached_sky_model(config).model
+
+
+def _sky_table(args, campaign, bands, stars) -> int:
     from straylight.catalog.gaia import write_parquet
     from straylight.sky.timeutil import quiet_dubious_years
     from straylight.survey.pointings import column_units, pointing_table, read_pointings
@@ -259,7 +263,8 @@ def _sky_table(args, campaign, bands, stars, model) -> int:
                          f"{len(p['time'])} rows are masked: fill or drop them")
     models: dict = {}
     with quiet_dubious_years():  # a time outside DE405 is refused in one line of ours, without ERFA's
-        cols = pointing_table(campaign, p, bands, stars, source=str(args.input), models=models, model=model)
+        cols = pointing_table(campaign, p, bands, stars, source=str(args.input), models=models,
+                              model=_sky_model(args.config))
     from straylight import __version__
 
     write_parquet(cols, args.out, {"straylight_version": __version__, "input": str(args.input),
@@ -506,6 +511,8 @@ def cmd_plan(args) -> int:
         from straylight.survey.plan import machine_speed
 
         speed = machine_speed(campaign, fp)
+    if args.cores is not None and args.cores < 1:
+        raise InputError(f"--cores {args.cores}: must be at least 1")
     cores = args.cores or _available_cores()
     cost = estimated_cost(campaign, fp, args.seconds_per_sample, speed["factor"] if speed else 1.0, cores)
     n = cost["samples"]
@@ -522,7 +529,7 @@ def cmd_plan(args) -> int:
     if cost["earthshine_method"] == "lut":
         table = ("its tables are cached" if cost["table_cached"] else
                  f"its tables are not cached yet: built once, ~{cost['table_build_seconds'] / cores:.0f} s on "
-                 f"{cores} cores, then kept for every later run")
+                 f"{cores} core{'s' if cores > 1 else ''}, then kept for every later run")
         print(f"earthshine: look-up tables ({cost['earthshine_reason']}); {table}")
     else:
         print(f"earthshine: direct Earth-grid sum ({cost['earthshine_reason']})")
@@ -530,7 +537,8 @@ def cmd_plan(args) -> int:
            if args.seconds_per_sample is not None else
            f"{cost['pipeline_samples_per_s_per_core']:,.0f} samples/s/core ({cost['pipeline_rate_source']})")
     build = f" + the tables' build {cost['table_build_seconds'] / cores:.0f} s" if cost["table_build_seconds"] else ""
-    print(f"estimated wall time on {cores} cores: {_duration(cost['wall_seconds'])} = start-up, set-up and figures "
+    print(f"estimated wall time on {cores} core{'s' if cores > 1 else ''}: {_duration(cost['wall_seconds'])} = "
+          f"start-up, set-up and figures "
           f"{cost['fixed_seconds']:.0f} s + the samples {cost['samples_seconds']:.0f} s at {per}{build}; "
           f"{cost['pipeline_core_hours']:.3g} core-hours")
     if cost["faint_map_first_seconds"]:
@@ -540,7 +548,7 @@ def cmd_plan(args) -> int:
         print(f"this machine: {speed['samples']} cube samples on the direct sum took "
               f"{speed['measured_seconds']:.3f} s against {speed['assumed_seconds']:.3f} s on the development machine "
               f"(x{speed['factor']:.2f}); every figure above is scaled by it")
-    print(f"the cube's compute alone: {cost['core_hours']:.3g} core-hours (straylight.survey.plan.CUBE_*)")
+    print(f"the cube's compute alone: {cost['compute_seconds'] / 3600:.3g} core-hours (straylight.survey.plan.CUBE_*)")
     return 0
 
 

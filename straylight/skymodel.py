@@ -15,7 +15,7 @@ import numpy as np
 
 from straylight.errors import InputError
 
-__all__ = ["SkyModel", "cached_sky_model"]
+__all__ = ["SkyModel", "cached_sky_model", "checked_samples"]
 
 
 class SkyModel:
@@ -36,8 +36,8 @@ class SkyModel:
     campaigns' products: the first use on a machine builds them once (a warning says so, with
     the expected time, and a progress bar follows) and every later one reads them from the
     cache (``STRAYLIGHT_CACHE``, else ``~/.cache/straylight``).
-    A SkyModel is safe to share between threads of one process: its state is read-only once
-    built.
+    One SkyModel serves one thread at a time (its time conversions silence ERFA's warnings
+    through Python's warnings filters, which are not thread-safe).
 
     Examples
     --------
@@ -61,8 +61,7 @@ class SkyModel:
         self.model = BackgroundModel(self.campaign,
                                      build_workers=len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
                                      else (os.cpu_count() or 1))
-        self.model.sunlit_earth.model  # the tables read (or built) now, not on the first call
-        self.model.moonlit_earth.model
+        self.model.models_record()  # the tables this model uses read (or built) now, not on the first call
         self.catalog = catalog
         self._stars: dict = {}
         self._stars_lock = threading.Lock()
@@ -81,34 +80,9 @@ class SkyModel:
         from astropy.coordinates import SkyCoord
         from astropy.time import Time
 
-        from straylight.sky.timeutil import check_in_ephemeris, quiet_dubious_years
         from straylight.survey.pointings import background_table
 
-        if not isinstance(time, Time):
-            raise InputError(f"time: expected an astropy.time.Time, got {type(time).__name__}")
-        if not isinstance(coord, SkyCoord):
-            raise InputError(f"coord: expected an astropy.coordinates.SkyCoord, got {type(coord).__name__}")
-        icrs = coord.icrs
-        ra = np.asarray(icrs.ra.deg, float)
-        dec = np.asarray(icrs.dec.deg, float)
-        try:
-            shape = np.broadcast_shapes(time.shape, ra.shape)
-        except ValueError:
-            raise InputError(f"time {time.shape} and coord {ra.shape}: shapes do not broadcast") from None
-        ra, dec = (np.broadcast_to(a, shape).ravel() for a in (ra, dec))
-        bad = np.flatnonzero(~(np.isfinite(ra) & np.isfinite(dec)))
-        if bad.size:
-            raise InputError(f"coord: sample {bad[0]}: ra = {ra[bad[0]]}, dec = {dec[bad[0]]} is not finite")
-        masked = np.flatnonzero(np.broadcast_to(np.asarray(time.mask, bool), shape).ravel())
-        if masked.size:
-            raise InputError(f"time: sample {masked[0]} is masked ({masked.size} of {ra.size} samples): no time to "
-                             "compute at; drop or fill the masked entries")
-        with quiet_dubious_years():  # a time outside DE405 gets our line below, not ERFA's warnings first
-            t = time.utc
-            t = Time(np.broadcast_to(t.jd1, shape).ravel(), np.broadcast_to(t.jd2, shape).ravel(), format="jd",
-                     scale="utc")
-        if t.size:
-            check_in_ephemeris(t, "time")
+        t, ra, dec = checked_samples(time, coord)
         campaign = self.campaign
         if bands is not None and len(bands) == 0:
             raise InputError(f"bands: no band given; valid bands: {', '.join(campaign.bands)}, V "
@@ -135,6 +109,45 @@ class SkyModel:
                 self._stars[key] = load_offfield_stars(self.catalog, bands, float(sc["offfield_mag_limit"]),
                                                        bool(sc.get("faint_map", True)))
             return self._stars[key]
+
+
+def checked_samples(time, coord):
+    """(UTC times, RA, Dec deg) of the samples, flattened after broadcasting ``time`` (astropy
+    Time) against ``coord`` (SkyCoord, any frame; ICRS out).  InputError for a wrong type, shapes
+    that do not broadcast, a non-finite coordinate, a masked time or a time outside DE405, before
+    any model is built."""
+    from astropy.coordinates import SkyCoord
+    from astropy.time import Time
+
+    from straylight.sky.timeutil import check_in_ephemeris, configure_offline, quiet_dubious_years
+
+    configure_offline()  # before the scale conversion below: no leap-second download
+    if not isinstance(time, Time):
+        raise InputError(f"time: expected an astropy.time.Time, got {type(time).__name__}")
+    if not isinstance(coord, SkyCoord):
+        raise InputError(f"coord: expected an astropy.coordinates.SkyCoord, got {type(coord).__name__}")
+    icrs = coord.icrs
+    ra = np.asarray(icrs.ra.deg, float)
+    dec = np.asarray(icrs.dec.deg, float)
+    try:
+        shape = np.broadcast_shapes(time.shape, ra.shape)
+    except ValueError:
+        raise InputError(f"time {time.shape} and coord {ra.shape}: shapes do not broadcast") from None
+    ra, dec = (np.broadcast_to(a, shape).ravel() for a in (ra, dec))
+    bad = np.flatnonzero(~(np.isfinite(ra) & np.isfinite(dec)))
+    if bad.size:
+        raise InputError(f"coord: sample {bad[0]}: ra = {ra[bad[0]]}, dec = {dec[bad[0]]} is not finite")
+    masked = np.flatnonzero(np.broadcast_to(np.asarray(time.mask, bool), shape).ravel())
+    if masked.size:
+        raise InputError(f"time: sample {masked[0]} is masked ({masked.size} of {ra.size} samples): no time to "
+                         "compute at; drop or fill the masked entries")
+    with quiet_dubious_years():  # a time outside DE405 gets our line below, not ERFA's warnings first
+        t = time.utc
+        t = Time(np.broadcast_to(t.jd1, shape).ravel(), np.broadcast_to(t.jd2, shape).ravel(), format="jd",
+                 scale="utc")
+    if t.size:
+        check_in_ephemeris(t, "time")
+    return t, ra, dec
 
 
 def _empty_table(campaign, t, bands):
@@ -175,7 +188,8 @@ def _file_key(path) -> tuple | None:
 
 def cached_sky_model(config=None, catalog=None) -> SkyModel:
     """The :class:`SkyModel` of this config and catalog, built on first use and kept (a config
-    or catalog file edited since gives a new one)."""
+    or catalog file edited since gives a new one; the files a config names, such as its
+    instrument, are not watched)."""
     key = (_file_key(config), _file_key(catalog))
     with _MODELS_LOCK:
         model = _MODELS.get(key)

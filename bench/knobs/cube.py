@@ -166,10 +166,11 @@ def plan_cost_model(base, fp, t_slice, cube: dict) -> dict:
 
 
 def auto_cost_model(lut_model, cube: dict) -> dict:
-    """models.earthshine.method = auto's two constants against this run: the seconds a cube
-    sample saves on the table path (measured just now) and the table's build seconds per node
-    and door state (as recorded when the cached table was built, on whatever cores it had).
-    A measured figure far from the assumed one means the constants in straylight/model/fidelity.py
+    """``straylight plan``'s two earthshine constants against this run: the seconds a cube sample
+    saves on the table path (measured just now; fidelity.LUT_SAVED_SECONDS_PER_SAMPLE) and the
+    table's build seconds per node and door state (as recorded when the cached table was built,
+    on whatever cores it had; earthshine_lut.LUT_BUILD_SECONDS_PER_NODE), and after how many
+    samples a build is repaid.  A measured figure far from the assumed one means the constants
     want updating."""
     from straylight.model import fidelity as comp
 
@@ -183,6 +184,6 @@ def auto_cost_model(lut_model, cube: dict) -> dict:
                                       / comp.LUT_SAVED_SECONDS_PER_SAMPLE}}
     print(f"auto: the table saves {saved * 1e3:.3f} ms per cube sample (assumed "
           f"{comp.LUT_SAVED_SECONDS_PER_SAMPLE * 1e3:.3f}), was built at {build * 1e3:.3f} ms per node and "
-          f"state (assumed {comp.LUT_BUILD_SECONDS_PER_NODE * 1e3:.3f}): pays off above "
+          f"state (assumed {comp.LUT_BUILD_SECONDS_PER_NODE * 1e3:.3f}): a build is repaid after "
           f"{out['pays_off_above_samples']['measured']:.3g} samples (assumed {out['pays_off_above_samples']['assumed']:.3g})")
     return out

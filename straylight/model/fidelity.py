@@ -21,8 +21,8 @@ ERROR_BUDGET_SHARES = {"earthshine_lut": 0.5, "moonlit_earthshine_skip": 0.125, 
                        "stars_skip": 0.125, "moon_and_planets_skip": 0.125}
 
 #: What the sunlit table saves per evaluated sample over the direct sum, seconds on one core
-#: (``straylight plan`` prices a campaign on the direct sum with it; bench/earthshine_tables.py
-#: measures it).
+#: of the development machine (``straylight plan`` prices a campaign on the direct sum with it;
+#: ``straylight plan --calibrate`` times the direct sum against it).
 LUT_SAVED_SECONDS_PER_SAMPLE = 0.08e-3
 
 

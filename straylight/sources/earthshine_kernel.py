@@ -66,7 +66,7 @@ def _bilinear_at(values, row, base, s0, ta, tb):
             + (values[row, base + s0] * (1 - tb) + values[row, base + s0 + 1] * tb) * ta)
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def cap_sums(fx, fy, fz, blocks, span_g, span_p, lum, state_sel, door_normal, door_k, field_radius_deg,
              pixel_area_m2,
              p_lo, p_hi, p_uni, p_iw, p_nb, p_bc, p_nodes, p_nn, p_is, p_s0, p_val,

@@ -51,8 +51,8 @@ LUT_FORMAT = 5
 
 #: The tables' build, in seconds on one core per (node, door state): the sunlit table's nodes
 #: each sum the full Earth grid, the moonlit table's its coarse grid (8 x 16 blocks).  The build
-#: is announced with the time they give, and ``straylight plan`` quotes it;
-#: bench/earthshine_tables.py measures them.
+#: is announced with the time they give, and ``straylight plan`` quotes it; a table records its
+#: own build time (``build_seconds``), and ``bench/pipeline.py --cold`` times both in a run.
 LUT_BUILD_SECONDS_PER_NODE = 0.028e-3
 MOONLIT_LUT_BUILD_SECONDS_PER_NODE = 0.006e-3
 
@@ -79,8 +79,10 @@ class LUTSettings:
         if self.n_radius < 1:
             raise InputError(f"models.earthshine.lut.n_radius = {self.n_radius}: needs >= 1")
 
-    def node_count(self, radius_km: float, earth_radius_km: float) -> int:
-        zs, zl, az = self.nodes(radius_km, earth_radius_km, True)
+    def node_count(self, radius_km: float, earth_radius_km: float, symmetric: bool = True) -> int:
+        """Nodes of the table (per door state); ``symmetric``: the instrument mirror-symmetric
+        about the Sun's vertical plane (:func:`mirror_symmetric`: azimuth 0-180 deg, else 0-360)."""
+        zs, zl, az = self.nodes(radius_km, earth_radius_km, symmetric)
         return zs.size * zl.size * az.size * self.n_radius
 
     def nodes(self, radius_km: float, earth_radius_km: float, symmetric: bool):
@@ -384,13 +386,18 @@ def _run_scenes(fn, tasks: list, workers: int, what: str, log=None) -> list:
                 results[i] = fn(*t)
                 bar.update()
         else:
+            from concurrent.futures import as_completed
+
             with ThreadPoolExecutor(max_workers=workers) as ex:
                 futures = {ex.submit(fn, *t): i for i, t in enumerate(tasks)}
-                from concurrent.futures import as_completed
-
-                for f in as_completed(futures):
-                    results[futures[f]] = f.result()
-                    bar.update()
+                try:
+                    for f in as_completed(futures):
+                        results[futures[f]] = f.result()
+                        bar.update()
+                except BaseException:  # Ctrl-C or a failed scene: the queued scenes are not run
+                    for f in futures:
+                        f.cancel()
+                    raise
     return results
 
 
@@ -461,6 +468,7 @@ class EarthshineLUT:
         t_start = time.perf_counter()
         s = settings
         symmetric = mirror_symmetric(off)
+        off._kernel_tables  # the door's tables once, before the threads share them
         rr = np.linspace(radius_range_km[0], radius_range_km[1], s.n_radius) if s.n_radius > 1 \
             else np.array([0.5 * (radius_range_km[0] + radius_range_km[1])])
         zs, zl, az = s.nodes(float(rr.min()), earth_radius_km, symmetric)
@@ -597,11 +605,11 @@ class EarthshineLUT:
 
 def load_or_build(off, earth_radius_km, radius_range_km, settings: LUTSettings, floor: float, log=None,
                   avoidance_deg: tuple = (30.0, 80.0, 50.0), workers: int = 1):
-    """The table for these inputs from the cache, built (by ``workers`` processes) and stored
+    """The table for these inputs from the cache, built (by ``workers`` threads) and stored
     there if missing."""
     key = lut_key(off, earth_radius_km, radius_range_km, settings, floor, avoidance_deg)
-    expected = LUT_BUILD_SECONDS_PER_NODE * settings.node_count(radius_range_km[0], earth_radius_km) \
-        * len(off.door_states_deg)
+    expected = LUT_BUILD_SECONDS_PER_NODE * settings.node_count(radius_range_km[0], earth_radius_km,
+                                                                mirror_symmetric(off)) * len(off.door_states_deg)
     return _cached("earthshine_lut", key, "earthshine", EarthshineLUT.load,
                    lambda: EarthshineLUT.build(off, earth_radius_km, radius_range_km, settings, floor,
                                                avoidance_deg=avoidance_deg, workers=workers), log, expected, workers)
@@ -741,6 +749,7 @@ class MoonlitLUT:
 
         t_start = time.perf_counter()
         symmetric = mirror_symmetric(off)
+        off._kernel_tables  # the door's tables once, before the threads share them
         r0 = 0.5 * (radius_range_km[0] + radius_range_km[1])
         zm, zl, az, roll = settings.nodes(float(radius_range_km[0]), earth_radius_km, symmetric)
         Zm, L, A, P = (v.ravel() for v in np.meshgrid(*(np.radians(v) for v in (zm, zl, az, roll)), indexing="ij"))

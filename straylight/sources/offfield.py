@@ -399,9 +399,12 @@ class OffFieldModel:
         its dark blocks (lit by neither lamp) dropped, and the sums over the rest compiled
         (:func:`~straylight.sources.earthshine_kernel.cap_sums`).  Same sums as the general path,
         so the same values up to rounding (tests/sources/test_offfield.py)."""
+        from straylight.sky.geometry import TelescopeFrame
+
         shape = np.broadcast_shapes(frame.z.shape[:-1], np.shape(opening_deg))
         op = np.broadcast_to(np.asarray(opening_deg, float), shape).ravel()
         state_of, known = door_state_index(sorted(self.door_tables), op)
+        frame = TelescopeFrame(*(np.broadcast_to(a, shape + (3,)).reshape(-1, 3) for a in (frame.x, frame.y, frame.z)))
         direct, door = self.earthshine_scene_sums(sat, sun, moon, frame, earth_radius_km,
                                                   np.where(known, state_of, -1)[:, None], with_sun, with_moon, s)
         return {"direct_sun": direct[:, 0, 0].reshape(shape), "direct_moon": direct[:, 0, 1].reshape(shape),
@@ -434,7 +437,8 @@ class OffFieldModel:
         if blocks.shape[0] and n:
             from straylight.sources.earthshine_kernel import cap_sums
 
-            normals, door_k, pst, sp, lit = self._kernel_tables
+            normals, door_weight, pst, sp, lit = self._kernel_tables
+            door_k = (s or self.earthshine).door_reflectance * door_weight
             cap_sums(fx, fy, fz, blocks, span_g, span_p, lum, sel, normals, door_k, float(self.field_radius_deg),
                      float(self.pixel_area_m2), *pst, *sp, *lit, direct, door)
         return direct, door
@@ -442,28 +446,28 @@ class OffFieldModel:
     @cached_property
     def _kernel_tables(self):
         """What :func:`~straylight.sources.earthshine_kernel.cap_sums` reads, door states ascending:
-        the door's inner normals (S, 3), its factor k (reflectance x sum of the door's weights x
-        pixel area) per state, the PST's and the Sp tables' grids, and the lit-fraction tables'
+        the door's inner normals (S, 3), the sum of the door's weights x pixel area per state
+        (times the reflectance: the door term's factor k), the PST's and the Sp tables' grids, and the lit-fraction tables'
         grids with whether there is a body (else the lit fraction is 1) and their value in front
         of the aperture plane (:func:`~straylight.sources.earthshine_kernel.cap_sums`)."""
         from straylight.sources.earthshine_kernel import GridPack
 
         states = sorted(self.door_tables)
         normals = np.ascontiguousarray([self._door_weights[st][1] for st in states], dtype=float)
-        door_k = np.array([self.earthshine.door_reflectance * np.sum(self._door_weights[st][2]) * self.pixel_area_m2
-                           for st in states])
+        door_weight = np.array([np.sum(self._door_weights[st][2]) * self.pixel_area_m2 for st in states])
         sp = GridPack([self.door_tables[st]._interp for st in states]).arrays()
         lit_tables = self._door_lit_fraction
         lit = sp if lit_tables is None else GridPack([lit_tables[st] for st in states]).arrays()
         # the lit fraction in front of the aperture plane: its grid's first row (theta 90 deg),
-        # where that row is constant in phi (the body cannot shade a direction from there)
+        # where that row's nodes are all equal (the body cannot shade a direction from there)
         at_plane = np.full(len(states), -1.0)
         if lit_tables is not None:
             for i, st in enumerate(states):
-                row = lit_tables[st](np.full(361, 90.0), np.linspace(0.0, 360.0, 361))
+                grid = lit_tables[st]
+                row = np.asarray(grid._flat).reshape(grid.axes[0].nodes.size, -1)[0]
                 if np.ptp(row) == 0.0:
                     at_plane[i] = float(row[0])
-        return normals, door_k, GridPack([self.pst._interp]).arrays(), sp, (*lit, lit_tables is not None, at_plane)
+        return normals, door_weight, GridPack([self.pst._interp]).arrays(), sp, (*lit, lit_tables is not None, at_plane)
 
     def lamp_bound_one_scene(self, sat, lamp_direction, los, earth_radius_km) -> np.ndarray:
         """:meth:`earthshine_lamp_bound` for lines of sight ``los`` (M, 3, unit) sharing one

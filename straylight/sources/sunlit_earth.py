@@ -36,9 +36,12 @@ class SunlitEarth:
     def node_states(self, settings) -> int:
         """How many (node, door state) pairs the sunlit table with these
         :class:`~straylight.sources.earthshine_lut.LUTSettings` sums, each an Earth-grid sum."""
+        from straylight.sources.earthshine_lut import mirror_symmetric
+
         c = self.context.campaign
         r = c.orbit_radius_range_km
-        return settings.node_count(r[0], c.earth.radius_km) * len(self.context.offfield.door_states_deg)
+        return (settings.node_count(r[0], c.earth.radius_km, mirror_symmetric(self.context.offfield))
+                * len(self.context.offfield.door_states_deg))
 
     @cached_property
     def choice(self) -> dict:

@@ -3,5 +3,5 @@ limits, observability and scheduling tables, per-pointing tables, the plan's cos
 and provenance.
 
 May import everything below it (util, sky, config, optics, catalog, sources, model); nothing imports it but the
-CLI, the API, the plots, the paper reproductions and ``scripts/``.
+CLI, the API and its SkyModel, the plots, the paper reproductions and ``workflow/scripts/``.
 """

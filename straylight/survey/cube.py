@@ -90,7 +90,7 @@ def cube_chunks(campaign: Campaign, n_times: int, n_pixels: int) -> dict:
 def empty_cube(campaign: Campaign, fp: Footprint, times, stars_path=None, build_workers: int = 1) -> xr.Dataset:
     """The cube's skeleton backed by lazy dask zeros (for writing metadata only); the models
     record it carries builds the earthshine table if one runs and is not cached
-    (``build_workers`` processes)."""
+    (``build_workers`` threads)."""
     import dask.array as da
     import xarray as xr
 
@@ -202,7 +202,7 @@ def init_store(campaign: Campaign, fp: Footprint, store, stars_path=None, build_
     """Write the skeleton (metadata and coordinates, no data chunks) to ``store``, and the
     faint-star map (computed here once for the whole campaign, on ``build_workers``
     processes); an earthshine table the campaign needs is built here too, before the time
-    blocks start (``build_workers`` processes).  ``limits_store``: where the limits' skeleton
+    blocks start (``build_workers`` threads).  ``limits_store``: where the limits' skeleton
     goes too (:func:`init_limits_store`; None: not laid down)."""
     from straylight.survey.storage import write_skeleton
 

@@ -23,8 +23,7 @@ def evaluated_samples(campaign: Campaign, fp: Footprint, max_times: int = 144, m
     """How many samples the campaign's cube evaluates: every (time, pixel) one, or with
     models.unobservable_samples: skip the observable ones, their fraction estimated from an
     even subsample of at most ``max_times`` x ``max_pixels`` (deterministic: the same config
-    gives the same count, and so the same earthshine model, on every machine; exact when the
-    campaign is no bigger).  On the default day (16.5 % observable) 144 x 660 of its 288 x 1320
+    gives the same count on every machine; exact when the campaign is no bigger).  On the default day (16.5 % observable) 144 x 660 of its 288 x 1320
     samples give the fraction to 0.1 % of the samples in 0.15 s; 48 x 256 erred by 2.4 % (every
     sixth step, 30 minutes apart, meets the 92-minute orbit in a pattern)."""
     from straylight.model import unobservable_samples
@@ -166,7 +165,8 @@ def estimated_cost(campaign: Campaign, fp: Footprint, seconds_per_evaluated_samp
     if seconds_per_evaluated_sample is not None:
         samples_s = n_eval * seconds_per_evaluated_sample / cores
     else:
-        samples_s = speed_factor * n / (rate * cores)
+        # a configured rate is already that machine's: not scaled again
+        samples_s = (1.0 if rate_source.startswith("compute.") else speed_factor) * n / (rate * cores)
         if choice["method"] == "direct":
             samples_s += speed_factor * n_eval * LUT_SAVED_SECONDS_PER_SAMPLE / cores
     fixed_s = speed_factor * PIPELINE_FIXED_SECONDS

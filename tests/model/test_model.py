@@ -4,8 +4,7 @@ fidelity policy that splits models.tolerance among the fast paths and picks the 
 Reference numbers: the sum is the seed paper's total background (sect. 2: the sum of the in-field
 and off-field contributions), checked against the components the model returns, to float64
 rounding; the budget's shares add up to 1 (the tolerance is the error allowed to all the fast
-paths together, docs/physics.md); the auto break-even follows from the two cost figures in
-straylight.model.fidelity (build seconds per node against seconds saved per sample)."""
+paths together, docs/physics.md); auto takes the earthshine table, direct only on request."""
 import numpy as np
 import pytest
 

@@ -306,16 +306,14 @@ def _campaign_with(campaign, over: dict):
     return campaign_from_dict(deep_merge(campaign.config, over), campaign.path)
 
 
-#: three weeks of the default campaign (8.0 million samples): past the default earthshine
-#: table's break-even (~5.4 million: 1,840,841 nodes x 2 door states at
-#: LUT_BUILD_SECONDS_PER_NODE against LUT_SAVED_SECONDS_PER_SAMPLE)
+#: three weeks of the default campaign (8.0 million samples)
 WEEKS = {"campaign": {"end": "2026-01-22T00:00:00"}}
 N_DAYS = 21
 
 
 def test_evaluated_samples_skipping_counts_the_observable_ones(campaign):
-    """earthshine auto weighs the table against the samples the cube evaluates: with
-    unobservable_samples: skip, the observable ones, estimated from 144 times x 660 pixels; on
+    """The samples the cube evaluates (plan prices them): with unobservable_samples: skip, the
+    observable ones, estimated from 144 times x 660 pixels; on
     the default day (288 times x 1320 pixels, 16.5 % observable) against the exact count from
     the geometry of every sample, and every sample without skipping."""
     from straylight.survey.plan import evaluated_samples

@@ -79,7 +79,7 @@ def test_disk_full_during_a_zarr_write_then_rerun(small, tmp_path, monkeypatch, 
 def test_job_script_reports_a_full_disk_in_one_line(tmp_path):
     """A job script's uncaught StraylightError, or OSError refusing a named file (here ENOSPC):
     one line "error: ..." on stderr and in the rule's log, exit status 2, no traceback
-    (scripts/_common.setup_logging's hook); any other exception (a bug, a wrong path) keeps its
+    (workflow/scripts/_common.setup_logging's hook); any other exception (a bug, a wrong path) keeps its
     traceback."""
     import subprocess
     import sys
@@ -134,8 +134,8 @@ def _env():
 
 
 def _kill_campaign(folder):
-    """The kill tests' campaign in ``folder``: a day at 10 min in one-hour time blocks, 24 time
-    blocks x 3 pixel blocks, on the converged Earth grid (96 x 192, 16 times the default's
+    """The kill tests' campaign in ``folder``: 12 hours at 10 min in one-hour time blocks, 12
+    time blocks x 3 pixel blocks, on the converged Earth grid (96 x 192, 16 times the default's
     cost per sample): the cube lasts well over 10 s after its first block, so that processes
     a killed run left behind would still be running when the test looks."""
     import yaml
@@ -143,7 +143,7 @@ def _kill_campaign(folder):
     from conftest import tiny_config
 
     folder.mkdir()
-    path = tiny_config(folder, name="killed", campaign={"end": "2026-01-02T00:00:00", "time_block_hours": 1},
+    path = tiny_config(folder, name="killed", campaign={"end": "2026-01-01T12:00:00", "time_block_hours": 1},
                        footprint={"pixel_block_size": 30})
     cfg = yaml.safe_load(path.read_text())
     cfg["models"]["earthshine"].update(n_gamma=96, n_psi=192, method="direct")
@@ -151,6 +151,8 @@ def _kill_campaign(folder):
     return path
 
 
+#: the kill tests' campaign's time blocks
+N_KILL_BLOCKS = 12
 #: the products the cube's workers write, compared with an uninterrupted run's
 KILL_PRODUCTS = ("background.zarr", "observability.zarr", "limits.zarr", "maps")
 
@@ -287,7 +289,7 @@ def test_cube_job_stops_cleanly_on_a_signal(uninterrupted, signame):
     # every time block marked done has all its regions written (3 pixel blocks of 6 times each)
     regions = re.findall(r"chunk time (\d+):\d+ pixels", log)
     done = sorted((out / "background_blocks").glob("block_*.json"))
-    assert 1 <= len(done) < 24
+    assert 1 <= len(done) < N_KILL_BLOCKS
     for sentinel in done:
         b = int(sentinel.stem.split("_")[1])
         assert regions.count(str(6 * b)) == 3, (sentinel.name, log)
@@ -321,7 +323,7 @@ def test_snakemake_killed_mid_cube_leaves_no_process_and_resumes_bit_identical(u
     assert not orphans, f"alive 10 s after Snakemake was killed: {orphans}"
     # and none went on writing meanwhile: no time block marked done since
     assert sorted(p.name for p in (out / "background_blocks").glob("block_*.json")) == done_at_kill
-    assert len(done_at_kill) < 24 and not (out / "background_summary.json").exists()  # killed in the middle
+    assert len(done_at_kill) < N_KILL_BLOCKS and not (out / "background_summary.json").exists()  # killed in the middle
 
     subprocess.run(base + ["--unlock", "-q"], capture_output=True, env=_env(), timeout=120)
     r = subprocess.run(cmd, capture_output=True, text=True, env=_env(), timeout=900)

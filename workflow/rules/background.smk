@@ -15,7 +15,8 @@ rule background_init:
     # one process: with the earthshine table and the faint-star map kept on disk (every run after
     # the first of a model and footprint) the step is one process's work, and a core it does not
     # use runs the small jobs beside it.  A table or map it must compute takes the run's cores
-    # (build_processes; scripts/background_init.py); the SLURM profile raises the threads instead.
+    # (build_processes: the table's threads, the map's processes; workflow/scripts/background_init.py);
+    # the SLURM profile raises the threads instead.
     threads: 1
     resources:
         build_processes=INIT_BUILD_PROCESSES,

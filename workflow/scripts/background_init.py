@@ -30,7 +30,7 @@ def main(snakemake):
         log.info("removed %d time-block sentinels of an earlier store", cleared)
     with xr.open_zarr(snakemake.input.ephemeris, chunks=None) as ephem:  # read at once: no dask
         init_observability_store(c, fp, ephem.load(), snakemake.params.obs_store)
-    # processes for an earthshine table or faint-star map not kept on disk: the job's threads
+    # threads for an earthshine table, processes for a faint-star map, not kept on disk: the job's threads
     # where a profile raises them (SLURM), else the run's cores, at most the CPUs it may run on
     threads = int(snakemake.threads)
     cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
