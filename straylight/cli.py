@@ -95,8 +95,10 @@ def cmd_ephem(args) -> int:
 
 def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None, stars=None, model=None) -> dict:
     """The ``straylight sky`` JSON record for one time and pointing (grows with the physics);
-    ``model``: the campaign's :class:`~straylight.model.BackgroundModel` (the SkyModel's, as
-    the API evaluates with), else one built for this sample."""
+    ``model``: a function giving the campaign's :class:`~straylight.model.BackgroundModel` (the
+    SkyModel's, as the API evaluates with), called once the scene is computed (an orbit that
+    cannot be propagated is refused before any table is read or built), else one built for this
+    sample."""
     from straylight.model import BackgroundModel
     from straylight.sky.ephemeris import PLANETS
     from straylight.sky.geometry import radec_to_unit, violation_names
@@ -134,7 +136,7 @@ def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None, stars=
     }
     g1 = {k: np.asarray(a).reshape(1) for k, a in g.items()}
     los = radec_to_unit(np.array([ra_deg]), np.array([dec_deg]))
-    model = model if model is not None else BackgroundModel(campaign)
+    model = model() if model is not None else BackgroundModel(campaign)
     comps = model.evaluate(sc.satellite_km, sc.bodies_km, los, g1, bands or campaign.bands, stars=stars)
     record["models"] = model.models_record()
     # bodies inside the field: point sources, left out of the background and listed here
@@ -188,7 +190,7 @@ def cmd_sky(args) -> int:
                                     bool(campaign.config["stars"].get("faint_map", True)))
     if args.input:
         return _sky_table(args, campaign, bands, stars)
-    rec = sky_record(campaign, args.time, pointing[0], pointing[1], bands, stars, _sky_model(args.config))
+    rec = sky_record(campaign, args.time, pointing[0], pointing[1], bands, stars, lambda: _sky_model(args.config))
     if args.json:
         _print_json(rec)
     else:
@@ -264,7 +266,7 @@ def _sky_table(args, campaign, bands, stars) -> int:
     models: dict = {}
     with quiet_dubious_years():  # a time outside DE405 is refused in one line of ours, without ERFA's
         cols = pointing_table(campaign, p, bands, stars, source=str(args.input), models=models,
-                              model=_sky_model(args.config))
+                              model=lambda: _sky_model(args.config))
     from straylight import __version__
 
     write_parquet(cols, args.out, {"straylight_version": __version__, "input": str(args.input),

@@ -57,10 +57,7 @@ class SkyModel:
 
         configure_offline()
         self.campaign = load_campaign(config)
-        # a table not cached yet is built on every core this process may use
-        self.model = BackgroundModel(self.campaign,
-                                     build_workers=len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
-                                     else (os.cpu_count() or 1))
+        self.model = BackgroundModel(self.campaign)  # a table not cached yet: built on every core
         self.model.models_record()  # the tables this model uses read (or built) now, not on the first call
         self.catalog = catalog
         self._stars: dict = {}

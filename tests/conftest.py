@@ -22,6 +22,15 @@ def campaign():
     return load_campaign(REPO / "config" / "config.yaml")
 
 
+@pytest.fixture(scope="session")
+def default_tables():
+    """The default campaign's earthshine tables in the session's cache (built once if missing), for
+    tests that read a command's whole output (a build prints its notice and progress)."""
+    import straylight
+
+    straylight.SkyModel()
+
+
 def run_cli(*args, cwd=REPO, timeout=120):
     """Run the CLI in a subprocess, as a user would; returns CompletedProcess."""
     env = dict(os.environ)

@@ -29,12 +29,17 @@ from straylight.sources.sunlit_earth import SunlitEarth
 
 class BackgroundModel:
     """The background of one campaign: its sources and its fidelity policy.  ``build_workers``:
-    threads that build an earthshine table that is not cached (the result does not depend on
-    it); ``moonlit_skip_share``: see :class:`~straylight.model.fidelity.FidelityPolicy`."""
+    threads that build an earthshine table that is not cached (None: every CPU this process may
+    run on; the result does not depend on it); ``moonlit_skip_share``: see
+    :class:`~straylight.model.fidelity.FidelityPolicy`."""
 
-    def __init__(self, campaign: Campaign, build_workers: int = 1,
+    def __init__(self, campaign: Campaign, build_workers: int | None = None,
                  moonlit_skip_share: float = ERROR_BUDGET_SHARES["moonlit_earthshine_skip"]):
         self.campaign = campaign
+        if build_workers is None:
+            import os
+
+            build_workers = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
         self.policy = FidelityPolicy(campaign, moonlit_skip_share)
         self.context = SourceContext(campaign)
         self.sun = Sun(self.context)

@@ -89,8 +89,8 @@ def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int
                    models: dict | None = None, model=None) -> dict:
     """Columns of the per-pointing background table (see the module docstring); ``models``, if
     given, receives the record of which models ran and their error budget; ``model``: the
-    campaign's :class:`~straylight.model.BackgroundModel` when the caller keeps one warm (else
-    one is built for this table's rows).  The satellite and the bodies are computed once per
+    campaign's :class:`~straylight.model.BackgroundModel` when the caller keeps one warm, or a
+    function giving it, called once the scene is computed (else one is built for this table).  The satellite and the bodies are computed once per
     distinct time, for all of them at once; the samples are evaluated ``batch`` at a time."""
     from straylight.model import BackgroundModel
     from straylight.sky.ephemeris import default_ephemeris
@@ -123,8 +123,11 @@ def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int
             i = int(out_of_range[0])
             raise InputError(f"{source} row {i + 1}: time = {iso[i]} is outside the DE405 range (1600-12-21 to "
                              f"2200-02-02); {out_of_range.size} of {len(iso)} rows are out of range")
-    if model is None:
-        model = BackgroundModel(campaign)
+    # the scene once per distinct time (a scheduler asks for many pointings at few times), before
+    # the model: an orbit that cannot be propagated is refused before any table is read or built
+    first, inverse = _distinct_times(np.asarray(t_all.jd1, float).ravel(), np.asarray(t_all.jd2, float).ravel())
+    distinct = scene(campaign, t_all[first])
+    model = BackgroundModel(campaign) if model is None else model() if callable(model) else model
     if models is not None:
         models.update(model.models_record())
     n = len(t_all)
@@ -136,9 +139,6 @@ def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int
     acc = {k: [] for k in geo_keys + ("planet_in_field", "planet_in_field_v_mag")}
     acc.update({f"{c}_{b}": [] for b in bands for c in COMPONENTS})
     acc.update({f"total_mag_per_arcsec2_{b}": [] for b in bands})
-    # the scene once per distinct time (a scheduler asks for many pointings at few times)
-    first, inverse = _distinct_times(np.asarray(t_all.jd1, float).ravel(), np.asarray(t_all.jd2, float).ravel())
-    distinct = scene(campaign, t_all[first])
     for a in range(0, n, batch):
         sl = slice(a, min(a + batch, n))
         at = inverse[sl]

@@ -206,7 +206,7 @@ def test_visibility_step_against_the_orbit_warns(tmp_path, monkeypatch, capsys, 
         assert "use --step-min 23.1 or less" in lines[0]
 
 
-def test_visibility_aliasing_warning_is_one_line_on_stderr(tmp_path):
+def test_visibility_aliasing_warning_is_one_line_on_stderr(tmp_path, default_tables):
     """As a user runs it: the warning is one line on stderr, and the results are printed."""
     from conftest import run_cli
 
