@@ -515,7 +515,9 @@ def cmd_plan(args) -> int:
         speed = machine_speed(campaign, fp)
     if args.cores is not None and args.cores < 1:
         raise InputError(f"--cores {args.cores}: must be at least 1")
-    cores = args.cores or _available_cores()
+    from straylight.util.daskutil import available_cores
+
+    cores = args.cores or available_cores()
     cost = estimated_cost(campaign, fp, args.seconds_per_sample, speed["factor"] if speed else 1.0, cores)
     n = cost["samples"]
     cube_bytes = n * nb * 4 * (len(CUBE_COMPONENTS) + 1) + n * 6
@@ -552,13 +554,6 @@ def cmd_plan(args) -> int:
               f"(x{speed['factor']:.2f}); every figure above is scaled by it")
     print(f"the cube's compute alone: {cost['compute_seconds'] / 3600:.3g} core-hours (straylight.survey.plan.CUBE_*)")
     return 0
-
-
-def _available_cores() -> int:
-    """The CPUs this process may run on."""
-    import os
-
-    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
 
 def _duration(seconds: float) -> str:

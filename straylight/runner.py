@@ -15,6 +15,7 @@ import sys
 from pathlib import Path
 
 from straylight.errors import InputError
+from straylight.util.daskutil import available_cores
 
 _CHECKOUT_WORKFLOW = Path(__file__).resolve().parents[1] / "workflow"
 _PACKAGED_WORKFLOW = Path(__file__).resolve().parent / "_workflow"
@@ -25,14 +26,6 @@ def workflow_dir() -> Path:
     if (_CHECKOUT_WORKFLOW / "Snakefile").is_file():
         return _CHECKOUT_WORKFLOW
     return _PACKAGED_WORKFLOW
-
-
-def available_cores() -> int:
-    """The CPUs this process may run on (its affinity: a cluster job's or taskset's share)."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):  # no affinity on this platform
-        return os.cpu_count() or 1
 
 
 def snakemake_command(config, cores: int | None = None, extra=(), workdir=None) -> list[str]:

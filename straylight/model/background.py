@@ -37,9 +37,9 @@ class BackgroundModel:
                  moonlit_skip_share: float = ERROR_BUDGET_SHARES["moonlit_earthshine_skip"]):
         self.campaign = campaign
         if build_workers is None:
-            import os
+            from straylight.util.daskutil import available_cores
 
-            build_workers = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+            build_workers = available_cores()
         self.policy = FidelityPolicy(campaign, moonlit_skip_share)
         self.context = SourceContext(campaign)
         self.sun = Sun(self.context)

@@ -167,7 +167,7 @@ def cap_sums(fx, fy, fz, blocks, span_g, span_p, lum, state_sel, door_normal, do
 
 @njit(cache=True, nogil=True)
 def lamp_bound_sums(los, blocks, lum, cos_field, neg_cos_nodes, pst_row_max, out):
-    """:meth:`OffFieldModel.earthshine_lamp_bound`'s sum for lines of sight ``los`` (M, 3, unit)
+    """:meth:`OffFieldModel.lamp_bound_one_scene`'s sum for lines of sight ``los`` (M, 3, unit)
     over blocks (K, 3) with ``lum`` (K,) = albedo / pi x cos(lamp zenith) x solid angle x pixel
     area: sum_k lum_k max(PST row maxima at the theta nodes either side of theta_k) over the
     blocks outside the field (cos theta < ``cos_field``), into ``out`` (M,).  In cosines: the

@@ -293,23 +293,6 @@ class OffFieldModel:
             per_moon.ravel()[at] = lambert * mu_moon[:, 0, 0] * self.pixel_etendue_m2_sr
         return per_sun, per_moon
 
-    def earthshine_lamp_bound(self, sat_km, lamp_direction, los, earth_radius_km) -> np.ndarray:
-        """Upper bound of the direct coefficient of a cap lit from ``lamp_direction`` (unit
-        vector, the lamp at infinity) whatever the telescope's roll and door: radiance
-        albedo/pi cos(z_lamp), the PST at its maximum over phi (larger neighbouring theta row),
-        Sp = 1."""
-        s = self.earthshine
-        d, d_omega, pts = self._cap_grid(np.asarray(sat_km, float), earth_radius_km, s)
-        mu = np.maximum(dot(pts / earth_radius_km, np.asarray(lamp_direction, float)[..., None, None, :]), 0.0)
-        cosang = np.clip(dot(d, unit(np.asarray(los, float))[..., None, None, :]), -1.0, 1.0)
-        theta = np.degrees(np.arccos(cosang))
-        th = self.pst.theta_deg
-        row_max = self.pst.values.max(axis=1)
-        i = np.clip(np.searchsorted(th, theta), 1, th.size - 1)
-        pst_max = np.maximum(row_max[i - 1], row_max[i])
-        return np.sum(s.albedo / np.pi * mu * pst_max * (theta > self.field_radius_deg) * d_omega,
-                      axis=(-2, -1)) * self.pixel_area_m2
-
     def earthshine_cap_bound(self, sat_km, earth_radius_km, grid: tuple[int, int], runs=None) -> np.ndarray:
         """Upper bound of the direct coefficient (outside the field) that the sum on an Earth-cap
         ``grid`` (n_gamma, n_psi) gives for any line of sight, lamp and roll: the whole cap
@@ -470,9 +453,11 @@ class OffFieldModel:
         return normals, door_weight, GridPack([self.pst._interp]).arrays(), sp, (*lit, lit_tables is not None, at_plane)
 
     def lamp_bound_one_scene(self, sat, lamp_direction, los, earth_radius_km) -> np.ndarray:
-        """:meth:`earthshine_lamp_bound` for lines of sight ``los`` (M, 3, unit) sharing one
-        satellite and lamp direction ((3,)), compiled
-        (:func:`~straylight.sources.earthshine_kernel.lamp_bound_sums`)."""
+        """Upper bound of the direct coefficient of a cap lit from ``lamp_direction`` (unit vector,
+        (3,), the lamp at infinity) whatever the telescope's roll and door, for lines of sight
+        ``los`` (M, 3, unit) from one satellite: radiance albedo/pi cos(z_lamp), the PST at its
+        maximum over phi (the larger neighbouring theta row), Sp = 1, summed over the cap's lit
+        blocks (compiled: :func:`~straylight.sources.earthshine_kernel.lamp_bound_sums`)."""
         from straylight.sources.earthshine_kernel import lamp_bound_sums
 
         s = self.earthshine

@@ -15,6 +15,14 @@ WORKER_MALLOC_MMAP_THRESHOLD = 32 * 2**20
 WORKER_MALLOC_TRIM_THRESHOLD = 256 * 2**20
 
 
+def available_cores() -> int:
+    """The CPUs this process may run on (its affinity: a cluster job's or taskset's share)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):  # no affinity on this platform
+        return os.cpu_count() or 1
+
+
 def worker_environment() -> dict:
     """Environment variables of a worker process (read by glibc and the BLAS libraries at the
     process's start).  One thread per worker for OpenMP, MKL and OpenBLAS, as Dask's nanny sets

@@ -5,7 +5,6 @@ A fresh store has no time block done: the blocks' sentinels beside init.json are
 and the three stores are laid down afresh (no chunk of an earlier run is kept).
 The body is guarded by __main__: the faint-star map's worker processes are spawned and
 re-import the main module, which must then not run the job again."""
-import os
 import sys
 from pathlib import Path
 
@@ -18,6 +17,7 @@ def main(snakemake):
 
     from straylight.survey.cube import clear_block_sentinels, cube_chunks, init_observability_store, init_store
     from straylight.survey.footprint import footprint_from_config
+    from straylight.util.daskutil import available_cores
     from straylight.util.io import write_json_atomic
 
     log = setup_logging(snakemake)
@@ -33,9 +33,8 @@ def main(snakemake):
     # threads for an earthshine table, processes for a faint-star map, not kept on disk: the job's threads
     # where a profile raises them (SLURM), else the run's cores, at most the CPUs it may run on
     threads = int(snakemake.threads)
-    cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
     cores = int(getattr(snakemake.resources, "build_processes", 1))
-    build_workers = threads if threads > 1 else min(cpus, cores)
+    build_workers = threads if threads > 1 else min(available_cores(), cores)
     init_store(c, fp, snakemake.params.store, snakemake.input.stars, build_workers=build_workers,
                limits_store=snakemake.params.lim_store)
     chunks = cube_chunks(c, len(c.times), fp.pixels.size)
