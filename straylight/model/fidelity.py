@@ -11,7 +11,7 @@ from functools import cached_property
 
 from straylight.config import Campaign
 # the tables' build per (node, door state) is given with the tables
-from straylight.sources.earthshine_lut import LUT_BUILD_SECONDS_PER_NODE, MOONLIT_LUT_BUILD_SECONDS_PER_NODE
+from straylight.sources.earthshine_table_build import LUT_BUILD_SECONDS_PER_NODE, MOONLIT_LUT_BUILD_SECONDS_PER_NODE
 
 #: Shares of models.tolerance (a fraction of the total) held by each fast path; they add up to 1.
 #: The earthshine table must validate within its share; the moonlit Earth has two: the samples

@@ -12,7 +12,8 @@ the scene's brighter light swamps them, the upper bound the skip is decided on.
 - ``sunlit_earth``: the sunlit Earth (direct and via the door), its direct sum or its table.
 - ``moonlit_earth``: the moonlit Earth on the table's path (skipped on a bound, else a coarse
   grid, tabulated or summed).
-- ``earthshine_lut``: the two earthshine tables (build, cache, look-up, bounds).
+- ``earthshine_table``: the two earthshine tables, read and looked up (and the moonlit bound).
+- ``earthshine_table_build``: their nodes, build, validation against the direct sum and cache.
 - ``offfield``: what the off-field sources share: the transfer (Se Sp PST x pixel area) and the
   Earth-grid sum (the sunlit and moonlit Earth summed directly over the visible cap).
 - ``photometry``: band photometry (solar and AB irradiances, magnitudes per arcsec2).

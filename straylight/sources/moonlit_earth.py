@@ -34,7 +34,7 @@ class MoonlitEarth:
     def settings(self):
         """The table's :class:`~straylight.sources.earthshine_lut.MoonlitSettings` from the config,
         or None when the moonlit Earth is summed directly (moonlit_method = direct)."""
-        from straylight.sources.earthshine_lut import MoonlitSettings
+        from straylight.sources.earthshine_table_build import MoonlitSettings
 
         es = self.context.campaign.config["models"].get("earthshine", {})
         if es.get("moonlit_method", "lut") == "direct":
@@ -45,7 +45,7 @@ class MoonlitEarth:
     def node_states(self) -> int:
         """How many (node, door state) pairs the table sums, each a coarse Earth-grid sum; 0
         with models.earthshine.moonlit_method = direct."""
-        from straylight.sources.earthshine_lut import mirror_symmetric
+        from straylight.sources.earthshine_table_build import mirror_symmetric
 
         settings = self.settings()
         if settings is None:
@@ -68,7 +68,7 @@ class MoonlitEarth:
     def lut_path(self) -> Path | None:
         """Where the table of the configured settings is cached (it may not exist yet); None
         when the moonlit Earth is summed directly."""
-        from straylight.sources.earthshine_lut import cache_path, moonlit_key
+        from straylight.sources.earthshine_table_build import cache_path, moonlit_key
 
         settings = self.settings()
         return None if settings is None else cache_path("moonlit_lut", moonlit_key(*self._table_inputs(settings)))
@@ -81,7 +81,7 @@ class MoonlitEarth:
         total) is within the moonlit grid's share of the tolerance, else (or with 'direct') the
         coarse grid's direct sum.  Keys: method, lut, and for the table its file, validated error
         and steps."""
-        from straylight.sources.earthshine_lut import load_or_build_moonlit
+        from straylight.sources.earthshine_table_build import load_or_build_moonlit
 
         settings = self.settings()
         if settings is None:

@@ -21,7 +21,7 @@ L_door A_i cos(e_ij) / d_ij^2 with PST(theta_ij, phi_ij), averaged over the aper
 the paper's EA2 = sum_i MP_i r sum_j PST(theta_ij, phi_ij) / d_ij^2 with the block area, the
 emission cosine and 1/pi written out.  The sunlit and moonlit Earth's sources
 (:mod:`straylight.sources.sunlit_earth`, :mod:`straylight.sources.moonlit_earth`) call this sum or
-its tables (:mod:`straylight.sources.earthshine_lut`).
+its tables (:mod:`straylight.sources.earthshine_table`).
 """
 from __future__ import annotations
 
@@ -324,7 +324,7 @@ class OffFieldModel:
         (photons s-1 m-2).  The albedo is grey, so a band's earthshine is
         c_sun * E_sun,band + c_moon * E_moon,band; the geometry is computed once for all bands.
         ``in_field=False`` leaves out the line of sight hitting the Earth; ``moon=False`` the
-        moonlit terms (zeros), as the look-up table does (:mod:`straylight.sources.earthshine_lut`);
+        moonlit terms (zeros), as the look-up table does (:mod:`straylight.sources.earthshine_table`);
         ``sun=False`` the sunlit ones (the table's path sums only the moonlit Earth directly);
         ``grid`` = (n_gamma, n_psi) replaces the configured Earth-cap grid."""
         s = self.earthshine if grid is None else replace(self.earthshine, n_gamma=int(grid[0]), n_psi=int(grid[1]))

@@ -36,7 +36,7 @@ class SunlitEarth:
     def node_states(self, settings) -> int:
         """How many (node, door state) pairs the sunlit table with these
         :class:`~straylight.sources.earthshine_lut.LUTSettings` sums, each an Earth-grid sum."""
-        from straylight.sources.earthshine_lut import mirror_symmetric
+        from straylight.sources.earthshine_table_build import mirror_symmetric
 
         c = self.context.campaign
         r = c.orbit_radius_range_km
@@ -52,7 +52,7 @@ class SunlitEarth:
         moonlit_build_seconds_estimate, at the policy's cost figures; 0 for 'direct' by config).
         With 'auto' the table still falls back to the direct sum when its validated error,
         known once it is built, exceeds its share of the tolerance."""
-        from straylight.sources.earthshine_lut import LUTSettings
+        from straylight.sources.earthshine_table_build import LUTSettings
 
         es = self.context.campaign.config["models"].get("earthshine", {})
         method = es.get("method", "auto")
@@ -81,7 +81,7 @@ class SunlitEarth:
     def lut_path(self) -> Path:
         """Where the table of :attr:`choice`'s settings is cached (it may not exist yet): the
         path :func:`~straylight.sources.earthshine_lut.load_or_build` reads or writes."""
-        from straylight.sources.earthshine_lut import cache_path, lut_key
+        from straylight.sources.earthshine_table_build import cache_path, lut_key
 
         c = self.context
         key = lut_key(c.offfield, c.campaign.earth.radius_km, c.campaign.orbit_radius_range_km,
@@ -93,7 +93,7 @@ class SunlitEarth:
         """The model that runs (:attr:`choice`, the table built or loaded): keys method, lut
         (the :class:`~straylight.sources.earthshine_lut.EarthshineLUT` or None), reason, and for
         the table its file, validated error, build time, node states and steps."""
-        from straylight.sources.earthshine_lut import load_or_build
+        from straylight.sources.earthshine_table_build import load_or_build
 
         choice = self.choice
         if choice["method"] == "direct":

@@ -61,7 +61,7 @@ def bright_limb_table(model: BackgroundModel, fraction: float = 0.1, sun_zenith_
     zenith angles every ``sun_zenith_step_deg`` up to 90 deg, then every ``terminator_step_deg``
     until the visible cap is dark (the limb's zenith angle, ~110 deg at 400 km), where the
     answer changes fastest."""
-    from straylight.sources.earthshine_lut import sun_coefficients_direct
+    from straylight.sources.earthshine_table_build import sun_coefficients_direct
 
     c: Campaign = model.campaign
     off = model.context.offfield

@@ -11,7 +11,8 @@ import pytest
 
 from straylight.model import BackgroundModel
 from straylight.config import campaign_from_dict
-from straylight.sources.earthshine_lut import EarthshineLUT, LUTSettings, lut_key
+from straylight.sources.earthshine_table import EarthshineLUT
+from straylight.sources.earthshine_table_build import LUTSettings, build_earthshine_lut, lut_key
 from straylight.sky.geometry import telescope_frame
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
@@ -61,7 +62,7 @@ def test_rotation_about_the_vertical_changes_nothing(coarse):
     sat, sun, los = sc.satellite_km[obs], sc.bodies_km["sun"][obs], los[obs]
     lut = info["lut"]
     r, zs, zl, a = lut.coordinates(sat, sun, los)
-    from straylight.sources.earthshine_lut import sun_coefficients_direct
+    from straylight.sources.earthshine_table_build import sun_coefficients_direct
 
     off = cm.context.offfield
     door = g["door_opening_deg"][obs]
@@ -272,7 +273,7 @@ def test_parallel_build_gives_the_same_table(coarse):
     k = c.constraints
     args = (cm.context.offfield, c.earth.radius_km, c.orbit_radius_range_km, LUTSettings(**COARSE), cm.context.earthshine_floor)
     kw = {"avoidance_deg": (k.dark_limb_min_deg, k.bright_limb_min_deg, k.sun_min_deg)}
-    two = EarthshineLUT.build(*args, **kw, workers=2)
+    two = build_earthshine_lut(*args, **kw, workers=2)
     one = info["lut"]
     for s in one.direct:
         assert np.array_equal(two.direct[s], one.direct[s]) and np.array_equal(two.door[s], one.door[s])
@@ -296,7 +297,7 @@ def test_automatic_choice(coarse, campaign):
 def test_build_estimate_counts_both_tables(coarse):
     """The build's estimate (plan, the build's announcement): the sunlit table's (node, door
     state) pairs and the moonlit table's, each at its per-node figure (earthshine_lut.*_PER_NODE)."""
-    from straylight.sources import earthshine_lut as lut_mod
+    from straylight.sources import earthshine_table_build as lut_mod
 
     c, _, _ = coarse
     raw = copy.deepcopy(c.config)
@@ -344,7 +345,7 @@ def test_moonlit_table_reproduces_the_coarse_sum_at_its_nodes(moonlit):
     """At a node (Moon zenith, line-of-sight zenith, azimuth, roll) the table returns the coarse
     grid's direct sum it stored, for every door state: the table's coordinates invert the
     scene it was built from (including the roll, measured from the upward vertical)."""
-    from straylight.sources.earthshine_lut import _moonlit_scene
+    from straylight.sources.earthshine_table_build import _moonlit_scene
     from straylight.sources.bodies import MOON_MEAN_DISTANCE_KM
 
     c, cm, lut = moonlit
@@ -409,7 +410,7 @@ def test_moonlit_table_is_finite_at_the_singular_directions(moonlit):
 
 
 def test_moonlit_table_save_load_round_trip(moonlit, tmp_path):
-    from straylight.sources.earthshine_lut import MoonlitLUT
+    from straylight.sources.earthshine_table import MoonlitLUT
 
     c, cm, lut = moonlit
     p = tmp_path / "m.npz"
