@@ -116,7 +116,8 @@ def checked_samples(time, coord):
     from astropy.coordinates import SkyCoord
     from astropy.time import Time
 
-    from straylight.sky.timeutil import check_in_ephemeris, configure_offline, quiet_dubious_years
+    from straylight.sky.ephemeris import check_in_ephemeris
+    from straylight.sky.timeutil import configure_offline, quiet_dubious_years
 
     configure_offline()  # before the scale conversion below: no leap-second download
     if not isinstance(time, Time):
@@ -152,14 +153,14 @@ def _empty_table(campaign, t, bands):
     through the same conversion to a QTable (so columns and units cannot differ from a computed
     one's)."""
     from straylight.survey.limits import sky_zero_points
-    from straylight.survey.pointings import COMPONENTS, _qtable
+    from straylight.survey.pointings import _qtable, table_components
 
     none = np.zeros(0)
     cols = {k: none for k in ("ra_deg", "dec_deg", "sun_angle_deg", "moon_angle_deg", "earth_limb_angle_deg",
                               "door_opening_deg")}
     cols.update(observable=np.zeros(0, bool), violations=np.zeros(0, np.int64))
     for b in bands:
-        cols.update({f"{c}_{b}": none for c in COMPONENTS})
+        cols.update({f"{c}_{b}": none for c in table_components()})
         if b != "V":  # the diagnostic band has no limit
             cols[f"limit_mag_{b}"] = none
     return _qtable(cols, t, bands, sky_zero_points(campaign, bands), {})

@@ -4,9 +4,17 @@ its fidelity policy (:class:`FidelityPolicy`: the tolerance, its shares, the fas
 Imports ``straylight.sources``, ``straylight.sky`` and ``straylight.config`` (the layers below it:
 docs/architecture.md); never ``straylight.survey``.
 """
-from straylight.model.background import BAND_COMPONENTS, BackgroundModel
+from straylight.model import registry
+from straylight.model.background import BackgroundModel
 from straylight.model.fidelity import (ERROR_BUDGET_SHARES, LUT_BUILD_SECONDS_PER_NODE, LUT_SAVED_SECONDS_PER_SAMPLE,
                                        MOONLIT_LUT_BUILD_SECONDS_PER_NODE, FidelityPolicy, unobservable_samples)
 
 __all__ = ["BAND_COMPONENTS", "BackgroundModel", "ERROR_BUDGET_SHARES", "FidelityPolicy", "LUT_BUILD_SECONDS_PER_NODE",
            "LUT_SAVED_SECONDS_PER_SAMPLE", "MOONLIT_LUT_BUILD_SECONDS_PER_NODE", "unobservable_samples"]
+
+
+def __getattr__(name):
+    # the per-band outputs as registered now (a source may be registered after import)
+    if name == "BAND_COMPONENTS":
+        return registry.band_components()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

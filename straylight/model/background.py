@@ -18,20 +18,30 @@ from numba import njit
 from straylight.config import Campaign
 from straylight.model.fidelity import ERROR_BUDGET_SHARES, FidelityPolicy
 from straylight.sky.ephemeris import PLANETS
-from straylight.sky.geometry import telescope_frame, unit
-from straylight.sources.bodies import InFieldBodies, Moon, Planets, SolarBodySkip, Sun
+from straylight.sky.frames import telescope_frame
+from straylight.model import registry
+from straylight.sources.bodies import InFieldBodies, SolarBodySkip
 from straylight.sources.context import Samples, SourceContext
-from straylight.sources.moonlit_earth import MoonlitEarth
 from straylight.sources.photometry import magnitude_per_arcsec2
-from straylight.sources.stars import OffFieldStars, StarTable
-from straylight.sources.sunlit_earth import SunlitEarth
+from straylight.sources.rates import LAMPS
+from straylight.sources.stars import StarTable
 
 
 class BackgroundModel:
-    """The background of one campaign: its sources and its fidelity policy.  ``build_workers``:
-    threads that build an earthshine table that is not cached (None: every CPU this process may
-    run on; the result does not depend on it); ``moonlit_skip_share``: see
-    :class:`~straylight.model.fidelity.FidelityPolicy`."""
+    """The background of one campaign: its sources of light (built from
+    :data:`~straylight.model.registry.SOURCES`, ``sources[name]``, each also an attribute:
+    ``model.stars``) and its fidelity policy.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        The campaign (its instrument, models and orbit).
+    build_workers : int or None
+        Threads that build an earthshine table that is not cached (None: every CPU this
+        process may run on; the result does not depend on it).
+    moonlit_skip_share : float
+        See :class:`~straylight.model.fidelity.FidelityPolicy`.
+    """
 
     def __init__(self, campaign: Campaign, build_workers: int | None = None,
                  moonlit_skip_share: float = ERROR_BUDGET_SHARES["moonlit_earthshine_skip"]):
@@ -40,73 +50,112 @@ class BackgroundModel:
             from straylight.util.daskutil import available_cores
 
             build_workers = available_cores()
+        self.build_workers = build_workers
         self.policy = FidelityPolicy(campaign, moonlit_skip_share)
         self.context = SourceContext(campaign)
-        self.sun = Sun(self.context)
         self.body_skip = SolarBodySkip(self.context, self.policy)
-        self.moon = Moon(self.context, self.body_skip)
-        self.planets = Planets(self.context, self.body_skip)
-        self.stars = OffFieldStars(self.context, self.policy)
-        self.moonlit_earth = MoonlitEarth(self.context, self.policy, build_workers)
-        self.sunlit_earth = SunlitEarth(self.context, self.policy, self.moonlit_earth, build_workers)
         self.in_field = InFieldBodies(self.context)
+        self.entries = tuple(registry.SOURCES)
+        self.leaves = registry.leaves()
+        self._built = {}
+        self.sources = {e.name: self.source(e.name) for e in self.entries}
+
+    def source(self, name: str):
+        """The source ``name`` of the registry, built on first use (a source may ask for another)."""
+        if name not in self._built:
+            entry = next((e for e in self.entries if e.name == name), None)
+            if entry is None:
+                raise KeyError(f"no source named {name!r}: {[e.name for e in self.entries]}")
+            self._built[name] = entry.factory(self)
+        return self._built[name]
+
+    def __getattr__(self, name):
+        sources = self.__dict__.get("sources")
+        if sources is not None and name in sources:
+            return sources[name]
+        raise AttributeError(f"{type(self).__name__!r} has no attribute or source {name!r}")
 
     def evaluate(self, satellite_km, bodies_km, los, geometry, bands, stars: StarTable | None = None,
                  faint_rates: dict | None = None, frame=None, into: tuple | None = None, runs=None) -> dict:
-        """Components for broadcastable samples, band -> {component: e-/s/pix, float64 arrays
-        of the samples' shape (:data:`BAND_COMPONENTS`), and ``_band``, ``_zodiacal_no_data``,
-        ``_mag``}; ``geometry`` from :func:`~straylight.sky.observing.observing_geometry` (the
-        Sun's and the Moon's entries and the limb's are read; each planet in ``bodies_km`` gets
-        its angles where it can count: :class:`~straylight.sources.bodies.Planets`);
-        ``stars``: the off-field stars (None: stars = 0); ``faint_rates``: the faint stars' map
-        at these lines of sight, band -> e-/s/pix (as
-        :meth:`~straylight.sources.stars.OffFieldStars.faint_star_rates` gives it), when already
-        computed; ``frame``: the samples' ``telescope_frame(los, sun - satellite)``, when
-        already computed; ``into``: (component names, array (names, samples flattened, bands)),
-        e.g. a cube region's float32 block, that receives those components (the result's arrays
-        are then views of it, and the other components are not computed); ``runs``: the
-        samples' scene runs when the caller knows them (:class:`~straylight.sky.geometry.SceneRuns`,
-        e.g. a cube's time steps: runs of samples that share the satellite and every body in
-        ``bodies_km``), else found where needed.  ValueError for an unknown name or an array of
-        another shape."""
+        """Every source's e-/s/pix in each band, added into the components and their total.
+
+        Parameters
+        ----------
+        satellite_km : array_like, shape (..., 3)
+            Geocentric ICRS satellite positions, km (broadcastable to the samples).
+        bodies_km : dict of str to array_like
+            Body -> geocentric ICRS position (..., 3), km: at least the Sun and the Moon; each
+            planet in it is a source where it can count
+            (:class:`~straylight.sources.bodies.Planets`).
+        los : array_like, shape (..., 3)
+            Unit lines of sight, ICRS.
+        geometry : dict
+            :func:`~straylight.sky.observing.observing_geometry`'s (the Sun's, the Moon's and
+            the limb's entries are read); its ``sun_angle_deg`` gives the samples' shape.
+        bands : sequence of str
+            Band names.
+        stars : StarTable or None
+            The off-field stars (None: stars = 0).
+        faint_rates : dict or None
+            The faint stars' map at these lines of sight, band -> e-/s/pix (as
+            :meth:`~straylight.sources.stars.OffFieldStars.faint_star_rates` gives it), when
+            already computed.
+        frame : TelescopeFrame or None
+            The samples' ``telescope_frame(los, sun - satellite)``, when already computed.
+        into : (sequence of str, ndarray) or None
+            (component names, array (names, samples flattened, bands)), e.g. a cube region's
+            float32 block, that receives those components (the result's arrays are then views
+            of it, and the other components are not computed).
+        runs : SceneRuns or None
+            The samples' scene runs when the caller knows them (e.g. a cube's time steps: runs
+            of samples that share the satellite and every body in ``bodies_km``), else found
+            where needed.
+
+        Returns
+        -------
+        dict
+            Band -> {component: e-/s/pix, float64 array of the samples' shape, for every name
+            of :func:`~straylight.model.registry.band_components` (or those of ``into``); and
+            ``_band`` (the Band), ``_mag`` (e-/s/pix -> AB mag/arcsec2) and ``_<flag>`` for each
+            flag a source reports (``_zodiacal_no_data``)}.
+
+        Raises
+        ------
+        ValueError
+            For an unknown name in ``into`` or an array of another shape.
+        """
         c = self.context
         sat = np.asarray(satellite_km, float)
         sun = bodies_km["sun"]
         frame = telescope_frame(los, sun - sat) if frame is None else frame
         shape = geometry["sun_angle_deg"].shape
-        if into is not None:  # checked before any work
-            _check_into(into, int(np.prod(shape)), len(bands))
-        samples = Samples(sat, bodies_km, frame, geometry, runs)
-        moon_lamp = self.moon.lamp(samples)
-        zodi_e, zodi_no_data = c.zodiacal.rates([c.band(name) for name in bands], frame.z, unit(sun - sat), shape,
-                                                runs)  # (bands, samples)
-        # the solar-spectrum sources' rates are band-independent until multiplied by each band's
-        # photon irradiance of the Sun at 1 AU
-        sun_at_1au = {name: c.photometry(name).sun_at_1au_photons_s_m2 for name in bands}
-        moon_at_earth_unit = {name: sun_at_1au[name] * moon_lamp["at_earth"] for name in bands}
-        t_sun, inverse_square = self.sun.rates(samples)
-        es_coeff = self.sunlit_earth.rates(samples)
-        # the terms never skipped make each sample's floor (the band-independent sums once), and
-        # the floor in units of the darkest zodiacal light, worst band: what the skip radii scale with
-        per_sun = t_sun + es_coeff["direct_sun"] + es_coeff["door_sun"]
-        per_moon = es_coeff["direct_moon"] + es_coeff["door_moon"]
-        floor, floor_ratio = self._floor(zodi_e, per_sun, inverse_square, per_moon, moon_lamp["at_earth"],
-                                         [sun_at_1au[name] for name in bands], bands, shape)
-        if self.sunlit_earth.lut is not None:
-            self.moonlit_earth.add(es_coeff, samples, self.sunlit_earth.lut, moon_at_earth_unit, floor)
-        moon_fraction = self.moon.rates(samples, moon_lamp, bands, floor_ratio)
-        planets_fraction = self.planets.rates(samples, bands, floor_ratio)
-        stars_e = self.stars.rates(samples, stars, bands, floor_ratio, faint_rates)  # (bands, samples)
-        # every band's components in one compiled pass over the samples (reads the
-        # band-independent arrays once, not once a band)
         n = int(np.prod(shape))
-        names, values = into if into is not None else (BAND_COMPONENTS, np.empty((len(BAND_COMPONENTS), len(bands), n))
+        outputs = registry.band_components()
+        if into is not None:  # checked before any work
+            _check_into(into, n, len(bands), outputs)
+        samples = Samples(sat, bodies_km, frame, geometry, runs, stars=stars, faint_rates=faint_rates)
+        samples.moon_lamp = self.source("moon").lamp(samples)
+        scales = {"sun": samples.sun_inverse_square, "sun_at_1au": 1.0, "moon_at_earth": samples.moon_lamp["at_earth"]}
+        sun_at_1au = np.array([c.photometry(name).sun_at_1au_photons_s_m2 for name in bands])
+        rates = {}
+        # the sources never skipped make each sample's floor, which the skippable ones measure
+        # their skips against
+        for entry in self.entries:
+            if not entry.skippable:
+                rates[entry.name] = self.sources[entry.name].rates(samples, bands)
+        samples.floor, samples.floor_ratio = self._floor(
+            [rates[e.name] for e in self.entries if not e.skippable], scales, sun_at_1au, bands, shape)
+        for entry in self.entries:
+            if entry.skippable:
+                rates[entry.name] = self.sources[entry.name].rates(samples, bands)
+        terms = _Terms(self.entries, self.leaves, rates, scales, shape)
+        names, values = into if into is not None else (outputs, np.empty((len(outputs), len(bands), n))
                                                          .transpose(0, 2, 1))  # band-major: each band's row contiguous
-        slot = np.array([list(names).index(comp) if comp in names else -1 for comp in BAND_COMPONENTS], np.intp)
-        flat = [np.ascontiguousarray(np.broadcast_to(np.asarray(v, float), shape).ravel()) for v in
-                (t_sun, inverse_square, moon_fraction, planets_fraction, es_coeff["direct_sun"],
-                 es_coeff["door_sun"], es_coeff["direct_moon"], es_coeff["door_moon"], moon_lamp["at_earth"])]
-        _band_components_kernel(zodi_e, *flat, stars_e, np.array([sun_at_1au[name] for name in bands]), slot, values)
+        sums, writes, n_rows = _sum_program(self.leaves, names)
+        _band_components_kernel(terms.dense, terms.dense_leaf, terms.dense_first, terms.coeff, terms.term_leaf,
+                                terms.term_lamp, terms.term_first, terms.scales, sun_at_1au, sums, writes, n_rows,
+                                values)
+        extras = {f"_{k}": v for r in rates.values() for k, v in r.extras.items()}
         aperture_d = self.campaign.instrument_value("telescope", "aperture_diameter_m")
         pix_arcsec = self.campaign.pixel_scale_arcsec
         out = {}
@@ -114,25 +163,32 @@ class BackgroundModel:
             band = c.band(name)
             res = {comp: values[k, :, ib].reshape(shape) for k, comp in enumerate(names)}
             res["_band"] = band
-            res["_zodiacal_no_data"] = zodi_no_data
+            res.update(extras)
             res["_mag"] = lambda e, b=band: magnitude_per_arcsec2(e, b, aperture_d, pix_arcsec)
             out[name] = res
         return out
 
-    def _floor(self, zodi_e, per_sun, inverse_square, per_moon, moon_at_earth_fraction, sun_at_1au: list, bands,
-               shape) -> tuple[dict, np.ndarray]:
+    def _floor(self, never_skipped: list, scales: dict, sun_at_1au: np.ndarray, bands, shape) -> tuple[dict, np.ndarray]:
         """A lower bound of the samples' total per band (band -> e-/s/pix, arrays of ``shape``):
-        the terms computed before the skippable ones, zodi_e[band] + per_sun * (sun_at_1au[band]
-        * inverse_square) + per_moon * (sun_at_1au[band] * moon_at_earth_fraction), never below
-        the band's darkest zodiacal light (nor NaN); and its smallest ratio to that darkest light
-        over the bands, per sample.  One compiled pass (:func:`_floor_kernel`)."""
+        the sources never skipped, their per-band terms added, then for each lamp the sum of
+        their coefficients times the lamp's irradiance, never below the band's darkest zodiacal
+        light (nor NaN); and its smallest ratio to that darkest light over the bands, per
+        sample.  One compiled pass (:func:`_floor_kernel`)."""
         n = int(np.prod(shape))
-        flat = [np.ascontiguousarray(np.broadcast_to(np.asarray(v, float), shape).ravel()) for v in
-                (per_sun, inverse_square, per_moon, moon_at_earth_fraction)]
+        dense = [r.per_band[p] for r in never_skipped for p in r.per_band]
+        lamp_sums = {}
+        for r in never_skipped:
+            for part in r.per_lamp.values():
+                for lamp, coeff in part.items():
+                    lamp_sums[lamp] = coeff if lamp not in lamp_sums else lamp_sums[lamp] + coeff
+        lamps = [lamp for lamp in LAMPS if lamp in lamp_sums]
+        coeff = _flat_rows([lamp_sums[lamp] for lamp in lamps], shape)
+        scale = _flat_rows([scales[lamp] for lamp in lamps], shape)
+        dense_arr = (np.stack([np.asarray(d, float).reshape(len(bands), n) for d in dense]) if dense
+                     else np.zeros((0, len(bands), n)))
         darkest = np.array([self.context.darkest_zodiacal_e_per_s(name) for name in bands], float)
         floor, ratio = np.empty((len(bands), n)), np.empty(n)
-        _floor_kernel(np.asarray(zodi_e, float).reshape(len(bands), n), *flat, np.asarray(sun_at_1au, float), darkest,
-                      floor, ratio)
+        _floor_kernel(dense_arr, coeff, scale, np.asarray(sun_at_1au, float), darkest, floor, ratio)
         return {name: floor[ib].reshape(shape) for ib, name in enumerate(bands)}, ratio.reshape(shape)
 
     def models_record(self) -> dict:
@@ -171,33 +227,93 @@ class BackgroundModel:
                                         "reference, knobs.json moonlit_grid for the moonlit grid's measured error"}}
 
 
-def _check_into(into, n_samples: int, n_bands: int) -> None:
-    """ValueError unless ``into`` is (distinct names of :data:`BAND_COMPONENTS`, an array of
-    shape (names, samples, bands))."""
+def _sum_program(leaves: tuple, names) -> tuple:
+    """The band kernel's rows after the leaves (rows 0..len(leaves)-1): each component with
+    parts gets a row, the total one; a component without parts is its leaf's row.  Returns
+    (sums (k, 3): src row, dst row, whether it sets dst; writes (k, 2): row, index in
+    ``names``, for the names asked; the number of rows)."""
+    rows, sums, n_rows = {leaf: i for i, leaf in enumerate(leaves)}, [], len(leaves)
+    for c in registry.COMPONENTS:
+        if c.parts:
+            rows[c.name] = n_rows
+            sums += [(rows[p], n_rows, k == 0) for k, (p, _) in enumerate(c.parts)]
+            n_rows += 1
+    rows[registry.TOTAL] = n_rows
+    sums += [(rows[c.name], n_rows, k == 0) for k, c in enumerate(registry.COMPONENTS)]
+    writes = [(rows[name], k) for k, name in enumerate(names)]
+    return (np.array(sums, np.intp).reshape(-1, 3), np.array(writes, np.intp).reshape(-1, 2), n_rows + 1)
+
+
+def _flat_rows(arrays: list, shape) -> np.ndarray:
+    """float64 (len(arrays), prod(shape)): each array broadcast to ``shape`` and flattened."""
+    n = int(np.prod(shape))
+    out = np.empty((len(arrays), n))
+    for k, a in enumerate(arrays):
+        out[k] = np.broadcast_to(np.asarray(a, float), shape).ravel()
+    return out
+
+
+class _Terms:
+    """The sources' rates as the band kernel's arrays: the per-band terms, (terms, bands,
+    samples), and the per-lamp coefficients, (terms, samples), each with the leaf (component or
+    part) it adds to and whether it is that leaf's first term (which sets it; the others add,
+    per-band terms before per-lamp ones, lamps in :data:`LAMPS` order).  Coefficients of several
+    sources for one leaf and lamp are added first, in registry order."""
+
+    def __init__(self, entries, leaves: tuple, rates: dict, scales: dict, shape):
+        n = int(np.prod(shape))
+        dense, dense_leaf = [], []
+        lamp_coeff = {}  # (leaf, lamp) -> coefficient
+        for entry in entries:
+            r = rates[entry.name]
+            for part, values in r.per_band.items():
+                dense.append(values)
+                dense_leaf.append(leaves.index(part))
+            for part, by_lamp in r.per_lamp.items():
+                for lamp, coeff in by_lamp.items():
+                    key = (part, lamp)
+                    lamp_coeff[key] = coeff if key not in lamp_coeff else lamp_coeff[key] + coeff
+        keys = sorted(lamp_coeff, key=lambda k: (leaves.index(k[0]), LAMPS.index(k[1])))
+        lamps = [lamp for lamp in LAMPS if any(k[1] == lamp for k in keys)]
+        nb = dense[0].shape[0] if dense else 0
+        self.dense = (np.stack([np.asarray(d, float).reshape(nb, n) for d in dense]) if dense
+                      else np.zeros((0, 1, n)))
+        self.dense_leaf = np.array(dense_leaf, np.intp)
+        seen = set()
+        self.dense_first = np.array([not (leaf in seen or seen.add(leaf)) for leaf in dense_leaf], np.bool_)
+        self.coeff = _flat_rows([lamp_coeff[k] for k in keys], shape)
+        self.term_leaf = np.array([leaves.index(k[0]) for k in keys], np.intp)
+        self.term_lamp = np.array([lamps.index(k[1]) for k in keys], np.intp)
+        self.term_first = np.array([not (leaf in seen or seen.add(leaf)) for leaf in self.term_leaf.tolist()], np.bool_)
+        self.scales = _flat_rows([scales[lamp] for lamp in lamps], shape)
+
+
+def _check_into(into, n_samples: int, n_bands: int, outputs: tuple) -> None:
+    """ValueError unless ``into`` is (distinct names of ``outputs``, an array of shape (names,
+    samples, bands))."""
     names, values = into
-    unknown = sorted(set(names) - set(BAND_COMPONENTS))
+    unknown = sorted(set(names) - set(outputs))
     expected = (len(names), n_samples, n_bands)
     if unknown or len(set(names)) != len(names) or np.shape(values) != expected:
         raise ValueError(f"into: components {tuple(names)} (unknown: {unknown}; each at most once) in an array of "
                          f"shape {np.shape(values)}, not (components, samples, bands) = {expected}")
 
 
-#: the per-band components :meth:`BackgroundModel.evaluate` returns, in e-/s/pix
-BAND_COMPONENTS = ("zodiacal", "sun", "moon", "planets", "stars", "earthshine_direct", "earthshine_door",
-                   "earthshine", "total")
-
-
 @njit(cache=True, nogil=True)
-def _floor_kernel(zodi_e, per_sun, inverse_square, per_moon, moon_at_earth_fraction, sun_at_1au, darkest, floor,
-                  ratio):
-    """:meth:`BackgroundModel._floor` per sample: ``floor[band, sample]`` and ``ratio[sample]``,
-    the numpy expression's operations in its order (the same bits), np.fmax's rule for NaN."""
-    for i in range(per_sun.shape[0]):
+def _floor_kernel(dense, coeff, scale, sun_at_1au, darkest, floor, ratio):
+    """:meth:`BackgroundModel._floor` per sample: ``floor[band, sample]`` and ``ratio[sample]``:
+    the per-band terms added in order, then each lamp's summed coefficient times the band's
+    solar irradiance at 1 AU times the lamp's scale, np.fmax's rule for NaN against ``darkest``."""
+    for i in range(floor.shape[1]):
         smallest = np.inf
         for ib in range(sun_at_1au.shape[0]):
             s1 = sun_at_1au[ib]
-            partial = (zodi_e[ib, i] + per_sun[i] * (s1 * inverse_square[i])
-                       + per_moon[i] * (s1 * moon_at_earth_fraction[i]))
+            partial = 0.0
+            for k in range(dense.shape[0]):
+                partial = dense[k, ib, i] if k == 0 else partial + dense[k, ib, i]
+            for k in range(coeff.shape[0]):
+                term = coeff[k, i] * (s1 * scale[k, i])
+                partial = term if (k == 0 and dense.shape[0] == 0) else partial + term
             f = partial if partial >= darkest[ib] else darkest[ib]  # np.fmax: NaN gives the darkest
             floor[ib, i] = f
             q = f / darkest[ib]
@@ -206,53 +322,61 @@ def _floor_kernel(zodi_e, per_sun, inverse_square, per_moon, moon_at_earth_fract
         ratio[i] = smallest
 
 
+#: samples per block of :func:`_band_components_kernel`: its scratch (values x bands x block
+#: float64) stays in the processor's cache while each term runs over the block in a simple loop
+KERNEL_BLOCK_SAMPLES = 256
+
+
 @njit(cache=True, nogil=True)
-def _band_components_kernel(zodi_e, t_sun, inverse_square, moon_fraction, planets_fraction, direct_sun, door_sun,
-                            direct_moon, door_moon, moon_at_earth_fraction, stars_e, sun_at_1au, slot, out):
-    """Every band's :data:`BAND_COMPONENTS` (e-/s/pix) per sample, component ``c`` into
-    ``out[slot[c], sample, band]`` (any float dtype and strides; not written where slot[c] is
-    -1), from the band-independent per-sample terms and each band's solar photon irradiance
-    at 1 AU; ``zodi_e`` and ``stars_e``: each band's zodiacal light and stars, (bands,
-    samples).  The arithmetic is the plain per-band expression in a fixed order, so the float64
-    values do not depend on batch size (the cube's totals compare bit for bit), in one pass
-    over the samples instead of ~25 numpy passes a band."""
-    # the components in scalars, not a scratch array: the compiler keeps them in registers
-    # (stores into ``out`` could alias an array): 1.6-2x faster on a region's 47,520 x 7 samples
-    s0, s1, s2, s3, s4, s5, s6, s7, s8 = (slot[0], slot[1], slot[2], slot[3], slot[4], slot[5], slot[6], slot[7],
-                                          slot[8])
-    for i in range(t_sun.shape[0]):
-        t_s, inv_sq, m_f, p_f = t_sun[i], inverse_square[i], moon_fraction[i], planets_fraction[i]
-        d_s, g_s, d_m, g_m = direct_sun[i], door_sun[i], direct_moon[i], door_moon[i]
-        m_e = moon_at_earth_fraction[i]
-        for ib in range(sun_at_1au.shape[0]):
-            sun_1au = sun_at_1au[ib]
-            sun_irr = sun_1au * inv_sq
-            moon_irr_earth = sun_1au * m_e
-            zodiacal = zodi_e[ib, i]
-            sun = t_s * sun_irr
-            moon = m_f * sun_1au
-            planets = p_f * sun_1au
-            stars = stars_e[ib, i]
-            direct = d_s * sun_irr + d_m * moon_irr_earth
-            door = g_s * sun_irr + g_m * moon_irr_earth
-            earthshine = direct + door
-            total = zodiacal + sun + moon + planets + stars + earthshine
-            # BAND_COMPONENTS' order
-            if s0 >= 0:
-                out[s0, i, ib] = zodiacal
-            if s1 >= 0:
-                out[s1, i, ib] = sun
-            if s2 >= 0:
-                out[s2, i, ib] = moon
-            if s3 >= 0:
-                out[s3, i, ib] = planets
-            if s4 >= 0:
-                out[s4, i, ib] = stars
-            if s5 >= 0:
-                out[s5, i, ib] = direct
-            if s6 >= 0:
-                out[s6, i, ib] = door
-            if s7 >= 0:
-                out[s7, i, ib] = earthshine
-            if s8 >= 0:
-                out[s8, i, ib] = total
+def _band_components_kernel(dense, dense_row, dense_first, coeff, term_row, term_lamp, term_first, scales,
+                            sun_at_1au, sums, writes, n_rows, out):
+    """Every band's components (e-/s/pix) per sample.
+
+    Rows of values per band and sample: a row (a leaf: a component's part, or a component
+    without parts) is its per-band terms (``dense`` (terms, bands, samples), to row
+    ``dense_row``) then its lamp terms (``coeff[k, sample] * (sun_at_1au[band] *
+    scales[term_lamp[k], sample])``, to ``term_row``), the first setting it; then ``sums``
+    (src, dst, first) add rows into others in order (parts into their component, components
+    into the total), and ``writes`` (row, slot) copy row into ``out[slot, sample, band]`` (any
+    float dtype and strides).  Each sample's arithmetic is fixed, so the float64 values do not
+    depend on batch size; the samples run in blocks of :data:`KERNEL_BLOCK_SAMPLES`, each term
+    over a whole block at a time (1-D views in the inner loops: the compiler vectorizes them)."""
+    n, nb = out.shape[1], sun_at_1au.shape[0]
+    blk = KERNEL_BLOCK_SAMPLES
+    buf = np.zeros((n_rows, nb, blk))  # a row no term reaches stays 0
+    for i0 in range(0, n, blk):
+        m = min(blk, n - i0)
+        for k in range(dense.shape[0]):
+            for ib in range(nb):
+                src, row = dense[k, ib, i0:i0 + m], buf[dense_row[k], ib]
+                if dense_first[k]:
+                    for j in range(m):
+                        row[j] = src[j]
+                else:
+                    for j in range(m):
+                        row[j] += src[j]
+        for k in range(coeff.shape[0]):
+            c, scale = coeff[k, i0:i0 + m], scales[term_lamp[k], i0:i0 + m]
+            for ib in range(nb):
+                s1, row = sun_at_1au[ib], buf[term_row[k], ib]
+                if term_first[k]:
+                    for j in range(m):
+                        row[j] = c[j] * (s1 * scale[j])
+                else:
+                    for j in range(m):
+                        row[j] += c[j] * (s1 * scale[j])
+        for k in range(sums.shape[0]):
+            for ib in range(nb):
+                src, row = buf[sums[k, 0], ib], buf[sums[k, 1], ib]
+                if sums[k, 2]:
+                    for j in range(m):
+                        row[j] = src[j]
+                else:
+                    for j in range(m):
+                        row[j] += src[j]
+        for k in range(writes.shape[0]):
+            dst = out[writes[k, 1], i0:i0 + m]
+            for ib in range(nb):
+                src = buf[writes[k, 0], ib]
+                for j in range(m):
+                    dst[j, ib] = src[j]

@@ -26,9 +26,14 @@ from numba import njit
 
 from straylight.errors import ConfigError
 from straylight.sky.ephemeris import PLANETS
-from straylight.sky.geometry import TelescopeFrame, body_geometry, dot, earth_blocks, norm, rows_at, scene_rows, unit
+from straylight.sky.frames import TelescopeFrame
+from straylight.sky.geometry import body_geometry
+from straylight.sky.limb import earth_blocks
+from straylight.sky.runs import rows_at, scene_rows
+from straylight.sky.vectors import dot, norm, unit
 from straylight.sources.context import Samples, SourceContext
 from straylight.sources.photometry import AU_KM, V_SUN_VEGA, solar_like_fraction
+from straylight.sources.rates import BandRates
 
 MOON_MEAN_DISTANCE_KM = 384400.0
 #: the Moon's nearest perigee in 2000-2100, km (~356,400; Meeus 1998, ch. 50): the brightest Moon
@@ -97,15 +102,14 @@ class Sun:
     def __init__(self, context: SourceContext):
         self.context = context
 
-    def rates(self, samples: Samples) -> tuple[np.ndarray, np.ndarray]:
-        """(transfer, inverse_square): the band-independent transfer Se Sp PST x pixel area
-        (e-/s/pix per photon s-1 m-2 at the aperture) and (1 AU / distance)^2; in band b the
-        Sun gives transfer * (sun_at_1au[b] * inverse_square) e-/s/pix."""
+    def rates(self, samples: Samples, bands) -> BandRates:
+        """The Sun's coefficient on the ``sun`` lamp: the band-independent transfer Se Sp PST x
+        pixel area (e-/s/pix per photon s-1 m-2 at the aperture), of the samples' shape; in
+        band b the Sun gives transfer * (sun_at_1au[b] * (1 AU / distance)^2) e-/s/pix."""
         g = samples.geometry
         transfer = self.context.offfield.point_source(1.0, g["sun_angle_deg"], g["sun_phi_deg"],
                                                       g["sun_earth_blocked"], samples.door_deg)
-        inverse_square = (AU_KM / norm(samples.sun_km - samples.satellite_km)) ** 2
-        return transfer, inverse_square
+        return BandRates(per_lamp={"sun": {"sun": transfer}})
 
 
 class SolarBodySkip:
@@ -175,14 +179,16 @@ class Moon:
         eclipse = np.where(eclipsed, off.moon_eclipse_factor, 1.0)
         return {"v_mag": v, "eclipse": eclipse, "at_earth": solar_like_fraction(v_at_earth) * eclipse}
 
-    def rates(self, samples: Samples, lamp: dict, bands, floor_ratio) -> np.ndarray:
-        """The Moon's e-/s/pix per photon s-1 m-2 of the Sun at 1 AU (times a band's solar
-        irradiance at 1 AU: its e-/s/pix there), 0 where skipped; ``lamp``: :meth:`lamp`'s."""
-        g = samples.geometry
+    def rates(self, samples: Samples, bands) -> BandRates:
+        """The Moon's coefficient on the ``sun_at_1au`` lamp: e-/s/pix per photon s-1 m-2 of the
+        Sun at 1 AU (times a band's solar irradiance at 1 AU: its e-/s/pix there), 0 where
+        skipped against ``samples.floor_ratio``; the lamp read from ``samples.moon_lamp``
+        (:meth:`lamp`'s)."""
+        g, lamp = samples.geometry, samples.moon_lamp
         sun_fraction = solar_like_fraction(lamp["v_mag"])
         t = self.skip.transfer(sun_fraction, g["moon_angle_deg"], g["moon_phi_deg"], g["moon_earth_blocked"],
-                               samples.door_deg, bands, floor_ratio)
-        return t * sun_fraction * lamp["eclipse"]
+                               samples.door_deg, bands, samples.floor_ratio)
+        return BandRates(per_lamp={"moon": {"sun_at_1au": t * sun_fraction * lamp["eclipse"]}})
 
 
 class Planets:
@@ -193,10 +199,12 @@ class Planets:
     def __init__(self, context: SourceContext, skip: SolarBodySkip):
         self.context, self.skip = context, skip
 
-    def rates(self, samples: Samples, bands, floor_ratio) -> np.ndarray:
-        """The planets together, e-/s/pix per photon s-1 m-2 of the Sun at 1 AU, of the samples' shape."""
-        return self.fraction(samples.satellite_km, samples.bodies_km, samples.frame, samples.door_deg, bands,
-                             floor_ratio, samples.shape, samples.runs)
+    def rates(self, samples: Samples, bands) -> BandRates:
+        """The planets together on the ``sun_at_1au`` lamp: e-/s/pix per photon s-1 m-2 of the
+        Sun at 1 AU, of the samples' shape, each skipped against ``samples.floor_ratio``."""
+        return BandRates(per_lamp={"planets": {"sun_at_1au": self.fraction(
+            samples.satellite_km, samples.bodies_km, samples.frame, samples.door_deg, bands, samples.floor_ratio,
+            samples.shape, samples.runs)}})
 
     def fraction(self, sat, bodies_km, frame, door, bands, floor_ratio, shape, runs=None) -> np.ndarray:
         """:meth:`rates` from its parts: the sum of each planet's :meth:`transfer` times its
@@ -290,7 +298,7 @@ class InFieldBodies:
 def _near_runs_kernel(fz, directions, run_index, cos_limit):
     """(bodies, samples) bool: sample n's line of sight ``fz[n]`` has a cosine over
     ``cos_limit[b]`` with body b's direction in the sample's run, ``directions[b, run_index[n]]``
-    (the products summed in :func:`~straylight.sky.geometry.dot`'s order, so the same cosines)."""
+    (the products summed in :func:`~straylight.sky.vectors.dot`'s order, so the same cosines)."""
     n_bodies, n = directions.shape[0], fz.shape[0]
     out = np.zeros((n_bodies, n), np.bool_)
     for b in range(n_bodies):

@@ -14,8 +14,9 @@ from straylight.config import Campaign
 from straylight.optics.bandpass import Band, load_band
 from straylight.optics.door import door_from_instrument
 from straylight.optics.pst import load_pst
-from straylight.sky.geometry import TelescopeFrame
-from straylight.sources.photometry import BandPhotometry
+from straylight.sky.frames import TelescopeFrame
+from straylight.sky.vectors import norm
+from straylight.sources.photometry import AU_KM, BandPhotometry
 from straylight.sources.offfield import EarthshineSettings, OffFieldModel
 from straylight.sources.zodiacal import ZodiacalModel, zodiacal_model_from_instrument
 
@@ -27,13 +28,27 @@ class Samples:
     ``frame`` (the samples' ``telescope_frame(los, sun - satellite)``), ``geometry``
     (:func:`~straylight.sky.observing.observing_geometry`'s: the Sun's and the Moon's angles,
     the door's state), ``runs``: the samples' scene runs when the caller knows them
-    (:class:`~straylight.sky.geometry.SceneRuns`, e.g. a cube's time steps), else None."""
+    (:class:`~straylight.sky.runs.SceneRuns`, e.g. a cube's time steps), else None;
+    ``stars``: the off-field stars (a :class:`~straylight.sources.stars.StarTable`, or None:
+    no stars); ``faint_rates``: the faint stars' map at these lines of sight, band -> e-/s/pix,
+    when already computed.
+
+    The background model sets the rest before it asks the sources: ``moon_lamp`` (the Moon's
+    irradiance, :meth:`~straylight.sources.bodies.Moon.lamp`), then, once the sources that are
+    never skipped are summed, ``floor`` (band -> e-/s/pix, a lower bound of each sample's total)
+    and ``floor_ratio`` (its smallest ratio over the bands to the darkest zodiacal light, >= 1),
+    which the skippable sources measure their skips against."""
 
     satellite_km: np.ndarray
     bodies_km: dict
     frame: TelescopeFrame
     geometry: dict
     runs: object = None
+    stars: object = None
+    faint_rates: dict | None = None
+    moon_lamp: dict | None = None
+    floor: dict | None = None
+    floor_ratio: np.ndarray | None = None
 
     @property
     def shape(self) -> tuple:
@@ -52,6 +67,12 @@ class Samples:
     @property
     def moon_km(self) -> np.ndarray:
         return self.bodies_km["moon"]
+
+    @cached_property
+    def sun_inverse_square(self) -> np.ndarray:
+        """(1 AU / Sun-satellite distance)^2 per sample: the Sun's irradiance at the satellite
+        relative to 1 AU (the ``sun`` lamp's scale, :data:`~straylight.sources.rates.LAMPS`)."""
+        return (AU_KM / norm(self.sun_km - self.satellite_km)) ** 2
 
 
 @dataclass

@@ -2,7 +2,7 @@
 ~1e-5 of the sunlit Earth, so it is skipped where its upper bound (:meth:`MoonlitEarth.bound`)
 times the Moon's irradiance stays below the moonlit_earthshine_skip budget of the sample's
 floor, and elsewhere summed on a coarse Earth grid (models.earthshine.moonlit_grid), from its
-own table (:class:`~straylight.sources.earthshine_lut.MoonlitLUT`, models.earthshine.moonlit_method
+own table (:class:`~straylight.sources.earthshine_table.MoonlitLUT`, models.earthshine.moonlit_method
 = lut, when it validates within the moonlit_earthshine_grid budget) or directly.  On the direct
 sum's path the sunlit Earth's grid carries the Moon's light too (:mod:`straylight.sources.sunlit_earth`)."""
 from __future__ import annotations
@@ -13,17 +13,22 @@ from pathlib import Path
 
 import numpy as np
 
-from straylight.sky.geometry import TelescopeFrame, rows_at, scene_rows
+from straylight.sky.frames import TelescopeFrame
+from straylight.sky.runs import rows_at, scene_rows
 from straylight.sources.context import Samples, SourceContext
 from straylight.sources.bodies import MOON_PERIGEE_KM, moon_v_magnitude
 from straylight.sources.photometry import solar_like_fraction
+from straylight.sources.rates import BandRates
 
 
 class MoonlitEarth:
-    """The moonlit Earth outside the field: its configuration, its table, its bound and its sum."""
+    """The moonlit Earth outside the field: its configuration, its table, its bound and its sum.
+    ``sunlit``: a function returning the campaign's
+    :class:`~straylight.sources.sunlit_earth.SunlitEarth` (whose table decides the path and
+    bounds this one; a function because the sunlit Earth counts this one's table in its build)."""
 
-    def __init__(self, context: SourceContext, policy, build_workers: int = 1):
-        self.context, self.policy, self.build_workers = context, policy, build_workers
+    def __init__(self, context: SourceContext, policy, build_workers: int = 1, sunlit=None):
+        self.context, self.policy, self.build_workers, self.sunlit = context, policy, build_workers, sunlit
 
     @cached_property
     def grid(self) -> tuple[int, int]:
@@ -32,7 +37,7 @@ class MoonlitEarth:
                                                                                                        (8, 16)))
 
     def settings(self):
-        """The table's :class:`~straylight.sources.earthshine_lut.MoonlitSettings` from the config,
+        """The table's :class:`~straylight.sources.earthshine_table_build.MoonlitSettings` from the config,
         or None when the moonlit Earth is summed directly (moonlit_method = direct)."""
         from straylight.sources.earthshine_table_build import MoonlitSettings
 
@@ -56,7 +61,7 @@ class MoonlitEarth:
         return int(np.prod([a.size for a in nodes])) * len(c.offfield.door_states_deg)
 
     def _table_inputs(self, settings) -> tuple:
-        """The arguments of :func:`~straylight.sources.earthshine_lut.load_or_build_moonlit` (and of
+        """The arguments of :func:`~straylight.sources.earthshine_table_build.load_or_build_moonlit` (and of
         its cache key) before the logger: the model, the Earth, the orbit, the settings, the grid,
         the darkest sky and the brightest Moon (full, at perigee) per unit solar irradiance at
         1 AU, and the dark-limb angle."""
@@ -100,7 +105,7 @@ class MoonlitEarth:
     def bound(self, sunlit_lut, sat_km, moon_km, los, runs=None) -> np.ndarray:
         """Upper bound of the moonlit Earth's coefficient (direct and door, e-/s/pix per photon
         s-1 m-2 of the Moon at the Earth) at flat samples: the sunlit table's
-        :meth:`~straylight.sources.earthshine_lut.EarthshineLUT.moon_bound`; within 1 deg of the
+        :meth:`~straylight.sources.earthshine_table.EarthshineLUT.moon_bound`; within 1 deg of the
         limb and below it, where the table has none, the whole cap fully lit at the PST's largest
         value outside the field."""
         off, re_km = self.context.offfield, self.context.campaign.earth.radius_km
@@ -113,15 +118,23 @@ class MoonlitEarth:
                                + sunlit_lut.moon_door_bound)
         return bound
 
-    def add(self, es_coeff: dict, samples: Samples, sunlit_lut, moon_at_earth_unit: dict, floor: dict) -> None:
-        """On the table's path, add the moonlit Earth outside the field to the earthshine
-        coefficients ``es_coeff`` (in place): skipped where :meth:`bound` times the Moon's
-        irradiance at the Earth (``moon_at_earth_unit``, band -> photons s-1 m-2) is below
-        ``moonlit_skip_share`` x the tolerance x the sample's floor (``floor``, band -> e-/s/pix,
-        a lower bound of its total) in every band, elsewhere the coarse grid's sum.  With the
+    def rates(self, samples: Samples, bands) -> BandRates:
+        """On the table's path, the moonlit Earth outside the field: its coefficients on the
+        ``moon_at_earth`` lamp, direct and via the door, arrays of the samples' shape (nothing on
+        the direct sum's path, where the sunlit Earth's grid carries the Moon's light).  Skipped
+        (0) where :meth:`bound` times the Moon's irradiance at the Earth is below
+        ``moonlit_skip_share`` x the tolerance x the sample's floor (``samples.floor``, band ->
+        e-/s/pix, a lower bound of its total) in every band, elsewhere the coarse grid's sum.  With the
         table, samples whose Moon zenith angle lies beyond its ``dark_moon_zenith_deg`` (no
         moonlit Earth in view: the table is 0 there) are left out from the start, bound and all:
         they would add exactly 0."""
+        sunlit_lut = self.sunlit().lut
+        if sunlit_lut is None:
+            return BandRates()
+        moon_at_earth = samples.moon_lamp["at_earth"]
+        moon_at_earth_unit = {name: self.context.photometry(name).sun_at_1au_photons_s_m2 * moon_at_earth
+                              for name in bands}
+        floor = samples.floor
         off, re_km = self.context.offfield, self.context.campaign.earth.radius_km
         shape, frame, runs, mlut = samples.shape, samples.frame, samples.runs, self.model["lut"]
         sat_b, sun_b, moon_b, los_b = (np.broadcast_to(np.asarray(v, float), shape + (3,)).reshape(-1, 3)
@@ -133,7 +146,7 @@ class MoonlitEarth:
             runs = scene_rows(sat_b, moon_b, runs=runs)  # found once here if not known
             dark = mlut.dark_runs(runs)
             if np.all(dark):
-                return
+                return BandRates()
             if np.any(dark):
                 cand = np.flatnonzero(~np.take(dark, runs.index))
                 # (the Sun's rows serve the direct moonlit sum only, which has no dark test)
@@ -148,7 +161,7 @@ class MoonlitEarth:
             need |= bound * (e_moon if cand is None else np.take(e_moon, cand)) > (
                 self.policy.moonlit_skip_share * self.policy.tolerance * floor_b[b])
         if not np.any(need):
-            return
+            return BandRates()
         # a coarse grid is enough where a line of sight can be observable (>= the dark-limb angle
         # above the limb).  Nearer the limb and below it no Earth grid converges (blocks next to
         # the field edge meet the PST's jump), so the configured grid would cost 5x for numbers
@@ -165,8 +178,11 @@ class MoonlitEarth:
                                             re_km, in_field=False, sun=False, grid=self.grid)
             direct_moon, door_moon = c["direct_moon"], c["door_moon"]
         flat = np.unravel_index(at if cand is None else np.take(cand, at), shape)
-        es_coeff["direct_moon"][flat] += direct_moon
-        es_coeff["door_moon"][flat] = door_moon
+        direct, door = np.zeros(shape), np.zeros(shape)
+        direct[flat], door[flat] = direct_moon, door_moon
+        return BandRates(per_lamp={"earthshine_direct": {"moon_at_earth": direct},
+                                   "earthshine_door": {"moon_at_earth": door}})
+
 
     def record(self, sunlit_table_runs: bool) -> str:
         """How the moonlit Earth was summed, for a product's attributes."""

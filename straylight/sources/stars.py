@@ -15,7 +15,9 @@ from functools import cached_property
 import numpy as np
 from numba import njit
 
-from straylight.sky.geometry import earth_blocks, scene_runs, tiled_period
+from straylight.sky.limb import earth_blocks
+from straylight.sky.runs import scene_runs, tiled_period
+from straylight.sources.rates import BandRates
 from straylight.sources.context import Samples, SourceContext
 
 @dataclass
@@ -35,13 +37,13 @@ class StarTable:
     @cached_property
     def unit(self) -> np.ndarray:
         """ICRS unit vectors (S, 3), computed once (the cube reuses the table for every time step)."""
-        from straylight.sky.geometry import radec_to_unit
+        from straylight.sky.vectors import radec_to_unit
 
         return np.atleast_2d(radec_to_unit(self.ra_deg, self.dec_deg, "star catalog"))
 
     @cached_property
     def faint_unit(self) -> np.ndarray:
-        from straylight.sky.geometry import radec_to_unit
+        from straylight.sky.vectors import radec_to_unit
 
         if not len(self.faint_ra_deg):
             return np.zeros((0, 3))
@@ -82,11 +84,16 @@ class OffFieldStars:
     def __init__(self, context: SourceContext, policy):
         self.context, self.policy = context, policy
 
-    def rates(self, samples: Samples, stars: StarTable | None, bands, floor_ratio, faint_rates: dict | None = None
-              ) -> np.ndarray:
-        """(bands, samples flattened) e-/s/pix of the stars: the direct pairs, then the faint map
-        (``faint_rates``: the map at these lines of sight, band -> e-/s/pix, when already
-        computed; else computed here); zeros without stars."""
+    def rates(self, samples: Samples, bands) -> BandRates:
+        """The stars' e-/s/pix per band, (bands, samples flattened): ``samples.stars``' direct
+        pairs (skipped per sky cell against ``samples.floor_ratio``), then the faint map
+        (``samples.faint_rates`` when already computed; else computed here); zeros without stars."""
+        stars_e = self.e_per_s(samples, samples.stars, bands, samples.floor_ratio, samples.faint_rates)
+        return BandRates(per_band={"stars": stars_e})
+
+    def e_per_s(self, samples: Samples, stars: StarTable | None, bands, floor_ratio, faint_rates: dict | None = None
+                ) -> np.ndarray:
+        """:meth:`rates`' array from its inputs: (bands, samples flattened) e-/s/pix."""
         shape = samples.shape
         star_pairs = (self.pairs(stars, samples.frame, samples.satellite_km, samples.door_deg, floor_ratio,
                                  samples.runs)

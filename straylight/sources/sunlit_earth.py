@@ -5,7 +5,7 @@ irradiance (the Sun's at the satellite, the Moon's at the Earth).
 Two ways side by side, chosen by models.earthshine.method and the fidelity policy: the direct
 sum over the Earth grid (:meth:`~straylight.sources.offfield.OffFieldModel.earthshine_coefficients`,
 which lights each block by the Sun and the Moon in one pass, so the moonlit Earth comes with it),
-or the look-up table of that sum (:class:`~straylight.sources.earthshine_lut.EarthshineLUT`,
+or the look-up table of that sum (:class:`~straylight.sources.earthshine_table.EarthshineLUT`,
 the Sun only; the moonlit Earth then adds its own, :mod:`straylight.sources.moonlit_earth`).
 ``auto`` takes the table whenever it validates within the earthshine_lut share of the
 tolerance."""
@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from straylight.sources.context import Samples, SourceContext
+from straylight.sources.rates import BandRates
 
 #: the keys of the earthshine coefficients (e-/s/pix per photon s-1 m-2 of the lamp): direct
 #: (EA1) and via the door (EA2), lit by the Sun and by the Moon
@@ -35,7 +36,7 @@ class SunlitEarth:
 
     def node_states(self, settings) -> int:
         """How many (node, door state) pairs the sunlit table with these
-        :class:`~straylight.sources.earthshine_lut.LUTSettings` sums, each an Earth-grid sum."""
+        :class:`~straylight.sources.earthshine_table_build.LUTSettings` sums, each an Earth-grid sum."""
         from straylight.sources.earthshine_table_build import mirror_symmetric
 
         c = self.context.campaign
@@ -47,7 +48,7 @@ class SunlitEarth:
     def choice(self) -> dict:
         """Which model :attr:`model` will run, decided without building anything (``straylight
         plan`` reads it).  Keys: method ('lut' or 'direct'), requested (models.earthshine.method),
-        reason, settings (:class:`~straylight.sources.earthshine_lut.LUTSettings`), node_states and
+        reason, settings (:class:`~straylight.sources.earthshine_table_build.LUTSettings`), node_states and
         build_seconds_estimate (the sunlit table's build plus the moonlit one's,
         moonlit_build_seconds_estimate, at the policy's cost figures; 0 for 'direct' by config).
         With 'auto' the table still falls back to the direct sum when its validated error,
@@ -80,7 +81,7 @@ class SunlitEarth:
 
     def lut_path(self) -> Path:
         """Where the table of :attr:`choice`'s settings is cached (it may not exist yet): the
-        path :func:`~straylight.sources.earthshine_lut.load_or_build` reads or writes."""
+        path :func:`~straylight.sources.earthshine_table_build.load_or_build` reads or writes."""
         from straylight.sources.earthshine_table_build import cache_path, lut_key
 
         c = self.context
@@ -91,7 +92,7 @@ class SunlitEarth:
     @cached_property
     def model(self) -> dict:
         """The model that runs (:attr:`choice`, the table built or loaded): keys method, lut
-        (the :class:`~straylight.sources.earthshine_lut.EarthshineLUT` or None), reason, and for
+        (the :class:`~straylight.sources.earthshine_table.EarthshineLUT` or None), reason, and for
         the table its file, validated error, build time, node states and steps."""
         from straylight.sources.earthshine_table_build import load_or_build
 
@@ -121,11 +122,19 @@ class SunlitEarth:
         """The sunlit table when it runs, else None (the direct sum runs)."""
         return self.model["lut"]
 
-    def rates(self, samples: Samples) -> dict:
+    def rates(self, samples: Samples, bands) -> BandRates:
+        """The earthshine's coefficients on the ``sun`` and ``moon_at_earth`` lamps, direct
+        (``earthshine_direct``) and via the door (``earthshine_door``), arrays of the samples'
+        shape (:meth:`coefficients`)."""
+        c = self.coefficients(samples)
+        return BandRates(per_lamp={"earthshine_direct": {"sun": c["direct_sun"], "moon_at_earth": c["direct_moon"]},
+                                   "earthshine_door": {"sun": c["door_sun"], "moon_at_earth": c["door_moon"]}})
+
+    def coefficients(self, samples: Samples) -> dict:
         """The earthshine coefficients (:data:`COEFFICIENTS`, arrays of the samples' shape).  The
         direct sum gives every term; the table gives the sunlit Earth, and of the moonlit Earth
-        only the part inside the field (the rest: :meth:`MoonlitEarth.add
-        <straylight.sources.moonlit_earth.MoonlitEarth.add>`)."""
+        only the part inside the field (the rest: :meth:`MoonlitEarth.rates
+        <straylight.sources.moonlit_earth.MoonlitEarth.rates>`)."""
         off, re_km = self.context.offfield, self.context.campaign.earth.radius_km
         sat, sun, moon, frame, door = (samples.satellite_km, samples.sun_km, samples.moon_km, samples.frame,
                                        samples.door_deg)

@@ -34,7 +34,9 @@ import numpy as np
 
 from straylight.optics.bandpass import Band
 from straylight.errors import ConfigError
-from straylight.sky.geometry import scene_rows, tiled_period
+from straylight.sky.runs import scene_rows, tiled_period
+from straylight.sky.vectors import unit
+from straylight.sources.rates import BandRates
 from straylight.util.gridinterp import LinearGrid
 
 NO_DATA = 1.0e6
@@ -70,7 +72,7 @@ def ecliptic_lon_lat_deg(vectors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def helioecliptic_coordinates(los: np.ndarray, sun_direction: np.ndarray, runs=None) -> tuple[np.ndarray, np.ndarray]:
     """(|lambda - lambda_sun| in [0, 180], |beta| in [0, 90]) for lines of sight, deg (their
     longitudes' difference folded without a modulo); ``runs``: the samples' scene runs when
-    known (:class:`~straylight.sky.geometry.SceneRuns`)."""
+    known (:class:`~straylight.sky.runs.SceneRuns`)."""
     rows = scene_rows(sun_direction, runs=runs)  # a cube's time step shares the Sun: its longitude once per step
     # and a cube batch repeats its lines of sight at every step: theirs once per pixel
     period = tiled_period(los, rows) if np.shape(los) == np.shape(sun_direction) else None
@@ -248,6 +250,23 @@ class ZodiacalModel:
             "brightness_500nm_w_m2_sr_um": b500,
             "no_data": flag,
         }
+
+
+class ZodiacalLight:
+    """The zodiacal light in the field as a source of the background: the campaign's
+    :class:`ZodiacalModel` (``context.zodiacal``) at the samples' lines of sight.  Never skipped:
+    it is the floor every skip bound is measured against."""
+
+    def __init__(self, context):
+        self.context = context
+
+    def rates(self, samples, bands) -> BandRates:
+        """e-/s/pix per band, (bands, samples flattened), and the ``zodiacal_no_data`` flag (True
+        where the Leinert table has no data near the Sun), of the samples' shape."""
+        c = self.context
+        e, no_data = c.zodiacal.rates([c.band(name) for name in bands], samples.frame.z,
+                                      unit(samples.sun_km - samples.satellite_km), samples.shape, samples.runs)
+        return BandRates(per_band={"zodiacal": e}, extras={"zodiacal_no_data": no_data})
 
 
 def zodiacal_model_from_instrument(instrument: dict, spectrum: str = "solar_leinert") -> ZodiacalModel:

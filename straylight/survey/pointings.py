@@ -18,7 +18,15 @@ import numpy as np
 
 from straylight.errors import InputError
 
-COMPONENTS = ("zodiacal", "earthshine", "moon", "sun", "planets", "stars", "total")
+
+
+def table_components() -> tuple:
+    """The per-band e-/s/pix columns of a pointing table: the registry's components and the
+    total (:mod:`straylight.model.registry`)."""
+    from straylight.model.registry import TOTAL, component_names
+
+    return component_names() + (TOTAL,)
+
 ALIASES = {"time": ("time", "utc", "time_utc"), "ra": ("ra", "ra_deg"), "dec": ("dec", "dec_deg")}
 
 
@@ -94,7 +102,7 @@ def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int
     distinct time, for all of them at once; the samples are evaluated ``batch`` at a time."""
     from straylight.model import BackgroundModel
     from straylight.sky.ephemeris import default_ephemeris
-    from straylight.sky.geometry import radec_to_unit
+    from straylight.sky.vectors import radec_to_unit
     from straylight.survey.limits import point_source_limit
     from straylight.sky.observing import Scene, sample_geometry, scene
     from straylight.sky.timeutil import parse_utc, utc_to_tdb_jd
@@ -126,7 +134,7 @@ def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int
     # the scene once per distinct time (a scheduler asks for many pointings at few times), before
     # the model: an orbit that cannot be propagated is refused before any table is read or built
     first, inverse = _distinct_times(np.asarray(t_all.jd1, float).ravel(), np.asarray(t_all.jd2, float).ravel())
-    distinct = scene(campaign, t_all[first])
+    distinct = scene(campaign.orbit, t_all[first])
     model = BackgroundModel(campaign) if model is None else model() if callable(model) else model
     if models is not None:
         models.update(model.models_record())
@@ -137,14 +145,16 @@ def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int
     geo_keys = ("observable", "violations", "sun_angle_deg", "moon_angle_deg", "moon_illuminated_fraction",
                 "earth_limb_angle_deg", "limb_is_bright", "door_opening_deg")
     acc = {k: [] for k in geo_keys + ("planet_in_field", "planet_in_field_v_mag")}
-    acc.update({f"{c}_{b}": [] for b in bands for c in COMPONENTS})
+    components = table_components()
+    acc.update({f"{c}_{b}": [] for b in bands for c in components})
     acc.update({f"total_mag_per_arcsec2_{b}": [] for b in bands})
     for a in range(0, n, batch):
         sl = slice(a, min(a + batch, n))
         at = inverse[sl]
         sc = Scene(times=t_all[sl], satellite_km=distinct.satellite_km[at],
                    bodies_km={k: v[at] for k, v in distinct.bodies_km.items()})
-        g = sample_geometry(campaign, sc, pointings["ra"][sl], pointings["dec"][sl], grid=False)
+        g = sample_geometry(sc, pointings["ra"][sl], pointings["dec"][sl], campaign.earth.radius_km,
+                            campaign.constraints, grid=False)
         los = radec_to_unit(pointings["ra"][sl], pointings["dec"][sl])
         res = model.evaluate(sc.satellite_km, sc.bodies_km, np.atleast_2d(los), g, bands, stars)
         for k in geo_keys:
@@ -158,7 +168,7 @@ def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int
         acc["planet_in_field"].append(np.where(found, names[brightest], ""))
         acc["planet_in_field_v_mag"].append(np.where(found, np.min(v_in, axis=0), np.nan))
         for b in bands:
-            for c in COMPONENTS:
+            for c in components:
                 acc[f"{c}_{b}"].append(np.asarray(res[b][c], float))
             acc[f"total_mag_per_arcsec2_{b}"].append(np.asarray(res[b]["_mag"](res[b]["total"]), float))
     for k, v in acc.items():
@@ -187,13 +197,13 @@ UNITS = {"ra_deg": "deg", "dec_deg": "deg", "sun_angle_deg": "deg", "moon_angle_
 
 def column_units(cols) -> dict:
     """Units of the pointing table's columns (Parquet field metadata ``unit``)."""
-    out = dict(UNITS)
+    out, components = dict(UNITS), table_components()
     for k in cols:
         if k.startswith("total_mag_per_arcsec2_"):
             out[k] = "mag(AB) arcsec-2"
         elif k.startswith("limit_mag_"):
             out[k] = "mag(AB)"
-        elif k.rsplit("_", 1)[0] in COMPONENTS:
+        elif k.rsplit("_", 1)[0] in components:
             out[k] = "electron / (s pixel)"
     out["moon_illuminated_fraction"] = "1"
     return out
@@ -236,12 +246,15 @@ def _qtable(cols: dict, t, bands, zero_points: dict, models: dict):
     for name in ("sun_angle", "moon_angle", "earth_limb_angle", "door_opening"):
         columns[name] = u.Quantity(np.asarray(cols[f"{name}_deg"], float), u.deg)
         formats[name] = ".3f"
-    descriptions = {}
+    from straylight.model.registry import long_names
+
+    descriptions, components, long_name = {}, table_components(), long_names()
     for b in bands:
-        for c in COMPONENTS:
+        for c in components:
             columns[f"{c}_{b}"] = u.Quantity(np.asarray(cols[f"{c}_{b}"], float), rate)
             formats[f"{c}_{b}"] = ".3g"
-        for c in COMPONENTS:
+            descriptions[f"{c}_{b}"] = f"{long_name[c]}, band {b}"
+        for c in components:
             with np.errstate(divide="ignore", invalid="ignore"):
                 columns[f"{c}_mag_{b}"] = u.Quantity(zero_points[b] - 2.5 * np.log10(np.asarray(cols[f"{c}_{b}"], float)),
                                                      surf)

@@ -1,0 +1,231 @@
+"""The sources of light and the product components they add to, each declared once.
+
+Everything that lists the components reads them from here: the background model's sum and its
+compiled kernel, the cube's variables and long names, the pointing tables, ``straylight sky``'s
+table, the API's columns and the benchmarks.
+
+- :data:`COMPONENTS`: the product's per-band variables (e-/s/pix), in the order they are added
+  into the total; a component may be the sum of named parts (the earthshine: direct + via the
+  door).
+- :data:`SOURCES`: the sources of light, in the order they are evaluated and their terms added;
+  each adds to one component (or to one of its parts).  A source that is ``skippable`` is
+  evaluated after the others, against the floor they make (see
+  :class:`~straylight.model.background.BackgroundModel`).
+
+Adding a source: a module in ``straylight/sources/`` with a class whose
+``rates(samples, bands) -> BandRates`` follows :class:`Source`, and one :class:`SourceEntry`
+line below (plus a :class:`Component` line when it adds to a new component).
+docs/architecture.md gives the steps."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Protocol, Sequence
+
+from straylight.sources.context import Samples
+from straylight.sources.rates import BandRates
+
+__all__ = ["COMPONENTS", "SOURCES", "Component", "Source", "SourceEntry", "TOTAL", "band_components",
+           "component_names", "long_names", "register"]
+
+#: the per-band sum of every component
+TOTAL = "total"
+#: the unit of every per-band component
+E_PER_S_PER_PIXEL = "electron / (s pixel)"
+
+
+class Source(Protocol):
+    """What the background model asks a source of light."""
+
+    def rates(self, samples: Samples, bands: Sequence[str]) -> BandRates:
+        """The source's e-/s/pix in each band at the samples.
+
+        Parameters
+        ----------
+        samples : Samples
+            The batch of (time, pointing) samples; a skippable source also reads its
+            ``floor`` and ``floor_ratio``, which the model sets before asking it.
+        bands : sequence of str
+            Band names of the instrument.
+
+        Returns
+        -------
+        BandRates
+            Per-band arrays (bands, samples) and/or per-lamp coefficients of the samples'
+            shape, keyed by the component (or part) the source adds to.
+        """
+
+
+@dataclass(frozen=True)
+class Component:
+    """A per-band product variable, e-/s/pix.
+
+    Attributes
+    ----------
+    name, long_name : str
+        The variable's name and its ``long_name`` attribute.
+    parts : tuple of (str, str)
+        (name, long_name) of the parts it is the sum of, in order; () for a component the
+        sources add to directly.
+    units : str
+        The variable's ``units`` attribute.
+    """
+
+    name: str
+    long_name: str
+    parts: tuple = ()
+    units: str = E_PER_S_PER_PIXEL
+
+
+@dataclass(frozen=True)
+class SourceEntry:
+    """One source of light.
+
+    Attributes
+    ----------
+    name : str
+        The source's name (``BackgroundModel.sources[name]``).
+    adds_to : str
+        The component its rates go to (for a component with parts: to its parts, named in
+        the source's :class:`~straylight.sources.rates.BandRates`), or one part of it.
+    factory : callable
+        ``factory(model) -> Source``; ``model`` is the :class:`BackgroundModel` being built
+        (its ``context``, ``policy``, ``build_workers``, and ``source(name)`` for another
+        source this one depends on).
+    skippable : bool
+        Whether it may be skipped where its bound is below its share of the sample's floor
+        (then evaluated after the sources that are never skipped, which make the floor).
+    error_budget : tuple of str
+        The keys of :data:`~straylight.model.fidelity.ERROR_BUDGET_SHARES` its fast paths spend.
+    parameters : tuple of str
+        The unmeasured model and instrument parameters its value rests on (config paths).
+    """
+
+    name: str
+    adds_to: str
+    factory: Callable
+    skippable: bool = False
+    error_budget: tuple = ()
+    parameters: tuple = ()
+
+
+def _zodiacal(model):
+    from straylight.sources.zodiacal import ZodiacalLight
+
+    return ZodiacalLight(model.context)
+
+
+def _sun(model):
+    from straylight.sources.bodies import Sun
+
+    return Sun(model.context)
+
+
+def _moon(model):
+    from straylight.sources.bodies import Moon
+
+    return Moon(model.context, model.body_skip)
+
+
+def _planets(model):
+    from straylight.sources.bodies import Planets
+
+    return Planets(model.context, model.body_skip)
+
+
+def _stars(model):
+    from straylight.sources.stars import OffFieldStars
+
+    return OffFieldStars(model.context, model.policy)
+
+
+def _sunlit_earth(model):
+    from straylight.sources.sunlit_earth import SunlitEarth
+
+    return SunlitEarth(model.context, model.policy, model.source("moonlit_earth"), model.build_workers)
+
+
+def _moonlit_earth(model):
+    from straylight.sources.moonlit_earth import MoonlitEarth
+
+    return MoonlitEarth(model.context, model.policy, model.build_workers, sunlit=lambda: model.source("sunlit_earth"))
+
+
+#: the per-band components, in the order they are added into the total
+COMPONENTS = [
+    Component("zodiacal", "in-field zodiacal light (Leinert 1998)"),
+    Component("sun", "sunlight through the PST (door-shaded)"),
+    Component("moon", "moonlight through the PST"),
+    Component("planets", "planets (Mercury-Pluto) through the PST"),
+    Component("stars", "off-field bright stars through the PST"),
+    Component("earthshine", "earthshine through the PST, direct + via the aperture door",
+              parts=(("earthshine_direct", "earthshine reaching the aperture directly (EA1)"),
+                     ("earthshine_door", "earthshine reflected by the aperture door (EA2)"))),
+]
+
+_PST = "instrument pst (measured to 30 deg; the tail beyond is a model)"
+#: the sources of light, in the order they are evaluated and their terms added
+SOURCES = [
+    SourceEntry("zodiacal", "zodiacal", _zodiacal,
+                parameters=("models.zodiacal_spectrum",)),
+    SourceEntry("sun", "sun", _sun, parameters=(_PST, "instrument door_geometry")),
+    SourceEntry("moon", "moon", _moon, skippable=True, error_budget=("moon_and_planets_skip",),
+                parameters=(_PST, "models.moon_phase_law", "models.moon_eclipse_factor")),
+    SourceEntry("planets", "planets", _planets, skippable=True, error_budget=("moon_and_planets_skip",),
+                parameters=(_PST,)),
+    SourceEntry("stars", "stars", _stars, skippable=True, error_budget=("stars_skip",),
+                parameters=(_PST, "stars.template_classes")),
+    SourceEntry("sunlit_earth", "earthshine", _sunlit_earth, error_budget=("earthshine_lut",),
+                parameters=(_PST, "models.earthshine.albedo", "instrument door_geometry reflectance")),
+    SourceEntry("moonlit_earth", "earthshine", _moonlit_earth, skippable=True,
+                error_budget=("moonlit_earthshine_skip", "moonlit_earthshine_grid"),
+                parameters=(_PST, "models.earthshine.albedo", "models.moon_phase_law")),
+]
+
+
+def component_names() -> tuple:
+    """The components' names, in the order they are added into the total (no parts, no total)."""
+    return tuple(c.name for c in COMPONENTS)
+
+
+def band_components() -> tuple:
+    """Every per-band output of the model: each component's parts before it, then the total."""
+    names = []
+    for c in COMPONENTS:
+        names += [p for p, _ in c.parts] + [c.name]
+    return tuple(names) + (TOTAL,)
+
+
+def long_names() -> dict:
+    """Name -> long_name of every per-band output (components, parts and the total)."""
+    out = {}
+    for c in COMPONENTS:
+        out.update(dict(c.parts))
+        out[c.name] = c.long_name
+    out[TOTAL] = "total stray light and sky background"
+    return out
+
+
+def leaves() -> tuple:
+    """The names sources add to: each component's parts, or the component itself."""
+    return tuple(n for c in COMPONENTS for n in ([p for p, _ in c.parts] or [c.name]))
+
+
+def register(source: SourceEntry, component: Component | None = None) -> None:
+    """Add a source (and, for a new component, the component) at the end of the registry.
+
+    Raises
+    ------
+    ValueError
+        For a name already taken, or a source that adds to no declared component nor part.
+    """
+    if any(s.name == source.name for s in SOURCES):
+        raise ValueError(f"a source named {source.name!r} is already registered")
+    if component is not None and {component.name, *dict(component.parts)} & set(band_components()):
+        raise ValueError(f"a component or part named like {component.name!r} or its parts is already registered")
+    targets = band_components()[:-1] + ((component.name, *dict(component.parts)) if component else ())
+    if source.adds_to not in targets:
+        raise ValueError(f"source {source.name!r} adds to {source.adds_to!r}, which is not a component "
+                         f"nor a part: {targets}")
+    if component is not None:
+        COMPONENTS.append(component)
+    SOURCES.append(source)
