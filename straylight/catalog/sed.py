@@ -1,4 +1,4 @@
-"""Stellar SED template libraries and their synthetic photometry (issue #3).
+"""Stellar SED template libraries and their synthetic photometry.
 
 A :class:`TemplateLibrary` holds spectra on one wavelength grid.  Two sources:
 

@@ -20,9 +20,9 @@ from straylight.sources.earthshine_table_build import LUT_BUILD_SECONDS_PER_NODE
 ERROR_BUDGET_SHARES = {"earthshine_lut": 0.5, "moonlit_earthshine_skip": 0.125, "moonlit_earthshine_grid": 0.125,
                        "stars_skip": 0.125, "moon_and_planets_skip": 0.125}
 
-#: What the sunlit table saves per evaluated sample over the direct sum, seconds on one core
-#: of the development machine (``straylight plan`` prices a campaign on the direct sum with it;
-#: ``straylight plan --calibrate`` times the direct sum against it).
+#: What the sunlit table saves per evaluated sample over the direct sum, seconds on one reference
+#: core (``straylight plan`` prices a campaign on the direct sum with it; ``straylight plan
+#: --calibrate`` times the direct sum against it; docs/performance.md gives the method).
 LUT_SAVED_SECONDS_PER_SAMPLE = 0.08e-3
 
 

@@ -199,9 +199,9 @@ def behind_aperture_plane(theta_deg) -> np.ndarray:
 def door_state_index(states_deg, opening_deg):
     """(index into the ascending ``states_deg`` of each sample's door state, whether it is one):
     an opening <= 0 (no state allowed) takes the narrowest state; an opening that is no state
-    (or NaN) is flagged False (its index is then meaningless).  One compiled pass: ~10x
-    numpy's searchsorted, where and compare (0.08 against 0.8 ms on 47,520 samples), and
-    every sample's door is looked up several times per evaluation."""
+    (or NaN) is flagged False (its index is then meaningless).  One compiled pass instead of
+    numpy's searchsorted, where and compare (faster; docs/performance.md), as every sample's
+    door is looked up several times per evaluation."""
     states = np.ascontiguousarray(states_deg, dtype=float)
     if states.ndim != 1 or states.size == 0:
         raise ValueError(f"door states must be a non-empty 1-d sequence, got {states_deg!r}")

@@ -164,8 +164,8 @@ class MoonlitEarth:
             return BandRates()
         # a coarse grid is enough where a line of sight can be observable (>= the dark-limb angle
         # above the limb).  Nearer the limb and below it no Earth grid converges (blocks next to
-        # the field edge meet the PST's jump), so the configured grid would cost 5x for numbers
-        # no better than indicative: the coarse grid runs there too.
+        # the field edge meet the PST's jump), so the configured grid would cost several times
+        # more for numbers no better than indicative: the coarse grid runs there too.
         at = np.flatnonzero(need)  # among the samples considered
         sub = TelescopeFrame(*(rows_at(a, shape, at if cand is None else np.take(cand, at))
                                for a in (frame.x, frame.y, frame.z)))

@@ -133,8 +133,8 @@ class OffFieldStars:
         cache folder, :func:`~straylight.util.io.cache_dir`), keyed by a digest of every number
         they are computed from (lines of sight, stars, fluxes, the PST table, the field and the
         kernel's :data:`FAINT_MAP_FORMAT`), and read back when the same map is asked again: a
-        footprint's map (the cube's, ~11 CPU s at nside 32) is the same for every campaign
-        with the same catalog and instrument."""
+        footprint's map (the cube's, a long sum) is the same for every campaign with the same
+        catalog and instrument."""
         import hashlib
 
         los = np.asarray(los, float)
@@ -322,7 +322,8 @@ class OffFieldStars:
     #: :meth:`star_cells`' bounds: the cosine nodes of its PST table, and the bins (per dex,
     #: from this many dex below the smallest budget) whose sums decide which stars are skipped.
     #: Coarser bins skip fewer stars (whole bins only): at 25 per dex (10 % wide) the default
-    #: catalog's cells list ~3 % more entries than sorting every bound would, and build far faster
+    #: catalog's cells list a few per cent more entries than sorting every bound would, and build
+    #: far faster
     STAR_BOUND_COS_NODES = 2_000_001
     STAR_BOUND_BINS_PER_DEX = 25
     STAR_BOUND_DEPTH_DEX = 8

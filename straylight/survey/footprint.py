@@ -54,7 +54,7 @@ def pixel_block_length(n_pixels: int, block_size: int) -> int:
 
 
 def pixel_centres(nside: int, nest: bool, pixels=None) -> tuple[np.ndarray, np.ndarray]:
-    # healpy where it is used (its import takes ~0.45-0.8 s): the jobs that read a footprint
+    # healpy where it is used (a slow import): the jobs that read a footprint
     # from a store (footprint_from_store) do without it
     from straylight.util.healpix import healpy
 

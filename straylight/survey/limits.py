@@ -1,4 +1,4 @@
-"""5-sigma point-source limiting magnitudes (issue #6).
+"""5-sigma point-source limiting magnitudes.
 
 For a band with n exposures of t seconds (total T = n t), a point source of AB magnitude m gives
 S = f80 F(m) T electrons inside the 80 % encircled-energy aperture (radius r80, N_pix pixels),
@@ -127,8 +127,8 @@ _EXPOSURES: dict = {}
 
 def campaign_exposures(campaign: Campaign, bands=None) -> list:
     """Each band's :func:`survey_exposure` (the campaign's bands by default), kept per campaign
-    object: loading the throughput curves costs ~ms, and the cube's workers need them for every
-    region."""
+    object: loading the throughput curves reads and integrates files, and the cube's workers
+    need them for every region."""
     bands = tuple(str(b) for b in (campaign.bands if bands is None else bands))
     kept = _EXPOSURES.get((id(campaign), bands))
     if kept is None or kept[0] is not campaign:
@@ -145,8 +145,8 @@ def limit_summaries(limiting_mag, observable) -> tuple[np.ndarray, np.ndarray]:
     count), each (pixel, band) float32, NaN where a pixel is never observable.  The one way the
     products compute them.  Pixel by pixel on its observable times only, with ``np.median``'s
     partition (the same values as ``np.nanmedian`` over the times with the others masked as NaN,
-    which goes row by row through ``apply_along_axis`` for 600 or more times: on a month of
-    8640 times x 660 pixels x 7 bands, 15 % observable, 0.07 against 0.6 CPU s)."""
+    which goes row by row through ``apply_along_axis`` for 600 or more times, several times
+    slower; docs/performance.md)."""
     import warnings
 
     limiting_mag = np.asarray(limiting_mag)
@@ -183,10 +183,10 @@ SUMMARY_VARIABLES = ("limiting_mag_best", "limiting_mag_median", "observable_fra
 #: decoded bytes of limits per task of :func:`store_limit_summaries` at most (a month at
 #: 5-minute cadence x 660 pixels x 7 bands, float32, is 160 MB: one cube pixel block a task)
 SUMMARY_TASK_BYTES = 256 * 2**20
-#: decoded bytes of limits that justify one more process for the summaries: a spawned process
-#: costs ~1.5 CPU s to start (importing straylight), and the summaries take ~2.5 CPU ns a
-#: decoded byte (decoding and the medians: 0.35 s for 8640 times x 660 pixels x 7 bands), so a
-#: month at nside 32 (1.3 GB: 3.3 CPU s) is summarised in the job's own process
+#: decoded bytes of limits that justify one more process for the summaries: a spawned process's
+#: start (importing straylight) costs as much CPU as decoding and summarising several hundred MB
+#: of limits, so a month at nside 32 (1.3 GB) is summarised in the job's own process (the
+#: figures: docs/performance.md)
 SUMMARY_BYTES_PER_PROCESS = 2 * 2**30
 
 
@@ -289,7 +289,7 @@ def limits_dataset(campaign: Campaign, background, limiting_mag=None) -> "xr.Dat
     whole_times = {"time": -1, "pixel": SUMMARY_PIXELS_PER_TASK}
     lazy = lim.chunks is not None or observable.chunks is not None
     # dask's task rechunk, named: left to choose, dask imports distributed to look for a
-    # cluster (~0.3 s of every process that lays down a skeleton)
+    # cluster (a slow import in every process that lays down a skeleton)
     with dask_rechunk_by_tasks():
         lim_t, obs_t = (lim.chunk(whole_times), observable.chunk(whole_times)) if lazy else (lim, observable)
     summary = xr.apply_ufunc(best_and_median, lim_t, obs_t,

@@ -1,4 +1,4 @@
-"""Per-pointing background table for a list of planned pointings and times (issue #8).
+"""Per-pointing background table for a list of planned pointings and times.
 
 ``straylight sky --input pointings.csv --out table.parquet``: each row of the input (columns
 ``time`` (UTC ISO 8601), ``ra`` and ``dec`` (ICRS deg); ``ra_deg``/``dec_deg``/``utc`` accepted) gets

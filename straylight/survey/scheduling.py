@@ -1,4 +1,4 @@
-"""Scheduling tables for the survey planners (issue #8 item 2; seed paper sects. 3.1-3.3 ask for
+"""Scheduling tables for the survey planners (seed paper sects. 3.1-3.3 ask for
 avoidance angles set by the stray light rather than fixed ones).
 
 All three are computed against the darkest zodiacal background of each band (the Leinert 1998

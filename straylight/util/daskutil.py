@@ -28,8 +28,8 @@ def worker_environment() -> dict:
     process's start).  One thread per worker for OpenMP, MKL and OpenBLAS, as Dask's nanny sets
     them: the workers are the parallelism.  Dask starts workers with MALLOC_TRIM_THRESHOLD_=65536,
     which also freezes glibc's mmap threshold at 128 KiB: every array temporary of the earthshine
-    sum (~10 MB) is then mmapped and page-faulted afresh, making the cube 3x slower in a worker
-    than in a plain process (measured: 8.3 s against 2.6 s per 330-pixel x 24-time chunk).
+    sum (~10 MB) is then mmapped and page-faulted afresh, making the cube several times slower in
+    a worker than in a plain process (docs/performance.md).
     Temporaries up to 32 MiB come from the heap instead, and only more than 256 MiB of free
     heap is handed back."""
     return {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
@@ -199,8 +199,8 @@ def stop_on_signals(signals=(signal.SIGINT, signal.SIGTERM)):
 def exit_without_teardown(code: int = 0) -> None:
     """End this process now with status ``code``: logging's handlers and the standard streams
     flushed, then ``os._exit``, skipping the interpreter's teardown of its modules and objects,
-    0.2-0.8 s in a process that has loaded the model, xarray or matplotlib (measured on the
-    development machine) that a Snakemake job's or a pool's caller would wait for.  Only once
+    which is slow in a process that has loaded the model, xarray or matplotlib and which a
+    Snakemake job's or a pool's caller would wait for (docs/performance.md).  Only once
     the process's work is done: every file it wrote closed (and renamed into place), every
     child process joined."""
     import logging
@@ -226,7 +226,7 @@ def call_by_name(target: str, *args):
 
 def dask_rechunk_by_tasks():
     """A context in which dask rechunks by tasks, its choice outside a distributed cluster, without
-    importing distributed to find that out (~0.3 s)."""
+    importing distributed (a slow import) to find that out."""
     import dask
 
     return dask.config.set({"array.rechunk.method": "tasks"})

@@ -2,20 +2,15 @@
 
 It computes exactly what ``scipy.interpolate.RegularGridInterpolator(method="linear")`` computes
 (tests/util/test_gridinterp.py checks agreement to 1e-12), faster on the earthshine sum's millions
-of points per time step (measured in the cube: 0.7 s instead of 1.0 s for the PST and door
-look-ups of 2 x 1320 lines of sight x 1152 Earth blocks): scipy locates cells with a binary
-search and validates its input on every call; here each axis gets, once, a table of bins of
-uniform width no wider than its narrowest cell, so a point's cell is one multiplication, one
-look-up and one comparison (on an evenly spaced axis, one multiplication).  The look-ups are
-compiled (numba, :func:`_interpolate`): one pass per point instead of numpy's pass per
-operation, 4-5x faster on a table of four axes (80 instead of 440 ns a point, two channels,
-15,840 points), the same numbers bit for bit (the cube's totals compared array to array).
-On two to four axes the corners are then combined as nested linear steps written out, not a
-loop over corners: inside a cube batch (15,840 samples) the sunlit table's look-ups take 1.1
-instead of 1.9 ms, the moonlit table's 0.9 instead of 1.25 ms, the zodiacal light's 0.3
-instead of 0.5 ms, the batch 24.2 instead of 26.1 ms (interleaved runs); the values differ from the corner
-sum's by rounding (~1e-15 on values of order 1) and the cube's float32 totals not at all
-(the 12 x 1320 batch, array to array).
+of points per time step: scipy locates cells with a binary search and validates its input on every
+call; here each axis gets, once, a table of bins of uniform width no wider than its narrowest cell,
+so a point's cell is one multiplication, one look-up and one comparison (on an evenly spaced axis,
+one multiplication).  The look-ups are compiled (numba, :func:`_interpolate`): one pass per point
+instead of numpy's pass per operation, the same numbers bit for bit (the cube's totals compared
+array to array).  On two to four axes the corners are then combined as nested linear steps written
+out, not a loop over corners (fewer operations a point); the values differ from the corner sum's by
+rounding (~1e-15 on values of order 1) and the cube's float32 totals not at all (compared array to
+array).  The speed-ups are in docs/performance.md.
 
 Points outside the grid are clipped to its edges (callers clip or wrap before: theta 0-180,
 phi periodic).  NaN inputs give NaN.
@@ -59,8 +54,8 @@ def _interpolate(points, lo, hi, uniform, inv_width, n_bins, bin_cell, nodes, n_
     only where the point lies within rounding of a node, and t is then ~1 in the cell below
     (or ~0 just below the node): the same value to rounding (1e-15; tests/util/test_gridinterp.py).
     Then the cell's corners: on two, three and four axes written out as nested linear steps,
-    the last axis first (the cube's PST, door, zodiacal and earthshine tables: 2.1x faster than
-    the general loop over corners on the sunlit table, which stays for other dimensions).
+    the last axis first (the cube's PST, door, zodiacal and earthshine tables: faster than the
+    general loop over corners, which stays for other dimensions).
     ``channel``: per point, the group of ``out.shape[1]`` consecutive channels it takes, or
     empty for all channels; ``group_rows``: 0 when a node's row holds every group's channels
     (the group is a column offset), else the rows per group (``flat`` stored group-major: the
@@ -152,8 +147,8 @@ class LinearGrid:
     grid, e.g. a table's direct and door terms: located once, interpolated together; the result
     then ends in those dimensions).  Call with n broadcastable arrays.  ``channel_group`` g:
     the grid is only ever read g channels at a time (``channel=..., group=g``: each sample its
-    own door state's pair), so it is stored group-major: 1.4 % faster on a production cube
-    region (the earthshine tables, 14-25 MB), the same values bit for bit."""
+    own door state's pair), so it is stored group-major (a point's corners then read only its
+    group's channels, fewer bytes from a table of tens of MB), the same values bit for bit."""
 
     def __init__(self, axes, values, channel_group: int | None = None):
         self.axes = [AxisCells(a) for a in axes]

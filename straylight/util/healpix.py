@@ -3,7 +3,7 @@
 healpy imports its plotting functions (``healpy.visufunc``: matplotlib's axes and fonts) only
 when ``import matplotlib`` succeeds.  A pipeline job or worker that computes (the footprint, the
 cube's workers, the limits' FITS maps, the workflow's own parse) needs none of them, and
-importing them costs ~0.35 s of the ~0.8 s ``import healpy`` takes on the development machine.
+importing them is nearly half of ``import healpy``'s time (docs/performance.md).
 Such a process opts in with :func:`load_without_plotting` at its start; everywhere else (the
 Python API, a notebook) :func:`healpy` is ``import healpy``.  The figures import
 ``healpy.visufunc`` or ``healpy.projaxes`` by name, which works either way.

@@ -71,7 +71,7 @@ def campaign(snakemake):
 
 def end_job() -> None:
     """The job's last step: its process ends at once, without the interpreter's teardown of the
-    modules it loaded (0.2-0.8 s, which Snakemake waits for before starting the next job);
+    modules it loaded (slow, and Snakemake waits for it before starting the next job);
     the logs are flushed first (straylight.util.daskutil.exit_without_teardown)."""
     from straylight.util.daskutil import exit_without_teardown
 
