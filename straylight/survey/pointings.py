@@ -98,13 +98,15 @@ def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int
     """Columns of the per-pointing background table (see the module docstring); ``models``, if
     given, receives the record of which models ran and their error budget; ``model``: the
     campaign's :class:`~straylight.model.BackgroundModel` when the caller keeps one warm, or a
-    function giving it, called once the scene is computed (else one is built for this table).  The satellite and the bodies are computed once per
-    distinct time, for all of them at once; the samples are evaluated ``batch`` at a time."""
+    function giving it, called once the scene is computed (else one is built for this table).
+    The satellite and the bodies are computed once per distinct time, for all of them at once;
+    the samples are evaluated ``batch`` at a time (:func:`~straylight.model.pointing.background_at`)."""
     from straylight.model import BackgroundModel
+    from straylight.model.pointing import background_at
     from straylight.sky.ephemeris import default_ephemeris
     from straylight.sky.vectors import radec_to_unit
     from straylight.survey.limits import point_source_limit
-    from straylight.sky.observing import Scene, sample_geometry, scene
+    from straylight.sky.observing import scene
     from straylight.sky.timeutil import parse_utc, utc_to_tdb_jd
 
     from astropy.time import Time
@@ -121,7 +123,6 @@ def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int
             for i, v in enumerate(iso):
                 parse_utc(v, f"{source} row {i + 1}: time")
             raise
-    n_rows = len(t_all)
     if iso is not None:
         eph = default_ephemeris()
         jd1, jd2 = utc_to_tdb_jd(t_all)
@@ -151,16 +152,14 @@ def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int
     for a in range(0, n, batch):
         sl = slice(a, min(a + batch, n))
         at = inverse[sl]
-        sc = Scene(times=t_all[sl], satellite_km=distinct.satellite_km[at],
-                   bodies_km={k: v[at] for k, v in distinct.bodies_km.items()})
-        g = sample_geometry(sc, pointings["ra"][sl], pointings["dec"][sl], campaign.earth.radius_km,
-                            campaign.constraints, grid=False)
-        los = radec_to_unit(pointings["ra"][sl], pointings["dec"][sl])
-        res = model.evaluate(sc.satellite_km, sc.bodies_km, np.atleast_2d(los), g, bands, stars)
+        los = np.atleast_2d(radec_to_unit(pointings["ra"][sl], pointings["dec"][sl]))
+        g, res = background_at(model, distinct.satellite_km, distinct.bodies_km, los, bands, scene_index=at,
+                               stars=stars)
+        sat, bodies_km = distinct.satellite_km[at], {k: v[at] for k, v in distinct.bodies_km.items()}
         for k in geo_keys:
             acc[k].append(np.asarray(g[k]))
         # the brightest Sun, Moon or planet inside the field (a point source, not in the background)
-        bodies = model.in_field.find(sc.satellite_km, sc.bodies_km, np.atleast_2d(los), g, [])
+        bodies = model.in_field.find(sat, bodies_km, los, g, [])
         v_in = np.stack([np.where(v["in_field"], v["v_mag"], np.inf) for v in bodies.values()])
         brightest = np.argmin(v_in, axis=0)
         names = np.array(list(bodies), dtype=object)
