@@ -159,6 +159,12 @@ class Campaign:
         return self.config["campaign"]["name"]
 
     @cached_property
+    def settings(self) -> "Settings":
+        """The campaign's sections, typed (:class:`Settings`): read ``settings.stars.faint_map``,
+        not the raw config."""
+        return settings_from_config(self.config)
+
+    @cached_property
     def earth(self):
         from straylight.sky.orbit import EarthModel
 
@@ -406,3 +412,191 @@ def deep_merge(base: dict, over: dict) -> dict:
 
 
 __all__ = ["Campaign", "load_campaign", "campaign_from_dict", "resolve_config_files", "load_instrument", "validate", "StraylightError"]
+
+
+# --- typed settings: the campaign's sections parsed once, defaults from the schema only -------
+
+
+@dataclass(frozen=True)
+class CampaignSection:
+    """``campaign``: the campaign's name, UTC span (start inclusive, end exclusive, ISO text),
+    cadence (s) and time block (h)."""
+
+    name: str
+    start: str
+    end: str
+    cadence_s: float
+    time_block_hours: float
+
+
+@dataclass(frozen=True)
+class FootprintSection:
+    """``footprint``: the HEALPix grid (nside, ordering, frame), the latitude cuts (deg), a
+    user's mask file, and the pixels per Zarr chunk and Dask task."""
+
+    nside: int
+    ordering: str
+    frame: str
+    galactic_latitude_min_deg: float
+    ecliptic_latitude_min_deg: float
+    mask_file: str | None
+    pixel_block_size: int
+
+
+@dataclass(frozen=True)
+class StarsSection:
+    """``stars``: the catalog's inputs and cuts (mag), and how the off-field stars are summed."""
+
+    gaia_files: tuple
+    g_limit_mag: float
+    hipparcos: str
+    match_radius_arcsec: float
+    template_classes: tuple
+    population_file: str | None
+    btsettl_files: tuple
+    offfield_mag_limit: float
+    faint_map: bool
+
+
+@dataclass(frozen=True)
+class EarthshineLUTSteps:
+    """``models.earthshine.lut``: the sunlit table's node steps (deg) and radius nodes."""
+
+    sun_zenith_step_deg: float
+    los_zenith_step_deg: float
+    azimuth_step_deg: float
+    n_radius: int
+
+
+@dataclass(frozen=True)
+class MoonlitLUTSteps:
+    """``models.earthshine.moonlit_lut``: the moonlit table's node steps, deg."""
+
+    moon_zenith_step_deg: float
+    los_zenith_step_deg: float
+    azimuth_step_deg: float
+    roll_step_deg: float
+
+
+@dataclass(frozen=True)
+class EarthshineSection:
+    """``models.earthshine``: the Earth's albedo, the Earth and door grids, the method and the
+    tables' steps."""
+
+    albedo: float
+    n_gamma: int
+    n_psi: int
+    door_blocks: tuple
+    n_aperture_door: int
+    moonlit_grid: tuple
+    moonlit_method: str
+    moonlit_lut: MoonlitLUTSteps
+    method: str
+    lut: EarthshineLUTSteps
+
+
+@dataclass(frozen=True)
+class ModelsSection:
+    """``models``: the zodiacal spectrum, the Moon's phase law and eclipse factor, the
+    earthshine, the tolerance (fraction of the total) and what unobservable samples get."""
+
+    zodiacal_spectrum: str
+    moon_phase_law: str
+    moon_eclipse_factor: float
+    earthshine: EarthshineSection
+    tolerance: float
+    unobservable_samples: str
+
+
+@dataclass(frozen=True)
+class ReportSection:
+    """``report``: the report's maps (times, bands) and time series (pointings)."""
+
+    sky_map_times: int
+    sky_map_bands: tuple | None
+    series_pointings: int
+    times: tuple
+    pointings: tuple
+
+
+@dataclass(frozen=True)
+class SchedulingSection:
+    """``scheduling``: the scheduling tables' threshold, a fraction of the zodiacal light."""
+
+    fraction_of_zodiacal: float
+
+
+@dataclass(frozen=True)
+class StorageSection:
+    """``storage``: the products' kept mantissa bits and Blosc level."""
+
+    float_keepbits: int
+    magnitude_keepbits: int
+    blosc_clevel: int
+
+
+@dataclass(frozen=True)
+class ComputeSection:
+    """``compute``: a Dask scheduler's address, a measured pipeline rate (samples/s/core) for
+    ``straylight plan``, and time blocks per Snakemake job."""
+
+    dask_scheduler: str | None = None
+    pipeline_samples_per_s_per_core: float | None = None
+    time_blocks_per_job: int | None = None
+
+
+@dataclass(frozen=True)
+class Settings:
+    """A campaign's settings, typed: every section of config/schema/config.schema.yaml but the
+    Earth and the orbit (:attr:`Campaign.earth`, :attr:`Campaign.orbit`) and the instrument's
+    path.  Built once from the validated config with the schema's defaults filled in
+    (:func:`settings_from_config`); read as ``campaign.settings.stars.faint_map``."""
+
+    campaign: CampaignSection
+    footprint: FootprintSection
+    stars: StarsSection
+    models: ModelsSection
+    report: ReportSection
+    scheduling: SchedulingSection
+    storage: StorageSection
+    compute: ComputeSection
+
+
+def _typed(cls, node: dict, where: str):
+    """A settings dataclass from a config mapping: nested sections recursively, lists as tuples.
+    Keys the class does not declare are ignored (the schema checks them); a key it declares and
+    the config lacks is taken from the class's default or is an error naming it."""
+    import dataclasses
+    import typing
+
+    hints = typing.get_type_hints(cls)
+    values = {}
+    for f in dataclasses.fields(cls):
+        if f.name not in node:
+            if f.default is dataclasses.MISSING:
+                raise ConfigError(f"{where}.{f.name}: missing (no default in the schema)")
+            continue
+        v, hint = node[f.name], hints[f.name]
+        if dataclasses.is_dataclass(hint):
+            v = _typed(hint, v or {}, f"{where}.{f.name}")
+        elif isinstance(v, list):
+            v = tuple(tuple(x) if isinstance(x, list) else x for x in v)
+        elif isinstance(v, int) and not isinstance(v, bool) and hint in (float, float | None):
+            v = float(v)  # YAML's 300 for a number of seconds
+        values[f.name] = v
+    return cls(**values)
+
+
+def settings_from_config(config: dict) -> Settings:
+    """:class:`Settings` from a campaign config validated and completed by the schema
+    (:func:`apply_defaults`).
+
+    Raises
+    ------
+    ConfigError
+        For a section or key the schema gives no default for and the config lacks.
+    """
+    import typing
+
+    return Settings(**{name: _typed(cls, config.get(name) or {}, name)
+                       for name, cls in typing.get_type_hints(Settings).items()})
