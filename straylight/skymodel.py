@@ -102,9 +102,9 @@ class SkyModel:
             if key not in self._stars:
                 from straylight.sources.stars import load_offfield_stars
 
-                sc = self.campaign.config["stars"]
-                self._stars[key] = load_offfield_stars(self.catalog, bands, float(sc["offfield_mag_limit"]),
-                                                       bool(sc.get("faint_map", True)))
+                sc = self.campaign.settings.stars
+                self._stars[key] = load_offfield_stars(self.catalog, bands, float(sc.offfield_mag_limit),
+                                                       sc.faint_map)
             return self._stars[key]
 
 

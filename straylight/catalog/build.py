@@ -301,29 +301,29 @@ def catalog_for_campaign(campaign, gaia_stars: dict | None = None) -> tuple[dict
     from straylight._version import __version__
     from straylight.optics.bandpass import load_band
 
-    sc = campaign.config["stars"]
+    sc = campaign.settings.stars
     base = campaign.path.parent
     responses = {b: load_band(campaign.instrument, b, campaign.instrument_path.parent).response
                  for b in campaign.bands}
     library = None
-    if sc.get("btsettl_files"):
+    if sc.btsettl_files:
         from straylight.catalog.sed import load_btsettl
 
-        library = load_btsettl([p if str(p).startswith("/") else base / p for p in sc["btsettl_files"]])
+        library = load_btsettl([p if str(p).startswith("/") else base / p for p in sc.btsettl_files])
     population = None
-    if sc.get("population_file"):
-        p = sc["population_file"]
+    if sc.population_file:
+        p = sc.population_file
         population = read_population(p if str(p).startswith("/") else base / p)
     columns, summary = make_catalog(
-        responses, gaia_stars=gaia_stars, g_limit_mag=float(sc["g_limit_mag"]), hipparcos=sc["hipparcos"],
-        match_radius_arcsec=float(sc["match_radius_arcsec"]),
-        template_classes=None if library is not None else tuple(sc["template_classes"]),
+        responses, gaia_stars=gaia_stars, g_limit_mag=float(sc.g_limit_mag), hipparcos=sc.hipparcos,
+        match_radius_arcsec=float(sc.match_radius_arcsec),
+        template_classes=None if library is not None else tuple(sc.template_classes),
         population=population, library=library)
     metadata = {"straylight_version": __version__, "campaign": campaign.name,
                 # the file name and content digest, not the absolute path: the product's bytes must
                 # not depend on where the campaign runs (determinism check, tests/survey/test_cube.py)
                 "config": campaign.path.name, "config_sha256": sha256_path(campaign.path),
-                "stars_settings": sc, "summary": summary,
+                "stars_settings": campaign.config["stars"], "summary": summary,
                 "magnitude_systems": "mag_<band>: AB through the instrument's throughput; G, BP, RP: Gaia DR2 Vega",
                 "flags": {"1": "SDSS g relation outside validity", "2": "SDSS r outside validity",
                           "4": "SDSS i outside validity", "8": "BP-RP beyond the template range",

@@ -193,7 +193,7 @@ class BackgroundModel:
 
     def models_record(self) -> dict:
         """Which models ran and their error budget, for a product's attributes (JSON-able)."""
-        sc = self.campaign.config["stars"]
+        sc = self.campaign.settings.stars
         policy, tolerance = self.policy, self.policy.tolerance
         es = self.sunlit_earth.record()
         shares, lut_runs = ERROR_BUDGET_SHARES, es["method"] == "lut"
@@ -206,8 +206,8 @@ class BackgroundModel:
                 "moonlit_earthshine": moonlit.record(lut_runs),
                 "earthshine_near_limb": ("indicative only within the dark-limb angle of the limb and below it "
                                          "(never observable; no Earth grid converges there)"),
-                "stars": {"direct_mag_limit": float(sc.get("offfield_mag_limit", 2.0)),
-                          "faint_map": bool(sc.get("faint_map", True)),
+                "stars": {"direct_mag_limit": float(sc.offfield_mag_limit),
+                          "faint_map": sc.faint_map,
                           "direct_skipped": (f"per sky cell and floor level, the stars of smallest bound, "
                                              f"together < {shares['stars_skip']:g} x tolerance x the "
                                              f"sample's floor")},

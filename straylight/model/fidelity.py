@@ -29,7 +29,7 @@ LUT_SAVED_SECONDS_PER_SAMPLE = 0.08e-3
 def unobservable_samples(campaign) -> str:
     """models.unobservable_samples of a campaign: 'evaluate' (every cube sample gets its
     background) or 'skip' (samples that break a constraint get NaN in every component)."""
-    return str(campaign.config["models"].get("unobservable_samples", "evaluate"))
+    return campaign.settings.models.unobservable_samples
 
 
 @dataclass
@@ -44,7 +44,7 @@ class FidelityPolicy:
     @cached_property
     def tolerance(self) -> float:
         """models.tolerance: the error allowed to the fast paths together, a fraction of the total."""
-        return float(self.campaign.config["models"].get("tolerance", 0.01))
+        return float(self.campaign.settings.models.tolerance)
 
     def share(self, name: str) -> float:
         """Fast path ``name``'s share of the tolerance (:data:`ERROR_BUDGET_SHARES`)."""

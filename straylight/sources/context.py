@@ -87,7 +87,7 @@ class SourceContext:
     def zodiacal(self) -> ZodiacalModel:
         """The zodiacal-light model (models.zodiacal_spectrum)."""
         return zodiacal_model_from_instrument(self.campaign.instrument,
-                                              self.campaign.config["models"].get("zodiacal_spectrum", "solar_leinert"))
+                                              self.campaign.settings.models.zodiacal_spectrum)
 
     @cached_property
     def offfield(self) -> OffFieldModel:
@@ -97,7 +97,8 @@ class SourceContext:
         pst_file = inst.get("pst", {}).get("file")
         if pst_file and not Path(pst_file).is_absolute():
             pst_file = self.campaign.instrument_path.parent / pst_file
-        es = self.campaign.config["models"].get("earthshine", {})
+        models = self.campaign.settings.models
+        es = models.earthshine
         dg = inst.get("door_geometry", {})
         field_radius_deg = float(np.sqrt(self.campaign.instrument_value("detector", "field_of_view_deg2") / np.pi))
         return OffFieldModel(
@@ -108,13 +109,12 @@ class SourceContext:
             pixel_etendue_m2_sr=self.zodiacal.pixel_etendue_m2_sr,
             field_radius_deg=field_radius_deg,
             earthshine=EarthshineSettings(
-                n_gamma=int(es.get("n_gamma", 24)), n_psi=int(es.get("n_psi", 48)),
-                albedo=float(es.get("albedo", 0.3)), door_blocks=tuple(es.get("door_blocks", (24, 24))),
+                n_gamma=es.n_gamma, n_psi=es.n_psi, albedo=float(es.albedo), door_blocks=es.door_blocks,
                 door_reflectance=float(dg["reflectance"]["value"]) if "reflectance" in dg else 0.05,
-                n_aperture_door=int(es.get("n_aperture_door", 256)),
+                n_aperture_door=es.n_aperture_door,
             ),
-            moon_law=self.campaign.config["models"].get("moon_phase_law", "krisciunas_schaefer"),
-            moon_eclipse_factor=float(self.campaign.config["models"].get("moon_eclipse_factor", 1e-4)),
+            moon_law=models.moon_phase_law,
+            moon_eclipse_factor=float(models.moon_eclipse_factor),
         )
 
     @cached_property

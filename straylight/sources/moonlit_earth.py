@@ -33,19 +33,19 @@ class MoonlitEarth:
     @cached_property
     def grid(self) -> tuple[int, int]:
         """models.earthshine.moonlit_grid: (n_gamma, n_psi) of the coarse Earth grid."""
-        return tuple(int(n) for n in self.context.campaign.config["models"].get("earthshine", {}).get("moonlit_grid",
-                                                                                                       (8, 16)))
+        return tuple(int(n) for n in self.context.campaign.settings.models.earthshine.moonlit_grid)
 
     def settings(self):
         """The table's :class:`~straylight.sources.earthshine_table_build.MoonlitSettings` from the config,
         or None when the moonlit Earth is summed directly (moonlit_method = direct)."""
         from straylight.sources.earthshine_table_build import MoonlitSettings
 
-        es = self.context.campaign.config["models"].get("earthshine", {})
-        if es.get("moonlit_method", "lut") == "direct":
+        es = self.context.campaign.settings.models.earthshine
+        if es.moonlit_method == "direct":
             return None
-        # the keys are checked by the schema
-        return MoonlitSettings(**{k: float(v) for k, v in es.get("moonlit_lut", {}).items()})
+        steps = es.moonlit_lut
+        return MoonlitSettings(float(steps.moon_zenith_step_deg), float(steps.los_zenith_step_deg),
+                               float(steps.azimuth_step_deg), float(steps.roll_step_deg))
 
     def node_states(self) -> int:
         """How many (node, door state) pairs the table sums, each a coarse Earth-grid sum; 0

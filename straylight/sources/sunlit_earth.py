@@ -55,17 +55,15 @@ class SunlitEarth:
         known once it is built, exceeds its share of the tolerance."""
         from straylight.sources.earthshine_table_build import LUTSettings
 
-        es = self.context.campaign.config["models"].get("earthshine", {})
-        method = es.get("method", "auto")
+        es = self.context.campaign.settings.models.earthshine
+        method = es.method
         if method == "direct":
             return {"method": "direct", "requested": method, "reason": "models.earthshine.method = direct",
                     "settings": None, "node_states": 0, "build_seconds_estimate": 0.0,
                     "moonlit_build_seconds_estimate": 0.0}
-        lut_cfg = es.get("lut", {})
-        settings = LUTSettings(float(lut_cfg.get("sun_zenith_step_deg", 0.5)),
-                               float(lut_cfg.get("los_zenith_step_deg", 1.0)),
-                               float(lut_cfg.get("azimuth_step_deg", 2.5)),
-                               int(lut_cfg.get("n_radius", 1)))
+        steps = es.lut
+        settings = LUTSettings(float(steps.sun_zenith_step_deg), float(steps.los_zenith_step_deg),
+                               float(steps.azimuth_step_deg), int(steps.n_radius))
         node_states = self.node_states(settings)
         build_s, moonlit_s = self.policy.tables_build_seconds(node_states, self.moonlit.node_states())
         chosen, reason = self.policy.earthshine_method(method)

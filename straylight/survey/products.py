@@ -15,13 +15,9 @@ import xarray as xr
 from straylight.config import Campaign
 from straylight.sky.ephemeris import BODIES
 from straylight.survey.footprint import Footprint, footprint_from_config
-from straylight.sky.geometry import (
-    earth_blocks,
-    moon_phase,
-    observing_geometry,
-    radec_to_unit,
-    violation_mask_attrs,
-)
+from straylight.sky.geometry import moon_phase, observing_geometry, violation_mask_attrs
+from straylight.sky.limb import earth_blocks
+from straylight.sky.vectors import radec_to_unit
 from straylight.sky.observing import scene
 from straylight.survey.timegrid import time_blocks
 
@@ -35,7 +31,7 @@ def _var(data, dims, units, long_name, **extra):
 def ephemeris_dataset(campaign: Campaign) -> xr.Dataset:
     """The campaign's time grid with DE405 body positions and the satellite's orbit."""
     t = campaign.times
-    sc = scene(campaign, t)
+    sc = scene(campaign.orbit, t)
     sat = sc.satellite_km
     sun, moon = sc.bodies_km["sun"], sc.bodies_km["moon"]
     body_pos = np.stack([sc.bodies_km[b] for b in BODIES], axis=1)
@@ -71,7 +67,7 @@ def ephemeris_dataset(campaign: Campaign) -> xr.Dataset:
             "campaign": campaign.name,
             "ephemeris": "JPL DE405 (PyPI de405), Chebyshev evaluation by straylight.sky.ephemeris",
             "orbit_model": campaign.config["orbit"]["model"],
-            "cadence_s": float(campaign.config["campaign"]["cadence_s"]),
+            "cadence_s": float(campaign.settings.campaign.cadence_s),
         },
     )
     return ds
@@ -80,9 +76,9 @@ def ephemeris_dataset(campaign: Campaign) -> xr.Dataset:
 def footprint_products(campaign: Campaign) -> tuple[Footprint, dict]:
     """The footprint and the work plan (pixel blocks by time blocks) as a JSON-able dict."""
     fp = footprint_from_config(campaign.config["footprint"], campaign.path.parent)
-    c = campaign.config["campaign"]
-    t_blocks = time_blocks(len(campaign.times), float(c["cadence_s"]), float(c.get("time_block_hours", 6)))
-    p_blocks = fp.blocks(int(campaign.config["footprint"].get("pixel_block_size", 1024)))
+    c = campaign.settings.campaign
+    t_blocks = time_blocks(len(campaign.times), c.cadence_s, float(c.time_block_hours))
+    p_blocks = fp.blocks(campaign.settings.footprint.pixel_block_size)
     plan = {
         "campaign": campaign.name,
         "nside": fp.nside,
