@@ -42,7 +42,9 @@ def best_seconds(fn) -> float:
 
 def limb_numpy(r, los, sun, earth_radius_km):
     """geometry.limb_geometry as it was in numpy (ca4022e): (limb, zenith, lit, bright, dark)."""
-    from straylight.sky.geometry import _limb_scene, dot, norm, perpendicular_towards, scene_runs, unit
+    from straylight.sky.limb import _limb_scene
+    from straylight.sky.runs import scene_runs
+    from straylight.sky.vectors import dot, norm, perpendicular_towards, unit
 
     los = unit(los)
     runs = scene_runs(r, sun)
@@ -74,7 +76,7 @@ def limb_numpy(r, los, sun, earth_radius_km):
 
 def theta_phi_numpy(frame, d):
     """TelescopeFrame.theta_phi_deg as it was in numpy, on gathered directions d (B, N, 3)."""
-    from straylight.sky.geometry import dot
+    from straylight.sky.vectors import dot
 
     dx, dy, dz = dot(d, frame.x), dot(d, frame.y), dot(d, frame.z)
     theta = np.degrees(np.arctan2(np.hypot(dx, dy), dz))
@@ -87,14 +89,17 @@ def main() -> int:
     from straylight.config import load_campaign
     from straylight.survey.cube import cube_chunks
     from straylight.survey.footprint import footprint_from_config
-    from straylight.sky.geometry import limb_geometry, radec_to_unit, scene_runs, telescope_frame, unit
+    from straylight.sky.frames import telescope_frame
+    from straylight.sky.limb import limb_geometry
+    from straylight.sky.runs import scene_runs
+    from straylight.sky.vectors import radec_to_unit, unit
     from straylight.sky.observing import scene
 
     campaign = load_campaign()
     fp = footprint_from_config(campaign.config["footprint"])
     ch = cube_chunks(campaign, len(campaign.times), int(fp.pixels.size))
     nt, npix = int(ch["time"]), int(ch["pixel"])
-    sc = scene(campaign, campaign.times[:nt])
+    sc = scene(campaign.orbit, campaign.times[:nt])
     step = np.repeat(np.arange(nt), npix)
     sat, sun, moon = sc.satellite_km[step], sc.bodies_km["sun"][step], sc.bodies_km["moon"][step]
     los = np.tile(radec_to_unit(fp.ra_deg[:npix], fp.dec_deg[:npix]), (nt, 1))

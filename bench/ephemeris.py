@@ -32,7 +32,8 @@ def best_of(fn, repeat=3):
 def main():
     from straylight.config import load_campaign
     from straylight.sky.ephemeris import BODIES, DE405
-    from straylight.sky.geometry import observing_geometry, radec_to_unit
+    from straylight.sky.geometry import observing_geometry
+    from straylight.sky.vectors import radec_to_unit
     from straylight.sky.observing import scene
     from straylight.sky.timeutil import utc_to_tdb_jd
 
@@ -54,7 +55,7 @@ def main():
 
     c = load_campaign()
     times = c.times
-    sc = scene(c, times)
+    sc = scene(c.orbit, times)
     rng = np.random.default_rng(1)
     n_pt = 4000
     ra, dec = rng.uniform(0, 360, n_pt), np.degrees(np.arcsin(rng.uniform(-1, 1, n_pt)))

@@ -23,7 +23,7 @@ from _samples import random_samples  # noqa: E402
 def main():
     from straylight.model import BackgroundModel
     from straylight.config import load_campaign
-    from straylight.sky.geometry import telescope_frame
+    from straylight.sky.frames import telescope_frame
     from straylight.sources.photometry import BandPhotometry
     from straylight.sources.offfield import EarthshineSettings
 

@@ -101,12 +101,14 @@ def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None, stars=
     sample."""
     from straylight.model import BackgroundModel
     from straylight.sky.ephemeris import PLANETS
-    from straylight.sky.geometry import radec_to_unit, violation_names
+    from straylight.sky.geometry import violation_names
+    from straylight.sky.vectors import radec_to_unit
     from straylight.survey.limits import point_source_limit, sky_zero_points
     from straylight.sky.observing import sample_geometry, scene
 
-    sc = scene(campaign, time)
-    g = sample_geometry(campaign, sc, np.array([ra_deg]), np.array([dec_deg]), grid=False)
+    sc = scene(campaign.orbit, time)
+    g = sample_geometry(sc, np.array([ra_deg]), np.array([dec_deg]), campaign.earth.radius_km, campaign.constraints,
+                        grid=False)
     v = {k: np.asarray(a).ravel()[0] for k, a in g.items()}
     door = float(v["door_opening_deg"])
     record = {
@@ -174,7 +176,8 @@ def cmd_sky(args) -> int:
     elif args.time is None or args.ra is None or args.dec is None:
         raise InputError("give --time, --ra and --dec, or --input TABLE --out FILE")
     else:
-        from straylight.sky.timeutil import check_in_ephemeris, parse_utc
+        from straylight.sky.ephemeris import check_in_ephemeris
+        from straylight.sky.timeutil import parse_utc
 
         pointing = _pointing(args)
         given, args.time = args.time, parse_utc(args.time, "--time")  # ISO 8601, with or without a UTC offset
@@ -324,7 +327,8 @@ def cmd_image(args) -> int:
     from straylight.image.detector import (RenderSettings, bodies_as_stars, boresight_for_target, focal_plane_from_instrument,
                         render_detector, select_stars, star_fluxes_e_per_s, sun_direction_at, write_fits)
     from straylight.optics.scatter import scatter_model_from_instrument
-    from straylight.sky.timeutil import check_in_ephemeris, parse_utc
+    from straylight.sky.ephemeris import check_in_ephemeris
+    from straylight.sky.timeutil import parse_utc
 
     if args.star is None and (args.ra is None or args.dec is None):
         raise InputError("give --ra and --dec, or --star HIP|NAME")

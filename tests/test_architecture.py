@@ -1,11 +1,13 @@
-"""The package's layering (docs/architecture.md): no import cycle between straylight's
-sub-packages, and each sub-package imports only the layers below its own.
+"""The package's layering (docs/architecture.md): no import cycle between straylight's modules
+or sub-packages, and each sub-package imports only the layers below its own.
 
 The graph is read from the source with ``ast``: every ``import`` and ``from ... import`` of a
 ``straylight`` module counts, at module level or inside a function (a lazy import is still a
-dependency); imports under ``if TYPE_CHECKING:`` are annotations only and do not count.  The
-table below is the one docs/architecture.md shows; a new sub-package or top-level module must be
-placed in it.
+dependency).  Imports under ``if TYPE_CHECKING:`` never run, so they make no cycle; they still
+name a type of the layer they import from, so the layering counts them (a function of ``sky``
+annotated with the config's ``Campaign`` depends on the config layer, whether or not the import
+runs).  The table below is the one docs/architecture.md shows; a new sub-package or top-level
+module must be placed in it.
 """
 import ast
 from pathlib import Path
@@ -42,10 +44,11 @@ def _unit(module: str) -> str:
     return name
 
 
-def _modules() -> dict:
+def _modules(package: Path = PACKAGE) -> dict:
+    """Every module of ``package`` (a folder named ``straylight``): dotted name -> path."""
     out = {}
-    for path in sorted(PACKAGE.rglob("*.py")):
-        parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    for path in sorted(package.rglob("*.py")):
+        parts = path.relative_to(package.parent).with_suffix("").parts
         name = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
         out[name] = path
     return out
@@ -63,11 +66,12 @@ def _type_checking_nodes(tree) -> set:
     return skip
 
 
-def _imports(name: str, path: Path, modules) -> list[tuple[str, int]]:
+def _imports(name: str, path: Path, modules, type_only: bool = False) -> list[tuple[str, int]]:
     """(imported straylight module, line) for every import in the module ``name``; ``modules``:
-    every module's name (``from a import b`` imports the module ``a.b`` when there is one)."""
+    every module's name (``from a import b`` imports the module ``a.b`` when there is one).
+    ``type_only``: also the imports under ``if TYPE_CHECKING:``."""
     tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
-    skip = _type_checking_nodes(tree)
+    skip = set() if type_only else _type_checking_nodes(tree)
     package = name if path.name == "__init__.py" else name.rsplit(".", 1)[0]
     found = []
     for node in ast.walk(tree):
@@ -86,46 +90,106 @@ def _imports(name: str, path: Path, modules) -> list[tuple[str, int]]:
     return [(m, line) for m, line in found if m == "straylight" or m.startswith("straylight.")]
 
 
-def _package_edges() -> dict:
+def _module_edges(package: Path = PACKAGE, type_only: bool = False) -> dict:
+    """{(importing module, imported module): [where, ...]} between different modules of
+    ``package`` (an import of ``a.b.c`` is an edge to ``a.b.c``: the packages above it run
+    first, but a cycle through them shows as a cycle of the modules that import them)."""
+    edges: dict = {}
+    modules = _modules(package)
+    for name, path in modules.items():
+        for target, line in _imports(name, path, modules, type_only):
+            if target != name and target in modules:
+                edges.setdefault((name, target), []).append(
+                    f"{path.relative_to(package.parent)}:{line} imports {target}")
+    return edges
+
+
+def _package_edges(package: Path = PACKAGE, type_only: bool = False) -> dict:
     """{(importing unit, imported unit): [where, ...]} between different units."""
     edges: dict = {}
-    modules = _modules()
+    modules = _modules(package)
     for name, path in modules.items():
-        for target, line in _imports(name, path, modules):
+        for target, line in _imports(name, path, modules, type_only):
             a, b = _unit(name), _unit(target)
             if a != b:
-                edges.setdefault((a, b), []).append(f"{path.relative_to(PACKAGE.parent)}:{line} imports {target}")
+                edges.setdefault((a, b), []).append(f"{path.relative_to(package.parent)}:{line} imports {target}")
     return edges
 
 
 def _cycle(edges) -> list | None:
     """One cycle of the directed graph ``edges`` as a list of nodes, or None."""
+    cycles = _cycles(edges)
+    return cycles[0] if cycles else None
+
+
+def _cycles(edges) -> list[list]:
+    """One cycle (a list of nodes, the first repeated at the end) in each strongly connected
+    component of the directed graph ``edges`` that has one (Tarjan's algorithm), in sorted
+    order: every knot of mutually importing modules is named, not only the first found."""
     graph: dict = {}
     for a, b in edges:
         graph.setdefault(a, set()).add(b)
-    state: dict = {}
+        graph.setdefault(b, set())
+    index: dict = {}
+    low: dict = {}
     stack: list = []
+    on_stack: set = set()
+    components: list = []
 
-    def visit(n):
-        state[n] = 1
-        stack.append(n)
-        for m in sorted(graph.get(n, ())):
-            if state.get(m) == 1:
-                return stack[stack.index(m):] + [m]
-            if m not in state:
-                found = visit(m)
-                if found:
-                    return found
-        stack.pop()
-        state[n] = 2
-        return None
+    def connect(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in sorted(graph[v]):
+            if w not in index:
+                connect(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = set()
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.add(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                components.append(component)
 
-    for n in sorted(graph):
-        if n not in state:
-            found = visit(n)
-            if found:
-                return found
-    return None
+    for v in sorted(graph):
+        if v not in index:
+            connect(v)
+    return sorted(_cycle_within(graph, c) for c in components)
+
+
+def _cycle_within(graph: dict, component: set) -> list:
+    """A cycle through the smallest node of a strongly connected ``component``: the shortest
+    path back to it (breadth first), as nodes with the first repeated at the end."""
+    start = min(component)
+    parent = {start: None}
+    queue = [start]
+    for v in queue:
+        for w in sorted(graph[v] & component):
+            if w == start:
+                path = [v]
+                while parent[path[-1]] is not None:
+                    path.append(parent[path[-1]])
+                return path[::-1] + [start]
+            if w not in parent:
+                parent[w] = v
+                queue.append(w)
+    raise AssertionError("not a strongly connected component")
+
+
+def _describe(cycles, edges) -> str:
+    return "\n".join(" -> ".join(c) + ":\n" + "\n".join(
+        "    " + w for a, b in zip(c, c[1:]) for w in edges[(a, b)]) for c in cycles)
+
+
+def _layer_violations(edges) -> list[str]:
+    return [w for (a, b), where in sorted(edges.items())
+            if a in RANK and b in RANK and RANK[b] >= RANK[a] for w in where]
 
 
 def test_every_package_is_placed_in_a_layer():
@@ -135,15 +199,28 @@ def test_every_package_is_placed_in_a_layer():
 
 def test_no_import_cycle_between_packages():
     edges = _package_edges()
-    cycle = _cycle(edges)
-    assert cycle is None, "import cycle " + " -> ".join(cycle) + ":\n" + "\n".join(
-        w for a, b in zip(cycle, cycle[1:]) for w in edges[(a, b)])
+    cycles = _cycles(edges)
+    assert cycles == [], "import cycles between packages:\n" + _describe(cycles, edges)
+
+
+def test_no_import_cycle_between_modules():
+    edges = _module_edges()
+    cycles = _cycles(edges)
+    assert cycles == [], "import cycles between modules:\n" + _describe(cycles, edges)
 
 
 def test_each_package_imports_only_lower_layers():
-    bad = [w for (a, b), where in sorted(_package_edges().items())
-           if a in RANK and b in RANK and RANK[b] >= RANK[a] for w in where]
+    """Type-only imports count: a lower layer does not name a higher layer's types either."""
+    bad = _layer_violations(_package_edges(type_only=True))
     assert bad == [], "imports against the layering (tests/test_architecture.py LAYERS):\n" + "\n".join(bad)
+
+
+def _write(root: Path, files: dict) -> Path:
+    for rel, text in files.items():
+        path = root / "straylight" / rel
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text, encoding="utf-8")
+    return root / "straylight"
 
 
 def test_the_checks_see_a_lazy_import_and_a_cycle():
@@ -152,6 +229,35 @@ def test_the_checks_see_a_lazy_import_and_a_cycle():
     assert ("survey", "model") in edges  # survey.cube builds the model inside a function
     assert _cycle({("a", "b"): [], ("b", "a"): []}) in (["a", "b", "a"], ["b", "a", "b"])
     assert _cycle({("a", "b"): [], ("b", "c"): []}) is None
+
+
+def test_the_module_checks_on_a_small_package(tmp_path):
+    """The module graph counts an import inside a function and leaves out one under
+    ``if TYPE_CHECKING:``; the cycle search names every knot; the layering sees a type-only
+    import of a higher layer (a sky module annotated with the config's Campaign)."""
+    package = _write(tmp_path, {
+        "__init__.py": "",
+        "config.py": "from straylight.sky import observing\n",
+        "sky/__init__.py": "",
+        "sky/observing.py": ("from typing import TYPE_CHECKING\nfrom straylight.sky.orbit import f\n"
+                             "if TYPE_CHECKING:\n    from straylight.config import Campaign\n"),
+        "sky/orbit.py": "def f():\n    from straylight.sky import observing\n",
+        "sky/time.py": "from . import frames\n",
+        "sky/frames.py": "import straylight.sky.time\n",
+    })
+    edges = _module_edges(package)
+    assert ("straylight.sky.orbit", "straylight.sky.observing") in edges  # lazy
+    assert ("straylight.sky.observing", "straylight.config") not in edges  # type only
+    assert _cycles(edges) == [["straylight.sky.frames", "straylight.sky.time", "straylight.sky.frames"],
+                              ["straylight.sky.observing", "straylight.sky.orbit", "straylight.sky.observing"]]
+    assert _cycles(_package_edges(package)) == []
+    assert _layer_violations(_package_edges(package)) == []
+    assert _layer_violations(_package_edges(package, type_only=True)) == [
+        "straylight/sky/observing.py:4 imports straylight.config"]
+    assert _cycle({("a", "b"): [], ("b", "a"): []}) == ["a", "b", "a"]
+    assert _cycle({("a", "b"): [], ("b", "c"): []}) is None
+    assert _cycles({("a", "b"): [], ("b", "c"): [], ("c", "a"): [], ("c", "d"): [], ("d", "c"): []}) == [
+        ["a", "b", "c", "a"]]
 
 
 def test_the_table_is_the_one_in_the_docs():

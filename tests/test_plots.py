@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from straylight.plots import _colour_range, _tick_format, depth_summary
+from straylight.plots.common import _colour_range, _tick_format
+from straylight.plots.report import depth_summary
 
 
 def test_ticks_are_few_and_rounded():
@@ -62,7 +63,7 @@ def test_mollweide_panel_puts_each_pixel_where_healpy_projects_it(nest):
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from straylight.plots import MOLLWEIDE_XSIZE, MollweidePanel
+    from straylight.plots.maps import MOLLWEIDE_XSIZE, MollweidePanel
 
     nside = 8
     m = np.zeros(hp.nside2npix(nside))
@@ -100,7 +101,7 @@ def test_depth_table_round_trip_and_report_front(campaign, tmp_path):
     the limit map first."""
     from PIL import Image
 
-    from straylight.plots import DEPTH_TABLE, read_depth_table, write_depth_table, write_report_front
+    from straylight.plots.report import DEPTH_TABLE, read_depth_table, write_depth_table, write_report_front
 
     rows = {"g": {"median_depth_mag": 26.5349, "best_depth_mag": 26.6151, "observable_fraction": 0.16549},
             "y": {"median_depth_mag": 24.8461, "best_depth_mag": float("nan"), "observable_fraction": 0.16549}}
@@ -120,14 +121,14 @@ def test_depth_table_round_trip_and_report_front(campaign, tmp_path):
 
 
 def test_mollweide_panel_redrawn_is_the_panel_drawn_afresh():
-    """Sky-map pages share their figure (plots.sky_maps): a panel that showed one map and then
+    """Sky-map pages share their figure (plots.maps.sky_maps): a panel that showed one map and then
     another renders, pixel for pixel, as a new panel showing only the second (image, colour
     range, colour bar's steps and ticks, title)."""
     import healpy as hp
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from straylight.plots import MollweidePanel
+    from straylight.plots.maps import MollweidePanel
 
     rng = np.random.default_rng(3)
     first, second = (rng.normal(20.0, 1.0, hp.nside2npix(8)) for _ in range(2))
@@ -148,7 +149,7 @@ def test_magnitudes_through_the_products_zero_point_equal_the_instruments(campai
     """The figures turn e-/s/pix into AB mag/arcsec2 through the store's mag_zero_point
     coordinate (limits.zero_point_coord) where it has one: the numbers the instrument's
     throughput gives (sources.photometry.magnitude_per_arcsec2), bit for bit."""
-    from straylight.plots import _mag
+    from straylight.plots.common import _mag
     from straylight.survey.limits import ZERO_POINT_NAME, zero_point_coord
 
     bands = list(campaign.bands)

@@ -106,7 +106,7 @@ def production_region_rates(base, fp, stars_path) -> dict:
               f"{unobservable}: {n / dt:.0f} samples/s/core")
 
         def time_block(ts=t_slice):
-            sc = scene(c, c.times[ts])
+            sc = scene(c.orbit, c.times[ts])
             for ps in p_blocks:
                 compute_region(c, fp, ts, ps, model=model, stars_path=stars_path, scene=sc)
 

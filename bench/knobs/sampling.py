@@ -55,7 +55,8 @@ def time_cadence_rows(bench):
     interpolated in time, and the error-checked adaptive sampling (:func:`adaptive_in_time`)
     from each coarse cadence; error over samples observable at the fine cadence."""
     from straylight.model import BackgroundModel
-    from straylight.sky.geometry import observing_geometry, radec_to_unit
+    from straylight.sky.geometry import observing_geometry
+    from straylight.sky.vectors import radec_to_unit
     from straylight.sky.observing import scene
     from astropy.time import Time, TimeDelta
 
@@ -68,7 +69,7 @@ def time_cadence_rows(bench):
     rng = np.random.default_rng(2)
     ra, dec = rng.uniform(0, 360, 40), np.degrees(np.arcsin(rng.uniform(-1, 1, 40)))
     los = radec_to_unit(ra, dec)
-    sc = scene(c, times)
+    sc = scene(c.orbit, times)
 
     def at(idx):
         out, obs, door = [], [], []
@@ -122,13 +123,14 @@ def nside_rows(bench):
     import healpy as hp
 
     from straylight.model import BackgroundModel
-    from straylight.sky.geometry import observing_geometry, radec_to_unit
+    from straylight.sky.geometry import observing_geometry
+    from straylight.sky.vectors import radec_to_unit
     from straylight.sky.observing import scene
 
     c = bench.campaign
     cm = BackgroundModel(c)
     stars = bench.stars(*DEFAULT_STARS)
-    sc = scene(c, ["2026-01-01T03:00:00"])
+    sc = scene(c.orbit, ["2026-01-01T03:00:00"])
     rng = np.random.default_rng(4)
     n = 400
     ra, dec = rng.uniform(0, 360, n), np.degrees(np.arcsin(rng.uniform(-1, 1, n)))

@@ -2,7 +2,7 @@
 
 For a pointing, time, band and detector, every catalog star within the detector plus a margin
 is placed on the focal plane through a TAN (gnomonic) WCS whose roll follows the telescope frame
-(+x towards the Sun's projection, the door side; see :mod:`straylight.sky.geometry`).  The image is
+(+x towards the Sun's projection, the door side; see :mod:`straylight.sky.frames`).  The image is
 star map (e-/s) convolved with the star image (:class:`~straylight.optics.scatter.ScatterModel`):
 
 * near field (r <= ``near_radius_px``): full-resolution FFT convolution (scipy ``oaconvolve``)
@@ -31,7 +31,8 @@ from scipy import signal
 from straylight.optics.bandpass import Band
 from straylight.config import pixel_scale_arcsec
 from straylight.errors import InputError
-from straylight.sky.geometry import radec_to_unit, telescope_frame, unit
+from straylight.sky.frames import telescope_frame
+from straylight.sky.vectors import radec_to_unit, unit
 from straylight.optics.ghosts import GhostModel
 from straylight.optics.scatter import ScatterModel, check_fluxes
 
@@ -390,8 +391,9 @@ def bodies_as_stars(campaign, time, ra_deg: float, dec_deg: float, band: str) ->
     from straylight.sources.bodies import InFieldBodies
     from straylight.sources.context import SourceContext
 
-    sc = scene(campaign, time)
-    g = sample_geometry(campaign, sc, np.array([ra_deg]), np.array([dec_deg]), grid=False)
+    sc = scene(campaign.orbit, time)
+    g = sample_geometry(sc, np.array([ra_deg]), np.array([dec_deg]), campaign.earth.radius_km, campaign.constraints,
+                        grid=False)
     los = radec_to_unit(np.array([ra_deg]), np.array([dec_deg]))
     found = InFieldBodies(SourceContext(campaign)).find(sc.satellite_km, sc.bodies_km, los, g, [band])
     names = [k for k, v in found.items() if bool(np.ravel(v["in_field"])[0])]
@@ -408,7 +410,7 @@ def sun_direction_at(campaign, time) -> np.ndarray:
     """Unit vector from the satellite to the Sun at ``time`` (for the roll)."""
     from straylight.sky.observing import scene
 
-    sc = scene(campaign, time)
+    sc = scene(campaign.orbit, time)
     return unit(sc.bodies_km["sun"][0] - sc.satellite_km[0])
 
 

@@ -32,7 +32,7 @@ import numpy as np
 from numba import njit
 
 from straylight.errors import ConfigError
-from straylight.sky.geometry import wrap_360_deg
+from straylight.sky.vectors import wrap_360_deg
 from straylight.util.gridinterp import LinearGrid
 
 

@@ -28,7 +28,7 @@ import numpy as np
 from numba import njit
 
 from straylight.errors import ConfigError, InputError
-from straylight.sky.geometry import wrap_360_deg
+from straylight.sky.vectors import wrap_360_deg
 from straylight.util.gridinterp import AxisCells, LinearGrid
 
 #: radius of the default field (deg): the 1.1 deg2 field of view (seed paper sect. 1) as a disc,

@@ -47,11 +47,11 @@ def zodiacal_map_data(campaign: Campaign, time: str = FIGURE_TIME, nside: int = 
     import healpy as hp
 
     from straylight.optics.bandpass import load_band
-    from straylight.sky.geometry import unit
+    from straylight.sky.vectors import unit
     from straylight.sky.observing import scene
     from straylight.sources.zodiacal import zodiacal_model_from_instrument
 
-    sun = unit(np.asarray(scene(campaign, time).bodies_km["sun"][0], float))  # geocentric
+    sun = unit(np.asarray(scene(campaign.orbit, time).bodies_km["sun"][0], float))  # geocentric
     x, y, z = hp.pix2vec(nside, np.arange(hp.nside2npix(nside)))
     los = np.stack([x, y, z], axis=-1)
     zm = zodiacal_model_from_instrument(campaign.instrument)
@@ -268,7 +268,7 @@ def detector_catalog(campaign: Campaign, catalog_path=None) -> tuple[dict, float
 
     cols, _, _ = catalog_for_campaign(campaign, None)
     ra, dec = np.asarray(cols["ra"], float), np.asarray(cols["dec"], float)
-    from straylight.sky.geometry import radec_to_unit
+    from straylight.sky.vectors import radec_to_unit
 
     k = int(np.argmax(radec_to_unit(ra, dec) @ radec_to_unit(*DETECTOR_STAR_RADEC_DEG)))
     return {"ra": ra, "dec": dec, "mag_NUV": np.asarray(cols["mag_NUV"], float)}, float(ra[k]), float(dec[k])

@@ -23,7 +23,7 @@ import numpy as np
 from straylight.model import BackgroundModel
 from straylight.config import Campaign
 from straylight.errors import InputError
-from straylight.sky.geometry import radec_to_unit
+from straylight.sky.vectors import radec_to_unit
 from straylight.sky.observing import sample_geometry, scene
 
 SCENARIO_TIME = "2026-01-01T00:50:00"
@@ -36,8 +36,8 @@ LIMB_BIN_DEG = 10.0
 def earthshine_scenario(campaign: Campaign, time: str = SCENARIO_TIME, band: str = "V") -> dict:
     ra, dec = np.meshgrid(np.arange(0.0, 346.0, 15.0), np.arange(-75.0, 76.0, 15.0), indexing="ij")
     ra, dec = ra.ravel(), dec.ravel()
-    sc = scene(campaign, time)
-    g = sample_geometry(campaign, sc, ra, dec, grid=True)  # (1, P)
+    sc = scene(campaign.orbit, time)
+    g = sample_geometry(sc, ra, dec, campaign.earth.radius_km, campaign.constraints, grid=True)  # (1, P)
     g = {k: np.asarray(v)[0] for k, v in g.items()}
     sat = np.broadcast_to(sc.satellite_km[0], (ra.size, 3))
     bodies = {k: np.broadcast_to(v[0], (ra.size, 3)) for k, v in sc.bodies_km.items()}

@@ -1,5 +1,7 @@
-"""Where things are: time scales, the DE405 ephemeris, the telescope's orbit, the telescope frame and
-the Earth's limb, and the observing geometry of (time, pointing) samples with the survey constraints.
+"""Where things are: time scales, the DE405 ephemeris, the telescope's orbit, vector arithmetic,
+the telescope frame, the Earth's limb, runs of samples that share a scene, and the observing
+geometry of (time, pointing) samples with the survey constraints.
 
-Imports only ``straylight.errors`` and ``straylight.config``'s types; knows nothing of light.
+Imports nothing of straylight but ``straylight.errors``; knows nothing of light, nor of the
+campaign's configuration: callers pass the orbit, the Earth's radius and the constraints.
 """

@@ -17,15 +17,19 @@ import os
 from functools import cached_property
 
 import numpy as np
+from astropy.time import Time
 
 from straylight.errors import EphemerisRangeError, InputError
-from straylight.sky.timeutil import utc_to_tdb_jd
+from straylight.sky.timeutil import quiet_dubious_years, utc_to_tdb_jd
 
 #: Bodies with a position relative to the Earth's centre, in the order used in products.
 BODIES = (
     "sun", "moon", "mercury", "venus", "mars", "jupiter", "saturn", "uranus", "neptune", "pluto",
 )
 PLANETS = BODIES[2:]
+
+#: the span of the JPL DE405 ephemeris, for messages (the exact bounds: DE405.jd_start, jd_end)
+DE405_SPAN = "1600-12-21 to 2200-02-02"
 
 # name in `BODIES` -> coefficient file of the de405 package (Earth-Moon barycentre is internal)
 _FILES = {b: f"jpl-{b}.npy" for b in BODIES}
@@ -80,7 +84,7 @@ class DE405:
             first = float(np.asarray(jd)[bad].ravel()[0])
             raise EphemerisRangeError(
                 f"time TDB JD {first:.5f} is outside the DE405 range "
-                f"{self.jd_start} to {self.jd_end} (1600-12-21 to 2200-02-02); "
+                f"{self.jd_start} to {self.jd_end} ({DE405_SPAN}); "
                 f"{int(bad.sum())} of {bad.size} times are out of range"
             )
 
@@ -180,3 +184,28 @@ def default_ephemeris() -> DE405:
     if _DEFAULT is None:
         _DEFAULT = DE405()
     return _DEFAULT
+
+
+def check_in_ephemeris(t: Time, field: str, given=None) -> None:
+    """Refuse times outside DE405 in one line, without ERFA's warnings before it.
+
+    ``field`` names the input (``--time``, ``time``); for several times the message names the
+    first one out of range by its index (``sample i``).  ``given``: the text the user typed,
+    quoted in place of the parsed time.
+
+    Raises
+    ------
+    EphemerisRangeError
+    """
+    eph = default_ephemeris()
+    with quiet_dubious_years():
+        jd1, jd2 = utc_to_tdb_jd(t, field)  # TDB through the spline of tdb_minus_tt_s for many times
+        jd = np.ravel(jd1 + jd2)
+        bad = np.flatnonzero(~((jd >= eph.jd_start) & (jd <= eph.jd_end)))
+        if not bad.size:
+            return
+        i = int(bad[0])
+        value = given if given is not None else t.ravel()[i].isot if t.shape else t.isot
+    where = f"{field}: sample {i}" if jd.size > 1 else field
+    count = f"; {bad.size} of {jd.size} samples are outside it" if jd.size > 1 else ""
+    raise EphemerisRangeError(f"{where} = {value} is outside the DE405 range ({DE405_SPAN}){count}")

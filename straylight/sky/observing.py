@@ -2,21 +2,24 @@
 
 This is the Python API behind ``straylight sky`` and the pipeline's cubes.  Later physics
 (stray-light components per band) adds to the dict returned by :func:`sample_geometry`.
+The functions take what they need (an orbit, the Earth's radius, the avoidance constraints), not
+the campaign: a caller with a :class:`~straylight.config.Campaign` passes ``campaign.orbit``,
+``campaign.earth.radius_km`` and ``campaign.constraints``.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 from astropy.time import Time
 
 from straylight.sky.ephemeris import BODIES, default_ephemeris
-from straylight.sky.geometry import observing_geometry, radec_to_unit
+from straylight.sky.geometry import Constraints, observing_geometry
+from straylight.sky.orbit import CircularOrbit, TLEOrbit
 from straylight.sky.timeutil import parse_utc, utc_to_tdb_jd
+from straylight.sky.vectors import radec_to_unit
 
-if TYPE_CHECKING:  # the type only: config builds on sky
-    from straylight.config import Campaign
+__all__ = ["Scene", "sample_geometry", "scene"]
 
 
 @dataclass
@@ -28,18 +31,22 @@ class Scene:
     bodies_km: dict[str, np.ndarray]
 
 
-def scene(campaign: Campaign, times, bodies=BODIES) -> Scene:
-    """Satellite (from the campaign's orbit) and body positions (DE405) at UTC times."""
+def scene(orbit: CircularOrbit | TLEOrbit, times, bodies=BODIES) -> Scene:
+    """Satellite (from ``orbit``, e.g. a campaign's ``orbit``) and body positions (DE405) at
+    UTC times."""
     t = parse_utc(times)
     t1 = t.reshape(-1) if t.shape else t.reshape((1,))
     jd1, jd2 = utc_to_tdb_jd(t1)
     bodies_km = default_ephemeris().positions_tdb(jd1, jd2, bodies)
-    sat = campaign.orbit.position_gcrs_km(t1)
+    sat = orbit.position_gcrs_km(t1)
     return Scene(times=t1, satellite_km=sat, bodies_km=bodies_km)
 
 
-def sample_geometry(campaign: Campaign, sc: Scene, ra_deg, dec_deg, grid: bool = True) -> dict:
-    """Observing geometry for the scene's times and the pointings (ICRS deg).
+def sample_geometry(sc: Scene, ra_deg, dec_deg, earth_radius_km: float, constraints: Constraints,
+                    grid: bool = True) -> dict:
+    """Observing geometry for the scene's times and the pointings (ICRS deg), with the Earth's
+    radius (km) and the avoidance constraints (a campaign's ``earth.radius_km`` and
+    ``constraints``).
 
     grid=True: every time against every pointing, arrays (T, P).
     grid=False: paired samples, time i with pointing i, arrays (N,).
@@ -52,4 +59,4 @@ def sample_geometry(campaign: Campaign, sc: Scene, ra_deg, dec_deg, grid: bool =
         los_b = los[None, :, :]
     else:
         sat, bodies, los_b = sc.satellite_km, sc.bodies_km, los
-    return observing_geometry(sat, bodies, los_b, campaign.earth.radius_km, campaign.constraints)
+    return observing_geometry(sat, bodies, los_b, earth_radius_km, constraints)

@@ -8,7 +8,8 @@ series of ERFA (geocentric), so no Earth-orientation data enter the ephemeris pa
 
 Parsing and the UTC->TDB step run without ERFA's "dubious year" warnings
 (:func:`quiet_dubious_years`): a time outside the ephemeris is refused by our own one line
-(:func:`check_in_ephemeris`), which the warnings would otherwise precede.
+(:func:`straylight.sky.ephemeris.check_in_ephemeris`), which the warnings would otherwise
+precede.
 """
 from __future__ import annotations
 
@@ -57,39 +58,6 @@ def quiet_dubious_years():
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message=".*dubious year", category=erfa.ErfaWarning)
         yield
-
-
-#: the span of the JPL DE405 ephemeris, for messages (the exact bounds: DE405.jd_start, jd_end)
-DE405_SPAN = "1600-12-21 to 2200-02-02"
-
-
-def check_in_ephemeris(t: Time, field: str, given=None) -> None:
-    """Refuse times outside DE405 in one line, without ERFA's warnings before it.
-
-    ``field`` names the input (``--time``, ``time``); for several times the message names the
-    first one out of range by its index (``sample i``).  ``given``: the text the user typed,
-    quoted in place of the parsed time.
-
-    Raises
-    ------
-    EphemerisRangeError
-    """
-    from straylight.errors import EphemerisRangeError
-    from straylight.sky.ephemeris import default_ephemeris
-
-    eph = default_ephemeris()
-    with quiet_dubious_years():
-        jd1, jd2 = utc_to_tdb_jd(t, field)  # TDB through the spline of tdb_minus_tt_s for many times
-        jd = np.ravel(jd1 + jd2)
-        bad = np.flatnonzero(~((jd >= eph.jd_start) & (jd <= eph.jd_end)))
-        if not bad.size:
-            return
-        i = int(bad[0])
-        value = given if given is not None else t.ravel()[i].isot if t.shape else t.isot
-    where = f"{field}: sample {i}" if jd.size > 1 else field
-    count = f"; {bad.size} of {jd.size} samples are outside it" if jd.size > 1 else ""
-    raise EphemerisRangeError(f"{where} = {value} is outside the DE405 range ({DE405_SPAN}){count}")
-
 
 
 def parse_utc(times, field: str = "time") -> Time:
@@ -168,9 +136,9 @@ DTDB_GRID_STEP_D = 0.25
 def tdb_minus_tt_s(tt_jd1: np.ndarray, tt_jd2: np.ndarray) -> np.ndarray:
     """Geocentric TDB - TT in seconds (ERFA dtdb, Fairhead & Bretagnon 1990 series).
 
-    The full series costs ~13 us per time; for more than :data:`DTDB_DIRECT_MAX` times it is
-    evaluated on a :data:`DTDB_GRID_STEP_D` grid and interpolated with a cubic spline
-    (error < 1 ns, against ~1.7 ms amplitude).
+    The full series is summed term by term for every time; for more than
+    :data:`DTDB_DIRECT_MAX` times it is evaluated on a :data:`DTDB_GRID_STEP_D` grid and
+    interpolated with a cubic spline (error < 1 ns, against ~1.7 ms amplitude).
     """
     import erfa
 

@@ -42,7 +42,8 @@ from numba import njit
 
 from straylight.errors import InputError
 from straylight.optics.door import door_state_index
-from straylight.sky.geometry import any_perpendicular_xyz, dot, norm, rows_at, scene_rows, unit, unit_xyz
+from straylight.sky.runs import rows_at, scene_rows
+from straylight.sky.vectors import any_perpendicular_xyz, dot, norm, unit, unit_xyz
 from straylight.util.gridinterp import LinearGrid
 
 __all__ = ["EarthshineLUT", "MoonlitLUT"]
@@ -136,7 +137,7 @@ def _lamp_coordinates(sat_km, lamp_km, los, symmetric: bool, frame_xy=None, runs
     direction) once per run of samples that share them (a cube's time step), the rest per sample:
     the vectors' components in one compiled pass (:func:`_los_components_kernel`), the angles
     from them in numpy.  ``runs``: the samples' scene runs when known
-    (:class:`~straylight.sky.geometry.SceneRuns`)."""
+    (:class:`~straylight.sky.runs.SceneRuns`)."""
     sat, lamp, los = np.broadcast_arrays(np.asarray(sat_km, float), np.asarray(lamp_km, float),
                                          np.asarray(los, float))
     shape = los.shape[:-1]

@@ -20,7 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from straylight.errors import InputError
-from straylight.sky.geometry import telescope_frame, unit
+from straylight.sky.frames import telescope_frame
+from straylight.sky.vectors import unit
 from straylight.sources.bodies import MOON_APOGEE_KM, MOON_MEAN_DISTANCE_KM, MOON_PERIGEE_KM
 from straylight.sources.earthshine_table import EarthshineLUT, MoonlitLUT
 from straylight.sources.photometry import AU_KM
@@ -203,7 +204,8 @@ def mirror_symmetric(off) -> bool:
 def _observable_points(rr, earth_radius_km, symmetric, n, avoidance_deg):
     """n random (radius, Sun zenith, line-of-sight zenith, azimuth) points (deg) whose line of
     sight meets the dark-limb, bright-limb and Sun avoidance angles (rejection sampling)."""
-    from straylight.sky.geometry import angle_between_deg, limb_geometry
+    from straylight.sky.limb import limb_geometry
+    from straylight.sky.vectors import angle_between_deg
 
     dark_min, bright_min, sun_min = (float(a) for a in avoidance_deg)
     rng = np.random.default_rng(20261122)
@@ -324,7 +326,7 @@ def _moonlit_scene(R, D, Zm, L, A, P):
     """Satellite and Moon (km) and the telescope frame in the local frame (vertical +x, the Moon
     in the x-y plane): radius R, Moon distance D (km), Moon zenith Zm, line-of-sight zenith L,
     azimuth A and roll P (rad)."""
-    from straylight.sky.geometry import TelescopeFrame
+    from straylight.sky.frames import TelescopeFrame
 
     sat = np.stack([R, 0 * R, 0 * R], axis=-1)
     moon = D[..., None] * np.stack([np.cos(Zm), np.sin(Zm), 0 * Zm], axis=-1)

@@ -32,7 +32,8 @@ import numpy as np
 
 from straylight.optics.door import Door, DoorTable, behind_aperture_plane, door_state_index
 from straylight.errors import ConfigError
-from straylight.sky.geometry import dot, norm, perpendicular_towards, rows_at, scene_rows, shared_vectors, unit, wrap_360_deg
+from straylight.sky.runs import rows_at, scene_rows, shared_vectors
+from straylight.sky.vectors import dot, norm, perpendicular_towards, unit, wrap_360_deg
 from straylight.util.gridinterp import LinearGrid
 from straylight.optics.pst import PST
 
@@ -382,7 +383,7 @@ class OffFieldModel:
         its dark blocks (lit by neither lamp) dropped, and the sums over the rest compiled
         (:func:`~straylight.sources.earthshine_kernel.cap_sums`).  Same sums as the general path,
         so the same values up to rounding (tests/sources/test_offfield.py)."""
-        from straylight.sky.geometry import TelescopeFrame
+        from straylight.sky.frames import TelescopeFrame
 
         shape = np.broadcast_shapes(frame.z.shape[:-1], np.shape(opening_deg))
         op = np.broadcast_to(np.asarray(opening_deg, float), shape).ravel()

@@ -44,7 +44,10 @@ from straylight.errors import OutputError
 from straylight.survey.footprint import Footprint, pixel_block_length
 from straylight.survey.limits import ZERO_POINT_NAME, zero_point_coord
 from straylight.survey.storage import stored_values
-from straylight.sky.geometry import SceneRuns, TelescopeFrame, observing_geometry, radec_to_unit, telescope_frame, violation_mask_attrs
+from straylight.sky.frames import TelescopeFrame, telescope_frame
+from straylight.sky.geometry import observing_geometry, violation_mask_attrs
+from straylight.sky.runs import SceneRuns
+from straylight.sky.vectors import radec_to_unit
 
 if TYPE_CHECKING:  # xarray where a Dataset is made: a worker computing regions does without it
     import xarray as xr
@@ -279,7 +282,7 @@ def region_values(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: sl
     model = model or background_model_for(campaign, fp)
     stars = _offfield_stars(campaign, stars_path)
     times = campaign.times[t_slice]
-    sc = observing.scene(campaign, times) if scene is None else _checked_scene(scene, times)
+    sc = observing.scene(campaign.orbit, times) if scene is None else _checked_scene(scene, times)
     los = radec_to_unit(fp.ra_deg[p_slice], fp.dec_deg[p_slice])
     nt, npix, nb = len(times), los.shape[0], len(campaign.bands)
     faint = None if faint_map is None else {b: np.asarray(faint_map)[:, i] for i, b in enumerate(campaign.bands)}
@@ -747,7 +750,7 @@ def run_time_blocks(campaign: Campaign, fp: Footprint, store, blocks, done_dir, 
                 t_slice = slice(*tb[b])
                 # the satellite's and the bodies' positions once per time block, shared by its
                 # pixel blocks (~20 kB for 72 steps, sent with each region)
-                sc = scene(campaign, campaign.times[t_slice])
+                sc = scene(campaign.orbit, campaign.times[t_slice])
                 started[b] = _time.perf_counter()
                 for ps in p_blocks:
                     while len(pending) >= window:

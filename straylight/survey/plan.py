@@ -15,7 +15,8 @@ import time as _time
 import numpy as np
 
 from straylight.config import Campaign
-from straylight.sky.geometry import observing_geometry, radec_to_unit
+from straylight.sky.geometry import observing_geometry
+from straylight.sky.vectors import radec_to_unit
 from straylight.survey.footprint import Footprint
 
 
@@ -34,7 +35,7 @@ def evaluated_samples(campaign: Campaign, fp: Footprint, max_times: int = 144, m
         return n
     t_idx = np.unique(np.linspace(0, len(campaign.times) - 1, min(max_times, len(campaign.times))).round().astype(int))
     p_idx = np.unique(np.linspace(0, fp.pixels.size - 1, min(max_pixels, fp.pixels.size)).round().astype(int))
-    sc = scene(campaign, campaign.times[t_idx])
+    sc = scene(campaign.orbit, campaign.times[t_idx])
     los = radec_to_unit(fp.ra_deg[p_idx], fp.dec_deg[p_idx])
     g = observing_geometry(sc.satellite_km[:, None], {b: sc.bodies_km[b][:, None] for b in ("sun", "moon")},
                            los[None], campaign.earth.radius_km, campaign.constraints)

@@ -58,7 +58,8 @@ def visibility(campaign, ra_deg: float, dec_deg: float, band: str, start, end, s
     from astropy.time import Time
 
     from straylight.survey.pointings import background_table
-    from straylight.sky.timeutil import check_in_ephemeris, parse_utc
+    from straylight.sky.ephemeris import check_in_ephemeris
+    from straylight.sky.timeutil import parse_utc
 
     if band not in campaign.bands:
         raise InputError(f"--band: {band!r} is not one of {', '.join(campaign.bands)}")

@@ -107,7 +107,7 @@ def test_wcs_roll_follows_the_sun(parts):
     small = parts[1]
     w = pointing_wcs(150.0, 30.0, SUN, small, 12)
     assert proj_plane_pixel_scales(w)[0] * 3600 == pytest.approx(10e-6 / 28.0 * 206264.806247, rel=1e-9)  # p / f
-    from straylight.sky.geometry import radec_to_unit
+    from straylight.sky.vectors import radec_to_unit
 
     c0 = radec_to_unit(*w.pixel_to_world_values(100.0, 100.0))
     c1 = radec_to_unit(*w.pixel_to_world_values(200.0, 100.0))

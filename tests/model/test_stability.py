@@ -9,7 +9,8 @@ from hypothesis import strategies as st
 
 from straylight.model import BackgroundModel
 from straylight.sources.stars import StarTable
-from straylight.sky.geometry import observing_geometry, radec_to_unit
+from straylight.sky.geometry import observing_geometry
+from straylight.sky.vectors import radec_to_unit
 from straylight.sky.observing import scene
 
 COMPONENTS = ("zodiacal", "sun", "moon", "planets", "stars", "earthshine_direct", "earthshine_door", "total")
@@ -23,7 +24,7 @@ def model(campaign):
 def _eval(campaign, model, time, los, stars=None):
     """Geometry and components for unit vectors ``los`` (N, 3) at one UTC time."""
     los = np.atleast_2d(np.asarray(los, float))
-    sc = scene(campaign, [time])
+    sc = scene(campaign.orbit, [time])
     sat = np.broadcast_to(sc.satellite_km[0], los.shape)
     bodies = {k: np.broadcast_to(v[0], los.shape) for k, v in sc.bodies_km.items()}
     g = observing_geometry(sat, bodies, los, campaign.earth.radius_km, campaign.constraints)
@@ -168,9 +169,9 @@ def test_moon_in_total_eclipse(campaign, model):
     g, res, _ = _eval(campaign, model, "2026-03-03T11:33:00", los)
     _assert_sane(res)
     _, res_before, _ = _eval(campaign, model, "2026-03-03T06:33:00", los)
-    from straylight.sky.geometry import earth_blocks
+    from straylight.sky.limb import earth_blocks
 
-    sc = scene(campaign, ["2026-03-03T11:33:00"])
+    sc = scene(campaign.orbit, ["2026-03-03T11:33:00"])
     moon, sun = sc.bodies_km["moon"][0], sc.bodies_km["sun"][0]
     assert earth_blocks(moon, sun - moon, campaign.earth.radius_km)
 

@@ -7,18 +7,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from straylight.sky.geometry import (
-    VIOLATION_BITS,
-    Constraints,
-    DoorState,
-    angle_between_deg,
-    earth_blocks,
-    limb_geometry,
-    observing_geometry,
-    radec_to_unit,
-    telescope_frame,
-    wrap_360_deg,
-)
+from straylight.sky.frames import telescope_frame
+from straylight.sky.geometry import VIOLATION_BITS, Constraints, DoorState, observing_geometry
+from straylight.sky.limb import earth_blocks, limb_geometry
+from straylight.sky.vectors import angle_between_deg, radec_to_unit, wrap_360_deg
 
 RE = 6378.137
 AU = 1.495978707e8
@@ -211,8 +203,9 @@ def test_nan_and_out_of_range_pointings_are_refused():
 def test_grid_shapes(campaign):
     from straylight.sky.observing import sample_geometry, scene
 
-    sc = scene(campaign, campaign.times[:5])
-    g = sample_geometry(campaign, sc, np.array([0.0, 90.0, 180.0]), np.array([0.0, 45.0, -89.0]))
+    sc = scene(campaign.orbit, campaign.times[:5])
+    g = sample_geometry(sc, np.array([0.0, 90.0, 180.0]), np.array([0.0, 45.0, -89.0]), campaign.earth.radius_km,
+                        campaign.constraints)
     assert g["observable"].shape == (5, 3)
     assert g["moon_phase_angle_deg"].shape == (5, 3)
 
@@ -236,7 +229,7 @@ def test_tiled_period_finds_repeated_lines_of_sight_exactly():
     the period only when every step's rows equal the first step's bit for bit (one ulp off, a
     step of another length, or a single run: None), so work done on the first step's rows and
     tiled is the same as per sample (here the zodiacal light's coordinates, compared exactly)."""
-    from straylight.sky.geometry import scene_runs, tiled_period
+    from straylight.sky.runs import scene_runs, tiled_period
     from straylight.sources.zodiacal import _ecliptic_lon_lat_deg, helioecliptic_coordinates
 
     rng = np.random.default_rng(3)

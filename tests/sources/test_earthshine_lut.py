@@ -13,7 +13,7 @@ from straylight.model import BackgroundModel
 from straylight.config import campaign_from_dict
 from straylight.sources.earthshine_table import EarthshineLUT
 from straylight.sources.earthshine_table_build import LUTSettings, build_earthshine_lut, lut_key
-from straylight.sky.geometry import telescope_frame
+from straylight.sky.frames import telescope_frame
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
 from _samples import random_samples  # noqa: E402
@@ -87,7 +87,8 @@ def test_night_side_samples_skip_the_look_up_and_get_exactly_what_it_gives(coars
     steps over a whole orbit (day, twilight and night steps), with and without known runs, it
     equals the look-up at every sample bit for bit; the skipped samples are there, and the
     table really is 0 at every node beyond the angle."""
-    from straylight.sky.geometry import SceneRuns, radec_to_unit
+    from straylight.sky.runs import SceneRuns
+    from straylight.sky.vectors import radec_to_unit
     from straylight.sky.observing import scene
 
     c, _, info = coarse
@@ -101,7 +102,7 @@ def test_night_side_samples_skip_the_look_up_and_get_exactly_what_it_gives(coars
     n_los = 200
     los = radec_to_unit(rng.uniform(0, 360, n_los), np.degrees(np.arcsin(rng.uniform(-1, 1, n_los))))
     times = [f"2026-01-01T{m // 60:02d}:{m % 60:02d}:00" for m in range(0, 95, 5)]  # one orbit, 19 steps
-    sc = scene(c, times)
+    sc = scene(c.orbit, times)
     k = len(times)
     sat, sun = np.repeat(sc.satellite_km, n_los, axis=0), np.repeat(sc.bodies_km["sun"], n_los, axis=0)
     lines = np.tile(los, (k, 1))
@@ -121,7 +122,9 @@ def test_moonlit_earth_is_left_out_where_the_moon_is_down_and_changes_nothing(mo
     dark_moon_zenith_deg (the table is 0 at every node from there on) skip the moonlit Earth,
     bound and all.  Over one orbit with the Moon up and down the components equal, bit for bit,
     those computed with nothing left out (the angle set to inf)."""
-    from straylight.sky.geometry import SceneRuns, observing_geometry, radec_to_unit
+    from straylight.sky.geometry import observing_geometry
+    from straylight.sky.runs import SceneRuns
+    from straylight.sky.vectors import radec_to_unit
     from straylight.sky.observing import scene
 
     c, cm, mlut = moonlit
@@ -133,7 +136,7 @@ def test_moonlit_earth_is_left_out_where_the_moon_is_down_and_changes_nothing(mo
     rng = np.random.default_rng(8)
     n_los = 150
     los = radec_to_unit(rng.uniform(0, 360, n_los), np.degrees(np.arcsin(rng.uniform(-1, 1, n_los))))
-    sc = scene(c, [f"2026-01-01T{m // 60:02d}:{m % 60:02d}:00" for m in range(0, 95, 5)])
+    sc = scene(c.orbit, [f"2026-01-01T{m // 60:02d}:{m % 60:02d}:00" for m in range(0, 95, 5)])
     k = len(sc.satellite_km)
     sat = np.repeat(sc.satellite_km, n_los, axis=0)
     bodies = {b: np.repeat(v, n_los, axis=0) for b, v in sc.bodies_km.items()}
@@ -397,7 +400,7 @@ def test_moonlit_table_matches_the_coarse_sum_in_real_scenes(moonlit):
 def test_moonlit_table_is_finite_at_the_singular_directions(moonlit):
     """Line of sight at the zenith and the nadir (the roll's reference undefined), the Moon at
     the zenith and on the line of sight: finite, non-negative coefficients."""
-    from straylight.sky.geometry import telescope_frame as tf
+    from straylight.sky.frames import telescope_frame as tf
 
     c, cm, lut = moonlit
     r = np.mean(c.orbit_radius_range_km)
@@ -430,7 +433,9 @@ def test_a_batch_of_time_steps_equals_each_step_alone(coarse):
     star) once per step (geometry.scene_runs).  The batch must give what each step alone gives,
     to float rounding: nothing may leak from one step's scene into another's."""
     from straylight.sources.stars import split_stars
-    from straylight.sky.geometry import SceneRuns, observing_geometry, radec_to_unit
+    from straylight.sky.geometry import observing_geometry
+    from straylight.sky.runs import SceneRuns
+    from straylight.sky.vectors import radec_to_unit
     from straylight.sky.observing import scene
 
     c, cm, _ = coarse
@@ -439,7 +444,7 @@ def test_a_batch_of_time_steps_equals_each_step_alone(coarse):
     los = radec_to_unit(rng.uniform(0, 360, n_los), np.degrees(np.arcsin(rng.uniform(-1, 1, n_los))))
     s_ra, s_dec = rng.uniform(0, 360, n_star), np.degrees(np.arcsin(rng.uniform(-1, 1, n_star)))
     stars = split_stars(s_ra, s_dec, {b: rng.uniform(-1.0, 4.0, n_star) for b in c.bands}, 2.0, False)
-    sc = scene(c, ["2026-01-01T00:00:00", "2026-01-01T00:35:00", "2026-01-01T03:10:00"])
+    sc = scene(c.orbit, ["2026-01-01T00:00:00", "2026-01-01T00:35:00", "2026-01-01T03:10:00"])
     k = len(sc.satellite_km)
 
     def run(sat, bodies, lines, runs=None):
@@ -476,7 +481,8 @@ def test_cube_region_batches_steps_in_time_pixel_order(coarse):
     time and pixel: the same as evaluating each step alone."""
     from straylight.survey.cube import compute_region
     from straylight.survey.footprint import footprint_from_config
-    from straylight.sky.geometry import observing_geometry, radec_to_unit
+    from straylight.sky.geometry import observing_geometry
+    from straylight.sky.vectors import radec_to_unit
     from straylight.sky.observing import scene
 
     c, cm, _ = coarse
@@ -484,7 +490,7 @@ def test_cube_region_batches_steps_in_time_pixel_order(coarse):
     t_slice, p_slice = slice(0, 30, 10), slice(100, 160)
     ds = compute_region(c, fp, t_slice, p_slice, model=cm)
     los = radec_to_unit(fp.ra_deg[p_slice], fp.dec_deg[p_slice])
-    sc = scene(c, c.times[t_slice])
+    sc = scene(c.orbit, c.times[t_slice])
     for it in range(3):
         sat = np.broadcast_to(sc.satellite_km[it], los.shape)
         bodies = {b: np.broadcast_to(v[it], los.shape) for b, v in sc.bodies_km.items()}
@@ -539,7 +545,7 @@ def test_cube_region_with_its_time_blocks_scene_gives_the_same_values(coarse):
     c, cm, _ = coarse
     fp = footprint_from_config(c.config["footprint"])
     t_slice = slice(0, 12, 4)
-    block_scene = scene(c, c.times[t_slice])
+    block_scene = scene(c.orbit, c.times[t_slice])
     for p_slice in (slice(0, 40), slice(300, 340)):
         own = cube.compute_region(c, fp, t_slice, p_slice, model=cm)
         shared = cube.compute_region(c, fp, t_slice, p_slice, model=cm, scene=block_scene)
@@ -556,11 +562,12 @@ def test_evaluate_into_a_given_array_writes_the_same_values(coarse):
     asked-for component's values, in the order asked, the float64 ones of a plain call rounded
     to float32, and returns no other; an unknown name or a wrongly shaped array is refused."""
     from straylight.model import BAND_COMPONENTS
-    from straylight.sky.geometry import observing_geometry, radec_to_unit
+    from straylight.sky.geometry import observing_geometry
+    from straylight.sky.vectors import radec_to_unit
     from straylight.sky.observing import scene
 
     c, cm, _ = coarse
-    sc = scene(c, c.times[0:20:5])
+    sc = scene(c.orbit, c.times[0:20:5])
     los = radec_to_unit(np.linspace(0.0, 350.0, 50), np.linspace(-60.0, 70.0, 50))
     sat = np.repeat(sc.satellite_km, 50, axis=0)
     bodies = {b: np.repeat(v, 50, axis=0) for b, v in sc.bodies_km.items()}
@@ -617,7 +624,7 @@ def test_cube_region_skipping_unobservable_samples_changes_no_observable_value(c
 
 
 def test_scene_runs_group_consecutive_samples_that_share_a_scene():
-    from straylight.sky.geometry import scene_runs, shared_vectors
+    from straylight.sky.runs import scene_runs, shared_vectors
 
     a = np.repeat(np.array([[1.0, 0, 0], [0, 1.0, 0], [1.0, 0, 0]]), 4, axis=0)  # 3 runs; the third repeats the first
     b = np.repeat(np.array([[0, 0, 1.0], [0, 0, 1.0], [0, 0, 2.0]]), 4, axis=0)
@@ -640,7 +647,7 @@ def test_known_runs_read_what_the_scan_finds():
     the vectors finds: the same vectors, index and starts; restricted to a subset of the
     samples (SceneRuns.at), the runs that scanning the subset finds; the wrong number of
     samples is refused."""
-    from straylight.sky.geometry import SceneRuns, scene_rows, scene_runs
+    from straylight.sky.runs import SceneRuns, scene_rows, scene_runs
 
     rng = np.random.default_rng(5)
     steps, per_step = 4, 6

@@ -9,7 +9,9 @@ from straylight.model import BackgroundModel
 from straylight.sources.stars import OffFieldStars, StarTable
 from straylight.optics.door import Door, door_length_from_paper
 from straylight.errors import ConfigError, InputError
-from straylight.sky.geometry import TelescopeFrame, observing_geometry, radec_to_unit, telescope_frame
+from straylight.sky.frames import TelescopeFrame, telescope_frame
+from straylight.sky.geometry import observing_geometry
+from straylight.sky.vectors import radec_to_unit
 from straylight.sources.offfield import EarthshineSettings
 from straylight.sources.bodies import moon_v_magnitude, planet_v_magnitude
 from straylight.sources.photometry import solar_like_fraction
@@ -330,7 +332,7 @@ def _star_skip_check(model, stars, frame, sat, door, floor_ratio, pairs):
     at its maximum beyond the star's angle, no door) and as exact transfers.  Returns the
     skipped bounds' largest sum as a fraction of that budget, and the number of pairs that count."""
     from straylight.model import ERROR_BUDGET_SHARES
-    from straylight.sky.geometry import earth_blocks
+    from straylight.sky.limb import earth_blocks
 
     n_stars = len(stars.ra_deg)
     r, k, t = pairs
@@ -535,7 +537,8 @@ def test_planet_angles_only_where_they_can_count_change_no_transfer(campaign, co
     everywhere), for Venus 0.7-170 deg from the lines of sight, in a batch of two shared scenes (a
     cube's time steps) and in one with a scene per sample, at the darkest floor and at varied
     floors."""
-    from straylight.sky.geometry import body_geometry, scene_runs
+    from straylight.sky.geometry import body_geometry
+    from straylight.sky.runs import scene_runs
 
     rng = np.random.default_rng(12)
     n = 600
@@ -997,12 +1000,12 @@ def test_planet_in_the_field_is_a_point_source_not_a_background(campaign, tmp_pa
     Table 1 quotes -2.9 at its brightest) and its band AB magnitude.  Just outside the field
     the PST applies as before."""
     from straylight.cli import sky_record
-    from straylight.sky.geometry import unit
+    from straylight.sky.vectors import unit
     from straylight.survey.pointings import pointing_table
     from straylight.sky.observing import scene
 
     t = "2026-01-01T00:50:00"
-    sc = scene(campaign, t)
+    sc = scene(campaign.orbit, t)
     d = unit(sc.bodies_km["jupiter"][0] - sc.satellite_km[0])
     ra, dec = float(np.degrees(np.arctan2(d[1], d[0])) % 360), float(np.degrees(np.arcsin(d[2])))
     rec = sky_record(campaign, t, ra, dec, ["g"])
@@ -1082,7 +1085,7 @@ def test_nothing_enters_the_direct_path_from_behind_the_aperture_plane(campaign,
 def _door_term_exact(off, sat, sun, los, opening, body: bool):
     """The door path summed door block by door block: each block lit by the Earth blocks in front
     of its inner face whose ray to it misses the body (Door.body_hits), times its weight W_i."""
-    from straylight.sky.geometry import dot, unit
+    from straylight.sky.vectors import dot, unit
 
     s = off.earthshine
     frame = telescope_frame(los, sun - sat)

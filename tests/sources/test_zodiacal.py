@@ -70,7 +70,7 @@ def test_ecliptic_frame_matches_astropy():
     rng = np.random.default_rng(5)
     ra, dec = rng.uniform(0, 360, 200), np.degrees(np.arcsin(rng.uniform(-1, 1, 200)))
     c = SkyCoord(ra * u.deg, dec * u.deg).transform_to(BarycentricMeanEcliptic(equinox="J2000"))
-    from straylight.sky.geometry import radec_to_unit
+    from straylight.sky.vectors import radec_to_unit
 
     lon, lat = ecliptic_lon_lat_deg(radec_to_unit(ra, dec))
     # 0.18" measured: astropy adds the ICRS frame bias and the dynamical-equinox offset; the

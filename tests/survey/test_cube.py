@@ -318,14 +318,15 @@ def test_evaluated_samples_skipping_counts_the_observable_ones(campaign):
     the geometry of every sample, and every sample without skipping."""
     from straylight.survey.plan import evaluated_samples
     from straylight.survey.footprint import footprint_from_config
-    from straylight.sky.geometry import observing_geometry, radec_to_unit
+    from straylight.sky.geometry import observing_geometry
+    from straylight.sky.vectors import radec_to_unit
     from straylight.sky.observing import scene
 
     fp = footprint_from_config(campaign.config["footprint"])
     n = len(campaign.times) * fp.pixels.size
     assert evaluated_samples(campaign, fp) == n == 380_160
     skipping = _campaign_with(campaign, {"models": {"unobservable_samples": "skip"}})
-    sc = scene(skipping, skipping.times)
+    sc = scene(skipping.orbit, skipping.times)
     los = radec_to_unit(fp.ra_deg, fp.dec_deg)
     g = observing_geometry(sc.satellite_km[:, None], {b: sc.bodies_km[b][:, None] for b in ("sun", "moon")},
                            los[None], campaign.earth.radius_km, campaign.constraints)

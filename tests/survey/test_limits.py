@@ -21,7 +21,7 @@ def _high_latitude_limits(campaign):
     """Limits over observable samples at ecliptic |beta| >= 60 deg (the darkest zodiacal light),
     a 10 x 10 deg grid of pointings every 30 min of the default campaign day, full model."""
     from straylight.model import BackgroundModel
-    from straylight.sky.geometry import radec_to_unit
+    from straylight.sky.vectors import radec_to_unit
     from straylight.survey.limits import point_source_limit
     from straylight.sky.observing import sample_geometry, scene
     from straylight.sources.zodiacal import icrs_to_ecliptic_matrix
@@ -30,8 +30,8 @@ def _high_latitude_limits(campaign):
     ra, dec = ra.ravel(), dec.ravel()
     beta = np.degrees(np.arcsin((radec_to_unit(ra, dec) @ icrs_to_ecliptic_matrix().T)[:, 2]))
     ra, dec = ra[np.abs(beta) >= 60], dec[np.abs(beta) >= 60]
-    sc = scene(campaign, campaign.times[::6])
-    g = sample_geometry(campaign, sc, ra, dec)
+    sc = scene(campaign.orbit, campaign.times[::6])
+    g = sample_geometry(sc, ra, dec, campaign.earth.radius_km, campaign.constraints)
     shape = g["observable"].shape + (3,)
     sat = np.broadcast_to(sc.satellite_km[:, None, :], shape)
     bodies = {k: np.broadcast_to(v[:, None, :], shape) for k, v in sc.bodies_km.items()}

@@ -72,7 +72,8 @@ def _rotated_scene_rate(campaign, model, sun_zenith_deg: float, elevation_deg: f
     sight ``elevation_deg`` above the limb at ``azimuth_deg`` from the Sun's, in a real
     (rotated, not the local-frame) scene: the satellite over (30 N, 70 E), the Sun at
     ``sun_zenith_deg`` there."""
-    from straylight.sky.geometry import observing_geometry, telescope_frame
+    from straylight.sky.frames import telescope_frame
+    from straylight.sky.geometry import observing_geometry
 
     re = campaign.earth.radius_km
     r = 0.5 * sum(campaign.orbit_radius_range_km)

@@ -17,7 +17,7 @@ def main(snakemake):
     import numpy as np
     import xarray as xr
 
-    from straylight.plots import limit_figures
+    from straylight.plots.report import limit_figures
     from straylight.survey.cube import LIMITS_REGION_VARIABLES, publish_work_store
     from straylight.survey.limits import store_limit_summaries, write_limit_maps
     from straylight.util.io import atomic_path

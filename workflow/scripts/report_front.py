@@ -6,7 +6,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821 - injected by Snakemake
 from _common import end_job, setup_logging  # noqa: E402
 
-from straylight.plots import DEPTH_TABLE, read_depth_table, write_report_front  # noqa: E402
+from straylight.plots.report import DEPTH_TABLE, read_depth_table, write_report_front  # noqa: E402
 
 log = setup_logging(snakemake)  # noqa: F821
 rows = read_depth_table(Path(snakemake.input.depth, DEPTH_TABLE))  # noqa: F821

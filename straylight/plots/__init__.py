@@ -1,0 +1,13 @@
+"""Figures of a campaign's products for the report.
+
+* :mod:`~straylight.plots.maps` - all-sky Mollweide maps of every component and the total per
+  band at chosen times, and the limiting-magnitude maps;
+* :mod:`~straylight.plots.series` - time series of chosen pointings over the first orbit and the
+  whole campaign;
+* :mod:`~straylight.plots.report` - the depth table and the report's first page;
+* :mod:`~straylight.plots.common` - what they share: magnitudes, colour scales, saving.
+
+Maps are in the cube's HEALPix frame (ICRS); pixels outside the footprint are grey.  Values are
+shown as AB mag/arcsec2 (brighter = smaller), the unit planners compare with sky tables.
+"""
+__all__: list[str] = []
