@@ -227,10 +227,15 @@ class ChunkWriter:
     bytes-to-bytes codec: blosc, the products' only one), and written to a temporary file renamed
     onto the chunk's key, as zarr writes it; a chunk holding only the fill value is removed
     instead when the array does not write empty chunks, as zarr does.  The files are the ones
-    zarr writes, byte for byte (tests/survey/test_storage.py); a cube region's 18 chunks cost
-    ~21 CPU-ms here against ~36 through zarr's asynchronous pipeline, which hands every chunk to
-    its event loop and threads.  Any other region, values of another shape, codec, store or zarr
-    format is written by zarr itself.
+    zarr writes, byte for byte (tests/survey/test_storage.py), at about half the CPU of zarr's
+    asynchronous pipeline, which hands every chunk to its event loop and threads (a cube
+    region's chunks: docs/performance.md, bench/storage.py --regions).  Any other region, values
+    of another shape, codec, store or zarr format is written by zarr itself.
+
+    It reads zarr below its public API (the metadata's chunk key encoding, the codecs' settings,
+    the array's runtime config, the local store's root folder, zarr's fill-value comparison),
+    so pyproject.toml pins zarr to the releases tests/survey/test_storage.py passed on
+    (``test_fast_paths_hold_on_the_installed_zarr`` fails on a release where they changed).
 
     ``attrs`` are the array's; ``writer[region] = values`` writes (``region`` a tuple of slices,
     trailing dimensions whole).  Raises OSError as the file system does (no space, no access)."""
@@ -285,10 +290,10 @@ def read_region(array, region) -> np.ndarray:
     dimensions whole) read in this thread: each chunk it meets decoded by the array's own codecs
     mapped to numcodecs (:class:`ChunkWriter`'s, in reverse), a chunk without a file the fill
     value.  The values zarr reads, without its asynchronous pipeline, which hands every chunk to
-    its event loop and threads: the report's three pointings' month (8 variables, 2880 chunks of
-    72 times x 661 pixels [x 7 bands]) in 0.8 CPU s against 1.8 through zarr, a pixel block's
-    month of limits (120 chunks) in 0.09 against 0.48.  Any other region, codec, store or zarr
-    format is read by zarr itself."""
+    its event loop and threads (the time series' and the limits' summaries' reads cost less CPU
+    this way: docs/performance.md, bench/storage.py --regions).  Any other region, codec, store or
+    zarr format is read by zarr itself.  Below zarr's public API as :class:`ChunkWriter` is, and
+    tested with it."""
     chain = _numcodecs_chain(array)
     shape = array.shape
     region = tuple(region) + (slice(None),) * (len(shape) - len(tuple(region)))
