@@ -999,7 +999,7 @@ def test_planet_in_the_field_is_a_point_source_not_a_background(campaign, tmp_pa
     (Meeus 1998 ch. 41: Jupiter -2.67 on 2026-01-01, 9 days before opposition; the paper's
     Table 1 quotes -2.9 at its brightest) and its band AB magnitude.  Just outside the field
     the PST applies as before."""
-    from straylight.cli import sky_record
+    from straylight.cli.sky import sky_record
     from straylight.sky.vectors import unit
     from straylight.survey.pointings import pointing_table
     from straylight.sky.observing import scene
