@@ -163,9 +163,10 @@ def _rounded_block(block, keepbits: int) -> np.ndarray:
 
 #: blosc's block: at least a cube chunk (72 times x 661 pixels x 7 bands of float32 is 1.3 MB),
 #: so a chunk up to 16 MiB is shuffled and compressed whole, as one zstd frame; blosc's own
-#: choice (blocks of a few hundred kB compressed apart) stores the cube's floats in 1.7x the
-#: bytes.  Larger chunks are split in blocks of this size, in order: zarr and the chunk writer
-#: run blosc in one thread (zarr turns numcodecs' blosc threads off), so the bytes are the same.
+#: choice (blocks of a few hundred kB compressed apart) stores the cube's floats in far more
+#: bytes (docs/performance.md).  Larger chunks are split in blocks of this size, in order: zarr
+#: and the chunk writer run blosc in one thread (zarr turns numcodecs' blosc threads off), so the
+#: bytes are the same.
 BLOSC_BLOCK_BYTES = 16 * 2**20
 
 
@@ -227,7 +228,7 @@ class ChunkWriter:
     bytes-to-bytes codec: blosc, the products' only one), and written to a temporary file renamed
     onto the chunk's key, as zarr writes it; a chunk holding only the fill value is removed
     instead when the array does not write empty chunks, as zarr does.  The files are the ones
-    zarr writes, byte for byte (tests/survey/test_storage.py), at about half the CPU of zarr's
+    zarr writes, byte for byte (tests/survey/test_storage.py), with less CPU than zarr's
     asynchronous pipeline, which hands every chunk to its event loop and threads (a cube
     region's chunks: docs/performance.md, bench/storage.py --regions).  Any other region, values
     of another shape, codec, store or zarr format is written by zarr itself.
@@ -367,7 +368,7 @@ def _all_fill(values: np.ndarray, fill_value) -> bool:
     if values.size == 0:
         return True
     # the first value decides most chunks at once, compared here as zarr compares (a whole
-    # chunk's comparison costs ~0.1 ms, one value's through zarr's buffer ~0.05 ms)
+    # chunk's comparison costs more than one value's through zarr's buffer)
     first = values.reshape(-1)[0]
     fill = np.asarray(fill_value, dtype=values.dtype)
     if values.dtype.kind in "fc" and np.isnan(first) and np.isnan(fill):
