@@ -47,16 +47,20 @@ def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None, stars=
     cannot be propagated is refused before any table is read or built), else one built for this
     sample."""
     from straylight.model import BackgroundModel
+    from straylight.model.pointing import background_at
+    from straylight.model.registry import band_components
     from straylight.sky.ephemeris import PLANETS
     from straylight.sky.geometry import violation_names
+    from straylight.sky.observing import scene
     from straylight.sky.vectors import radec_to_unit
     from straylight.survey.limits import point_source_limit, sky_zero_points
-    from straylight.sky.observing import sample_geometry, scene
 
     sc = scene(campaign.orbit, time)
-    g = sample_geometry(sc, np.array([ra_deg]), np.array([dec_deg]), campaign.earth.radius_km, campaign.constraints,
-                        grid=False)
-    v = {k: np.asarray(a).ravel()[0] for k, a in g.items()}
+    model = model() if model is not None else BackgroundModel(campaign)
+    los = np.atleast_2d(radec_to_unit(np.array([ra_deg]), np.array([dec_deg])))
+    g1, comps = background_at(model, sc.satellite_km, sc.bodies_km, los, bands or campaign.bands, stars=stars,
+                              geometry_bodies=tuple(sc.bodies_km))
+    v = {k: np.asarray(a).ravel()[0] for k, a in g1.items()}
     door = float(v["door_opening_deg"])
     record = {
         "time": sc.times[0].isot,
@@ -83,10 +87,6 @@ def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None, stars=
         "violations": violation_names(int(v["violations"])) + ([] if door > 0 else ["door"]),
         "bands": {},
     }
-    g1 = {k: np.asarray(a).reshape(1) for k, a in g.items()}
-    los = radec_to_unit(np.array([ra_deg]), np.array([dec_deg]))
-    model = model() if model is not None else BackgroundModel(campaign)
-    comps = model.evaluate(sc.satellite_km, sc.bodies_km, los, g1, bands or campaign.bands, stars=stars)
     record["models"] = model.models_record()
     # bodies inside the field: point sources, left out of the background and listed here
     in_field = model.in_field.find(sc.satellite_km, sc.bodies_km, los, g1, bands or campaign.bands)
@@ -98,8 +98,7 @@ def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None, stars=
     for name, res in comps.items():
         mag = res["_mag"]
         entry = {}
-        for comp in ("zodiacal", "sun", "moon", "planets", "stars", "earthshine", "earthshine_direct",
-                     "earthshine_door", "total"):
+        for comp in band_components():
             e = float(np.ravel(res[comp])[0])
             m = float(np.ravel(mag(e))[0])
             entry[comp] = {"e_per_s_per_pix": e, "mag_per_arcsec2": m if np.isfinite(m) else None}
