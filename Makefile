@@ -49,7 +49,11 @@ test: $(VENV)/.installed-test
 test-fast: $(VENV)/.installed-test
 	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/python -m pytest -q -m "not slow"
 
-lint: $(VENV)/.installed
+# ruff: the code's layout (ruff format), then pyflakes, import order, line length and numpy
+# docstrings (pyproject.toml [tool.ruff]); Snakemake's own lint of the workflow
+lint: $(VENV)/.installed-test
+	$(BIN)/ruff format --check .
+	$(BIN)/ruff check .
 	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/snakemake --lint
 
 bench: $(VENV)/.installed-test
