@@ -29,7 +29,9 @@ def main():
     import xarray as xr
 
     from straylight.config import campaign_from_dict, load_campaign
-    from straylight.survey.cube import init_store, run_time_blocks
+    from straylight.survey.cube_run import run_time_blocks
+    from straylight.survey.cube_store import init_store
+    from straylight.survey.executors import Execution
     from straylight.survey.footprint import footprint_from_config
 
     base = load_campaign()
@@ -48,7 +50,8 @@ def main():
                 store = tmp / f"bg{workers}_{len(blocks)}.zarr"
                 init_store(c, fp, store)
                 t0 = time.perf_counter()
-                run_time_blocks(c, fp, store, blocks, tmp / f"done{workers}_{len(blocks)}", workers=workers)
+                run_time_blocks(c, fp, store, blocks, tmp / f"done{workers}_{len(blocks)}",
+                                execution=Execution(workers=workers))
                 seconds[len(blocks)] = time.perf_counter() - t0
             extra_s = seconds[3] - seconds[1]  # the two extra blocks
             rate = 2 * block_samples / extra_s

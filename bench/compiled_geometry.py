@@ -87,7 +87,7 @@ def theta_phi_numpy(frame, d):
 
 def main() -> int:
     from straylight.config import load_campaign
-    from straylight.survey.cube import cube_chunks
+    from straylight.survey.cube_layout import cube_chunks
     from straylight.survey.footprint import footprint_from_config
     from straylight.sky.frames import telescope_frame
     from straylight.sky.limb import limb_geometry

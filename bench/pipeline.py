@@ -153,12 +153,11 @@ def build_tables(cfg_path: Path, workers: int) -> float:
     does, and the build (once per machine and model settings) is reported on its own.
     Seconds taken (~0 when cached)."""
     from straylight.config import load_campaign
-    from straylight.survey.cube import background_model_for
-    from straylight.survey.footprint import footprint_from_config
+    from straylight.model import BackgroundModel
 
     t0 = time.perf_counter()
     c = load_campaign(cfg_path)
-    model = background_model_for(c, footprint_from_config(c.config["footprint"], c.path.parent), build_workers=workers)
+    model = BackgroundModel(c, build_workers=workers)
     # the record the cube's skeleton stores names both tables: building it loads (or builds) the
     # sunlit table and, on the table's path, the moonlit one, which is built lazily otherwise
     model.models_record()

@@ -15,7 +15,7 @@ def cube_summary(catalog, time_step: int = 24, n_times: int = 12) -> dict:
     """The survey cube's access pattern: every footprint pixel of the default campaign at
     ``n_times`` times spread over its day, as compute_region runs it (the direct path one time
     step per evaluation, the Earth cap gridded once per step; the table path whole steps as one
-    batch, cube.SAMPLES_PER_EVALUATION), stars included.  Seconds per sample on one
+    batch, cube_region.SAMPLES_PER_EVALUATION), stars included.  Seconds per sample on one
     core (best of three for the direct earthshine sum, of :data:`FAST_REPEATS` for the look-up table, built once
     and cached), and the
     table path's largest difference from the direct path at observable samples, as a fraction
@@ -27,7 +27,7 @@ def cube_summary(catalog, time_step: int = 24, n_times: int = 12) -> dict:
 
     from straylight.catalog.build import write_catalog
     from straylight.config import load_campaign
-    from straylight.survey.cube import compute_region
+    from straylight.survey.cube_region import compute_region, offfield_stars
     from straylight.survey.footprint import footprint_from_config
 
     base = load_campaign()
@@ -38,6 +38,7 @@ def cube_summary(catalog, time_step: int = 24, n_times: int = 12) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         stars_path = Path(tmp) / "stars.parquet"
         write_catalog(catalog, stars_path, {})
+        stars = offfield_stars(base, stars_path)
         for key, method, unobservable in (("direct", "direct", "evaluate"), ("lut", "lut", "evaluate"),
                                           ("lut_observable_only", "lut", "skip"),
                                           ("direct_observable_only", "direct", "skip")):
@@ -45,8 +46,7 @@ def cube_summary(catalog, time_step: int = 24, n_times: int = 12) -> dict:
             lut_model = model if key == "lut" else lut_model
             # the best of several after a warm-up: single runs varied by up to 30 % (this machine's
             # speed wanders within seconds); the table path's runs are short, so seven of them
-            res[key], dt = timed(lambda: compute_region(c, fp, t_slice, slice(None), model=model,
-                                                        stars_path=stars_path),
+            res[key], dt = timed(lambda: compute_region(c, fp, t_slice, slice(None), model=model, stars=stars),
                                  repeats=3 if method == "direct" else FAST_REPEATS)
             out[key] = {"samples_per_s_per_core": n_times * fp.pixels.size / dt}
             print(f"cube, earthshine {method}, unobservable samples {unobservable}: "
@@ -75,7 +75,7 @@ def cube_summary(catalog, time_step: int = 24, n_times: int = 12) -> dict:
 
 def production_region_rates(base, fp, stars_path) -> dict:
     """The table path (every sample, and observable samples only) on what one task of a
-    production run computes (cube.run_time_blocks): one time block of consecutive steps
+    production run computes (cube_run.run_time_blocks): one time block of consecutive steps
     (campaign.time_block_hours, 72 at the default 5-minute cadence) x one pixel block
     (footprint.pixel_block_size, 660 by default), the day's first, with the star catalog at
     ``stars_path``; samples per second on one core, the best of :data:`FAST_REPEATS` after a
@@ -86,9 +86,11 @@ def production_region_rates(base, fp, stars_path) -> dict:
     time block of the campaign so, each the best of its own repeats: the whole default campaign's
     samples over the sum of its blocks' times (``campaign``; the first block alone could be a
     cheaper scene than the others)."""
-    from straylight.survey.cube import compute_region, cube_chunks
+    from straylight.survey.cube_layout import cube_chunks
+    from straylight.survey.cube_region import compute_region, offfield_stars
     from straylight.sky.observing import scene
 
+    stars = offfield_stars(base, stars_path)
     n_times = len(base.times)
     ch = cube_chunks(base, n_times, int(fp.pixels.size))
     t_slice, p_slice = slice(0, ch["time"]), slice(0, ch["pixel"])
@@ -99,7 +101,7 @@ def production_region_rates(base, fp, stars_path) -> dict:
            "campaign": {"time_blocks": len(t_blocks), "samples": n_times * int(fp.pixels.size)}}
     for key, unobservable in (("lut", "evaluate"), ("lut_observable_only", "skip")):
         c, model = cube_model(base, earthshine={"method": "lut"}, models={"unobservable_samples": unobservable})
-        _, dt = timed(lambda: compute_region(c, fp, t_slice, p_slice, model=model, stars_path=stars_path),
+        _, dt = timed(lambda: compute_region(c, fp, t_slice, p_slice, model=model, stars=stars),
                       repeats=FAST_REPEATS)
         out[key] = {"samples_per_s_per_core": n / dt}
         print(f"cube, one production region ({out['times']} steps x {out['pixels']} pixels), unobservable samples "
@@ -108,7 +110,7 @@ def production_region_rates(base, fp, stars_path) -> dict:
         def time_block(ts=t_slice):
             sc = scene(c.orbit, c.times[ts])
             for ps in p_blocks:
-                compute_region(c, fp, ts, ps, model=model, stars_path=stars_path, scene=sc)
+                compute_region(c, fp, ts, ps, model=model, stars=stars, scene=sc)
 
         _, dt = timed(time_block, repeats=FAST_REPEATS)
         out["time_block"][key] = {"samples_per_s_per_core": n_block / dt}

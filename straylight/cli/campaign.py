@@ -26,7 +26,7 @@ def cmd_footprint(args) -> int:
 def cmd_plan(args) -> int:
     """``straylight plan``: the samples, products' size and wall time of a campaign before it runs."""
     from straylight.config import load_campaign
-    from straylight.survey.cube import CUBE_COMPONENTS, cube_chunks
+    from straylight.survey.cube_layout import CUBE_COMPONENTS, cube_chunks
     from straylight.survey.plan import PRODUCT_BYTES_PER_SAMPLE, estimated_cost
     from straylight.survey.footprint import footprint_from_config
     from straylight.survey.timegrid import time_blocks

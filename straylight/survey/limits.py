@@ -267,7 +267,8 @@ def limits_dataset(campaign: Campaign, background, limiting_mag=None) -> "xr.Dat
     limits store), summarised instead of computing them from ``total``.
 
     The pipeline's limits rule writes the same dataset from the limits the cube's workers
-    computed (:func:`straylight.survey.cube.init_limits_store`, :func:`straylight.survey.cube.publish_work_store`)."""
+    computed (:func:`straylight.survey.cube_store.init_limits_store`,
+    :func:`straylight.survey.cube_store.publish_work_store`)."""
     import xarray as xr
 
     bands = [str(b) for b in background["band"].values]

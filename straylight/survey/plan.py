@@ -109,7 +109,7 @@ def machine_speed(campaign: Campaign, fp: Footprint, n_times: int = 4, n_pixels:
     faster machine).  One factor for every figure."""
     from straylight.config import campaign_from_dict, deep_merge
     from straylight.model import BackgroundModel
-    from straylight.survey.cube import compute_region
+    from straylight.survey.cube_region import compute_region
 
     direct = campaign_from_dict(deep_merge(campaign.config, {"models": {"earthshine": {"method": "direct"},
                                                                         "unobservable_samples": "evaluate"}}),

@@ -2,7 +2,7 @@
 a process without the interpreter's teardown, and the hygiene of a process tree (a process that
 dies with its parent; SIGINT and SIGTERM stopping a pool's workers).
 The cube's region pool built on them (or on an existing Dask cluster, ``compute.dask_scheduler``) is
-:func:`straylight.survey.cube.region_pool`."""
+:func:`straylight.survey.executors.region_pool`."""
 from __future__ import annotations
 
 import os
@@ -212,16 +212,6 @@ def exit_without_teardown(code: int = 0) -> None:
         except (OSError, ValueError):  # closed or gone: nothing left to flush
             pass
     os._exit(code)
-
-
-def call_by_name(target: str, *args):
-    """Call ``target`` ("package.module:function") with ``args``, importing its module here: a
-    pool's initializer named by a process that has not imported that module (spawned workers
-    unpickle a function by importing its module; this one is light)."""
-    from importlib import import_module
-
-    module, name = target.split(":")
-    return getattr(import_module(module), name)(*args)
 
 
 def dask_rechunk_by_tasks():

@@ -91,7 +91,7 @@ def test_faint_star_map_shared_among_processes_is_bit_identical(cube_run, campai
     """background_init sums the faint-star map on its processes, each a share of the pixels;
     each pixel's sum runs over the stars on its own (stars._faint_star_kernel), so the same bits
     as one process."""
-    from straylight.survey.cube import faint_star_map
+    from straylight.survey.cube_region import faint_star_map
     from straylight.survey.footprint import footprint_from_config
 
     _, _, out = cube_run

@@ -6,7 +6,10 @@ import pytest
 import xarray as xr
 
 from straylight.config import campaign_from_dict, deep_merge
-from straylight.survey.cube import CUBE_BAND_VARIABLES, compute_region, init_store, write_region
+from straylight.survey.cube_layout import CUBE_BAND_VARIABLES
+from straylight.survey.cube_region import compute_region
+from straylight.survey.cube_store import init_store
+from straylight.survey.executors import write_region
 from straylight.survey.footprint import footprint_from_config
 from straylight.survey.limits import limits_dataset
 from straylight.survey.products import ephemeris_dataset, observability_dataset

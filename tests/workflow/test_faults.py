@@ -9,7 +9,8 @@ import pytest
 
 from conftest import tiny_config
 from straylight.config import load_campaign
-from straylight.survey.cube import init_store, run_time_blocks
+from straylight.survey.cube_run import run_time_blocks
+from straylight.survey.cube_store import init_store
 from straylight.errors import OutputError
 from straylight.survey.footprint import footprint_from_config
 from straylight.survey.provenance import sha256_path

@@ -28,17 +28,18 @@ def _run(snakemake, stopping):
     """The job's body; ``stopping``: the list of pools whose workers a SIGTERM or SIGINT kills."""
     from contextlib import nullcontext
 
-    stores = dict(stars_path=snakemake.input.stars, obs_store=snakemake.params.obs_store,
-                  lim_store=snakemake.params.lim_store)
+    from straylight.survey.cube_layout import CubeStores
+
+    stores = CubeStores(snakemake.params.store, snakemake.params.obs_store, snakemake.params.lim_store)
+    stars_path = snakemake.input.stars
     scheduler = (snakemake.config.get("compute") or {}).get("dask_scheduler")
     workers = int(snakemake.threads)
     if workers > 1 and not scheduler:
         # the pool's workers start first: they load the campaign and build the model while this
         # process imports and loads its own
-        from straylight.survey.workers import start_region_workers
+        from straylight.survey.executors import start_region_workers
 
-        starting = start_region_workers(workers, dict(snakemake.config), snakemake.input.config,
-                                        snakemake.params.store, **stores)
+        starting = start_region_workers(workers, dict(snakemake.config), snakemake.input.config, stores, stars_path)
     else:
         starting = nullcontext()
     with starting as pool:
@@ -48,7 +49,8 @@ def _run(snakemake, stopping):
                 pool.submit(os.getpid)  # a process is spawned at a task's submission
         from _common import campaign, setup_logging
 
-        from straylight.survey.cube import run_time_blocks
+        from straylight.survey.cube_run import run_time_blocks
+        from straylight.survey.executors import Execution
         from straylight.survey.footprint import footprint_from_store
         from straylight.util.io import write_json_atomic
 
@@ -57,8 +59,8 @@ def _run(snakemake, stopping):
         fp = footprint_from_store(snakemake.params.store)  # the skeleton background_init laid down
         blocks = list(snakemake.params.blocks)
         done_dir = Path(snakemake.output[0]).parent
-        reports = run_time_blocks(c, fp, snakemake.params.store, blocks, done_dir, workers=workers,
-                                  scheduler_address=scheduler, log=log, pool=pool, **stores)
+        reports = run_time_blocks(c, fp, stores, blocks, done_dir, stars_path,
+                                  Execution(workers, scheduler_address=scheduler, pool=pool), log=log)
     write_json_atomic({"blocks": [r.__dict__ for r in reports]}, snakemake.output[0])
     n = sum(r.samples for r in reports)
     log.info("time blocks %d-%d: %d samples", blocks[0], blocks[-1], n)

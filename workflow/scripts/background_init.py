@@ -15,7 +15,9 @@ def main(snakemake):
 
     import xarray as xr
 
-    from straylight.survey.cube import clear_block_sentinels, cube_chunks, init_observability_store, init_store
+    from straylight.survey.cube_layout import cube_chunks
+    from straylight.survey.cube_run import clear_block_sentinels
+    from straylight.survey.cube_store import init_observability_store, init_store
     from straylight.survey.footprint import footprint_from_config
     from straylight.util.daskutil import available_cores
     from straylight.util.io import write_json_atomic

@@ -18,7 +18,8 @@ def main(snakemake):
     import xarray as xr
 
     from straylight.plots.report import limit_figures
-    from straylight.survey.cube import LIMITS_REGION_VARIABLES, publish_work_store
+    from straylight.survey.cube_layout import LIMITS_REGION_VARIABLES
+    from straylight.survey.cube_store import publish_work_store
     from straylight.survey.limits import store_limit_summaries, write_limit_maps
     from straylight.util.io import atomic_path
 

@@ -1,0 +1,126 @@
+"""The background cube's layout: its variables and how it is cut into regions.
+
+``background.zarr`` has dims (time, pixel, band): one float32 variable per component
+(:data:`CUBE_COMPONENTS`, e- s-1 pixel-1) plus ``total``; ``observable``, ``violations`` and
+``door_opening_deg`` on (time, pixel).  It is chunked one time block
+(``campaign.time_block_hours``: :func:`cube_time_blocks`) x about ``footprint.pixel_block_size``
+pixels (equal blocks: :func:`~straylight.survey.footprint.pixel_block_length`) x all bands.  A
+time-series read of one pointing then touches one chunk per time block, and a whole-sky read at
+one time one chunk per pixel block.  A region, the unit of work of the cube's workers, is one
+such chunk: a time block x a pixel block.
+
+The regions are written to three stores (:class:`CubeStores`): background.zarr, and the
+observability and limits stores the cube's workers fill beside it
+(:mod:`straylight.survey.cube_store`).
+
+This module imports nothing beyond the standard library at its top, so that a job can name its
+stores and start its workers before it imports numpy and the model
+(:func:`straylight.survey.executors.start_region_workers`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from straylight.config import Campaign
+    from straylight.survey.footprint import Footprint
+
+__all__ = [
+    "CUBE_BAND_VARIABLES",
+    "CUBE_COMPONENTS",
+    "CUBE_PIXEL_VARIABLES",
+    "LIMITS_REGION_VARIABLES",
+    "LONG_NAMES",
+    "OBSERVABILITY_ANGLES",
+    "OBSERVABILITY_VARIABLES",
+    "CubeStores",
+    "cube_chunks",
+    "cube_pixel_blocks",
+    "cube_time_blocks",
+    "pixel_block_size",
+]
+
+CUBE_COMPONENTS = ("zodiacal", "earthshine", "moon", "sun", "planets", "stars")
+#: the cube's (time, pixel, band) variables, e-/s/pix: the components and their total
+CUBE_BAND_VARIABLES = CUBE_COMPONENTS + ("total",)
+#: the cube's (time, pixel) variables
+CUBE_PIXEL_VARIABLES = ("observable", "violations", "door_opening_deg")
+#: observability.zarr's angles besides the cube's own (time, pixel) variables: the cube's
+#: geometry computes them for every sample, so its workers write observability.zarr too
+OBSERVABILITY_ANGLES = ("sun_angle_deg", "moon_angle_deg", "earth_limb_angle_deg")
+#: observability.zarr's data variables (straylight.survey.products.observability_dataset)
+OBSERVABILITY_VARIABLES = ("observable", "violations") + OBSERVABILITY_ANGLES + ("door_opening_deg",)
+#: limits.zarr's variables the cube's workers write, region by region
+#: (:func:`straylight.survey.cube_store.region_limits`)
+LIMITS_REGION_VARIABLES = ("limiting_mag", "observable")
+LONG_NAMES = {
+    "zodiacal": "in-field zodiacal light (Leinert 1998)",
+    "earthshine": "earthshine through the PST, direct + via the aperture door",
+    "moon": "moonlight through the PST",
+    "sun": "sunlight through the PST (door-shaded)",
+    "planets": "planets (Mercury-Pluto) through the PST",
+    "stars": "off-field bright stars through the PST",
+    "total": "total stray light and sky background",
+}
+
+
+def cube_time_blocks(campaign: Campaign, n_times: int) -> list[tuple[int, int]]:
+    """The cube's time blocks over ``n_times`` samples of the campaign's cadence, (start, stop)
+    sample indices of about ``campaign.time_block_hours`` each."""
+    from straylight.survey.timegrid import time_blocks
+
+    c = campaign.config["campaign"]
+    return time_blocks(n_times, float(c["cadence_s"]), float(c.get("time_block_hours", 6)))
+
+
+def pixel_block_size(campaign: Campaign) -> int:
+    """The configured pixels per block (``footprint.pixel_block_size``); the blocks' actual length
+    is :func:`~straylight.survey.footprint.pixel_block_length` of it."""
+    return int(campaign.config["footprint"].get("pixel_block_size", 1024))
+
+
+def cube_pixel_blocks(campaign: Campaign, fp: Footprint) -> list[slice]:
+    """The cube's pixel blocks: slices into the footprint's pixels, of equal length but the last."""
+    return [slice(a, b) for a, b in fp.blocks(pixel_block_size(campaign))]
+
+
+def cube_chunks(campaign: Campaign, n_times: int, n_pixels: int) -> dict:
+    """The cube's chunk sizes, ``{"time": ..., "pixel": ..., "band": ...}``, for ``n_times``
+    samples at ``n_pixels`` footprint pixels: one time block x one pixel block x all bands."""
+    from straylight.survey.footprint import pixel_block_length
+
+    tb = cube_time_blocks(campaign, n_times)
+    t_chunk = tb[0][1] - tb[0][0]
+    p_chunk = pixel_block_length(n_pixels, pixel_block_size(campaign))
+    return {"time": t_chunk, "pixel": p_chunk, "band": len(campaign.bands)}
+
+
+@dataclass(frozen=True)
+class CubeStores:
+    """Where the cube's regions are written: the cube's store (background.zarr), and the
+    observability and limits stores its workers fill beside it (None: not written)."""
+
+    cube: str
+    observability: str | None = None
+    limits: str | None = None
+
+    @classmethod
+    def of(cls, stores) -> CubeStores:
+        """``stores`` if it is a CubeStores, else the cube's store at the path ``stores`` alone."""
+        return stores if isinstance(stores, CubeStores) else cls(str(stores))
+
+    def resolved(self) -> CubeStores:
+        """The same stores at absolute paths: workers (other hosts, other working directories)
+        need them."""
+
+        def absolute(path):
+            return str(Path(path).resolve()) if path else None
+
+        return CubeStores(absolute(self.cube), absolute(self.observability), absolute(self.limits))
+
+    def paths(self) -> tuple:
+        """The stores' paths, the cube's first (None for a store not written)."""
+        return self.cube, self.observability, self.limits

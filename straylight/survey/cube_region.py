@@ -1,0 +1,333 @@
+"""The computation of one region of the background cube: every component in every band, and the
+observability, at a time block's times x a pixel block's lines of sight.
+
+:func:`region_values` computes a region as numpy arrays (what a worker writes),
+:func:`compute_region` as a Dataset.  The steps of a region are evaluated together, as flat
+batches of samples (:func:`_step_batches`); with ``models.unobservable_samples: skip`` only the
+observable samples are evaluated (:func:`_evaluate_observable`).  The faint stars' map depends on
+the line of sight only, so the cube computes it once for the whole footprint
+(:func:`faint_star_map`) and every region reads its pixels.
+
+The model and the off-field stars are built by the caller, once for many regions
+(:class:`straylight.survey.executors.WorkerState` keeps them in a worker).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from straylight.sky.frames import TelescopeFrame, telescope_frame
+from straylight.sky.geometry import observing_geometry
+from straylight.sky.runs import SceneRuns
+from straylight.sky.vectors import radec_to_unit
+
+# the components a region holds, read beside SAMPLES_PER_EVALUATION by the tests
+from straylight.survey.cube_layout import (
+    CUBE_BAND_VARIABLES,
+    CUBE_COMPONENTS,  # noqa: F401
+    OBSERVABILITY_ANGLES,
+)
+
+if TYPE_CHECKING:  # xarray where a Dataset is made: a worker computing regions does without it
+    import xarray as xr
+
+    from straylight.config import Campaign
+    from straylight.survey.footprint import Footprint
+
+__all__ = ["SAMPLES_PER_EVALUATION", "compute_region", "faint_star_map", "offfield_stars", "region_values"]
+
+#: samples per evaluation on the table path (whole time steps of a pixel block): large enough
+#: that numpy's per-call cost is paid rarely, a default production region in one call, small
+#: enough to bound the batch's temporaries (figures: docs/performance.md)
+SAMPLES_PER_EVALUATION = 131072
+
+
+def offfield_stars(campaign: Campaign, stars_path):
+    """The catalog's off-field stars at ``stars_path`` (brighter than stars.offfield_mag_limit,
+    and the fainter ones for the faint map when ``stars.faint_map``), in the campaign's bands;
+    None without a catalog."""
+    if stars_path is None:
+        return None
+    from straylight.sources.stars import load_offfield_stars
+
+    limit = float(campaign.config["stars"].get("offfield_mag_limit", 2.0))
+    faint = bool(campaign.config["stars"].get("faint_map", True))
+    return load_offfield_stars(stars_path, campaign.bands, limit, faint)
+
+
+def compute_region(
+    campaign: Campaign,
+    fp: Footprint,
+    t_slice: slice,
+    p_slice: slice,
+    model=None,
+    stars=None,
+    faint_map=None,
+    scene=None,
+    angles: dict | None = None,
+) -> xr.Dataset:
+    """Compute the cube values of times t_slice x pixels p_slice (numpy-backed Dataset);
+    ``model``: the campaign's BackgroundModel (None: built here); ``stars``: the off-field stars
+    (:func:`offfield_stars`; None: stars = 0); ``faint_map``: the faint stars' map at these
+    pixels, (pixel, band) e-/s/pix, as :func:`faint_star_map` gives it (None: computed here);
+    ``scene``: the satellite's and the bodies' positions at these times
+    (:func:`straylight.sky.observing.scene`), when already computed for another pixel block of
+    the same times (None: computed here); ``angles``: a dict that receives the samples' other
+    observability angles (:data:`~straylight.survey.cube_layout.OBSERVABILITY_ANGLES`, (time,
+    pixel) float32 deg, the geometry the cube computes anyway; None: not kept).  ValueError if
+    ``scene`` is not at exactly these times."""
+    import xarray as xr
+
+    if model is None:
+        from straylight.model import BackgroundModel
+
+        model = BackgroundModel(campaign)
+    values = region_values(campaign, fp, t_slice, p_slice, model, stars, faint_map, scene, angles)
+    return xr.Dataset({name: (_dims(name), v) for name, v in values.items()})
+
+
+def _dims(name: str) -> tuple:
+    """A cube variable's dims: (time, pixel, band) for the components and the total, else
+    (time, pixel)."""
+    return ("time", "pixel", "band") if name in CUBE_BAND_VARIABLES else ("time", "pixel")
+
+
+def region_values(
+    campaign: Campaign,
+    fp: Footprint,
+    t_slice: slice,
+    p_slice: slice,
+    model,
+    stars=None,
+    faint_map=None,
+    scene=None,
+    angles: dict | None = None,
+) -> dict:
+    """:func:`compute_region`'s variables as numpy arrays (name -> (time, pixel[, band]) array),
+    without the Dataset: what a worker writes.  ``model`` is required here."""
+    from straylight.model import unobservable_samples
+    from straylight.sky import observing
+
+    times = campaign.times[t_slice]
+    sc = observing.scene(campaign.orbit, times) if scene is None else _checked_scene(scene, times)
+    los = radec_to_unit(fp.ra_deg[p_slice], fp.dec_deg[p_slice])
+    nt, npix, nb = len(times), los.shape[0], len(campaign.bands)
+    faint = (
+        None if faint_map is None else {b: np.asarray(faint_map)[:, i] for i, b in enumerate(campaign.bands)}
+    )
+    if faint is None and stars is not None and len(stars.faint_ra_deg):
+        # once per pixel, not per sample of a many-step batch (it depends on the line of sight only)
+        faint = model.stars.faint_star_rates(stars, los, campaign.bands)
+    # one allocation for every component: numpy asks the kernel for huge pages on arrays of 4 MiB
+    # or more (a default region's block is), fewer page faults than one array per component
+    names = CUBE_BAND_VARIABLES
+    block = np.zeros((len(names), nt, npix, nb), np.float32)
+    out = dict(zip(names, block))
+    obs = np.zeros((nt, npix), bool)
+    viol = np.zeros((nt, npix), np.uint8)
+    door = np.zeros((nt, npix), np.float32)
+    if angles is not None:
+        angles.update({k: np.zeros((nt, npix), np.float32) for k in OBSERVABILITY_ANGLES})
+    # Steps are evaluated together, as one flat batch of samples: numpy's per-call cost is then
+    # paid once per batch, not once per step.  The direct earthshine sum grids the Earth per
+    # sample, so there one step per call bounds its memory (the star pairs bound their own:
+    # OffFieldStars.STAR_PAIRS_PER_PASS).
+    max_samples = npix if model.sunlit_earth.model["lut"] is None else SAMPLES_PER_EVALUATION
+    skip_unobservable = unobservable_samples(campaign) == "skip"  # the campaign's, not the model's
+    for steps in _step_batches(nt, npix, max_samples):
+        k = steps.stop - steps.start
+        # each step's scene repeated over its pixels: the samples' scene runs are the steps,
+        # known here, so no function scans every sample's vectors to find them again
+        runs = SceneRuns.steps(k, npix)
+        sat = np.repeat(sc.satellite_km[steps], npix, axis=0)
+        los_k = np.broadcast_to(los[None], (k,) + los.shape).reshape(-1, 3)
+        # the constraints need the Sun's and the Moon's angles only; the background finds the
+        # planets' where they can matter (sources.bodies.Planets)
+        bodies = {
+            b: np.repeat(sc.bodies_km[b][steps], npix, axis=0)
+            for b in (("sun", "moon") if skip_unobservable else sc.bodies_km)
+        }
+        frame = telescope_frame(los_k, bodies["sun"] - sat)  # once for the geometry and the background
+        g = observing_geometry(
+            sat,
+            {b: bodies[b] for b in ("sun", "moon")},
+            los_k,
+            campaign.earth.radius_km,
+            campaign.constraints,
+            frame=frame,
+            runs=runs,
+        )
+        if skip_unobservable:
+            _evaluate_observable(model, campaign, sc, los, faint, g, frame, stars, out, steps, runs)
+        else:
+            faint_k = None if faint is None else {b: np.tile(v, k) for b, v in faint.items()}
+            # written straight into the region's float32 block: a view (the steps are consecutive,
+            # so step and pixel merge into the batch's step-major samples)
+            into = (names, block[:, steps].reshape(len(names), k * npix, nb))
+            model.evaluate(
+                sat,
+                bodies,
+                los_k,
+                g,
+                campaign.bands,
+                stars,
+                faint_rates=faint_k,
+                frame=frame,
+                into=into,
+                runs=runs,
+            )
+        obs[steps], viol[steps], door[steps] = (
+            _by_step(g[v], k, npix) for v in ("observable", "violations", "door_opening_deg")
+        )
+        if angles is not None:
+            for name in OBSERVABILITY_ANGLES:
+                angles[name][steps] = _by_step(g[name], k, npix)
+    return {**out, "observable": obs, "violations": viol, "door_opening_deg": door}
+
+
+def _checked_scene(sc, times):
+    """``sc`` if it is at exactly ``times`` (the same UTC Julian dates), else ValueError: a
+    scene from other times would put every body in the wrong place without a sign."""
+    t = sc.times
+    same = (
+        len(t) == len(times)
+        and np.array_equal(t.utc.jd1, times.utc.jd1)
+        and np.array_equal(t.utc.jd2, times.utc.jd2)
+    )
+    if not same:
+        raise ValueError(
+            f"scene at {len(t)} times ({t[0].isot if len(t) else '-'} ...) is not at the "
+            f"region's {len(times)} times ({times[0].isot if len(times) else '-'} ...)"
+        )
+    return sc
+
+
+def _evaluate_observable(
+    model, campaign: Campaign, sc, los, faint, screen: dict, frame, stars, out, steps, runs
+):
+    """Evaluate the observable samples (flat, step-major) of the time steps ``steps`` of the
+    scene ``sc`` at the lines of sight ``los`` (pixel, 3) only, and write them into ``out`` at
+    ``steps``; the other samples get NaN.  ``screen``: the batch's geometry with the Sun and
+    the Moon (:func:`observing_geometry`), ``frame`` its telescope frame: the observable samples
+    take their values (the background finds the planets' angles itself).  Each sample's values
+    depend on that sample alone, so the observable ones come out as they do in a whole batch
+    (tests/sources/test_earthshine_lut.py).  ``faint``: band -> per-pixel faint-star rates; ``runs``:
+    the batch's scene runs (its steps)."""
+    npix = los.shape[0]
+    sel = np.flatnonzero(screen["observable"])
+    for comp in CUBE_BAND_VARIABLES:
+        out[comp][steps] = np.nan
+    if sel.size == 0:
+        return
+    t_idx, p_idx = np.divmod(sel, npix)
+    # rows by index with np.take, faster than numpy's fancy indexing of (N, 3) rows
+    sat = np.take(sc.satellite_km[steps], t_idx, axis=0)
+    bodies = {b: np.take(v[steps], t_idx, axis=0) for b, v in sc.bodies_km.items()}
+    sub = TelescopeFrame(*(np.take(a, sel, axis=0) for a in (frame.x, frame.y, frame.z)))
+    g = {name: np.asarray(v)[sel] for name, v in screen.items()}
+    names = CUBE_BAND_VARIABLES
+    values = np.empty((len(names), sel.size, len(campaign.bands)), np.float32)
+    model.evaluate(
+        sat,
+        bodies,
+        np.take(los, p_idx, axis=0),
+        g,
+        campaign.bands,
+        stars,
+        faint_rates=None if faint is None else {b: v[p_idx] for b, v in faint.items()},
+        frame=sub,
+        into=(names, values),
+        runs=runs.at(sel),
+    )
+    for comp, v in zip(names, values):  # every band of a sample at once
+        out[comp][steps.start + t_idx, p_idx] = v
+
+
+def _step_batches(n_steps: int, n_pixels: int, max_samples: int) -> list[slice]:
+    """The time steps of one evaluation each: as few as keep each within ``max_samples``
+    samples (at least one step), sized within one step of each other, so no call is a small
+    remainder paying the per-call cost for a few steps (72 steps of 1024 pixels within 65,536:
+    two calls of 36, not 64 and 8)."""
+    steps_max = max(1, max_samples // max(n_pixels, 1))
+    n_calls = -(-n_steps // steps_max)
+    bounds = [n_steps * i // n_calls for i in range(n_calls + 1)] if n_calls else [0]
+    return [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
+
+
+def _by_step(values, k: int, npix: int) -> np.ndarray:
+    """A batch's k * npix samples (step-major) as (k, npix)."""
+    return np.broadcast_to(values, (k * npix,)).reshape(k, npix)
+
+
+def _faint_rows(campaign: Campaign, fp: Footprint, model, stars, rows: slice) -> np.ndarray:
+    """The faint-star map at footprint pixels ``rows``, (pixel, band) e-/s/pix (0 in a band
+    the catalog has no faint magnitudes in)."""
+    los = radec_to_unit(fp.ra_deg[rows], fp.dec_deg[rows])
+    rates = model.stars.faint_star_rates(stars, los, campaign.bands, saved=True)
+    values = np.zeros((los.shape[0], len(campaign.bands)))
+    for i, band in enumerate(campaign.bands):
+        if band in rates:
+            values[:, i] = rates[band]
+    return values
+
+
+def _faint_rows_in_process(campaign: Campaign, fp: Footprint, stars_path: str, rows: slice) -> np.ndarray:
+    """:func:`_faint_rows` in a spawned process of :func:`faint_star_map`, which builds its own
+    model and loads the catalog."""
+    from straylight.model import BackgroundModel
+
+    return _faint_rows(campaign, fp, BackgroundModel(campaign), offfield_stars(campaign, stars_path), rows)
+
+
+def faint_star_map(
+    campaign: Campaign, fp: Footprint, stars_path, workers: int = 1, before=None, model=None, stars=None
+) -> xr.Variable | None:
+    """The faint stars' smoothed map at every footprint pixel, (pixel, band), e-/s/pix: it
+    depends on the line of sight only, so the cube computes it once (in
+    :func:`~straylight.survey.cube_store.init_store`) and every time block reads it.  None
+    without a catalog or with no faint stars.
+
+    ``workers`` processes share the pixels (this one and ``workers`` - 1 spawned ones, each
+    loading the catalog and the model once): the same values as one process (each pixel's sum
+    is computed on its own).  ``before``: a callable run in this process while the spawned ones
+    start (the skeleton's other work); its result is returned with the map as a pair then.
+    ``model``, ``stars``: this process's BackgroundModel (built with ``workers`` for an
+    earthshine table it may build later) and the catalog's off-field stars, when the caller has
+    them (None: made here)."""
+    import xarray as xr
+
+    stars = offfield_stars(campaign, stars_path) if stars is None else stars
+    if stars is None or not len(stars.faint_ra_deg):
+        return None if before is None else (None, before())
+    if model is None:
+        from straylight.model import BackgroundModel
+
+        model = BackgroundModel(campaign, build_workers=workers)
+    edges = np.linspace(0, fp.pixels.size, max(1, min(int(workers), fp.pixels.size)) + 1).round().astype(int)
+    parts = [slice(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:])]
+
+    def saved(rows):  # this part's sums kept on disk (read instead of summed)
+        return model.stars.faint_star_map_saved(
+            stars, radec_to_unit(fp.ra_deg[rows], fp.dec_deg[rows]), campaign.bands
+        )
+
+    if len(parts) == 1 or all(saved(rows) for rows in parts):
+        # one process, or every part's sums kept on disk (read here: no process to start)
+        other = None if before is None else before()
+        values = np.concatenate([_faint_rows(campaign, fp, model, stars, rows) for rows in parts])
+    else:
+        from straylight.util.daskutil import spawned_pool
+
+        with spawned_pool(len(parts) - 1) as pool:
+            futures = [
+                pool.submit(_faint_rows_in_process, campaign, fp, str(stars_path), rows) for rows in parts[1:]
+            ]
+            other = None if before is None else before()
+            values = np.concatenate(
+                [_faint_rows(campaign, fp, model, stars, parts[0])] + [f.result() for f in futures]
+            )
+    long_name = "faint off-field stars: smoothed map (azimuth-averaged PST), part of stars"
+    var = xr.Variable(("pixel", "band"), values, {"units": "electron / (s pixel)", "long_name": long_name})
+    return var if before is None else (var, other)
