@@ -26,9 +26,9 @@ def main():
     from straylight.optics.scatter import scatter_model_from_instrument
 
     c = load_campaign()
-    fp = focal_plane_from_instrument(c.instrument)
-    sc = scatter_model_from_instrument(c.instrument)
-    gh = ghost_model_from_instrument(c.instrument, "g")
+    fp = focal_plane_from_instrument(c.instrument_settings)
+    sc = scatter_model_from_instrument(c.instrument_settings)
+    gh = ghost_model_from_instrument(c.instrument_settings, "g")
     sun = np.array([1.0, 0.0, 0.0])
     rng = np.random.default_rng(7)
     w = pointing_wcs(150.0, 30.0, sun, fp, 12)

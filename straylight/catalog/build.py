@@ -303,7 +303,7 @@ def catalog_for_campaign(campaign, gaia_stars: dict | None = None) -> tuple[dict
 
     sc = campaign.settings.stars
     base = campaign.path.parent
-    responses = {b: load_band(campaign.instrument, b, campaign.instrument_path.parent).response
+    responses = {b: load_band(campaign.instrument_settings, b, campaign.instrument_path.parent).response
                  for b in campaign.bands}
     library = None
     if sc.btsettl_files:

@@ -29,7 +29,7 @@ import numpy as np
 from scipy import signal
 
 from straylight.optics.bandpass import Band
-from straylight.config import pixel_scale_arcsec
+from straylight.config import InstrumentSettings, instrument_settings, needed, pixel_scale_arcsec
 from straylight.errors import InputError
 from straylight.sky.frames import telescope_frame
 from straylight.sky.vectors import radec_to_unit, unit
@@ -60,16 +60,22 @@ class FocalPlane:
         return ((col - (self.columns - 1) / 2) * pitch_x, (row - (self.rows - 1) / 2) * pitch_y)
 
 
-def focal_plane_from_instrument(instrument: dict) -> FocalPlane:
-    d = instrument["detector"]
-    nx, ny = int(d["nx_pixels"]["value"]), int(d["ny_pixels"]["value"])
+def focal_plane_from_instrument(instrument: InstrumentSettings | dict) -> FocalPlane:
+    """The focal plane of the instrument's ``detector`` section (CCD format, pixel, layout).
+    ``instrument``: its typed settings, or its mapping
+    (:func:`~straylight.config.instrument.instrument_settings`)."""
+    inst = instrument_settings(instrument)
+    d = inst.detector
+    nx = int(needed(d.nx_pixels, "detector.nx_pixels").value)
+    ny = int(needed(d.ny_pixels, "detector.ny_pixels").value)
     if nx <= 0 or ny <= 0:
         raise InputError(f"detector size {nx} x {ny}: must be positive")
     return FocalPlane(
-        nx=nx, ny=ny, pixel_scale_arcsec=pixel_scale_arcsec(instrument),
-        pixel_size_mm=float(d["pixel_size_um"]["value"]) / 1000.0,
-        columns=int(d["layout_columns"]["value"]), rows=int(d["layout_rows"]["value"]),
-        gap_px=float(d["layout_gap_pixels"]["value"]),
+        nx=nx, ny=ny, pixel_scale_arcsec=pixel_scale_arcsec(inst),
+        pixel_size_mm=d.pixel_size_um.value / 1000.0,
+        columns=int(needed(d.layout_columns, "detector.layout_columns").value),
+        rows=int(needed(d.layout_rows, "detector.layout_rows").value),
+        gap_px=needed(d.layout_gap_pixels, "detector.layout_gap_pixels").value,
     )
 
 

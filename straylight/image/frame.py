@@ -95,7 +95,7 @@ def frame_for_target(campaign, time, target_ra_deg: float, target_dec_deg: float
     from straylight.optics.scatter import scatter_model_from_instrument
 
     settings = settings or RenderSettings()
-    aperture_m = campaign.instrument_value("telescope", "aperture_diameter_m")
+    aperture_m = campaign.instrument_settings.telescope.aperture_diameter_m.value
     ra, dec = star_ra_deg, star_dec_deg
     flux = detector.star_fluxes_e_per_s(star_mag_ab, band, aperture_m)
     sun = detector.sun_direction_at(campaign, time)
@@ -110,7 +110,7 @@ def frame_for_target(campaign, time, target_ra_deg: float, target_dec_deg: float
         b_flux = detector.star_fluxes_e_per_s(b_mag, band, aperture_m)
         ra, dec = np.concatenate([ra, b_ra]), np.concatenate([dec, b_dec])
         flux = np.concatenate([flux, b_flux])
-    scatter = scatter_model_from_instrument(campaign.instrument)
+    scatter = scatter_model_from_instrument(campaign.instrument_settings)
     sel = detector.select_stars(bore_ra, bore_dec, ra, dec, flux, sun, focal_plane, detector_index, scatter,
                                 settings)
     return TargetFrame(bore_ra, bore_dec, ra, dec, flux, b_names, b_mag, sun, focal_plane, detector_index,
@@ -129,15 +129,16 @@ def cutout_window(focal_plane: FocalPlane, x_pix: float, y_pix: float, width: in
     return (x0, y0, window[0] + width - x0, window[1] + height - y0)
 
 
-def render_frame(frame: TargetFrame, instrument: dict, band_name: str, window=None, bin_factor: int = 1,
+def render_frame(frame: TargetFrame, instrument, band_name: str, window=None, bin_factor: int = 1,
                  background_e_per_s_per_pix: float | None = None) -> detector.DetectorImage:
     """Render the frame's in-field stray light (:func:`~straylight.image.detector.render_detector`).
 
     Parameters
     ----------
     frame : TargetFrame
-    instrument : dict
-        The instrument config (its ghosts).
+    instrument : straylight.config.InstrumentSettings or dict
+        The instrument (its ghosts): its typed settings, or its mapping
+        (:func:`straylight.config.instrument_settings`).
     band_name : str
         The band (its ghosts).
     window : tuple of int, optional
@@ -153,13 +154,15 @@ def render_frame(frame: TargetFrame, instrument: dict, band_name: str, window=No
         The image in e-/s/pixel, float32, shape (height // bin_factor, width // bin_factor) of
         the window (the chip's when no window).
     """
+    from straylight.config import instrument_settings, needed
     from straylight.optics.ghosts import ghost_model_from_instrument
 
+    inst = instrument_settings(instrument)
     result = detector.render_detector(
         frame.boresight_ra_deg, frame.boresight_dec_deg, frame.star_ra_deg, frame.star_dec_deg,
         frame.star_flux_e_per_s, frame.sun_direction, frame.focal_plane, frame.detector, frame.scatter,
-        ghost_model_from_instrument(instrument, band_name),
-        float(instrument["ghosts"]["chief_ray_angle_deg"]["value"]),
+        ghost_model_from_instrument(inst, band_name),
+        needed(inst.ghosts, "ghosts").chief_ray_angle_deg.value,
         frame.settings, window=window, bin_factor=bin_factor,
     )
     if background_e_per_s_per_pix is not None:

@@ -156,7 +156,7 @@ class BackgroundModel:
                                 terms.term_lamp, terms.term_first, terms.scales, sun_at_1au, sums, writes, n_rows,
                                 values)
         extras = {f"_{k}": v for r in rates.values() for k, v in r.extras.items()}
-        aperture_d = self.campaign.instrument_value("telescope", "aperture_diameter_m")
+        aperture_d = self.campaign.instrument_settings.telescope.aperture_diameter_m.value
         pix_arcsec = self.campaign.pixel_scale_arcsec
         out = {}
         for ib, name in enumerate(bands):

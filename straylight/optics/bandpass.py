@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 from scipy.special import erf
 
+from straylight.config import InstrumentSettings, instrument_settings
 from straylight.errors import ConfigError, InputError
 
 H_PLANCK = 6.62607015e-34  # J s (exact, SI 2019)
@@ -157,9 +158,11 @@ def read_throughput_file(path: str | Path, wavelength_unit: str = "angstrom") ->
     return wl, t
 
 
-def aperture_area_m2(instrument: dict) -> float:
-    """Unobstructed collecting area pi D^2 / 4 of the instrument's telescope, m2."""
-    return float(np.pi * float(instrument["telescope"]["aperture_diameter_m"]["value"]) ** 2 / 4.0)
+def aperture_area_m2(instrument: InstrumentSettings | dict) -> float:
+    """Unobstructed collecting area pi D^2 / 4 of the instrument's telescope, m2.
+    ``instrument``: its typed settings, or its mapping
+    (:func:`~straylight.config.instrument.instrument_settings`)."""
+    return float(np.pi * instrument_settings(instrument).telescope.aperture_diameter_m.value ** 2 / 4.0)
 
 
 def zero_point_ab_mag(band: Band, aperture_area_m2_: float) -> float:
@@ -167,36 +170,38 @@ def zero_point_ab_mag(band: Band, aperture_area_m2_: float) -> float:
     return float(2.5 * np.log10(band.ab_zero_point_photons_s_m2 * aperture_area_m2_))
 
 
-def load_band(instrument: dict, name: str, instrument_dir: Path | None = None) -> Band:
-    """The band ``name`` of an instrument config, or a diagnostic band (``V``)."""
+def load_band(instrument: InstrumentSettings | dict, name: str, instrument_dir: Path | None = None) -> Band:
+    """The band ``name`` of an instrument, or a diagnostic band (``V``).  ``instrument``: its
+    typed settings, or its mapping (:func:`~straylight.config.instrument.instrument_settings`);
+    ``instrument_dir``: the folder a relative ``throughput_file`` is in."""
     if name == "V":
         import speclite.filters as sf
 
         f = sf.load_filter("bessell-V")
         return Band("V", np.asarray(f.wavelength), np.asarray(f.response), "speclite:bessell-V")
-    bands = instrument["bands"]
+    inst = instrument_settings(instrument)
+    bands = inst.bands
     if name not in bands:
         raise InputError(f"unknown band {name!r}; known: {', '.join(list(bands) + list(DIAGNOSTIC_BANDS))}")
     b = bands[name]
-    if b.get("throughput_file"):
-        p = Path(b["throughput_file"])
+    if b.throughput_file:
+        p = Path(b.throughput_file)
         if not p.is_absolute() and instrument_dir is not None:
             p = instrument_dir / p
-        wl, t = read_throughput_file(p, b.get("throughput_wavelength_unit", "angstrom"))
+        wl, t = read_throughput_file(p, b.throughput_wavelength_unit)
         origin = f"file:{p}"
     else:
-        if "peak_throughput" not in b:
+        if b.peak_throughput is None:
             raise ConfigError(f"bands.{name}: give peak_throughput (parametric model) or throughput_file")
-        wl, t = parametric_curve(b["wavelength_min_nm"], b["wavelength_max_nm"], b["peak_throughput"],
-                                 b.get("edge_width_nm", 5.0))
+        wl, t = parametric_curve(b.wavelength_min_nm, b.wavelength_max_nm, b.peak_throughput, b.edge_width_nm)
         origin = "parametric"
-    if "zero_point_ab_mag" not in b:
+    if b.zero_point_ab_mag is None:
         return Band(name, wl, t, origin)
     # the curve's shape, scaled so that its AB zero point is the given one
-    own_zp = zero_point_ab_mag(Band(name, wl, t, origin), aperture_area_m2(instrument))
-    scale = 10.0 ** (0.4 * (float(b["zero_point_ab_mag"]) - own_zp))
+    own_zp = zero_point_ab_mag(Band(name, wl, t, origin), aperture_area_m2(inst))
+    scale = 10.0 ** (0.4 * (b.zero_point_ab_mag - own_zp))
     if not 0 < scale * t.max() <= 1:
         raise ConfigError(
-            f"bands.{name}: zero_point_ab_mag = {b['zero_point_ab_mag']} needs a peak throughput of "
+            f"bands.{name}: zero_point_ab_mag = {b.zero_point_ab_mag} needs a peak throughput of "
             f"{scale * t.max():.3g} (the curve's own zero point is {own_zp:.3f}); it must be within (0, 1]")
-    return Band(name, wl, t * scale, f"{origin} scaled to AB zero point {float(b['zero_point_ab_mag']):.3f}")
+    return Band(name, wl, t * scale, f"{origin} scaled to AB zero point {b.zero_point_ab_mag:.3f}")

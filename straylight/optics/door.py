@@ -31,6 +31,7 @@ from functools import cached_property
 import numpy as np
 from numba import njit
 
+from straylight.config import InstrumentSettings, instrument_settings
 from straylight.errors import ConfigError
 from straylight.sky.vectors import wrap_360_deg
 from straylight.util.gridinterp import LinearGrid
@@ -230,13 +231,15 @@ def _door_state_kernel(states, opening, index, known):
         known[p] = states[i] == x
 
 
-def door_from_instrument(instrument: dict) -> Door:
-    d = instrument.get("door_geometry") or {}
-    r = float(instrument["telescope"]["aperture_diameter_m"]["value"]) / 2.0
-    length = float(d["length_m"]["value"]) if "length_m" in d else door_length_from_paper(r)
-    width = float(d["width_m"]["value"]) if "width_m" in d else length
-    n = int(d["n_aperture"]["value"]) if "n_aperture" in d else 256
-    body_r = float(d["body_radius_m"]["value"]) if "body_radius_m" in d else 0.0
-    body_l = float(d["body_length_m"]["value"]) if "body_length_m" in d else 0.0
-    return Door(aperture_radius_m=r, length_m=length, width_m=width, n_aperture=n, body_radius_m=body_r,
-                body_length_m=body_l)
+def door_from_instrument(instrument: InstrumentSettings | dict) -> Door:
+    """The instrument's door (its ``door_geometry`` and aperture): without a length, the one
+    :func:`door_length_from_paper` gives for the aperture; without a width, a square plate.
+    ``instrument``: its typed settings, or its mapping
+    (:func:`~straylight.config.instrument.instrument_settings`)."""
+    inst = instrument_settings(instrument)
+    g = inst.door_geometry
+    r = inst.telescope.aperture_diameter_m.value / 2.0
+    length = g.length_m.value if g.length_m is not None else door_length_from_paper(r)
+    width = g.width_m.value if g.width_m is not None else length
+    return Door(aperture_radius_m=r, length_m=length, width_m=width, n_aperture=int(g.n_aperture.value),
+                body_radius_m=g.body_radius_m.value, body_length_m=g.body_length_m.value)

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from straylight.config import InstrumentSettings, instrument_settings, needed
 from straylight.errors import ConfigError, InputError
 
 
@@ -85,15 +86,18 @@ class GhostModel:
         return self.energy_relative_to_image() / (np.pi * r * r)
 
 
-def ghost_model_from_instrument(instrument: dict, band: str) -> GhostModel:
-    g = instrument["ghosts"]
-    per = g["per_band"].get(band)
+def ghost_model_from_instrument(instrument: InstrumentSettings | dict, band: str) -> GhostModel:
+    """The ghosts of ``band``: the instrument's ``ghosts`` section and the band's entry in it.
+    ``instrument``: its typed settings, or its mapping
+    (:func:`~straylight.config.instrument.instrument_settings`)."""
+    g = needed(instrument_settings(instrument).ghosts, "ghosts")
+    per = g.per_band.get(band)
     if per is None:
         raise ConfigError(f"ghosts.per_band has no entry for band {band!r}")
     return GhostModel(
-        d1_mm=float(g["filter_thickness_mm"]["value"]),
-        d2_mm=float(g["filter_detector_distance_mm"]["value"]),
-        n=float(g["filter_refractive_index"]["value"]),
-        u_rad=float(g["marginal_ray_angle_rad"]["value"]),
-        r1=float(per["R1"]), r2=float(per["R2"]), t1=float(per["T1"]), t2=float(per["T2"]), rd=float(per["Rd"]),
+        d1_mm=g.filter_thickness_mm.value,
+        d2_mm=g.filter_detector_distance_mm.value,
+        n=g.filter_refractive_index.value,
+        u_rad=g.marginal_ray_angle_rad.value,
+        r1=per.R1, r2=per.R2, t1=per.T1, t2=per.T2, rd=per.Rd,
     )

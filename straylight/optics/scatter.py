@@ -28,6 +28,7 @@ from functools import cached_property
 import numpy as np
 from scipy import integrate
 
+from straylight.config import InstrumentSettings, instrument_settings, needed
 from straylight.errors import ConfigError, InputError
 
 ARCSEC_RAD = np.pi / 180.0 / 3600.0
@@ -147,16 +148,20 @@ class ScatterModel:
         return e_in + e_out
 
 
-def scatter_model_from_instrument(instrument: dict) -> ScatterModel:
-    sc = instrument["scattering"]
+def scatter_model_from_instrument(instrument: InstrumentSettings | dict) -> ScatterModel:
+    """The instrument's star image: its ``scattering`` section, aperture, focal length and EE80
+    radius.  ``instrument``: its typed settings, or its mapping
+    (:func:`~straylight.config.instrument.instrument_settings`)."""
+    inst = instrument_settings(instrument)
+    sc = needed(inst.scattering, "scattering")
     return ScatterModel(
-        brdf=HarveyBRDF(float(sc["harvey_b0"]["value"]), float(sc["harvey_l"]["value"]), float(sc["harvey_s"]["value"])),
-        mirror_radii_m=tuple(float(r["value"]) for r in sc["mirror_radii_m"]),
-        aperture_radius_m=float(instrument["telescope"]["aperture_diameter_m"]["value"]) / 2.0,
-        focal_length_m=float(instrument["telescope"]["focal_length_m"]["value"]),
-        ee80_radius_arcsec=float(instrument["detector"]["ee80_radius_arcsec"]["value"]),
-        blend_inner_arcsec=float(sc["core_blend_inner_arcsec"]["value"]),
-        blend_outer_arcsec=float(sc["core_blend_outer_arcsec"]["value"]),
+        brdf=HarveyBRDF(sc.harvey_b0.value, sc.harvey_l.value, sc.harvey_s.value),
+        mirror_radii_m=tuple(r.value for r in sc.mirror_radii_m),
+        aperture_radius_m=inst.telescope.aperture_diameter_m.value / 2.0,
+        focal_length_m=inst.telescope.focal_length_m.value,
+        ee80_radius_arcsec=inst.detector.ee80_radius_arcsec.value,
+        blend_inner_arcsec=sc.core_blend_inner_arcsec.value,
+        blend_outer_arcsec=sc.core_blend_outer_arcsec.value,
     )
 
 

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from straylight.config import Campaign
+from straylight.config import Campaign, needed
 
 FIGURE_TIME = "2026-01-01T00:50:00"  # the paper's scenario time (sects. 3.3, 4.1)
 FIGURES = ("zodiacal-map", "scattering", "ghosts", "detector")
@@ -54,8 +54,8 @@ def zodiacal_map_data(campaign: Campaign, time: str = FIGURE_TIME, nside: int = 
     sun = unit(np.asarray(scene(campaign.orbit, time).bodies_km["sun"][0], float))  # geocentric
     x, y, z = hp.pix2vec(nside, np.arange(hp.nside2npix(nside)))
     los = np.stack([x, y, z], axis=-1)
-    zm = zodiacal_model_from_instrument(campaign.instrument)
-    res = zm.evaluate(load_band(campaign.instrument, "V"), los, sun[None, :])
+    zm = zodiacal_model_from_instrument(campaign.instrument_settings)
+    res = zm.evaluate(load_band(campaign.instrument_settings, "V"), los, sun[None, :])
     mag = np.where(res["no_data"], np.nan, np.ravel(res["mag_per_arcsec2"]))
     return {"nside": nside, "v_mag_per_arcsec2": mag, "sun_ra_deg": float(np.degrees(np.arctan2(sun[1], sun[0])) % 360),
             "sun_dec_deg": float(np.degrees(np.arcsin(sun[2]))), "time": time}
@@ -83,8 +83,8 @@ def scattering_data(campaign: Campaign, r_max_px: float = 1000.0) -> dict:
     mirrors), and their blend, each relative to the blend's peak; TIS per mirror."""
     from straylight.optics.scatter import scatter_model_from_instrument
 
-    sm = scatter_model_from_instrument(campaign.instrument)
-    p_m = float(campaign.instrument["detector"]["pixel_size_um"]["value"]) * 1e-6
+    sm = scatter_model_from_instrument(campaign.instrument_settings)
+    p_m = campaign.instrument_settings.detector.pixel_size_um.value * 1e-6
     r = np.concatenate([[0.0], np.geomspace(0.05, r_max_px, 400)])
     peak = float(sm.profile(0.0))
     return {"r_px": r, "core": sm.core_profile(r * p_m) / peak, "halo": sm.halo_profile_raw(r * p_m) / peak,
@@ -118,12 +118,13 @@ def ghost_example_data(campaign: Campaign, x_range_px=(-60, 260), half_height_px
     from straylight.optics.scatter import scatter_model_from_instrument
 
     e = NUV_GHOST_EXAMPLE
-    g = campaign.instrument["ghosts"]
-    model = GhostModel(d1_mm=e["d1_mm"], d2_mm=e["d2_mm"], n=float(g["filter_refractive_index"]["value"]),
-                       u_rad=float(g["marginal_ray_angle_rad"]["value"]), r1=e["r1"], r2=e["r2"], t1=e["t1"],
+    inst = campaign.instrument_settings
+    g = needed(inst.ghosts, "ghosts")
+    model = GhostModel(d1_mm=e["d1_mm"], d2_mm=e["d2_mm"], n=g.filter_refractive_index.value,
+                       u_rad=g.marginal_ray_angle_rad.value, r1=e["r1"], r2=e["r2"], t1=e["t1"],
                        t2=e["t2"], rd=e["rd"])
-    p_mm = float(campaign.instrument["detector"]["pixel_size_um"]["value"]) / 1000.0
-    sm = scatter_model_from_instrument(campaign.instrument)
+    p_mm = inst.detector.pixel_size_um.value / 1000.0
+    sm = scatter_model_from_instrument(inst)
     peak_pixel = float(sm.profile(0.0)) * (p_mm * 1e-3) ** 2  # fraction of the star in its peak pixel
     th = np.radians(e["incidence_deg"])
     centres = model.centre_offsets_mm(th, 0.0)[:, :, ...] / p_mm  # (3, 2) px
@@ -173,7 +174,7 @@ def detector_image_data(campaign: Campaign, catalog: dict, star_ra_deg: float, s
     from straylight.optics.scatter import scatter_model_from_instrument
     from straylight.sky.timeutil import parse_utc
 
-    inst = campaign.instrument
+    inst = campaign.instrument_settings
     fp = focal_plane_from_instrument(inst)
     small = FocalPlane(size_px, size_px, fp.pixel_scale_arcsec, fp.pixel_size_mm, fp.columns, fp.rows, fp.gap_px)
     t = parse_utc(time, "figure time")
@@ -184,10 +185,10 @@ def detector_image_data(campaign: Campaign, catalog: dict, star_ra_deg: float, s
     c = (size_px - 1) / 2.0
     ra0, dec0 = (float(v) for v in w.pixel_to_world_values(c - ox - ox, c - oy - oy))
     band_ = load_band(inst, band, campaign.instrument_path.parent)
-    flux = star_fluxes_e_per_s(catalog[f"mag_{band}"], band_, float(inst["telescope"]["aperture_diameter_m"]["value"]))
+    flux = star_fluxes_e_per_s(catalog[f"mag_{band}"], band_, inst.telescope.aperture_diameter_m.value)
     res = render_detector(ra0, dec0, catalog["ra"], catalog["dec"], flux, sun, fp, detector,
                           scatter_model_from_instrument(inst), ghost_model_from_instrument(inst, band),
-                          float(inst["ghosts"]["chief_ray_angle_deg"]["value"]),
+                          needed(inst.ghosts, "ghosts").chief_ray_angle_deg.value,
                           RenderSettings(far_bin=4, margin_arcsec=600.0), size_override=(size_px, size_px))
     sx, sy = (float(v) for v in res.wcs.world_to_pixel_values(star_ra_deg, star_dec_deg))
     return {"image": res.image_e_per_s_per_pix, "ghosts": res.ghosts, "stars": res.stars, "star_xy": (sx, sy),

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from straylight.config import Campaign
+from straylight.config import Campaign, needed
 from straylight.optics.bandpass import Band, load_band
 from straylight.optics.door import door_from_instrument
 from straylight.optics.pst import load_pst
@@ -86,31 +86,31 @@ class SourceContext:
     @cached_property
     def zodiacal(self) -> ZodiacalModel:
         """The zodiacal-light model (models.zodiacal_spectrum)."""
-        return zodiacal_model_from_instrument(self.campaign.instrument,
+        return zodiacal_model_from_instrument(self.campaign.instrument_settings,
                                               self.campaign.settings.models.zodiacal_spectrum)
 
     @cached_property
     def offfield(self) -> OffFieldModel:
         """The off-field transfer from the instrument (PST, door, pixel, field radius) and
         models.earthshine's Earth grid, albedo and door reflection."""
-        inst = self.campaign.instrument
-        pst_file = inst.get("pst", {}).get("file")
+        inst = self.campaign.instrument_settings
+        pst_file = inst.pst.file
         if pst_file and not Path(pst_file).is_absolute():
             pst_file = self.campaign.instrument_path.parent / pst_file
         models = self.campaign.settings.models
         es = models.earthshine
-        dg = inst.get("door_geometry", {})
-        field_radius_deg = float(np.sqrt(self.campaign.instrument_value("detector", "field_of_view_deg2") / np.pi))
+        fov_deg2 = needed(inst.detector.field_of_view_deg2, "detector.field_of_view_deg2").value
+        field_radius_deg = float(np.sqrt(fov_deg2 / np.pi))
         return OffFieldModel(
             pst=load_pst(pst_file, field_radius_deg),
             door=door_from_instrument(inst),
-            door_states_deg=tuple(float(s["opening_deg"]) for s in inst["door"]["states"]),
-            pixel_area_m2=(self.campaign.instrument_value("detector", "pixel_size_um") * 1e-6) ** 2,
+            door_states_deg=tuple(s.opening_deg for s in inst.door.states),
+            pixel_area_m2=(inst.detector.pixel_size_um.value * 1e-6) ** 2,
             pixel_etendue_m2_sr=self.zodiacal.pixel_etendue_m2_sr,
             field_radius_deg=field_radius_deg,
             earthshine=EarthshineSettings(
                 n_gamma=es.n_gamma, n_psi=es.n_psi, albedo=float(es.albedo), door_blocks=es.door_blocks,
-                door_reflectance=float(dg["reflectance"]["value"]) if "reflectance" in dg else 0.05,
+                door_reflectance=inst.door_geometry.reflectance.value,
                 n_aperture_door=es.n_aperture_door,
             ),
             moon_law=models.moon_phase_law,
@@ -124,7 +124,7 @@ class SourceContext:
     def band(self, name) -> Band:
         """The instrument's band ``name`` (throughput, zero points), loaded once."""
         if name not in self._bands:
-            b = load_band(self.campaign.instrument, name, self.campaign.instrument_path.parent)
+            b = load_band(self.campaign.instrument_settings, name, self.campaign.instrument_path.parent)
             self._bands[name] = (b, BandPhotometry(b))
         return self._bands[name][0]
 

@@ -32,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from straylight.config import InstrumentSettings, instrument_settings
 from straylight.optics.bandpass import Band
 from straylight.errors import ConfigError
 from straylight.sky.runs import scene_rows, tiled_period
@@ -269,10 +270,15 @@ class ZodiacalLight:
         return BandRates(per_band={"zodiacal": e}, extras={"zodiacal_no_data": no_data})
 
 
-def zodiacal_model_from_instrument(instrument: dict, spectrum: str = "solar_leinert") -> ZodiacalModel:
+def zodiacal_model_from_instrument(instrument: InstrumentSettings | dict,
+                                   spectrum: str = "solar_leinert") -> ZodiacalModel:
+    """The zodiacal model of the instrument's aperture, focal length and pixel, with the solar
+    ``spectrum`` (models.zodiacal_spectrum).  ``instrument``: its typed settings, or its
+    mapping (:func:`~straylight.config.instrument.instrument_settings`)."""
+    inst = instrument_settings(instrument)
     return ZodiacalModel(
-        aperture_diameter_m=float(instrument["telescope"]["aperture_diameter_m"]["value"]),
-        focal_length_m=float(instrument["telescope"]["focal_length_m"]["value"]),
-        pixel_size_m=float(instrument["detector"]["pixel_size_um"]["value"]) * 1e-6,
+        aperture_diameter_m=inst.telescope.aperture_diameter_m.value,
+        focal_length_m=inst.telescope.focal_length_m.value,
+        pixel_size_m=inst.detector.pixel_size_um.value * 1e-6,
         spectrum=spectrum,
     )

@@ -58,14 +58,13 @@ def _survey_exposure(campaign: Campaign, band_name: str) -> SurveyExposure:
     # bandpass (scipy's erf) where it is used: the workflow's parse imports this module
     from straylight.optics.bandpass import load_band
 
-    inst = campaign.instrument
-    b = inst["bands"][band_name]
-    r80 = campaign.instrument_value("detector", "ee80_radius_arcsec") / campaign.pixel_scale_arcsec
+    inst = campaign.instrument_settings
+    b = inst.bands[band_name]
+    r80 = inst.detector.ee80_radius_arcsec.value / campaign.pixel_scale_arcsec
     band = load_band(inst, band_name, campaign.instrument_path.parent)
-    zp_e = band.ab_zero_point_photons_s_m2 * np.pi * campaign.instrument_value("telescope", "aperture_diameter_m") ** 2 / 4
-    return SurveyExposure(int(b["n_exposures"]), float(b["exposure_s"]),
-                          campaign.instrument_value("detector", "read_noise_e"),
-                          campaign.instrument_value("detector", "dark_current_e_per_s"), np.pi * r80**2, zp_e)
+    zp_e = band.ab_zero_point_photons_s_m2 * np.pi * inst.telescope.aperture_diameter_m.value ** 2 / 4
+    return SurveyExposure(int(b.n_exposures), float(b.exposure_s), inst.detector.read_noise_e.value,
+                          inst.detector.dark_current_e_per_s.value, np.pi * r80**2, zp_e)
 
 
 #: name of the (band) coordinate of background.zarr and limits.zarr holding each band's zero point
@@ -79,11 +78,12 @@ def sky_zero_points(campaign: Campaign, bands=None) -> dict:
     from straylight.optics.bandpass import load_band
     from straylight.sources.photometry import sky_zero_point_mag_per_arcsec2
 
-    d = campaign.instrument_value("telescope", "aperture_diameter_m")
+    inst = campaign.instrument_settings
+    d = inst.telescope.aperture_diameter_m.value
     pix = campaign.pixel_scale_arcsec
 
     def zero_point(b):
-        return sky_zero_point_mag_per_arcsec2(load_band(campaign.instrument, b, campaign.instrument_path.parent), d, pix)
+        return sky_zero_point_mag_per_arcsec2(load_band(inst, b, campaign.instrument_path.parent), d, pix)
 
     return {b: _derived(campaign, ("sky_zero_point", b), lambda b=b: zero_point(b)) for b in (bands or campaign.bands)}
 
@@ -311,8 +311,8 @@ def _limits_product(campaign: Campaign, background, lim, best, median, frac, obs
     import xarray as xr
 
     bands = [str(b) for b in background["band"].values]
-    inst = campaign.instrument["bands"]
-    desc = ", ".join(f"{b}: {inst[b]['n_exposures']} x {inst[b]['exposure_s']} s" for b in bands)
+    inst = campaign.instrument_settings.bands
+    desc = ", ".join(f"{b}: {inst[b].n_exposures} x {inst[b].exposure_s} s" for b in bands)
     data = lambda v: getattr(v, "data", v)  # noqa: E731 - an xarray object's array, or the array
     return xr.Dataset(
         {

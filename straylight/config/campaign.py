@@ -1,0 +1,220 @@
+"""The :class:`Campaign`: a validated campaign config with its instrument, loaded and checked
+(:func:`load_campaign`, :func:`campaign_from_dict`), and what derives from them (the orbit, the
+Earth, the avoidance constraints, the typed settings of both files)."""
+from __future__ import annotations
+
+import copy
+import os
+from dataclasses import dataclass
+from functools import cached_property
+from pathlib import Path
+
+from straylight.config.instrument import InstrumentSettings, instrument_settings, pixel_scale_arcsec
+from straylight.config.loading import (
+    CAMPAIGN_SCHEMA,
+    DEFAULT_CONFIG,
+    _read_yaml,
+    _source_of,
+    apply_defaults,
+    deep_merge,
+    load_instrument,
+    load_schema,
+    validate,
+)
+from straylight.config.settings import Settings, settings_from_config
+from straylight.errors import ConfigError, StraylightError
+
+
+@dataclass
+class Campaign:
+    """A validated campaign: the raw config, the instrument and the derived models.
+
+    ``config`` and ``instrument`` are the files' mappings as validated (the config with the
+    schema's defaults), kept as written for what records or hashes them (provenance, cache
+    keys); everything else reads :attr:`settings` and :attr:`instrument_settings`."""
+
+    config: dict
+    instrument: dict
+    path: Path
+    instrument_path: Path
+
+    @property
+    def name(self) -> str:
+        """The campaign's name (campaign.name: its products' folder)."""
+        return self.config["campaign"]["name"]
+
+    @cached_property
+    def settings(self) -> "Settings":
+        """The campaign's sections, typed (:class:`Settings`): read ``settings.stars.faint_map``,
+        not the raw config."""
+        return settings_from_config(self.config)
+
+    @cached_property
+    def instrument_settings(self) -> InstrumentSettings:
+        """The instrument, typed (:class:`~straylight.config.instrument.InstrumentSettings`):
+        read ``instrument_settings.telescope.aperture_diameter_m.value``, not the raw mapping."""
+        return instrument_settings(self.instrument)
+
+    @cached_property
+    def earth(self):
+        """The Earth's model (radius, GM, J2) of the config's ``earth`` section."""
+        from straylight.sky.orbit import EarthModel
+
+        e = self.config["earth"]
+        return EarthModel(radius_km=float(e["radius_km"]), gm_km3_s2=float(e["gm_km3_s2"]), j2=float(e["j2"]))
+
+    @cached_property
+    def orbit(self):
+        """The satellite's orbit (circular or TLE; a relative TLE file is the config's)."""
+        from straylight.sky.orbit import orbit_from_config
+
+        orbit_cfg = copy.deepcopy(self.config["orbit"])
+        tle = orbit_cfg.get("tle") or {}
+        if "file" in tle and not os.path.isabs(tle["file"]):
+            tle["file"] = str(self.path.parent / tle["file"])
+        return orbit_from_config(orbit_cfg, self.earth)
+
+    @cached_property
+    def orbit_radius_range_km(self) -> tuple[float, float]:
+        """The satellite's smallest and largest geocentric distance over the campaign, km
+        (one value for a circular orbit; sampled at the campaign times for a TLE)."""
+        from straylight.sky.orbit import CircularOrbit
+
+        if isinstance(self.orbit, CircularOrbit):
+            r = self.earth.radius_km + self.orbit.altitude_km
+            return (r, r)
+        import numpy as np
+
+        r = np.linalg.norm(self.orbit.position_gcrs_km(self.times), axis=-1)
+        return (float(r.min()), float(r.max()))
+
+    @cached_property
+    def constraints(self):
+        """The avoidance constraints and the door's states, of the instrument."""
+        from straylight.sky.geometry import Constraints, DoorState
+
+        inst = self.instrument_settings
+        av = inst.avoidance
+        states = tuple(DoorState(s.opening_deg, s.sun_angle_min_deg, s.min_inclusive)
+                       for s in inst.door.states)
+        return Constraints(
+            sun_min_deg=av.sun_min_deg.value,
+            moon_min_deg=av.moon_min_deg.value,
+            bright_limb_min_deg=av.bright_limb_min_deg.value,
+            dark_limb_min_deg=av.dark_limb_min_deg.value,
+            door_states=states,
+        )
+
+    @property
+    def bands(self) -> list[str]:
+        """The instrument's bands, in the file's order."""
+        return list(self.instrument_settings.bands)
+
+    @cached_property
+    def times(self):
+        """The campaign's UTC sample times (astropy Time, 1-D)."""
+        from straylight.sky.timeutil import campaign_times
+
+        c = self.config["campaign"]
+        return campaign_times(c["start"], c["end"], float(c["cadence_s"]))
+
+    @property
+    def pixel_scale_arcsec(self) -> float:
+        """Arcsec per pixel, derived from the pixel size and focal length (:func:`pixel_scale_arcsec`)."""
+        return pixel_scale_arcsec(self.instrument_settings)
+
+    def instrument_value(self, section: str, key: str) -> float:
+        """The value of the instrument's parameter ``section.key`` (e.g. ``"telescope",
+        "aperture_diameter_m"``), in its unit."""
+        return getattr(getattr(self.instrument_settings, section), key).value
+
+
+def _check_campaign(cfg: dict, source: str, sources: dict | None = None) -> None:
+    from straylight.sky.ephemeris import default_ephemeris
+    from straylight.sky.timeutil import parse_utc, quiet_dubious_years
+
+    def src(key):
+        return _source_of(sources, key, source)
+
+    c = cfg["campaign"]
+    try:
+        start = parse_utc(c["start"], f"{src('campaign.start')}: campaign.start")
+        end = parse_utc(c["end"], f"{src('campaign.end')}: campaign.end")
+        if cfg["orbit"]["model"] == "circular" and "circular" in cfg["orbit"]:
+            parse_utc(cfg["orbit"]["circular"]["epoch"],
+                      f"{src('orbit.circular.epoch')}: orbit.circular.epoch")
+    except StraylightError as exc:
+        raise ConfigError(str(exc)) from exc
+    if not end > start:
+        raise ConfigError(f"{src('campaign.end')}: campaign.end = {c['end']!r} must be after "
+                          f"campaign.start = {c['start']!r}")
+    eph = default_ephemeris()
+    for key, t in (("start", start), ("end", end)):
+        with quiet_dubious_years():  # our line below, not ERFA's warnings before it
+            jd = float(t.tdb.jd)
+        if not eph.jd_start <= jd <= eph.jd_end:
+            raise ConfigError(
+                f"{src('campaign.' + key)}: campaign.{key} = {c[key]!r} is outside the DE405 range "
+                "(1600-12-21 to 2200-02-02)"
+            )
+    if cfg["orbit"]["model"] == "circular" and "circular" not in cfg["orbit"]:
+        raise ConfigError(f"{src('orbit.model')}: orbit.model is 'circular' but orbit.circular is missing")
+    if cfg["orbit"]["model"] == "tle" and not cfg["orbit"].get("tle"):
+        raise ConfigError(f"{src('orbit.model')}: orbit.model is 'tle' but orbit.tle is missing")
+    # an orbit propagated far from its epoch: a warning, before any work (the TLE read once more
+    # when the orbit is built)
+    from straylight.sky.orbit import warn_if_epoch_far
+
+    orbit_cfg = copy.deepcopy(cfg["orbit"])
+    tle = orbit_cfg.get("tle") or {}
+    if "file" in tle and not os.path.isabs(tle["file"]):  # as Campaign.orbit resolves it
+        tle["file"] = str(Path(source).parent / tle["file"])
+    key = "orbit.circular.epoch" if orbit_cfg["model"] == "circular" else "orbit.tle"
+    warn_if_epoch_far(orbit_cfg, start, end, src(key))
+
+
+
+def load_campaign(path: str | os.PathLike | None = None, overrides: dict | None = None) -> Campaign:
+    """Load, validate and resolve a campaign config (default: ``config/config.yaml``).
+
+    ``overrides`` is merged (recursively) over the file's content before validation.
+    """
+    path = Path(path) if path is not None else DEFAULT_CONFIG
+    raw = _read_yaml(path, "campaign config")
+    if not isinstance(raw, dict):
+        raise ConfigError(f"{path}: campaign config must be a mapping, got {type(raw).__name__}")
+    if overrides:
+        raw = deep_merge(raw, overrides)
+    return campaign_from_dict(raw, path)
+
+
+def campaign_from_dict(raw: dict, path: str | os.PathLike, sources: dict | None = None) -> Campaign:
+    """Validate an already-loaded config dict (as Snakemake holds it); ``path`` locates files.
+
+    ``sources`` (from :func:`resolve_config_files`): errors name the file that set each key."""
+    path = Path(path)
+    schema = load_schema(CAMPAIGN_SCHEMA)
+    validate(raw, schema, str(path), sources)
+    cfg = apply_defaults(raw, schema)
+    _check_campaign(cfg, str(path), sources)
+    inst_path = Path(cfg["instrument"])
+    if not inst_path.is_absolute():
+        inst_path = path.parent / inst_path
+    instrument = load_instrument(inst_path)
+    _check_report(cfg, list(instrument["bands"]), str(path), sources)
+    return Campaign(config=cfg, instrument=instrument, path=path, instrument_path=inst_path)
+
+
+def _check_report(cfg: dict, bands: list[str], source: str, sources: dict | None = None) -> None:
+    """The report's bands are the instrument's (the schema cannot know them): refused here, not
+    after the cube is computed."""
+    chosen = (cfg.get("report") or {}).get("sky_map_bands") or []
+    unknown = [b for b in chosen if b not in bands]
+    if unknown:
+        raise ConfigError(f"{_source_of(sources, 'report.sky_map_bands', source)}: "
+                          f"report.sky_map_bands = {chosen!r}: "
+                          f"{unknown[0]!r} is not a band of the instrument ({', '.join(bands)})")
+
+
+
+__all__ = ["Campaign", "load_campaign", "campaign_from_dict"]

@@ -1,0 +1,221 @@
+"""The campaign's typed settings: every section of config/schema/config.schema.yaml but the
+Earth and the orbit, parsed once from the validated config with the schema's defaults
+(:func:`settings_from_config`); and :func:`_typed`, which builds any settings dataclass (the
+instrument's too) from its mapping."""
+from __future__ import annotations
+
+import dataclasses
+import functools
+import typing
+from dataclasses import dataclass
+
+from straylight.errors import ConfigError
+
+
+@dataclass(frozen=True)
+class CampaignSection:
+    """``campaign``: the campaign's name, UTC span (start inclusive, end exclusive, ISO text),
+    cadence (s) and time block (h)."""
+
+    name: str
+    start: str
+    end: str
+    cadence_s: float
+    time_block_hours: float
+
+
+@dataclass(frozen=True)
+class FootprintSection:
+    """``footprint``: the HEALPix grid (nside, ordering, frame), the latitude cuts (deg), a
+    user's mask file, and the pixels per Zarr chunk and Dask task."""
+
+    nside: int
+    ordering: str
+    frame: str
+    galactic_latitude_min_deg: float
+    ecliptic_latitude_min_deg: float
+    mask_file: str | None
+    pixel_block_size: int
+
+
+@dataclass(frozen=True)
+class StarsSection:
+    """``stars``: the catalog's inputs and cuts (mag), and how the off-field stars are summed."""
+
+    gaia_files: tuple
+    g_limit_mag: float
+    hipparcos: str
+    match_radius_arcsec: float
+    template_classes: tuple
+    population_file: str | None
+    btsettl_files: tuple
+    offfield_mag_limit: float
+    faint_map: bool
+
+
+@dataclass(frozen=True)
+class EarthshineLUTSteps:
+    """``models.earthshine.lut``: the sunlit table's node steps (deg) and radius nodes."""
+
+    sun_zenith_step_deg: float
+    los_zenith_step_deg: float
+    azimuth_step_deg: float
+    n_radius: int
+
+
+@dataclass(frozen=True)
+class MoonlitLUTSteps:
+    """``models.earthshine.moonlit_lut``: the moonlit table's node steps, deg."""
+
+    moon_zenith_step_deg: float
+    los_zenith_step_deg: float
+    azimuth_step_deg: float
+    roll_step_deg: float
+
+
+@dataclass(frozen=True)
+class EarthshineSection:
+    """``models.earthshine``: the Earth's albedo, the Earth and door grids, the method and the
+    tables' steps."""
+
+    albedo: float
+    n_gamma: int
+    n_psi: int
+    door_blocks: tuple
+    n_aperture_door: int
+    moonlit_grid: tuple
+    moonlit_method: str
+    moonlit_lut: MoonlitLUTSteps
+    method: str
+    lut: EarthshineLUTSteps
+
+
+@dataclass(frozen=True)
+class ModelsSection:
+    """``models``: the zodiacal spectrum, the Moon's phase law and eclipse factor, the
+    earthshine, the tolerance (fraction of the total) and what unobservable samples get."""
+
+    zodiacal_spectrum: str
+    moon_phase_law: str
+    moon_eclipse_factor: float
+    earthshine: EarthshineSection
+    tolerance: float
+    unobservable_samples: str
+
+
+@dataclass(frozen=True)
+class ReportSection:
+    """``report``: the report's maps (times, bands) and time series (pointings)."""
+
+    sky_map_times: int
+    sky_map_bands: tuple | None
+    series_pointings: int
+    times: tuple
+    pointings: tuple
+
+
+@dataclass(frozen=True)
+class SchedulingSection:
+    """``scheduling``: the scheduling tables' threshold, a fraction of the zodiacal light."""
+
+    fraction_of_zodiacal: float
+
+
+@dataclass(frozen=True)
+class StorageSection:
+    """``storage``: the products' kept mantissa bits and Blosc level."""
+
+    float_keepbits: int
+    magnitude_keepbits: int
+    blosc_clevel: int
+
+
+@dataclass(frozen=True)
+class ComputeSection:
+    """``compute``: a Dask scheduler's address, a measured pipeline rate (samples/s/core) for
+    ``straylight plan``, and time blocks per Snakemake job."""
+
+    dask_scheduler: str | None = None
+    pipeline_samples_per_s_per_core: float | None = None
+    time_blocks_per_job: int | None = None
+
+
+@dataclass(frozen=True)
+class Settings:
+    """A campaign's settings, typed: every section of config/schema/config.schema.yaml but the
+    Earth and the orbit (:attr:`Campaign.earth`, :attr:`Campaign.orbit`) and the instrument's
+    path.  Built once from the validated config with the schema's defaults filled in
+    (:func:`settings_from_config`); read as ``campaign.settings.stars.faint_map``."""
+
+    campaign: CampaignSection
+    footprint: FootprintSection
+    stars: StarsSection
+    models: ModelsSection
+    report: ReportSection
+    scheduling: SchedulingSection
+    storage: StorageSection
+    compute: ComputeSection
+
+
+def _typed(cls, node: dict, where: str):
+    """A settings dataclass from a config mapping: nested sections recursively (:func:`_value`).
+    Keys the class does not declare are ignored (the schema checks them); a key it declares and
+    the config lacks is taken from the class's default or is an error naming it."""
+    hints, fields = _fields(cls)
+    values = {}
+    for f in fields:
+        if f.name not in node:
+            if f.default is dataclasses.MISSING:
+                raise ConfigError(f"{where}.{f.name}: missing (no default in the schema)")
+            continue
+        values[f.name] = _value(node[f.name], hints[f.name], f"{where}.{f.name}")
+    return cls(**values)
+
+
+@functools.lru_cache(maxsize=None)
+def _fields(cls) -> tuple[dict, tuple]:
+    """A settings class's type hints (its annotations evaluated: the costly part of reading a
+    config) and its fields, once per class."""
+    return typing.get_type_hints(cls), dataclasses.fields(cls)
+
+
+def _value(v, hint, where: str):
+    """One config value as its field's type ``hint`` reads it: a settings dataclass (or one or
+    None) from its mapping, ``tuple[<dataclass>, ...]`` from a list of mappings,
+    ``dict[str, <dataclass>]`` from a mapping of them; another list as a tuple (its lists as
+    tuples); a YAML integer as a float where the field is a float."""
+    args = typing.get_args(hint)
+    if v is not None and len(args) == 2 and type(None) in args:
+        inner = next(a for a in args if a is not type(None))
+        if dataclasses.is_dataclass(inner):
+            hint = inner
+    if dataclasses.is_dataclass(hint):
+        return _typed(hint, v or {}, where)
+    origin = typing.get_origin(hint)
+    if origin is tuple and args and dataclasses.is_dataclass(args[0]):
+        return tuple(_typed(args[0], x, f"{where}[{i}]") for i, x in enumerate(v))
+    if origin is dict and len(args) == 2 and dataclasses.is_dataclass(args[1]):
+        return {k: _typed(args[1], x, f"{where}.{k}") for k, x in v.items()}
+    if isinstance(v, list):
+        return tuple(tuple(x) if isinstance(x, list) else x for x in v)
+    if isinstance(v, int) and not isinstance(v, bool) and hint in (float, float | None):
+        return float(v)  # YAML's 300 for a number of seconds
+    return v
+
+
+def settings_from_config(config: dict) -> Settings:
+    """:class:`Settings` from a campaign config validated and completed by the schema
+    (:func:`apply_defaults`).
+
+    Raises
+    ------
+    ConfigError
+        For a section or key the schema gives no default for and the config lacks.
+    """
+    return Settings(**{name: _typed(cls, config.get(name) or {}, name)
+                       for name, cls in typing.get_type_hints(Settings).items()})
+
+
+__all__ = ["CampaignSection", "FootprintSection", "StarsSection", "EarthshineLUTSteps", "MoonlitLUTSteps",
+           "EarthshineSection", "ModelsSection", "ReportSection", "SchedulingSection", "StorageSection",
+           "ComputeSection", "Settings", "settings_from_config"]
