@@ -169,7 +169,7 @@ def sky_maps(ds, campaign, out_dir, time_indices, bands=None) -> list:
     """Per time (``time_indices`` into ``ds.time``, see :func:`map_time_indices`) and band (all,
     or ``bands``): a 2 x 4 page of Mollweide maps, one per component, the total and the
     observability."""
-    from straylight.survey.cube_layout import CUBE_BAND_VARIABLES
+    from straylight.survey import cube_layout
 
     nest = str(ds.attrs["healpix_ordering"]).upper() == "NESTED"
     written = []
@@ -177,12 +177,12 @@ def sky_maps(ds, campaign, out_dir, time_indices, bands=None) -> list:
     for it in time_indices:
         t = str(ds["time"].values[it])[:16]
         # every component at this time, all bands, in one read (each chunk decompressed once)
-        snap = ds[list(CUBE_BAND_VARIABLES) + ["observable"]].isel(time=it).compute()
+        snap = ds[list(cube_layout.CUBE_BAND_VARIABLES) + ["observable"]].isel(time=it).compute()
         for ib, band in enumerate(ds["band"].values):
             if bands is not None and str(band) not in bands:
                 continue
             maps, zero = [], []
-            for comp in CUBE_BAND_VARIABLES:
+            for comp in cube_layout.CUBE_BAND_VARIABLES:
                 e = np.asarray(snap[comp].isel(band=ib), float)
                 if not np.any(np.isfinite(e) & (e > 0)):
                     zero.append(comp)  # no panel: say so in the title instead

@@ -36,11 +36,11 @@ def pointing_series(background_path, pixel_indices) -> list[dict]:
     chunk by chunk in this thread (:func:`~straylight.survey.storage.read_region`)."""
     import zarr
 
-    from straylight.survey.cube_layout import CUBE_BAND_VARIABLES
+    from straylight.survey import cube_layout
     from straylight.survey.storage import read_region
 
     group = zarr.open_group(str(background_path), mode="r", use_consolidated=False)
-    names = list(CUBE_BAND_VARIABLES) + ["observable"]
+    names = list(cube_layout.CUBE_BAND_VARIABLES) + ["observable"]
     return [{n: read_region(group[n], (slice(None), slice(ip, ip + 1)))[:, 0] for n in names}
             for ip in pixel_indices]
 
@@ -53,7 +53,7 @@ def time_series(ds, campaign, out_dir, pixel_indices, series: list[dict]) -> lis
     from matplotlib.patches import PathPatch
     from matplotlib.ticker import MaxNLocator
 
-    from straylight.survey.cube_layout import CUBE_BAND_VARIABLES
+    from straylight.survey import cube_layout
 
     pix_idx = list(pixel_indices)
     t = ds["time"].values
@@ -70,7 +70,7 @@ def time_series(ds, campaign, out_dir, pixel_indices, series: list[dict]) -> lis
             for ax, band in zip(np.atleast_1d(axes), bands):
                 ib = bands.index(band)
                 zp = float(_mag(ds, np.array([1.0]), str(band), campaign)[0])  # mag/arcsec2 at 1 e-/s/pix
-                for k, comp in enumerate(CUBE_BAND_VARIABLES):
+                for k, comp in enumerate(cube_layout.CUBE_BAND_VARIABLES):
                     y = np.asarray(sub[comp][:, ib], float)[sel]
                     if not np.any(y > 0):
                         continue  # zero all along: no line (listed in the title)
@@ -92,7 +92,7 @@ def time_series(ds, campaign, out_dir, pixel_indices, series: list[dict]) -> lis
                 # the band's zero point: e-/s/pixel = 10^(-0.4 (mag - zp))
                 ax.text(1.005, 0.5, f"zero point\n{zp:.2f}\n(1 e-/s/pix)", transform=ax.transAxes, fontsize=7,
                         va="center", ha="left")
-            missing = [c for c in CUBE_BAND_VARIABLES if c not in shown]
+            missing = [c for c in cube_layout.CUBE_BAND_VARIABLES if c not in shown]
             fig.legend(handles=list(shown.values()), loc="upper center", ncol=len(shown), fontsize=8,
                        bbox_to_anchor=(0.5, 0.965), frameon=False)
             np.atleast_1d(axes)[-1].set_xlabel(f"minutes after {str(t[0])[:16]} UTC (grey: not observable)"

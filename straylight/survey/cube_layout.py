@@ -43,9 +43,6 @@ __all__ = [
     "pixel_block_size",
 ]
 
-CUBE_COMPONENTS = ("zodiacal", "earthshine", "moon", "sun", "planets", "stars")
-#: the cube's (time, pixel, band) variables, e-/s/pix: the components and their total
-CUBE_BAND_VARIABLES = CUBE_COMPONENTS + ("total",)
 #: the cube's (time, pixel) variables
 CUBE_PIXEL_VARIABLES = ("observable", "violations", "door_opening_deg")
 #: observability.zarr's angles besides the cube's own (time, pixel) variables: the cube's
@@ -56,15 +53,20 @@ OBSERVABILITY_VARIABLES = ("observable", "violations") + OBSERVABILITY_ANGLES + 
 #: limits.zarr's variables the cube's workers write, region by region
 #: (:func:`straylight.survey.cube_store.region_limits`)
 LIMITS_REGION_VARIABLES = ("limiting_mag", "observable")
-LONG_NAMES = {
-    "zodiacal": "in-field zodiacal light (Leinert 1998)",
-    "earthshine": "earthshine through the PST, direct + via the aperture door",
-    "moon": "moonlight through the PST",
-    "sun": "sunlight through the PST (door-shaded)",
-    "planets": "planets (Mercury-Pluto) through the PST",
-    "stars": "off-field bright stars through the PST",
-    "total": "total stray light and sky background",
-}
+
+
+def __getattr__(name):
+    # the components' names and long names as the registry holds them now
+    # (straylight.model.registry; imported here, not at the top, which stays numpy-free)
+    from straylight.model import registry
+
+    if name == "CUBE_COMPONENTS":  # the components, in the order they add into the total
+        return registry.component_names()
+    if name == "CUBE_BAND_VARIABLES":  # the cube's (time, pixel, band) variables: the components and the total
+        return registry.component_names() + (registry.TOTAL,)
+    if name == "LONG_NAMES":  # variable -> long_name of the (time, pixel, band) variables
+        return registry.long_names()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def cube_time_blocks(campaign: Campaign, n_times: int) -> list[tuple[int, int]]:

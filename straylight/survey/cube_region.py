@@ -18,17 +18,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from straylight.sky.frames import TelescopeFrame, telescope_frame
-from straylight.sky.geometry import observing_geometry
+from straylight.model.pointing import background_at
 from straylight.sky.runs import SceneRuns
 from straylight.sky.vectors import radec_to_unit
-
-# the components a region holds, read beside SAMPLES_PER_EVALUATION by the tests
-from straylight.survey.cube_layout import (
-    CUBE_BAND_VARIABLES,
-    CUBE_COMPONENTS,  # noqa: F401
-    OBSERVABILITY_ANGLES,
-)
+from straylight.survey import cube_layout
+from straylight.survey.cube_layout import OBSERVABILITY_ANGLES
 
 if TYPE_CHECKING:  # xarray where a Dataset is made: a worker computing regions does without it
     import xarray as xr
@@ -91,7 +85,7 @@ def compute_region(
 def _dims(name: str) -> tuple:
     """A cube variable's dims: (time, pixel, band) for the components and the total, else
     (time, pixel)."""
-    return ("time", "pixel", "band") if name in CUBE_BAND_VARIABLES else ("time", "pixel")
+    return ("time", "pixel", "band") if name in cube_layout.CUBE_BAND_VARIABLES else ("time", "pixel")
 
 
 def region_values(
@@ -122,7 +116,7 @@ def region_values(
         faint = model.stars.faint_star_rates(stars, los, campaign.bands)
     # one allocation for every component: numpy asks the kernel for huge pages on arrays of 4 MiB
     # or more (a default region's block is), fewer page faults than one array per component
-    names = CUBE_BAND_VARIABLES
+    names = cube_layout.CUBE_BAND_VARIABLES
     block = np.zeros((len(names), nt, npix, nb), np.float32)
     out = dict(zip(names, block))
     obs = np.zeros((nt, npix), bool)
@@ -141,43 +135,24 @@ def region_values(
         # each step's scene repeated over its pixels: the samples' scene runs are the steps,
         # known here, so no function scans every sample's vectors to find them again
         runs = SceneRuns.steps(k, npix)
-        sat = np.repeat(sc.satellite_km[steps], npix, axis=0)
         los_k = np.broadcast_to(los[None], (k,) + los.shape).reshape(-1, 3)
-        # the constraints need the Sun's and the Moon's angles only; the background finds the
-        # planets' where they can matter (sources.bodies.Planets)
-        bodies = {
-            b: np.repeat(sc.bodies_km[b][steps], npix, axis=0)
-            for b in (("sun", "moon") if skip_unobservable else sc.bodies_km)
-        }
-        frame = telescope_frame(los_k, bodies["sun"] - sat)  # once for the geometry and the background
-        g = observing_geometry(
-            sat,
-            {b: bodies[b] for b in ("sun", "moon")},
+        faint_k = None if faint is None else {b: np.tile(v, k) for b, v in faint.items()}
+        # written straight into the region's float32 block: a view (the steps are consecutive,
+        # so step and pixel merge into the batch's step-major samples)
+        into = (names, block[:, steps].reshape(len(names), k * npix, nb))
+        g, _ = background_at(
+            model,
+            sc.satellite_km[steps],
+            {b: v[steps] for b, v in sc.bodies_km.items()},
             los_k,
-            campaign.earth.radius_km,
-            campaign.constraints,
-            frame=frame,
+            campaign.bands,
+            scene_index=np.repeat(np.arange(k), npix),
+            stars=stars,
+            faint_rates=faint_k,
             runs=runs,
+            into=into,
+            observable_only=skip_unobservable,
         )
-        if skip_unobservable:
-            _evaluate_observable(model, campaign, sc, los, faint, g, frame, stars, out, steps, runs)
-        else:
-            faint_k = None if faint is None else {b: np.tile(v, k) for b, v in faint.items()}
-            # written straight into the region's float32 block: a view (the steps are consecutive,
-            # so step and pixel merge into the batch's step-major samples)
-            into = (names, block[:, steps].reshape(len(names), k * npix, nb))
-            model.evaluate(
-                sat,
-                bodies,
-                los_k,
-                g,
-                campaign.bands,
-                stars,
-                faint_rates=faint_k,
-                frame=frame,
-                into=into,
-                runs=runs,
-            )
         obs[steps], viol[steps], door[steps] = (
             _by_step(g[v], k, npix) for v in ("observable", "violations", "door_opening_deg")
         )
@@ -202,47 +177,6 @@ def _checked_scene(sc, times):
             f"region's {len(times)} times ({times[0].isot if len(times) else '-'} ...)"
         )
     return sc
-
-
-def _evaluate_observable(
-    model, campaign: Campaign, sc, los, faint, screen: dict, frame, stars, out, steps, runs
-):
-    """Evaluate the observable samples (flat, step-major) of the time steps ``steps`` of the
-    scene ``sc`` at the lines of sight ``los`` (pixel, 3) only, and write them into ``out`` at
-    ``steps``; the other samples get NaN.  ``screen``: the batch's geometry with the Sun and
-    the Moon (:func:`observing_geometry`), ``frame`` its telescope frame: the observable samples
-    take their values (the background finds the planets' angles itself).  Each sample's values
-    depend on that sample alone, so the observable ones come out as they do in a whole batch
-    (tests/sources/test_earthshine_lut.py).  ``faint``: band -> per-pixel faint-star rates; ``runs``:
-    the batch's scene runs (its steps)."""
-    npix = los.shape[0]
-    sel = np.flatnonzero(screen["observable"])
-    for comp in CUBE_BAND_VARIABLES:
-        out[comp][steps] = np.nan
-    if sel.size == 0:
-        return
-    t_idx, p_idx = np.divmod(sel, npix)
-    # rows by index with np.take, faster than numpy's fancy indexing of (N, 3) rows
-    sat = np.take(sc.satellite_km[steps], t_idx, axis=0)
-    bodies = {b: np.take(v[steps], t_idx, axis=0) for b, v in sc.bodies_km.items()}
-    sub = TelescopeFrame(*(np.take(a, sel, axis=0) for a in (frame.x, frame.y, frame.z)))
-    g = {name: np.asarray(v)[sel] for name, v in screen.items()}
-    names = CUBE_BAND_VARIABLES
-    values = np.empty((len(names), sel.size, len(campaign.bands)), np.float32)
-    model.evaluate(
-        sat,
-        bodies,
-        np.take(los, p_idx, axis=0),
-        g,
-        campaign.bands,
-        stars,
-        faint_rates=None if faint is None else {b: v[p_idx] for b, v in faint.items()},
-        frame=sub,
-        into=(names, values),
-        runs=runs.at(sel),
-    )
-    for comp, v in zip(names, values):  # every band of a sample at once
-        out[comp][steps.start + t_idx, p_idx] = v
 
 
 def _step_batches(n_steps: int, n_pixels: int, max_samples: int) -> list[slice]:

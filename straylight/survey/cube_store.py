@@ -34,11 +34,10 @@ import numpy as np
 
 from straylight.errors import OutputError
 from straylight.sky.geometry import violation_mask_attrs
+from straylight.survey import cube_layout
 from straylight.survey.cube_layout import (
-    CUBE_BAND_VARIABLES,
     CUBE_PIXEL_VARIABLES,
     LIMITS_REGION_VARIABLES,
-    LONG_NAMES,
     OBSERVABILITY_VARIABLES,
     CubeStores,
     cube_chunks,
@@ -80,11 +79,12 @@ def empty_cube(campaign: Campaign, fp: Footprint, times, model, stars_path=None,
     chunks3 = (ch["time"], ch["pixel"], ch["band"])
     chunks2 = (ch["time"], ch["pixel"])
     data = {}
-    for comp in CUBE_BAND_VARIABLES:
+    long_names = cube_layout.LONG_NAMES
+    for comp in cube_layout.CUBE_BAND_VARIABLES:
         data[comp] = xr.Variable(
             ("time", "pixel", "band"),
             da.zeros((nt, npix, nb), chunks=chunks3, dtype=np.float32),
-            {"units": "electron / (s pixel)", "long_name": LONG_NAMES[comp]},
+            {"units": "electron / (s pixel)", "long_name": long_names[comp]},
         )
     data["observable"] = xr.Variable(
         ("time", "pixel"),
@@ -224,7 +224,7 @@ def store_arrays(store, names=None) -> dict:
     from straylight.survey.storage import ChunkWriter
 
     group = zarr.open_group(str(store), mode="r+", use_consolidated=False)
-    names = names or CUBE_BAND_VARIABLES + CUBE_PIXEL_VARIABLES
+    names = names or cube_layout.CUBE_BAND_VARIABLES + CUBE_PIXEL_VARIABLES
     return {name: ChunkWriter(group[name]) for name in names}
 
 
