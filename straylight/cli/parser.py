@@ -106,8 +106,8 @@ def _add_plan(sub) -> None:
     how = pl.add_mutually_exclusive_group()
     how.add_argument("--seconds-per-sample", type=float, default=None,
                      help="cost of one evaluated (time, pointing) sample, all bands, one core, on the "
-                          "machine that will run (default: this code's measured figures for the earthshine "
-                          "model auto picks)")
+                          "machine that will run (default: straylight.survey.plan's cost figures for the "
+                          "earthshine model auto picks)")
     how.add_argument("--calibrate", action="store_true",
                      help="time a few cube steps on this machine (seconds) and scale the figures by it")
     pl.add_argument("--cores", type=int, default=None,

@@ -4,9 +4,9 @@ How many samples the cube evaluates (:func:`evaluated_samples`), the cube's comp
 code's measured per-sample figures (:func:`cube_compute_seconds`), the whole run wall to wall
 (a fixed part plus the samples at the pipeline's rate, :func:`pipeline_rate`, plus the
 earthshine tables' build when they are not cached), and the products' bytes
-(:data:`PRODUCT_BYTES_PER_SAMPLE`); :func:`estimated_cost` puts them together.  Every figure is
-measured on the 2-core development machine (docs/performance.md); :func:`machine_speed` scales
-them to another.
+(:data:`PRODUCT_BYTES_PER_SAMPLE`); :func:`estimated_cost` puts them together.  The figures
+are one reference machine's (docs/performance.md says how each is measured); :func:`machine_speed`
+scales them to this one.
 """
 from __future__ import annotations
 
@@ -24,9 +24,10 @@ def evaluated_samples(campaign: Campaign, fp: Footprint, max_times: int = 144, m
     """How many samples the campaign's cube evaluates: every (time, pixel) one, or with
     models.unobservable_samples: skip the observable ones, their fraction estimated from an
     even subsample of at most ``max_times`` x ``max_pixels`` (deterministic: the same config
-    gives the same count on every machine; exact when the campaign is no bigger).  On the default day (16.5 % observable) 144 x 660 of its 288 x 1320
-    samples give the fraction to 0.1 % of the samples in 0.15 s; 48 x 256 erred by 2.4 % (every
-    sixth step, 30 minutes apart, meets the 92-minute orbit in a pattern)."""
+    gives the same count on every machine; exact when the campaign is no bigger).  On the
+    default day (16.5 % observable) 144 x 660 of its 288 x 1320 samples give the fraction to
+    0.1 % of the samples; 48 x 256 erred by 2.4 % (every sixth step, 30 minutes apart, meets the
+    92-minute orbit in a pattern)."""
     from straylight.model import unobservable_samples
     from straylight.sky.observing import scene
 
@@ -42,10 +43,10 @@ def evaluated_samples(campaign: Campaign, fp: Footprint, max_times: int = 144, m
     return int(round(n * float(np.mean(g["observable"]))))
 
 
-#: The cube's compute on one core of the development machine, all bands, per sample: the table
-#: path evaluating every sample, and with models.unobservable_samples: skip the screen (the
-#: Sun's and the Moon's geometry, every sample) and each observable sample evaluated (they cost
-#: ~1.7x the average sample: more moonlit-Earth sums and star pairs); the direct earthshine sum
+#: The cube's compute on one reference core, all bands, per sample: the table path evaluating
+#: every sample, and with models.unobservable_samples: skip the screen (the Sun's and the Moon's
+#: geometry, every sample) and each observable sample evaluated (they cost more than the average
+#: sample: more moonlit-Earth sums and star pairs); the direct earthshine sum
 #: adds straylight.model.fidelity.LUT_SAVED_SECONDS_PER_SAMPLE per evaluated sample.  From
 #: ``bench/run.py --only cube`` on the default day, which prints them again as
 #: cube.plan_cost_model with its runs' predicted seconds against the measured ones.
@@ -61,8 +62,8 @@ PRODUCT_BYTES_PER_SAMPLE = 25.0
 #: The pipeline's wall time, `snakemake` to the last product, on N cores with the earthshine
 #: tables cached: PIPELINE_FIXED_SECONDS + samples / (PIPELINE_SAMPLES_PER_S_PER_CORE x N).  The
 #: fixed part is the jobs' start-up, the model's set-up, the figures and the report; the rest
-#: grows with the samples.  Fitted to bench/pipeline.py runs on the 2-core development machine
-#: (docs/performance.md: 1 day at nside 16, 3 days and a month at nside 32); the config's
+#: grows with the samples.  Fitted to the bench/pipeline.py runs on 2 cores in
+#: docs/performance.md (1 day at nside 16, 3 days and a month at nside 32); the config's
 #: compute.pipeline_samples_per_s_per_core replaces the rate for another machine.
 PIPELINE_FIXED_SECONDS = 22.0
 PIPELINE_SAMPLES_PER_S_PER_CORE = 667_000.0
@@ -99,11 +100,11 @@ def cube_compute_seconds(samples: int, evaluated: int, earthshine_method: str, s
 
 
 def machine_speed(campaign: Campaign, fp: Footprint, n_times: int = 4, n_pixels: int = 1320, repeats: int = 2) -> dict:
-    """This machine's speed against the development machine the cost figures (CUBE_*,
-    fidelity.LUT_*, PIPELINE_*) were measured on: ``n_times`` cube time steps spread over the
+    """This machine's speed against the reference machine of the cost figures (CUBE_*,
+    fidelity.LUT_*, PIPELINE_*): ``n_times`` cube time steps spread over the
     campaign at ~``n_pixels`` footprint pixels spread over it (one step, or a few hundred
     pixels, weigh the per-step costs too much), on the direct earthshine sum, every sample
-    evaluated, without stars (~1 % of that path's cost), best of ``repeats`` after a full-size
+    evaluated, without stars (a small part of that path's cost), best of ``repeats`` after a full-size
     warm-up, against :func:`cube_compute_seconds` for it.  Returns the samples,
     ``measured_seconds``, ``assumed_seconds`` and ``factor`` (measured / assumed: below 1 on a
     faster machine).  One factor for every figure."""
@@ -142,8 +143,8 @@ def estimated_cost(campaign: Campaign, fp: Footprint, seconds_per_evaluated_samp
     run wall to wall on ``cores`` cores: PIPELINE_FIXED_SECONDS, the samples at the pipeline's
     rate (:func:`pipeline_rate`; on the direct sum its extra per evaluated sample added;
     ``seconds_per_evaluated_sample`` replaces both), the build spread over the cores.  Every
-    figure but the products' bytes is times ``speed_factor`` (this machine against the
-    development machine, :func:`machine_speed`)."""
+    figure but the products' bytes is times ``speed_factor`` (this machine against the cost
+    figures' reference machine, :func:`machine_speed`)."""
     from straylight.model import LUT_SAVED_SECONDS_PER_SAMPLE, BackgroundModel, unobservable_samples
 
     n = len(campaign.times) * int(fp.pixels.size)
