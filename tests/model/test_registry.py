@@ -82,3 +82,33 @@ def test_a_registered_source_reaches_the_sum_the_tables_and_the_api(glow):
         np.testing.assert_allclose(with_glow[f"total_{b}"].value, without[f"total_{b}"].value + GLOW_E_PER_S,
                                    rtol=1e-15)
     assert straylight.sky_background  # the API's function is the same table (test_api covers it)
+
+
+def test_a_registered_source_reaches_the_cube_and_the_sky_record(glow):
+    """With the dummy registered: a cube region has its variable (GLOW_E_PER_S everywhere, long
+    name from the registry) and a total GLOW_E_PER_S above the same region without it; the new
+    store's skeleton declares it; ``straylight sky``'s record lists it in every band."""
+    from straylight.cli.sky import sky_record
+    from straylight.config import load_campaign
+    from straylight.model import BackgroundModel
+    from straylight.survey.cube_region import compute_region
+    from straylight.survey.cube_store import empty_cube
+    from straylight.survey.footprint import footprint_from_config
+
+    campaign = load_campaign()
+    fp = footprint_from_config(campaign.config["footprint"])
+    region = (campaign, fp, slice(0, 2), slice(0, 5))
+    model = BackgroundModel(campaign, build_workers=1)
+    with_glow = compute_region(*region, model=model)
+    assert with_glow["glow"].dims == ("time", "pixel", "band")
+    np.testing.assert_array_equal(with_glow["glow"].values, np.float32(GLOW_E_PER_S))
+    skeleton = empty_cube(campaign, fp, campaign.times[:2], model)
+    assert skeleton["glow"].attrs["long_name"] == "a constant test glow"
+    record = sky_record(campaign, campaign.times[0], 150.0, 20.0, bands=["g"])
+    assert record["bands"]["g"]["glow"]["e_per_s_per_pix"] == GLOW_E_PER_S
+    registry.SOURCES.pop()
+    registry.COMPONENTS.pop()
+    without = compute_region(*region, model=BackgroundModel(campaign, build_workers=1))
+    assert "glow" not in without
+    # float32 totals: within one rounding of the float32 sum
+    np.testing.assert_allclose(with_glow["total"].values, without["total"].values + GLOW_E_PER_S, rtol=2e-7)
