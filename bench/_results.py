@@ -1,4 +1,5 @@
 """Shared by the benchmark scripts: write a results dict to bench/results/<name>.json."""
+
 import json
 from pathlib import Path
 

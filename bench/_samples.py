@@ -1,4 +1,5 @@
 """Shared by the benchmark scripts: random (time, pointing) samples of a campaign."""
+
 import numpy as np
 
 
@@ -7,8 +8,8 @@ def random_samples(campaign, n: int, seed: int):
 
     Returns (scene, line-of-sight unit vectors (n, 3), observing geometry dict)."""
     from straylight.sky.geometry import observing_geometry
-    from straylight.sky.vectors import radec_to_unit
     from straylight.sky.observing import scene
+    from straylight.sky.vectors import radec_to_unit
 
     rng = np.random.default_rng(seed)
     sc = scene(campaign.orbit, campaign.times[rng.integers(0, len(campaign.times), n)])

@@ -13,6 +13,7 @@ Prints and writes bench/results/api.json:
 
 Run:  python bench/api.py            (tables built first if not cached)
 """
+
 from __future__ import annotations
 
 import argparse
@@ -69,31 +70,51 @@ def main(argv=None) -> dict:
         for i in range(args.calls):
             _, w, _ = timed(lambda: sky.background(t0 + i * u.min, where, bands=bands))
             walls.append(w)
-        single[label] = {"median_ms": 1e3 * float(np.median(walls)), "p90_ms": 1e3 * float(np.percentile(walls, 90))}
+        single[label] = {
+            "median_ms": 1e3 * float(np.median(walls)),
+            "p90_ms": 1e3 * float(np.percentile(walls, 90)),
+        }
 
     rng = np.random.default_rng(1)
     n = args.pairs
     times = t0 + rng.uniform(0.0, 1.0, n) * u.day
-    coords = SkyCoord(rng.uniform(0.0, 360.0, n), np.degrees(np.arcsin(rng.uniform(-1.0, 1.0, n))), unit="deg")
+    coords = SkyCoord(
+        rng.uniform(0.0, 360.0, n), np.degrees(np.arcsin(rng.uniform(-1.0, 1.0, n))), unit="deg"
+    )
     table, pairs_wall, pairs_cpu = timed(lambda: sky.background(times, coords))
     assert len(table) == n
 
     result = {
-        "skymodel_build_in_this_process": {"wall_s": build_wall, "cpu_s": build_cpu,
-                                           "note": "includes the tables' build when they were not cached"},
-        "fresh_process_first_answer": {"wall_s": first_wall, "cpu_s": first_cpu,
-                                       "what": "python -c: import straylight, SkyModel(), one pointing, tables cached"},
+        "skymodel_build_in_this_process": {
+            "wall_s": build_wall,
+            "cpu_s": build_cpu,
+            "note": "includes the tables' build when they were not cached",
+        },
+        "fresh_process_first_answer": {
+            "wall_s": first_wall,
+            "cpu_s": first_cpu,
+            "what": "python -c: import straylight, SkyModel(), one pointing, tables cached",
+        },
         "warm_single_call": single,
-        "random_pairs": {"pairs": n, "wall_s": pairs_wall, "cpu_s": pairs_cpu, "samples_per_s": n / pairs_wall,
-                         "what": "uniform times over a day, uniform on the sky, all bands, one call"},
+        "random_pairs": {
+            "pairs": n,
+            "wall_s": pairs_wall,
+            "cpu_s": pairs_cpu,
+            "samples_per_s": n / pairs_wall,
+            "what": "uniform times over a day, uniform on the sky, all bands, one call",
+        },
         "earthshine": table.meta["models"].get("earthshine", {}).get("method"),
     }
-    print(f"SkyModel in this process: {build_wall:.1f} s wall, {build_cpu:.1f} CPU-s (tables built if not cached)")
+    print(
+        f"SkyModel in this process: {build_wall:.1f} s wall, {build_cpu:.1f} CPU-s (tables built if not cached)"
+    )
     print(f"fresh process, first answer: {first_wall:.2f} s wall ({first_cpu:.2f} CPU-s), tables cached")
     for label, rec in single.items():
         print(f"warm single call, {label}: median {rec['median_ms']:.1f} ms, p90 {rec['p90_ms']:.1f} ms")
-    print(f"{n:,} random pairs in one call: {pairs_wall:.2f} s wall ({pairs_cpu:.2f} CPU-s) = "
-          f"{n / pairs_wall:,.0f} samples/s; earthshine path: {result['earthshine']}")
+    print(
+        f"{n:,} random pairs in one call: {pairs_wall:.2f} s wall ({pairs_cpu:.2f} CPU-s) = "
+        f"{n / pairs_wall:,.0f} samples/s; earthshine path: {result['earthshine']}"
+    )
     write_results("api", result)
     return result
 

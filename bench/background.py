@@ -8,6 +8,7 @@ blocks' samples over the extra time a run of three blocks takes against a run of
 workers' start-up is not in it.  Prints the figures and writes
 bench/results/background.json.  Run:  python bench/background.py
 """
+
 from __future__ import annotations
 
 import copy
@@ -50,16 +51,29 @@ def main():
                 store = tmp / f"bg{workers}_{len(blocks)}.zarr"
                 init_store(c, fp, store)
                 t0 = time.perf_counter()
-                run_time_blocks(c, fp, store, blocks, tmp / f"done{workers}_{len(blocks)}",
-                                execution=Execution(workers=workers))
+                run_time_blocks(
+                    c,
+                    fp,
+                    store,
+                    blocks,
+                    tmp / f"done{workers}_{len(blocks)}",
+                    execution=Execution(workers=workers),
+                )
                 seconds[len(blocks)] = time.perf_counter() - t0
             extra_s = seconds[3] - seconds[1]  # the two extra blocks
             rate = 2 * block_samples / extra_s
-            results[f"workers_{workers}"] = {"seconds": extra_s, "samples_per_s": rate,
-                                             "samples_per_s_per_core": rate / workers}
-            print(f"{workers} worker(s): {2 * block_samples} samples x {len(c.bands)} bands in {extra_s:.1f} s "
-                  f"= {rate:.0f} samples/s ({rate / workers:.0f} per core)")
-        results["speedup_1_to_2_workers"] = results["workers_2"]["samples_per_s"] / results["workers_1"]["samples_per_s"]
+            results[f"workers_{workers}"] = {
+                "seconds": extra_s,
+                "samples_per_s": rate,
+                "samples_per_s_per_core": rate / workers,
+            }
+            print(
+                f"{workers} worker(s): {2 * block_samples} samples x {len(c.bands)} bands in {extra_s:.1f} s "
+                f"= {rate:.0f} samples/s ({rate / workers:.0f} per core)"
+            )
+        results["speedup_1_to_2_workers"] = (
+            results["workers_2"]["samples_per_s"] / results["workers_1"]["samples_per_s"]
+        )
         print(f"speed-up 1 -> 2 workers: {results['speedup_1_to_2_workers']:.2f}")
         # access patterns on the default campaign's cube if it exists
         cube = Path(base.path).parent.parent / "results" / base.name / "background.zarr"
@@ -75,8 +89,10 @@ def main():
             results["read_one_pointing_all_times_s"] = t_series
             results["read_whole_sky_one_time_s"] = t_sky
             results["chunks"] = dict(zip(ds["total"].dims, ds["total"].encoding["chunks"]))
-            print(f"default cube {results['chunks']}: one pointing over the campaign {t_series * 1e3:.0f} ms, "
-                  f"whole sky at one time {t_sky * 1e3:.0f} ms")
+            print(
+                f"default cube {results['chunks']}: one pointing over the campaign {t_series * 1e3:.0f} ms, "
+                f"whole sky at one time {t_sky * 1e3:.0f} ms"
+            )
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     write_results("background", results)

@@ -22,6 +22,7 @@ Writes bench/results/compiled_geometry.json.
 
     python bench/compiled_geometry.py
 """
+
 from __future__ import annotations
 
 import sys
@@ -48,7 +49,9 @@ def limb_numpy(r, los, sun, earth_radius_km):
 
     los = unit(los)
     runs = scene_runs(r, sun)
-    nadir, rho, tangent_len, cr, sr, a_term = tuple(runs.expand(v) for v in _limb_scene(*runs.vectors, earth_radius_km))
+    nadir, rho, tangent_len, cr, sr, a_term = tuple(
+        runs.expand(v) for v in _limb_scene(*runs.vectors, earth_radius_km)
+    )
     sin_gamma = norm(np.cross(los, nadir))
     gamma_deg = np.degrees(np.arctan2(sin_gamma, dot(los, nadir)))
     limb_angle = gamma_deg - np.degrees(rho)
@@ -87,13 +90,13 @@ def theta_phi_numpy(frame, d):
 
 def main() -> int:
     from straylight.config import load_campaign
-    from straylight.survey.cube_layout import cube_chunks
-    from straylight.survey.footprint import footprint_from_config
     from straylight.sky.frames import telescope_frame
     from straylight.sky.limb import limb_geometry
+    from straylight.sky.observing import scene
     from straylight.sky.runs import scene_runs
     from straylight.sky.vectors import radec_to_unit, unit
-    from straylight.sky.observing import scene
+    from straylight.survey.cube_layout import cube_chunks
+    from straylight.survey.footprint import footprint_from_config
 
     campaign = load_campaign()
     fp = footprint_from_config(campaign.config["footprint"])
@@ -110,9 +113,16 @@ def main() -> int:
     t_nb = best_seconds(lambda: limb_geometry(sat, los, sun, re_km))
     ref = limb_numpy(sat, los, sun, re_km)
     lg = limb_geometry(sat, los, sun, re_km)
-    got = (lg.earth_limb_angle_deg, lg.zenith_angle_deg, lg.limb_is_bright, lg.bright_limb_angle_deg,
-           lg.dark_limb_angle_deg)
-    limb_diff = max(float(np.max(np.abs(np.asarray(a, float) - np.asarray(b, float)))) for a, b in zip(got, ref))
+    got = (
+        lg.earth_limb_angle_deg,
+        lg.zenith_angle_deg,
+        lg.limb_is_bright,
+        lg.bright_limb_angle_deg,
+        lg.dark_limb_angle_deg,
+    )
+    limb_diff = max(
+        float(np.max(np.abs(np.asarray(a, float) - np.asarray(b, float)))) for a, b in zip(got, ref)
+    )
 
     frame = telescope_frame(los, sun - sat)
     runs = scene_runs(sat, sun, moon)
@@ -124,15 +134,30 @@ def main() -> int:
     dphi = np.abs(phi_c - phi)
     tp_diff = max(float(np.max(np.abs(theta_c - theta))), float(np.max(np.minimum(dphi, 360.0 - dphi))))
 
-    parts = {"limb_geometry": {"samples": n, "numpy_seconds": t_np, "numba_seconds": t_nb,
-                               "numba_ns_per_sample": t_nb / n * 1e9, "speedup": t_np / t_nb,
-                               "max_abs_difference_deg": limb_diff},
-             "bodies_theta_phi": {"samples": n, "bodies": 2, "numpy_seconds": tp_np, "numba_seconds": tp_nb,
-                                  "numba_ns_per_body_sample": tp_nb / (2 * n) * 1e9, "speedup": tp_np / tp_nb,
-                                  "max_abs_difference_deg": tp_diff}}
+    parts = {
+        "limb_geometry": {
+            "samples": n,
+            "numpy_seconds": t_np,
+            "numba_seconds": t_nb,
+            "numba_ns_per_sample": t_nb / n * 1e9,
+            "speedup": t_np / t_nb,
+            "max_abs_difference_deg": limb_diff,
+        },
+        "bodies_theta_phi": {
+            "samples": n,
+            "bodies": 2,
+            "numpy_seconds": tp_np,
+            "numba_seconds": tp_nb,
+            "numba_ns_per_body_sample": tp_nb / (2 * n) * 1e9,
+            "speedup": tp_np / tp_nb,
+            "max_abs_difference_deg": tp_diff,
+        },
+    }
     for name, v in parts.items():
-        print(f"{name}: numpy {v['numpy_seconds'] * 1e3:.2f} ms, compiled {v['numba_seconds'] * 1e3:.2f} ms "
-              f"({v['speedup']:.1f}x) for {n} samples; largest difference {v['max_abs_difference_deg']:.1e} deg")
+        print(
+            f"{name}: numpy {v['numpy_seconds'] * 1e3:.2f} ms, compiled {v['numba_seconds'] * 1e3:.2f} ms "
+            f"({v['speedup']:.1f}x) for {n} samples; largest difference {v['max_abs_difference_deg']:.1e} deg"
+        )
     import numba
 
     write_results("compiled_geometry", {"numba": numba.__version__, "numpy": np.__version__, **parts})

@@ -3,11 +3,12 @@
 Prints the figures and writes bench/results/ephemeris.json.  Run with one thread
 (the numbers are per core):  OMP_NUM_THREADS=1 python bench/ephemeris.py
 """
+
 from __future__ import annotations
 
 import os
-import sys
 import platform
+import sys
 import time
 from pathlib import Path
 
@@ -33,9 +34,9 @@ def main():
     from straylight.config import load_campaign
     from straylight.sky.ephemeris import BODIES, DE405
     from straylight.sky.geometry import observing_geometry
-    from straylight.sky.vectors import radec_to_unit
     from straylight.sky.observing import scene
     from straylight.sky.timeutil import utc_to_tdb_jd
+    from straylight.sky.vectors import radec_to_unit
 
     eph = DE405()
     n = 1_000_000
@@ -50,6 +51,7 @@ def main():
     t_rand = best_of(lambda: eph.positions_tdb(jd_random, bodies=["moon"]))
 
     from astropy.time import Time
+
     # a fresh Time each call: astropy caches a converted scale on the object
     t_conv = best_of(lambda: utc_to_tdb_jd(Time(jd, format="jd", scale="utc")), repeat=2)
 

@@ -4,6 +4,7 @@ Prints the render time for each far-field binning and the error of the binned fa
 the exact (far_bin = 1) reference measured on a 1024 x 1024 cut-out; writes
 bench/results/image.json.  Run:  OMP_NUM_THREADS=1 python bench/image.py
 """
+
 from __future__ import annotations
 
 import os
@@ -21,8 +22,14 @@ from _results import write_results  # noqa: E402
 
 def main():
     from straylight.config import load_campaign
+    from straylight.image.detector import (
+        FocalPlane,
+        RenderSettings,
+        focal_plane_from_instrument,
+        pointing_wcs,
+        render_detector,
+    )
     from straylight.optics.ghosts import ghost_model_from_instrument
-    from straylight.image.detector import FocalPlane, RenderSettings, focal_plane_from_instrument, pointing_wcs, render_detector
     from straylight.optics.scatter import scatter_model_from_instrument
 
     c = load_campaign()
@@ -41,8 +48,9 @@ def main():
     results = {"detector_px": [fp.ny, fp.nx], "n_stars": n_stars, "full_detector": {}, "cutout_error": {}}
     for rn, b in ((128, 16), (128, 8), (64, 8)):
         t0 = time.perf_counter()
-        r = render_detector(150.0, 30.0, ra, dec, flux, sun, fp, 12, sc, gh, 3.9,
-                            RenderSettings(far_bin=b, near_radius_px=rn))
+        r = render_detector(
+            150.0, 30.0, ra, dec, flux, sun, fp, 12, sc, gh, 3.9, RenderSettings(far_bin=b, near_radius_px=rn)
+        )
         dt = time.perf_counter() - t0
         results["full_detector"][f"near_{rn}_far_bin_{b}_s"] = dt
         print(f"full detector, near {rn} px, far_bin {b:2d}: {dt:6.1f} s, {len(r.stars['x_pix'])} stars used")
@@ -56,20 +64,49 @@ def main():
     f2 = 10 ** rng.uniform(3, 8, 50)
     kw = dict(size_override=(n, n))
     for rn in (64, 128):
-        ref = render_detector(150.0, 30.0, ra2, dec2, f2, sun, fp, 12, sc, None, 3.9,
-                              RenderSettings(far_bin=1, near_radius_px=rn, margin_arcsec=40.0),
-                              **kw).image_e_per_s_per_pix.astype(float)
+        ref = render_detector(
+            150.0,
+            30.0,
+            ra2,
+            dec2,
+            f2,
+            sun,
+            fp,
+            12,
+            sc,
+            None,
+            3.9,
+            RenderSettings(far_bin=1, near_radius_px=rn, margin_arcsec=40.0),
+            **kw,
+        ).image_e_per_s_per_pix.astype(float)
         for b in (16, 8, 4, 2):
             t0 = time.perf_counter()
-            im = render_detector(150.0, 30.0, ra2, dec2, f2, sun, fp, 12, sc, None, 3.9,
-                                 RenderSettings(far_bin=b, near_radius_px=rn, margin_arcsec=40.0),
-                                 **kw).image_e_per_s_per_pix.astype(float)
+            im = render_detector(
+                150.0,
+                30.0,
+                ra2,
+                dec2,
+                f2,
+                sun,
+                fp,
+                12,
+                sc,
+                None,
+                3.9,
+                RenderSettings(far_bin=b, near_radius_px=rn, margin_arcsec=40.0),
+                **kw,
+            ).image_e_per_s_per_pix.astype(float)
             dt = time.perf_counter() - t0
             rel = np.abs(im - ref) / ref
             results["cutout_error"][f"near_{rn}_far_bin_{b}"] = {
-                "max_rel_error": float(rel.max()), "p99_rel_error": float(np.percentile(rel, 99)), "time_s": dt}
-            print(f"cut-out near {rn:3d} px far_bin {b:2d}: max rel error {rel.max():.2e}, "
-                  f"99th pct {np.percentile(rel, 99):.2e}, {dt:.2f} s")
+                "max_rel_error": float(rel.max()),
+                "p99_rel_error": float(np.percentile(rel, 99)),
+                "time_s": dt,
+            }
+            print(
+                f"cut-out near {rn:3d} px far_bin {b:2d}: max rel error {rel.max():.2e}, "
+                f"99th pct {np.percentile(rel, 99):.2e}, {dt:.2f} s"
+            )
     write_results("image", results)
 
 

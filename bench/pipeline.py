@@ -20,6 +20,7 @@ straylight.survey.plan's PIPELINE_* figures are fitted to such runs.  Run:
     python bench/pipeline.py --days 3 --nside 32 --cold      # as on a fresh machine (empty table cache)
     python bench/pipeline.py --days 0.25 --nside 4 --no-kernel   # a smoke run, seconds
 """
+
 from __future__ import annotations
 
 import argparse
@@ -44,8 +45,13 @@ from _results import write_results  # noqa: E402
 PRODUCTS = ("background.zarr", "limits.zarr", "observability.zarr")
 
 
-def campaign_config(days: float, nside: int, cadence_s: float, name: str = "bench",
-                    base: Path = REPO / "config" / "config.yaml") -> dict:
+def campaign_config(
+    days: float,
+    nside: int,
+    cadence_s: float,
+    name: str = "bench",
+    base: Path = REPO / "config" / "config.yaml",
+) -> dict:
     """The ``base`` config (config/config.yaml) with the campaign's length (days from its start),
     cadence and nside changed, the instrument path made absolute."""
     import yaml
@@ -53,8 +59,9 @@ def campaign_config(days: float, nside: int, cadence_s: float, name: str = "benc
     base = Path(base).resolve()
     cfg = yaml.safe_load(base.read_text())
     start = datetime.fromisoformat(cfg["campaign"]["start"])
-    cfg["campaign"].update(name=name, cadence_s=cadence_s,
-                           end=(start + timedelta(days=days)).isoformat(timespec="seconds"))
+    cfg["campaign"].update(
+        name=name, cadence_s=cadence_s, end=(start + timedelta(days=days)).isoformat(timespec="seconds")
+    )
     cfg["footprint"]["nside"] = int(nside)
     cfg["instrument"] = str((base.parent / cfg["instrument"]).resolve())
     return cfg
@@ -138,9 +145,14 @@ def rule_seconds(snakemake_log: str) -> dict:
 def timeline(snakemake_log: str, started: datetime) -> list[dict]:
     """Every job's rule, start and finish in seconds after ``started`` (the command's start,
     local time as Snakemake stamps it), in order of start: where the wall time went."""
-    return [{"rule": name, "start_s": round((a - started).total_seconds(), 1),
-             "finish_s": round((b - started).total_seconds(), 1)}
-            for name, a, b in sorted(job_spans(snakemake_log), key=lambda j: (j[1], j[0]))]
+    return [
+        {
+            "rule": name,
+            "start_s": round((a - started).total_seconds(), 1),
+            "finish_s": round((b - started).total_seconds(), 1),
+        }
+        for name, a, b in sorted(job_spans(snakemake_log), key=lambda j: (j[1], j[0]))
+    ]
 
 
 def directory_bytes(path: Path) -> int:
@@ -164,8 +176,15 @@ def build_tables(cfg_path: Path, workers: int) -> float:
     return time.perf_counter() - t0
 
 
-def run_campaign(days: float, nside: int, cadence_s: float, cores: int, keep: Path | None = None,
-                 base: Path = REPO / "config" / "config.yaml", cold: bool = False) -> dict:
+def run_campaign(
+    days: float,
+    nside: int,
+    cadence_s: float,
+    cores: int,
+    keep: Path | None = None,
+    base: Path = REPO / "config" / "config.yaml",
+    cold: bool = False,
+) -> dict:
     """Run the campaign end to end in a temporary directory; the figures above (no kernel).
     ``cold``: as on a fresh machine, with an empty table cache (STRAYLIGHT_CACHE): the earthshine
     tables, the star catalog and the faint-star map are built inside the timed run."""
@@ -183,8 +202,17 @@ def run_campaign(days: float, nside: int, cadence_s: float, cores: int, keep: Pa
         else:
             table_s = build_tables(cfg_path, cores)
         snakemake = str(Path(sys.executable).with_name("snakemake"))
-        cmd = [snakemake, "-s", str(REPO / "workflow" / "Snakefile"), "-d", str(tmp), "--configfile", str(cfg_path),
-               "--cores", str(cores)]
+        cmd = [
+            snakemake,
+            "-s",
+            str(REPO / "workflow" / "Snakefile"),
+            "-d",
+            str(tmp),
+            "--configfile",
+            str(cfg_path),
+            "--cores",
+            str(cores),
+        ]
         load_before = os.getloadavg()
         cpu_before = resource.getrusage(resource.RUSAGE_CHILDREN)
         t0 = time.perf_counter()
@@ -209,9 +237,17 @@ def run_campaign(days: float, nside: int, cadence_s: float, cores: int, keep: Pa
         for rec in rules.values():
             rec["share_of_wall"] = rec["seconds"] / wall
         result = {
-            "campaign": {"base_config": str(base), "days": days, "nside": nside, "cadence_s": cadence_s, "times": int(init["times"]),
-                         "pixels": int(init["pixels"]), "bands": len(init["bands"]), "samples": samples,
-                         "chunks": init["chunks"]},
+            "campaign": {
+                "base_config": str(base),
+                "days": days,
+                "nside": nside,
+                "cadence_s": cadence_s,
+                "times": int(init["times"]),
+                "pixels": int(init["pixels"]),
+                "bands": len(init["bands"]),
+                "samples": samples,
+                "chunks": init["chunks"],
+            },
             "cores": cores,
             "cold_cache": cold,
             "table_build_seconds_before_run": table_s,
@@ -250,9 +286,11 @@ def kernel_figure() -> dict:
         stars_path = Path(tmp) / "stars.parquet"
         write_catalog(Bench(1).catalog, stars_path, {})
         rates = production_region_rates(base, fp, stars_path)
-    return {"samples_per_s_per_core": rates["campaign"]["lut"]["samples_per_s_per_core"],
-            "what": "bench/run.py production_region_rates: the default day's time blocks on the table path, "
-                    "compute only, one core"}
+    return {
+        "samples_per_s_per_core": rates["campaign"]["lut"]["samples_per_s_per_core"],
+        "what": "bench/run.py production_region_rates: the default day's time blocks on the table path, "
+        "compute only, one core",
+    }
 
 
 def main(argv=None) -> dict:
@@ -261,34 +299,56 @@ def main(argv=None) -> dict:
     ap.add_argument("--nside", type=int, default=32, help="HEALPix nside (default 32)")
     ap.add_argument("--cadence-s", type=float, default=300.0, help="cadence, seconds (default 300)")
     ap.add_argument("--cores", type=int, default=2, help="snakemake --cores (default 2)")
-    ap.add_argument("--base", type=Path, default=REPO / "config" / "config.yaml",
-                    help="the config the campaign is derived from (default config/config.yaml)")
+    ap.add_argument(
+        "--base",
+        type=Path,
+        default=REPO / "config" / "config.yaml",
+        help="the config the campaign is derived from (default config/config.yaml)",
+    )
     ap.add_argument("--no-kernel", action="store_true", help="skip the kernel figure (a smoke run)")
-    ap.add_argument("--cold", action="store_true",
-                    help="an empty table cache, as on a fresh machine: the tables' build is inside the wall time")
+    ap.add_argument(
+        "--cold",
+        action="store_true",
+        help="an empty table cache, as on a fresh machine: the tables' build is inside the wall time",
+    )
     ap.add_argument("--keep", type=Path, default=None, help="copy the campaign's results here")
-    ap.add_argument("--out", type=Path, default=None,
-                    help="results file (default bench/results/pipeline.json)")
+    ap.add_argument(
+        "--out", type=Path, default=None, help="results file (default bench/results/pipeline.json)"
+    )
     args = ap.parse_args(argv)
     result = run_campaign(args.days, args.nside, args.cadence_s, args.cores, args.keep, args.base, args.cold)
     result["kernel"] = None if args.no_kernel else kernel_figure()
     c = result["campaign"]
-    print(f"pipeline, wall to wall: {c['samples']:,} samples ({args.days:g} days, nside {args.nside}, "
-          f"{args.cadence_s:g} s) in {result['wall_seconds']:.1f} s on {args.cores} cores = "
-          f"{result['samples_per_s_per_core']:,.0f} samples/s/core")
-    print(f"CPU (user + system, every process of the run): {result['cpu_seconds']:.0f} s = "
-          f"{result['samples_per_cpu_second']:,.0f} samples per CPU second")
+    print(
+        f"pipeline, wall to wall: {c['samples']:,} samples ({args.days:g} days, nside {args.nside}, "
+        f"{args.cadence_s:g} s) in {result['wall_seconds']:.1f} s on {args.cores} cores = "
+        f"{result['samples_per_s_per_core']:,.0f} samples/s/core"
+    )
+    print(
+        f"CPU (user + system, every process of the run): {result['cpu_seconds']:.0f} s = "
+        f"{result['samples_per_cpu_second']:,.0f} samples per CPU second"
+    )
     if args.cold:
-        print("empty table cache: the earthshine tables, the catalog and the faint-star map built in the wall time")
+        print(
+            "empty table cache: the earthshine tables, the catalog and the faint-star map built in the wall time"
+        )
     else:
-        print(f"earthshine tables built before the run (not in the wall time): "
-              f"{result['table_build_seconds_before_run']:.0f} s")
+        print(
+            f"earthshine tables built before the run (not in the wall time): "
+            f"{result['table_build_seconds_before_run']:.0f} s"
+        )
     if result["kernel"]:
-        print(f"kernel (cube compute alone, one core): {result['kernel']['samples_per_s_per_core']:,.0f} samples/s/core")
-    print(f"peak memory {result['peak_memory_bytes'] / 2**30:.2f} GiB; products "
-          f"{sum(result['products_bytes'].values()) / 1e9:.3f} GB = {result['bytes_per_sample']:.1f} bytes/sample")
+        print(
+            f"kernel (cube compute alone, one core): {result['kernel']['samples_per_s_per_core']:,.0f} samples/s/core"
+        )
+    print(
+        f"peak memory {result['peak_memory_bytes'] / 2**30:.2f} GiB; products "
+        f"{sum(result['products_bytes'].values()) / 1e9:.3f} GB = {result['bytes_per_sample']:.1f} bytes/sample"
+    )
     for name, rec in result["rules"].items():
-        print(f"  {name:<18} {rec['jobs']:3d} job(s) {rec['seconds']:8.0f} s  {100 * rec['share_of_wall']:5.1f} % of wall")
+        print(
+            f"  {name:<18} {rec['jobs']:3d} job(s) {rec['seconds']:8.0f} s  {100 * rec['share_of_wall']:5.1f} % of wall"
+        )
     print("timeline (s after the command):")
     for job in result["timeline"]:
         print(f"  {job['start_s']:6.0f} {job['finish_s']:6.0f}  {job['rule']}")

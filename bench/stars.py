@@ -8,6 +8,7 @@ cube pays it once per pixel for the whole campaign).  Prints the table and write
 
 Run:  OMP_NUM_THREADS=1 python bench/stars.py
 """
+
 from __future__ import annotations
 
 import copy
@@ -27,11 +28,11 @@ from _samples import random_samples  # noqa: E402
 
 def main():
     from straylight.catalog.build import TemplatePhotometry, build_catalog, make_catalog, select_templates
-    from straylight.model import BackgroundModel
-    from straylight.sources.stars import split_stars
-    from straylight.config import campaign_from_dict, load_campaign
     from straylight.catalog.hipparcos import hipparcos_stars
     from straylight.catalog.sed import load_pickles
+    from straylight.config import campaign_from_dict, load_campaign
+    from straylight.model import BackgroundModel
+    from straylight.sources.stars import split_stars
 
     c = load_campaign()
     cm = BackgroundModel(c)
@@ -47,7 +48,9 @@ def main():
         build_catalog(hip, responses, photometry=tp)
     dt = (time.perf_counter() - t0) / reps
     out["conversion_stars_per_s_per_core"] = len(hip["ra"]) / dt
-    print(f"conversion: {len(hip['ra'])} stars in {dt:.3f} s = {out['conversion_stars_per_s_per_core']:.3g} stars/s/core")
+    print(
+        f"conversion: {len(hip['ra'])} stars in {dt:.3f} s = {out['conversion_stars_per_s_per_core']:.3g} stars/s/core"
+    )
 
     cols, _ = make_catalog(responses)
     sc, los, g = random_samples(c, 4000, seed=5)
@@ -60,7 +63,9 @@ def main():
     def run(limit, faint=False, model=cm):
         st = split_stars(cols["ra"], cols["dec"], {b: cols[f"mag_{b}"] for b in bands}, limit, faint)
         t0 = time.perf_counter()
-        model.evaluate(sat, bodies, los, g, bands, st)  # first call: builds the faint map for these lines of sight
+        model.evaluate(
+            sat, bodies, los, g, bands, st
+        )  # first call: builds the faint map for these lines of sight
         first = time.perf_counter() - t0
         best = np.inf
         for _ in range(3):  # best of three (the map is cached per line of sight, as in the cube)
@@ -83,15 +88,24 @@ def main():
             if limit == -99.0 and not faint:
                 continue
             res, dt, ns, map_s = run(limit, faint)
-            err = max(float(np.max(np.abs(ref[b]["stars"] - res[b]["stars"]) / ref[b]["total"])) for b in bands)
+            err = max(
+                float(np.max(np.abs(ref[b]["stars"] - res[b]["stars"]) / ref[b]["total"])) for b in bands
+            )
             share = max(float(np.max(ref[b]["stars"] / ref[b]["total"])) for b in bands)
-            row = {"mag_limit": limit, "faint_map": faint, "stars": ns, "max_rel_error_of_total": err,
-                   "star_cost_ms_per_sample": (dt - t_base) / len(obs) * 1e3,
-                   "map_ms_per_new_line_of_sight": map_s / len(obs) * 1e3 if faint else 0.0}
+            row = {
+                "mag_limit": limit,
+                "faint_map": faint,
+                "stars": ns,
+                "max_rel_error_of_total": err,
+                "star_cost_ms_per_sample": (dt - t_base) / len(obs) * 1e3,
+                "map_ms_per_new_line_of_sight": map_s / len(obs) * 1e3 if faint else 0.0,
+            }
             rows.append(row)
-            print(f"limit {limit:5.1f} map {faint:d}: {ns:6d} direct stars, max error {err:.2e} of the total, "
-                  f"star term {row['star_cost_ms_per_sample']:.3f} ms/sample (rest {t_base / len(obs) * 1e3:.3f}), "
-                  f"map {row['map_ms_per_new_line_of_sight']:.2f} ms per new line of sight")
+            print(
+                f"limit {limit:5.1f} map {faint:d}: {ns:6d} direct stars, max error {err:.2e} of the total, "
+                f"star term {row['star_cost_ms_per_sample']:.3f} ms/sample (rest {t_base / len(obs) * 1e3:.3f}), "
+                f"map {row['map_ms_per_new_line_of_sight']:.2f} ms per new line of sight"
+            )
     out["offfield_star_limit"] = rows
     out["max_star_share_of_total"] = share
     out["samples"] = int(len(obs))

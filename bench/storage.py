@@ -32,6 +32,7 @@ bench/results/storage_regions.json.
 
     python bench/storage.py --regions /tmp/month32/results/month32
 """
+
 from __future__ import annotations
 
 import argparse
@@ -99,17 +100,22 @@ def _errors(path: Path, reference: Path) -> dict:
         for name in ds.data_vars:
             s, r = ds[name], ref[name]
             if s.dtype.kind != "f":
-                out[name] = {"max_relative_error": 0.0 if np.array_equal(s.values, r.values) else float("inf"),
-                             "bound": s.attrs.get("max_relative_error")}
+                out[name] = {
+                    "max_relative_error": 0.0 if np.array_equal(s.values, r.values) else float("inf"),
+                    "bound": s.attrs.get("max_relative_error"),
+                }
                 continue
             # block by block over time: the whole cube never in memory twice
             step = max(1, int(s.chunks[0][0])) if s.chunks and "time" in s.dims else None
             if step is None:
                 err = _max_relative_error(s.values, r.values)
             else:
-                err = max(_max_relative_error(s.isel(time=slice(t, t + step)).values,
-                                              r.isel(time=slice(t, t + step)).values)
-                          for t in range(0, s.sizes["time"], step))
+                err = max(
+                    _max_relative_error(
+                        s.isel(time=slice(t, t + step)).values, r.isel(time=slice(t, t + step)).values
+                    )
+                    for t in range(0, s.sizes["time"], step)
+                )
             out[name] = {"max_relative_error": err, "bound": s.attrs.get("max_relative_error")}
     return out
 
@@ -139,9 +145,11 @@ def _time_writes(reference_dir: Path, storage: dict, repeat: int, tmp: Path) -> 
         block[n].encoding = {}
     samples = block.sizes["time"] * block.sizes["pixel"]
     compressed, enc = encoded(block, storage)
-    ways = {"products_codecs": (compressed, {n: {**enc[n], **chunks[n]} for n in enc}),
-            "xarray_default": (block, chunks),
-            "none": (block, {n: {**chunks[n], "compressors": None} for n in chunks})}
+    ways = {
+        "products_codecs": (compressed, {n: {**enc[n], **chunks[n]} for n in enc}),
+        "xarray_default": (block, chunks),
+        "none": (block, {n: {**chunks[n], "compressors": None} for n in chunks}),
+    }
     out = {"samples": samples}
     for label, (ds, encoding) in ways.items():
         runs = []
@@ -150,8 +158,11 @@ def _time_writes(reference_dir: Path, storage: dict, repeat: int, tmp: Path) -> 
             t0 = time.perf_counter()
             ds.to_zarr(tmp, mode="w", consolidated=False, encoding=encoding)
             runs.append(time.perf_counter() - t0)
-        out[label] = {"best_ms": 1e3 * min(runs), "us_per_sample": 1e6 * min(runs) / samples,
-                      "bytes": _bytes(tmp)}
+        out[label] = {
+            "best_ms": 1e3 * min(runs),
+            "us_per_sample": 1e6 * min(runs) / samples,
+            "bytes": _bytes(tmp),
+        }
     shutil.rmtree(tmp, ignore_errors=True)
     return out
 
@@ -163,8 +174,9 @@ def _region_arrays(results_dir: Path) -> dict:
     out = {}
     for product in GRIDDED:
         group = zarr.open_group(str(results_dir / product), mode="r", use_consolidated=False)
-        out[product] = sorted(n for n, a in group.arrays()
-                              if tuple(a.metadata.dimension_names or ())[:2] == ("time", "pixel"))
+        out[product] = sorted(
+            n for n, a in group.arrays() if tuple(a.metadata.dimension_names or ())[:2] == ("time", "pixel")
+        )
     return out
 
 
@@ -173,9 +185,11 @@ def _region_list(shape: tuple, chunks: tuple, n_time_blocks: int) -> list:
     (time, pixel) regions, as the cube's workers write them."""
     nt = -(-shape[0] // chunks[0])
     blocks = sorted({int(round(k * (nt - 1) / max(n_time_blocks - 1, 1))) for k in range(n_time_blocks)})
-    return [(slice(t * chunks[0], min((t + 1) * chunks[0], shape[0])),
-             slice(p, min(p + chunks[1], shape[1])))
-            for t in blocks for p in range(0, shape[1], chunks[1])]
+    return [
+        (slice(t * chunks[0], min((t + 1) * chunks[0], shape[0])), slice(p, min(p + chunks[1], shape[1])))
+        for t in blocks
+        for p in range(0, shape[1], chunks[1])
+    ]
 
 
 def _cpu_wall(fn) -> tuple:
@@ -187,8 +201,10 @@ def _cpu_wall(fn) -> tuple:
 
 def _summary(runs: list, per: int) -> dict:
     cpu, wall = np.array([r[0] for r in runs]) * 1e3 / per, np.array([r[1] for r in runs]) * 1e3 / per
-    return {"cpu_ms": {"best": float(cpu.min()), "median": float(np.median(cpu))},
-            "wall_ms": {"best": float(wall.min()), "median": float(np.median(wall))}}
+    return {
+        "cpu_ms": {"best": float(cpu.min()), "median": float(np.median(cpu))},
+        "wall_ms": {"best": float(wall.min()), "median": float(np.median(wall))},
+    }
 
 
 def _time_regions(results_dir: Path, repeat: int, n_time_blocks: int, tmp: Path) -> dict:
@@ -229,13 +245,17 @@ def _time_regions(results_dir: Path, repeat: int, n_time_blocks: int, tmp: Path)
             empty_copy(way)
             targets = opened(way, writer)
             runs[way].append(_cpu_wall(lambda: write(targets)))
-    files = {w: {str(f.relative_to(tmp / w)): f.read_bytes()
-                 for f in sorted((tmp / w).rglob("*")) if f.is_file()}
-             for w in ways}
-    out = {"regions": len(regions), "chunks_per_region": len(values),
-           "region_shape": [int(total.chunks[0]), int(total.chunks[1])],
-           "files_identical": files["chunk_writer"] == files["zarr_public"],
-           "write_per_region": {w: _summary(runs[w], len(regions)) for w in ways}}
+    files = {
+        w: {str(f.relative_to(tmp / w)): f.read_bytes() for f in sorted((tmp / w).rglob("*")) if f.is_file()}
+        for w in ways
+    }
+    out = {
+        "regions": len(regions),
+        "chunks_per_region": len(values),
+        "region_shape": [int(total.chunks[0]), int(total.chunks[1])],
+        "files_identical": files["chunk_writer"] == files["zarr_public"],
+        "write_per_region": {w: _summary(runs[w], len(regions)) for w in ways},
+    }
 
     # the reads after the cube: limits' summaries by pixel block, the time series at one pixel
     limits = zarr.open_group(str(results_dir / "limits.zarr"), mode="r", use_consolidated=False)
@@ -244,10 +264,14 @@ def _time_regions(results_dir: Path, repeat: int, n_time_blocks: int, tmp: Path)
     series = [n for n in arrays["background.zarr"] if background[n].ndim == 3] + ["observable"]
     middle = total.shape[1] // 2
     patterns = {
-        "limits_pixel_block_all_times": ([limits["limiting_mag"], limits["observable"]],
-                                         (slice(None), slice(0, block))),
-        "series_one_pixel_all_times": ([background[n] for n in series],
-                                       (slice(None), slice(middle, middle + 1))),
+        "limits_pixel_block_all_times": (
+            [limits["limiting_mag"], limits["observable"]],
+            (slice(None), slice(0, block)),
+        ),
+        "series_one_pixel_all_times": (
+            [background[n] for n in series],
+            (slice(None), slice(middle, middle + 1)),
+        ),
     }
     readers = {"read_region": read_region, "zarr_public": lambda a, r: np.asarray(a[r])}
     out["reads"] = {}
@@ -256,28 +280,41 @@ def _time_regions(results_dir: Path, repeat: int, n_time_blocks: int, tmp: Path)
         for _ in range(repeat):
             for way, read in readers.items():
                 runs[way].append(_cpu_wall(lambda: [read(a, region) for a in targets]))
-        same = all(np.array_equal(read_region(a, region), np.asarray(a[region]), equal_nan=True)
-                   for a in targets)
+        same = all(
+            np.array_equal(read_region(a, region), np.asarray(a[region]), equal_nan=True) for a in targets
+        )
         chunks = len(targets) * -(-total.shape[0] // int(total.chunks[0]))
-        out["reads"][pattern] = {"arrays": len(targets), "chunks": chunks, "same_values": bool(same),
-                                 **{w: _summary(runs[w], 1) for w in readers}}
+        out["reads"][pattern] = {
+            "arrays": len(targets),
+            "chunks": chunks,
+            "same_values": bool(same),
+            **{w: _summary(runs[w], 1) for w in readers},
+        }
     shutil.rmtree(tmp, ignore_errors=True)
     return out
 
 
 def _print_regions(r: dict) -> None:
     w = r["write_per_region"]
-    print(f"writing {r['regions']} regions of {r['region_shape'][0]} times x {r['region_shape'][1]} pixels, "
-          f"{r['chunks_per_region']} chunks each (files identical: {r['files_identical']}):")
+    print(
+        f"writing {r['regions']} regions of {r['region_shape'][0]} times x {r['region_shape'][1]} pixels, "
+        f"{r['chunks_per_region']} chunks each (files identical: {r['files_identical']}):"
+    )
     for way, s in w.items():
-        print(f"  {way}: {s['cpu_ms']['best']:.1f} CPU-ms a region (median {s['cpu_ms']['median']:.1f}), "
-              f"wall {s['wall_ms']['best']:.1f} ms (median {s['wall_ms']['median']:.1f})")
+        print(
+            f"  {way}: {s['cpu_ms']['best']:.1f} CPU-ms a region (median {s['cpu_ms']['median']:.1f}), "
+            f"wall {s['wall_ms']['best']:.1f} ms (median {s['wall_ms']['median']:.1f})"
+        )
     for pattern, s in r["reads"].items():
-        ways = ", ".join(f"{way} {s[way]['cpu_ms']['best']:.0f} CPU-ms "
-                         f"(median {s[way]['cpu_ms']['median']:.0f}), wall {s[way]['wall_ms']['best']:.0f} ms"
-                         for way in ("read_region", "zarr_public"))
-        print(f"reading {pattern} ({s['arrays']} arrays, {s['chunks']} chunks; "
-              f"same values: {s['same_values']}): {ways}")
+        ways = ", ".join(
+            f"{way} {s[way]['cpu_ms']['best']:.0f} CPU-ms "
+            f"(median {s[way]['cpu_ms']['median']:.0f}), wall {s[way]['wall_ms']['best']:.0f} ms"
+            for way in ("read_region", "zarr_public")
+        )
+        print(
+            f"reading {pattern} ({s['arrays']} arrays, {s['chunks']} chunks; "
+            f"same values: {s['same_values']}): {ways}"
+        )
 
 
 def main(argv=None) -> dict:
@@ -286,24 +323,44 @@ def main(argv=None) -> dict:
     warnings.filterwarnings("ignore", message="Object at .snakemake_timestamp is not recognized")
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--run", action="append", metavar="LABEL=DIR")
-    ap.add_argument("--regions", type=Path, metavar="DIR",
-                    help="a campaign's results directory: time the cube's chunk writes and reads per region")
-    ap.add_argument("--region-time-blocks", type=int, default=3,
-                    help="time blocks (every pixel block of each) written by --regions")
+    ap.add_argument(
+        "--regions",
+        type=Path,
+        metavar="DIR",
+        help="a campaign's results directory: time the cube's chunk writes and reads per region",
+    )
+    ap.add_argument(
+        "--region-time-blocks",
+        type=int,
+        default=3,
+        help="time blocks (every pixel block of each) written by --regions",
+    )
     ap.add_argument("--reference", help="label of the run the others are compared with")
-    ap.add_argument("--uncompressed", type=Path, help="write the reference's products uncompressed here, and time them")
+    ap.add_argument(
+        "--uncompressed", type=Path, help="write the reference's products uncompressed here, and time them"
+    )
     ap.add_argument("--repeat", type=int, default=5)
-    ap.add_argument("--config", type=Path, default=Path(__file__).resolve().parents[1] / "config" / "config.yaml",
-                    help="campaign config whose storage section the write timing uses")
+    ap.add_argument(
+        "--config",
+        type=Path,
+        default=Path(__file__).resolve().parents[1] / "config" / "config.yaml",
+        help="campaign config whose storage section the write timing uses",
+    )
     args = ap.parse_args(argv)
     if args.regions is not None:
         import tempfile
 
         with tempfile.TemporaryDirectory() as tmp:
             r = _time_regions(args.regions, args.repeat, args.region_time_blocks, Path(tmp))
-        results = {"machine": {"platform": platform.platform(), "cpus": os.cpu_count(),
-                               "load_average_at_start": list(os.getloadavg())},
-                   "results_dir": str(args.regions), **r}
+        results = {
+            "machine": {
+                "platform": platform.platform(),
+                "cpus": os.cpu_count(),
+                "load_average_at_start": list(os.getloadavg()),
+            },
+            "results_dir": str(args.regions),
+            **r,
+        }
         _print_regions(results)
         write_results("storage_regions", results)
         if not args.run:
@@ -317,9 +374,15 @@ def main(argv=None) -> dict:
             ap.error("--uncompressed needs --reference")
         _write_uncompressed(runs[args.reference], args.uncompressed)
         runs["uncompressed"] = args.uncompressed
-    results = {"machine": {"platform": platform.platform(), "cpus": os.cpu_count(),
-                           "load_average_at_start": list(os.getloadavg())},
-               "note": "read times: page-cached files, best and median of repeated open + load", "runs": {}}
+    results = {
+        "machine": {
+            "platform": platform.platform(),
+            "cpus": os.cpu_count(),
+            "load_average_at_start": list(os.getloadavg()),
+        },
+        "note": "read times: page-cached files, best and median of repeated open + load",
+        "runs": {},
+    }
     for label, d in runs.items():
         with _open(d / "background.zarr") as bg:
             samples = bg.sizes["time"] * bg.sizes["pixel"]
@@ -329,22 +392,35 @@ def main(argv=None) -> dict:
                 continue
             b = _bytes(d / product)
             stores[product] = {"bytes": b, "bytes_per_sample": b / samples}
-        run = {"dir": str(d), "samples": samples, "stores": stores,
-               "bytes_per_sample_gridded_products": sum(stores[p]["bytes_per_sample"] for p in GRIDDED if p in stores),
-               "bytes_per_sample_all": sum(s["bytes_per_sample"] for s in stores.values()),
-               "reads": {p: _time_reads(d / p, args.repeat) for p in GRIDDED if p in stores}}
+        run = {
+            "dir": str(d),
+            "samples": samples,
+            "stores": stores,
+            "bytes_per_sample_gridded_products": sum(
+                stores[p]["bytes_per_sample"] for p in GRIDDED if p in stores
+            ),
+            "bytes_per_sample_all": sum(s["bytes_per_sample"] for s in stores.values()),
+            "reads": {p: _time_reads(d / p, args.repeat) for p in GRIDDED if p in stores},
+        }
         if args.reference and label != args.reference and label != "uncompressed":
-            run["errors_against_" + args.reference] = {p: _errors(d / p, runs[args.reference] / p)
-                                                       for p in GRIDDED if p in stores}
+            run["errors_against_" + args.reference] = {
+                p: _errors(d / p, runs[args.reference] / p) for p in GRIDDED if p in stores
+            }
         results["runs"][label] = run
-        print(f"{label}: {run['bytes_per_sample_gridded_products']:.2f} bytes/sample (background+limits+observability), "
-              + ", ".join(f"{p} {s['bytes_per_sample']:.2f}" for p, s in stores.items()))
+        print(
+            f"{label}: {run['bytes_per_sample_gridded_products']:.2f} bytes/sample (background+limits+observability), "
+            + ", ".join(f"{p} {s['bytes_per_sample']:.2f}" for p, s in stores.items())
+        )
         for p, r in run["reads"].items():
-            print(f"  {p}: one pointing, all times {r['pointing_all_times_ms']['best']:.1f} ms; "
-                  f"whole sky, one time {r['sky_one_time_ms']['best']:.1f} ms (best of {args.repeat})")
+            print(
+                f"  {p}: one pointing, all times {r['pointing_all_times_ms']['best']:.1f} ms; "
+                f"whole sky, one time {r['sky_one_time_ms']['best']:.1f} ms (best of {args.repeat})"
+            )
         for p, errs in run.get("errors_against_" + str(args.reference), {}).items():
             worst = max(errs.items(), key=lambda kv: kv[1]["max_relative_error"])
-            print(f"  {p}: max relative error {worst[1]['max_relative_error']:.3g} ({worst[0]}, bound {worst[1]['bound']})")
+            print(
+                f"  {p}: max relative error {worst[1]['max_relative_error']:.3g} ({worst[0]}, bound {worst[1]['bound']})"
+            )
     if args.reference:
         from straylight.config import load_campaign
 
@@ -354,8 +430,14 @@ def main(argv=None) -> dict:
         with tempfile.TemporaryDirectory() as tmp:
             w = _time_writes(runs[args.reference], storage, args.repeat, Path(tmp) / "block.zarr")
         results["write_one_time_block"] = {"storage": storage, **w}
-        print(f"writing one time block ({w['samples']} samples): " + ", ".join(
-            f"{k} {v['best_ms']:.0f} ms ({v['us_per_sample']:.2f} us/sample)" for k, v in w.items() if k != "samples"))
+        print(
+            f"writing one time block ({w['samples']} samples): "
+            + ", ".join(
+                f"{k} {v['best_ms']:.0f} ms ({v['us_per_sample']:.2f} us/sample)"
+                for k, v in w.items()
+                if k != "samples"
+            )
+        )
     write_results("storage", results)
     return results
 

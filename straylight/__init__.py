@@ -14,18 +14,27 @@ Public API (small on purpose):
 The names are imported when first used (PEP 562), so a process that needs one module of the
 package (a pipeline step, a worker) does not import astropy, numba and xarray for the others.
 """
+
 from importlib import import_module
 
-from straylight._version import __version__
-from straylight.errors import ConfigError, EphemerisRangeError, InputError, StraylightError
+from straylight._version import __version__ as __version__
+from straylight.errors import ConfigError as ConfigError
+from straylight.errors import EphemerisRangeError as EphemerisRangeError
+from straylight.errors import InputError as InputError
+from straylight.errors import StraylightError as StraylightError
 
 #: public name -> the module that defines it
 _LAZY = {
-    "CampaignProducts": "straylight.api", "open_campaign": "straylight.api",
-    "sky_background": "straylight.api", "SkyModel": "straylight.skymodel",
-    "Campaign": "straylight.config", "load_campaign": "straylight.config",
-    "BODIES": "straylight.sky.ephemeris", "DE405": "straylight.sky.ephemeris",
-    "sample_geometry": "straylight.sky.observing", "scene": "straylight.sky.observing",
+    "CampaignProducts": "straylight.api",
+    "open_campaign": "straylight.api",
+    "sky_background": "straylight.api",
+    "SkyModel": "straylight.skymodel",
+    "Campaign": "straylight.config",
+    "load_campaign": "straylight.config",
+    "BODIES": "straylight.sky.ephemeris",
+    "DE405": "straylight.sky.ephemeris",
+    "sample_geometry": "straylight.sky.observing",
+    "scene": "straylight.sky.observing",
 }
 
 __all__ = sorted(["ConfigError", "EphemerisRangeError", "InputError", "StraylightError", *_LAZY])

@@ -26,6 +26,7 @@ Example (a dark-sky pointing in the default campaign's orbit)::
     >>> bool(25.5 < sky["limit_mag_g"][0].value < 27.5)   # 5-sigma point-source depth, AB mag
     True
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -169,10 +170,18 @@ class CampaignProducts:
         pix = np.flatnonzero(m > 0)
         nside = hp.npix2nside(m.size)
         ra, dec = hp.pix2ang(nside, pix, nest=nest, lonlat=True)
-        return xr.DataArray(m[pix], dims="pixel", name="footprint",
-                            coords={"pixel": pix, "ra_deg": ("pixel", ra), "dec_deg": ("pixel", dec)},
-                            attrs={"units": "1", "long_name": "survey footprint (1 inside)", "nside": nside,
-                                   "nest": int(nest)})
+        return xr.DataArray(
+            m[pix],
+            dims="pixel",
+            name="footprint",
+            coords={"pixel": pix, "ra_deg": ("pixel", ra), "dec_deg": ("pixel", dec)},
+            attrs={
+                "units": "1",
+                "long_name": "survey footprint (1 inside)",
+                "nside": nside,
+                "nest": int(nest),
+            },
+        )
 
     @property
     def provenance(self) -> dict:
@@ -206,15 +215,23 @@ def to_mag_per_arcsec2(rate, background=None):
     elif background is not None and ZERO_POINT_NAME in background.coords and "band" in rate.coords:
         zp = background[ZERO_POINT_NAME].sel(band=rate["band"])
     else:
-        raise InputError(f"{getattr(rate, 'name', 'rate')}: no {ZERO_POINT_NAME} coordinate (products from an older "
-                         "straylight, or the band was dropped); re-run the campaign's background")
+        raise InputError(
+            f"{getattr(rate, 'name', 'rate')}: no {ZERO_POINT_NAME} coordinate (products from an older "
+            "straylight, or the band was dropped); re-run the campaign's background"
+        )
     units = str(rate.attrs.get("units", "electron / (s pixel)"))
     if units not in ("electron / (s pixel)", "e-/s/pixel"):
         raise InputError(f"{getattr(rate, 'name', 'rate')}: units {units!r}, expected electron / (s pixel)")
     import xarray as xr
 
-    mag = xr.apply_ufunc(_mag_of_rate, rate, zp.drop_vars(list(zp.coords)) if "band" not in zp.dims else zp,
-                         dask="parallelized", output_dtypes=[np.float64], keep_attrs=False)
+    mag = xr.apply_ufunc(
+        _mag_of_rate,
+        rate,
+        zp.drop_vars(list(zp.coords)) if "band" not in zp.dims else zp,
+        dask="parallelized",
+        output_dtypes=[np.float64],
+        keep_attrs=False,
+    )
     mag = mag.transpose(*rate.dims).drop_vars(ZERO_POINT_NAME, errors="ignore")
     long_name = rate.attrs.get("long_name", getattr(rate, "name", "background"))
     mag.attrs = {"units": "mag(AB) arcsec-2", "long_name": f"{long_name}, AB surface brightness"}

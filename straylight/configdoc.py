@@ -2,6 +2,7 @@
 so that it cannot drift from what is validated: one Markdown table row per key with its type,
 allowed values or range, default and description.  ``straylight config-doc`` prints it;
 docs/config.md holds a copy (tests/test_config.py checks they agree)."""
+
 from __future__ import annotations
 
 from straylight.config import CAMPAIGN_SCHEMA, load_schema
@@ -19,7 +20,12 @@ def _type(node: dict) -> str:
 
 def _range(node: dict) -> str:
     parts = []
-    for key, sym in (("minimum", ">="), ("exclusiveMinimum", ">"), ("maximum", "<="), ("exclusiveMaximum", "<")):
+    for key, sym in (
+        ("minimum", ">="),
+        ("exclusiveMinimum", ">"),
+        ("maximum", "<="),
+        ("exclusiveMaximum", "<"),
+    ):
         if key in node:
             parts.append(f"{sym} {node[key]}")
     if "pattern" in node:
@@ -43,10 +49,14 @@ def _rows(node: dict, prefix: str, required: set, out: list) -> None:
 
 def config_reference() -> str:
     schema = load_schema(CAMPAIGN_SCHEMA)
-    out = ["# Campaign config reference", "",
-           "Generated from `config/schema/config.schema.yaml` by `straylight config-doc`; do not edit by hand.",
-           " ".join(str(schema.get("description", "")).split()), "",
-           "| key | type | allowed | default | required | description |",
-           "|---|---|---|---|---|---|"]
+    out = [
+        "# Campaign config reference",
+        "",
+        "Generated from `config/schema/config.schema.yaml` by `straylight config-doc`; do not edit by hand.",
+        " ".join(str(schema.get("description", "")).split()),
+        "",
+        "| key | type | allowed | default | required | description |",
+        "|---|---|---|---|---|---|",
+    ]
     _rows(schema, "", set(schema.get("required", [])), out)
     return "\n".join(out) + "\n"

@@ -6,6 +6,7 @@ own command line uses the same files), else the copy an installed package carrie
 the current directory: the products go to ``./results/<campaign name>/``, Snakemake's state to
 ``./.snakemake/``, as a ``snakemake`` started there does.
 """
+
 from __future__ import annotations
 
 import json
@@ -36,8 +37,22 @@ def snakemake_command(config, cores: int | None = None, extra=(), workdir=None) 
     cores = available_cores() if cores is None else cores
     # -P: not the current directory on sys.path, which Snakemake hands on to the jobs: a folder
     # named straylight where the campaign runs (a checkout) would shadow the installed package
-    return [sys.executable, "-P", "-m", "snakemake", "-s", str(workflow_dir() / "Snakefile"), "-d", str(workdir.resolve()),
-            "--configfile", str(Path(config).resolve()), "--cores", str(cores), "--rerun-incomplete", *extra]
+    return [
+        sys.executable,
+        "-P",
+        "-m",
+        "snakemake",
+        "-s",
+        str(workflow_dir() / "Snakefile"),
+        "-d",
+        str(workdir.resolve()),
+        "--configfile",
+        str(Path(config).resolve()),
+        "--cores",
+        str(cores),
+        "--rerun-incomplete",
+        *extra,
+    ]
 
 
 def check_campaign(config):

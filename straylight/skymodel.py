@@ -5,6 +5,7 @@ builds its :class:`~straylight.model.BackgroundModel` and reads the earthshine t
 :meth:`SkyModel.background` call then only computes.  :func:`straylight.sky_background` keeps
 one per (config, catalog) and reuses it.
 """
+
 from __future__ import annotations
 
 import os
@@ -74,24 +75,24 @@ class SkyModel:
         Parameters, result and errors: :func:`straylight.sky_background` (without its
         ``config`` and ``catalog``, which this model holds).
         """
-        from astropy.coordinates import SkyCoord
-        from astropy.time import Time
-
         from straylight.survey.pointings import background_table
 
         t, ra, dec = checked_samples(time, coord)
         campaign = self.campaign
         if bands is not None and len(bands) == 0:
-            raise InputError(f"bands: no band given; valid bands: {', '.join(campaign.bands)}, V "
-                             "(None for all the instrument's)")
+            raise InputError(
+                f"bands: no band given; valid bands: {', '.join(campaign.bands)}, V "
+                "(None for all the instrument's)"
+            )
         bands = list(bands or campaign.bands)
         unknown = [b for b in bands if b not in campaign.bands and b != "V"]
         if unknown:
             raise InputError(f"bands: unknown band {unknown[0]!r}; known: {', '.join(campaign.bands)}, V")
         if not t.size:
             return _empty_table(campaign, t, bands)
-        return background_table(campaign, t, ra, dec, bands, self._stars_for(bands), source="sky_background",
-                                model=self.model)
+        return background_table(
+            campaign, t, ra, dec, bands, self._stars_for(bands), source="sky_background", model=self.model
+        )
 
     def _stars_for(self, bands: list[str]):
         """The catalog's off-field stars for these bands (read once per band set), or None."""
@@ -103,8 +104,9 @@ class SkyModel:
                 from straylight.sources.stars import load_offfield_stars
 
                 sc = self.campaign.settings.stars
-                self._stars[key] = load_offfield_stars(self.catalog, bands, float(sc.offfield_mag_limit),
-                                                       sc.faint_map)
+                self._stars[key] = load_offfield_stars(
+                    self.catalog, bands, float(sc.offfield_mag_limit), sc.faint_map
+                )
             return self._stars[key]
 
 
@@ -137,12 +139,18 @@ def checked_samples(time, coord):
         raise InputError(f"coord: sample {bad[0]}: ra = {ra[bad[0]]}, dec = {dec[bad[0]]} is not finite")
     masked = np.flatnonzero(np.broadcast_to(np.asarray(time.mask, bool), shape).ravel())
     if masked.size:
-        raise InputError(f"time: sample {masked[0]} is masked ({masked.size} of {ra.size} samples): no time to "
-                         "compute at; drop or fill the masked entries")
+        raise InputError(
+            f"time: sample {masked[0]} is masked ({masked.size} of {ra.size} samples): no time to "
+            "compute at; drop or fill the masked entries"
+        )
     with quiet_dubious_years():  # a time outside DE405 gets our line below, not ERFA's warnings first
         t = time.utc
-        t = Time(np.broadcast_to(t.jd1, shape).ravel(), np.broadcast_to(t.jd2, shape).ravel(), format="jd",
-                 scale="utc")
+        t = Time(
+            np.broadcast_to(t.jd1, shape).ravel(),
+            np.broadcast_to(t.jd2, shape).ravel(),
+            format="jd",
+            scale="utc",
+        )
     if t.size:
         check_in_ephemeris(t, "time")
     return t, ra, dec
@@ -156,8 +164,17 @@ def _empty_table(campaign, t, bands):
     from straylight.survey.pointings import _qtable, table_components
 
     none = np.zeros(0)
-    cols = {k: none for k in ("ra_deg", "dec_deg", "sun_angle_deg", "moon_angle_deg", "earth_limb_angle_deg",
-                              "door_opening_deg")}
+    cols = {
+        k: none
+        for k in (
+            "ra_deg",
+            "dec_deg",
+            "sun_angle_deg",
+            "moon_angle_deg",
+            "earth_limb_angle_deg",
+            "door_opening_deg",
+        )
+    }
     cols.update(observable=np.zeros(0, bool), violations=np.zeros(0, np.int64))
     for b in bands:
         cols.update({f"{c}_{b}": none for c in table_components()})

@@ -36,7 +36,11 @@ def run_cli(*args, cwd=REPO, timeout=120):
     env = dict(os.environ)
     return subprocess.run(
         [sys.executable, "-m", "straylight.cli", *map(str, args)],
-        cwd=cwd, capture_output=True, text=True, timeout=timeout, env=env,
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        env=env,
     )
 
 

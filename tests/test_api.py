@@ -2,13 +2,13 @@
 input, open_campaign and the zero-point conversion, and the module's doctests.
 
 Reference values: `straylight sky` for the same samples (the CLI's own path) and astropy's units."""
+
 import doctest
 import json
 
 import numpy as np
 import pytest
-
-from conftest import REPO, run_cli
+from conftest import run_cli
 
 T0 = "2026-01-01T00:30:00"
 
@@ -36,11 +36,16 @@ def test_sky_background_equals_the_sky_command():
     for b in ("g", "NUV"):
         for c in ("zodiacal", "earthshine", "moon", "sun", "planets", "total"):
             e = rec["bands"][b][c]["e_per_s_per_pix"]
-            assert sky[f"{c}_{b}"][0].to_value(u.electron / u.s / u.pix) == pytest.approx(e, rel=1e-6, abs=1e-12)
+            assert sky[f"{c}_{b}"][0].to_value(u.electron / u.s / u.pix) == pytest.approx(
+                e, rel=1e-6, abs=1e-12
+            )
         # magnitudes: the JSON's (offfield.magnitude_per_arcsec2) and the table's (zero point)
         assert sky[f"total_mag_{b}"][0].to_value(u.mag / u.arcsec**2) == pytest.approx(
-            rec["bands"][b]["total"]["mag_per_arcsec2"], abs=1e-6)
-        assert sky[f"limit_mag_{b}"][0].to_value(u.mag) == pytest.approx(rec["bands"][b]["limit_mag"], abs=1e-6)
+            rec["bands"][b]["total"]["mag_per_arcsec2"], abs=1e-6
+        )
+        assert sky[f"limit_mag_{b}"][0].to_value(u.mag) == pytest.approx(
+            rec["bands"][b]["limit_mag"], abs=1e-6
+        )
     # g-band dark sky 23.1-23.6 mag/arcsec2 (issue 33, from the cube); this pointing has Moon light
     assert 21.5 < sky["total_mag_g"][0].value < 23.8
 
@@ -84,8 +89,8 @@ def test_bad_input_raises_input_error():
 def test_zero_point_matches_the_library_conversion(campaign):
     """The stored zero point converts e-/s/pixel to the same mag/arcsec2 as offfield's function."""
     from straylight.optics.bandpass import load_band
-    from straylight.survey.limits import sky_zero_points
     from straylight.sources.photometry import magnitude_per_arcsec2
+    from straylight.survey.limits import sky_zero_points
 
     zp = sky_zero_points(campaign)
     d = campaign.instrument_value("telescope", "aperture_diameter_m")
@@ -108,10 +113,13 @@ def test_open_campaign_and_mag_conversion(tmp_path, campaign):
 
     bands = campaign.bands
     rate = np.array([[[0.1, 1.0, 0.0, 10.0, 0.2, 0.3, 0.4]]], dtype=np.float32)[:, :, : len(bands)]
-    ds = xr.Dataset({"total": (("time", "pixel", "band"), rate, {"units": "electron / (s pixel)",
-                                                                  "long_name": "total"})},
-                    coords={"band": ("band", np.array(bands, dtype=object)),
-                            ZERO_POINT_NAME: zero_point_coord(campaign, bands)})
+    ds = xr.Dataset(
+        {"total": (("time", "pixel", "band"), rate, {"units": "electron / (s pixel)", "long_name": "total"})},
+        coords={
+            "band": ("band", np.array(bands, dtype=object)),
+            ZERO_POINT_NAME: zero_point_coord(campaign, bands),
+        },
+    )
     ds.to_zarr(tmp_path / "background.zarr")
     prod = straylight.open_campaign(tmp_path)
     mag = prod.to_mag_per_arcsec2(prod.background["total"]).compute()
@@ -121,7 +129,9 @@ def test_open_campaign_and_mag_conversion(tmp_path, campaign):
     assert float(mag[0, 0, 0]) == pytest.approx(zp[0] + 2.5, abs=1e-5)
     assert np.isinf(float(mag[0, 0, 2]))
     sub = prod.background["total"].sel(band=["g"])  # a band subset keeps its zero point
-    assert float(prod.to_mag_per_arcsec2(sub)[0, 0, 0]) == pytest.approx(float(mag.sel(band="g")[0, 0]), abs=1e-6)
+    assert float(prod.to_mag_per_arcsec2(sub)[0, 0, 0]) == pytest.approx(
+        float(mag.sel(band="g")[0, 0]), abs=1e-6
+    )
     with pytest.raises(straylight.InputError, match="limits.zarr: product missing"):
         prod.limits
     with pytest.raises(straylight.InputError, match="not a campaign results folder"):
@@ -139,8 +149,12 @@ def test_catalog_stars_enter_as_in_the_sky_command(tmp_path):
 
     cat = tmp_path / "stars.csv"
     cat.write_text("ra,dec,mag_g,mag_r\n155.0,30.0,-1.5,-1.4\n20.0,-40.0,5.0,5.0\n")
-    sky = straylight.sky_background(Time(T0), SkyCoord(150.0, 30.0, unit="deg"), bands=["g", "r"], catalog=cat)
-    r = run_cli("sky", "--time", T0, "--ra", "150", "--dec", "30", "--bands", "g,r", "--catalog", cat, "--json")
+    sky = straylight.sky_background(
+        Time(T0), SkyCoord(150.0, 30.0, unit="deg"), bands=["g", "r"], catalog=cat
+    )
+    r = run_cli(
+        "sky", "--time", T0, "--ra", "150", "--dec", "30", "--bands", "g,r", "--catalog", cat, "--json"
+    )
     assert r.returncode == 0, r.stderr
     rec = json.loads(r.stdout)
     for b in ("g", "r"):
@@ -161,8 +175,11 @@ def test_empty_time_and_coord_give_an_empty_table_with_the_columns():
     one = straylight.sky_background(Time(T0), SkyCoord(150.0, 30.0, unit="deg"), bands=["g", "V"])
     empty_t = Time(np.array([], float), format="jd", scale="utc")
     empty_c = SkyCoord(np.array([]), np.array([]), unit="deg")
-    for t, c in ((empty_t, empty_c), (empty_t, SkyCoord(150.0, 30.0, unit="deg")),
-                 (Time([T0] * 3)[:, None], empty_c[None, :])):
+    for t, c in (
+        (empty_t, empty_c),
+        (empty_t, SkyCoord(150.0, 30.0, unit="deg")),
+        (Time([T0] * 3)[:, None], empty_c[None, :]),
+    ):
         sky = straylight.sky_background(t, c, bands=["g", "V"])
         assert len(sky) == 0
         assert sky.colnames == one.colnames
@@ -215,7 +232,10 @@ def test_a_time_outside_de405_is_one_error_without_erfa_warnings():
         t = Time(["2026-01-01T00:30:00", "2300-01-01T00:00:00"])
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        with pytest.raises(straylight.InputError, match=r"time: sample 1 = 2300-01-01T00:00:00.000 is outside the "
-                                                        r"DE405 range \(1600-12-21 to 2200-02-02\); 1 of 2 samples are outside it"):
+        with pytest.raises(
+            straylight.InputError,
+            match=r"time: sample 1 = 2300-01-01T00:00:00.000 is outside the "
+            r"DE405 range \(1600-12-21 to 2200-02-02\); 1 of 2 samples are outside it",
+        ):
             straylight.sky_background(t, SkyCoord(150.0, 30.0, unit="deg"), bands=["g"])
     assert not [w for w in caught if "dubious year" in str(w.message)]

@@ -9,6 +9,7 @@ annotated with the config's ``Campaign`` depends on the config layer, whether or
 runs).  The table below is the one docs/architecture.md shows; a new sub-package or top-level
 module must be placed in it.
 """
+
 import ast
 from pathlib import Path
 
@@ -60,8 +61,9 @@ def _type_checking_nodes(tree) -> set:
     for node in ast.walk(tree):
         if isinstance(node, ast.If):
             t = node.test
-            if (isinstance(t, ast.Name) and t.id == "TYPE_CHECKING") or \
-                    (isinstance(t, ast.Attribute) and t.attr == "TYPE_CHECKING"):
+            if (isinstance(t, ast.Name) and t.id == "TYPE_CHECKING") or (
+                isinstance(t, ast.Attribute) and t.attr == "TYPE_CHECKING"
+            ):
                 skip.update(id(n) for b in node.body for n in ast.walk(b))
     return skip
 
@@ -83,10 +85,12 @@ def _imports(name: str, path: Path, modules, type_only: bool = False) -> list[tu
             base = node.module or ""
             if node.level:
                 anchor = package.split(".")
-                anchor = anchor[:len(anchor) - (node.level - 1)]
+                anchor = anchor[: len(anchor) - (node.level - 1)]
                 base = ".".join(anchor + ([base] if base else []))
-            found += [(f"{base}.{a.name}" if f"{base}.{a.name}" in modules else base, node.lineno)
-                      for a in node.names]
+            found += [
+                (f"{base}.{a.name}" if f"{base}.{a.name}" in modules else base, node.lineno)
+                for a in node.names
+            ]
     return [(m, line) for m, line in found if m == "straylight" or m.startswith("straylight.")]
 
 
@@ -100,7 +104,8 @@ def _module_edges(package: Path = PACKAGE, type_only: bool = False) -> dict:
         for target, line in _imports(name, path, modules, type_only):
             if target != name and target in modules:
                 edges.setdefault((name, target), []).append(
-                    f"{path.relative_to(package.parent)}:{line} imports {target}")
+                    f"{path.relative_to(package.parent)}:{line} imports {target}"
+                )
     return edges
 
 
@@ -112,7 +117,9 @@ def _package_edges(package: Path = PACKAGE, type_only: bool = False) -> dict:
         for target, line in _imports(name, path, modules, type_only):
             a, b = _unit(name), _unit(target)
             if a != b:
-                edges.setdefault((a, b), []).append(f"{path.relative_to(package.parent)}:{line} imports {target}")
+                edges.setdefault((a, b), []).append(
+                    f"{path.relative_to(package.parent)}:{line} imports {target}"
+                )
     return edges
 
 
@@ -183,13 +190,19 @@ def _cycle_within(graph: dict, component: set) -> list:
 
 
 def _describe(cycles, edges) -> str:
-    return "\n".join(" -> ".join(c) + ":\n" + "\n".join(
-        "    " + w for a, b in zip(c, c[1:]) for w in edges[(a, b)]) for c in cycles)
+    return "\n".join(
+        " -> ".join(c) + ":\n" + "\n".join("    " + w for a, b in zip(c, c[1:]) for w in edges[(a, b)])
+        for c in cycles
+    )
 
 
 def _layer_violations(edges) -> list[str]:
-    return [w for (a, b), where in sorted(edges.items())
-            if a in RANK and b in RANK and RANK[b] >= RANK[a] for w in where]
+    return [
+        w
+        for (a, b), where in sorted(edges.items())
+        if a in RANK and b in RANK and RANK[b] >= RANK[a]
+        for w in where
+    ]
 
 
 def test_every_package_is_placed_in_a_layer():
@@ -235,29 +248,38 @@ def test_the_module_checks_on_a_small_package(tmp_path):
     """The module graph counts an import inside a function and leaves out one under
     ``if TYPE_CHECKING:``; the cycle search names every knot; the layering sees a type-only
     import of a higher layer (a sky module annotated with the config's Campaign)."""
-    package = _write(tmp_path, {
-        "__init__.py": "",
-        "config.py": "from straylight.sky import observing\n",
-        "sky/__init__.py": "",
-        "sky/observing.py": ("from typing import TYPE_CHECKING\nfrom straylight.sky.orbit import f\n"
-                             "if TYPE_CHECKING:\n    from straylight.config import Campaign\n"),
-        "sky/orbit.py": "def f():\n    from straylight.sky import observing\n",
-        "sky/time.py": "from . import frames\n",
-        "sky/frames.py": "import straylight.sky.time\n",
-    })
+    package = _write(
+        tmp_path,
+        {
+            "__init__.py": "",
+            "config.py": "from straylight.sky import observing\n",
+            "sky/__init__.py": "",
+            "sky/observing.py": (
+                "from typing import TYPE_CHECKING\nfrom straylight.sky.orbit import f\n"
+                "if TYPE_CHECKING:\n    from straylight.config import Campaign\n"
+            ),
+            "sky/orbit.py": "def f():\n    from straylight.sky import observing\n",
+            "sky/time.py": "from . import frames\n",
+            "sky/frames.py": "import straylight.sky.time\n",
+        },
+    )
     edges = _module_edges(package)
     assert ("straylight.sky.orbit", "straylight.sky.observing") in edges  # lazy
     assert ("straylight.sky.observing", "straylight.config") not in edges  # type only
-    assert _cycles(edges) == [["straylight.sky.frames", "straylight.sky.time", "straylight.sky.frames"],
-                              ["straylight.sky.observing", "straylight.sky.orbit", "straylight.sky.observing"]]
+    assert _cycles(edges) == [
+        ["straylight.sky.frames", "straylight.sky.time", "straylight.sky.frames"],
+        ["straylight.sky.observing", "straylight.sky.orbit", "straylight.sky.observing"],
+    ]
     assert _cycles(_package_edges(package)) == []
     assert _layer_violations(_package_edges(package)) == []
     assert _layer_violations(_package_edges(package, type_only=True)) == [
-        "straylight/sky/observing.py:4 imports straylight.config"]
+        "straylight/sky/observing.py:4 imports straylight.config"
+    ]
     assert _cycle({("a", "b"): [], ("b", "a"): []}) == ["a", "b", "a"]
     assert _cycle({("a", "b"): [], ("b", "c"): []}) is None
     assert _cycles({("a", "b"): [], ("b", "c"): [], ("c", "a"): [], ("c", "d"): [], ("d", "c"): []}) == [
-        ["a", "b", "c", "a"]]
+        ["a", "b", "c", "a"]
+    ]
 
 
 def test_the_table_is_the_one_in_the_docs():

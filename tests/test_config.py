@@ -1,12 +1,13 @@
 """Config validation: wrong keys, types and values are refused with key, value and what's allowed.
 
 Reference numbers: the instrument's published values (the paper; Gong et al. 2019)."""
+
 import copy
 
 import pytest
 import yaml
-
 from conftest import REPO
+
 from straylight.config import load_campaign, load_instrument
 from straylight.errors import ConfigError
 
@@ -29,21 +30,26 @@ def test_default_config_loads(campaign):
     assert campaign.instrument_value("telescope", "focal_length_m") == 28.0
 
 
-@pytest.mark.parametrize("mutate,expected", [
-    (lambda c: c["campaign"].update(colour="red"), "unknown key campaign.colour"),
-    (lambda c: c.update(extra=1), "unknown key extra"),
-    (lambda c: c["campaign"].update(cadence_s="fast"), "campaign.cadence_s = 'fast': expected number"),
-    (lambda c: c["campaign"].update(cadence_s=-5), "campaign.cadence_s = -5: must be > 0"),
-    (lambda c: c["footprint"].update(nside=17), "footprint.nside = 17: must be one of"),
-    (lambda c: c["orbit"].update(model="kepler"), "orbit.model = 'kepler': must be one of"),
-    (lambda c: c["earth"].update(radius_km=1.0), "earth.radius_km = 1.0: must be >= 6300"),
-    (lambda c: c["campaign"].pop("start"), "missing required key campaign.start"),
-    (lambda c: c["campaign"].update(start="2500-01-01T00:00:00", end="2500-01-02T00:00:00"),
-     "outside the DE405 range"),
-    (lambda c: c["campaign"].update(end="2025-01-01T00:00:00"), "must be after campaign.start"),
-    (lambda c: c["campaign"].update(start="yesterday"), "cannot parse 'yesterday'"),
-    (lambda c: c["campaign"].update(name="bad/name"), "campaign.name = 'bad/name'"),
-])
+@pytest.mark.parametrize(
+    "mutate,expected",
+    [
+        (lambda c: c["campaign"].update(colour="red"), "unknown key campaign.colour"),
+        (lambda c: c.update(extra=1), "unknown key extra"),
+        (lambda c: c["campaign"].update(cadence_s="fast"), "campaign.cadence_s = 'fast': expected number"),
+        (lambda c: c["campaign"].update(cadence_s=-5), "campaign.cadence_s = -5: must be > 0"),
+        (lambda c: c["footprint"].update(nside=17), "footprint.nside = 17: must be one of"),
+        (lambda c: c["orbit"].update(model="kepler"), "orbit.model = 'kepler': must be one of"),
+        (lambda c: c["earth"].update(radius_km=1.0), "earth.radius_km = 1.0: must be >= 6300"),
+        (lambda c: c["campaign"].pop("start"), "missing required key campaign.start"),
+        (
+            lambda c: c["campaign"].update(start="2500-01-01T00:00:00", end="2500-01-02T00:00:00"),
+            "outside the DE405 range",
+        ),
+        (lambda c: c["campaign"].update(end="2025-01-01T00:00:00"), "must be after campaign.start"),
+        (lambda c: c["campaign"].update(start="yesterday"), "cannot parse 'yesterday'"),
+        (lambda c: c["campaign"].update(name="bad/name"), "campaign.name = 'bad/name'"),
+    ],
+)
 def test_bad_campaign_configs(tmp_path, mutate, expected):
     cfg = copy.deepcopy(BASE)
     mutate(cfg)
@@ -76,10 +82,24 @@ def test_instrument_values_match_the_paper():
     inst = load_instrument(REPO / "config" / "instruments" / "csst.yaml")
     assert inst["telescope"]["aperture_diameter_m"]["value"] == 2.0
     edges = {b: (v["wavelength_min_nm"], v["wavelength_max_nm"]) for b, v in inst["bands"].items()}
-    assert edges == {"NUV": (255, 320), "u": (320, 400), "g": (400, 550), "r": (550, 690),
-                     "i": (690, 820), "z": (820, 1000), "y": (940, 1000)}
-    assert {b: v["n_exposures"] for b, v in inst["bands"].items()} == \
-        {"NUV": 4, "u": 2, "g": 2, "r": 2, "i": 2, "z": 2, "y": 4}
+    assert edges == {
+        "NUV": (255, 320),
+        "u": (320, 400),
+        "g": (400, 550),
+        "r": (550, 690),
+        "i": (690, 820),
+        "z": (820, 1000),
+        "y": (940, 1000),
+    }
+    assert {b: v["n_exposures"] for b, v in inst["bands"].items()} == {
+        "NUV": 4,
+        "u": 2,
+        "g": 2,
+        "r": 2,
+        "i": 2,
+        "z": 2,
+        "y": 4,
+    }
     # one pixel scale, derived: pixel / focal length = 10 um / 28 m = 0.073665 arcsec (the
     # published 0.074, Gong et al. 2019, is it rounded); a configured one is refused
     from straylight.config import pixel_scale_arcsec
@@ -147,8 +167,11 @@ def test_a_config_of_random_bytes_is_one_line_naming_the_file(tmp_path):
 
     noise = tmp_path / "noise.yaml"
     noise.write_bytes(b"campaign:\n" + random.Random(5).randbytes(2000))
-    for call in (lambda: load_campaign(noise), lambda: load_instrument(noise),
-                 lambda: resolve_config_files({}, [noise])):
+    for call in (
+        lambda: load_campaign(noise),
+        lambda: load_instrument(noise),
+        lambda: resolve_config_files({}, [noise]),
+    ):
         with pytest.raises(ConfigError) as err:
             call()
         msg = str(err.value)
@@ -157,10 +180,10 @@ def test_a_config_of_random_bytes_is_one_line_naming_the_file(tmp_path):
 
 def test_broken_yaml_is_one_line():
     """YAML's own message spans lines: the reader makes it one, with the line and column."""
-    from straylight.config import _read_yaml
-
     import tempfile
     from pathlib import Path
+
+    from straylight.config import _read_yaml
 
     with tempfile.TemporaryDirectory() as d:
         p = Path(d) / "broken.yaml"
@@ -178,8 +201,9 @@ def test_report_bands_must_be_the_instruments(tmp_path):
     p = write(tmp_path, cfg)
     with pytest.raises(ConfigError) as err:
         load_campaign(p)
-    assert str(err.value) == (f"{p}: report.sky_map_bands = ['g', 'Q']: 'Q' is not a band of the instrument "
-                              f"(NUV, u, g, r, i, z, y)")
+    assert str(err.value) == (
+        f"{p}: report.sky_map_bands = ['g', 'Q']: 'Q' is not a band of the instrument (NUV, u, g, r, i, z, y)"
+    )
     cfg["report"] = {"sky_map_bands": ["g", "r"]}
     assert load_campaign(write(tmp_path, cfg)).config["report"]["sky_map_bands"] == ["g", "r"]
 
@@ -212,8 +236,10 @@ def test_a_tle_far_from_the_campaign_warns_once(tmp_path, caplog, fresh_epoch_wa
         load_campaign(p)  # the same campaign again (a job of the same run): not repeated
     lines = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
     assert len(lines) == 1 and "\n" not in lines[0], lines
-    assert (f"{p}: orbit.tle ({tmp_path / 'old.tle'}) epoch 2019-01-01T00:00:00 is 2557 days before "
-            "campaign.start 2026-01-01T00:00:00 (up to 2558 days over the campaign)") in lines[0]
+    assert (
+        f"{p}: orbit.tle ({tmp_path / 'old.tle'}) epoch 2019-01-01T00:00:00 is 2557 days before "
+        "campaign.start 2026-01-01T00:00:00 (up to 2558 days over the campaign)"
+    ) in lines[0]
     assert "beyond 30 days" in lines[0]
 
 
@@ -226,9 +252,13 @@ def test_a_recent_tle_gives_no_warning(tmp_path, caplog, fresh_epoch_warnings):
     assert not [r for r in caplog.records if r.levelname == "WARNING"]
 
 
-@pytest.mark.parametrize("epoch, warns", [("2024-06-01T00:00:00", True), ("2025-06-01T00:00:00", False),
-                                          ("2027-03-01T00:00:00", True)])
-def test_a_circular_orbit_epoch_more_than_a_year_away_warns(tmp_path, caplog, fresh_epoch_warnings, epoch, warns):
+@pytest.mark.parametrize(
+    "epoch, warns",
+    [("2024-06-01T00:00:00", True), ("2025-06-01T00:00:00", False), ("2027-03-01T00:00:00", True)],
+)
+def test_a_circular_orbit_epoch_more_than_a_year_away_warns(
+    tmp_path, caplog, fresh_epoch_warnings, epoch, warns
+):
     cfg = copy.deepcopy(BASE)
     cfg["orbit"]["circular"]["epoch"] = epoch
     p = write(tmp_path, cfg)
@@ -237,5 +267,8 @@ def test_a_circular_orbit_epoch_more_than_a_year_away_warns(tmp_path, caplog, fr
     lines = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
     assert len(lines) == int(warns), lines
     if warns:
-        assert f"{p}: orbit.circular.epoch {epoch} is" in lines[0] and "campaign.start 2026-01-01T00:00:00" in lines[0]
+        assert (
+            f"{p}: orbit.circular.epoch {epoch} is" in lines[0]
+            and "campaign.start 2026-01-01T00:00:00" in lines[0]
+        )
         assert "beyond 365 days" in lines[0]

@@ -3,6 +3,7 @@ are read with: one field per schema key (so neither can gain a key the other lac
 :class:`~straylight.config.Parameter` for every {value, unit, source} entry, no default in the
 code that the schema does not give, and the values of config/instruments/csst.yaml with the
 sources the file gives for them."""
+
 from __future__ import annotations
 
 import copy
@@ -63,8 +64,10 @@ def _compare(node: dict, cls, where: str, defs: dict) -> list:
         may_be_absent = k not in required and "default" not in sub
         has_default = f.default is not dataclasses.MISSING
         if may_be_absent != has_default:
-            problems.append(f"{key}: the schema {'may leave it out' if may_be_absent else 'always gives it'} "
-                            f"but the field {'has no default' if may_be_absent else 'has a default'}")
+            problems.append(
+                f"{key}: the schema {'may leave it out' if may_be_absent else 'always gives it'} "
+                f"but the field {'has no default' if may_be_absent else 'has a default'}"
+            )
         if has_default and f.default is not None:
             problems.append(f"{key}: the field's default {f.default!r} is not the schema's (None: absent)")
         inner = _inner(hint)
@@ -109,8 +112,10 @@ def test_a_schema_key_without_a_field_is_found(where):
             node = node["properties"][part]
         node = node.get("additionalProperties") or node.get("items") or node
     node["properties"]["colour"] = {"type": "string"}
-    assert any("'colour' has no field" in p for p in _compare(schema, InstrumentSettings, "instrument",
-                                                              schema["$defs"]))
+    assert any(
+        "'colour' has no field" in p
+        for p in _compare(schema, InstrumentSettings, "instrument", schema["$defs"])
+    )
 
 
 def test_csst_values_and_their_sources():
@@ -131,10 +136,13 @@ def test_csst_values_and_their_sources():
     assert nuv.R1 == 0.0093 and nuv.source == "seed paper sect. 4.3 NUV example"
     assert s.door_geometry.length_m.value == 2.4713 and s.door_geometry.length_m.source.startswith("derived")
     assert s.door_geometry.reflectance.value == 0.05  # assumption: black space paint
-    assert s.avoidance.sun_min_deg == Parameter(50.0, "deg",
-                                                "seed paper sect. 1 (minimum 50 deg from the Sun)")
-    assert [(d.opening_deg, d.sun_angle_min_deg, d.min_inclusive) for d in s.door.states] == \
-        [(135.0, 65.0, False), (105.0, 50.0, True)]  # paper sect. 2.2
+    assert s.avoidance.sun_min_deg == Parameter(
+        50.0, "deg", "seed paper sect. 1 (minimum 50 deg from the Sun)"
+    )
+    assert [(d.opening_deg, d.sun_angle_min_deg, d.min_inclusive) for d in s.door.states] == [
+        (135.0, 65.0, False),
+        (105.0, 50.0, True),
+    ]  # paper sect. 2.2
     assert s.pst.file is None
     g = s.bands["g"]
     assert (g.wavelength_min_nm, g.wavelength_max_nm, g.n_exposures, g.exposure_s) == (400.0, 550.0, 2, 150)
@@ -177,8 +185,12 @@ def test_readers_give_the_same_objects_from_the_mapping_and_the_settings():
     c = load_campaign()
     raw, typed = c.instrument, c.instrument_settings
     assert instrument_settings(raw) == typed and instrument_settings(typed) is typed
-    for reader in (door_from_instrument, scatter_model_from_instrument, focal_plane_from_instrument,
-                   zodiacal_model_from_instrument):
+    for reader in (
+        door_from_instrument,
+        scatter_model_from_instrument,
+        focal_plane_from_instrument,
+        zodiacal_model_from_instrument,
+    ):
         assert reader(raw) == reader(typed)
     assert ghost_model_from_instrument(raw, "g") == ghost_model_from_instrument(typed, "g")
     a, b = load_band(raw, "g"), load_band(typed, "g")

@@ -1,6 +1,7 @@
 """Report figures: colour ranges that show structure, rounded ticks, the depth table.
 
 Reference values: synthetic fields whose ranges and ticks are known."""
+
 import numpy as np
 import pytest
 import xarray as xr
@@ -40,9 +41,14 @@ def test_depth_summary_numbers():
     best = med + 0.5
     obs = np.zeros((4, 4), bool)
     obs[0, :3] = True
-    ds = xr.Dataset({"limiting_mag_median": (("pixel", "band"), med),
-                     "limiting_mag_best": (("pixel", "band"), best),
-                     "observable": (("time", "pixel"), obs)}, coords={"band": ["g", "r"]})
+    ds = xr.Dataset(
+        {
+            "limiting_mag_median": (("pixel", "band"), med),
+            "limiting_mag_best": (("pixel", "band"), best),
+            "observable": (("time", "pixel"), obs),
+        },
+        coords={"band": ["g", "r"]},
+    )
     rows = depth_summary(ds)
     assert rows["g"]["median_depth_mag"] == 26.0 and rows["g"]["best_depth_mag"] == 27.5
     assert rows["r"]["median_depth_mag"] == 24.5 and rows["r"]["best_depth_mag"] == 25.5
@@ -85,8 +91,11 @@ def test_mollweide_panel_puts_each_pixel_where_healpy_projects_it(nest):
     fig.canvas.draw()
     rgba = np.asarray(fig.canvas.buffer_rgba())
     height = rgba.shape[0]
-    for pix, colour in ((lit, colormaps["viridis"](1.0)), (mirror, colormaps["viridis"](0.0)),
-                        (unseen, (0.5, 0.5, 0.5, 1.0))):
+    for pix, colour in (
+        (lit, colormaps["viridis"](1.0)),
+        (mirror, colormaps["viridis"](0.0)),
+        (unseen, (0.5, 0.5, 0.5, 1.0)),
+    ):
         ra, dec = hp.pix2ang(nside, pix, nest=nest, lonlat=True)  # the pixel's centre
         xy = reference.ang2xy(ra, dec, lonlat=True)
         col, row = ax.transData.transform(np.array(xy, float).reshape(1, 2))[0]
@@ -103,8 +112,10 @@ def test_depth_table_round_trip_and_report_front(campaign, tmp_path):
 
     from straylight.plots.report import DEPTH_TABLE, read_depth_table, write_depth_table, write_report_front
 
-    rows = {"g": {"median_depth_mag": 26.5349, "best_depth_mag": 26.6151, "observable_fraction": 0.16549},
-            "y": {"median_depth_mag": 24.8461, "best_depth_mag": float("nan"), "observable_fraction": 0.16549}}
+    rows = {
+        "g": {"median_depth_mag": 26.5349, "best_depth_mag": 26.6151, "observable_fraction": 0.16549},
+        "y": {"median_depth_mag": 24.8461, "best_depth_mag": float("nan"), "observable_fraction": 0.16549},
+    }
     depth, sky = tmp_path / "depth", tmp_path / "sky"
     for d in (depth, sky):
         d.mkdir()
@@ -138,7 +149,7 @@ def test_mollweide_panel_redrawn_is_the_panel_drawn_afresh():
         fig = Figure(figsize=(8, 3.3))
         FigureCanvasAgg(fig)
         panel = MollweidePanel(fig, (1, 2, 1), "viridis_r", "mag")
-        for m, (lo, hi) in zip(maps, ((17.0, 23.0), (19.5, 20.25))[-len(maps):]):
+        for m, (lo, hi) in zip(maps, ((17.0, 23.0), (19.5, 20.25))[-len(maps) :]):
             panel.show(m, False, f"map {lo}", lo, hi)
         fig.canvas.draw()
         pages.append(np.asarray(fig.canvas.buffer_rgba()).copy())

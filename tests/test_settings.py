@@ -1,6 +1,7 @@
 """The campaign's typed settings (straylight.config.Settings) against the schema they are read
 with: one field per schema key (so neither can gain a key the other lacks), the schema's
 defaults filled in, and the values of config/config.yaml."""
+
 from __future__ import annotations
 
 import dataclasses

@@ -1,6 +1,7 @@
 """Shared by the benchmark's parts: random observable samples of the default campaign with the
 catalog's stars (:class:`Bench`), component models with chosen knobs, the default and reference
 settings, a knob sweep against the reference, timing, and the Pareto chart."""
+
 from __future__ import annotations
 
 import time
@@ -20,7 +21,6 @@ COMPONENTS = component_names()
 FAST_REPEATS = 7
 
 
-
 def timed(fn, repeats=3):
     fn()  # warm-up: tables, caches
     best, out = np.inf, None
@@ -38,8 +38,8 @@ def max_rel_error(res, ref, bands):
 class Bench:
     def __init__(self, n_samples: int, seed: int = 5):
         from straylight.catalog.build import make_catalog
-        from straylight.model import BackgroundModel
         from straylight.config import load_campaign
+        from straylight.model import BackgroundModel
 
         self.campaign = load_campaign()
         self.bands = list(self.campaign.bands)
@@ -55,19 +55,32 @@ class Bench:
     def stars(self, limit: float, faint: bool):
         from straylight.sources.stars import split_stars
 
-        return split_stars(self.catalog["ra"], self.catalog["dec"],
-                           {b: self.catalog[f"mag_{b}"] for b in self.bands}, limit, faint)
+        return split_stars(
+            self.catalog["ra"],
+            self.catalog["dec"],
+            {b: self.catalog[f"mag_{b}"] for b in self.bands},
+            limit,
+            faint,
+        )
 
-    def model(self, n_gamma=24, n_psi=48, door_blocks=(24, 24), n_aperture_door=256, pst_step=(0.5, 5.0),
-              lut_steps=None, tolerance=None):
+    def model(
+        self,
+        n_gamma=24,
+        n_psi=48,
+        door_blocks=(24, 24),
+        n_aperture_door=256,
+        pst_step=(0.5, 5.0),
+        lut_steps=None,
+        tolerance=None,
+    ):
         """A component model with these knobs; ``lut_steps`` (deg): the earthshine look-up table
         with these node steps instead of the direct sum (built on first use, cached);
         ``tolerance``: models.tolerance (with the direct sum it sizes only the bright stars'
         skipping on their bound; 1e-12 skips nothing)."""
         import copy
 
-        from straylight.model import BackgroundModel
         from straylight.config import campaign_from_dict
+        from straylight.model import BackgroundModel
         from straylight.optics.pst import PST, default_pst_grid
 
         raw = copy.deepcopy(self.campaign.config)
@@ -78,11 +91,18 @@ class Bench:
             es["method"] = "direct"
         else:
             es["method"] = "lut"
-            es["lut"] = dict(zip(("sun_zenith_step_deg", "los_zenith_step_deg", "azimuth_step_deg"), lut_steps))
+            es["lut"] = dict(
+                zip(("sun_zenith_step_deg", "los_zenith_step_deg", "azimuth_step_deg"), lut_steps)
+            )
         cm = BackgroundModel(campaign_from_dict(raw, self.campaign.path))
         off = cm.context.offfield
-        es = replace(off.earthshine, n_gamma=n_gamma, n_psi=n_psi, door_blocks=tuple(door_blocks),
-                     n_aperture_door=n_aperture_door)
+        es = replace(
+            off.earthshine,
+            n_gamma=n_gamma,
+            n_psi=n_psi,
+            door_blocks=tuple(door_blocks),
+            n_aperture_door=n_aperture_door,
+        )
         pst = off.pst if tuple(pst_step) == (0.5, 5.0) else PST(*default_pst_grid(*pst_step), source="bench")
         cm.context.__dict__["offfield"] = replace(off, earthshine=es, pst=pst)  # before any source reads it
         return cm
@@ -94,8 +114,9 @@ class Bench:
 
 
 DEFAULT = dict(n_gamma=24, n_psi=48, door_blocks=(24, 24), n_aperture_door=256, pst_step=(0.5, 5.0))
-REFERENCE = dict(n_gamma=96, n_psi=192, door_blocks=(48, 48), n_aperture_door=512, pst_step=(0.1, 1.0),
-                 tolerance=1e-12)
+REFERENCE = dict(
+    n_gamma=96, n_psi=192, door_blocks=(48, 48), n_aperture_door=512, pst_step=(0.1, 1.0), tolerance=1e-12
+)
 DEFAULT_STARS = (2.0, True)
 REFERENCE_STARS = (99.0, False)  # every catalog star summed with the exact transfer
 
@@ -112,7 +133,9 @@ def sweep(bench, ref, name, settings):
         if info["method"] == "lut":
             # the tables' own recorded build times: a cached table loads in milliseconds
             mlut = cm.moonlit_earth.model["lut"]
-            row["lut_build_seconds"] = info["lut"].build_seconds + (mlut.build_seconds if mlut is not None else 0.0)
+            row["lut_build_seconds"] = info["lut"].build_seconds + (
+                mlut.build_seconds if mlut is not None else 0.0
+            )
             row["lut_validation_max_rel_error"] = info["lut_validation_max_rel_error"]
             extra = f"  (table built in {row['lut_build_seconds']:.0f} s)"
         rows.append(row)
@@ -120,15 +143,16 @@ def sweep(bench, ref, name, settings):
     return rows
 
 
-def cube_model(base, campaign: dict | None = None, earthshine: dict | None = None, models: dict | None = None,
-                **model_kw):
+def cube_model(
+    base, campaign: dict | None = None, earthshine: dict | None = None, models: dict | None = None, **model_kw
+):
     """A campaign from ``base`` with ``campaign``, ``models.earthshine`` and ``models``
     overrides, and its BackgroundModel for cube-sized runs, the earthshine table built or loaded
     before timing."""
     import copy
 
-    from straylight.model import BackgroundModel
     from straylight.config import campaign_from_dict
+    from straylight.model import BackgroundModel
 
     raw = copy.deepcopy(base.config)
     raw["campaign"].update(campaign or {})

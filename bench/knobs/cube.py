@@ -1,6 +1,7 @@
 """The survey cube's speed on its own access pattern (direct and table paths, every sample and
 observable samples only), one production region, time block and the whole campaign, and the
 cost figures ``straylight plan`` and ``models.earthshine.method = auto`` assume, against this run."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -8,7 +9,6 @@ from pathlib import Path
 import numpy as np
 
 from .common import FAST_REPEATS, cube_model, timed
-
 
 
 def cube_summary(catalog, time_step: int = 24, n_times: int = 12) -> dict:
@@ -33,43 +33,64 @@ def cube_summary(catalog, time_step: int = 24, n_times: int = 12) -> dict:
     base = load_campaign()
     fp = footprint_from_config(base.config["footprint"])
     t_slice = slice(0, time_step * n_times, time_step)
-    out = {"pixels": int(fp.pixels.size), "times": n_times, "time_step_s": time_step * float(base.config["campaign"]["cadence_s"])}
+    out = {
+        "pixels": int(fp.pixels.size),
+        "times": n_times,
+        "time_step_s": time_step * float(base.config["campaign"]["cadence_s"]),
+    }
     res, lut_model = {}, None
     with tempfile.TemporaryDirectory() as tmp:
         stars_path = Path(tmp) / "stars.parquet"
         write_catalog(catalog, stars_path, {})
         stars = offfield_stars(base, stars_path)
-        for key, method, unobservable in (("direct", "direct", "evaluate"), ("lut", "lut", "evaluate"),
-                                          ("lut_observable_only", "lut", "skip"),
-                                          ("direct_observable_only", "direct", "skip")):
-            c, model = cube_model(base, earthshine={"method": method}, models={"unobservable_samples": unobservable})
+        for key, method, unobservable in (
+            ("direct", "direct", "evaluate"),
+            ("lut", "lut", "evaluate"),
+            ("lut_observable_only", "lut", "skip"),
+            ("direct_observable_only", "direct", "skip"),
+        ):
+            c, model = cube_model(
+                base, earthshine={"method": method}, models={"unobservable_samples": unobservable}
+            )
             lut_model = model if key == "lut" else lut_model
             # the best of several after a warm-up: single runs varied by up to 30 % (this machine's
             # speed wanders within seconds); the table path's runs are short, so seven of them
-            res[key], dt = timed(lambda: compute_region(c, fp, t_slice, slice(None), model=model, stars=stars),
-                                 repeats=3 if method == "direct" else FAST_REPEATS)
+            res[key], dt = timed(
+                lambda: compute_region(c, fp, t_slice, slice(None), model=model, stars=stars),
+                repeats=3 if method == "direct" else FAST_REPEATS,
+            )
             out[key] = {"samples_per_s_per_core": n_times * fp.pixels.size / dt}
-            print(f"cube, earthshine {method}, unobservable samples {unobservable}: "
-                  f"{out[key]['samples_per_s_per_core']:.0f} samples/s/core")
+            print(
+                f"cube, earthshine {method}, unobservable samples {unobservable}: "
+                f"{out[key]['samples_per_s_per_core']:.0f} samples/s/core"
+            )
         out["production_region"] = production_region_rates(base, fp, stars_path)
     obs = res["direct"]["observable"].values
     skipped = res["lut_observable_only"]["total"].values
     out["lut_observable_only"]["identical_at_observable"] = bool(
-        np.array_equal(skipped[obs], res["lut"]["total"].values[obs]) and np.all(np.isnan(skipped[~obs])))
+        np.array_equal(skipped[obs], res["lut"]["total"].values[obs]) and np.all(np.isnan(skipped[~obs]))
+    )
     direct_skipped = res["direct_observable_only"]["total"].values
     out["direct_observable_only"]["identical_at_observable"] = bool(
-        np.array_equal(direct_skipped[obs], res["direct"]["total"].values[obs]) and np.all(np.isnan(direct_skipped[~obs])))
-    out["lut_observable_only"]["speedup_over_lut"] = (out["lut_observable_only"]["samples_per_s_per_core"]
-                                                      / out["lut"]["samples_per_s_per_core"])
+        np.array_equal(direct_skipped[obs], res["direct"]["total"].values[obs])
+        and np.all(np.isnan(direct_skipped[~obs]))
+    )
+    out["lut_observable_only"]["speedup_over_lut"] = (
+        out["lut_observable_only"]["samples_per_s_per_core"] / out["lut"]["samples_per_s_per_core"]
+    )
     diff = np.abs(res["lut"]["total"].values - res["direct"]["total"].values) / res["direct"]["total"].values
     out["lut_vs_direct_max_rel_error_observable"] = float(diff[obs].max()) if obs.any() else None
     out["lut_vs_direct_max_rel_error_all"] = float(diff.max())
     out["observable_samples"] = int(obs.sum())
-    out["speedup_lut_over_direct"] = out["lut"]["samples_per_s_per_core"] / out["direct"]["samples_per_s_per_core"]
+    out["speedup_lut_over_direct"] = (
+        out["lut"]["samples_per_s_per_core"] / out["direct"]["samples_per_s_per_core"]
+    )
     out["auto_cost_model"] = auto_cost_model(lut_model, out)
     out["plan_cost_model"] = plan_cost_model(base, fp, t_slice, out)
-    print(f"cube: table path differs from the direct path by <= {out['lut_vs_direct_max_rel_error_observable']:.2e} "
-          f"of the total at {out['observable_samples']} observable samples ({out['lut_vs_direct_max_rel_error_all']:.2e} at all)")
+    print(
+        f"cube: table path differs from the direct path by <= {out['lut_vs_direct_max_rel_error_observable']:.2e} "
+        f"of the total at {out['observable_samples']} observable samples ({out['lut_vs_direct_max_rel_error_all']:.2e} at all)"
+    )
     return out
 
 
@@ -86,9 +107,9 @@ def production_region_rates(base, fp, stars_path) -> dict:
     time block of the campaign so, each the best of its own repeats: the whole default campaign's
     samples over the sum of its blocks' times (``campaign``; the first block alone could be a
     cheaper scene than the others)."""
+    from straylight.sky.observing import scene
     from straylight.survey.cube_layout import cube_chunks
     from straylight.survey.cube_region import compute_region, offfield_stars
-    from straylight.sky.observing import scene
 
     stars = offfield_stars(base, stars_path)
     n_times = len(base.times)
@@ -97,15 +118,24 @@ def production_region_rates(base, fp, stars_path) -> dict:
     p_blocks = [slice(a, b) for a, b in fp.blocks(ch["pixel"])]
     t_blocks = [slice(t, min(t + ch["time"], n_times)) for t in range(0, n_times, ch["time"])]
     n, n_block = ch["time"] * ch["pixel"], ch["time"] * int(fp.pixels.size)
-    out = {"times": int(ch["time"]), "pixels": int(ch["pixel"]), "time_block": {"pixel_blocks": len(p_blocks)},
-           "campaign": {"time_blocks": len(t_blocks), "samples": n_times * int(fp.pixels.size)}}
+    out = {
+        "times": int(ch["time"]),
+        "pixels": int(ch["pixel"]),
+        "time_block": {"pixel_blocks": len(p_blocks)},
+        "campaign": {"time_blocks": len(t_blocks), "samples": n_times * int(fp.pixels.size)},
+    }
     for key, unobservable in (("lut", "evaluate"), ("lut_observable_only", "skip")):
-        c, model = cube_model(base, earthshine={"method": "lut"}, models={"unobservable_samples": unobservable})
-        _, dt = timed(lambda: compute_region(c, fp, t_slice, p_slice, model=model, stars=stars),
-                      repeats=FAST_REPEATS)
+        c, model = cube_model(
+            base, earthshine={"method": "lut"}, models={"unobservable_samples": unobservable}
+        )
+        _, dt = timed(
+            lambda: compute_region(c, fp, t_slice, p_slice, model=model, stars=stars), repeats=FAST_REPEATS
+        )
         out[key] = {"samples_per_s_per_core": n / dt}
-        print(f"cube, one production region ({out['times']} steps x {out['pixels']} pixels), unobservable samples "
-              f"{unobservable}: {n / dt:.0f} samples/s/core")
+        print(
+            f"cube, one production region ({out['times']} steps x {out['pixels']} pixels), unobservable samples "
+            f"{unobservable}: {n / dt:.0f} samples/s/core"
+        )
 
         def time_block(ts=t_slice):
             sc = scene(c.orbit, c.times[ts])
@@ -114,15 +144,22 @@ def production_region_rates(base, fp, stars_path) -> dict:
 
         _, dt = timed(time_block, repeats=FAST_REPEATS)
         out["time_block"][key] = {"samples_per_s_per_core": n_block / dt}
-        print(f"cube, one production time block ({out['times']} steps x {fp.pixels.size} pixels in {len(p_blocks)} "
-              f"blocks, the scene once), unobservable samples {unobservable}: {n_block / dt:.0f} samples/s/core")
+        print(
+            f"cube, one production time block ({out['times']} steps x {fp.pixels.size} pixels in {len(p_blocks)} "
+            f"blocks, the scene once), unobservable samples {unobservable}: {n_block / dt:.0f} samples/s/core"
+        )
         block_s = [timed(lambda ts=ts: time_block(ts), repeats=FAST_REPEATS)[1] for ts in t_blocks]
         samples = [(ts.stop - ts.start) * int(fp.pixels.size) for ts in t_blocks]
-        out["campaign"][key] = {"samples_per_s_per_core": sum(samples) / sum(block_s),
-                                "per_time_block": [k / s for k, s in zip(samples, block_s)]}
-        print(f"cube, the whole campaign ({len(t_blocks)} time blocks, {sum(samples)} samples), unobservable samples "
-              f"{unobservable}: {sum(samples) / sum(block_s):.0f} samples/s/core (blocks: "
-              + ", ".join(f"{k / s:.0f}" for k, s in zip(samples, block_s)) + ")")
+        out["campaign"][key] = {
+            "samples_per_s_per_core": sum(samples) / sum(block_s),
+            "per_time_block": [k / s for k, s in zip(samples, block_s)],
+        }
+        print(
+            f"cube, the whole campaign ({len(t_blocks)} time blocks, {sum(samples)} samples), unobservable samples "
+            f"{unobservable}: {sum(samples) / sum(block_s):.0f} samples/s/core (blocks: "
+            + ", ".join(f"{k / s:.0f}" for k, s in zip(samples, block_s))
+            + ")"
+        )
     return out
 
 
@@ -134,36 +171,55 @@ def plan_cost_model(base, fp, t_slice, cube: dict) -> dict:
     plan's formula gives them from the assumed figures, against the measured ones."""
     from astropy.time import TimeDelta
 
-    from straylight.survey import plan
     from straylight.config import campaign_from_dict, deep_merge
+    from straylight.survey import plan
 
     steps = range(*t_slice.indices(len(base.times)))
-    over = {"models": {"unobservable_samples": "skip"},
-            "campaign": {"start": base.times[steps[0]].isot,
-                         "end": (base.times[steps[-1]] + TimeDelta(1, format="sec")).isot,
-                         "cadence_s": steps.step * float(base.config["campaign"]["cadence_s"])}}
-    sub = campaign_from_dict(deep_merge(base.config, over), base.path)  # the same steps as a campaign of their own
+    over = {
+        "models": {"unobservable_samples": "skip"},
+        "campaign": {
+            "start": base.times[steps[0]].isot,
+            "end": (base.times[steps[-1]] + TimeDelta(1, format="sec")).isot,
+            "cadence_s": steps.step * float(base.config["campaign"]["cadence_s"]),
+        },
+    }
+    sub = campaign_from_dict(
+        deep_merge(base.config, over), base.path
+    )  # the same steps as a campaign of their own
     assert len(sub.times) == len(steps)
-    _, screen = timed(lambda: plan.evaluated_samples(sub, fp, max_times=len(sub.times), max_pixels=fp.pixels.size))
+    _, screen = timed(
+        lambda: plan.evaluated_samples(sub, fp, max_times=len(sub.times), max_pixels=fp.pixels.size)
+    )
     n = len(steps) * fp.pixels.size
     n_obs = cube["observable_samples"]
-    measured = {"table_seconds_per_sample": 1.0 / cube["lut"]["samples_per_s_per_core"],
-                "screen_seconds_per_sample": screen / n}
+    measured = {
+        "table_seconds_per_sample": 1.0 / cube["lut"]["samples_per_s_per_core"],
+        "screen_seconds_per_sample": screen / n,
+    }
     measured["table_seconds_per_observable_sample"] = (
-        (n / cube["lut_observable_only"]["samples_per_s_per_core"] - n * measured["screen_seconds_per_sample"]) / n_obs)
-    assumed = {"table_seconds_per_sample": plan.CUBE_TABLE_SECONDS_PER_SAMPLE,
-               "screen_seconds_per_sample": plan.CUBE_SCREEN_SECONDS_PER_SAMPLE,
-               "table_seconds_per_observable_sample": plan.CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE}
-    predicted = {"lut": plan.cube_compute_seconds(n, n, "lut", False),
-                 "direct": plan.cube_compute_seconds(n, n, "direct", False),
-                 "lut_observable_only": plan.cube_compute_seconds(n, n_obs, "lut", True),
-                 "direct_observable_only": plan.cube_compute_seconds(n, n_obs, "direct", True)}
-    runs = {k: {"predicted_seconds": v, "measured_seconds": n / cube[k]["samples_per_s_per_core"]}
-            for k, v in predicted.items()}
+        n / cube["lut_observable_only"]["samples_per_s_per_core"] - n * measured["screen_seconds_per_sample"]
+    ) / n_obs
+    assumed = {
+        "table_seconds_per_sample": plan.CUBE_TABLE_SECONDS_PER_SAMPLE,
+        "screen_seconds_per_sample": plan.CUBE_SCREEN_SECONDS_PER_SAMPLE,
+        "table_seconds_per_observable_sample": plan.CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE,
+    }
+    predicted = {
+        "lut": plan.cube_compute_seconds(n, n, "lut", False),
+        "direct": plan.cube_compute_seconds(n, n, "direct", False),
+        "lut_observable_only": plan.cube_compute_seconds(n, n_obs, "lut", True),
+        "direct_observable_only": plan.cube_compute_seconds(n, n_obs, "direct", True),
+    }
+    runs = {
+        k: {"predicted_seconds": v, "measured_seconds": n / cube[k]["samples_per_s_per_core"]}
+        for k, v in predicted.items()
+    }
     for k, v in measured.items():
         print(f"plan: {k} {v * 1e6:.2f} us (assumed {assumed[k] * 1e6:.2f})")
     for k, v in runs.items():
-        print(f"plan: {k:22s} predicted {v['predicted_seconds']:.2f} s, measured {v['measured_seconds']:.2f} s")
+        print(
+            f"plan: {k:22s} predicted {v['predicted_seconds']:.2f} s, measured {v['measured_seconds']:.2f} s"
+        )
     return {"measured": measured, "assumed": assumed, "runs": runs}
 
 
@@ -179,13 +235,20 @@ def auto_cost_model(lut_model, cube: dict) -> dict:
     es = lut_model.sunlit_earth.model
     saved = 1.0 / cube["direct"]["samples_per_s_per_core"] - 1.0 / cube["lut"]["samples_per_s_per_core"]
     build = es["lut_build_seconds"] / es["lut_node_states"]
-    out = {"saved_seconds_per_sample": {"measured": saved, "assumed": comp.LUT_SAVED_SECONDS_PER_SAMPLE},
-           "build_seconds_per_node": {"recorded": build, "assumed": comp.LUT_BUILD_SECONDS_PER_NODE},
-           "pays_off_above_samples": {"measured": es["lut_build_seconds"] / saved,
-                                      "assumed": comp.LUT_BUILD_SECONDS_PER_NODE * es["lut_node_states"]
-                                      / comp.LUT_SAVED_SECONDS_PER_SAMPLE}}
-    print(f"auto: the table saves {saved * 1e3:.3f} ms per cube sample (assumed "
-          f"{comp.LUT_SAVED_SECONDS_PER_SAMPLE * 1e3:.3f}), was built at {build * 1e3:.3f} ms per node and "
-          f"state (assumed {comp.LUT_BUILD_SECONDS_PER_NODE * 1e3:.3f}): a build is repaid after "
-          f"{out['pays_off_above_samples']['measured']:.3g} samples (assumed {out['pays_off_above_samples']['assumed']:.3g})")
+    out = {
+        "saved_seconds_per_sample": {"measured": saved, "assumed": comp.LUT_SAVED_SECONDS_PER_SAMPLE},
+        "build_seconds_per_node": {"recorded": build, "assumed": comp.LUT_BUILD_SECONDS_PER_NODE},
+        "pays_off_above_samples": {
+            "measured": es["lut_build_seconds"] / saved,
+            "assumed": comp.LUT_BUILD_SECONDS_PER_NODE
+            * es["lut_node_states"]
+            / comp.LUT_SAVED_SECONDS_PER_SAMPLE,
+        },
+    }
+    print(
+        f"auto: the table saves {saved * 1e3:.3f} ms per cube sample (assumed "
+        f"{comp.LUT_SAVED_SECONDS_PER_SAMPLE * 1e3:.3f}), was built at {build * 1e3:.3f} ms per node and "
+        f"state (assumed {comp.LUT_BUILD_SECONDS_PER_NODE * 1e3:.3f}): a build is repaid after "
+        f"{out['pays_off_above_samples']['measured']:.3g} samples (assumed {out['pays_off_above_samples']['assumed']:.3g})"
+    )
     return out

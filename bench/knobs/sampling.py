@@ -1,6 +1,7 @@
 """Sampling knobs of the survey: the time cadence (linear interpolation in time, plain and
 error-checked adaptive) and the HEALPix nside (a pixel's value standing for every direction
 inside it)."""
+
 from __future__ import annotations
 
 import time
@@ -8,8 +9,6 @@ import time
 import numpy as np
 
 from .common import DEFAULT_STARS
-
-
 
 #: the adaptive cadence accepts an interval when its computed midpoint is within this fraction
 #: of itself from the straight line between the ends (assumption: a quarter of the 1 % default
@@ -41,7 +40,7 @@ def adaptive_in_time(full, obs, door, step, check_fraction):
             m = (a + b) // 2
             computed[m, p] = True
             line = y[a] + (y[b] - y[a]) * (m - a) / (b - a)
-            if np.all(s[a:b + 1] == s[a]) and np.all(np.abs(line - y[m]) <= check_fraction * y[m]):
+            if np.all(s[a : b + 1] == s[a]) and np.all(np.abs(line - y[m]) <= check_fraction * y[m]):
                 for lo, hi in ((a, m), (m, b)):
                     inner = np.arange(lo + 1, hi)
                     out[inner, :, p] = y[lo] + (y[hi] - y[lo]) * ((inner - lo) / (hi - lo))[:, None]
@@ -54,11 +53,12 @@ def time_cadence_rows(bench):
     """Background over 6 h at 60 s for 40 random pointings; coarser cadences linearly
     interpolated in time, and the error-checked adaptive sampling (:func:`adaptive_in_time`)
     from each coarse cadence; error over samples observable at the fine cadence."""
+    from astropy.time import Time, TimeDelta
+
     from straylight.model import BackgroundModel
     from straylight.sky.geometry import observing_geometry
-    from straylight.sky.vectors import radec_to_unit
     from straylight.sky.observing import scene
-    from astropy.time import Time, TimeDelta
+    from straylight.sky.vectors import radec_to_unit
 
     c = bench.campaign
     cm = BackgroundModel(c)
@@ -99,10 +99,18 @@ def time_cadence_rows(bench):
         err = float(np.max(np.where(obs[:, None, :], rel, 0.0)))
         p99 = float(np.percentile(rel.transpose(0, 2, 1)[obs], 99))
         cost = per_sample * len(idx) / len(times)
-        rows.append({"setting": f"{step * fine_s:.0f} s", "max_rel_error": err, "p99_rel_error": p99,
-                     "seconds_per_sample": cost})
-        print(f"  {'cadence':14s} {step * fine_s:6.0f} s{'':17s} error {err:9.2e} (p99 {p99:.1e}) "
-              f"{cost * 1e3:8.3f} ms/sample")
+        rows.append(
+            {
+                "setting": f"{step * fine_s:.0f} s",
+                "max_rel_error": err,
+                "p99_rel_error": p99,
+                "seconds_per_sample": cost,
+            }
+        )
+        print(
+            f"  {'cadence':14s} {step * fine_s:6.0f} s{'':17s} error {err:9.2e} (p99 {p99:.1e}) "
+            f"{cost * 1e3:8.3f} ms/sample"
+        )
         if step == 1:
             continue
         # adaptive, as issue #7 describes it: drop the samples interpolation reproduces
@@ -110,10 +118,18 @@ def time_cadence_rows(bench):
         rel_a = np.abs(adaptive - full) / full
         err_a = float(np.max(np.where(obs[:, None, :], rel_a, 0.0)))
         fraction = float(computed.mean())
-        rows.append({"setting": f"adaptive {step * fine_s:.0f} s", "max_rel_error": err_a,
-                     "seconds_per_sample": per_sample * fraction, "fraction_computed": fraction})
-        print(f"  {'cadence':14s} adaptive {step * fine_s:6.0f} s{'':8s} error {err_a:9.2e}   "
-              f"{per_sample * fraction * 1e3:8.3f} ms/sample ({fraction:.0%} computed)")
+        rows.append(
+            {
+                "setting": f"adaptive {step * fine_s:.0f} s",
+                "max_rel_error": err_a,
+                "seconds_per_sample": per_sample * fraction,
+                "fraction_computed": fraction,
+            }
+        )
+        print(
+            f"  {'cadence':14s} adaptive {step * fine_s:6.0f} s{'':8s} error {err_a:9.2e}   "
+            f"{per_sample * fraction * 1e3:8.3f} ms/sample ({fraction:.0%} computed)"
+        )
     return rows
 
 
@@ -124,8 +140,8 @@ def nside_rows(bench):
 
     from straylight.model import BackgroundModel
     from straylight.sky.geometry import observing_geometry
-    from straylight.sky.vectors import radec_to_unit
     from straylight.sky.observing import scene
+    from straylight.sky.vectors import radec_to_unit
 
     c = bench.campaign
     cm = BackgroundModel(c)
@@ -152,7 +168,13 @@ def nside_rows(bench):
         both = obs & obs_c
         err = float(np.max(np.abs(centre - exact)[:, both] / exact[:, both]))
         cost_rel = hp.nside2npix(nside) / hp.nside2npix(16)
-        rows.append({"setting": f"nside {nside}", "max_rel_error": err, "cost_relative_to_nside16": cost_rel,
-                     "seconds_per_sample": cost_rel})
+        rows.append(
+            {
+                "setting": f"nside {nside}",
+                "max_rel_error": err,
+                "cost_relative_to_nside16": cost_rel,
+                "seconds_per_sample": cost_rel,
+            }
+        )
         print(f"  {'nside':14s} {nside:<24d} error {err:9.2e}   cost x{cost_rel:g} of nside 16")
     return rows

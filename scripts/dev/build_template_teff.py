@@ -7,6 +7,7 @@ Usage::
     pip install PyAstronomy
     python scripts/dev/build_template_teff.py
 """
+
 from __future__ import annotations
 
 import numpy as np

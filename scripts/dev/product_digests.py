@@ -7,6 +7,7 @@ shape, dtype and attributes.  Provenance (commit, dates, command) and logs are l
     ... change the code, run the campaign again ...
     python scripts/dev/product_digests.py results/default | diff before.txt -
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -54,8 +55,12 @@ def fits_digests(path: Path):
 def digests(root: Path):
     for path in sorted(root.rglob("*")):
         rel = path.relative_to(root)
-        if ("logs" in rel.parts or path.name.startswith(".") or path.name in SKIPPED
-                or (rel.parts[0] == "background_blocks" and path.suffix == ".json")):
+        if (
+            "logs" in rel.parts
+            or path.name.startswith(".")
+            or path.name in SKIPPED
+            or (rel.parts[0] == "background_blocks" and path.suffix == ".json")
+        ):
             continue
         if path.suffix == ".zarr" and path.is_dir():
             for name, d in zarr_digests(path):
@@ -74,7 +79,7 @@ def digests(root: Path):
 
 
 def main(argv=None) -> int:
-    for root in (argv or sys.argv[1:]):
+    for root in argv or sys.argv[1:]:
         for name, d in digests(Path(root)):
             print(f"{d}  {name}")
     return 0

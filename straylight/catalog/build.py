@@ -21,6 +21,7 @@ Flags (bit mask): 1/2/4 SDSS g/r/i relation outside validity; 8 star colour beyo
 range by more than 0.05 mag; 16 Hipparcos Hp -> V outside the verified range; 32 Hipparcos V - Ic
 outside the Gaia relations (G, BP, RP from the template); 64 Teff unknown for the template.
 """
+
 from __future__ import annotations
 
 import json
@@ -29,11 +30,17 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
-from straylight.errors import InputError
 from straylight.catalog.gaia import sdss_from_gaia
 from straylight.catalog.hipparcos import FLAG_VI_RELATION_EXTRAPOLATED
+from straylight.catalog.sed import (
+    AB_MINUS_VEGA,
+    TemplateLibrary,
+    ab_magnitudes,
+    load_pickles,
+    template_magnitudes,
+)
+from straylight.errors import InputError
 from straylight.util.io import sha256_path
-from straylight.catalog.sed import AB_MINUS_VEGA, TemplateLibrary, ab_magnitudes, load_pickles, template_magnitudes
 
 FLAG_SDSS = {"g": 1, "r": 2, "i": 4}
 FLAG_COLOUR_BEYOND_TEMPLATES = 8
@@ -41,8 +48,17 @@ FLAG_TEFF_UNKNOWN = 64
 GAIA_FILTERS = ("gaiadr2-G", "gaiadr2-BP", "gaiadr2-RP")
 SDSS_FILTERS = ("sdss2010-u", "sdss2010-g", "sdss2010-r", "sdss2010-i", "sdss2010-z")
 JC_FILTERS = ("bessell-B", "bessell-V", "bessell-I")
-STAR_COLUMNS = ("source_id", "ra", "dec", "pmra", "pmdec", "ref_epoch",
-                "phot_g_mean_mag", "phot_bp_mean_mag", "phot_rp_mean_mag")
+STAR_COLUMNS = (
+    "source_id",
+    "ra",
+    "dec",
+    "pmra",
+    "pmdec",
+    "ref_epoch",
+    "phot_g_mean_mag",
+    "phot_bp_mean_mag",
+    "phot_rp_mean_mag",
+)
 
 
 class TemplatePhotometry:
@@ -50,7 +66,9 @@ class TemplatePhotometry:
 
     def __init__(self, library: TemplateLibrary, band_responses: dict):
         self.library = library
-        ab = ab_magnitudes(library.wavelength_angstrom, library.flam, GAIA_FILTERS + SDSS_FILTERS + JC_FILTERS)
+        ab = ab_magnitudes(
+            library.wavelength_angstrom, library.flam, GAIA_FILTERS + SDSS_FILTERS + JC_FILTERS
+        )
         vega = {n: ab[n] - AB_MINUS_VEGA[n] for n in GAIA_FILTERS + JC_FILTERS}
         self.g_vega = vega["gaiadr2-G"]
         self.bp_rp = vega["gaiadr2-BP"] - vega["gaiadr2-RP"]
@@ -70,8 +88,10 @@ def select_templates(library: TemplateLibrary, classes) -> TemplateLibrary:
         return library
     keep = np.isin(library.luminosity_class, list(classes))
     if not keep.any():
-        raise InputError(f"stars.template_classes {list(classes)}: no template of those luminosity classes "
-                         f"(library has {sorted(set(library.luminosity_class))})")
+        raise InputError(
+            f"stars.template_classes {list(classes)}: no template of those luminosity classes "
+            f"(library has {sorted(set(library.luminosity_class))})"
+        )
     return library.subset(keep)
 
 
@@ -103,31 +123,51 @@ def read_population(path) -> dict:
     except Exception as exc:
         raise InputError(f"{path}: cannot read the mock population ({type(exc).__name__}: {exc})") from exc
     cols = {c.lower(): c for c in t.colnames}
-    need = {"teff": ("teff",), "logg": ("logg",), "feh": ("feh", "[fe/h]", "m_h"),
-            "sdss_g": ("sdss_g", "g"), "sdss_r": ("sdss_r", "r"), "sdss_i": ("sdss_i", "i")}
+    need = {
+        "teff": ("teff",),
+        "logg": ("logg",),
+        "feh": ("feh", "[fe/h]", "m_h"),
+        "sdss_g": ("sdss_g", "g"),
+        "sdss_r": ("sdss_r", "r"),
+        "sdss_i": ("sdss_i", "i"),
+    }
     out = {}
     for key, names in need.items():
         found = next((cols[n] for n in names if n in cols), None)
         if found is None:
-            raise InputError(f"{path}: mock population lacks a {key} column (accepted names: {', '.join(names)})")
+            raise InputError(
+                f"{path}: mock population lacks a {key} column (accepted names: {', '.join(names)})"
+            )
         out[key] = np.asarray(t[found], float)
     good = np.all([np.isfinite(v) for v in out.values()], axis=0)
     if not good.any():
-        raise InputError(f"{path}: mock population has no row with all of teff, logg, feh, sdss_g, sdss_r, sdss_i")
+        raise InputError(
+            f"{path}: mock population has no row with all of teff, logg, feh, sdss_g, sdss_r, sdss_i"
+        )
     return {k: v[good] for k, v in out.items()}
 
 
 def _format(path) -> str | None:
     s = str(path).lower()
-    for ext, fmt in ((".parquet", "parquet"), (".fits", "fits"), (".ecsv", "ascii.ecsv"), (".csv", "ascii.csv")):
+    for ext, fmt in (
+        (".parquet", "parquet"),
+        (".fits", "fits"),
+        (".ecsv", "ascii.ecsv"),
+        (".csv", "ascii.csv"),
+    ):
         if s.endswith(ext):
             return fmt
     return None
 
 
-def build_catalog(stars: dict, band_responses: dict, library: TemplateLibrary | None = None,
-                  template_classes=("V", "IV", "III"), population: dict | None = None,
-                  photometry: TemplatePhotometry | None = None) -> dict:
+def build_catalog(
+    stars: dict,
+    band_responses: dict,
+    library: TemplateLibrary | None = None,
+    template_classes=("V", "IV", "III"),
+    population: dict | None = None,
+    photometry: TemplatePhotometry | None = None,
+) -> dict:
     """CSST-band catalog columns for ``stars`` (the ingest's column layout, plus ``source`` and
     optionally ``flags``, ``hip_v_mag`` and ``hip_v_i_mag`` for Hipparcos rows).
 
@@ -147,7 +187,9 @@ def build_catalog(stars: dict, band_responses: dict, library: TemplateLibrary | 
     # template by nearest BP - RP; Hipparcos stars outside the V - I relations by nearest V - Ic
     _, idx = tp.tree_bp_rp.query(bp_rp[:, None], k=1) if n else (None, np.zeros(0, int))
     idx = np.asarray(idx, int)
-    redo = (flags & FLAG_VI_RELATION_EXTRAPOLATED).astype(bool) & np.isfinite(stars.get("hip_v_i_mag", np.full(n, np.nan)))
+    redo = (flags & FLAG_VI_RELATION_EXTRAPOLATED).astype(bool) & np.isfinite(
+        stars.get("hip_v_i_mag", np.full(n, np.nan))
+    )
     if redo.any():
         _, j = tp.tree_v_i.query(np.asarray(stars["hip_v_i_mag"], float)[redo][:, None], k=1)
         idx[redo] = j
@@ -164,9 +206,14 @@ def build_catalog(stars: dict, band_responses: dict, library: TemplateLibrary | 
 
     teff, logg, feh = lib.teff_k[idx], lib.logg_cgs[idx], lib.feh_dex[idx]
     if population is not None and n:
-        pop_tree = cKDTree(np.column_stack([population["sdss_g"] - population["sdss_r"],
-                                            population["sdss_r"] - population["sdss_i"]]))
-        _, k = pop_tree.query(np.column_stack([sdss["sdss_g"] - sdss["sdss_r"], sdss["sdss_r"] - sdss["sdss_i"]]), k=1)
+        pop_tree = cKDTree(
+            np.column_stack(
+                [population["sdss_g"] - population["sdss_r"], population["sdss_r"] - population["sdss_i"]]
+            )
+        )
+        _, k = pop_tree.query(
+            np.column_stack([sdss["sdss_g"] - sdss["sdss_r"], sdss["sdss_r"] - sdss["sdss_i"]]), k=1
+        )
         teff, logg, feh = population["teff"][k], population["logg"][k], population["feh"][k]
         has_params = np.isfinite(lib.teff_k)
         if has_params.all() and not np.all(np.isnan(lib.logg_cgs)):
@@ -176,13 +223,21 @@ def build_catalog(stars: dict, band_responses: dict, library: TemplateLibrary | 
     flags[~np.isfinite(teff)] |= FLAG_TEFF_UNKNOWN
 
     out = {c: np.asarray(stars[c]) for c in ("source_id", "ra", "dec", "pmra", "pmdec", "ref_epoch")}
-    out.update({
-        "phot_g_mean_mag": g, "phot_bp_mean_mag": bp, "phot_rp_mean_mag": rp,
-        "sdss_g": sdss["sdss_g"], "sdss_r": sdss["sdss_r"], "sdss_i": sdss["sdss_i"],
-        "teff": teff, "logg": logg, "feh": feh,
-        "template": lib.template[idx].astype(object),
-        "template_bp_rp_residual": tp.bp_rp[idx] - bp_rp,
-    })
+    out.update(
+        {
+            "phot_g_mean_mag": g,
+            "phot_bp_mean_mag": bp,
+            "phot_rp_mean_mag": rp,
+            "sdss_g": sdss["sdss_g"],
+            "sdss_r": sdss["sdss_r"],
+            "sdss_i": sdss["sdss_i"],
+            "teff": teff,
+            "logg": logg,
+            "feh": feh,
+            "template": lib.template[idx].astype(object),
+            "template_bp_rp_residual": tp.bp_rp[idx] - bp_rp,
+        }
+    )
     for name, m in tp.band_minus_g.items():
         out[f"mag_{name}"] = g + m[idx]
     out["flags"] = flags
@@ -198,10 +253,12 @@ def round_trip(catalog: dict, photometry: TemplatePhotometry) -> dict:
     idx = _template_index(catalog["template"], photometry.library.template)
     d_bp_rp = photometry.bp_rp[idx] - (catalog["phot_bp_mean_mag"] - catalog["phot_rp_mean_mag"])
     a = np.abs(d_bp_rp)
-    return {"d_bp_rp": d_bp_rp,
-            "median_abs_bp_rp_mag": float(np.median(a)) if a.size else float("nan"),
-            "p90_abs_bp_rp_mag": float(np.percentile(a, 90)) if a.size else float("nan"),
-            "p99_abs_bp_rp_mag": float(np.percentile(a, 99)) if a.size else float("nan")}
+    return {
+        "d_bp_rp": d_bp_rp,
+        "median_abs_bp_rp_mag": float(np.median(a)) if a.size else float("nan"),
+        "p90_abs_bp_rp_mag": float(np.percentile(a, 90)) if a.size else float("nan"),
+        "p99_abs_bp_rp_mag": float(np.percentile(a, 99)) if a.size else float("nan"),
+    }
 
 
 def _template_index(names, library_names) -> np.ndarray:
@@ -217,10 +274,17 @@ def _concat(parts: list[dict], keys) -> dict:
     return out
 
 
-def make_catalog(band_responses: dict, gaia_stars: dict | None = None, g_limit_mag: float = 12.0,
-                 hipparcos: str = "fill", match_radius_arcsec: float = 2.0,
-                 template_classes=("V", "IV", "III"), population: dict | None = None,
-                 library: TemplateLibrary | None = None, hip2_path=None) -> tuple[dict, dict]:
+def make_catalog(
+    band_responses: dict,
+    gaia_stars: dict | None = None,
+    g_limit_mag: float = 12.0,
+    hipparcos: str = "fill",
+    match_radius_arcsec: float = 2.0,
+    template_classes=("V", "IV", "III"),
+    population: dict | None = None,
+    library: TemplateLibrary | None = None,
+    hip2_path=None,
+) -> tuple[dict, dict]:
     """The full catalog from Gaia stars (ingested columns) and/or Hipparcos; returns (columns, summary)."""
     from straylight.catalog.hipparcos import hipparcos_stars
 
@@ -249,19 +313,34 @@ def make_catalog(band_responses: dict, gaia_stars: dict | None = None, g_limit_m
     rt = round_trip(columns, tp)
     flags = columns["flags"]
     summary = {
-        "stars": int(len(columns["ra"])), "by_source": counts,
-        "template_library": library.name, "templates": int(len(library)),
-        "round_trip_bp_rp_mag": {k: rt[k] for k in ("median_abs_bp_rp_mag", "p90_abs_bp_rp_mag", "p99_abs_bp_rp_mag")},
+        "stars": int(len(columns["ra"])),
+        "by_source": counts,
+        "template_library": library.name,
+        "templates": int(len(library)),
+        "round_trip_bp_rp_mag": {
+            k: rt[k] for k in ("median_abs_bp_rp_mag", "p90_abs_bp_rp_mag", "p99_abs_bp_rp_mag")
+        },
         "flag_counts": {str(b): int(((flags & b) != 0).sum()) for b in (1, 2, 4, 8, 16, 32, 64)},
         "bands": sorted(band_responses),
     }
     return columns, summary
 
 
-CATALOG_UNITS = {"ra": "deg", "dec": "deg", "pmra": "mas/yr", "pmdec": "mas/yr", "ref_epoch": "yr",
-                 "phot_g_mean_mag": "mag", "phot_bp_mean_mag": "mag", "phot_rp_mean_mag": "mag",
-                 "sdss_g": "mag", "sdss_r": "mag", "sdss_i": "mag", "teff": "K",
-                 "template_bp_rp_residual": "mag"}  # logg: log10(g / cm s-2); feh: dex (no FITS unit)
+CATALOG_UNITS = {
+    "ra": "deg",
+    "dec": "deg",
+    "pmra": "mas/yr",
+    "pmdec": "mas/yr",
+    "ref_epoch": "yr",
+    "phot_g_mean_mag": "mag",
+    "phot_bp_mean_mag": "mag",
+    "phot_rp_mean_mag": "mag",
+    "sdss_g": "mag",
+    "sdss_r": "mag",
+    "sdss_i": "mag",
+    "teff": "K",
+    "template_bp_rp_residual": "mag",
+}  # logg: log10(g / cm s-2); feh: dex (no FITS unit)
 
 
 def write_catalog(columns: dict, path, metadata: dict) -> None:
@@ -280,8 +359,12 @@ def write_catalog(columns: dict, path, metadata: dict) -> None:
         return
     if path.suffix not in (".fits", ".fit"):
         raise InputError(f"{path}: catalog output must end in .parquet or .fits")
-    t = Table({k: (np.asarray(v).astype(str) if np.asarray(v).dtype == object else np.asarray(v))
-               for k, v in columns.items()})
+    t = Table(
+        {
+            k: (np.asarray(v).astype(str) if np.asarray(v).dtype == object else np.asarray(v))
+            for k, v in columns.items()
+        }
+    )
     for k, u in CATALOG_UNITS.items():
         if k in t.colnames:
             t[k].unit = u
@@ -291,7 +374,7 @@ def write_catalog(columns: dict, path, metadata: dict) -> None:
     t.meta["EXTNAME"] = "STARS"
     t.meta["MAGSYS"] = "mag_*: AB; Gaia G/BP/RP: Vega (DR2 system)"
     text = json.dumps(metadata, default=str)
-    t.meta["COMMENT"] = [text[i:i + 68] for i in range(0, len(text), 68)]  # FITS cards hold 72 chars
+    t.meta["COMMENT"] = [text[i : i + 68] for i in range(0, len(text), 68)]  # FITS cards hold 72 chars
     with atomic_path(path) as tmp:
         t.write(tmp, format="fits", overwrite=True)
 
@@ -303,8 +386,10 @@ def catalog_for_campaign(campaign, gaia_stars: dict | None = None) -> tuple[dict
 
     sc = campaign.settings.stars
     base = campaign.path.parent
-    responses = {b: load_band(campaign.instrument_settings, b, campaign.instrument_path.parent).response
-                 for b in campaign.bands}
+    responses = {
+        b: load_band(campaign.instrument_settings, b, campaign.instrument_path.parent).response
+        for b in campaign.bands
+    }
     library = None
     if sc.btsettl_files:
         from straylight.catalog.sed import load_btsettl
@@ -315,21 +400,35 @@ def catalog_for_campaign(campaign, gaia_stars: dict | None = None) -> tuple[dict
         p = sc.population_file
         population = read_population(p if str(p).startswith("/") else base / p)
     columns, summary = make_catalog(
-        responses, gaia_stars=gaia_stars, g_limit_mag=float(sc.g_limit_mag), hipparcos=sc.hipparcos,
+        responses,
+        gaia_stars=gaia_stars,
+        g_limit_mag=float(sc.g_limit_mag),
+        hipparcos=sc.hipparcos,
         match_radius_arcsec=float(sc.match_radius_arcsec),
         template_classes=None if library is not None else tuple(sc.template_classes),
-        population=population, library=library)
-    metadata = {"straylight_version": __version__, "campaign": campaign.name,
-                # the file name and content digest, not the absolute path: the product's bytes must
-                # not depend on where the campaign runs (determinism check, tests/survey/test_cube.py)
-                "config": campaign.path.name, "config_sha256": sha256_path(campaign.path),
-                "stars_settings": campaign.config["stars"], "summary": summary,
-                "magnitude_systems": "mag_<band>: AB through the instrument's throughput; G, BP, RP: Gaia DR2 Vega",
-                "flags": {"1": "SDSS g relation outside validity", "2": "SDSS r outside validity",
-                          "4": "SDSS i outside validity", "8": "BP-RP beyond the template range",
-                          "16": "Hipparcos Hp->V outside the verified B-V range",
-                          "32": "Hipparcos V-I outside the Gaia relations (photometry from the template)",
-                          "64": "template Teff unknown"}}
+        population=population,
+        library=library,
+    )
+    metadata = {
+        "straylight_version": __version__,
+        "campaign": campaign.name,
+        # the file name and content digest, not the absolute path: the product's bytes must
+        # not depend on where the campaign runs (determinism check, tests/survey/test_cube.py)
+        "config": campaign.path.name,
+        "config_sha256": sha256_path(campaign.path),
+        "stars_settings": campaign.config["stars"],
+        "summary": summary,
+        "magnitude_systems": "mag_<band>: AB through the instrument's throughput; G, BP, RP: Gaia DR2 Vega",
+        "flags": {
+            "1": "SDSS g relation outside validity",
+            "2": "SDSS r outside validity",
+            "4": "SDSS i outside validity",
+            "8": "BP-RP beyond the template range",
+            "16": "Hipparcos Hp->V outside the verified B-V range",
+            "32": "Hipparcos V-I outside the Gaia relations (photometry from the template)",
+            "64": "template Teff unknown",
+        },
+    }
     return columns, summary, metadata
 
 
@@ -343,8 +442,13 @@ def default_catalog_path(campaign) -> Path:
     from straylight.util.io import cache_dir
 
     settings = {k: v for k, v in campaign.config["stars"].items() if k != "gaia_files"}
-    key = hashlib.sha256(json.dumps({"stars": settings, "instrument": campaign.instrument,
-                                     "version": __version__}, sort_keys=True, default=str).encode()).hexdigest()[:16]
+    key = hashlib.sha256(
+        json.dumps(
+            {"stars": settings, "instrument": campaign.instrument, "version": __version__},
+            sort_keys=True,
+            default=str,
+        ).encode()
+    ).hexdigest()[:16]
     path = cache_dir() / f"catalog_hipparcos_{key}.parquet"
     if not path.exists():
         columns, _, meta = catalog_for_campaign(campaign)
@@ -361,8 +465,17 @@ def ingest_many(paths, g_limit_mag: float) -> tuple[dict | None, dict | None, li
     if not paths:
         return None, None, []
     results = [ingest_file(p, g_limit_mag) for p in paths]
-    keys = ["source_id", "ra", "dec", "pmra", "pmdec", "ref_epoch", "phot_g_mean_mag", "phot_bp_mean_mag",
-            "phot_rp_mean_mag"]
+    keys = [
+        "source_id",
+        "ra",
+        "dec",
+        "pmra",
+        "pmdec",
+        "ref_epoch",
+        "phot_g_mean_mag",
+        "phot_bp_mean_mag",
+        "phot_rp_mean_mag",
+    ]
     stars = _concat([r.stars for r in results], keys)
     _, first = np.unique(stars["source_id"], return_index=True)
     first = np.sort(first)

@@ -10,6 +10,7 @@ written half-way (atomic Parquet writes).
 Evans et al. 2018, A&A 616, A4, Tables A.1-A.2), G - x = c0 + c1 C + c2 C^2 (+ c3 C^3) with
 C = BP - RP, and flags stars outside each relation's validity range.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -52,8 +53,10 @@ def _check_gzip(path: Path) -> None:
     with open(path, "rb") as fh:
         magic = fh.read(2)
     if magic != b"\x1f\x8b":
-        raise InputError(f"{path}: not gzip data (starts with {magic!r}, gzip starts with b'\\x1f\\x8b'); "
-                         "re-download it or drop the .gz suffix")
+        raise InputError(
+            f"{path}: not gzip data (starts with {magic!r}, gzip starts with b'\\x1f\\x8b'); "
+            "re-download it or drop the .gz suffix"
+        )
     try:
         with gzip.open(path, "rb") as fh:
             while fh.read(1 << 24):
@@ -102,7 +105,9 @@ def ingest_file(path: str | Path, g_limit: float) -> IngestResult:
     cols = {c.lower(): c for c in t.colnames}
     missing = [c for c in REQUIRED if c not in cols]
     if missing:
-        raise InputError(f"{path}: missing column(s) {', '.join(missing)}; found {', '.join(t.colnames[:12])}...")
+        raise InputError(
+            f"{path}: missing column(s) {', '.join(missing)}; found {', '.join(t.colnames[:12])}..."
+        )
     n = len(t)
 
     def col(name, dtype=float):
@@ -151,15 +156,29 @@ def ingest_file(path: str | Path, g_limit: float) -> IngestResult:
     quarantine["reason"] = reason[~ok].astype(str)
     quarantine["file"] = np.full((~ok).sum(), str(path))
     reasons, counts = np.unique(reason[~ok].astype(str), return_counts=True)
-    summary = {"file": str(path), "rows": int(n), "kept": int(bright.sum()),
-               "fainter_than_limit": int((ok & ~bright).sum()), "quarantined": int((~ok).sum()),
-               "quarantine_reasons": dict(zip(reasons.tolist(), counts.tolist()))}
+    summary = {
+        "file": str(path),
+        "rows": int(n),
+        "kept": int(bright.sum()),
+        "fainter_than_limit": int((ok & ~bright).sum()),
+        "quarantined": int((~ok).sum()),
+        "quarantine_reasons": dict(zip(reasons.tolist(), counts.tolist())),
+    }
     return IngestResult(stars, quarantine, summary)
 
 
 #: units of the Gaia archive's columns (Gaia DR2 data model), written as Parquet field metadata
-GAIA_UNITS = {"ra": "deg", "dec": "deg", "pmra": "mas/yr", "pmdec": "mas/yr", "parallax": "mas",
-              "ref_epoch": "yr", "phot_g_mean_mag": "mag", "phot_bp_mean_mag": "mag", "phot_rp_mean_mag": "mag"}
+GAIA_UNITS = {
+    "ra": "deg",
+    "dec": "deg",
+    "pmra": "mas/yr",
+    "pmdec": "mas/yr",
+    "parallax": "mas",
+    "ref_epoch": "yr",
+    "phot_g_mean_mag": "mag",
+    "phot_bp_mean_mag": "mag",
+    "phot_rp_mean_mag": "mag",
+}
 
 
 def parquet_units(names, units: dict | None = None) -> dict:
@@ -190,8 +209,11 @@ def write_parquet(columns: dict, path, metadata: dict | None = None, units: dict
     col_units = parquet_units(columns, units)
     arrays = {k: np.asarray(v) for k, v in columns.items()}
     table = pa.table(arrays)
-    table = table.cast(pa.schema([f.with_metadata({"unit": col_units[f.name]}) if f.name in col_units else f
-                                  for f in table.schema]))
+    table = table.cast(
+        pa.schema(
+            [f.with_metadata({"unit": col_units[f.name]}) if f.name in col_units else f for f in table.schema]
+        )
+    )
     if metadata:
         table = table.replace_schema_metadata({k: json.dumps(v) for k, v in metadata.items()})
     with atomic_path(path) as tmp:

@@ -18,6 +18,7 @@ Transformations (each star records which ones held):
    (BP: 0 < V - Ic < 4.0, Table C.1); outside, the star is flagged.  These are (E)DR3-system
    magnitudes; EDR3 and DR2 G differ by < 0.01 mag for 6 < G < 16 (Riello et al. 2021 sect. 8).
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -114,11 +115,39 @@ def hipparcos_stars(path: str | Path | None = None) -> dict:
 #: Names, WGSN list of 2016-2022, https://www.iau.org/public/themes/naming_stars/), for
 #: ``straylight image --star NAME``; any other star is named by its HIP number.
 BRIGHT_STAR_HIP = {
-    "sirius": 32349, "canopus": 30438, "arcturus": 69673, "vega": 91262, "capella": 24608,
-    "rigel": 24436, "procyon": 37279, "betelgeuse": 27989, "achernar": 7588, "hadar": 68702,
-    "altair": 97649, "acrux": 60718, "aldebaran": 21421, "antares": 80763, "spica": 65474,
-    "pollux": 37826, "fomalhaut": 113368, "deneb": 102098, "mimosa": 62434, "regulus": 49669,
-    "adhara": 33579, "castor": 36850, "shaula": 85927, "bellatrix": 25336, "elnath": 25428,
-    "alnilam": 26311, "alnitak": 26727, "polaris": 11767, "alioth": 62956, "dubhe": 54061,
-    "mirfak": 15863, "alkaid": 67301, "algol": 14576, "denebola": 57632, "alphard": 46390,
+    "sirius": 32349,
+    "canopus": 30438,
+    "arcturus": 69673,
+    "vega": 91262,
+    "capella": 24608,
+    "rigel": 24436,
+    "procyon": 37279,
+    "betelgeuse": 27989,
+    "achernar": 7588,
+    "hadar": 68702,
+    "altair": 97649,
+    "acrux": 60718,
+    "aldebaran": 21421,
+    "antares": 80763,
+    "spica": 65474,
+    "pollux": 37826,
+    "fomalhaut": 113368,
+    "deneb": 102098,
+    "mimosa": 62434,
+    "regulus": 49669,
+    "adhara": 33579,
+    "castor": 36850,
+    "shaula": 85927,
+    "bellatrix": 25336,
+    "elnath": 25428,
+    "alnilam": 26311,
+    "alnitak": 26727,
+    "polaris": 11767,
+    "alioth": 62956,
+    "dubhe": 54061,
+    "mirfak": 15863,
+    "alkaid": 67301,
+    "algol": 14576,
+    "denebola": 57632,
+    "alphard": 46390,
 }

@@ -21,6 +21,7 @@ RP 25.1161 - 24.7619).  SDSS is taken as AB.  Johnson-Cousins B, V, Ic (speclite
 Bessell 1990 passbands) use the AB - Vega offsets of Blanton & Roweis (2007, AJ 133, 734,
 Table 1: B -0.09, V 0.02, I 0.45).
 """
+
 from __future__ import annotations
 
 import io
@@ -46,6 +47,7 @@ AB_MINUS_VEGA = {
     "bessell-I": 0.45,
 }
 
+
 @dataclass(frozen=True)
 class TemplateLibrary:
     """Spectra on a common wavelength grid.
@@ -69,9 +71,16 @@ class TemplateLibrary:
 
     def subset(self, mask) -> TemplateLibrary:
         mask = np.asarray(mask)
-        return TemplateLibrary(self.name, self.wavelength_angstrom, self.flam[mask], self.template[mask],
-                               self.luminosity_class[mask], self.teff_k[mask], self.logg_cgs[mask],
-                               self.feh_dex[mask])
+        return TemplateLibrary(
+            self.name,
+            self.wavelength_angstrom,
+            self.flam[mask],
+            self.template[mask],
+            self.luminosity_class[mask],
+            self.teff_k[mask],
+            self.logg_cgs[mask],
+            self.feh_dex[mask],
+        )
 
 
 def bin_average(wavelength_angstrom, flam, centres_angstrom, step_angstrom) -> np.ndarray:
@@ -97,8 +106,9 @@ def magnitudes(wavelength_angstrom, flam, responses: dict) -> dict[str, np.ndarr
     for name, f in responses.items():
         lo, hi = float(f.wavelength.min()), float(f.wavelength.max())
         if lo < wl[0] or hi > wl[-1]:
-            raise InputError(f"band {name} ({lo:.0f}-{hi:.0f} A) reaches outside the spectra "
-                             f"({wl[0]:.0f}-{wl[-1]:.0f} A)")
+            raise InputError(
+                f"band {name} ({lo:.0f}-{hi:.0f} A) reaches outside the spectra ({wl[0]:.0f}-{wl[-1]:.0f} A)"
+            )
         out[name] = np.asarray(f.get_ab_magnitude(fl, wl * u.Angstrom), float)
     return out
 
@@ -150,7 +160,7 @@ def parse_spectral_type(name: str) -> tuple[str, float, str]:
 
 
 def _read_teff_csv(path: Path, name_column: str) -> dict[str, float]:
-    """name -> Teff (K) from one of the embedded CSV tables (``#`` comments; empty: NaN)."""
+    """Name -> Teff (K) from one of the embedded CSV tables (``#`` comments; empty: NaN)."""
     from astropy.table import Table
 
     t = Table.read(path, format="ascii.csv", comment="#")
@@ -215,8 +225,16 @@ def load_pickles() -> TemplateLibrary:
         t = h["TEMPLATES"].data
         names = np.char.strip(np.asarray(t["TEMPLATE"]).astype(str))
         lc = np.char.strip(np.asarray(t["LUMCLASS"]).astype(str))
-    return TemplateLibrary("pickles1998", wl, flam, names, lc, pickles_teff(names),
-                           np.array([NOMINAL_LOGG[c] for c in lc]), np.zeros(len(names)))
+    return TemplateLibrary(
+        "pickles1998",
+        wl,
+        flam,
+        names,
+        lc,
+        pickles_teff(names),
+        np.array([NOMINAL_LOGG[c] for c in lc]),
+        np.zeros(len(names)),
+    )
 
 
 PICKLES_TEFF_FILE = DATA / "pickles1998_template_teff.csv"
@@ -229,16 +247,19 @@ def pickles_teff(names) -> np.ndarray:
     table = _read_teff_csv(PICKLES_TEFF_FILE, "template")
     missing = [n for n in names if n not in table]
     if missing:
-        raise InputError(f"{PICKLES_TEFF_FILE}: no row for templates {missing}; rebuild it "
-                         "with scripts/dev/build_template_teff.py")
+        raise InputError(
+            f"{PICKLES_TEFF_FILE}: no row for templates {missing}; rebuild it "
+            "with scripts/dev/build_template_teff.py"
+        )
     return np.array([table[n] for n in names])
 
 
 _BTSETTL_NAME = re.compile(r"lte(?P<teff>\d+(?:\.\d+)?)-?(?P<logg>[+-]?\d+\.\d+)(?P<feh>[+-]\d+\.\d+)")
 
 
-def load_btsettl(paths, wavelength_min_angstrom=1500.0, wavelength_max_angstrom=12000.0,
-                 step_angstrom=10.0) -> TemplateLibrary:
+def load_btsettl(
+    paths, wavelength_min_angstrom=1500.0, wavelength_max_angstrom=12000.0, step_angstrom=10.0
+) -> TemplateLibrary:
     """BT-Settl spectra (text: Angstrom and F_lambda columns; or FITS WAVELENGTH/FLUX) -> library.
 
     Parameters come from the file name, e.g. ``lte058-4.5-0.0a+0.0.BT-Settl.7.dat.txt``
@@ -251,7 +272,9 @@ def load_btsettl(paths, wavelength_min_angstrom=1500.0, wavelength_max_angstrom=
     for p in map(Path, paths):
         m = _BTSETTL_NAME.search(p.name)
         if not m:
-            raise InputError(f"{p}: file name does not follow the BT-Settl pattern lte<Teff/100>-<logg><[M/H]>")
+            raise InputError(
+                f"{p}: file name does not follow the BT-Settl pattern lte<Teff/100>-<logg><[M/H]>"
+            )
         try:
             if p.suffix.lower() in (".fits", ".fit"):
                 with fits.open(p) as h:
@@ -277,5 +300,6 @@ def load_btsettl(paths, wavelength_min_angstrom=1500.0, wavelength_max_angstrom=
     if not rows:
         raise InputError("no BT-Settl files given")
     lc = np.array(["V" if g >= 4.0 else "III" for g in logg])
-    return TemplateLibrary("bt-settl", grid, np.asarray(rows), np.array(names), lc, np.array(teff),
-                           np.array(logg), np.array(feh))
+    return TemplateLibrary(
+        "bt-settl", grid, np.asarray(rows), np.array(names), lc, np.array(teff), np.array(logg), np.array(feh)
+    )

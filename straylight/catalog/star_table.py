@@ -1,5 +1,6 @@
 """Reading a star table (the catalog's ``stars_csst.parquet`` or any Parquet, FITS, CSV or ECSV
 table with ``ra``, ``dec`` (ICRS deg) and ``mag_<band>`` (AB) columns)."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -42,8 +43,10 @@ def read_star_columns(path, bands) -> tuple[np.ndarray, np.ndarray, dict]:
     for name, v, lo, hi in (("ra", ra, -360.0, 360.0), ("dec", dec, -90.0, 90.0)):
         bad = np.flatnonzero(~np.isfinite(v) | (v < lo) | (v > hi))
         if bad.size:
-            raise InputError(f"{p}: row {bad[0]}: {cols[name]} = {v[bad[0]]} must be finite and within "
-                             f"[{lo:g}, {hi:g}] deg")
+            raise InputError(
+                f"{p}: row {bad[0]}: {cols[name]} = {v[bad[0]]} must be finite and within "
+                f"[{lo:g}, {hi:g}] deg"
+            )
     return ra % 360.0, dec, {b: get(f"mag_{b.lower()}") for b in bands}
 
 

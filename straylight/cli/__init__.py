@@ -9,6 +9,7 @@ the parser, one module per group of commands runs them: :mod:`.sky` (``ephem``, 
 User mistakes (bad config, time out of range, NaN coordinates) print one clear line on stderr
 and exit with status 2; no traceback.
 """
+
 from __future__ import annotations
 
 import sys

@@ -1,4 +1,5 @@
 """``python -m straylight.cli``: the ``straylight`` command."""
+
 import sys
 
 from straylight.cli import main

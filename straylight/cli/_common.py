@@ -1,4 +1,5 @@
 """Helpers shared by the commands: argument types, output checks, JSON printing, the pointing."""
+
 from __future__ import annotations
 
 import argparse
@@ -17,6 +18,7 @@ CONFIG_HELP = "campaign config (default: config/config.yaml)"
 
 def finite_float(name: str):
     """An argparse ``type``: a finite float, else one line naming the option ``name``."""
+
     def conv(text):
         try:
             v = float(text)
@@ -49,8 +51,13 @@ def check_out(args, path, flag: str = "--out", folder: bool = False) -> Path:
     overwrite); see :func:`straylight.util.io.check_output_path`."""
     from straylight.util.io import check_output_path
 
-    return check_output_path(path, flag, overwrite=getattr(args, "overwrite", False),
-                             parents=getattr(args, "parents", False), folder=folder)
+    return check_output_path(
+        path,
+        flag,
+        overwrite=getattr(args, "overwrite", False),
+        parents=getattr(args, "parents", False),
+        folder=folder,
+    )
 
 
 def add_output_flags(parser) -> None:

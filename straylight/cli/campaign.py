@@ -1,6 +1,7 @@
 """Commands about a campaign and its inputs: ``plan`` (what it will cost), ``footprint``,
 ``catalog`` (the bright-star catalog), ``pst`` (the default PST), ``schedule`` (the scheduling
 tables), ``config-doc`` (the config reference) and ``run`` (the campaign through Snakemake)."""
+
 from __future__ import annotations
 
 import sys
@@ -27,8 +28,8 @@ def cmd_plan(args) -> int:
     """``straylight plan``: the samples, products' size and wall time of a campaign before it runs."""
     from straylight.config import load_campaign
     from straylight.survey.cube_layout import CUBE_BAND_VARIABLES, cube_chunks
-    from straylight.survey.plan import PRODUCT_BYTES_PER_SAMPLE, estimated_cost
     from straylight.survey.footprint import footprint_from_config
+    from straylight.survey.plan import PRODUCT_BYTES_PER_SAMPLE, estimated_cost
     from straylight.survey.timegrid import time_blocks
 
     campaign = load_campaign(args.config)
@@ -50,39 +51,61 @@ def cmd_plan(args) -> int:
     n = cost["samples"]
     cube_bytes = n * nb * 4 * len(CUBE_BAND_VARIABLES) + n * 6
     limits_bytes = n * nb * 4 + n
-    print(f"campaign {campaign.name}: {nt} times x {npix} pixels (nside {fp.nside}, {fp.area_deg2:.0f} deg2) "
-          f"x {nb} bands")
-    print(f"samples (time, pointing): {n:,}; evaluated: {cost['evaluated_samples']:,} "
-          f"(models.unobservable_samples: {cost['unobservable_samples']})")
+    print(
+        f"campaign {campaign.name}: {nt} times x {npix} pixels (nside {fp.nside}, {fp.area_deg2:.0f} deg2) "
+        f"x {nb} bands"
+    )
+    print(
+        f"samples (time, pointing): {n:,}; evaluated: {cost['evaluated_samples']:,} "
+        f"(models.unobservable_samples: {cost['unobservable_samples']})"
+    )
     print(f"time blocks: {len(tb)}; chunks {cube_chunks(campaign, nt, npix)}")
-    print(f"products on disk: {cost['product_bytes'] / 1e9:.2f} GB at {PRODUCT_BYTES_PER_SAMPLE:g} "
-          f"bytes/sample (straylight.survey.plan.PRODUCT_BYTES_PER_SAMPLE); uncompressed: background.zarr "
-          f"{cube_bytes / 1e9:.2f} GB, limits.zarr {limits_bytes / 1e9:.2f} GB")
+    print(
+        f"products on disk: {cost['product_bytes'] / 1e9:.2f} GB at {PRODUCT_BYTES_PER_SAMPLE:g} "
+        f"bytes/sample (straylight.survey.plan.PRODUCT_BYTES_PER_SAMPLE); uncompressed: background.zarr "
+        f"{cube_bytes / 1e9:.2f} GB, limits.zarr {limits_bytes / 1e9:.2f} GB"
+    )
     if cost["earthshine_method"] == "lut":
-        table = ("its tables are cached" if cost["table_cached"] else
-                 f"its tables are not cached yet: built once, ~{cost['table_build_seconds'] / cores:.0f} s "
-                 f"on {cores} core{'s' if cores > 1 else ''}, then kept for every later run")
+        table = (
+            "its tables are cached"
+            if cost["table_cached"]
+            else f"its tables are not cached yet: built once, ~{cost['table_build_seconds'] / cores:.0f} s "
+            f"on {cores} core{'s' if cores > 1 else ''}, then kept for every later run"
+        )
         print(f"earthshine: look-up tables ({cost['earthshine_reason']}); {table}")
     else:
         print(f"earthshine: direct Earth-grid sum ({cost['earthshine_reason']})")
-    per = (f"{args.seconds_per_sample * 1e3:.3g} ms per evaluated sample (--seconds-per-sample)"
-           if args.seconds_per_sample is not None else
-           f"{cost['pipeline_samples_per_s_per_core']:,.0f} samples/s/core ({cost['pipeline_rate_source']})")
-    build = (f" + the tables' build {cost['table_build_seconds'] / cores:.0f} s"
-             if cost["table_build_seconds"] else "")
-    print(f"estimated wall time on {cores} core{'s' if cores > 1 else ''}: "
-          f"{_duration(cost['wall_seconds'])} = start-up, set-up and figures "
-          f"{cost['fixed_seconds']:.0f} s + the samples {cost['samples_seconds']:.0f} s at {per}{build}; "
-          f"{cost['pipeline_core_hours']:.3g} core-hours")
+    per = (
+        f"{args.seconds_per_sample * 1e3:.3g} ms per evaluated sample (--seconds-per-sample)"
+        if args.seconds_per_sample is not None
+        else f"{cost['pipeline_samples_per_s_per_core']:,.0f} samples/s/core ({cost['pipeline_rate_source']})"
+    )
+    build = (
+        f" + the tables' build {cost['table_build_seconds'] / cores:.0f} s"
+        if cost["table_build_seconds"]
+        else ""
+    )
+    print(
+        f"estimated wall time on {cores} core{'s' if cores > 1 else ''}: "
+        f"{_duration(cost['wall_seconds'])} = start-up, set-up and figures "
+        f"{cost['fixed_seconds']:.0f} s + the samples {cost['samples_seconds']:.0f} s at {per}{build}; "
+        f"{cost['pipeline_core_hours']:.3g} core-hours"
+    )
     if cost["faint_map_first_seconds"]:
-        print(f"a footprint's first campaign also sums its faint-star map, kept for later ones: "
-              f"~{cost['faint_map_first_seconds']:.0f} s more")
+        print(
+            f"a footprint's first campaign also sums its faint-star map, kept for later ones: "
+            f"~{cost['faint_map_first_seconds']:.0f} s more"
+        )
     if speed:
-        print(f"this machine: {speed['samples']} cube samples on the direct sum took "
-              f"{speed['measured_seconds']:.3f} s against the {speed['assumed_seconds']:.3f} s of the cost "
-              f"figures (x{speed['factor']:.2f}); every figure above is scaled by it")
-    print(f"the cube's compute alone: {cost['compute_seconds'] / 3600:.3g} core-hours "
-          f"(straylight.survey.plan.CUBE_*)")
+        print(
+            f"this machine: {speed['samples']} cube samples on the direct sum took "
+            f"{speed['measured_seconds']:.3f} s against the {speed['assumed_seconds']:.3f} s of the cost "
+            f"figures (x{speed['factor']:.2f}); every figure above is scaled by it"
+        )
+    print(
+        f"the cube's compute alone: {cost['compute_seconds'] / 3600:.3g} core-hours "
+        f"(straylight.survey.plan.CUBE_*)"
+    )
     return 0
 
 
@@ -98,8 +121,8 @@ def _duration(seconds: float) -> str:
 def cmd_catalog(args) -> int:
     """``straylight catalog``: the bright-star catalog from Gaia files, or from Hipparcos."""
     from straylight.catalog.build import catalog_for_campaign, ingest_many, write_catalog
-    from straylight.config import load_campaign
     from straylight.catalog.gaia import write_parquet
+    from straylight.config import load_campaign
 
     out = Path(args.out)
     if out.suffix not in (".parquet", ".fits"):
@@ -122,9 +145,11 @@ def cmd_catalog(args) -> int:
         write_parquet(quarantine, q)
         summary["quarantine_file"] = str(q)
     rt = summary["round_trip_bp_rp_mag"]
-    print(f"{out}: {summary['stars']} stars {summary['by_source']}; template BP-RP round trip: median "
-          f"{rt['median_abs_bp_rp_mag']:.3f}, p90 {rt['p90_abs_bp_rp_mag']:.3f}, "
-          f"p99 {rt['p99_abs_bp_rp_mag']:.3f} mag")
+    print(
+        f"{out}: {summary['stars']} stars {summary['by_source']}; template BP-RP round trip: median "
+        f"{rt['median_abs_bp_rp_mag']:.3f}, p90 {rt['p90_abs_bp_rp_mag']:.3f}, "
+        f"p99 {rt['p99_abs_bp_rp_mag']:.3f} mag"
+    )
     if args.json:
         print_json(summary)
     return 0
@@ -136,21 +161,23 @@ def cmd_pst(args) -> int:
 
     check_out(args, args.write_default, "--write-default")
     write_pst_csv(load_pst(None), args.write_default)
-    print(f"{args.write_default}: embedded default PST "
-          "(assumption; see straylight.optics.pst.default_pst_grid)")
+    print(
+        f"{args.write_default}: embedded default PST (assumption; see straylight.optics.pst.default_pst_grid)"
+    )
     return 0
 
 
 def cmd_schedule(args) -> int:
     """``straylight schedule``: the scheduling tables in a folder."""
-    from straylight.model import BackgroundModel
     from straylight.config import load_campaign
+    from straylight.model import BackgroundModel
     from straylight.survey.scheduling import write_tables
 
     check_out(args, args.out, folder=True)
     campaign = load_campaign(args.config)
-    fraction = float(args.fraction if args.fraction is not None
-                     else campaign.config["scheduling"]["fraction_of_zodiacal"])
+    fraction = float(
+        args.fraction if args.fraction is not None else campaign.config["scheduling"]["fraction_of_zodiacal"]
+    )
     if not 0 < fraction <= 10:
         raise InputError(f"--fraction {fraction}: must be within (0, 10]")
     for p in write_tables(BackgroundModel(campaign), args.out, fraction):
@@ -171,4 +198,3 @@ def cmd_run(args) -> int:
     from straylight.runner import run_campaign
 
     return run_campaign(args.config, args.cores, args.snakemake_args)
-

@@ -1,5 +1,6 @@
 """``straylight image``: the in-field stray light of one detector as a FITS image; the parsing
 of its target (--ra/--dec or --star) and cutout, and its printed summary."""
+
 from __future__ import annotations
 
 import math
@@ -27,8 +28,10 @@ def _resolve_star(catalog: dict, source_id: np.ndarray, text: str) -> int:
     elif key.lower() in BRIGHT_STAR_HIP:
         number = BRIGHT_STAR_HIP[key.lower()]
     else:
-        raise InputError(f"--star {text!r}: not a HIP number or a known name "
-                         f"({', '.join(sorted(n.capitalize() for n in BRIGHT_STAR_HIP))})")
+        raise InputError(
+            f"--star {text!r}: not a HIP number or a known name "
+            f"({', '.join(sorted(n.capitalize() for n in BRIGHT_STAR_HIP))})"
+        )
     rows = np.flatnonzero(source_id == number)
     if rows.size == 0:
         raise InputError(f"--star {text!r}: HIP/source_id {number} is not in the catalog {catalog['path']}")
@@ -48,8 +51,10 @@ def _read_source_ids(path) -> np.ndarray:
             return np.asarray(t.column("source_id").to_numpy())
         return np.asarray(Table.read(p)["source_id"])
     except Exception as exc:
-        raise InputError(f"--star needs a catalog with a source_id column (HIP numbers for Hipparcos stars); "
-                         f"{p}: {type(exc).__name__}: {exc}") from None
+        raise InputError(
+            f"--star needs a catalog with a source_id column (HIP numbers for Hipparcos stars); "
+            f"{p}: {type(exc).__name__}: {exc}"
+        ) from None
 
 
 def _checked_image_args(args) -> tuple[tuple[float, float] | None, list[int] | None]:
@@ -64,12 +69,15 @@ def _checked_image_args(args) -> tuple[tuple[float, float] | None, list[int] | N
         raise InputError(f"--bin {args.bin}: must be a positive integer")
     if args.quantize_step is not None:  # checked here, not after the rendering
         if args.compress != "rice":
-            raise InputError(f"--quantize-step {args.quantize_step:g}: applies only with --compress rice "
-                             f"(this image is written with --compress {args.compress}, which does not "
-                             "quantise)")
+            raise InputError(
+                f"--quantize-step {args.quantize_step:g}: applies only with --compress rice "
+                f"(this image is written with --compress {args.compress}, which does not "
+                "quantise)"
+            )
         if not (math.isfinite(args.quantize_step) and args.quantize_step > 0):
-            raise InputError(f"--quantize-step {args.quantize_step:g}: must be a positive number of "
-                             "e-/s/pixel")
+            raise InputError(
+                f"--quantize-step {args.quantize_step:g}: must be a positive number of e-/s/pixel"
+            )
     cutout = None
     if args.cutout:
         try:
@@ -79,8 +87,9 @@ def _checked_image_args(args) -> tuple[tuple[float, float] | None, list[int] | N
             if len(parts) != 2 or min(parts) < 1:
                 raise ValueError
         except ValueError:
-            raise InputError(f"--cutout {args.cutout!r}: expected WIDTH or WIDTH,HEIGHT in pixels, "
-                             "positive") from None
+            raise InputError(
+                f"--cutout {args.cutout!r}: expected WIDTH or WIDTH,HEIGHT in pixels, positive"
+            ) from None
         cutout = parts
     return target, cutout
 
@@ -117,20 +126,28 @@ def cmd_image(args) -> int:
         row = _resolve_star({"path": catalog}, _read_source_ids(catalog), args.star)
         target = (float(ra[row]), float(dec[row]))
         star_label = f"{args.star} (mag_{args.band} {mag[row]:.2f})"
-    settings = RenderSettings(far_bin=args.far_bin, margin_arcsec=args.margin_arcsec,
-                              paint_ghosts=not args.no_ghosts)
-    frame = frame_for_target(campaign, t, target[0], target[1], band, ra, dec, mag, fp, args.detector,
-                             args.center, settings)
+    settings = RenderSettings(
+        far_bin=args.far_bin, margin_arcsec=args.margin_arcsec, paint_ghosts=not args.no_ghosts
+    )
+    frame = frame_for_target(
+        campaign, t, target[0], target[1], band, ra, dec, mag, fp, args.detector, args.center, settings
+    )
     if frame.body_names:
-        print("in the field, imaged as stars: "
-              + ", ".join(f"{n} ({m:.2f} AB)" for n, m in zip(frame.body_names, frame.body_mag_ab)))
+        print(
+            "in the field, imaged as stars: "
+            + ", ".join(f"{n} ({m:.2f} AB)" for n, m in zip(frame.body_names, frame.body_mag_ab))
+        )
     if frame.selection.index.size == 0:
         where = "the chip's centre" if args.center == "detector" else "the boresight (in a gap between chips)"
-        msg = (f"no star of {catalog} reaches detector {args.detector} (target RA {target[0]:.4f}, Dec "
-               f"{target[1]:+.4f} at {where}): the stray-light image is zero everywhere")
+        msg = (
+            f"no star of {catalog} reaches detector {args.detector} (target RA {target[0]:.4f}, Dec "
+            f"{target[1]:+.4f} at {where}): the stray-light image is zero everywhere"
+        )
         if not args.allow_empty:
-            print(f"straylight: warning: {msg}; nothing written (pass --allow-empty to write it)",
-                  file=sys.stderr)
+            print(
+                f"straylight: warning: {msg}; nothing written (pass --allow-empty to write it)",
+                file=sys.stderr,
+            )
             return 1
         print(f"straylight: warning: {msg}", file=sys.stderr)
     window = None
@@ -138,28 +155,44 @@ def cmd_image(args) -> int:
         xt, yt = frame.pixel_of(target[0], target[1])
         window = cutout_window(fp, xt, yt, cutout[0], cutout[1])
         if window is None:
-            raise InputError(f"--cutout {args.cutout}: the target (pixel {xt:.0f}, {yt:.0f}) is off "
-                             f"detector {args.detector}; use --center detector")
+            raise InputError(
+                f"--cutout {args.cutout}: the target (pixel {xt:.0f}, {yt:.0f}) is off "
+                f"detector {args.detector}; use --center detector"
+            )
     bore_ra, bore_dec = frame.boresight_ra_deg, frame.boresight_dec_deg
     background = None
     if args.background:
         background = _image_background(campaign, t, bore_ra, bore_dec, args.band, catalog)
-    result = render_frame(frame, inst, args.band, window, args.bin,
-                          background["total"] if background is not None else None)
+    result = render_frame(
+        frame, inst, args.band, window, args.bin, background["total"] if background is not None else None
+    )
     from straylight import __version__
 
     prov = {
-        "DATE-OBS": t.isot, "RA_PNT": bore_ra, "DEC_PNT": bore_dec,
-        "RA_TARG": target[0], "DEC_TARG": target[1],
-        "CENTER": args.center, "BAND": args.band, "DETECTOR": args.detector, "CATALOG": str(catalog)[-60:],
-        "SLVERS": __version__, "CONFIG": str(campaign.path)[-60:], "TPUTSRC": band.origin[:60],
+        "DATE-OBS": t.isot,
+        "RA_PNT": bore_ra,
+        "DEC_PNT": bore_dec,
+        "RA_TARG": target[0],
+        "DEC_TARG": target[1],
+        "CENTER": args.center,
+        "BAND": args.band,
+        "DETECTOR": args.detector,
+        "CATALOG": str(catalog)[-60:],
+        "SLVERS": __version__,
+        "CONFIG": str(campaign.path)[-60:],
+        "TPUTSRC": band.origin[:60],
     }
     if args.star is not None:
         prov["STAR"] = args.star[:60]
     if background is not None:
-        prov.update({"BKG_TOT": background["total"], "BKG_ZODI": background["zodiacal"],
-                     "BKG_OBS": bool(background["observable"]),
-                     "BKG_NOTE": "diffuse bkg at RA/DEC_PNT, e-/s/pix"})
+        prov.update(
+            {
+                "BKG_TOT": background["total"],
+                "BKG_ZODI": background["zodiacal"],
+                "BKG_OBS": bool(background["observable"]),
+                "BKG_NOTE": "diffuse bkg at RA/DEC_PNT, e-/s/pix",
+            }
+        )
     write_fits(result, out, prov, compress=args.compress, quantize_step=args.quantize_step)
     img = result.image_e_per_s_per_pix
     centred = f", centred: {star_label}" if star_label else ""
@@ -168,26 +201,39 @@ def cmd_image(args) -> int:
         added = f"; background {background['total']:.4g} e-/s/pix added"
         if not background["observable"]:
             added += f" (pointing NOT observable: {background['violations']})"
-    print(f"{out}: {img.shape[1]} x {img.shape[0]} px (bin {args.bin}), {out.stat().st_size / 1e6:.1f} MB "
-          f"({args.compress}); boresight RA {bore_ra:.5f} Dec {bore_dec:+.5f}; "
-          f"{len(result.stars['x_pix'])} stars reach the chip ({frame.selection.n_on_chip} on it){centred}; "
-          f"{len(result.ghosts['x_pix'])} ghost discs; max {img.max():.4g}, median {np.median(img):.4g} "
-          f"e-/s/pix{added}")
+    print(
+        f"{out}: {img.shape[1]} x {img.shape[0]} px (bin {args.bin}), {out.stat().st_size / 1e6:.1f} MB "
+        f"({args.compress}); boresight RA {bore_ra:.5f} Dec {bore_dec:+.5f}; "
+        f"{len(result.stars['x_pix'])} stars reach the chip ({frame.selection.n_on_chip} on it){centred}; "
+        f"{len(result.ghosts['x_pix'])} ghost discs; max {img.max():.4g}, median {np.median(img):.4g} "
+        f"e-/s/pix{added}"
+    )
     return 0
 
 
 def _image_background(campaign, t, ra_deg: float, dec_deg: float, band: str, catalog) -> dict:
     """Diffuse background (zodiacal, earthshine, Moon, Sun, planets, off-field stars) at the
     boresight and time, e-/s/pixel, through the pointing-table evaluation."""
-    from straylight.sources.stars import load_offfield_stars
     from straylight.sky.geometry import violation_names
+    from straylight.sources.stars import load_offfield_stars
     from straylight.survey.pointings import pointing_table
 
-    stars = load_offfield_stars(catalog, [band], float(campaign.config["stars"]["offfield_mag_limit"]),
-                                bool(campaign.config["stars"].get("faint_map", True)))
-    cols = pointing_table(campaign, {"time": np.array([t.isot]), "ra": np.array([ra_deg]),
-                                     "dec": np.array([dec_deg])}, [band], stars, source="--time/--ra/--dec")
-    return {"total": float(cols[f"total_{band}"][0]), "zodiacal": float(cols[f"zodiacal_{band}"][0]),
-            "observable": bool(cols["observable"][0]),
-            "violations": ", ".join(violation_names(int(cols["violations"][0]))) or "door"}
-
+    stars = load_offfield_stars(
+        catalog,
+        [band],
+        float(campaign.config["stars"]["offfield_mag_limit"]),
+        bool(campaign.config["stars"].get("faint_map", True)),
+    )
+    cols = pointing_table(
+        campaign,
+        {"time": np.array([t.isot]), "ra": np.array([ra_deg]), "dec": np.array([dec_deg])},
+        [band],
+        stars,
+        source="--time/--ra/--dec",
+    )
+    return {
+        "total": float(cols[f"total_{band}"][0]),
+        "zodiacal": float(cols[f"zodiacal_{band}"][0]),
+        "observable": bool(cols["observable"][0]),
+        "violations": ", ".join(violation_names(int(cols["violations"][0]))) or "door",
+    }

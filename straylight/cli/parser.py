@@ -4,6 +4,7 @@ names the function that runs it (``cmd_<command>`` in the command group's module
 A new command: its ``cmd_`` function in the module of its group (or a new one), an ``_add_``
 function here and a line in :data:`COMMANDS`.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -27,57 +28,100 @@ def _add_sky(sub) -> None:
     s.add_argument("--time", default=None, help="UTC time, ISO 8601")
     s.add_argument("--ra", default=None, help="ICRS right ascension, deg, within [-360, 360]")
     s.add_argument("--dec", default=None, help="ICRS declination, deg, within [-90, 90]")
-    s.add_argument("--input", default=None,
-                   help="table of pointings (time, ra, dec; CSV/ECSV/Parquet/FITS) -> --out table.parquet")
+    s.add_argument(
+        "--input",
+        default=None,
+        help="table of pointings (time, ra, dec; CSV/ECSV/Parquet/FITS) -> --out table.parquet",
+    )
     s.add_argument("--out", default=None, help="with --input: output Parquet table")
     add_output_flags(s)
     s.add_argument("--config", default=None, help=CONFIG_HELP)
-    s.add_argument("--bands", default=None,
-                   help="comma-separated bands (default: the instrument's); 'V' = Bessell V diagnostic")
-    s.add_argument("--catalog", default=None,
-                   help="star table (ra, dec, mag_<band>) for the off-field star term (stars brighter than "
-                        "stars.offfield_mag_limit, as in the cube); without it stars = 0")
+    s.add_argument(
+        "--bands",
+        default=None,
+        help="comma-separated bands (default: the instrument's); 'V' = Bessell V diagnostic",
+    )
+    s.add_argument(
+        "--catalog",
+        default=None,
+        help="star table (ra, dec, mag_<band>) for the off-field star term (stars brighter than "
+        "stars.offfield_mag_limit, as in the cube); without it stars = 0",
+    )
     s.add_argument("--json", action="store_true", help="print JSON")
     s.set_defaults(func=sky.cmd_sky)
 
 
 def _add_image(sub) -> None:
     im = sub.add_parser("image", help="in-field stray-light image of one detector (FITS, e-/s/pixel)")
-    im.add_argument("--time", required=True,
-                    help="UTC time, ISO 8601, or with an offset (+08:00); sets the roll")
+    im.add_argument(
+        "--time", required=True, help="UTC time, ISO 8601, or with an offset (+08:00); sets the roll"
+    )
     im.add_argument("--ra", default=None, help="target RA, deg (ICRS)")
     im.add_argument("--dec", default=None, help="target Dec, deg (ICRS)")
-    im.add_argument("--star", default=None,
-                    help="target star instead of --ra/--dec: a HIP number (e.g. 32349 or HIP32349) or an IAU "
-                         "name of a bright star (e.g. Sirius), looked up in the catalog")
-    im.add_argument("--center", choices=("detector", "boresight"), default="detector",
-                    help="detector (default): the target lands on the centre of --detector; boresight: the "
-                         "target is the telescope axis (which falls in a gap between chips)")
+    im.add_argument(
+        "--star",
+        default=None,
+        help="target star instead of --ra/--dec: a HIP number (e.g. 32349 or HIP32349) or an IAU "
+        "name of a bright star (e.g. Sirius), looked up in the catalog",
+    )
+    im.add_argument(
+        "--center",
+        choices=("detector", "boresight"),
+        default="detector",
+        help="detector (default): the target lands on the centre of --detector; boresight: the "
+        "target is the telescope axis (which falls in a gap between chips)",
+    )
     im.add_argument("--band", required=True, help="band (NUV u g r i z y)")
     im.add_argument("--detector", type=int, default=12, help="detector index 0..29 (row-major; default 12)")
-    im.add_argument("--catalog", default=None,
-                    help="star table with ra, dec, mag_<band> (Parquet/FITS/CSV/ECSV); default: the "
-                         "campaign's Hipparcos catalog (as `straylight catalog` without --input), built once "
-                         "and cached")
+    im.add_argument(
+        "--catalog",
+        default=None,
+        help="star table with ra, dec, mag_<band> (Parquet/FITS/CSV/ECSV); default: the "
+        "campaign's Hipparcos catalog (as `straylight catalog` without --input), built once "
+        "and cached",
+    )
     im.add_argument("--out", required=True, help="output FITS file")
-    im.add_argument("--bin", type=int, default=1,
-                    help="average N x N pixels (e-/s per chip pixel kept; 8 makes a 5 MB preview)")
-    im.add_argument("--cutout", default=None,
-                    help="WIDTH[,HEIGHT] pixels around the target instead of the whole 9216 x 9232 chip")
-    im.add_argument("--compress", choices=("gzip", "rice", "none"), default="gzip",
-                    help="FITS tile compression: gzip (lossless, default), rice (values quantised to "
-                         "--quantize-step), none")
-    im.add_argument("--quantize-step", type=float, default=None,
-                    help="with --compress rice: quantisation step, e-/s/pixel (default 1e-4)")
-    im.add_argument("--background", action="store_true",
-                    help="add the diffuse background (zodiacal, earthshine, Moon, Sun, planets, off-field "
-                         "stars) at that time and boresight, as `straylight sky` gives it")
-    im.add_argument("--allow-empty", action="store_true",
-                    help="write the image even when no star reaches the chip (otherwise: warning, exit 1)")
-    im.add_argument("--far-bin", type=int, default=8,
-                    help="binning of the far-field halo convolution (1 = exact)")
-    im.add_argument("--margin-arcsec", type=float, default=600.0,
-                    help="stars this far off the chip still count")
+    im.add_argument(
+        "--bin",
+        type=int,
+        default=1,
+        help="average N x N pixels (e-/s per chip pixel kept; 8 makes a 5 MB preview)",
+    )
+    im.add_argument(
+        "--cutout",
+        default=None,
+        help="WIDTH[,HEIGHT] pixels around the target instead of the whole 9216 x 9232 chip",
+    )
+    im.add_argument(
+        "--compress",
+        choices=("gzip", "rice", "none"),
+        default="gzip",
+        help="FITS tile compression: gzip (lossless, default), rice (values quantised to "
+        "--quantize-step), none",
+    )
+    im.add_argument(
+        "--quantize-step",
+        type=float,
+        default=None,
+        help="with --compress rice: quantisation step, e-/s/pixel (default 1e-4)",
+    )
+    im.add_argument(
+        "--background",
+        action="store_true",
+        help="add the diffuse background (zodiacal, earthshine, Moon, Sun, planets, off-field "
+        "stars) at that time and boresight, as `straylight sky` gives it",
+    )
+    im.add_argument(
+        "--allow-empty",
+        action="store_true",
+        help="write the image even when no star reaches the chip (otherwise: warning, exit 1)",
+    )
+    im.add_argument(
+        "--far-bin", type=int, default=8, help="binning of the far-field halo convolution (1 = exact)"
+    )
+    im.add_argument(
+        "--margin-arcsec", type=float, default=600.0, help="stars this far off the chip still count"
+    )
     im.add_argument("--no-ghosts", action="store_true", help="list ghost discs but do not paint them")
     im.add_argument("--config", default=None, help=CONFIG_HELP)
     add_output_flags(im)
@@ -85,17 +129,25 @@ def _add_image(sub) -> None:
 
 
 def _add_scenario(sub) -> None:
-    sc = sub.add_parser("scenario",
-                        help="the paper's earthshine scenario (sect. 3.3) as a figure and a table")
-    sc.add_argument("--out", default=None,
-                    help="output PNG, a CSV goes beside it (default: results/scenarios/earthshine.png, its "
-                         "folders created)")
+    sc = sub.add_parser(
+        "scenario", help="the paper's earthshine scenario (sect. 3.3) as a figure and a table"
+    )
+    sc.add_argument(
+        "--out",
+        default=None,
+        help="output PNG, a CSV goes beside it (default: results/scenarios/earthshine.png, its "
+        "folders created)",
+    )
     sc.add_argument("--band", default="V", help="band (default V, as the HST comparison)")
     add_output_flags(sc)
-    sc.add_argument("--hst-curve", default=None, metavar="PATH",
-                    help="HST earthshine curve (CSV: limb_angle_deg, v_mag_per_arcsec2) to overlay; prints "
-                         "and writes (JSON beside the CSV) the limb angle where CSST's median falls to HST's "
-                         "at 20 deg")
+    sc.add_argument(
+        "--hst-curve",
+        default=None,
+        metavar="PATH",
+        help="HST earthshine curve (CSV: limb_angle_deg, v_mag_per_arcsec2) to overlay; prints "
+        "and writes (JSON beside the CSV) the limb angle where CSST's median falls to HST's "
+        "at 20 deg",
+    )
     sc.add_argument("--config", default=None, help=CONFIG_HELP)
     sc.set_defaults(func=paper.cmd_scenario)
 
@@ -104,23 +156,38 @@ def _add_plan(sub) -> None:
     pl = sub.add_parser("plan", help="samples, output size and core-hours of a campaign before running it")
     pl.add_argument("config", nargs="?", default=None, help=CONFIG_HELP)
     how = pl.add_mutually_exclusive_group()
-    how.add_argument("--seconds-per-sample", type=float, default=None,
-                     help="cost of one evaluated (time, pointing) sample, all bands, one core, on the "
-                          "machine that will run (default: straylight.survey.plan's cost figures for the "
-                          "earthshine model auto picks)")
-    how.add_argument("--calibrate", action="store_true",
-                     help="time a few cube steps on this machine (seconds) and scale the figures by it")
-    pl.add_argument("--cores", type=int, default=None,
-                    help="cores the campaign will run on (default: the CPUs this process may use)")
+    how.add_argument(
+        "--seconds-per-sample",
+        type=float,
+        default=None,
+        help="cost of one evaluated (time, pointing) sample, all bands, one core, on the "
+        "machine that will run (default: straylight.survey.plan's cost figures for the "
+        "earthshine model auto picks)",
+    )
+    how.add_argument(
+        "--calibrate",
+        action="store_true",
+        help="time a few cube steps on this machine (seconds) and scale the figures by it",
+    )
+    pl.add_argument(
+        "--cores",
+        type=int,
+        default=None,
+        help="cores the campaign will run on (default: the CPUs this process may use)",
+    )
     pl.set_defaults(func=campaign.cmd_plan)
 
 
 def _add_catalog(sub) -> None:
-    ca = sub.add_parser("catalog",
-                        help="bright-star catalog in the CSST bands (Gaia DR2 files, or Hipparcos)")
-    ca.add_argument("--input", nargs="*", default=[],
-                    help="Gaia DR2 files (CSV, CSV.gz, ECSV, VOTable, FITS); none: the default Hipparcos "
-                         "catalog")
+    ca = sub.add_parser(
+        "catalog", help="bright-star catalog in the CSST bands (Gaia DR2 files, or Hipparcos)"
+    )
+    ca.add_argument(
+        "--input",
+        nargs="*",
+        default=[],
+        help="Gaia DR2 files (CSV, CSV.gz, ECSV, VOTable, FITS); none: the default Hipparcos catalog",
+    )
     ca.add_argument("--out", required=True, help="output catalog (.parquet or .fits)")
     ca.add_argument("--fits", default=None, help="also write a FITS copy for image-simulation tools")
     ca.add_argument("--config", default=None, help=CONFIG_HELP)
@@ -137,12 +204,17 @@ def _add_pst(sub) -> None:
 
 
 def _add_schedule(sub) -> None:
-    sh = sub.add_parser("schedule",
-                        help="scheduling tables: Moon and bright-limb angles, exposure-time factor")
+    sh = sub.add_parser(
+        "schedule", help="scheduling tables: Moon and bright-limb angles, exposure-time factor"
+    )
     sh.add_argument("--out", required=True, help="output folder (CSV and PNG per table)")
-    sh.add_argument("--fraction", type=float, default=None,
-                    help="stray light allowed, as a fraction of the darkest zodiacal light (default: config "
-                         "scheduling.fraction_of_zodiacal)")
+    sh.add_argument(
+        "--fraction",
+        type=float,
+        default=None,
+        help="stray light allowed, as a fraction of the darkest zodiacal light (default: config "
+        "scheduling.fraction_of_zodiacal)",
+    )
     sh.add_argument("--config", default=None, help=CONFIG_HELP)
     add_output_flags(sh)
     sh.set_defaults(func=campaign.cmd_schedule)
@@ -150,34 +222,51 @@ def _add_schedule(sub) -> None:
 
 def _add_figure(sub) -> None:
     fg = sub.add_parser("figure", help="one of the paper's in-field figures (sects. 4.1-4.4) as a PNG")
-    fg.add_argument("name", choices=["zodiacal-map", "scattering", "ghosts", "detector"],
-                    help="zodiacal-map (4.1), scattering (4.2), ghosts (4.3), detector (4.4); "
-                         "the earthshine figure (3.3) is 'straylight scenario'")
+    fg.add_argument(
+        "name",
+        choices=["zodiacal-map", "scattering", "ghosts", "detector"],
+        help="zodiacal-map (4.1), scattering (4.2), ghosts (4.3), detector (4.4); "
+        "the earthshine figure (3.3) is 'straylight scenario'",
+    )
     fg.add_argument("--out", default=None, help="output PNG (default docs/img/paper_<name>.png)")
-    fg.add_argument("--catalog", default=None,
-                    help="detector: star table (ra, dec, mag_NUV); default the Hipparcos catalog in the "
-                         "CSST bands")
+    fg.add_argument(
+        "--catalog",
+        default=None,
+        help="detector: star table (ra, dec, mag_NUV); default the Hipparcos catalog in the CSST bands",
+    )
     fg.add_argument("--config", default=None, help=CONFIG_HELP)
     fg.set_defaults(func=paper.cmd_figure)
 
 
 def _add_visibility(sub) -> None:
-    v = sub.add_parser("visibility",
-                       help="a target's background, 5-sigma limit and observable windows over time")
+    v = sub.add_parser(
+        "visibility", help="a target's background, 5-sigma limit and observable windows over time"
+    )
     v.add_argument("--ra", required=True, help="ICRS right ascension, deg")
     v.add_argument("--dec", required=True, help="ICRS declination, deg")
     v.add_argument("--band", required=True, help="band (NUV u g r i z y)")
     v.add_argument("--start", default=None, help="UTC start, ISO 8601 (default: the campaign's start)")
     v.add_argument("--end", default=None, help="UTC end, exclusive (default: the campaign's end)")
-    v.add_argument("--step-min", type=finite_float("--step-min"), default=None,
-                   help="sampling step, minutes (default: the campaign's cadence)")
-    v.add_argument("--threshold", type=finite_float("--threshold"), default=None,
-                   help="AB mag: list the days when the 5-sigma limit is at least this deep")
-    v.add_argument("--out", default=None,
-                   help="table of the samples (.csv or .ecsv); _windows and _days tables are written "
-                        "beside it")
-    v.add_argument("--plot", default=None,
-                   help="figure of background and limit against time (.png, .pdf, .svg)")
+    v.add_argument(
+        "--step-min",
+        type=finite_float("--step-min"),
+        default=None,
+        help="sampling step, minutes (default: the campaign's cadence)",
+    )
+    v.add_argument(
+        "--threshold",
+        type=finite_float("--threshold"),
+        default=None,
+        help="AB mag: list the days when the 5-sigma limit is at least this deep",
+    )
+    v.add_argument(
+        "--out",
+        default=None,
+        help="table of the samples (.csv or .ecsv); _windows and _days tables are written beside it",
+    )
+    v.add_argument(
+        "--plot", default=None, help="figure of background and limit against time (.png, .pdf, .svg)"
+    )
     v.add_argument("--config", default=None, help=CONFIG_HELP)
     add_output_flags(v)
     v.set_defaults(func=sky.cmd_visibility)
@@ -196,21 +285,39 @@ def _add_footprint(sub) -> None:
 
 def _add_run(sub) -> None:
     # arguments it does not know go to Snakemake (straylight.cli.main: parse_known_args)
-    ru = sub.add_parser("run",
-                        help="run a campaign (the packaged workflow through Snakemake) in the current "
-                             "directory",
-                        usage="straylight run CONFIG [--cores N] "
-                              "[Snakemake arguments: -n, --report report.html ...]")
-    ru.add_argument("config", metavar="CONFIG",
-                    help="campaign config; products go to ./results/<campaign name>/")
-    ru.add_argument("--cores", type=int, default=None,
-                    help="cores Snakemake may use (default: every CPU this process may run on)")
+    ru = sub.add_parser(
+        "run",
+        help="run a campaign (the packaged workflow through Snakemake) in the current directory",
+        usage="straylight run CONFIG [--cores N] [Snakemake arguments: -n, --report report.html ...]",
+    )
+    ru.add_argument(
+        "config", metavar="CONFIG", help="campaign config; products go to ./results/<campaign name>/"
+    )
+    ru.add_argument(
+        "--cores",
+        type=int,
+        default=None,
+        help="cores Snakemake may use (default: every CPU this process may run on)",
+    )
     ru.set_defaults(func=campaign.cmd_run, snakemake_args=[])
 
 
 #: The commands in the order ``straylight --help`` lists them: each adds its sub-parser.
-COMMANDS = (_add_ephem, _add_sky, _add_image, _add_scenario, _add_plan, _add_catalog, _add_pst, _add_schedule,
-            _add_figure, _add_visibility, _add_config_doc, _add_footprint, _add_run)
+COMMANDS = (
+    _add_ephem,
+    _add_sky,
+    _add_image,
+    _add_scenario,
+    _add_plan,
+    _add_catalog,
+    _add_pst,
+    _add_schedule,
+    _add_figure,
+    _add_visibility,
+    _add_config_doc,
+    _add_footprint,
+    _add_run,
+)
 
 
 def build_parser() -> argparse.ArgumentParser:

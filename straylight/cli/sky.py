@@ -1,5 +1,6 @@
 """The sky at one pointing: ``ephem`` (the bodies' positions), ``sky`` (one pointing, or a table of
 them) and ``visibility`` (a target over time)."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -28,8 +29,12 @@ def cmd_ephem(args) -> int:
         p = pos[b]
         ra, dec, dist = radec_distance(p)
         out["bodies"][b] = {
-            "x_km": float(p[0]), "y_km": float(p[1]), "z_km": float(p[2]),
-            "ra_deg": float(ra), "dec_deg": float(dec), "distance_km": float(dist),
+            "x_km": float(p[0]),
+            "y_km": float(p[1]),
+            "z_km": float(p[2]),
+            "ra_deg": float(ra),
+            "dec_deg": float(dec),
+            "distance_km": float(dist),
         }
     if args.json:
         print_json(out)
@@ -58,8 +63,15 @@ def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None, stars=
     sc = scene(campaign.orbit, time)
     model = model() if model is not None else BackgroundModel(campaign)
     los = np.atleast_2d(radec_to_unit(np.array([ra_deg]), np.array([dec_deg])))
-    g1, comps = background_at(model, sc.satellite_km, sc.bodies_km, los, bands or campaign.bands, stars=stars,
-                              geometry_bodies=tuple(sc.bodies_km))
+    g1, comps = background_at(
+        model,
+        sc.satellite_km,
+        sc.bodies_km,
+        los,
+        bands or campaign.bands,
+        stars=stars,
+        geometry_bodies=tuple(sc.bodies_km),
+    )
     v = {k: np.asarray(a).ravel()[0] for k, a in g1.items()}
     door = float(v["door_opening_deg"])
     record = {
@@ -91,9 +103,15 @@ def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None, stars=
     # bodies inside the field: point sources, left out of the background and listed here
     in_field = model.in_field.find(sc.satellite_km, sc.bodies_km, los, g1, bands or campaign.bands)
     record["in_field_point_sources"] = [
-        {"body": k, "angle_deg": float(np.ravel(v["angle_deg"])[0]), "v_mag": float(np.ravel(v["v_mag"])[0]),
-         "mag_ab": {b: float(np.ravel(m)[0]) for b, m in v["mag_ab"].items()}}
-        for k, v in in_field.items() if bool(np.ravel(v["in_field"])[0])]
+        {
+            "body": k,
+            "angle_deg": float(np.ravel(v["angle_deg"])[0]),
+            "v_mag": float(np.ravel(v["v_mag"])[0]),
+            "mag_ab": {b: float(np.ravel(m)[0]) for b, m in v["mag_ab"].items()},
+        }
+        for k, v in in_field.items()
+        if bool(np.ravel(v["in_field"])[0])
+    ]
     zero_points = sky_zero_points(campaign, list(comps))
     for name, res in comps.items():
         mag = res["_mag"]
@@ -103,8 +121,11 @@ def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None, stars=
             m = float(np.ravel(mag(e))[0])
             entry[comp] = {"e_per_s_per_pix": e, "mag_per_arcsec2": m if np.isfinite(m) else None}
         entry["mag_zero_point"] = zero_points[name]
-        entry["limit_mag"] = (float(point_source_limit(entry["total"]["e_per_s_per_pix"], name, campaign))
-                              if name != "V" else None)
+        entry["limit_mag"] = (
+            float(point_source_limit(entry["total"]["e_per_s_per_pix"], name, campaign))
+            if name != "V"
+            else None
+        )
         record["bands"][name] = entry
     first = next(iter(comps.values()))
     record["zodiacal_no_data_near_sun"] = bool(np.ravel(first["_zodiacal_no_data"])[0])
@@ -135,13 +156,17 @@ def cmd_sky(args) -> int:
     if args.catalog:  # the cube's star model: stars brighter than stars.offfield_mag_limit
         from straylight.sources.stars import load_offfield_stars
 
-        stars = load_offfield_stars(args.catalog, bands or campaign.bands,
-                                    float(campaign.config["stars"]["offfield_mag_limit"]),
-                                    bool(campaign.config["stars"].get("faint_map", True)))
+        stars = load_offfield_stars(
+            args.catalog,
+            bands or campaign.bands,
+            float(campaign.config["stars"]["offfield_mag_limit"]),
+            bool(campaign.config["stars"].get("faint_map", True)),
+        )
     if args.input:
         return _sky_table(args, campaign, bands, stars)
-    rec = sky_record(campaign, args.time, pointing[0], pointing[1], bands, stars,
-                     lambda: _sky_model(args.config))
+    rec = sky_record(
+        campaign, args.time, pointing[0], pointing[1], bands, stars, lambda: _sky_model(args.config)
+    )
     if args.json:
         print_json(rec)
     else:
@@ -153,8 +178,10 @@ def cmd_sky(args) -> int:
         print(f"  observable: {rec['observable']}  violations: {', '.join(rec['violations']) or 'none'}")
         for src in rec["in_field_point_sources"]:
             mags = "  ".join(f"{b} {m:.2f}" for b, m in src["mag_ab"].items())
-            print(f"  in the field (a point source, not in the background): {src['body']} "
-                  f"{src['angle_deg']:.3f} deg off axis, V {src['v_mag']:.2f}; AB {mags}")
+            print(
+                f"  in the field (a point source, not in the background): {src['body']} "
+                f"{src['angle_deg']:.3f} deg off axis, V {src['v_mag']:.2f}; AB {mags}"
+            )
         print(_sky_band_table(rec["bands"]))
     return 0
 
@@ -169,8 +196,10 @@ def _sky_bands(text, campaign) -> list[str] | None:
     bands = [b.strip() for b in text.split(",") if b.strip()]
     known = [*campaign.bands, *DIAGNOSTIC_BANDS]
     if not bands:
-        raise InputError(f"--bands {text!r}: no band given; valid bands: {', '.join(known)} "
-                         "(leave --bands out for all the instrument's)")
+        raise InputError(
+            f"--bands {text!r}: no band given; valid bands: {', '.join(known)} "
+            "(leave --bands out for all the instrument's)"
+        )
     unknown = [b for b in bands if b not in known]
     if unknown:
         raise InputError(f"--bands: unknown band {unknown[0]!r}; valid bands: {', '.join(known)}")
@@ -183,13 +212,18 @@ _SKY_COLUMNS = ("zodiacal", "earthshine", "moon", "sun", "planets", "stars", "to
 def _sky_band_table(bands: dict) -> str:
     """The per-band lines of `straylight sky`: each component in e-/s/pixel (3 significant
     digits) and in AB mag/arcsec2 (2 decimals), then the 5-sigma limit (AB mag)."""
-    head = (f"  {'band':4s} {'unit':14s}" + "".join(f"{c:>11s}" for c in _SKY_COLUMNS)
-            + f"{'5-sigma lim':>13s}")
+    head = (
+        f"  {'band':4s} {'unit':14s}" + "".join(f"{c:>11s}" for c in _SKY_COLUMNS) + f"{'5-sigma lim':>13s}"
+    )
     lines = [head]
     for name, comp in bands.items():
         rate = "".join(f"{comp[c]['e_per_s_per_pix']:>11.3g}" for c in _SKY_COLUMNS)
-        mags = "".join(f"{comp[c]['mag_per_arcsec2']:>11.2f}" if comp[c]["mag_per_arcsec2"] is not None
-                       else f"{'-':>11s}" for c in _SKY_COLUMNS)
+        mags = "".join(
+            f"{comp[c]['mag_per_arcsec2']:>11.2f}"
+            if comp[c]["mag_per_arcsec2"] is not None
+            else f"{'-':>11s}"
+            for c in _SKY_COLUMNS
+        )
         lim = f"{comp['limit_mag']:>9.2f} mag" if comp.get("limit_mag") is not None else f"{'-':>13s}"
         lines.append(f"  {name:4s} {'e-/s/pixel':14s}{rate}")
         lines.append(f"  {'':4s} {'mag/arcsec2':14s}{mags}{lim}")
@@ -214,23 +248,42 @@ def _sky_table(args, campaign, bands, stars) -> int:
     # a masked time (ECSV, Parquet, FITS Time columns) has no value to compute at: refused by row
     masked = [i for i, v in enumerate(p["time"]) if np.any(getattr(v, "mask", False))]
     if masked:
-        raise InputError(f"{args.input}: row {masked[0] + 1}: time is masked (no value); {len(masked)} of "
-                         f"{len(p['time'])} rows are masked: fill or drop them")
+        raise InputError(
+            f"{args.input}: row {masked[0] + 1}: time is masked (no value); {len(masked)} of "
+            f"{len(p['time'])} rows are masked: fill or drop them"
+        )
     models: dict = {}
     with quiet_dubious_years():  # a time outside DE405 is refused in one line of ours, without ERFA's
-        cols = pointing_table(campaign, p, bands, stars, source=str(args.input), models=models,
-                              model=lambda: _sky_model(args.config))
+        cols = pointing_table(
+            campaign,
+            p,
+            bands,
+            stars,
+            source=str(args.input),
+            models=models,
+            model=lambda: _sky_model(args.config),
+        )
     from straylight import __version__
 
-    write_parquet(cols, args.out, {"straylight_version": __version__, "input": str(args.input),
-                                   "config": str(campaign.path), "stars_included": stars is not None,
-                                   "models": models,
-                                   "units": "components e-/s/pixel; total_mag_per_arcsec2 AB mag/arcsec2; "
-                                            "limit_mag 5-sigma AB for the band's survey exposures"},
-                  units=column_units(cols))
+    write_parquet(
+        cols,
+        args.out,
+        {
+            "straylight_version": __version__,
+            "input": str(args.input),
+            "config": str(campaign.path),
+            "stars_included": stars is not None,
+            "models": models,
+            "units": "components e-/s/pixel; total_mag_per_arcsec2 AB mag/arcsec2; "
+            "limit_mag 5-sigma AB for the band's survey exposures",
+        },
+        units=column_units(cols),
+    )
     n_obs = int(np.sum(cols["observable"]))
-    print(f"{args.out}: {len(cols['time'])} pointings ({n_obs} observable), "
-          f"bands {', '.join(bands or campaign.bands)}")
+    print(
+        f"{args.out}: {len(cols['time'])} pointings ({n_obs} observable), "
+        f"bands {', '.join(bands or campaign.bands)}"
+    )
     return 0
 
 
@@ -240,8 +293,10 @@ def cmd_visibility(args) -> int:
     from straylight.survey.visibility import plot_visibility, visibility
 
     ra_deg, dec_deg = checked_pointing(args)
-    for path, flag, suffixes in ((args.out, "--out", (".csv", ".ecsv")),
-                                 (args.plot, "--plot", (".png", ".pdf", ".svg"))):
+    for path, flag, suffixes in (
+        (args.out, "--out", (".csv", ".ecsv")),
+        (args.plot, "--plot", (".png", ".pdf", ".svg")),
+    ):
         if path is not None:
             if Path(path).suffix.lower() not in suffixes:
                 raise InputError(f"{flag} {path}: must end in {' or '.join(suffixes)}")
@@ -253,30 +308,46 @@ def cmd_visibility(args) -> int:
     campaign = load_campaign(args.config)
     c = campaign.config["campaign"]
     step_s = args.step_min * 60.0 if args.step_min is not None else float(c["cadence_s"])
-    res = visibility(campaign, ra_deg, dec_deg, args.band, args.start or c["start"], args.end or c["end"],
-                     step_s, args.threshold)
+    res = visibility(
+        campaign,
+        ra_deg,
+        dec_deg,
+        args.band,
+        args.start or c["start"],
+        args.end or c["end"],
+        step_s,
+        args.threshold,
+    )
     s, w, d = res["samples"], res["windows"], res["days"]
     n_obs = int(np.sum(s["observable"]))
-    print(f"RA {ra_deg:.4f} Dec {dec_deg:+.4f} band {args.band}: {len(s)} samples every "
-          f"{step_s / 60:.3g} min from {s['time'][0].isot[:19]}; {n_obs} observable "
-          f"({100.0 * n_obs / len(s):.1f} %); {len(w)} observable windows")
+    print(
+        f"RA {ra_deg:.4f} Dec {dec_deg:+.4f} band {args.band}: {len(s)} samples every "
+        f"{step_s / 60:.3g} min from {s['time'][0].isot[:19]}; {n_obs} observable "
+        f"({100.0 * n_obs / len(s):.1f} %); {len(w)} observable windows"
+    )
     if n_obs:
         ok = np.asarray(s["observable"], bool)
-        print(f"  observable: background {np.median(s['total_mag_per_arcsec2'][ok].value):.2f} mag/arcsec2 "
-              f"(median), "
-              f"5-sigma limit median {np.median(s['limit_mag'][ok].value):.2f}, deepest "
-              f"{np.max(s['limit_mag'][ok].value):.2f} mag (AB)")
+        print(
+            f"  observable: background {np.median(s['total_mag_per_arcsec2'][ok].value):.2f} mag/arcsec2 "
+            f"(median), "
+            f"5-sigma limit median {np.median(s['limit_mag'][ok].value):.2f}, deepest "
+            f"{np.max(s['limit_mag'][ok].value):.2f} mag (AB)"
+        )
     if args.threshold is not None:
         deep = d[d["hours_deeper_than_threshold"].value > 0]
-        print(f"  days with the limit deeper than {args.threshold:.2f} mag: {len(deep)} of {len(d)}"
-              + (f" ({', '.join(deep['date'][:10])}{', ...' if len(deep) > 10 else ''})"
-                 if len(deep) else ""))
+        print(
+            f"  days with the limit deeper than {args.threshold:.2f} mag: {len(deep)} of {len(d)}"
+            + (f" ({', '.join(deep['date'][:10])}{', ...' if len(deep) > 10 else ''})" if len(deep) else "")
+        )
     if args.out:
         out = Path(args.out)
         fmt = "ascii.ecsv" if out.suffix.lower() == ".ecsv" else "ascii.csv"
         stem = out.with_suffix("")
-        for table, path in ((s, out), (w, Path(f"{stem}_windows{out.suffix}")),
-                            (d, Path(f"{stem}_days{out.suffix}"))):
+        for table, path in (
+            (s, out),
+            (w, Path(f"{stem}_windows{out.suffix}")),
+            (d, Path(f"{stem}_days{out.suffix}")),
+        ):
             from straylight.util.io import atomic_path
 
             with atomic_path(path) as tmp:
@@ -288,4 +359,3 @@ def cmd_visibility(args) -> int:
         plot_visibility(res, args.plot, args.threshold)
         print(args.plot)
     return 0
-

@@ -1,6 +1,7 @@
 """The :class:`Campaign`: a validated campaign config with its instrument, loaded and checked
 (:func:`load_campaign`, :func:`campaign_from_dict`), and what derives from them (the orbit, the
 Earth, the avoidance constraints, the typed settings of both files)."""
+
 from __future__ import annotations
 
 import copy
@@ -95,8 +96,9 @@ class Campaign:
 
         inst = self.instrument_settings
         av = inst.avoidance
-        states = tuple(DoorState(s.opening_deg, s.sun_angle_min_deg, s.min_inclusive)
-                       for s in inst.door.states)
+        states = tuple(
+            DoorState(s.opening_deg, s.sun_angle_min_deg, s.min_inclusive) for s in inst.door.states
+        )
         return Constraints(
             sun_min_deg=av.sun_min_deg.value,
             moon_min_deg=av.moon_min_deg.value,
@@ -141,13 +143,16 @@ def _check_campaign(cfg: dict, source: str, sources: dict | None = None) -> None
         start = parse_utc(c["start"], f"{src('campaign.start')}: campaign.start")
         end = parse_utc(c["end"], f"{src('campaign.end')}: campaign.end")
         if cfg["orbit"]["model"] == "circular" and "circular" in cfg["orbit"]:
-            parse_utc(cfg["orbit"]["circular"]["epoch"],
-                      f"{src('orbit.circular.epoch')}: orbit.circular.epoch")
+            parse_utc(
+                cfg["orbit"]["circular"]["epoch"], f"{src('orbit.circular.epoch')}: orbit.circular.epoch"
+            )
     except StraylightError as exc:
         raise ConfigError(str(exc)) from exc
     if not end > start:
-        raise ConfigError(f"{src('campaign.end')}: campaign.end = {c['end']!r} must be after "
-                          f"campaign.start = {c['start']!r}")
+        raise ConfigError(
+            f"{src('campaign.end')}: campaign.end = {c['end']!r} must be after "
+            f"campaign.start = {c['start']!r}"
+        )
     eph = default_ephemeris()
     for key, t in (("start", start), ("end", end)):
         with quiet_dubious_years():  # our line below, not ERFA's warnings before it
@@ -171,7 +176,6 @@ def _check_campaign(cfg: dict, source: str, sources: dict | None = None) -> None
         tle["file"] = str(Path(source).parent / tle["file"])
     key = "orbit.circular.epoch" if orbit_cfg["model"] == "circular" else "orbit.tle"
     warn_if_epoch_far(orbit_cfg, start, end, src(key))
-
 
 
 def load_campaign(path: str | os.PathLike | None = None, overrides: dict | None = None) -> Campaign:
@@ -211,10 +215,11 @@ def _check_report(cfg: dict, bands: list[str], source: str, sources: dict | None
     chosen = (cfg.get("report") or {}).get("sky_map_bands") or []
     unknown = [b for b in chosen if b not in bands]
     if unknown:
-        raise ConfigError(f"{_source_of(sources, 'report.sky_map_bands', source)}: "
-                          f"report.sky_map_bands = {chosen!r}: "
-                          f"{unknown[0]!r} is not a band of the instrument ({', '.join(bands)})")
-
+        raise ConfigError(
+            f"{_source_of(sources, 'report.sky_map_bands', source)}: "
+            f"report.sky_map_bands = {chosen!r}: "
+            f"{unknown[0]!r} is not a band of the instrument ({', '.join(bands)})"
+        )
 
 
 __all__ = ["Campaign", "load_campaign", "campaign_from_dict"]

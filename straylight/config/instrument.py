@@ -11,6 +11,7 @@ The optics, sources and image layers build their objects (the door, the scatteri
 models, the zodiacal model, the focal plane, the bands) from these settings; the raw instrument
 mapping (``Campaign.instrument``) stays as written for what records or hashes the file.
 """
+
 from __future__ import annotations
 
 import copy
@@ -262,7 +263,22 @@ def pixel_scale_arcsec(instrument: InstrumentSettings | Mapping) -> float:
     return p_m / inst.telescope.focal_length_m.value * ARCSEC_PER_RAD
 
 
-__all__ = ["Parameter", "TelescopeSettings", "DetectorSettings", "BandSettings", "ScatteringSettings",
-           "GhostBandSettings", "GhostSettings", "PSTSettings", "DoorGeometrySettings", "AvoidanceSettings",
-           "DoorStateSettings", "DoorSettings", "InstrumentSettings", "instrument_settings", "needed",
-           "ARCSEC_PER_RAD", "pixel_scale_arcsec"]
+__all__ = [
+    "Parameter",
+    "TelescopeSettings",
+    "DetectorSettings",
+    "BandSettings",
+    "ScatteringSettings",
+    "GhostBandSettings",
+    "GhostSettings",
+    "PSTSettings",
+    "DoorGeometrySettings",
+    "AvoidanceSettings",
+    "DoorStateSettings",
+    "DoorSettings",
+    "InstrumentSettings",
+    "instrument_settings",
+    "needed",
+    "ARCSEC_PER_RAD",
+    "pixel_scale_arcsec",
+]

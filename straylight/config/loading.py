@@ -6,6 +6,7 @@ file, the key path, the value and what is allowed, e.g.::
 
     config/config.yaml: campaign.cadence_s = -5: must be > 0
 """
+
 from __future__ import annotations
 
 import copy
@@ -40,8 +41,10 @@ def _read_yaml(path: Path, what: str) -> Any:
     except OSError as exc:
         raise ConfigError(f"{path}: cannot read {what}: {exc.strerror or exc}") from exc
     except UnicodeDecodeError as exc:  # a binary file, or another encoding: YAML is UTF-8 here
-        raise ConfigError(f"{path}: cannot read {what}: not UTF-8 text (byte 0x{exc.object[exc.start]:02x} "
-                          f"at offset {exc.start}); expected a YAML file") from None
+        raise ConfigError(
+            f"{path}: cannot read {what}: not UTF-8 text (byte 0x{exc.object[exc.start]:02x} "
+            f"at offset {exc.start}); expected a YAML file"
+        ) from None
     try:
         return yaml.load(text, Loader=_YAML_LOADER)  # noqa: S506 - a safe loader
     except yaml.YAMLError as exc:
@@ -143,7 +146,6 @@ def apply_defaults(document: dict, schema: dict) -> dict:
     return out
 
 
-
 def _check_instrument(inst: dict, source: str) -> None:
     for band, b in inst["bands"].items():
         if not b["wavelength_min_nm"] < b["wavelength_max_nm"]:
@@ -170,15 +172,22 @@ def load_instrument(path: str | os.PathLike) -> dict:
     if isinstance(det, dict) and "pixel_scale_arcsec" in det:
         raise ConfigError(
             f"{path}: detector.pixel_scale_arcsec = {det['pixel_scale_arcsec']}: the pixel scale is derived "
-            f"(pixel_size_um / focal_length_m), not configured; remove it")
+            f"(pixel_size_um / focal_length_m), not configured; remove it"
+        )
     validate(inst, load_schema(INSTRUMENT_SCHEMA), str(path))
     _check_instrument(inst, str(path))
     return inst
 
 
 #: Config keys holding file paths; relative ones are relative to the file that set them.
-PATH_KEYS = (("instrument",), ("orbit", "tle", "file"), ("footprint", "mask_file"), ("stars", "gaia_files"),
-             ("stars", "population_file"), ("stars", "btsettl_files"))
+PATH_KEYS = (
+    ("instrument",),
+    ("orbit", "tle", "file"),
+    ("footprint", "mask_file"),
+    ("stars", "gaia_files"),
+    ("stars", "population_file"),
+    ("stars", "btsettl_files"),
+)
 
 
 def _leaf_keys(node, prefix=""):
@@ -236,7 +245,18 @@ def deep_merge(base: dict, over: dict) -> dict:
     return out
 
 
-
-__all__ = ["REPO_ROOT", "CONFIG_DIR", "SCHEMA_DIR", "CAMPAIGN_SCHEMA", "INSTRUMENT_SCHEMA", "DEFAULT_CONFIG",
-           "PATH_KEYS", "load_schema", "validate", "apply_defaults", "load_instrument",
-           "resolve_config_files", "deep_merge"]
+__all__ = [
+    "REPO_ROOT",
+    "CONFIG_DIR",
+    "SCHEMA_DIR",
+    "CAMPAIGN_SCHEMA",
+    "INSTRUMENT_SCHEMA",
+    "DEFAULT_CONFIG",
+    "PATH_KEYS",
+    "load_schema",
+    "validate",
+    "apply_defaults",
+    "load_instrument",
+    "resolve_config_files",
+    "deep_merge",
+]

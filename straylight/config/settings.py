@@ -2,6 +2,7 @@
 Earth and the orbit, parsed once from the validated config with the schema's defaults
 (:func:`settings_from_config`); and :func:`_typed`, which builds any settings dataclass (the
 instrument's too) from its mapping."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -212,10 +213,26 @@ def settings_from_config(config: dict) -> Settings:
     ConfigError
         For a section or key the schema gives no default for and the config lacks.
     """
-    return Settings(**{name: _typed(cls, config.get(name) or {}, name)
-                       for name, cls in typing.get_type_hints(Settings).items()})
+    return Settings(
+        **{
+            name: _typed(cls, config.get(name) or {}, name)
+            for name, cls in typing.get_type_hints(Settings).items()
+        }
+    )
 
 
-__all__ = ["CampaignSection", "FootprintSection", "StarsSection", "EarthshineLUTSteps", "MoonlitLUTSteps",
-           "EarthshineSection", "ModelsSection", "ReportSection", "SchedulingSection", "StorageSection",
-           "ComputeSection", "Settings", "settings_from_config"]
+__all__ = [
+    "CampaignSection",
+    "FootprintSection",
+    "StarsSection",
+    "EarthshineLUTSteps",
+    "MoonlitLUTSteps",
+    "EarthshineSection",
+    "ModelsSection",
+    "ReportSection",
+    "SchedulingSection",
+    "StorageSection",
+    "ComputeSection",
+    "Settings",
+    "settings_from_config",
+]

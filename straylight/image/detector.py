@@ -21,6 +21,7 @@ uniform discs holding exactly each ghost's energy.
 Units: the image is in e- s-1 pixel-1; star fluxes from AB magnitudes with the band's AB zero
 point and the unobstructed aperture pi D^2 / 4.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -28,13 +29,13 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import signal
 
-from straylight.optics.bandpass import Band
 from straylight.config import InstrumentSettings, instrument_settings, needed, pixel_scale_arcsec
 from straylight.errors import InputError
-from straylight.sky.frames import telescope_frame
-from straylight.sky.vectors import radec_to_unit, unit
+from straylight.optics.bandpass import Band
 from straylight.optics.ghosts import GhostModel
 from straylight.optics.scatter import ScatterModel, check_fluxes
+from straylight.sky.frames import telescope_frame
+from straylight.sky.vectors import radec_to_unit, unit
 
 
 @dataclass(frozen=True)
@@ -71,7 +72,9 @@ def focal_plane_from_instrument(instrument: InstrumentSettings | dict) -> FocalP
     if nx <= 0 or ny <= 0:
         raise InputError(f"detector size {nx} x {ny}: must be positive")
     return FocalPlane(
-        nx=nx, ny=ny, pixel_scale_arcsec=pixel_scale_arcsec(inst),
+        nx=nx,
+        ny=ny,
+        pixel_scale_arcsec=pixel_scale_arcsec(inst),
         pixel_size_mm=d.pixel_size_um.value / 1000.0,
         columns=int(needed(d.layout_columns, "detector.layout_columns").value),
         rows=int(needed(d.layout_rows, "detector.layout_rows").value),
@@ -80,7 +83,7 @@ def focal_plane_from_instrument(instrument: InstrumentSettings | dict) -> FocalP
 
 
 def pointing_wcs(ra_deg: float, dec_deg: float, sun_direction: np.ndarray, fp: FocalPlane, detector: int):
-    """astropy WCS of one detector: TAN about the boresight, axes along the telescope frame."""
+    """Astropy WCS of one detector: TAN about the boresight, axes along the telescope frame."""
     from astropy.wcs import WCS
 
     z = radec_to_unit(ra_deg, dec_deg)
@@ -148,7 +151,7 @@ def _linear_upsample_matrix(n_fine: int, n_coarse: int, offset: float, b: int):
 
 
 def _radial_grid(half: int, step_px: float = 1.0) -> np.ndarray:
-    y, x = np.mgrid[-half:half + 1, -half:half + 1].astype(float) * step_px
+    y, x = np.mgrid[-half : half + 1, -half : half + 1].astype(float) * step_px
     return np.hypot(x, y)
 
 
@@ -162,7 +165,12 @@ def _deposit(shape, x, y, w) -> np.ndarray:
     grid = np.zeros(shape, dtype=np.float64)
     x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
     fx, fy = x - x0, y - y0
-    for dx, dy, ww in ((0, 0, (1 - fx) * (1 - fy)), (1, 0, fx * (1 - fy)), (0, 1, (1 - fx) * fy), (1, 1, fx * fy)):
+    for dx, dy, ww in (
+        (0, 0, (1 - fx) * (1 - fy)),
+        (1, 0, fx * (1 - fy)),
+        (0, 1, (1 - fx) * fy),
+        (1, 1, fx * fy),
+    ):
         xi, yi = x0 + dx, y0 + dy
         ok = (xi >= 0) & (xi < shape[1]) & (yi >= 0) & (yi < shape[0])
         np.add.at(grid, (yi[ok], xi[ok]), (w * ww)[ok])
@@ -208,11 +216,28 @@ class StarSelection:
         """Stars whose centre falls on the chip (0-based pixel centres, edges at -0.5 and n - 0.5)."""
         nx = self.wcs.pixel_shape[0] if self.wcs.pixel_shape else None
         ny = self.wcs.pixel_shape[1] if self.wcs.pixel_shape else None
-        return int(np.sum((self.x_pix >= -0.5) & (self.x_pix < nx - 0.5) & (self.y_pix >= -0.5) & (self.y_pix < ny - 0.5)))
+        return int(
+            np.sum(
+                (self.x_pix >= -0.5)
+                & (self.x_pix < nx - 0.5)
+                & (self.y_pix >= -0.5)
+                & (self.y_pix < ny - 0.5)
+            )
+        )
 
 
-def select_stars(ra_deg, dec_deg, star_ra_deg, star_dec_deg, star_flux_e_per_s, sun_direction, fp: FocalPlane,
-                 detector: int, scatter: ScatterModel, settings: RenderSettings) -> StarSelection:
+def select_stars(
+    ra_deg,
+    dec_deg,
+    star_ra_deg,
+    star_dec_deg,
+    star_flux_e_per_s,
+    sun_direction,
+    fp: FocalPlane,
+    detector: int,
+    scatter: ScatterModel,
+    settings: RenderSettings,
+) -> StarSelection:
     """Stars within the detector plus margin whose halo still exceeds the floor on the chip
     (or that sit within the near-field radius of it).  Cheap: no image is made."""
     s = settings
@@ -252,10 +277,21 @@ STRIP_ROWS = 512
 
 
 def render_detector(
-    ra_deg, dec_deg, star_ra_deg, star_dec_deg, star_flux_e_per_s, sun_direction, fp: FocalPlane, detector: int,
-    scatter: ScatterModel, ghosts: GhostModel | None, chief_ray_angle_deg: float,
-    settings: RenderSettings | None = None, size_override: tuple[int, int] | None = None,
-    window: tuple[int, int, int, int] | None = None, bin_factor: int = 1,
+    ra_deg,
+    dec_deg,
+    star_ra_deg,
+    star_dec_deg,
+    star_flux_e_per_s,
+    sun_direction,
+    fp: FocalPlane,
+    detector: int,
+    scatter: ScatterModel,
+    ghosts: GhostModel | None,
+    chief_ray_angle_deg: float,
+    settings: RenderSettings | None = None,
+    size_override: tuple[int, int] | None = None,
+    window: tuple[int, int, int, int] | None = None,
+    bin_factor: int = 1,
 ) -> DetectorImage:
     """Render the in-field stray light (core + scattering halo, ghosts) of one detector.
 
@@ -268,15 +304,25 @@ def render_detector(
     """
     s = settings or RenderSettings()
     if s.far_bin < 1 or s.near_radius_px < 4:
-        raise InputError(f"render settings far_bin={s.far_bin}, near_radius_px={s.near_radius_px} out of range")
+        raise InputError(
+            f"render settings far_bin={s.far_bin}, near_radius_px={s.near_radius_px} out of range"
+        )
     if size_override:
-        fp = FocalPlane(size_override[1], size_override[0], fp.pixel_scale_arcsec, fp.pixel_size_mm,
-                        fp.columns, fp.rows, fp.gap_px)
+        fp = FocalPlane(
+            size_override[1],
+            size_override[0],
+            fp.pixel_scale_arcsec,
+            fp.pixel_size_mm,
+            fp.columns,
+            fp.rows,
+            fp.gap_px,
+        )
     nb = int(bin_factor)
     if nb < 1:
         raise InputError(f"--bin {bin_factor}: must be a positive integer")
-    sel = select_stars(ra_deg, dec_deg, star_ra_deg, star_dec_deg, star_flux_e_per_s, sun_direction, fp,
-                       detector, scatter, s)
+    sel = select_stars(
+        ra_deg, dec_deg, star_ra_deg, star_dec_deg, star_flux_e_per_s, sun_direction, fp, detector, scatter, s
+    )
     wcs, idx, x, y, f = sel.wcs, sel.index, sel.x_pix, sel.y_pix, sel.flux_e_per_s
     ny, nx = fp.ny, fp.nx
     p_m = fp.pixel_size_mm / 1000.0
@@ -301,8 +347,10 @@ def render_detector(
     coarse_map = _deposit((cny, cnx), (x + mpx + 0.5) / b - 0.5, (y + mpx + 0.5) / b - 0.5, f)
     half_y = int(np.ceil((ny + mpx) / b)) + 1
     half_x = int(np.ceil((nx + mpx) / b)) + 1
-    rc = np.hypot(np.arange(-half_x, half_x + 1, dtype=float)[None, :] * b,
-                  np.arange(-half_y, half_y + 1, dtype=float)[:, None] * b)
+    rc = np.hypot(
+        np.arange(-half_x, half_x + 1, dtype=float)[None, :] * b,
+        np.arange(-half_y, half_y + 1, dtype=float)[:, None] * b,
+    )
     k_far = _interp_profile(sel.halo_table, rc)
     k_far *= (b * p_m) ** 2
     k_far *= _taper_up(rc, rn / 2, rn)
@@ -310,10 +358,13 @@ def render_detector(
     far_coarse = signal.fftconvolve(coarse_map, k_far, mode="same") / (b * b)  # per fine pixel
     del k_far, coarse_map
     wy = _linear_upsample_matrix(ny, cny, mpx, b)
-    wx = _linear_upsample_matrix(nx, cnx, mpx, b)[wx0:wx0 + ww]
+    wx = _linear_upsample_matrix(nx, cnx, mpx, b)[wx0 : wx0 + ww]
 
     # ghosts: the table of every disc; painted strip by strip below
-    gtab = {k: np.zeros(0) for k in ("star_index", "path", "x_pix", "y_pix", "radius_pix", "e_per_s_per_pix", "energy_e_per_s")}
+    gtab = {
+        k: np.zeros(0)
+        for k in ("star_index", "path", "x_pix", "y_pix", "radius_pix", "e_per_s_per_pix", "energy_e_per_s")
+    }
     if ghosts is not None and idx.size:
         ox, oy = fp.detector_offset_px(detector)
         fx, fy = x - (nx - 1) / 2.0 + ox, y - (ny - 1) / 2.0 + oy  # focal-plane position from the axis
@@ -328,10 +379,17 @@ def render_detector(
         frac = ghosts.energy_relative_to_image()
         rows = []
         for k in range(3):
-            rows.append(dict(
-                star_index=idx, path=np.full(idx.size, k + 1), x_pix=x + off[k, 0], y_pix=y + off[k, 1],
-                radius_pix=np.full(idx.size, radii[k]), e_per_s_per_pix=f * irr[k], energy_e_per_s=f * frac[k],
-            ))
+            rows.append(
+                dict(
+                    star_index=idx,
+                    path=np.full(idx.size, k + 1),
+                    x_pix=x + off[k, 0],
+                    y_pix=y + off[k, 1],
+                    radius_pix=np.full(idx.size, radii[k]),
+                    e_per_s_per_pix=f * irr[k],
+                    energy_e_per_s=f * frac[k],
+                )
+            )
         gtab = {c: np.concatenate([r[c] for r in rows]) for c in rows[0]}
 
     out = np.zeros((wh // nb, ww // nb), dtype=np.float32)
@@ -342,14 +400,16 @@ def render_detector(
         gy0, gx0 = y0 - rn, wx0 - rn
         near = (y >= gy0 - 1) & (y < y1 + rn + 1) & (x >= gx0 - 1) & (x < wx0 + ww + rn + 1)
         grid = _deposit((y1 - y0 + 2 * rn, ww + 2 * rn), x[near] - gx0, y[near] - gy0, f[near])
-        part = signal.oaconvolve(grid, k_near, mode="same")[rn:rn + y1 - y0, rn:rn + ww]
+        part = signal.oaconvolve(grid, k_near, mode="same")[rn : rn + y1 - y0, rn : rn + ww]
         del grid
         part += (wx @ (wy[y0:y1] @ far_coarse).T).T
         if ghosts is not None and s.paint_ghosts and idx.size:
-            part += paint_discs(ny, nx, gtab, s.ghost_min_e_per_s_per_pix, rows=(y0, y1), cols=(wx0, wx0 + ww))
+            part += paint_discs(
+                ny, nx, gtab, s.ghost_min_e_per_s_per_pix, rows=(y0, y1), cols=(wx0, wx0 + ww)
+            )
         if nb > 1:
             part = part.reshape((y1 - y0) // nb, nb, ww // nb, nb).mean(axis=(1, 3))
-        out[(y0 - wy0) // nb:(y1 - wy0) // nb] = part
+        out[(y0 - wy0) // nb : (y1 - wy0) // nb] = part
         del part
     del far_coarse
 
@@ -359,10 +419,21 @@ def render_detector(
         wcs.wcs.cd = wcs.wcs.cd * nb
     wcs.pixel_shape = (out.shape[1], out.shape[0])
     stars = {"catalog_index": idx, "x_pix": x, "y_pix": y, "flux_e_per_s": f}
-    return DetectorImage(out, gtab, stars, wcs,
-                         meta={"far_bin": b, "near_radius_px": rn, "margin_arcsec": s.margin_arcsec,
-                               "halo_floor": s.halo_floor_e_per_s_per_pix, "bin": nb, "cut_x0": wx0,
-                               "cut_y0": wy0})
+    return DetectorImage(
+        out,
+        gtab,
+        stars,
+        wcs,
+        meta={
+            "far_bin": b,
+            "near_radius_px": rn,
+            "margin_arcsec": s.margin_arcsec,
+            "halo_floor": s.halo_floor_e_per_s_per_pix,
+            "bin": nb,
+            "cut_x0": wx0,
+            "cut_y0": wy0,
+        },
+    )
 
 
 def paint_discs(ny, nx, g, min_irr, rows=None, cols=None) -> np.ndarray:
@@ -398,8 +469,14 @@ def bodies_as_stars(campaign, time, ra_deg: float, dec_deg: float, band: str) ->
     from straylight.sources.context import SourceContext
 
     sc = scene(campaign.orbit, time)
-    g = sample_geometry(sc, np.array([ra_deg]), np.array([dec_deg]), campaign.earth.radius_km, campaign.constraints,
-                        grid=False)
+    g = sample_geometry(
+        sc,
+        np.array([ra_deg]),
+        np.array([dec_deg]),
+        campaign.earth.radius_km,
+        campaign.constraints,
+        grid=False,
+    )
     los = radec_to_unit(np.array([ra_deg]), np.array([dec_deg]))
     found = InFieldBodies(SourceContext(campaign)).find(sc.satellite_km, sc.bodies_km, los, g, [band])
     names = [k for k, v in found.items() if bool(np.ravel(v["in_field"])[0])]
@@ -420,16 +497,22 @@ def sun_direction_at(campaign, time) -> np.ndarray:
     return unit(sc.bodies_km["sun"][0] - sc.satellite_km[0])
 
 
-def boresight_for_target(target_ra_deg: float, target_dec_deg: float, sun_direction, fp: FocalPlane,
-                         detector: int, tol_arcsec: float = 1e-4) -> tuple[float, float]:
+def boresight_for_target(
+    target_ra_deg: float,
+    target_dec_deg: float,
+    sun_direction,
+    fp: FocalPlane,
+    detector: int,
+    tol_arcsec: float = 1e-4,
+) -> tuple[float, float]:
     """The boresight (RA, Dec, deg) that puts ``target`` on the centre of ``detector``.
 
     The roll follows the Sun (:func:`pointing_wcs`), so the boresight is found by iteration:
     move it by the offset still left between the chip centre and the target, until that offset
     is below ``tol_arcsec``.  Converges in a few steps (the detector offsets are < 1 deg).
     """
-    from astropy.coordinates import SkyCoord
     import astropy.units as u
+    from astropy.coordinates import SkyCoord
 
     target = SkyCoord(target_ra_deg * u.deg, target_dec_deg * u.deg)
     ra, dec = float(target_ra_deg), float(target_dec_deg)
@@ -450,13 +533,21 @@ def boresight_for_target(target_ra_deg: float, target_dec_deg: float, sun_direct
 #: FITS image compression choices of :func:`write_fits` (``--compress``).
 COMPRESSIONS = ("gzip", "rice", "none")
 
-GHOST_UNITS = {"star_index": ("", "row of the input star catalog"), "path": ("", "ghost path 1-3 (seed paper sect. 4.2)"),
-               "x_pix": ("pix", "disc centre, 0-based chip column"), "y_pix": ("pix", "disc centre, 0-based chip row"),
-               "radius_pix": ("pix", "disc radius"), "e_per_s_per_pix": ("electron/s", "irradiance per chip pixel"),
-               "energy_e_per_s": ("electron/s", "energy in the disc")}
-STAR_UNITS = {"catalog_index": ("", "row of the input star catalog"),
-              "x_pix": ("pix", "0-based chip column"), "y_pix": ("pix", "0-based chip row"),
-              "flux_e_per_s": ("electron/s", "star flux through the full aperture")}
+GHOST_UNITS = {
+    "star_index": ("", "row of the input star catalog"),
+    "path": ("", "ghost path 1-3 (seed paper sect. 4.2)"),
+    "x_pix": ("pix", "disc centre, 0-based chip column"),
+    "y_pix": ("pix", "disc centre, 0-based chip row"),
+    "radius_pix": ("pix", "disc radius"),
+    "e_per_s_per_pix": ("electron/s", "irradiance per chip pixel"),
+    "energy_e_per_s": ("electron/s", "energy in the disc"),
+}
+STAR_UNITS = {
+    "catalog_index": ("", "row of the input star catalog"),
+    "x_pix": ("pix", "0-based chip column"),
+    "y_pix": ("pix", "0-based chip row"),
+    "flux_e_per_s": ("electron/s", "star flux through the full aperture"),
+}
 
 
 def _table_hdu(columns: dict, units: dict, name: str):
@@ -471,12 +562,13 @@ def _table_hdu(columns: dict, units: dict, name: str):
         if unit:
             hdu.header[f"TUNIT{i}"] = unit
         if desc:
-            hdu.header[f"TTYPE{i}"] = (c, desc[:80 - 14 - len(c)])
+            hdu.header[f"TTYPE{i}"] = (c, desc[: 80 - 14 - len(c)])
     return hdu
 
 
-def write_fits(result: DetectorImage, path, provenance: dict, compress: str = "gzip",
-               quantize_step: float | None = None) -> None:
+def write_fits(
+    result: DetectorImage, path, provenance: dict, compress: str = "gzip", quantize_step: float | None = None
+) -> None:
     """FITS: the image (e-/s per chip pixel) with WCS and provenance; GHOSTS and STARS tables
     with a unit on every column.
 
@@ -501,16 +593,27 @@ def write_fits(result: DetectorImage, path, provenance: dict, compress: str = "g
         hdus = [fits.PrimaryHDU(data, header=hdr)]
     elif compress == "gzip":
         hdr["COMPNOTE"] = "GZIP_2 lossless, no quantisation"
-        hdus = [fits.PrimaryHDU(), fits.CompImageHDU(data, header=hdr, name="SCI", compression_type="GZIP_2",
-                                                     quantize_level=0)]
+        hdus = [
+            fits.PrimaryHDU(),
+            fits.CompImageHDU(data, header=hdr, name="SCI", compression_type="GZIP_2", quantize_level=0),
+        ]
     elif compress == "rice":
         step = float(quantize_step if quantize_step is not None else 1e-4)
         if not (np.isfinite(step) and step > 0):
             raise InputError(f"--quantize-step {quantize_step}: must be a positive number of e-/s/pixel")
         hdr["QSTEP"] = (step, "e-/s/pixel quantisation step (error <= QSTEP/2)")
         hdr["COMPNOTE"] = "RICE_1 on values quantised to QSTEP, lossy"
-        hdus = [fits.PrimaryHDU(), fits.CompImageHDU(data, header=hdr, name="SCI", compression_type="RICE_1",
-                                                     quantize_level=-step, quantize_method=1)]
+        hdus = [
+            fits.PrimaryHDU(),
+            fits.CompImageHDU(
+                data,
+                header=hdr,
+                name="SCI",
+                compression_type="RICE_1",
+                quantize_level=-step,
+                quantize_method=1,
+            ),
+        ]
     else:
         raise InputError(f"--compress {compress!r}: one of {', '.join(COMPRESSIONS)}")
     hdus += [_table_hdu(result.ghosts, GHOST_UNITS, "GHOSTS"), _table_hdu(result.stars, STAR_UNITS, "STARS")]

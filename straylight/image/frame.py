@@ -5,6 +5,7 @@ around the target, and the rendering with an optional uniform background.
 :func:`frame_for_target` sets the frame up without making an image, so that a caller can refuse
 an empty field or a cutout off the chip before :func:`render_frame` does the work.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -63,9 +64,20 @@ class TargetFrame:
         return float(x), float(y)
 
 
-def frame_for_target(campaign, time, target_ra_deg: float, target_dec_deg: float, band, star_ra_deg,
-                     star_dec_deg, star_mag_ab, focal_plane: FocalPlane, detector_index: int,
-                     center: str = "detector", settings: RenderSettings | None = None) -> TargetFrame:
+def frame_for_target(
+    campaign,
+    time,
+    target_ra_deg: float,
+    target_dec_deg: float,
+    band,
+    star_ra_deg,
+    star_dec_deg,
+    star_mag_ab,
+    focal_plane: FocalPlane,
+    detector_index: int,
+    center: str = "detector",
+    settings: RenderSettings | None = None,
+) -> TargetFrame:
     """Set up the frame of one detector aimed at a target; no image is made.
 
     Parameters
@@ -100,8 +112,9 @@ def frame_for_target(campaign, time, target_ra_deg: float, target_dec_deg: float
     flux = detector.star_fluxes_e_per_s(star_mag_ab, band, aperture_m)
     sun = detector.sun_direction_at(campaign, time)
     if center == "detector":
-        bore_ra, bore_dec = detector.boresight_for_target(target_ra_deg, target_dec_deg, sun, focal_plane,
-                                                          detector_index)
+        bore_ra, bore_dec = detector.boresight_for_target(
+            target_ra_deg, target_dec_deg, sun, focal_plane, detector_index
+        )
     else:
         bore_ra, bore_dec = target_ra_deg, target_dec_deg
     # the Sun, Moon and planets inside the field are imaged like stars
@@ -111,14 +124,29 @@ def frame_for_target(campaign, time, target_ra_deg: float, target_dec_deg: float
         ra, dec = np.concatenate([ra, b_ra]), np.concatenate([dec, b_dec])
         flux = np.concatenate([flux, b_flux])
     scatter = scatter_model_from_instrument(campaign.instrument_settings)
-    sel = detector.select_stars(bore_ra, bore_dec, ra, dec, flux, sun, focal_plane, detector_index, scatter,
-                                settings)
-    return TargetFrame(bore_ra, bore_dec, ra, dec, flux, b_names, b_mag, sun, focal_plane, detector_index,
-                       scatter, settings, sel)
+    sel = detector.select_stars(
+        bore_ra, bore_dec, ra, dec, flux, sun, focal_plane, detector_index, scatter, settings
+    )
+    return TargetFrame(
+        bore_ra,
+        bore_dec,
+        ra,
+        dec,
+        flux,
+        b_names,
+        b_mag,
+        sun,
+        focal_plane,
+        detector_index,
+        scatter,
+        settings,
+        sel,
+    )
 
 
-def cutout_window(focal_plane: FocalPlane, x_pix: float, y_pix: float, width: int,
-                  height: int) -> tuple[int, int, int, int] | None:
+def cutout_window(
+    focal_plane: FocalPlane, x_pix: float, y_pix: float, width: int, height: int
+) -> tuple[int, int, int, int] | None:
     """The window (x0, y0, width, height), 0-based chip pixels, of a ``width`` x ``height`` cutout
     centred on the pixel (``x_pix``, ``y_pix``) and clipped to the chip; None when the cutout
     misses the chip."""
@@ -129,8 +157,14 @@ def cutout_window(focal_plane: FocalPlane, x_pix: float, y_pix: float, width: in
     return (x0, y0, window[0] + width - x0, window[1] + height - y0)
 
 
-def render_frame(frame: TargetFrame, instrument, band_name: str, window=None, bin_factor: int = 1,
-                 background_e_per_s_per_pix: float | None = None) -> detector.DetectorImage:
+def render_frame(
+    frame: TargetFrame,
+    instrument,
+    band_name: str,
+    window=None,
+    bin_factor: int = 1,
+    background_e_per_s_per_pix: float | None = None,
+) -> detector.DetectorImage:
     """Render the frame's in-field stray light (:func:`~straylight.image.detector.render_detector`).
 
     Parameters
@@ -159,11 +193,20 @@ def render_frame(frame: TargetFrame, instrument, band_name: str, window=None, bi
 
     inst = instrument_settings(instrument)
     result = detector.render_detector(
-        frame.boresight_ra_deg, frame.boresight_dec_deg, frame.star_ra_deg, frame.star_dec_deg,
-        frame.star_flux_e_per_s, frame.sun_direction, frame.focal_plane, frame.detector, frame.scatter,
+        frame.boresight_ra_deg,
+        frame.boresight_dec_deg,
+        frame.star_ra_deg,
+        frame.star_dec_deg,
+        frame.star_flux_e_per_s,
+        frame.sun_direction,
+        frame.focal_plane,
+        frame.detector,
+        frame.scatter,
         ghost_model_from_instrument(inst, band_name),
         needed(inst.ghosts, "ghosts").chief_ray_angle_deg.value,
-        frame.settings, window=window, bin_factor=bin_factor,
+        frame.settings,
+        window=window,
+        bin_factor=bin_factor,
     )
     if background_e_per_s_per_pix is not None:
         result.image_e_per_s_per_pix += np.float32(background_e_per_s_per_pix)

@@ -4,13 +4,28 @@ its fidelity policy (:class:`FidelityPolicy`: the tolerance, its shares, the fas
 Imports ``straylight.sources``, ``straylight.sky`` and ``straylight.config`` (the layers below it:
 docs/architecture.md); never ``straylight.survey``.
 """
+
 from straylight.model import registry
 from straylight.model.background import BackgroundModel
-from straylight.model.fidelity import (ERROR_BUDGET_SHARES, LUT_BUILD_SECONDS_PER_NODE, LUT_SAVED_SECONDS_PER_SAMPLE,
-                                       MOONLIT_LUT_BUILD_SECONDS_PER_NODE, FidelityPolicy, unobservable_samples)
+from straylight.model.fidelity import (
+    ERROR_BUDGET_SHARES,
+    LUT_BUILD_SECONDS_PER_NODE,
+    LUT_SAVED_SECONDS_PER_SAMPLE,
+    MOONLIT_LUT_BUILD_SECONDS_PER_NODE,
+    FidelityPolicy,
+    unobservable_samples,
+)
 
-__all__ = ["BAND_COMPONENTS", "BackgroundModel", "ERROR_BUDGET_SHARES", "FidelityPolicy", "LUT_BUILD_SECONDS_PER_NODE",
-           "LUT_SAVED_SECONDS_PER_SAMPLE", "MOONLIT_LUT_BUILD_SECONDS_PER_NODE", "unobservable_samples"]
+__all__ = [
+    "BAND_COMPONENTS",
+    "BackgroundModel",
+    "ERROR_BUDGET_SHARES",
+    "FidelityPolicy",
+    "LUT_BUILD_SECONDS_PER_NODE",
+    "LUT_SAVED_SECONDS_PER_SAMPLE",
+    "MOONLIT_LUT_BUILD_SECONDS_PER_NODE",
+    "unobservable_samples",
+]
 
 
 def __getattr__(name):

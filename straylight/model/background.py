@@ -10,16 +10,17 @@ never below the darkest zodiacal light, a lower bound of the total that the skip
 against, so a term that matters only against the darkest sky is still summed there and skipped
 where the scene's brighter light swamps it.  Every component is reported whether or not the
 pointing is observable."""
+
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
 
 from straylight.config import Campaign
+from straylight.model import registry
 from straylight.model.fidelity import ERROR_BUDGET_SHARES, FidelityPolicy
 from straylight.sky.ephemeris import PLANETS
 from straylight.sky.frames import telescope_frame
-from straylight.model import registry
 from straylight.sources.bodies import InFieldBodies, SolarBodySkip
 from straylight.sources.context import Samples, SourceContext
 from straylight.sources.photometry import magnitude_per_arcsec2
@@ -43,8 +44,12 @@ class BackgroundModel:
         See :class:`~straylight.model.fidelity.FidelityPolicy`.
     """
 
-    def __init__(self, campaign: Campaign, build_workers: int | None = None,
-                 moonlit_skip_share: float = ERROR_BUDGET_SHARES["moonlit_earthshine_skip"]):
+    def __init__(
+        self,
+        campaign: Campaign,
+        build_workers: int | None = None,
+        moonlit_skip_share: float = ERROR_BUDGET_SHARES["moonlit_earthshine_skip"],
+    ):
         self.campaign = campaign
         if build_workers is None:
             from straylight.util.daskutil import available_cores
@@ -75,8 +80,19 @@ class BackgroundModel:
             return sources[name]
         raise AttributeError(f"{type(self).__name__!r} has no attribute or source {name!r}")
 
-    def evaluate(self, satellite_km, bodies_km, los, geometry, bands, stars: StarTable | None = None,
-                 faint_rates: dict | None = None, frame=None, into: tuple | None = None, runs=None) -> dict:
+    def evaluate(
+        self,
+        satellite_km,
+        bodies_km,
+        los,
+        geometry,
+        bands,
+        stars: StarTable | None = None,
+        faint_rates: dict | None = None,
+        frame=None,
+        into: tuple | None = None,
+        runs=None,
+    ) -> dict:
         """Every source's e-/s/pix in each band, added into the components and their total.
 
         Parameters
@@ -135,7 +151,11 @@ class BackgroundModel:
             _check_into(into, n, len(bands), outputs)
         samples = Samples(sat, bodies_km, frame, geometry, runs, stars=stars, faint_rates=faint_rates)
         samples.moon_lamp = self.source("moon").lamp(samples)
-        scales = {"sun": samples.sun_inverse_square, "sun_at_1au": 1.0, "moon_at_earth": samples.moon_lamp["at_earth"]}
+        scales = {
+            "sun": samples.sun_inverse_square,
+            "sun_at_1au": 1.0,
+            "moon_at_earth": samples.moon_lamp["at_earth"],
+        }
         sun_at_1au = np.array([c.photometry(name).sun_at_1au_photons_s_m2 for name in bands])
         rates = {}
         # the sources never skipped make each sample's floor, which the skippable ones measure
@@ -144,17 +164,33 @@ class BackgroundModel:
             if not entry.skippable:
                 rates[entry.name] = self.sources[entry.name].rates(samples, bands)
         samples.floor, samples.floor_ratio = self._floor(
-            [rates[e.name] for e in self.entries if not e.skippable], scales, sun_at_1au, bands, shape)
+            [rates[e.name] for e in self.entries if not e.skippable], scales, sun_at_1au, bands, shape
+        )
         for entry in self.entries:
             if entry.skippable:
                 rates[entry.name] = self.sources[entry.name].rates(samples, bands)
         terms = _Terms(self.entries, self.leaves, rates, scales, shape)
-        names, values = into if into is not None else (outputs, np.empty((len(outputs), len(bands), n))
-                                                         .transpose(0, 2, 1))  # band-major: each band's row contiguous
+        names, values = (
+            into
+            if into is not None
+            else (outputs, np.empty((len(outputs), len(bands), n)).transpose(0, 2, 1))
+        )  # band-major: each band's row contiguous
         sums, writes, n_rows = _sum_program(self.leaves, names)
-        _band_components_kernel(terms.dense, terms.dense_leaf, terms.dense_first, terms.coeff, terms.term_leaf,
-                                terms.term_lamp, terms.term_first, terms.scales, sun_at_1au, sums, writes, n_rows,
-                                values)
+        _band_components_kernel(
+            terms.dense,
+            terms.dense_leaf,
+            terms.dense_first,
+            terms.coeff,
+            terms.term_leaf,
+            terms.term_lamp,
+            terms.term_first,
+            terms.scales,
+            sun_at_1au,
+            sums,
+            writes,
+            n_rows,
+            values,
+        )
         extras = {f"_{k}": v for r in rates.values() for k, v in r.extras.items()}
         aperture_d = self.campaign.instrument_settings.telescope.aperture_diameter_m.value
         pix_arcsec = self.campaign.pixel_scale_arcsec
@@ -168,7 +204,9 @@ class BackgroundModel:
             out[name] = res
         return out
 
-    def _floor(self, never_skipped: list, scales: dict, sun_at_1au: np.ndarray, bands, shape) -> tuple[dict, np.ndarray]:
+    def _floor(
+        self, never_skipped: list, scales: dict, sun_at_1au: np.ndarray, bands, shape
+    ) -> tuple[dict, np.ndarray]:
         """A lower bound of the samples' total per band (band -> e-/s/pix, arrays of ``shape``):
         the sources never skipped, their per-band terms added, then for each lamp the sum of
         their coefficients times the lamp's irradiance, never below the band's darkest zodiacal
@@ -184,8 +222,11 @@ class BackgroundModel:
         lamps = [lamp for lamp in LAMPS if lamp in lamp_sums]
         coeff = _flat_rows([lamp_sums[lamp] for lamp in lamps], shape)
         scale = _flat_rows([scales[lamp] for lamp in lamps], shape)
-        dense_arr = (np.stack([np.asarray(d, float).reshape(len(bands), n) for d in dense]) if dense
-                     else np.zeros((0, len(bands), n)))
+        dense_arr = (
+            np.stack([np.asarray(d, float).reshape(len(bands), n) for d in dense])
+            if dense
+            else np.zeros((0, len(bands), n))
+        )
         darkest = np.array([self.context.darkest_zodiacal_e_per_s(name) for name in bands], float)
         floor, ratio = np.empty((len(bands), n)), np.empty(n)
         _floor_kernel(dense_arr, coeff, scale, np.asarray(sun_at_1au, float), darkest, floor, ratio)
@@ -198,33 +239,50 @@ class BackgroundModel:
         es = self.sunlit_earth.record()
         shares, lut_runs = ERROR_BUDGET_SHARES, es["method"] == "lut"
         moonlit = self.moonlit_earth
-        return {"tolerance": tolerance, "earthshine": es, "pst": self.context.offfield.pst.source,
-                "unobservable_samples": ("skipped: NaN in every component"
-                                         if policy.unobservable_samples == "skip" else "evaluated"),
-                "skip_floor": ("each sample's zodiacal light + Sun + sunlit Earth + moonlit Earth in the field "
-                               "(a lower bound of its total; never below the darkest zodiacal light)"),
-                "moonlit_earthshine": moonlit.record(lut_runs),
-                "earthshine_near_limb": ("indicative only within the dark-limb angle of the limb and below it "
-                                         "(never observable; no Earth grid converges there)"),
-                "stars": {"direct_mag_limit": float(sc.offfield_mag_limit),
-                          "faint_map": sc.faint_map,
-                          "direct_skipped": (f"per sky cell and floor level, the stars of smallest bound, "
-                                             f"together < {shares['stars_skip']:g} x tolerance x the "
-                                             f"sample's floor")},
-                "moon_and_planets_skipped": (f"where the bound of each is < {shares['moon_and_planets_skip']:g} / "
-                                             f"{1 + len(PLANETS)} x tolerance x the sample's floor"),
-                "error_budget": {"earthshine_lut_validated": es.get("lut_validation_max_rel_error")
-                                 if lut_runs else 0.0,
-                                 "moonlit_earthshine_skip_max": policy.moonlit_skip_share * tolerance
-                                 if lut_runs else 0.0,
-                                 "moonlit_earthshine_grid_share": shares["moonlit_earthshine_grid"] * tolerance
-                                 if lut_runs else 0.0,
-                                 "moonlit_earthshine_lut_validated": moonlit.model["lut_validation_max_rel_error"]
-                                 if lut_runs and moonlit.model["method"] == "lut" else 0.0,
-                                 "stars_skip_max": shares["stars_skip"] * tolerance,
-                                 "moon_and_planets_skip_max": shares["moon_and_planets_skip"] * tolerance,
-                                 "see": "bench/results/summary.json for the whole model against the converged "
-                                        "reference, knobs.json moonlit_grid for the moonlit grid's measured error"}}
+        return {
+            "tolerance": tolerance,
+            "earthshine": es,
+            "pst": self.context.offfield.pst.source,
+            "unobservable_samples": (
+                "skipped: NaN in every component" if policy.unobservable_samples == "skip" else "evaluated"
+            ),
+            "skip_floor": (
+                "each sample's zodiacal light + Sun + sunlit Earth + moonlit Earth in the field "
+                "(a lower bound of its total; never below the darkest zodiacal light)"
+            ),
+            "moonlit_earthshine": moonlit.record(lut_runs),
+            "earthshine_near_limb": (
+                "indicative only within the dark-limb angle of the limb and below it "
+                "(never observable; no Earth grid converges there)"
+            ),
+            "stars": {
+                "direct_mag_limit": float(sc.offfield_mag_limit),
+                "faint_map": sc.faint_map,
+                "direct_skipped": (
+                    f"per sky cell and floor level, the stars of smallest bound, "
+                    f"together < {shares['stars_skip']:g} x tolerance x the "
+                    f"sample's floor"
+                ),
+            },
+            "moon_and_planets_skipped": (
+                f"where the bound of each is < {shares['moon_and_planets_skip']:g} / "
+                f"{1 + len(PLANETS)} x tolerance x the sample's floor"
+            ),
+            "error_budget": {
+                "earthshine_lut_validated": es.get("lut_validation_max_rel_error") if lut_runs else 0.0,
+                "moonlit_earthshine_skip_max": policy.moonlit_skip_share * tolerance if lut_runs else 0.0,
+                "moonlit_earthshine_grid_share": shares["moonlit_earthshine_grid"] * tolerance
+                if lut_runs
+                else 0.0,
+                "moonlit_earthshine_lut_validated": moonlit.model["lut_validation_max_rel_error"]
+                if lut_runs and moonlit.model["method"] == "lut"
+                else 0.0,
+                "stars_skip_max": shares["stars_skip"] * tolerance,
+                "moon_and_planets_skip_max": shares["moon_and_planets_skip"] * tolerance,
+                "see": "bench/results/summary.json for the whole model against the converged "
+                "reference, knobs.json moonlit_grid for the moonlit grid's measured error",
+            },
+        }
 
 
 def _sum_program(leaves: tuple, names) -> tuple:
@@ -276,15 +334,18 @@ class _Terms:
         keys = sorted(lamp_coeff, key=lambda k: (leaves.index(k[0]), LAMPS.index(k[1])))
         lamps = [lamp for lamp in LAMPS if any(k[1] == lamp for k in keys)]
         nb = dense[0].shape[0] if dense else 0
-        self.dense = (np.stack([np.asarray(d, float).reshape(nb, n) for d in dense]) if dense
-                      else np.zeros((0, 1, n)))
+        self.dense = (
+            np.stack([np.asarray(d, float).reshape(nb, n) for d in dense]) if dense else np.zeros((0, 1, n))
+        )
         self.dense_leaf = np.array(dense_leaf, np.intp)
         seen = set()
         self.dense_first = np.array([not (leaf in seen or seen.add(leaf)) for leaf in dense_leaf], np.bool_)
         self.coeff = _flat_rows([lamp_coeff[k] for k in keys], shape)
         self.term_leaf = np.array([leaves.index(k[0]) for k in keys], np.intp)
         self.term_lamp = np.array([lamps.index(k[1]) for k in keys], np.intp)
-        self.term_first = np.array([not (leaf in seen or seen.add(leaf)) for leaf in self.term_leaf.tolist()], np.bool_)
+        self.term_first = np.array(
+            [not (leaf in seen or seen.add(leaf)) for leaf in self.term_leaf.tolist()], np.bool_
+        )
         self.scales = _flat_rows([scales[lamp] for lamp in lamps], shape)
 
 
@@ -295,8 +356,10 @@ def _check_into(into, n_samples: int, n_bands: int, outputs: tuple) -> None:
     unknown = sorted(set(names) - set(outputs))
     expected = (len(names), n_samples, n_bands)
     if unknown or len(set(names)) != len(names) or np.shape(values) != expected:
-        raise ValueError(f"into: components {tuple(names)} (unknown: {unknown}; each at most once) in an array of "
-                         f"shape {np.shape(values)}, not (components, samples, bands) = {expected}")
+        raise ValueError(
+            f"into: components {tuple(names)} (unknown: {unknown}; each at most once) in an array of "
+            f"shape {np.shape(values)}, not (components, samples, bands) = {expected}"
+        )
 
 
 @njit(cache=True, nogil=True)
@@ -328,8 +391,21 @@ KERNEL_BLOCK_SAMPLES = 256
 
 
 @njit(cache=True, nogil=True)
-def _band_components_kernel(dense, dense_row, dense_first, coeff, term_row, term_lamp, term_first, scales,
-                            sun_at_1au, sums, writes, n_rows, out):
+def _band_components_kernel(
+    dense,
+    dense_row,
+    dense_first,
+    coeff,
+    term_row,
+    term_lamp,
+    term_first,
+    scales,
+    sun_at_1au,
+    sums,
+    writes,
+    n_rows,
+    out,
+):
     """Every band's components (e-/s/pix) per sample.
 
     Rows of values per band and sample: a row (a leaf: a component's part, or a component
@@ -348,7 +424,7 @@ def _band_components_kernel(dense, dense_row, dense_first, coeff, term_row, term
         m = min(blk, n - i0)
         for k in range(dense.shape[0]):
             for ib in range(nb):
-                src, row = dense[k, ib, i0:i0 + m], buf[dense_row[k], ib]
+                src, row = dense[k, ib, i0 : i0 + m], buf[dense_row[k], ib]
                 if dense_first[k]:
                     for j in range(m):
                         row[j] = src[j]
@@ -356,7 +432,7 @@ def _band_components_kernel(dense, dense_row, dense_first, coeff, term_row, term
                     for j in range(m):
                         row[j] += src[j]
         for k in range(coeff.shape[0]):
-            c, scale = coeff[k, i0:i0 + m], scales[term_lamp[k], i0:i0 + m]
+            c, scale = coeff[k, i0 : i0 + m], scales[term_lamp[k], i0 : i0 + m]
             for ib in range(nb):
                 s1, row = sun_at_1au[ib], buf[term_row[k], ib]
                 if term_first[k]:
@@ -375,7 +451,7 @@ def _band_components_kernel(dense, dense_row, dense_first, coeff, term_row, term
                     for j in range(m):
                         row[j] += src[j]
         for k in range(writes.shape[0]):
-            dst = out[writes[k, 1], i0:i0 + m]
+            dst = out[writes[k, 1], i0 : i0 + m]
             for ib in range(nb):
                 src = buf[writes[k, 0], ib]
                 for j in range(m):

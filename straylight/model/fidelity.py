@@ -4,21 +4,31 @@ which earthshine model runs (models.earthshine.method).
 
 The sources hold their fast paths (tables, skips on bounds); this object tells each what error
 it may spend, so the shares are set, and add up, in one place."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
 
 from straylight.config import Campaign
+
 # the tables' build per (node, door state) is given with the tables
-from straylight.sources.earthshine_table_build import LUT_BUILD_SECONDS_PER_NODE, MOONLIT_LUT_BUILD_SECONDS_PER_NODE
+from straylight.sources.earthshine_table_build import (
+    LUT_BUILD_SECONDS_PER_NODE,
+    MOONLIT_LUT_BUILD_SECONDS_PER_NODE,
+)
 
 #: Shares of models.tolerance (a fraction of the total) held by each fast path; they add up to 1.
 #: The earthshine table must validate within its share; the moonlit Earth has two: the samples
 #: skipped on its bound, and the coarse grid of the others (bench/run.py moonlit_grid measures
 #: it); the skipped star pairs and the skipped Moon and planets are held to theirs by bounds.
-ERROR_BUDGET_SHARES = {"earthshine_lut": 0.5, "moonlit_earthshine_skip": 0.125, "moonlit_earthshine_grid": 0.125,
-                       "stars_skip": 0.125, "moon_and_planets_skip": 0.125}
+ERROR_BUDGET_SHARES = {
+    "earthshine_lut": 0.5,
+    "moonlit_earthshine_skip": 0.125,
+    "moonlit_earthshine_grid": 0.125,
+    "stars_skip": 0.125,
+    "moon_and_planets_skip": 0.125,
+}
 
 #: What the sunlit table saves per evaluated sample over the direct sum, seconds on one reference
 #: core (``straylight plan`` prices a campaign on the direct sum with it; ``straylight plan

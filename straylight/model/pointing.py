@@ -2,6 +2,7 @@
 (angles, constraints, the door) and every source's e-/s/pix in each band
 (:func:`background_at`).  ``straylight sky``, ``sky --input``, :func:`straylight.sky_background`,
 ``straylight visibility`` (through the pointing tables) and the cube's regions all call it."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -12,9 +13,20 @@ from straylight.sky.geometry import observing_geometry
 __all__ = ["background_at"]
 
 
-def background_at(model, satellite_km, bodies_km: dict, los, bands, scene_index=None, stars=None,
-                  faint_rates: dict | None = None, runs=None, into: tuple | None = None, observable_only: bool = False,
-                  geometry_bodies: tuple = ("sun", "moon")) -> tuple[dict, dict]:
+def background_at(
+    model,
+    satellite_km,
+    bodies_km: dict,
+    los,
+    bands,
+    scene_index=None,
+    stars=None,
+    faint_rates: dict | None = None,
+    runs=None,
+    into: tuple | None = None,
+    observable_only: bool = False,
+    geometry_bodies: tuple = ("sun", "moon"),
+) -> tuple[dict, dict]:
     """The observing geometry and the background at flat samples.
 
     Parameters
@@ -68,11 +80,28 @@ def background_at(model, satellite_km, bodies_km: dict, los, bands, scene_index=
 
     sat, sun = at(satellite_km), at(bodies_km["sun"])
     frame = telescope_frame(los, sun - sat)  # once for the geometry and the background
-    g = observing_geometry(sat, {b: sun if b == "sun" else at(bodies_km[b]) for b in geometry_bodies}, los,
-                           campaign.earth.radius_km, campaign.constraints, frame=frame, runs=runs)
+    g = observing_geometry(
+        sat,
+        {b: sun if b == "sun" else at(bodies_km[b]) for b in geometry_bodies},
+        los,
+        campaign.earth.radius_km,
+        campaign.constraints,
+        frame=frame,
+        runs=runs,
+    )
     if not observable_only:
-        return g, model.evaluate(sat, {b: sun if b == "sun" else at(v) for b, v in bodies_km.items()}, los, g, bands,
-                                 stars, faint_rates=faint_rates, frame=frame, into=into, runs=runs)
+        return g, model.evaluate(
+            sat,
+            {b: sun if b == "sun" else at(v) for b, v in bodies_km.items()},
+            los,
+            g,
+            bands,
+            stars,
+            faint_rates=faint_rates,
+            frame=frame,
+            into=into,
+            runs=runs,
+        )
     if into is None:
         raise ValueError("observable_only needs into: the array the observable samples are written to")
     names, values = into
@@ -82,9 +111,17 @@ def background_at(model, satellite_km, bodies_km: dict, los, bands, scene_index=
         # rows by index with np.take, faster than numpy's fancy indexing of (N, 3) rows
         sub = TelescopeFrame(*(np.take(a, sel, axis=0) for a in (frame.x, frame.y, frame.z)))
         part = np.empty((len(names), sel.size, len(bands)), values.dtype)
-        model.evaluate(np.take(sat, sel, axis=0), {b: at(v, sel) for b, v in bodies_km.items()},
-                       np.take(los, sel, axis=0), {k: np.asarray(v)[sel] for k, v in g.items()}, bands, stars,
-                       faint_rates=None if faint_rates is None else {b: v[sel] for b, v in faint_rates.items()},
-                       frame=sub, into=(names, part), runs=None if runs is None else runs.at(sel))
+        model.evaluate(
+            np.take(sat, sel, axis=0),
+            {b: at(v, sel) for b, v in bodies_km.items()},
+            np.take(los, sel, axis=0),
+            {k: np.asarray(v)[sel] for k, v in g.items()},
+            bands,
+            stars,
+            faint_rates=None if faint_rates is None else {b: v[sel] for b, v in faint_rates.items()},
+            frame=sub,
+            into=(names, part),
+            runs=None if runs is None else runs.at(sel),
+        )
         values[:, sel] = part
     return g, {}

@@ -16,6 +16,7 @@ Adding a source: a module in ``straylight/sources/`` with a class whose
 ``rates(samples, bands) -> BandRates`` follows :class:`Source`, and one :class:`SourceEntry`
 line below (plus a :class:`Component` line when it adds to a new component).
 docs/architecture.md gives the steps."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -24,8 +25,18 @@ from typing import Callable, Protocol, Sequence
 from straylight.sources.context import Samples
 from straylight.sources.rates import BandRates
 
-__all__ = ["COMPONENTS", "SOURCES", "Component", "Source", "SourceEntry", "TOTAL", "band_components",
-           "component_names", "long_names", "register"]
+__all__ = [
+    "COMPONENTS",
+    "SOURCES",
+    "Component",
+    "Source",
+    "SourceEntry",
+    "TOTAL",
+    "band_components",
+    "component_names",
+    "long_names",
+    "register",
+]
 
 #: the per-band sum of every component
 TOTAL = "total"
@@ -147,7 +158,9 @@ def _sunlit_earth(model):
 def _moonlit_earth(model):
     from straylight.sources.moonlit_earth import MoonlitEarth
 
-    return MoonlitEarth(model.context, model.policy, model.build_workers, sunlit=lambda: model.source("sunlit_earth"))
+    return MoonlitEarth(
+        model.context, model.policy, model.build_workers, sunlit=lambda: model.source("sunlit_earth")
+    )
 
 
 #: the per-band components, in the order they are added into the total
@@ -157,28 +170,60 @@ COMPONENTS = [
     Component("moon", "moonlight through the PST"),
     Component("planets", "planets (Mercury-Pluto) through the PST"),
     Component("stars", "off-field bright stars through the PST"),
-    Component("earthshine", "earthshine through the PST, direct + via the aperture door",
-              parts=(("earthshine_direct", "earthshine reaching the aperture directly (EA1)"),
-                     ("earthshine_door", "earthshine reflected by the aperture door (EA2)"))),
+    Component(
+        "earthshine",
+        "earthshine through the PST, direct + via the aperture door",
+        parts=(
+            ("earthshine_direct", "earthshine reaching the aperture directly (EA1)"),
+            ("earthshine_door", "earthshine reflected by the aperture door (EA2)"),
+        ),
+    ),
 ]
 
 _PST = "instrument pst (measured to 30 deg; the tail beyond is a model)"
 #: the sources of light, in the order they are evaluated and their terms added
 SOURCES = [
-    SourceEntry("zodiacal", "zodiacal", _zodiacal,
-                parameters=("models.zodiacal_spectrum",)),
+    SourceEntry("zodiacal", "zodiacal", _zodiacal, parameters=("models.zodiacal_spectrum",)),
     SourceEntry("sun", "sun", _sun, parameters=(_PST, "instrument door_geometry")),
-    SourceEntry("moon", "moon", _moon, skippable=True, error_budget=("moon_and_planets_skip",),
-                parameters=(_PST, "models.moon_phase_law", "models.moon_eclipse_factor")),
-    SourceEntry("planets", "planets", _planets, skippable=True, error_budget=("moon_and_planets_skip",),
-                parameters=(_PST,)),
-    SourceEntry("stars", "stars", _stars, skippable=True, error_budget=("stars_skip",),
-                parameters=(_PST, "stars.template_classes")),
-    SourceEntry("sunlit_earth", "earthshine", _sunlit_earth, error_budget=("earthshine_lut",),
-                parameters=(_PST, "models.earthshine.albedo", "instrument door_geometry reflectance")),
-    SourceEntry("moonlit_earth", "earthshine", _moonlit_earth, skippable=True,
-                error_budget=("moonlit_earthshine_skip", "moonlit_earthshine_grid"),
-                parameters=(_PST, "models.earthshine.albedo", "models.moon_phase_law")),
+    SourceEntry(
+        "moon",
+        "moon",
+        _moon,
+        skippable=True,
+        error_budget=("moon_and_planets_skip",),
+        parameters=(_PST, "models.moon_phase_law", "models.moon_eclipse_factor"),
+    ),
+    SourceEntry(
+        "planets",
+        "planets",
+        _planets,
+        skippable=True,
+        error_budget=("moon_and_planets_skip",),
+        parameters=(_PST,),
+    ),
+    SourceEntry(
+        "stars",
+        "stars",
+        _stars,
+        skippable=True,
+        error_budget=("stars_skip",),
+        parameters=(_PST, "stars.template_classes"),
+    ),
+    SourceEntry(
+        "sunlit_earth",
+        "earthshine",
+        _sunlit_earth,
+        error_budget=("earthshine_lut",),
+        parameters=(_PST, "models.earthshine.albedo", "instrument door_geometry reflectance"),
+    ),
+    SourceEntry(
+        "moonlit_earth",
+        "earthshine",
+        _moonlit_earth,
+        skippable=True,
+        error_budget=("moonlit_earthshine_skip", "moonlit_earthshine_grid"),
+        parameters=(_PST, "models.earthshine.albedo", "models.moon_phase_law"),
+    ),
 ]
 
 
@@ -221,11 +266,15 @@ def register(source: SourceEntry, component: Component | None = None) -> None:
     if any(s.name == source.name for s in SOURCES):
         raise ValueError(f"a source named {source.name!r} is already registered")
     if component is not None and {component.name, *dict(component.parts)} & set(band_components()):
-        raise ValueError(f"a component or part named like {component.name!r} or its parts is already registered")
+        raise ValueError(
+            f"a component or part named like {component.name!r} or its parts is already registered"
+        )
     targets = band_components()[:-1] + ((component.name, *dict(component.parts)) if component else ())
     if source.adds_to not in targets:
-        raise ValueError(f"source {source.name!r} adds to {source.adds_to!r}, which is not a component "
-                         f"nor a part: {targets}")
+        raise ValueError(
+            f"source {source.name!r} adds to {source.adds_to!r}, which is not a component "
+            f"nor a part: {targets}"
+        )
     if component is not None:
         COMPONENTS.append(component)
     SOURCES.append(source)

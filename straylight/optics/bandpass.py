@@ -21,6 +21,7 @@ comparison with published V-band sky tables; it has no QE, so its e-/s are nomin
 Units: wavelengths in Angstrom inside speclite; spectra passed as F_lambda in W m-2 um-1
 (per steradian for surface brightness).  Photon rates in photons s-1 m-2.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -50,7 +51,9 @@ class Band:
 
     @cached_property
     def response(self):
-        return _speclite_response(self.name, self.origin, tuple(self.wavelength_angstrom), tuple(self.throughput))
+        return _speclite_response(
+            self.name, self.origin, tuple(self.wavelength_angstrom), tuple(self.throughput)
+        )
 
     @cached_property  # an astropy unit conversion: too slow for every evaluation
     def ab_zero_point_photons_s_m2(self) -> float:
@@ -106,7 +109,9 @@ def parametric_curve(wavelength_min_nm, wavelength_max_nm, peak, edge_width_nm, 
     return wl_nm * 10.0, np.clip(t, 0.0, 1.0)
 
 
-def read_throughput_file(path: str | Path, wavelength_unit: str = "angstrom") -> tuple[np.ndarray, np.ndarray]:
+def read_throughput_file(
+    path: str | Path, wavelength_unit: str = "angstrom"
+) -> tuple[np.ndarray, np.ndarray]:
     """Read a measured throughput curve; validate it; return (wavelength_angstrom, throughput).
 
     Accepts CSV (first two numeric columns, or columns named like wavelength/throughput),
@@ -128,7 +133,9 @@ def read_throughput_file(path: str | Path, wavelength_unit: str = "angstrom") ->
         raise InputError(f"{path}: cannot read throughput table ({exc})") from exc
     names = {n.lower(): n for n in tab.colnames}
     wl_col = next((names[k] for k in names if k.startswith("wave") or k.startswith("lam")), None)
-    t_col = next((names[k] for k in names if any(s in k for s in ("sens", "through", "trans", "response"))), None)
+    t_col = next(
+        (names[k] for k in names if any(s in k for s in ("sens", "through", "trans", "response"))), None
+    )
     if wl_col is None or t_col is None:
         if len(tab.colnames) < 2:
             raise InputError(f"{path}: needs a wavelength and a throughput column, found {tab.colnames}")
@@ -140,13 +147,17 @@ def read_throughput_file(path: str | Path, wavelength_unit: str = "angstrom") ->
     bad = ~np.isfinite(wl) | ~np.isfinite(t)
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
-        raise InputError(f"{path}: row {i}: non-finite value ({tab[wl_col][i]}, {tab[t_col][i]}) in {wl_col}/{t_col}")
+        raise InputError(
+            f"{path}: row {i}: non-finite value ({tab[wl_col][i]}, {tab[t_col][i]}) in {wl_col}/{t_col}"
+        )
     if np.any(t < 0) or np.any(t > 1):
         i = int(np.flatnonzero((t < 0) | (t > 1))[0])
         raise InputError(f"{path}: {t_col} = {t[i]} at row {i}: throughput must be within [0, 1]")
     if np.any(np.diff(wl) <= 0):
         i = int(np.flatnonzero(np.diff(wl) <= 0)[0])
-        raise InputError(f"{path}: {wl_col} not strictly increasing at row {i + 1} ({wl[i]} then {wl[i + 1]})")
+        raise InputError(
+            f"{path}: {wl_col} not strictly increasing at row {i + 1} ({wl[i]} then {wl[i + 1]})"
+        )
     if not (1000.0 <= wl[0] and wl[-1] <= 30000.0):
         raise InputError(
             f"{path}: wavelengths {wl[0]:.4g}-{wl[-1]:.4g} A are outside 1000-30000 A; "
@@ -203,5 +214,6 @@ def load_band(instrument: InstrumentSettings | dict, name: str, instrument_dir: 
     if not 0 < scale * t.max() <= 1:
         raise ConfigError(
             f"bands.{name}: zero_point_ab_mag = {b.zero_point_ab_mag} needs a peak throughput of "
-            f"{scale * t.max():.3g} (the curve's own zero point is {own_zp:.3f}); it must be within (0, 1]")
+            f"{scale * t.max():.3g} (the curve's own zero point is {own_zp:.3f}); it must be within (0, 1]"
+        )
     return Band(name, wl, t * scale, f"{origin} scaled to AB zero point {b.zero_point_ab_mag:.3f}")

@@ -23,6 +23,7 @@ The telescope's body shades the door: the door's inner face is lit only by direc
 from the door point does not pass through the body, a solid cylinder of radius ``body_radius_m``
 about the axis from the aperture plane down to ``body_length_m`` below it (:meth:`Door.body_hits`).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -37,7 +38,9 @@ from straylight.sky.vectors import wrap_360_deg
 from straylight.util.gridinterp import LinearGrid
 
 
-def door_length_from_paper(aperture_radius_m: float, opening_deg: float = 135.0, sun_cutoff_deg: float = 65.0) -> float:
+def door_length_from_paper(
+    aperture_radius_m: float, opening_deg: float = 135.0, sun_cutoff_deg: float = 65.0
+) -> float:
     """Door length L so that, opened to ``opening_deg``, it just hides the whole aperture from a
     source at ``sun_cutoff_deg`` off axis in the door's azimuth."""
     beta = np.radians(180.0 - opening_deg)  # door elevation above the aperture plane
@@ -48,7 +51,7 @@ def door_length_from_paper(aperture_radius_m: float, opening_deg: float = 135.0,
 
 
 def aperture_points(radius_m: float, n: int) -> np.ndarray:
-    """n points (x, y) uniformly covering the aperture disc: a sunflower (Vogel) spiral of n/2
+    """N points (x, y) uniformly covering the aperture disc: a sunflower (Vogel) spiral of n/2
     points and its mirror image y -> -y, so that the door's shade keeps the mirror symmetry of
     the real door about the Sun's plane (phi -> -phi; a bare spiral broke it by up to 0.16 in
     Sp, and the earthshine look-up table relies on it).  n = 1: the centre."""
@@ -79,8 +82,10 @@ class Door:
         if not (self.length_m > 0 and self.width_m > 0):
             raise ConfigError(f"door: length {self.length_m} m and width {self.width_m} m must be > 0")
         if self.body_radius_m < 0 or self.body_length_m < 0:
-            raise ConfigError(f"door_geometry: body radius {self.body_radius_m} m and length {self.body_length_m} m "
-                              "must be >= 0")
+            raise ConfigError(
+                f"door_geometry: body radius {self.body_radius_m} m and length {self.body_length_m} m "
+                "must be >= 0"
+            )
         if self.width_m < 2 * self.aperture_radius_m or self.length_m < 2 * self.aperture_radius_m:
             raise ConfigError(
                 f"door: {self.length_m:.3f} x {self.width_m:.3f} m cannot close over an aperture of diameter "
@@ -112,14 +117,16 @@ class Door:
         p_along, p_axis = (p - hinge) @ along, (p - hinge) @ axis  # (M,)
         out = np.empty(d.shape[0])
         for start in range(0, d.shape[0], 4096):
-            dd = d[start:start + 4096]  # (n, 3)
+            dd = d[start : start + 4096]  # (n, 3)
             with np.errstate(divide="ignore", invalid="ignore"):
                 t = num[None, :] / (dd @ normal)[:, None]  # (n, M)
                 u = p_along[None, :] + t * (dd @ along)[:, None]
                 v = p_axis[None, :] + t * (dd @ axis)[:, None]
-            blocked = (t > 0) & (u >= 0) & (u <= self.length_m) & (np.abs(v) <= self.width_m / 2) & np.isfinite(t)
+            blocked = (
+                (t > 0) & (u >= 0) & (u <= self.length_m) & (np.abs(v) <= self.width_m / 2) & np.isfinite(t)
+            )
             frac = 1.0 - blocked.mean(axis=1)
-            out[start:start + 4096] = np.where(dd[:, 2] > 0, frac, 0.0)
+            out[start : start + 4096] = np.where(dd[:, 2] > 0, frac, 0.0)
         return out.reshape(shape)
 
     def body_hits(self, points_m: np.ndarray, directions: np.ndarray) -> np.ndarray:
@@ -141,7 +148,7 @@ class Door:
         # and inside the infinite cylinder: a t^2 + b t + c < 0
         a = dx * dx + dy * dy
         b = 2.0 * (px * dx + py * dy)
-        c = px * px + py * py - self.body_radius_m ** 2
+        c = px * px + py * py - self.body_radius_m**2
         disc = b * b - 4.0 * a * c
         with np.errstate(divide="ignore", invalid="ignore"):
             root = np.sqrt(np.maximum(disc, 0.0))
@@ -152,7 +159,9 @@ class Door:
         hi = np.minimum(z_hi, r_hi)
         return r_ok & (hi > lo)
 
-    def table(self, opening_deg: float, theta_step_deg: float = 1.0, phi_step_deg: float = 2.0) -> "DoorTable":
+    def table(
+        self, opening_deg: float, theta_step_deg: float = 1.0, phi_step_deg: float = 2.0
+    ) -> "DoorTable":
         theta = np.arange(0.0, 90.0 + theta_step_deg / 2, theta_step_deg)
         phi = np.arange(0.0, 360.0 + phi_step_deg / 2, phi_step_deg)
         # the 90 deg row is the limit from above the aperture plane: exactly in the plane the
@@ -241,5 +250,11 @@ def door_from_instrument(instrument: InstrumentSettings | dict) -> Door:
     r = inst.telescope.aperture_diameter_m.value / 2.0
     length = g.length_m.value if g.length_m is not None else door_length_from_paper(r)
     width = g.width_m.value if g.width_m is not None else length
-    return Door(aperture_radius_m=r, length_m=length, width_m=width, n_aperture=int(g.n_aperture.value),
-                body_radius_m=g.body_radius_m.value, body_length_m=g.body_length_m.value)
+    return Door(
+        aperture_radius_m=r,
+        length_m=length,
+        width_m=width,
+        n_aperture=int(g.n_aperture.value),
+        body_radius_m=g.body_radius_m.value,
+        body_length_m=g.body_length_m.value,
+    )

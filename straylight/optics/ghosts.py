@@ -16,6 +16,7 @@ detected rate by Phi_k / Phi would count the filter's transmission twice.
 
 Lengths here are in mm on the detector; ``pixel_size_mm`` converts to pixels.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -51,11 +52,13 @@ class GhostModel:
 
     def energy_fractions(self) -> np.ndarray:
         """(Phi_1, Phi_2, Phi_3) / Phi, Phi the energy incident on the filter (paper eq. 10)."""
-        return np.array([
-            self.t1 * self.t2 * self.r1 * self.r2,
-            self.t1 * self.t2 * self.rd * self.r2,
-            self.t1 * self.t2**3 * self.r1 * self.rd,
-        ])
+        return np.array(
+            [
+                self.t1 * self.t2 * self.r1 * self.r2,
+                self.t1 * self.t2 * self.rd * self.r2,
+                self.t1 * self.t2**3 * self.r1 * self.rd,
+            ]
+        )
 
     def energy_relative_to_image(self) -> np.ndarray:
         """(Phi_1, Phi_2, Phi_3) / (Phi T1 T2): each ghost's energy per unit energy of the nominal
@@ -65,7 +68,9 @@ class GhostModel:
     def radii_mm(self) -> np.ndarray:
         """(r_1, r_2, r_3) in mm."""
         u = self.u_rad
-        return np.array([2 * self.d1_mm * u / self.n, 2 * self.d2_mm * u, 2 * u * (self.d1_mm / self.n + self.d2_mm)])
+        return np.array(
+            [2 * self.d1_mm * u / self.n, 2 * self.d2_mm * u, 2 * u * (self.d1_mm / self.n + self.d2_mm)]
+        )
 
     def centre_offsets_mm(self, theta_x_rad, theta_y_rad) -> np.ndarray:
         """Offsets (3, 2, ...) of the ghost centres from the nominal image, mm."""
@@ -99,5 +104,9 @@ def ghost_model_from_instrument(instrument: InstrumentSettings | dict, band: str
         d2_mm=g.filter_detector_distance_mm.value,
         n=g.filter_refractive_index.value,
         u_rad=g.marginal_ray_angle_rad.value,
-        r1=per.R1, r2=per.R2, t1=per.T1, t2=per.T2, rd=per.Rd,
+        r1=per.R1,
+        r2=per.R2,
+        t1=per.T1,
+        t2=per.T2,
+        rd=per.Rd,
     )

@@ -17,6 +17,7 @@ No measured CSST matrix is public.  :func:`default_pst_grid` builds the embedded
 the paper's anchors; it is an assumption to be replaced by the measured matrix (config
 ``pst.file``).
 """
+
 from __future__ import annotations
 
 import logging
@@ -56,7 +57,10 @@ DEFAULT_FIELD_RADIUS_DEG = float(np.sqrt(1.1 / np.pi))
 #    tail bounds (PST.tail_max, influence_radius_deg) stay tight.
 TAIL_90_LOG10 = -8.6
 DEFAULT_ANCHORS_DEG_LOG10 = (
-    (5.0, -5.0), (30.0, -6.0), (90.0, TAIL_90_LOG10), (180.0, TAIL_90_LOG10 - 3.6),
+    (5.0, -5.0),
+    (30.0, -6.0),
+    (90.0, TAIL_90_LOG10),
+    (180.0, TAIL_90_LOG10 - 3.6),
 )
 #: the field edge's step: PST 1 up to this far inside the field radius (deg), 1e-4 at the radius
 FIELD_EDGE_LOG10 = -4.0
@@ -71,21 +75,30 @@ def default_anchors(field_radius_deg: float = DEFAULT_FIELD_RADIUS_DEG) -> np.nd
     PST 1 in the field, the field stop's step to 1e-4 at its edge, then :data:`DEFAULT_ANCHORS_DEG_LOG10`."""
     r = float(field_radius_deg)
     if not FIELD_EDGE_WIDTH_DEG < r < DEFAULT_ANCHORS_DEG_LOG10[0][0]:
-        raise ConfigError(f"detector.field_of_view_deg2: a field of radius {r:g} deg; the default PST needs "
-                          f"{FIELD_EDGE_WIDTH_DEG} < radius < {DEFAULT_ANCHORS_DEG_LOG10[0][0]} deg")
-    return np.array(((0.0, 0.0), (r - FIELD_EDGE_WIDTH_DEG, 0.0), (r, FIELD_EDGE_LOG10)) + DEFAULT_ANCHORS_DEG_LOG10)
+        raise ConfigError(
+            f"detector.field_of_view_deg2: a field of radius {r:g} deg; the default PST needs "
+            f"{FIELD_EDGE_WIDTH_DEG} < radius < {DEFAULT_ANCHORS_DEG_LOG10[0][0]} deg"
+        )
+    return np.array(
+        ((0.0, 0.0), (r - FIELD_EDGE_WIDTH_DEG, 0.0), (r, FIELD_EDGE_LOG10)) + DEFAULT_ANCHORS_DEG_LOG10
+    )
 
 
-def default_pst_grid(theta_step_deg: float = 0.5, phi_step_deg: float = 5.0,
-                     door_side_dex: float = DEFAULT_DOOR_SIDE_DEX,
-                     field_radius_deg: float = DEFAULT_FIELD_RADIUS_DEG):
+def default_pst_grid(
+    theta_step_deg: float = 0.5,
+    phi_step_deg: float = 5.0,
+    door_side_dex: float = DEFAULT_DOOR_SIDE_DEX,
+    field_radius_deg: float = DEFAULT_FIELD_RADIUS_DEG,
+):
     """The embedded default PST on a (theta, phi) grid: (theta_deg, phi_deg, pst[theta, phi]);
     its anchors: :func:`default_anchors` (assumptions with their sources beside them)."""
     a = default_anchors(field_radius_deg)
     # the anchors and the asymmetry's break points are grid nodes: log10 PST is piecewise linear in
     # theta between them, so the bilinear interpolation is exact in theta (the field edge's step
     # is not smeared over a grid cell)
-    theta = np.union1d(np.arange(0.0, 180.0 + theta_step_deg / 2, theta_step_deg), np.r_[a[:, 0], 10.0, 170.0])
+    theta = np.union1d(
+        np.arange(0.0, 180.0 + theta_step_deg / 2, theta_step_deg), np.r_[a[:, 0], 10.0, 170.0]
+    )
     phi = np.arange(0.0, 360.0 + phi_step_deg / 2, phi_step_deg)
     log_azavg = np.interp(theta, a[:, 0], a[:, 1])
     # asymmetry grows from 0 at the field edge to its full value beyond 10 deg; the azimuthal mean
@@ -107,7 +120,11 @@ class PST:
 
     def __post_init__(self):
         src = self.source
-        th, ph, v = np.asarray(self.theta_deg, float), np.asarray(self.phi_deg, float), np.asarray(self.values, float)
+        th, ph, v = (
+            np.asarray(self.theta_deg, float),
+            np.asarray(self.phi_deg, float),
+            np.asarray(self.values, float),
+        )
         if v.shape != (th.size, ph.size):
             raise InputError(f"{src}: pst has shape {v.shape}, grids need ({th.size}, {ph.size})")
         for name, g, lo, hi in (("theta_deg", th, 0.0, 180.0), ("phi_deg", ph, 0.0, 360.0)):
@@ -119,15 +136,21 @@ class PST:
         if th[0] > 0.0 or th[-1] < 180.0:
             raise InputError(f"{src}: theta_deg covers {th[0]}-{th[-1]}; it must cover 0-180 deg")
         if ph[0] > 0.0 or ph[-1] < 360.0 - (ph[1] - ph[0]) - 1e-9 or ph[-1] > 360.0:
-            raise InputError(f"{src}: phi_deg covers {ph[0]}-{ph[-1]}; it must span 0-360 deg with a uniform step")
+            raise InputError(
+                f"{src}: phi_deg covers {ph[0]}-{ph[-1]}; it must span 0-360 deg with a uniform step"
+            )
         bad = ~np.isfinite(v) | (v <= 0)
         if bad.any():
             i, j = np.argwhere(bad)[0]
-            raise InputError(f"{src}: pst = {float(v[i, j])} at theta {th[i]}, phi {ph[j]}: must be finite and > 0")
+            raise InputError(
+                f"{src}: pst = {float(v[i, j])} at theta {th[i]}, phi {ph[j]}: must be finite and > 0"
+            )
         if ph[-1] == 360.0 and not np.allclose(v[:, -1], v[:, 0], rtol=1e-9):
             j = int(np.flatnonzero(~np.isclose(v[:, -1], v[:, 0], rtol=1e-9))[0])
-            raise InputError(f"{src}: pst at theta {th[j]}, phi 360 = {v[j, -1]:g} differs from phi 0 = {v[j, 0]:g}; "
-                             "the matrix must be periodic")
+            raise InputError(
+                f"{src}: pst at theta {th[j]}, phi 360 = {v[j, -1]:g} differs from phi 0 = {v[j, 0]:g}; "
+                "the matrix must be periodic"
+            )
         for i in (0, th.size - 1):
             if th[i] in (0.0, 180.0) and np.ptp(np.log10(v[i])) > 1e-9:
                 # theta 0 and 180 are the poles of the frame: one direction, whatever phi says.
@@ -136,7 +159,12 @@ class PST:
                 mean = 10.0 ** np.mean(np.log10(v[i, :-1] if ph[-1] == 360.0 else v[i]))
                 logging.getLogger(__name__).warning(
                     "%s: pst at theta %g varies with phi (%.3g-%.3g); replaced by its phi mean %.3g",
-                    src, th[i], v[i].min(), v[i].max(), mean)
+                    src,
+                    th[i],
+                    v[i].min(),
+                    v[i].max(),
+                    mean,
+                )
                 v = v.copy()
                 v[i] = mean
         self.theta_deg, self.phi_deg, self.values = th, ph, v
@@ -175,8 +203,12 @@ class PST:
         phi (array-valued): the interpolant is bounded by its cell's corners, so the bound holds
         between nodes too.  180 where no node qualifies (the limit is below the PST's tail)."""
         # first node k with tail_max[k] <= limit (searchsorted on the reversed, increasing array)
-        k = self.theta_deg.size - np.searchsorted(self._tail_max_reversed, np.asarray(pst_limit, float), side="right")
-        return np.where(k < self.theta_deg.size, self.theta_deg[np.minimum(k, self.theta_deg.size - 1)], 180.0)
+        k = self.theta_deg.size - np.searchsorted(
+            self._tail_max_reversed, np.asarray(pst_limit, float), side="right"
+        )
+        return np.where(
+            k < self.theta_deg.size, self.theta_deg[np.minimum(k, self.theta_deg.size - 1)], 180.0
+        )
 
     def beyond_influence_radius(self, theta_deg, pst_limit) -> np.ndarray:
         """Whether each ``theta_deg`` lies at or beyond :meth:`influence_radius_deg` of its
@@ -190,8 +222,17 @@ class PST:
         ax, tail = self._node_finder
         # a radius at the last node counts only when that node is short of 180
         last_ok = ax.nodes.size - (2 if ax.nodes[-1] >= 180.0 else 1)
-        _beyond_kernel(np.ascontiguousarray(th.ravel()), np.ascontiguousarray(lim.ravel()), ax.lo, ax.inv_width,
-                       ax.bin_cell, ax.nodes, tail, last_ok, out)
+        _beyond_kernel(
+            np.ascontiguousarray(th.ravel()),
+            np.ascontiguousarray(lim.ravel()),
+            ax.lo,
+            ax.inv_width,
+            ax.bin_cell,
+            ax.nodes,
+            tail,
+            last_ok,
+            out,
+        )
         return out.reshape(th.shape)
 
     @cached_property
@@ -225,8 +266,12 @@ def load_pst(path: str | Path | None, field_radius_deg: float = DEFAULT_FIELD_RA
             from astropy.io import fits
 
             with fits.open(p) as h:
-                return PST(np.asarray(h["THETA"].data["theta_deg"]), np.asarray(h["PHI"].data["phi_deg"]),
-                           np.asarray(h[0].data, float), source=str(p))
+                return PST(
+                    np.asarray(h["THETA"].data["theta_deg"]),
+                    np.asarray(h["PHI"].data["phi_deg"]),
+                    np.asarray(h[0].data, float),
+                    source=str(p),
+                )
         from astropy.table import Table
 
         t = Table.read(p, format="ascii.ecsv" if suffix == ".ecsv" else "ascii.csv", comment="#")
@@ -249,7 +294,9 @@ def load_pst(path: str | Path | None, field_radius_deg: float = DEFAULT_FIELD_RA
 
 def write_pst_csv(pst: PST, path: str | Path) -> None:
     th, ph = np.meshgrid(pst.theta_deg, pst.phi_deg, indexing="ij")
-    lines = ["theta_deg,phi_deg,pst"] + [f"{a:.12g},{b:.12g},{c:.6e}" for a, b, c in zip(th.ravel(), ph.ravel(), pst.values.ravel())]
+    lines = ["theta_deg,phi_deg,pst"] + [
+        f"{a:.12g},{b:.12g},{c:.6e}" for a, b, c in zip(th.ravel(), ph.ravel(), pst.values.ravel())
+    ]
     Path(path).write_text("\n".join(lines) + "\n")
 
 

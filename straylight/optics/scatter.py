@@ -20,6 +20,7 @@ the paper's BRDF curve and the star's total power is conserved.
 All radial profiles are returned as the fraction of the star's power per unit focal-plane
 area (m-2), so a pixel of area p^2 receives profile * p^2 of the star's e-/s.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -45,7 +46,9 @@ class HarveyBRDF:
 
     def __post_init__(self):
         if not (self.b0 > 0 and self.l > 0 and np.isfinite(self.s)):
-            raise ConfigError(f"Harvey BRDF parameters b0={self.b0}, l={self.l}, s={self.s}: b0, l must be > 0")
+            raise ConfigError(
+                f"Harvey BRDF parameters b0={self.b0}, l={self.l}, s={self.s}: b0, l must be > 0"
+            )
         if self.s >= 0:
             raise ConfigError(f"Harvey BRDF slope s = {self.s}: must be negative (scatter falls with angle)")
         tis = self.tis()
@@ -106,7 +109,9 @@ class ScatterModel:
 
     def _taper(self, d_m):
         d_arcsec = np.asarray(d_m) / self.focal_length_m / ARCSEC_RAD
-        x = np.clip((d_arcsec - self.blend_inner_arcsec) / (self.blend_outer_arcsec - self.blend_inner_arcsec), 0, 1)
+        x = np.clip(
+            (d_arcsec - self.blend_inner_arcsec) / (self.blend_outer_arcsec - self.blend_inner_arcsec), 0, 1
+        )
         return 0.5 - 0.5 * np.cos(np.pi * x)
 
     @cached_property
@@ -143,8 +148,11 @@ class ScatterModel:
             return e_in
         # analytic beyond the taper: each mirror's halo within angle t is TIS(t R / r_i)
         t_in, t_out = inner / self.focal_length_m, d_max_m / self.focal_length_m
-        e_out = sum(self.brdf.tis(min(t_out * self.aperture_radius_m / r, np.pi / 2))
-                    - self.brdf.tis(min(t_in * self.aperture_radius_m / r, np.pi / 2)) for r in self.mirror_radii_m)
+        e_out = sum(
+            self.brdf.tis(min(t_out * self.aperture_radius_m / r, np.pi / 2))
+            - self.brdf.tis(min(t_in * self.aperture_radius_m / r, np.pi / 2))
+            for r in self.mirror_radii_m
+        )
         return e_in + e_out
 
 

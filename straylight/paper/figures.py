@@ -16,6 +16,7 @@ The CSST-versus-HST earthshine figure of sect. 3.3 is ``straylight scenario``.
 Each ``*_data`` function returns the numbers (tested in tests/paper/test_paper_figures.py); each
 ``plot_*`` draws them.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -27,7 +28,9 @@ from straylight.config import Campaign, needed
 FIGURE_TIME = "2026-01-01T00:50:00"  # the paper's scenario time (sects. 3.3, 4.1)
 FIGURES = ("zodiacal-map", "scattering", "ghosts", "detector")
 # paper sect. 4.3: the NUV example's ghost parameters
-NUV_GHOST_EXAMPLE = dict(d1_mm=5.0, d2_mm=8.0, t1=0.825, t2=0.825, r1=0.0093, r2=0.0093, rd=0.15, incidence_deg=3.9)
+NUV_GHOST_EXAMPLE = dict(
+    d1_mm=5.0, d2_mm=8.0, t1=0.825, t2=0.825, r1=0.0093, r2=0.0093, rd=0.15, incidence_deg=3.9
+)
 FLAM_ARCSEC2_TABLE1 = 3e-18  # erg s-1 cm-2 A-1 arcsec-2, the paper's Table 1 zodiacal light
 
 
@@ -47,8 +50,8 @@ def zodiacal_map_data(campaign: Campaign, time: str = FIGURE_TIME, nside: int = 
     import healpy as hp
 
     from straylight.optics.bandpass import load_band
-    from straylight.sky.vectors import unit
     from straylight.sky.observing import scene
+    from straylight.sky.vectors import unit
     from straylight.sources.zodiacal import zodiacal_model_from_instrument
 
     sun = unit(np.asarray(scene(campaign.orbit, time).bodies_km["sun"][0], float))  # geocentric
@@ -57,8 +60,13 @@ def zodiacal_map_data(campaign: Campaign, time: str = FIGURE_TIME, nside: int = 
     zm = zodiacal_model_from_instrument(campaign.instrument_settings)
     res = zm.evaluate(load_band(campaign.instrument_settings, "V"), los, sun[None, :])
     mag = np.where(res["no_data"], np.nan, np.ravel(res["mag_per_arcsec2"]))
-    return {"nside": nside, "v_mag_per_arcsec2": mag, "sun_ra_deg": float(np.degrees(np.arctan2(sun[1], sun[0])) % 360),
-            "sun_dec_deg": float(np.degrees(np.arcsin(sun[2]))), "time": time}
+    return {
+        "nside": nside,
+        "v_mag_per_arcsec2": mag,
+        "sun_ra_deg": float(np.degrees(np.arctan2(sun[1], sun[0])) % 360),
+        "sun_dec_deg": float(np.degrees(np.arcsin(sun[2]))),
+        "time": time,
+    }
 
 
 def plot_zodiacal_map(d: dict, out_png) -> None:
@@ -68,8 +76,16 @@ def plot_zodiacal_map(d: dict, out_png) -> None:
     plt = _pyplot()
     fig = plt.figure(figsize=(8, 5))
     m = np.where(np.isnan(d["v_mag_per_arcsec2"]), hp.UNSEEN, d["v_mag_per_arcsec2"])
-    visufunc.mollview(m, fig=fig.number, title=f"Zodiacal light, V (AB mag/arcsec$^2$), {d['time']} UTC (paper sect. 4.1)",
-                      unit="V mag / arcsec$^2$", cmap="viridis_r", min=21.0, max=23.6, flip="astro")
+    visufunc.mollview(
+        m,
+        fig=fig.number,
+        title=f"Zodiacal light, V (AB mag/arcsec$^2$), {d['time']} UTC (paper sect. 4.1)",
+        unit="V mag / arcsec$^2$",
+        cmap="viridis_r",
+        min=21.0,
+        max=23.6,
+        flip="astro",
+    )
     visufunc.graticule(dpar=30, dmer=60, alpha=0.4)
     visufunc.projplot(d["sun_ra_deg"], d["sun_dec_deg"], "r*", lonlat=True, markersize=16, label="Sun")
     plt.legend(loc="lower right", fontsize=8)
@@ -87,18 +103,37 @@ def scattering_data(campaign: Campaign, r_max_px: float = 1000.0) -> dict:
     p_m = campaign.instrument_settings.detector.pixel_size_um.value * 1e-6
     r = np.concatenate([[0.0], np.geomspace(0.05, r_max_px, 400)])
     peak = float(sm.profile(0.0))
-    return {"r_px": r, "core": sm.core_profile(r * p_m) / peak, "halo": sm.halo_profile_raw(r * p_m) / peak,
-            "blend": sm.profile(r * p_m) / peak, "tis_per_mirror": sm.brdf.tis(), "tis_total": sm.tis_total}
+    return {
+        "r_px": r,
+        "core": sm.core_profile(r * p_m) / peak,
+        "halo": sm.halo_profile_raw(r * p_m) / peak,
+        "blend": sm.profile(r * p_m) / peak,
+        "tis_per_mirror": sm.brdf.tis(),
+        "tis_total": sm.tis_total,
+    }
 
 
 def plot_scattering(d: dict, out_png) -> None:
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(7, 4.5))
     r = d["r_px"][1:]
-    ax.loglog(r, d["core"][1:], "b--", label="PSF core (Gaussian, EE80 in 0.15\")")
-    ax.loglog(r, d["halo"][1:], "g:", lw=2, label=f"Harvey-Shack scattering, 4 mirrors (TIS {d['tis_per_mirror']:.1%} each)")
+    ax.loglog(r, d["core"][1:], "b--", label='PSF core (Gaussian, EE80 in 0.15")')
+    ax.loglog(
+        r,
+        d["halo"][1:],
+        "g:",
+        lw=2,
+        label=f"Harvey-Shack scattering, 4 mirrors (TIS {d['tis_per_mirror']:.1%} each)",
+    )
     ax.loglog(r, d["blend"][1:], "k-", label="star image used (blend)")
-    ax.plot([10, 100], [1e-4, 1e-6], "rs", ms=8, mfc="none", label="paper sect. 4.4: ~1e-4 at 10 px, ~1e-6 at 100 px")
+    ax.plot(
+        [10, 100],
+        [1e-4, 1e-6],
+        "rs",
+        ms=8,
+        mfc="none",
+        label="paper sect. 4.4: ~1e-4 at 10 px, ~1e-6 at 100 px",
+    )
     ax.set_ylim(1e-10, 2)
     ax.set_xlabel("distance from the image (pixels of 10 um)")
     ax.set_ylabel("irradiance / image peak")
@@ -120,9 +155,17 @@ def ghost_example_data(campaign: Campaign, x_range_px=(-60, 260), half_height_px
     e = NUV_GHOST_EXAMPLE
     inst = campaign.instrument_settings
     g = needed(inst.ghosts, "ghosts")
-    model = GhostModel(d1_mm=e["d1_mm"], d2_mm=e["d2_mm"], n=g.filter_refractive_index.value,
-                       u_rad=g.marginal_ray_angle_rad.value, r1=e["r1"], r2=e["r2"], t1=e["t1"],
-                       t2=e["t2"], rd=e["rd"])
+    model = GhostModel(
+        d1_mm=e["d1_mm"],
+        d2_mm=e["d2_mm"],
+        n=g.filter_refractive_index.value,
+        u_rad=g.marginal_ray_angle_rad.value,
+        r1=e["r1"],
+        r2=e["r2"],
+        t1=e["t1"],
+        t2=e["t2"],
+        rd=e["rd"],
+    )
     p_mm = inst.detector.pixel_size_um.value / 1000.0
     sm = scatter_model_from_instrument(inst)
     peak_pixel = float(sm.profile(0.0)) * (p_mm * 1e-3) ** 2  # fraction of the star in its peak pixel
@@ -130,13 +173,18 @@ def ghost_example_data(campaign: Campaign, x_range_px=(-60, 260), half_height_px
     centres = model.centre_offsets_mm(th, 0.0)[:, :, ...] / p_mm  # (3, 2) px
     radii = model.radii_mm() / p_mm
     per_pixel = model.irradiance_relative_to_image_per_mm2() * p_mm**2  # fraction of the star per pixel
-    y, x = np.mgrid[-half_height_px:half_height_px + 1, x_range_px[0]:x_range_px[1] + 1].astype(float)
+    y, x = np.mgrid[-half_height_px : half_height_px + 1, x_range_px[0] : x_range_px[1] + 1].astype(float)
     image = np.zeros_like(x)
     for k in range(3):
         image += np.where(np.hypot(x - centres[k, 0], y - centres[k, 1]) <= radii[k], per_pixel[k], 0.0)
-    return {"relative_to_peak": image / peak_pixel, "ghost_relative_to_peak": per_pixel / peak_pixel,
-            "centres_px": centres, "radii_px": radii, "energy_relative_to_image": model.energy_relative_to_image(),
-            "extent": (x_range_px[0] - 0.5, x_range_px[1] + 0.5, -half_height_px - 0.5, half_height_px + 0.5)}
+    return {
+        "relative_to_peak": image / peak_pixel,
+        "ghost_relative_to_peak": per_pixel / peak_pixel,
+        "centres_px": centres,
+        "radii_px": radii,
+        "energy_relative_to_image": model.energy_relative_to_image(),
+        "extent": (x_range_px[0] - 0.5, x_range_px[1] + 0.5, -half_height_px - 0.5, half_height_px + 0.5),
+    }
 
 
 def plot_ghosts(d: dict, out_png) -> None:
@@ -148,8 +196,14 @@ def plot_ghosts(d: dict, out_png) -> None:
     for k in range(3):
         cx, cy = d["centres_px"][k]
         ax.plot(cx, cy, "k+", ms=6)
-        ax.annotate(f"ghost {k + 1}: {d['ghost_relative_to_peak'][k]:.2g}", (cx, -d["radii_px"][k] - 10 - 8 * k),
-                    ha="center", fontsize=8, color="k", bbox=dict(fc="white", alpha=0.8, lw=0))
+        ax.annotate(
+            f"ghost {k + 1}: {d['ghost_relative_to_peak'][k]:.2g}",
+            (cx, -d["radii_px"][k] - 10 - 8 * k),
+            ha="center",
+            fontsize=8,
+            color="k",
+            bbox=dict(fc="white", alpha=0.8, lw=0),
+        )
     fig.colorbar(im, ax=ax, label="log10 (ghost irradiance / star peak)")
     ax.set_xlabel("x (pixels)")
     ax.set_ylabel("y (pixels)")
@@ -161,22 +215,39 @@ def plot_ghosts(d: dict, out_png) -> None:
 
 
 # -- sect. 4.4 ----------------------------------------------------------------------------------
-def detector_image_data(campaign: Campaign, catalog: dict, star_ra_deg: float, star_dec_deg: float,
-                        time: str = FIGURE_TIME, size_px: int = 1024, detector: int = 14, band: str = "NUV") -> dict:
+def detector_image_data(
+    campaign: Campaign,
+    catalog: dict,
+    star_ra_deg: float,
+    star_dec_deg: float,
+    time: str = FIGURE_TIME,
+    size_px: int = 1024,
+    detector: int = 14,
+    band: str = "NUV",
+) -> dict:
     """A ``size_px`` square part of an NUV detector (``detector``) centred on the star at
     (``star_ra_deg``, ``star_dec_deg``), rendered by :func:`straylight.image.detector.render_detector`
     with every catalog star (``catalog``: ra, dec, mag_<band>) within reach: cores, halos and
     ghosts.  Returns the image and the profile of the centred star."""
+    from straylight.image.detector import (
+        FocalPlane,
+        RenderSettings,
+        focal_plane_from_instrument,
+        pointing_wcs,
+        render_detector,
+        star_fluxes_e_per_s,
+        sun_direction_at,
+    )
     from straylight.optics.bandpass import load_band
     from straylight.optics.ghosts import ghost_model_from_instrument
-    from straylight.image.detector import (FocalPlane, RenderSettings, focal_plane_from_instrument, pointing_wcs, render_detector,
-                        star_fluxes_e_per_s, sun_direction_at)
     from straylight.optics.scatter import scatter_model_from_instrument
     from straylight.sky.timeutil import parse_utc
 
     inst = campaign.instrument_settings
     fp = focal_plane_from_instrument(inst)
-    small = FocalPlane(size_px, size_px, fp.pixel_scale_arcsec, fp.pixel_size_mm, fp.columns, fp.rows, fp.gap_px)
+    small = FocalPlane(
+        size_px, size_px, fp.pixel_scale_arcsec, fp.pixel_size_mm, fp.columns, fp.rows, fp.gap_px
+    )
     t = parse_utc(time, "figure time")
     sun = sun_direction_at(campaign, t)
     ox, oy = small.detector_offset_px(detector)
@@ -186,13 +257,32 @@ def detector_image_data(campaign: Campaign, catalog: dict, star_ra_deg: float, s
     ra0, dec0 = (float(v) for v in w.pixel_to_world_values(c - ox - ox, c - oy - oy))
     band_ = load_band(inst, band, campaign.instrument_path.parent)
     flux = star_fluxes_e_per_s(catalog[f"mag_{band}"], band_, inst.telescope.aperture_diameter_m.value)
-    res = render_detector(ra0, dec0, catalog["ra"], catalog["dec"], flux, sun, fp, detector,
-                          scatter_model_from_instrument(inst), ghost_model_from_instrument(inst, band),
-                          needed(inst.ghosts, "ghosts").chief_ray_angle_deg.value,
-                          RenderSettings(far_bin=4, margin_arcsec=600.0), size_override=(size_px, size_px))
+    res = render_detector(
+        ra0,
+        dec0,
+        catalog["ra"],
+        catalog["dec"],
+        flux,
+        sun,
+        fp,
+        detector,
+        scatter_model_from_instrument(inst),
+        ghost_model_from_instrument(inst, band),
+        needed(inst.ghosts, "ghosts").chief_ray_angle_deg.value,
+        RenderSettings(far_bin=4, margin_arcsec=600.0),
+        size_override=(size_px, size_px),
+    )
     sx, sy = (float(v) for v in res.wcs.world_to_pixel_values(star_ra_deg, star_dec_deg))
-    return {"image": res.image_e_per_s_per_pix, "ghosts": res.ghosts, "stars": res.stars, "star_xy": (sx, sy),
-            "pointing": (ra0, dec0), "band": band, "detector": detector, "time": time}
+    return {
+        "image": res.image_e_per_s_per_pix,
+        "ghosts": res.ghosts,
+        "stars": res.stars,
+        "star_xy": (sx, sy),
+        "pointing": (ra0, dec0),
+        "band": band,
+        "detector": detector,
+        "time": time,
+    }
 
 
 def plot_detector_image(d: dict, out_png) -> None:
@@ -221,7 +311,9 @@ def plot_detector_image(d: dict, out_png) -> None:
         ax.set_ylim(-0.5, img.shape[0] - 0.5)
         ax.set_xlabel("x (pixels)")
         ax.set_ylabel("y (pixels)")
-    fig.suptitle(f"{d['band']} detector {d['detector']} (part), {d['time']} UTC (paper sect. 4.4)", fontsize=10)
+    fig.suptitle(
+        f"{d['band']} detector {d['detector']} (part), {d['time']} UTC (paper sect. 4.4)", fontsize=10
+    )
     fig.tight_layout()
     fig.savefig(out_png, dpi=80)
     plt.close(fig)

@@ -14,17 +14,18 @@ pointings, in 10 deg bins of the limb angle, falls to HST's value at 20 deg.  Th
 in Vega V magnitudes, CSST's in AB V: V_AB - V_Vega = 0.02 mag (Bessell & Murphy 2012), far below
 the comparison's scatter.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
 
-from straylight.model import BackgroundModel
 from straylight.config import Campaign
 from straylight.errors import InputError
-from straylight.sky.vectors import radec_to_unit
+from straylight.model import BackgroundModel
 from straylight.sky.observing import sample_geometry, scene
+from straylight.sky.vectors import radec_to_unit
 
 SCENARIO_TIME = "2026-01-01T00:50:00"
 #: HST's own bright-limb limit in the sunlit region (paper sect. 3.3), deg
@@ -43,7 +44,8 @@ def earthshine_scenario(campaign: Campaign, time: str = SCENARIO_TIME, band: str
     bodies = {k: np.broadcast_to(v[0], (ra.size, 3)) for k, v in sc.bodies_km.items()}
     comps = BackgroundModel(campaign).evaluate(sat, bodies, radec_to_unit(ra, dec), g, [band])[band]
     return {
-        "ra_deg": ra, "dec_deg": dec,
+        "ra_deg": ra,
+        "dec_deg": dec,
         "earth_limb_angle_deg": g["earth_limb_angle_deg"],
         "limb_is_bright": g["limb_is_bright"],
         "earthshine_e_per_s_per_pix": comps["earthshine"],
@@ -51,7 +53,8 @@ def earthshine_scenario(campaign: Campaign, time: str = SCENARIO_TIME, band: str
         "earthshine_door_e_per_s_per_pix": comps["earthshine_door"],
         "earthshine_mag_per_arcsec2": comps["_mag"](comps["earthshine"]),
         "zodiacal_mag_per_arcsec2": comps["_mag"](comps["zodiacal"]),
-        "band": band, "time": time,
+        "band": band,
+        "time": time,
     }
 
 
@@ -79,12 +82,16 @@ def read_hst_curve(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     bad = ~(np.isfinite(angle) & np.isfinite(mag))
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
-        raise InputError(f"{p}: row {i + 1}: limb_angle_deg = {angle[i]}, v_mag_per_arcsec2 = {mag[i]}: must be finite")
+        raise InputError(
+            f"{p}: row {i + 1}: limb_angle_deg = {angle[i]}, v_mag_per_arcsec2 = {mag[i]}: must be finite"
+        )
     order = np.argsort(angle)
     return angle[order], mag[order]
 
 
-def binned_median_mag(result: dict, bin_deg: float = LIMB_BIN_DEG) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def binned_median_mag(
+    result: dict, bin_deg: float = LIMB_BIN_DEG
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """CSST's median earthshine (mag/arcsec2) over the sunlit-limb pointings in bins of the limb
     angle: (bin centres, deg; medians; pointings per bin), bins without pointings left out."""
     sel = sunlit_limb(result)
@@ -122,8 +129,10 @@ def hst_comparison(result: dict, hst_curve: str | Path) -> dict:
     CSST's binned median earthshine falls to it."""
     angle, mag = read_hst_curve(hst_curve)
     if not angle[0] <= HST_BRIGHT_LIMB_LIMIT_DEG <= angle[-1]:
-        raise InputError(f"{hst_curve}: limb_angle_deg covers {angle[0]:g}-{angle[-1]:g} deg; it must include "
-                         f"{HST_BRIGHT_LIMB_LIMIT_DEG:g} deg")
+        raise InputError(
+            f"{hst_curve}: limb_angle_deg covers {angle[0]:g}-{angle[-1]:g} deg; it must include "
+            f"{HST_BRIGHT_LIMB_LIMIT_DEG:g} deg"
+        )
     hst_20 = float(np.interp(HST_BRIGHT_LIMB_LIMIT_DEG, angle, mag))
     centres, medians, counts = binned_median_mag(result)
     return {
@@ -132,7 +141,8 @@ def hst_comparison(result: dict, hst_curve: str | Path) -> dict:
         "hst_v_mag_per_arcsec2": hst_20,
         "csst_crossing_limb_angle_deg": crossing_angle_deg(centres, medians, hst_20),
         "paper_crossing_limb_angle_deg": 70.0,
-        "band": result["band"], "time": result["time"],
+        "band": result["band"],
+        "time": result["time"],
         "limb_bin_deg": LIMB_BIN_DEG,
         "bin_centres_deg": centres.tolist(),
         "csst_median_mag_per_arcsec2": medians.tolist(),
@@ -140,8 +150,9 @@ def hst_comparison(result: dict, hst_curve: str | Path) -> dict:
     }
 
 
-def plot_earthshine_scenario(result: dict, out_png: str | Path, hst_curve: str | Path | None = None,
-                             comparison: dict | None = None) -> None:
+def plot_earthshine_scenario(
+    result: dict, out_png: str | Path, hst_curve: str | Path | None = None, comparison: dict | None = None
+) -> None:
     """The paper's fig. (sect. 3.3): CSST's earthshine against the bright-limb angle, its binned
     median, the zodiacal light at the same pointings, and HST's curve when given."""
     import matplotlib
@@ -151,21 +162,37 @@ def plot_earthshine_scenario(result: dict, out_png: str | Path, hst_curve: str |
 
     sel = sunlit_limb(result)
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    ax.scatter(result["earth_limb_angle_deg"][sel], result["earthshine_mag_per_arcsec2"][sel], s=12,
-               label=f"CSST earthshine (direct + door), {result['band']}")
+    ax.scatter(
+        result["earth_limb_angle_deg"][sel],
+        result["earthshine_mag_per_arcsec2"][sel],
+        s=12,
+        label=f"CSST earthshine (direct + door), {result['band']}",
+    )
     centres, medians, _ = binned_median_mag(result)
     ax.plot(centres, medians, "b-", lw=1.5, label=f"CSST median ({LIMB_BIN_DEG:g} deg bins)")
-    ax.scatter(result["earth_limb_angle_deg"][sel], result["zodiacal_mag_per_arcsec2"][sel], s=6, c="grey",
-               label="zodiacal light (same pointings)")
+    ax.scatter(
+        result["earth_limb_angle_deg"][sel],
+        result["zodiacal_mag_per_arcsec2"][sel],
+        s=6,
+        c="grey",
+        label="zodiacal light (same pointings)",
+    )
     if hst_curve:
         angle, mag = read_hst_curve(hst_curve)
         ax.plot(angle, mag, "r-", label="HST earthshine (WFC3 IHB fig. 9.2, V)")
     if comparison:
         level, cross = comparison["hst_v_mag_per_arcsec2"], comparison["csst_crossing_limb_angle_deg"]
-        ax.axhline(level, color="r", ls=":", lw=1,
-                   label=f"HST at {comparison['hst_limb_angle_deg']:g} deg: {level:.2f}")
+        ax.axhline(
+            level,
+            color="r",
+            ls=":",
+            lw=1,
+            label=f"HST at {comparison['hst_limb_angle_deg']:g} deg: {level:.2f}",
+        )
         if np.isfinite(cross):
-            ax.axvline(cross, color="b", ls=":", lw=1, label=f"CSST reaches it at {cross:.1f} deg (paper: 70)")
+            ax.axvline(
+                cross, color="b", ls=":", lw=1, label=f"CSST reaches it at {cross:.1f} deg (paper: 70)"
+            )
     ax.invert_yaxis()
     ax.set_xlabel("angle above the bright Earth limb (deg)")
     ax.set_ylabel("surface brightness (mag / arcsec$^2$)")

@@ -10,4 +10,5 @@
 Maps are in the cube's HEALPix frame (ICRS); pixels outside the footprint are grey.  Values are
 shown as AB mag/arcsec2 (brighter = smaller), the unit planners compare with sky tables.
 """
+
 __all__: list[str] = []

@@ -1,6 +1,7 @@
 """What the report's figures share: AB magnitudes of the cube's rates, full-sky maps of its
 pixels, colour ranges and ticks, and saving a figure as PNG.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -24,8 +25,9 @@ def _mag(ds, e_per_s, band: str, campaign):
     from straylight.sources.photometry import magnitude_per_arcsec2
 
     b = load_band(campaign.instrument, band, campaign.instrument_path.parent)
-    return magnitude_per_arcsec2(e_per_s, b, campaign.instrument_value("telescope", "aperture_diameter_m"),
-                                 campaign.pixel_scale_arcsec)
+    return magnitude_per_arcsec2(
+        e_per_s, b, campaign.instrument_value("telescope", "aperture_diameter_m"), campaign.pixel_scale_arcsec
+    )
 
 
 def _full_sky(ds, values):
@@ -77,7 +79,9 @@ def _save(fig, path: Path) -> Path:
 
     from straylight.util.io import atomic_path
 
-    canvas = fig.canvas if isinstance(fig.canvas, FigureCanvasAgg) else FigureCanvasAgg(fig)  # savefig's PNG one
+    canvas = (
+        fig.canvas if isinstance(fig.canvas, FigureCanvasAgg) else FigureCanvasAgg(fig)
+    )  # savefig's PNG one
     dpi = fig.dpi
     fig.dpi = FIGURE_DPI
     try:

@@ -5,6 +5,7 @@ median limiting-magnitude maps.
 Maps are in the cube's HEALPix frame (ICRS); pixels outside the footprint are grey.  Values are
 shown as AB mag/arcsec2 (brighter = smaller), the unit planners compare with sky tables.
 """
+
 from __future__ import annotations
 
 from functools import lru_cache
@@ -15,8 +16,15 @@ import numpy as np
 from straylight.plots.common import _colour_range, _full_sky, _mag, _save, _tick_format
 
 __all__ = [
-    "GRATICULE_ALPHA", "GRATICULE_COLOUR", "GRATICULE_LW", "MOLLWEIDE_XSIZE", "MollweidePanel", "limit_maps",
-    "map_time_indices", "sky_map_figures", "sky_maps",
+    "GRATICULE_ALPHA",
+    "GRATICULE_COLOUR",
+    "GRATICULE_LW",
+    "MOLLWEIDE_XSIZE",
+    "MollweidePanel",
+    "limit_maps",
+    "map_time_indices",
+    "sky_map_figures",
+    "sky_maps",
 ]
 
 
@@ -50,7 +58,7 @@ GRATICULE_COLOUR, GRATICULE_ALPHA, GRATICULE_LW = "0.3", 0.5, 0.4
 
 @lru_cache(maxsize=1)
 def _graticule_segments(dpar_deg: float = 30.0, dmer_deg: float = 60.0, step: int = 8) -> tuple:
-    """healpy's Mollweide graticule (parallels every ``dpar_deg``, meridians every ``dmer_deg``) and
+    """Healpy's Mollweide graticule (parallels every ``dpar_deg``, meridians every ``dmer_deg``) and
     its border, as (line style, line width, colour, alpha, vertices) groups in the axes' data
     coordinates: projected once by ``SphericalProjAxes.graticule`` on a scratch axes.  healpy
     samples the lines every 0.1 deg; every ``step``-th vertex (and the last) is kept: vertices
@@ -84,8 +92,12 @@ class MollweidePanel:
         nrows, ncols, idx = sub
         c, r = (idx - 1) % ncols, (idx - 1) // ncols
         margins = (0.01, 0.0, 0.0, 0.02)
-        extent = (c / ncols + margins[0], 1.0 - (r + 1) / nrows + margins[1],
-                  1.0 / ncols - margins[2] - margins[0], 1.0 / nrows - margins[3] - margins[1])
+        extent = (
+            c / ncols + margins[0],
+            1.0 - (r + 1) / nrows + margins[1],
+            1.0 / ncols - margins[2] - margins[0],
+            1.0 / nrows - margins[3] - margins[1],
+        )
         self.fig, self.cmap, self.unit = fig, cmap, unit
         self.ax = PA.HpxMollweideAxes(fig, extent, flipconv="astro")
         # the axes are off (healpy): hidden x and y axes also spare the tick layout that placing
@@ -94,8 +106,10 @@ class MollweidePanel:
         self.ax.yaxis.set_visible(False)
         fig.add_axes(self.ax)
         for style, lw, colour, alpha, segments in _graticule_segments():
-            self.ax.add_collection(LineCollection(segments, linestyles=style, linewidths=lw, colors=colour,
-                                                  alpha=alpha), autolim=False)
+            self.ax.add_collection(
+                LineCollection(segments, linestyles=style, linewidths=lw, colors=colour, alpha=alpha),
+                autolim=False,
+            )
         self.image = self.colour_bar = None
 
     def show(self, full_sky, nest: bool, title: str, vmin: float, vmax: float) -> "MollweidePanel":
@@ -113,8 +127,14 @@ class MollweidePanel:
         cm, norm = PA.get_color_table(vmin, vmax, img[seen], cmap=self.cmap, badcolor="gray", bgcolor="white")
         data = np.ma.masked_values(img, hp.UNSEEN)
         if self.image is None:
-            self.image = self.ax.imshow(data, extent=self.ax.proj.get_extent(), cmap=cm, norm=norm,
-                                        interpolation="nearest", origin="lower")
+            self.image = self.ax.imshow(
+                data,
+                extent=self.ax.proj.get_extent(),
+                cmap=cm,
+                norm=norm,
+                interpolation="nearest",
+                origin="lower",
+            )
             # the limits after imshow, which sets them to the image's extent
             self.ax.set_xlim(-2.01, 2.01)
             self.ax.set_ylim(-1.01, 1.01)
@@ -128,7 +148,7 @@ class MollweidePanel:
         return self
 
     def _colour_bar(self, norm, vmin: float, vmax: float, n_colours: int) -> None:
-        """mollview's colour bar: ``n_colours`` solid steps between the limits, under the map."""
+        """Mollview's colour bar: ``n_colours`` solid steps between the limits, under the map."""
         from matplotlib.cm import ScalarMappable
         from matplotlib.colors import Normalize
 
@@ -136,9 +156,17 @@ class MollweidePanel:
         values = np.linspace(norm.vmin, norm.vmax, n_colours)
         bar_norm = Normalize(vmin=norm.vmin, vmax=norm.vmax)
         if self.colour_bar is None:
-            self.colour_bar = self.fig.colorbar(ScalarMappable(norm=bar_norm, cmap=self.cmap), ax=self.ax,
-                                                orientation="horizontal", shrink=0.5, aspect=25, pad=0.05,
-                                                fraction=0.1, boundaries=bounds, values=values)
+            self.colour_bar = self.fig.colorbar(
+                ScalarMappable(norm=bar_norm, cmap=self.cmap),
+                ax=self.ax,
+                orientation="horizontal",
+                shrink=0.5,
+                aspect=25,
+                pad=0.05,
+                fraction=0.1,
+                boundaries=bounds,
+                values=values,
+            )
             self.colour_bar.ax.tick_params(labelsize=8)
             self.colour_bar.ax.set_xlabel(self.unit, fontsize=9, labelpad=2)
         else:
@@ -198,13 +226,18 @@ def sky_maps(ds, campaign, out_dir, time_indices, bands=None) -> list:
             obs_panel.show(_full_sky(ds, np.asarray(snap["observable"], float)), nest, "observable", 0, 1)
             # models.unobservable_samples: skip leaves NaN where not observable (e: the total here)
             # a component's 0 (blocked, or skipped below its share of the tolerance) has no magnitude
-            grey = "outside the footprint, or a component's 0" + (", or not evaluated (not observable)"
-                                                                  if np.isnan(maps[-1][1]).any() else "")
+            grey = "outside the footprint, or a component's 0" + (
+                ", or not evaluated (not observable)" if np.isnan(maps[-1][1]).any() else ""
+            )
             note = f"; zero everywhere, not shown: {', '.join(zero)}" if zero else ""
-            fig.suptitle(f"{campaign.name}: band {band} at {t} UTC (ICRS Mollweide, graticule every 30 deg in Dec "
-                         f"and 60 deg in RA; colours: 2nd-98th percentile per panel; grey: {grey}{note})",
-                         fontsize=10)
-            written.append(_save(fig, Path(out_dir) / f"sky_{band}_{t.replace(':', '').replace('-', '')}.png"))
+            fig.suptitle(
+                f"{campaign.name}: band {band} at {t} UTC (ICRS Mollweide, graticule every 30 deg in Dec "
+                f"and 60 deg in RA; colours: 2nd-98th percentile per panel; grey: {grey}{note})",
+                fontsize=10,
+            )
+            written.append(
+                _save(fig, Path(out_dir) / f"sky_{band}_{t.replace(':', '').replace('-', '')}.png")
+            )
     return written
 
 
@@ -218,13 +251,23 @@ def _sky_page(n_maps: int) -> tuple:
     ncol = 4
     nrow = int(np.ceil((n_maps + 1) / ncol))
     fig = Figure(figsize=(16, 3.3 * nrow))
-    panels = [MollweidePanel(fig, (nrow, ncol, k + 1), "viridis_r", "AB mag/arcsec2 (brighter: yellow)")
-              for k in range(n_maps)]
+    panels = [
+        MollweidePanel(fig, (nrow, ncol, k + 1), "viridis_r", "AB mag/arcsec2 (brighter: yellow)")
+        for k in range(n_maps)
+    ]
     obs_panel = MollweidePanel(fig, (nrow, ncol, n_maps + 1), "RdYlGn", None)
-    obs_panel.ax.legend(handles=[Patch(color=colormaps["RdYlGn"](1.0), label="observable"),
-                                 Patch(color=colormaps["RdYlGn"](0.0), label="not observable"),
-                                 Patch(color="0.5", label="outside the footprint")],
-                        loc="upper center", bbox_to_anchor=(0.5, -0.02), ncol=3, fontsize=8, frameon=False)
+    obs_panel.ax.legend(
+        handles=[
+            Patch(color=colormaps["RdYlGn"](1.0), label="observable"),
+            Patch(color=colormaps["RdYlGn"](0.0), label="not observable"),
+            Patch(color="0.5", label="outside the footprint"),
+        ],
+        loc="upper center",
+        bbox_to_anchor=(0.5, -0.02),
+        ncol=3,
+        fontsize=8,
+        frameon=False,
+    )
     return fig, panels, obs_panel
 
 
@@ -247,8 +290,10 @@ def sky_map_figures(background_path, campaign, out_dir) -> list:
         if unknown:
             from straylight.errors import ConfigError
 
-            raise ConfigError(f"{campaign.path}: report.sky_map_bands: {', '.join(unknown)} not among the cube's "
-                              f"bands {', '.join(cube_bands)}")
+            raise ConfigError(
+                f"{campaign.path}: report.sky_map_bands: {', '.join(unknown)} not among the cube's "
+                f"bands {', '.join(cube_bands)}"
+            )
         bands = [b for b in cube_bands if b in set(rc.get("sky_map_bands") or cube_bands)]
         times = map_time_indices(ds, int(rc["sky_map_times"]), rc.get("times") or ())
         return sky_maps(ds, campaign, out, times, bands)
@@ -272,9 +317,13 @@ def limit_maps(limits_ds, campaign, out_dir) -> list:
             lo, hi = _colour_range(v, (10.0, 99.9))
             med = float(np.nanmedian(v)) if np.isfinite(v).any() else float("nan")
             MollweidePanel(fig, (2, 4, ib + 1), "magma", "AB mag (5 sigma), deeper: brighter").show(
-                _full_sky(limits_ds, v), nest, f"{band} (median {med:.2f})", lo, hi)
-        fig.suptitle(f"{campaign.name}: {stat} 5-sigma point-source limit over the campaign (survey exposures; "
-                     "colours: 10th-99.9th percentile per band, shallower pixels black; graticule 30/60 deg; "
-                     "grey: outside the footprint or never observable)", fontsize=10)
+                _full_sky(limits_ds, v), nest, f"{band} (median {med:.2f})", lo, hi
+            )
+        fig.suptitle(
+            f"{campaign.name}: {stat} 5-sigma point-source limit over the campaign (survey exposures; "
+            "colours: 10th-99.9th percentile per band, shallower pixels black; graticule 30/60 deg; "
+            "grey: outside the footprint or never observable)",
+            fontsize=10,
+        )
         written.append(_save(fig, Path(out_dir) / f"limits_{stat}.png"))
     return written

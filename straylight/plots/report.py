@@ -2,6 +2,7 @@
 5-sigma depth and observable fraction per band), and the first page with that table, a guide to
 the figures and their thumbnails.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -11,7 +12,12 @@ import numpy as np
 from straylight.plots.maps import limit_maps
 
 __all__ = [
-    "DEPTH_TABLE", "THUMBNAILS", "depth_summary", "limit_figures", "read_depth_table", "write_depth_table",
+    "DEPTH_TABLE",
+    "THUMBNAILS",
+    "depth_summary",
+    "limit_figures",
+    "read_depth_table",
+    "write_depth_table",
     "write_report_front",
 ]
 
@@ -27,8 +33,10 @@ def depth_summary(limits_ds, observable_fraction: float | None = None) -> dict:
         # the whole array), as stored: never the whole (time, pixel) array at once
         observable = limits_ds["observable"]
         block = int((observable.encoding.get("chunks") or observable.shape)[1])
-        count = sum(int(np.count_nonzero(observable.isel(pixel=slice(a, a + block)).values))
-                    for a in range(0, observable.shape[1], block))
+        count = sum(
+            int(np.count_nonzero(observable.isel(pixel=slice(a, a + block)).values))
+            for a in range(0, observable.shape[1], block)
+        )
         obs = count / observable.size
     rows = {}
     for ib, band in enumerate(limits_ds["band"].values):
@@ -54,8 +62,10 @@ def write_depth_table(rows: dict, path) -> Path:
     path = Path(path)
     with atomic_path(path) as tmp:
         lines = ["band,median_depth_mag,best_depth_mag,observable_fraction"]
-        lines += [f"{b},{r['median_depth_mag']:.2f},{r['best_depth_mag']:.2f},{r['observable_fraction']:.3f}"
-                  for b, r in rows.items()]
+        lines += [
+            f"{b},{r['median_depth_mag']:.2f},{r['best_depth_mag']:.2f},{r['observable_fraction']:.3f}"
+            for b, r in rows.items()
+        ]
         tmp.write_text("\n".join(lines) + "\n")
     return path
 
@@ -83,8 +93,10 @@ def limit_figures(limits_path, campaign, out_dir) -> list:
     # integer: the fraction depth_summary would count, without zarr's pipeline per chunk)
     observable = zarr.open_group(str(limits_path), mode="r", use_consolidated=False)["observable"]
     block = int(observable.chunks[1])
-    count = sum(int(np.count_nonzero(read_region(observable, (slice(None), slice(a, a + block)))))
-                for a in range(0, observable.shape[1], block))
+    count = sum(
+        int(np.count_nonzero(read_region(observable, (slice(None), slice(a, a + block)))))
+        for a in range(0, observable.shape[1], block)
+    )
     written = limit_maps(summaries, campaign, out_dir)
     rows = depth_summary(summaries, count / observable.size)
     return written + [write_depth_table(rows, Path(out_dir) / DEPTH_TABLE)]
@@ -98,13 +110,21 @@ def write_report_front(rows: dict, config: dict, path, figure_dirs=()) -> Path:
     from straylight.util.io import atomic_path
 
     c = config["campaign"]
-    table = ["   * - band", "     - median depth (AB mag)", "     - best depth (AB mag)",
-             "     - observable fraction"]
+    table = [
+        "   * - band",
+        "     - median depth (AB mag)",
+        "     - best depth (AB mag)",
+        "     - observable fraction",
+    ]
     for b, r in rows.items():
-        table += [f"   * - {b}", f"     - {r['median_depth_mag']:.2f}", f"     - {r['best_depth_mag']:.2f}",
-                  f"     - {100 * r['observable_fraction']:.1f} %"]
-    text = f"""Stray-light and sky-background products of the campaign **{c['name']}**
-({c['start']} to {c['end']} UTC, every {float(c['cadence_s']):g} s) for the CSST survey camera
+        table += [
+            f"   * - {b}",
+            f"     - {r['median_depth_mag']:.2f}",
+            f"     - {r['best_depth_mag']:.2f}",
+            f"     - {100 * r['observable_fraction']:.1f} %",
+        ]
+    text = f"""Stray-light and sky-background products of the campaign **{c["name"]}**
+({c["start"]} to {c["end"]} UTC, every {float(c["cadence_s"]):g} s) for the CSST survey camera
 (straylight; method of Xian et al., the seed paper).
 
 .. list-table:: 5-sigma point-source depth for the band's survey exposures (median over the footprint of each
@@ -130,10 +150,15 @@ Provenance (config, software versions, checksums) is in provenance.json.
 
 
 #: The figures shown on the report's first page as thumbnails (file-name prefix, caption).
-THUMBNAILS = (("limits_median", "Median 5-sigma depth per band over the campaign (AB mag)."),
-              ("limits_best", "Best 5-sigma depth per band (AB mag)."),
-              ("sky_g_", "Every background component in g at the first map time (AB mag/arcsec2)."),
-              ("series_orbit_", "One pointing over the first orbit, every band (AB mag/arcsec2; grey: not observable)."))
+THUMBNAILS = (
+    ("limits_median", "Median 5-sigma depth per band over the campaign (AB mag)."),
+    ("limits_best", "Best 5-sigma depth per band (AB mag)."),
+    ("sky_g_", "Every background component in g at the first map time (AB mag/arcsec2)."),
+    (
+        "series_orbit_",
+        "One pointing over the first orbit, every band (AB mag/arcsec2; grey: not observable).",
+    ),
+)
 
 
 def _thumbnails(dirs: list, width_px: int = 560) -> str:
@@ -156,9 +181,11 @@ def _thumbnails(dirs: list, width_px: int = 560) -> str:
         # raw HTML with the base64 split over lines (docutils limits a line to 10,000 characters;
         # browsers drop the whitespace inside a base64 data URI)
         b64 = base64.b64encode(buf.getvalue()).decode()
-        lines = "\n".join("   " + b64[i:i + 76] for i in range(0, len(b64), 76))
-        parts.append(f".. raw:: html\n\n   <figure style=\"display:inline-block;margin:6px;vertical-align:top\">\n"
-                     f"   <img style=\"width:{img.width}px\" alt=\"{found[0].stem}\" src=\"data:image/png;base64,\n{lines}\n   \">\n"
-                     f"   <figcaption style=\"font-size:90%\"><b>{found[0].stem}</b>: {caption} Full size in "
-                     f"<i>Maps and time series</i>.</figcaption></figure>\n")
+        lines = "\n".join("   " + b64[i : i + 76] for i in range(0, len(b64), 76))
+        parts.append(
+            f'.. raw:: html\n\n   <figure style="display:inline-block;margin:6px;vertical-align:top">\n'
+            f'   <img style="width:{img.width}px" alt="{found[0].stem}" src="data:image/png;base64,\n{lines}\n   ">\n'
+            f'   <figcaption style="font-size:90%"><b>{found[0].stem}</b>: {caption} Full size in '
+            f"<i>Maps and time series</i>.</figcaption></figure>\n"
+        )
     return "\n" + "\n".join(parts) if parts else ""

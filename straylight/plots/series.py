@@ -1,6 +1,7 @@
 """Time series of chosen pointings: every component and the total per band against time, over
 the first orbit and over the whole campaign, in AB mag/arcsec2 with unobservable times shaded.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -41,8 +42,10 @@ def pointing_series(background_path, pixel_indices) -> list[dict]:
 
     group = zarr.open_group(str(background_path), mode="r", use_consolidated=False)
     names = list(cube_layout.CUBE_BAND_VARIABLES) + ["observable"]
-    return [{n: read_region(group[n], (slice(None), slice(ip, ip + 1)))[:, 0] for n in names}
-            for ip in pixel_indices]
+    return [
+        {n: read_region(group[n], (slice(None), slice(ip, ip + 1)))[:, 0] for n in names}
+        for ip in pixel_indices
+    ]
 
 
 def time_series(ds, campaign, out_dir, pixel_indices, series: list[dict]) -> list:
@@ -75,13 +78,24 @@ def time_series(ds, campaign, out_dir, pixel_indices, series: list[dict]) -> lis
                     if not np.any(y > 0):
                         continue  # zero all along: no line (listed in the title)
                     mag = np.where(y > 0, zp - 2.5 * np.log10(np.where(y > 0, y, 1.0)), np.nan)
-                    line, = ax.plot(minutes[sel], mag, lw=1.8 if comp == "total" else 1.0,
-                                    color="k" if comp == "total" else f"C{k}", label=comp)
+                    (line,) = ax.plot(
+                        minutes[sel],
+                        mag,
+                        lw=1.8 if comp == "total" else 1.0,
+                        color="k" if comp == "total" else f"C{k}",
+                        label=comp,
+                    )
                     shown[comp] = line
                 # each run of unobservable samples, first to last sample, over the axes' height
                 # (an artist, not a patch: the data limits come from the lines)
-                ax.add_artist(PathPatch(_span_path(minutes[sel], ~obs[sel]), facecolor="0.88", lw=0,
-                                        transform=ax.get_xaxis_transform()))
+                ax.add_artist(
+                    PathPatch(
+                        _span_path(minutes[sel], ~obs[sel]),
+                        facecolor="0.88",
+                        lw=0,
+                        transform=ax.get_xaxis_transform(),
+                    )
+                )
                 total = np.asarray(sub["total"][:, ib], float)[sel]
                 tmag = zp - 2.5 * np.log10(total[total > 0]) if np.any(total > 0) else np.array([20.0])
                 # brighter up; the faint end a few magnitudes below the total's faintest value
@@ -90,15 +104,33 @@ def time_series(ds, campaign, out_dir, pixel_indices, series: list[dict]) -> lis
                 ax.yaxis.set_major_locator(MaxNLocator(4, integer=True))
                 ax.grid(alpha=0.3, lw=0.5)
                 # the band's zero point: e-/s/pixel = 10^(-0.4 (mag - zp))
-                ax.text(1.005, 0.5, f"zero point\n{zp:.2f}\n(1 e-/s/pix)", transform=ax.transAxes, fontsize=7,
-                        va="center", ha="left")
+                ax.text(
+                    1.005,
+                    0.5,
+                    f"zero point\n{zp:.2f}\n(1 e-/s/pix)",
+                    transform=ax.transAxes,
+                    fontsize=7,
+                    va="center",
+                    ha="left",
+                )
             missing = [c for c in cube_layout.CUBE_BAND_VARIABLES if c not in shown]
-            fig.legend(handles=list(shown.values()), loc="upper center", ncol=len(shown), fontsize=8,
-                       bbox_to_anchor=(0.5, 0.965), frameon=False)
-            np.atleast_1d(axes)[-1].set_xlabel(f"minutes after {str(t[0])[:16]} UTC (grey: not observable)"
-                                               + (f"; zero all along, not drawn: {', '.join(missing)}" if missing else ""))
-            fig.suptitle(f"{campaign.name}: pointing RA {ra:.1f}, Dec {dec:.1f} deg, {span} (AB mag/arcsec2, "
-                         "brighter up; e-/s/pixel = 10^(-0.4 (mag - zero point)))", fontsize=10)
+            fig.legend(
+                handles=list(shown.values()),
+                loc="upper center",
+                ncol=len(shown),
+                fontsize=8,
+                bbox_to_anchor=(0.5, 0.965),
+                frameon=False,
+            )
+            np.atleast_1d(axes)[-1].set_xlabel(
+                f"minutes after {str(t[0])[:16]} UTC (grey: not observable)"
+                + (f"; zero all along, not drawn: {', '.join(missing)}" if missing else "")
+            )
+            fig.suptitle(
+                f"{campaign.name}: pointing RA {ra:.1f}, Dec {dec:.1f} deg, {span} (AB mag/arcsec2, "
+                "brighter up; e-/s/pixel = 10^(-0.4 (mag - zero point)))",
+                fontsize=10,
+            )
             fig.tight_layout(rect=(0, 0, 1, 0.95))
             written.append(_save(fig, Path(out_dir) / f"series_{span}_ra{ra:06.2f}_dec{dec:+06.2f}.png"))
     return written
@@ -112,8 +144,12 @@ def _span_path(x, mask):
     edges = np.flatnonzero(np.diff(np.r_[0, np.asarray(mask, np.int8), 0]))
     x0, x1 = np.asarray(x, float)[edges[::2]], np.asarray(x, float)[edges[1::2] - 1]
     zero, one = np.zeros_like(x0), np.ones_like(x0)
-    verts = np.stack([np.c_[x0, zero], np.c_[x0, one], np.c_[x1, one], np.c_[x1, zero], np.c_[x0, zero]], axis=1)
-    codes = np.tile([MplPath.MOVETO, MplPath.LINETO, MplPath.LINETO, MplPath.LINETO, MplPath.CLOSEPOLY], x0.size)
+    verts = np.stack(
+        [np.c_[x0, zero], np.c_[x0, one], np.c_[x1, one], np.c_[x1, zero], np.c_[x0, zero]], axis=1
+    )
+    codes = np.tile(
+        [MplPath.MOVETO, MplPath.LINETO, MplPath.LINETO, MplPath.LINETO, MplPath.CLOSEPOLY], x0.size
+    )
     return MplPath(verts.reshape(-1, 2), codes.astype(MplPath.code_type))
 
 

@@ -11,6 +11,7 @@ polynomials are computed for the whole time array, so there is no Python loop ov
 sorted time grids (the pipeline's case) take one small matrix product per 4-32 day granule;
 unsorted times gather each time's coefficients and use the Clenshaw recurrence.
 """
+
 from __future__ import annotations
 
 import os
@@ -24,7 +25,16 @@ from straylight.sky.timeutil import quiet_dubious_years, utc_to_tdb_jd
 
 #: Bodies with a position relative to the Earth's centre, in the order used in products.
 BODIES = (
-    "sun", "moon", "mercury", "venus", "mars", "jupiter", "saturn", "uranus", "neptune", "pluto",
+    "sun",
+    "moon",
+    "mercury",
+    "venus",
+    "mars",
+    "jupiter",
+    "saturn",
+    "uranus",
+    "neptune",
+    "pluto",
 )
 PLANETS = BODIES[2:]
 
@@ -72,9 +82,7 @@ class DE405:
             raise InputError(f"unknown body {name!r}; known: {', '.join(BODIES)}")
         if name not in self._coefficients:
             # mmap: a few MB are touched per evaluation instead of loading 54 MB up front
-            self._coefficients[name] = np.load(
-                os.path.join(self.data_dir, _FILES[name]), mmap_mode="r"
-            )
+            self._coefficients[name] = np.load(os.path.join(self.data_dir, _FILES[name]), mmap_mode="r")
         return self._coefficients[name]
 
     def _check_range(self, jd1: np.ndarray, jd2: np.ndarray) -> None:

@@ -8,6 +8,7 @@ in [0, 180] and azimuth phi in [0, 360) from +X towards +Y = Z x X.  The Sun is 
 Vectors are Cartesian, GCRS/ICRS axes, last axis of length 3, broadcast over the leading axes
 (:mod:`straylight.sky.vectors`).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -40,18 +41,26 @@ class TelescopeFrame:
         theta, phi = self.theta_phi_runs_deg(d_run, index, shape)
         return theta[0], phi[0]
 
-    def theta_phi_runs_deg(self, d_run: np.ndarray, index: np.ndarray, shape: tuple) -> tuple[np.ndarray, np.ndarray]:
+    def theta_phi_runs_deg(
+        self, d_run: np.ndarray, index: np.ndarray, shape: tuple
+    ) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`theta_phi_deg` of bodies whose directions are given per run of samples: unit
         ``d_run`` (B, R, 3), ``index`` (N,) each sample's run, ``shape`` the samples' shape (N
         samples, the frames broadcast to it); (theta, phi) of shape (B,) + shape.  The direction's
         components in the frame in one compiled pass (:func:`_frame_components_kernel`, which
         reads each sample's direction from its run rather than a gathered (B, N, 3) array), the
         arctangents in numpy (its SIMD arctan2 is faster than the compiled loop's libm call)."""
-        frames = [np.ascontiguousarray(np.broadcast_to(a, tuple(shape) + (3,)).reshape(-1, 3), dtype=float)
-                  for a in (self.x, self.y, self.z)]
+        frames = [
+            np.ascontiguousarray(np.broadcast_to(a, tuple(shape) + (3,)).reshape(-1, 3), dtype=float)
+            for a in (self.x, self.y, self.z)
+        ]
         comp = np.empty((d_run.shape[0], 4, index.size))
-        _frame_components_kernel(*frames, np.ascontiguousarray(d_run, dtype=float),
-                                 np.ascontiguousarray(index, dtype=np.intp), comp)
+        _frame_components_kernel(
+            *frames,
+            np.ascontiguousarray(d_run, dtype=float),
+            np.ascontiguousarray(index, dtype=np.intp),
+            comp,
+        )
         deg = 180.0 / np.pi
         theta = np.arctan2(comp[:, 0], comp[:, 1])
         theta *= deg
@@ -85,11 +94,16 @@ def telescope_frame(los: np.ndarray, sun_direction: np.ndarray) -> TelescopeFram
     With the Sun exactly on or opposite the LOS the roll is undefined; the +X axis then falls
     back to celestial north projected on the focal plane, so the frame is always finite.
     """
-    los, sun_direction = np.broadcast_arrays(np.asarray(los, dtype=float), np.asarray(sun_direction, dtype=float))
+    los, sun_direction = np.broadcast_arrays(
+        np.asarray(los, dtype=float), np.asarray(sun_direction, dtype=float)
+    )
     shape = los.shape
     axes = np.empty((3,) + shape)
-    _frame_kernel(np.ascontiguousarray(los.reshape(-1, 3)), np.ascontiguousarray(sun_direction.reshape(-1, 3)),
-                  axes.reshape(3, -1, 3))
+    _frame_kernel(
+        np.ascontiguousarray(los.reshape(-1, 3)),
+        np.ascontiguousarray(sun_direction.reshape(-1, 3)),
+        axes.reshape(3, -1, 3),
+    )
     return TelescopeFrame(x=axes[0], y=axes[1], z=axes[2])
 
 

@@ -8,6 +8,7 @@ Cartesian, GCRS/ICRS axes, last axis of length 3, broadcast over the leading axe
 (:mod:`straylight.sky.vectors`): a (T, 1, 3) satellite position against (1, P, 3) pointing
 vectors gives (T, P) results, and (N, 3) against (N, 3) gives N paired samples.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -20,8 +21,15 @@ from straylight.sky.runs import SceneRuns, scene_rows
 from straylight.sky.vectors import angle_between_deg, unit
 
 __all__ = [
-    "VIOLATION_BITS", "VIOLATION_NAMES", "Constraints", "DoorState", "body_geometry", "moon_phase",
-    "observing_geometry", "violation_mask_attrs", "violation_names",
+    "VIOLATION_BITS",
+    "VIOLATION_NAMES",
+    "Constraints",
+    "DoorState",
+    "body_geometry",
+    "moon_phase",
+    "observing_geometry",
+    "violation_mask_attrs",
+    "violation_names",
 ]
 
 
@@ -34,9 +42,12 @@ VIOLATION_BITS = {name: 1 << i for i, name in enumerate(VIOLATION_NAMES)}
 def violation_mask_attrs() -> dict:
     """CF attributes of a violated-constraint bit mask: ``flag_masks`` with the bits and
     ``flag_meanings`` with their names, blank-separated in the same order (CF 1.11 sect. 3.5)."""
-    return {"units": "1", "long_name": "violated-constraint bit mask (0 = no constraint violated)",
-            "flag_masks": np.array(list(VIOLATION_BITS.values()), dtype=np.uint8),
-            "flag_meanings": " ".join(VIOLATION_BITS)}
+    return {
+        "units": "1",
+        "long_name": "violated-constraint bit mask (0 = no constraint violated)",
+        "flag_masks": np.array(list(VIOLATION_BITS.values()), dtype=np.uint8),
+        "flag_meanings": " ".join(VIOLATION_BITS),
+    }
 
 
 @dataclass(frozen=True)
@@ -86,8 +97,12 @@ class Constraints:
         avoidance angle is allowed (the paper gives minimum angles).
         """
         flags = np.zeros(np.broadcast(sun_angle_deg, moon_angle_deg).shape, dtype=np.uint8)
-        flags |= np.where(np.asarray(sun_angle_deg) < self.sun_min_deg, VIOLATION_BITS["sun"], 0).astype(np.uint8)
-        flags |= np.where(np.asarray(moon_angle_deg) < self.moon_min_deg, VIOLATION_BITS["moon"], 0).astype(np.uint8)
+        flags |= np.where(np.asarray(sun_angle_deg) < self.sun_min_deg, VIOLATION_BITS["sun"], 0).astype(
+            np.uint8
+        )
+        flags |= np.where(np.asarray(moon_angle_deg) < self.moon_min_deg, VIOLATION_BITS["moon"], 0).astype(
+            np.uint8
+        )
         flags |= np.where(
             np.asarray(bright_limb_angle_deg) < self.bright_limb_min_deg, VIOLATION_BITS["bright_limb"], 0
         ).astype(np.uint8)
@@ -118,9 +133,11 @@ def moon_phase(sun_km: np.ndarray, moon_km: np.ndarray, observer_km: np.ndarray)
     return alpha, fraction, elongation
 
 
-
 def body_geometry(
-    satellite_km: np.ndarray, bodies_km: dict[str, np.ndarray], frame: TelescopeFrame, earth_radius_km: float,
+    satellite_km: np.ndarray,
+    bodies_km: dict[str, np.ndarray],
+    frame: TelescopeFrame,
+    earth_radius_km: float,
     runs: SceneRuns | None = None,
 ) -> dict[str, np.ndarray]:
     """Each body's off-axis angle, azimuth and Earth test in the telescope ``frame`` (see
@@ -137,9 +154,13 @@ def _body_geometry(bodies_km, frame, earth_radius_km, rows: SceneRuns) -> dict[s
     every body's direction and Earth test once per run, then all bodies' angles in one pass."""
     d_run = unit(np.stack(rows.vectors[1:]) - rows.vectors[0])  # (bodies, runs, 3)
     shape = np.broadcast_shapes(rows.shape, frame.z.shape[:-1])
-    index = rows.index if shape == rows.shape else np.broadcast_to(rows.index.reshape(rows.shape), shape).ravel()
+    index = (
+        rows.index if shape == rows.shape else np.broadcast_to(rows.index.reshape(rows.shape), shape).ravel()
+    )
     blocked_run = earth_blocks(rows.vectors[0], d_run, earth_radius_km)  # (bodies, runs)
-    blocked = np.take(blocked_run, index, axis=1).reshape((len(bodies_km),) + shape)  # np.take: faster than [:, index]
+    blocked = np.take(blocked_run, index, axis=1).reshape(
+        (len(bodies_km),) + shape
+    )  # np.take: faster than [:, index]
     theta, phi = frame.theta_phi_runs_deg(d_run, index, shape)
     out: dict[str, np.ndarray] = {}
     for i, name in enumerate(bodies_km):
@@ -187,8 +208,12 @@ def observing_geometry(
     rows = scene_rows(sat, *bodies_km.values(), runs=runs)
     out = _body_geometry(bodies_km, frame, earth_radius_km, rows)
     names = list(bodies_km)
-    alpha, fraction, elongation = (rows.expand(v) for v in moon_phase(
-        rows.vectors[1 + names.index("sun")], rows.vectors[1 + names.index("moon")], rows.vectors[0]))
+    alpha, fraction, elongation = (
+        rows.expand(v)
+        for v in moon_phase(
+            rows.vectors[1 + names.index("sun")], rows.vectors[1 + names.index("moon")], rows.vectors[0]
+        )
+    )
     shape = out["sun_angle_deg"].shape
     out["moon_phase_angle_deg"] = np.broadcast_to(alpha, shape)
     out["moon_illuminated_fraction"] = np.broadcast_to(fraction, shape)

@@ -11,6 +11,7 @@ Conventions (the paper, sections 2.3 and 3.1):
 Vectors are Cartesian, GCRS/ICRS axes, last axis of length 3, broadcast over the leading axes
 (:mod:`straylight.sky.vectors`).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -56,7 +57,10 @@ class LimbGeometry:
 
 
 def limb_geometry(
-    satellite_km: np.ndarray, los: np.ndarray, sun_km: np.ndarray, earth_radius_km: float,
+    satellite_km: np.ndarray,
+    los: np.ndarray,
+    sun_km: np.ndarray,
+    earth_radius_km: float,
     runs: SceneRuns | None = None,
 ) -> LimbGeometry:
     """Earth limb geometry for lines of sight ``los`` from ``satellite_km``.
@@ -81,8 +85,13 @@ def limb_geometry(
     (scene_r, scene_sun), index = rows.vectors, rows.index
     per_scene = _limb_scene(scene_r, scene_sun, earth_radius_km)
     out = np.empty((5, index.size))
-    _limb_kernel(np.ascontiguousarray(los.reshape(-1, 3)), index, np.ascontiguousarray(scene_sun),
-                 *(np.ascontiguousarray(v) for v in per_scene), out)
+    _limb_kernel(
+        np.ascontiguousarray(los.reshape(-1, 3)),
+        index,
+        np.ascontiguousarray(scene_sun),
+        *(np.ascontiguousarray(v) for v in per_scene),
+        out,
+    )
     return LimbGeometry(
         earth_limb_angle_deg=out[0].reshape(shape),
         zenith_angle_deg=out[1].reshape(shape),

@@ -6,6 +6,7 @@ The functions take what they need (an orbit, the Earth's radius, the avoidance c
 the campaign: a caller with a :class:`~straylight.config.Campaign` passes ``campaign.orbit``,
 ``campaign.earth.radius_km`` and ``campaign.constraints``.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -42,8 +43,9 @@ def scene(orbit: CircularOrbit | TLEOrbit, times, bodies=BODIES) -> Scene:
     return Scene(times=t1, satellite_km=sat, bodies_km=bodies_km)
 
 
-def sample_geometry(sc: Scene, ra_deg, dec_deg, earth_radius_km: float, constraints: Constraints,
-                    grid: bool = True) -> dict:
+def sample_geometry(
+    sc: Scene, ra_deg, dec_deg, earth_radius_km: float, constraints: Constraints, grid: bool = True
+) -> dict:
     """Observing geometry for the scene's times and the pointings (ICRS deg), with the Earth's
     radius (km) and the avoidance constraints (a campaign's ``earth.radius_km`` and
     ``constraints``).

@@ -14,6 +14,7 @@ Both give ``position_gcrs_km(times) -> (..., 3)``, ``epoch_time`` and ``period_s
 far from the orbit's epoch is warned about when its config is validated
 (:func:`warn_if_epoch_far`).
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -180,8 +181,7 @@ class TLEOrbit:
             digits = sum(int(c) for c in line[:68] if c.isdigit()) + line[:68].count("-")
             if digits % 10 != int(line[68]):
                 raise InputError(
-                    f"{source}: line {i} checksum {line[68]} does not match computed "
-                    f"{digits % 10}: {line!r}"
+                    f"{source}: line {i} checksum {line[68]} does not match computed {digits % 10}: {line!r}"
                 )
         try:
             self.satrec = Satrec.twoline2rv(line1, line2)
@@ -211,8 +211,7 @@ class TLEOrbit:
             code = int(err[err != 0][0])
             when = t.ravel()[np.argmax(err != 0)].isot if t.shape else t.isot
             raise InputError(
-                f"{self.source}: SGP4 error {code} ({self._SGP4_ERRORS.get(code, 'unknown')}) "
-                f"at {when}"
+                f"{self.source}: SGP4 error {code} ({self._SGP4_ERRORS.get(code, 'unknown')}) at {when}"
             )
         return r.reshape(np.shape(t.jd1) + (3,))
 
@@ -275,8 +274,10 @@ def epoch_gap_warning(what: str, epoch, start, end, limit_days: float, reason: s
     if largest <= limit_days:
         return None
     side = "before" if to_start >= 0 else "after"
-    return (f"{what} {epoch.isot[:19]} is {abs(to_start):.0f} days {side} campaign.start {start.isot[:19]} "
-            f"(up to {largest:.0f} days over the campaign): {reason}")
+    return (
+        f"{what} {epoch.isot[:19]} is {abs(to_start):.0f} days {side} campaign.start {start.isot[:19]} "
+        f"(up to {largest:.0f} days over the campaign): {reason}"
+    )
 
 
 def warn_if_epoch_far(orbit_cfg: dict, start, end, where: str) -> str | None:
@@ -290,17 +291,27 @@ def warn_if_epoch_far(orbit_cfg: dict, start, end, where: str) -> str | None:
     if orbit_cfg["model"] == "circular":
         epoch = parse_utc(orbit_cfg["circular"]["epoch"], "orbit.circular.epoch")
         msg = epoch_gap_warning(
-            "orbit.circular.epoch", epoch, start, end, CIRCULAR_EPOCH_WARN_DAYS,
+            "orbit.circular.epoch",
+            epoch,
+            start,
+            end,
+            CIRCULAR_EPOCH_WARN_DAYS,
             f"the circular orbit is propagated from its epoch with J2 alone (no drag, no reboosts), so beyond "
             f"{CIRCULAR_EPOCH_WARN_DAYS:g} days its node and phase say little about the real orbit; set the "
-            "epoch near the campaign")
+            "epoch near the campaign",
+        )
     else:
         line1, line2, source = _tle_lines(orbit_cfg.get("tle") or {})
         label = "orbit.tle epoch" if source == "orbit.tle" else f"orbit.tle ({source}) epoch"
         msg = epoch_gap_warning(
-            label, TLEOrbit(line1, line2, source).epoch_time, start, end, TLE_EPOCH_WARN_DAYS,
+            label,
+            TLEOrbit(line1, line2, source).epoch_time,
+            start,
+            end,
+            TLE_EPOCH_WARN_DAYS,
             f"SGP4 positions of a low orbit are unreliable beyond {TLE_EPOCH_WARN_DAYS:g} days of the TLE's "
-            "epoch (the drag it cannot predict); use a TLE from the campaign's weeks")
+            "epoch (the drag it cannot predict); use a TLE from the campaign's weeks",
+        )
     if msg is None:
         return None
     msg = f"{where}: {msg}"

@@ -2,6 +2,7 @@
 positions (a survey cube's time step over its pixels), so that what depends on the scene alone
 is computed once per run and read per sample.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -33,8 +34,9 @@ class SceneRuns:
     def steps(cls, n_steps: int, per_step: int) -> "SceneRuns":
         """Runs of ``per_step`` consecutive samples each, ``n_steps`` of them (a cube region's
         time steps, each over its pixels), with no vectors yet (:meth:`of` reads them)."""
-        return cls((), np.repeat(np.arange(n_steps), per_step), (n_steps * per_step,),
-                   np.arange(n_steps) * per_step)
+        return cls(
+            (), np.repeat(np.arange(n_steps), per_step), (n_steps * per_step,), np.arange(n_steps) * per_step
+        )
 
     @property
     def count(self) -> int:
@@ -48,8 +50,12 @@ class SceneRuns:
         vs = np.broadcast_arrays(*(np.asarray(v, float) for v in vectors_km))
         if int(np.prod(vs[0].shape[:-1])) != self.index.size or vs[0].shape[-1] != 3:
             raise ValueError(f"scene runs of {self.index.size} samples given vectors of shape {vs[0].shape}")
-        return SceneRuns(tuple(np.take(v.reshape(-1, 3), self.starts, axis=0) for v in vs), self.index,
-                         vs[0].shape[:-1], self.starts)
+        return SceneRuns(
+            tuple(np.take(v.reshape(-1, 3), self.starts, axis=0) for v in vs),
+            self.index,
+            vs[0].shape[:-1],
+            self.starts,
+        )
 
     def at(self, samples) -> "SceneRuns":
         """The runs of the flattened samples ``samples`` (increasing indices), as a flat
@@ -115,14 +121,18 @@ def scene_rows(*vectors_km, runs: SceneRuns | None = None) -> SceneRuns:
     vs = np.broadcast_arrays(*(np.asarray(v, float) for v in vectors_km))
     shape = vs[0].shape[:-1]
     n = int(np.prod(shape))
-    return scene_runs(*vs) or SceneRuns(tuple(v.reshape(-1, 3) for v in vs), np.arange(n), shape, np.arange(n))
+    return scene_runs(*vs) or SceneRuns(
+        tuple(v.reshape(-1, 3) for v in vs), np.arange(n), shape, np.arange(n)
+    )
 
 
 def rows_at(vectors, shape, index) -> np.ndarray:
     """The 3-vectors ``vectors`` (broadcast to ``shape`` + (3,)) at the flat sample indices
     ``index``, (len(index), 3): by np.take, faster than numpy's boolean or fancy indexing of
     (N, 3) rows."""
-    return np.take(np.broadcast_to(np.asarray(vectors, float), tuple(shape) + (3,)).reshape(-1, 3), index, axis=0)
+    return np.take(
+        np.broadcast_to(np.asarray(vectors, float), tuple(shape) + (3,)).reshape(-1, 3), index, axis=0
+    )
 
 
 def tiled_period(vectors, runs: SceneRuns | None) -> int | None:

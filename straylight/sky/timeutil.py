@@ -11,6 +11,7 @@ Parsing and the UTC->TDB step run without ERFA's "dubious year" warnings
 (:func:`straylight.sky.ephemeris.check_in_ephemeris`), which the warnings would otherwise
 precede.
 """
+
 from __future__ import annotations
 
 import re
@@ -93,7 +94,6 @@ def parse_utc(times, field: str = "time") -> Time:
             ) from exc
 
 
-
 _UTC_OFFSET = re.compile(r"(Z|[+-](\d\d):?(\d\d))$", re.IGNORECASE)
 
 
@@ -110,21 +110,24 @@ def _parse_iso_with_offsets(times) -> Time:
     base, offset_s = [], np.zeros(len(flat))
     for i, s in enumerate(flat):
         m = _UTC_OFFSET.search(s) if "T" in s or " " in s else None
-        if m and not s[:m.start()].endswith(("T", " ")):
+        if m and not s[: m.start()].endswith(("T", " ")):
             if m.group(1).upper() != "Z":
                 hours, minutes = int(m.group(2)), int(m.group(3))
                 if hours > 23 or minutes > 59:
                     raise ValueError(f"bad UTC offset in {s!r}")
                 sign = -1.0 if m.group(1)[0] == "-" else 1.0
                 offset_s[i] = sign * (hours * 3600.0 + minutes * 60.0)
-            s = s[:m.start()]
+            s = s[: m.start()]
         base.append(s)
     t = Time(base if arr.ndim else base[0], scale="utc")
     if np.any(offset_s):
         import astropy.units as u
 
-        t = Time(t - (offset_s.reshape(arr.shape) if arr.ndim else offset_s[0]) * u.s, scale="utc", format="isot")
+        t = Time(
+            t - (offset_s.reshape(arr.shape) if arr.ndim else offset_s[0]) * u.s, scale="utc", format="isot"
+        )
     return t
+
 
 #: Above this many times, TDB-TT is interpolated from a grid instead of the full series.
 DTDB_DIRECT_MAX = 4096

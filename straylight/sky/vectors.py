@@ -6,6 +6,7 @@ the leading axes, so a (T, 1, 3) satellite position against (1, P, 3) pointing v
 ``atan2(|a x b|, a . b)``, accurate at 0 and 180 deg (the paper, sections 2.3 and 3.1).  The
 ``*_xyz`` functions are the same arithmetic on one vector, for compiled kernels.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -14,8 +15,15 @@ from numba import njit
 from straylight.errors import InputError
 
 __all__ = [
-    "angle_between_deg", "any_perpendicular_xyz", "dot", "norm", "perpendicular_towards", "radec_to_unit",
-    "unit", "unit_xyz", "wrap_360_deg",
+    "angle_between_deg",
+    "any_perpendicular_xyz",
+    "dot",
+    "norm",
+    "perpendicular_towards",
+    "radec_to_unit",
+    "unit",
+    "unit_xyz",
+    "wrap_360_deg",
 ]
 
 

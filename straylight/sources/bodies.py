@@ -19,6 +19,7 @@ Published brightness laws:
 * Planets: V = V0 + 5 log10(r Delta) + phase terms (Meeus 1998, "Astronomical Algorithms",
   2nd ed., ch. 41, after the Astronomical Almanac 1984), with Saturn's ring term; solar spectrum.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -85,7 +86,9 @@ def planet_v_magnitudes(names, planets_km, sun_km, observer_km) -> np.ndarray:
     v0, c1, c2, c3 = v0[extra], c1[extra], c2[extra], c3[extra]
     r = norm(planet - sun) / AU_KM
     delta = norm(planet - observer) / AU_KM
-    i = np.degrees(np.arctan2(norm(np.cross(sun - planet, observer - planet)), dot(sun - planet, observer - planet)))
+    i = np.degrees(
+        np.arctan2(norm(np.cross(sun - planet, observer - planet)), dot(sun - planet, observer - planet))
+    )
     v = v0 + 5.0 * np.log10(r * delta) + c1 * i + c2 * i**2 + c3 * i**3
     if "saturn" in names:
         k = list(names).index("saturn")
@@ -107,8 +110,9 @@ class Sun:
         pixel area (e-/s/pix per photon s-1 m-2 at the aperture), of the samples' shape; in
         band b the Sun gives transfer * (sun_at_1au[b] * (1 AU / distance)^2) e-/s/pix."""
         g = samples.geometry
-        transfer = self.context.offfield.point_source(1.0, g["sun_angle_deg"], g["sun_phi_deg"],
-                                                      g["sun_earth_blocked"], samples.door_deg)
+        transfer = self.context.offfield.point_source(
+            1.0, g["sun_angle_deg"], g["sun_phi_deg"], g["sun_earth_blocked"], samples.door_deg
+        )
         return BandRates(per_lamp={"sun": {"sun": transfer}})
 
 
@@ -134,8 +138,11 @@ class SolarBodySkip:
             # radius per sample
             widest = self.widest_radius_deg(rel, budget, floor_ratio)
             if widest < 180.0 and np.min(angle_deg) >= widest:
-                return np.zeros(np.broadcast_shapes(np.shape(angle_deg), np.shape(phi_deg), np.shape(earth_blocked),
-                                                    np.shape(door)))
+                return np.zeros(
+                    np.broadcast_shapes(
+                        np.shape(angle_deg), np.shape(phi_deg), np.shape(earth_blocked), np.shape(door)
+                    )
+                )
         # beyond each sample's radius (a radius of 180: nowhere skippable)
         far = off.pst.beyond_influence_radius(angle_deg, budget * np.asarray(floor_ratio, float) / rel)
         # a skipped source is treated as hidden: point_source then looks nothing up for it
@@ -144,8 +151,11 @@ class SolarBodySkip:
     def scale(self, sun_fraction, bands) -> tuple:
         """(rel, budget): the body's e-/s/pix at PST = 1 relative to the darkest zodiacal light,
         worst band (solar spectrum), and its share of the tolerance (1/9 of moon_and_planets_skip)."""
-        rel = self.context.offfield.pixel_area_m2 * np.asarray(sun_fraction, float) / self.context.solar_floor(
-            tuple(bands))
+        rel = (
+            self.context.offfield.pixel_area_m2
+            * np.asarray(sun_fraction, float)
+            / self.context.solar_floor(tuple(bands))
+        )
         return rel, self.policy.share("moon_and_planets_skip") / (1 + len(PLANETS)) * self.policy.tolerance
 
     def widest_radius_deg(self, rel, budget, floor_ratio) -> float:
@@ -170,12 +180,23 @@ class Moon:
         hides the Sun from the Moon) and ``at_earth`` (eclipse included: the moonlit Earth's lamp)."""
         off, g = self.context.offfield, samples.geometry
         sun, moon = samples.sun_km, samples.moon_km
-        rows = scene_rows(sun, moon, runs=samples.runs)  # the eclipse once per run sharing them (a cube's time step)
-        eclipsed = rows.expand(earth_blocks(rows.vectors[1], rows.vectors[0] - rows.vectors[1],
-                                            self.context.campaign.earth.radius_km))
-        v = moon_v_magnitude(g["moon_phase_angle_deg"], norm(moon - samples.satellite_km), off.moon_law,
-                             g["moon_elongation_deg"])
-        v_at_earth = moon_v_magnitude(g["moon_phase_angle_deg"], norm(moon), off.moon_law, g["moon_elongation_deg"])
+        rows = scene_rows(
+            sun, moon, runs=samples.runs
+        )  # the eclipse once per run sharing them (a cube's time step)
+        eclipsed = rows.expand(
+            earth_blocks(
+                rows.vectors[1], rows.vectors[0] - rows.vectors[1], self.context.campaign.earth.radius_km
+            )
+        )
+        v = moon_v_magnitude(
+            g["moon_phase_angle_deg"],
+            norm(moon - samples.satellite_km),
+            off.moon_law,
+            g["moon_elongation_deg"],
+        )
+        v_at_earth = moon_v_magnitude(
+            g["moon_phase_angle_deg"], norm(moon), off.moon_law, g["moon_elongation_deg"]
+        )
         eclipse = np.where(eclipsed, off.moon_eclipse_factor, 1.0)
         return {"v_mag": v, "eclipse": eclipse, "at_earth": solar_like_fraction(v_at_earth) * eclipse}
 
@@ -186,8 +207,15 @@ class Moon:
         (:meth:`lamp`'s)."""
         g, lamp = samples.geometry, samples.moon_lamp
         sun_fraction = solar_like_fraction(lamp["v_mag"])
-        t = self.skip.transfer(sun_fraction, g["moon_angle_deg"], g["moon_phi_deg"], g["moon_earth_blocked"],
-                               samples.door_deg, bands, samples.floor_ratio)
+        t = self.skip.transfer(
+            sun_fraction,
+            g["moon_angle_deg"],
+            g["moon_phi_deg"],
+            g["moon_earth_blocked"],
+            samples.door_deg,
+            bands,
+            samples.floor_ratio,
+        )
         return BandRates(per_lamp={"moon": {"sun_at_1au": t * sun_fraction * lamp["eclipse"]}})
 
 
@@ -202,9 +230,22 @@ class Planets:
     def rates(self, samples: Samples, bands) -> BandRates:
         """The planets together on the ``sun_at_1au`` lamp: e-/s/pix per photon s-1 m-2 of the
         Sun at 1 AU, of the samples' shape, each skipped against ``samples.floor_ratio``."""
-        return BandRates(per_lamp={"planets": {"sun_at_1au": self.fraction(
-            samples.satellite_km, samples.bodies_km, samples.frame, samples.door_deg, bands, samples.floor_ratio,
-            samples.shape, samples.runs)}})
+        return BandRates(
+            per_lamp={
+                "planets": {
+                    "sun_at_1au": self.fraction(
+                        samples.satellite_km,
+                        samples.bodies_km,
+                        samples.frame,
+                        samples.door_deg,
+                        bands,
+                        samples.floor_ratio,
+                        samples.shape,
+                        samples.runs,
+                    )
+                }
+            }
+        )
 
     def fraction(self, sat, bodies_km, frame, door, bands, floor_ratio, shape, runs=None) -> np.ndarray:
         """:meth:`rates` from its parts: the sum of each planet's :meth:`transfer` times its
@@ -216,13 +257,21 @@ class Planets:
         planets = [p for p in PLANETS if p in bodies_km]
         if not planets or not out.size:
             return out
-        rows = scene_rows(*(np.broadcast_to(np.asarray(v, float), shape + (3,))
-                            for v in (sat, bodies_km["sun"], *(bodies_km[p] for p in planets))), runs=runs)
+        rows = scene_rows(
+            *(
+                np.broadcast_to(np.asarray(v, float), shape + (3,))
+                for v in (sat, bodies_km["sun"], *(bodies_km[p] for p in planets))
+            ),
+            runs=runs,
+        )
         vectors, index = rows.vectors, rows.index
-        fractions = solar_like_fraction(planet_v_magnitudes(planets, np.stack(vectors[2:]), vectors[1],
-                                                            vectors[0]))  # (planets, runs)
+        fractions = solar_like_fraction(
+            planet_v_magnitudes(planets, np.stack(vectors[2:]), vectors[1], vectors[0])
+        )  # (planets, runs)
         min_floor = float(np.min(floor_ratio))
-        widest = np.array([self.skip.widest_radius_deg(*self.skip.scale(f, bands), min_floor) for f in fractions])
+        widest = np.array(
+            [self.skip.widest_radius_deg(*self.skip.scale(f, bands), min_floor) for f in fractions]
+        )
         # a margin of 1e-6 deg: the samples left out lie beyond the widest radius whatever the
         # rounding, and the others get the per-sample rule; a radius of 180 deg: every sample
         cos_limit = np.where(widest < 180.0, np.cos(np.radians(widest + 1e-6)), -np.inf)
@@ -234,24 +283,61 @@ class Planets:
             near_i = np.flatnonzero(near[i])
             if near_i.size:  # added at the near samples only (elsewhere the planet adds 0)
                 fraction_near = np.take(fractions[i], np.take(index, near_i))
-                flat_out[near_i] += self.transfer(fraction_near, sat, bodies_km[p], frame, door, bands, floor_ratio,
-                                                  shape, near_i, None if runs is None else runs.at(near_i)
-                                                  ) * fraction_near
+                flat_out[near_i] += (
+                    self.transfer(
+                        fraction_near,
+                        sat,
+                        bodies_km[p],
+                        frame,
+                        door,
+                        bands,
+                        floor_ratio,
+                        shape,
+                        near_i,
+                        None if runs is None else runs.at(near_i),
+                    )
+                    * fraction_near
+                )
         return out
 
-    def transfer(self, fraction_near, satellite_km, planet_km, frame, door, bands, floor_ratio, shape, near,
-                 runs_near=None) -> np.ndarray:
+    def transfer(
+        self,
+        fraction_near,
+        satellite_km,
+        planet_km,
+        frame,
+        door,
+        bands,
+        floor_ratio,
+        shape,
+        near,
+        runs_near=None,
+    ) -> np.ndarray:
         """:meth:`SolarBodySkip.transfer` of a planet at the samples ``near`` (flat indices),
         there only, (len(near),); ``fraction_near``: its fraction of the Sun's irradiance there;
         ``runs_near``: the scene runs of the samples ``near``, when known."""
-        sat, planet, fx, fy, fz = (rows_at(v, shape, near)
-                                   for v in (satellite_km, planet_km, frame.x, frame.y, frame.z))
-        g = body_geometry(sat, {"planet": planet}, TelescopeFrame(fx, fy, fz), self.context.campaign.earth.radius_km,
-                          runs=runs_near)
-        door_near, floor_near = (np.broadcast_to(np.asarray(v, float), shape).ravel()[near]
-                                 for v in (door, floor_ratio))
-        return self.skip.transfer(fraction_near, g["planet_angle_deg"], g["planet_phi_deg"],
-                                  g["planet_earth_blocked"], door_near, bands, floor_near)
+        sat, planet, fx, fy, fz = (
+            rows_at(v, shape, near) for v in (satellite_km, planet_km, frame.x, frame.y, frame.z)
+        )
+        g = body_geometry(
+            sat,
+            {"planet": planet},
+            TelescopeFrame(fx, fy, fz),
+            self.context.campaign.earth.radius_km,
+            runs=runs_near,
+        )
+        door_near, floor_near = (
+            np.broadcast_to(np.asarray(v, float), shape).ravel()[near] for v in (door, floor_ratio)
+        )
+        return self.skip.transfer(
+            fraction_near,
+            g["planet_angle_deg"],
+            g["planet_phi_deg"],
+            g["planet_earth_blocked"],
+            door_near,
+            bands,
+            floor_near,
+        )
 
 
 class InFieldBodies:
@@ -281,16 +367,28 @@ class InFieldBodies:
                 fraction = (AU_KM / dist) ** 2
                 v = V_SUN_VEGA - 2.5 * np.log10(fraction)
             elif body == "moon":
-                v = moon_v_magnitude(geometry["moon_phase_angle_deg"], dist, off.moon_law,
-                                     geometry["moon_elongation_deg"])
+                v = moon_v_magnitude(
+                    geometry["moon_phase_angle_deg"], dist, off.moon_law, geometry["moon_elongation_deg"]
+                )
                 fraction = solar_like_fraction(v)
             else:
                 v = planet_v_magnitudes([body], pos[None], np.asarray(bodies_km["sun"], float), sat)[0]
                 fraction = solar_like_fraction(v)
-            mags = {b: -2.5 * np.log10(fraction * self.context.photometry(b).sun_at_1au_photons_s_m2
-                                       / self.context.band(b).ab_zero_point_photons_s_m2) for b in bands}
-            out[body] = {"in_field": angle <= off.field_radius_deg, "angle_deg": angle,
-                         "v_mag": np.asarray(v, float), "mag_ab": mags}
+            mags = {
+                b: -2.5
+                * np.log10(
+                    fraction
+                    * self.context.photometry(b).sun_at_1au_photons_s_m2
+                    / self.context.band(b).ab_zero_point_photons_s_m2
+                )
+                for b in bands
+            }
+            out[body] = {
+                "in_field": angle <= off.field_radius_deg,
+                "angle_deg": angle,
+                "v_mag": np.asarray(v, float),
+                "mag_ab": mags,
+            }
         return out
 
 
@@ -305,6 +403,10 @@ def _near_runs_kernel(fz, directions, run_index, cos_limit):
         limit = cos_limit[b]
         for i in range(n):
             r = run_index[i]
-            c = fz[i, 0] * directions[b, r, 0] + fz[i, 1] * directions[b, r, 1] + fz[i, 2] * directions[b, r, 2]
+            c = (
+                fz[i, 0] * directions[b, r, 0]
+                + fz[i, 1] * directions[b, r, 1]
+                + fz[i, 2] * directions[b, r, 2]
+            )
             out[b, i] = c > limit
     return out

@@ -2,6 +2,7 @@
 blocking: :class:`~straylight.sources.offfield.OffFieldModel`), each band's throughput and solar
 photometry, and the darkest sky every skip bound is measured against; and :class:`Samples`, the
 batch of (time, pointing) samples every source is asked about."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -16,8 +17,8 @@ from straylight.optics.door import door_from_instrument
 from straylight.optics.pst import load_pst
 from straylight.sky.frames import TelescopeFrame
 from straylight.sky.vectors import norm
-from straylight.sources.photometry import AU_KM, BandPhotometry
 from straylight.sources.offfield import EarthshineSettings, OffFieldModel
+from straylight.sources.photometry import AU_KM, BandPhotometry
 from straylight.sources.zodiacal import ZodiacalModel, zodiacal_model_from_instrument
 
 
@@ -86,8 +87,9 @@ class SourceContext:
     @cached_property
     def zodiacal(self) -> ZodiacalModel:
         """The zodiacal-light model (models.zodiacal_spectrum)."""
-        return zodiacal_model_from_instrument(self.campaign.instrument_settings,
-                                              self.campaign.settings.models.zodiacal_spectrum)
+        return zodiacal_model_from_instrument(
+            self.campaign.instrument_settings, self.campaign.settings.models.zodiacal_spectrum
+        )
 
     @cached_property
     def offfield(self) -> OffFieldModel:
@@ -109,7 +111,10 @@ class SourceContext:
             pixel_etendue_m2_sr=self.zodiacal.pixel_etendue_m2_sr,
             field_radius_deg=field_radius_deg,
             earthshine=EarthshineSettings(
-                n_gamma=es.n_gamma, n_psi=es.n_psi, albedo=float(es.albedo), door_blocks=es.door_blocks,
+                n_gamma=es.n_gamma,
+                n_psi=es.n_psi,
+                albedo=float(es.albedo),
+                door_blocks=es.door_blocks,
                 door_reflectance=inst.door_geometry.reflectance.value,
                 n_aperture_door=es.n_aperture_door,
             ),
@@ -157,6 +162,7 @@ class SourceContext:
         """:attr:`earthshine_floor` over ``bands`` (cached per set of bands)."""
         cache = self.__dict__.setdefault("_solar_floor", {})
         if bands not in cache:
-            cache[bands] = min(self.darkest_zodiacal_e_per_s(b) / self.photometry(b).sun_at_1au_photons_s_m2
-                               for b in bands)
+            cache[bands] = min(
+                self.darkest_zodiacal_e_per_s(b) / self.photometry(b).sun_at_1au_photons_s_m2 for b in bands
+            )
         return cache[bands]

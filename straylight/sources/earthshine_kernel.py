@@ -20,6 +20,7 @@ both terms, as :meth:`OffFieldModel.door_factor` does for an opening that is no 
 table builds ask for every state at once, so the geometry and the PST are computed once per
 block and line of sight for all of them.
 """
+
 from __future__ import annotations
 
 import math
@@ -55,24 +56,81 @@ class GridPack:
 
     def arrays(self) -> tuple:
         """The arrays :func:`cap_sums` takes for this grid, in its argument order."""
-        return (self.lo, self.hi, self.uniform, self.inv_width, self.n_bins, self.bin_cell, self.nodes,
-                self.n_nodes, self.inv_step, self.stride0, self.values)
+        return (
+            self.lo,
+            self.hi,
+            self.uniform,
+            self.inv_width,
+            self.n_bins,
+            self.bin_cell,
+            self.nodes,
+            self.n_nodes,
+            self.inv_step,
+            self.stride0,
+            self.values,
+        )
 
 
 @njit(cache=True, nogil=True, inline="always")
 def _bilinear_at(values, row, base, s0, ta, tb):
     """Row ``row`` of ``values`` interpolated in the cell at flat node ``base``."""
-    return ((values[row, base] * (1 - tb) + values[row, base + 1] * tb) * (1 - ta)
-            + (values[row, base + s0] * (1 - tb) + values[row, base + s0 + 1] * tb) * ta)
+    return (values[row, base] * (1 - tb) + values[row, base + 1] * tb) * (1 - ta) + (
+        values[row, base + s0] * (1 - tb) + values[row, base + s0 + 1] * tb
+    ) * ta
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def cap_sums(fx, fy, fz, blocks, span_g, span_p, lum, state_sel, door_normal, door_k, field_radius_deg,
-             pixel_area_m2,
-             p_lo, p_hi, p_uni, p_iw, p_nb, p_bc, p_nodes, p_nn, p_is, p_s0, p_val,
-             d_lo, d_hi, d_uni, d_iw, d_nb, d_bc, d_nodes, d_nn, d_is, d_s0, d_val,
-             f_lo, f_hi, f_uni, f_iw, f_nb, f_bc, f_nodes, f_nn, f_is, f_s0, f_val, has_body, lit_at_plane,
-             direct, door):
+def cap_sums(
+    fx,
+    fy,
+    fz,
+    blocks,
+    span_g,
+    span_p,
+    lum,
+    state_sel,
+    door_normal,
+    door_k,
+    field_radius_deg,
+    pixel_area_m2,
+    p_lo,
+    p_hi,
+    p_uni,
+    p_iw,
+    p_nb,
+    p_bc,
+    p_nodes,
+    p_nn,
+    p_is,
+    p_s0,
+    p_val,
+    d_lo,
+    d_hi,
+    d_uni,
+    d_iw,
+    d_nb,
+    d_bc,
+    d_nodes,
+    d_nn,
+    d_is,
+    d_s0,
+    d_val,
+    f_lo,
+    f_hi,
+    f_uni,
+    f_iw,
+    f_nb,
+    f_bc,
+    f_nodes,
+    f_nn,
+    f_is,
+    f_s0,
+    f_val,
+    has_body,
+    lit_at_plane,
+    direct,
+    door,
+):
     """The module's sums into ``direct`` and ``door`` (M, J, C), zeroed here.
 
     fx, fy, fz: (M, 3) the telescope frames; blocks, span_g, span_p: (K, 3) the lit blocks'
@@ -137,7 +195,9 @@ def cap_sums(fx, fy, fz, blocks, span_g, span_p, lum, state_sel, door_normal, do
                     continue
                 if w > 0.0:
                     if not sp_ready:
-                        di0, dt0 = cell_of(0, min(theta, 90.0), d_lo, d_hi, d_uni, d_iw, d_nb, d_bc, d_nodes, d_nn, d_is)
+                        di0, dt0 = cell_of(
+                            0, min(theta, 90.0), d_lo, d_hi, d_uni, d_iw, d_nb, d_bc, d_nodes, d_nn, d_is
+                        )
                         di1, dt1 = cell_of(1, phi, d_lo, d_hi, d_uni, d_iw, d_nb, d_bc, d_nodes, d_nn, d_is)
                         sp_ready = True
                     ws = w * _bilinear_at(d_val, s, di0 * d_s0 + di1, d_s0, dt0, dt1)
@@ -151,9 +211,22 @@ def cap_sums(fx, fy, fz, blocks, span_g, span_p, lum, state_sel, door_normal, do
                         cos_inc *= lit_at_plane[s]  # theta <= 90: the grid's first row, constant in phi
                     elif has_body:
                         if not lit_ready:
-                            fi0, ft0 = cell_of(0, min(max(theta, 90.0), 180.0), f_lo, f_hi, f_uni, f_iw, f_nb, f_bc,
-                                             f_nodes, f_nn, f_is)
-                            fi1, ft1 = cell_of(1, phi, f_lo, f_hi, f_uni, f_iw, f_nb, f_bc, f_nodes, f_nn, f_is)
+                            fi0, ft0 = cell_of(
+                                0,
+                                min(max(theta, 90.0), 180.0),
+                                f_lo,
+                                f_hi,
+                                f_uni,
+                                f_iw,
+                                f_nb,
+                                f_bc,
+                                f_nodes,
+                                f_nn,
+                                f_is,
+                            )
+                            fi1, ft1 = cell_of(
+                                1, phi, f_lo, f_hi, f_uni, f_iw, f_nb, f_bc, f_nodes, f_nn, f_is
+                            )
                             lit_ready = True
                         cos_inc *= _bilinear_at(f_val, s, fi0 * f_s0 + fi1, f_s0, ft0, ft1)
                     for c in range(n_lamps):

@@ -29,6 +29,7 @@ Validity: the Sun is taken at infinity (its direction from the satellite and fro
 centre differ by < 3e-6 rad).  Errors against the direct sum: bench/run.py (knob
 ``earthshine_lut``).
 """
+
 from __future__ import annotations
 
 import json
@@ -56,7 +57,9 @@ def _asinh_grids(axes, direct: dict, door: dict, scale: float, drop_first: bool 
     states = sorted(direct)
     v = np.arcsinh(np.stack([np.stack([direct[s], door[s]], axis=-1) for s in states], axis=-2) / scale)
     v = v.reshape(v.shape[:-2] + (2 * len(states),))
-    return states, LinearGrid(axes, v[0] if drop_first else v, channel_group=2)  # read a state's pair at a time
+    return states, LinearGrid(
+        axes, v[0] if drop_first else v, channel_group=2
+    )  # read a state's pair at a time
 
 
 def _per_door_state(interpolator: tuple, coords, opening_deg, shape, scale: float):
@@ -98,7 +101,6 @@ def _load_tables(path, what: str):
         raise InputError(f"{path}: not a valid {what} look-up table ({exc}); delete it to rebuild") from exc
 
 
-
 def _dark_lamp_zenith_deg(zenith_nodes_deg, tables, axis: int) -> float:
     """The lamp zenith angle beyond which ``tables`` (each with the lamp's zenith angle along
     ``axis``) are 0: the first node of the all-zero slabs that run to the axis' end, in every
@@ -107,7 +109,9 @@ def _dark_lamp_zenith_deg(zenith_nodes_deg, tables, axis: int) -> float:
     Beyond it the interpolation gives exactly 0 and no look-up is needed."""
     nonzero = np.zeros(zenith_nodes_deg.size, bool)
     for table in tables:
-        nonzero |= np.any(np.moveaxis(np.asarray(table), axis, 0).reshape(zenith_nodes_deg.size, -1) != 0, axis=1)
+        nonzero |= np.any(
+            np.moveaxis(np.asarray(table), axis, 0).reshape(zenith_nodes_deg.size, -1) != 0, axis=1
+        )
     lit = np.flatnonzero(nonzero)
     first = 0 if lit.size == 0 else int(lit[-1]) + 1
     return float(zenith_nodes_deg[first]) + 1e-6 if first < zenith_nodes_deg.size else float("inf")
@@ -138,8 +142,9 @@ def _lamp_coordinates(sat_km, lamp_km, los, symmetric: bool, frame_xy=None, runs
     the vectors' components in one compiled pass (:func:`_los_components_kernel`), the angles
     from them in numpy.  ``runs``: the samples' scene runs when known
     (:class:`~straylight.sky.runs.SceneRuns`)."""
-    sat, lamp, los = np.broadcast_arrays(np.asarray(sat_km, float), np.asarray(lamp_km, float),
-                                         np.asarray(los, float))
+    sat, lamp, los = np.broadcast_arrays(
+        np.asarray(sat_km, float), np.asarray(lamp_km, float), np.asarray(los, float)
+    )
     shape = los.shape[:-1]
     rows = scene_rows(sat, lamp, runs=runs)
     (sat_r, lamp_r), index = rows.vectors, rows.index
@@ -152,11 +157,20 @@ def _lamp_coordinates(sat_km, lamp_km, los, symmetric: bool, frame_xy=None, runs
     # the components in one compiled pass, the angles in numpy (its SIMD arccos and arctan2 are
     # several times the compiled loop's libm calls here)
     comp = np.empty((5 if with_roll else 3, index.size))
-    xy = [np.ascontiguousarray(np.broadcast_to(a, shape + (3,)).reshape(-1, 3), dtype=float)
-          for a in frame_xy] if with_roll else [np.zeros((0, 3))] * 2
-    _los_components_kernel(np.ascontiguousarray(los.reshape(-1, 3)), *xy, np.ascontiguousarray(index, dtype=np.intp),
-                           np.ascontiguousarray(up), np.ascontiguousarray(lamp_h),
-                           np.ascontiguousarray(np.cross(up, lamp_h)), comp)
+    xy = (
+        [np.ascontiguousarray(np.broadcast_to(a, shape + (3,)).reshape(-1, 3), dtype=float) for a in frame_xy]
+        if with_roll
+        else [np.zeros((0, 3))] * 2
+    )
+    _los_components_kernel(
+        np.ascontiguousarray(los.reshape(-1, 3)),
+        *xy,
+        np.ascontiguousarray(index, dtype=np.intp),
+        np.ascontiguousarray(up),
+        np.ascontiguousarray(lamp_h),
+        np.ascontiguousarray(np.cross(up, lamp_h)),
+        comp,
+    )
     deg = 180.0 / np.pi
     zenith = np.arccos(comp[0])
     zenith *= deg
@@ -225,7 +239,9 @@ def _moon_bound_kernel(los, index, up, cos_limit, zi, table, neg_cos_nodes, door
             continue
         i = min(max(np.searchsorted(neg_cos_nodes, -c), 1), last)
         z0, z1 = zi[q] - 1, zi[q]
-        out[p] = 1.2 * max(max(table[z0, i - 1], table[z0, i]), max(table[z1, i - 1], table[z1, i])) + door_bound
+        out[p] = (
+            1.2 * max(max(table[z0, i - 1], table[z0, i]), max(table[z1, i - 1], table[z1, i])) + door_bound
+        )
 
 
 @dataclass
@@ -257,7 +273,9 @@ class EarthshineLUT:
                 axes = (self.radius_km,) + axes
 
             # the axes span every coordinate's whole range; one radius: no radius axis
-            self._interp = _asinh_grids(axes, self.direct, self.door, self.scale, drop_first=self.radius_km.size == 1)
+            self._interp = _asinh_grids(
+                axes, self.direct, self.door, self.scale, drop_first=self.radius_km.size == 1
+            )
         return self._interp
 
     def coordinates(self, sat_km, sun_km, los, runs=None):
@@ -271,8 +289,9 @@ class EarthshineLUT:
         beyond :attr:`dark_sun_zenith_deg` (no sunlit Earth in view: every table node from there
         on is 0, so the interpolation gives exactly 0) get 0 without a look-up: a low orbit's
         night side, ~40 % of its samples."""
-        sat, sun, los = np.broadcast_arrays(np.asarray(sat_km, float), np.asarray(sun_km, float),
-                                            np.asarray(los, float))
+        sat, sun, los = np.broadcast_arrays(
+            np.asarray(sat_km, float), np.asarray(sun_km, float), np.asarray(los, float)
+        )
         shape = los.shape[:-1]
         op = np.broadcast_to(np.asarray(opening_deg, float), shape)
         rows = scene_rows(sat, sun, runs=runs)
@@ -282,8 +301,9 @@ class EarthshineLUT:
         lit = np.flatnonzero(~np.take(dark_run, rows.index))
         direct, door = np.zeros(shape), np.zeros(shape)
         if lit.size:
-            d, g = self._sun_lookup(*(rows_at(v, shape, lit) for v in (sat, sun, los)), op.reshape(-1)[lit],
-                                    rows.at(lit))
+            d, g = self._sun_lookup(
+                *(rows_at(v, shape, lit) for v in (sat, sun, los)), op.reshape(-1)[lit], rows.at(lit)
+            )
             direct.reshape(-1)[lit], door.reshape(-1)[lit] = d, g
         return direct, door
 
@@ -300,7 +320,9 @@ class EarthshineLUT:
     @cached_property
     def dark_sun_zenith_deg(self) -> float:
         """The Sun zenith angle beyond which the table is 0 (:func:`_dark_lamp_zenith_deg`)."""
-        return _dark_lamp_zenith_deg(self.sun_zenith_deg, (*self.direct.values(), *self.door.values()), axis=1)
+        return _dark_lamp_zenith_deg(
+            self.sun_zenith_deg, (*self.direct.values(), *self.door.values()), axis=1
+        )
 
     def dark_runs(self, rows) -> np.ndarray:
         """Per run of ``rows`` (scene runs of (satellite, Sun)): no sunlit Earth in view, the
@@ -314,8 +336,9 @@ class EarthshineLUT:
         than 1 deg above the limb or below it (there a grid block can sit next to the field
         edge, where the PST jumps, and no table bounds it).  ``runs``: the samples' scene runs
         when known."""
-        sat, moon, los = np.broadcast_arrays(np.asarray(sat_km, float), np.asarray(moon_km, float),
-                                             np.asarray(los, float))
+        sat, moon, los = np.broadcast_arrays(
+            np.asarray(sat_km, float), np.asarray(moon_km, float), np.asarray(los, float)
+        )
         shape = los.shape[:-1]
         if not hasattr(self, "_moon_bound_table"):
             # (Z, L), the worst radius
@@ -329,25 +352,58 @@ class EarthshineLUT:
         limb = 90.0 + np.degrees(np.arccos(np.clip(earth_radius_km / r, -1, 1)))
         zi = np.clip(np.searchsorted(self.sun_zenith_deg, z_moon), 1, self.sun_zenith_deg.size - 1)
         out = np.empty(index.size)
-        _moon_bound_kernel(np.ascontiguousarray(los.reshape(-1, 3)), np.ascontiguousarray(index, dtype=np.intp),
-                           np.ascontiguousarray(up), np.cos(np.radians(limb - 1.0)), zi, self._moon_bound_table,
-                           -np.cos(np.radians(self.los_zenith_deg)), float(self.moon_door_bound), out)
+        _moon_bound_kernel(
+            np.ascontiguousarray(los.reshape(-1, 3)),
+            np.ascontiguousarray(index, dtype=np.intp),
+            np.ascontiguousarray(up),
+            np.cos(np.radians(limb - 1.0)),
+            zi,
+            self._moon_bound_table,
+            -np.cos(np.radians(self.los_zenith_deg)),
+            float(self.moon_door_bound),
+            out,
+        )
         return out.reshape(shape)
 
     # -- storage --------------------------------------------------------------------------------
     def save(self, path) -> None:
-        _save_tables(path, {"radius_km": self.radius_km, "sun_zenith_deg": self.sun_zenith_deg,
-                            "los_zenith_deg": self.los_zenith_deg, "azimuth_deg": self.azimuth_deg,
-                            "moon_direct_bound": self.moon_direct_bound}, self.direct, self.door,
-                     {"moon_door_bound": self.moon_door_bound, "symmetric": self.symmetric, "scale": self.scale,
-                      "validation_max_rel_error": self.validation_max_rel_error, "build_seconds": self.build_seconds})
+        _save_tables(
+            path,
+            {
+                "radius_km": self.radius_km,
+                "sun_zenith_deg": self.sun_zenith_deg,
+                "los_zenith_deg": self.los_zenith_deg,
+                "azimuth_deg": self.azimuth_deg,
+                "moon_direct_bound": self.moon_direct_bound,
+            },
+            self.direct,
+            self.door,
+            {
+                "moon_door_bound": self.moon_door_bound,
+                "symmetric": self.symmetric,
+                "scale": self.scale,
+                "validation_max_rel_error": self.validation_max_rel_error,
+                "build_seconds": self.build_seconds,
+            },
+        )
 
     @classmethod
     def load(cls, path) -> "EarthshineLUT":
         z, meta, direct, door = _load_tables(path, "earthshine")
-        return cls(z["radius_km"], z["sun_zenith_deg"], z["los_zenith_deg"], z["azimuth_deg"], direct, door,
-                   z["moon_direct_bound"], float(meta["moon_door_bound"]), bool(meta["symmetric"]),
-                   float(meta["scale"]), float(meta["validation_max_rel_error"]), float(meta["build_seconds"]))
+        return cls(
+            z["radius_km"],
+            z["sun_zenith_deg"],
+            z["los_zenith_deg"],
+            z["azimuth_deg"],
+            direct,
+            door,
+            z["moon_direct_bound"],
+            float(meta["moon_door_bound"]),
+            bool(meta["symmetric"]),
+            float(meta["scale"]),
+            float(meta["validation_max_rel_error"]),
+            float(meta["build_seconds"]),
+        )
 
 
 @dataclass
@@ -381,7 +437,9 @@ class MoonlitLUT:
     @cached_property
     def dark_moon_zenith_deg(self) -> float:
         """The Moon zenith angle beyond which the table is 0 (:func:`_dark_lamp_zenith_deg`)."""
-        return _dark_lamp_zenith_deg(self.moon_zenith_deg, (*self.direct.values(), *self.door.values()), axis=0)
+        return _dark_lamp_zenith_deg(
+            self.moon_zenith_deg, (*self.direct.values(), *self.door.values()), axis=0
+        )
 
     def dark_runs(self, rows) -> np.ndarray:
         """Per run of ``rows`` (scene runs of (satellite, Moon)): no moonlit Earth in view, the
@@ -398,19 +456,43 @@ class MoonlitLUT:
         ``runs``: the samples' scene runs when known."""
         zm, zeta, a, roll = self.coordinates(sat_km, moon_km, frame, runs)
         shape = zm.shape
-        return _per_door_state(self._interpolators(), [v.ravel() for v in (zm, zeta, a, roll)], opening_deg, shape,
-                               self.scale)
+        return _per_door_state(
+            self._interpolators(), [v.ravel() for v in (zm, zeta, a, roll)], opening_deg, shape, self.scale
+        )
 
     def save(self, path) -> None:
-        _save_tables(path, {"moon_zenith_deg": self.moon_zenith_deg, "los_zenith_deg": self.los_zenith_deg,
-                            "azimuth_deg": self.azimuth_deg, "roll_deg": self.roll_deg}, self.direct, self.door,
-                     {"symmetric": self.symmetric, "scale": self.scale, "grid": list(self.grid),
-                      "validation_max_rel_error": self.validation_max_rel_error, "build_seconds": self.build_seconds})
+        _save_tables(
+            path,
+            {
+                "moon_zenith_deg": self.moon_zenith_deg,
+                "los_zenith_deg": self.los_zenith_deg,
+                "azimuth_deg": self.azimuth_deg,
+                "roll_deg": self.roll_deg,
+            },
+            self.direct,
+            self.door,
+            {
+                "symmetric": self.symmetric,
+                "scale": self.scale,
+                "grid": list(self.grid),
+                "validation_max_rel_error": self.validation_max_rel_error,
+                "build_seconds": self.build_seconds,
+            },
+        )
 
     @classmethod
     def load(cls, path) -> "MoonlitLUT":
         z, meta, direct, door = _load_tables(path, "moonlit-Earth")
-        return cls(z["moon_zenith_deg"], z["los_zenith_deg"], z["azimuth_deg"], z["roll_deg"], direct, door,
-                   bool(meta["symmetric"]), float(meta["scale"]), tuple(meta["grid"]),
-                   float(meta["validation_max_rel_error"]), float(meta["build_seconds"]))
-
+        return cls(
+            z["moon_zenith_deg"],
+            z["los_zenith_deg"],
+            z["azimuth_deg"],
+            z["roll_deg"],
+            direct,
+            door,
+            bool(meta["symmetric"]),
+            float(meta["scale"]),
+            tuple(meta["grid"]),
+            float(meta["validation_max_rel_error"]),
+            float(meta["build_seconds"]),
+        )

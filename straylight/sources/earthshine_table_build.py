@@ -11,6 +11,7 @@ error as a fraction of the total, which ``models.earthshine.method: auto`` weigh
 tolerance.  A table is built once per model and machine: it is cached under a digest of
 everything it depends on (:func:`load_or_build`, :func:`load_or_build_moonlit`).
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -28,9 +29,21 @@ from straylight.sources.photometry import AU_KM
 from straylight.util.io import cache_dir
 
 __all__ = [
-    "LUT_FORMAT", "MOONLIT_FORMAT", "LUT_BUILD_SECONDS_PER_NODE", "MOONLIT_LUT_BUILD_SECONDS_PER_NODE",
-    "LOS_RISE_WIDTH_DEG", "LUTSettings", "MoonlitSettings", "build_earthshine_lut", "build_moonlit_lut",
-    "sun_coefficients_direct", "mirror_symmetric", "cache_path", "lut_key", "moonlit_key", "load_or_build",
+    "LUT_FORMAT",
+    "MOONLIT_FORMAT",
+    "LUT_BUILD_SECONDS_PER_NODE",
+    "MOONLIT_LUT_BUILD_SECONDS_PER_NODE",
+    "LOS_RISE_WIDTH_DEG",
+    "LUTSettings",
+    "MoonlitSettings",
+    "build_earthshine_lut",
+    "build_moonlit_lut",
+    "sun_coefficients_direct",
+    "mirror_symmetric",
+    "cache_path",
+    "lut_key",
+    "moonlit_key",
+    "load_or_build",
     "load_or_build_moonlit",
 ]
 
@@ -77,7 +90,9 @@ class LUTSettings:
 
     def nodes(self, radius_km: float, earth_radius_km: float, symmetric: bool):
         """(sun zenith, line-of-sight zenith, azimuth) node arrays, deg."""
-        cap = np.degrees(np.arccos(earth_radius_km / radius_km))  # the cap's edge beyond nadir, = limb depression
+        cap = np.degrees(
+            np.arccos(earth_radius_km / radius_km)
+        )  # the cap's edge beyond nadir, = limb depression
         hs, hl, ha = self.sun_zenith_step_deg, self.los_zenith_step_deg, self.azimuth_step_deg
 
         zs = np.unique(np.r_[_steps(0.0, 60.0, 2.5 * hs), _steps(60.0, 90.0 + cap + hs, hs), 180.0])
@@ -131,8 +146,15 @@ def sun_coefficients_direct(off, R, Z, L, A, state, earth_radius_km):
     for idx in groups.values():
         idx = np.asarray(idx)
         frame = telescope_frame(los[idx], sun[idx] - sat[idx])
-        d, g = off.earthshine_scene_sums(sat[idx[0]], sun[idx[0]], _NO_MOON_KM, frame, earth_radius_km,
-                                         np.full((idx.size, 1), state_index), with_moon=False)
+        d, g = off.earthshine_scene_sums(
+            sat[idx[0]],
+            sun[idx[0]],
+            _NO_MOON_KM,
+            frame,
+            earth_radius_km,
+            np.full((idx.size, 1), state_index),
+            with_moon=False,
+        )
         d_out[idx], g_out[idx] = d[:, 0, 0], g[:, 0, 0]
     return d_out, g_out
 
@@ -141,7 +163,9 @@ def sun_coefficients_direct(off, R, Z, L, A, state, earth_radius_km):
 _NO_MOON_KM = np.array([0.0, 0.0, -1e9])
 
 
-def _sunlit_scene(off, r_km: float, sun_zenith_rad: float, los_zenith_rad, azimuth_rad, earth_radius_km: float):
+def _sunlit_scene(
+    off, r_km: float, sun_zenith_rad: float, los_zenith_rad, azimuth_rad, earth_radius_km: float
+):
     """One (radius, Sun zenith) scene of the sunlit table over every (line-of-sight zenith,
     azimuth) node (flattened, zenith-major): (direct, door) per unit solar irradiance, (nodes,
     door states ascending), and the moonlit Earth's direct bound with the Moon where the Sun is
@@ -150,8 +174,15 @@ def _sunlit_scene(off, r_km: float, sun_zenith_rad: float, los_zenith_rad, azimu
     sat, sun, los = _local_scene(np.full(L.size, r_km), np.full(L.size, sun_zenith_rad), L, A)
     frame = telescope_frame(los, sun - sat)
     n_states = len(off.door_states_deg)
-    d, g = off.earthshine_scene_sums(sat[0], sun[0], _NO_MOON_KM, frame, earth_radius_km,
-                                     np.broadcast_to(np.arange(n_states), (L.size, n_states)), with_moon=False)
+    d, g = off.earthshine_scene_sums(
+        sat[0],
+        sun[0],
+        _NO_MOON_KM,
+        frame,
+        earth_radius_km,
+        np.broadcast_to(np.arange(n_states), (L.size, n_states)),
+        with_moon=False,
+    )
     bound = off.lamp_bound_one_scene(sat[0], unit(sun[0]), los, earth_radius_km)
     return d[:, :, 0], g[:, :, 0], bound
 
@@ -169,8 +200,15 @@ def _run_scenes(fn, tasks: list, workers: int, what: str, log=None) -> list:
     import sys
 
     tty = sys.stderr.isatty()
-    with tqdm(total=len(tasks), desc=what, unit="scene", delay=3.0, mininterval=1.0 if tty else 60.0,
-              leave=not tty, file=sys.stderr) as bar:
+    with tqdm(
+        total=len(tasks),
+        desc=what,
+        unit="scene",
+        delay=3.0,
+        mininterval=1.0 if tty else 60.0,
+        leave=not tty,
+        file=sys.stderr,
+    ) as bar:
         if workers <= 1 or len(tasks) <= 1:
             for i, t in enumerate(tasks):
                 results[i] = fn(*t)
@@ -197,12 +235,14 @@ def mirror_symmetric(off) -> bool:
     ph = np.linspace(0.0, 360.0, 73)[None, :]
     if not np.allclose(off.pst(th, ph), off.pst(th, 360.0 - ph), rtol=1e-9):
         return False
-    return all(np.allclose(off.door_factor(th, ph, s), off.door_factor(th, 360.0 - ph, s), atol=1e-9)
-               for s in off.door_states_deg)
+    return all(
+        np.allclose(off.door_factor(th, ph, s), off.door_factor(th, 360.0 - ph, s), atol=1e-9)
+        for s in off.door_states_deg
+    )
 
 
 def _observable_points(rr, earth_radius_km, symmetric, n, avoidance_deg):
-    """n random (radius, Sun zenith, line-of-sight zenith, azimuth) points (deg) whose line of
+    """N random (radius, Sun zenith, line-of-sight zenith, azimuth) points (deg) whose line of
     sight meets the dark-limb, bright-limb and Sun avoidance angles (rejection sampling)."""
     from straylight.sky.limb import limb_geometry
     from straylight.sky.vectors import angle_between_deg
@@ -213,23 +253,38 @@ def _observable_points(rr, earth_radius_km, symmetric, n, avoidance_deg):
     kept = []
     while sum(len(k[0]) for k in kept) < n:
         m = 4 * n
-        p = (rng.uniform(rr.min(), rr.max(), m), rng.uniform(0.0, 180.0, m),
-             rng.uniform(0.0, max(limb - dark_min, 1.0), m), rng.uniform(0.0, 180.0 if symmetric else 360.0, m))
+        p = (
+            rng.uniform(rr.min(), rr.max(), m),
+            rng.uniform(0.0, 180.0, m),
+            rng.uniform(0.0, max(limb - dark_min, 1.0), m),
+            rng.uniform(0.0, 180.0 if symmetric else 360.0, m),
+        )
         sat, sun, los = _local_scene(p[0], *np.radians(p[1:]))
         lg = limb_geometry(sat, los, sun, earth_radius_km)
-        ok = ((lg.dark_limb_angle_deg >= dark_min) & (lg.bright_limb_angle_deg >= bright_min)
-              & (angle_between_deg(los, sun - sat) >= sun_min))
+        ok = (
+            (lg.dark_limb_angle_deg >= dark_min)
+            & (lg.bright_limb_angle_deg >= bright_min)
+            & (angle_between_deg(los, sun - sat) >= sun_min)
+        )
         if not ok.any() and not kept:
-            raise InputError(f"earthshine table validation: no observable line of sight with avoidance angles "
-                             f"{avoidance_deg} deg")
+            raise InputError(
+                f"earthshine table validation: no observable line of sight with avoidance angles "
+                f"{avoidance_deg} deg"
+            )
         kept.append(tuple(v[ok] for v in p))
     return tuple(np.concatenate([k[i] for k in kept])[:n] for i in range(4))
 
 
-def build_earthshine_lut(off, earth_radius_km: float, radius_range_km: tuple[float, float],
-                         settings: LUTSettings = LUTSettings(), floor: float = 0.0,
-                         n_validation: int = 400, avoidance_deg: tuple = (30.0, 80.0, 50.0),
-                         workers: int = 1) -> EarthshineLUT:
+def build_earthshine_lut(
+    off,
+    earth_radius_km: float,
+    radius_range_km: tuple[float, float],
+    settings: LUTSettings = LUTSettings(),
+    floor: float = 0.0,
+    n_validation: int = 400,
+    avoidance_deg: tuple = (30.0, 80.0, 50.0),
+    workers: int = 1,
+) -> EarthshineLUT:
     """The sunlit Earth's table: tabulate ``off.earthshine_coefficients`` (an
     :class:`OffFieldModel`), then validate:
     at ``n_validation`` random points where a line of sight is observable (``avoidance_deg``:
@@ -244,13 +299,19 @@ def build_earthshine_lut(off, earth_radius_km: float, radius_range_km: tuple[flo
     s = settings
     symmetric = mirror_symmetric(off)
     off._kernel_tables  # the door's tables once, before the threads share them
-    rr = np.linspace(radius_range_km[0], radius_range_km[1], s.n_radius) if s.n_radius > 1 \
+    rr = (
+        np.linspace(radius_range_km[0], radius_range_km[1], s.n_radius)
+        if s.n_radius > 1
         else np.array([0.5 * (radius_range_km[0] + radius_range_km[1])])
+    )
     zs, zl, az = s.nodes(float(rr.min()), earth_radius_km, symmetric)
     shape = (rr.size, zs.size, zl.size, az.size)
     # one task per (radius, Sun zenith) scene: its cap grid once, every door state at once
-    tasks = [(off, float(r), float(z), np.radians(zl), np.radians(az), earth_radius_km)
-             for r in rr for z in np.radians(zs)]
+    tasks = [
+        (off, float(r), float(z), np.radians(zl), np.radians(az), earth_radius_km)
+        for r in rr
+        for z in np.radians(zs)
+    ]
     results = _run_scenes(_sunlit_scene, tasks, workers, "earthshine table")
     ascending = sorted(off.door_states_deg)
     direct, door = {}, {}
@@ -261,8 +322,13 @@ def build_earthshine_lut(off, earth_radius_km: float, radius_range_km: tuple[flo
     # moonlit-Earth bound over (radius, Moon zenith, line-of-sight zenith): the PST at its
     # maximum over phi, Sp = 1, maximised over the azimuth nodes
     bound = np.stack([res[2] for res in results]).reshape(shape).max(axis=-1)
-    moon_door = max(off.earthshine.door_reflectance * float(np.sum(w)) * off.pixel_area_m2
-                    for _, _, w in off._door_weights.values()) * off.earthshine.albedo
+    moon_door = (
+        max(
+            off.earthshine.door_reflectance * float(np.sum(w)) * off.pixel_area_m2
+            for _, _, w in off._door_weights.values()
+        )
+        * off.earthshine.albedo
+    )
     scale = _asinh_scale(direct, door)
     lut = EarthshineLUT(rr, zs, zl, az, direct, door, bound, moon_door, symmetric, scale)
     # validation at random off-node points of the observable region
@@ -331,7 +397,9 @@ def _moonlit_scene(R, D, Zm, L, A, P):
     sat = np.stack([R, 0 * R, 0 * R], axis=-1)
     moon = D[..., None] * np.stack([np.cos(Zm), np.sin(Zm), 0 * Zm], axis=-1)
     los = np.stack([np.cos(L), np.sin(L) * np.cos(A), np.sin(L) * np.sin(A)], axis=-1)
-    up_ref = np.stack([np.sin(L), -np.cos(L) * np.cos(A), -np.cos(L) * np.sin(A)], axis=-1)  # upward, in the vertical plane
+    up_ref = np.stack(
+        [np.sin(L), -np.cos(L) * np.cos(A), -np.cos(L) * np.sin(A)], axis=-1
+    )  # upward, in the vertical plane
     x = np.cos(P)[..., None] * up_ref + np.sin(P)[..., None] * np.cross(los, up_ref)
     return sat, moon, TelescopeFrame(x=x, y=np.cross(los, x), z=los)
 
@@ -342,7 +410,7 @@ def _moon_coefficients_direct(off, R, D, Zm, L, A, P, state, earth_radius_km, gr
     ``state`` None, every door state: arrays (samples, door states ascending)); samples sharing
     (R, D, Zm) share one cap grid."""
     n_states = len(off.door_states_deg)
-    sel = (np.arange(n_states) if state is None else np.array([sorted(off.door_states_deg).index(state)]))
+    sel = np.arange(n_states) if state is None else np.array([sorted(off.door_states_deg).index(state)])
     d_out, g_out = np.empty((R.size, sel.size)), np.empty((R.size, sel.size))
     groups = {}
     for i, key in enumerate(zip(R.tolist(), D.tolist(), Zm.tolist())):
@@ -351,16 +419,32 @@ def _moon_coefficients_direct(off, R, D, Zm, L, A, P, state, earth_radius_km, gr
     for idx in groups.values():
         idx = np.asarray(idx)
         sat, moon, frame = _moonlit_scene(R[idx], D[idx], Zm[idx], L[idx], A[idx], P[idx])
-        d, g = off.earthshine_scene_sums(sat[0], moon[0], moon[0], frame, earth_radius_km,
-                                         np.broadcast_to(sel, (idx.size, sel.size)), with_sun=False, s=es)
+        d, g = off.earthshine_scene_sums(
+            sat[0],
+            moon[0],
+            moon[0],
+            frame,
+            earth_radius_km,
+            np.broadcast_to(sel, (idx.size, sel.size)),
+            with_sun=False,
+            s=es,
+        )
         d_out[idx], g_out[idx] = d[:, :, 1], g[:, :, 1]
     return (d_out[:, 0], g_out[:, 0]) if state is not None else (d_out, g_out)
 
 
-def build_moonlit_lut(off, earth_radius_km: float, radius_range_km: tuple[float, float],
-                      settings: MoonlitSettings = MoonlitSettings(), grid: tuple[int, int] = (8, 16),
-                      floor: float = 0.0, moon_max: float = 0.0, dark_limb_min_deg: float = 30.0,
-                      n_validation: int = 400, workers: int = 1) -> MoonlitLUT:
+def build_moonlit_lut(
+    off,
+    earth_radius_km: float,
+    radius_range_km: tuple[float, float],
+    settings: MoonlitSettings = MoonlitSettings(),
+    grid: tuple[int, int] = (8, 16),
+    floor: float = 0.0,
+    moon_max: float = 0.0,
+    dark_limb_min_deg: float = 30.0,
+    n_validation: int = 400,
+    workers: int = 1,
+) -> MoonlitLUT:
     """The moonlit Earth's table on the Earth-cap ``grid``: tabulate, then validate at ``n_validation`` random points whose line of sight is at
     least ``dark_limb_min_deg`` above the limb (any Moon, roll, radius in the orbit's range
     and Moon distance from perigee to apogee): the largest |table - direct| x moon_max /
@@ -374,13 +458,17 @@ def build_moonlit_lut(off, earth_radius_km: float, radius_range_km: tuple[float,
     off._kernel_tables  # the door's tables once, before the threads share them
     r0 = 0.5 * (radius_range_km[0] + radius_range_km[1])
     zm, zl, az, roll = settings.nodes(float(radius_range_km[0]), earth_radius_km, symmetric)
-    Zm, L, A, P = (v.ravel() for v in np.meshgrid(*(np.radians(v) for v in (zm, zl, az, roll)), indexing="ij"))
+    Zm, L, A, P = (
+        v.ravel() for v in np.meshgrid(*(np.radians(v) for v in (zm, zl, az, roll)), indexing="ij")
+    )
     # built at the Moon's mean distance; the validation draws perigee to apogee, so the
     # parallax this ignores is inside the validated error
     R, D = np.full(Zm.size, r0), np.full(Zm.size, MOON_MEAN_DISTANCE_KM)
     per_zm = zl.size * az.size * roll.size  # nodes of one Moon zenith are contiguous: one scene
-    tasks = [(off, R[p], D[p], Zm[p], L[p], A[p], P[p], None, earth_radius_km, tuple(grid))
-             for p in (slice(i * per_zm, (i + 1) * per_zm) for i in range(zm.size))]
+    tasks = [
+        (off, R[p], D[p], Zm[p], L[p], A[p], P[p], None, earth_radius_km, tuple(grid))
+        for p in (slice(i * per_zm, (i + 1) * per_zm) for i in range(zm.size))
+    ]
     results = _run_scenes(_moon_coefficients_direct, tasks, workers, "moonlit-Earth table")
     shape = (zm.size, zl.size, az.size, roll.size)
     ascending = sorted(off.door_states_deg)
@@ -396,7 +484,10 @@ def build_moonlit_lut(off, earth_radius_km: float, radius_range_km: tuple[float,
     limb = 90.0 + np.degrees(np.arccos(earth_radius_km / radius_range_km[0]))
     vr = rng.uniform(radius_range_km[0], radius_range_km[1], n)
     vd = rng.uniform(MOON_PERIGEE_KM, MOON_APOGEE_KM, n)
-    vz, vl = np.radians(rng.uniform(0.0, 180.0, n)), np.radians(rng.uniform(0.0, max(limb - dark_limb_min_deg, 1.0), n))
+    vz, vl = (
+        np.radians(rng.uniform(0.0, 180.0, n)),
+        np.radians(rng.uniform(0.0, max(limb - dark_limb_min_deg, 1.0), n)),
+    )
     va, vp = np.radians(rng.uniform(0.0, 360.0, n)), np.radians(rng.uniform(0.0, 360.0, n))
     sat_v, moon_v, frame_v = _moonlit_scene(vr, vd, vz, vl, va, vp)
     errs = []
@@ -419,30 +510,68 @@ def _digest(prefix: str, off, items: tuple) -> str:
     """16 hex digits of sha256 over ``prefix``, the PST, the door and Earth settings, and ``items``."""
     h = hashlib.sha256(prefix.encode())
     h.update(np.ascontiguousarray(off.pst.values).tobytes())
-    h.update(np.ascontiguousarray(off.pst.theta_deg).tobytes() + np.ascontiguousarray(off.pst.phi_deg).tobytes())
-    h.update(repr((off.door, off.door_states_deg, off.pixel_area_m2, off.field_radius_deg, off.earthshine)
-                  + items).encode())
+    h.update(
+        np.ascontiguousarray(off.pst.theta_deg).tobytes() + np.ascontiguousarray(off.pst.phi_deg).tobytes()
+    )
+    h.update(
+        repr(
+            (off.door, off.door_states_deg, off.pixel_area_m2, off.field_radius_deg, off.earthshine) + items
+        ).encode()
+    )
     return h.hexdigest()[:16]
 
 
-def lut_key(off, earth_radius_km, radius_range_km, settings: LUTSettings, floor: float = 0.0,
-            avoidance_deg: tuple = (30.0, 80.0, 50.0)) -> str:
+def lut_key(
+    off,
+    earth_radius_km,
+    radius_range_km,
+    settings: LUTSettings,
+    floor: float = 0.0,
+    avoidance_deg: tuple = (30.0, 80.0, 50.0),
+) -> str:
     """Digest of everything the table depends on (PST, door, cap grid, albedo, radii, nodes)."""
-    return _digest(f"format {LUT_FORMAT}", off,
-                   (round(earth_radius_km, 6), tuple(round(r, 3) for r in radius_range_km), settings,
-                    f"{floor:.6g}", tuple(float(a) for a in avoidance_deg)))
+    return _digest(
+        f"format {LUT_FORMAT}",
+        off,
+        (
+            round(earth_radius_km, 6),
+            tuple(round(r, 3) for r in radius_range_km),
+            settings,
+            f"{floor:.6g}",
+            tuple(float(a) for a in avoidance_deg),
+        ),
+    )
 
 
-def moonlit_key(off, earth_radius_km, radius_range_km, settings: MoonlitSettings, grid, floor: float,
-                moon_max: float, dark_limb_min_deg: float) -> str:
+def moonlit_key(
+    off,
+    earth_radius_km,
+    radius_range_km,
+    settings: MoonlitSettings,
+    grid,
+    floor: float,
+    moon_max: float,
+    dark_limb_min_deg: float,
+) -> str:
     """Digest of everything the moonlit table depends on."""
-    return _digest(f"moonlit format {MOONLIT_FORMAT}", off,
-                   (round(earth_radius_km, 6), tuple(round(r, 3) for r in radius_range_km), settings,
-                    tuple(int(g) for g in grid), f"{floor:.6g}", f"{moon_max:.6g}", float(dark_limb_min_deg)))
+    return _digest(
+        f"moonlit format {MOONLIT_FORMAT}",
+        off,
+        (
+            round(earth_radius_km, 6),
+            tuple(round(r, 3) for r in radius_range_km),
+            settings,
+            tuple(int(g) for g in grid),
+            f"{floor:.6g}",
+            f"{moon_max:.6g}",
+            float(dark_limb_min_deg),
+        ),
+    )
 
 
-def _cached(prefix: str, key: str, what: str, load, build, log, expected_cpu_s: float | None = None,
-            workers: int = 1):
+def _cached(
+    prefix: str, key: str, what: str, load, build, log, expected_cpu_s: float | None = None, workers: int = 1
+):
     """load(path) of the cached table ``prefix_key.npz``, else build(), saved there.  A build is
     announced once, as a warning (so a command with no logging set up shows it too), with its
     expected time from ``expected_cpu_s`` (seconds on one core) over ``workers`` cores."""
@@ -450,34 +579,100 @@ def _cached(prefix: str, key: str, what: str, load, build, log, expected_cpu_s: 
     if path.exists():
         return load(path), path
     if log is not None:
-        eta = f", ~{expected_cpu_s / max(workers, 1):.0f} s on {workers} core{'s' if workers > 1 else ''}" \
-            if expected_cpu_s else ""
-        log.warning("building the %s look-up table once%s; later runs read it from %s", what, eta, path.parent)
+        eta = (
+            f", ~{expected_cpu_s / max(workers, 1):.0f} s on {workers} core{'s' if workers > 1 else ''}"
+            if expected_cpu_s
+            else ""
+        )
+        log.warning(
+            "building the %s look-up table once%s; later runs read it from %s", what, eta, path.parent
+        )
     lut = build()
     path.parent.mkdir(parents=True, exist_ok=True)
     lut.save(path)
     return lut, path
 
 
-def load_or_build(off, earth_radius_km, radius_range_km, settings: LUTSettings, floor: float, log=None,
-                  avoidance_deg: tuple = (30.0, 80.0, 50.0), workers: int = 1):
+def load_or_build(
+    off,
+    earth_radius_km,
+    radius_range_km,
+    settings: LUTSettings,
+    floor: float,
+    log=None,
+    avoidance_deg: tuple = (30.0, 80.0, 50.0),
+    workers: int = 1,
+):
     """The table for these inputs from the cache, built (by ``workers`` threads) and stored
     there if missing."""
     key = lut_key(off, earth_radius_km, radius_range_km, settings, floor, avoidance_deg)
-    expected = LUT_BUILD_SECONDS_PER_NODE * settings.node_count(radius_range_km[0], earth_radius_km,
-                                                                mirror_symmetric(off)) * len(off.door_states_deg)
-    return _cached("earthshine_lut", key, "earthshine", EarthshineLUT.load,
-                   lambda: build_earthshine_lut(off, earth_radius_km, radius_range_km, settings, floor,
-                                                avoidance_deg=avoidance_deg, workers=workers), log, expected, workers)
+    expected = (
+        LUT_BUILD_SECONDS_PER_NODE
+        * settings.node_count(radius_range_km[0], earth_radius_km, mirror_symmetric(off))
+        * len(off.door_states_deg)
+    )
+    return _cached(
+        "earthshine_lut",
+        key,
+        "earthshine",
+        EarthshineLUT.load,
+        lambda: build_earthshine_lut(
+            off,
+            earth_radius_km,
+            radius_range_km,
+            settings,
+            floor,
+            avoidance_deg=avoidance_deg,
+            workers=workers,
+        ),
+        log,
+        expected,
+        workers,
+    )
 
 
-def load_or_build_moonlit(off, earth_radius_km, radius_range_km, settings: MoonlitSettings, grid, floor: float,
-                          moon_max: float, dark_limb_min_deg: float = 30.0, log=None, workers: int = 1):
+def load_or_build_moonlit(
+    off,
+    earth_radius_km,
+    radius_range_km,
+    settings: MoonlitSettings,
+    grid,
+    floor: float,
+    moon_max: float,
+    dark_limb_min_deg: float = 30.0,
+    log=None,
+    workers: int = 1,
+):
     """The moonlit table for these inputs from the cache, built and stored there if missing."""
-    key = moonlit_key(off, earth_radius_km, radius_range_km, settings, grid, floor, moon_max, dark_limb_min_deg)
-    nodes = int(np.prod([a.size for a in settings.nodes(float(radius_range_km[0]), earth_radius_km,
-                                                        mirror_symmetric(off))]))
+    key = moonlit_key(
+        off, earth_radius_km, radius_range_km, settings, grid, floor, moon_max, dark_limb_min_deg
+    )
+    nodes = int(
+        np.prod(
+            [
+                a.size
+                for a in settings.nodes(float(radius_range_km[0]), earth_radius_km, mirror_symmetric(off))
+            ]
+        )
+    )
     expected = MOONLIT_LUT_BUILD_SECONDS_PER_NODE * nodes * len(off.door_states_deg)
-    return _cached("moonlit_lut", key, "moonlit-Earth", MoonlitLUT.load,
-                   lambda: build_moonlit_lut(off, earth_radius_km, radius_range_km, settings, grid, floor, moon_max,
-                                             dark_limb_min_deg, workers=workers), log, expected, workers)
+    return _cached(
+        "moonlit_lut",
+        key,
+        "moonlit-Earth",
+        MoonlitLUT.load,
+        lambda: build_moonlit_lut(
+            off,
+            earth_radius_km,
+            radius_range_km,
+            settings,
+            grid,
+            floor,
+            moon_max,
+            dark_limb_min_deg,
+            workers=workers,
+        ),
+        log,
+        expected,
+        workers,
+    )

@@ -5,6 +5,7 @@ floor, and elsewhere summed on a coarse Earth grid (models.earthshine.moonlit_gr
 own table (:class:`~straylight.sources.earthshine_table.MoonlitLUT`, models.earthshine.moonlit_method
 = lut, when it validates within the moonlit_earthshine_grid budget) or directly.  On the direct
 sum's path the sunlit Earth's grid carries the Moon's light too (:mod:`straylight.sources.sunlit_earth`)."""
+
 from __future__ import annotations
 
 import logging
@@ -15,8 +16,8 @@ import numpy as np
 
 from straylight.sky.frames import TelescopeFrame
 from straylight.sky.runs import rows_at, scene_rows
-from straylight.sources.context import Samples, SourceContext
 from straylight.sources.bodies import MOON_PERIGEE_KM, moon_v_magnitude
+from straylight.sources.context import Samples, SourceContext
 from straylight.sources.photometry import solar_like_fraction
 from straylight.sources.rates import BandRates
 
@@ -44,8 +45,12 @@ class MoonlitEarth:
         if es.moonlit_method == "direct":
             return None
         steps = es.moonlit_lut
-        return MoonlitSettings(float(steps.moon_zenith_step_deg), float(steps.los_zenith_step_deg),
-                               float(steps.azimuth_step_deg), float(steps.roll_step_deg))
+        return MoonlitSettings(
+            float(steps.moon_zenith_step_deg),
+            float(steps.los_zenith_step_deg),
+            float(steps.azimuth_step_deg),
+            float(steps.roll_step_deg),
+        )
 
     def node_states(self) -> int:
         """How many (node, door state) pairs the table sums, each a coarse Earth-grid sum; 0
@@ -66,9 +71,19 @@ class MoonlitEarth:
         the darkest sky and the brightest Moon (full, at perigee) per unit solar irradiance at
         1 AU, and the dark-limb angle."""
         c = self.context
-        moon_max = float(solar_like_fraction(moon_v_magnitude(0.0, MOON_PERIGEE_KM, c.offfield.moon_law, 180.0)))
-        return (c.offfield, c.campaign.earth.radius_km, c.campaign.orbit_radius_range_km, settings,
-                self.grid, c.earthshine_floor, moon_max, c.campaign.constraints.dark_limb_min_deg)
+        moon_max = float(
+            solar_like_fraction(moon_v_magnitude(0.0, MOON_PERIGEE_KM, c.offfield.moon_law, 180.0))
+        )
+        return (
+            c.offfield,
+            c.campaign.earth.radius_km,
+            c.campaign.orbit_radius_range_km,
+            settings,
+            self.grid,
+            c.earthshine_floor,
+            moon_max,
+            c.campaign.constraints.dark_limb_min_deg,
+        )
 
     def lut_path(self) -> Path | None:
         """Where the table of the configured settings is cached (it may not exist yet); None
@@ -76,7 +91,11 @@ class MoonlitEarth:
         from straylight.sources.earthshine_table_build import cache_path, moonlit_key
 
         settings = self.settings()
-        return None if settings is None else cache_path("moonlit_lut", moonlit_key(*self._table_inputs(settings)))
+        return (
+            None
+            if settings is None
+            else cache_path("moonlit_lut", moonlit_key(*self._table_inputs(settings)))
+        )
 
     @cached_property
     def model(self) -> dict:
@@ -91,15 +110,27 @@ class MoonlitEarth:
         settings = self.settings()
         if settings is None:
             return {"method": "direct", "lut": None, "reason": "models.earthshine.moonlit_method = direct"}
-        lut, path = load_or_build_moonlit(*self._table_inputs(settings), logging.getLogger("straylight"),
-                                          self.build_workers)
-        info = {"lut_file": path.name, "lut_validation_max_rel_error": lut.validation_max_rel_error,
-                "lut_steps_deg": [settings.moon_zenith_step_deg, settings.los_zenith_step_deg,
-                                  settings.azimuth_step_deg, settings.roll_step_deg]}
+        lut, path = load_or_build_moonlit(
+            *self._table_inputs(settings), logging.getLogger("straylight"), self.build_workers
+        )
+        info = {
+            "lut_file": path.name,
+            "lut_validation_max_rel_error": lut.validation_max_rel_error,
+            "lut_steps_deg": [
+                settings.moon_zenith_step_deg,
+                settings.los_zenith_step_deg,
+                settings.azimuth_step_deg,
+                settings.roll_step_deg,
+            ],
+        }
         if not self.policy.accepts_table("moonlit_earthshine_grid", lut.validation_max_rel_error):
-            return {"method": "direct", "lut": None, **info,
-                    "reason": f"table error {lut.validation_max_rel_error:.2g} > "
-                              f"{self.policy.share('moonlit_earthshine_grid'):g} x the tolerance"}
+            return {
+                "method": "direct",
+                "lut": None,
+                **info,
+                "reason": f"table error {lut.validation_max_rel_error:.2g} > "
+                f"{self.policy.share('moonlit_earthshine_grid'):g} x the tolerance",
+            }
         return {"method": "lut", "lut": lut, **info}
 
     def bound(self, sunlit_lut, sat_km, moon_km, los, runs=None) -> np.ndarray:
@@ -113,9 +144,15 @@ class MoonlitEarth:
         no_bound = ~np.isfinite(bound)
         if np.any(no_bound):  # the cap's bound only where needed (it grids each sample's cap)
             unbounded = np.flatnonzero(no_bound)
-            bound[no_bound] = (off.earthshine_cap_bound(np.take(sat_km, unbounded, axis=0), re_km, self.grid,
-                                                        None if runs is None else runs.at(unbounded))
-                               + sunlit_lut.moon_door_bound)
+            bound[no_bound] = (
+                off.earthshine_cap_bound(
+                    np.take(sat_km, unbounded, axis=0),
+                    re_km,
+                    self.grid,
+                    None if runs is None else runs.at(unbounded),
+                )
+                + sunlit_lut.moon_door_bound
+            )
         return bound
 
     def rates(self, samples: Samples, bands) -> BandRates:
@@ -132,13 +169,16 @@ class MoonlitEarth:
         if sunlit_lut is None:
             return BandRates()
         moon_at_earth = samples.moon_lamp["at_earth"]
-        moon_at_earth_unit = {name: self.context.photometry(name).sun_at_1au_photons_s_m2 * moon_at_earth
-                              for name in bands}
+        moon_at_earth_unit = {
+            name: self.context.photometry(name).sun_at_1au_photons_s_m2 * moon_at_earth for name in bands
+        }
         floor = samples.floor
         off, re_km = self.context.offfield, self.context.campaign.earth.radius_km
         shape, frame, runs, mlut = samples.shape, samples.frame, samples.runs, self.model["lut"]
-        sat_b, sun_b, moon_b, los_b = (np.broadcast_to(np.asarray(v, float), shape + (3,)).reshape(-1, 3)
-                                       for v in (samples.satellite_km, samples.sun_km, samples.moon_km, frame.z))
+        sat_b, sun_b, moon_b, los_b = (
+            np.broadcast_to(np.asarray(v, float), shape + (3,)).reshape(-1, 3)
+            for v in (samples.satellite_km, samples.sun_km, samples.moon_km, frame.z)
+        )
         door_b = np.broadcast_to(np.asarray(samples.door_deg, float), shape).reshape(-1)
         floor_b = {b: np.broadcast_to(floor[b], shape).reshape(-1) for b in moon_at_earth_unit}
         cand = None  # the samples considered (flat indices; None: all)
@@ -159,7 +199,8 @@ class MoonlitEarth:
         for b, e_moon in moon_at_earth_unit.items():
             e_moon = np.broadcast_to(e_moon, shape).reshape(-1)
             need |= bound * (e_moon if cand is None else np.take(e_moon, cand)) > (
-                self.policy.moonlit_skip_share * self.policy.tolerance * floor_b[b])
+                self.policy.moonlit_skip_share * self.policy.tolerance * floor_b[b]
+            )
         if not np.any(need):
             return BandRates()
         # a coarse grid is enough where a line of sight can be observable (>= the dark-limb angle
@@ -167,29 +208,53 @@ class MoonlitEarth:
         # the field edge meet the PST's jump), so the configured grid would cost several times
         # more for numbers no better than indicative: the coarse grid runs there too.
         at = np.flatnonzero(need)  # among the samples considered
-        sub = TelescopeFrame(*(rows_at(a, shape, at if cand is None else np.take(cand, at))
-                               for a in (frame.x, frame.y, frame.z)))
+        sub = TelescopeFrame(
+            *(
+                rows_at(a, shape, at if cand is None else np.take(cand, at))
+                for a in (frame.x, frame.y, frame.z)
+            )
+        )
         door_need = np.take(door_b, at)
         if mlut is not None:  # the coarse grid's sum, tabulated
-            direct_moon, door_moon = mlut.coefficients(np.take(sat_b, at, axis=0), np.take(moon_b, at, axis=0), sub,
-                                                       door_need, None if runs is None else runs.at(at))
+            direct_moon, door_moon = mlut.coefficients(
+                np.take(sat_b, at, axis=0),
+                np.take(moon_b, at, axis=0),
+                sub,
+                door_need,
+                None if runs is None else runs.at(at),
+            )
         else:
-            c = off.earthshine_coefficients(*(np.take(v, at, axis=0) for v in (sat_b, sun_b, moon_b)), sub, door_need,
-                                            re_km, in_field=False, sun=False, grid=self.grid)
+            c = off.earthshine_coefficients(
+                *(np.take(v, at, axis=0) for v in (sat_b, sun_b, moon_b)),
+                sub,
+                door_need,
+                re_km,
+                in_field=False,
+                sun=False,
+                grid=self.grid,
+            )
             direct_moon, door_moon = c["direct_moon"], c["door_moon"]
         flat = np.unravel_index(at if cand is None else np.take(cand, at), shape)
         direct, door = np.zeros(shape), np.zeros(shape)
         direct[flat], door[flat] = direct_moon, door_moon
-        return BandRates(per_lamp={"earthshine_direct": {"moon_at_earth": direct},
-                                   "earthshine_door": {"moon_at_earth": door}})
-
+        return BandRates(
+            per_lamp={
+                "earthshine_direct": {"moon_at_earth": direct},
+                "earthshine_door": {"moon_at_earth": door},
+            }
+        )
 
     def record(self, sunlit_table_runs: bool) -> str:
         """How the moonlit Earth was summed, for a product's attributes."""
         if not sunlit_table_runs:
             return "summed directly"
         m = self.model
-        return (f"skipped where its bound < {self.policy.moonlit_skip_share:g} x tolerance x the sample's floor, else "
-                + (f"from its table of the grid {list(self.grid)} sum (steps {m['lut_steps_deg']} deg, validated "
-                   f"{m['lut_validation_max_rel_error']:.2g} of the total at full Moon)" if m["method"] == "lut" else
-                   f"summed directly on grid {list(self.grid)}"))
+        return (
+            f"skipped where its bound < {self.policy.moonlit_skip_share:g} x tolerance x the sample's floor, else "
+            + (
+                f"from its table of the grid {list(self.grid)} sum (steps {m['lut_steps_deg']} deg, validated "
+                f"{m['lut_validation_max_rel_error']:.2g} of the total at full Moon)"
+                if m["method"] == "lut"
+                else f"summed directly on grid {list(self.grid)}"
+            )
+        )

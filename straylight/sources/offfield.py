@@ -23,6 +23,7 @@ emission cosine and 1/pi written out.  The sunlit and moonlit Earth's sources
 (:mod:`straylight.sources.sunlit_earth`, :mod:`straylight.sources.moonlit_earth`) call this sum or
 its tables (:mod:`straylight.sources.earthshine_table`).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
@@ -30,12 +31,13 @@ from functools import cached_property
 
 import numpy as np
 
-from straylight.optics.door import Door, DoorTable, behind_aperture_plane, door_state_index
 from straylight.errors import ConfigError
+from straylight.optics.door import Door, DoorTable, behind_aperture_plane, door_state_index
+from straylight.optics.pst import PST
 from straylight.sky.runs import rows_at, scene_rows, shared_vectors
 from straylight.sky.vectors import dot, norm, perpendicular_towards, unit, wrap_360_deg
 from straylight.util.gridinterp import LinearGrid
-from straylight.optics.pst import PST
+
 
 @dataclass
 class EarthshineSettings:
@@ -48,7 +50,9 @@ class EarthshineSettings:
 
     def __post_init__(self):
         if self.n_gamma < 2 or self.n_psi < 4:
-            raise ConfigError(f"earthshine grid {self.n_gamma} x {self.n_psi}: needs n_gamma >= 2, n_psi >= 4")
+            raise ConfigError(
+                f"earthshine grid {self.n_gamma} x {self.n_psi}: needs n_gamma >= 2, n_psi >= 4"
+            )
         if not 0 <= self.albedo <= 1:
             raise ConfigError(f"earthshine albedo = {self.albedo}: must be within [0, 1]")
         if not 0 <= self.door_reflectance <= 1:
@@ -82,18 +86,26 @@ class OffFieldModel:
         states = np.array(sorted(self.door_tables), float)
         tables = [self.door_tables[s] for s in states]
         for t in tables[1:]:
-            if not (np.array_equal(t.theta_deg, tables[0].theta_deg) and np.array_equal(t.phi_deg, tables[0].phi_deg)):
+            if not (
+                np.array_equal(t.theta_deg, tables[0].theta_deg)
+                and np.array_equal(t.phi_deg, tables[0].phi_deg)
+            ):
                 raise ValueError("door tables of different states must share their theta and phi nodes")
-        return states, LinearGrid((tables[0].theta_deg, tables[0].phi_deg), np.stack([t.values for t in tables], -1))
+        return states, LinearGrid(
+            (tables[0].theta_deg, tables[0].phi_deg), np.stack([t.values for t in tables], -1)
+        )
 
     def door_factor(self, theta_deg, phi_deg, opening_deg) -> np.ndarray:
         """Sp for each sample's door state; the narrowest state when none is allowed (door 0);
         0 for an opening that is none of the door states."""
-        th, ph, op = np.broadcast_arrays(np.asarray(theta_deg, float), np.asarray(phi_deg, float),
-                                         np.asarray(opening_deg, float))
+        th, ph, op = np.broadcast_arrays(
+            np.asarray(theta_deg, float), np.asarray(phi_deg, float), np.asarray(opening_deg, float)
+        )
         states, grid = self._door_grid
         state, known = door_state_index(states, op)
-        return np.where(known & ~behind_aperture_plane(th), grid(*DoorTable.coordinates(th, ph), channel=state), 0.0)
+        return np.where(
+            known & ~behind_aperture_plane(th), grid(*DoorTable.coordinates(th, ph), channel=state), 0.0
+        )
 
     # -- point sources ----------------------------------------------------------------------
     def point_source(self, irradiance, theta_deg, phi_deg, earth_blocked, opening_deg) -> np.ndarray:
@@ -107,15 +119,18 @@ class OffFieldModel:
         not spread as a uniform background (PST = 1 over every pixel); it is reported by
         :meth:`~straylight.sources.bodies.InFieldBodies.find`."""
         in_field = np.asarray(theta_deg, float) <= self.field_radius_deg
-        th, ph, blocked, op = np.broadcast_arrays(theta_deg, phi_deg, np.asarray(earth_blocked, bool) | in_field,
-                                                  opening_deg)
+        th, ph, blocked, op = np.broadcast_arrays(
+            theta_deg, phi_deg, np.asarray(earth_blocked, bool) | in_field, opening_deg
+        )
         if not np.any(blocked):  # nothing hidden (every star pair): no masked copies
             t = self._door_times_pst(th, ph, op)
         else:
             seen = np.flatnonzero(~blocked)
             t = np.zeros(th.shape)
             if seen.size:
-                t.reshape(-1)[seen] = self._door_times_pst(np.take(th, seen), np.take(ph, seen), np.take(op, seen))
+                t.reshape(-1)[seen] = self._door_times_pst(
+                    np.take(th, seen), np.take(ph, seen), np.take(op, seen)
+                )
         return np.asarray(irradiance) * t * self.pixel_area_m2
 
     def _door_times_pst(self, theta_deg, phi_deg, opening_deg) -> np.ndarray:
@@ -254,15 +269,19 @@ class OffFieldModel:
         theta = np.arange(90.0, 180.0 + 0.5, 1.0)
         phi = np.arange(0.0, 360.0 + 1.0, 2.0)
         th, ph = np.meshgrid(np.radians(theta), np.radians(phi), indexing="ij")
-        dirs = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], axis=-1).reshape(-1, 3)
+        dirs = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], axis=-1).reshape(
+            -1, 3
+        )
         out = {}
         for state, (q, _, w) in self._door_weights.items():
-            lit = np.concatenate([(~self.door.body_hits(q, dirs[i:i + 2048])) @ w for i in range(0, len(dirs), 2048)])
+            lit = np.concatenate(
+                [(~self.door.body_hits(q, dirs[i : i + 2048])) @ w for i in range(0, len(dirs), 2048)]
+            )
             out[state] = LinearGrid((theta, phi), (lit / np.sum(w)).reshape(th.shape))
         return out
 
     def door_lit_fraction(self, state: float, theta_deg, phi_deg) -> np.ndarray | float:
-        """f of :attr:`_door_lit_fraction` for door state ``state`` at directions (theta, phi),
+        """F of :attr:`_door_lit_fraction` for door state ``state`` at directions (theta, phi),
         deg (broadcast); 1.0 without a body."""
         tables = self._door_lit_fraction
         if tables is None:
@@ -306,8 +325,11 @@ class OffFieldModel:
         rows = scene_rows(np.asarray(sat_km, float), runs=runs)
         gamma, dgamma = self._cap_nadir_angles_at(norm(rows.vectors[0]), earth_radius_km, s)
         cap_sr = 2.0 * np.pi * np.sum(np.sin(gamma) * dgamma, axis=-1)  # the grid's sum of d_omega
-        return np.array(rows.expand(self.earthshine.albedo / np.pi * self._pst_max_outside_field * cap_sr
-                                    * self.pixel_area_m2))  # a writable array, not a read-only view
+        return np.array(
+            rows.expand(
+                self.earthshine.albedo / np.pi * self._pst_max_outside_field * cap_sr * self.pixel_area_m2
+            )
+        )  # a writable array, not a read-only view
 
     @cached_property
     def _pst_max_outside_field(self) -> float:
@@ -317,9 +339,19 @@ class OffFieldModel:
         first = max(int(np.searchsorted(th, self.field_radius_deg, side="right")) - 1, 0)
         return float(self.pst.values[first:].max())
 
-    def earthshine_coefficients(self, sat_km, sun_km, moon_km, frame, opening_deg, earth_radius_km,
-                                in_field: bool = True, moon: bool = True, sun: bool = True,
-                                grid: tuple[int, int] | None = None) -> dict:
+    def earthshine_coefficients(
+        self,
+        sat_km,
+        sun_km,
+        moon_km,
+        frame,
+        opening_deg,
+        earth_radius_km,
+        in_field: bool = True,
+        moon: bool = True,
+        sun: bool = True,
+        grid: tuple[int, int] | None = None,
+    ) -> dict:
         """Band-independent earthshine per unit photon irradiance of the Sun and of the Moon (at
         the Earth): keys direct_sun, direct_moon, door_sun, door_moon, in e-/s/pix per
         (photons s-1 m-2).  The albedo is grey, so a band's earthshine is
@@ -328,7 +360,11 @@ class OffFieldModel:
         moonlit terms (zeros), as the look-up table does (:mod:`straylight.sources.earthshine_table`);
         ``sun=False`` the sunlit ones (the table's path sums only the moonlit Earth directly);
         ``grid`` = (n_gamma, n_psi) replaces the configured Earth-cap grid."""
-        s = self.earthshine if grid is None else replace(self.earthshine, n_gamma=int(grid[0]), n_psi=int(grid[1]))
+        s = (
+            self.earthshine
+            if grid is None
+            else replace(self.earthshine, n_gamma=int(grid[0]), n_psi=int(grid[1]))
+        )
         one = shared_vectors(sat_km, sun_km, moon_km)
         if one is not None:
             out = self._earthshine_one_scene(*one, frame, opening_deg, earth_radius_km, moon, sun, s)
@@ -337,7 +373,9 @@ class OffFieldModel:
                 out["direct_sun"] = out["direct_sun"] + per_sun
                 out["direct_moon"] = out["direct_moon"] + per_moon
             return out
-        d, d_omega, pts, mu_sun, mu_moon = self._lit_cap(sat_km, earth_radius_km, s, sun_km, moon_km, sun, moon)
+        d, d_omega, pts, mu_sun, mu_moon = self._lit_cap(
+            sat_km, earth_radius_km, s, sun_km, moon_km, sun, moon
+        )
         lum_sun, lum_moon = s.albedo / np.pi * mu_sun, s.albedo / np.pi * mu_moon
         dx = dot(d, frame.x[..., None, None, :])
         dy = dot(d, frame.y[..., None, None, :])
@@ -349,11 +387,21 @@ class OffFieldModel:
         # the 0.6 deg field, where the PST jumps to 1); a block the aperture plane cuts counts
         # its part in front, at the door's Sp from in front (theta <= 90 deg)
         span_g, span_p = self._cap_block_spans(sat_km, earth_radius_km, s)
-        front = self.front_fraction(dz, dot(span_g, frame.z[..., None, None, :]), dot(span_p, frame.z[..., None, None, :]))
-        w_direct = (self.door_factor(np.minimum(theta, 90.0), phi, op) * front * self.pst(theta, phi)
-                    * (theta > self.field_radius_deg) * d_omega * self.pixel_area_m2)
-        out = {"direct_sun": np.sum(lum_sun * w_direct, axis=(-2, -1)),
-               "direct_moon": np.sum(lum_moon * w_direct, axis=(-2, -1))}
+        front = self.front_fraction(
+            dz, dot(span_g, frame.z[..., None, None, :]), dot(span_p, frame.z[..., None, None, :])
+        )
+        w_direct = (
+            self.door_factor(np.minimum(theta, 90.0), phi, op)
+            * front
+            * self.pst(theta, phi)
+            * (theta > self.field_radius_deg)
+            * d_omega
+            * self.pixel_area_m2
+        )
+        out = {
+            "direct_sun": np.sum(lum_sun * w_direct, axis=(-2, -1)),
+            "direct_moon": np.sum(lum_moon * w_direct, axis=(-2, -1)),
+        }
         if in_field:
             per_sun, per_moon = self.earth_in_field(sat_km, sun_km, moon_km, frame, earth_radius_km)
             out["direct_sun"] = out["direct_sun"] + per_sun
@@ -369,15 +417,27 @@ class OffFieldModel:
             if not np.any(sel):
                 continue
             # d . n_in > 0: in front of the inner face; f: the share of the door the body leaves lit
-            cos_inc = np.maximum(dx * n_in[0] + dy * n_in[1] + dz * n_in[2], 0.0) * self.door_lit_fraction(state, theta, phi)
+            cos_inc = np.maximum(dx * n_in[0] + dy * n_in[1] + dz * n_in[2], 0.0) * self.door_lit_fraction(
+                state, theta, phi
+            )
             k = s.door_reflectance * np.sum(w) * self.pixel_area_m2
             door_sun = np.where(sel, k * np.sum(lum_sun * d_omega * cos_inc, axis=(-2, -1)), door_sun)
             door_moon = np.where(sel, k * np.sum(lum_moon * d_omega * cos_inc, axis=(-2, -1)), door_moon)
         out["door_sun"], out["door_moon"] = door_sun, door_moon
         return out
 
-    def _earthshine_one_scene(self, sat, sun, moon, frame, opening_deg, earth_radius_km, with_moon: bool,
-                              with_sun: bool = True, s: EarthshineSettings | None = None) -> dict:
+    def _earthshine_one_scene(
+        self,
+        sat,
+        sun,
+        moon,
+        frame,
+        opening_deg,
+        earth_radius_km,
+        with_moon: bool,
+        with_sun: bool = True,
+        s: EarthshineSettings | None = None,
+    ) -> dict:
         """earthshine_coefficients (without the in-field term) for many lines of sight sharing one
         satellite, Sun and Moon (a time step of a survey cube): the Earth cap is gridded once,
         its dark blocks (lit by neither lamp) dropped, and the sums over the rest compiled
@@ -388,43 +448,101 @@ class OffFieldModel:
         shape = np.broadcast_shapes(frame.z.shape[:-1], np.shape(opening_deg))
         op = np.broadcast_to(np.asarray(opening_deg, float), shape).ravel()
         state_of, known = door_state_index(sorted(self.door_tables), op)
-        frame = TelescopeFrame(*(np.broadcast_to(a, shape + (3,)).reshape(-1, 3) for a in (frame.x, frame.y, frame.z)))
-        direct, door = self.earthshine_scene_sums(sat, sun, moon, frame, earth_radius_km,
-                                                  np.where(known, state_of, -1)[:, None], with_sun, with_moon, s)
-        return {"direct_sun": direct[:, 0, 0].reshape(shape), "direct_moon": direct[:, 0, 1].reshape(shape),
-                "door_sun": door[:, 0, 0].reshape(shape), "door_moon": door[:, 0, 1].reshape(shape)}
+        frame = TelescopeFrame(
+            *(np.broadcast_to(a, shape + (3,)).reshape(-1, 3) for a in (frame.x, frame.y, frame.z))
+        )
+        direct, door = self.earthshine_scene_sums(
+            sat,
+            sun,
+            moon,
+            frame,
+            earth_radius_km,
+            np.where(known, state_of, -1)[:, None],
+            with_sun,
+            with_moon,
+            s,
+        )
+        return {
+            "direct_sun": direct[:, 0, 0].reshape(shape),
+            "direct_moon": direct[:, 0, 1].reshape(shape),
+            "door_sun": door[:, 0, 0].reshape(shape),
+            "door_moon": door[:, 0, 1].reshape(shape),
+        }
 
-    def lit_cap_blocks(self, sat, sun, moon, earth_radius_km, s: EarthshineSettings | None = None,
-                       with_sun: bool = True, with_moon: bool = True):
+    def lit_cap_blocks(
+        self,
+        sat,
+        sun,
+        moon,
+        earth_radius_km,
+        s: EarthshineSettings | None = None,
+        with_sun: bool = True,
+        with_moon: bool = True,
+    ):
         """The cap blocks of one scene (satellite, Sun, Moon: (3,) km) lit by either lamp: their
         directions from the satellite, their spans (:meth:`_cap_block_spans`), all (K, 3), and
         their luminance times solid angle per lamp, albedo / pi cos(zenith) dOmega (K, 2: Sun,
         Moon; sr per unit irradiance)."""
         s = s or self.earthshine
-        d, d_omega, pts, mu_sun, mu_moon = self._lit_cap(sat, earth_radius_km, s, sun, moon, with_sun, with_moon)
+        d, d_omega, pts, mu_sun, mu_moon = self._lit_cap(
+            sat, earth_radius_km, s, sun, moon, with_sun, with_moon
+        )
         lit = (mu_sun > 0) | (mu_moon > 0)
-        span_g, span_p = (np.ascontiguousarray(v[lit]) for v in self._cap_block_spans(sat, earth_radius_km, s))
+        span_g, span_p = (
+            np.ascontiguousarray(v[lit]) for v in self._cap_block_spans(sat, earth_radius_km, s)
+        )
         lum = s.albedo / np.pi * np.stack([mu_sun[lit], mu_moon[lit]], axis=-1) * d_omega[lit][:, None]
         return np.ascontiguousarray(d[lit]), span_g, span_p, np.ascontiguousarray(lum)
 
-    def earthshine_scene_sums(self, sat, sun, moon, frame, earth_radius_km, state_sel, with_sun: bool = True,
-                              with_moon: bool = True, s: EarthshineSettings | None = None):
+    def earthshine_scene_sums(
+        self,
+        sat,
+        sun,
+        moon,
+        frame,
+        earth_radius_km,
+        state_sel,
+        with_sun: bool = True,
+        with_moon: bool = True,
+        s: EarthshineSettings | None = None,
+    ):
         """(direct, door) coefficients (M, J, 2: lit by the Sun, by the Moon), e-/s/pix per photon
         s-1 m-2 of the lamp, outside the field, for M lines of sight of one scene (``frame``'s
         axes broadcast to (M, 3)) and J door states each (``state_sel`` (M, J): indices into the
         ascending door states, -1 for none, which gives 0)."""
-        blocks, span_g, span_p, lum = self.lit_cap_blocks(sat, sun, moon, earth_radius_km, s, with_sun, with_moon)
+        blocks, span_g, span_p, lum = self.lit_cap_blocks(
+            sat, sun, moon, earth_radius_km, s, with_sun, with_moon
+        )
         sel = np.ascontiguousarray(np.asarray(state_sel, np.intp))
         n = sel.shape[0]
-        fx, fy, fz = (np.ascontiguousarray(np.broadcast_to(a, (n, 3)), dtype=float) for a in (frame.x, frame.y, frame.z))
+        fx, fy, fz = (
+            np.ascontiguousarray(np.broadcast_to(a, (n, 3)), dtype=float) for a in (frame.x, frame.y, frame.z)
+        )
         direct, door = np.zeros((n, sel.shape[1], 2)), np.zeros((n, sel.shape[1], 2))
         if blocks.shape[0] and n:
             from straylight.sources.earthshine_kernel import cap_sums
 
             normals, door_weight, pst, sp, lit = self._kernel_tables
             door_k = (s or self.earthshine).door_reflectance * door_weight
-            cap_sums(fx, fy, fz, blocks, span_g, span_p, lum, sel, normals, door_k, float(self.field_radius_deg),
-                     float(self.pixel_area_m2), *pst, *sp, *lit, direct, door)
+            cap_sums(
+                fx,
+                fy,
+                fz,
+                blocks,
+                span_g,
+                span_p,
+                lum,
+                sel,
+                normals,
+                door_k,
+                float(self.field_radius_deg),
+                float(self.pixel_area_m2),
+                *pst,
+                *sp,
+                *lit,
+                direct,
+                door,
+            )
         return direct, door
 
     @cached_property
@@ -451,7 +569,13 @@ class OffFieldModel:
                 row = np.asarray(grid._flat).reshape(grid.axes[0].nodes.size, -1)[0]
                 if np.ptp(row) == 0.0:
                     at_plane[i] = float(row[0])
-        return normals, door_weight, GridPack([self.pst._interp]).arrays(), sp, (*lit, lit_tables is not None, at_plane)
+        return (
+            normals,
+            door_weight,
+            GridPack([self.pst._interp]).arrays(),
+            sp,
+            (*lit, lit_tables is not None, at_plane),
+        )
 
     def lamp_bound_one_scene(self, sat, lamp_direction, los, earth_radius_km) -> np.ndarray:
         """Upper bound of the direct coefficient of a cap lit from ``lamp_direction`` (unit vector,
@@ -470,14 +594,23 @@ class OffFieldModel:
         out = np.zeros(len(los))
         if lum.size:
             row_max = np.ascontiguousarray(self.pst.values.max(axis=1))
-            lamp_bound_sums(np.ascontiguousarray(los, dtype=float), np.ascontiguousarray(d[lit]), lum,
-                            float(np.cos(np.radians(self.field_radius_deg))),
-                            -np.cos(np.radians(self.pst.theta_deg)), row_max, out)
+            lamp_bound_sums(
+                np.ascontiguousarray(los, dtype=float),
+                np.ascontiguousarray(d[lit]),
+                lum,
+                float(np.cos(np.radians(self.field_radius_deg))),
+                -np.cos(np.radians(self.pst.theta_deg)),
+                row_max,
+                out,
+            )
         return out
 
-    def earthshine_terms(self, sat_km, sun_km, moon_km, frame, opening_deg, sun_irr, moon_irr_at_earth,
-                         earth_radius_km) -> tuple[np.ndarray, np.ndarray]:
+    def earthshine_terms(
+        self, sat_km, sun_km, moon_km, frame, opening_deg, sun_irr, moon_irr_at_earth, earth_radius_km
+    ) -> tuple[np.ndarray, np.ndarray]:
         """(EA1 direct, EA2 via the door) in e-/s/pix for samples (leading shapes broadcast)."""
         c = self.earthshine_coefficients(sat_km, sun_km, moon_km, frame, opening_deg, earth_radius_km)
-        return (c["direct_sun"] * sun_irr + c["direct_moon"] * moon_irr_at_earth,
-                c["door_sun"] * sun_irr + c["door_moon"] * moon_irr_at_earth)
+        return (
+            c["direct_sun"] * sun_irr + c["direct_moon"] * moon_irr_at_earth,
+            c["door_sun"] * sun_irr + c["door_moon"] * moon_irr_at_earth,
+        )

@@ -4,6 +4,7 @@ spectrum), a solar-spectrum source's from its V magnitude (V_sun = -26.76, Willm
 mag/arcsec2.  A solar-spectrum source's irradiance is the same fraction of the Sun's in every
 band (:func:`solar_like_fraction`), which is why the Sun, Moon, planets and both Earths give
 band-independent rates."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -43,7 +44,9 @@ class BandPhotometry:
         return self.band.ab_zero_point_photons_s_m2 * 10.0 ** (-0.4 * np.asarray(mag_ab, dtype=float))
 
 
-def sky_zero_point_mag_per_arcsec2(band: Band, aperture_diameter_m: float, pixel_scale_arcsec: float) -> float:
+def sky_zero_point_mag_per_arcsec2(
+    band: Band, aperture_diameter_m: float, pixel_scale_arcsec: float
+) -> float:
     """AB surface brightness (mag/arcsec2) of a uniform background giving 1 e-/s/pixel, so that
     ``mag_per_arcsec2 = zero_point - 2.5 log10(rate_e_per_s_per_pix)``: the band's AB photon
     zero point times the aperture area, spread over one pixel's solid angle (arcsec2)."""

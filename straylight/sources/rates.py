@@ -13,6 +13,7 @@ forms the background model adds in a fixed order:
 
 Coefficients of several sources for the same part and lamp are added before the product (the
 moonlit Earth's to the sunlit Earth's in-field Moon term), in registry order."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field

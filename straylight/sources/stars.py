@@ -7,6 +7,7 @@ The direct stars are skipped on a bound: per HEALPix sky cell and floor level
 (:meth:`OffFieldStars.star_cells`), the stars of smallest bound are left out while their bounds
 add up to no more than the stars_skip budget of the sample's floor; :meth:`OffFieldStars.pairs`
 finds each sample's (sample, star) pairs with a compiled kernel (:func:`_star_pairs_kernel`)."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -17,8 +18,9 @@ from numba import njit
 
 from straylight.sky.limb import earth_blocks
 from straylight.sky.runs import scene_runs, tiled_period
-from straylight.sources.rates import BandRates
 from straylight.sources.context import Samples, SourceContext
+from straylight.sources.rates import BandRates
+
 
 @dataclass
 class StarTable:
@@ -48,7 +50,6 @@ class StarTable:
         if not len(self.faint_ra_deg):
             return np.zeros((0, 3))
         return np.atleast_2d(radec_to_unit(self.faint_ra_deg, self.faint_dec_deg, "star catalog"))
-
 
 
 @dataclass(frozen=True)
@@ -91,13 +92,18 @@ class OffFieldStars:
         stars_e = self.e_per_s(samples, samples.stars, bands, samples.floor_ratio, samples.faint_rates)
         return BandRates(per_band={"stars": stars_e})
 
-    def e_per_s(self, samples: Samples, stars: StarTable | None, bands, floor_ratio, faint_rates: dict | None = None
-                ) -> np.ndarray:
+    def e_per_s(
+        self, samples: Samples, stars: StarTable | None, bands, floor_ratio, faint_rates: dict | None = None
+    ) -> np.ndarray:
         """:meth:`rates`' array from its inputs: (bands, samples flattened) e-/s/pix."""
         shape = samples.shape
-        star_pairs = (self.pairs(stars, samples.frame, samples.satellite_km, samples.door_deg, floor_ratio,
-                                 samples.runs)
-                      if stars is not None and len(stars.ra_deg) else None)  # once for all bands
+        star_pairs = (
+            self.pairs(
+                stars, samples.frame, samples.satellite_km, samples.door_deg, floor_ratio, samples.runs
+            )
+            if stars is not None and len(stars.ra_deg)
+            else None
+        )  # once for all bands
         faint = faint_rates
         if faint is None and stars is not None and len(stars.faint_ra_deg):
             faint = self.faint_star_rates(stars, samples.frame.z, bands)
@@ -177,7 +183,8 @@ class OffFieldStars:
         flat = np.ascontiguousarray(np.asarray(los, float).reshape(-1, 3))
         bands = [b for b in bands if b in stars.faint_mag_ab]
         flux = np.ascontiguousarray(
-            np.array([self.context.photometry(b).from_ab(stars.faint_mag_ab[b]) for b in bands]).T)  # (S, B)
+            np.array([self.context.photometry(b).from_ab(stars.faint_mag_ab[b]) for b in bands]).T
+        )  # (S, B)
         theta_grid, ln_pst, slope = self._pst_azimuthal_table
         per_deg = (theta_grid.size - 1) / theta_grid[-1]
         star_unit = np.ascontiguousarray(stars.faint_unit, dtype=float)
@@ -282,19 +289,29 @@ class OffFieldStars:
         parts, n_entries = [], 0
         block = max(1, (1 << 21) // max(n_stars, n_bins))  # cells at a time: arrays of ~2 million
         for a in range(0, n_cells, block):
-            node = np.clip(np.ceil((centres[a:a + block] @ s_unit.T + 1.0) * per_cos), 0, tail.size - 1).astype(np.intp)
+            node = np.clip(
+                np.ceil((centres[a : a + block] @ s_unit.T + 1.0) * per_cos), 0, tail.size - 1
+            ).astype(np.intp)
             bound = rel * tail[node]  # (c, S)
-            bins = np.clip(np.floor((log_rel + log_tail[node]) * per_dex) - lo_dex * per_dex, 0, n_bins - 1
-                           ).astype(np.intp)
+            bins = np.clip(
+                np.floor((log_rel + log_tail[node]) * per_dex) - lo_dex * per_dex, 0, n_bins - 1
+            ).astype(np.intp)
             rows = bins.shape[0]
-            sums = np.bincount((np.arange(rows)[:, None] * n_bins + bins).ravel(), weights=bound.ravel(),
-                               minlength=rows * n_bins).reshape(rows, n_bins)
+            sums = np.bincount(
+                (np.arange(rows)[:, None] * n_bins + bins).ravel(),
+                weights=bound.ravel(),
+                minlength=rows * n_bins,
+            ).reshape(rows, n_bins)
             cum = np.cumsum(sums, axis=1)
             # per level, the leading bins skipped; per bin, the levels that skip it not: a star's
             # reach (the levels that need it, nested: 0 .. reach - 1) is its bin's
             cut = np.stack([np.count_nonzero(cum <= lim, axis=1) for lim in budget], axis=1)  # (c, L)
-            reach_of_bin = np.cumsum(np.bincount((np.arange(rows)[:, None] * (n_bins + 1) + cut).ravel(),
-                                                 minlength=rows * (n_bins + 1)).reshape(rows, -1), axis=1)
+            reach_of_bin = np.cumsum(
+                np.bincount(
+                    (np.arange(rows)[:, None] * (n_bins + 1) + cut).ravel(), minlength=rows * (n_bins + 1)
+                ).reshape(rows, -1),
+                axis=1,
+            )
             reach = np.take_along_axis(reach_of_bin, bins, axis=1)
             if n_stars:
                 everywhere = np.minimum(everywhere, reach.min(axis=0))
@@ -310,7 +327,9 @@ class OffFieldStars:
         cell, star, reach = cell[kept], star[kept], reach[kept]
         order = np.lexsort((-reach, cell))  # cell after cell, each by decreasing reach
         cell, star, reach = cell[order], star[order], reach[order]
-        hist = np.bincount(cell * (n_levels + 1) + reach, minlength=n_cells * (n_levels + 1)).reshape(n_cells, -1)
+        hist = np.bincount(cell * (n_levels + 1) + reach, minlength=n_cells * (n_levels + 1)).reshape(
+            n_cells, -1
+        )
         counts = np.cumsum(hist[:, ::-1], axis=1)[:, ::-1][:, 1:]  # (cells, levels): reach > level
         start = np.concatenate([[0], np.cumsum(counts[:, 0])[:-1]]).astype(np.intp)
         sky_order = np.argsort(-everywhere, kind="stable")
@@ -353,7 +372,7 @@ class OffFieldStars:
         by_entries = np.argsort(-entries, kind="stable")
         excess = entries.sum() - entries_max
         if excess > 0:
-            promoted[by_entries[:int(np.searchsorted(np.cumsum(entries[by_entries]), excess)) + 1]] = True
+            promoted[by_entries[: int(np.searchsorted(np.cumsum(entries[by_entries]), excess)) + 1]] = True
         return [(c[~promoted[k]], k[~promoted[k]], r[~promoted[k]]) for c, k, r in parts]
 
     def pairs(self, stars: StarTable, frame, sat, door, floor_ratio=1.0, runs=None):
@@ -369,12 +388,20 @@ class OffFieldStars:
         s_all = np.ascontiguousarray(stars.unit, dtype=float)  # (S, 3)
         cells = self.star_cells(stars)
         shape = np.broadcast_shapes(np.shape(frame.z)[:-1], np.shape(door), np.shape(sat)[:-1])
-        fz, fx, fy = (np.ascontiguousarray(np.broadcast_to(a, shape + (3,)).reshape(-1, 3), dtype=float)
-                      for a in (frame.z, frame.x, frame.y))
+        fz, fx, fy = (
+            np.ascontiguousarray(np.broadcast_to(a, shape + (3,)).reshape(-1, 3), dtype=float)
+            for a in (frame.z, frame.x, frame.y)
+        )
         op = np.broadcast_to(np.asarray(door, float), shape).ravel()
         # each sample's floor level: rounded down, so its budget is never too large
-        level = np.searchsorted(self.STAR_FLOOR_LEVELS, np.broadcast_to(np.asarray(floor_ratio, float), shape).ravel(),
-                                side="right") - 1
+        level = (
+            np.searchsorted(
+                self.STAR_FLOOR_LEVELS,
+                np.broadcast_to(np.asarray(floor_ratio, float), shape).ravel(),
+                side="right",
+            )
+            - 1
+        )
         level = np.clip(level, 0, self.STAR_FLOOR_LEVELS.size - 1)
         re_km = self.context.campaign.earth.radius_km
         sat_b = np.broadcast_to(np.asarray(sat, float), shape + (3,))
@@ -389,18 +416,43 @@ class OffFieldStars:
             star_blocked, run_index = np.zeros((0, 0), bool), np.zeros(0, np.intp)
             sat_flat = np.ascontiguousarray(sat_b.reshape(-1, 3))
         cell = cells.cell_of(fz) if period is None else np.tile(cells.cell_of(fz[:period]), len(fz) // period)
-        n_cand = cells.count[cell, level] + cells.sky_count[level]  # the cell's and the whole sky's candidates
+        n_cand = (
+            cells.count[cell, level] + cells.sky_count[level]
+        )  # the cell's and the whole sky's candidates
         ends = np.cumsum(n_cand)
         parts = []
         a = 0
         while a < fz.shape[0]:  # passes of at most STAR_PAIRS_PER_PASS candidates (one sample at least)
             base = ends[a - 1] if a else 0
             b = max(int(np.searchsorted(ends, base + self.STAR_PAIRS_PER_PASS, side="right")), a + 1)
-            r, k, theta, phi = (np.empty(int(ends[b - 1] - base), t) for t in (np.intp, np.intp, float, float))
-            n = _star_pairs_kernel(a, b, fz, fx, fy, s_all, level, cell, cells.start, cells.count,
-                                   cells.stars, cells.sky_order, cells.sky_count, cells.everywhere, star_blocked,
-                                   run_index, sat_flat, float(re_km), float(self.context.offfield.field_radius_deg),
-                                   r, k, theta, phi)
+            r, k, theta, phi = (
+                np.empty(int(ends[b - 1] - base), t) for t in (np.intp, np.intp, float, float)
+            )
+            n = _star_pairs_kernel(
+                a,
+                b,
+                fz,
+                fx,
+                fy,
+                s_all,
+                level,
+                cell,
+                cells.start,
+                cells.count,
+                cells.stars,
+                cells.sky_order,
+                cells.sky_count,
+                cells.everywhere,
+                star_blocked,
+                run_index,
+                sat_flat,
+                float(re_km),
+                float(self.context.offfield.field_radius_deg),
+                r,
+                k,
+                theta,
+                phi,
+            )
             r, k, theta, phi = r[:n], k[:n], theta[:n], phi[:n]
             parts.append((r, k, self.context.offfield.point_source(1.0, theta, phi, False, op[r])))
             a = b
@@ -444,9 +496,31 @@ def _faint_star_kernel(los, star_unit, flux, ln_pst, slope, per_deg, x_field, x_
 
 
 @njit(cache=True, nogil=True)
-def _star_pairs_kernel(first, stop, fz, fx, fy, s, level, cell, start, count, cell_stars, sky_order,
-                       sky_count, everywhere, blocked_by_run, run_index, sat, re_km, field_radius_deg,
-                       out_sample, out_star, out_theta, out_phi):
+def _star_pairs_kernel(
+    first,
+    stop,
+    fz,
+    fx,
+    fy,
+    s,
+    level,
+    cell,
+    start,
+    count,
+    cell_stars,
+    sky_order,
+    sky_count,
+    everywhere,
+    blocked_by_run,
+    run_index,
+    sat,
+    re_km,
+    field_radius_deg,
+    out_sample,
+    out_star,
+    out_theta,
+    out_phi,
+):
     """:meth:`OffFieldStars.pairs` for samples ``first`` .. ``stop`` - 1: each sample's
     candidates (its sky cell's at its level, then the whole sky's), kept where the star is
     not behind the Earth (per run from ``blocked_by_run``, else tested
@@ -519,5 +593,11 @@ def split_stars(ra_deg, dec_deg, mag_by_band: dict, mag_limit: float, faint_map:
         return StarTable(ra_deg[keep], dec_deg[keep], {b: direct[i] for i, b in enumerate(bands)})
     rest = np.any(~bright & np.isfinite(mags), axis=0)
     faint = np.where(~bright, mags, np.inf)[:, rest]
-    return StarTable(ra_deg[keep], dec_deg[keep], {b: direct[i] for i, b in enumerate(bands)},
-                     ra_deg[rest], dec_deg[rest], {b: faint[i] for i, b in enumerate(bands)})
+    return StarTable(
+        ra_deg[keep],
+        dec_deg[keep],
+        {b: direct[i] for i, b in enumerate(bands)},
+        ra_deg[rest],
+        dec_deg[rest],
+        {b: faint[i] for i, b in enumerate(bands)},
+    )

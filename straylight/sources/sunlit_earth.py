@@ -9,6 +9,7 @@ or the look-up table of that sum (:class:`~straylight.sources.earthshine_table.E
 the Sun only; the moonlit Earth then adds its own, :mod:`straylight.sources.moonlit_earth`).
 ``auto`` takes the table whenever it validates within the earthshine_lut share of the
 tolerance."""
+
 from __future__ import annotations
 
 import logging
@@ -41,8 +42,9 @@ class SunlitEarth:
 
         c = self.context.campaign
         r = c.orbit_radius_range_km
-        return (settings.node_count(r[0], c.earth.radius_km, mirror_symmetric(self.context.offfield))
-                * len(self.context.offfield.door_states_deg))
+        return settings.node_count(r[0], c.earth.radius_km, mirror_symmetric(self.context.offfield)) * len(
+            self.context.offfield.door_states_deg
+        )
 
     @cached_property
     def choice(self) -> dict:
@@ -58,18 +60,34 @@ class SunlitEarth:
         es = self.context.campaign.settings.models.earthshine
         method = es.method
         if method == "direct":
-            return {"method": "direct", "requested": method, "reason": "models.earthshine.method = direct",
-                    "settings": None, "node_states": 0, "build_seconds_estimate": 0.0,
-                    "moonlit_build_seconds_estimate": 0.0}
+            return {
+                "method": "direct",
+                "requested": method,
+                "reason": "models.earthshine.method = direct",
+                "settings": None,
+                "node_states": 0,
+                "build_seconds_estimate": 0.0,
+                "moonlit_build_seconds_estimate": 0.0,
+            }
         steps = es.lut
-        settings = LUTSettings(float(steps.sun_zenith_step_deg), float(steps.los_zenith_step_deg),
-                               float(steps.azimuth_step_deg), int(steps.n_radius))
+        settings = LUTSettings(
+            float(steps.sun_zenith_step_deg),
+            float(steps.los_zenith_step_deg),
+            float(steps.azimuth_step_deg),
+            int(steps.n_radius),
+        )
         node_states = self.node_states(settings)
         build_s, moonlit_s = self.policy.tables_build_seconds(node_states, self.moonlit.node_states())
         chosen, reason = self.policy.earthshine_method(method)
-        return {"method": chosen, "requested": method, "reason": reason, "settings": settings,
-                "node_states": node_states, "build_seconds_estimate": build_s,
-                "moonlit_build_seconds_estimate": moonlit_s}
+        return {
+            "method": chosen,
+            "requested": method,
+            "reason": reason,
+            "settings": settings,
+            "node_states": node_states,
+            "build_seconds_estimate": build_s,
+            "moonlit_build_seconds_estimate": moonlit_s,
+        }
 
     @property
     def avoidance_deg(self) -> tuple:
@@ -83,8 +101,14 @@ class SunlitEarth:
         from straylight.sources.earthshine_table_build import cache_path, lut_key
 
         c = self.context
-        key = lut_key(c.offfield, c.campaign.earth.radius_km, c.campaign.orbit_radius_range_km,
-                      self.choice["settings"], c.earthshine_floor, self.avoidance_deg)
+        key = lut_key(
+            c.offfield,
+            c.campaign.earth.radius_km,
+            c.campaign.orbit_radius_range_km,
+            self.choice["settings"],
+            c.earthshine_floor,
+            self.avoidance_deg,
+        )
         return cache_path("earthshine_lut", key)
 
     @cached_property
@@ -99,18 +123,35 @@ class SunlitEarth:
             return {"method": "direct", "lut": None, "reason": choice["reason"]}
         settings, c = choice["settings"], self.context
         log = logging.getLogger("straylight")
-        lut, path = load_or_build(c.offfield, c.campaign.earth.radius_km, c.campaign.orbit_radius_range_km,
-                                  settings, c.earthshine_floor, log, avoidance_deg=self.avoidance_deg,
-                                  workers=self.build_workers)
-        info = {"lut_file": str(path.name), "lut_validation_max_rel_error": lut.validation_max_rel_error,
-                "lut_build_seconds": lut.build_seconds, "lut_node_states": choice["node_states"],
-                "lut_steps_deg": [settings.sun_zenith_step_deg, settings.los_zenith_step_deg,
-                                  settings.azimuth_step_deg]}
+        lut, path = load_or_build(
+            c.offfield,
+            c.campaign.earth.radius_km,
+            c.campaign.orbit_radius_range_km,
+            settings,
+            c.earthshine_floor,
+            log,
+            avoidance_deg=self.avoidance_deg,
+            workers=self.build_workers,
+        )
+        info = {
+            "lut_file": str(path.name),
+            "lut_validation_max_rel_error": lut.validation_max_rel_error,
+            "lut_build_seconds": lut.build_seconds,
+            "lut_node_states": choice["node_states"],
+            "lut_steps_deg": [
+                settings.sun_zenith_step_deg,
+                settings.los_zenith_step_deg,
+                settings.azimuth_step_deg,
+            ],
+        }
         share = self.policy.share("earthshine_lut")
-        if choice["requested"] == "auto" and not self.policy.accepts_table("earthshine_lut",
-                                                                           lut.validation_max_rel_error):
-            reason = (f"auto: table error {lut.validation_max_rel_error:.2g} > {share:g} x the tolerance "
-                      f"{self.policy.tolerance:g}")
+        if choice["requested"] == "auto" and not self.policy.accepts_table(
+            "earthshine_lut", lut.validation_max_rel_error
+        ):
+            reason = (
+                f"auto: table error {lut.validation_max_rel_error:.2g} > {share:g} x the tolerance "
+                f"{self.policy.tolerance:g}"
+            )
             log.info("earthshine: %s: direct sum", reason)
             return {"method": "direct", "lut": None, "reason": reason, **info}
         return {"method": "lut", "lut": lut, "reason": choice["reason"], **info}
@@ -125,8 +166,12 @@ class SunlitEarth:
         (``earthshine_direct``) and via the door (``earthshine_door``), arrays of the samples'
         shape (:meth:`coefficients`)."""
         c = self.coefficients(samples)
-        return BandRates(per_lamp={"earthshine_direct": {"sun": c["direct_sun"], "moon_at_earth": c["direct_moon"]},
-                                   "earthshine_door": {"sun": c["door_sun"], "moon_at_earth": c["door_moon"]}})
+        return BandRates(
+            per_lamp={
+                "earthshine_direct": {"sun": c["direct_sun"], "moon_at_earth": c["direct_moon"]},
+                "earthshine_door": {"sun": c["door_sun"], "moon_at_earth": c["door_moon"]},
+            }
+        )
 
     def coefficients(self, samples: Samples) -> dict:
         """The earthshine coefficients (:data:`COEFFICIENTS`, arrays of the samples' shape).  The
@@ -134,18 +179,32 @@ class SunlitEarth:
         only the part inside the field (the rest: :meth:`MoonlitEarth.rates
         <straylight.sources.moonlit_earth.MoonlitEarth.rates>`)."""
         off, re_km = self.context.offfield, self.context.campaign.earth.radius_km
-        sat, sun, moon, frame, door = (samples.satellite_km, samples.sun_km, samples.moon_km, samples.frame,
-                                       samples.door_deg)
+        sat, sun, moon, frame, door = (
+            samples.satellite_km,
+            samples.sun_km,
+            samples.moon_km,
+            samples.frame,
+            samples.door_deg,
+        )
         shape, lut = samples.shape, self.lut
         if lut is None:
             return off.earthshine_coefficients(sat, sun, moon, frame, door, re_km)
         full = shape + (3,)
         sat_b, sun_b, moon_b = (np.broadcast_to(np.asarray(v, float), full) for v in (sat, sun, moon))
-        d_sun, g_sun = lut.sun_coefficients(sat_b, sun_b, np.broadcast_to(frame.z, full),
-                                            np.broadcast_to(np.asarray(door, float), shape), samples.runs)
+        d_sun, g_sun = lut.sun_coefficients(
+            sat_b,
+            sun_b,
+            np.broadcast_to(frame.z, full),
+            np.broadcast_to(np.asarray(door, float), shape),
+            samples.runs,
+        )
         in_field_sun, in_field_moon = off.earth_in_field(sat_b, sun_b, moon_b, frame, re_km)
-        return {"direct_sun": d_sun + in_field_sun, "door_sun": g_sun, "direct_moon": in_field_moon,
-                "door_moon": np.zeros(shape)}
+        return {
+            "direct_sun": d_sun + in_field_sun,
+            "door_sun": g_sun,
+            "direct_moon": in_field_moon,
+            "door_moon": np.zeros(shape),
+        }
 
     def record(self) -> dict:
         """The model that ran and its Earth grid, for a product's attributes (JSON-able; the

@@ -23,6 +23,7 @@ in e- s-1 pixel-1.
 Ecliptic coordinates: the mean ecliptic and equinox of J2000 (IAU 2006 obliquity).  Leinert's
 table is a function of the longitude difference to the Sun, which precession leaves unchanged.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -33,8 +34,8 @@ from pathlib import Path
 import numpy as np
 
 from straylight.config import InstrumentSettings, instrument_settings
-from straylight.optics.bandpass import Band
 from straylight.errors import ConfigError
+from straylight.optics.bandpass import Band
 from straylight.sky.runs import scene_rows, tiled_period
 from straylight.sky.vectors import unit
 from straylight.sources.rates import BandRates
@@ -60,8 +61,10 @@ def icrs_to_ecliptic_matrix() -> np.ndarray:
 def _ecliptic_lon_lat_deg(vectors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Ecliptic longitude in (-180, 180] and latitude (deg) of ICRS vectors (..., 3)."""
     e = np.asarray(vectors, dtype=float) @ icrs_to_ecliptic_matrix().T
-    return (np.degrees(np.arctan2(e[..., 1], e[..., 0])),
-            np.degrees(np.arctan2(e[..., 2], np.hypot(e[..., 0], e[..., 1]))))
+    return (
+        np.degrees(np.arctan2(e[..., 1], e[..., 0])),
+        np.degrees(np.arctan2(e[..., 2], np.hypot(e[..., 0], e[..., 1]))),
+    )
 
 
 def ecliptic_lon_lat_deg(vectors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -70,18 +73,24 @@ def ecliptic_lon_lat_deg(vectors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return lon % 360.0, lat
 
 
-def helioecliptic_coordinates(los: np.ndarray, sun_direction: np.ndarray, runs=None) -> tuple[np.ndarray, np.ndarray]:
+def helioecliptic_coordinates(
+    los: np.ndarray, sun_direction: np.ndarray, runs=None
+) -> tuple[np.ndarray, np.ndarray]:
     """(|lambda - lambda_sun| in [0, 180], |beta| in [0, 90]) for lines of sight, deg (their
     longitudes' difference folded without a modulo); ``runs``: the samples' scene runs when
     known (:class:`~straylight.sky.runs.SceneRuns`)."""
-    rows = scene_rows(sun_direction, runs=runs)  # a cube's time step shares the Sun: its longitude once per step
+    rows = scene_rows(
+        sun_direction, runs=runs
+    )  # a cube's time step shares the Sun: its longitude once per step
     # and a cube batch repeats its lines of sight at every step: theirs once per pixel
     period = tiled_period(los, rows) if np.shape(los) == np.shape(sun_direction) else None
     if period is None:
         lon, lat = _ecliptic_lon_lat_deg(los)
     else:
-        lon, lat = (np.tile(v, rows.count).reshape(np.shape(los)[:-1])
-                    for v in _ecliptic_lon_lat_deg(np.asarray(los, float).reshape(-1, 3)[:period]))
+        lon, lat = (
+            np.tile(v, rows.count).reshape(np.shape(los)[:-1])
+            for v in _ecliptic_lon_lat_deg(np.asarray(los, float).reshape(-1, 3)[:period])
+        )
     lon_sun = rows.expand(_ecliptic_lon_lat_deg(rows.vectors[0])[0])
     d = np.abs(lon - lon_sun)
     return np.where(d > 180.0, 360.0 - d, d), np.abs(lat)  # d in [0, 360]: the angle between them
@@ -120,7 +129,9 @@ class LeinertTable:
     def _interp(self):
         """The log of the filled table and the no-data nodes (as 0/1) on one grid, two channels
         (the natural log: bilinear in it is bilinear in log10, and exp is cheaper than 10**)."""
-        return LinearGrid((self.lon_deg, self.lat_deg), np.stack([np.log(self.filled), self.no_data], axis=-1))
+        return LinearGrid(
+            (self.lon_deg, self.lat_deg), np.stack([np.log(self.filled), self.no_data], axis=-1)
+        )
 
     def brightness_500nm(self, dlon_deg, beta_deg) -> tuple[np.ndarray, np.ndarray]:
         """Brightness at 500 nm, W m-2 sr-1 um-1, and the no-data flag (any no-data node among
@@ -150,13 +161,18 @@ def leinert_colour_correction() -> tuple[np.ndarray, np.ndarray]:
     Returns (wavelength_um, factor) at the Table 19 wavelengths.
     """
     lines = _data_path("leinert1998_table19.csv").read_text().splitlines()
-    t19 = np.array([[float(x) for x in ln.split(",")] for ln in lines
-                    if ln and not ln.startswith("#") and not ln.startswith("wavelength")])
+    t19 = np.array(
+        [
+            [float(x) for x in ln.split(",")]
+            for ln in lines
+            if ln and not ln.startswith("#") and not ln.startswith("wavelength")
+        ]
+    )
     wl_a, sun = solar_spectrum()
-    sun_smooth = np.array([
-        np.mean(sun[(wl_a >= w * 1e4 - 250.0) & (wl_a <= w * 1e4 + 250.0)]) for w in t19[:, 0]
-    ])
-    ratio = (t19[:, 1] / sun_smooth)
+    sun_smooth = np.array(
+        [np.mean(sun[(wl_a >= w * 1e4 - 250.0) & (wl_a <= w * 1e4 + 250.0)]) for w in t19[:, 0]]
+    )
+    ratio = t19[:, 1] / sun_smooth
     i500 = int(np.argmin(np.abs(t19[:, 0] - 0.5)))
     return t19[:, 0], ratio / ratio[i500]
 
@@ -205,7 +221,9 @@ class ZodiacalModel:
         wl, shape = zodiacal_spectrum_shape(self.spectrum)
         lo, hi = band.wavelength_angstrom[0], band.wavelength_angstrom[-1]
         if wl[0] > lo or wl[-1] < hi:
-            raise ConfigError(f"band {band.name}: {lo:.0f}-{hi:.0f} A is outside the zodiacal spectrum's range")
+            raise ConfigError(
+                f"band {band.name}: {lo:.0f}-{hi:.0f} A is outside the zodiacal spectrum's range"
+            )
         rate_sr = float(band.photon_rate(wl, shape))
         rate_arcsec2 = rate_sr / ARCSEC2_PER_SR
         mag = -2.5 * np.log10(rate_arcsec2 / band.ab_zero_point_photons_s_m2)
@@ -226,7 +244,9 @@ class ZodiacalModel:
         """e-/s/pixel in ``band`` for a 500 nm brightness B_500 (W m-2 sr-1 um-1)."""
         return np.asarray(brightness_500nm) * self.band_factors(band)[0] * self.pixel_etendue_m2_sr
 
-    def rates(self, bands: list, los: np.ndarray, sun_direction: np.ndarray, shape: tuple, runs=None) -> tuple:
+    def rates(
+        self, bands: list, los: np.ndarray, sun_direction: np.ndarray, shape: tuple, runs=None
+    ) -> tuple:
         """(e-/s/pixel per band, (bands, samples flattened); the no-data flag, the samples' shape)
         for a batch of samples of ``shape``: the 500 nm brightness once, then each
         :class:`~straylight.optics.bandpass.Band` of ``bands``.  Never skipped: it is the floor
@@ -265,13 +285,19 @@ class ZodiacalLight:
         """e-/s/pix per band, (bands, samples flattened), and the ``zodiacal_no_data`` flag (True
         where the Leinert table has no data near the Sun), of the samples' shape."""
         c = self.context
-        e, no_data = c.zodiacal.rates([c.band(name) for name in bands], samples.frame.z,
-                                      unit(samples.sun_km - samples.satellite_km), samples.shape, samples.runs)
+        e, no_data = c.zodiacal.rates(
+            [c.band(name) for name in bands],
+            samples.frame.z,
+            unit(samples.sun_km - samples.satellite_km),
+            samples.shape,
+            samples.runs,
+        )
         return BandRates(per_band={"zodiacal": e}, extras={"zodiacal_no_data": no_data})
 
 
-def zodiacal_model_from_instrument(instrument: InstrumentSettings | dict,
-                                   spectrum: str = "solar_leinert") -> ZodiacalModel:
+def zodiacal_model_from_instrument(
+    instrument: InstrumentSettings | dict, spectrum: str = "solar_leinert"
+) -> ZodiacalModel:
     """The zodiacal model of the instrument's aperture, focal length and pixel, with the solar
     ``spectrum`` (models.zodiacal_spectrum).  ``instrument``: its typed settings, or its
     mapping (:func:`~straylight.config.instrument.instrument_settings`)."""

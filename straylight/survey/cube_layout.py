@@ -29,11 +29,11 @@ if TYPE_CHECKING:
     from straylight.survey.footprint import Footprint
 
 __all__ = [
-    "CUBE_BAND_VARIABLES",
-    "CUBE_COMPONENTS",
+    "CUBE_BAND_VARIABLES",  # noqa: F822 (module __getattr__: from the registry)
+    "CUBE_COMPONENTS",  # noqa: F822 (module __getattr__: from the registry)
     "CUBE_PIXEL_VARIABLES",
     "LIMITS_REGION_VARIABLES",
-    "LONG_NAMES",
+    "LONG_NAMES",  # noqa: F822 (module __getattr__: from the registry)
     "OBSERVABILITY_ANGLES",
     "OBSERVABILITY_VARIABLES",
     "CubeStores",
@@ -62,7 +62,9 @@ def __getattr__(name):
 
     if name == "CUBE_COMPONENTS":  # the components, in the order they add into the total
         return registry.component_names()
-    if name == "CUBE_BAND_VARIABLES":  # the cube's (time, pixel, band) variables: the components and the total
+    if (
+        name == "CUBE_BAND_VARIABLES"
+    ):  # the cube's (time, pixel, band) variables: the components and the total
         return registry.component_names() + (registry.TOTAL,)
     if name == "LONG_NAMES":  # variable -> long_name of the (time, pixel, band) variables
         return registry.long_names()

@@ -1,4 +1,5 @@
 """The survey footprint on a HEALPix grid (ICRS pixel centres) and its work plan."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -101,7 +102,9 @@ def read_mask(path: str | Path, nside: int, nest: bool) -> np.ndarray:
         raise InputError(f"footprint.mask_file: {path} holds non-finite values")
     m = np.where(m == hp.UNSEEN, 0.0, m)
     if hp.get_nside(m) != nside:
-        m = hp.ud_grade(m, nside, order_in="NESTED" if nest else "RING", order_out="NESTED" if nest else "RING")
+        m = hp.ud_grade(
+            m, nside, order_in="NESTED" if nest else "RING", order_out="NESTED" if nest else "RING"
+        )
     return m > 0.5
 
 
@@ -117,7 +120,9 @@ def footprint_from_config(fp_cfg: dict, config_dir: Path | None = None) -> Footp
         mask = read_mask(p, nside, nest)
     else:
         mask = latitude_cut_mask(
-            nside, nest, float(fp_cfg.get("galactic_latitude_min_deg", 20.0)),
+            nside,
+            nest,
+            float(fp_cfg.get("galactic_latitude_min_deg", 20.0)),
             float(fp_cfg.get("ecliptic_latitude_min_deg", 18.0)),
         )
     pixels = np.flatnonzero(mask)
@@ -136,5 +141,10 @@ def footprint_from_store(store) -> Footprint:
     import zarr
 
     group = zarr.open_group(str(store), mode="r", use_consolidated=False)
-    return Footprint(nside=int(group.attrs["healpix_nside"]), ordering=str(group.attrs["healpix_ordering"]).lower(),
-                     pixels=group["pixel"][...], ra_deg=group["ra_deg"][...], dec_deg=group["dec_deg"][...])
+    return Footprint(
+        nside=int(group.attrs["healpix_nside"]),
+        ordering=str(group.attrs["healpix_ordering"]).lower(),
+        pixels=group["pixel"][...],
+        ra_deg=group["ra_deg"][...],
+        dec_deg=group["dec_deg"][...],
+    )

@@ -7,6 +7,7 @@ sigma^2 = S + N_pix (B T + D T + n RN^2), B the sky + stray-light rate (e-/s/pix
 current and RN the read noise.  The 5-sigma limit solves S = 5 sigma:
     S = (25 + sqrt(625 + 100 N_b)) / 2,   N_b = N_pix (B T + D T + n RN^2).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -62,9 +63,15 @@ def _survey_exposure(campaign: Campaign, band_name: str) -> SurveyExposure:
     b = inst.bands[band_name]
     r80 = inst.detector.ee80_radius_arcsec.value / campaign.pixel_scale_arcsec
     band = load_band(inst, band_name, campaign.instrument_path.parent)
-    zp_e = band.ab_zero_point_photons_s_m2 * np.pi * inst.telescope.aperture_diameter_m.value ** 2 / 4
-    return SurveyExposure(int(b.n_exposures), float(b.exposure_s), inst.detector.read_noise_e.value,
-                          inst.detector.dark_current_e_per_s.value, np.pi * r80**2, zp_e)
+    zp_e = band.ab_zero_point_photons_s_m2 * np.pi * inst.telescope.aperture_diameter_m.value**2 / 4
+    return SurveyExposure(
+        int(b.n_exposures),
+        float(b.exposure_s),
+        inst.detector.read_noise_e.value,
+        inst.detector.dark_current_e_per_s.value,
+        np.pi * r80**2,
+        zp_e,
+    )
 
 
 #: name of the (band) coordinate of background.zarr and limits.zarr holding each band's zero point
@@ -85,16 +92,24 @@ def sky_zero_points(campaign: Campaign, bands=None) -> dict:
     def zero_point(b):
         return sky_zero_point_mag_per_arcsec2(load_band(inst, b, campaign.instrument_path.parent), d, pix)
 
-    return {b: _derived(campaign, ("sky_zero_point", b), lambda b=b: zero_point(b)) for b in (bands or campaign.bands)}
+    return {
+        b: _derived(campaign, ("sky_zero_point", b), lambda b=b: zero_point(b))
+        for b in (bands or campaign.bands)
+    }
 
 
 def zero_point_coord(campaign: Campaign, bands) -> tuple:
     """The products' ``mag_zero_point`` (band) coordinate: mag/arcsec2 = zp - 2.5 log10(e-/s/pixel)."""
     zp = sky_zero_points(campaign, [str(b) for b in bands])
-    return ("band", np.array([zp[str(b)] for b in bands], dtype=np.float64),
-            {"units": "mag(AB) arcsec-2",
-             "long_name": "AB surface brightness of a background of 1 e-/s/pixel; "
-                          "mag_per_arcsec2 = mag_zero_point - 2.5 log10(rate / (electron / (s pixel)))"})
+    return (
+        "band",
+        np.array([zp[str(b)] for b in bands], dtype=np.float64),
+        {
+            "units": "mag(AB) arcsec-2",
+            "long_name": "AB surface brightness of a background of 1 e-/s/pixel; "
+            "mag_per_arcsec2 = mag_zero_point - 2.5 log10(rate / (electron / (s pixel)))",
+        },
+    )
 
 
 def point_source_limit(background_e_per_s_per_pix, band_name: str, campaign: Campaign) -> np.ndarray:
@@ -226,11 +241,16 @@ def store_limit_summaries(store, workers: int = 1) -> dict:
     per_pixel = max(1, n_time * n_band * lim.dtype.itemsize)
     parts = max(1, -(-block * per_pixel // SUMMARY_TASK_BYTES))
     step = max(1, -(-block // parts))
-    tasks = [slice(a, min(a + step, b0 + block, n_pix)) for b0 in range(0, n_pix, block)
-             for a in range(b0, min(b0 + block, n_pix), step)]
-    out = {"limiting_mag_best": np.full((n_pix, n_band), np.nan, np.float32),
-           "limiting_mag_median": np.full((n_pix, n_band), np.nan, np.float32),
-           "observable_fraction": np.zeros(n_pix, np.float32)}
+    tasks = [
+        slice(a, min(a + step, b0 + block, n_pix))
+        for b0 in range(0, n_pix, block)
+        for a in range(b0, min(b0 + block, n_pix), step)
+    ]
+    out = {
+        "limiting_mag_best": np.full((n_pix, n_band), np.nan, np.float32),
+        "limiting_mag_median": np.full((n_pix, n_band), np.nan, np.float32),
+        "observable_fraction": np.zeros(n_pix, np.float32),
+    }
 
     def keep(result):
         pixels, best, median, frac = result
@@ -282,8 +302,12 @@ def limits_dataset(campaign: Campaign, background, limiting_mag=None) -> "xr.Dat
         return observable_fraction(np.moveaxis(observable, -1, 0))
 
     if limiting_mag is None:
-        lim = xr.apply_ufunc(lambda t: band_limits(t, exposures), background["total"], dask="parallelized",
-                             output_dtypes=[np.float32])
+        lim = xr.apply_ufunc(
+            lambda t: band_limits(t, exposures),
+            background["total"],
+            dask="parallelized",
+            output_dtypes=[np.float32],
+        )
     else:
         lim = limiting_mag
     observable = background["observable"]
@@ -293,20 +317,37 @@ def limits_dataset(campaign: Campaign, background, limiting_mag=None) -> "xr.Dat
     # cluster (a slow import in every process that lays down a skeleton)
     with dask_rechunk_by_tasks():
         lim_t, obs_t = (lim.chunk(whole_times), observable.chunk(whole_times)) if lazy else (lim, observable)
-    summary = xr.apply_ufunc(best_and_median, lim_t, obs_t,
-                             input_core_dims=[["time"], ["time"]],
-                             output_core_dims=[["stat"]], dask="parallelized", output_dtypes=[np.float32],
-                             dask_gufunc_kwargs={"output_sizes": {"stat": 2}})
-    frac = xr.apply_ufunc(fraction, obs_t, input_core_dims=[["time"]], dask="parallelized",
-                          output_dtypes=[np.float32])
+    summary = xr.apply_ufunc(
+        best_and_median,
+        lim_t,
+        obs_t,
+        input_core_dims=[["time"], ["time"]],
+        output_core_dims=[["stat"]],
+        dask="parallelized",
+        output_dtypes=[np.float32],
+        dask_gufunc_kwargs={"output_sizes": {"stat": 2}},
+    )
+    frac = xr.apply_ufunc(
+        fraction, obs_t, input_core_dims=[["time"]], dask="parallelized", output_dtypes=[np.float32]
+    )
     if observable.chunks is not None:  # the cube's pixel blocks, as the observable's
         with dask_rechunk_by_tasks():
             frac = frac.chunk({"pixel": observable.chunks[1]})
-    return _limits_product(campaign, background, lim, summary.isel(stat=0).transpose("pixel", "band"),
-                           summary.isel(stat=1).transpose("pixel", "band"), frac, observable, exposures)
+    return _limits_product(
+        campaign,
+        background,
+        lim,
+        summary.isel(stat=0).transpose("pixel", "band"),
+        summary.isel(stat=1).transpose("pixel", "band"),
+        frac,
+        observable,
+        exposures,
+    )
 
 
-def _limits_product(campaign: Campaign, background, lim, best, median, frac, observable, exposures) -> "xr.Dataset":
+def _limits_product(
+    campaign: Campaign, background, lim, best, median, frac, observable, exposures
+) -> "xr.Dataset":
     """limits.zarr's dataset (variables, coordinates and attributes) from its variables' data."""
     import xarray as xr
 
@@ -316,25 +357,58 @@ def _limits_product(campaign: Campaign, background, lim, best, median, frac, obs
     data = lambda v: getattr(v, "data", v)  # noqa: E731 - an xarray object's array, or the array
     return xr.Dataset(
         {
-            "limiting_mag": (("time", "pixel", "band"), data(lim),
-                             {"units": "mag(AB)", "long_name": f"5-sigma point-source limit in the EE80 aperture ({desc})"}),
-            "limiting_mag_best": (("pixel", "band"), data(best),
-                                  {"units": "mag(AB)",
-                                   "long_name": "deepest limit over observable times (NaN: never observable)"}),
-            "limiting_mag_median": (("pixel", "band"), data(median),
-                                    {"units": "mag(AB)",
-                                     "long_name": "median limit over observable times (NaN: never observable)"}),
-            "observable_fraction": (("pixel",), data(frac), {"units": "1", "long_name": "fraction of campaign times observable"}),
-            "observable": (("time", "pixel"), data(observable),
-                           {"units": "1", "long_name": "pointing satisfies every constraint"}),
+            "limiting_mag": (
+                ("time", "pixel", "band"),
+                data(lim),
+                {
+                    "units": "mag(AB)",
+                    "long_name": f"5-sigma point-source limit in the EE80 aperture ({desc})",
+                },
+            ),
+            "limiting_mag_best": (
+                ("pixel", "band"),
+                data(best),
+                {
+                    "units": "mag(AB)",
+                    "long_name": "deepest limit over observable times (NaN: never observable)",
+                },
+            ),
+            "limiting_mag_median": (
+                ("pixel", "band"),
+                data(median),
+                {
+                    "units": "mag(AB)",
+                    "long_name": "median limit over observable times (NaN: never observable)",
+                },
+            ),
+            "observable_fraction": (
+                ("pixel",),
+                data(frac),
+                {"units": "1", "long_name": "fraction of campaign times observable"},
+            ),
+            "observable": (
+                ("time", "pixel"),
+                data(observable),
+                {"units": "1", "long_name": "pointing satisfies every constraint"},
+            ),
         },
-        coords={**{k: background[k] for k in ("time", "pixel", "ra_deg", "dec_deg", "band")},
-                ZERO_POINT_NAME: zero_point_coord(campaign, bands),
-                "n_exposures": ("band", np.array([x.n_exposures for x in exposures], np.int32),
-                                {"units": "1", "long_name": "survey exposures per field"}),
-                "exposure_s": ("band", np.array([x.exposure_s for x in exposures], np.float64),
-                               {"units": "s", "long_name": "duration of one survey exposure"})},
-        attrs={k: background.attrs[k] for k in ("healpix_nside", "healpix_ordering", "healpix_frame", "campaign")},
+        coords={
+            **{k: background[k] for k in ("time", "pixel", "ra_deg", "dec_deg", "band")},
+            ZERO_POINT_NAME: zero_point_coord(campaign, bands),
+            "n_exposures": (
+                "band",
+                np.array([x.n_exposures for x in exposures], np.int32),
+                {"units": "1", "long_name": "survey exposures per field"},
+            ),
+            "exposure_s": (
+                "band",
+                np.array([x.exposure_s for x in exposures], np.float64),
+                {"units": "s", "long_name": "duration of one survey exposure"},
+            ),
+        },
+        attrs={
+            k: background.attrs[k] for k in ("healpix_nside", "healpix_ordering", "healpix_frame", "campaign")
+        },
     )
 
 
@@ -358,10 +432,12 @@ def write_limit_maps(ds, out_dir) -> list:
 
     times = ds["time"].values
     iso = (lambda t: str(np.datetime_as_string(t, unit="s"))) if times.dtype.kind == "M" else str
-    common = [("CAMPAIGN", str(ds.attrs["campaign"])[:68], "straylight campaign name"),
-              ("DATE-BEG", iso(times.min()), "first campaign time (UTC)"),
-              ("DATE-END", iso(times.max()), "last campaign time (UTC)"),
-              ("NTIMES", int(times.size), "campaign time samples")]
+    common = [
+        ("CAMPAIGN", str(ds.attrs["campaign"])[:68], "straylight campaign name"),
+        ("DATE-BEG", iso(times.min()), "first campaign time (UTC)"),
+        ("DATE-END", iso(times.max()), "last campaign time (UTC)"),
+        ("NTIMES", int(times.size), "campaign time samples"),
+    ]
 
     def write(name, values, unit, band=None):
         m = np.full(hp.nside2npix(nside), hp.UNSEEN, dtype=np.float32)
@@ -369,15 +445,26 @@ def write_limit_maps(ds, out_dir) -> list:
         header = list(common)
         if band is not None:
             b = ds.sel(band=band)
-            header += [("BAND", str(band), "CSST band"),
-                       ("NEXP", int(b["n_exposures"]), "survey exposures per field"),
-                       ("EXPTIME", float(b["exposure_s"]), "[s] one survey exposure"),
-                       ("TEXPTIME", float(b["exposure_s"] * b["n_exposures"]), "[s] total survey exposure"),
-                       ("SNR", SNR, "S/N of the point-source limit (EE80)")]
+            header += [
+                ("BAND", str(band), "CSST band"),
+                ("NEXP", int(b["n_exposures"]), "survey exposures per field"),
+                ("EXPTIME", float(b["exposure_s"]), "[s] one survey exposure"),
+                ("TEXPTIME", float(b["exposure_s"] * b["n_exposures"]), "[s] total survey exposure"),
+                ("SNR", SNR, "S/N of the point-source limit (EE80)"),
+            ]
         path = out_dir / f"{name}.fits"
         with atomic_path(path) as tmp:
-            hp.write_map(str(tmp), m, nest=nest, coord="C", column_names=[name[:68].upper()],
-                         column_units=[unit], dtype=np.float32, overwrite=True, extra_header=header)
+            hp.write_map(
+                str(tmp),
+                m,
+                nest=nest,
+                coord="C",
+                column_names=[name[:68].upper()],
+                column_units=[unit],
+                dtype=np.float32,
+                overwrite=True,
+                extra_header=header,
+            )
         written.append(path)
 
     for ib, b in enumerate(ds["band"].values):

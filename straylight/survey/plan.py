@@ -8,6 +8,7 @@ earthshine tables' build when they are not cached), and the products' bytes
 are one reference machine's (docs/performance.md says how each is measured); :func:`machine_speed`
 scales them to this one.
 """
+
 from __future__ import annotations
 
 import time as _time
@@ -34,12 +35,19 @@ def evaluated_samples(campaign: Campaign, fp: Footprint, max_times: int = 144, m
     n = len(campaign.times) * int(fp.pixels.size)
     if unobservable_samples(campaign) != "skip" or n == 0:
         return n
-    t_idx = np.unique(np.linspace(0, len(campaign.times) - 1, min(max_times, len(campaign.times))).round().astype(int))
+    t_idx = np.unique(
+        np.linspace(0, len(campaign.times) - 1, min(max_times, len(campaign.times))).round().astype(int)
+    )
     p_idx = np.unique(np.linspace(0, fp.pixels.size - 1, min(max_pixels, fp.pixels.size)).round().astype(int))
     sc = scene(campaign.orbit, campaign.times[t_idx])
     los = radec_to_unit(fp.ra_deg[p_idx], fp.dec_deg[p_idx])
-    g = observing_geometry(sc.satellite_km[:, None], {b: sc.bodies_km[b][:, None] for b in ("sun", "moon")},
-                           los[None], campaign.earth.radius_km, campaign.constraints)
+    g = observing_geometry(
+        sc.satellite_km[:, None],
+        {b: sc.bodies_km[b][:, None] for b in ("sun", "moon")},
+        los[None],
+        campaign.earth.radius_km,
+        campaign.constraints,
+    )
     return int(round(n * float(np.mean(g["observable"]))))
 
 
@@ -81,8 +89,14 @@ def pipeline_rate(campaign: Campaign) -> tuple[float, str]:
     return PIPELINE_SAMPLES_PER_S_PER_CORE, "straylight.survey.plan.PIPELINE_SAMPLES_PER_S_PER_CORE"
 
 
-def cube_compute_seconds(samples: int, evaluated: int, earthshine_method: str, skip: bool,
-                         seconds_per_evaluated_sample: float | None = None, speed_factor: float = 1.0) -> float:
+def cube_compute_seconds(
+    samples: int,
+    evaluated: int,
+    earthshine_method: str,
+    skip: bool,
+    seconds_per_evaluated_sample: float | None = None,
+    speed_factor: float = 1.0,
+) -> float:
     """Seconds on one core to compute a cube of ``samples`` (time, pixel) samples of which
     ``evaluated`` are evaluated (all, or with ``skip`` the observable ones), with the sunlit
     earthshine ``earthshine_method`` ('lut' or 'direct'), at the CUBE_* and
@@ -99,7 +113,9 @@ def cube_compute_seconds(samples: int, evaluated: int, earthshine_method: str, s
     return speed_factor * (evaluated * per_eval + (samples * CUBE_SCREEN_SECONDS_PER_SAMPLE if skip else 0.0))
 
 
-def machine_speed(campaign: Campaign, fp: Footprint, n_times: int = 4, n_pixels: int = 1320, repeats: int = 2) -> dict:
+def machine_speed(
+    campaign: Campaign, fp: Footprint, n_times: int = 4, n_pixels: int = 1320, repeats: int = 2
+) -> dict:
     """This machine's speed against the reference machine of the cost figures (CUBE_*,
     fidelity.LUT_*, PIPELINE_*): ``n_times`` cube time steps spread over the
     campaign at ~``n_pixels`` footprint pixels spread over it (one step, or a few hundred
@@ -112,9 +128,13 @@ def machine_speed(campaign: Campaign, fp: Footprint, n_times: int = 4, n_pixels:
     from straylight.model import BackgroundModel
     from straylight.survey.cube_region import compute_region
 
-    direct = campaign_from_dict(deep_merge(campaign.config, {"models": {"earthshine": {"method": "direct"},
-                                                                        "unobservable_samples": "evaluate"}}),
-                                campaign.path)
+    direct = campaign_from_dict(
+        deep_merge(
+            campaign.config,
+            {"models": {"earthshine": {"method": "direct"}, "unobservable_samples": "evaluate"}},
+        ),
+        campaign.path,
+    )
     model = BackgroundModel(direct)
     nt = len(direct.times)
     t_slice = slice(0, nt, max(1, nt // max(1, n_times)))
@@ -134,8 +154,13 @@ def machine_speed(campaign: Campaign, fp: Footprint, n_times: int = 4, n_pixels:
     return {"samples": n, "measured_seconds": best, "assumed_seconds": assumed, "factor": best / assumed}
 
 
-def estimated_cost(campaign: Campaign, fp: Footprint, seconds_per_evaluated_sample: float | None = None,
-                   speed_factor: float = 1.0, cores: int = 2) -> dict:
+def estimated_cost(
+    campaign: Campaign,
+    fp: Footprint,
+    seconds_per_evaluated_sample: float | None = None,
+    speed_factor: float = 1.0,
+    cores: int = 2,
+) -> dict:
     """What the campaign will cost before it runs, nothing built: its samples, the samples it
     evaluates (:func:`evaluated_samples`), the sunlit earthshine model that will run
     (SunlitEarth.choice), the tables' build when they are not cached yet (seconds on one core),
@@ -152,7 +177,9 @@ def estimated_cost(campaign: Campaign, fp: Footprint, seconds_per_evaluated_samp
     model = BackgroundModel(campaign)
     choice = model.sunlit_earth.choice
     skip = unobservable_samples(campaign) == "skip"
-    compute_s = cube_compute_seconds(n, n_eval, choice["method"], skip, seconds_per_evaluated_sample, speed_factor)
+    compute_s = cube_compute_seconds(
+        n, n_eval, choice["method"], skip, seconds_per_evaluated_sample, speed_factor
+    )
     build_s, table_cached = 0.0, True
     if choice["method"] == "lut":  # the sunlit table and the moonlit one, each unless cached
         moonlit_s = choice["moonlit_build_seconds_estimate"]
@@ -160,8 +187,10 @@ def estimated_cost(campaign: Campaign, fp: Footprint, seconds_per_evaluated_samp
         moonlit_path = model.moonlit_earth.lut_path()
         moonlit_cached = moonlit_path is None or moonlit_path.exists()
         table_cached = sunlit_cached and moonlit_cached
-        build_s = speed_factor * ((0.0 if sunlit_cached else choice["build_seconds_estimate"] - moonlit_s)
-                                  + (0.0 if moonlit_cached else moonlit_s))
+        build_s = speed_factor * (
+            (0.0 if sunlit_cached else choice["build_seconds_estimate"] - moonlit_s)
+            + (0.0 if moonlit_cached else moonlit_s)
+        )
     rate, rate_source = pipeline_rate(campaign)
     cores = max(int(cores), 1)
     if seconds_per_evaluated_sample is not None:
@@ -175,12 +204,24 @@ def estimated_cost(campaign: Campaign, fp: Footprint, seconds_per_evaluated_samp
     faint = bool(campaign.config["stars"].get("faint_map", True))
     faint_s = speed_factor * FAINT_MAP_SECONDS_PER_PIXEL * int(fp.pixels.size) / cores if faint else 0.0
     wall_s = fixed_s + samples_s + build_s / cores
-    return {"samples": n, "evaluated_samples": n_eval, "unobservable_samples": "skip" if skip else "evaluate",
-            "earthshine_method": choice["method"], "earthshine_reason": choice["reason"],
-            "table_cached": table_cached, "table_build_seconds": build_s, "compute_seconds": compute_s,
-            "core_hours": (compute_s + build_s) / 3600.0, "speed_factor": speed_factor, "cores": cores,
-            "pipeline_samples_per_s_per_core": rate, "pipeline_rate_source": rate_source,
-            "fixed_seconds": fixed_s, "samples_seconds": samples_s, "wall_seconds": wall_s,
-            "faint_map_first_seconds": faint_s,
-            "pipeline_core_hours": wall_s * cores / 3600.0,
-            "product_bytes": n * PRODUCT_BYTES_PER_SAMPLE}
+    return {
+        "samples": n,
+        "evaluated_samples": n_eval,
+        "unobservable_samples": "skip" if skip else "evaluate",
+        "earthshine_method": choice["method"],
+        "earthshine_reason": choice["reason"],
+        "table_cached": table_cached,
+        "table_build_seconds": build_s,
+        "compute_seconds": compute_s,
+        "core_hours": (compute_s + build_s) / 3600.0,
+        "speed_factor": speed_factor,
+        "cores": cores,
+        "pipeline_samples_per_s_per_core": rate,
+        "pipeline_rate_source": rate_source,
+        "fixed_seconds": fixed_s,
+        "samples_seconds": samples_s,
+        "wall_seconds": wall_s,
+        "faint_map_first_seconds": faint_s,
+        "pipeline_core_hours": wall_s * cores / 3600.0,
+        "product_bytes": n * PRODUCT_BYTES_PER_SAMPLE,
+    }

@@ -10,6 +10,7 @@ not part of the background components.  Samples are
 evaluated vectorised in batches (same code path as the cube), so thousands of rows take seconds.
 A bad row stops the run with the file, row, field and value; nothing is written.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -19,13 +20,13 @@ import numpy as np
 from straylight.errors import InputError
 
 
-
 def table_components() -> tuple:
     """The per-band e-/s/pix columns of a pointing table: the registry's components and the
     total (:mod:`straylight.model.registry`)."""
     from straylight.model.registry import TOTAL, component_names
 
     return component_names() + (TOTAL,)
+
 
 ALIASES = {"time": ("time", "utc", "time_utc"), "ra": ("ra", "ra_deg"), "dec": ("dec", "dec_deg")}
 
@@ -36,7 +37,9 @@ def read_pointings(path) -> dict:
     path = Path(path)
     if not path.exists():
         raise InputError(f"{path}: pointing table does not exist")
-    fmt = {".csv": "ascii.csv", ".ecsv": "ascii.ecsv", ".parquet": "parquet", ".fits": "fits"}.get(path.suffix.lower())
+    fmt = {".csv": "ascii.csv", ".ecsv": "ascii.ecsv", ".parquet": "parquet", ".fits": "fits"}.get(
+        path.suffix.lower()
+    )
     if fmt is None:
         raise InputError(f"{path}: unknown format; expected .csv, .ecsv, .parquet or .fits")
     try:
@@ -50,7 +53,9 @@ def read_pointings(path) -> dict:
     for key, names in ALIASES.items():
         found = next((cols[n] for n in names if n in cols), None)
         if found is None:
-            raise InputError(f"{path}: missing column {key!r} (accepted: {', '.join(names)}); found {', '.join(t.colnames)}")
+            raise InputError(
+                f"{path}: missing column {key!r} (accepted: {', '.join(names)}); found {', '.join(t.colnames)}"
+            )
         out[key] = np.asarray(np.ma.filled(t[found], np.nan) if key != "time" else t[found])
     out["ra"], out["dec"] = check_radec(out["ra"], out["dec"], lambda i: f"{path}: row {i + 1}: ")
     return out
@@ -93,23 +98,31 @@ def _is_number(v) -> bool:
         return False
 
 
-def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int = 8192, source="",
-                   models: dict | None = None, model=None) -> dict:
+def pointing_table(
+    campaign,
+    pointings: dict,
+    bands=None,
+    stars=None,
+    batch: int = 8192,
+    source="",
+    models: dict | None = None,
+    model=None,
+) -> dict:
     """Columns of the per-pointing background table (see the module docstring); ``models``, if
     given, receives the record of which models ran and their error budget; ``model``: the
     campaign's :class:`~straylight.model.BackgroundModel` when the caller keeps one warm, or a
     function giving it, called once the scene is computed (else one is built for this table).
     The satellite and the bodies are computed once per distinct time, for all of them at once;
     the samples are evaluated ``batch`` at a time (:func:`~straylight.model.pointing.background_at`)."""
+    from astropy.time import Time
+
     from straylight.model import BackgroundModel
     from straylight.model.pointing import background_at
     from straylight.sky.ephemeris import default_ephemeris
-    from straylight.sky.vectors import radec_to_unit
-    from straylight.survey.limits import point_source_limit
     from straylight.sky.observing import scene
     from straylight.sky.timeutil import parse_utc, utc_to_tdb_jd
-
-    from astropy.time import Time
+    from straylight.sky.vectors import radec_to_unit
+    from straylight.survey.limits import point_source_limit
 
     bands = list(bands or campaign.bands)
     if isinstance(pointings["time"], Time):  # the Python API's times: already parsed (and checked)
@@ -130,21 +143,36 @@ def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int
         out_of_range = np.flatnonzero((jd < eph.jd_start) | (jd > eph.jd_end))
         if out_of_range.size:
             i = int(out_of_range[0])
-            raise InputError(f"{source} row {i + 1}: time = {iso[i]} is outside the DE405 range (1600-12-21 to "
-                             f"2200-02-02); {out_of_range.size} of {len(iso)} rows are out of range")
+            raise InputError(
+                f"{source} row {i + 1}: time = {iso[i]} is outside the DE405 range (1600-12-21 to "
+                f"2200-02-02); {out_of_range.size} of {len(iso)} rows are out of range"
+            )
     # the scene once per distinct time (a scheduler asks for many pointings at few times), before
     # the model: an orbit that cannot be propagated is refused before any table is read or built
-    first, inverse = _distinct_times(np.asarray(t_all.jd1, float).ravel(), np.asarray(t_all.jd2, float).ravel())
+    first, inverse = _distinct_times(
+        np.asarray(t_all.jd1, float).ravel(), np.asarray(t_all.jd2, float).ravel()
+    )
     distinct = scene(campaign.orbit, t_all[first])
     model = BackgroundModel(campaign) if model is None else model() if callable(model) else model
     if models is not None:
         models.update(model.models_record())
     n = len(t_all)
     # a table's times as UTC ISO text (offsets resolved); the API's stay a Time (its table converts them)
-    cols: dict = {"time": t_all if iso is None else np.asarray(t_all.isot, dtype=object), "ra_deg": pointings["ra"],
-                  "dec_deg": pointings["dec"]}
-    geo_keys = ("observable", "violations", "sun_angle_deg", "moon_angle_deg", "moon_illuminated_fraction",
-                "earth_limb_angle_deg", "limb_is_bright", "door_opening_deg")
+    cols: dict = {
+        "time": t_all if iso is None else np.asarray(t_all.isot, dtype=object),
+        "ra_deg": pointings["ra"],
+        "dec_deg": pointings["dec"],
+    }
+    geo_keys = (
+        "observable",
+        "violations",
+        "sun_angle_deg",
+        "moon_angle_deg",
+        "moon_illuminated_fraction",
+        "earth_limb_angle_deg",
+        "limb_is_bright",
+        "door_opening_deg",
+    )
     acc = {k: [] for k in geo_keys + ("planet_in_field", "planet_in_field_v_mag")}
     components = table_components()
     acc.update({f"{c}_{b}": [] for b in bands for c in components})
@@ -153,8 +181,9 @@ def pointing_table(campaign, pointings: dict, bands=None, stars=None, batch: int
         sl = slice(a, min(a + batch, n))
         at = inverse[sl]
         los = np.atleast_2d(radec_to_unit(pointings["ra"][sl], pointings["dec"][sl]))
-        g, res = background_at(model, distinct.satellite_km, distinct.bodies_km, los, bands, scene_index=at,
-                               stars=stars)
+        g, res = background_at(
+            model, distinct.satellite_km, distinct.bodies_km, los, bands, scene_index=at, stars=stars
+        )
         sat, bodies_km = distinct.satellite_km[at], {k: v[at] for k, v in distinct.bodies_km.items()}
         for k in geo_keys:
             acc[k].append(np.asarray(g[k]))
@@ -190,8 +219,15 @@ def _distinct_times(jd1: np.ndarray, jd2: np.ndarray) -> tuple[np.ndarray, np.nd
     return order[new], inverse
 
 
-UNITS = {"ra_deg": "deg", "dec_deg": "deg", "sun_angle_deg": "deg", "moon_angle_deg": "deg",
-         "earth_limb_angle_deg": "deg", "door_opening_deg": "deg", "planet_in_field_v_mag": "mag(Vega V)"}
+UNITS = {
+    "ra_deg": "deg",
+    "dec_deg": "deg",
+    "sun_angle_deg": "deg",
+    "moon_angle_deg": "deg",
+    "earth_limb_angle_deg": "deg",
+    "door_opening_deg": "deg",
+    "planet_in_field_v_mag": "mag(Vega V)",
+}
 
 
 def column_units(cols) -> dict:
@@ -216,9 +252,15 @@ def background_table(campaign, t, ra_deg, dec_deg, bands, stars=None, source="",
     from straylight.survey.limits import sky_zero_points
 
     models: dict = {}
-    cols = pointing_table(campaign, {"time": t, "ra": np.asarray(ra_deg, float) % 360.0,
-                                     "dec": np.asarray(dec_deg, float)}, bands, stars, source=source, models=models,
-                          model=model)
+    cols = pointing_table(
+        campaign,
+        {"time": t, "ra": np.asarray(ra_deg, float) % 360.0, "dec": np.asarray(dec_deg, float)},
+        bands,
+        stars,
+        source=source,
+        models=models,
+        model=model,
+    )
     return _qtable(cols, t, bands, sky_zero_points(campaign, bands), models)
 
 
@@ -234,13 +276,19 @@ def _qtable(cols: dict, t, bands, zero_points: dict, models: dict):
     door = np.asarray(cols["door_opening_deg"], float)
     # the names once per distinct (constraint mask, door) pair
     keys, inverse = np.unique(2 * np.asarray(cols["violations"], np.int64) + (door > 0), return_inverse=True)
-    names = np.array([",".join(violation_names(int(k) >> 1) + ([] if k & 1 else ["door"])) for k in keys] or [""],
-                     dtype=str)
+    names = np.array(
+        [",".join(violation_names(int(k) >> 1) + ([] if k & 1 else ["door"])) for k in keys] or [""],
+        dtype=str,
+    )
     reasons = names[inverse.reshape(-1)] if door.size else np.zeros(0, dtype=str)
     # the columns made first and the table once (adding them one by one costs more than computing them)
-    columns = {"time": Time(t, format="isot", precision=3), "ra": u.Quantity(np.asarray(cols["ra_deg"], float), u.deg),
-               "dec": u.Quantity(np.asarray(cols["dec_deg"], float), u.deg),
-               "observable": np.asarray(cols["observable"], bool), "violations": reasons}
+    columns = {
+        "time": Time(t, format="isot", precision=3),
+        "ra": u.Quantity(np.asarray(cols["ra_deg"], float), u.deg),
+        "dec": u.Quantity(np.asarray(cols["dec_deg"], float), u.deg),
+        "observable": np.asarray(cols["observable"], bool),
+        "violations": reasons,
+    }
     formats = {}
     for name in ("sun_angle", "moon_angle", "earth_limb_angle", "door_opening"):
         columns[name] = u.Quantity(np.asarray(cols[f"{name}_deg"], float), u.deg)
@@ -255,15 +303,19 @@ def _qtable(cols: dict, t, bands, zero_points: dict, models: dict):
             descriptions[f"{c}_{b}"] = f"{long_name[c]}, band {b}"
         for c in components:
             with np.errstate(divide="ignore", invalid="ignore"):
-                columns[f"{c}_mag_{b}"] = u.Quantity(zero_points[b] - 2.5 * np.log10(np.asarray(cols[f"{c}_{b}"], float)),
-                                                     surf)
+                columns[f"{c}_mag_{b}"] = u.Quantity(
+                    zero_points[b] - 2.5 * np.log10(np.asarray(cols[f"{c}_{b}"], float)), surf
+                )
             formats[f"{c}_mag_{b}"] = ".3f"
         if f"limit_mag_{b}" in cols:
             columns[f"limit_mag_{b}"] = u.Quantity(np.asarray(cols[f"limit_mag_{b}"], float), u.mag)
             formats[f"limit_mag_{b}"] = ".3f"
             descriptions[f"limit_mag_{b}"] = "5-sigma point-source limit, AB, survey exposures"
-    out = QTable(columns, copy=False,
-                 meta={"mag_zero_point": {b: zero_points[b] * surf for b in bands}, "models": models})
+    out = QTable(
+        columns,
+        copy=False,
+        meta={"mag_zero_point": {b: zero_points[b] * surf for b in bands}, "models": models},
+    )
     for name, f in formats.items():
         out[name].info.format = f
     for name, d in descriptions.items():

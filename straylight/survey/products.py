@@ -7,6 +7,7 @@
 * :func:`observability_dataset` - (time, pixel) observability, violated-constraint flags and
   the main angles over the footprint.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -14,11 +15,11 @@ import xarray as xr
 
 from straylight.config import Campaign
 from straylight.sky.ephemeris import BODIES
-from straylight.survey.footprint import Footprint, footprint_from_config
 from straylight.sky.geometry import moon_phase, observing_geometry, violation_mask_attrs
 from straylight.sky.limb import earth_blocks
-from straylight.sky.vectors import radec_to_unit
 from straylight.sky.observing import scene
+from straylight.sky.vectors import radec_to_unit
+from straylight.survey.footprint import Footprint, footprint_from_config
 from straylight.survey.timegrid import time_blocks
 
 
@@ -40,23 +41,38 @@ def ephemeris_dataset(campaign: Campaign) -> xr.Dataset:
     r = np.linalg.norm(sat, axis=-1)
     ds = xr.Dataset(
         {
-            "body_position_km": _var(body_pos, ("time", "body", "xyz"), "km",
-                                     "geocentric geometric position, ICRS axes (JPL DE405)"),
-            "satellite_position_km": _var(sat, ("time", "xyz"), "km",
-                                          "satellite position, GCRS axes"),
+            "body_position_km": _var(
+                body_pos,
+                ("time", "body", "xyz"),
+                "km",
+                "geocentric geometric position, ICRS axes (JPL DE405)",
+            ),
+            "satellite_position_km": _var(sat, ("time", "xyz"), "km", "satellite position, GCRS axes"),
             "jd_tdb": _var(np.asarray(t.tdb.jd, dtype=float), ("time",), "d", "Julian date, TDB"),
-            "moon_phase_angle_deg": _var(alpha, ("time",), "deg",
-                                         "lunar phase angle Sun-Moon-satellite (0 = full)"),
-            "moon_illuminated_fraction": _var(fraction, ("time",), "1",
-                                              "illuminated fraction of the lunar disc (1 + cos alpha) / 2"),
-            "moon_elongation_deg": _var(elongation, ("time",), "deg",
-                                        "Sun-satellite-Moon angle (180 = full Moon)"),
-            "sun_moon_distance_ratio": _var(np.linalg.norm(moon - sat, axis=-1) / np.linalg.norm(sun - sat, axis=-1),
-                                            ("time",), "1", "Moon distance over Sun distance from the satellite"),
-            "satellite_in_earth_shadow": _var(in_shadow, ("time",), "1",
-                                              "Sun hidden by the Earth from the satellite (two-condition test)"),
-            "earth_angular_radius_deg": _var(np.degrees(np.arcsin(campaign.earth.radius_km / r)), ("time",), "deg",
-                                             "angular radius of the Earth seen from the satellite"),
+            "moon_phase_angle_deg": _var(
+                alpha, ("time",), "deg", "lunar phase angle Sun-Moon-satellite (0 = full)"
+            ),
+            "moon_illuminated_fraction": _var(
+                fraction, ("time",), "1", "illuminated fraction of the lunar disc (1 + cos alpha) / 2"
+            ),
+            "moon_elongation_deg": _var(
+                elongation, ("time",), "deg", "Sun-satellite-Moon angle (180 = full Moon)"
+            ),
+            "sun_moon_distance_ratio": _var(
+                np.linalg.norm(moon - sat, axis=-1) / np.linalg.norm(sun - sat, axis=-1),
+                ("time",),
+                "1",
+                "Moon distance over Sun distance from the satellite",
+            ),
+            "satellite_in_earth_shadow": _var(
+                in_shadow, ("time",), "1", "Sun hidden by the Earth from the satellite (two-condition test)"
+            ),
+            "earth_angular_radius_deg": _var(
+                np.degrees(np.arcsin(campaign.earth.radius_km / r)),
+                ("time",),
+                "deg",
+                "angular radius of the Earth seen from the satellite",
+            ),
         },
         coords={
             "time": ("time", t.datetime64, {"long_name": "UTC sample time"}),
@@ -104,11 +120,21 @@ def write_footprint_fits(fp: Footprint, path) -> None:
     m = np.zeros(hp.nside2npix(fp.nside), dtype=np.float32)
     m[fp.pixels] = 1.0
     with atomic_path(path) as tmp:
-        hp.write_map(str(tmp), m, nest=fp.nest, coord="C", column_names=["FOOTPRINT"],
-                     column_units=["1"], dtype=np.float32, overwrite=True)
+        hp.write_map(
+            str(tmp),
+            m,
+            nest=fp.nest,
+            coord="C",
+            column_names=["FOOTPRINT"],
+            column_units=["1"],
+            dtype=np.float32,
+            overwrite=True,
+        )
 
 
-def observability_dataset(campaign: Campaign, ephem: xr.Dataset, fp: Footprint, chunks: dict | None = None) -> xr.Dataset:
+def observability_dataset(
+    campaign: Campaign, ephem: xr.Dataset, fp: Footprint, chunks: dict | None = None
+) -> xr.Dataset:
     """(time, pixel) observability over the footprint from the ephemeris product.  ``chunks``
     ({"time": n, "pixel": m}): the variables are lazy (dask), each chunk's geometry computed
     when it is written, so a campaign is never held whole; None: computed here at once.  Each
@@ -120,10 +146,18 @@ def observability_dataset(campaign: Campaign, ephem: xr.Dataset, fp: Footprint, 
     floats = ("sun_angle_deg", "moon_angle_deg", "earth_limb_angle_deg", "door_opening_deg")  # float32, deg
 
     def geometry(ts: slice, ps: slice) -> dict:
-        g = observing_geometry(sat_all[ts, None, :], {b: v[ts, None, :] for b, v in bodies_all.items()},
-                               los_all[None, ps, :], campaign.earth.radius_km, campaign.constraints)
-        return {"observable": g["observable"], "violations": g["violations"],
-                **{k: g[k].astype(np.float32) for k in floats}}
+        g = observing_geometry(
+            sat_all[ts, None, :],
+            {b: v[ts, None, :] for b, v in bodies_all.items()},
+            los_all[None, ps, :],
+            campaign.earth.radius_km,
+            campaign.constraints,
+        )
+        return {
+            "observable": g["observable"],
+            "violations": g["violations"],
+            **{k: g[k].astype(np.float32) for k in floats},
+        }
 
     if chunks is None:
         g = geometry(slice(None), slice(None))
@@ -133,8 +167,11 @@ def observability_dataset(campaign: Campaign, ephem: xr.Dataset, fp: Footprint, 
 
         nt, npix = sat_all.shape[0], los_all.shape[0]
         # geometry()'s dtypes, declared: a skeleton (background_init) computes no sample
-        dtypes = {"observable": np.dtype(bool), "violations": np.dtype(np.uint8),
-                  **{k: np.dtype(np.float32) for k in floats}}
+        dtypes = {
+            "observable": np.dtype(bool),
+            "violations": np.dtype(np.uint8),
+            **{k: np.dtype(np.float32) for k in floats},
+        }
         t_edges = list(range(0, nt, int(chunks["time"]))) + [nt]
         p_edges = list(range(0, npix, int(chunks["pixel"]))) + [npix]
         # one graph built directly: a geometry task per chunk (its key from one token of the
@@ -144,10 +181,20 @@ def observability_dataset(campaign: Campaign, ephem: xr.Dataset, fp: Footprint, 
 
         from dask.highlevelgraph import HighLevelGraph
 
-        token = dask.base.tokenize(sat_all, bodies_all, los_all, campaign.earth.radius_km,
-                                   repr(campaign.constraints), t_edges, p_edges)
-        blocks = [((i, j), slice(t0, t1), slice(p0, p1)) for i, (t0, t1) in enumerate(zip(t_edges[:-1], t_edges[1:]))
-                  for j, (p0, p1) in enumerate(zip(p_edges[:-1], p_edges[1:]))]
+        token = dask.base.tokenize(
+            sat_all,
+            bodies_all,
+            los_all,
+            campaign.earth.radius_km,
+            repr(campaign.constraints),
+            t_edges,
+            p_edges,
+        )
+        blocks = [
+            ((i, j), slice(t0, t1), slice(p0, p1))
+            for i, (t0, t1) in enumerate(zip(t_edges[:-1], t_edges[1:]))
+            for j, (p0, p1) in enumerate(zip(p_edges[:-1], p_edges[1:]))
+        ]
         geom_name = f"observability-geometry-{token}"
         geom_layer = {(geom_name, *ij): (geometry, ts, ps) for ij, ts, ps in blocks}
         chunk_sizes = (tuple(np.diff(t_edges).tolist()), tuple(np.diff(p_edges).tolist()))
@@ -155,18 +202,27 @@ def observability_dataset(campaign: Campaign, ephem: xr.Dataset, fp: Footprint, 
         for k, dt in dtypes.items():
             name = f"observability-{k}-{token}"
             layer = {(name, *ij): (operator.getitem, (geom_name, *ij), k) for ij, _, _ in blocks}
-            graph = HighLevelGraph({geom_name: geom_layer, name: layer}, {geom_name: set(), name: {geom_name}})
+            graph = HighLevelGraph(
+                {geom_name: geom_layer, name: layer}, {geom_name: set(), name: {geom_name}}
+            )
             g[k] = da.Array(graph, name, chunks=chunk_sizes, dtype=dt)
     ds = xr.Dataset(
         {
-            "observable": _var(g["observable"], ("time", "pixel"), "1", "pointing satisfies every constraint"),
+            "observable": _var(
+                g["observable"], ("time", "pixel"), "1", "pointing satisfies every constraint"
+            ),
             "violations": xr.Variable(("time", "pixel"), g["violations"], violation_mask_attrs()),
             "sun_angle_deg": _var(g["sun_angle_deg"], ("time", "pixel"), "deg", "angle LOS-Sun"),
             "moon_angle_deg": _var(g["moon_angle_deg"], ("time", "pixel"), "deg", "angle LOS-Moon"),
-            "earth_limb_angle_deg": _var(g["earth_limb_angle_deg"], ("time", "pixel"), "deg",
-                                         "LOS elevation above the Earth limb"),
-            "door_opening_deg": _var(g["door_opening_deg"], ("time", "pixel"), "deg",
-                                     "aperture door opening (0 = no allowed state)"),
+            "earth_limb_angle_deg": _var(
+                g["earth_limb_angle_deg"], ("time", "pixel"), "deg", "LOS elevation above the Earth limb"
+            ),
+            "door_opening_deg": _var(
+                g["door_opening_deg"],
+                ("time", "pixel"),
+                "deg",
+                "aperture door opening (0 = no allowed state)",
+            ),
         },
         coords={
             "time": ephem["time"],
@@ -174,7 +230,11 @@ def observability_dataset(campaign: Campaign, ephem: xr.Dataset, fp: Footprint, 
             "ra_deg": ("pixel", fp.ra_deg, {"units": "deg", "long_name": "ICRS RA of pixel centre"}),
             "dec_deg": ("pixel", fp.dec_deg, {"units": "deg", "long_name": "ICRS Dec of pixel centre"}),
         },
-        attrs={"healpix_nside": fp.nside, "healpix_ordering": fp.ordering.upper(), "healpix_frame": "ICRS",
-               "campaign": campaign.name},
+        attrs={
+            "healpix_nside": fp.nside,
+            "healpix_ordering": fp.ordering.upper(),
+            "healpix_frame": "ICRS",
+            "campaign": campaign.name,
+        },
     )
     return ds

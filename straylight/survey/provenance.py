@@ -7,6 +7,7 @@ folder stated in the record's ``paths`` note, and files shipped with straylight 
 config, instrument, schemas and workflow) as ``straylight:config/...`` and
 ``straylight:workflow/...``, which the recorded version identifies.
 """
+
 from __future__ import annotations
 
 import copy
@@ -23,8 +24,23 @@ from straylight._version import __version__, build_commit
 from straylight.config import CONFIG_DIR, PATH_KEYS
 from straylight.util.io import sha256_path
 
-PACKAGES = ("straylight", "numpy", "scipy", "astropy", "healpy", "xarray", "zarr", "dask", "distributed",
-            "snakemake", "de405", "sgp4", "speclite", "erfa", "pyerfa")
+PACKAGES = (
+    "straylight",
+    "numpy",
+    "scipy",
+    "astropy",
+    "healpy",
+    "xarray",
+    "zarr",
+    "dask",
+    "distributed",
+    "snakemake",
+    "de405",
+    "sgp4",
+    "speclite",
+    "erfa",
+    "pyerfa",
+)
 
 #: the folder holding the straylight package: a git checkout when it holds .git
 SOURCE_ROOT = Path(__file__).resolve().parents[2]
@@ -35,10 +51,12 @@ RUN_ENV = "STRAYLIGHT_RUN"
 #: environment variable in which ``straylight run`` hands its own command line to Snakemake
 LAUNCHER_ENV = "STRAYLIGHT_RUN_COMMAND"
 
-PATHS_NOTE = ("config_file, and the paths given absolute in run's command lines: relative to this file's folder "
-              "(the campaign's results folder; the command lines' other paths are as typed, relative to the folder "
-              "the run started in); instrument_file and the config's files: relative to the config file's folder; "
-              "straylight:config/... and straylight:workflow/...: files shipped with straylight (source.version)")
+PATHS_NOTE = (
+    "config_file, and the paths given absolute in run's command lines: relative to this file's folder "
+    "(the campaign's results folder; the command lines' other paths are as typed, relative to the folder "
+    "the run started in); instrument_file and the config's files: relative to the config file's folder; "
+    "straylight:config/... and straylight:workflow/...: files shipped with straylight (source.version)"
+)
 
 
 def versions() -> dict:
@@ -71,8 +89,13 @@ def source_revision() -> dict:
         status = _git("status", "--porcelain", "--untracked-files=no") if commit is not None else None
         modified = sorted(line[3:] for line in (status or "").splitlines() if line.strip())
         # no git here (or it refuses the folder): a checkout all the same, its commit unknown
-        return {"version": __version__, "from": "checkout", "commit": commit.strip() if commit else None,
-                "dirty": bool(modified) if status is not None else None, "modified": modified}
+        return {
+            "version": __version__,
+            "from": "checkout",
+            "commit": commit.strip() if commit else None,
+            "dirty": bool(modified) if status is not None else None,
+            "modified": modified,
+        }
     commit = build_commit[1:] if build_commit and build_commit.startswith("g") else build_commit
     return {"version": __version__, "from": "install", "commit": commit, "dirty": None}
 
@@ -91,8 +114,11 @@ class RunInfo:
     started_by: tuple | None = None
 
     def as_dict(self) -> dict:
-        return {"command": list(self.command), "cores": self.cores,
-                "started_by": list(self.started_by) if self.started_by else None}
+        return {
+            "command": list(self.command),
+            "cores": self.cores,
+            "started_by": list(self.started_by) if self.started_by else None,
+        }
 
 
 def snakemake_run(argv, cores, main_process: bool = True) -> RunInfo:
@@ -103,8 +129,11 @@ def snakemake_run(argv, cores, main_process: bool = True) -> RunInfo:
         d = json.loads(os.environ[RUN_ENV])
         return RunInfo(tuple(d["command"]), d["cores"], tuple(d["started_by"]) if d["started_by"] else None)
     launcher = os.environ.get(LAUNCHER_ENV)
-    run = RunInfo(("snakemake", *map(str, argv[1:])), int(cores) if cores is not None else None,
-                  tuple(json.loads(launcher)) if launcher else None)
+    run = RunInfo(
+        ("snakemake", *map(str, argv[1:])),
+        int(cores) if cores is not None else None,
+        tuple(json.loads(launcher)) if launcher else None,
+    )
     if main_process:
         os.environ[RUN_ENV] = json.dumps(run.as_dict())
     return run
@@ -151,8 +180,9 @@ def _portable_config(config: dict, config_dir, roots) -> dict:
     return out
 
 
-def provenance_record(campaign, inputs: dict, outputs: dict, results=None, run: RunInfo | None = None,
-                      workflow_dir=None) -> dict:
+def provenance_record(
+    campaign, inputs: dict, outputs: dict, results=None, run: RunInfo | None = None, workflow_dir=None
+) -> dict:
     """The record of a campaign's run: ``inputs`` and ``outputs`` ({name: path}) checksummed;
     ``results`` the campaign's results folder (default: the folder of the first output), to
     which the paths are written relative; ``run`` the Snakemake run; ``workflow_dir`` the
@@ -187,5 +217,6 @@ def provenance_record(campaign, inputs: dict, outputs: dict, results=None, run: 
     # one digest for the whole campaign: two runs from the same config and inputs must agree
     # (tests/survey/test_cube.py compares it after ten kill -9 and resumes)
     rec["outputs_digest_sha256"] = hashlib.sha256(
-        "".join(f"{k}:{v}\n" for k, v in sorted(rec["outputs_sha256"].items())).encode()).hexdigest()
+        "".join(f"{k}:{v}\n" for k, v in sorted(rec["outputs_sha256"].items())).encode()
+    ).hexdigest()
     return rec

@@ -17,14 +17,15 @@ zodiacal sky a smaller angle or exposure factor suffices.
   :mod:`straylight.survey.limits` solved for the time: T = 25 (s + N_pix c) / s^2 with s the limiting
   source's signal rate and c = B + D + RN^2 / t per pixel.
 """
+
 from __future__ import annotations
 
 import numpy as np
 
-from straylight.model import BackgroundModel
 from straylight.config import Campaign
-from straylight.survey.limits import SNR, survey_exposure
+from straylight.model import BackgroundModel
 from straylight.sources.bodies import MOON_MEAN_DISTANCE_KM, moon_v_magnitude
+from straylight.survey.limits import SNR, survey_exposure
 
 
 def _pst_max_over_phi(model: BackgroundModel, theta_deg: np.ndarray) -> np.ndarray:
@@ -32,14 +33,21 @@ def _pst_max_over_phi(model: BackgroundModel, theta_deg: np.ndarray) -> np.ndarr
     return model.context.offfield.pst(np.asarray(theta_deg)[:, None], phi[None, :]).max(axis=1)
 
 
-def moon_avoidance_table(model: BackgroundModel, fraction: float = 0.1, phase_step_deg: float = 10.0,
-                         theta_step_deg: float = 0.25) -> dict:
+def moon_avoidance_table(
+    model: BackgroundModel, fraction: float = 0.1, phase_step_deg: float = 10.0, theta_step_deg: float = 0.25
+) -> dict:
     """Columns phase_angle_deg, illuminated_fraction and min_moon_angle_deg_<band> (deg)."""
     phases = np.arange(0.0, 180.0 + phase_step_deg / 2, phase_step_deg)
     theta = np.arange(0.0, 180.0 + theta_step_deg / 2, theta_step_deg)
-    transfer = _pst_max_over_phi(model, theta) * model.context.offfield.pixel_area_m2 * (theta > model.context.offfield.field_radius_deg)
+    transfer = (
+        _pst_max_over_phi(model, theta)
+        * model.context.offfield.pixel_area_m2
+        * (theta > model.context.offfield.field_radius_deg)
+    )
     out = {"phase_angle_deg": phases, "illuminated_fraction": (1 + np.cos(np.radians(phases))) / 2}
-    v = moon_v_magnitude(phases, np.full(phases.size, MOON_MEAN_DISTANCE_KM), model.context.offfield.moon_law, 180.0 - phases)
+    v = moon_v_magnitude(
+        phases, np.full(phases.size, MOON_MEAN_DISTANCE_KM), model.context.offfield.moon_law, 180.0 - phases
+    )
     for b in model.campaign.bands:
         limit = fraction * model.context.darkest_zodiacal_e_per_s(b)
         irr = model.context.photometry(b).solar_like_from_v(v)  # photons s-1 m-2
@@ -51,9 +59,14 @@ def moon_avoidance_table(model: BackgroundModel, fraction: float = 0.1, phase_st
     return out
 
 
-def bright_limb_table(model: BackgroundModel, fraction: float = 0.1, sun_zenith_step_deg: float = 10.0,
-                      azimuth_step_deg: float = 30.0, elevation_step_deg: float = 1.0,
-                      terminator_step_deg: float = 1.0) -> dict:
+def bright_limb_table(
+    model: BackgroundModel,
+    fraction: float = 0.1,
+    sun_zenith_step_deg: float = 10.0,
+    azimuth_step_deg: float = 30.0,
+    elevation_step_deg: float = 1.0,
+    terminator_step_deg: float = 1.0,
+) -> dict:
     """Columns sun_zenith_deg and min_limb_elevation_deg_<band> (deg above the limb): the lowest
     elevation, itself clear of the Sun avoidance angle, from which every line of sight that
     clears it stays below the limit, worst case over azimuth; inf where no such elevation exists
@@ -68,14 +81,20 @@ def bright_limb_table(model: BackgroundModel, fraction: float = 0.1, sun_zenith_
     re_km = c.earth.radius_km
     r = 0.5 * sum(c.orbit_radius_range_km)
     limb_zeta = 90.0 + np.degrees(np.arccos(re_km / r))
-    zs = np.concatenate([np.arange(0.0, 90.0 - 1e-9, sun_zenith_step_deg),
-                         np.arange(90.0, np.ceil(limb_zeta) + terminator_step_deg / 2, terminator_step_deg)])
+    zs = np.concatenate(
+        [
+            np.arange(0.0, 90.0 - 1e-9, sun_zenith_step_deg),
+            np.arange(90.0, np.ceil(limb_zeta) + terminator_step_deg / 2, terminator_step_deg),
+        ]
+    )
     az = np.arange(0.0, 180.0 + azimuth_step_deg / 2, azimuth_step_deg)
     h = np.arange(0.0, 90.0 + elevation_step_deg / 2, elevation_step_deg)
     Z, A, H = np.meshgrid(zs, az, h, indexing="ij")
     L = limb_zeta - H
     # angle between the line of sight and the Sun (both from the local vertical)
-    cos_sun = np.cos(np.radians(Z)) * np.cos(np.radians(L)) + np.sin(np.radians(Z)) * np.sin(np.radians(L)) * np.cos(np.radians(A))
+    cos_sun = np.cos(np.radians(Z)) * np.cos(np.radians(L)) + np.sin(np.radians(Z)) * np.sin(
+        np.radians(L)
+    ) * np.cos(np.radians(A))
     sun_angle = np.degrees(np.arccos(np.clip(cos_sun, -1, 1)))
     cons = c.constraints
     door = np.zeros(Z.shape)
@@ -86,8 +105,15 @@ def bright_limb_table(model: BackgroundModel, fraction: float = 0.1, sun_zenith_
     for st in off.door_states_deg:
         sel = door == st
         if sel.any():
-            d, g = sun_coefficients_direct(off, np.full(sel.sum(), r), np.radians(Z[sel]), np.radians(L[sel]),
-                                            np.radians(A[sel]), st, re_km)
+            d, g = sun_coefficients_direct(
+                off,
+                np.full(sel.sum(), r),
+                np.radians(Z[sel]),
+                np.radians(L[sel]),
+                np.radians(A[sel]),
+                st,
+                re_km,
+            )
             coeff[sel] = d + g
     out = {"sun_zenith_deg": zs}
     for b in c.bands:
@@ -108,22 +134,31 @@ def bright_limb_table(model: BackgroundModel, fraction: float = 0.1, sun_zenith_
                 # sight below it is too bright).
                 k = np.flatnonzero(bad[i, j] & allowed[i, j])
                 if k.size:
-                    above = k[-1] + 1 + np.flatnonzero(allowed[i, j, k[-1] + 1:])
+                    above = k[-1] + 1 + np.flatnonzero(allowed[i, j, k[-1] + 1 :])
                     worst = max(worst, h[above[0]] if above.size else np.inf)
             need[i] = worst if allowed[i].any() else np.nan
         out[f"min_limb_elevation_deg_{b}"] = need
     return out
 
 
-def exposure_time_factor(stray_e_per_s, nominal_background_e_per_s, band: str, campaign: Campaign) -> np.ndarray:
+def exposure_time_factor(
+    stray_e_per_s, nominal_background_e_per_s, band: str, campaign: Campaign
+) -> np.ndarray:
     """Exposure time to reach the nominal 5-sigma depth with ``stray_e_per_s`` added to the
     nominal background, over the nominal time (1 when there is no stray light).  The number of
     exposures grows with the time (read noise per exposure of the band's length)."""
     x = survey_exposure(campaign, band)
     c0 = nominal_background_e_per_s + x.dark_e_per_s + x.read_noise_e**2 / x.exposure_s
     n_b = x.n_pix * c0 * x.total_s
-    s = (SNR**2 + np.sqrt(SNR**4 + 4 * SNR**2 * n_b)) / 2.0 / x.total_s  # limiting source, e-/s in the aperture
-    c = nominal_background_e_per_s + np.asarray(stray_e_per_s, float) + x.dark_e_per_s + x.read_noise_e**2 / x.exposure_s
+    s = (
+        (SNR**2 + np.sqrt(SNR**4 + 4 * SNR**2 * n_b)) / 2.0 / x.total_s
+    )  # limiting source, e-/s in the aperture
+    c = (
+        nominal_background_e_per_s
+        + np.asarray(stray_e_per_s, float)
+        + x.dark_e_per_s
+        + x.read_noise_e**2 / x.exposure_s
+    )
     t_needed = SNR**2 * (s + x.n_pix * c) / s**2  # the encircled-energy fraction cancels in the ratio
     return t_needed / x.total_s
 
@@ -153,17 +188,34 @@ def write_tables(model: BackgroundModel, out_dir, fraction: float = 0.1) -> list
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     tables = {
-        "moon_avoidance": (moon_avoidance_table(model, fraction), "phase_angle_deg", "min_moon_angle_deg_",
-                           "lunar phase angle (deg; 0 = full)", "Moon angle needed (deg)"),
-        "bright_limb": (bright_limb_table(model, fraction), "sun_zenith_deg", "min_limb_elevation_deg_",
-                        "Sun zenith angle at the sub-satellite point (deg)", "elevation above the limb needed (deg)"),
-        "exposure_factor": (exposure_factor_table(model), "stray_to_zodiacal_ratio", "exposure_time_factor_",
-                            "stray light / darkest zodiacal light", "exposure time / nominal"),
+        "moon_avoidance": (
+            moon_avoidance_table(model, fraction),
+            "phase_angle_deg",
+            "min_moon_angle_deg_",
+            "lunar phase angle (deg; 0 = full)",
+            "Moon angle needed (deg)",
+        ),
+        "bright_limb": (
+            bright_limb_table(model, fraction),
+            "sun_zenith_deg",
+            "min_limb_elevation_deg_",
+            "Sun zenith angle at the sub-satellite point (deg)",
+            "elevation above the limb needed (deg)",
+        ),
+        "exposure_factor": (
+            exposure_factor_table(model),
+            "stray_to_zodiacal_ratio",
+            "exposure_time_factor_",
+            "stray light / darkest zodiacal light",
+            "exposure time / nominal",
+        ),
     }
     written = []
     for name, (cols, x, prefix, xlabel, ylabel) in tables.items():
         t = Table(cols)
-        t.meta["comments"] = [f"straylight scheduling table {name}; fraction of the darkest zodiacal light: {fraction}"]
+        t.meta["comments"] = [
+            f"straylight scheduling table {name}; fraction of the darkest zodiacal light: {fraction}"
+        ]
         csv = out_dir / f"{name}.csv"
         with atomic_path(csv) as tmp:
             t.write(tmp, format="ascii.csv", overwrite=True)
@@ -176,14 +228,28 @@ def write_tables(model: BackgroundModel, out_dir, fraction: float = 0.1) -> list
             never = np.any([np.isinf(cols[prefix + b]) for b in model.campaign.bands], axis=0)
             xs = np.asarray(cols[x], float)
             mid = (xs[1:] + xs[:-1]) / 2  # each node's span reaches halfway to its neighbours
-            edges = np.concatenate([[xs[0] - (mid[0] - xs[0] if mid.size else 0.5)], mid,
-                                    [xs[-1] + (xs[-1] - mid[-1] if mid.size else 0.5)]])
+            edges = np.concatenate(
+                [
+                    [xs[0] - (mid[0] - xs[0] if mid.size else 0.5)],
+                    mid,
+                    [xs[-1] + (xs[-1] - mid[-1] if mid.size else 0.5)],
+                ]
+            )
             for k, i in enumerate(np.flatnonzero(never)):
-                ax.axvspan(edges[i], edges[i + 1], color="0.88", lw=0, label=None if k else "no elevation works (inf)")
+                ax.axvspan(
+                    edges[i],
+                    edges[i + 1],
+                    color="0.88",
+                    lw=0,
+                    label=None if k else "no elevation works (inf)",
+                )
         ax.set_xlabel(xlabel)
         ax.set_ylabel(ylabel)
-        ax.set_title(f"{name.replace('_', ' ')} (stray light <= {fraction:g} x darkest zodiacal)"
-                     if name != "exposure_factor" else "exposure time to reach the nominal depth")
+        ax.set_title(
+            f"{name.replace('_', ' ')} (stray light <= {fraction:g} x darkest zodiacal)"
+            if name != "exposure_factor"
+            else "exposure time to reach the nominal depth"
+        )
         ax.legend(fontsize=7, ncol=2)
         fig.tight_layout()
         png = out_dir / f"{name}.png"

@@ -29,6 +29,7 @@ writer reads the bits to keep back from ``max_relative_error`` (:func:`recorded_
 The data variables' codecs (bytes, blosc) are in the Zarr v3 specification; the coordinates keep
 zarr-python's defaults (zstd, and vlen-utf8 for the band names).
 """
+
 from __future__ import annotations
 
 import math
@@ -89,8 +90,13 @@ def bitround(values: np.ndarray, keepbits: int | None) -> np.ndarray:
         values = np.array(values, order="C")
     maskbits = nmant - int(keepbits)
     all_set = np.iinfo(uint).max
-    _bitround_bits(values.reshape(-1).view(uint), uint(maskbits), uint(1), uint((1 << (maskbits - 1)) - 1),
-                   uint((all_set >> maskbits) << maskbits))
+    _bitround_bits(
+        values.reshape(-1).view(uint),
+        uint(maskbits),
+        uint(1),
+        uint((1 << (maskbits - 1)) - 1),
+        uint((all_set >> maskbits) << maskbits),
+    )
     return values
 
 
@@ -136,12 +142,16 @@ def encoded(dataset, settings: dict, lossless: tuple = ()):
         # new data and a new attrs dict: the caller's dataset is left as it was
         out[name] = var.copy(deep=False, data=_rounded_copy(var.data, None if error == 0.0 else bits))
         out[name].attrs = {**var.attrs, COMPRESSION_ATTR: described, MAX_RELATIVE_ERROR_ATTR: error}
-    out.attrs = {**dataset.attrs, "float_max_relative_error": max(
-                     (out[n].attrs[MAX_RELATIVE_ERROR_ATTR] for n in out.data_vars), default=0.0),
-                 "compression": f"float data variables bit-rounded to {keepbits} mantissa bits (as numcodecs BitRound)"
-                                + (f" but {', '.join(lossless)}" if lossless else "")
-                                + f", byte-shuffled and zstd level {level}; the others zstd level {level}, lossless"
-                                " (each variable's compression and max_relative_error attributes)"}
+    out.attrs = {
+        **dataset.attrs,
+        "float_max_relative_error": max(
+            (out[n].attrs[MAX_RELATIVE_ERROR_ATTR] for n in out.data_vars), default=0.0
+        ),
+        "compression": f"float data variables bit-rounded to {keepbits} mantissa bits (as numcodecs BitRound)"
+        + (f" but {', '.join(lossless)}" if lossless else "")
+        + f", byte-shuffled and zstd level {level}; the others zstd level {level}, lossless"
+        " (each variable's compression and max_relative_error attributes)",
+    }
     return out, encoding
 
 
@@ -178,8 +188,13 @@ def _codecs(dtype, lossless: bool, keepbits: int, level: int) -> tuple[dict, str
     floats = dtype.kind == "f"
     # byte-shuffled floats (the exponent bytes together, then the rounded mantissas'); bool and
     # integers (one byte) as they are
-    blosc = BloscCodec(typesize=dtype.itemsize, cname="zstd", clevel=level,
-                       shuffle="shuffle" if floats else "noshuffle", blocksize=BLOSC_BLOCK_BYTES)
+    blosc = BloscCodec(
+        typesize=dtype.itemsize,
+        cname="zstd",
+        clevel=level,
+        shuffle="shuffle" if floats else "noshuffle",
+        blocksize=BLOSC_BLOCK_BYTES,
+    )
     pipeline = f"blosc(zstd, clevel={level}{', byte shuffle' if floats else ''})"
     error = max_relative_error(keepbits, dtype) if floats and not lossless else 0.0
     if error == 0.0:
@@ -212,7 +227,9 @@ def write_skeleton(dataset, store: str | os.PathLike, settings: dict, lossless: 
     for name, var in dataset.data_vars.items():
         if isinstance(var.data, da.Array):
             chunks[name] = tuple(int(c) for c in var.data.chunksize)
-            template[name] = var.variable.copy(deep=False, data=da.zeros(var.shape, dtype=var.dtype, chunks=-1))
+            template[name] = var.variable.copy(
+                deep=False, data=da.zeros(var.shape, dtype=var.dtype, chunks=-1)
+            )
     template, encoding = encoded(template, settings, lossless)
     for name, shape in chunks.items():
         encoding[name]["chunks"] = shape
@@ -338,8 +355,12 @@ def _numcodecs_chain(array) -> tuple[str, list] | None:
     from zarr.storage import LocalStore
 
     meta = array.metadata
-    if (meta.zarr_format != 3 or not isinstance(array.store, LocalStore) or array.config.order != "C"
-            or type(meta.chunk_grid).__name__ != "RegularChunkGrid"):
+    if (
+        meta.zarr_format != 3
+        or not isinstance(array.store, LocalStore)
+        or array.config.order != "C"
+        or type(meta.chunk_grid).__name__ != "RegularChunkGrid"
+    ):
         return None
     first, *rest = meta.codecs
     if not isinstance(first, BytesCodec):
@@ -348,10 +369,20 @@ def _numcodecs_chain(array) -> tuple[str, list] | None:
     chain = []
     for codec in rest:
         if isinstance(codec, BloscCodec):
-            shuffle = {"noshuffle": numcodecs.Blosc.NOSHUFFLE, "shuffle": numcodecs.Blosc.SHUFFLE,
-                       "bitshuffle": numcodecs.Blosc.BITSHUFFLE}[codec.shuffle.value]
-            chain.append(numcodecs.Blosc(cname=codec.cname.value, clevel=codec.clevel, shuffle=shuffle,
-                                         blocksize=codec.blocksize, typesize=codec.typesize))
+            shuffle = {
+                "noshuffle": numcodecs.Blosc.NOSHUFFLE,
+                "shuffle": numcodecs.Blosc.SHUFFLE,
+                "bitshuffle": numcodecs.Blosc.BITSHUFFLE,
+            }[codec.shuffle.value]
+            chain.append(
+                numcodecs.Blosc(
+                    cname=codec.cname.value,
+                    clevel=codec.clevel,
+                    shuffle=shuffle,
+                    blocksize=codec.blocksize,
+                    typesize=codec.typesize,
+                )
+            )
         else:
             return None
     return byteorder, chain

@@ -1,5 +1,6 @@
 """The campaign's time grid split into time blocks (the grid itself:
 :func:`straylight.sky.timeutil.campaign_times`)."""
+
 from __future__ import annotations
 
 

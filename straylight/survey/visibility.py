@@ -10,6 +10,7 @@ pass by every ~92 min), so a step longer than :data:`MAX_STEP_ORBIT_FRACTION` of
 period is warned about: windows can fall between its samples, and near a multiple of the period
 every sample sees the same orbital phase (aliasing).
 """
+
 from __future__ import annotations
 
 import logging
@@ -29,8 +30,16 @@ MAX_STEP_ORBIT_FRACTION = 0.25
 ALIAS_TOLERANCE = 0.03
 
 
-def visibility(campaign, ra_deg: float, dec_deg: float, band: str, start, end, step_s: float,
-               threshold_mag: float | None = None) -> dict:
+def visibility(
+    campaign,
+    ra_deg: float,
+    dec_deg: float,
+    band: str,
+    start,
+    end,
+    step_s: float,
+    threshold_mag: float | None = None,
+) -> dict:
     """Samples, observable windows and daily summary of one pointing.
 
     Parameters
@@ -57,9 +66,9 @@ def visibility(campaign, ra_deg: float, dec_deg: float, band: str, start, end, s
     from astropy.table import QTable
     from astropy.time import Time
 
-    from straylight.survey.pointings import background_table
     from straylight.sky.ephemeris import check_in_ephemeris
     from straylight.sky.timeutil import parse_utc
+    from straylight.survey.pointings import background_table
 
     if band not in campaign.bands:
         raise InputError(f"--band: {band!r} is not one of {', '.join(campaign.bands)}")
@@ -72,19 +81,35 @@ def visibility(campaign, ra_deg: float, dec_deg: float, band: str, start, end, s
         raise InputError(f"--step-min: must be > 0, got {step_s / 60.0}")
     span_s = float((t1 - t0).to_value(u.s))
     if step_s > span_s:
-        raise InputError(f"--step-min {step_s / 60.0:g}: longer than the window --start {t0.isot[:19]} to --end "
-                         f"{t1.isot[:19]} ({span_s / 60.0:g} min); use a step of at most that")
+        raise InputError(
+            f"--step-min {step_s / 60.0:g}: longer than the window --start {t0.isot[:19]} to --end "
+            f"{t1.isot[:19]} ({span_s / 60.0:g} min); use a step of at most that"
+        )
     warn_if_step_aliases(step_s, float(campaign.orbit.period_s))
     n = int(np.ceil(span_s / step_s - 1e-9))
     if n > MAX_SAMPLES:
-        raise InputError(f"--start/--end/--step-min: {n:,} samples, more than {MAX_SAMPLES:,}; use a larger --step-min")
+        raise InputError(
+            f"--start/--end/--step-min: {n:,} samples, more than {MAX_SAMPLES:,}; use a larger --step-min"
+        )
     t = t0 + np.arange(n) * step_s * u.s
     sky = background_table(campaign, t, np.full(n, ra_deg), np.full(n, dec_deg), [band], source="visibility")
-    samples = QTable({"time": sky["time"], "observable": sky["observable"], "violations": sky["violations"],
-                      "total_e_per_s_per_pix": sky[f"total_{band}"],
-                      "total_mag_per_arcsec2": sky[f"total_mag_{band}"], "limit_mag": sky[f"limit_mag_{band}"]},
-                     meta={"ra_deg": float(ra_deg), "dec_deg": float(dec_deg), "band": band, "step_s": float(step_s),
-                           "mag_zero_point": sky.meta["mag_zero_point"][band]})
+    samples = QTable(
+        {
+            "time": sky["time"],
+            "observable": sky["observable"],
+            "violations": sky["violations"],
+            "total_e_per_s_per_pix": sky[f"total_{band}"],
+            "total_mag_per_arcsec2": sky[f"total_mag_{band}"],
+            "limit_mag": sky[f"limit_mag_{band}"],
+        },
+        meta={
+            "ra_deg": float(ra_deg),
+            "dec_deg": float(dec_deg),
+            "band": band,
+            "step_s": float(step_s),
+            "mag_zero_point": sky.meta["mag_zero_point"][band],
+        },
+    )
     obs = np.asarray(samples["observable"], bool)
     # runs of observable samples: each sample stands for [t, t + step), the last one cut at end
     offset_s = np.minimum(np.arange(n + 1) * step_s, span_s)
@@ -92,9 +117,13 @@ def visibility(campaign, ra_deg: float, dec_deg: float, band: str, start, end, s
     first, last = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
     w_start = t[first] if first.size else Time([], format="isot", scale="utc")
     w_end = t0 + offset_s[last] * u.s if last.size else Time([], format="isot", scale="utc")
-    windows = QTable({"start": Time(w_start, format="isot", precision=0),
-                      "end": Time(w_end, format="isot", precision=0),
-                      "duration_h": ((offset_s[last] - offset_s[first]) / 3600.0) * u.h})
+    windows = QTable(
+        {
+            "start": Time(w_start, format="isot", precision=0),
+            "end": Time(w_end, format="isot", precision=0),
+            "duration_h": ((offset_s[last] - offset_s[first]) / 3600.0) * u.h,
+        }
+    )
     windows["duration_h"].info.format = ".2f"
     day = np.array([s[:10] for s in t.isot])
     days_u, idx = np.unique(day, return_inverse=True)
@@ -109,7 +138,9 @@ def visibility(campaign, ra_deg: float, dec_deg: float, band: str, start, end, s
     days["limit_mag_best"].info.format = ".3f"
     if threshold_mag is not None:
         deep = obs & (lim >= threshold_mag)
-        days["hours_deeper_than_threshold"] = np.bincount(idx, weights=deep * sample_h, minlength=days_u.size) * u.h
+        days["hours_deeper_than_threshold"] = (
+            np.bincount(idx, weights=deep * sample_h, minlength=days_u.size) * u.h
+        )
         days["hours_deeper_than_threshold"].info.format = ".2f"
         days.meta["threshold_mag"] = float(threshold_mag)
     return {"samples": samples, "windows": windows, "days": days}
@@ -127,13 +158,17 @@ def warn_if_step_aliases(step_s: float, period_s: float) -> str | None:
     off = abs(step_s / (k * period_s) - 1.0)
     head = f"--step-min {step_s / 60.0:g}: "
     if off <= ALIAS_TOLERANCE:
-        msg = (f"{head}within {100 * off:.1f} % of {k} x the orbital period ({period_s / 60.0:.1f} min): every sample "
-               f"sees nearly the same orbital phase (aliasing), so observability looks constant and windows are "
-               f"missed; use --step-min {quarter_min:.1f} or less")
+        msg = (
+            f"{head}within {100 * off:.1f} % of {k} x the orbital period ({period_s / 60.0:.1f} min): every sample "
+            f"sees nearly the same orbital phase (aliasing), so observability looks constant and windows are "
+            f"missed; use --step-min {quarter_min:.1f} or less"
+        )
     else:
-        msg = (f"{head}longer than a quarter of the orbital period ({period_s / 60.0:.1f} min): observability "
-               f"changes within an orbit and windows can fall between samples; use --step-min {quarter_min:.1f} "
-               "or less")
+        msg = (
+            f"{head}longer than a quarter of the orbital period ({period_s / 60.0:.1f} min): observability "
+            f"changes within an orbit and windows can fall between samples; use --step-min {quarter_min:.1f} "
+            "or less"
+        )
     logging.getLogger(__name__).warning("warning: %s", msg)
     return msg
 
@@ -152,8 +187,10 @@ def plot_visibility(result: dict, path, threshold_mag: float | None = None) -> N
     t = s["time"].datetime64
     obs = np.asarray(s["observable"], bool)
     fig, (ax1, ax2) = plt.subplots(2, 1, sharex=True, figsize=(9, 5.5), constrained_layout=True)
-    for ax, col, label in ((ax1, "total_mag_per_arcsec2", "sky + stray light (AB mag/arcsec$^2$)"),
-                           (ax2, "limit_mag", "5-sigma limit (AB mag)")):
+    for ax, col, label in (
+        (ax1, "total_mag_per_arcsec2", "sky + stray light (AB mag/arcsec$^2$)"),
+        (ax2, "limit_mag", "5-sigma limit (AB mag)"),
+    ):
         y = np.asarray(s[col].value, float)
         ax.plot(t[~obs], y[~obs], ".", ms=2, color="0.7", label="not observable")
         ax.plot(t[obs], y[obs], ".", ms=2, color="C0", label="observable")
@@ -170,8 +207,11 @@ def plot_visibility(result: dict, path, threshold_mag: float | None = None) -> N
     ax2.legend(loc="lower right", fontsize=8, markerscale=4)
     ax2.set_xlabel("time (UTC)")
     m = s.meta
-    ax1.set_title(f"RA {m['ra_deg']:.3f} deg, Dec {m['dec_deg']:+.3f} deg, band {m['band']} "
-                  f"(step {m['step_s'] / 60:.3g} min; shaded: observable windows)", fontsize=10)
+    ax1.set_title(
+        f"RA {m['ra_deg']:.3f} deg, Dec {m['dec_deg']:+.3f} deg, band {m['band']} "
+        f"(step {m['step_s'] / 60:.3g} min; shaded: observable windows)",
+        fontsize=10,
+    )
     fig.autofmt_xdate()
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=110, format=str(path).rsplit(".", 1)[-1])

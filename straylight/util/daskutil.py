@@ -3,6 +3,7 @@ a process without the interpreter's teardown, and the hygiene of a process tree 
 dies with its parent; SIGINT and SIGTERM stopping a pool's workers).
 The cube's region pool built on them (or on an existing Dask cluster, ``compute.dask_scheduler``) is
 :func:`straylight.survey.executors.region_pool`."""
+
 from __future__ import annotations
 
 import os
@@ -32,9 +33,13 @@ def worker_environment() -> dict:
     a worker than in a plain process (docs/performance.md).
     Temporaries up to 32 MiB come from the heap instead, and only more than 256 MiB of free
     heap is handed back."""
-    return {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
-            "MALLOC_MMAP_THRESHOLD_": str(WORKER_MALLOC_MMAP_THRESHOLD),
-            "MALLOC_TRIM_THRESHOLD_": str(WORKER_MALLOC_TRIM_THRESHOLD)}
+    return {
+        "OMP_NUM_THREADS": "1",
+        "MKL_NUM_THREADS": "1",
+        "OPENBLAS_NUM_THREADS": "1",
+        "MALLOC_MMAP_THRESHOLD_": str(WORKER_MALLOC_MMAP_THRESHOLD),
+        "MALLOC_TRIM_THRESHOLD_": str(WORKER_MALLOC_TRIM_THRESHOLD),
+    }
 
 
 @contextmanager
@@ -69,9 +74,15 @@ def spawned_pool(max_workers: int, initializer=None, initargs: tuple = ()):
     from multiprocessing import get_context
 
     n = int(max_workers)
-    with temporary_environment(worker_environment()), \
-            ProcessPoolExecutor(max_workers=n, mp_context=get_context("spawn"), initializer=_pool_worker_start,
-                                initargs=(initializer, initargs, os.getpid())) as pool:
+    with (
+        temporary_environment(worker_environment()),
+        ProcessPoolExecutor(
+            max_workers=n,
+            mp_context=get_context("spawn"),
+            initializer=_pool_worker_start,
+            initargs=(initializer, initargs, os.getpid()),
+        ) as pool,
+    ):
         try:
             for _ in range(n):
                 pool.submit(os.getpid)  # a spawned process starts at a submission that finds none idle
@@ -122,8 +133,9 @@ def die_with_parent(sig: int = signal.SIGTERM, parent_pid: int | None = None) ->
     if not watched:
         import threading
 
-        threading.Thread(target=_watch_parent, args=(parent, int(sig)), daemon=True,
-                         name="die-with-parent").start()
+        threading.Thread(
+            target=_watch_parent, args=(parent, int(sig)), daemon=True, name="die-with-parent"
+        ).start()
     if os.getppid() != parent:  # died before the signal was armed: reparented already
         os.kill(os.getpid(), sig)
 
@@ -220,4 +232,3 @@ def dask_rechunk_by_tasks():
     import dask
 
     return dask.config.set({"array.rechunk.method": "tasks"})
-

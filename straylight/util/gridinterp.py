@@ -15,6 +15,7 @@ array).  The speed-ups are in docs/performance.md.
 Points outside the grid are clipped to its edges (callers clip or wrap before: theta 0-180,
 phi periodic).  NaN inputs give NaN.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -25,8 +26,9 @@ from numba import njit
 def _bilinear(flat, b, ch, sa, sb, ta, tb):
     """Channel ``ch`` of the cell at flat node ``b`` interpolated over two axes of strides
     ``sa``, ``sb`` at fractions ``ta``, ``tb`` (the second axis first)."""
-    return ((flat[b, ch] * (1 - tb) + flat[b + sb, ch] * tb) * (1 - ta)
-            + (flat[b + sa, ch] * (1 - tb) + flat[b + sa + sb, ch] * tb) * ta)
+    return (flat[b, ch] * (1 - tb) + flat[b + sb, ch] * tb) * (1 - ta) + (
+        flat[b + sa, ch] * (1 - tb) + flat[b + sa + sb, ch] * tb
+    ) * ta
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -46,8 +48,23 @@ def cell_of(k, x, lo, hi, uniform, inv_width, n_bins, bin_cell, nodes, n_nodes, 
 
 
 @njit(cache=True, nogil=True)
-def _interpolate(points, lo, hi, uniform, inv_width, n_bins, bin_cell, nodes, n_nodes, inv_step, strides, flat,
-                 channel, group_rows, out):
+def _interpolate(
+    points,
+    lo,
+    hi,
+    uniform,
+    inv_width,
+    n_bins,
+    bin_cell,
+    nodes,
+    n_nodes,
+    inv_step,
+    strides,
+    flat,
+    channel,
+    group_rows,
+    out,
+):
     """:meth:`LinearGrid.__call__` on ``points`` (ndim, N) into ``out`` (N, channels out), from
     the axes packed by :class:`LinearGrid`.  Each point is clipped to the grid and its cell found
     per axis (:class:`AxisCells`); on an evenly spaced axis the cell can be one off the exact one
@@ -90,17 +107,23 @@ def _interpolate(points, lo, hi, uniform, inv_width, n_bins, bin_cell, nodes, n_
             s0, s1, s2, t0, t1, t2 = strides[0], strides[1], strides[2], frac[0], frac[1], frac[2]
             for j in range(n_out):
                 ch = first + j
-                out[p, j] = (_bilinear(flat, base, ch, s1, s2, t1, t2) * (1 - t0)
-                             + _bilinear(flat, base + s0, ch, s1, s2, t1, t2) * t0)
+                out[p, j] = (
+                    _bilinear(flat, base, ch, s1, s2, t1, t2) * (1 - t0)
+                    + _bilinear(flat, base + s0, ch, s1, s2, t1, t2) * t0
+                )
         elif n_dim == 4:
             s0, s1, s2, s3 = strides[0], strides[1], strides[2], strides[3]
             t0, t1, t2, t3 = frac[0], frac[1], frac[2], frac[3]
             for j in range(n_out):
                 ch = first + j
-                lower = (_bilinear(flat, base, ch, s2, s3, t2, t3) * (1 - t1)
-                         + _bilinear(flat, base + s1, ch, s2, s3, t2, t3) * t1)
-                upper = (_bilinear(flat, base + s0, ch, s2, s3, t2, t3) * (1 - t1)
-                         + _bilinear(flat, base + s0 + s1, ch, s2, s3, t2, t3) * t1)
+                lower = (
+                    _bilinear(flat, base, ch, s2, s3, t2, t3) * (1 - t1)
+                    + _bilinear(flat, base + s1, ch, s2, s3, t2, t3) * t1
+                )
+                upper = (
+                    _bilinear(flat, base + s0, ch, s2, s3, t2, t3) * (1 - t1)
+                    + _bilinear(flat, base + s0 + s1, ch, s2, s3, t2, t3) * t1
+                )
                 out[p, j] = lower * (1 - t0) + upper * t0
         else:
             for j in range(n_out):
@@ -158,7 +181,7 @@ class LinearGrid:
             raise ValueError(f"values shape {self.values.shape} does not match the axes")
         self._trailing = self.values.shape[n:]
         self._n_nodes_total = int(np.prod(self.values.shape[:n]))
-        self._strides = [int(np.prod(self.values.shape[k + 1:n])) for k in range(n)]
+        self._strides = [int(np.prod(self.values.shape[k + 1 : n])) for k in range(n)]
         # one row per node: a channel-less grid is a flat array, else (nodes, channels)
         self._flat = self.values.reshape(self._n_nodes_total, -1) if self._trailing else self.values.ravel()
         # channel_group g: always read in groups of g channels (each sample its own door state):
@@ -167,10 +190,15 @@ class LinearGrid:
         self._group = channel_group
         if channel_group is not None:
             if len(self._trailing) != 1 or self._trailing[0] % channel_group:
-                raise ValueError(f"channel_group {channel_group} needs one trailing dimension in groups of it")
+                raise ValueError(
+                    f"channel_group {channel_group} needs one trailing dimension in groups of it"
+                )
             n_groups = self._trailing[0] // channel_group
-            self._flat = np.ascontiguousarray(self._flat.reshape(self._n_nodes_total, n_groups, channel_group)
-                                              .transpose(1, 0, 2).reshape(-1, channel_group))
+            self._flat = np.ascontiguousarray(
+                self._flat.reshape(self._n_nodes_total, n_groups, channel_group)
+                .transpose(1, 0, 2)
+                .reshape(-1, channel_group)
+            )
             self.values = None  # the group-major copy is the table (tens of MB: not kept twice)
         # the axes packed for the compiled kernel (rows padded to the longest axis)
         longest = max(a.nodes.size for a in self.axes)
@@ -184,9 +212,9 @@ class LinearGrid:
         self._inv_step = np.zeros((n, longest))
         self._bin_cell = np.zeros((n, widest), np.intp)
         for k, a in enumerate(self.axes):
-            self._nodes[k, :a.nodes.size] = a.nodes
-            self._inv_step[k, :a.nodes.size - 1] = a.inv_step
-            self._bin_cell[k, :a.n_bins + 1] = a.bin_cell
+            self._nodes[k, : a.nodes.size] = a.nodes
+            self._inv_step[k, : a.nodes.size - 1] = a.inv_step
+            self._bin_cell[k, : a.n_bins + 1] = a.bin_cell
         self._strides_arr = np.array(self._strides, np.intp)
 
     def __call__(self, *coords, channel=None, group: int = 1) -> np.ndarray:
@@ -197,10 +225,14 @@ class LinearGrid:
         e.g. each sample's own door state from one stacked table, located once (the same
         arithmetic as a separate grid per group, so the same numbers)."""
         if channel is not None and (len(self._trailing) != 1 or self._trailing[0] % group):
-            raise ValueError(f"channel needs a grid with exactly one trailing dimension, in groups of {group}")
+            raise ValueError(
+                f"channel needs a grid with exactly one trailing dimension, in groups of {group}"
+            )
         if self._group is not None and (channel is None or group != self._group):
-            raise ValueError(f"this grid is stored in channel groups of {self._group}: call it with channel= and "
-                             f"group={self._group}")
+            raise ValueError(
+                f"this grid is stored in channel groups of {self._group}: call it with channel= and "
+                f"group={self._group}"
+            )
         coords = np.broadcast_arrays(*(np.asarray(c, float) for c in coords))
         shape = coords[0].shape
         points = np.empty((len(coords), int(np.prod(shape))))
@@ -217,9 +249,23 @@ class LinearGrid:
             ch = np.zeros(0, np.intp)
             out = np.empty((points.shape[1], flat.shape[1]))
         uniform = np.array([ax.uniform for ax in self.axes])
-        _interpolate(points, self._lo, self._hi, uniform, self._inv_width, self._n_bins, self._bin_cell,
-                     self._nodes, self._n_nodes, self._inv_step, self._strides_arr, flat, ch,
-                     0 if self._group is None else self._n_nodes_total, out)
+        _interpolate(
+            points,
+            self._lo,
+            self._hi,
+            uniform,
+            self._inv_width,
+            self._n_bins,
+            self._bin_cell,
+            self._nodes,
+            self._n_nodes,
+            self._inv_step,
+            self._strides_arr,
+            flat,
+            ch,
+            0 if self._group is None else self._n_nodes_total,
+            out,
+        )
         if self._trailing and channel is None:
             return out.reshape(shape + self._trailing)
         return out.reshape(shape + ((group,) if group > 1 else ()))

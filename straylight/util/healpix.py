@@ -8,6 +8,7 @@ Such a process opts in with :func:`load_without_plotting` at its start; everywhe
 Python API, a notebook) :func:`healpy` is ``import healpy``.  The figures import
 ``healpy.visufunc`` or ``healpy.projaxes`` by name, which works either way.
 """
+
 from __future__ import annotations
 
 import sys

@@ -3,6 +3,7 @@
 Every writer goes to a temporary sibling path and is renamed into place, so a crash (or a full
 disk) never leaves a half-written product under the final name, and a re-run simply redoes it.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -14,8 +15,9 @@ from contextlib import contextmanager
 from pathlib import Path
 
 
-def check_output_path(path, flag: str = "--out", overwrite: bool = False, parents: bool = False,
-                      folder: bool = False) -> Path:
+def check_output_path(
+    path, flag: str = "--out", overwrite: bool = False, parents: bool = False, folder: bool = False
+) -> Path:
     """Check, before any work, that ``path`` can be written; return it as a Path.
 
     The parent folder must exist (created when ``parents``), be a folder and accept a new file
@@ -31,7 +33,9 @@ def check_output_path(path, flag: str = "--out", overwrite: bool = False, parent
         if p.exists() and not p.is_dir():
             raise InputError(f"{flag} {p}: exists and is not a folder")
         if p.is_dir() and any(p.iterdir()) and not overwrite:
-            raise InputError(f"{flag} {p}: folder exists and is not empty; pass --overwrite to replace its files")
+            raise InputError(
+                f"{flag} {p}: folder exists and is not empty; pass --overwrite to replace its files"
+            )
         target = p
     else:
         if p.is_dir():

@@ -1,6 +1,7 @@
 """Gaia ingest on real archive files (astroquery's test data) and bad-input cases.
 
 Reference numbers: the Gaia DR2 photometric relations (Evans et al. 2018, Table A.1)."""
+
 import gzip
 from importlib import resources
 from pathlib import Path
@@ -9,8 +10,8 @@ import numpy as np
 import pytest
 from astropy.table import Table
 
-from straylight.errors import InputError
 from straylight.catalog.gaia import SDSS_RELATIONS, ingest_file, sdss_from_gaia, write_parquet
+from straylight.errors import InputError
 
 GAIA_DATA = Path(str(resources.files("astroquery") / "gaia" / "tests" / "data"))
 
@@ -29,7 +30,11 @@ def test_real_archive_results_are_read_by_column_name(name):
         assert res.stars["ra"][i] == pytest.approx(float(ref[cols["ra"]][j]))
 
 
-def _write_csv(path, rows, header="source_id,ra,dec,pmra,pmdec,ref_epoch,phot_g_mean_mag,phot_bp_mean_mag,phot_rp_mean_mag"):
+def _write_csv(
+    path,
+    rows,
+    header="source_id,ra,dec,pmra,pmdec,ref_epoch,phot_g_mean_mag,phot_bp_mean_mag,phot_rp_mean_mag",
+):
     text = header + "\n" + "\n".join(rows) + "\n"
     if str(path).endswith(".gz"):
         with gzip.open(path, "wt") as f:
@@ -40,24 +45,32 @@ def _write_csv(path, rows, header="source_id,ra,dec,pmra,pmdec,ref_epoch,phot_g_
 
 def test_quarantine_with_reasons_and_counts(tmp_path):
     rows = [
-        "1,10.0,20.0,1.0,2.0,2015.5,5.0,5.3,4.6",      # good, bright
-        "2,10.1,20.1,0.0,0.0,2015.5,15.0,15.3,14.6",   # good, fainter than the limit
-        "3,10.2,20.2,0.0,0.0,2015.5,,6.3,5.6",         # missing G
-        "4,370.0,20.2,0.0,0.0,2015.5,6.0,6.3,5.6",     # impossible RA
-        "5,10.2,-95.0,0.0,0.0,2015.5,6.0,6.3,5.6",     # impossible Dec
-        "6,10.2,20.2,0.0,0.0,2015.5,45.0,6.3,5.6",     # absurd magnitude
-        "1,10.0,20.0,1.0,2.0,2015.5,5.0,5.3,4.6",      # duplicate source_id
-        "7,10.3,20.3,,,2015.5,7.0,7.4,6.5",            # no proper motion: kept, pm = 0
+        "1,10.0,20.0,1.0,2.0,2015.5,5.0,5.3,4.6",  # good, bright
+        "2,10.1,20.1,0.0,0.0,2015.5,15.0,15.3,14.6",  # good, fainter than the limit
+        "3,10.2,20.2,0.0,0.0,2015.5,,6.3,5.6",  # missing G
+        "4,370.0,20.2,0.0,0.0,2015.5,6.0,6.3,5.6",  # impossible RA
+        "5,10.2,-95.0,0.0,0.0,2015.5,6.0,6.3,5.6",  # impossible Dec
+        "6,10.2,20.2,0.0,0.0,2015.5,45.0,6.3,5.6",  # absurd magnitude
+        "1,10.0,20.0,1.0,2.0,2015.5,5.0,5.3,4.6",  # duplicate source_id
+        "7,10.3,20.3,,,2015.5,7.0,7.4,6.5",  # no proper motion: kept, pm = 0
     ]
     p = tmp_path / "GaiaSource_0.csv.gz"
     _write_csv(p, rows)
     res = ingest_file(p, g_limit=12.0)
     assert sorted(res.stars["source_id"].tolist()) == [1, 7]
     assert res.summary == {
-        "file": str(p), "rows": 8, "kept": 2, "fainter_than_limit": 1, "quarantined": 5,
-        "quarantine_reasons": {"dec outside [-90, 90]": 1, "duplicate source_id": 1,
-                               "missing or NaN phot_g_mean_mag": 1, "phot_g_mean_mag outside (-2.0, 23.0)": 1,
-                               "ra outside [0, 360)": 1},
+        "file": str(p),
+        "rows": 8,
+        "kept": 2,
+        "fainter_than_limit": 1,
+        "quarantined": 5,
+        "quarantine_reasons": {
+            "dec outside [-90, 90]": 1,
+            "duplicate source_id": 1,
+            "missing or NaN phot_g_mean_mag": 1,
+            "phot_g_mean_mag outside (-2.0, 23.0)": 1,
+            "ra outside [0, 360)": 1,
+        },
     }
     assert res.stars["pmra"][res.stars["source_id"] == 7][0] == 0.0
 
@@ -127,13 +140,30 @@ def test_stars_rules_ingest_real_files_in_parallel_jobs(tmp_path):
     import yaml
 
     c = yaml.safe_load(cfg.read_text())
-    c["stars"] = {"gaia_files": ["1710099405832VAL-result.vot", "1712337806100O-result.ecsv", "bad.csv"],
-                  "g_limit_mag": 21.0}
+    c["stars"] = {
+        "gaia_files": ["1710099405832VAL-result.vot", "1712337806100O-result.ecsv", "bad.csv"],
+        "g_limit_mag": 21.0,
+    }
     cfg.write_text(yaml.safe_dump(c))
     snakemake = str(Path(sys.executable).with_name("snakemake"))
-    r = subprocess.run([snakemake, "-s", str(REPO / "workflow" / "Snakefile"), "-d", str(tmp_path), "--configfile", str(cfg),
-                        "--cores", "2", "results/stars/stars_gaia.parquet"], capture_output=True, text=True,
-                       timeout=600, env={**os.environ, "PATH": f"{Path(sys.executable).parent}:{os.environ['PATH']}"})
+    r = subprocess.run(
+        [
+            snakemake,
+            "-s",
+            str(REPO / "workflow" / "Snakefile"),
+            "-d",
+            str(tmp_path),
+            "--configfile",
+            str(cfg),
+            "--cores",
+            "2",
+            "results/stars/stars_gaia.parquet",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env={**os.environ, "PATH": f"{Path(sys.executable).parent}:{os.environ['PATH']}"},
+    )
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
     summary = json.loads((tmp_path / "results" / "stars" / "stars_gaia_summary.json").read_text())
     rows = sum(f["rows"] for f in summary["files"])

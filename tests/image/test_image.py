@@ -1,13 +1,20 @@
 """Detector stray-light images: accuracy of the fast renderer, energy, WCS, CLI.
 
 Reference numbers: the paper's ghost ratios (sect. 4.3 eq. 10), energy conservation, astropy's WCS."""
+
 import numpy as np
 import pytest
-
 from conftest import run_cli
+
 from straylight.errors import InputError
+from straylight.image.detector import (
+    FocalPlane,
+    RenderSettings,
+    focal_plane_from_instrument,
+    pointing_wcs,
+    render_detector,
+)
 from straylight.optics.ghosts import ghost_model_from_instrument
-from straylight.image.detector import FocalPlane, RenderSettings, focal_plane_from_instrument, pointing_wcs, render_detector
 from straylight.optics.scatter import scatter_model_from_instrument
 
 SUN = np.array([1.0, 0.0, 0.0])
@@ -18,8 +25,12 @@ N = 768
 def parts(campaign):
     fp = focal_plane_from_instrument(campaign.instrument)
     small = FocalPlane(N, N, fp.pixel_scale_arcsec, fp.pixel_size_mm, fp.columns, fp.rows, fp.gap_px)
-    return (fp, small, scatter_model_from_instrument(campaign.instrument),
-            ghost_model_from_instrument(campaign.instrument, "g"))
+    return (
+        fp,
+        small,
+        scatter_model_from_instrument(campaign.instrument),
+        ghost_model_from_instrument(campaign.instrument, "g"),
+    )
 
 
 def _render(parts, xy, flux, **kw):
@@ -27,8 +38,9 @@ def _render(parts, xy, flux, **kw):
     w = pointing_wcs(150.0, 30.0, SUN, small, 12)
     ra, dec = w.pixel_to_world_values(np.asarray(xy)[:, 0], np.asarray(xy)[:, 1])
     ghosts = kw.pop("ghosts", None)
-    return render_detector(150.0, 30.0, ra, dec, flux, SUN, fp, 12, sc, ghosts, 3.9, RenderSettings(**kw),
-                           size_override=(N, N))
+    return render_detector(
+        150.0, 30.0, ra, dec, flux, SUN, fp, 12, sc, ghosts, 3.9, RenderSettings(**kw), size_override=(N, N)
+    )
 
 
 def test_one_star_matches_direct_evaluation(parts):
@@ -59,10 +71,16 @@ def test_energy_of_scatter_and_ghosts(parts):
     res = _render(parts, [[N / 2, N / 2]], [flux], ghosts=gh, margin_arcsec=10.0)
     ghost_energy = res.ghosts["energy_e_per_s"].sum()
     assert (gh.r1, gh.r2, gh.rd, gh.t2) == (0.0093, 0.0093, 0.15, 0.825)
-    assert ghost_energy == pytest.approx(flux * (0.0093**2 + 0.15 * 0.0093 + 0.825**2 * 0.0093 * 0.15), rel=1e-12)
+    assert ghost_energy == pytest.approx(
+        flux * (0.0093**2 + 0.15 * 0.0093 + 0.825**2 * 0.0093 * 0.15), rel=1e-12
+    )
     assert ghost_energy / flux == pytest.approx(2.431e-3, rel=1e-3)
-    no_ghost = _render(parts, [[N / 2, N / 2]], [flux], margin_arcsec=10.0).image_e_per_s_per_pix.astype(float)
-    assert res.image_e_per_s_per_pix.astype(float).sum() - no_ghost.sum() == pytest.approx(ghost_energy, rel=1e-3)
+    no_ghost = _render(parts, [[N / 2, N / 2]], [flux], margin_arcsec=10.0).image_e_per_s_per_pix.astype(
+        float
+    )
+    assert res.image_e_per_s_per_pix.astype(float).sum() - no_ghost.sum() == pytest.approx(
+        ghost_energy, rel=1e-3
+    )
     # halo inside the inscribed circle (radius N/2) vs analytic; image square holds a bit more
     y, x = np.mgrid[0:N, 0:N]
     inside = np.hypot(x - N / 2, y - N / 2) <= N / 2 - 1
@@ -106,7 +124,9 @@ def test_wcs_roll_follows_the_sun(parts):
 
     small = parts[1]
     w = pointing_wcs(150.0, 30.0, SUN, small, 12)
-    assert proj_plane_pixel_scales(w)[0] * 3600 == pytest.approx(10e-6 / 28.0 * 206264.806247, rel=1e-9)  # p / f
+    assert proj_plane_pixel_scales(w)[0] * 3600 == pytest.approx(
+        10e-6 / 28.0 * 206264.806247, rel=1e-9
+    )  # p / f
     from straylight.sky.vectors import radec_to_unit
 
     c0 = radec_to_unit(*w.pixel_to_world_values(100.0, 100.0))
@@ -133,8 +153,24 @@ def test_image_cli_end_to_end(tmp_path, campaign):
     cat = tmp_path / "stars.ecsv"
     Table({"ra": ra, "dec": dec, "mag_g": [8.0, 10.0, 12.0]}).write(cat)
     out = tmp_path / "img.fits"
-    r = run_cli("image", "--time", "2026-01-01T00:50:00", "--ra", 150, "--dec", 30, "--band", "g",
-                "--catalog", cat, "--out", out, "--center", "boresight", timeout=600)
+    r = run_cli(
+        "image",
+        "--time",
+        "2026-01-01T00:50:00",
+        "--ra",
+        150,
+        "--dec",
+        30,
+        "--band",
+        "g",
+        "--catalog",
+        cat,
+        "--out",
+        out,
+        "--center",
+        "boresight",
+        timeout=600,
+    )
     assert r.returncode == 0, r.stderr
     with fits.open(out) as h:
         assert h["SCI"].data.shape == (fp.ny, fp.nx) and h["SCI"].header["BUNIT"] == "electron/s"
@@ -154,8 +190,21 @@ def test_image_cli_bad_catalog(tmp_path):
 
     cat = tmp_path / "stars.ecsv"
     Table({"ra": [1.0], "dec": [2.0]}).write(cat)
-    r = run_cli("image", "--time", "2026-01-01T00:50:00", "--ra", 1, "--dec", 2, "--band", "g",
-                "--catalog", cat, "--out", tmp_path / "x.fits")
+    r = run_cli(
+        "image",
+        "--time",
+        "2026-01-01T00:50:00",
+        "--ra",
+        1,
+        "--dec",
+        2,
+        "--band",
+        "g",
+        "--catalog",
+        cat,
+        "--out",
+        tmp_path / "x.fits",
+    )
     assert r.returncode == 2 and "missing column(s) mag_g" in r.stderr and "Traceback" not in r.stderr
 
 
@@ -182,10 +231,13 @@ def test_bin_and_cutout_keep_units_and_wcs(parts):
     binned = render_detector(150.0, 30.0, ra, dec, [1e6], SUN, fp, 12, sc, None, 3.9, bin_factor=8, **kw)
     assert binned.image_e_per_s_per_pix.shape == (N // 8, N // 8)
     assert binned.image_e_per_s_per_pix.astype(float).sum() * 64 == pytest.approx(
-        full.image_e_per_s_per_pix.astype(float).sum(), rel=1e-5)
+        full.image_e_per_s_per_pix.astype(float).sum(), rel=1e-5
+    )
     x, y = binned.wcs.world_to_pixel_values(ra[0], dec[0])
     assert (float(x), float(y)) == pytest.approx(((300.0 + 0.5) / 8 - 0.5, (500.0 + 0.5) / 8 - 0.5), abs=1e-6)
-    cut = render_detector(150.0, 30.0, ra, dec, [1e6], SUN, fp, 12, sc, None, 3.9, window=(200, 450, 128, 96), **kw)
+    cut = render_detector(
+        150.0, 30.0, ra, dec, [1e6], SUN, fp, 12, sc, None, 3.9, window=(200, 450, 128, 96), **kw
+    )
     assert cut.image_e_per_s_per_pix.shape == (96, 128)
     ref = full.image_e_per_s_per_pix[450:546, 200:328].astype(float)
     assert np.abs(cut.image_e_per_s_per_pix - ref).max() <= 1e-6 * ref.max()
@@ -229,8 +281,21 @@ def test_image_cli_star_bin_and_empty_field(tmp_path, campaign):
     from straylight.survey.pointings import pointing_table
 
     out = tmp_path / "sirius.fits"
-    r = run_cli("image", "--time", "2026-01-01T00:50:00", "--star", "Sirius", "--band", "g", "--bin", "16",
-                "--background", "--out", out, timeout=900)
+    r = run_cli(
+        "image",
+        "--time",
+        "2026-01-01T00:50:00",
+        "--star",
+        "Sirius",
+        "--band",
+        "g",
+        "--bin",
+        "16",
+        "--background",
+        "--out",
+        out,
+        timeout=900,
+    )
     assert r.returncode == 0, r.stderr
     assert out.stat().st_size < 5e6
     with fits.open(out) as h:
@@ -240,17 +305,44 @@ def test_image_cli_star_bin_and_empty_field(tmp_path, campaign):
         hdr = h["SCI"].header
         assert hdr["STAR"] == "Sirius"
         sc = campaign.config["stars"]
-        stars = load_offfield_stars(default_catalog_path(campaign), ["g"], float(sc["offfield_mag_limit"]),
-                                    bool(sc.get("faint_map", True)))
-        cols = pointing_table(campaign, {"time": np.array(["2026-01-01T00:50:00"]), "ra": np.array([hdr["RA_PNT"]]),
-                                         "dec": np.array([hdr["DEC_PNT"]])}, ["g"], stars)
+        stars = load_offfield_stars(
+            default_catalog_path(campaign),
+            ["g"],
+            float(sc["offfield_mag_limit"]),
+            bool(sc.get("faint_map", True)),
+        )
+        cols = pointing_table(
+            campaign,
+            {
+                "time": np.array(["2026-01-01T00:50:00"]),
+                "ra": np.array([hdr["RA_PNT"]]),
+                "dec": np.array([hdr["DEC_PNT"]]),
+            },
+            ["g"],
+            stars,
+        )
         assert hdr["BKG_TOT"] == pytest.approx(float(cols["total_g"][0]), rel=1e-9)
         assert img.min() >= hdr["BKG_TOT"] * (1 - 1e-6)
     cat = tmp_path / "one.ecsv"
     Table({"ra": [10.0], "dec": [-60.0], "mag_g": [5.0]}).write(cat)
     empty = tmp_path / "empty.fits"
-    args = ("image", "--time", "2026-01-01T00:50:00", "--ra", 150, "--dec", 30, "--band", "g", "--catalog", cat,
-            "--out", empty, "--bin", "32")
+    args = (
+        "image",
+        "--time",
+        "2026-01-01T00:50:00",
+        "--ra",
+        150,
+        "--dec",
+        30,
+        "--band",
+        "g",
+        "--catalog",
+        cat,
+        "--out",
+        empty,
+        "--bin",
+        "32",
+    )
     r = run_cli(*args, timeout=600)
     assert r.returncode == 1 and "no star" in r.stderr and "--allow-empty" in r.stderr and not empty.exists()
     r = run_cli(*args, "--allow-empty", timeout=600)

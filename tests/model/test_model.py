@@ -5,14 +5,15 @@ Reference numbers: the sum is the seed paper's total background (sect. 2: the su
 and off-field contributions), checked against the components the model returns, to float64
 rounding; the budget's shares add up to 1 (the tolerance is the error allowed to all the fast
 paths together, docs/physics.md); auto takes the earthshine table, direct only on request."""
+
 import numpy as np
 import pytest
 
 from straylight.config import campaign_from_dict, deep_merge
 from straylight.model import BAND_COMPONENTS, ERROR_BUDGET_SHARES, BackgroundModel, FidelityPolicy
 from straylight.sky.geometry import observing_geometry
-from straylight.sky.vectors import radec_to_unit
 from straylight.sky.observing import scene
+from straylight.sky.vectors import radec_to_unit
 
 SUMMED = ("zodiacal", "sun", "moon", "planets", "stars", "earthshine_direct", "earthshine_door")
 

@@ -1,6 +1,7 @@
 """The source registry (straylight.model.registry): every list of components comes from it,
 and a source registered there reaches the model's sum, the pointing tables and the API's
 columns with nothing else changed."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -29,8 +30,10 @@ def glow(monkeypatch):
     """The registry with the dummy source appended (restored after the test)."""
     monkeypatch.setattr(registry, "COMPONENTS", list(registry.COMPONENTS))
     monkeypatch.setattr(registry, "SOURCES", list(registry.SOURCES))
-    registry.register(registry.SourceEntry("glow", "glow", lambda model: ConstantGlow(model.context)),
-                      registry.Component("glow", "a constant test glow"))
+    registry.register(
+        registry.SourceEntry("glow", "glow", lambda model: ConstantGlow(model.context)),
+        registry.Component("glow", "a constant test glow"),
+    )
     yield
 
 
@@ -38,8 +41,17 @@ def test_components_in_one_place():
     """The six components of the paper's sum (zodiacal light, Sun, Moon, planets, stars,
     earthshine: seed paper sect. 3-4), the earthshine as direct + via the door (EA1, EA2)."""
     assert registry.component_names() == ("zodiacal", "sun", "moon", "planets", "stars", "earthshine")
-    assert registry.band_components() == ("zodiacal", "sun", "moon", "planets", "stars", "earthshine_direct",
-                                          "earthshine_door", "earthshine", "total")
+    assert registry.band_components() == (
+        "zodiacal",
+        "sun",
+        "moon",
+        "planets",
+        "stars",
+        "earthshine_direct",
+        "earthshine_door",
+        "earthshine",
+        "total",
+    )
     names = registry.long_names()
     assert set(names) == set(registry.band_components()) and all(names.values())
     # every source adds to a declared component, every component has a source
@@ -79,8 +91,9 @@ def test_a_registered_source_reaches_the_sum_the_tables_and_the_api(glow):
     without = SkyModel().background(t, coord, bands=["g", "r"])
     assert "glow_g" not in without.colnames
     for b in ("g", "r"):
-        np.testing.assert_allclose(with_glow[f"total_{b}"].value, without[f"total_{b}"].value + GLOW_E_PER_S,
-                                   rtol=1e-15)
+        np.testing.assert_allclose(
+            with_glow[f"total_{b}"].value, without[f"total_{b}"].value + GLOW_E_PER_S, rtol=1e-15
+        )
     assert straylight.sky_background  # the API's function is the same table (test_api covers it)
 
 

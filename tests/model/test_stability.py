@@ -2,16 +2,17 @@
 random times and pointings (hypothesis) and the edge cases one by one.  Every product quantity
 stays finite and non-negative, and is continuous wherever the physics is (the door changing state
 at 65 deg and the Earth entering the field are real jumps; everything else is smooth)."""
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from straylight.model import BackgroundModel
-from straylight.sources.stars import StarTable
 from straylight.sky.geometry import observing_geometry
-from straylight.sky.vectors import radec_to_unit
 from straylight.sky.observing import scene
+from straylight.sky.vectors import radec_to_unit
+from straylight.sources.stars import StarTable
 
 COMPONENTS = ("zodiacal", "sun", "moon", "planets", "stars", "earthshine_direct", "earthshine_door", "total")
 
@@ -63,9 +64,17 @@ def test_random_times_and_pointings_are_finite_and_non_negative(campaign, model,
 
 
 def test_poles_and_the_ra_wrap(campaign, model):
-    los = np.array([radec_to_unit(0.0, 90.0), radec_to_unit(123.0, 90.0), radec_to_unit(0.0, -90.0),
-                    radec_to_unit(0.0, 10.0), radec_to_unit(360.0, 10.0),
-                    radec_to_unit(1e-9, 10.0), radec_to_unit(360.0 - 1e-9, 10.0)])
+    los = np.array(
+        [
+            radec_to_unit(0.0, 90.0),
+            radec_to_unit(123.0, 90.0),
+            radec_to_unit(0.0, -90.0),
+            radec_to_unit(0.0, 10.0),
+            radec_to_unit(360.0, 10.0),
+            radec_to_unit(1e-9, 10.0),
+            radec_to_unit(360.0 - 1e-9, 10.0),
+        ]
+    )
     _, res, _ = _eval(campaign, model, TIME, los)
     _assert_sane(res)
     for b in campaign.bands:
@@ -144,7 +153,9 @@ def test_sun_exactly_behind_and_on_the_axis(campaign, model):
     u = sun / np.linalg.norm(sun)
     g, res, _ = _eval(campaign, model, TIME, np.array([-u, u]))
     _assert_sane(res)
-    assert g["sun_angle_deg"][0] == pytest.approx(180.0) and g["sun_angle_deg"][1] == pytest.approx(0.0, abs=1e-6)
+    assert g["sun_angle_deg"][0] == pytest.approx(180.0) and g["sun_angle_deg"][1] == pytest.approx(
+        0.0, abs=1e-6
+    )
 
 
 def test_empty_catalog_one_star_on_the_axis_and_at_the_field_edge(campaign, model):
@@ -154,8 +165,11 @@ def test_empty_catalog_one_star_on_the_axis_and_at_the_field_edge(campaign, mode
     on_axis = StarTable(np.array([200.0]), np.array([45.0]), {b: np.array([-1.0]) for b in campaign.bands})
     _, axis, _ = _eval(campaign, model, TIME, los, on_axis)
     r_field = model.context.offfield.field_radius_deg
-    edge = StarTable(np.array([200.0, 200.0]), np.array([45.0 + r_field, 45.0 + r_field + 1e-6]),
-                     {b: np.array([0.0, 0.0]) for b in campaign.bands})
+    edge = StarTable(
+        np.array([200.0, 200.0]),
+        np.array([45.0 + r_field, 45.0 + r_field + 1e-6]),
+        {b: np.array([0.0, 0.0]) for b in campaign.bands},
+    )
     _, at_edge, _ = _eval(campaign, model, TIME, los, edge)
     for b in campaign.bands:
         assert empty[b]["stars"][0] == 0.0 and empty[b]["total"][0] == base[b]["total"][0]
@@ -245,8 +259,13 @@ def test_faint_star_map_does_not_depend_on_the_jobs_cores(tmp_path):
     for threads in ("1", "2"):
         out = tmp_path / f"faint_{threads}.npy"
         env = dict(os.environ, OPENBLAS_NUM_THREADS=threads, OMP_NUM_THREADS=threads)
-        r = subprocess.run([sys.executable, "-c", _FAINT_MAP_SCRIPT, str(out)], env=env, capture_output=True,
-                           text=True, timeout=300)
+        r = subprocess.run(
+            [sys.executable, "-c", _FAINT_MAP_SCRIPT, str(out)],
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
         assert r.returncode == 0, r.stderr[-2000:]
         maps.append(np.load(out))
     assert np.all(maps[0] > 0)

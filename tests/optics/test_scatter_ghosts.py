@@ -1,6 +1,7 @@
 """Mirror scattering (Harvey-Shack) and filter-detector ghosts: the paper's numbers.
 
 Reference numbers: the seed paper, sect. 4.2-4.4, quoted in each test."""
+
 import numpy as np
 import pytest
 from scipy import integrate
@@ -22,8 +23,13 @@ def test_paper_harvey_parameters_give_tis_of_2_percent():
     brdf = HarveyBRDF(139257000.0, 4e-6, -2.7)
     assert brdf.tis() == pytest.approx(0.02, rel=0.01)
     # analytic TIS against direct numerical integration of 2 pi BRDF cos sin
-    num, _ = integrate.quad(lambda t: 2 * np.pi * brdf(t) * np.cos(t) * np.sin(t), 0, np.pi / 2,
-                            points=[1e-6, 1e-5, 1e-4, 1e-3], limit=500)
+    num, _ = integrate.quad(
+        lambda t: 2 * np.pi * brdf(t) * np.cos(t) * np.sin(t),
+        0,
+        np.pi / 2,
+        points=[1e-6, 1e-5, 1e-4, 1e-3],
+        limit=500,
+    )
     assert num == pytest.approx(brdf.tis(), rel=1e-4)
 
 
@@ -41,24 +47,37 @@ def test_scattered_to_image_ratio_at_10_and_100_pixels(model):
 def test_each_mirror_scatters_its_tis(model):
     """With BRDF_t = sum (R/r_i)^2 BRDF(t R/r_i), the focal-plane power of the halo is sum TIS."""
     f = model.focal_length_m
-    total, _ = integrate.quad(lambda d: 2 * np.pi * d * model.halo_profile_raw(d), 0, f * 0.5,
-                              points=[f * 1e-6, f * 1e-5, f * 1e-4, f * 1e-3], limit=500)
+    total, _ = integrate.quad(
+        lambda d: 2 * np.pi * d * model.halo_profile_raw(d),
+        0,
+        f * 0.5,
+        points=[f * 1e-6, f * 1e-5, f * 1e-4, f * 1e-3],
+        limit=500,
+    )
     # small-angle integral to 0.5 rad captures all but the far wings of the smallest mirror
     assert total == pytest.approx(model.tis_total, rel=0.01)
 
 
 def test_star_image_energy_is_conserved(model):
-    total, _ = integrate.quad(lambda d: 2 * np.pi * d * model.profile(d), 0, model.focal_length_m,
-                              points=list(np.geomspace(1e-7, 1, 15)), limit=1000)
+    total, _ = integrate.quad(
+        lambda d: 2 * np.pi * d * model.profile(d),
+        0,
+        model.focal_length_m,
+        points=list(np.geomspace(1e-7, 1, 15)),
+        limit=1000,
+    )
     assert total == pytest.approx(1.0, abs=2e-3)
     assert model.halo_power < model.tis_total < 0.1
 
 
-@pytest.mark.parametrize("b0,l,s,match", [
-    (1e12, 4e-6, -2.7, "TIS must be < 1"),
-    (139257000.0, 4e-6, 0.5, "must be negative"),
-    (-1.0, 4e-6, -2.7, "must be > 0"),
-])
+@pytest.mark.parametrize(
+    "b0,l,s,match",
+    [
+        (1e12, 4e-6, -2.7, "TIS must be < 1"),
+        (139257000.0, 4e-6, 0.5, "must be negative"),
+        (-1.0, 4e-6, -2.7, "must be > 0"),
+    ],
+)
 def test_bad_brdf_parameters(b0, l, s, match):
     with pytest.raises(ConfigError, match=match):
         HarveyBRDF(b0, l, s)
@@ -68,9 +87,12 @@ def test_nuv_ghost_example(model):
     """Paper sect. 4.3: D1 = 5 mm, D2 = 8 mm, T1 = T2 = 0.825, R1 = R2 = 0.0093, Rd = 0.15,
     incidence 3.9 deg: ghosts at or below ~1e-6 of the star image; energies, radii and centres
     equal eqs. 10-12."""
-    g = GhostModel(d1_mm=5.0, d2_mm=8.0, n=1.46, u_rad=1 / 28.0, r1=0.0093, r2=0.0093, t1=0.825, t2=0.825, rd=0.15)
-    np.testing.assert_allclose(g.energy_fractions(),
-                               [0.825**2 * 0.0093**2, 0.825**2 * 0.15 * 0.0093, 0.825**4 * 0.0093 * 0.15])
+    g = GhostModel(
+        d1_mm=5.0, d2_mm=8.0, n=1.46, u_rad=1 / 28.0, r1=0.0093, r2=0.0093, t1=0.825, t2=0.825, rd=0.15
+    )
+    np.testing.assert_allclose(
+        g.energy_fractions(), [0.825**2 * 0.0093**2, 0.825**2 * 0.15 * 0.0093, 0.825**4 * 0.0093 * 0.15]
+    )
     u = 1 / 28.0
     np.testing.assert_allclose(g.radii_mm(), [2 * 5 * u / 1.46, 2 * 8 * u, 2 * u * (5 / 1.46 + 8)])
     th = np.radians(3.9)
@@ -78,7 +100,9 @@ def test_nuv_ghost_example(model):
     np.testing.assert_allclose(off[:, 0], [2 * 5 * th / 1.46, 2 * 8 * th, 2 * 5 * th / 1.46 + 2 * 8 * th])
     np.testing.assert_allclose(off[:, 1], 0.0)
     # relative to the detected image (Phi T1 T2): R1 R2, Rd R2, T2^2 R1 Rd
-    np.testing.assert_allclose(g.energy_relative_to_image(), [0.0093**2, 0.15 * 0.0093, 0.825**2 * 0.0093 * 0.15])
+    np.testing.assert_allclose(
+        g.energy_relative_to_image(), [0.0093**2, 0.15 * 0.0093, 0.825**2 * 0.0093 * 0.15]
+    )
     peak_per_mm2 = model.profile(0.0) * 1e-6
     ratio = g.irradiance_relative_to_image_per_mm2() / peak_per_mm2
     print("ghost / star-image peak:", ratio)

@@ -1,6 +1,7 @@
 """The paper's in-field figures (``straylight figure NAME``, straylight/paper/figures.py) against the
 numbers the paper states about them.  The earthshine figure of sect. 3.3 is tested with
 ``straylight scenario`` (tests of the scenario)."""
+
 import numpy as np
 import pytest
 
@@ -15,7 +16,9 @@ def test_zodiacal_map_sect_4_1(campaign):
 
     d = zodiacal_map_data(campaign, nside=32)
     v = d["v_mag_per_arcsec2"]
-    assert d["sun_ra_deg"] == pytest.approx(281.1, abs=0.3) and d["sun_dec_deg"] == pytest.approx(-23.0, abs=0.2)
+    assert d["sun_ra_deg"] == pytest.approx(281.1, abs=0.3) and d["sun_dec_deg"] == pytest.approx(
+        -23.0, abs=0.2
+    )
     assert np.nanmax(v) == pytest.approx(23.3, abs=0.15)
     table1_v = -2.5 * np.log10(3e-18 * 5500.0**2 / 2.99792458e18) - 48.60  # AB mag of 3e-18 flam at 5500 A
     assert table1_v == pytest.approx(22.70, abs=0.01)
@@ -54,8 +57,11 @@ def test_nuv_ghost_figure_sect_4_3(campaign):
     rel = d["ghost_relative_to_peak"]
     assert rel.max() == pytest.approx(1.15e-6, rel=0.05) and np.all(rel <= 1.5e-6)
     th = np.tan(np.radians(3.9))
-    np.testing.assert_allclose(d["centres_px"][:, 0], [2 * 5 * th / 1.46 * 100, 2 * 8 * th * 100,
-                                                      (2 * 5 / 1.46 + 2 * 8) * th * 100], rtol=2e-3)
+    np.testing.assert_allclose(
+        d["centres_px"][:, 0],
+        [2 * 5 * th / 1.46 * 100, 2 * 8 * th * 100, (2 * 5 / 1.46 + 2 * 8) * th * 100],
+        rtol=2e-3,
+    )
     assert d["relative_to_peak"].max() == pytest.approx(rel[0] + rel[1], rel=1e-9)  # ghosts 1 and 2 overlap
 
 

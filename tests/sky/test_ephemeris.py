@@ -1,9 +1,10 @@
 """DE405 evaluator against jplephem (same data) and skyfield + DE421 (independent ephemeris)."""
+
 import numpy as np
 import pytest
 
-from straylight.sky.ephemeris import BODIES, DE405, radec_distance
 from straylight.errors import EphemerisRangeError
+from straylight.sky.ephemeris import BODIES, DE405, radec_distance
 
 JD_1950 = 2433282.5
 JD_2100 = 2488069.5
@@ -58,9 +59,16 @@ def test_matches_skyfield_de421(eph):
     t = ts.tdb_jd(jd)
     earth = planets["earth"]
     names = {
-        "sun": "sun", "moon": "moon", "mercury": "mercury", "venus": "venus",
-        "mars": "mars barycenter", "jupiter": "jupiter barycenter", "saturn": "saturn barycenter",
-        "uranus": "uranus barycenter", "neptune": "neptune barycenter", "pluto": "pluto barycenter",
+        "sun": "sun",
+        "moon": "moon",
+        "mercury": "mercury",
+        "venus": "venus",
+        "mars": "mars barycenter",
+        "jupiter": "jupiter barycenter",
+        "saturn": "saturn barycenter",
+        "uranus": "uranus barycenter",
+        "neptune": "neptune barycenter",
+        "pluto": "pluto barycenter",
     }
     ours = eph.positions_tdb(jd)
     worst = {}

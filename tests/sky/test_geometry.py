@@ -2,6 +2,7 @@
 
 Reference values: exact angles built by construction, and the paper's Earth-blockage test and
 door states."""
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -15,7 +16,10 @@ from straylight.sky.vectors import angle_between_deg, radec_to_unit, wrap_360_de
 RE = 6378.137
 AU = 1.495978707e8
 CONSTRAINTS = Constraints(
-    sun_min_deg=50.0, moon_min_deg=40.0, bright_limb_min_deg=80.0, dark_limb_min_deg=30.0,
+    sun_min_deg=50.0,
+    moon_min_deg=40.0,
+    bright_limb_min_deg=80.0,
+    dark_limb_min_deg=30.0,
     door_states=(DoorState(135.0, 65.0, False), DoorState(105.0, 50.0, True)),
 )
 
@@ -42,8 +46,14 @@ def test_all_outputs_finite_and_in_range(sra, sdec, alt, ura, udec, mra, mdec, l
     g = observing_geometry(sat, bodies, _unit(lra, ldec), RE, CONSTRAINTS)
     for k, v in g.items():
         assert np.all(np.isfinite(np.asarray(v, dtype=float))), k
-    for k in ("sun_angle_deg", "moon_angle_deg", "zenith_angle_deg", "moon_phase_angle_deg",
-              "bright_limb_angle_deg", "dark_limb_angle_deg"):
+    for k in (
+        "sun_angle_deg",
+        "moon_angle_deg",
+        "zenith_angle_deg",
+        "moon_phase_angle_deg",
+        "bright_limb_angle_deg",
+        "dark_limb_angle_deg",
+    ):
         assert 0.0 <= float(g[k]) <= 180.0, k
     assert 0.0 <= float(g["sun_phi_deg"]) < 360.0 and 0.0 <= float(g["moon_phi_deg"]) < 360.0
     assert 0.0 <= float(g["moon_illuminated_fraction"]) <= 1.0
@@ -111,7 +121,9 @@ def test_pointing_at_zenith_nadir_poles_and_ra_wrap_are_finite():
     g_up = observing_geometry(sat, bodies, _unit(0, 90), RE, CONSTRAINTS)
     assert float(g_up["zenith_angle_deg"]) == pytest.approx(0.0, abs=1e-9)
     g_down = observing_geometry(sat, bodies, _unit(0, -90), RE, CONSTRAINTS)
-    assert float(g_down["earth_limb_angle_deg"]) == pytest.approx(-np.degrees(np.arcsin(RE / (RE + 400))), abs=1e-9)
+    assert float(g_down["earth_limb_angle_deg"]) == pytest.approx(
+        -np.degrees(np.arcsin(RE / (RE + 400))), abs=1e-9
+    )
     # RA wrap: 359.9999999 and -1e-7 are the same direction within 1e-7 deg
     a = observing_geometry(sat, bodies, _unit(359.9999999, 10), RE, CONSTRAINTS)
     b = observing_geometry(sat, bodies, _unit(-1e-7, 10), RE, CONSTRAINTS)
@@ -150,20 +162,29 @@ def test_telescope_frame_puts_sun_at_phi_zero_and_is_right_handed():
 
 def test_earth_blockage_two_conditions():
     sat = np.array([RE + 400.0, 0.0, 0.0])
-    assert bool(earth_blocks(sat, np.array([-1.0, 0.0, 0.0]), RE))       # nadir
-    assert not bool(earth_blocks(sat, np.array([1.0, 0.0, 0.0]), RE))    # zenith
-    assert not bool(earth_blocks(sat, np.array([0.0, 1.0, 0.0]), RE))    # horizontal: angle = 90, not > 90
+    assert bool(earth_blocks(sat, np.array([-1.0, 0.0, 0.0]), RE))  # nadir
+    assert not bool(earth_blocks(sat, np.array([1.0, 0.0, 0.0]), RE))  # zenith
+    assert not bool(earth_blocks(sat, np.array([0.0, 1.0, 0.0]), RE))  # horizontal: angle = 90, not > 90
     # behind (angle > 90) but missing the Earth: condition 2 fails
     assert not bool(earth_blocks(sat, np.array([-0.1, 1.0, 0.0]), RE))
 
 
-@pytest.mark.parametrize("name,arg,threshold", [
-    ("sun", 0, 50.0), ("moon", 1, 40.0), ("bright_limb", 2, 80.0), ("dark_limb", 3, 30.0),
-])
+@pytest.mark.parametrize(
+    "name,arg,threshold",
+    [
+        ("sun", 0, 50.0),
+        ("moon", 1, 40.0),
+        ("bright_limb", 2, 80.0),
+        ("dark_limb", 3, 30.0),
+    ],
+)
 def test_each_constraint_switches_exactly_at_threshold(name, arg, threshold):
     base = [120.0, 120.0, 120.0, 120.0, 60.0]
-    for value, violated in ((threshold, False), (np.nextafter(threshold, 0), True),
-                            (np.nextafter(threshold, 180), False)):
+    for value, violated in (
+        (threshold, False),
+        (np.nextafter(threshold, 0), True),
+        (np.nextafter(threshold, 180), False),
+    ):
         vals = list(base)
         vals[arg] = value
         flags = int(CONSTRAINTS.violations(*vals))
@@ -204,8 +225,13 @@ def test_grid_shapes(campaign):
     from straylight.sky.observing import sample_geometry, scene
 
     sc = scene(campaign.orbit, campaign.times[:5])
-    g = sample_geometry(sc, np.array([0.0, 90.0, 180.0]), np.array([0.0, 45.0, -89.0]), campaign.earth.radius_km,
-                        campaign.constraints)
+    g = sample_geometry(
+        sc,
+        np.array([0.0, 90.0, 180.0]),
+        np.array([0.0, 45.0, -89.0]),
+        campaign.earth.radius_km,
+        campaign.constraints,
+    )
     assert g["observable"].shape == (5, 3)
     assert g["moon_phase_angle_deg"].shape == (5, 3)
 
@@ -216,10 +242,13 @@ def test_wrap_360_equals_numpys_modulo():
     angles already wrapped, -1e-15 (which np.mod rounds to 360.0), beyond +-360 deg, huge
     values and NaN."""
     rng = np.random.default_rng(5)
-    cases = [np.degrees(np.arctan2(rng.normal(size=10_000), rng.normal(size=10_000))),
-             rng.uniform(0.0, 360.0, 1000), rng.uniform(-1e4, 1e4, 1000),
-             np.array([-1e-15, -0.0, 0.0, 360.0 - 2 ** -44, -359.9, 359.9, 720.5, -1e300, np.nan]),
-             np.zeros(0)]
+    cases = [
+        np.degrees(np.arctan2(rng.normal(size=10_000), rng.normal(size=10_000))),
+        rng.uniform(0.0, 360.0, 1000),
+        rng.uniform(-1e4, 1e4, 1000),
+        np.array([-1e-15, -0.0, 0.0, 360.0 - 2**-44, -359.9, 359.9, 720.5, -1e300, np.nan]),
+        np.zeros(0),
+    ]
     for x in cases:
         assert np.array_equal(wrap_360_deg(x), np.mod(x, 360.0), equal_nan=True)
 

@@ -1,11 +1,12 @@
 """Orbit models: circular with J2, and TLE through SGP4.
 
 Reference values: the sgp4 library for TLEs; the analytic J2 nodal rate (Vallado 2013, eq. 9-41)."""
+
 import numpy as np
 import pytest
 from astropy.time import Time, TimeDelta
-
 from conftest import ISS_L1, ISS_L2
+
 from straylight.errors import ConfigError, InputError
 from straylight.sky.orbit import CircularOrbit, EarthModel, TLEOrbit
 
@@ -13,8 +14,14 @@ EARTH = EarthModel(radius_km=6378.137, gm_km3_s2=398600.4418, j2=1.08262668e-3)
 
 
 def orbit(**kw):
-    args = dict(altitude_km=400.0, inclination_deg=41.5, raan_deg=30.0, arg_latitude_deg=10.0,
-                epoch="2026-01-01T00:00:00", earth=EARTH)
+    args = dict(
+        altitude_km=400.0,
+        inclination_deg=41.5,
+        raan_deg=30.0,
+        arg_latitude_deg=10.0,
+        epoch="2026-01-01T00:00:00",
+        earth=EARTH,
+    )
     args.update(kw)
     return CircularOrbit(**args)
 
@@ -68,7 +75,9 @@ def test_nodal_precession_equals_analytic_j2_rate():
     elapsed_days = (10 * 86400.0 + s1 - s0) / 86400.0
     measured = ((node1 - node0 + 180) % 360 - 180) / elapsed_days
     n = np.sqrt(398600.4418 / (6778.137**3))
-    analytic = np.degrees(-1.5 * n * 1.08262668e-3 * (6378.137 / 6778.137) ** 2 * np.cos(np.radians(41.5))) * 86400
+    analytic = (
+        np.degrees(-1.5 * n * 1.08262668e-3 * (6378.137 / 6778.137) ** 2 * np.cos(np.radians(41.5))) * 86400
+    )
     assert measured == pytest.approx(analytic, rel=1e-6)
     assert analytic == pytest.approx(-6.03, abs=0.01)
 
@@ -109,11 +118,14 @@ def test_decayed_tle_reports_sgp4_error():
         orb.position_teme_km(Time("2008-09-20T12:25:40") + TimeDelta([0.0, 60 * 86400.0], format="sec"))
 
 
-@pytest.mark.parametrize("kw,match", [
-    ({"altitude_km": 50.0}, "altitude_km"),
-    ({"inclination_deg": 200.0}, "inclination_deg"),
-    ({"epoch": "not a time"}, "epoch"),
-])
+@pytest.mark.parametrize(
+    "kw,match",
+    [
+        ({"altitude_km": 50.0}, "altitude_km"),
+        ({"inclination_deg": 200.0}, "inclination_deg"),
+        ({"epoch": "not a time"}, "epoch"),
+    ],
+)
 def test_bad_circular_elements(kw, match):
     with pytest.raises((ConfigError, InputError), match=match):
         orbit(**kw)
@@ -134,12 +146,35 @@ def test_epoch_gap_warning_text():
     from straylight.sky.orbit import TLE_EPOCH_WARN_DAYS, epoch_gap_warning
 
     epoch = Time("2026-01-01T00:00:00")
-    assert epoch_gap_warning("orbit.tle epoch", epoch, Time("2026-01-10T00:00:00"), Time("2026-01-20T00:00:00"),
-                             TLE_EPOCH_WARN_DAYS, "reason") is None
-    msg = epoch_gap_warning("orbit.tle epoch", epoch, Time("2026-01-10T00:00:00"), Time("2026-03-01T00:00:00"),
-                            TLE_EPOCH_WARN_DAYS, "reason")
-    assert msg == ("orbit.tle epoch 2026-01-01T00:00:00 is 9 days before campaign.start 2026-01-10T00:00:00 "
-                   "(up to 59 days over the campaign): reason")
-    msg = epoch_gap_warning("orbit.tle epoch", Time("2026-06-01T00:00:00"), Time("2026-01-01T00:00:00"),
-                            Time("2026-01-02T00:00:00"), TLE_EPOCH_WARN_DAYS, "reason")
+    assert (
+        epoch_gap_warning(
+            "orbit.tle epoch",
+            epoch,
+            Time("2026-01-10T00:00:00"),
+            Time("2026-01-20T00:00:00"),
+            TLE_EPOCH_WARN_DAYS,
+            "reason",
+        )
+        is None
+    )
+    msg = epoch_gap_warning(
+        "orbit.tle epoch",
+        epoch,
+        Time("2026-01-10T00:00:00"),
+        Time("2026-03-01T00:00:00"),
+        TLE_EPOCH_WARN_DAYS,
+        "reason",
+    )
+    assert msg == (
+        "orbit.tle epoch 2026-01-01T00:00:00 is 9 days before campaign.start 2026-01-10T00:00:00 "
+        "(up to 59 days over the campaign): reason"
+    )
+    msg = epoch_gap_warning(
+        "orbit.tle epoch",
+        Time("2026-06-01T00:00:00"),
+        Time("2026-01-01T00:00:00"),
+        Time("2026-01-02T00:00:00"),
+        TLE_EPOCH_WARN_DAYS,
+        "reason",
+    )
     assert "151 days after campaign.start 2026-01-01T00:00:00 (up to 151 days" in msg

@@ -1,10 +1,11 @@
 """Time scales: UTC -> TDB against astropy's full conversion, and no network access."""
+
 import numpy as np
 import pytest
 from astropy.time import Time
 
-from straylight.sky.timeutil import DTDB_DIRECT_MAX, parse_utc, utc_to_tdb_jd
 from straylight.errors import InputError
+from straylight.sky.timeutil import DTDB_DIRECT_MAX, parse_utc, utc_to_tdb_jd
 
 
 @pytest.mark.parametrize("n", [10, DTDB_DIRECT_MAX + 1, 50_000])

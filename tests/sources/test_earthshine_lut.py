@@ -2,6 +2,7 @@
 tabulates, its moonlit-Earth bound, its cache, and the automatic choice from the tolerance.
 A coarse table (5 x 5 x 20 deg nodes, ~10 s to build) keeps the tests fast; the default table's
 error and cost are measured by bench/run.py."""
+
 import copy
 import sys
 from pathlib import Path
@@ -9,11 +10,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from straylight.model import BackgroundModel
 from straylight.config import campaign_from_dict
+from straylight.model import BackgroundModel
+from straylight.sky.frames import telescope_frame
 from straylight.sources.earthshine_table import EarthshineLUT
 from straylight.sources.earthshine_table_build import LUTSettings, build_earthshine_lut, lut_key
-from straylight.sky.frames import telescope_frame
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
 from _samples import random_samples  # noqa: E402
@@ -47,8 +48,16 @@ def test_table_reproduces_the_direct_sum_at_its_nodes(coarse):
     los = np.array([[np.cos(l_), np.sin(l_) * np.cos(a), np.sin(l_) * np.sin(a)]])
     for state in off.door_states_deg:
         d, g = lut.sun_coefficients(sat, sun, los, np.array([state]))
-        ref = off.earthshine_coefficients(sat, sun, np.array([[0, 0, -1e9]]), telescope_frame(los, sun - sat),
-                                          np.array([state]), c.earth.radius_km, in_field=False, moon=False)
+        ref = off.earthshine_coefficients(
+            sat,
+            sun,
+            np.array([[0, 0, -1e9]]),
+            telescope_frame(los, sun - sat),
+            np.array([state]),
+            c.earth.radius_km,
+            in_field=False,
+            moon=False,
+        )
         assert d[0] == pytest.approx(ref["direct_sun"][0], rel=1e-9, abs=1e-40)
         assert g[0] == pytest.approx(ref["door_sun"][0], rel=1e-9, abs=1e-40)
 
@@ -67,17 +76,28 @@ def test_rotation_about_the_vertical_changes_nothing(coarse):
     off = cm.context.offfield
     door = g["door_opening_deg"][obs]
     frame = telescope_frame(los, sun - sat)
-    real = off.earthshine_coefficients(sat, sun, sc.bodies_km["moon"][obs], frame, door, c.earth.radius_km,
-                                       in_field=False, moon=False)
-    res = cm.evaluate(sat, {k: v[obs] for k, v in sc.bodies_km.items()}, los, {k: v[obs] for k, v in g.items()}, ["g"])
-    sun_irr = cm.context.photometry("g").sun_at_1au_photons_s_m2 * (1.495978707e8 / np.linalg.norm(sun - sat, axis=-1)) ** 2
+    real = off.earthshine_coefficients(
+        sat, sun, sc.bodies_km["moon"][obs], frame, door, c.earth.radius_km, in_field=False, moon=False
+    )
+    res = cm.evaluate(
+        sat, {k: v[obs] for k, v in sc.bodies_km.items()}, los, {k: v[obs] for k, v in g.items()}, ["g"]
+    )
+    sun_irr = (
+        cm.context.photometry("g").sun_at_1au_photons_s_m2
+        * (1.495978707e8 / np.linalg.norm(sun - sat, axis=-1)) ** 2
+    )
     for state in off.door_states_deg:
         sel = door == state
         if not sel.any():
             continue
-        d, gd = sun_coefficients_direct(off, r[sel], *np.radians([zs[sel], zl[sel], a[sel]]), state,
-                                         c.earth.radius_km)
-        err = np.abs(d + gd - real["direct_sun"][sel] - real["door_sun"][sel]) * sun_irr[sel] / res["g"]["total"][sel]
+        d, gd = sun_coefficients_direct(
+            off, r[sel], *np.radians([zs[sel], zl[sel], a[sel]]), state, c.earth.radius_km
+        )
+        err = (
+            np.abs(d + gd - real["direct_sun"][sel] - real["door_sun"][sel])
+            * sun_irr[sel]
+            / res["g"]["total"][sel]
+        )
         assert err.max() < 1e-2
 
 
@@ -87,9 +107,9 @@ def test_night_side_samples_skip_the_look_up_and_get_exactly_what_it_gives(coars
     steps over a whole orbit (day, twilight and night steps), with and without known runs, it
     equals the look-up at every sample bit for bit; the skipped samples are there, and the
     table really is 0 at every node beyond the angle."""
+    from straylight.sky.observing import scene
     from straylight.sky.runs import SceneRuns
     from straylight.sky.vectors import radec_to_unit
-    from straylight.sky.observing import scene
 
     c, _, info = coarse
     lut = info["lut"]
@@ -123,9 +143,9 @@ def test_moonlit_earth_is_left_out_where_the_moon_is_down_and_changes_nothing(mo
     bound and all.  Over one orbit with the Moon up and down the components equal, bit for bit,
     those computed with nothing left out (the angle set to inf)."""
     from straylight.sky.geometry import observing_geometry
+    from straylight.sky.observing import scene
     from straylight.sky.runs import SceneRuns
     from straylight.sky.vectors import radec_to_unit
-    from straylight.sky.observing import scene
 
     c, cm, mlut = moonlit
     dark = mlut.dark_moon_zenith_deg
@@ -168,8 +188,9 @@ def test_moonlit_bound_holds(coarse):
     sc, los, g = random_samples(c, 1500, seed=4)
     sat, sun, moon = sc.satellite_km, sc.bodies_km["sun"], sc.bodies_km["moon"]
     frame = telescope_frame(los, sun - sat)
-    co = cm.context.offfield.earthshine_coefficients(sat, sun, moon, frame, g["door_opening_deg"], c.earth.radius_km,
-                                             in_field=False)
+    co = cm.context.offfield.earthshine_coefficients(
+        sat, sun, moon, frame, g["door_opening_deg"], c.earth.radius_km, in_field=False
+    )
     bound = info["lut"].moon_bound(sat, moon, los, c.earth.radius_km)
     fin = np.isfinite(bound)
     assert fin.mean() > 0.5
@@ -191,11 +212,18 @@ def test_cap_bound_holds_for_any_line_of_sight(coarse):
     a = np.radians(rng.uniform(0.0, 69.0, len(los)))[:, None]
     los = np.where(into[:, None], np.cos(a) * nadir + np.sin(a) * tilt, los)
     frame = telescope_frame(los, sun - sat)
-    door = c.constraints.door_opening_deg(np.degrees(np.arccos(np.clip(
-        np.sum(los * (sun - sat), axis=1) / np.linalg.norm(sun - sat, axis=1), -1, 1))))
-    co = cm.context.offfield.earthshine_coefficients(sat, sun, moon, frame, door, c.earth.radius_km, in_field=False,
-                                             sun=False, grid=cm.moonlit_earth.grid)
-    bound = cm.context.offfield.earthshine_cap_bound(sat, c.earth.radius_km, cm.moonlit_earth.grid) + info["lut"].moon_door_bound
+    door = c.constraints.door_opening_deg(
+        np.degrees(
+            np.arccos(np.clip(np.sum(los * (sun - sat), axis=1) / np.linalg.norm(sun - sat, axis=1), -1, 1))
+        )
+    )
+    co = cm.context.offfield.earthshine_coefficients(
+        sat, sun, moon, frame, door, c.earth.radius_km, in_field=False, sun=False, grid=cm.moonlit_earth.grid
+    )
+    bound = (
+        cm.context.offfield.earthshine_cap_bound(sat, c.earth.radius_km, cm.moonlit_earth.grid)
+        + info["lut"].moon_door_bound
+    )
     assert np.all(np.isfinite(bound)) and into.sum() > 400
     assert np.all(co["direct_moon"] + co["door_moon"] <= bound)
     assert np.max((co["direct_moon"] + co["door_moon"]) / bound) > 1e-3  # a bound, not a wild one
@@ -232,8 +260,10 @@ def test_moonlit_earth_stays_within_its_share_of_the_tolerance(campaign):
     default, _ = total()
     err = float(np.max(np.abs(default - ref)[obs] / ref[obs]))
     share = ERROR_BUDGET_SHARES["moonlit_earthshine_skip"] + ERROR_BUDGET_SHARES["moonlit_earthshine_grid"]
-    print(f"moonlit Earth, default treatment: {err:.2e} of the total at {obs.sum()} observable samples "
-          f"(share {share * campaign.config['models']['tolerance']:.1e})")
+    print(
+        f"moonlit Earth, default treatment: {err:.2e} of the total at {obs.sum()} observable samples "
+        f"(share {share * campaign.config['models']['tolerance']:.1e})"
+    )
     assert obs.sum() > 500
     assert 0.0 < err <= share * float(campaign.config["models"]["tolerance"])
 
@@ -252,16 +282,32 @@ def test_save_load_round_trip_and_cache_key(coarse, tmp_path, campaign):
     assert k != lut_key(off, 6378.137, (6778.137, 6778.137), LUTSettings(5, 5, 10), 1e-20)
     from dataclasses import replace
 
-    assert k != lut_key(replace(off, earthshine=replace(off.earthshine, albedo=0.31)), 6378.137,
-                        (6778.137, 6778.137), LUTSettings(5, 5, 20), 1e-20)
+    assert k != lut_key(
+        replace(off, earthshine=replace(off.earthshine, albedo=0.31)),
+        6378.137,
+        (6778.137, 6778.137),
+        LUTSettings(5, 5, 20),
+        1e-20,
+    )
     # the tables are built from the PST and the door (with the body that shades it): another PST
     # or body is another table
     from straylight.optics.pst import PST
 
-    darker = PST(off.pst.theta_deg, off.pst.phi_deg, off.pst.values * np.where(off.pst.theta_deg > 60.0, 0.5, 1.0)[:, None])
-    assert k != lut_key(replace(off, pst=darker), 6378.137, (6778.137, 6778.137), LUTSettings(5, 5, 20), 1e-20)
-    assert k != lut_key(replace(off, door=replace(off.door, body_radius_m=1.5)), 6378.137, (6778.137, 6778.137),
-                        LUTSettings(5, 5, 20), 1e-20)
+    darker = PST(
+        off.pst.theta_deg,
+        off.pst.phi_deg,
+        off.pst.values * np.where(off.pst.theta_deg > 60.0, 0.5, 1.0)[:, None],
+    )
+    assert k != lut_key(
+        replace(off, pst=darker), 6378.137, (6778.137, 6778.137), LUTSettings(5, 5, 20), 1e-20
+    )
+    assert k != lut_key(
+        replace(off, door=replace(off.door, body_radius_m=1.5)),
+        6378.137,
+        (6778.137, 6778.137),
+        LUTSettings(5, 5, 20),
+        1e-20,
+    )
     assert k == lut_key(replace(off), 6378.137, (6778.137, 6778.137), LUTSettings(5, 5, 20), 1e-20)
     (tmp_path / "bad.npz").write_bytes(b"not a table")
     from straylight.errors import InputError
@@ -274,7 +320,13 @@ def test_parallel_build_gives_the_same_table(coarse):
     """Two worker processes build the same table, byte for byte, as one (the coarse steps)."""
     c, cm, info = coarse
     k = c.constraints
-    args = (cm.context.offfield, c.earth.radius_km, c.orbit_radius_range_km, LUTSettings(**COARSE), cm.context.earthshine_floor)
+    args = (
+        cm.context.offfield,
+        c.earth.radius_km,
+        c.orbit_radius_range_km,
+        LUTSettings(**COARSE),
+        cm.context.earthshine_floor,
+    )
     kw = {"avoidance_deg": (k.dark_limb_min_deg, k.bright_limb_min_deg, k.sun_min_deg)}
     two = build_earthshine_lut(*args, **kw, workers=2)
     one = info["lut"]
@@ -289,7 +341,9 @@ def test_automatic_choice(coarse, campaign):
     exceeds its share of the tolerance (then the direct sum, with the reason)."""
     c, _, _ = coarse
     coarse_auto = BackgroundModel(_campaign(campaign, method="auto", lut=COARSE)).sunlit_earth.model
-    assert coarse_auto["method"] == "direct" and "> 0.5 x the tolerance" in coarse_auto["reason"]  # too coarse for 1 %
+    assert (
+        coarse_auto["method"] == "direct" and "> 0.5 x the tolerance" in coarse_auto["reason"]
+    )  # too coarse for 1 %
     raw = copy.deepcopy(c.config)
     raw["models"]["tolerance"] = 1.0
     raw["models"]["earthshine"]["method"] = "auto"
@@ -348,20 +402,36 @@ def test_moonlit_table_reproduces_the_coarse_sum_at_its_nodes(moonlit):
     """At a node (Moon zenith, line-of-sight zenith, azimuth, roll) the table returns the coarse
     grid's direct sum it stored, for every door state: the table's coordinates invert the
     scene it was built from (including the roll, measured from the upward vertical)."""
-    from straylight.sources.earthshine_table_build import _moonlit_scene
     from straylight.sources.bodies import MOON_MEAN_DISTANCE_KM
+    from straylight.sources.earthshine_table_build import _moonlit_scene
 
     c, cm, lut = moonlit
     off = cm.context.offfield
     r = np.array([np.mean(c.orbit_radius_range_km)])
     for iz, il, ia, ip in ((3, 5, 2, 4), (8, 12, 9, 17), (1, 20, 15, 11)):
-        node = [np.radians([v[i]]) for v, i in ((lut.moon_zenith_deg, iz), (lut.los_zenith_deg, il),
-                                               (lut.azimuth_deg, ia), (lut.roll_deg, ip))]
+        node = [
+            np.radians([v[i]])
+            for v, i in (
+                (lut.moon_zenith_deg, iz),
+                (lut.los_zenith_deg, il),
+                (lut.azimuth_deg, ia),
+                (lut.roll_deg, ip),
+            )
+        ]
         sat, moon, frame = _moonlit_scene(r, np.array([MOON_MEAN_DISTANCE_KM]), *node)
         for state in off.door_states_deg:
             d, g = lut.coefficients(sat, moon, frame, np.array([state]))
-            ref = off.earthshine_coefficients(sat, moon, moon, frame, np.array([state]), c.earth.radius_km,
-                                              in_field=False, sun=False, grid=cm.moonlit_earth.grid)
+            ref = off.earthshine_coefficients(
+                sat,
+                moon,
+                moon,
+                frame,
+                np.array([state]),
+                c.earth.radius_km,
+                in_field=False,
+                sun=False,
+                grid=cm.moonlit_earth.grid,
+            )
             assert d[0] == pytest.approx(ref["direct_moon"][0], rel=1e-9, abs=1e-40)
             assert g[0] == pytest.approx(ref["door_moon"][0], rel=1e-9, abs=1e-40)
 
@@ -383,15 +453,18 @@ def test_moonlit_table_matches_the_coarse_sum_in_real_scenes(moonlit):
     sat, sun, moon = sc.satellite_km[obs], sc.bodies_km["sun"][obs], sc.bodies_km["moon"][obs]
     frame = telescope_frame(los[obs], sun - sat)
     door = g["door_opening_deg"][obs]
-    ref = cm.context.offfield.earthshine_coefficients(sat, sun, moon, frame, door, c.earth.radius_km, in_field=False,
-                                              sun=False, grid=cm.moonlit_earth.grid)
+    ref = cm.context.offfield.earthshine_coefficients(
+        sat, sun, moon, frame, door, c.earth.radius_km, in_field=False, sun=False, grid=cm.moonlit_earth.grid
+    )
     d, gd = lut.coefficients(sat, moon, frame, door)
     moon_max = solar_like_fraction(moon_v_magnitude(0.0, MOON_PERIGEE_KM))
     direct = ref["direct_moon"] + ref["door_moon"]
     err = np.abs(d + gd - direct) * moon_max / (direct * moon_max + cm.context.earthshine_floor)
     share = ERROR_BUDGET_SHARES["moonlit_earthshine_grid"] * cm.policy.tolerance
-    print(f"moonlit table vs coarse sum at {obs.size} observable samples: {err.max():.2e} (validated "
-          f"{lut.validation_max_rel_error:.2e}, share {share:.2e})")
+    print(
+        f"moonlit table vs coarse sum at {obs.size} observable samples: {err.max():.2e} (validated "
+        f"{lut.validation_max_rel_error:.2e}, share {share:.2e})"
+    )
     assert obs.size == 300 and np.count_nonzero(direct > 0) > 100
     assert err.max() <= share
     assert 0.0 < lut.validation_max_rel_error <= share
@@ -432,11 +505,11 @@ def test_a_batch_of_time_steps_equals_each_step_alone(coarse):
     step's scene quantities (bodies' directions, planets' magnitudes, the Earth hiding each
     star) once per step (geometry.scene_runs).  The batch must give what each step alone gives,
     to float rounding: nothing may leak from one step's scene into another's."""
-    from straylight.sources.stars import split_stars
     from straylight.sky.geometry import observing_geometry
+    from straylight.sky.observing import scene
     from straylight.sky.runs import SceneRuns
     from straylight.sky.vectors import radec_to_unit
-    from straylight.sky.observing import scene
+    from straylight.sources.stars import split_stars
 
     c, cm, _ = coarse
     rng = np.random.default_rng(11)
@@ -451,8 +524,11 @@ def test_a_batch_of_time_steps_equals_each_step_alone(coarse):
         g = observing_geometry(sat, bodies, lines, c.earth.radius_km, c.constraints, runs=runs)
         return g, cm.evaluate(sat, bodies, lines, g, c.bands, stars, runs=runs)
 
-    batch_args = (np.repeat(sc.satellite_km, n_los, axis=0),
-                  {b: np.repeat(v, n_los, axis=0) for b, v in sc.bodies_km.items()}, np.tile(los, (k, 1)))
+    batch_args = (
+        np.repeat(sc.satellite_km, n_los, axis=0),
+        {b: np.repeat(v, n_los, axis=0) for b, v in sc.bodies_km.items()},
+        np.tile(los, (k, 1)),
+    )
     g_batch, batch = run(*batch_args)
     # the steps passed as known runs (as the cube passes them) change nothing, bit for bit
     g_known, known = run(*batch_args, runs=SceneRuns.steps(k, n_los))
@@ -464,9 +540,18 @@ def test_a_batch_of_time_steps_equals_each_step_alone(coarse):
     checked = 0
     for it in range(k):
         sl = slice(it * n_los, (it + 1) * n_los)
-        g, alone = run(np.broadcast_to(sc.satellite_km[it], los.shape),
-                       {b: np.broadcast_to(v[it], los.shape) for b, v in sc.bodies_km.items()}, los)
-        for key in ("sun_angle_deg", "moon_earth_blocked", "jupiter_phi_deg", "door_opening_deg", "observable"):
+        g, alone = run(
+            np.broadcast_to(sc.satellite_km[it], los.shape),
+            {b: np.broadcast_to(v[it], los.shape) for b, v in sc.bodies_km.items()},
+            los,
+        )
+        for key in (
+            "sun_angle_deg",
+            "moon_earth_blocked",
+            "jupiter_phi_deg",
+            "door_opening_deg",
+            "observable",
+        ):
             np.testing.assert_array_equal(g_batch[key][sl], g[key])
         for b in c.bands:
             for comp in ("moon", "planets", "stars", "earthshine", "total"):
@@ -479,11 +564,11 @@ def test_a_batch_of_time_steps_equals_each_step_alone(coarse):
 def test_cube_region_batches_steps_in_time_pixel_order(coarse):
     """compute_region on the table's path (its steps in one batch) puts each value at its own
     time and pixel: the same as evaluating each step alone."""
+    from straylight.sky.geometry import observing_geometry
+    from straylight.sky.observing import scene
+    from straylight.sky.vectors import radec_to_unit
     from straylight.survey.cube_region import compute_region
     from straylight.survey.footprint import footprint_from_config
-    from straylight.sky.geometry import observing_geometry
-    from straylight.sky.vectors import radec_to_unit
-    from straylight.sky.observing import scene
 
     c, cm, _ = coarse
     fp = footprint_from_config(c.config["footprint"])
@@ -506,11 +591,20 @@ def test_step_batches_are_even_and_within_the_cap():
     (or one step where a step alone exceeds it), sizes within one step of each other."""
     from straylight.survey.cube_region import _step_batches
 
-    for n_steps, n_pixels, cap in [(72, 1024, 65536), (72, 660, 131072), (7, 60, 150), (5, 10**6, 1000),
-                                   (72, 1024, 131072), (13, 1, 4), (0, 660, 65536)]:
+    for n_steps, n_pixels, cap in [
+        (72, 1024, 65536),
+        (72, 660, 131072),
+        (7, 60, 150),
+        (5, 10**6, 1000),
+        (72, 1024, 131072),
+        (13, 1, 4),
+        (0, 660, 65536),
+    ]:
         batches = _step_batches(n_steps, n_pixels, cap)
         sizes = [b.stop - b.start for b in batches]
-        assert [b.start for b in batches] == [sum(sizes[:i]) for i in range(len(sizes))] and sum(sizes) == n_steps
+        assert [b.start for b in batches] == [sum(sizes[:i]) for i in range(len(sizes))] and sum(
+            sizes
+        ) == n_steps
         assert all(s * n_pixels <= cap or s == 1 for s in sizes)
         assert not sizes or max(sizes) - min(sizes) <= 1
         # no more calls than the cap needs: ceil(steps / steps that fit)
@@ -528,7 +622,9 @@ def test_cube_region_split_into_calls_gives_the_same_values(coarse, monkeypatch)
     fp = footprint_from_config(c.config["footprint"])
     t_slice, p_slice = slice(0, 35, 5), slice(200, 260)
     whole = cube.compute_region(c, fp, t_slice, p_slice, model=cm)
-    monkeypatch.setattr(cube, "SAMPLES_PER_EVALUATION", 150)  # 7 steps of 60 pixels: calls of 1, 2, 2, 2 steps
+    monkeypatch.setattr(
+        cube, "SAMPLES_PER_EVALUATION", 150
+    )  # 7 steps of 60 pixels: calls of 1, 2, 2, 2 steps
     split = cube.compute_region(c, fp, t_slice, p_slice, model=cm)
     for name in list(cube.CUBE_COMPONENTS) + ["total", "observable", "violations", "door_opening_deg"]:
         np.testing.assert_array_equal(split[name].values, whole[name].values, err_msg=name)
@@ -539,8 +635,8 @@ def test_cube_region_with_its_time_blocks_scene_gives_the_same_values(coarse):
     """A pixel block given its time block's scene (cube.run_time_blocks computes it once for
     all its pixel blocks) equals one that computes its own; a scene at other times is refused."""
     import straylight.survey.cube_region as cube
-    from straylight.survey.footprint import footprint_from_config
     from straylight.sky.observing import scene
+    from straylight.survey.footprint import footprint_from_config
 
     c, cm, _ = coarse
     fp = footprint_from_config(c.config["footprint"])
@@ -563,8 +659,8 @@ def test_evaluate_into_a_given_array_writes_the_same_values(coarse):
     to float32, and returns no other; an unknown name or a wrongly shaped array is refused."""
     from straylight.model import BAND_COMPONENTS
     from straylight.sky.geometry import observing_geometry
-    from straylight.sky.vectors import radec_to_unit
     from straylight.sky.observing import scene
+    from straylight.sky.vectors import radec_to_unit
 
     c, cm, _ = coarse
     sc = scene(c.orbit, c.times[0:20:5])
@@ -585,14 +681,22 @@ def test_evaluate_into_a_given_array_writes_the_same_values(coarse):
         # the plain call's components add up to its total (to rounding: the same order of sums)
         parts = sum(plain[b][k] for k in ("zodiacal", "sun", "moon", "planets", "stars", "earthshine"))
         np.testing.assert_allclose(plain[b]["total"], parts, rtol=1e-15)
-        np.testing.assert_array_equal(plain[b]["earthshine"], plain[b]["earthshine_direct"] + plain[b]["earthshine_door"])
+        np.testing.assert_array_equal(
+            plain[b]["earthshine"], plain[b]["earthshine_direct"] + plain[b]["earthshine_door"]
+        )
     assert np.count_nonzero(into[1]) > 0 and np.all(into[0] > 0)
     with pytest.raises(ValueError, match="not \\(components, samples, bands\\) = \\(1, 200, 7\\)"):
-        cm.evaluate(sat, bodies, los_k, g, c.bands, into=(("total",), np.zeros((1, 199, len(c.bands)), np.float32)))
+        cm.evaluate(
+            sat, bodies, los_k, g, c.bands, into=(("total",), np.zeros((1, 199, len(c.bands)), np.float32))
+        )
     with pytest.raises(ValueError, match="unknown: \\['sky'\\]"):
-        cm.evaluate(sat, bodies, los_k, g, c.bands, into=(("sky",), np.zeros((1, 200, len(c.bands)), np.float32)))
+        cm.evaluate(
+            sat, bodies, los_k, g, c.bands, into=(("sky",), np.zeros((1, 200, len(c.bands)), np.float32))
+        )
     with pytest.raises(ValueError, match="each at most once"):
-        cm.evaluate(sat, bodies, los_k, g, c.bands, into=(("total", "total"), np.zeros((2, 200, 7), np.float32)))
+        cm.evaluate(
+            sat, bodies, los_k, g, c.bands, into=(("total", "total"), np.zeros((2, 200, 7), np.float32))
+        )
 
 
 def test_cube_region_skipping_unobservable_samples_changes_no_observable_value(coarse):
@@ -620,19 +724,24 @@ def test_cube_region_skipping_unobservable_samples_changes_no_observable_value(c
         assert np.all(np.isnan(skip[comp].values[~obs]))
     assert np.count_nonzero(every["moon"].values[obs]) > 0  # a skippable term was summed somewhere
     assert cm.models_record()["unobservable_samples"] == "evaluated"
-    assert BackgroundModel(c_skip).models_record()["unobservable_samples"] == \
-        "skipped: NaN in every component"
+    assert (
+        BackgroundModel(c_skip).models_record()["unobservable_samples"] == "skipped: NaN in every component"
+    )
 
 
 def test_scene_runs_group_consecutive_samples_that_share_a_scene():
     from straylight.sky.runs import scene_runs, shared_vectors
 
-    a = np.repeat(np.array([[1.0, 0, 0], [0, 1.0, 0], [1.0, 0, 0]]), 4, axis=0)  # 3 runs; the third repeats the first
+    a = np.repeat(
+        np.array([[1.0, 0, 0], [0, 1.0, 0], [1.0, 0, 0]]), 4, axis=0
+    )  # 3 runs; the third repeats the first
     b = np.repeat(np.array([[0, 0, 1.0], [0, 0, 1.0], [0, 0, 2.0]]), 4, axis=0)
     runs = scene_runs(a, b)
     assert runs.count == 3 and runs.index.tolist() == [0] * 4 + [1] * 4 + [2] * 4
     np.testing.assert_array_equal(runs.expand(runs.vectors[0]), a)
-    np.testing.assert_array_equal(runs.expand(np.arange(3.0)).reshape(3, 4), np.repeat(np.arange(3.0)[:, None], 4, 1))
+    np.testing.assert_array_equal(
+        runs.expand(np.arange(3.0)).reshape(3, 4), np.repeat(np.arange(3.0)[:, None], 4, 1)
+    )
     b2 = b.copy()
     b2[5, 2] = 3.0  # one sample differs: a run of its own, and the next sample starts another
     assert scene_runs(a, b2).count == 5
@@ -655,8 +764,11 @@ def test_known_runs_read_what_the_scan_finds():
     a = np.repeat(rng.normal(size=(steps, 3)), per_step, axis=0)
     b = np.repeat(rng.normal(size=(steps, 3)), per_step, axis=0)
     known = SceneRuns.steps(steps, per_step)
-    for found, given in ((scene_runs(a, b), known.of(a, b)), (scene_runs(a, b), scene_runs(a, b, runs=known)),
-                         (scene_rows(b), scene_rows(b, runs=known))):
+    for found, given in (
+        (scene_runs(a, b), known.of(a, b)),
+        (scene_runs(a, b), scene_runs(a, b, runs=known)),
+        (scene_rows(b), scene_rows(b, runs=known)),
+    ):
         assert given.count == found.count == steps and given.shape == found.shape
         np.testing.assert_array_equal(given.index, found.index)
         np.testing.assert_array_equal(given.starts, found.starts)

@@ -2,22 +2,22 @@
 
 Reference numbers: the seed paper (sect. 1, 2.1, 2.2, 3.2, 3.3; Table 1), each quoted in its test,
 and closed-form geometry."""
+
 import numpy as np
 import pytest
+from conftest import SHARED_DATA
 
-from straylight.model import BackgroundModel
-from straylight.sources.stars import OffFieldStars, StarTable
-from straylight.optics.door import Door, door_length_from_paper
 from straylight.errors import ConfigError, InputError
+from straylight.model import BackgroundModel
+from straylight.optics.door import Door, door_length_from_paper
+from straylight.optics.pst import PST, default_pst_grid, load_pst, write_pst_csv
 from straylight.sky.frames import TelescopeFrame, telescope_frame
 from straylight.sky.geometry import observing_geometry
 from straylight.sky.vectors import radec_to_unit
-from straylight.sources.offfield import EarthshineSettings
 from straylight.sources.bodies import moon_v_magnitude, planet_v_magnitude
+from straylight.sources.offfield import EarthshineSettings
 from straylight.sources.photometry import solar_like_fraction
-from straylight.optics.pst import PST, default_pst_grid, load_pst, write_pst_csv
-
-from conftest import SHARED_DATA
+from straylight.sources.stars import OffFieldStars, StarTable
 
 RE = 6378.137
 AU = 1.495978707e8
@@ -52,7 +52,9 @@ def test_default_pst_is_at_most_1e_4_just_outside_the_field():
     assert float(pst(r - 0.02, 0.0)) == pytest.approx(1.0)  # in the field: the image
     # the instrument's own field radius moves the step with it
     wide = load_pst(None, field_radius_deg=1.0)
-    assert float(wide(0.95, 0.0)) > 0.5 and float(np.max(wide(np.linspace(1.0, 2.0, 101)[:, None], phi))) <= 1e-4 * (1 + 1e-9)
+    assert float(wide(0.95, 0.0)) > 0.5 and float(
+        np.max(wide(np.linspace(1.0, 2.0, 101)[:, None], phi))
+    ) <= 1e-4 * (1 + 1e-9)
 
 
 def test_uniform_sky_out_of_field_light_is_negligible():
@@ -78,11 +80,14 @@ def test_pst_file_round_trip_and_interpolation_is_exact_at_nodes(tmp_path):
     np.testing.assert_allclose(pst(th[:, None], ph[None, :]), v, rtol=1e-6)
 
 
-@pytest.mark.parametrize("mutate,match", [
-    (lambda th, ph, v: (th, ph, np.where(v > 1e-7, v, -1.0)), "must be finite and > 0"),
-    (lambda th, ph, v: (th, ph, np.where(v > 1e-7, v, np.nan)), "must be finite and > 0"),
-    (lambda th, ph, v: (th[:-10], ph, v[:-10]), "must cover 0-180"),
-])
+@pytest.mark.parametrize(
+    "mutate,match",
+    [
+        (lambda th, ph, v: (th, ph, np.where(v > 1e-7, v, -1.0)), "must be finite and > 0"),
+        (lambda th, ph, v: (th, ph, np.where(v > 1e-7, v, np.nan)), "must be finite and > 0"),
+        (lambda th, ph, v: (th[:-10], ph, v[:-10]), "must cover 0-180"),
+    ],
+)
 def test_invalid_pst_is_refused(tmp_path, mutate, match):
     th, ph, v = default_pst_grid(theta_step_deg=2.0, phi_step_deg=10.0)
     th, ph, v = mutate(th, ph, v)
@@ -280,13 +285,17 @@ def test_star_term_sums_off_field_stars(campaign, comp_model, exact_model):
     band = exact_model.context.band("g")
     frame = telescope_frame(los, sun - sat)
     th, ph = frame.theta_phi_deg(radec_to_unit(30.0, 0.0))
-    expected = band.ab_zero_point_photons_s_m2 * off.pst(th, ph) * off.door_factor(th, ph, 135.0) * off.pixel_area_m2
+    expected = (
+        band.ab_zero_point_photons_s_m2 * off.pst(th, ph) * off.door_factor(th, ph, 135.0) * off.pixel_area_m2
+    )
     assert float(out["g"]["stars"][0]) == pytest.approx(float(np.ravel(expected)[0]), rel=1e-9)
     skipped = comp_model.evaluate(sat, bodies, los, g, ["g"], stars=stars)
     assert float(skipped["g"]["stars"][0]) == 0.0
     # skipping it is within the budget: its exact value is below tolerance / 8 of the darkest
     # zodiacal light (the share all skipped stars take together)
-    assert float(expected.ravel()[0]) < 0.125 * comp_model.policy.tolerance * comp_model.context.darkest_zodiacal_e_per_s("g")
+    assert float(
+        expected.ravel()[0]
+    ) < 0.125 * comp_model.policy.tolerance * comp_model.context.darkest_zodiacal_e_per_s("g")
 
 
 def test_star_skipping_stays_within_its_budget(campaign, comp_model, exact_model):
@@ -336,12 +345,20 @@ def _star_skip_check(model, stars, frame, sat, door, floor_ratio, pairs):
 
     n_stars = len(stars.ra_deg)
     r, k, t = pairs
-    theta, phi = TelescopeFrame(frame.x[:, None], frame.y[:, None], frame.z[:, None]).theta_phi_deg(stars.unit[None])
-    counts = ~earth_blocks(sat[:, None], stars.unit[None], RE) & (theta > model.context.offfield.field_radius_deg)
+    theta, phi = TelescopeFrame(frame.x[:, None], frame.y[:, None], frame.z[:, None]).theta_phi_deg(
+        stars.unit[None]
+    )
+    counts = ~earth_blocks(sat[:, None], stars.unit[None], RE) & (
+        theta > model.context.offfield.field_radius_deg
+    )
     assert np.all(counts[r, k])
     assert np.unique(r * n_stars + k).size == r.size  # no pair twice
-    np.testing.assert_allclose(t, model.context.offfield.point_source(1.0, theta[r, k], phi[r, k], False, door[r]),
-                               rtol=1e-10, atol=0.0)  # the angles of a matrix product, not of one pair
+    np.testing.assert_allclose(
+        t,
+        model.context.offfield.point_source(1.0, theta[r, k], phi[r, k], False, door[r]),
+        rtol=1e-10,
+        atol=0.0,
+    )  # the angles of a matrix product, not of one pair
     skipped = counts.copy()
     skipped[r, k] = False
     budget = ERROR_BUDGET_SHARES["stars_skip"] * model.policy.tolerance * floor_ratio
@@ -350,16 +367,28 @@ def _star_skip_check(model, stars, frame, sat, door, floor_ratio, pairs):
     assert used.max() <= 1.0
     transfer = model.context.offfield.point_source(1.0, theta, phi, False, door[:, None])
     for b in stars.mag_ab:
-        e = np.sum(np.where(skipped, transfer * model.context.photometry(b).from_ab(stars.mag_ab[b])[None], 0.0), axis=1)
+        e = np.sum(
+            np.where(skipped, transfer * model.context.photometry(b).from_ab(stars.mag_ab[b])[None], 0.0),
+            axis=1,
+        )
         assert np.all(e <= budget * model.context.darkest_zodiacal_e_per_s(b))
     return used.max(), int(counts.sum())
 
 
-@pytest.mark.parametrize("nside, pairs_per_pass, list_entries",
-                         [(32, 1 << 20, 16_000_000), (4, 1 << 20, 16_000_000), (64, 1 << 20, 16_000_000),
-                          (32, 997, 16_000_000), (32, 1 << 20, 2_000), (32, 997, 0)])
-def test_star_sky_cells_skip_within_the_budget_at_every_line_of_sight(campaign, comp_model, nside, pairs_per_pass,
-                                                                     list_entries, monkeypatch):
+@pytest.mark.parametrize(
+    "nside, pairs_per_pass, list_entries",
+    [
+        (32, 1 << 20, 16_000_000),
+        (4, 1 << 20, 16_000_000),
+        (64, 1 << 20, 16_000_000),
+        (32, 997, 16_000_000),
+        (32, 1 << 20, 2_000),
+        (32, 997, 0),
+    ],
+)
+def test_star_sky_cells_skip_within_the_budget_at_every_line_of_sight(
+    campaign, comp_model, nside, pairs_per_pass, list_entries, monkeypatch
+):
     """The star term sums, per sky cell and floor level, the stars that the cell's bounds do not
     let it skip (OffFieldStars.star_cells): at lines of sight at the poles, on the RA wrap,
     near the stars themselves and on cell corners, at every floor level, whatever the cells'
@@ -409,7 +438,10 @@ def test_star_sky_cells_skip_within_the_budget_at_every_line_of_sight(campaign, 
     assert cells.stars.size <= list_entries
     _, capped = comp_model.stars.pairs(stars, frame, sat, door, floor_ratio)
     _star_skip_check(comp_model, stars, frame, sat, door, floor_ratio, capped)
-    got, ref = set(zip(capped[0].tolist(), capped[1].tolist())), set(zip(pairs[0].tolist(), pairs[1].tolist()))
+    got, ref = (
+        set(zip(capped[0].tolist(), capped[1].tolist())),
+        set(zip(pairs[0].tolist(), pairs[1].tolist())),
+    )
     assert got == ref if list_entries >= 16_000_000 else got >= ref
     if list_entries < 16_000_000:
         assert cells.sky_count[0] > 0 and len(got) > len(ref)
@@ -420,6 +452,7 @@ def test_star_sky_cells_skip_within_the_budget_at_every_line_of_sight(campaign, 
     mags = rng.uniform(-1.0, 3.0, m)
     edge_scale = comp_model.stars.bound_scale(StarTable(np.zeros(m), np.zeros(m), {b: mags for b in bands}))
     from straylight.model import ERROR_BUDGET_SHARES
+
     limit = ERROR_BUDGET_SHARES["stars_skip"] * comp_model.policy.tolerance / edge_scale
     radius = np.radians(comp_model.context.offfield.pst.influence_radius_deg(limit)) - 1e-7
     assert np.all(comp_model.context.offfield.pst.tail_max(np.degrees(radius)) > limit)
@@ -432,8 +465,11 @@ def test_star_sky_cells_skip_within_the_budget_at_every_line_of_sight(campaign, 
     away -= (away * los).sum(1, keepdims=True) * los
     away /= np.linalg.norm(away, axis=1, keepdims=True)
     star = np.cos(radius)[:, None] * los + np.sin(radius)[:, None] * away
-    edge = StarTable(np.degrees(np.arctan2(star[:, 1], star[:, 0])) % 360.0, np.degrees(np.arcsin(star[:, 2])),
-                     {b: mags for b in bands})
+    edge = StarTable(
+        np.degrees(np.arctan2(star[:, 1], star[:, 0])) % 360.0,
+        np.degrees(np.arcsin(star[:, 2])),
+        {b: mags for b in bands},
+    )
     sat = np.broadcast_to(-(RE + 400.0) * los[0], (m, 3))  # the Earth behind the first line of sight
     frame = telescope_frame(los, sun - sat)
     door = np.full(m, comp_model.context.offfield.door_states_deg[-1])
@@ -485,8 +521,9 @@ def test_moon_and_planet_skipping_stays_within_its_budget(campaign, comp_model, 
     args = (sc.satellite_km, sc.bodies_km, los, g, bands)
     fast, exact = comp_model.evaluate(*args), exact_model.evaluate(*args)
     for b in bands:
-        err = (np.abs(fast[b]["planets"] - exact[b]["planets"]) + np.abs(fast[b]["moon"] - exact[b]["moon"])) \
-            / exact[b]["total"]
+        err = (
+            np.abs(fast[b]["planets"] - exact[b]["planets"]) + np.abs(fast[b]["moon"] - exact[b]["moon"])
+        ) / exact[b]["total"]
         assert err.max() <= 0.125 * comp_model.policy.tolerance
         assert np.all(fast[b]["planets"] <= exact[b]["planets"] * (1 + 1e-12))  # skipping only removes
     assert np.count_nonzero(exact["g"]["planets"] > fast["g"]["planets"]) > 0  # some were skipped
@@ -498,8 +535,14 @@ def test_skip_radius_shrinks_with_the_samples_floor(comp_model):
     transfer runs; where the sample's floor is 10^4 times the darkest sky (the bright limb, the
     Sun near) the same bound is below its share and the planet is skipped (0)."""
     off = comp_model.context.offfield
-    args = (solar_like_fraction(-4.0), np.array([20.0]), np.array([30.0]), np.array([False]), np.array([135.0]),
-            ["g"])
+    args = (
+        solar_like_fraction(-4.0),
+        np.array([20.0]),
+        np.array([30.0]),
+        np.array([False]),
+        np.array([135.0]),
+        ["g"],
+    )
     exact = off.point_source(1.0, *args[1:5])
     at_darkest = comp_model.body_skip.transfer(*args, floor_ratio=np.array([1.0]))
     bright = comp_model.body_skip.transfer(*args, floor_ratio=np.array([1e4]))
@@ -523,11 +566,24 @@ def test_skipping_a_source_for_a_whole_batch_is_the_per_sample_rule(comp_model):
     for lo in (60.0, 5.0):
         angle = rng.uniform(lo, 170.0, n)
         batch = comp_model.body_skip.transfer(frac, angle, phi, blocked, door, ["g", "z"], floor_ratio=floor)
-        alone = np.concatenate([comp_model.body_skip.transfer(frac, angle[i:i + 1], phi[i:i + 1], blocked[i:i + 1],
-                                                               door[i:i + 1], ["g", "z"], floor_ratio=floor[i:i + 1])
-                                for i in range(n)])
+        alone = np.concatenate(
+            [
+                comp_model.body_skip.transfer(
+                    frac,
+                    angle[i : i + 1],
+                    phi[i : i + 1],
+                    blocked[i : i + 1],
+                    door[i : i + 1],
+                    ["g", "z"],
+                    floor_ratio=floor[i : i + 1],
+                )
+                for i in range(n)
+            ]
+        )
         assert np.array_equal(batch, alone)
-        assert (np.count_nonzero(batch) == 0) == (lo == 60.0)  # the far batch is all skipped, the near one not
+        assert (np.count_nonzero(batch) == 0) == (
+            lo == 60.0
+        )  # the far batch is all skipped, the near one not
 
 
 def test_planet_angles_only_where_they_can_count_change_no_transfer(campaign, comp_model):
@@ -562,10 +618,18 @@ def test_planet_angles_only_where_they_can_count_change_no_transfer(campaign, co
         runs = scene_runs(sat, sun, venus)
         assert (runs is None) == per_sample_scene
         for floor in (np.ones(n), 10.0 ** rng.uniform(0.0, 4.0, n)):
-            rule = comp_model.body_skip.transfer(frac, g["venus_angle_deg"], g["venus_phi_deg"],
-                                                  g["venus_earth_blocked"], door, ["g", "z"], floor_ratio=floor)
-            lazy = comp_model.planets.fraction(sat, {"sun": sun, "venus": venus}, frame, door, ["g", "z"], floor,
-                                                (n,))
+            rule = comp_model.body_skip.transfer(
+                frac,
+                g["venus_angle_deg"],
+                g["venus_phi_deg"],
+                g["venus_earth_blocked"],
+                door,
+                ["g", "z"],
+                floor_ratio=floor,
+            )
+            lazy = comp_model.planets.fraction(
+                sat, {"sun": sun, "venus": venus}, frame, door, ["g", "z"], floor, (n,)
+            )
             assert np.array_equal(lazy, rule * frac)
             assert 0 < np.count_nonzero(rule) < n  # some samples near enough to count, some not
 
@@ -585,7 +649,9 @@ def test_planets_together_are_the_sum_of_each_planets_per_sample_rule(campaign, 
     venus_steps = np.array([[0.3 * AU, 0.2 * AU, 0.6 * AU], [0.31 * AU, 0.19 * AU, 0.61 * AU]])
     jupiter_steps = np.array([[-4.0 * AU, 2.0 * AU, 0.5 * AU], [-4.0 * AU, 2.01 * AU, 0.5 * AU]])
     step = np.repeat([0, 1], n // 2)
-    target = np.where((np.arange(n) % 2 == 0)[:, None], venus_steps[step], jupiter_steps[step]) - sat_steps[step]
+    target = (
+        np.where((np.arange(n) % 2 == 0)[:, None], venus_steps[step], jupiter_steps[step]) - sat_steps[step]
+    )
     u = target / np.linalg.norm(target, axis=1, keepdims=True)
     perp = np.cross(u, rng.normal(size=u.shape))
     perp /= np.linalg.norm(perp, axis=1, keepdims=True)
@@ -602,9 +668,19 @@ def test_planets_together_are_the_sum_of_each_planets_per_sample_rule(campaign, 
             rule = np.zeros(n)
             for p in ("venus", "jupiter"):
                 fraction = solar_like_fraction(planet_v_magnitude(p, bodies[p], bodies["sun"], sat))
-                rule = rule + comp_model.body_skip.transfer(fraction, g[f"{p}_angle_deg"], g[f"{p}_phi_deg"],
-                                                             g[f"{p}_earth_blocked"], door, bands,
-                                                             floor_ratio=floor) * fraction
+                rule = (
+                    rule
+                    + comp_model.body_skip.transfer(
+                        fraction,
+                        g[f"{p}_angle_deg"],
+                        g[f"{p}_phi_deg"],
+                        g[f"{p}_earth_blocked"],
+                        door,
+                        bands,
+                        floor_ratio=floor,
+                    )
+                    * fraction
+                )
             together = comp_model.planets.fraction(sat, bodies, frame, door, bands, floor, (n,))
             np.testing.assert_array_equal(together, rule)
             assert 0 < np.count_nonzero(rule) < n
@@ -620,10 +696,17 @@ def test_new_moon_far_from_the_line_of_sight_is_skipped(campaign, comp_model, ex
     sun = np.array([[AU * np.sin(t), AU * np.cos(t), 0.0]])
     moon = np.array([[0.0, 384400.0, 0.0]])
     bodies, g = _scene_sample(los, sat, sun, moon, campaign)
-    fast, exact = comp_model.evaluate(sat, bodies, los, g, ["g"]), exact_model.evaluate(sat, bodies, los, g, ["g"])
+    fast, exact = (
+        comp_model.evaluate(sat, bodies, los, g, ["g"]),
+        exact_model.evaluate(sat, bodies, los, g, ["g"]),
+    )
     assert float(g["moon_angle_deg"][0]) == pytest.approx(90.0, abs=0.1)
     assert float(fast["g"]["moon"][0]) == 0.0
-    assert 0.0 < float(exact["g"]["moon"][0]) < comp_model.policy.tolerance / 72 * comp_model.context.darkest_zodiacal_e_per_s("g")
+    assert (
+        0.0
+        < float(exact["g"]["moon"][0])
+        < comp_model.policy.tolerance / 72 * comp_model.context.darkest_zodiacal_e_per_s("g")
+    )
 
 
 def test_sun_term_is_never_skipped_on_its_bound(campaign, comp_model):
@@ -637,8 +720,9 @@ def test_sun_term_is_never_skipped_on_its_bound(campaign, comp_model):
 
     sc, los, g = random_samples(campaign, 3000, seed=9)
     out = comp_model.evaluate(sc.satellite_km, sc.bodies_km, los, g, ["g"])
-    t = comp_model.context.offfield.point_source(1.0, g["sun_angle_deg"], g["sun_phi_deg"], g["sun_earth_blocked"],
-                                         g["door_opening_deg"])
+    t = comp_model.context.offfield.point_source(
+        1.0, g["sun_angle_deg"], g["sun_phi_deg"], g["sun_earth_blocked"], g["door_opening_deg"]
+    )
     d_au = np.linalg.norm(sc.bodies_km["sun"] - sc.satellite_km, axis=-1) / 1.495978707e8
     expected = t * comp_model.context.photometry("g").sun_at_1au_photons_s_m2 / d_au**2
     np.testing.assert_allclose(out["g"]["sun"], expected, rtol=1e-12, atol=0)
@@ -663,7 +747,11 @@ def test_point_source_is_se_sp_pst_wherever_it_looks_tables_up(campaign, comp_mo
         th, ph, blocked = g[f"{body}_angle_deg"], g[f"{body}_phi_deg"], g[f"{body}_earth_blocked"]
         expected = np.where(blocked, 0.0, off.door_factor(th, ph, door) * off.pst(th, ph)) * off.pixel_area_m2
         for hidden in (blocked, np.zeros_like(blocked)):
-            want = expected if hidden is blocked else off.door_factor(th, ph, door) * off.pst(th, ph) * off.pixel_area_m2
+            want = (
+                expected
+                if hidden is blocked
+                else off.door_factor(th, ph, door) * off.pst(th, ph) * off.pixel_area_m2
+            )
             np.testing.assert_array_equal(off.point_source(1.0, th, ph, hidden, door), want)
         if body == "sun":  # all three kinds of sample were there
             shaded = ~blocked & (off.door_factor(th, ph, door) == 0)
@@ -678,12 +766,16 @@ def test_faint_star_map_is_the_azimuth_averaged_pst_sum(campaign, comp_model):
     sun = np.array([[-AU, 0.0, 1.0]])
     bodies, g = _scene_sample(los, sat, sun, np.array([[0.0, 0.0, 384400.0]]), campaign)
     theta = np.array([0.3, 2.0, 40.0])
-    stars = StarTable(np.zeros(0), np.zeros(0), {"g": np.zeros(0)}, theta, np.zeros(3), {"g": np.array([1.0, 2.0, 3.0])})
+    stars = StarTable(
+        np.zeros(0), np.zeros(0), {"g": np.zeros(0)}, theta, np.zeros(3), {"g": np.array([1.0, 2.0, 3.0])}
+    )
     out = comp_model.evaluate(sat, bodies, los, g, ["g"], stars=stars)
     off, band = comp_model.context.offfield, comp_model.context.band("g")
     flux = band.ab_zero_point_photons_s_m2 * 10 ** (-0.4 * np.array([2.0, 3.0]))
     expected = np.sum(flux * off.pst.azimuthal_mean(theta[1:])) * off.pixel_area_m2
-    assert float(out["g"]["stars"][0]) == pytest.approx(expected, rel=2e-3)  # 0.01 deg table, log interpolation
+    assert float(out["g"]["stars"][0]) == pytest.approx(
+        expected, rel=2e-3
+    )  # 0.01 deg table, log interpolation
 
 
 def test_faint_star_map_kept_on_disk_is_read_back_only_for_the_same_inputs(comp_model, tmp_path, monkeypatch):
@@ -697,8 +789,7 @@ def test_faint_star_map_kept_on_disk_is_read_back_only_for_the_same_inputs(comp_
     n = 500
 
     def table(mag):
-        return StarTable(np.zeros(0), np.zeros(0), {"g": np.zeros(0)}, ra, dec,
-                         {"g": mag})
+        return StarTable(np.zeros(0), np.zeros(0), {"g": np.zeros(0)}, ra, dec, {"g": mag})
 
     ra, dec, mag = rng.uniform(0, 360, n), np.degrees(np.arcsin(rng.uniform(-1, 1, n))), rng.uniform(5, 9, n)
     los = rng.normal(size=(50, 3))
@@ -765,7 +856,9 @@ def test_uniform_lambertian_cap_matches_analytic_irradiance(comp_model):
     assert np.allclose(np.linalg.norm(pts, axis=-1), RE, rtol=1e-9)  # blocks lie on the Earth
 
 
-def _earthshine(comp_model, campaign, limb_offset_deg, n_gamma=24, n_psi=48, moon_phase_full=False, sun_up=True):
+def _earthshine(
+    comp_model, campaign, limb_offset_deg, n_gamma=24, n_psi=48, moon_phase_full=False, sun_up=True
+):
     import copy
 
     off = copy.copy(comp_model.context.offfield)
@@ -781,8 +874,16 @@ def _earthshine(comp_model, campaign, limb_offset_deg, n_gamma=24, n_psi=48, moo
     bodies, g = _scene_sample(los, sat, sun, moon, campaign)
     frame = telescope_frame(los, sun - sat)
     phot_sun = 5e20
-    ea1, ea2 = off.earthshine_terms(sat, sun, moon, frame, g["door_opening_deg"], np.array([phot_sun]),
-                                    np.array([phot_sun * 10 ** (-0.4 * 13.99)]), RE)
+    ea1, ea2 = off.earthshine_terms(
+        sat,
+        sun,
+        moon,
+        frame,
+        g["door_opening_deg"],
+        np.array([phot_sun]),
+        np.array([phot_sun * 10 ** (-0.4 * 13.99)]),
+        RE,
+    )
     return float(ea1[0] + ea2[0])
 
 
@@ -816,8 +917,8 @@ def test_bad_earthshine_settings():
 
 def test_negative_albedo_in_config_is_refused(tmp_path):
     import yaml
-
     from conftest import REPO
+
     from straylight.config import load_campaign
 
     cfg = yaml.safe_load((REPO / "config" / "config.yaml").read_text())
@@ -867,8 +968,10 @@ def test_scenario_reaches_hsts_20_deg_earthshine_70_deg_from_the_bright_limb(pap
     from straylight.paper.scenarios import hst_comparison, plot_earthshine_scenario
 
     if not HST_CURVE.exists():
-        pytest.skip(f"{HST_CURVE} is absent: the HST WFC3 earthshine curve is test and validation only "
-                    "(shared/data/DATA.md)")
+        pytest.skip(
+            f"{HST_CURVE} is absent: the HST WFC3 earthshine curve is test and validation only "
+            "(shared/data/DATA.md)"
+        )
     cmp = hst_comparison(paper_scenario, HST_CURVE)
     assert cmp["hst_v_mag_per_arcsec2"] == pytest.approx(20.6, abs=0.05)
     assert cmp["csst_crossing_limb_angle_deg"] == pytest.approx(70.0, abs=5.0)
@@ -896,8 +999,13 @@ def test_pst_file_formats(tmp_path, fmt):
         from astropy.table import Table
 
         p = tmp_path / "pst.fits"
-        fits.HDUList([fits.PrimaryHDU(v), fits.BinTableHDU(Table({"theta_deg": th}), name="THETA"),
-                      fits.BinTableHDU(Table({"phi_deg": ph}), name="PHI")]).writeto(p)
+        fits.HDUList(
+            [
+                fits.PrimaryHDU(v),
+                fits.BinTableHDU(Table({"theta_deg": th}), name="THETA"),
+                fits.BinTableHDU(Table({"phi_deg": ph}), name="PHI"),
+            ]
+        ).writeto(p)
     elif fmt == "zarr":
         import xarray as xr
 
@@ -921,7 +1029,9 @@ def test_band_independent_earthshine_equals_per_band(comp_model):
     sun, moon = np.array([[AU, 0.2 * AU, 0.0]]), np.array([[-2e5, 3e5, 1e4]])
     frame = telescope_frame(los, sun - sat)
     c = off.earthshine_coefficients(sat, sun, moon, frame, np.array([135.0]), RE)
-    a, b = off.earthshine_terms(sat, sun, moon, frame, np.array([135.0]), np.array([3.0]), np.array([2.0]), RE)
+    a, b = off.earthshine_terms(
+        sat, sun, moon, frame, np.array([135.0]), np.array([3.0]), np.array([2.0]), RE
+    )
     assert float(a[0]) == pytest.approx(float(3 * c["direct_sun"][0] + 2 * c["direct_moon"][0]), rel=1e-12)
     assert float(b[0]) == pytest.approx(float(3 * c["door_sun"][0] + 2 * c["door_moon"][0]), rel=1e-12)
 
@@ -941,8 +1051,10 @@ def test_one_scene_earthshine_equals_per_sample_sum(comp_model, sun_x):
     door = rng.choice([135.0, 105.0, 0.0], size=300)
     fast = off.earthshine_coefficients(sat, sun, moon, frame, door, RE)
     for i in range(0, 300, 7):
-        fr = telescope_frame(los[i:i + 1], sun[i:i + 1] - sat[i:i + 1])
-        ref = off.earthshine_coefficients(sat[i:i + 1], sun[i:i + 1], moon[i:i + 1], fr, door[i:i + 1], RE)
+        fr = telescope_frame(los[i : i + 1], sun[i : i + 1] - sat[i : i + 1])
+        ref = off.earthshine_coefficients(
+            sat[i : i + 1], sun[i : i + 1], moon[i : i + 1], fr, door[i : i + 1], RE
+        )
         for k in ref:
             assert float(fast[k][i]) == pytest.approx(float(ref[k][0]), rel=1e-9, abs=1e-300), (k, i)
     if sun_x < 0:  # the Sun below the cap: only moonlight
@@ -958,8 +1070,13 @@ def test_door_state_index_matches_numpys_searchsorted():
     rng = np.random.default_rng(7)
     for states in ([90.0], [45.0, 135.0], [30.0, 60.0, 90.0, 135.0]):
         st = np.array(states)
-        op = np.concatenate([rng.choice(np.concatenate([st, [0.0, -5.0]]), 500), rng.uniform(-10, 200, 500),
-                             [np.nan, 0.0, st[0], st[-1], st[-1] + 1e-9, st[0] - 1e-9]]).reshape(2, -1)
+        op = np.concatenate(
+            [
+                rng.choice(np.concatenate([st, [0.0, -5.0]]), 500),
+                rng.uniform(-10, 200, 500),
+                [np.nan, 0.0, st[0], st[-1], st[-1] + 1e-9, st[0] - 1e-9],
+            ]
+        ).reshape(2, -1)
         index, known = door_state_index(states, op)
         ref_index = np.where(op <= 0, 0, np.minimum(np.searchsorted(st, op), st.size - 1))
         ref_known = (st[ref_index] == op) | (op <= 0)
@@ -983,7 +1100,9 @@ def test_beyond_influence_radius_matches_the_radius_per_sample(grid):
         th, ph = np.arange(0.0, 180.1, 2.0), np.arange(0.0, 361.0, 10.0)
         pst = PST(th, ph, 10.0 ** (-2.0 - th[:, None] / 30.0 + 0.1 * np.cos(np.radians(ph))[None, :]))
     rng = np.random.default_rng(11)
-    angle = np.concatenate([rng.uniform(0.0, 180.0, 20000), pst.theta_deg, [0.0, 180.0, np.nan, 179.9999, 1e-12]])
+    angle = np.concatenate(
+        [rng.uniform(0.0, 180.0, 20000), pst.theta_deg, [0.0, 180.0, np.nan, 179.9999, 1e-12]]
+    )
     tails = np.maximum.accumulate(pst.values.max(axis=1)[::-1])[::-1]
     for limit in (10.0 ** rng.uniform(-14.0, 0.0, angle.size), rng.choice(tails, angle.size)):
         radius = pst.influence_radius_deg(limit)
@@ -1000,9 +1119,9 @@ def test_planet_in_the_field_is_a_point_source_not_a_background(campaign, tmp_pa
     Table 1 quotes -2.9 at its brightest) and its band AB magnitude.  Just outside the field
     the PST applies as before."""
     from straylight.cli.sky import sky_record
+    from straylight.sky.observing import scene
     from straylight.sky.vectors import unit
     from straylight.survey.pointings import pointing_table
-    from straylight.sky.observing import scene
 
     t = "2026-01-01T00:50:00"
     sc = scene(campaign.orbit, t)
@@ -1017,10 +1136,15 @@ def test_planet_in_the_field_is_a_point_source_not_a_background(campaign, tmp_pa
     assert src["mag_ab"]["g"] == pytest.approx(src["v_mag"] + 0.30, abs=0.1)  # solar g_AB - V ~ +0.3
     # 0.8 deg away (outside the 0.59 deg field radius) the planet is off-field light again
     outside = sky_record(campaign, t, ra, dec + 0.8, ["g"])
-    assert outside["bands"]["g"]["planets"]["e_per_s_per_pix"] > 0.0 and outside["in_field_point_sources"] == []
+    assert (
+        outside["bands"]["g"]["planets"]["e_per_s_per_pix"] > 0.0 and outside["in_field_point_sources"] == []
+    )
     # the pointing table flags it
-    cols = pointing_table(campaign, {"time": np.array([t, t]), "ra": np.array([ra, ra]),
-                                     "dec": np.array([dec, dec + 0.8])}, ["g"])
+    cols = pointing_table(
+        campaign,
+        {"time": np.array([t, t]), "ra": np.array([ra, ra]), "dec": np.array([dec, dec + 0.8])},
+        ["g"],
+    )
     assert cols["planet_in_field"].tolist() == ["jupiter", ""]
     assert cols["planet_in_field_v_mag"][0] == pytest.approx(src["v_mag"], abs=1e-9)
     assert np.isnan(cols["planet_in_field_v_mag"][1])
@@ -1029,7 +1153,11 @@ def test_planet_in_the_field_is_a_point_source_not_a_background(campaign, tmp_pa
     from straylight.image.detector import bodies_as_stars
 
     b_ra, b_dec, b_mag, names = bodies_as_stars(campaign, t, ra, dec, "g")
-    assert names == ["jupiter"] and b_ra[0] == pytest.approx(ra, abs=1e-9) and b_dec[0] == pytest.approx(dec, abs=1e-9)
+    assert (
+        names == ["jupiter"]
+        and b_ra[0] == pytest.approx(ra, abs=1e-9)
+        and b_dec[0] == pytest.approx(dec, abs=1e-9)
+    )
     assert b_mag[0] == pytest.approx(src["mag_ab"]["g"], abs=1e-9)
 
 
@@ -1037,14 +1165,18 @@ def test_paper_moon_rule_is_one_switch_away_and_its_difference(campaign):
     """Issue 35 item 8: the paper's proportional phase rule (sect. 2.2) is
     models.moon_phase_law: proportional; at phase angle 90 deg the default Krisciunas-Schaefer
     Moon is 1.85 mag (5.5x) fainter (docs/assumptions.md)."""
-    from straylight.config import load_campaign
-
     from conftest import REPO
+
+    from straylight.config import load_campaign
 
     ks = moon_v_magnitude(90.0, 384400.0, "krisciunas_schaefer")
     prop = moon_v_magnitude(90.0, 384400.0, "proportional", elongation_deg=90.0)
-    assert ks - prop == pytest.approx(1.85, abs=0.01) and 10 ** (0.4 * (ks - prop)) == pytest.approx(5.5, abs=0.05)
-    c = load_campaign(REPO / "config" / "config.yaml", overrides={"models": {"moon_phase_law": "proportional"}})
+    assert ks - prop == pytest.approx(1.85, abs=0.01) and 10 ** (0.4 * (ks - prop)) == pytest.approx(
+        5.5, abs=0.05
+    )
+    c = load_campaign(
+        REPO / "config" / "config.yaml", overrides={"models": {"moon_phase_law": "proportional"}}
+    )
     assert BackgroundModel(c).context.offfield.moon_law == "proportional"
 
 
@@ -1120,7 +1252,9 @@ def test_the_body_shades_the_door(comp_model, tilt_deg, sun_zenith_deg):
     frame = telescope_frame(los, sun - sat)
     moon = np.array([[0.0, 0.0, 384400.0]])
     shaded = float(off.earthshine_coefficients(sat, sun, moon, frame, np.array([135.0]), RE)["door_sun"][0])
-    unshaded = float(bare.earthshine_coefficients(sat, sun, moon, frame, np.array([135.0]), RE)["door_sun"][0])
+    unshaded = float(
+        bare.earthshine_coefficients(sat, sun, moon, frame, np.array([135.0]), RE)["door_sun"][0]
+    )
     exact = _door_term_exact(off, sat, sun, los, 135.0, body=True)
     assert unshaded == pytest.approx(_door_term_exact(off, sat, sun, los, 135.0, body=False), rel=1e-9)
     assert shaded == pytest.approx(exact, rel=0.01)
@@ -1130,17 +1264,21 @@ def test_the_body_shades_the_door(comp_model, tilt_deg, sun_zenith_deg):
 
 def test_body_hits_is_the_ray_cylinder_geometry():
     """Door.body_hits against hand-worked rays: the cylinder x^2 + y^2 < 1, -10 < z < 0."""
-    d = Door(1.0, door_length_from_paper(1.0), door_length_from_paper(1.0), body_radius_m=1.0, body_length_m=10.0)
+    d = Door(
+        1.0, door_length_from_paper(1.0), door_length_from_paper(1.0), body_radius_m=1.0, body_length_m=10.0
+    )
     p = np.array([[2.0, 0.0, 1.0]])
-    dirs = np.array([
-        [-1.0, 0.0, -1.0],   # down across the axis: enters the top face at x = 1
-        [-1.0, 0.0, 1.0],    # upward: never below the aperture plane
-        [0.0, 1.0, -1.0],    # down sideways, stays at x = 2: misses
-        [-1.0, 0.0, -0.05],  # shallow: passes over the top (z = 0 at x = -18)
-        [0.0, 0.0, -1.0],    # straight down beside the body: misses
-        [-0.2, 0.0, -1.0],   # reaches x = 1 at z = -4: hits the side
-        [-0.01, 0.0, -1.0],  # reaches x = 1 only at z = -99: below the body's end
-    ])
+    dirs = np.array(
+        [
+            [-1.0, 0.0, -1.0],  # down across the axis: enters the top face at x = 1
+            [-1.0, 0.0, 1.0],  # upward: never below the aperture plane
+            [0.0, 1.0, -1.0],  # down sideways, stays at x = 2: misses
+            [-1.0, 0.0, -0.05],  # shallow: passes over the top (z = 0 at x = -18)
+            [0.0, 0.0, -1.0],  # straight down beside the body: misses
+            [-0.2, 0.0, -1.0],  # reaches x = 1 at z = -4: hits the side
+            [-0.01, 0.0, -1.0],  # reaches x = 1 only at z = -99: below the body's end
+        ]
+    )
     dirs /= np.linalg.norm(dirs, axis=-1, keepdims=True)
     assert d.body_hits(p, dirs)[:, 0].tolist() == [True, False, False, False, False, True, False]
     none = Door(1.0, door_length_from_paper(1.0), door_length_from_paper(1.0))

@@ -1,10 +1,11 @@
 """Zodiacal light: Leinert table interpolation, spectra, band integration.
 
 Reference numbers: Leinert et al. (1998) Tables 17 and 19; astropy's ecliptic frame."""
+
 import numpy as np
 import pytest
-
 from conftest import SHARED_DATA
+
 from straylight.optics.bandpass import load_band
 from straylight.sources.zodiacal import (
     SPECTRA,
@@ -64,8 +65,8 @@ def test_no_data_region_is_flagged_not_extrapolated():
 
 
 def test_ecliptic_frame_matches_astropy():
-    from astropy.coordinates import BarycentricMeanEcliptic, SkyCoord
     import astropy.units as u
+    from astropy.coordinates import BarycentricMeanEcliptic, SkyCoord
 
     rng = np.random.default_rng(5)
     ra, dec = rng.uniform(0, 360, 200), np.degrees(np.arcsin(rng.uniform(-1, 1, 200)))
@@ -107,13 +108,17 @@ def test_spectra_agree_and_bands_are_plausible(campaign):
     out = {}
     for spectrum in SPECTRA:
         zm = zodiacal_model_from_instrument(campaign.instrument, spectrum)
-        out[spectrum] = {b: zm.evaluate(load_band(campaign.instrument, b), POLE, np.array([1.0, 0, 0]))
-                         for b in campaign.bands}
+        out[spectrum] = {
+            b: zm.evaluate(load_band(campaign.instrument, b), POLE, np.array([1.0, 0, 0]))
+            for b in campaign.bands
+        }
     for b in campaign.bands:
         m1 = float(np.ravel(out["solar_leinert"][b]["mag_per_arcsec2"])[0])
         m2 = float(np.ravel(out["hst"][b]["mag_per_arcsec2"])[0])
         e1 = float(np.ravel(out["solar_leinert"][b]["e_per_s_per_pix"])[0])
-        print(f"{b:4s} pole zodiacal: {e1:.4f} e-/s/pix, {m1:.2f} (solar+Leinert) vs {m2:.2f} (HST) mag/arcsec2")
+        print(
+            f"{b:4s} pole zodiacal: {e1:.4f} e-/s/pix, {m1:.2f} (solar+Leinert) vs {m2:.2f} (HST) mag/arcsec2"
+        )
         assert abs(m1 - m2) < 0.5
     # broad bands g, r, i collect ~0.05-0.2 e-/s/pix of dark-sky zodiacal light at 0.0737"/pix
     for b in "gri":
@@ -130,8 +135,10 @@ def test_e_per_s_is_L_pi_D2_over_4f2_times_pixel_area(campaign):
     assert float(np.ravel(z["e_per_s_per_pix"])[0]) == pytest.approx(expected, rel=1e-9)
 
 
-@pytest.mark.skipif(not (SHARED_DATA / "csst_throughput").exists(),
-                    reason="../shared/data/csst_throughput (test-only real CSST curves) not present")
+@pytest.mark.skipif(
+    not (SHARED_DATA / "csst_throughput").exists(),
+    reason="../shared/data/csst_throughput (test-only real CSST curves) not present",
+)
 def test_parametric_default_against_real_throughputs(campaign):
     """Measure and print the parametric default's error against the real CSST curves (Wen et al.
     2024, test-only): AB zero points and the dark-sky zodiacal level per band."""
@@ -146,7 +153,9 @@ def test_parametric_default_against_real_throughputs(campaign):
         dzp = 2.5 * np.log10(par.ab_zero_point_photons_s_m2 / real.ab_zero_point_photons_s_m2)
         zr = float(np.ravel(zm.evaluate(real, POLE, np.array([1.0, 0, 0]))["e_per_s_per_pix"])[0])
         zp = float(np.ravel(zm.evaluate(par, POLE, np.array([1.0, 0, 0]))["e_per_s_per_pix"])[0])
-        print(f"{b:4s} AB zero point default - real: {dzp:+.3f} mag; pole zodiacal {zp:.4f} vs {zr:.4f} e-/s/pix")
+        print(
+            f"{b:4s} AB zero point default - real: {dzp:+.3f} mag; pole zodiacal {zp:.4f} vs {zr:.4f} e-/s/pix"
+        )
         worst = max(worst, abs(dzp))
     # the flat-top default ignores the CCD's red QE roll-off: z is worst (+0.58 mag measured)
     assert worst < 0.7
@@ -156,10 +165,10 @@ def test_paper_zodiacal_colours_are_one_switch_away(campaign):
     """Issue 35 item 8: the paper's HST zodiacal ratios (sect. 4.1) are models.zodiacal_spectrum:
     hst; the default solar_leinert (E490 Sun with Leinert 1998's Table 19 colour) is fainter by
     NUV 0.457, r 0.103, i 0.197, z 0.224 mag and brighter in g by 0.036 (docs/assumptions.md)."""
-    from straylight.model import BackgroundModel
-    from straylight.config import load_campaign
-
     from conftest import REPO
+
+    from straylight.config import load_campaign
+    from straylight.model import BackgroundModel
 
     solar = zodiacal_model_from_instrument(campaign.instrument, "solar_leinert")
     hst = zodiacal_model_from_instrument(campaign.instrument, "hst")

@@ -1,6 +1,7 @@
 """Survey cubes through the real Snakemake workflow: values, resume, Dask scheduler, limits.
 
 Reference values: `straylight sky` at the same time and pixel, an uninterrupted run (resume, Dask)."""
+
 import json
 import os
 import shutil
@@ -13,7 +14,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 import xarray as xr
-
 from conftest import REPO, run_cli
 
 SNAKEMAKE = str(Path(sys.executable).with_name("snakemake"))
@@ -23,14 +23,34 @@ BIN = Path(sys.executable).parent
 def _config(tmp, name="cube", **compute):
     from conftest import tiny_config
 
-    return tiny_config(tmp, name=name, campaign={"end": "2026-01-01T01:00:00", "time_block_hours": 0.5},
-                       footprint={"pixel_block_size": 40}, compute=compute or {"dask_scheduler": None})
+    return tiny_config(
+        tmp,
+        name=name,
+        campaign={"end": "2026-01-01T01:00:00", "time_block_hours": 0.5},
+        footprint={"pixel_block_size": 40},
+        compute=compute or {"dask_scheduler": None},
+    )
 
 
 def _run(tmp, cfg, *extra):
-    r = subprocess.run([SNAKEMAKE, "-s", str(REPO / "workflow" / "Snakefile"), "-d", str(tmp), "--configfile", str(cfg),
-                        "--cores", "2", *extra], capture_output=True, text=True, timeout=900,
-                       env={**os.environ, "PATH": f"{BIN}:{os.environ['PATH']}"})
+    r = subprocess.run(
+        [
+            SNAKEMAKE,
+            "-s",
+            str(REPO / "workflow" / "Snakefile"),
+            "-d",
+            str(tmp),
+            "--configfile",
+            str(cfg),
+            "--cores",
+            "2",
+            *extra,
+        ],
+        capture_output=True,
+        text=True,
+        timeout=900,
+        env={**os.environ, "PATH": f"{BIN}:{os.environ['PATH']}"},
+    )
     return r
 
 
@@ -53,7 +73,9 @@ def test_cube_layout_units_and_attrs(cube_run):
         assert np.all(np.isfinite(ds[v].values)) and np.all(ds[v].values >= 0)
     assert ds.attrs["healpix_nside"] == 4 and ds.attrs["healpix_ordering"] == "RING"
     assert ds["total"].encoding["chunks"] == (3, 43, 7)  # 86 pixels: 2 equal blocks (pixel_block_length)
-    parts = sum(ds[v].values.astype(float) for v in ("zodiacal", "earthshine", "moon", "sun", "planets", "stars"))
+    parts = sum(
+        ds[v].values.astype(float) for v in ("zodiacal", "earthshine", "moon", "sun", "planets", "stars")
+    )
     # each stored within its bound of the computed value (straylight/survey/storage.py), the total and the
     # (nonnegative) parts each: the sum of the stored parts within twice the bound of the total
     bound = ds["total"].attrs["max_relative_error"]
@@ -65,7 +87,6 @@ def test_cube_layout_units_and_attrs(cube_run):
     assert np.all(faint.values > 0)
     assert faint.attrs["max_relative_error"] == 0.0  # stored exactly: the time blocks read it
     assert np.all(ds["stars"].values >= faint.values[None].astype(np.float32) * (1 - bound - 1e-6))
-
 
 
 def test_observability_from_the_cube_equals_its_own_geometry(cube_run, tmp_path):
@@ -81,9 +102,14 @@ def test_observability_from_the_cube_equals_its_own_geometry(cube_run, tmp_path)
     c = load_campaign(cfg)
     fp, _ = footprint_products(c)
     with xr.open_zarr(out / "ephemeris.zarr") as ephem:
-        write_zarr_atomic(observability_dataset(c, ephem.load(), fp), tmp_path / "obs.zarr", storage=c.config["storage"])
+        write_zarr_atomic(
+            observability_dataset(c, ephem.load(), fp), tmp_path / "obs.zarr", storage=c.config["storage"]
+        )
     with xr.open_zarr(out / "observability.zarr") as got, xr.open_zarr(tmp_path / "obs.zarr") as want:
-        assert got["sun_angle_deg"].encoding["chunks"] == (3, 43)  # 86 pixels: 2 equal blocks (pixel_block_length)
+        assert got["sun_angle_deg"].encoding["chunks"] == (
+            3,
+            43,
+        )  # 86 pixels: 2 equal blocks (pixel_block_length)
         xr.testing.assert_identical(got.load(), want.load())
 
 
@@ -101,6 +127,7 @@ def test_faint_star_map_shared_among_processes_is_bit_identical(cube_run, campai
     assert one.dims == two.dims == ("pixel", "band") and np.all(one.values > 0)
     np.testing.assert_array_equal(one.values, two.values)
 
+
 def test_cube_value_equals_sky_command(cube_run):
     """A cube value equals `straylight sky --catalog` (the run's star catalog) for the same time and
     pointing (to the stored values' bound, straylight/survey/storage.py); the star term is the same
@@ -115,9 +142,11 @@ def test_cube_value_equals_sky_command(cube_run):
     rec = sky_at(ds, it, ip, cfg, catalog=out / "stars_csst.parquet")
     for ib, b in enumerate(ds["band"].values):
         for comp in ("zodiacal", "earthshine", "moon", "stars", "total"):
-            assert float(ds[comp][it, ip, ib]) == pytest.approx(rec["bands"][b][comp]["e_per_s_per_pix"],
-                                                                rel=ds[comp].attrs["max_relative_error"] + 1e-6,
-                                                                abs=1e-30)
+            assert float(ds[comp][it, ip, ib]) == pytest.approx(
+                rec["bands"][b][comp]["e_per_s_per_pix"],
+                rel=ds[comp].attrs["max_relative_error"] + 1e-6,
+                abs=1e-30,
+            )
     assert bool(ds["observable"][it, ip]) == rec["observable"]
 
 
@@ -126,7 +155,10 @@ def test_limits_and_maps(cube_run):
 
     _, _, out = cube_run
     lim = xr.open_zarr(out / "limits.zarr")
-    assert lim["limiting_mag"].dims == ("time", "pixel", "band") and lim["limiting_mag"].attrs["units"] == "mag(AB)"
+    assert (
+        lim["limiting_mag"].dims == ("time", "pixel", "band")
+        and lim["limiting_mag"].attrs["units"] == "mag(AB)"
+    )
     assert np.all(np.isfinite(lim["limiting_mag"].values))
     g = lim["limiting_mag"].sel(band="g").values
     assert 24.0 < np.median(g) < 28.0
@@ -164,8 +196,11 @@ def test_fused_limits_equal_limits_dataset_within_the_propagated_bound(cube_run,
     bound = 2.5 / np.log(10) * e_total / 2 + e_mag * np.abs(ref["limiting_mag"].values) + 4e-6
     assert np.all(np.isfinite(diff)) and np.all(diff <= bound), float((diff - bound).max())
     assert diff.max() > 0  # computed from different totals: not the same bits everywhere
-    write_zarr_atomic(limits_dataset(c, background, limiting_mag=got["limiting_mag"]), tmp_path / "ref.zarr",
-                      storage=c.config["storage"])
+    write_zarr_atomic(
+        limits_dataset(c, background, limiting_mag=got["limiting_mag"]),
+        tmp_path / "ref.zarr",
+        storage=c.config["storage"],
+    )
     with xr.open_zarr(tmp_path / "ref.zarr") as want, xr.open_zarr(out / "limits.zarr") as stored:
         xr.testing.assert_identical(stored.load(), want.load())
         # chunked as the cube (time block x pixel block); the summaries as limits_dataset chunks them
@@ -194,8 +229,9 @@ def test_limit_summaries_on_processes_equal_the_published_ones(cube_run, monkeyp
             np.testing.assert_array_equal(two[name], one[name], err_msg=name)
             keepbits = int(published[name].attrs["compression"].split("keepbits=")[1].split(")")[0])
             rounded = BitRound(keepbits=keepbits).decode(BitRound(keepbits=keepbits).encode(one[name]))
-            np.testing.assert_array_equal(np.asarray(rounded).reshape(one[name].shape), published[name].values,
-                                          err_msg=name)
+            np.testing.assert_array_equal(
+                np.asarray(rounded).reshape(one[name].shape), published[name].values, err_msg=name
+            )
 
 
 def test_provenance_records_checksums(cube_run):
@@ -207,14 +243,25 @@ def test_provenance_records_checksums(cube_run):
     assert len(prov["outputs_digest_sha256"]) == 64
     assert "numpy" in prov["versions"] and "config" in prov["inputs_sha256"]
     # the code (this checkout's commit), the run's command line and cores, portable paths
-    head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=REPO, capture_output=True, text=True).stdout.strip()
+    head = subprocess.run(
+        ["git", "rev-parse", "HEAD"], cwd=REPO, capture_output=True, text=True
+    ).stdout.strip()
     assert prov["source"]["from"] == "checkout" and isinstance(prov["source"]["dirty"], bool)
     import straylight
 
     assert prov["source"]["commit"] == head and prov["source"]["version"] == straylight.__version__
     assert prov["run"]["cores"] == 2 and prov["run"]["started_by"] is None
-    assert prov["run"]["command"] == ["snakemake", "-s", "straylight:workflow/Snakefile", "-d", "../..",
-                                      "--configfile", "../../cube.yaml", "--cores", "2"]
+    assert prov["run"]["command"] == [
+        "snakemake",
+        "-s",
+        "straylight:workflow/Snakefile",
+        "-d",
+        "../..",
+        "--configfile",
+        "../../cube.yaml",
+        "--cores",
+        "2",
+    ]
     assert prov["config_file"] == "../../cube.yaml"
     assert prov["config"]["instrument"] == "straylight:config/instruments/csst.yaml"
     text = (out / "provenance.json").read_text()
@@ -225,7 +272,7 @@ def test_rerun_recomputes_only_what_is_missing(cube_run):
     tmp, cfg, out = cube_run
     r = _run(tmp, cfg, "-n")
     assert "Nothing to be done" in r.stdout + r.stderr
-    before = (out / "background.zarr")
+    before = out / "background.zarr"
     from straylight.survey.provenance import sha256_path
 
     digest = sha256_path(before)
@@ -271,9 +318,22 @@ def test_dask_scheduler_address_gives_the_same_products(tmp_path, cube_run):
     port = _free_port()
     addr = f"tcp://127.0.0.1:{port}"
     env = {**os.environ, "PATH": f"{BIN}:{os.environ['PATH']}"}
-    sched = subprocess.Popen([str(BIN / "dask"), "scheduler", "--host", "127.0.0.1", "--port", str(port),
-                              "--dashboard-address", ":0", "--no-show"],
-                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
+    sched = subprocess.Popen(
+        [
+            str(BIN / "dask"),
+            "scheduler",
+            "--host",
+            "127.0.0.1",
+            "--port",
+            str(port),
+            "--dashboard-address",
+            ":0",
+            "--no-show",
+        ],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        env=env,
+    )
     worker = None
     try:
         deadline = time.time() + 60
@@ -283,8 +343,12 @@ def test_dask_scheduler_address_gives_the_same_products(tmp_path, cube_run):
                 break
             except OSError:
                 time.sleep(0.5)
-        worker = subprocess.Popen([str(BIN / "dask"), "worker", addr, "--nworkers", "2", "--nthreads", "1",
-                                   "--no-dashboard"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
+        worker = subprocess.Popen(
+            [str(BIN / "dask"), "worker", addr, "--nworkers", "2", "--nthreads", "1", "--no-dashboard"],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            env=env,
+        )
         cfg = _config(tmp_path, name="cube", dask_scheduler=addr)
         r = _run(tmp_path, cfg, "results/cube/background_summary.json")  # the cube only (relative to -d)
         assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
@@ -296,7 +360,9 @@ def test_dask_scheduler_address_gives_the_same_products(tmp_path, cube_run):
     from straylight.survey.provenance import sha256_path
 
     _, _, ref = cube_run
-    assert sha256_path(tmp_path / "results" / "cube" / "background.zarr") == sha256_path(ref / "background.zarr")
+    assert sha256_path(tmp_path / "results" / "cube" / "background.zarr") == sha256_path(
+        ref / "background.zarr"
+    )
 
 
 def _campaign_with(campaign, over: dict):
@@ -316,11 +382,11 @@ def test_evaluated_samples_skipping_counts_the_observable_ones(campaign):
     observable ones, estimated from 144 times x 660 pixels; on
     the default day (288 times x 1320 pixels, 16.5 % observable) against the exact count from
     the geometry of every sample, and every sample without skipping."""
-    from straylight.survey.plan import evaluated_samples
-    from straylight.survey.footprint import footprint_from_config
     from straylight.sky.geometry import observing_geometry
-    from straylight.sky.vectors import radec_to_unit
     from straylight.sky.observing import scene
+    from straylight.sky.vectors import radec_to_unit
+    from straylight.survey.footprint import footprint_from_config
+    from straylight.survey.plan import evaluated_samples
 
     fp = footprint_from_config(campaign.config["footprint"])
     n = len(campaign.times) * fp.pixels.size
@@ -328,8 +394,13 @@ def test_evaluated_samples_skipping_counts_the_observable_ones(campaign):
     skipping = _campaign_with(campaign, {"models": {"unobservable_samples": "skip"}})
     sc = scene(skipping.orbit, skipping.times)
     los = radec_to_unit(fp.ra_deg, fp.dec_deg)
-    g = observing_geometry(sc.satellite_km[:, None], {b: sc.bodies_km[b][:, None] for b in ("sun", "moon")},
-                           los[None], campaign.earth.radius_km, campaign.constraints)
+    g = observing_geometry(
+        sc.satellite_km[:, None],
+        {b: sc.bodies_km[b][:, None] for b in ("sun", "moon")},
+        los[None],
+        campaign.earth.radius_km,
+        campaign.constraints,
+    )
     exact = int(g["observable"].sum())
     assert 0.12 * n < exact < 0.2 * n
     estimate = evaluated_samples(skipping, fp)
@@ -351,7 +422,10 @@ def test_plan_prints_samples_size_and_cost(tmp_path):
         os.environ["STRAYLIGHT_CACHE"] = env_cache
     assert r.returncode == 0, r.stderr
     assert "samples (time, pointing): 380,160; evaluated: 380,160" in r.stdout
-    assert "earthshine: look-up tables (models.earthshine.method = auto); its tables are not cached yet" in r.stdout
+    assert (
+        "earthshine: look-up tables (models.earthshine.method = auto); its tables are not cached yet"
+        in r.stdout
+    )
     assert "estimated wall time on 2 cores: " in r.stdout and "the tables' build" in r.stdout
     assert "core-hours" in r.stdout and "GB" in r.stdout
 
@@ -364,19 +438,26 @@ def test_pipeline_rate_from_config_else_the_packaged_figure(campaign):
     from straylight.survey import plan
     from straylight.survey.footprint import footprint_from_config
 
-    assert plan.pipeline_rate(campaign) == (plan.PIPELINE_SAMPLES_PER_S_PER_CORE,
-                                            "straylight.survey.plan.PIPELINE_SAMPLES_PER_S_PER_CORE")
+    assert plan.pipeline_rate(campaign) == (
+        plan.PIPELINE_SAMPLES_PER_S_PER_CORE,
+        "straylight.survey.plan.PIPELINE_SAMPLES_PER_S_PER_CORE",
+    )
     configured = _campaign_with(campaign, {"compute": {"pipeline_samples_per_s_per_core": 2.5e5}})
     assert plan.pipeline_rate(configured) == (2.5e5, "compute.pipeline_samples_per_s_per_core")
-    month = _campaign_with(campaign, {"campaign": {"end": "2026-01-31T00:00:00"},
-                                      "compute": {"pipeline_samples_per_s_per_core": 2.5e5}})
+    month = _campaign_with(
+        campaign,
+        {"campaign": {"end": "2026-01-31T00:00:00"}, "compute": {"pipeline_samples_per_s_per_core": 2.5e5}},
+    )
     fp = footprint_from_config(month.config["footprint"])
     for cores in (1, 2, 8):
         cost = plan.estimated_cost(month, fp, cores=cores)
         assert cost["earthshine_method"] == "lut"
         assert cost["wall_seconds"] == pytest.approx(
-            plan.PIPELINE_FIXED_SECONDS + cost["samples"] / (2.5e5 * cores) + cost["table_build_seconds"] / cores,
-            rel=1e-12)
+            plan.PIPELINE_FIXED_SECONDS
+            + cost["samples"] / (2.5e5 * cores)
+            + cost["table_build_seconds"] / cores,
+            rel=1e-12,
+        )
         assert cost["pipeline_core_hours"] == pytest.approx(cost["wall_seconds"] * cores / 3600, rel=1e-12)
     assert cost["product_bytes"] == cost["samples"] * plan.PRODUCT_BYTES_PER_SAMPLE
 
@@ -417,7 +498,9 @@ def test_machine_speed_and_its_factor(campaign, tmp_path, monkeypatch):
     fp = footprint_from_config(campaign.config["footprint"])
     speed = plan.machine_speed(campaign, fp, n_times=1, n_pixels=66, repeats=1)
     assert speed["samples"] == 66  # every 20th of the 1320 pixels at the first step
-    assert speed["assumed_seconds"] == pytest.approx(plan.cube_compute_seconds(66, 66, "direct", False), rel=1e-12)
+    assert speed["assumed_seconds"] == pytest.approx(
+        plan.cube_compute_seconds(66, 66, "direct", False), rel=1e-12
+    )
     assert speed["measured_seconds"] > 0.0
     assert speed["factor"] == pytest.approx(speed["measured_seconds"] / speed["assumed_seconds"], rel=1e-12)
     monkeypatch.setenv("STRAYLIGHT_CACHE", str(tmp_path))  # an empty cache: the build is counted
@@ -427,7 +510,10 @@ def test_machine_speed_and_its_factor(campaign, tmp_path, monkeypatch):
     assert base["table_build_seconds"] > 0.0
     assert fast["table_build_seconds"] == pytest.approx(0.25 * base["table_build_seconds"], rel=1e-12)
     assert fast["wall_seconds"] == pytest.approx(0.25 * base["wall_seconds"], rel=1e-12)
-    assert (fast["earthshine_method"], fast["evaluated_samples"]) == (base["earthshine_method"], base["evaluated_samples"])
+    assert (fast["earthshine_method"], fast["evaluated_samples"]) == (
+        base["earthshine_method"],
+        base["evaluated_samples"],
+    )
 
 
 def test_plan_costs_the_model_that_runs(campaign, tmp_path, monkeypatch):
@@ -446,22 +532,32 @@ def test_plan_costs_the_model_that_runs(campaign, tmp_path, monkeypatch):
     day = plan.estimated_cost(campaign, fp)
     assert (day["samples"], day["evaluated_samples"], day["earthshine_method"]) == (380_160, 380_160, "lut")
     sunlit_s = 1_840_841 * 2 * comp.LUT_BUILD_SECONDS_PER_NODE
-    moonlit_s = 534_375 * 2 * comp.MOONLIT_LUT_BUILD_SECONDS_PER_NODE  # (Moon zenith, zenith, azimuth, roll) nodes
+    moonlit_s = (
+        534_375 * 2 * comp.MOONLIT_LUT_BUILD_SECONDS_PER_NODE
+    )  # (Moon zenith, zenith, azimuth, roll) nodes
     assert day["table_build_seconds"] == pytest.approx(sunlit_s + moonlit_s, rel=1e-12)
     assert day["compute_seconds"] == pytest.approx(380_160 * plan.CUBE_TABLE_SECONDS_PER_SAMPLE, rel=1e-12)
 
     def week(unobservable, method="auto"):
-        return plan.estimated_cost(_campaign_with(campaign, {**WEEKS, "models": {
-            "unobservable_samples": unobservable, "earthshine": {"method": method}}}), fp)
+        return plan.estimated_cost(
+            _campaign_with(
+                campaign,
+                {**WEEKS, "models": {"unobservable_samples": unobservable, "earthshine": {"method": method}}},
+            ),
+            fp,
+        )
 
     evaluating = week("evaluate")
     assert (evaluating["samples"], evaluating["earthshine_method"]) == (N_DAYS * 380_160, "lut")
     assert not evaluating["table_cached"]
     assert evaluating["table_build_seconds"] == pytest.approx(sunlit_s + moonlit_s, rel=1e-12)
     assert evaluating["core_hours"] * 3600 == pytest.approx(
-        N_DAYS * 380_160 * plan.CUBE_TABLE_SECONDS_PER_SAMPLE + evaluating["table_build_seconds"], rel=1e-12)
+        N_DAYS * 380_160 * plan.CUBE_TABLE_SECONDS_PER_SAMPLE + evaluating["table_build_seconds"], rel=1e-12
+    )
     # each table counted only while it is not cached: with the sunlit one in the cache, the moonlit
-    week_model = comp.BackgroundModel(_campaign_with(campaign, {**WEEKS, "models": {"unobservable_samples": "evaluate"}}))
+    week_model = comp.BackgroundModel(
+        _campaign_with(campaign, {**WEEKS, "models": {"unobservable_samples": "evaluate"}})
+    )
     week_model.sunlit_earth.lut_path().write_bytes(b"")  # only its existence is checked
     one_left = week("evaluate")
     assert not one_left["table_cached"]
@@ -473,11 +569,18 @@ def test_plan_costs_the_model_that_runs(campaign, tmp_path, monkeypatch):
     assert direct["earthshine_method"] == "direct" and direct["table_build_seconds"] == 0.0
     assert direct["compute_seconds"] == pytest.approx(
         N_DAYS * 380_160 * plan.CUBE_SCREEN_SECONDS_PER_SAMPLE
-        + direct["evaluated_samples"] * (plan.CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE + comp.LUT_SAVED_SECONDS_PER_SAMPLE),
-        rel=1e-12)
+        + direct["evaluated_samples"]
+        * (plan.CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE + comp.LUT_SAVED_SECONDS_PER_SAMPLE),
+        rel=1e-12,
+    )
     assert direct["samples_seconds"] == pytest.approx(
-        (direct["samples"] / plan.PIPELINE_SAMPLES_PER_S_PER_CORE
-         + direct["evaluated_samples"] * comp.LUT_SAVED_SECONDS_PER_SAMPLE) / 2, rel=1e-12)
+        (
+            direct["samples"] / plan.PIPELINE_SAMPLES_PER_S_PER_CORE
+            + direct["evaluated_samples"] * comp.LUT_SAVED_SECONDS_PER_SAMPLE
+        )
+        / 2,
+        rel=1e-12,
+    )
 
 
 def test_kill_9_at_random_moments_then_resume_is_bit_identical(tmp_path, cube_run):
@@ -491,13 +594,28 @@ def test_kill_9_at_random_moments_then_resume_is_bit_identical(tmp_path, cube_ru
 
     cfg = _config(tmp_path, name="cube")
     env = {**os.environ, "PATH": f"{BIN}:{os.environ['PATH']}"}
-    base = [SNAKEMAKE, "-s", str(REPO / "workflow" / "Snakefile"), "-d", str(tmp_path), "--configfile", str(cfg)]
+    base = [
+        SNAKEMAKE,
+        "-s",
+        str(REPO / "workflow" / "Snakefile"),
+        "-d",
+        str(tmp_path),
+        "--configfile",
+        str(cfg),
+    ]
     # the products compared below (the sky maps, time series and scheduling tables are left out to save time)
     # the target after a fixed-arity option: --configfile and -q would swallow it
     cmd = base + ["--cores", "2", "results/cube/provenance.json", "--rerun-incomplete", "-q"]
     _, _, ref = cube_run
     out = tmp_path / "results" / "cube"
-    products = ("background.zarr", "limits.zarr", "maps", "ephemeris.zarr", "footprint.fits", "provenance.json")
+    products = (
+        "background.zarr",
+        "limits.zarr",
+        "maps",
+        "ephemeris.zarr",
+        "footprint.fits",
+        "provenance.json",
+    )
     reference = {p: sha256_path(ref / p) for p in products[:-1]}
 
     def check_complete():
@@ -515,8 +633,9 @@ def test_kill_9_at_random_moments_then_resume_is_bit_identical(tmp_path, cube_ru
         if kills >= 10:
             break
         subprocess.run(base + ["--unlock", "-q"], capture_output=True, env=env, timeout=120)
-        proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env,
-                                start_new_session=True)
+        proc = subprocess.Popen(
+            cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env, start_new_session=True
+        )
         try:
             code = proc.wait(timeout=float(rng.uniform(2.0, 14.0)))
         except subprocess.TimeoutExpired:
@@ -544,7 +663,9 @@ def test_html_report_holds_maps_series_tables_and_provenance(cube_run):
     series = [p for p in plots if p.startswith("series_")]
     assert len(series) == 2 and all("_ra1" in p for p in series)
     # the limit maps' figures and the depth table (rule limits)
-    assert {"limits_best.png", "limits_median.png", "depth_summary.csv"} <= {p.name for p in (out / "depth").iterdir()}
+    assert {"limits_best.png", "limits_median.png", "depth_summary.csv"} <= {
+        p.name for p in (out / "depth").iterdir()
+    }
     assert (out / "scheduling" / "moon_avoidance.png").exists()
     report = tmp / "report.html"
     r = _run(tmp, cfg, "--report", str(report))
@@ -556,8 +677,15 @@ def test_html_report_holds_maps_series_tables_and_provenance(cube_run):
     # the first page: the depth table (from summary.rst, rule report_front) and thumbnails of the
     # limit maps, a sky page and a series; the CSVs attached
     assert (out / "summary.rst").exists()
-    for needle in ("median depth (AB mag)", "observable fraction", "limits_median</b>", "sky_g_20260101T0030</b>",
-                   "series_orbit_ra1", "moon_avoidance.csv", "per band, the median and best 5-sigma depth"):
+    for needle in (
+        "median depth (AB mag)",
+        "observable fraction",
+        "limits_median</b>",
+        "sky_g_20260101T0030</b>",
+        "series_orbit_ra1",
+        "moon_avoidance.csv",
+        "per band, the median and best 5-sigma depth",
+    ):
         assert needle in text, needle
 
 
@@ -572,8 +700,10 @@ def test_cube_jobs_footprint_is_the_configs_bit_for_bit(cube_run):
     _, cfg, out = cube_run
     c = load_campaign(cfg)
     ref = footprint_from_config(c.config["footprint"], c.path.parent)
-    for fp in (footprint_from_store(out / "background.zarr"),
-               footprint_from_config({**c.config["footprint"], "mask_file": str(out / "footprint.fits")})):
+    for fp in (
+        footprint_from_store(out / "background.zarr"),
+        footprint_from_config({**c.config["footprint"], "mask_file": str(out / "footprint.fits")}),
+    ):
         assert (fp.nside, fp.ordering) == (ref.nside, ref.ordering)
         for name in ("pixels", "ra_deg", "dec_deg"):
             a, b = getattr(fp, name), getattr(ref, name)

@@ -2,6 +2,7 @@
 
 Reference numbers: the CSST wide survey's ~17,500 deg2 (Gong et al. 2019); healpy and astropy
 for pixels and frames."""
+
 import healpy as hp
 import numpy as np
 import pytest
@@ -20,8 +21,8 @@ def test_default_cuts_give_about_17500_deg2(campaign):
 
 
 def test_pixels_satisfy_the_cuts(campaign):
-    from astropy.coordinates import SkyCoord
     import astropy.units as u
+    from astropy.coordinates import SkyCoord
 
     fp = footprint_from_config(campaign.config["footprint"])
     b = SkyCoord(fp.ra_deg * u.deg, fp.dec_deg * u.deg).galactic.b.deg
@@ -62,7 +63,9 @@ def test_pixel_blocks_are_equal_and_never_a_sliver():
         step = pixel_block_length(n, size)
         lengths = np.diff(list(range(0, n, step)) + [n])
         assert lengths.sum() == n and lengths.max() == step
-        assert lengths.min() >= step - len(lengths)  # the last block short by fewer pixels than there are blocks
+        assert lengths.min() >= step - len(
+            lengths
+        )  # the last block short by fewer pixels than there are blocks
 
 
 def test_healpy_without_its_plotting_functions_gives_the_same_pixels():
@@ -73,22 +76,23 @@ def test_healpy_without_its_plotting_functions_gives_the_same_pixels():
     import subprocess
     import sys
 
-    code = ("import sys, numpy as np\n"
-            "from straylight.util.healpix import healpy, load_without_plotting\n"
-            "load_without_plotting()\n"
-            "hp = healpy()\n"
-            "assert 'matplotlib' not in sys.modules and not hasattr(hp, 'mollview')\n"
-            "import astropy.time.formats as f\n"
-            "assert f.HAS_MATPLOTLIB\n"
-            "ra, dec = hp.pix2ang(32, np.arange(12 * 32**2), lonlat=True)\n"
-            "from healpy import visufunc\n"
-            "assert callable(visufunc.mollview) and 'matplotlib' in sys.modules\n"
-            "print(repr(ra.tobytes().hex()[:64]), float(ra.sum()), float(dec.sum()))\n")
+    code = (
+        "import sys, numpy as np\n"
+        "from straylight.util.healpix import healpy, load_without_plotting\n"
+        "load_without_plotting()\n"
+        "hp = healpy()\n"
+        "assert 'matplotlib' not in sys.modules and not hasattr(hp, 'mollview')\n"
+        "import astropy.time.formats as f\n"
+        "assert f.HAS_MATPLOTLIB\n"
+        "ra, dec = hp.pix2ang(32, np.arange(12 * 32**2), lonlat=True)\n"
+        "from healpy import visufunc\n"
+        "assert callable(visufunc.mollview) and 'matplotlib' in sys.modules\n"
+        "print(repr(ra.tobytes().hex()[:64]), float(ra.sum()), float(dec.sum()))\n"
+    )
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr[-2000:]
     ra, dec = hp.pix2ang(32, np.arange(12 * 32**2), lonlat=True)  # healpy whole (matplotlib loaded here)
     assert r.stdout.split() == [repr(ra.tobytes().hex()[:64]), repr(float(ra.sum())), repr(float(dec.sum()))]
-    whole = ("from straylight.util.healpix import healpy\n"
-             "assert callable(healpy().mollview)\n")
+    whole = "from straylight.util.healpix import healpy\nassert callable(healpy().mollview)\n"
     r = subprocess.run([sys.executable, "-c", whole], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr[-2000:]

@@ -5,13 +5,10 @@ depth reaches 26.3 mag in the g band and 25.9 mag in the i band" for the 17,500 
 (2 x 150 s).  Only g and i are quoted there.  The depth is reconciled through the published
 assumptions (sky, zero points, exposures, detector), not a tuned model.
 """
-import shutil
 
 import numpy as np
 import pytest
-import yaml
-
-from conftest import REPO, SHARED_DATA
+from conftest import SHARED_DATA
 
 PUBLISHED_DEPTH_MAG = {"g": 26.3, "i": 25.9}  # Qu et al. 2023 abstract
 THROUGHPUT = SHARED_DATA / "csst_throughput"
@@ -21,10 +18,10 @@ def _high_latitude_limits(campaign):
     """Limits over observable samples at ecliptic |beta| >= 60 deg (the darkest zodiacal light),
     a 10 x 10 deg grid of pointings every 30 min of the default campaign day, full model."""
     from straylight.model import BackgroundModel
-    from straylight.sky.vectors import radec_to_unit
-    from straylight.survey.limits import point_source_limit
     from straylight.sky.observing import sample_geometry, scene
+    from straylight.sky.vectors import radec_to_unit
     from straylight.sources.zodiacal import icrs_to_ecliptic_matrix
+    from straylight.survey.limits import point_source_limit
 
     ra, dec = np.meshgrid(np.arange(0.0, 360.0, 10.0), np.arange(-80.0, 81.0, 10.0))
     ra, dec = ra.ravel(), dec.ravel()
@@ -89,19 +86,29 @@ def test_a_measured_curve_is_scaled_to_the_given_zero_point(tmp_path, campaign):
     assert np.ptp(ratio) < 1e-9  # same shape
 
 
-@pytest.mark.skipif(not THROUGHPUT.exists(), reason="../shared/data/csst_throughput (test-only real CSST curves) not present")
+@pytest.mark.skipif(
+    not THROUGHPUT.exists(), reason="../shared/data/csst_throughput (test-only real CSST curves) not present"
+)
 def test_unpublished_zero_points_against_the_real_curves(campaign):
     """NUV, u and y have no published zero point: their flat top stays at the peak throughput.
     Check against the real CSST curves (Wen et al. 2024; test-only): measured default - real =
     +0.27 (NUV), +0.19 (u), +0.00 (y) mag, documented in docs/assumptions.md; and the published
     g r i z zero points sit 0.09 (g), 0.14 (r), 0.11 (i), 0.00 (z) mag below the real curves'."""
-    from straylight.optics.bandpass import Band, aperture_area_m2, load_band, read_throughput_file, zero_point_ab_mag
+    from straylight.optics.bandpass import (
+        Band,
+        aperture_area_m2,
+        load_band,
+        read_throughput_file,
+        zero_point_ab_mag,
+    )
 
     area = aperture_area_m2(campaign.instrument)
     d = {}
     for b in campaign.bands:
         wl, t = read_throughput_file(THROUGHPUT / f"csst_phot.{b.lower()}.fits")
-        d[b] = zero_point_ab_mag(load_band(campaign.instrument, b), area) - zero_point_ab_mag(Band(b, wl, t, "file"), area)
+        d[b] = zero_point_ab_mag(load_band(campaign.instrument, b), area) - zero_point_ab_mag(
+            Band(b, wl, t, "file"), area
+        )
     print("AB zero point, default - real curves:", {b: round(v, 3) for b, v in d.items()})
     assert d["NUV"] == pytest.approx(0.27, abs=0.03)
     assert d["u"] == pytest.approx(0.19, abs=0.03)
@@ -134,7 +141,10 @@ def _depth_with_published_assumptions(campaign, band):
     """Our noise model (straylight.survey.limits) fed the published CSST sky and zero point."""
     from straylight.survey.limits import point_source_limit
 
-    sky_e = 10 ** (-0.4 * (PUBLISHED_SKY_MAG_ARCSEC2[band] - PUBLISHED_ZERO_POINT_MAG[band])) * campaign.pixel_scale_arcsec**2
+    sky_e = (
+        10 ** (-0.4 * (PUBLISHED_SKY_MAG_ARCSEC2[band] - PUBLISHED_ZERO_POINT_MAG[band]))
+        * campaign.pixel_scale_arcsec**2
+    )
     return float(point_source_limit(sky_e, band, campaign)), sky_e
 
 
@@ -156,7 +166,6 @@ def test_depth_gap_term_by_term(campaign):
     """The gap between our dark high-latitude depth and the published one, term by term (the table
     in docs/assumptions.md): (1) our sky at |beta| >= 60 deg against the published sky level,
     (2) the remainder with the published assumptions.  The sky term is most of the gap."""
-    from straylight.survey.limits import point_source_limit
 
     lims = _high_latitude_limits(campaign)
     for b, ref in PUBLISHED_DEPTH_MAG.items():
@@ -164,8 +173,10 @@ def test_depth_gap_term_by_term(campaign):
         reconciled, sky_e = _depth_with_published_assumptions(campaign, b)
         sky_term = ours - reconciled
         rest = reconciled - ref
-        print(f"{b}: ours (dark sky) {ours:.3f}; sky term {sky_term:+.3f}; with published assumptions "
-              f"{reconciled:.3f}; remainder {rest:+.3f}; published {ref:.1f}")
+        print(
+            f"{b}: ours (dark sky) {ours:.3f}; sky term {sky_term:+.3f}; with published assumptions "
+            f"{reconciled:.3f}; remainder {rest:+.3f}; published {ref:.1f}"
+        )
         assert sky_term + rest == pytest.approx(ours - ref, abs=1e-9)
         assert sky_term > 0.1 and abs(rest) < RECONCILED_TOLERANCE_MAG
 
@@ -180,31 +191,45 @@ def test_never_observable_pixels_are_nan_in_zarr_and_unseen_in_fits(tmp_path):
     import xarray as xr
 
     from straylight.config import load_campaign
-    from straylight.survey.storage import write_zarr_atomic
     from straylight.survey.limits import limits_dataset, point_source_limit, write_limit_maps
+    from straylight.survey.storage import write_zarr_atomic
 
     c = load_campaign()
     bands = list(c.bands)
     total = np.array([[1.0, 5.0], [0.2, 5.0], [0.5, 5.0], [1e-3, 5.0]])  # (time, pixel) e-/s/pix
     observable = np.array([[True, False], [True, False], [True, False], [False, False]])
     background = xr.Dataset(
-        {"total": (("time", "pixel", "band"), np.repeat(total[:, :, None], len(bands), axis=2)),
-         "observable": (("time", "pixel"), observable)},
-        coords={"time": np.arange(4), "pixel": [0, 1], "ra_deg": ("pixel", [0.0, 10.0]),
-                "dec_deg": ("pixel", [0.0, 10.0]), "band": bands},
-        attrs={"healpix_nside": 1, "healpix_ordering": "RING", "healpix_frame": "ICRS", "campaign": "test"})
+        {
+            "total": (("time", "pixel", "band"), np.repeat(total[:, :, None], len(bands), axis=2)),
+            "observable": (("time", "pixel"), observable),
+        },
+        coords={
+            "time": np.arange(4),
+            "pixel": [0, 1],
+            "ra_deg": ("pixel", [0.0, 10.0]),
+            "dec_deg": ("pixel", [0.0, 10.0]),
+            "band": bands,
+        },
+        attrs={"healpix_nside": 1, "healpix_ordering": "RING", "healpix_frame": "ICRS", "campaign": "test"},
+    )
     ds = limits_dataset(c, background)
     g = bands.index("g")
     expected = point_source_limit(total[:3, 0], "g", c)
     assert ds["limiting_mag_best"].values[0, g] == pytest.approx(expected.max(), abs=1e-5)
     assert ds["limiting_mag_median"].values[0, g] == pytest.approx(np.median(expected), abs=1e-5)
-    assert np.all(np.isnan(ds["limiting_mag_best"].values[1])) and np.all(np.isnan(ds["limiting_mag_median"].values[1]))
+    assert np.all(np.isnan(ds["limiting_mag_best"].values[1])) and np.all(
+        np.isnan(ds["limiting_mag_median"].values[1])
+    )
     # through the products' codecs, as the limits rule writes it: NaN survives the bit rounding
     write_zarr_atomic(ds, tmp_path / "limits.zarr", storage=c.config["storage"])
     back = xr.open_zarr(tmp_path / "limits.zarr")
-    assert np.isnan(back["limiting_mag_best"].values[1]).all() and np.isfinite(back["limiting_mag_best"].values[0]).all()
+    assert (
+        np.isnan(back["limiting_mag_best"].values[1]).all()
+        and np.isfinite(back["limiting_mag_best"].values[0]).all()
+    )
     assert back["limiting_mag_best"].values[0, g] == pytest.approx(
-        expected.max(), rel=back["limiting_mag_best"].attrs["max_relative_error"], abs=1e-5)
+        expected.max(), rel=back["limiting_mag_best"].attrs["max_relative_error"], abs=1e-5
+    )
     write_limit_maps(ds, tmp_path / "maps")
     m = hp.read_map(tmp_path / "maps" / "limit_best_g.fits")
     assert m[0] == pytest.approx(expected.max(), abs=1e-5)
@@ -238,15 +263,27 @@ def test_limits_stream_over_chunks_with_the_eager_values(tmp_path):
     observable[:, :5] = False  # never observable: NaN summaries
     background = xr.Dataset(
         {"total": (("time", "pixel", "band"), total), "observable": (("time", "pixel"), observable)},
-        coords={"time": np.arange(nt), "pixel": np.arange(npix), "ra_deg": ("pixel", np.zeros(npix)),
-                "dec_deg": ("pixel", np.zeros(npix)), "band": bands},
-        attrs={"healpix_nside": 8, "healpix_ordering": "RING", "healpix_frame": "ICRS", "campaign": "test"})
+        coords={
+            "time": np.arange(nt),
+            "pixel": np.arange(npix),
+            "ra_deg": ("pixel", np.zeros(npix)),
+            "dec_deg": ("pixel", np.zeros(npix)),
+            "band": bands,
+        },
+        attrs={"healpix_nside": 8, "healpix_ordering": "RING", "healpix_frame": "ICRS", "campaign": "test"},
+    )
     eager = limits_dataset(c, background)
     lazy = limits_dataset(c, background.chunk({"time": 7, "pixel": 100}))
     assert lazy["limiting_mag"].chunks is not None  # nothing computed yet
     lazy.to_zarr(tmp_path / "lazy.zarr")
     back = xr.open_zarr(tmp_path / "lazy.zarr").load()
-    for name in ("limiting_mag", "limiting_mag_best", "limiting_mag_median", "observable_fraction", "observable"):
+    for name in (
+        "limiting_mag",
+        "limiting_mag_best",
+        "limiting_mag_median",
+        "observable_fraction",
+        "observable",
+    ):
         np.testing.assert_array_equal(back[name].values, eager[name].values, err_msg=name)
         assert back[name].dtype == eager[name].dtype
     assert np.isnan(back["limiting_mag_best"].values[:5]).all()

@@ -1,19 +1,22 @@
 """`straylight sky --input pointings --out table.parquet` (#8): values, and bad rows.
 
 Reference values: `straylight sky` for each row, one sample at a time."""
+
 import json
 
 import numpy as np
 import pytest
-
 from conftest import run_cli
 
 
 def test_table_matches_single_sample_sky(tmp_path):
     import pyarrow.parquet as pq
 
-    rows = [("2026-01-01T00:50:00", 150.0, 40.0), ("2026-01-01T05:00:00", 270.0, 66.5),
-            ("2026-01-01T05:00:00", 359.99, -89.99)]
+    rows = [
+        ("2026-01-01T00:50:00", 150.0, 40.0),
+        ("2026-01-01T05:00:00", 270.0, 66.5),
+        ("2026-01-01T05:00:00", 359.99, -89.99),
+    ]
     p = tmp_path / "pointings.csv"
     p.write_text("time,ra,dec\n" + "\n".join(f"{t},{r},{d}" for t, r, d in rows) + "\n")
     out = tmp_path / "table.parquet"
@@ -27,7 +30,9 @@ def test_table_matches_single_sample_sky(tmp_path):
         assert t["observable"][i] == rec["observable"]
         for b in ("g", "y"):
             for c in ("zodiacal", "earthshine", "moon", "sun", "total"):
-                assert t[f"{c}_{b}"][i] == pytest.approx(rec["bands"][b][c]["e_per_s_per_pix"], rel=1e-6, abs=1e-12)
+                assert t[f"{c}_{b}"][i] == pytest.approx(
+                    rec["bands"][b][c]["e_per_s_per_pix"], rel=1e-6, abs=1e-12
+                )
             assert np.isfinite(t[f"limit_mag_{b}"][i])
             assert t[f"limit_mag_{b}"][i] == pytest.approx(rec["bands"][b]["limit_mag"], abs=1e-9)
     # every physical column carries its unit (Parquet field metadata `unit`)
@@ -38,13 +43,16 @@ def test_table_matches_single_sample_sky(tmp_path):
     assert unit["ra_deg"] == unit["sun_angle_deg"] == "deg" and unit["observable"] == ""
 
 
-@pytest.mark.parametrize("content, message", [
-    ("time,ra,dec\n2026-01-01T00:00:00,10,nan\n", "row 1: dec = nan is not finite"),
-    ("time,ra,dec\n2026-01-01T00:00:00,10,95\n", "row 1: dec = 95.0 outside [-90, 90] deg"),
-    ("time,ra\n2026-01-01T00:00:00,10\n", "missing column 'dec'"),
-    ("time,ra,dec\n2026-13-45T00:00:00,10,5\n", "row 1: time"),
-    ("time,ra,dec\n", "no rows"),
-])
+@pytest.mark.parametrize(
+    "content, message",
+    [
+        ("time,ra,dec\n2026-01-01T00:00:00,10,nan\n", "row 1: dec = nan is not finite"),
+        ("time,ra,dec\n2026-01-01T00:00:00,10,95\n", "row 1: dec = 95.0 outside [-90, 90] deg"),
+        ("time,ra\n2026-01-01T00:00:00,10\n", "missing column 'dec'"),
+        ("time,ra,dec\n2026-13-45T00:00:00,10,5\n", "row 1: time"),
+        ("time,ra,dec\n", "no rows"),
+    ],
+)
 def test_bad_rows_name_file_row_field_and_value(tmp_path, content, message):
     p = tmp_path / "bad.csv"
     p.write_text(content)

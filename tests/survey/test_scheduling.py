@@ -1,14 +1,14 @@
 """Scheduling tables (issue #8 item 2): checked against independent evaluations of the same
 physics (the PST directly, the Earth-cap sum in a rotated scene, the 5-sigma equation solved
 numerically)."""
+
 import numpy as np
 import pytest
-
 from conftest import run_cli
+
 from straylight.model import BackgroundModel
 from straylight.survey.limits import point_source_limit
-from straylight.survey.scheduling import (bright_limb_table, exposure_time_factor,
-                                   moon_avoidance_table)
+from straylight.survey.scheduling import bright_limb_table, exposure_time_factor, moon_avoidance_table
 
 
 @pytest.fixture(scope="module")
@@ -34,7 +34,12 @@ def test_exposure_factor_reaches_the_nominal_depth(campaign, model):
     r80 = campaign.instrument_value("detector", "ee80_radius_arcsec") / campaign.pixel_scale_arcsec
     npix = np.pi * r80**2
     band = model.context.band(b)
-    zp_e = band.ab_zero_point_photons_s_m2 * np.pi * campaign.instrument_value("telescope", "aperture_diameter_m") ** 2 / 4
+    zp_e = (
+        band.ab_zero_point_photons_s_m2
+        * np.pi
+        * campaign.instrument_value("telescope", "aperture_diameter_m") ** 2
+        / 4
+    )
     rate = 0.8 * zp_e * 10 ** (-0.4 * m_lim)
     for ratio in (0.1, 1.0, 10.0):
         bkg = z * (1 + ratio)
@@ -89,9 +94,16 @@ def _rotated_scene_rate(campaign, model, sun_zenith_deg: float, elevation_deg: f
     los = np.cos(zeta) * up + np.sin(zeta) * (np.cos(az) * east + np.sin(az) * north)
     bodies = {"sun": sun[None], "moon": (-1e6 * up)[None]}
     g = observing_geometry(sat[None], bodies, los[None], re, campaign.constraints)
-    c = model.context.offfield.earthshine_coefficients(sat[None], sun[None], bodies["moon"],
-                                               telescope_frame(los[None], sun[None] - sat[None]),
-                                               g["door_opening_deg"], re, in_field=False, moon=False)
+    c = model.context.offfield.earthshine_coefficients(
+        sat[None],
+        sun[None],
+        bodies["moon"],
+        telescope_frame(los[None], sun[None] - sat[None]),
+        g["door_opening_deg"],
+        re,
+        in_field=False,
+        moon=False,
+    )
     rate = (c["direct_sun"][0] + c["door_sun"][0]) * model.context.photometry("g").sun_at_1au_photons_s_m2
     return float(rate), float(g["door_opening_deg"][0])
 
@@ -106,8 +118,14 @@ def test_bright_limb_elevation_holds_in_a_rotated_scene(campaign, model):
     # azimuth nodes every 30 deg, where the rotated scenes are checked: the table's worst case over
     # its nodes is then the worst case checked (between 45 deg nodes the default PST's 30-90 deg
     # tail lets the rate rise 5.1 % above the nodes' worst)
-    t = bright_limb_table(model, fraction, sun_zenith_step_deg=50.0, azimuth_step_deg=30.0, elevation_step_deg=2.0,
-                          terminator_step_deg=10.0)
+    t = bright_limb_table(
+        model,
+        fraction,
+        sun_zenith_step_deg=50.0,
+        azimuth_step_deg=30.0,
+        elevation_step_deg=2.0,
+        terminator_step_deg=10.0,
+    )
     assert list(t["sun_zenith_deg"]) == [0.0, 50.0, 90.0, 100.0, 110.0]  # 110: past the limb's 109.8 deg
     need = t["min_limb_elevation_deg_g"][[0, 3]]
     limit = fraction * model.context.darkest_zodiacal_e_per_s("g")

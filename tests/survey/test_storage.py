@@ -1,6 +1,7 @@
 """The products' lossy storage (straylight/survey/storage.py) on a real block of the default
 campaign: every stored float within its recorded bound of the computed one, the bound within the
 1e-3 relative required, and the whole product set under 25 bytes per (time, pixel) sample."""
+
 import numpy as np
 import pytest
 import xarray as xr
@@ -13,8 +14,14 @@ from straylight.survey.executors import write_region
 from straylight.survey.footprint import footprint_from_config
 from straylight.survey.limits import limits_dataset
 from straylight.survey.products import ephemeris_dataset, observability_dataset
-from straylight.survey.storage import (bitround, encoded, max_relative_error, recorded_keepbits, stored_values,
-                                       write_zarr_atomic)
+from straylight.survey.storage import (
+    bitround,
+    encoded,
+    max_relative_error,
+    recorded_keepbits,
+    stored_values,
+    write_zarr_atomic,
+)
 
 #: the storage requirements: stored values within 1e-3 relative of the computed ones, all
 #: products together at most 25 bytes per (time, pixel) sample
@@ -30,7 +37,9 @@ def block(campaign, tmp_path_factory):
     init_store and write_region; then limits.zarr from the stored background and
     observability.zarr at those samples, as their rules write them.  Without the star catalog
     (built by a pipeline rule of its own): stars = 0."""
-    c = campaign_from_dict(deep_merge(campaign.config, {"footprint": {"pixel_block_size": 330}}), campaign.path)
+    c = campaign_from_dict(
+        deep_merge(campaign.config, {"footprint": {"pixel_block_size": 330}}), campaign.path
+    )
     fp = footprint_from_config(c.config["footprint"], c.path.parent)
     times, pixels = slice(0, 72), slice(0, 330)
     tmp = tmp_path_factory.mktemp("storage")
@@ -38,12 +47,20 @@ def block(campaign, tmp_path_factory):
     write_region(c, fp, tmp / "background.zarr", times, pixels)
     computed = compute_region(c, fp, times, pixels)
     with xr.open_zarr(tmp / "background.zarr", consolidated=False) as bg:
-        limits = limits_dataset(c, bg.isel(time=times, pixel=pixels).drop_vars("faint_star_map", errors="ignore").load())
+        limits = limits_dataset(
+            c, bg.isel(time=times, pixel=pixels).drop_vars("faint_star_map", errors="ignore").load()
+        )
     write_zarr_atomic(limits, tmp / "limits.zarr", storage=c.config["storage"])
     observability = observability_dataset(c, ephemeris_dataset(c).isel(time=times), fp).isel(pixel=pixels)
     write_zarr_atomic(observability, tmp / "observability.zarr", storage=c.config["storage"])
-    return {"campaign": c, "dir": tmp, "samples": 72 * 330, "times": times, "pixels": pixels,
-            "computed": {"background.zarr": computed, "limits.zarr": limits, "observability.zarr": observability}}
+    return {
+        "campaign": c,
+        "dir": tmp,
+        "samples": 72 * 330,
+        "times": times,
+        "pixels": pixels,
+        "computed": {"background.zarr": computed, "limits.zarr": limits, "observability.zarr": observability},
+    }
 
 
 def _max_relative_error(stored, computed) -> float:
@@ -68,7 +85,7 @@ def test_bound_from_kept_bits(campaign):
     bits = campaign.config["storage"]["float_keepbits"]
     # round to nearest keeps half a unit of the last kept mantissa bit: 2^-(bits + 1)
     assert max_relative_error(bits) == 2.0 ** -(bits + 1) <= REQUIRED_RELATIVE_ERROR
-    assert max_relative_error(23) == 0.0 and max_relative_error(23, np.float64) == 2.0 ** -24
+    assert max_relative_error(23) == 0.0 and max_relative_error(23, np.float64) == 2.0**-24
 
 
 def test_stored_products_within_their_bound(block):
@@ -77,10 +94,15 @@ def test_stored_products_within_their_bound(block):
     for product, computed in block["computed"].items():
         with xr.open_zarr(block["dir"] / product, consolidated=False) as whole:
             # background.zarr holds the whole campaign's layout, this block written
-            stored = whole.isel(time=block["times"], pixel=block["pixels"]) if product == "background.zarr" else whole
+            stored = (
+                whole.isel(time=block["times"], pixel=block["pixels"])
+                if product == "background.zarr"
+                else whole
+            )
             assert stored.attrs["float_max_relative_error"] == max(
                 max_relative_error(storage["float_keepbits"]),
-                *(stored[n].attrs["max_relative_error"] for n in stored.data_vars)), product
+                *(stored[n].attrs["max_relative_error"] for n in stored.data_vars),
+            ), product
             for name, var in computed.data_vars.items():
                 is_mag = str(var.attrs.get("units", "")).startswith("mag")
                 bits = storage["magnitude_keepbits" if is_mag else "float_keepbits"]
@@ -90,7 +112,10 @@ def test_stored_products_within_their_bound(block):
                     assert attrs["max_relative_error"] == 0.0
                     np.testing.assert_array_equal(stored[name].values, var.values)
                     continue
-                assert attrs["max_relative_error"] == bound and f"bitround(keepbits={bits})" in attrs["compression"]
+                assert (
+                    attrs["max_relative_error"] == bound
+                    and f"bitround(keepbits={bits})" in attrs["compression"]
+                )
                 err = _max_relative_error(stored[name].values, var.values)
                 assert err <= bound, (product, name, err)
                 if is_mag:  # magnitudes to a fixed precision: 2^-17 x 32 mag (config storage)
@@ -133,8 +158,28 @@ def _edge_values(dtype) -> np.ndarray:
     info = np.finfo(dtype)
     uint = np.uint32 if np.dtype(dtype).itemsize == 4 else np.uint64
     patterns = np.random.default_rng(7).integers(0, np.iinfo(uint).max, 100_000, dtype=uint, endpoint=True)
-    edges = np.array([0.0, -0.0, np.nan, -np.nan, np.inf, -np.inf, info.max, -info.max, info.tiny, -info.tiny,
-                      info.smallest_subnormal, -info.smallest_subnormal, 1.0, -1.0, 1.5, 3.0e-8, -7.25e12], dtype)
+    edges = np.array(
+        [
+            0.0,
+            -0.0,
+            np.nan,
+            -np.nan,
+            np.inf,
+            -np.inf,
+            info.max,
+            -info.max,
+            info.tiny,
+            -info.tiny,
+            info.smallest_subnormal,
+            -info.smallest_subnormal,
+            1.0,
+            -1.0,
+            1.5,
+            3.0e-8,
+            -7.25e12,
+        ],
+        dtype,
+    )
     scales = 10.0 ** np.arange(-20, 20, 4).repeat(1000)
     normal = (np.random.default_rng(8).standard_normal(10_000) * scales).astype(dtype)
     values = np.concatenate([patterns.view(dtype), edges, normal])
@@ -155,7 +200,9 @@ def test_bitround_is_numcodecs_bitround_bit_for_bit(dtype):
         expected = BitRound(keepbits).encode(values.copy()).view(uint)
         got = bitround(values.copy(), keepbits)
         assert got.dtype == values.dtype
-        np.testing.assert_array_equal(got.view(uint), expected, err_msg=f"{dtype.__name__}, keepbits {keepbits}")
+        np.testing.assert_array_equal(
+            got.view(uint), expected, err_msg=f"{dtype.__name__}, keepbits {keepbits}"
+        )
 
 
 def test_bitround_in_place_or_on_a_copy():
@@ -202,8 +249,9 @@ def test_every_stored_float_keeps_only_its_bits(block):
             dropped = (1 << (np.finfo(stored.dtype).nmant - keepbits)) - 1
             assert not np.any(stored.view(uint) & uint.type(dropped)), (product, name)
             expected = BitRound(keepbits).encode(np.ascontiguousarray(var.values, stored.dtype))
-            np.testing.assert_array_equal(stored.view(uint), expected.reshape(stored.shape).view(uint),
-                                          err_msg=f"{product} {name}")
+            np.testing.assert_array_equal(
+                stored.view(uint), expected.reshape(stored.shape).view(uint), err_msg=f"{product} {name}"
+            )
             checked += 1
     assert checked == len(CUBE_BAND_VARIABLES) + 1 + 4 + 4
 
@@ -223,13 +271,21 @@ def test_encoded_rounds_dask_data_chunk_by_chunk(campaign):
     from numcodecs import BitRound
 
     values = np.random.default_rng(4).random((10, 8)).astype(np.float32)
-    ds = xr.Dataset({"a": (("time", "pixel"), da.from_array(values.copy(), chunks=(3, 4)),
-                           {"units": "electron / (s pixel)"})})
+    ds = xr.Dataset(
+        {
+            "a": (
+                ("time", "pixel"),
+                da.from_array(values.copy(), chunks=(3, 4)),
+                {"units": "electron / (s pixel)"},
+            )
+        }
+    )
     out, enc = encoded(ds, campaign.config["storage"])
     bits = campaign.config["storage"]["float_keepbits"]
     assert out["a"].chunks == ds["a"].chunks and "filters" not in enc["a"]
-    np.testing.assert_array_equal(out["a"].values.view(np.uint32),
-                                  BitRound(bits).encode(values).view(np.uint32).reshape(values.shape))
+    np.testing.assert_array_equal(
+        out["a"].values.view(np.uint32), BitRound(bits).encode(values).view(np.uint32).reshape(values.shape)
+    )
     np.testing.assert_array_equal(ds["a"].values, values)
 
 
@@ -249,29 +305,50 @@ def test_chunk_writer_writes_the_files_zarr_writes(tmp_path):
     from straylight.survey.storage import ChunkWriter, write_skeleton
 
     shape, chunks = (10, 7, 3), (4, 3, 3)  # edge chunks along time (2 of 4) and pixel (1 of 3)
-    ds = xr.Dataset({"f": (("time", "pixel", "band"), da.zeros(shape, chunks=chunks, dtype=np.float32)),
-                     "b": (("time", "pixel"), da.zeros(shape[:2], chunks=chunks[:2], dtype=bool)),
-                     "u": (("time", "pixel"), da.zeros(shape[:2], chunks=chunks[:2], dtype=np.uint8))})
+    ds = xr.Dataset(
+        {
+            "f": (("time", "pixel", "band"), da.zeros(shape, chunks=chunks, dtype=np.float32)),
+            "b": (("time", "pixel"), da.zeros(shape[:2], chunks=chunks[:2], dtype=bool)),
+            "u": (("time", "pixel"), da.zeros(shape[:2], chunks=chunks[:2], dtype=np.uint8)),
+        }
+    )
     settings = {"float_keepbits": 10, "blosc_clevel": 2}
     for name in ("zarr", "writer"):
         write_skeleton(ds, tmp_path / f"{name}.zarr", settings)
     # every array takes the writer's own path (not zarr's) for a region that is one chunk
-    assert all(ChunkWriter(zarr.open_array(str(tmp_path / "writer.zarr" / n)))._chunk_coords((slice(8, 10), slice(6, 7)))[0]
-               == (2, 2, 0)[:len(shape) - (n != "f")] and ChunkWriter(zarr.open_array(str(tmp_path / "writer.zarr" / n)))._codecs
-               for n in ("f", "b", "u"))
+    assert all(
+        ChunkWriter(zarr.open_array(str(tmp_path / "writer.zarr" / n)))._chunk_coords(
+            (slice(8, 10), slice(6, 7))
+        )[0]
+        == (2, 2, 0)[: len(shape) - (n != "f")]
+        and ChunkWriter(zarr.open_array(str(tmp_path / "writer.zarr" / n)))._codecs
+        for n in ("f", "b", "u")
+    )
     rng = np.random.default_rng(7)
-    regions = [(slice(0, 4), slice(0, 3)), (slice(8, 10), slice(6, 7)), (slice(4, 8), slice(3, 6)),
-               (slice(0, 4), slice(6, 7)), (slice(8, 10), slice(0, 3)), (slice(0, 4), slice(3, 6))]
+    regions = [
+        (slice(0, 4), slice(0, 3)),
+        (slice(8, 10), slice(6, 7)),
+        (slice(4, 8), slice(3, 6)),
+        (slice(0, 4), slice(6, 7)),
+        (slice(8, 10), slice(0, 3)),
+        (slice(0, 4), slice(3, 6)),
+    ]
     for step in range(2):  # the second pass overwrites (and empties) chunks the first wrote
         for k, (ts, ps) in enumerate(regions):
             n = (ts.stop - ts.start, ps.stop - ps.start)
             empty = (k + step) % 3 == 0
-            f = np.full(n + (3,), np.nan, np.float32) if empty else (10 ** rng.normal(0, 2, n + (3,))).astype(np.float32)
+            f = (
+                np.full(n + (3,), np.nan, np.float32)
+                if empty
+                else (10 ** rng.normal(0, 2, n + (3,))).astype(np.float32)
+            )
             if not empty:
                 f.reshape(-1)[0] = -0.0
-            values = {"f": stored_values(f, {"max_relative_error": 2.0 ** -11}),
-                      "b": np.zeros(n, bool) if empty else rng.random(n) > 0.5,
-                      "u": np.zeros(n, np.uint8) if empty else rng.integers(0, 255, n).astype(np.uint8)}
+            values = {
+                "f": stored_values(f, {"max_relative_error": 2.0**-11}),
+                "b": np.zeros(n, bool) if empty else rng.random(n) > 0.5,
+                "u": np.zeros(n, np.uint8) if empty else rng.integers(0, 255, n).astype(np.uint8),
+            }
             for name, v in values.items():
                 zarr.open_array(str(tmp_path / "zarr.zarr" / name), mode="r+")[ts, ps] = v
                 ChunkWriter(zarr.open_array(str(tmp_path / "writer.zarr" / name), mode="r+"))[ts, ps] = v
@@ -295,25 +372,34 @@ def test_chunk_writer_writes_the_files_zarr_writes(tmp_path):
 
     for name in ("f", "b", "u"):
         array = zarr.open_array(str(tmp_path / "writer.zarr" / name), mode="r")
-        for region in ((slice(None), slice(None)), (slice(1, 9), slice(2, 5)), (slice(3, 4), slice(6, 7)),
-                       (slice(0, 10), slice(1, 2)), (slice(5, 5), slice(0, 7)), (slice(0, 10, 2), slice(0, 3))):
+        for region in (
+            (slice(None), slice(None)),
+            (slice(1, 9), slice(2, 5)),
+            (slice(3, 4), slice(6, 7)),
+            (slice(0, 10), slice(1, 2)),
+            (slice(5, 5), slice(0, 7)),
+            (slice(0, 10, 2), slice(0, 3)),
+        ):
             got, want = read_region(array, region), array[region]
             assert got.dtype == want.dtype and got.shape == want.shape
             np.testing.assert_array_equal(got, want)
 
 
-@pytest.mark.parametrize("dtype, fill, chunk", [
-    (np.float32, np.nan, [np.nan, np.nan, np.nan]),     # all the fill value: no file
-    (np.float32, np.nan, [np.nan, 1.0, np.nan]),        # the first value the fill's, not the rest
-    (np.float32, 0.0, [-0.0, -0.0, -0.0]),              # -0.0 is not the fill 0.0 (bit for bit)
-    (np.float32, -0.0, [-0.0, -0.0, -0.0]),
-    (np.float32, 0.0, [0.0, 0.0, 0.0]),
-    (np.float64, np.nan, [2.0, np.nan, np.nan]),
-    (bool, False, [False, False, True]),
-    (bool, False, [False, False, False]),
-    (np.uint8, 0, [0, 0, 0]),
-    (np.uint8, 0, [1, 0, 0]),
-])
+@pytest.mark.parametrize(
+    "dtype, fill, chunk",
+    [
+        (np.float32, np.nan, [np.nan, np.nan, np.nan]),  # all the fill value: no file
+        (np.float32, np.nan, [np.nan, 1.0, np.nan]),  # the first value the fill's, not the rest
+        (np.float32, 0.0, [-0.0, -0.0, -0.0]),  # -0.0 is not the fill 0.0 (bit for bit)
+        (np.float32, -0.0, [-0.0, -0.0, -0.0]),
+        (np.float32, 0.0, [0.0, 0.0, 0.0]),
+        (np.float64, np.nan, [2.0, np.nan, np.nan]),
+        (bool, False, [False, False, True]),
+        (bool, False, [False, False, False]),
+        (np.uint8, 0, [0, 0, 0]),
+        (np.uint8, 0, [1, 0, 0]),
+    ],
+)
 def test_chunk_of_only_the_fill_value_as_zarr_decides_it(dtype, fill, chunk):
     """storage._all_fill (the chunk writer skips such a chunk's file, as zarr does with
     write_empty_chunks=False) against zarr's own comparison of the whole chunk."""
@@ -356,8 +442,12 @@ def test_fast_paths_hold_on_the_installed_zarr(tmp_path):
     from straylight.survey.storage import ChunkWriter, read_region, write_skeleton
 
     shape, chunks = (6, 5, 2), (4, 3, 2)
-    ds = xr.Dataset({"f": (("time", "pixel", "band"), da.zeros(shape, chunks=chunks, dtype=np.float32)),
-                     "b": (("time", "pixel"), da.zeros(shape[:2], chunks=chunks[:2], dtype=bool))})
+    ds = xr.Dataset(
+        {
+            "f": (("time", "pixel", "band"), da.zeros(shape, chunks=chunks, dtype=np.float32)),
+            "b": (("time", "pixel"), da.zeros(shape[:2], chunks=chunks[:2], dtype=bool)),
+        }
+    )
     write_skeleton(ds, tmp_path / "s.zarr", {"float_keepbits": 10, "blosc_clevel": 2})
     rng = np.random.default_rng(5)
     for name in ("f", "b"):
@@ -365,16 +455,19 @@ def test_fast_paths_hold_on_the_installed_zarr(tmp_path):
         writer = ChunkWriter(_ZarrIORefused(public))
         interior, edge = (slice(0, 4), slice(0, 3)), (slice(4, 6), slice(3, 5))
         n_bands = shape[2:] if name == "f" else ()
-        a, e = ((rng.random(n + n_bands) > 0.5) if name == "b" else rng.random(n + n_bands).astype(np.float32)
-                for n in ((4, 3), (2, 2)))
+        a, e = (
+            (rng.random(n + n_bands) > 0.5) if name == "b" else rng.random(n + n_bands).astype(np.float32)
+            for n in ((4, 3), (2, 2))
+        )
         a.reshape(-1)[0] = e.reshape(-1)[0] = True if name == "b" else 1.5  # never only the fill value
         writer[interior] = a
         writer[edge] = e
         np.testing.assert_array_equal(public[interior], a)
         np.testing.assert_array_equal(public[edge], e)
         folder = tmp_path / "s.zarr" / name
-        chunk_files = sorted(str(p.relative_to(folder)) for p in folder.rglob("*")
-                             if p.is_file() and p.name != "zarr.json")
+        chunk_files = sorted(
+            str(p.relative_to(folder)) for p in folder.rglob("*") if p.is_file() and p.name != "zarr.json"
+        )
         key = "c/{}/{}" + ("/0" if name == "f" else "")
         assert chunk_files == [key.format(0, 0), key.format(1, 1)]
         # a chunk of only the fill value: its file removed, zarr reads the fill value

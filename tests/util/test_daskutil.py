@@ -4,6 +4,7 @@ with their parent (die_with_parent), SIGTERM and SIGINT stopping a pool (stop_on
 
 Reference: the process's own log file and exit status, read by its parent; the processes' table
 (psutil)."""
+
 import subprocess
 import sys
 import time
@@ -23,7 +24,8 @@ def test_exit_without_teardown_flushes_the_logs_and_skips_the_rest(tmp_path):
         "sys.stdout.write('unflushed stdout')\n"
         "from straylight.util.daskutil import exit_without_teardown\n"
         "exit_without_teardown(3)\n"
-        "raise SystemExit('not reached')\n")
+        "raise SystemExit('not reached')\n"
+    )
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert r.returncode == 3, r.stderr[-2000:]
     assert r.stdout == "unflushed stdout"
@@ -75,12 +77,14 @@ def test_spawned_pool_workers_die_with_the_pools_process():
     import os
     import signal
 
-    code = ("import os, sys, time\n"
-            "from straylight.util.daskutil import spawned_pool\n"
-            "with spawned_pool(2) as pool:\n"
-            "    futures = [pool.submit(time.sleep, 60) for _ in range(4)]\n"
-            "    print(*pool._processes, flush=True)\n"
-            "    time.sleep(60)\n")
+    code = (
+        "import os, sys, time\n"
+        "from straylight.util.daskutil import spawned_pool\n"
+        "with spawned_pool(2) as pool:\n"
+        "    futures = [pool.submit(time.sleep, 60) for _ in range(4)]\n"
+        "    print(*pool._processes, flush=True)\n"
+        "    time.sleep(60)\n"
+    )
     owner = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
     workers = [int(p) for p in owner.stdout.readline().split()]
     try:
@@ -103,14 +107,17 @@ def test_die_with_parent(mechanism):
     import signal
 
     fake = "sys.platform = 'darwin'\n" if mechanism == "poll" else ""
-    child = ("import signal, sys, time\n" + fake +
-             "from straylight.util.daskutil import die_with_parent\n"
-             "die_with_parent(signal.SIGTERM)\n"
-             "time.sleep(60)\n")
-    parent = ("import subprocess, sys, time\n"
-              f"c = subprocess.Popen([sys.executable, '-c', {child!r}])\n"
-              "print(c.pid, flush=True)\n"
-              "time.sleep(60)\n")
+    child = (
+        "import signal, sys, time\n" + fake + "from straylight.util.daskutil import die_with_parent\n"
+        "die_with_parent(signal.SIGTERM)\n"
+        "time.sleep(60)\n"
+    )
+    parent = (
+        "import subprocess, sys, time\n"
+        f"c = subprocess.Popen([sys.executable, '-c', {child!r}])\n"
+        "print(c.pid, flush=True)\n"
+        "time.sleep(60)\n"
+    )
     proc = subprocess.Popen([sys.executable, "-c", parent], stdout=subprocess.PIPE, text=True)
     pid = int(proc.stdout.readline())
     time.sleep(1.0)  # the child's imports and its call
@@ -121,10 +128,13 @@ def test_die_with_parent(mechanism):
         os.kill(p, signal.SIGKILL)
     assert not left
 
-    code = ("import os, signal\n" + fake.replace("sys.", "__import__('sys').") +
-            "from straylight.util.daskutil import die_with_parent\n"
-            "die_with_parent(signal.SIGTERM, parent_pid=os.getppid() + 1)\n"  # not its parent: gone
-            "import time; time.sleep(30)\n")
+    code = (
+        "import os, signal\n"
+        + fake.replace("sys.", "__import__('sys').")
+        + "from straylight.util.daskutil import die_with_parent\n"
+        "die_with_parent(signal.SIGTERM, parent_pid=os.getppid() + 1)\n"  # not its parent: gone
+        "import time; time.sleep(30)\n"
+    )
     r = subprocess.run([sys.executable, "-c", code], timeout=60)
     assert r.returncode == -signal.SIGTERM
 
@@ -138,19 +148,21 @@ def test_stop_on_signals_kills_the_pools_workers_and_exits_non_zero(signame):
     import os
     import signal
 
-    code = ("import sys, time\n"
-            "from concurrent.futures import wait\n"
-            "from straylight.util.daskutil import Stopped, exit_without_teardown, spawned_pool, stop_on_signals\n"
-            "try:\n"
-            "    with stop_on_signals() as stopping, spawned_pool(2) as pool:\n"
-            "        stopping.append(pool)\n"
-            "        futures = [pool.submit(time.sleep, 60) for _ in range(6)]\n"
-            "        print(*pool._processes, flush=True)\n"
-            "        wait(futures)\n"
-            "except Stopped as stop:\n"
-            "    ran = [f for f in futures if not f.cancelled() and f.exception(timeout=0) is None]\n"
-            "    print(stop, len(ran), flush=True)\n"
-            "    exit_without_teardown(128 + stop.signum)\n")
+    code = (
+        "import sys, time\n"
+        "from concurrent.futures import wait\n"
+        "from straylight.util.daskutil import Stopped, exit_without_teardown, spawned_pool, stop_on_signals\n"
+        "try:\n"
+        "    with stop_on_signals() as stopping, spawned_pool(2) as pool:\n"
+        "        stopping.append(pool)\n"
+        "        futures = [pool.submit(time.sleep, 60) for _ in range(6)]\n"
+        "        print(*pool._processes, flush=True)\n"
+        "        wait(futures)\n"
+        "except Stopped as stop:\n"
+        "    ran = [f for f in futures if not f.cancelled() and f.exception(timeout=0) is None]\n"
+        "    print(stop, len(ran), flush=True)\n"
+        "    exit_without_teardown(128 + stop.signum)\n"
+    )
     proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
     workers = [int(p) for p in proc.stdout.readline().split()]
     time.sleep(1.0)  # the workers started, the first tasks running
@@ -161,5 +173,7 @@ def test_stop_on_signals_kills_the_pools_workers_and_exits_non_zero(signame):
     assert time.monotonic() - t0 < 10.0
     assert proc.returncode == 128 + sig
     said, ran = out.rsplit(" ", 1)
-    assert said.strip() == f"stopped by {signame}" and int(ran) == 0  # each cancelled or failed, none finished
+    assert (
+        said.strip() == f"stopped by {signame}" and int(ran) == 0
+    )  # each cancelled or failed, none finished
     assert len(workers) == 2 and not _wait_gone(workers, 5.0)

@@ -1,4 +1,5 @@
 """The fast grid interpolator against scipy's RegularGridInterpolator (the independent library)."""
+
 import numpy as np
 import pytest
 from scipy.interpolate import RegularGridInterpolator
@@ -10,8 +11,10 @@ from straylight.util.gridinterp import LinearGrid
 def test_matches_scipy_on_nonuniform_axes(ndim):
     rng = np.random.default_rng(1)
     # non-uniform axes with a narrow cell among wide ones (like the PST's anchor nodes)
-    axes = [np.unique(np.concatenate([np.linspace(0, 180, 19), [30.01, 30.02, 0.5], rng.uniform(0, 180, 5)]))
-            for _ in range(ndim)]
+    axes = [
+        np.unique(np.concatenate([np.linspace(0, 180, 19), [30.01, 30.02, 0.5], rng.uniform(0, 180, 5)]))
+        for _ in range(ndim)
+    ]
     values = rng.normal(size=tuple(a.size for a in axes))
     pts = rng.uniform(0, 180, size=(200_000, ndim))
     pts[:50] = np.array(np.meshgrid(*axes, indexing="ij")).reshape(ndim, -1).T[:50]  # exactly on nodes
@@ -32,8 +35,14 @@ def test_uniform_axes_match_scipy_at_and_beside_nodes(ndim):
     axes = [np.linspace(0.0, 360.0, 73), np.linspace(0.0, 90.0, 91), np.linspace(-1.5, 2.5, 9)][:ndim]
     values = rng.normal(size=tuple(a.size for a in axes))
     nodes = np.array(np.meshgrid(*axes, indexing="ij")).reshape(ndim, -1).T
-    pts = np.concatenate([rng.uniform(-10.0, 370.0, size=(50_000, ndim)), nodes,
-                          np.nextafter(nodes, np.inf), np.nextafter(nodes, -np.inf)])
+    pts = np.concatenate(
+        [
+            rng.uniform(-10.0, 370.0, size=(50_000, ndim)),
+            nodes,
+            np.nextafter(nodes, np.inf),
+            np.nextafter(nodes, -np.inf),
+        ]
+    )
     lo, hi = np.array([a[0] for a in axes]), np.array([a[-1] for a in axes])
     grid = LinearGrid(axes, values)
     assert all(ax.uniform for ax in grid.axes)
@@ -48,7 +57,9 @@ def test_uniform_axes_match_scipy_at_and_beside_nodes(ndim):
 
 
 def test_clips_outside_and_propagates_nan():
-    f = LinearGrid([np.array([0.0, 1.0, 3.0]), np.array([0.0, 2.0])], np.array([[0.0, 2.0], [1.0, 3.0], [3.0, 5.0]]))
+    f = LinearGrid(
+        [np.array([0.0, 1.0, 3.0]), np.array([0.0, 2.0])], np.array([[0.0, 2.0], [1.0, 3.0], [3.0, 5.0]])
+    )
     assert f(-5.0, 1.0) == pytest.approx(1.0)  # clipped to x = 0: 0 + (2 - 0) * 1/2
     assert f(10.0, 2.0) == pytest.approx(5.0)
     assert f(2.0, 1.0) == pytest.approx(3.0)  # (2 + 4) / 2
@@ -103,7 +114,7 @@ def test_channel_picks_each_points_own_table_with_the_same_numbers():
     got = LinearGrid(axes3, values3)(*pts3.T, channel=group, group=2)
     assert got.shape == (5000, 2)
     for g in range(3):
-        own = LinearGrid(axes3, values3[..., 2 * g:2 * g + 2])(*pts3[group == g].T)
+        own = LinearGrid(axes3, values3[..., 2 * g : 2 * g + 2])(*pts3[group == g].T)
         assert np.array_equal(got[group == g], own)
     with pytest.raises(ValueError, match="in groups of 4"):
         LinearGrid(axes3, values3)(*pts3.T, channel=group, group=4)
@@ -130,7 +141,9 @@ def test_group_major_storage_gives_the_same_values(ndim):
     assert np.isnan(got[:3]).all()
     clipped = np.clip(pts[3:], 0.0, 180.0)
     for j in range(2):
-        ref = RegularGridInterpolator(axes, values[..., j::2], method="linear")(clipped)[np.arange(4997), channel[3:]]
+        ref = RegularGridInterpolator(axes, values[..., j::2], method="linear")(clipped)[
+            np.arange(4997), channel[3:]
+        ]
         assert np.max(np.abs(got[3:, j] - ref)) < 1e-12
     with pytest.raises(ValueError, match="groups of 2"):
         grouped(*pts.T)

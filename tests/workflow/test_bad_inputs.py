@@ -1,6 +1,7 @@
 """The bad-input corpus (tests/workflow/bad_inputs/cases.yaml, issue #9): every user mistake gives one
 clear line naming the file, field and value, with exit status 2 and nothing written or changed,
 or a quarantine with counted reasons; never a traceback, never a silently wrong product."""
+
 import copy
 import gzip
 import hashlib
@@ -11,7 +12,6 @@ from pathlib import Path
 
 import pytest
 import yaml
-
 from conftest import REPO, tiny_config
 
 CASES = yaml.safe_load((Path(__file__).parent / "bad_inputs" / "cases.yaml").read_text())
@@ -74,8 +74,11 @@ def _prepare(case, tmp: Path) -> dict:
 
 
 def _tree_digest(root: Path) -> dict:
-    return {str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
-            for p in sorted(root.rglob("*")) if p.is_file()}
+    return {
+        str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(root.rglob("*"))
+        if p.is_file()
+    }
 
 
 def _run(argv, capsys, monkeypatch=None, no_work=()):
@@ -154,10 +157,17 @@ def _always_observable(campaign, t, ra_deg, dec_deg, bands, stars=None, source="
     from astropy.table import QTable
 
     n, b = len(t), bands[0]
-    return QTable({"time": t, "observable": np.ones(n, bool), "violations": np.full(n, ""),
-                   f"total_{b}": np.ones(n) * u.electron / (u.s * u.pix),
-                   f"total_mag_{b}": np.full(n, 22.0) * u.mag / u.arcsec**2, f"limit_mag_{b}": np.full(n, 26.0) * u.mag},
-                  meta={"mag_zero_point": {b: 25.0 * u.mag / u.arcsec**2}})
+    return QTable(
+        {
+            "time": t,
+            "observable": np.ones(n, bool),
+            "violations": np.full(n, ""),
+            f"total_{b}": np.ones(n) * u.electron / (u.s * u.pix),
+            f"total_mag_{b}": np.full(n, 22.0) * u.mag / u.arcsec**2,
+            f"limit_mag_{b}": np.full(n, 26.0) * u.mag,
+        },
+        meta={"mag_zero_point": {b: 25.0 * u.mag / u.arcsec**2}},
+    )
 
 
 def test_visibility_windows_end_at_end(tmp_path, monkeypatch):
@@ -169,7 +179,9 @@ def test_visibility_windows_end_at_end(tmp_path, monkeypatch):
 
     monkeypatch.setattr(pointings, "background_table", _always_observable)
     campaign = load_campaign(tiny_config(tmp_path))
-    res = visibility(campaign, 150.0, 30.0, "g", "2026-01-01T00:00:00", "2026-01-01T01:00:00", 25 * 60.0, 25.0)
+    res = visibility(
+        campaign, 150.0, 30.0, "g", "2026-01-01T00:00:00", "2026-01-01T01:00:00", 25 * 60.0, 25.0
+    )
     w, d = res["windows"], res["days"]
     assert len(res["samples"]) == 3 and len(w) == 1
     assert w["start"][0].isot == "2026-01-01T00:00:00" and w["end"][0].isot == "2026-01-01T01:00:00"
@@ -178,12 +190,15 @@ def test_visibility_windows_end_at_end(tmp_path, monkeypatch):
     assert d["hours_deeper_than_threshold"][0].value == pytest.approx(1.0)
 
 
-@pytest.mark.parametrize("step_min, expect", [
-    ("10", None),
-    ("30", "longer than a quarter of the orbital period (92.4 min)"),
-    ("93", "within 0.7 % of 1 x the orbital period (92.4 min)"),
-    ("184", "within 0.4 % of 2 x the orbital period (92.4 min)"),
-])
+@pytest.mark.parametrize(
+    "step_min, expect",
+    [
+        ("10", None),
+        ("30", "longer than a quarter of the orbital period (92.4 min)"),
+        ("93", "within 0.7 % of 1 x the orbital period (92.4 min)"),
+        ("184", "within 0.4 % of 2 x the orbital period (92.4 min)"),
+    ],
+)
 def test_visibility_step_against_the_orbit_warns(tmp_path, monkeypatch, capsys, caplog, step_min, expect):
     """Observability changes within an orbit (Earth occultation, the limbs): a step over a quarter
     period can miss a window, and one near a multiple of the period samples the same orbital phase
@@ -193,9 +208,26 @@ def test_visibility_step_against_the_orbit_warns(tmp_path, monkeypatch, capsys, 
     monkeypatch.setattr(pointings, "background_table", _always_observable)
     cfg = tiny_config(tmp_path)
     with caplog.at_level("WARNING"):
-        code, _, err, _ = _run(["visibility", "--config", str(cfg), "--ra", "150", "--dec", "30", "--band", "g",
-                                "--start", "2026-01-01T00:00", "--end", "2026-01-02T00:00", "--step-min", step_min],
-                               capsys)
+        code, _, err, _ = _run(
+            [
+                "visibility",
+                "--config",
+                str(cfg),
+                "--ra",
+                "150",
+                "--dec",
+                "30",
+                "--band",
+                "g",
+                "--start",
+                "2026-01-01T00:00",
+                "--end",
+                "2026-01-02T00:00",
+                "--step-min",
+                step_min,
+            ],
+            capsys,
+        )
     assert code == 0, err
     lines = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
     if expect is None:
@@ -210,8 +242,23 @@ def test_visibility_aliasing_warning_is_one_line_on_stderr(tmp_path, default_tab
     """As a user runs it: the warning is one line on stderr, and the results are printed."""
     from conftest import run_cli
 
-    r = run_cli("visibility", "--config", tiny_config(tmp_path), "--ra", "150", "--dec", "30", "--band", "g",
-                "--start", "2026-01-01T00:00", "--end", "2026-01-01T04:00", "--step-min", "93")
+    r = run_cli(
+        "visibility",
+        "--config",
+        tiny_config(tmp_path),
+        "--ra",
+        "150",
+        "--dec",
+        "30",
+        "--band",
+        "g",
+        "--start",
+        "2026-01-01T00:00",
+        "--end",
+        "2026-01-01T04:00",
+        "--step-min",
+        "93",
+    )
     assert r.returncode == 0, r.stderr
     assert len(r.stderr.strip().splitlines()) == 1 and "aliasing" in r.stderr and "Traceback" not in r.stderr
     assert "3 samples every 93 min" in r.stdout

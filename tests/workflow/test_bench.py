@@ -1,5 +1,6 @@
 """The benchmark's error-checked adaptive time sampling (bench/knobs/sampling.py, issue #7): what it
 computes and what it fills in, on series whose answer is known in closed form."""
+
 import sys
 from pathlib import Path
 
@@ -62,20 +63,41 @@ def test_goal_check_reads_the_production_figures_and_flags_each_goal():
     figure the run did not measure is None, not a pass."""
     from knobs.goal import goal_check
 
-    summary = {"cube": {"lut": {"samples_per_s_per_core": 8.0e5},
-                        "production_region": {"lut": {"samples_per_s_per_core": 1.08e6},
-                                              "time_block": {"lut": {"samples_per_s_per_core": 1.02e6}},
-                                              "campaign": {"lut": {"samples_per_s_per_core": 0.99e6}}},
-                        "speedup_lut_over_direct": 9.5, "lut_vs_direct_max_rel_error_observable": 1.1e-3},
-               "earthshine_table": {"max_rel_error": 0.012}}
+    summary = {
+        "cube": {
+            "lut": {"samples_per_s_per_core": 8.0e5},
+            "production_region": {
+                "lut": {"samples_per_s_per_core": 1.08e6},
+                "time_block": {"lut": {"samples_per_s_per_core": 1.02e6}},
+                "campaign": {"lut": {"samples_per_s_per_core": 0.99e6}},
+            },
+            "speedup_lut_over_direct": 9.5,
+            "lut_vs_direct_max_rel_error_observable": 1.1e-3,
+        },
+        "earthshine_table": {"max_rel_error": 0.012},
+    }
     check = goal_check(summary)
-    assert check["samples_per_s_per_core"] == {"production_campaign": 0.99e6, "production_time_block": 1.02e6,
-                                               "production_region": 1.08e6, "day_spread_batch": 8.0e5}
-    assert check["met"] == {"rate_production_campaign": False, "rate_production_time_block": True,
-                            "rate_day_spread_batch": False, "error": False, "speedup": False}
+    assert check["samples_per_s_per_core"] == {
+        "production_campaign": 0.99e6,
+        "production_time_block": 1.02e6,
+        "production_region": 1.08e6,
+        "day_spread_batch": 8.0e5,
+    }
+    assert check["met"] == {
+        "rate_production_campaign": False,
+        "rate_production_time_block": True,
+        "rate_day_spread_batch": False,
+        "error": False,
+        "speedup": False,
+    }
     partial = goal_check({"cube": {"lut": {"samples_per_s_per_core": 1.2e6}}})
-    assert partial["met"] == {"rate_production_campaign": None, "rate_production_time_block": None,
-                              "rate_day_spread_batch": True, "error": None, "speedup": None}
+    assert partial["met"] == {
+        "rate_production_campaign": None,
+        "rate_production_time_block": None,
+        "rate_day_spread_batch": True,
+        "error": None,
+        "speedup": None,
+    }
 
 
 def test_pipeline_bench_writes_its_figures(tmp_path):
@@ -87,8 +109,26 @@ def test_pipeline_bench_writes_its_figures(tmp_path):
 
     out = tmp_path / "pipeline.json"
     bench = Path(__file__).resolve().parents[2] / "bench" / "pipeline.py"
-    r = subprocess.run([sys.executable, str(bench), "--days", str(2 / 24), "--nside", "4", "--cadence-s", "600",
-                        "--cores", "1", "--no-kernel", "--out", str(out)], capture_output=True, text=True, timeout=900)
+    r = subprocess.run(
+        [
+            sys.executable,
+            str(bench),
+            "--days",
+            str(2 / 24),
+            "--nside",
+            "4",
+            "--cadence-s",
+            "600",
+            "--cores",
+            "1",
+            "--no-kernel",
+            "--out",
+            str(out),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
     rec = json.loads(out.read_text())
     c = rec["campaign"]
@@ -96,7 +136,9 @@ def test_pipeline_bench_writes_its_figures(tmp_path):
     assert c["samples"] == 12 * c["pixels"] and 0 < c["pixels"] < 192  # nside 4: 192 pixels on the sky
     assert rec["samples_per_s_per_core"] == c["samples"] / rec["wall_seconds"] / rec["cores"]
     assert rec["cpu_seconds"] > 0 and rec["samples_per_cpu_second"] == c["samples"] / rec["cpu_seconds"]
-    assert {"background_blocks", "background_init", "background", "limits", "sky_maps", "time_series"} <= set(rec["rules"])
+    assert {"background_blocks", "background_init", "background", "limits", "sky_maps", "time_series"} <= set(
+        rec["rules"]
+    )
     for name, rule in rec["rules"].items():
         assert rule["jobs"] >= 1 and 0.0 <= rule["seconds"] <= rec["wall_seconds"] + 1.0, name
         assert rule["share_of_wall"] == rule["seconds"] / rec["wall_seconds"]

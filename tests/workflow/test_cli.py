@@ -2,12 +2,12 @@
 
 Reference values: the library's API for the same inputs (ephemeris, zero points, limits) and,
 for the scenario, the paper's sect. 3.3."""
+
 import json
 from pathlib import Path
 
 import numpy as np
 import pytest
-
 from conftest import REPO, run_cli
 
 
@@ -32,12 +32,28 @@ def test_sky_json_has_the_documented_fields():
     for key in ("time", "ra_deg", "dec_deg", "satellite_gcrs_km", "geometry", "observable", "violations"):
         assert key in out
     g = out["geometry"]
-    for key in ("sun_angle_deg", "moon_angle_deg", "moon_phase_angle_deg", "moon_illuminated_fraction",
-                "earth_limb_angle_deg", "limb_is_bright", "zenith_angle_deg", "door_opening_deg",
-                "planet_angles_deg"):
+    for key in (
+        "sun_angle_deg",
+        "moon_angle_deg",
+        "moon_phase_angle_deg",
+        "moon_illuminated_fraction",
+        "earth_limb_angle_deg",
+        "limb_is_bright",
+        "zenith_angle_deg",
+        "door_opening_deg",
+        "planet_angles_deg",
+    ):
         assert key in g
-    assert set(g["planet_angles_deg"]) == {"mercury", "venus", "mars", "jupiter", "saturn", "uranus",
-                                           "neptune", "pluto"}
+    assert set(g["planet_angles_deg"]) == {
+        "mercury",
+        "venus",
+        "mars",
+        "jupiter",
+        "saturn",
+        "uranus",
+        "neptune",
+        "pluto",
+    }
     assert np.linalg.norm(out["satellite_gcrs_km"]) == pytest.approx(6778.137, rel=1e-9)
     assert out["observable"] == (out["violations"] == [])
 
@@ -54,27 +70,42 @@ def test_sky_gives_magnitudes_and_the_limit_in_text_and_json(campaign):
     for b in ("g", "y"):
         tot = bands[b]["total"]
         assert bands[b]["mag_zero_point"] == pytest.approx(zp[b], abs=1e-9)
-        assert tot["mag_per_arcsec2"] == pytest.approx(zp[b] - 2.5 * np.log10(tot["e_per_s_per_pix"]), abs=1e-9)
-        assert bands[b]["limit_mag"] == pytest.approx(point_source_limit(tot["e_per_s_per_pix"], b, campaign), abs=1e-9)
+        assert tot["mag_per_arcsec2"] == pytest.approx(
+            zp[b] - 2.5 * np.log10(tot["e_per_s_per_pix"]), abs=1e-9
+        )
+        assert bands[b]["limit_mag"] == pytest.approx(
+            point_source_limit(tot["e_per_s_per_pix"], b, campaign), abs=1e-9
+        )
     # g dark sky 23.1-23.6 mag/arcsec2 and depth ~26.8 (issue 33, from the cube); the Moon adds a little here
     assert 22.0 < bands["g"]["total"]["mag_per_arcsec2"] < 23.8 and 26.0 < bands["g"]["limit_mag"] < 27.2
     r = run_cli(*args)
     assert r.returncode == 0, r.stderr
-    mag_line = next(line for line in r.stdout.splitlines() if "mag/arcsec2" in line and "mag" in line.split()[-1])
+    mag_line = next(
+        line for line in r.stdout.splitlines() if "mag/arcsec2" in line and "mag" in line.split()[-1]
+    )
     assert f"{bands['g']['total']['mag_per_arcsec2']:.2f}" in mag_line
     assert f"{bands['g']['limit_mag']:.2f} mag" in mag_line
 
 
-@pytest.mark.parametrize("args,fragment", [
-    (("sky", "--time", "2026-01-01T00:00:00", "--ra", "nan", "--dec", "0"), "--ra = nan is not finite"),
-    (("sky", "--time", "2026-01-01T00:00:00", "--ra", "10", "--dec", "95"), "--dec = 95.0 outside [-90, 90] deg"),
-    (("sky", "--time", "2026-01-01T00:00:00", "--ra", "400", "--dec", "5"), "--ra = 400.0 outside [-360, 360] deg"),
-    (("sky", "--time", "2026-01-01T00:00:00", "--ra", "1e308", "--dec", "5"), "--ra = 1e+308 outside"),
-    (("sky", "--time", "2301-01-01T00:00:00", "--ra", "10", "--dec", "5"), "outside the DE405 range"),
-    (("sky", "--time", "tomorrow", "--ra", "10", "--dec", "5"), "cannot parse 'tomorrow'"),
-    (("ephem", "--time", "2026-01-01T00:00:00", "--bodies", "vulcan"), "unknown body 'vulcan'"),
-    (("ephem", "--time", "1200-01-01T00:00:00"), "outside the DE405 range"),
-])
+@pytest.mark.parametrize(
+    "args,fragment",
+    [
+        (("sky", "--time", "2026-01-01T00:00:00", "--ra", "nan", "--dec", "0"), "--ra = nan is not finite"),
+        (
+            ("sky", "--time", "2026-01-01T00:00:00", "--ra", "10", "--dec", "95"),
+            "--dec = 95.0 outside [-90, 90] deg",
+        ),
+        (
+            ("sky", "--time", "2026-01-01T00:00:00", "--ra", "400", "--dec", "5"),
+            "--ra = 400.0 outside [-360, 360] deg",
+        ),
+        (("sky", "--time", "2026-01-01T00:00:00", "--ra", "1e308", "--dec", "5"), "--ra = 1e+308 outside"),
+        (("sky", "--time", "2301-01-01T00:00:00", "--ra", "10", "--dec", "5"), "outside the DE405 range"),
+        (("sky", "--time", "tomorrow", "--ra", "10", "--dec", "5"), "cannot parse 'tomorrow'"),
+        (("ephem", "--time", "2026-01-01T00:00:00", "--bodies", "vulcan"), "unknown body 'vulcan'"),
+        (("ephem", "--time", "1200-01-01T00:00:00"), "outside the DE405 range"),
+    ],
+)
 def test_user_mistakes_give_one_clear_line(args, fragment):
     r = run_cli(*args)
     assert r.returncode == 2
@@ -110,7 +141,19 @@ OUTPUT_COMMANDS = [
 
 def _argv(cmd, flag, path, tmp_path):
     if cmd == "image":
-        return ("image", "--time", "2026-01-01T00:50:00", "--ra", "150", "--dec", "30", "--band", "g", flag, path)
+        return (
+            "image",
+            "--time",
+            "2026-01-01T00:50:00",
+            "--ra",
+            "150",
+            "--dec",
+            "30",
+            "--band",
+            "g",
+            flag,
+            path,
+        )
     if cmd == "sky":
         table = tmp_path / "p.csv"
         table.write_text("time,ra,dec\n2026-01-01T00:50:00,10,30\n")
@@ -198,8 +241,10 @@ def test_utc_offsets_in_a_pointing_table(tmp_path, campaign):
     from straylight.survey.pointings import pointing_table, read_pointings
 
     p = tmp_path / "p.csv"
-    p.write_text("time,ra,dec\n2026-01-01T08:50:00+08:00,10,30\n2026-01-01T00:50:00Z,10,30\n"
-                 "2025-12-31T19:20:00-05:30,10,30\n")
+    p.write_text(
+        "time,ra,dec\n2026-01-01T08:50:00+08:00,10,30\n2026-01-01T00:50:00Z,10,30\n"
+        "2025-12-31T19:20:00-05:30,10,30\n"
+    )
     cols = pointing_table(campaign, read_pointings(p), ["g"])
     assert list(cols["time"]) == ["2026-01-01T00:50:00.000"] * 3
     assert cols["total_g"][0] == cols["total_g"][1] == cols["total_g"][2]
@@ -213,8 +258,10 @@ def test_scenario_overlays_hst_and_writes_the_crossing_angle(tmp_path):
 
     curve = SHARED_DATA / "hst_sky" / "wfc3_earthshine_v_vs_limb_angle.csv"
     if not curve.exists():
-        pytest.skip(f"{curve} is absent: the HST WFC3 earthshine curve is test and validation only "
-                    "(shared/data/DATA.md)")
+        pytest.skip(
+            f"{curve} is absent: the HST WFC3 earthshine curve is test and validation only "
+            "(shared/data/DATA.md)"
+        )
     out = tmp_path / "es.png"
     r = run_cli("scenario", "--hst-curve", curve, "--out", out, timeout=900)
     assert r.returncode == 0, r.stderr

@@ -3,15 +3,16 @@ clear error naming the store and region, finished time blocks keep their bytes, 
 the failed block gives a store bit-identical to an uninterrupted run.  And kills: Snakemake
 killed in the middle of the cube leaves no process behind, and the resumed run's products are
 bit-identical; the cube job stopped by SIGTERM or SIGINT stops its workers and exits non-zero."""
+
 import errno
 
 import pytest
-
 from conftest import tiny_config
+
 from straylight.config import load_campaign
+from straylight.errors import OutputError
 from straylight.survey.cube_run import run_time_blocks
 from straylight.survey.cube_store import init_store
-from straylight.errors import OutputError
 from straylight.survey.footprint import footprint_from_config
 from straylight.survey.provenance import sha256_path
 
@@ -19,9 +20,14 @@ from straylight.survey.provenance import sha256_path
 @pytest.fixture(scope="module")
 def small(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("faults")
-    c = load_campaign(tiny_config(tmp, name="faults", campaign={"end": "2026-01-01T01:00:00",
-                                                                 "time_block_hours": 0.5},
-                                  footprint={"pixel_block_size": 40}))
+    c = load_campaign(
+        tiny_config(
+            tmp,
+            name="faults",
+            campaign={"end": "2026-01-01T01:00:00", "time_block_hours": 0.5},
+            footprint={"pixel_block_size": 40},
+        )
+    )
     fp = footprint_from_config(c.config["footprint"], c.path.parent)
     ref = tmp / "reference.zarr"
     init_store(c, fp, ref)
@@ -89,12 +95,14 @@ def test_job_script_reports_a_full_disk_in_one_line(tmp_path):
 
     def job(raise_line):
         log = tmp_path / "rule.log"
-        code = ("import errno, sys, types\n"
-                f"sys.path.insert(0, {str(REPO / 'workflow' / 'scripts')!r})\n"
-                "from _common import setup_logging\n"
-                f"log = setup_logging(types.SimpleNamespace(log=[{str(log)!r}], rule='report_front'))\n"
-                "log.info('started')\n"
-                f"{raise_line}\n")
+        code = (
+            "import errno, sys, types\n"
+            f"sys.path.insert(0, {str(REPO / 'workflow' / 'scripts')!r})\n"
+            "from _common import setup_logging\n"
+            f"log = setup_logging(types.SimpleNamespace(log=[{str(log)!r}], rule='report_front'))\n"
+            "log.info('started')\n"
+            f"{raise_line}\n"
+        )
         r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
         return r, log.read_text()
 
@@ -104,7 +112,11 @@ def test_job_script_reports_a_full_disk_in_one_line(tmp_path):
     assert len(errors) == 1 and "/results/x/summary.rst.tmp: No space left on device" in errors[0]
     assert errors[0].split("straylight.report_front ", 1)[1] in log
     r, _ = job("from straylight.errors import InputError; raise InputError('gaia_0.csv.gz: row 3: ra = nan')")
-    assert r.returncode == 2 and "Traceback" not in r.stderr and "error: gaia_0.csv.gz: row 3: ra = nan" in r.stderr
+    assert (
+        r.returncode == 2
+        and "Traceback" not in r.stderr
+        and "error: gaia_0.csv.gz: row 3: ra = nan" in r.stderr
+    )
     r, _ = job("raise ValueError('a bug')")
     assert r.returncode == 1 and "Traceback" in r.stderr and "ValueError: a bug" in r.stderr
     r, _ = job("open('/nonexistent/folder/file.png')")  # a wrong path is a bug, not the disk's refusal
@@ -120,10 +132,24 @@ def _snakemake_cmd(workdir, cfg, name):
     from conftest import REPO
 
     snakemake = str(Path(sys.executable).with_name("snakemake"))
-    base = [snakemake, "-s", str(REPO / "workflow" / "Snakefile"), "-d", str(workdir), "--configfile", str(cfg)]
+    base = [
+        snakemake,
+        "-s",
+        str(REPO / "workflow" / "Snakefile"),
+        "-d",
+        str(workdir),
+        "--configfile",
+        str(cfg),
+    ]
     # the targets after a fixed-arity option: --configfile would swallow them
-    return base, base + ["--cores", "2", f"results/{name}/background_summary.json", f"results/{name}/limits.zarr",
-                         "--rerun-incomplete", "-q"]
+    return base, base + [
+        "--cores",
+        "2",
+        f"results/{name}/background_summary.json",
+        f"results/{name}/limits.zarr",
+        "--rerun-incomplete",
+        "-q",
+    ]
 
 
 def _env():
@@ -140,12 +166,15 @@ def _kill_campaign(folder):
     cost per sample): the cube lasts well over 10 s after its first block, so that processes
     a killed run left behind would still be running when the test looks."""
     import yaml
-
     from conftest import tiny_config
 
     folder.mkdir()
-    path = tiny_config(folder, name="killed", campaign={"end": "2026-01-01T12:00:00", "time_block_hours": 1},
-                       footprint={"pixel_block_size": 30})
+    path = tiny_config(
+        folder,
+        name="killed",
+        campaign={"end": "2026-01-01T12:00:00", "time_block_hours": 1},
+        footprint={"pixel_block_size": 30},
+    )
     cfg = yaml.safe_load(path.read_text())
     cfg["models"]["earthshine"].update(n_gamma=96, n_psi=192, method="direct")
     path.write_text(yaml.safe_dump(cfg))
@@ -324,7 +353,9 @@ def test_snakemake_killed_mid_cube_leaves_no_process_and_resumes_bit_identical(u
     assert not orphans, f"alive 10 s after Snakemake was killed: {orphans}"
     # and none went on writing meanwhile: no time block marked done since
     assert sorted(p.name for p in (out / "background_blocks").glob("block_*.json")) == done_at_kill
-    assert len(done_at_kill) < N_KILL_BLOCKS and not (out / "background_summary.json").exists()  # killed in the middle
+    assert (
+        len(done_at_kill) < N_KILL_BLOCKS and not (out / "background_summary.json").exists()
+    )  # killed in the middle
 
     subprocess.run(base + ["--unlock", "-q"], capture_output=True, env=_env(), timeout=120)
     r = subprocess.run(cmd, capture_output=True, text=True, env=_env(), timeout=900)

@@ -2,6 +2,7 @@
 environment (no editable install of this checkout; the dependencies lent by this environment,
 each declared by the wheel: checked from its imports), and used from an empty folder: the CLI,
 the Python API, and a campaign through the packaged workflow with its report."""
+
 import json
 import os
 import shutil
@@ -13,7 +14,6 @@ import zipfile
 from pathlib import Path
 
 import pytest
-
 from conftest import REPO
 
 #: a campaign file holding only what differs from the packaged default (Snakemake merges it over
@@ -44,7 +44,10 @@ def test_run_refuses_a_bad_campaign_in_one_line(tmp_path):
     bad = tmp_path / "bad.yaml"
     bad.write_text("campaign: {cadence_s: -5}\n")
     r = run_cli("run", bad, "--cores", "2", "-n", cwd=tmp_path)
-    assert r.returncode == 2 and r.stderr.strip() == f"straylight: error: {bad}: campaign.cadence_s = -5: must be > 0"
+    assert (
+        r.returncode == 2
+        and r.stderr.strip() == f"straylight: error: {bad}: campaign.cadence_s = -5: must be > 0"
+    )
     assert not (tmp_path / ".snakemake").exists()  # refused before Snakemake started
     r = run_cli("sky", "--no-such-flag", cwd=tmp_path)  # other commands still refuse unknown arguments
     assert r.returncode == 2 and "unrecognized arguments: --no-such-flag" in r.stderr
@@ -56,9 +59,20 @@ def test_run_command_is_snakemake_on_the_workflow_in_the_current_directory(tmp_p
     assert workflow_dir() == REPO / "workflow"  # a checkout runs its own workflow/
     cmd = snakemake_command("tiny.yaml", extra=["-n", "--report", "r.html"], workdir=tmp_path)
     assert cmd[:4] == [sys.executable, "-P", "-m", "snakemake"]
-    assert cmd[4:] == ["-s", str(REPO / "workflow" / "Snakefile"), "-d", str(tmp_path), "--configfile",
-                       str(Path("tiny.yaml").resolve()), "--cores", str(available_cores()), "--rerun-incomplete",
-                       "-n", "--report", "r.html"]
+    assert cmd[4:] == [
+        "-s",
+        str(REPO / "workflow" / "Snakefile"),
+        "-d",
+        str(tmp_path),
+        "--configfile",
+        str(Path("tiny.yaml").resolve()),
+        "--cores",
+        str(available_cores()),
+        "--rerun-incomplete",
+        "-n",
+        "--report",
+        "r.html",
+    ]
     assert available_cores() == len(os.sched_getaffinity(0))
 
 
@@ -69,13 +83,22 @@ def _copy_source(dst: Path) -> None:
         if (REPO / name).exists():
             shutil.copy(REPO / name, dst / name)
     for name in ("straylight", "config", "workflow"):
-        shutil.copytree(REPO / name, dst / name,
-                        ignore=shutil.ignore_patterns("__pycache__", "_scm_version.py", "*.egg-info"))
+        shutil.copytree(
+            REPO / name,
+            dst / name,
+            ignore=shutil.ignore_patterns("__pycache__", "_scm_version.py", "*.egg-info"),
+        )
 
 
 def _git(cwd, *args) -> str:
-    return subprocess.run(["git", "-c", "user.name=test", "-c", "user.email=test@example.org", *args], cwd=cwd,
-                          capture_output=True, text=True, check=True, timeout=120).stdout
+    return subprocess.run(
+        ["git", "-c", "user.name=test", "-c", "user.email=test@example.org", *args],
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=120,
+    ).stdout
 
 
 def _tracked(folder: str) -> list[str]:
@@ -96,8 +119,12 @@ def installed(tmp_path_factory):
     commit = _git(src, "rev-parse", "HEAD").strip()
     wheels = tmp / "wheels"
     # pip's isolated build: the backend pyproject.toml names, from PyPI or pip's cache
-    r = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(wheels), str(src)],
-                       capture_output=True, text=True, timeout=600)
+    r = subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(wheels), str(src)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert r.returncode == 0, r.stderr
     (wheel,) = wheels.glob("straylight-*.whl")
     version = wheel.name.split("-")[1]
@@ -111,8 +138,12 @@ def installed(tmp_path_factory):
     # (test_wheel_declares_every_distribution_it_imports).
     site = next((venv / "lib").glob("python3*/site-packages"))
     (site / "dependencies_of_the_test.pth").write_text(sysconfig.get_paths()["purelib"] + "\n")
-    r = subprocess.run([str(venv / "bin" / "python"), "-m", "pip", "install", "-q", "--no-deps", str(wheel)],
-                       capture_output=True, text=True, timeout=600)
+    r = subprocess.run(
+        [str(venv / "bin" / "python"), "-m", "pip", "install", "-q", "--no-deps", str(wheel)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert r.returncode == 0, r.stderr[-3000:]
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV", "PYTHONHOME")}
     env["PATH"] = f"{venv / 'bin'}{os.pathsep}{env.get('PATH', '')}"
@@ -131,8 +162,12 @@ def test_wheel_holds_the_package_workflow_and_shipped_configs_only(installed):
     assert data and not data - names
     # the whole workflow, as straylight/_workflow
     workflow = {"straylight/_workflow/" + f.removeprefix("workflow/") for f in _tracked("workflow")}
-    assert {"straylight/_workflow/Snakefile", "straylight/_workflow/rules/limits.smk",
-            "straylight/_workflow/scripts/_common.py", "straylight/_workflow/profiles/default/config.yaml"} <= workflow
+    assert {
+        "straylight/_workflow/Snakefile",
+        "straylight/_workflow/rules/limits.smk",
+        "straylight/_workflow/scripts/_common.py",
+        "straylight/_workflow/profiles/default/config.yaml",
+    } <= workflow
     assert not workflow - names, sorted(workflow - names)
     # exactly the configs git tracks, as straylight/_config: not the user's campaign beside them
     config = {n for n in names if n.startswith("straylight/_config/")}
@@ -140,7 +175,10 @@ def test_wheel_holds_the_package_workflow_and_shipped_configs_only(installed):
     assert not [n for n in names if "my_campaign" in n]
     # the version from git (setuptools-scm), not a number written by hand
     assert commit[:7] in version and version != "0.1.0"
-    assert f"__version__ = version = '{version}'" in zipfile.ZipFile(wheel).read("straylight/_scm_version.py").decode()
+    assert (
+        f"__version__ = version = '{version}'"
+        in zipfile.ZipFile(wheel).read("straylight/_scm_version.py").decode()
+    )
 
 
 def _top_level_imports(source: str) -> set[str]:
@@ -176,7 +214,9 @@ def _active(requirements, extras=frozenset()) -> list:
 
 
 #: imported by the package but not needed to run it: module -> why
-NOT_RUNTIME = {"PyAstronomy": "catalog.sed.teff_from_spectral_type re-derives a frozen table; a test dependency"}
+NOT_RUNTIME = {
+    "PyAstronomy": "catalog.sed.teff_from_spectral_type re-derives a frozen table; a test dependency"
+}
 
 
 @pytest.mark.slow
@@ -190,8 +230,10 @@ def test_wheel_declares_every_distribution_it_imports(installed):
     wheel = installed[0]
     z = zipfile.ZipFile(wheel)
     meta = next(n for n in z.namelist() if n.endswith(".dist-info/METADATA"))
-    todo = [(_norm(r.name), frozenset(r.extras))
-            for r in _active(re.findall(r"^Requires-Dist: (.+)$", z.read(meta).decode(), re.M))]
+    todo = [
+        (_norm(r.name), frozenset(r.extras))
+        for r in _active(re.findall(r"^Requires-Dist: (.+)$", z.read(meta).decode(), re.M))
+    ]
     assert {"numpy", "astropy", "tqdm", "pygments", "numba"} <= {n for n, _ in todo}
     # the requirements' own requirements (with the extras asked for), as this environment has them
     closure, seen = set(), set()
@@ -211,7 +253,11 @@ def test_wheel_declares_every_distribution_it_imports(installed):
         if not name.endswith(".py"):
             continue
         for mod in _top_level_imports(z.read(name).decode()):
-            if mod in sys.stdlib_module_names or mod in ("straylight", "_common", "__future__") or mod in NOT_RUNTIME:
+            if (
+                mod in sys.stdlib_module_names
+                or mod in ("straylight", "_common", "__future__")
+                or mod in NOT_RUNTIME
+            ):
                 continue
             if not providers.get(mod, set()) & closure:
                 missing.setdefault(mod, []).append(name)
@@ -223,8 +269,14 @@ def test_installed_cli_and_api_work_from_an_empty_folder(installed):
     wheel, version, commit, bin_, env, empty = installed
 
     def python(code):
-        return subprocess.run([str(bin_ / "python"), "-c", textwrap.dedent(code)], cwd=empty, env=env,
-                              capture_output=True, text=True, timeout=600)
+        return subprocess.run(
+            [str(bin_ / "python"), "-c", textwrap.dedent(code)],
+            cwd=empty,
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
 
     r = python("""
         import straylight, straylight.config as c, straylight.runner as rn
@@ -235,10 +287,18 @@ def test_installed_cli_and_api_work_from_an_empty_folder(installed):
     for line in r.stdout.split():
         assert line.startswith(str(site)), line
     assert r.stdout.split()[-1].endswith("straylight/_workflow")
-    r = subprocess.run(["straylight", "--version"], cwd=empty, env=env, capture_output=True, text=True, timeout=300)
+    r = subprocess.run(
+        ["straylight", "--version"], cwd=empty, env=env, capture_output=True, text=True, timeout=300
+    )
     assert r.returncode == 0 and r.stdout.strip() == f"straylight {version}", r.stdout + r.stderr
-    r = subprocess.run(["straylight", "sky", "--time", "2026-01-01T00:30:00", "--ra", "150", "--dec", "30",
-                        "--bands", "g"], cwd=empty, env=env, capture_output=True, text=True, timeout=600)
+    r = subprocess.run(
+        ["straylight", "sky", "--time", "2026-01-01T00:30:00", "--ra", "150", "--dec", "30", "--bands", "g"],
+        cwd=empty,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert r.returncode == 0, r.stderr
     assert "mag/arcsec2" in r.stdout and "5-sigma" in r.stdout
     # the Python API: 3 times x 4 pointings, the packaged default config
@@ -270,26 +330,55 @@ def test_installed_run_makes_the_products_and_the_report(installed):
     run = empty.parent / "run"
     run.mkdir()
     (run / "tiny.yaml").write_text(TINY)
-    r = subprocess.run(["straylight", "run", "tiny.yaml", "--cores", "2"], cwd=run, env=env, capture_output=True,
-                       text=True, timeout=1200)
+    r = subprocess.run(
+        ["straylight", "run", "tiny.yaml", "--cores", "2"],
+        cwd=run,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=1200,
+    )
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-5000:]
     out = run / "results" / "tiny"
-    for p in ("background.zarr", "limits.zarr", "observability.zarr", "ephemeris.zarr", "footprint.fits",
-              "stars_csst.parquet", "maps/limit_best_g.fits", "depth/depth_summary.csv", "summary.rst",
-              "provenance.json"):
+    for p in (
+        "background.zarr",
+        "limits.zarr",
+        "observability.zarr",
+        "ephemeris.zarr",
+        "footprint.fits",
+        "stars_csst.parquet",
+        "maps/limit_best_g.fits",
+        "depth/depth_summary.csv",
+        "summary.rst",
+        "provenance.json",
+    ):
         assert (out / p).exists(), p
     assert list((out / "sky").glob("sky_g_*.png"))
     prov = json.loads((out / "provenance.json").read_text())
     assert prov["source"]["from"] == "install" and prov["source"]["version"] == version
     assert commit.startswith(prov["source"]["commit"]) and len(prov["source"]["commit"]) >= 7
     assert prov["run"]["command"][:3] == ["snakemake", "-s", "straylight:workflow/Snakefile"]
-    assert prov["run"]["cores"] == 2 and prov["run"]["started_by"] == ["straylight", "run", "tiny.yaml", "--cores", "2"]
+    assert prov["run"]["cores"] == 2 and prov["run"]["started_by"] == [
+        "straylight",
+        "run",
+        "tiny.yaml",
+        "--cores",
+        "2",
+    ]
     assert prov["config_file"] == "../../tiny.yaml"
-    assert prov["instrument_file"] == prov["config"]["instrument"] == "straylight:config/instruments/csst.yaml"
+    assert (
+        prov["instrument_file"] == prov["config"]["instrument"] == "straylight:config/instruments/csst.yaml"
+    )
     assert str(run) not in (out / "provenance.json").read_text() and str(bin_.parent) not in json.dumps(prov)
     # the report, as the README gives it for an install (Snakemake's report needs pygments)
-    r = subprocess.run(["straylight", "run", "tiny.yaml", "--report", "report.html"], cwd=run, env=env,
-                       capture_output=True, text=True, timeout=600)
+    r = subprocess.run(
+        ["straylight", "run", "tiny.yaml", "--report", "report.html"],
+        cwd=run,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
     text = (run / "report.html").read_text(errors="replace")
     assert (run / "report.html").stat().st_size > 100_000

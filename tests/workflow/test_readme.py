@@ -7,6 +7,7 @@ read its products), ``run against a finished campaign's results``, or ``not run`
 only: ``make run``/``make test``, which take minutes).  The blocks run in a copy of the
 repository's tracked files, with this checkout's code.
 """
+
 import os
 import re
 import shutil
@@ -15,7 +16,6 @@ import sys
 from pathlib import Path
 
 import pytest
-
 from conftest import REPO
 
 BLOCK = re.compile(r"<!-- readme-test: (?P<how>[^>]*?) -->\n```(?P<lang>\w+)\n(?P<code>.*?)```", re.S)
@@ -54,7 +54,9 @@ def _run(lang, code, cwd, timeout=900):
 def clone(tmp_path_factory):
     """The repository's tracked files (as a fresh clone has them), this checkout's content."""
     dst = tmp_path_factory.mktemp("clone")
-    files = subprocess.run(["git", "ls-files"], cwd=REPO, capture_output=True, text=True, check=True).stdout.split()
+    files = subprocess.run(
+        ["git", "ls-files"], cwd=REPO, capture_output=True, text=True, check=True
+    ).stdout.split()
     for f in files:
         if (REPO / f).is_file():
             (dst / f).parent.mkdir(parents=True, exist_ok=True)
@@ -66,7 +68,6 @@ def clone(tmp_path_factory):
 def campaign_run(clone):
     """The README's campaign block, with a tiny campaign named `default` in place of the default."""
     import yaml
-
     from conftest import tiny_config
 
     (clone / "tmp").mkdir(exist_ok=True)
@@ -76,7 +77,7 @@ def campaign_run(clone):
     tiny = clone / "tmp" / "tiny_default.yaml"
     tiny.write_text(yaml.safe_dump(cfg))
     _, found = blocks()
-    (how, lang, code), = [b for b in found if "tiny campaign" in b[0]]
+    ((how, lang, code),) = [b for b in found if "tiny campaign" in b[0]]
     assert "cp config/config.yaml config/my_campaign.yaml" in code
     r = _run(lang, code.replace("cp config/config.yaml", f"cp {tiny}"), clone)
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
@@ -111,7 +112,7 @@ def test_slurm_block_dry_run(clone):
     """The cluster block as written: the plugin installed, the profile read, the cycle's jobs
     planned (-n); tests/workflow/test_slurm.py submits a campaign to a real SLURM."""
     _, found = blocks()
-    (how, lang, code), = [b for b in found if b[0].startswith("run as a dry run")]
+    ((how, lang, code),) = [b for b in found if b[0].startswith("run as a dry run")]
     assert "snakemake -n --profile workflow/profiles/slurm" in code
     r = _run(lang, code, clone)
     assert r.returncode == 0, code + r.stdout[-2000:] + r.stderr[-3000:]
@@ -142,5 +143,10 @@ def test_tiny_campaign_products_follow_the_conventions(campaign_run):
         np.testing.assert_allclose(ds["mag_zero_point"].values, [zp[b] for b in ds["band"].values], atol=1e-9)
     assert pq.read_schema(run / "stars_csst.parquet").field("ra").metadata[b"unit"] == b"deg"
     h = fits.getheader(run / "maps" / "limit_best_g.fits", 1)
-    assert (h["CAMPAIGN"], h["BAND"], h["DATE-BEG"], h["NTIMES"]) == ("default", "g", "2026-01-01T00:00:00", 3)
+    assert (h["CAMPAIGN"], h["BAND"], h["DATE-BEG"], h["NTIMES"]) == (
+        "default",
+        "g",
+        "2026-01-01T00:00:00",
+        3,
+    )
     assert h["TEXPTIME"] == h["EXPTIME"] * h["NEXP"]

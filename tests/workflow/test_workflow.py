@@ -1,6 +1,7 @@
 """The Snakemake spine: dry run, lint, schema validation and a small end-to-end run.
 
 Reference values: `straylight sky` at the products' samples."""
+
 import subprocess
 import sys
 from pathlib import Path
@@ -8,7 +9,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 import xarray as xr
-
 from conftest import REPO
 
 SNAKEMAKE = str(Path(sys.executable).with_name("snakemake"))
@@ -37,7 +37,9 @@ def tiny_config(tmp_path, **campaign):
 
 def test_snakemake_validate_refuses_bad_config(tmp_path):
     p = tiny_config(tmp_path, cadence_s=-5)
-    r = snakemake("-s", str(REPO / "workflow" / "Snakefile"), "-d", str(tmp_path), "--configfile", str(p), "-n")
+    r = snakemake(
+        "-s", str(REPO / "workflow" / "Snakefile"), "-d", str(tmp_path), "--configfile", str(p), "-n"
+    )
     assert r.returncode != 0
     assert "cadence_s" in r.stdout + r.stderr
 
@@ -46,7 +48,9 @@ def test_snakemake_validate_refuses_bad_config(tmp_path):
 def tiny_run(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("wf")
     p = tiny_config(tmp)
-    r = snakemake("-s", str(REPO / "workflow" / "Snakefile"), "-d", str(tmp), "--configfile", str(p), "--cores", "2")
+    r = snakemake(
+        "-s", str(REPO / "workflow" / "Snakefile"), "-d", str(tmp), "--configfile", str(p), "--cores", "2"
+    )
     assert r.returncode == 0, r.stdout + r.stderr
     return tmp / "results" / "tiny", p
 
@@ -77,14 +81,23 @@ def test_cube_value_equals_sky_command(tiny_run):
     it, ip = 7, 5
     rec = sky_at(obs, it, ip, cfg)
     for k in ("sun_angle_deg", "moon_angle_deg", "earth_limb_angle_deg"):
-        assert float(obs[k][it, ip]) == pytest.approx(rec["geometry"][k], rel=obs[k].attrs["max_relative_error"] + 1e-6,
-                                                     abs=1e-4)
+        assert float(obs[k][it, ip]) == pytest.approx(
+            rec["geometry"][k], rel=obs[k].attrs["max_relative_error"] + 1e-6, abs=1e-4
+        )
     assert bool(obs["observable"][it, ip]) == rec["observable"]
 
 
 def test_rerun_does_nothing(tiny_run):
     out, cfg = tiny_run
-    r = snakemake("-s", str(REPO / "workflow" / "Snakefile"), "-d", str(out.parent.parent), "--configfile", str(cfg), "-n")
+    r = snakemake(
+        "-s",
+        str(REPO / "workflow" / "Snakefile"),
+        "-d",
+        str(out.parent.parent),
+        "--configfile",
+        str(cfg),
+        "-n",
+    )
     assert r.returncode == 0
     assert "Nothing to be done" in r.stdout + r.stderr
 
@@ -144,8 +157,17 @@ def test_configfile_in_another_folder_runs(tmp_path):
     import healpy as hp
 
     p = _campaign_in_another_folder(tmp_path)
-    r = snakemake("-s", str(REPO / "workflow" / "Snakefile"), "-d", str(tmp_path), "--configfile", str(p), "--cores", "2",
-                  "results/tiny/footprint.fits")
+    r = snakemake(
+        "-s",
+        str(REPO / "workflow" / "Snakefile"),
+        "-d",
+        str(tmp_path),
+        "--configfile",
+        str(p),
+        "--cores",
+        "2",
+        "results/tiny/footprint.fits",
+    )
     assert r.returncode == 0, r.stdout + r.stderr
     m = hp.read_map(tmp_path / "results" / "tiny" / "footprint.fits")
     assert m.sum() == hp.nside2npix(4) // 3

@@ -1,4 +1,5 @@
 """Helpers shared by the Snakemake script adapters (logging to the rule's log file)."""
+
 import logging
 import sys
 
@@ -15,7 +16,9 @@ def setup_logging(snakemake) -> logging.Logger:
     handlers = [logging.StreamHandler(sys.stderr)]
     if log_path:
         handlers.append(logging.FileHandler(log_path, mode="w"))
-    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s", handlers=handlers, force=True)
+    logging.basicConfig(
+        level=logging.INFO, format="%(asctime)s %(name)s %(message)s", handlers=handlers, force=True
+    )
     logging.getLogger("healpy").setLevel(logging.WARNING)  # read_map reports a mask's header at INFO
     log = logging.getLogger(f"straylight.{snakemake.rule}")
     sys.excepthook = _job_error_hook(log)
@@ -50,8 +53,10 @@ def _job_error_hook(log):
         if isinstance(exc, StraylightError):
             line = str(exc)
         elif isinstance(exc, OSError) and exc.filename is not None and exc.errno in refusals:
-            line = (f"{exc.filename}: {exc.strerror or exc}; the products finished so far are kept: free space "
-                    "(or fix the access) and re-run")
+            line = (
+                f"{exc.filename}: {exc.strerror or exc}; the products finished so far are kept: free space "
+                "(or fix the access) and re-run"
+            )
         else:
             sys.__excepthook__(exc_type, exc, tb)
             return

@@ -8,6 +8,7 @@ stops the job cleanly: its workers killed, the queued regions cancelled, no time
 that is not (a block's sentinel is written after all its regions), exit status 128 + the
 signal's number.  A re-run redoes the unfinished blocks.
 """
+
 import os
 import sys
 from pathlib import Path
@@ -39,7 +40,9 @@ def _run(snakemake, stopping):
         # process imports and loads its own
         from straylight.survey.executors import start_region_workers
 
-        starting = start_region_workers(workers, dict(snakemake.config), snakemake.input.config, stores, stars_path)
+        starting = start_region_workers(
+            workers, dict(snakemake.config), snakemake.input.config, stores, stars_path
+        )
     else:
         starting = nullcontext()
     with starting as pool:
@@ -59,8 +62,16 @@ def _run(snakemake, stopping):
         fp = footprint_from_store(snakemake.params.store)  # the skeleton background_init laid down
         blocks = list(snakemake.params.blocks)
         done_dir = Path(snakemake.output[0]).parent
-        reports = run_time_blocks(c, fp, stores, blocks, done_dir, stars_path,
-                                  Execution(workers, scheduler_address=scheduler, pool=pool), log=log)
+        reports = run_time_blocks(
+            c,
+            fp,
+            stores,
+            blocks,
+            done_dir,
+            stars_path,
+            Execution(workers, scheduler_address=scheduler, pool=pool),
+            log=log,
+        )
     write_json_atomic({"blocks": [r.__dict__ for r in reports]}, snakemake.output[0])
     n = sum(r.samples for r in reports)
     log.info("time blocks %d-%d: %d samples", blocks[0], blocks[-1], n)
@@ -77,7 +88,8 @@ if __name__ == "__main__":
         from straylight.util.daskutil import exit_without_teardown
 
         logging.getLogger(f"straylight.{snakemake.rule}").error(  # noqa: F821
-            "%s: workers stopped, unfinished time blocks not marked done; re-run to resume", stop)
+            "%s: workers stopped, unfinished time blocks not marked done; re-run to resume", stop
+        )
         exit_without_teardown(128 + stop.signum)
     from _common import end_job
 

@@ -5,15 +5,15 @@ A fresh store has no time block done: the blocks' sentinels beside init.json are
 and the three stores are laid down afresh (no chunk of an earlier run is kept).
 The body is guarded by __main__: the faint-star map's worker processes are spawned and
 re-import the main module, which must then not run the job again."""
+
 import sys
 from pathlib import Path
 
 
 def main(snakemake):
     sys.path.insert(0, str(Path(snakemake.scriptdir)))
-    from _common import campaign, setup_logging
-
     import xarray as xr
+    from _common import campaign, setup_logging
 
     from straylight.survey.cube_layout import cube_chunks
     from straylight.survey.cube_run import clear_block_sentinels
@@ -26,7 +26,9 @@ def main(snakemake):
     c = campaign(snakemake)
     # the footprint rule's mask (its product, this rule's input): the same pixels, without
     # recomputing the latitude cuts
-    fp = footprint_from_config({**c.config["footprint"], "mask_file": str(Path(snakemake.input.mask).resolve())})
+    fp = footprint_from_config(
+        {**c.config["footprint"], "mask_file": str(Path(snakemake.input.mask).resolve())}
+    )
     cleared = clear_block_sentinels(Path(snakemake.output[0]).parent)
     if cleared:
         log.info("removed %d time-block sentinels of an earlier store", cleared)
@@ -37,13 +39,32 @@ def main(snakemake):
     threads = int(snakemake.threads)
     cores = int(getattr(snakemake.resources, "build_processes", 1))
     build_workers = threads if threads > 1 else min(available_cores(), cores)
-    init_store(c, fp, snakemake.params.store, snakemake.input.stars, build_workers=build_workers,
-               limits_store=snakemake.params.lim_store)
+    init_store(
+        c,
+        fp,
+        snakemake.params.store,
+        snakemake.input.stars,
+        build_workers=build_workers,
+        limits_store=snakemake.params.lim_store,
+    )
     chunks = cube_chunks(c, len(c.times), fp.pixels.size)
-    write_json_atomic({"store": snakemake.params.store, "times": len(c.times), "pixels": int(fp.pixels.size),
-                       "bands": c.bands, "chunks": chunks}, snakemake.output[0])
-    log.info("background.zarr initialised: %d times x %d pixels x %d bands, chunks %s",
-             len(c.times), fp.pixels.size, len(c.bands), chunks)
+    write_json_atomic(
+        {
+            "store": snakemake.params.store,
+            "times": len(c.times),
+            "pixels": int(fp.pixels.size),
+            "bands": c.bands,
+            "chunks": chunks,
+        },
+        snakemake.output[0],
+    )
+    log.info(
+        "background.zarr initialised: %d times x %d pixels x %d bands, chunks %s",
+        len(c.times),
+        fp.pixels.size,
+        len(c.bands),
+        chunks,
+    )
 
 
 if __name__ == "__main__":

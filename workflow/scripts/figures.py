@@ -1,5 +1,6 @@
 """Snakemake adapter: rules `sky_maps` -> results/<name>/sky/*.png and `time_series` ->
 results/<name>/series/*.png (the background cube's figures, one process each)."""
+
 import sys
 from pathlib import Path
 

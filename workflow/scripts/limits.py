@@ -6,16 +6,16 @@ per-pixel summaries from it (streamed over pixel blocks on the job's processes),
 store with them as limits.zarr, and writes the maps and their figures.  The body is guarded by
 __main__: the pool's worker processes are spawned and re-import the main module, which must then
 not run the job again."""
+
 import sys
 from pathlib import Path
 
 
 def main(snakemake):
     sys.path.insert(0, str(Path(snakemake.scriptdir)))
-    from _common import campaign, setup_logging
-
     import numpy as np
     import xarray as xr
+    from _common import campaign, setup_logging
 
     from straylight.plots.report import limit_figures
     from straylight.survey.cube_layout import LIMITS_REGION_VARIABLES
@@ -37,8 +37,12 @@ def main(snakemake):
         best = ds["limiting_mag_best"].sel(band=b).values
         seen = best[np.isfinite(best)]  # NaN: never observable
         if seen.size:
-            log.info("band %-4s: deepest limit %.2f, median of pixel bests %.2f mag (AB)", b, seen.max(),
-                     np.median(seen))
+            log.info(
+                "band %-4s: deepest limit %.2f, median of pixel bests %.2f mag (AB)",
+                b,
+                seen.max(),
+                np.median(seen),
+            )
         else:
             log.info("band %-4s: no observable pixel", b)
     log.info("wrote %d HEALPix maps and %s", len(maps), ", ".join(p.name for p in figures))

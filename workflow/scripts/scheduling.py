@@ -1,4 +1,5 @@
 """Snakemake adapter: rule `scheduling` -> results/<name>/scheduling/*.csv, *.png."""
+
 import sys
 from pathlib import Path
 

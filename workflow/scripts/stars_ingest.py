@@ -1,4 +1,5 @@
 """Snakemake adapter: rule `stars_ingest` -> one Gaia file's stars, quarantine and summary."""
+
 import sys
 from pathlib import Path
 
@@ -14,7 +15,13 @@ res = ingest_file(snakemake.input.gaia, float(c.config["stars"]["g_limit_mag"]))
 write_parquet(res.stars, snakemake.output.stars, {"source_file": str(snakemake.input.gaia)})  # noqa: F821
 write_parquet(res.quarantine, snakemake.output.quarantine)  # noqa: F821
 write_json_atomic(res.summary, snakemake.output.summary)  # noqa: F821
-log.info("%s: %d rows, %d kept, %d fainter than the limit, %d quarantined %s", res.summary["file"],
-         res.summary["rows"], res.summary["kept"], res.summary["fainter_than_limit"], res.summary["quarantined"],
-         res.summary["quarantine_reasons"])
+log.info(
+    "%s: %d rows, %d kept, %d fainter than the limit, %d quarantined %s",
+    res.summary["file"],
+    res.summary["rows"],
+    res.summary["kept"],
+    res.summary["fainter_than_limit"],
+    res.summary["quarantined"],
+    res.summary["quarantine_reasons"],
+)
 end_job()
