@@ -138,22 +138,27 @@ class CampaignProducts:
 
     @property
     def background(self):
+        """``background.zarr`` (Dataset, lazy): (time, pixel, band) components and total, e-/s/pixel."""
         return self._zarr("background.zarr")
 
     @property
     def limits(self):
+        """``limits.zarr`` (Dataset, lazy): 5-sigma point-source limits, AB mag."""
         return self._zarr("limits.zarr")
 
     @property
     def observability(self):
+        """``observability.zarr`` (Dataset, lazy): observable flag, violations mask, angles in deg."""
         return self._zarr("observability.zarr")
 
     @property
     def ephemeris(self):
+        """``ephemeris.zarr`` (Dataset, lazy): body and satellite positions on the time grid."""
         return self._zarr("ephemeris.zarr")
 
     @property
     def footprint(self):
+        """``footprint.fits``: (pixel) DataArray of the footprint's HEALPix pixels (1), RA/Dec in deg."""
         import xarray as xr
         from astropy.io import fits
 
@@ -185,6 +190,7 @@ class CampaignProducts:
 
     @property
     def provenance(self) -> dict:
+        """``provenance.json`` as a dict."""
         import json
 
         p = self.path / "provenance.json"
@@ -197,7 +203,23 @@ class CampaignProducts:
         the ``mag_zero_point`` coordinate stored with the cube: ``zp - 2.5 log10(rate)``; +inf
         where the rate is 0, NaN where it is NaN.  ``rate`` must keep its ``band`` dimension
         (select bands with ``sel(band=[...])``, not ``sel(band="g")``) or carry the scalar
-        ``mag_zero_point`` coordinate."""
+        ``mag_zero_point`` coordinate.
+
+        Parameters
+        ----------
+        rate : xarray.DataArray
+            Background, e-/s/pixel (``units`` ``electron / (s pixel)``), any dimensions.
+
+        Returns
+        -------
+        xarray.DataArray
+            The same shape and dimensions, AB mag/arcsec2.
+
+        Raises
+        ------
+        straylight.InputError
+            No zero point for ``rate``, or other units.
+        """
         return to_mag_per_arcsec2(rate, self.background)
 
     def __repr__(self):
@@ -207,7 +229,28 @@ class CampaignProducts:
 def to_mag_per_arcsec2(rate, background=None):
     """AB mag/arcsec2 of an xarray background in e-/s/pixel, through its ``mag_zero_point``
     coordinate (or ``background``'s, aligned on ``band``).  See
-    :meth:`CampaignProducts.to_mag_per_arcsec2`."""
+    :meth:`CampaignProducts.to_mag_per_arcsec2`.
+
+    Parameters
+    ----------
+    rate : xarray.DataArray
+        Background, e-/s/pixel (``units`` ``electron / (s pixel)`` or ``e-/s/pixel``), any
+        dimensions; with a ``mag_zero_point`` coordinate, or a ``band`` coordinate.
+    background : xarray.Dataset or None
+        The cube whose ``mag_zero_point`` (band), mag/arcsec2 at 1 e-/s/pixel, is used when
+        ``rate`` has none (None: ``rate``'s own only).
+
+    Returns
+    -------
+    xarray.DataArray
+        ``zp - 2.5 log10(rate)``, AB mag/arcsec2, with ``rate``'s dimensions (+inf where the
+        rate is 0, NaN where it is NaN).
+
+    Raises
+    ------
+    straylight.InputError
+        No zero point found, or units other than e-/s/pixel.
+    """
     from straylight.survey.limits import ZERO_POINT_NAME
 
     if ZERO_POINT_NAME in rate.coords:

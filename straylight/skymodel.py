@@ -74,6 +74,27 @@ class SkyModel:
 
         Parameters, result and errors: :func:`straylight.sky_background` (without its
         ``config`` and ``catalog``, which this model holds).
+
+        Parameters
+        ----------
+        time : astropy.time.Time
+            Observation time(s), any scale; scalar or array.
+        coord : astropy.coordinates.SkyCoord
+            Pointing(s), any frame; scalar or array, broadcast against ``time``.
+        bands : list of str or None
+            Bands to evaluate (None: every band of the instrument; ``"V"`` is accepted).
+
+        Returns
+        -------
+        astropy.table.QTable
+            One row per broadcast sample: the angles (deg), observability, each component and
+            the total in electron / (s pix), in AB mag/arcsec2, and the 5-sigma limits (AB
+            mag), as :func:`straylight.sky_background` gives them.
+
+        Raises
+        ------
+        straylight.InputError
+            Bad samples (see :func:`checked_samples`), an unknown band or an empty list of bands.
         """
         from straylight.survey.pointings import background_table
 
@@ -114,7 +135,27 @@ def checked_samples(time, coord):
     """(UTC times, RA, Dec deg) of the samples, flattened after broadcasting ``time`` (astropy
     Time) against ``coord`` (SkyCoord, any frame; ICRS out).  InputError for a wrong type, shapes
     that do not broadcast, a non-finite coordinate, a masked time or a time outside DE405, before
-    any model is built."""
+    any model is built.
+
+    Parameters
+    ----------
+    time : astropy.time.Time
+        Observation time(s), any scale; scalar or array.
+    coord : astropy.coordinates.SkyCoord
+        Pointing(s), any frame; scalar or array, broadcast against ``time``.
+
+    Returns
+    -------
+    t : astropy.time.Time, shape (n,)
+        The samples' times, UTC.
+    ra, dec : ndarray, shape (n,)
+        The samples' ICRS right ascension and declination, deg.
+
+    Raises
+    ------
+    straylight.InputError
+        As above.
+    """
     from astropy.coordinates import SkyCoord
     from astropy.time import Time
 
@@ -204,7 +245,20 @@ def _file_key(path) -> tuple | None:
 def cached_sky_model(config=None, catalog=None) -> SkyModel:
     """The :class:`SkyModel` of this config and catalog, built on first use and kept (a config
     or catalog file edited since gives a new one; the files a config names, such as its
-    instrument, are not watched)."""
+    instrument, are not watched).
+
+    Parameters
+    ----------
+    config : str or path, optional
+        Campaign config (None: the packaged ``config/config.yaml``).
+    catalog : str or path, optional
+        Star table for the off-field star term (None: stars = 0).
+
+    Returns
+    -------
+    SkyModel
+        The kept model (at most a few are kept; the oldest is dropped first).
+    """
     key = (_file_key(config), _file_key(catalog))
     with _MODELS_LOCK:
         model = _MODELS.get(key)

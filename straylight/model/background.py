@@ -66,7 +66,23 @@ class BackgroundModel:
         self.sources = {e.name: self.source(e.name) for e in self.entries}
 
     def source(self, name: str):
-        """The source ``name`` of the registry, built on first use (a source may ask for another)."""
+        """The source ``name`` of the registry, built on first use (a source may ask for another).
+
+        Parameters
+        ----------
+        name : str
+            A source's name in :data:`~straylight.model.registry.SOURCES`.
+
+        Returns
+        -------
+        Source
+            The built source (its ``rates(samples, bands)`` gives e-/s/pix per band).
+
+        Raises
+        ------
+        KeyError
+            For a name that is not registered.
+        """
         if name not in self._built:
             entry = next((e for e in self.entries if e.name == name), None)
             if entry is None:
@@ -233,7 +249,16 @@ class BackgroundModel:
         return {name: floor[ib].reshape(shape) for ib, name in enumerate(bands)}, ratio.reshape(shape)
 
     def models_record(self) -> dict:
-        """Which models ran and their error budget, for a product's attributes (JSON-able)."""
+        """Which models ran and their error budget, for a product's attributes (JSON-able).
+
+        Returns
+        -------
+        dict
+            The tolerance (a fraction of the total), the earthshine and moonlit-Earth records,
+            the PST's source, how unobservable samples and skips are handled, the stars'
+            selection, and ``error_budget``: each fast path's largest error, a fraction of the
+            total (0.0 where the path does not run).
+        """
         sc = self.campaign.settings.stars
         policy, tolerance = self.policy, self.policy.tolerance
         es = self.sunlit_earth.record()

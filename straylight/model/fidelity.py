@@ -38,7 +38,18 @@ LUT_SAVED_SECONDS_PER_SAMPLE = 0.08e-3
 
 def unobservable_samples(campaign) -> str:
     """models.unobservable_samples of a campaign: 'evaluate' (every cube sample gets its
-    background) or 'skip' (samples that break a constraint get NaN in every component)."""
+    background) or 'skip' (samples that break a constraint get NaN in every component).
+
+    Parameters
+    ----------
+    campaign : Campaign
+        The campaign (its ``settings.models``).
+
+    Returns
+    -------
+    str
+        ``"evaluate"`` or ``"skip"``.
+    """
     return campaign.settings.models.unobservable_samples
 
 
@@ -46,7 +57,15 @@ def unobservable_samples(campaign) -> str:
 class FidelityPolicy:
     """One campaign's error budget and fast-path choices.  ``moonlit_skip_share``: the fraction
     of the tolerance the moonlit Earth's skipped samples may take (0: none skipped, as the
-    benchmark's reference runs)."""
+    benchmark's reference runs).
+
+    Parameters
+    ----------
+    campaign : Campaign
+        The campaign (its ``settings.models``: the tolerance, the samples evaluated).
+    moonlit_skip_share : float
+        Fraction of the tolerance the moonlit Earth's skipped samples may take, in [0, 1].
+    """
 
     campaign: Campaign
     moonlit_skip_share: float = ERROR_BUDGET_SHARES["moonlit_earthshine_skip"]
@@ -57,17 +76,52 @@ class FidelityPolicy:
         return float(self.campaign.settings.models.tolerance)
 
     def share(self, name: str) -> float:
-        """Fast path ``name``'s share of the tolerance (:data:`ERROR_BUDGET_SHARES`)."""
+        """Fast path ``name``'s share of the tolerance (:data:`ERROR_BUDGET_SHARES`).
+
+        Parameters
+        ----------
+        name : str
+            A key of :data:`ERROR_BUDGET_SHARES`.
+
+        Returns
+        -------
+        float
+            The share, a fraction of the tolerance.
+        """
         return ERROR_BUDGET_SHARES[name]
 
     def budget(self, share: str) -> float:
         """The error (a fraction of the total) fast path ``share`` of :data:`ERROR_BUDGET_SHARES`
-        may add: its share times the tolerance."""
+        may add: its share times the tolerance.
+
+        Parameters
+        ----------
+        share : str
+            A key of :data:`ERROR_BUDGET_SHARES`.
+
+        Returns
+        -------
+        float
+            The error allowed, a fraction of the total background.
+        """
         return ERROR_BUDGET_SHARES[share] * self.tolerance
 
     def accepts_table(self, share: str, validated_error: float) -> bool:
         """Whether a table whose validated error (a fraction of the total) is
-        ``validated_error`` stays within ``share``'s budget."""
+        ``validated_error`` stays within ``share``'s budget.
+
+        Parameters
+        ----------
+        share : str
+            A key of :data:`ERROR_BUDGET_SHARES`.
+        validated_error : float
+            The table's largest error in its validation, a fraction of the total.
+
+        Returns
+        -------
+        bool
+            True when ``validated_error`` <= the share times the tolerance.
+        """
         return validated_error <= ERROR_BUDGET_SHARES[share] * self.tolerance
 
     @property
@@ -78,7 +132,22 @@ class FidelityPolicy:
     @staticmethod
     def tables_build_seconds(sunlit_node_states: int, moonlit_node_states: int) -> tuple[float, float]:
         """(both tables, the moonlit one): the table path's build on one core, s, at
-        :data:`LUT_BUILD_SECONDS_PER_NODE` and :data:`MOONLIT_LUT_BUILD_SECONDS_PER_NODE`."""
+        :data:`LUT_BUILD_SECONDS_PER_NODE` and :data:`MOONLIT_LUT_BUILD_SECONDS_PER_NODE`.
+
+        Parameters
+        ----------
+        sunlit_node_states : int
+            The sunlit table's (node, door state) pairs to build.
+        moonlit_node_states : int
+            The moonlit table's (node, door state) pairs to build.
+
+        Returns
+        -------
+        total_s : float
+            Both tables' build on one core, s.
+        moonlit_s : float
+            The moonlit table's part of it, s.
+        """
         moonlit_s = MOONLIT_LUT_BUILD_SECONDS_PER_NODE * moonlit_node_states
         return LUT_BUILD_SECONDS_PER_NODE * sunlit_node_states + moonlit_s, moonlit_s
 
@@ -90,7 +159,20 @@ class FidelityPolicy:
         in the API, and the table's build is a one-time cost per model and machine that every
         later command and campaign reuses (``straylight plan`` and the build itself say when it
         is due, with its time).  The direct sum is the reference, on request.  Blind to the
-        cache on purpose: the same config gives the same products on every machine."""
+        cache on purpose: the same config gives the same products on every machine.
+
+        Parameters
+        ----------
+        requested : str
+            models.earthshine.method: ``"auto"``, ``"lut"`` or ``"direct"``.
+
+        Returns
+        -------
+        method : str
+            ``"lut"`` or ``"direct"``.
+        reason : str
+            Why, for the models' record.
+        """
         if requested == "direct":
             return "direct", "models.earthshine.method = direct"
         return "lut", f"models.earthshine.method = {requested}"

@@ -228,12 +228,24 @@ SOURCES = [
 
 
 def component_names() -> tuple:
-    """The components' names, in the order they are added into the total (no parts, no total)."""
+    """The components' names, in the order they are added into the total (no parts, no total).
+
+    Returns
+    -------
+    tuple of str
+        The names of :data:`COMPONENTS`.
+    """
     return tuple(c.name for c in COMPONENTS)
 
 
 def band_components() -> tuple:
-    """Every per-band output of the model: each component's parts before it, then the total."""
+    """Every per-band output of the model: each component's parts before it, then the total.
+
+    Returns
+    -------
+    tuple of str
+        The outputs' names (each e-/s/pix per band), ending with :data:`TOTAL`.
+    """
     names = []
     for c in COMPONENTS:
         names += [p for p, _ in c.parts] + [c.name]
@@ -241,7 +253,13 @@ def band_components() -> tuple:
 
 
 def long_names() -> dict:
-    """Name -> long_name of every per-band output (components, parts and the total)."""
+    """Name -> long_name of every per-band output (components, parts and the total).
+
+    Returns
+    -------
+    dict of str to str
+        The outputs' ``long_name`` attributes.
+    """
     out = {}
     for c in COMPONENTS:
         out.update(dict(c.parts))
@@ -251,12 +269,26 @@ def long_names() -> dict:
 
 
 def leaves() -> tuple:
-    """The names sources add to: each component's parts, or the component itself."""
+    """The names sources add to: each component's parts, or the component itself.
+
+    Returns
+    -------
+    tuple of str
+        The leaves, in the order of :data:`COMPONENTS`.
+    """
     return tuple(n for c in COMPONENTS for n in ([p for p, _ in c.parts] or [c.name]))
 
 
 def register(source: SourceEntry, component: Component | None = None) -> None:
     """Add a source (and, for a new component, the component) at the end of the registry.
+
+    Parameters
+    ----------
+    source : SourceEntry
+        The source; its ``adds_to`` names a declared component or part, or ``component`` or
+        one of its parts.
+    component : Component or None
+        A new component the source adds to (None: it adds to one already declared).
 
     Raises
     ------
