@@ -106,7 +106,8 @@ def main(argv=None) -> dict:
         "earthshine": table.meta["models"].get("earthshine", {}).get("method"),
     }
     print(
-        f"SkyModel in this process: {build_wall:.1f} s wall, {build_cpu:.1f} CPU-s (tables built if not cached)"
+        f"SkyModel in this process: {build_wall:.1f} s wall, {build_cpu:.1f} CPU-s "
+        "(tables built if not cached)"
     )
     print(f"fresh process, first answer: {first_wall:.2f} s wall ({first_cpu:.2f} CPU-s), tables cached")
     for label, rec in single.items():

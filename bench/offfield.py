@@ -95,7 +95,8 @@ def main():
                 }
         results["earthshine"][f"{ng}x{npsi}"] = row
         print(
-            f"earthshine grid {ng:3d} x {npsi:3d}: {t * 1e3:6.2f} ms/sample; median rel error {row['all']['median_rel_error']:.1e}; "
+            f"earthshine grid {ng:3d} x {npsi:3d}: {t * 1e3:6.2f} ms/sample; "
+            f"median rel error {row['all']['median_rel_error']:.1e}; "
             f"max error / (earthshine + zodiacal): all {row['all']['max_error_over_background']:.1e}, "
             f"limb>10 {row['limb_gt_10deg']['max_error_over_background']:.1e}, "
             f"limb>30 {row['limb_gt_30deg']['max_error_over_background']:.1e}"
@@ -106,8 +107,9 @@ def main():
             )
         )
     print(
-        f"reference 96 x 192: {t_ref * 1e3:.2f} ms/sample; point source: {results['point_source_s_per_sample'] * 1e6:.1f} "
-        f"us/sample; all terms, one band: {t_all / n * 1e3:.2f} ms/sample"
+        f"reference 96 x 192: {t_ref * 1e3:.2f} ms/sample; "
+        f"point source: {results['point_source_s_per_sample'] * 1e6:.1f} us/sample; "
+        f"all terms, one band: {t_all / n * 1e3:.2f} ms/sample"
     )
     write_results("offfield", results)
 

@@ -330,7 +330,8 @@ def main(argv=None) -> dict:
     )
     if args.cold:
         print(
-            "empty table cache: the earthshine tables, the catalog and the faint-star map built in the wall time"
+            "empty table cache: the earthshine tables, the catalog and the faint-star map built in the "
+            "wall time"
         )
     else:
         print(
@@ -339,15 +340,18 @@ def main(argv=None) -> dict:
         )
     if result["kernel"]:
         print(
-            f"kernel (cube compute alone, one core): {result['kernel']['samples_per_s_per_core']:,.0f} samples/s/core"
+            "kernel (cube compute alone, one core): "
+            f"{result['kernel']['samples_per_s_per_core']:,.0f} samples/s/core"
         )
     print(
         f"peak memory {result['peak_memory_bytes'] / 2**30:.2f} GiB; products "
-        f"{sum(result['products_bytes'].values()) / 1e9:.3f} GB = {result['bytes_per_sample']:.1f} bytes/sample"
+        f"{sum(result['products_bytes'].values()) / 1e9:.3f} GB = "
+        f"{result['bytes_per_sample']:.1f} bytes/sample"
     )
     for name, rec in result["rules"].items():
         print(
-            f"  {name:<18} {rec['jobs']:3d} job(s) {rec['seconds']:8.0f} s  {100 * rec['share_of_wall']:5.1f} % of wall"
+            f"  {name:<18} {rec['jobs']:3d} job(s) {rec['seconds']:8.0f} s  "
+            f"{100 * rec['share_of_wall']:5.1f} % of wall"
         )
     print("timeline (s after the command):")
     for job in result["timeline"]:

@@ -49,7 +49,8 @@ def main():
     dt = (time.perf_counter() - t0) / reps
     out["conversion_stars_per_s_per_core"] = len(hip["ra"]) / dt
     print(
-        f"conversion: {len(hip['ra'])} stars in {dt:.3f} s = {out['conversion_stars_per_s_per_core']:.3g} stars/s/core"
+        f"conversion: {len(hip['ra'])} stars in {dt:.3f} s = "
+        f"{out['conversion_stars_per_s_per_core']:.3g} stars/s/core"
     )
 
     cols, _ = make_catalog(responses)
@@ -103,7 +104,8 @@ def main():
             rows.append(row)
             print(
                 f"limit {limit:5.1f} map {faint:d}: {ns:6d} direct stars, max error {err:.2e} of the total, "
-                f"star term {row['star_cost_ms_per_sample']:.3f} ms/sample (rest {t_base / len(obs) * 1e3:.3f}), "
+                f"star term {row['star_cost_ms_per_sample']:.3f} ms/sample "
+                f"(rest {t_base / len(obs) * 1e3:.3f}), "
                 f"map {row['map_ms_per_new_line_of_sight']:.2f} ms per new line of sight"
             )
     out["offfield_star_limit"] = rows

@@ -408,7 +408,8 @@ def main(argv=None) -> dict:
             }
         results["runs"][label] = run
         print(
-            f"{label}: {run['bytes_per_sample_gridded_products']:.2f} bytes/sample (background+limits+observability), "
+            f"{label}: {run['bytes_per_sample_gridded_products']:.2f} bytes/sample "
+            "(background+limits+observability), "
             + ", ".join(f"{p} {s['bytes_per_sample']:.2f}" for p, s in stores.items())
         )
         for p, r in run["reads"].items():
@@ -419,7 +420,8 @@ def main(argv=None) -> dict:
         for p, errs in run.get("errors_against_" + str(args.reference), {}).items():
             worst = max(errs.items(), key=lambda kv: kv[1]["max_relative_error"])
             print(
-                f"  {p}: max relative error {worst[1]['max_relative_error']:.3g} ({worst[0]}, bound {worst[1]['bound']})"
+                f"  {p}: max relative error {worst[1]['max_relative_error']:.3g} "
+                f"({worst[0]}, bound {worst[1]['bound']})"
             )
     if args.reference:
         from straylight.config import load_campaign

@@ -48,6 +48,8 @@ def _rows(node: dict, prefix: str, required: set, out: list) -> None:
 
 
 def config_reference() -> str:
+    """The campaign config reference (docs' Markdown: one table row per key, with type, allowed
+    values, default and description) generated from the config schema."""
     schema = load_schema(CAMPAIGN_SCHEMA)
     out = [
         "# Campaign config reference",

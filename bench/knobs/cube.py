@@ -16,13 +16,12 @@ def cube_summary(catalog, time_step: int = 24, n_times: int = 12) -> dict:
     ``n_times`` times spread over its day, as compute_region runs it (the direct path one time
     step per evaluation, the Earth cap gridded once per step; the table path whole steps as one
     batch, cube_region.SAMPLES_PER_EVALUATION), stars included.  Seconds per sample on one
-    core (best of three for the direct earthshine sum, of :data:`FAST_REPEATS` for the look-up table, built once
-    and cached), and the
-    table path's largest difference from the direct path at observable samples, as a fraction
-    of the total (the direct path's own error is the random-sample figure above).  Then the
-    table path with models.unobservable_samples: skip, its rate counted over every sample
-    (the unobservable ones are NaN), its observable values checked identical to the table
-    path's."""
+    core (best of three for the direct earthshine sum, of :data:`FAST_REPEATS` for the look-up
+    table, built once and cached), and the table path's largest difference from the direct path
+    at observable samples, as a fraction of the total (the direct path's own error is the
+    random-sample figure above).  Then the table path with models.unobservable_samples: skip,
+    its rate counted over every sample (the unobservable ones are NaN), its observable values
+    checked identical to the table path's."""
     import tempfile
 
     from straylight.catalog.build import write_catalog
@@ -88,8 +87,10 @@ def cube_summary(catalog, time_step: int = 24, n_times: int = 12) -> dict:
     out["auto_cost_model"] = auto_cost_model(lut_model, out)
     out["plan_cost_model"] = plan_cost_model(base, fp, t_slice, out)
     print(
-        f"cube: table path differs from the direct path by <= {out['lut_vs_direct_max_rel_error_observable']:.2e} "
-        f"of the total at {out['observable_samples']} observable samples ({out['lut_vs_direct_max_rel_error_all']:.2e} at all)"
+        "cube: table path differs from the direct path by <= "
+        f"{out['lut_vs_direct_max_rel_error_observable']:.2e} of the total at "
+        f"{out['observable_samples']} observable samples "
+        f"({out['lut_vs_direct_max_rel_error_all']:.2e} at all)"
     )
     return out
 
@@ -133,8 +134,8 @@ def production_region_rates(base, fp, stars_path) -> dict:
         )
         out[key] = {"samples_per_s_per_core": n / dt}
         print(
-            f"cube, one production region ({out['times']} steps x {out['pixels']} pixels), unobservable samples "
-            f"{unobservable}: {n / dt:.0f} samples/s/core"
+            f"cube, one production region ({out['times']} steps x {out['pixels']} pixels), "
+            f"unobservable samples {unobservable}: {n / dt:.0f} samples/s/core"
         )
 
         def time_block(ts=t_slice):
@@ -145,8 +146,9 @@ def production_region_rates(base, fp, stars_path) -> dict:
         _, dt = timed(time_block, repeats=FAST_REPEATS)
         out["time_block"][key] = {"samples_per_s_per_core": n_block / dt}
         print(
-            f"cube, one production time block ({out['times']} steps x {fp.pixels.size} pixels in {len(p_blocks)} "
-            f"blocks, the scene once), unobservable samples {unobservable}: {n_block / dt:.0f} samples/s/core"
+            f"cube, one production time block ({out['times']} steps x {fp.pixels.size} pixels in "
+            f"{len(p_blocks)} blocks, the scene once), unobservable samples {unobservable}: "
+            f"{n_block / dt:.0f} samples/s/core"
         )
         block_s = [timed(lambda ts=ts: time_block(ts), repeats=FAST_REPEATS)[1] for ts in t_blocks]
         samples = [(ts.stop - ts.start) * int(fp.pixels.size) for ts in t_blocks]
@@ -155,8 +157,8 @@ def production_region_rates(base, fp, stars_path) -> dict:
             "per_time_block": [k / s for k, s in zip(samples, block_s)],
         }
         print(
-            f"cube, the whole campaign ({len(t_blocks)} time blocks, {sum(samples)} samples), unobservable samples "
-            f"{unobservable}: {sum(samples) / sum(block_s):.0f} samples/s/core (blocks: "
+            f"cube, the whole campaign ({len(t_blocks)} time blocks, {sum(samples)} samples), "
+            f"unobservable samples {unobservable}: {sum(samples) / sum(block_s):.0f} samples/s/core (blocks: "
             + ", ".join(f"{k / s:.0f}" for k, s in zip(samples, block_s))
             + ")"
         )
@@ -249,6 +251,7 @@ def auto_cost_model(lut_model, cube: dict) -> dict:
         f"auto: the table saves {saved * 1e3:.3f} ms per cube sample (assumed "
         f"{comp.LUT_SAVED_SECONDS_PER_SAMPLE * 1e3:.3f}), was built at {build * 1e3:.3f} ms per node and "
         f"state (assumed {comp.LUT_BUILD_SECONDS_PER_NODE * 1e3:.3f}): a build is repaid after "
-        f"{out['pays_off_above_samples']['measured']:.3g} samples (assumed {out['pays_off_above_samples']['assumed']:.3g})"
+        f"{out['pays_off_above_samples']['measured']:.3g} samples "
+        f"(assumed {out['pays_off_above_samples']['assumed']:.3g})"
     )
     return out

@@ -68,5 +68,6 @@ def print_goal_check(check: dict) -> None:
         f"({fmt(r['production_time_block'])} its first time block, {fmt(r['production_region'])} one region, "
         f"{fmt(r['day_spread_batch'])} the day-spread batch) against "
         f"{check['goal_samples_per_s_per_core']:,.0f}; error {err} against "
-        f"{check['goal_max_rel_error']:g}; {fmt(check['speedup_over_direct'])}x the direct path; met: {check['met']}"
+        f"{check['goal_max_rel_error']:g}; {fmt(check['speedup_over_direct'])}x the direct path; "
+        f"met: {check['met']}"
     )

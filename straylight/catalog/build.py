@@ -84,6 +84,8 @@ class TemplatePhotometry:
 
 
 def select_templates(library: TemplateLibrary, classes) -> TemplateLibrary:
+    """The library's templates of the luminosity classes ``classes`` (stars.template_classes;
+    empty or None: the whole library).  InputError when no template is of those classes."""
     if not classes:
         return library
     keep = np.isin(library.luminosity_class, list(classes))

@@ -89,6 +89,9 @@ def _read_table(path: Path):
 
 @dataclass
 class IngestResult:
+    """One Gaia file read: the clean stars (column -> array, G <= the limit), the quarantined rows
+    (column -> array, with a ``reason`` column) and a summary of the counts."""
+
     stars: dict  # column -> array (clean rows brighter than the limit)
     quarantine: dict  # column -> array, with a 'reason' column
     summary: dict = field(default_factory=dict)

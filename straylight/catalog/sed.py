@@ -70,6 +70,7 @@ class TemplateLibrary:
         return len(self.template)
 
     def subset(self, mask) -> TemplateLibrary:
+        """The templates where ``mask`` (boolean or index array over the templates) selects, same grid."""
         mask = np.asarray(mask)
         return TemplateLibrary(
             self.name,

@@ -40,6 +40,10 @@ from straylight.sky.vectors import radec_to_unit, unit
 
 @dataclass(frozen=True)
 class FocalPlane:
+    """The focal plane's layout: each detector ``nx`` x ``ny`` pixels of ``pixel_scale_arcsec``
+    (arcsec) and ``pixel_size_mm`` (mm), ``columns`` x ``rows`` detectors separated by ``gap_px``
+    pixels."""
+
     nx: int
     ny: int
     pixel_scale_arcsec: float
@@ -50,6 +54,7 @@ class FocalPlane:
 
     @property
     def n_detectors(self) -> int:
+        """Number of detectors, columns x rows."""
         return self.columns * self.rows
 
     def detector_offset_px(self, detector: int) -> tuple[float, float]:
@@ -138,7 +143,8 @@ def _reach_px(table, flux_e_per_s, floor, p_m):
 
 
 def _linear_upsample_matrix(n_fine: int, n_coarse: int, offset: float, b: int):
-    """Sparse (n_fine x n_coarse) bilinear weights; fine pixel i sits at coarse (i + offset + 0.5) / b - 0.5."""
+    """Sparse (n_fine x n_coarse) bilinear weights; fine pixel i sits at coarse
+    (i + offset + 0.5) / b - 0.5."""
     from scipy import sparse
 
     pos = (np.arange(n_fine) + offset + 0.5) / b - 0.5
@@ -191,6 +197,11 @@ class RenderSettings:
 
 @dataclass
 class DetectorImage:
+    """A detector's stray-light image, e- s-1 pixel-1, float32 (rows, columns) of the rendered
+    window (binned by ``meta["bin"]``, its corner at ``meta["cut_x0"]``, ``meta["cut_y0"]``),
+    with its ghost table and the stars used (column -> array), its WCS and the settings used
+    (``meta``)."""
+
     image_e_per_s_per_pix: np.ndarray
     ghosts: dict  # column -> array
     stars: dict  # column -> array (stars used)

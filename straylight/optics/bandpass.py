@@ -51,6 +51,7 @@ class Band:
 
     @cached_property
     def response(self):
+        """The band's speclite ``FilterResponse`` (wavelengths in Angstrom)."""
         return _speclite_response(
             self.name, self.origin, tuple(self.wavelength_angstrom), tuple(self.throughput)
         )
@@ -78,6 +79,7 @@ class Band:
 
     @property
     def pivot_wavelength_nm(self) -> float:
+        """Pivot wavelength sqrt(int T lambda dlambda / int T / lambda dlambda), nm."""
         wl, t = self.wavelength_angstrom, self.throughput
         return float(np.sqrt(np.trapezoid(t * wl, wl) / np.trapezoid(t / wl, wl)) / 10.0)
 

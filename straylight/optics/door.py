@@ -70,6 +70,20 @@ def aperture_points(radius_m: float, n: int) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Door:
+    """The aperture door of one instrument (see the module doc for the geometry).
+
+    Parameters
+    ----------
+    aperture_radius_m : float
+        Aperture radius R, m.
+    length_m, width_m : float
+        The door's length L (from the hinge) and width W, m; each at least 2 R.
+    n_aperture : int
+        Aperture points whose rays are tested against the door (accuracy knob).
+    body_radius_m, body_length_m : float
+        The telescope body below the aperture plane, a solid cylinder about the axis, m (0: none).
+    """
+
     aperture_radius_m: float
     length_m: float
     width_m: float
@@ -162,6 +176,21 @@ class Door:
     def table(
         self, opening_deg: float, theta_step_deg: float = 1.0, phi_step_deg: float = 2.0
     ) -> "DoorTable":
+        """Sp(theta, phi) of the door open to ``opening_deg`` tabulated over theta 0-90 deg and
+        phi 0-360 deg.
+
+        Parameters
+        ----------
+        opening_deg : float
+            The door's opening angle, deg.
+        theta_step_deg, phi_step_deg : float
+            The table's steps in off-axis angle and azimuth, deg.
+
+        Returns
+        -------
+        DoorTable
+            The unshaded fraction (0-1) on the (theta, phi) grid, interpolated bilinearly.
+        """
         theta = np.arange(0.0, 90.0 + theta_step_deg / 2, theta_step_deg)
         phi = np.arange(0.0, 360.0 + phi_step_deg / 2, phi_step_deg)
         # the 90 deg row is the limit from above the aperture plane: exactly in the plane the
@@ -195,6 +224,9 @@ class DoorTable:
         return np.clip(th, 0.0, 90.0), wrap_360_deg(ph)
 
     def __call__(self, theta_deg, phi_deg) -> np.ndarray:
+        """Sp at directions ``theta_deg`` (off axis) and ``phi_deg`` (azimuth), deg, broadcast
+        together: the unshaded fraction of the aperture, 0-1, of their broadcast shape (0 behind
+        the aperture plane, theta > 90 deg)."""
         th = np.asarray(theta_deg, float)
         return np.where(behind_aperture_plane(th), 0.0, self._interp(*self.coordinates(th, phi_deg)))
 

@@ -29,6 +29,12 @@ from straylight.errors import ConfigError, InputError
 
 @dataclass(frozen=True)
 class GhostModel:
+    """The filter-detector ghosts of one band (module doc; paper eqs. 10-13): the filter's
+    thickness ``d1_mm`` and its back surface's distance to the detector ``d2_mm`` (mm), its
+    refractive index ``n``, the marginal-ray angle on the detector ``u_rad`` (rad), the filter's
+    surface reflectances ``r1``, ``r2`` and transmissions ``t1``, ``t2`` and the detector's
+    reflectance ``rd`` (each 0-1)."""
+
     d1_mm: float  # filter thickness
     d2_mm: float  # filter back surface to detector
     n: float  # filter refractive index

@@ -113,6 +113,25 @@ def default_pst_grid(
 
 @dataclass
 class PST:
+    """A Point Source Transmission matrix, interpolated bilinearly in log10(PST), periodic in phi.
+
+    Parameters
+    ----------
+    theta_deg : ndarray, shape (n_theta,)
+        Off-axis angles of the grid, strictly increasing over 0-180 deg.
+    phi_deg : ndarray, shape (n_phi,)
+        Azimuths of the grid, strictly increasing over 0-360 deg (phi = 0: the door side).
+    values : ndarray, shape (n_theta, n_phi)
+        PST, focal-plane over aperture irradiance (dimensionless, finite and > 0).
+    source : str
+        Where the matrix comes from (a file path, or the default), for error messages and records.
+
+    Raises
+    ------
+    InputError
+        For a matrix or grid that breaks the rules of the module doc.
+    """
+
     theta_deg: np.ndarray
     phi_deg: np.ndarray
     values: np.ndarray  # (n_theta, n_phi)
@@ -241,6 +260,8 @@ class PST:
         return AxisCells(self.theta_deg), np.ascontiguousarray(self._tail_max_reversed[::-1])
 
     def azimuthal_mean(self, theta_deg) -> np.ndarray:
+        """The PST averaged over azimuth (72 azimuths, 5 deg apart) at off-axis angles ``theta_deg``
+        (deg, any shape): dimensionless, of the shape of ``theta_deg``."""
         phi = np.linspace(0.0, 360.0, 73)[:-1]
         return self(np.asarray(theta_deg)[..., None], phi).mean(axis=-1)
 
@@ -293,6 +314,16 @@ def load_pst(path: str | Path | None, field_radius_deg: float = DEFAULT_FIELD_RA
 
 
 def write_pst_csv(pst: PST, path: str | Path) -> None:
+    """Write ``pst`` to ``path`` as the CSV :func:`load_pst` reads (long form: ``theta_deg``,
+    ``phi_deg``, ``pst``).
+
+    Parameters
+    ----------
+    pst : PST
+        The matrix.
+    path : str or Path
+        The CSV file to write (replaced if present).
+    """
     th, ph = np.meshgrid(pst.theta_deg, pst.phi_deg, indexing="ij")
     lines = ["theta_deg,phi_deg,pst"] + [
         f"{a:.12g},{b:.12g},{c:.6e}" for a, b, c in zip(th.ravel(), ph.ravel(), pst.values.ravel())

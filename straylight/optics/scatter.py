@@ -59,6 +59,7 @@ class HarveyBRDF:
             )
 
     def __call__(self, theta_rad) -> np.ndarray:
+        """BRDF at scatter angles ``theta_rad`` (rad, any shape), sr-1, of the same shape."""
         t = np.asarray(theta_rad, dtype=float)
         return self.b0 * (1.0 + (np.sin(t) / self.l) ** 2) ** (self.s / 2.0)
 
@@ -92,6 +93,8 @@ class ScatterModel:
 
     @property
     def tis_total(self) -> float:
+        """Summed total integrated scatter of the mirrors (each the BRDF's TIS), a fraction of the
+        star's power."""
         return len(self.mirror_radii_m) * self.brdf.tis()
 
     def brdf_system(self, theta_rad) -> np.ndarray:
@@ -129,6 +132,8 @@ class ScatterModel:
 
     @property
     def core_sigma_m(self) -> float:
+        """Standard deviation of the Gaussian PSF core on the focal plane, m (its EE80 radius over
+        sqrt(2 ln 5))."""
         return self.ee80_radius_arcsec / GAUSS_EE80_FACTOR * ARCSEC_RAD * self.focal_length_m
 
     def core_profile(self, d_m) -> np.ndarray:
@@ -174,6 +179,25 @@ def scatter_model_from_instrument(instrument: InstrumentSettings | dict) -> Scat
 
 
 def check_fluxes(fluxes, name="star flux") -> np.ndarray:
+    """Star fluxes as a float array, checked finite and >= 0.
+
+    Parameters
+    ----------
+    fluxes : array_like
+        Star fluxes, e-/s (any shape).
+    name : str
+        What the fluxes are, for the error message.
+
+    Returns
+    -------
+    ndarray
+        ``fluxes`` as float64, same shape, e-/s.
+
+    Raises
+    ------
+    InputError
+        For a non-finite or negative flux (naming its row).
+    """
     f = np.asarray(fluxes, dtype=float)
     if not np.all(np.isfinite(f)):
         i = int(np.flatnonzero(~np.isfinite(f))[0])

@@ -70,6 +70,8 @@ def zodiacal_map_data(campaign: Campaign, time: str = FIGURE_TIME, nside: int = 
 
 
 def plot_zodiacal_map(d: dict, out_png) -> None:
+    """Draw :func:`zodiacal_map_data`'s all-sky V-band zodiacal light (AB mag/arcsec2, Sun marked)
+    as a Mollweide map to the PNG ``out_png``."""
     import healpy as hp
     from healpy import visufunc  # by name: a process may have loaded healpy without it (util.healpix)
 
@@ -114,6 +116,8 @@ def scattering_data(campaign: Campaign, r_max_px: float = 1000.0) -> dict:
 
 
 def plot_scattering(d: dict, out_png) -> None:
+    """Draw :func:`scattering_data`'s profiles (PSF core, mirror-scattering halo and their blend,
+    relative to the image's peak, against the distance in pixels, log-log) to the PNG ``out_png``."""
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(7, 4.5))
     r = d["r_px"][1:]
@@ -188,6 +192,8 @@ def ghost_example_data(campaign: Campaign, x_range_px=(-60, 260), half_height_px
 
 
 def plot_ghosts(d: dict, out_png) -> None:
+    """Draw :func:`ghost_example_data`'s ghost image (log10 of the irradiance relative to the star
+    image's peak pixel) to the PNG ``out_png``."""
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(8, 4.6))
     img = np.where(d["relative_to_peak"] > 0, d["relative_to_peak"], np.nan)

@@ -35,6 +35,25 @@ LIMB_BIN_DEG = 10.0
 
 
 def earthshine_scenario(campaign: Campaign, time: str = SCENARIO_TIME, band: str = "V") -> dict:
+    """The sect. 3.3 scenario: CSST's earthshine at ``time`` on the grid of pointings (RA 0-345 deg,
+    Dec -75 to +75 deg, 15 deg steps).
+
+    Parameters
+    ----------
+    campaign : Campaign
+        The campaign (its orbit, Earth and instrument).
+    time : str
+        UTC time, ISO 8601.
+    band : str
+        Band name.
+
+    Returns
+    -------
+    dict
+        Per pointing (arrays of shape (n,)): ``ra_deg``, ``dec_deg``, ``earth_limb_angle_deg``
+        (deg), ``limb_is_bright``, the earthshine (total, direct, via the door) in e-/s/pix, the
+        earthshine and the zodiacal light in AB mag/arcsec2; and ``band``, ``time``.
+    """
     ra, dec = np.meshgrid(np.arange(0.0, 346.0, 15.0), np.arange(-75.0, 76.0, 15.0), indexing="ij")
     ra, dec = ra.ravel(), dec.ravel()
     sc = scene(campaign.orbit, time)

@@ -184,7 +184,8 @@ def _thumbnails(dirs: list, width_px: int = 560) -> str:
         lines = "\n".join("   " + b64[i : i + 76] for i in range(0, len(b64), 76))
         parts.append(
             f'.. raw:: html\n\n   <figure style="display:inline-block;margin:6px;vertical-align:top">\n'
-            f'   <img style="width:{img.width}px" alt="{found[0].stem}" src="data:image/png;base64,\n{lines}\n   ">\n'
+            f'   <img style="width:{img.width}px" alt="{found[0].stem}" '
+            f'src="data:image/png;base64,\n{lines}\n   ">\n'
             f'   <figcaption style="font-size:90%"><b>{found[0].stem}</b>: {caption} Full size in '
             f"<i>Maps and time series</i>.</figcaption></figure>\n"
         )

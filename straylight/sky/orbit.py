@@ -97,6 +97,7 @@ class CircularOrbit:
 
     @property
     def semi_major_axis_km(self) -> float:
+        """Semi-major axis a, the Earth's radius plus the altitude, km."""
         return self.earth.radius_km + self.altitude_km
 
     @property
@@ -296,9 +297,9 @@ def warn_if_epoch_far(orbit_cfg: dict, start, end, where: str) -> str | None:
             start,
             end,
             CIRCULAR_EPOCH_WARN_DAYS,
-            f"the circular orbit is propagated from its epoch with J2 alone (no drag, no reboosts), so beyond "
-            f"{CIRCULAR_EPOCH_WARN_DAYS:g} days its node and phase say little about the real orbit; set the "
-            "epoch near the campaign",
+            "the circular orbit is propagated from its epoch with J2 alone (no drag, no reboosts), "
+            f"so beyond {CIRCULAR_EPOCH_WARN_DAYS:g} days its node and phase say little about the real "
+            "orbit; set the epoch near the campaign",
         )
     else:
         line1, line2, source = _tle_lines(orbit_cfg.get("tle") or {})

@@ -40,6 +40,7 @@ class SceneRuns:
 
     @property
     def count(self) -> int:
+        """Number of runs, R."""
         return int(self.starts.size)
 
     def of(self, *vectors_km) -> "SceneRuns":

@@ -37,6 +37,18 @@ def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def norm(a: np.ndarray) -> np.ndarray:
+    """Euclidean norm over the last axis (of length 3), broadcasting.
+
+    Parameters
+    ----------
+    a : ndarray, shape (..., 3)
+        Vectors, any unit.
+
+    Returns
+    -------
+    ndarray, shape (...)
+        Their lengths, in the unit of ``a``.
+    """
     return np.sqrt(dot(a, a))
 
 

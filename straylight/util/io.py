@@ -24,7 +24,8 @@ def check_output_path(
     (probed by creating and removing a temporary file, so read-only file systems and missing
     permissions are caught whoever runs); an existing file is refused unless ``overwrite``.
     ``folder``: ``path`` is an output folder, created here when its parent exists (or with
-    ``parents``); an existing one's files are replaced only with ``overwrite``.  Raises :class:`~straylight.errors.InputError` naming ``flag`` and the path.
+    ``parents``); an existing one's files are replaced only with ``overwrite``.  Raises
+    :class:`~straylight.errors.InputError` naming ``flag`` and the path.
     """
     from straylight.errors import InputError
 
@@ -85,6 +86,7 @@ def atomic_path(final: str | os.PathLike):
 
 
 def write_json_atomic(obj, path: str | os.PathLike) -> None:
+    """Write ``obj`` as indented JSON to ``path`` through a temporary sibling renamed into place."""
     with atomic_path(path) as tmp:
         tmp.write_text(json.dumps(obj, indent=2, sort_keys=False) + "\n", encoding="utf-8")
 

@@ -1238,8 +1238,9 @@ def test_the_body_shades_the_door(comp_model, tilt_deg, sun_zenith_deg):
     cylinder of the aperture's radius, 10 m) in the way of the Earth behind it: near the zenith,
     where the anti-Sun Earth lights the door's inner face over the tube, the door term falls to
     0.34 (axis at the zenith), 0.61 and 0.68 (20 and 30 deg off it) of its unshaded value (the
-    physics audit measured 0.48-0.86 with this smallest body at its geometries), and the tabulated lit fraction (OffFieldModel.door_lit_fraction) gives the door-block-by-
-    door-block sum within 1 %."""
+    physics audit measured 0.48-0.86 with this smallest body at its geometries), and the
+    tabulated lit fraction (OffFieldModel.door_lit_fraction) gives the door-block-by-door-block
+    sum within 1 %."""
     import copy
     import dataclasses
 

@@ -154,7 +154,8 @@ def test_parametric_default_against_real_throughputs(campaign):
         zr = float(np.ravel(zm.evaluate(real, POLE, np.array([1.0, 0, 0]))["e_per_s_per_pix"])[0])
         zp = float(np.ravel(zm.evaluate(par, POLE, np.array([1.0, 0, 0]))["e_per_s_per_pix"])[0])
         print(
-            f"{b:4s} AB zero point default - real: {dzp:+.3f} mag; pole zodiacal {zp:.4f} vs {zr:.4f} e-/s/pix"
+            f"{b:4s} AB zero point default - real: {dzp:+.3f} mag; "
+            f"pole zodiacal {zp:.4f} vs {zr:.4f} e-/s/pix"
         )
         worst = max(worst, abs(dzp))
     # the flat-top default ignores the CCD's red QE roll-off: z is worst (+0.58 mag measured)

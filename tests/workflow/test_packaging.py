@@ -280,7 +280,8 @@ def test_installed_cli_and_api_work_from_an_empty_folder(installed):
 
     r = python("""
         import straylight, straylight.config as c, straylight.runner as rn
-        print(straylight.__file__); print(c.DEFAULT_CONFIG); print(c.CAMPAIGN_SCHEMA); print(rn.workflow_dir())
+        print(straylight.__file__); print(c.DEFAULT_CONFIG)
+        print(c.CAMPAIGN_SCHEMA); print(rn.workflow_dir())
         """)
     assert r.returncode == 0, r.stderr
     site = bin_.parent / "lib"
@@ -308,8 +309,8 @@ def test_installed_cli_and_api_work_from_an_empty_folder(installed):
         from astropy.coordinates import SkyCoord
         import straylight
         t = Time("2026-01-01T00:00:00") + np.arange(3)[:, None] * 30 * u.min
-        sky = straylight.sky_background(t, SkyCoord([150, 10, 200, 300], [30, -60, 0, 45], unit="deg")[None, :],
-                                        bands=["g", "i"])
+        coord = SkyCoord([150, 10, 200, 300], [30, -60, 0, 45], unit="deg")[None, :]
+        sky = straylight.sky_background(t, coord, bands=["g", "i"])
         assert len(sky) == 12 and sky["total_i"].unit == u.electron / u.s / u.pix, sky
         ok = sky["observable"]
         print(int(ok.sum()), float(np.median(sky["total_mag_g"][ok].value)))
