@@ -2,6 +2,6 @@
 limits, observability and scheduling tables, per-pointing tables, the plan's cost, storage codecs
 and provenance.
 
-May import everything below it (util, sky, config, optics, catalog, sources, model); nothing imports it but the
-CLI, the API and its SkyModel, the plots, the paper reproductions and ``workflow/scripts/``.
+May import everything below it (util, sky, config, optics, catalog, sources, model); nothing imports it
+but the CLI, the API and its SkyModel, the plots, the paper reproductions and ``workflow/scripts/``.
 """

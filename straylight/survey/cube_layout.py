@@ -73,7 +73,21 @@ def __getattr__(name):
 
 def cube_time_blocks(campaign: Campaign, n_times: int) -> list[tuple[int, int]]:
     """The cube's time blocks over ``n_times`` samples of the campaign's cadence, (start, stop)
-    sample indices of about ``campaign.time_block_hours`` each."""
+    sample indices of about ``campaign.time_block_hours`` each.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        Loaded campaign (its config's ``campaign.cadence_s``, s, and ``campaign.time_block_hours``,
+        h, default 6).
+    n_times : int
+        Samples in the time grid.
+
+    Returns
+    -------
+    list of tuple of int
+        ``(start, stop)`` sample indices covering [0, n_times) in order.
+    """
     from straylight.survey.timegrid import time_blocks
 
     c = campaign.config["campaign"]
@@ -82,18 +96,57 @@ def cube_time_blocks(campaign: Campaign, n_times: int) -> list[tuple[int, int]]:
 
 def pixel_block_size(campaign: Campaign) -> int:
     """The configured pixels per block (``footprint.pixel_block_size``); the blocks' actual length
-    is :func:`~straylight.survey.footprint.pixel_block_length` of it."""
+    is :func:`~straylight.survey.footprint.pixel_block_length` of it.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        Loaded campaign.
+
+    Returns
+    -------
+    int
+        Pixels per block asked for (default 1024).
+    """
     return int(campaign.config["footprint"].get("pixel_block_size", 1024))
 
 
 def cube_pixel_blocks(campaign: Campaign, fp: Footprint) -> list[slice]:
-    """The cube's pixel blocks: slices into the footprint's pixels, of equal length but the last."""
+    """The cube's pixel blocks: slices into the footprint's pixels, of equal length but the last.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        Loaded campaign.
+    fp : Footprint
+        The survey footprint.
+
+    Returns
+    -------
+    list of slice
+        Slices into ``fp.pixels``, covering them in order.
+    """
     return [slice(a, b) for a, b in fp.blocks(pixel_block_size(campaign))]
 
 
 def cube_chunks(campaign: Campaign, n_times: int, n_pixels: int) -> dict:
     """The cube's chunk sizes, ``{"time": ..., "pixel": ..., "band": ...}``, for ``n_times``
-    samples at ``n_pixels`` footprint pixels: one time block x one pixel block x all bands."""
+    samples at ``n_pixels`` footprint pixels: one time block x one pixel block x all bands.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        Loaded campaign.
+    n_times : int
+        Samples in the time grid (at least 1).
+    n_pixels : int
+        Pixels in the footprint.
+
+    Returns
+    -------
+    dict of str to int
+        Chunk length along ``time``, ``pixel`` and ``band``.
+    """
     from straylight.survey.footprint import pixel_block_length
 
     tb = cube_time_blocks(campaign, n_times)
@@ -105,7 +158,17 @@ def cube_chunks(campaign: Campaign, n_times: int, n_pixels: int) -> dict:
 @dataclass(frozen=True)
 class CubeStores:
     """Where the cube's regions are written: the cube's store (background.zarr), and the
-    observability and limits stores its workers fill beside it (None: not written)."""
+    observability and limits stores its workers fill beside it (None: not written).
+
+    Attributes
+    ----------
+    cube : str
+        background.zarr's path.
+    observability : str or None
+        The observability work store's path; None: not written.
+    limits : str or None
+        The limits work store's path; None: not written.
+    """
 
     cube: str
     observability: str | None = None
@@ -113,12 +176,29 @@ class CubeStores:
 
     @classmethod
     def of(cls, stores) -> CubeStores:
-        """``stores`` if it is a CubeStores, else the cube's store at the path ``stores`` alone."""
+        """``stores`` if it is a CubeStores, else the cube's store at the path ``stores`` alone.
+
+        Parameters
+        ----------
+        stores : CubeStores or str or path-like
+            The stores, or background.zarr's path.
+
+        Returns
+        -------
+        CubeStores
+            The stores.
+        """
         return stores if isinstance(stores, CubeStores) else cls(str(stores))
 
     def resolved(self) -> CubeStores:
         """The same stores at absolute paths: workers (other hosts, other working directories)
-        need them."""
+        need them.
+
+        Returns
+        -------
+        CubeStores
+            The same stores, paths absolute (symlinks resolved); None stays None.
+        """
 
         def absolute(path):
             return str(Path(path).resolve()) if path else None
@@ -126,5 +206,11 @@ class CubeStores:
         return CubeStores(absolute(self.cube), absolute(self.observability), absolute(self.limits))
 
     def paths(self) -> tuple:
-        """The stores' paths, the cube's first (None for a store not written)."""
+        """The stores' paths, the cube's first (None for a store not written).
+
+        Returns
+        -------
+        tuple of (str or None)
+            ``(cube, observability, limits)``.
+        """
         return self.cube, self.observability, self.limits

@@ -41,7 +41,20 @@ SAMPLES_PER_EVALUATION = 131072
 def offfield_stars(campaign: Campaign, stars_path):
     """The catalog's off-field stars at ``stars_path`` (brighter than stars.offfield_mag_limit,
     and the fainter ones for the faint map when ``stars.faint_map``), in the campaign's bands;
-    None without a catalog."""
+    None without a catalog.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        Loaded campaign (its ``stars`` settings and bands).
+    stars_path : str or path-like or None
+        Star table (``ra``, ``dec`` in deg, ``mag_<band>`` in AB mag); None: no catalog.
+
+    Returns
+    -------
+    straylight.sources.stars.StarTable or None
+        The off-field stars (bright ones, and the faint ones for the faint map), or None.
+    """
     if stars_path is None:
         return None
     from straylight.sources.stars import load_offfield_stars
@@ -71,7 +84,41 @@ def compute_region(
     the same times (None: computed here); ``angles``: a dict that receives the samples' other
     observability angles (:data:`~straylight.survey.cube_layout.OBSERVABILITY_ANGLES`, (time,
     pixel) float32 deg, the geometry the cube computes anyway; None: not kept).  ValueError if
-    ``scene`` is not at exactly these times."""
+    ``scene`` is not at exactly these times.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        Loaded campaign (times, orbit, bands, models).
+    fp : Footprint
+        The survey footprint.
+    t_slice, p_slice : slice
+        The region: indices into ``campaign.times`` (n_time of them) and into the footprint's
+        pixels (n_pixel).
+    model : BackgroundModel, optional
+        The campaign's model; None: built here.
+    stars : straylight.sources.stars.StarTable, optional
+        Off-field stars; None: the stars component is 0.
+    faint_map : array_like, shape (n_pixel, n_band), optional
+        The faint stars' map at these pixels, e-/s/pix; None: computed here (if ``stars``).
+    scene : straylight.sky.observing.Scene, optional
+        Satellite and body positions at exactly these times; None: computed here.
+    angles : dict, optional
+        If given, filled with the :data:`~straylight.survey.cube_layout.OBSERVABILITY_ANGLES`
+        arrays, float32 deg, shape (n_time, n_pixel).
+
+    Returns
+    -------
+    xarray.Dataset
+        Numpy-backed, no coordinates: each component and ``total`` (time, pixel, band) float32
+        e-/s/pix; ``observable`` (time, pixel) bool; ``violations`` (time, pixel) uint8 bit mask
+        of the violated constraints; ``door_opening_deg`` (time, pixel) float32 deg.
+
+    Raises
+    ------
+    ValueError
+        When ``scene`` is not at exactly the region's times.
+    """
     import xarray as xr
 
     if model is None:
@@ -100,7 +147,28 @@ def region_values(
     angles: dict | None = None,
 ) -> dict:
     """:func:`compute_region`'s variables as numpy arrays (name -> (time, pixel[, band]) array),
-    without the Dataset: what a worker writes.  ``model`` is required here."""
+    without the Dataset: what a worker writes.  ``model`` is required here.
+
+    Parameters
+    ----------
+    campaign, fp, t_slice, p_slice, stars, faint_map, scene, angles
+        As :func:`compute_region`.
+    model : BackgroundModel
+        The campaign's model (required).
+
+    Returns
+    -------
+    dict of str to ndarray
+        Each component of :data:`~straylight.survey.cube_layout.CUBE_BAND_VARIABLES` and
+        ``total``: float32, shape (n_time, n_pixel, n_band), e-/s/pix (views into one block);
+        ``observable``: bool, (n_time, n_pixel); ``violations``: uint8 bit mask,
+        (n_time, n_pixel); ``door_opening_deg``: float32 deg, (n_time, n_pixel).
+
+    Raises
+    ------
+    ValueError
+        When ``scene`` is not at exactly the region's times.
+    """
     from straylight.model import unobservable_samples
     from straylight.sky import observing
 
@@ -229,7 +297,32 @@ def faint_star_map(
     start (the skeleton's other work); its result is returned with the map as a pair then.
     ``model``, ``stars``: this process's BackgroundModel (built with ``workers`` for an
     earthshine table it may build later) and the catalog's off-field stars, when the caller has
-    them (None: made here)."""
+    them (None: made here).
+
+    Parameters
+    ----------
+    campaign : Campaign
+        Loaded campaign.
+    fp : Footprint
+        The survey footprint (n_pixel pixels).
+    stars_path : str or path-like or None
+        Star table; None: no catalog (the map is None).  Spawned processes load it again.
+    workers : int, optional
+        Processes sharing the pixels (this one included).
+    before : callable, optional
+        Run with no arguments in this process while the spawned ones start; None: nothing.
+    model : BackgroundModel, optional
+        This process's model; None: built here.
+    stars : straylight.sources.stars.StarTable, optional
+        The catalog's off-field stars; None: loaded from ``stars_path``.
+
+    Returns
+    -------
+    xarray.Variable or None, or tuple
+        The map, dims (pixel, band), shape (n_pixel, n_band), float64, e-/s/pix, with its
+        ``units`` and ``long_name``; None without a catalog or faint stars.  With ``before``:
+        the pair (map or None, ``before()``'s result).
+    """
     import xarray as xr
 
     stars = offfield_stars(campaign, stars_path) if stars is None else stars

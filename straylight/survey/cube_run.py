@@ -30,7 +30,19 @@ __all__ = ["BlockReport", "block_sentinel", "clear_block_sentinels", "run_time_b
 @dataclass
 class BlockReport:
     """A finished time block: its index, its pixel blocks, its samples and the seconds from its
-    first region's submission to its last region's end."""
+    first region's submission to its last region's end.
+
+    Attributes
+    ----------
+    time_block : int
+        Index of the time block.
+    pixel_blocks : int
+        Number of pixel blocks (regions) written.
+    samples : int
+        Time samples x footprint pixels of the block.
+    seconds : float
+        Wall-clock time from the first region's submission to the last region's end, s.
+    """
 
     time_block: int
     pixel_blocks: int
@@ -39,13 +51,37 @@ class BlockReport:
 
 
 def block_sentinel(done_dir, block_index: int) -> Path:
-    """The file marking time block ``block_index`` done (its BlockReport as JSON)."""
+    """The file marking time block ``block_index`` done (its BlockReport as JSON).
+
+    Parameters
+    ----------
+    done_dir : str or path-like
+        Folder of the sentinels.
+    block_index : int
+        Index of the time block.
+
+    Returns
+    -------
+    pathlib.Path
+        ``done_dir/block_<block_index>.json`` (not checked for existence).
+    """
     return Path(done_dir) / f"block_{block_index}.json"
 
 
 def clear_block_sentinels(done_dir) -> int:
     """Remove every time block's sentinel from ``done_dir`` (a fresh store has no block done);
-    returns how many were removed."""
+    returns how many were removed.
+
+    Parameters
+    ----------
+    done_dir : str or path-like
+        Folder of the sentinels.
+
+    Returns
+    -------
+    int
+        Number of sentinel files removed.
+    """
     removed = 0
     for p in Path(done_dir).glob("block_*.json"):
         p.unlink()
@@ -71,7 +107,39 @@ def run_time_blocks(
     are skipped (resume).  ``stars_path``: the star catalog (None: stars = 0).  ``execution``:
     where the regions run (:class:`~straylight.survey.executors.Execution`; None: in this
     process).  ``log`` (a logging.Logger) gets one line per finished region.
-    Returns every requested block's report (a skipped one's from its sentinel)."""
+    Returns every requested block's report (a skipped one's from its sentinel).
+
+    Parameters
+    ----------
+    campaign : Campaign
+        Loaded campaign (times, bands, chunking).
+    fp : Footprint
+        The survey footprint.
+    stores : CubeStores or str or path-like
+        The stores to write (their skeletons laid down), or background.zarr's path alone.
+    blocks : iterable of int
+        Time block indices, each in ``[0, number of time blocks)``.
+    done_dir : str or path-like
+        Folder of the sentinels.
+    stars_path : str or path-like, optional
+        The star catalog; None: stars = 0.
+    execution : Execution, optional
+        Where the regions run; None: in this process.
+    log : logging.Logger, optional
+        Gets a line per finished region; None: silent.
+
+    Returns
+    -------
+    list of BlockReport
+        One per requested block, in the order of ``blocks``.
+
+    Raises
+    ------
+    IndexError
+        When a block index is outside the campaign's time blocks.
+    OutputError
+        When a region cannot be written (from the workers).
+    """
     from concurrent.futures import FIRST_COMPLETED
 
     from straylight.sky.observing import scene

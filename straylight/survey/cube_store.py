@@ -70,7 +70,32 @@ def empty_cube(campaign: Campaign, fp: Footprint, times, model, stars_path=None,
     """The cube's skeleton backed by lazy dask zeros (for writing metadata only); ``model``: the
     campaign's BackgroundModel, whose models record it carries (building the earthshine table if
     one runs and is not cached); ``stars``: the off-field stars of the catalog at ``stars_path``
-    (:func:`~straylight.survey.cube_region.offfield_stars`)."""
+    (:func:`~straylight.survey.cube_region.offfield_stars`).
+
+    Parameters
+    ----------
+    campaign : Campaign
+        Loaded campaign (bands, chunking, config).
+    fp : Footprint
+        The survey footprint (n_pixel pixels).
+    times : astropy.time.Time, shape (n_time,)
+        The cube's UTC sample times.
+    model : BackgroundModel
+        The campaign's model (its models record goes into the ``models`` attribute).
+    stars_path : str or path-like, optional
+        The star catalog; None: no stars (``stars_catalog`` is ``"none"``).
+    stars : straylight.sources.stars.StarTable, optional
+        The catalog's off-field stars (required when ``stars_path`` is given).
+
+    Returns
+    -------
+    xarray.Dataset
+        Lazy dask zeros, chunked as the cube: each component and ``total`` (time, pixel, band)
+        float32 e-/s/pix; ``observable`` bool, ``violations`` uint8, ``door_opening_deg``
+        float32 deg on (time, pixel); coordinates ``time`` (UTC datetime64), ``pixel``,
+        ``ra_deg``/``dec_deg`` (ICRS deg), ``band``, ``mag_zero_point`` (AB mag/arcsec2); the
+        HEALPix, campaign, stars and models attributes.
+    """
     import dask.array as da
     import xarray as xr
 
@@ -138,7 +163,23 @@ def init_store(
     faint-star map (computed here once for the whole campaign, on ``build_workers``
     processes); an earthshine table the campaign needs is built here too, before the time
     blocks start (``build_workers`` threads).  ``limits_store``: where the limits' skeleton
-    goes too (:func:`init_limits_store`; None: not laid down)."""
+    goes too (:func:`init_limits_store`; None: not laid down).
+
+    Parameters
+    ----------
+    campaign : Campaign
+        Loaded campaign.
+    fp : Footprint
+        The survey footprint.
+    store : str or path-like
+        background.zarr's path.
+    stars_path : str or path-like, optional
+        The star catalog; None: no stars and no faint map.
+    build_workers : int, optional
+        Processes for the faint map and threads for an earthshine table.
+    limits_store : str or path-like, optional
+        limits.zarr's work store; None: not laid down.
+    """
     from straylight.model import BackgroundModel
     from straylight.survey.cube_region import faint_star_map, offfield_stars
     from straylight.survey.storage import write_skeleton
@@ -168,7 +209,19 @@ def init_observability_store(campaign: Campaign, fp: Footprint, ephem: xr.Datase
     :func:`publish_work_store` makes it the product once every time block is done.  The
     variables and attributes are those of
     :func:`straylight.survey.products.observability_dataset` (``ephem``: the ephemeris product),
-    whose geometry the cube's is, sample by sample, bit for bit."""
+    whose geometry the cube's is, sample by sample, bit for bit.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        Loaded campaign.
+    fp : Footprint
+        The survey footprint.
+    ephem : xarray.Dataset
+        The ephemeris product (its ``time`` dimension sets the store's times).
+    store : str or path-like
+        The observability work store's path.
+    """
     from straylight.survey.products import observability_dataset
     from straylight.survey.storage import write_skeleton
 
@@ -184,7 +237,17 @@ def init_limits_store(campaign: Campaign, cube, store) -> None:
     attributes and chunks of :func:`straylight.survey.limits.limits_dataset` on the cube.  The
     cube's workers write each region's ``limiting_mag`` and ``observable``
     (:meth:`StoreArrays.write_region`); the limits rule adds the per-pixel summaries in
-    :func:`publish_work_store`."""
+    :func:`publish_work_store`.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        Loaded campaign.
+    cube : xarray.Dataset
+        The cube's skeleton (:func:`empty_cube`).
+    store : str or path-like
+        The limits work store's path.
+    """
     from straylight.survey.limits import limits_dataset
     from straylight.survey.storage import write_skeleton
 
@@ -192,7 +255,18 @@ def init_limits_store(campaign: Campaign, cube, store) -> None:
 
 
 def stored_faint_map(store) -> np.ndarray | None:
-    """The store's faint_star_map, (pixel, band) e-/s/pix, or None when it has none."""
+    """The store's faint_star_map, (pixel, band) e-/s/pix, or None when it has none.
+
+    Parameters
+    ----------
+    store : str or path-like
+        background.zarr's path.
+
+    Returns
+    -------
+    ndarray, shape (n_pixel, n_band), or None
+        The faint stars' map over the whole footprint, e-/s/pix.
+    """
     import zarr
 
     group = zarr.open_group(str(store), mode="r", use_consolidated=False)
@@ -204,7 +278,21 @@ def region_limits(campaign: Campaign, region) -> dict:
     5-sigma limits of its computed ``total`` (:func:`straylight.survey.limits.band_limits`),
     and its ``observable``; ``region``:
     :func:`~straylight.survey.cube_region.compute_region`'s Dataset or
-    :func:`~straylight.survey.cube_region.region_values`' arrays."""
+    :func:`~straylight.survey.cube_region.region_values`' arrays.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        Loaded campaign (its bands' survey exposures).
+    region : xarray.Dataset or dict
+        ``total`` (n_time, n_pixel, n_band) in e-/s/pix and ``observable`` (n_time, n_pixel).
+
+    Returns
+    -------
+    dict of str to ndarray
+        ``limiting_mag``: float32, shape (n_time, n_pixel, n_band), 5-sigma AB mag;
+        ``observable``: bool, shape (n_time, n_pixel).
+    """
     from straylight.survey.limits import band_limits, campaign_exposures
 
     return {
@@ -218,7 +306,20 @@ def store_arrays(store, names=None) -> dict:
     chunks (name -> :class:`~straylight.survey.storage.ChunkWriter`): a worker opens them once
     and writes every region through them, where xarray's region write would open the store and
     read its metadata again for each region.  The same codecs encode the same values, so the
-    chunks' bytes are those xarray writes."""
+    chunks' bytes are those xarray writes.
+
+    Parameters
+    ----------
+    store : str or path-like
+        A Zarr store laid down by one of the ``init_*`` functions.
+    names : sequence of str, optional
+        Data variables to open; None: the cube's (components, total and (time, pixel) ones).
+
+    Returns
+    -------
+    dict of str to ChunkWriter
+        Variable name to its writer.
+    """
     import zarr
 
     from straylight.survey.storage import ChunkWriter
@@ -251,7 +352,25 @@ class StoreArrays:
         observability (``region``'s flags and ``angles``) to the observability store, ``limits``
         (:func:`region_limits`) to the limits store; each rounded as its array's attributes
         record (:func:`~straylight.survey.storage.stored_values`).  OutputError when the file
-        system refuses (no space, no access): the time block's sentinel is then not written."""
+        system refuses (no space, no access): the time block's sentinel is then not written.
+
+        Parameters
+        ----------
+        t_slice, p_slice : slice
+            The region: time indices and footprint pixel indices (one chunk).
+        region : dict of str to ndarray
+            :func:`~straylight.survey.cube_region.region_values`' arrays, (n_time, n_pixel[, n_band]).
+        angles : dict of str to ndarray, optional
+            The observability angles, (n_time, n_pixel) float32 deg; required when the
+            observability store is written.
+        limits : dict of str to ndarray, optional
+            :func:`region_limits`; required when the limits store is written.
+
+        Raises
+        ------
+        OutputError
+            When the file system refuses the write (names the store and the region).
+        """
         try:
             for name, values in region.items():
                 self.cube[name][t_slice, p_slice] = stored_values(values, self.cube[name].attrs)
@@ -269,7 +388,18 @@ class StoreArrays:
 
 
 def open_stores(stores: CubeStores) -> StoreArrays:
-    """``stores``' arrays opened for writing regions, in this thread."""
+    """``stores``' arrays opened for writing regions, in this thread.
+
+    Parameters
+    ----------
+    stores : CubeStores
+        The stores' paths (their skeletons laid down).
+
+    Returns
+    -------
+    StoreArrays
+        The cube's writers, and the observability and limits stores' (None where not written).
+    """
     obs, lim = stores.observability, stores.limits
     return StoreArrays(
         stores,
@@ -280,7 +410,22 @@ def open_stores(stores: CubeStores) -> StoreArrays:
 
 
 def region_write_error(stores: CubeStores, t_slice: slice, p_slice: slice, exc: OSError) -> OutputError:
-    """The error of a region's failed write: the store, the region, the cause and what to do."""
+    """The error of a region's failed write: the store, the region, the cause and what to do.
+
+    Parameters
+    ----------
+    stores : CubeStores
+        The stores being written.
+    t_slice, p_slice : slice
+        The region that failed.
+    exc : OSError
+        The cause.
+
+    Returns
+    -------
+    OutputError
+        The error to raise (not raised here).
+    """
     return OutputError(
         f"{stores.cube}: writing times {t_slice.start}:{t_slice.stop} x pixels "
         f"{p_slice.start}:{p_slice.stop} failed ({exc.strerror or exc}); finished time blocks "
@@ -296,7 +441,18 @@ def publish_work_store(work_store, product, summaries: dict | None = None) -> No
     written there only.  The work store stays as it was, for a re-run of the publishing step;
     its writers (:class:`~straylight.survey.storage.ChunkWriter`, zarr) replace a chunk file by
     renaming a new one into place, so a later write to the work store leaves the product's files
-    as they are."""
+    as they are.
+
+    Parameters
+    ----------
+    work_store : str or path-like
+        The filled work store.
+    product : str or path-like
+        The product's path (replaced atomically).
+    summaries : dict of str to array_like, optional
+        Variable name to the whole array, written into the product only (the limits'
+        per-pixel summaries: :func:`~straylight.survey.limits.store_limit_summaries`); None: none.
+    """
     import os
     import shutil
 

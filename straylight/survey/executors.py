@@ -46,7 +46,17 @@ class Execution:
     ``scheduler_address`` when given; else on ``pool``, worker processes already started for
     the job's stores (:func:`start_region_workers`); else on ``workers`` processes started for
     the job (each building the model once), in this process when ``workers`` is 1.
-    ``workers`` also bounds the regions in flight."""
+    ``workers`` also bounds the regions in flight.
+
+    Attributes
+    ----------
+    workers : int
+        Worker processes (1: this process); the regions in flight are at most 2 x workers + 1.
+    scheduler_address : str or None
+        Address of a running Dask scheduler (e.g. ``"tcp://host:8786"``); None: no cluster.
+    pool : concurrent.futures.Executor or None
+        Workers already started by :func:`start_region_workers`; None: none.
+    """
 
     workers: int = 1
     scheduler_address: str | None = None
@@ -58,7 +68,21 @@ class WorkerState:
     job's ``campaign``, footprint ``fp``, ``stores`` (:class:`CubeStores`) and star catalog at
     ``stars_path``, and, built on first use, the campaign's background model (with
     ``build_workers`` for an earthshine table it may build), the catalog's off-field stars and
-    the stores' arrays opened for writing."""
+    the stores' arrays opened for writing.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        The job's loaded campaign.
+    fp : Footprint
+        The job's footprint.
+    stores : CubeStores
+        Where the regions are written (their skeletons laid down).
+    stars_path : str or path-like, optional
+        The star catalog; None: stars = 0.
+    build_workers : int, optional
+        Threads for an earthshine table the model may build.
+    """
 
     def __init__(
         self, campaign: Campaign, fp: Footprint, stores: CubeStores, stars_path=None, build_workers: int = 1
@@ -92,7 +116,24 @@ class WorkerState:
 
     def same_job(self, campaign: Campaign, fp: Footprint, stores: CubeStores, stars_path) -> bool:
         """Whether this state is for that job: the same campaign (compared by content: a
-        campaign sent to a worker arrives pickled), footprint size, stores and catalog."""
+        campaign sent to a worker arrives pickled), footprint size, stores and catalog.
+
+        Parameters
+        ----------
+        campaign : Campaign
+            The job's campaign.
+        fp : Footprint
+            The job's footprint.
+        stores : CubeStores
+            The job's stores.
+        stars_path : str or None
+            The job's star catalog.
+
+        Returns
+        -------
+        bool
+            True when this state can compute that job's regions.
+        """
         return (
             self.stores == stores
             and self.stars_path == stars_path
@@ -102,7 +143,13 @@ class WorkerState:
 
     def prepare(self) -> WorkerState:
         """Build the model and load the stars now (a worker's start), not at the first region;
-        returns this state."""
+        returns this state.
+
+        Returns
+        -------
+        WorkerState
+            This state.
+        """
         _ = self.model, self.stars  # each made at its first reading
         return self
 
@@ -135,7 +182,33 @@ class WorkerState:
         limits, computed from its total, to the limits store, where those are given.  The
         stores' arrays are opened at the first region and kept for the next ones
         (``keep_arrays`` False: opened for this region alone, in this thread).  OutputError when
-        the file system refuses."""
+        the file system refuses.
+
+        Parameters
+        ----------
+        t_slice, p_slice : slice
+            The region: time indices into ``campaign.times`` and indices into the footprint's
+            pixels (one chunk of the cube).
+        scene : straylight.sky.observing.Scene, optional
+            Satellite and body positions at exactly these times; None: computed here.
+        faint_map : array_like, shape (n_pixel, n_band), optional
+            The faint-star map at these pixels, e-/s/pix; None: read from the store if there
+            is a catalog.
+        keep_arrays : bool, optional
+            Keep the stores' arrays open for the next regions (False: for this one alone).
+
+        Returns
+        -------
+        float
+            Wall-clock time to compute and write the region, s.
+
+        Raises
+        ------
+        OutputError
+            When the file system refuses to open or write the stores.
+        ValueError
+            When ``scene`` is not at exactly the region's times.
+        """
         from straylight.survey.cube_region import region_values
         from straylight.survey.cube_store import (
             open_stores,
@@ -183,7 +256,31 @@ def write_region(
     faint_map=None,
 ) -> float:
     """Compute one region and write it (:meth:`WorkerState.write_region`), the model built for
-    it alone; seconds.  ``stores``: a :class:`CubeStores`, or the cube's store's path alone."""
+    it alone; seconds.  ``stores``: a :class:`CubeStores`, or the cube's store's path alone.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        Loaded campaign.
+    fp : Footprint
+        The footprint.
+    stores : CubeStores or str or path-like
+        The stores, or background.zarr's path alone.
+    t_slice, p_slice, scene, faint_map
+        As :meth:`WorkerState.write_region`.
+    stars_path : str or path-like, optional
+        The star catalog; None: stars = 0.
+
+    Returns
+    -------
+    float
+        Wall-clock time to compute and write the region, s.
+
+    Raises
+    ------
+    OutputError
+        When the file system refuses.
+    """
     state = WorkerState(campaign, fp, CubeStores.of(stores), stars_path)
     return state.write_region(t_slice, p_slice, scene, faint_map)
 
@@ -196,7 +293,24 @@ _state: WorkerState | None = None
 def start_worker(campaign: Campaign, fp: Footprint, stores: CubeStores, stars_path=None) -> WorkerState:
     """A pool worker's start: keep the job's inputs in this process's :class:`WorkerState` and
     build the model and load the stars now, once per process (every region this process
-    computes reuses them)."""
+    computes reuses them).
+
+    Parameters
+    ----------
+    campaign : Campaign
+        The job's loaded campaign.
+    fp : Footprint
+        The job's footprint.
+    stores : CubeStores
+        The job's stores (absolute paths).
+    stars_path : str, optional
+        The star catalog (absolute path); None: stars = 0.
+
+    Returns
+    -------
+    WorkerState
+        This process's state, prepared.
+    """
     global _state
     _state = WorkerState(campaign, fp, stores, stars_path).prepare()
     return _state
@@ -207,7 +321,19 @@ def start_worker_from_config(config: dict, config_path: str, stores: CubeStores,
     (:func:`start_region_workers`): the campaign from the job's config, the footprint from the
     store's skeleton (:func:`~straylight.survey.footprint.footprint_from_store`), then
     :func:`start_worker`, then the model warmed up (:meth:`WorkerState.warm_up`) before the
-    first region arrives."""
+    first region arrives.
+
+    Parameters
+    ----------
+    config : dict
+        The job's campaign config.
+    config_path : str
+        The config file's path (relative paths in the config are resolved against its folder).
+    stores : CubeStores
+        The job's stores (absolute paths; background.zarr's skeleton laid down).
+    stars_path : str or None
+        The star catalog (absolute path); None: stars = 0.
+    """
     from straylight.config import campaign_from_dict
     from straylight.survey.footprint import footprint_from_store
     from straylight.util.healpix import load_without_plotting
@@ -244,13 +370,30 @@ def _dask_region(
 
 class InProcess:
     """An executor running each region at once in this process (one worker, no pool), with its
-    own :class:`WorkerState`."""
+    own :class:`WorkerState`.
+
+    Parameters
+    ----------
+    campaign, fp, stores, stars_path
+        As :class:`WorkerState`.
+    """
 
     def __init__(self, campaign: Campaign, fp: Footprint, stores: CubeStores, stars_path=None):
         self.state = WorkerState(campaign, fp, stores, stars_path).prepare()
 
     def submit_region(self, t_slice: slice, p_slice: slice, scene, faint_map):
-        """The region's seconds as a finished future (its exception, if it failed)."""
+        """The region's seconds as a finished future (its exception, if it failed).
+
+        Parameters
+        ----------
+        t_slice, p_slice, scene, faint_map
+            As :meth:`WorkerState.write_region`.
+
+        Returns
+        -------
+        concurrent.futures.Future
+            Done: its result the region's wall-clock time, s, or the exception raised.
+        """
         from concurrent.futures import Future
 
         fut = Future()
@@ -276,6 +419,27 @@ def region_pool(campaign: Campaign, fp: Footprint, stores: CubeStores, stars_pat
       (:func:`~straylight.util.daskutil.spawned_pool`), each building the model once, at its
       start (:func:`start_worker`), for all the regions it computes.
     * else: in this process, one region after the other (:class:`InProcess`).
+
+    Parameters
+    ----------
+    campaign : Campaign
+        The job's loaded campaign.
+    fp : Footprint
+        The job's footprint.
+    stores : CubeStores
+        The job's stores, absolute paths.
+    stars_path : str or None
+        The star catalog, absolute path; None: stars = 0.
+    execution : Execution
+        Where the regions run.
+
+    Yields
+    ------
+    submit : callable
+        ``submit(t_slice, p_slice, scene, faint_map)`` -> future of the region's seconds.
+    wait : callable
+        ``wait(futures, return_when=...)`` for those futures (``concurrent.futures.wait`` or
+        ``distributed.wait``).
     """
     from concurrent.futures import wait as wait_local
 
@@ -336,7 +500,26 @@ def start_region_workers(workers: int, config: dict, config_path, stores: CubeSt
     the campaign of ``config`` (read from ``config_path``) and building the model as it starts
     (:func:`start_worker_from_config`), for ``stores`` and the catalog at ``stars_path``
     (resolved as run_time_blocks resolves them).  Returns the pool's context manager; its
-    processes start at the first tasks submitted to it."""
+    processes start at the first tasks submitted to it.
+
+    Parameters
+    ----------
+    workers : int
+        Processes in the pool.
+    config : dict
+        The job's campaign config.
+    config_path : str or path-like
+        The config file's path.
+    stores : CubeStores
+        The job's stores (resolved to absolute paths here).
+    stars_path : str or path-like, optional
+        The star catalog (resolved here); None: stars = 0.
+
+    Returns
+    -------
+    contextlib.AbstractContextManager
+        Enters to the pool (a :class:`concurrent.futures.Executor`) and shuts it down on leaving.
+    """
     from pathlib import Path
 
     from straylight.util.daskutil import spawned_pool

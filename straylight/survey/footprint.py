@@ -16,6 +16,17 @@ class Footprint:
 
     ``pixels`` are HEALPix indices in ``ordering`` at ``nside``; ``ra_deg``/``dec_deg`` their
     ICRS centres.
+
+    Attributes
+    ----------
+    nside : int
+        HEALPix resolution parameter.
+    ordering : str
+        ``"ring"`` or ``"nested"`` (lower case).
+    pixels : ndarray of int, shape (n_pixel,)
+        HEALPix indices of the footprint, increasing.
+    ra_deg, dec_deg : ndarray of float, shape (n_pixel,)
+        ICRS RA and Dec of the pixel centres, deg.
     """
 
     nside: int
@@ -26,10 +37,12 @@ class Footprint:
 
     @property
     def nest(self) -> bool:
+        """Whether the pixels are in NESTED ordering (else RING)."""
         return self.ordering == "nested"
 
     @property
     def area_deg2(self) -> float:
+        """Area of the footprint, deg2 (pixel count x the HEALPix pixel area)."""
         from straylight.util.healpix import healpy
 
         hp = healpy()
@@ -38,7 +51,18 @@ class Footprint:
 
     def blocks(self, block_size: int) -> list[tuple[int, int]]:
         """(start, stop) index ranges into ``pixels`` of :func:`pixel_block_length` pixels each
-        (the last one shorter when they do not divide the footprint)."""
+        (the last one shorter when they do not divide the footprint).
+
+        Parameters
+        ----------
+        block_size : int
+            Pixels per block asked for (``footprint.pixel_block_size``).
+
+        Returns
+        -------
+        list of tuple of int
+            ``(start, stop)`` indices into ``pixels``, covering them in order.
+        """
         n = self.pixels.size
         step = pixel_block_length(n, block_size)
         return [(i, min(i + step, n)) for i in range(0, n, step)]
@@ -49,12 +73,43 @@ def pixel_block_length(n_pixels: int, block_size: int) -> int:
     about ``block_size`` (``footprint.pixel_block_size``): round(n_pixels / block_size) blocks,
     at least one, of equal length.  So no block is a sliver (5286 pixels at 660 are 8 blocks of
     661, not 8 of 660 and one of 6): a chunk costs nearly as much to encode and write however
-    few of its pixels are filled."""
+    few of its pixels are filled.
+
+    Parameters
+    ----------
+    n_pixels : int
+        Pixels in the footprint.
+    block_size : int
+        Pixels per block asked for (> 0).
+
+    Returns
+    -------
+    int
+        Pixels per block, at least 1.
+    """
     n_blocks = max(1, round(int(n_pixels) / int(block_size)))
     return max(1, -(-int(n_pixels) // n_blocks))
 
 
 def pixel_centres(nside: int, nest: bool, pixels=None) -> tuple[np.ndarray, np.ndarray]:
+    """ICRS centres of HEALPix pixels (healpy's ``pix2ang``).
+
+    Parameters
+    ----------
+    nside : int
+        HEALPix resolution parameter.
+    nest : bool
+        NESTED ordering if True, else RING.
+    pixels : array_like of int, shape (n,), optional
+        Pixel indices; None: every pixel of the sphere (n = 12 nside**2).
+
+    Returns
+    -------
+    ra : ndarray of float, shape (n,)
+        RA of the centres, deg, in [0, 360).
+    dec : ndarray of float, shape (n,)
+        Dec of the centres, deg.
+    """
     # healpy where it is used (a slow import): the jobs that read a footprint
     # from a store (footprint_from_store) do without it
     from straylight.util.healpix import healpy
@@ -73,6 +128,22 @@ def latitude_cut_mask(nside: int, nest: bool, galactic_min_deg: float, ecliptic_
     Galactic latitude from astropy's Galactic frame; ecliptic latitude from the mean ecliptic
     and equinox of J2000 (``BarycentricMeanEcliptic``; the geocentric and barycentric
     directions of a star are the same).
+
+    Parameters
+    ----------
+    nside : int
+        HEALPix resolution parameter.
+    nest : bool
+        NESTED ordering if True, else RING.
+    galactic_min_deg : float
+        Least absolute Galactic latitude kept, deg.
+    ecliptic_min_deg : float
+        Least absolute ecliptic latitude kept, deg.
+
+    Returns
+    -------
+    ndarray of bool, shape (12 nside**2,)
+        True for pixels whose centre passes both cuts.
     """
     import astropy.units as u
     from astropy.coordinates import BarycentricMeanEcliptic, SkyCoord
@@ -86,7 +157,27 @@ def latitude_cut_mask(nside: int, nest: bool, galactic_min_deg: float, ecliptic_
 
 def read_mask(path: str | Path, nside: int, nest: bool) -> np.ndarray:
     """A HEALPix FITS mask (a user's, or the footprint rule's footprint.fits), resampled to
-    ``nside``/ordering; non-zero = in footprint."""
+    ``nside``/ordering; non-zero = in footprint.
+
+    Parameters
+    ----------
+    path : str or path-like
+        HEALPix FITS map (healpy's UNSEEN counts as 0).
+    nside : int
+        Resolution to resample to.
+    nest : bool
+        Ordering of the result: NESTED if True, else RING.
+
+    Returns
+    -------
+    ndarray of bool, shape (12 nside**2,)
+        True where the (resampled) map exceeds 0.5.
+
+    Raises
+    ------
+    InputError
+        When the file is missing, not a HEALPix FITS map, or holds non-finite values.
+    """
     from straylight.util.healpix import healpy
 
     hp = healpy()
@@ -109,6 +200,30 @@ def read_mask(path: str | Path, nside: int, nest: bool) -> np.ndarray:
 
 
 def footprint_from_config(fp_cfg: dict, config_dir: Path | None = None) -> Footprint:
+    """The footprint a config's ``footprint`` section describes: a mask file's pixels, or the
+    Galactic and ecliptic latitude cuts (:func:`latitude_cut_mask`) without one.
+
+    Parameters
+    ----------
+    fp_cfg : dict
+        The ``footprint`` section: ``nside``; optional ``ordering`` (``"ring"``, the default,
+        or ``"nested"``), ``mask_file``, ``galactic_latitude_min_deg`` (deg, default 20) and
+        ``ecliptic_latitude_min_deg`` (deg, default 18).
+    config_dir : pathlib.Path, optional
+        Folder a relative ``mask_file`` is resolved against; None: the working directory.
+
+    Returns
+    -------
+    Footprint
+        The pixels kept, with their ICRS centres.
+
+    Raises
+    ------
+    ConfigError
+        When no pixel is left.
+    InputError
+        When the mask file cannot be read (:func:`read_mask`).
+    """
     nside = int(fp_cfg["nside"])
     ordering = fp_cfg.get("ordering", "ring")
     nest = ordering == "nested"
@@ -137,7 +252,23 @@ def footprint_from_store(store) -> Footprint:
     ``background_init`` has written it): its ``pixel``, ``ra_deg`` and ``dec_deg`` coordinates,
     stored exactly, and its ``healpix_nside`` and ``healpix_ordering`` attributes.  The values
     :func:`footprint_from_config` computed, read without healpy or astropy's frames (a cube
-    worker's start).  KeyError if the store lacks one of them."""
+    worker's start).  KeyError if the store lacks one of them.
+
+    Parameters
+    ----------
+    store : str or path-like
+        A Zarr product store (e.g. background.zarr).
+
+    Returns
+    -------
+    Footprint
+        The store's footprint.
+
+    Raises
+    ------
+    KeyError
+        When the store lacks one of the coordinates or attributes.
+    """
     import zarr
 
     group = zarr.open_group(str(store), mode="r", use_consolidated=False)

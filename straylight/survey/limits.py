@@ -38,6 +38,7 @@ class SurveyExposure:
 
     @property
     def total_s(self) -> float:
+        """Total survey exposure of the band, n_exposures x exposure_s, s."""
         return self.n_exposures * self.exposure_s
 
 
@@ -51,7 +52,22 @@ def _derived(campaign: Campaign, key: tuple, compute):
 
 
 def survey_exposure(campaign: Campaign, band_name: str) -> SurveyExposure:
-    """The band's survey exposures and the noise model's inputs (:class:`SurveyExposure`)."""
+    """The band's survey exposures and the noise model's inputs (:class:`SurveyExposure`),
+    computed once per campaign and band.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        Loaded campaign (instrument config, pixel scale).
+    band_name : str
+        A band of the instrument.
+
+    Returns
+    -------
+    SurveyExposure
+        Exposure count, exposure time (s), read noise (e-), dark current (e-/s), pixels in the
+        EE80 aperture, and the AB mag 0 rate through the whole aperture (e-/s).
+    """
     return _derived(campaign, ("survey_exposure", band_name), lambda: _survey_exposure(campaign, band_name))
 
 
@@ -81,7 +97,20 @@ ZERO_POINT_NAME = "mag_zero_point"
 def sky_zero_points(campaign: Campaign, bands=None) -> dict:
     """Each band's AB surface-brightness zero point, mag/arcsec2 at 1 e-/s/pixel (see
     :func:`straylight.sources.photometry.sky_zero_point_mag_per_arcsec2`): the instrument's throughput,
-    aperture and pixel scale, nothing else."""
+    aperture and pixel scale, nothing else.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        Loaded campaign.
+    bands : list of str, optional
+        Bands; None: every band of the campaign.
+
+    Returns
+    -------
+    dict of str to float
+        Band to zero point, AB mag/arcsec2 (mag/arcsec2 = zp - 2.5 log10(rate in e-/s/pix)).
+    """
     from straylight.optics.bandpass import load_band
     from straylight.sources.photometry import sky_zero_point_mag_per_arcsec2
 
@@ -99,7 +128,21 @@ def sky_zero_points(campaign: Campaign, bands=None) -> dict:
 
 
 def zero_point_coord(campaign: Campaign, bands) -> tuple:
-    """The products' ``mag_zero_point`` (band) coordinate: mag/arcsec2 = zp - 2.5 log10(e-/s/pixel)."""
+    """The products' ``mag_zero_point`` (band) coordinate: mag/arcsec2 = zp - 2.5 log10(e-/s/pixel).
+
+    Parameters
+    ----------
+    campaign : Campaign
+        Loaded campaign.
+    bands : sequence of str, shape (n_band,)
+        The product's bands, in its order.
+
+    Returns
+    -------
+    tuple
+        ``("band", values, attrs)`` for an xarray coordinate: values float64, shape (n_band,),
+        AB mag/arcsec2 at 1 e-/s/pixel; attrs its ``units`` and ``long_name``.
+    """
     zp = sky_zero_points(campaign, [str(b) for b in bands])
     return (
         "band",
@@ -113,7 +156,22 @@ def zero_point_coord(campaign: Campaign, bands) -> tuple:
 
 
 def point_source_limit(background_e_per_s_per_pix, band_name: str, campaign: Campaign) -> np.ndarray:
-    """5-sigma AB limiting magnitude for the band's survey exposures at the given background."""
+    """5-sigma AB limiting magnitude for the band's survey exposures at the given background.
+
+    Parameters
+    ----------
+    background_e_per_s_per_pix : array_like of float, any shape
+        Sky + stray-light rate, e-/s/pix.
+    band_name : str
+        A band of the instrument (not ``"V"``, which has no survey exposures).
+    campaign : Campaign
+        Loaded campaign.
+
+    Returns
+    -------
+    ndarray of float, same shape as the background
+        Limiting magnitude, mag(AB), in the EE80 aperture.
+    """
     return _limit_mag(background_e_per_s_per_pix, survey_exposure(campaign, band_name))
 
 
@@ -130,7 +188,20 @@ def band_limits(total_e_per_s_per_pix, exposures) -> np.ndarray:
     """5-sigma AB limiting magnitudes, float32, of a (..., band) background (e-/s/pix) whose
     last axis is the bands of ``exposures`` (:func:`survey_exposure` each, in that order): the
     one way the products compute a limit (the cube's workers for limits.zarr, and
-    :func:`limits_dataset`)."""
+    :func:`limits_dataset`).
+
+    Parameters
+    ----------
+    total_e_per_s_per_pix : ndarray, shape (..., n_band)
+        Total background, e-/s/pix.
+    exposures : sequence of SurveyExposure, length n_band
+        Each band's exposures, in the order of the last axis.
+
+    Returns
+    -------
+    ndarray of float32, shape (..., n_band)
+        Limiting magnitudes, mag(AB).
+    """
     out = np.empty(np.shape(total_e_per_s_per_pix), np.float32)
     for ib, x in enumerate(exposures):
         out[..., ib] = _limit_mag(total_e_per_s_per_pix[..., ib], x)
@@ -143,7 +214,20 @@ _EXPOSURES: dict = {}
 def campaign_exposures(campaign: Campaign, bands=None) -> list:
     """Each band's :func:`survey_exposure` (the campaign's bands by default), kept per campaign
     object: loading the throughput curves reads and integrates files, and the cube's workers
-    need them for every region."""
+    need them for every region.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        Loaded campaign.
+    bands : sequence of str, optional
+        Bands; None: every band of the campaign.
+
+    Returns
+    -------
+    list of SurveyExposure
+        One per band, in the order of ``bands``.
+    """
     bands = tuple(str(b) for b in (campaign.bands if bands is None else bands))
     kept = _EXPOSURES.get((id(campaign), bands))
     if kept is None or kept[0] is not campaign:
@@ -161,7 +245,22 @@ def limit_summaries(limiting_mag, observable) -> tuple[np.ndarray, np.ndarray]:
     products compute them.  Pixel by pixel on its observable times only, with ``np.median``'s
     partition (the same values as ``np.nanmedian`` over the times with the others masked as NaN,
     which goes row by row through ``apply_along_axis`` for 600 or more times, several times
-    slower; docs/performance.md)."""
+    slower; docs/performance.md).
+
+    Parameters
+    ----------
+    limiting_mag : array_like, shape (n_time, n_pixel, n_band)
+        Limiting magnitudes, mag(AB).
+    observable : array_like of bool, shape (n_time, n_pixel)
+        Whether each pointing satisfies every constraint.
+
+    Returns
+    -------
+    best : ndarray of float32, shape (n_pixel, n_band)
+        Deepest limit over the observable times, mag(AB); NaN where never observable.
+    median : ndarray of float32, shape (n_pixel, n_band)
+        Median limit over the observable times, mag(AB); NaN where never observable.
+    """
     import warnings
 
     limiting_mag = np.asarray(limiting_mag)
@@ -184,7 +283,18 @@ def limit_summaries(limiting_mag, observable) -> tuple[np.ndarray, np.ndarray]:
 
 
 def observable_fraction(observable) -> np.ndarray:
-    """(time, pixel) bool -> the fraction of times observable per pixel, float32."""
+    """(time, pixel) bool -> the fraction of times observable per pixel, float32.
+
+    Parameters
+    ----------
+    observable : array_like of bool, shape (n_time, n_pixel)
+        Whether each pointing satisfies every constraint.
+
+    Returns
+    -------
+    ndarray of float32, shape (n_pixel,)
+        Fraction of the times observable, in [0, 1].
+    """
     return np.asarray(observable, dtype=bool).mean(axis=0).astype(np.float32)
 
 
@@ -208,7 +318,20 @@ SUMMARY_BYTES_PER_PROCESS = 2 * 2**30
 def summary_processes(n_limits: int, workers: int) -> int:
     """How many processes :func:`store_limit_summaries` uses for ``n_limits`` float32 limits
     (times x pixels x bands): one per SUMMARY_BYTES_PER_PROCESS decoded, ``workers`` at most
-    (rule limits asks that many cores)."""
+    (rule limits asks that many cores).
+
+    Parameters
+    ----------
+    n_limits : int
+        Number of float32 limits in the store (times x pixels x bands).
+    workers : int
+        Most processes allowed.
+
+    Returns
+    -------
+    int
+        Processes to use, in [1, max(1, workers)].
+    """
     return max(1, min(int(workers), -(-int(n_limits) * 4 // SUMMARY_BYTES_PER_PROCESS)))
 
 
@@ -229,7 +352,22 @@ def store_limit_summaries(store, workers: int = 1) -> dict:
     store the cube's workers filled: ``limiting_mag`` and ``observable``), streamed over its
     pixel blocks (each split so a task decodes at most SUMMARY_TASK_BYTES) in this process and,
     for every SUMMARY_BYTES_PER_PROCESS of limits beyond the first, one more spawned process,
-    ``workers`` processes at most."""
+    ``workers`` processes at most.
+
+    Parameters
+    ----------
+    store : str or path-like
+        Zarr limits store with ``limiting_mag`` (time, pixel, band), mag(AB), and ``observable``
+        (time, pixel), bool.
+    workers : int, optional
+        Most processes to use.
+
+    Returns
+    -------
+    dict of str to ndarray
+        ``limiting_mag_best`` and ``limiting_mag_median``: float32, shape (n_pixel, n_band),
+        mag(AB), NaN where never observable; ``observable_fraction``: float32, shape (n_pixel,).
+    """
     import zarr
 
     from straylight.util.daskutil import spawned_pool
@@ -288,7 +426,27 @@ def limits_dataset(campaign: Campaign, background, limiting_mag=None) -> "xr.Dat
 
     The pipeline's limits rule writes the same dataset from the limits the cube's workers
     computed (:func:`straylight.survey.cube_store.init_limits_store`,
-    :func:`straylight.survey.cube_store.publish_work_store`)."""
+    :func:`straylight.survey.cube_store.publish_work_store`).
+
+    Parameters
+    ----------
+    campaign : Campaign
+        Loaded campaign (survey exposures, zero points).
+    background : xarray.Dataset
+        background.zarr's dataset (eager or lazy): ``total`` (time, pixel, band) in e-/s/pix,
+        ``observable`` (time, pixel) bool, the ``time``, ``pixel``, ``ra_deg``, ``dec_deg`` and
+        ``band`` coordinates and the HEALPix and campaign attributes.
+    limiting_mag : xarray.DataArray, optional
+        (time, pixel, band) limits already computed, mag(AB); None: computed from ``total``.
+
+    Returns
+    -------
+    xarray.Dataset
+        limits.zarr's dataset: ``limiting_mag`` (time, pixel, band), ``limiting_mag_best`` and
+        ``limiting_mag_median`` (pixel, band), all float32 mag(AB); ``observable_fraction``
+        (pixel,) float32; ``observable`` (time, pixel); band coordinates ``mag_zero_point``
+        (AB mag/arcsec2), ``n_exposures`` and ``exposure_s`` (s).
+    """
     import xarray as xr
 
     bands = [str(b) for b in background["band"].values]
@@ -415,7 +573,22 @@ def _limits_product(
 def write_limit_maps(ds, out_dir) -> list:
     """HEALPix FITS maps (healpy-readable): limit_best_<band>, limit_median_<band>,
     observable_fraction; healpy's UNSEEN outside the footprint and where ``ds`` has NaN (never
-    observable), the HEALPix convention for a missing pixel."""
+    observable), the HEALPix convention for a missing pixel.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A :func:`limits_dataset` (eager or loaded): the summaries, ``pixel`` indices and the
+        ``healpix_nside``, ``healpix_ordering`` and ``campaign`` attributes.
+    out_dir : str or path-like
+        Folder for the maps (created if missing).
+
+    Returns
+    -------
+    list of pathlib.Path
+        The FITS files written: ``limit_best_<band>.fits`` and ``limit_median_<band>.fits`` per
+        band (mag(AB)), then ``observable_fraction.fits``; each a full-sky float32 map, ICRS.
+    """
     from pathlib import Path
 
     from straylight.util.healpix import healpy

@@ -28,7 +28,22 @@ def evaluated_samples(campaign: Campaign, fp: Footprint, max_times: int = 144, m
     gives the same count on every machine; exact when the campaign is no bigger).  On the
     default day (16.5 % observable) 144 x 660 of its 288 x 1320 samples give the fraction to
     0.1 % of the samples; 48 x 256 erred by 2.4 % (every sixth step, 30 minutes apart, meets the
-    92-minute orbit in a pattern)."""
+    92-minute orbit in a pattern).
+
+    Parameters
+    ----------
+    campaign : Campaign
+        Loaded campaign (times, orbit, constraints, models).
+    fp : Footprint
+        The survey footprint.
+    max_times, max_pixels : int, optional
+        Most time steps and pixels of the subsample that estimates the observable fraction.
+
+    Returns
+    -------
+    int
+        Samples evaluated (time steps x pixels, or its estimated observable part).
+    """
     from straylight.model import unobservable_samples
     from straylight.sky.observing import scene
 
@@ -65,7 +80,8 @@ CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE = 2.6e-6
 
 #: Bytes on disk per (time, pixel) sample of the whole product set (background.zarr, limits.zarr,
 #: observability.zarr), all bands: the compressed stores' budget (at most 25 bytes per sample;
-#: docs/performance.md gives the measured figure).  The one figure `straylight plan` sizes a campaign's products with.
+#: docs/performance.md gives the measured figure).  The one figure `straylight plan` sizes a
+#: campaign's products with.
 PRODUCT_BYTES_PER_SAMPLE = 25.0
 #: The pipeline's wall time, `snakemake` to the last product, on N cores with the earthshine
 #: tables cached: PIPELINE_FIXED_SECONDS + samples / (PIPELINE_SAMPLES_PER_S_PER_CORE x N).  The
@@ -82,7 +98,20 @@ FAINT_MAP_SECONDS_PER_PIXEL = 3.0e-3
 
 def pipeline_rate(campaign: Campaign) -> tuple[float, str]:
     """The pipeline's samples/s/core beyond its fixed part and where it comes from: the config's
-    compute.pipeline_samples_per_s_per_core, else PIPELINE_SAMPLES_PER_S_PER_CORE."""
+    compute.pipeline_samples_per_s_per_core, else PIPELINE_SAMPLES_PER_S_PER_CORE.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        Loaded campaign.
+
+    Returns
+    -------
+    rate : float
+        Samples per second per core.
+    source : str
+        The config key or the module constant the rate comes from.
+    """
     configured = (campaign.config.get("compute") or {}).get("pipeline_samples_per_s_per_core")
     if configured:
         return float(configured), "compute.pipeline_samples_per_s_per_core"
@@ -102,7 +131,28 @@ def cube_compute_seconds(
     earthshine ``earthshine_method`` ('lut' or 'direct'), at the CUBE_* and
     straylight.model.fidelity.LUT_SAVED_SECONDS_PER_SAMPLE figures above times ``speed_factor`` (this machine
     against the one they were measured on, :func:`machine_speed`); or at
-    ``seconds_per_evaluated_sample`` per evaluated sample when given (another machine)."""
+    ``seconds_per_evaluated_sample`` per evaluated sample when given (another machine).
+
+    Parameters
+    ----------
+    samples : int
+        (time, pixel) samples of the cube.
+    evaluated : int
+        Samples evaluated (:func:`evaluated_samples`).
+    earthshine_method : str
+        ``"lut"`` or ``"direct"``.
+    skip : bool
+        Whether unobservable samples are skipped (adds the screen's cost per sample).
+    seconds_per_evaluated_sample : float, optional
+        s per evaluated sample replacing the figures; None: the figures.
+    speed_factor : float, optional
+        This machine's time against the reference machine's (> 1: slower).
+
+    Returns
+    -------
+    float
+        Compute time on one core, s.
+    """
     from straylight.model import LUT_SAVED_SECONDS_PER_SAMPLE
 
     if seconds_per_evaluated_sample is not None:
@@ -116,14 +166,34 @@ def cube_compute_seconds(
 def machine_speed(
     campaign: Campaign, fp: Footprint, n_times: int = 4, n_pixels: int = 1320, repeats: int = 2
 ) -> dict:
-    """This machine's speed against the reference machine of the cost figures (CUBE_*,
+    """The speed of this machine against the reference machine of the cost figures (CUBE_*,
     fidelity.LUT_*, PIPELINE_*): ``n_times`` cube time steps spread over the
     campaign at ~``n_pixels`` footprint pixels spread over it (one step, or a few hundred
     pixels, weigh the per-step costs too much), on the direct earthshine sum, every sample
     evaluated, without stars (a small part of that path's cost), best of ``repeats`` after a full-size
     warm-up, against :func:`cube_compute_seconds` for it.  Returns the samples,
     ``measured_seconds``, ``assumed_seconds`` and ``factor`` (measured / assumed: below 1 on a
-    faster machine).  One factor for every figure."""
+    faster machine).  One factor for every figure.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        Loaded campaign (its config is copied with the direct earthshine sum).
+    fp : Footprint
+        The survey footprint.
+    n_times : int, optional
+        Time steps timed, spread over the campaign.
+    n_pixels : int, optional
+        About this many footprint pixels timed, spread over the footprint.
+    repeats : int, optional
+        Timed repeats after the warm-up; the best is kept.
+
+    Returns
+    -------
+    dict
+        ``samples`` (int), ``measured_seconds`` and ``assumed_seconds`` (s), ``factor``
+        (measured / assumed; 1.0 with no samples).
+    """
     from straylight.config import campaign_from_dict, deep_merge
     from straylight.model import BackgroundModel
     from straylight.survey.cube_region import compute_region
@@ -169,7 +239,32 @@ def estimated_cost(
     rate (:func:`pipeline_rate`; on the direct sum its extra per evaluated sample added;
     ``seconds_per_evaluated_sample`` replaces both), the build spread over the cores.  Every
     figure but the products' bytes is times ``speed_factor`` (this machine against the cost
-    figures' reference machine, :func:`machine_speed`)."""
+    figures' reference machine, :func:`machine_speed`).
+
+    Parameters
+    ----------
+    campaign : Campaign
+        Loaded campaign.
+    fp : Footprint
+        The survey footprint.
+    seconds_per_evaluated_sample : float, optional
+        s per evaluated sample on one core replacing the figures; None: the figures.
+    speed_factor : float, optional
+        This machine's time against the reference machine's (> 1: slower).
+    cores : int, optional
+        Cores the pipeline runs on (at least 1).
+
+    Returns
+    -------
+    dict
+        ``samples``, ``evaluated_samples`` (int); ``unobservable_samples`` (``"skip"`` or
+        ``"evaluate"``); ``earthshine_method``, ``earthshine_reason`` (str); ``table_cached``
+        (bool); ``table_build_seconds``, ``compute_seconds`` (s on one core); ``core_hours``
+        (h); ``speed_factor``; ``cores``; ``pipeline_samples_per_s_per_core`` and
+        ``pipeline_rate_source``; ``fixed_seconds``, ``samples_seconds``, ``wall_seconds``,
+        ``faint_map_first_seconds`` (s, wall on ``cores``); ``pipeline_core_hours`` (h);
+        ``product_bytes`` (bytes on disk).
+    """
     from straylight.model import LUT_SAVED_SECONDS_PER_SAMPLE, BackgroundModel, unobservable_samples
 
     n = len(campaign.times) * int(fp.pixels.size)

@@ -22,7 +22,14 @@ from straylight.errors import InputError
 
 def table_components() -> tuple:
     """The per-band e-/s/pix columns of a pointing table: the registry's components and the
-    total (:mod:`straylight.model.registry`)."""
+    total (:mod:`straylight.model.registry`).
+
+    Returns
+    -------
+    tuple of str
+        Component names in registry order, then ``"total"``; a table column is
+        ``<component>_<band>`` in e-/s/pix.
+    """
     from straylight.model.registry import TOTAL, component_names
 
     return component_names() + (TOTAL,)
@@ -32,6 +39,31 @@ ALIASES = {"time": ("time", "utc", "time_utc"), "ra": ("ra", "ra_deg"), "dec": (
 
 
 def read_pointings(path) -> dict:
+    """Read and check a pointing table (the input of ``straylight sky``).
+
+    Column names are matched case-insensitively, with the aliases in ``ALIASES``; masked RA/Dec
+    entries become NaN and are then refused by :func:`check_radec`.
+
+    Parameters
+    ----------
+    path : str or path-like
+        ``.csv``, ``.ecsv``, ``.parquet`` or ``.fits`` table with a UTC time column (``time``,
+        ``utc`` or ``time_utc``; ISO 8601 text) and ICRS ``ra``/``ra_deg`` and ``dec``/``dec_deg``
+        in deg.
+
+    Returns
+    -------
+    dict
+        ``"time"``: ndarray, shape (n,), the time column's values as read (not yet parsed);
+        ``"ra"``: ndarray of float, shape (n,), RA wrapped to [0, 360) deg; ``"dec"``: ndarray of
+        float, shape (n,), Dec in deg.
+
+    Raises
+    ------
+    InputError
+        When the file is missing, has an unknown suffix, cannot be read, has no rows or lacks a
+        column, or a row's RA/Dec breaks :func:`check_radec`'s rule (the message names the row).
+    """
     from astropy.table import Table
 
     path = Path(path)
@@ -54,7 +86,8 @@ def read_pointings(path) -> dict:
         found = next((cols[n] for n in names if n in cols), None)
         if found is None:
             raise InputError(
-                f"{path}: missing column {key!r} (accepted: {', '.join(names)}); found {', '.join(t.colnames)}"
+                f"{path}: missing column {key!r} (accepted: {', '.join(names)}); "
+                f"found {', '.join(t.colnames)}"
             )
         out[key] = np.asarray(np.ma.filled(t[found], np.nan) if key != "time" else t[found])
     out["ra"], out["dec"] = check_radec(out["ra"], out["dec"], lambda i: f"{path}: row {i + 1}: ")
@@ -66,8 +99,27 @@ def check_radec(ra, dec, where=lambda i: "", names=("ra", "dec")) -> tuple[np.nd
     numbers, finite, Dec within [-90, 90] deg, RA within [-360, 360] deg (a wrap is fine, 1e308
     is a mistake).  Returns (RA wrapped to [0, 360), Dec) in deg as float arrays.
 
-    ``where(i)`` prefixes the message for element ``i`` (e.g. the file and row); ``names`` are
-    the field names used in messages (e.g. ``("--ra", "--dec")``).
+    Parameters
+    ----------
+    ra, dec : array_like, shape (n,) or scalar
+        RA and Dec, deg (numbers or text convertible to float).
+    where : callable, optional
+        ``where(i)`` gives the prefix of the message for element ``i`` (e.g. the file and row);
+        default: no prefix.
+    names : tuple of str, optional
+        The field names used in messages (e.g. ``("--ra", "--dec")``).
+
+    Returns
+    -------
+    ra : ndarray of float, shape (n,)
+        RA wrapped to [0, 360), deg (a scalar input gives shape (1,)).
+    dec : ndarray of float, shape (n,)
+        Dec, deg.
+
+    Raises
+    ------
+    InputError
+        When a value is not a number, not finite, or out of range; the first bad element is named.
     """
     vals = {}
     for key, name, v in (("ra", names[0], ra), ("dec", names[1], dec)):
@@ -113,7 +165,47 @@ def pointing_table(
     campaign's :class:`~straylight.model.BackgroundModel` when the caller keeps one warm, or a
     function giving it, called once the scene is computed (else one is built for this table).
     The satellite and the bodies are computed once per distinct time, for all of them at once;
-    the samples are evaluated ``batch`` at a time (:func:`~straylight.model.pointing.background_at`)."""
+    the samples are evaluated ``batch`` at a time (:func:`~straylight.model.pointing.background_at`).
+
+    Parameters
+    ----------
+    campaign : straylight.config.campaign.Campaign
+        Loaded campaign (orbit, instrument, models, survey exposures).
+    pointings : dict
+        ``"time"``: UTC times, shape (n,), as ISO 8601 text (each parsed and checked against the
+        DE405 range here) or an :class:`astropy.time.Time` (already checked); ``"ra"``, ``"dec"``:
+        ndarray of float, shape (n,), ICRS deg, already checked (:func:`read_pointings`).
+    bands : list of str, optional
+        Bands to evaluate; None: every band of the campaign.
+    stars : straylight.sources.stars.StarTable, optional
+        Off-field stars (:func:`straylight.sources.stars.load_offfield_stars`); None: stars = 0.
+    batch : int, optional
+        Samples evaluated per vectorised call (bounds the memory).
+    source : str, optional
+        Name of the input (e.g. the file) used to prefix error messages.
+    models : dict, optional
+        If given, updated in place with the record of which models ran and their error budget.
+    model : BackgroundModel or callable, optional
+        The campaign's warm model, or a function returning it; None: one is built.
+
+    Returns
+    -------
+    dict of str to ndarray, each shape (n,)
+        ``time`` (UTC ISO text, or the given Time), ``ra_deg``, ``dec_deg`` (deg); geometry
+        (``observable``, ``violations`` bit mask, ``sun_angle_deg``, ``moon_angle_deg``,
+        ``moon_illuminated_fraction``, ``earth_limb_angle_deg``, ``limb_is_bright``,
+        ``door_opening_deg``); ``planet_in_field`` (name, "" if none) and
+        ``planet_in_field_v_mag`` (Vega V mag, NaN if none); per band ``b``:
+        ``<component>_<b>`` for :func:`table_components` in e-/s/pix,
+        ``total_mag_per_arcsec2_<b>`` in AB mag/arcsec2, and (except V) ``limit_mag_<b>``,
+        the 5-sigma point-source limit in AB mag.
+
+    Raises
+    ------
+    InputError
+        When a time cannot be parsed (the first bad row is named) or lies outside the DE405
+        range.
+    """
     from astropy.time import Time
 
     from straylight.model import BackgroundModel
@@ -231,7 +323,19 @@ UNITS = {
 
 
 def column_units(cols) -> dict:
-    """Units of the pointing table's columns (Parquet field metadata ``unit``)."""
+    """Units of the pointing table's columns (Parquet field metadata ``unit``).
+
+    Parameters
+    ----------
+    cols : iterable of str
+        Column names of a :func:`pointing_table`.
+
+    Returns
+    -------
+    dict of str to str
+        Column name to unit string (e.g. ``"deg"``, ``"electron / (s pixel)"``,
+        ``"mag(AB) arcsec-2"``); unitless columns are absent.
+    """
     out, components = dict(UNITS), table_components()
     for k in cols:
         if k.startswith("total_mag_per_arcsec2_"):
@@ -248,7 +352,36 @@ def background_table(campaign, t, ra_deg, dec_deg, bands, stars=None, source="",
     """:func:`straylight.sky_background`'s table for a loaded campaign and 1-D UTC times ``t`` with ICRS
     ``ra_deg``, ``dec_deg`` (deg) of the same length, already checked; ``stars`` as
     :func:`straylight.sources.stars.load_offfield_stars` gives them (None: stars = 0); ``model``:
-    the campaign's warm :class:`~straylight.model.BackgroundModel`, if any."""
+    the campaign's warm :class:`~straylight.model.BackgroundModel`, if any.
+
+    Parameters
+    ----------
+    campaign : straylight.config.campaign.Campaign
+        Loaded campaign.
+    t : astropy.time.Time, shape (n,)
+        UTC times, already checked.
+    ra_deg, dec_deg : array_like of float, shape (n,)
+        ICRS pointing, deg (RA is wrapped to [0, 360)).
+    bands : list of str
+        Bands to evaluate (``"V"`` gets no limit column).
+    stars : straylight.sources.stars.StarTable, optional
+        Off-field stars; None: the stars component is 0.
+    source : str, optional
+        Name of the input used to prefix error messages.
+    model : BackgroundModel or callable, optional
+        The campaign's warm model, or a function returning it; None: one is built.
+
+    Returns
+    -------
+    astropy.table.QTable
+        ``n`` rows with the columns and ``meta`` that :func:`straylight.sky_background`
+        documents (rates in electron / (s pix), magnitudes in AB mag/arcsec2, angles in deg).
+
+    Raises
+    ------
+    InputError
+        As :func:`pointing_table`.
+    """
     from straylight.survey.limits import sky_zero_points
 
     models: dict = {}

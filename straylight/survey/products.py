@@ -30,7 +30,23 @@ def _var(data, dims, units, long_name, **extra):
 
 
 def ephemeris_dataset(campaign: Campaign) -> xr.Dataset:
-    """The campaign's time grid with DE405 body positions and the satellite's orbit."""
+    """The campaign's time grid with DE405 body positions and the satellite's orbit.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        Loaded campaign (times, orbit, Earth).
+
+    Returns
+    -------
+    xarray.Dataset
+        ephemeris.zarr's dataset over n_time UTC samples: ``body_position_km`` (time, body,
+        xyz) and ``satellite_position_km`` (time, xyz), geocentric km; ``jd_tdb`` (d);
+        ``moon_phase_angle_deg``, ``moon_elongation_deg``, ``earth_angular_radius_deg`` (deg);
+        ``moon_illuminated_fraction``, ``sun_moon_distance_ratio`` (1);
+        ``satellite_in_earth_shadow`` (bool); coordinates ``time`` (UTC datetime64), ``body``
+        (:data:`straylight.sky.ephemeris.BODIES`), ``xyz``.
+    """
     t = campaign.times
     sc = scene(campaign.orbit, t)
     sat = sc.satellite_km
@@ -90,7 +106,27 @@ def ephemeris_dataset(campaign: Campaign) -> xr.Dataset:
 
 
 def footprint_products(campaign: Campaign) -> tuple[Footprint, dict]:
-    """The footprint and the work plan (pixel blocks by time blocks) as a JSON-able dict."""
+    """The footprint and the work plan (pixel blocks by time blocks) as a JSON-able dict.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        Loaded campaign (footprint section, times, time and pixel block sizes).
+
+    Returns
+    -------
+    fp : Footprint
+        The footprint.
+    plan : dict
+        ``campaign``, ``nside``, ``ordering``, ``frame``, ``n_pixels``, ``area_deg2`` (deg2),
+        ``n_times``, ``n_samples``, ``time_blocks`` and ``pixel_blocks`` (lists of
+        ``[start, stop]`` indices).
+
+    Raises
+    ------
+    ConfigError, InputError
+        As :func:`~straylight.survey.footprint.footprint_from_config`.
+    """
     fp = footprint_from_config(campaign.config["footprint"], campaign.path.parent)
     c = campaign.settings.campaign
     t_blocks = time_blocks(len(campaign.times), c.cadence_s, float(c.time_block_hours))
@@ -111,7 +147,15 @@ def footprint_products(campaign: Campaign) -> tuple[Footprint, dict]:
 
 
 def write_footprint_fits(fp: Footprint, path) -> None:
-    """The footprint as a HEALPix FITS map (1 inside, 0 outside), readable by healpy."""
+    """The footprint as a HEALPix FITS map (1 inside, 0 outside), readable by healpy.
+
+    Parameters
+    ----------
+    fp : Footprint
+        The footprint (its nside and ordering are the map's; ICRS).
+    path : str or path-like
+        FITS file to write (replaced atomically).
+    """
     from straylight.util.healpix import healpy
     from straylight.util.io import atomic_path
 
@@ -138,7 +182,27 @@ def observability_dataset(
     """(time, pixel) observability over the footprint from the ephemeris product.  ``chunks``
     ({"time": n, "pixel": m}): the variables are lazy (dask), each chunk's geometry computed
     when it is written, so a campaign is never held whole; None: computed here at once.  Each
-    sample's geometry depends on that sample alone, so both give the same values."""
+    sample's geometry depends on that sample alone, so both give the same values.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        Loaded campaign (Earth radius, constraints).
+    ephem : xarray.Dataset
+        :func:`ephemeris_dataset`'s dataset (n_time samples).
+    fp : Footprint
+        The footprint (n_pixel pixels).
+    chunks : dict of str to int, optional
+        ``{"time": n, "pixel": m}`` chunk lengths for lazy variables; None: computed at once.
+
+    Returns
+    -------
+    xarray.Dataset
+        observability.zarr's dataset, each variable (time, pixel): ``observable`` (bool),
+        ``violations`` (uint8 bit mask), ``sun_angle_deg``, ``moon_angle_deg``,
+        ``earth_limb_angle_deg``, ``door_opening_deg`` (float32 deg); coordinates ``time``,
+        ``pixel``, ``ra_deg``/``dec_deg`` (ICRS deg); HEALPix and campaign attributes.
+    """
     sat_all = ephem["satellite_position_km"].values
     bodies_all = {b: ephem["body_position_km"].sel(body=b).values for b in ("sun", "moon")}
     los_all = radec_to_unit(fp.ra_deg, fp.dec_deg)

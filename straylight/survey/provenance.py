@@ -60,6 +60,14 @@ PATHS_NOTE = (
 
 
 def versions() -> dict:
+    """The versions of Python, the platform and the packages in :data:`PACKAGES` that are installed.
+
+    Returns
+    -------
+    dict of str to str
+        ``python``, ``platform`` and each installed package's version (missing ones left out);
+        ``straylight`` is the imported code's version.
+    """
     from importlib import metadata
 
     out = {"python": sys.version.split()[0], "platform": platform.platform()}
@@ -83,7 +91,15 @@ def _git(*args) -> str | None:
 def source_revision() -> dict:
     """The code that runs: its version; from a git checkout its commit, whether tracked files
     differ from it (``dirty``) and which (``modified``, relative to the checkout); from an install
-    the commit it was built from when known (setuptools-scm's short id)."""
+    the commit it was built from when known (setuptools-scm's short id).
+
+    Returns
+    -------
+    dict
+        ``version`` (str), ``from`` (``"checkout"`` or ``"install"``), ``commit`` (str or None:
+        unknown), ``dirty`` (bool, or None: unknown); from a checkout also ``modified`` (list
+        of str).
+    """
     if (SOURCE_ROOT / ".git").exists():
         commit = _git("rev-parse", "HEAD")
         status = _git("status", "--porcelain", "--untracked-files=no") if commit is not None else None
@@ -107,13 +123,31 @@ class RunInfo:
 
     Handed to the provenance rule as a param: Snakemake compares only builtin values (str, int,
     list, ...) of params with the last run's, so another command line or core count (a resumed
-    run, a dry run, ``--report``) does not make the record out of date."""
+    run, a dry run, ``--report``) does not make the record out of date.
+
+    Attributes
+    ----------
+    command : tuple of str
+        Snakemake's command line.
+    cores : int or None
+        Snakemake's ``--cores``; None: not given.
+    started_by : tuple of str or None
+        The ``straylight run`` command line that started Snakemake; None: none did.
+    """
 
     command: tuple
     cores: int | None
     started_by: tuple | None = None
 
     def as_dict(self) -> dict:
+        """The run as JSON-ready builtins.
+
+        Returns
+        -------
+        dict
+            ``command`` (list of str), ``cores`` (int or None), ``started_by`` (list of str or
+            None).
+        """
         return {
             "command": list(self.command),
             "cores": self.cores,
@@ -124,7 +158,24 @@ class RunInfo:
 def snakemake_run(argv, cores, main_process: bool = True) -> RunInfo:
     """The run as the Snakefile sees it: ``argv`` (sys.argv) and ``cores`` (workflow.cores) in
     Snakemake's main process, which also puts them in the environment (:data:`RUN_ENV`) for the
-    jobs; a job's own Snakemake (a cluster executor's) takes them from there."""
+    jobs; a job's own Snakemake (a cluster executor's) takes them from there.
+
+    Parameters
+    ----------
+    argv : sequence of str
+        Snakemake's ``sys.argv`` (its first element, the program, is replaced by
+        ``"snakemake"``).
+    cores : int or None
+        ``workflow.cores``; None: not given.
+    main_process : bool, optional
+        True in Snakemake's main process (sets :data:`RUN_ENV`); False in a job, which reads it
+        when set.
+
+    Returns
+    -------
+    RunInfo
+        The run.
+    """
     if not main_process and os.environ.get(RUN_ENV):
         d = json.loads(os.environ[RUN_ENV])
         return RunInfo(tuple(d["command"]), d["cores"], tuple(d["started_by"]) if d["started_by"] else None)
@@ -141,7 +192,22 @@ def snakemake_run(argv, cores, main_process: bool = True) -> RunInfo:
 
 def portable_path(path, base, roots: dict) -> str:
     """``path`` without the machine's folders: ``label/rest`` under one of ``roots`` ({label:
-    folder}), else relative to the folder ``base`` (``..`` where it lies outside)."""
+    folder}), else relative to the folder ``base`` (``..`` where it lies outside).
+
+    Parameters
+    ----------
+    path : str or path-like
+        The path (relative ones are taken from the working directory).
+    base : str or path-like
+        Folder the path is written relative to when under no root.
+    roots : dict of str to path-like
+        Label to folder (e.g. ``{"straylight:config": CONFIG_DIR}``).
+
+    Returns
+    -------
+    str
+        The portable path, with ``/`` separators.
+    """
     p = Path(os.path.abspath(path))
     for label, root in roots.items():
         root = Path(os.path.abspath(root))
@@ -186,7 +252,31 @@ def provenance_record(
     """The record of a campaign's run: ``inputs`` and ``outputs`` ({name: path}) checksummed;
     ``results`` the campaign's results folder (default: the folder of the first output), to
     which the paths are written relative; ``run`` the Snakemake run; ``workflow_dir`` the
-    workflow that ran (its files written as ``straylight:workflow/...``)."""
+    workflow that ran (its files written as ``straylight:workflow/...``).
+
+    Parameters
+    ----------
+    campaign : straylight.config.Campaign
+        Loaded campaign (its config, config file and instrument file).
+    inputs : dict of str to path-like
+        Input name to file, checksummed.
+    outputs : dict of str to path-like
+        Output name to file, checksummed (at least one when ``results`` is None).
+    results : str or path-like, optional
+        The campaign's results folder; None: the first output's folder.
+    run : RunInfo, optional
+        The Snakemake run; None: recorded as null.
+    workflow_dir : str or path-like, optional
+        The workflow folder that ran; None: its files are not given the ``straylight:workflow``
+        label.
+
+    Returns
+    -------
+    dict
+        The JSON-ready record: ``campaign``, ``config``, ``config_file``, ``instrument_file``,
+        ``paths``, ``source``, ``run``, ``versions``, ``inputs_sha256``, ``outputs_sha256``
+        (hex SHA-256 per file) and ``outputs_digest_sha256`` (one digest of them all).
+    """
     data_dir = Path(__file__).resolve().parents[1] / "data"
     results = Path(results if results is not None else Path(next(iter(outputs.values()))).parent)
     roots = {"straylight:config": CONFIG_DIR}

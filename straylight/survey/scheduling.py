@@ -36,7 +36,26 @@ def _pst_max_over_phi(model: BackgroundModel, theta_deg: np.ndarray) -> np.ndarr
 def moon_avoidance_table(
     model: BackgroundModel, fraction: float = 0.1, phase_step_deg: float = 10.0, theta_step_deg: float = 0.25
 ) -> dict:
-    """Columns phase_angle_deg, illuminated_fraction and min_moon_angle_deg_<band> (deg)."""
+    """Columns phase_angle_deg, illuminated_fraction and min_moon_angle_deg_<band> (deg).
+
+    Parameters
+    ----------
+    model : BackgroundModel
+        The campaign's model (PST, photometry, darkest zodiacal background per band).
+    fraction : float, optional
+        The Moon's stray light must stay below this fraction of the darkest zodiacal rate.
+    phase_step_deg : float, optional
+        Step of the lunar phase angle over [0, 180] deg (0 = full Moon), deg.
+    theta_step_deg : float, optional
+        Step of the Moon angle searched over [0, 180] deg, deg.
+
+    Returns
+    -------
+    dict of str to ndarray, each shape (n_phase,)
+        ``phase_angle_deg`` (deg), ``illuminated_fraction`` (0 to 1) and, per band,
+        ``min_moon_angle_deg_<band>``: the smallest Moon angle from which the Moon stays below
+        the limit, deg (0 where it never exceeds it).
+    """
     phases = np.arange(0.0, 180.0 + phase_step_deg / 2, phase_step_deg)
     theta = np.arange(0.0, 180.0 + theta_step_deg / 2, theta_step_deg)
     transfer = (
@@ -73,7 +92,29 @@ def bright_limb_table(
     within 90 deg of the limb, NaN where no line of sight clears the Sun avoidance angle.  Sun
     zenith angles every ``sun_zenith_step_deg`` up to 90 deg, then every ``terminator_step_deg``
     until the visible cap is dark (the limb's zenith angle, ~110 deg at 400 km), where the
-    answer changes fastest."""
+    answer changes fastest.
+
+    Parameters
+    ----------
+    model : BackgroundModel
+        The campaign's model (orbit radius, Earth, constraints, door states, photometry).
+    fraction : float, optional
+        The earthshine must stay below this fraction of the darkest zodiacal rate.
+    sun_zenith_step_deg : float, optional
+        Step of the Sun zenith angle below 90 deg, deg.
+    azimuth_step_deg : float, optional
+        Step of the line of sight's azimuth from the Sun over [0, 180] deg, deg.
+    elevation_step_deg : float, optional
+        Step of the elevation above the limb over [0, 90] deg, deg.
+    terminator_step_deg : float, optional
+        Step of the Sun zenith angle from 90 deg to the limb's zenith angle, deg.
+
+    Returns
+    -------
+    dict of str to ndarray, each shape (n_zenith,)
+        ``sun_zenith_deg`` (deg) and, per band, ``min_limb_elevation_deg_<band>`` (deg above
+        the limb; inf and NaN as above).
+    """
     from straylight.sources.earthshine_table_build import sun_coefficients_direct
 
     c: Campaign = model.campaign
@@ -146,7 +187,24 @@ def exposure_time_factor(
 ) -> np.ndarray:
     """Exposure time to reach the nominal 5-sigma depth with ``stray_e_per_s`` added to the
     nominal background, over the nominal time (1 when there is no stray light).  The number of
-    exposures grows with the time (read noise per exposure of the band's length)."""
+    exposures grows with the time (read noise per exposure of the band's length).
+
+    Parameters
+    ----------
+    stray_e_per_s : array_like of float, any shape
+        Stray light added to the background, e-/s/pix.
+    nominal_background_e_per_s : float or array_like broadcasting with it
+        Nominal background, e-/s/pix.
+    band : str
+        A band of the instrument (with survey exposures).
+    campaign : Campaign
+        Loaded campaign.
+
+    Returns
+    -------
+    ndarray of float, the broadcast shape
+        Exposure time needed over the nominal time (>= 1).
+    """
     x = survey_exposure(campaign, band)
     c0 = nominal_background_e_per_s + x.dark_e_per_s + x.read_noise_e**2 / x.exposure_s
     n_b = x.n_pix * c0 * x.total_s
@@ -164,7 +222,21 @@ def exposure_time_factor(
 
 
 def exposure_factor_table(model: BackgroundModel, ratios=(0.0, 0.01, 0.03, 0.1, 0.3, 1.0, 3.0, 10.0)) -> dict:
-    """Columns stray_to_zodiacal_ratio and exposure_time_factor_<band> at the darkest zodiacal sky."""
+    """Columns stray_to_zodiacal_ratio and exposure_time_factor_<band> at the darkest zodiacal sky.
+
+    Parameters
+    ----------
+    model : BackgroundModel
+        The campaign's model.
+    ratios : sequence of float, optional
+        Stray light over the darkest zodiacal rate (dimensionless).
+
+    Returns
+    -------
+    dict of str to ndarray, each shape (n_ratio,)
+        ``stray_to_zodiacal_ratio`` and, per band, ``exposure_time_factor_<band>``
+        (:func:`exposure_time_factor`).
+    """
     r = np.asarray(ratios, float)
     out = {"stray_to_zodiacal_ratio": r}
     for b in model.campaign.bands:
@@ -174,7 +246,22 @@ def exposure_factor_table(model: BackgroundModel, ratios=(0.0, 0.01, 0.03, 0.1, 
 
 
 def write_tables(model: BackgroundModel, out_dir, fraction: float = 0.1) -> list:
-    """The three tables as CSV and PNG in ``out_dir``; returns the written paths."""
+    """The three tables as CSV and PNG in ``out_dir``; returns the written paths.
+
+    Parameters
+    ----------
+    model : BackgroundModel
+        The campaign's model.
+    out_dir : str or path-like
+        Folder for the files (created if missing).
+    fraction : float, optional
+        Fraction of the darkest zodiacal rate for the Moon and limb tables.
+
+    Returns
+    -------
+    list of pathlib.Path
+        ``moon_avoidance``, ``bright_limb`` and ``exposure_factor``, each ``.csv`` then ``.png``.
+    """
     from pathlib import Path
 
     import matplotlib

@@ -49,7 +49,20 @@ MAX_RELATIVE_ERROR_ATTR = "max_relative_error"
 def max_relative_error(keepbits: int, dtype=np.float32) -> float:
     """The largest |stored - computed| / |computed| of a float of ``dtype`` bit-rounded to
     ``keepbits`` mantissa bits (round to nearest: half a unit in the last kept place); 0 when
-    ``keepbits`` is all of the type's mantissa (float32: 23, float64: 52)."""
+    ``keepbits`` is all of the type's mantissa (float32: 23, float64: 52).
+
+    Parameters
+    ----------
+    keepbits : int
+        Mantissa bits kept (>= 0).
+    dtype : numpy dtype, optional
+        float32 or float64.
+
+    Returns
+    -------
+    float
+        The relative bound, 2^-(keepbits + 1), or 0.0.
+    """
     if int(keepbits) >= np.finfo(dtype).nmant:
         return 0.0
     return 2.0 ** -(int(keepbits) + 1)
@@ -75,7 +88,27 @@ def bitround(values: np.ndarray, keepbits: int | None) -> np.ndarray:
     bit; a carry can reach the exponent, so the largest finite floats round to inf and a NaN with
     a payload only in the dropped bits to inf, as there).  In place when ``values`` is a writeable
     C-contiguous float array, else on a copy; returned either way.  ``keepbits`` None or at least
-    the type's mantissa bits (float32: 23, float64: 52): ``values`` as they are."""
+    the type's mantissa bits (float32: 23, float64: 52): ``values`` as they are.
+
+    Parameters
+    ----------
+    values : array_like, any shape
+        Values to round; non-float values are returned as they are.
+    keepbits : int or None
+        Mantissa bits kept (>= 0); None: no rounding.
+
+    Returns
+    -------
+    ndarray, same shape and dtype
+        The rounded values (``values`` itself when rounded in place or not rounded).
+
+    Raises
+    ------
+    TypeError
+        When the floats are neither float32 nor float64.
+    ValueError
+        When ``keepbits`` is negative.
+    """
     values = np.asarray(values)
     if keepbits is None or values.dtype.kind != "f":
         return values
@@ -103,7 +136,23 @@ def bitround(values: np.ndarray, keepbits: int | None) -> np.ndarray:
 def recorded_keepbits(attrs) -> int | None:
     """The mantissa bits a stored variable keeps, from the bound :func:`encoded` recorded in its
     attributes (``max_relative_error`` = 2^-(keepbits + 1)); None when it is stored exactly
-    (bound 0, or no bound recorded: a store written without the products' codecs)."""
+    (bound 0, or no bound recorded: a store written without the products' codecs).
+
+    Parameters
+    ----------
+    attrs : mapping
+        The variable's attributes.
+
+    Returns
+    -------
+    int or None
+        Mantissa bits kept, or None when stored exactly.
+
+    Raises
+    ------
+    ValueError
+        When the recorded bound is not a power of two 2^-(keepbits + 1).
+    """
     error = float(attrs.get(MAX_RELATIVE_ERROR_ATTR, 0.0))
     if error == 0.0:
         return None
@@ -116,7 +165,25 @@ def recorded_keepbits(attrs) -> int | None:
 def stored_values(values: np.ndarray, attrs) -> np.ndarray:
     """``values`` as a variable whose stored attributes are ``attrs`` keeps them on disk
     (:func:`bitround` to :func:`recorded_keepbits`; in place where it can): what a region writer
-    puts into an existing store's array (its codecs are lossless)."""
+    puts into an existing store's array (its codecs are lossless).
+
+    Parameters
+    ----------
+    values : ndarray, any shape
+        Computed values of a region.
+    attrs : mapping
+        The stored variable's attributes.
+
+    Returns
+    -------
+    ndarray, same shape and dtype
+        The values as they will be stored.
+
+    Raises
+    ------
+    ValueError
+        As :func:`recorded_keepbits`.
+    """
     return bitround(values, recorded_keepbits(attrs))
 
 
@@ -129,6 +196,26 @@ def encoded(dataset, settings: dict, lossless: tuple = ()):
     every float data variable, ``blosc_clevel``); ``lossless``: float data variables stored
     exactly all the same (inputs a later step computes from).  Returns (a shallow copy of
     ``dataset``, encoding).
+
+    Parameters
+    ----------
+    dataset : xarray.Dataset
+        The product (numpy- or dask-backed); left as it was.
+    settings : dict
+        The campaign's ``storage`` section: ``float_keepbits`` (int), optional
+        ``magnitude_keepbits`` (int, for variables whose units start with ``mag``; default
+        ``float_keepbits``), ``blosc_clevel`` (int).
+    lossless : tuple of str, optional
+        Float data variables stored exactly.
+
+    Returns
+    -------
+    dataset : xarray.Dataset
+        Shallow copy with the rounded data, each data variable's ``compression`` and
+        ``max_relative_error`` attributes and the dataset's ``float_max_relative_error`` and
+        ``compression``.
+    encoding : dict of str to dict
+        Variable name to its zarr encoding (``compressors``).
     """
     keepbits = int(settings["float_keepbits"])
     mag_keepbits = int(settings.get("magnitude_keepbits", keepbits))
@@ -206,7 +293,17 @@ def _codecs(dtype, lossless: bool, keepbits: int, level: int) -> tuple[dict, str
 def write_zarr_atomic(dataset, path: str | os.PathLike, storage: dict | None = None) -> None:
     """Write an xarray Dataset to a Zarr store at ``path`` atomically (consolidated metadata);
     with ``storage`` (a campaign's storage section) through the products' codecs
-    (:func:`encoded`), else xarray's default (lossless) ones."""
+    (:func:`encoded`), else xarray's default (lossless) ones.
+
+    Parameters
+    ----------
+    dataset : xarray.Dataset
+        The dataset to write.
+    path : str or path-like
+        The store's path (replaced atomically).
+    storage : dict, optional
+        A campaign's ``storage`` section (:func:`encoded`); None: xarray's default encoding.
+    """
     encoding = None
     if storage is not None:
         dataset, encoding = encoded(dataset, storage)
@@ -219,7 +316,19 @@ def write_skeleton(dataset, store: str | os.PathLike, settings: dict, lossless: 
     metadata, coordinates and the in-memory data variables written; the lazy (dask) data
     variables chunked as their dask arrays are and left empty, for writers to fill region by
     region.  The lazy variables are replaced by one-chunk lazy arrays first, so no graph of the
-    store's chunks is built (seconds for a month's thousands of chunks)."""
+    store's chunks is built (seconds for a month's thousands of chunks).
+
+    Parameters
+    ----------
+    dataset : xarray.Dataset
+        The product's skeleton: lazy (dask) data variables are left unwritten.
+    store : str or path-like
+        The store's path (overwritten).
+    settings : dict
+        The campaign's ``storage`` section (:func:`encoded`).
+    lossless : tuple of str, optional
+        Float data variables stored exactly.
+    """
     import dask.array as da
 
     template = dataset.copy(deep=False)
@@ -256,7 +365,13 @@ class ChunkWriter:
     (``test_fast_paths_hold_on_the_installed_zarr`` fails on a release where they changed).
 
     ``attrs`` are the array's; ``writer[region] = values`` writes (``region`` a tuple of slices,
-    trailing dimensions whole).  Raises OSError as the file system does (no space, no access)."""
+    trailing dimensions whole).  Raises OSError as the file system does (no space, no access).
+
+    Parameters
+    ----------
+    array : zarr.Array
+        The array, opened for writing.
+    """
 
     def __init__(self, array):
         self.array = array
@@ -311,7 +426,20 @@ def read_region(array, region) -> np.ndarray:
     its event loop and threads (the time series' and the limits' summaries' reads cost less CPU
     this way: docs/performance.md, bench/storage.py --regions).  Any other region, codec, store or
     zarr format is read by zarr itself.  Below zarr's public API as :class:`ChunkWriter` is, and
-    tested with it."""
+    tested with it.
+
+    Parameters
+    ----------
+    array : zarr.Array
+        The array to read.
+    region : tuple of slice
+        The region, one slice per leading dimension (missing trailing ones whole).
+
+    Returns
+    -------
+    ndarray
+        The region's values, in the array's native dtype.
+    """
     chain = _numcodecs_chain(array)
     shape = array.shape
     region = tuple(region) + (slice(None),) * (len(shape) - len(tuple(region)))
@@ -417,7 +545,20 @@ def remove_partial_chunks(store, time_chunks) -> int:
     """Remove the chunk files a killed writer left half written (``*.partial``, never renamed into
     place) in ``store``'s chunks at time-chunk indices ``time_chunks`` (the first chunk
     coordinate), of every array; how many were removed.  Only those chunks': another job may be
-    writing other time chunks of the same store."""
+    writing other time chunks of the same store.
+
+    Parameters
+    ----------
+    store : str or path-like
+        A local Zarr v3 store.
+    time_chunks : iterable of int
+        Chunk indices along the first dimension (time blocks).
+
+    Returns
+    -------
+    int
+        Number of files removed.
+    """
     removed = 0
     for array_dir in (p for p in Path(store).iterdir() if (p / "c").is_dir()):
         for t in time_chunks:

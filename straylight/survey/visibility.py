@@ -44,23 +44,38 @@ def visibility(
 
     Parameters
     ----------
-    campaign : straylight.config.Campaign (orbit, instrument, models)
-    ra_deg, dec_deg : ICRS pointing, deg (dec within [-90, 90])
-    band : one of the campaign's bands
-    start, end : UTC times (ISO 8601 or Time); ``end`` exclusive
-    step_s : sampling step, s (> 0); window edges are known to this resolution
-    threshold_mag : AB mag; days list the observable time with a limit at least this deep
+    campaign : straylight.config.Campaign
+        Loaded campaign (orbit, instrument, models).
+    ra_deg, dec_deg : float
+        ICRS pointing, deg (Dec within [-90, 90]), already checked.
+    band : str
+        One of the campaign's bands (not ``"V"``: it has no limit).
+    start, end : str or astropy.time.Time
+        UTC times (ISO 8601 text or a scalar Time); ``end`` exclusive; both within DE405.
+    step_s : float
+        Sampling step, s (> 0, at most ``end - start``); window edges are known to this
+        resolution.  A step over :data:`MAX_STEP_ORBIT_FRACTION` of the orbit is warned about.
+    threshold_mag : float, optional
+        Limit, AB mag; if given, days list the observable hours with a limit at least this deep.
+        None: no such column.
 
     Returns
     -------
-    dict of astropy QTables: ``samples`` (time, observable, violations, total_e_per_s_per_pix,
-    total_mag_per_arcsec2 (AB), limit_mag (5-sigma, AB)), ``windows`` (start, end, duration_h)
-    and ``days`` (date, observable_hours, limit_mag_best, hours_deeper_than_threshold).
+    dict of str to astropy.table.QTable
+        ``samples``: n rows (n = ceil((end - start) / step)) with ``time`` (UTC),
+        ``observable`` (bool), ``violations`` (str), ``total_e_per_s_per_pix`` (e-/s/pix),
+        ``total_mag_per_arcsec2`` (AB mag/arcsec2) and ``limit_mag`` (5-sigma, AB mag); its
+        ``meta`` holds the pointing, band, step (s) and zero point.  ``windows``: one row per
+        run of observable samples, ``start``, ``end`` (UTC) and ``duration_h`` (h).  ``days``:
+        one row per UTC date, ``date`` (YYYY-MM-DD), ``observable_hours`` (h),
+        ``limit_mag_best`` (AB mag, NaN on a day never observable) and, with a threshold,
+        ``hours_deeper_than_threshold`` (h).
 
     Raises
     ------
     InputError
-        Unparsable or reversed times, a non-positive step, too many samples, an unknown band.
+        Unparsable, out-of-ephemeris or reversed times, a non-positive step or one longer than
+        the window, more than :data:`MAX_SAMPLES` samples, an unknown band.
     """
     import astropy.units as u
     from astropy.table import QTable
@@ -150,7 +165,20 @@ def warn_if_step_aliases(step_s: float, period_s: float) -> str | None:
     """Warn (one logged line) when the step is longer than :data:`MAX_STEP_ORBIT_FRACTION` of the
     orbital period, naming aliasing when it is within :data:`ALIAS_TOLERANCE` of a whole number of
     periods; returns the warning.  A warning, not a refusal: a coarse look over months is a fair
-    request, as long as the user knows windows are missed."""
+    request, as long as the user knows windows are missed.
+
+    Parameters
+    ----------
+    step_s : float
+        Sampling step, s.
+    period_s : float
+        Orbital period, s.
+
+    Returns
+    -------
+    str or None
+        The warning logged, or None when the step is short enough.
+    """
     quarter_min = MAX_STEP_ORBIT_FRACTION * period_s / 60.0
     if step_s <= MAX_STEP_ORBIT_FRACTION * period_s:
         return None
@@ -159,9 +187,9 @@ def warn_if_step_aliases(step_s: float, period_s: float) -> str | None:
     head = f"--step-min {step_s / 60.0:g}: "
     if off <= ALIAS_TOLERANCE:
         msg = (
-            f"{head}within {100 * off:.1f} % of {k} x the orbital period ({period_s / 60.0:.1f} min): every sample "
-            f"sees nearly the same orbital phase (aliasing), so observability looks constant and windows are "
-            f"missed; use --step-min {quarter_min:.1f} or less"
+            f"{head}within {100 * off:.1f} % of {k} x the orbital period ({period_s / 60.0:.1f} min): "
+            "every sample sees nearly the same orbital phase (aliasing), so observability looks constant "
+            f"and windows are missed; use --step-min {quarter_min:.1f} or less"
         )
     else:
         msg = (
@@ -175,7 +203,17 @@ def warn_if_step_aliases(step_s: float, period_s: float) -> str | None:
 
 def plot_visibility(result: dict, path, threshold_mag: float | None = None) -> None:
     """Background (AB mag/arcsec2) and 5-sigma limit (AB mag) against time, observable samples
-    in colour, the others grey, the windows shaded, the threshold dashed."""
+    in colour, the others grey, the windows shaded, the threshold dashed.
+
+    Parameters
+    ----------
+    result : dict
+        A :func:`visibility` result (its ``samples`` and ``windows``).
+    path : str or path-like
+        Image to write; the suffix (e.g. ``.png``, ``.pdf``) picks the format.
+    threshold_mag : float, optional
+        Limit drawn as a dashed line, AB mag; None: none drawn.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
