@@ -57,7 +57,30 @@ PLANET_V = {
 
 
 def moon_v_magnitude(phase_angle_deg, distance_km, law: str = "krisciunas_schaefer", elongation_deg=None):
-    """Lunar V magnitude at ``distance_km`` for the phase angle (deg, 0 = full)."""
+    """Lunar V magnitude at ``distance_km`` for the phase angle (deg, 0 = full).
+
+    Parameters
+    ----------
+    phase_angle_deg : array_like
+        Sun-Moon-observer phase angle, deg (0 = full Moon; its absolute value is used).
+    distance_km : array_like
+        Moon-observer distance, km.
+    law : str
+        ``"krisciunas_schaefer"`` (Krisciunas & Schaefer 1991) or ``"proportional"`` (the
+        full Moon's brightness times elongation / 180).
+    elongation_deg : array_like, optional
+        The Moon's elongation from the Sun, deg, for ``"proportional"``; None: 180 - |phase|.
+
+    Returns
+    -------
+    ndarray
+        V magnitude (Vega), of the broadcast shape of the inputs.
+
+    Raises
+    ------
+    ConfigError
+        When ``law`` is not one of the two.
+    """
     a = np.abs(np.asarray(phase_angle_deg, dtype=float))
     dist_term = 5.0 * np.log10(np.asarray(distance_km, dtype=float) / MOON_MEAN_DISTANCE_KM)
     if law == "krisciunas_schaefer":
@@ -70,14 +93,42 @@ def moon_v_magnitude(phase_angle_deg, distance_km, law: str = "krisciunas_schaef
 
 
 def planet_v_magnitude(name: str, planet_km, sun_km, observer_km) -> np.ndarray:
-    """Meeus (1998) ch. 41 V magnitude of a planet (geocentric inputs, km)."""
+    """Meeus (1998) ch. 41 V magnitude of a planet (geocentric inputs, km).
+
+    Parameters
+    ----------
+    name : str
+        The planet, a key of :data:`PLANET_V`.
+    planet_km, sun_km, observer_km : ndarray, shape (..., 3)
+        Geocentric ICRS positions of the planet, the Sun and the observer, km, broadcastable.
+
+    Returns
+    -------
+    ndarray, shape (...)
+        V magnitude (Vega).
+    """
     return planet_v_magnitudes([name], np.asarray(planet_km, float)[None], sun_km, observer_km)[0]
 
 
 def planet_v_magnitudes(names, planets_km, sun_km, observer_km) -> np.ndarray:
     """:func:`planet_v_magnitude` of several planets at once: ``planets_km`` (planets, ..., 3),
     one row per name, -> (planets, ...) (one numpy pass for all of them, not one per planet:
-    a cube batch's per-step magnitudes are small arrays, where numpy's per-call cost dominates)."""
+    a cube batch's per-step magnitudes are small arrays, where numpy's per-call cost dominates).
+
+    Parameters
+    ----------
+    names : sequence of str
+        The planets, keys of :data:`PLANET_V`.
+    planets_km : ndarray, shape (planets, ..., 3)
+        Geocentric ICRS positions of the planets, km, one row per name.
+    sun_km, observer_km : ndarray, shape (..., 3)
+        Geocentric ICRS positions of the Sun and the observer, km.
+
+    Returns
+    -------
+    ndarray, shape (planets, ...)
+        V magnitudes (Vega).
+    """
     v0 = np.array([PLANET_V[n][0] for n in names], float)
     c1, c2, c3 = np.array([PLANET_V[n][1] for n in names], float).T
     planet = np.asarray(planets_km, float)
@@ -108,7 +159,22 @@ class Sun:
     def rates(self, samples: Samples, bands) -> BandRates:
         """The Sun's coefficient on the ``sun`` lamp: the band-independent transfer Se Sp PST x
         pixel area (e-/s/pix per photon s-1 m-2 at the aperture), of the samples' shape; in
-        band b the Sun gives transfer * (sun_at_1au[b] * (1 AU / distance)^2) e-/s/pix."""
+        band b the Sun gives transfer * (sun_at_1au[b] * (1 AU / distance)^2) e-/s/pix.
+
+        Parameters
+        ----------
+        samples : Samples
+            The batch of (time, pointing) samples (reads the Sun's angle, azimuth and Earth
+            blocking from ``geometry``, and the door).
+        bands : sequence of str
+            Band names of the instrument (unused: the coefficient is band-independent).
+
+        Returns
+        -------
+        BandRates
+            ``per_lamp["sun"]["sun"]``: ndarray of the samples' shape, e-/s/pix per photon
+            s-1 m-2 of the Sun at the satellite.
+        """
         g = samples.geometry
         transfer = self.context.offfield.point_source(
             1.0, g["sun_angle_deg"], g["sun_phi_deg"], g["sun_earth_blocked"], samples.door_deg
@@ -123,14 +189,46 @@ class SolarBodySkip:
     floor in every band, so the Moon and the eight planets together stay within it.  The floor is
     ``floor_ratio`` (>= 1, per sample) times the darkest zodiacal light: a lower bound of the
     total.  A new Moon far from the line of sight is skipped, a bright one only where the Sun or
-    the sunlit Earth outshines it by ~10^4."""
+    the sunlit Earth outshines it by ~10^4.
+
+    Parameters
+    ----------
+    context : SourceContext
+        The campaign's instrument as the sources see it.
+    policy : FidelityPolicy
+        The fidelity policy (tolerance and the moon_and_planets_skip share).
+    """
 
     def __init__(self, context: SourceContext, policy):
         self.context, self.policy = context, policy
 
     def transfer(self, sun_fraction, angle_deg, phi_deg, earth_blocked, door, bands, floor_ratio=1.0):
         """The band-independent transfer (as OffFieldModel.point_source with E = 1) of a body
-        whose irradiance is ``sun_fraction`` of the Sun's at 1 AU, 0 where it is skipped."""
+        whose irradiance is ``sun_fraction`` of the Sun's at 1 AU, 0 where it is skipped.
+
+        Parameters
+        ----------
+        sun_fraction : array_like
+            The body's irradiance over the Sun's at 1 AU, dimensionless, per sample (or one).
+        angle_deg : ndarray
+            The body's angle from the line of sight, deg, per sample.
+        phi_deg : ndarray
+            The body's azimuth in the telescope frame, deg, broadcastable with ``angle_deg``.
+        earth_blocked : ndarray of bool
+            True where the Earth hides the body.
+        door : ndarray
+            The door's opening, deg, per sample.
+        bands : sequence of str
+            Band names (the skip bound takes the worst).
+        floor_ratio : float or ndarray
+            Each sample's floor over the darkest zodiacal light, >= 1.
+
+        Returns
+        -------
+        ndarray
+            Transfer, e-/s/pix per photon s-1 m-2 at the aperture, of the broadcast shape of
+            the angles, blocking and door (0 where skipped or hidden).
+        """
         off = self.context.offfield
         rel, budget = self.scale(sun_fraction, bands)
         if np.size(angle_deg):
@@ -150,7 +248,23 @@ class SolarBodySkip:
 
     def scale(self, sun_fraction, bands) -> tuple:
         """(rel, budget): the body's e-/s/pix at PST = 1 relative to the darkest zodiacal light,
-        worst band (solar spectrum), and its share of the tolerance (1/9 of moon_and_planets_skip)."""
+        worst band (solar spectrum), and its share of the tolerance (1/9 of moon_and_planets_skip).
+
+        Parameters
+        ----------
+        sun_fraction : array_like
+            The body's irradiance over the Sun's at 1 AU, dimensionless.
+        bands : sequence of str
+            Band names.
+
+        Returns
+        -------
+        rel : ndarray
+            The body's e-/s/pix at PST = 1 over the darkest zodiacal light, dimensionless, of
+            ``sun_fraction``'s shape.
+        budget : float
+            Its share of the tolerance, a fraction of the floor.
+        """
         rel = (
             self.context.offfield.pixel_area_m2
             * np.asarray(sun_fraction, float)
@@ -161,7 +275,22 @@ class SolarBodySkip:
     def widest_radius_deg(self, rel, budget, floor_ratio) -> float:
         """The largest of the samples' skip radii: the radius shrinks as its limit rises, so the
         smallest limit (the darkest floor over the brightest body; a hair smaller against
-        rounding) gives a radius that bounds every sample's."""
+        rounding) gives a radius that bounds every sample's.
+
+        Parameters
+        ----------
+        rel : array_like
+            :meth:`scale`'s ``rel`` per sample (or run).
+        budget : float
+            :meth:`scale`'s ``budget``.
+        floor_ratio : float or array_like
+            The samples' floors over the darkest zodiacal light, >= 1.
+
+        Returns
+        -------
+        float
+            The widest skip radius, deg (180: nowhere skippable).
+        """
         with np.errstate(divide="ignore"):
             smallest = budget * float(np.min(floor_ratio)) / float(np.max(rel)) * (1 - 1e-12)
         return float(self.context.offfield.pst.influence_radius_deg(smallest))
@@ -169,15 +298,37 @@ class SolarBodySkip:
 
 class Moon:
     """The Moon: V magnitude by models.moon_phase_law, dimmed by moon_eclipse_factor inside the
-    Earth's shadow; it also lights the night side of the Earth (:meth:`lamp`)."""
+    Earth's shadow; it also lights the night side of the Earth (:meth:`lamp`).
+
+    Parameters
+    ----------
+    context : SourceContext
+        The campaign's instrument as the sources see it.
+    skip : SolarBodySkip
+        The skip bound it is skipped on.
+    """
 
     def __init__(self, context: SourceContext, skip: SolarBodySkip):
         self.context, self.skip = context, skip
 
     def lamp(self, samples: Samples) -> dict:
-        """The Moon's irradiance as fractions of the Sun's at 1 AU (band-independent):
-        ``at_satellite`` (uneclipsed), ``eclipse`` (1, or moon_eclipse_factor where the Earth
-        hides the Sun from the Moon) and ``at_earth`` (eclipse included: the moonlit Earth's lamp)."""
+        """The Moon's brightness and irradiance (band-independent): ``v_mag`` (at the satellite,
+        uneclipsed), ``eclipse`` (1, or moon_eclipse_factor where the Earth hides the Sun from
+        the Moon) and ``at_earth`` (eclipse included: the moonlit Earth's lamp).
+
+        Parameters
+        ----------
+        samples : Samples
+            The batch of samples (reads the Sun, the Moon, the satellite, the Moon's phase angle
+            and elongation from ``geometry``, and ``runs``).
+
+        Returns
+        -------
+        dict of str to ndarray
+            Arrays of the samples' shape: ``v_mag``, the Moon's V magnitude (Vega) at the
+            satellite's distance; ``eclipse``, dimensionless; ``at_earth``, the Moon's irradiance
+            at the Earth's centre over the Sun's at 1 AU, dimensionless.
+        """
         off, g = self.context.offfield, samples.geometry
         sun, moon = samples.sun_km, samples.moon_km
         rows = scene_rows(
@@ -204,7 +355,22 @@ class Moon:
         """The Moon's coefficient on the ``sun_at_1au`` lamp: e-/s/pix per photon s-1 m-2 of the
         Sun at 1 AU (times a band's solar irradiance at 1 AU: its e-/s/pix there), 0 where
         skipped against ``samples.floor_ratio``; the lamp read from ``samples.moon_lamp``
-        (:meth:`lamp`'s)."""
+        (:meth:`lamp`'s).
+
+        Parameters
+        ----------
+        samples : Samples
+            The batch of (time, pointing) samples (reads ``moon_lamp``, ``floor_ratio``, the
+            Moon's angles and Earth blocking from ``geometry``, and the door).
+        bands : sequence of str
+            Band names of the instrument (the skip bound's worst band among them).
+
+        Returns
+        -------
+        BandRates
+            ``per_lamp["moon"]["sun_at_1au"]``: ndarray of the samples' shape, e-/s/pix per
+            photon s-1 m-2 of the Sun at 1 AU (0 where skipped).
+        """
         g, lamp = samples.geometry, samples.moon_lamp
         sun_fraction = solar_like_fraction(lamp["v_mag"])
         t = self.skip.transfer(
@@ -222,14 +388,37 @@ class Moon:
 class Planets:
     """The planets in the samples' ``bodies_km`` (Meeus's V magnitudes), each skipped on its
     bound like the Moon; their angles are computed only at the samples within a planet's widest
-    skip radius (:func:`_near_runs_kernel`): most planets, most of the time, reach no sample."""
+    skip radius (:func:`_near_runs_kernel`): most planets, most of the time, reach no sample.
+
+    Parameters
+    ----------
+    context : SourceContext
+        The campaign's instrument as the sources see it.
+    skip : SolarBodySkip
+        The skip bound each planet is skipped on.
+    """
 
     def __init__(self, context: SourceContext, skip: SolarBodySkip):
         self.context, self.skip = context, skip
 
     def rates(self, samples: Samples, bands) -> BandRates:
         """The planets together on the ``sun_at_1au`` lamp: e-/s/pix per photon s-1 m-2 of the
-        Sun at 1 AU, of the samples' shape, each skipped against ``samples.floor_ratio``."""
+        Sun at 1 AU, of the samples' shape, each skipped against ``samples.floor_ratio``.
+
+        Parameters
+        ----------
+        samples : Samples
+            The batch of (time, pointing) samples (reads ``bodies_km``, the planets among them,
+            ``floor_ratio``, ``frame``, the door and ``runs``).
+        bands : sequence of str
+            Band names of the instrument (the skip bound's worst band among them).
+
+        Returns
+        -------
+        BandRates
+            ``per_lamp["planets"]["sun_at_1au"]``: ndarray of the samples' shape, e-/s/pix per
+            photon s-1 m-2 of the Sun at 1 AU (0 without planets or where each is skipped).
+        """
         return BandRates(
             per_lamp={
                 "planets": {
@@ -252,7 +441,32 @@ class Planets:
         fraction of the Sun's irradiance at 1 AU.  Each planet's magnitude and direction are
         computed once per run of samples that share a scene (a cube's time step; else once per
         sample), and one compiled pass finds every planet's samples within its widest skip radius:
-        the only ones whose angles (two arctangents each, most of the geometry's cost) are computed."""
+        the only ones whose angles (two arctangents each, most of the geometry's cost) are computed.
+
+        Parameters
+        ----------
+        sat : ndarray, shape (..., 3)
+            Geocentric ICRS satellite positions, km, broadcastable to ``shape + (3,)``.
+        bodies_km : dict of str to ndarray
+            Body -> geocentric ICRS position, km, (..., 3); the Sun and any planets.
+        frame : TelescopeFrame
+            The samples' telescope frames.
+        door : ndarray
+            The door's opening, deg, broadcastable to ``shape``.
+        bands : sequence of str
+            Band names.
+        floor_ratio : float or ndarray
+            Each sample's floor over the darkest zodiacal light, >= 1.
+        shape : tuple
+            The samples' shape.
+        runs : SceneRuns, optional
+            The samples' scene runs; None: found here.
+
+        Returns
+        -------
+        ndarray, shape ``shape``
+            e-/s/pix per photon s-1 m-2 of the Sun at 1 AU, summed over the planets.
+        """
         out = np.zeros(shape)
         planets = [p for p in PLANETS if p in bodies_km]
         if not planets or not out.size:
@@ -315,7 +529,35 @@ class Planets:
     ) -> np.ndarray:
         """:meth:`SolarBodySkip.transfer` of a planet at the samples ``near`` (flat indices),
         there only, (len(near),); ``fraction_near``: its fraction of the Sun's irradiance there;
-        ``runs_near``: the scene runs of the samples ``near``, when known."""
+        ``runs_near``: the scene runs of the samples ``near``, when known.
+
+        Parameters
+        ----------
+        fraction_near : ndarray, shape (len(near),)
+            The planet's irradiance over the Sun's at 1 AU at those samples, dimensionless.
+        satellite_km, planet_km : ndarray, shape (..., 3)
+            Geocentric ICRS positions of the satellite and the planet, km, broadcastable to
+            ``shape + (3,)``.
+        frame : TelescopeFrame
+            The samples' telescope frames.
+        door : ndarray
+            The door's opening, deg, broadcastable to ``shape``.
+        bands : sequence of str
+            Band names.
+        floor_ratio : float or ndarray
+            Each sample's floor over the darkest zodiacal light, broadcastable to ``shape``.
+        shape : tuple
+            The samples' shape.
+        near : ndarray of int, shape (m,)
+            Flat indices of the samples to evaluate.
+        runs_near : SceneRuns, optional
+            Their scene runs; None: found here.
+
+        Returns
+        -------
+        ndarray, shape (m,)
+            Transfer, e-/s/pix per photon s-1 m-2 at the aperture (0 where skipped or hidden).
+        """
         sat, planet, fx, fy, fz = (
             rows_at(v, shape, near) for v in (satellite_km, planet_km, frame.x, frame.y, frame.z)
         )
@@ -343,7 +585,13 @@ class Planets:
 class InFieldBodies:
     """The Sun, Moon and planets inside the field (within ``field_radius_deg`` of the line of
     sight), which the background leaves out (:meth:`OffFieldModel.point_source`): a body in the
-    field is a point source, imaged with its halo and ghosts like a star."""
+    field is a point source, imaged with its halo and ghosts like a star.
+
+    Parameters
+    ----------
+    context : SourceContext
+        The campaign's instrument as the sources see it (field radius, bands).
+    """
 
     def __init__(self, context: SourceContext):
         self.context = context
@@ -351,7 +599,27 @@ class InFieldBodies:
     def find(self, satellite_km, bodies_km, los, geometry, bands) -> dict:
         """Body -> {"in_field": bool, "angle_deg": deg from the line of sight, "v_mag": V (Vega),
         "mag_ab": {band: AB magnitude through the band (solar spectrum)}}, arrays over the
-        samples; ``geometry``: :func:`~straylight.sky.observing.sample_geometry`'s (the Moon's phase)."""
+        samples; ``geometry``: :func:`~straylight.sky.observing.sample_geometry`'s (the Moon's phase).
+
+        Parameters
+        ----------
+        satellite_km : ndarray, shape (..., 3)
+            Geocentric ICRS satellite positions, km.
+        bodies_km : dict of str to ndarray
+            Body -> geocentric ICRS position, km, (..., 3); bodies missing from it are left out.
+        los : ndarray, shape (..., 3)
+            Lines of sight, ICRS (normalised here).
+        geometry : dict of str to ndarray
+            Reads ``moon_phase_angle_deg`` and ``moon_elongation_deg``, deg.
+        bands : sequence of str
+            Band names for ``mag_ab``.
+
+        Returns
+        -------
+        dict of str to dict
+            Per body present: ``in_field`` (bool), ``angle_deg`` (deg), ``v_mag`` (Vega) and
+            ``mag_ab`` (band -> AB magnitude), arrays of the samples' shape.
+        """
         off = self.context.offfield
         sat = np.asarray(satellite_km, float)
         z = unit(np.asarray(los, float))

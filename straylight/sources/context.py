@@ -63,16 +63,19 @@ class Samples:
 
     @property
     def sun_km(self) -> np.ndarray:
+        """The Sun's geocentric ICRS position, km, (..., 3)."""
         return self.bodies_km["sun"]
 
     @property
     def moon_km(self) -> np.ndarray:
+        """The Moon's geocentric ICRS position, km, (..., 3)."""
         return self.bodies_km["moon"]
 
     @cached_property
     def sun_inverse_square(self) -> np.ndarray:
-        """(1 AU / Sun-satellite distance)^2 per sample: the Sun's irradiance at the satellite
-        relative to 1 AU (the ``sun`` lamp's scale, :data:`~straylight.sources.rates.LAMPS`)."""
+        """(1 AU / Sun-satellite distance)^2 per sample, dimensionless: the Sun's irradiance at
+        the satellite relative to 1 AU (the ``sun`` lamp's scale,
+        :data:`~straylight.sources.rates.LAMPS`)."""
         return (AU_KM / norm(self.sun_km - self.satellite_km)) ** 2
 
 
@@ -80,7 +83,13 @@ class Samples:
 class SourceContext:
     """One campaign's instrument as the sources see it: the off-field transfer, the zodiacal
     model (for the darkest sky), the bands and their solar photometry.  Built once per model;
-    everything is cached."""
+    everything is cached.
+
+    Attributes
+    ----------
+    campaign : Campaign
+        The campaign (instrument, settings, bands, Earth and orbit).
+    """
 
     campaign: Campaign
 
@@ -127,7 +136,17 @@ class SourceContext:
         return {}
 
     def band(self, name) -> Band:
-        """The instrument's band ``name`` (throughput, zero points), loaded once."""
+        """The instrument's band ``name`` (throughput, zero points), loaded once.
+
+        Parameters
+        ----------
+        name : str
+            The band's name in the instrument settings.
+
+        Returns
+        -------
+        Band
+        """
         if name not in self._bands:
             b = load_band(self.campaign.instrument_settings, name, self.campaign.instrument_path.parent)
             self._bands[name] = (b, BandPhotometry(b))
@@ -135,14 +154,35 @@ class SourceContext:
 
     def photometry(self, name) -> BandPhotometry:
         """Band ``name``'s photometry: the Sun's photon irradiance at 1 AU through it, AB and
-        solar-like magnitudes to photons s-1 m-2."""
+        solar-like magnitudes to photons s-1 m-2.
+
+        Parameters
+        ----------
+        name : str
+            The band's name in the instrument settings.
+
+        Returns
+        -------
+        BandPhotometry
+        """
         self.band(name)
         return self._bands[name][1]
 
     def darkest_zodiacal_e_per_s(self, band: str) -> float:
         """e-/s/pix of the zodiacal light at the darkest point of the Leinert (1998) table, in a
         band: the floor of any total background (scheduling tables, error budgets).  Cached per
-        band (every evaluation's skips read it)."""
+        band (every evaluation's skips read it).
+
+        Parameters
+        ----------
+        band : str
+            The band's name.
+
+        Returns
+        -------
+        float
+            e-/s/pix.
+        """
         from straylight.sources.zodiacal import LEINERT_UNIT_W_M2_SR_UM, leinert_table
 
         cache = self.__dict__.setdefault("_darkest_zodiacal", {})
@@ -159,7 +199,19 @@ class SourceContext:
         return self.solar_floor(tuple(self.campaign.bands))
 
     def solar_floor(self, bands: tuple) -> float:
-        """:attr:`earthshine_floor` over ``bands`` (cached per set of bands)."""
+        """:attr:`earthshine_floor` over ``bands`` (cached per set of bands).
+
+        Parameters
+        ----------
+        bands : tuple of str
+            Band names.
+
+        Returns
+        -------
+        float
+            The smallest over ``bands`` of the darkest zodiacal light over the band's solar
+            photon irradiance at 1 AU: e-/s/pix per photon s-1 m-2 of the Sun at 1 AU.
+        """
         cache = self.__dict__.setdefault("_solar_floor", {})
         if bands not in cache:
             cache[bands] = min(

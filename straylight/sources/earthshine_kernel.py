@@ -38,7 +38,18 @@ _DEG = 180.0 / math.pi
 class GridPack:
     """A two-axis :class:`~straylight.util.gridinterp.LinearGrid`'s cell finders as flat arrays
     for :func:`cap_sums`, with the values of one or more grids sharing those axes as rows of
-    ``values`` (grids, nodes)."""
+    ``values`` (grids, nodes).
+
+    Parameters
+    ----------
+    grids : sequence of LinearGrid
+        Two-axis grids sharing their nodes.
+
+    Raises
+    ------
+    ValueError
+        When a grid has not two axes or the grids' nodes differ.
+    """
 
     def __init__(self, grids):
         g0 = grids[0]
@@ -55,7 +66,14 @@ class GridPack:
         self.values = np.ascontiguousarray(np.stack([np.asarray(g._flat, float).ravel() for g in grids]))
 
     def arrays(self) -> tuple:
-        """The arrays :func:`cap_sums` takes for this grid, in its argument order."""
+        """The arrays :func:`cap_sums` takes for this grid, in its argument order.
+
+        Returns
+        -------
+        tuple
+            (lo, hi, uniform, inv_width, n_bins, bin_cell, nodes, n_nodes, inv_step, stride0,
+            values): the cell finders (in the axes' units) and ``values`` (grids, nodes).
+        """
         return (
             self.lo,
             self.hi,
@@ -133,14 +151,42 @@ def cap_sums(
 ):
     """The module's sums into ``direct`` and ``door`` (M, J, C), zeroed here.
 
-    fx, fy, fz: (M, 3) the telescope frames; blocks, span_g, span_p: (K, 3) the lit blocks'
-    directions and spans; lum: (K, C) albedo / pi x cos(lamp zenith) x solid angle, per lamp;
-    state_sel: (M, J) door state indices (-1: none); door_normal (S, 3), door_k (S,) per state;
-    the PST's grid (p_*, values: one row, natural log of the PST), the door's Sp grids (d_*,
-    one row per state) and the lit-fraction grids (f_*, one row per state; ``has_body`` False:
-    1 everywhere; ``lit_at_plane`` (S,): their value at theta <= 90 deg, where the grid is
-    clipped to its first row, when that row is constant in phi, else -1: a direction in front
-    of the aperture plane then needs no angles for the door's term)."""
+    Parameters
+    ----------
+    fx, fy, fz : ndarray, shape (M, 3)
+        The lines of sight's telescope frames (unit vectors, ICRS).
+    blocks, span_g, span_p : ndarray, shape (K, 3)
+        The lit blocks' unit directions from the satellite and their spans in nadir angle and
+        azimuth (:meth:`OffFieldModel.lit_cap_blocks`).
+    lum : ndarray, shape (K, C)
+        albedo / pi x cos(lamp zenith) x solid angle per lamp: radiance per unit irradiance
+        (sr-1) times solid angle (sr), dimensionless.
+    state_sel : ndarray of int, shape (M, J)
+        Door state indices, ascending states (-1: none, which gives 0).
+    door_normal : ndarray, shape (S, 3)
+        The door's inner normal per state, telescope frame.
+    door_k : ndarray, shape (S,)
+        Reflectance x sum of the door's weights x pixel area per state, m2.
+    field_radius_deg : float
+        The field's radius, deg (blocks within it add no direct term).
+    pixel_area_m2 : float
+        Detector pixel area, m2.
+    p_lo, p_hi, p_uni, p_iw, p_nb, p_bc, p_nodes, p_nn, p_is, p_s0, p_val
+        The PST's grid (:meth:`GridPack.arrays`; values: one row, the natural log of the PST,
+        over (theta, phi) in deg).
+    d_lo, d_hi, d_uni, d_iw, d_nb, d_bc, d_nodes, d_nn, d_is, d_s0, d_val
+        The door's Sp grids, one row per state.
+    f_lo, f_hi, f_uni, f_iw, f_nb, f_bc, f_nodes, f_nn, f_is, f_s0, f_val
+        The lit-fraction grids, one row per state.
+    has_body : bool
+        False: the lit fraction is 1 everywhere (the f_* grids are not read).
+    lit_at_plane : ndarray, shape (S,)
+        The lit fraction at theta <= 90 deg (where the grid is clipped to its first row) when
+        that row is constant in phi, else -1: a direction in front of the aperture plane then
+        needs no angles for the door's term.
+    direct, door : ndarray, shape (M, J, C)
+        Output: e-/s/pix per photon s-1 m-2 of each lamp, outside the field (EA1 and EA2).
+    """
     n_los, n_sel = state_sel.shape
     n_blocks, n_lamps = lum.shape
     direct[:] = 0.0
@@ -244,7 +290,25 @@ def lamp_bound_sums(los, blocks, lum, cos_field, neg_cos_nodes, pst_row_max, out
     over blocks (K, 3) with ``lum`` (K,) = albedo / pi x cos(lamp zenith) x solid angle x pixel
     area: sum_k lum_k max(PST row maxima at the theta nodes either side of theta_k) over the
     blocks outside the field (cos theta < ``cos_field``), into ``out`` (M,).  In cosines: the
-    node is found in ``neg_cos_nodes`` (minus the cosines of the PST's theta nodes, increasing)."""
+    node is found in ``neg_cos_nodes`` (minus the cosines of the PST's theta nodes, increasing).
+
+    Parameters
+    ----------
+    los : ndarray, shape (M, 3)
+        Lines of sight, unit vectors.
+    blocks : ndarray, shape (K, 3)
+        The lit blocks' unit directions from the satellite.
+    lum : ndarray, shape (K,)
+        albedo / pi x cos(lamp zenith) x solid angle x pixel area, m2.
+    cos_field : float
+        Cosine of the field's radius.
+    neg_cos_nodes : ndarray, shape (T,)
+        Minus the cosines of the PST's theta nodes, increasing.
+    pst_row_max : ndarray, shape (T,)
+        The PST's maximum over phi at each theta node, dimensionless.
+    out : ndarray, shape (M,)
+        Output: the bound, e-/s/pix per photon s-1 m-2 of the lamp.
+    """
     n_th = neg_cos_nodes.size
     for m in range(los.shape[0]):
         lx, ly, lz = los[m, 0], los[m, 1], los[m, 2]

@@ -280,7 +280,24 @@ class EarthshineLUT:
 
     def coordinates(self, sat_km, sun_km, los, runs=None):
         """(r, z_sun, zeta, A) of samples; arrays of the samples' shape; ``runs``: the samples'
-        scene runs when known."""
+        scene runs when known.
+
+        Parameters
+        ----------
+        sat_km, sun_km : ndarray, shape (..., 3)
+            Geocentric ICRS positions of the satellite and the Sun, km.
+        los : ndarray, shape (..., 3)
+            Lines of sight, ICRS unit vectors.
+        runs : SceneRuns, optional
+            The samples' scene runs; None: found here.
+
+        Returns
+        -------
+        r_km, z_sun_deg, zeta_deg, azimuth_deg : ndarray, shape (...)
+            The satellite's geocentric distance (km), the Sun's zenith angle, the line of
+            sight's zenith angle and its azimuth from the Sun's (folded to 0-180 when the table
+            is symmetric), deg.
+        """
         return _lamp_coordinates(sat_km, sun_km, los, self.symmetric, runs=runs)
 
     def sun_coefficients(self, sat_km, sun_km, los, opening_deg, runs=None):
@@ -288,7 +305,24 @@ class EarthshineLUT:
         ``runs``: the samples' scene runs when known.  Samples whose Sun zenith angle lies
         beyond :attr:`dark_sun_zenith_deg` (no sunlit Earth in view: every table node from there
         on is 0, so the interpolation gives exactly 0) get 0 without a look-up: a low orbit's
-        night side, ~40 % of its samples."""
+        night side, ~40 % of its samples.
+
+        Parameters
+        ----------
+        sat_km, sun_km : ndarray, shape (..., 3)
+            Geocentric ICRS positions of the satellite and the Sun, km.
+        los : ndarray, shape (..., 3)
+            Lines of sight, ICRS unit vectors.
+        opening_deg : array_like
+            Each sample's door opening, deg.
+        runs : SceneRuns, optional
+            The samples' scene runs; None: found here.
+
+        Returns
+        -------
+        direct_sun, door_sun : ndarray, shape (...)
+            e-/s/pix per photon s-1 m-2 of the Sun at the satellite, >= 0.
+        """
         sat, sun, los = np.broadcast_arrays(
             np.asarray(sat_km, float), np.asarray(sun_km, float), np.asarray(los, float)
         )
@@ -319,14 +353,24 @@ class EarthshineLUT:
 
     @cached_property
     def dark_sun_zenith_deg(self) -> float:
-        """The Sun zenith angle beyond which the table is 0 (:func:`_dark_lamp_zenith_deg`)."""
+        """The Sun zenith angle beyond which the table is 0, deg (:func:`_dark_lamp_zenith_deg`)."""
         return _dark_lamp_zenith_deg(
             self.sun_zenith_deg, (*self.direct.values(), *self.door.values()), axis=1
         )
 
     def dark_runs(self, rows) -> np.ndarray:
         """Per run of ``rows`` (scene runs of (satellite, Sun)): no sunlit Earth in view, the
-        table 0 (beyond :attr:`dark_sun_zenith_deg`)."""
+        table 0 (beyond :attr:`dark_sun_zenith_deg`).
+
+        Parameters
+        ----------
+        rows : SceneRuns
+            Scene runs of (satellite, Sun) positions, km.
+
+        Returns
+        -------
+        ndarray of bool, shape (runs,)
+        """
         return _beyond_dark_zenith(rows, self.dark_sun_zenith_deg)
 
     def moon_bound(self, sat_km, moon_km, los, earth_radius_km: float, runs=None):
@@ -335,7 +379,24 @@ class EarthshineLUT:
         radius node), x 1.2 for the azimuth between nodes; infinite for a line of sight less
         than 1 deg above the limb or below it (there a grid block can sit next to the field
         edge, where the PST jumps, and no table bounds it).  ``runs``: the samples' scene runs
-        when known."""
+        when known.
+
+        Parameters
+        ----------
+        sat_km, moon_km : ndarray, shape (..., 3)
+            Geocentric ICRS positions of the satellite and the Moon, km.
+        los : ndarray, shape (..., 3)
+            Lines of sight, ICRS unit vectors.
+        earth_radius_km : float
+            The Earth's radius, km.
+        runs : SceneRuns, optional
+            The samples' scene runs; None: found here.
+
+        Returns
+        -------
+        ndarray, shape (...)
+            The bound, e-/s/pix per photon s-1 m-2 of the Moon at the Earth (inf where none).
+        """
         sat, moon, los = np.broadcast_arrays(
             np.asarray(sat_km, float), np.asarray(moon_km, float), np.asarray(los, float)
         )
@@ -367,6 +428,14 @@ class EarthshineLUT:
 
     # -- storage --------------------------------------------------------------------------------
     def save(self, path) -> None:
+        """Write the table to ``path``.
+
+        Parameters
+        ----------
+        path : str or Path
+            The .npz file, written atomically (its axes, one direct and one door table per door
+            state, and the metadata as JSON).
+        """
         _save_tables(
             path,
             {
@@ -389,6 +458,22 @@ class EarthshineLUT:
 
     @classmethod
     def load(cls, path) -> "EarthshineLUT":
+        """Read a table :meth:`save` wrote.
+
+        Parameters
+        ----------
+        path : str or Path
+            A .npz file :meth:`save` wrote.
+
+        Returns
+        -------
+        EarthshineLUT
+
+        Raises
+        ------
+        InputError
+            When the file cannot be read or is not such a table.
+        """
         z, meta, direct, door = _load_tables(path, "earthshine")
         return cls(
             z["radius_km"],
@@ -436,24 +521,66 @@ class MoonlitLUT:
 
     @cached_property
     def dark_moon_zenith_deg(self) -> float:
-        """The Moon zenith angle beyond which the table is 0 (:func:`_dark_lamp_zenith_deg`)."""
+        """The Moon zenith angle beyond which the table is 0, deg (:func:`_dark_lamp_zenith_deg`)."""
         return _dark_lamp_zenith_deg(
             self.moon_zenith_deg, (*self.direct.values(), *self.door.values()), axis=0
         )
 
     def dark_runs(self, rows) -> np.ndarray:
         """Per run of ``rows`` (scene runs of (satellite, Moon)): no moonlit Earth in view, the
-        table 0 (beyond :attr:`dark_moon_zenith_deg`)."""
+        table 0 (beyond :attr:`dark_moon_zenith_deg`).
+
+        Parameters
+        ----------
+        rows : SceneRuns
+            Scene runs of (satellite, Moon) positions, km.
+
+        Returns
+        -------
+        ndarray of bool, shape (runs,)
+        """
         return _beyond_dark_zenith(rows, self.dark_moon_zenith_deg)
 
     def coordinates(self, sat_km, moon_km, frame, runs=None):
         """(Moon zenith, line-of-sight zenith, azimuth from the Moon, roll) of samples, deg;
-        ``runs``: the samples' scene runs when known."""
+        ``runs``: the samples' scene runs when known.
+
+        Parameters
+        ----------
+        sat_km, moon_km : ndarray, shape (..., 3)
+            Geocentric ICRS positions of the satellite and the Moon, km.
+        frame : TelescopeFrame
+            The samples' telescope frames, axes (..., 3).
+        runs : SceneRuns, optional
+            The samples' scene runs; None: found here.
+
+        Returns
+        -------
+        z_moon_deg, zeta_deg, azimuth_deg, roll_deg : ndarray, shape (...)
+            Angles, deg.
+        """
         return _lamp_coordinates(sat_km, moon_km, frame.z, self.symmetric, (frame.x, frame.y), runs)[1:]
 
     def coefficients(self, sat_km, moon_km, frame, opening_deg, runs=None):
         """(direct_moon, door_moon) per unit lunar irradiance at the Earth, outside the field;
-        ``runs``: the samples' scene runs when known."""
+        ``runs``: the samples' scene runs when known.
+
+        Parameters
+        ----------
+        sat_km, moon_km : ndarray, shape (..., 3)
+            Geocentric ICRS positions of the satellite and the Moon, km.
+        frame : TelescopeFrame
+            The samples' telescope frames, axes (..., 3).
+        opening_deg : array_like
+            Each sample's door opening, deg.
+        runs : SceneRuns, optional
+            The samples' scene runs; None: found here.
+
+        Returns
+        -------
+        direct_moon, door_moon : ndarray, shape (...)
+            e-/s/pix per photon s-1 m-2 of the Moon at the Earth, >= 0.
+        """
         zm, zeta, a, roll = self.coordinates(sat_km, moon_km, frame, runs)
         shape = zm.shape
         return _per_door_state(
@@ -461,6 +588,14 @@ class MoonlitLUT:
         )
 
     def save(self, path) -> None:
+        """Write the table to ``path``.
+
+        Parameters
+        ----------
+        path : str or Path
+            The .npz file, written atomically (its axes, one direct and one door table per door
+            state, and the metadata as JSON).
+        """
         _save_tables(
             path,
             {
@@ -482,6 +617,22 @@ class MoonlitLUT:
 
     @classmethod
     def load(cls, path) -> "MoonlitLUT":
+        """Read a table :meth:`save` wrote.
+
+        Parameters
+        ----------
+        path : str or Path
+            A .npz file :meth:`save` wrote.
+
+        Returns
+        -------
+        MoonlitLUT
+
+        Raises
+        ------
+        InputError
+            When the file cannot be read or is not such a table.
+        """
         z, meta, direct, door = _load_tables(path, "moonlit-Earth")
         return cls(
             z["moon_zenith_deg"],

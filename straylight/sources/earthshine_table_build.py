@@ -64,7 +64,20 @@ class LUTSettings:
     """Node spacing (deg).  The Sun's zenith angle is sampled at ``sun_zenith_step_deg`` where the
     terminator crosses the visible cap (60 deg to the cap's edge) and 2.5 times coarser above;
     beyond the cap's edge the cap is dark (one node at 180).  The line of sight's zenith angle at
-    ``los_zenith_step_deg`` above the limb and 2.5 times coarser below it (never observable)."""
+    ``los_zenith_step_deg`` above the limb and 2.5 times coarser below it (never observable).
+
+    Attributes
+    ----------
+    sun_zenith_step_deg, los_zenith_step_deg, azimuth_step_deg : float
+        Node steps, deg, each within [0.05, 30].
+    n_radius : int
+        Radius nodes between the orbit's extremes (1: one node at the mean radius).
+
+    Raises
+    ------
+    InputError
+        When a step is outside [0.05, 30] deg or ``n_radius`` < 1.
+    """
 
     # the defaults validate within the table's share of the tolerance with the default PST (the
     # build's validation, in the products' models record; figures in docs/performance.md); a
@@ -84,12 +97,41 @@ class LUTSettings:
 
     def node_count(self, radius_km: float, earth_radius_km: float, symmetric: bool = True) -> int:
         """Nodes of the table (per door state); ``symmetric``: the instrument mirror-symmetric
-        about the Sun's vertical plane (:func:`mirror_symmetric`: azimuth 0-180 deg, else 0-360)."""
+        about the Sun's vertical plane (:func:`mirror_symmetric`: azimuth 0-180 deg, else 0-360).
+
+        Parameters
+        ----------
+        radius_km : float
+            The orbit's smallest geocentric radius, km (sets the cap's edge).
+        earth_radius_km : float
+            The Earth's radius, km.
+        symmetric : bool
+            Whether the azimuth runs over 0-180 deg only.
+
+        Returns
+        -------
+        int
+        """
         zs, zl, az = self.nodes(radius_km, earth_radius_km, symmetric)
         return zs.size * zl.size * az.size * self.n_radius
 
     def nodes(self, radius_km: float, earth_radius_km: float, symmetric: bool):
-        """(sun zenith, line-of-sight zenith, azimuth) node arrays, deg."""
+        """(sun zenith, line-of-sight zenith, azimuth) node arrays, deg.
+
+        Parameters
+        ----------
+        radius_km : float
+            The orbit's smallest geocentric radius, km (sets the cap's edge).
+        earth_radius_km : float
+            The Earth's radius, km.
+        symmetric : bool
+            Whether the azimuth runs over 0-180 deg only (else 0-360).
+
+        Returns
+        -------
+        sun_zenith_deg, los_zenith_deg, azimuth_deg : ndarray
+            Ascending node arrays, deg.
+        """
         cap = np.degrees(
             np.arccos(earth_radius_km / radius_km)
         )  # the cap's edge beyond nadir, = limb depression
@@ -135,7 +177,26 @@ def _local_scene(R, Z, L, A):
 
 def sun_coefficients_direct(off, R, Z, L, A, state, earth_radius_km):
     """Direct sums in the local frame (vertical +x, the Sun in the x-y plane): radius R (km),
-    Sun zenith Z, line-of-sight zenith L and azimuth A (rad), one door state."""
+    Sun zenith Z, line-of-sight zenith L and azimuth A (rad), one door state.
+
+    Parameters
+    ----------
+    off : OffFieldModel
+        The off-field transfer and Earth grid.
+    R : ndarray, shape (n,)
+        Satellite geocentric radius, km.
+    Z, L, A : ndarray, shape (n,)
+        Sun zenith, line-of-sight zenith and azimuth from the Sun's, rad.
+    state : float
+        The door state (opening), deg, one of ``off.door_states_deg``.
+    earth_radius_km : float
+        The Earth's radius, km.
+
+    Returns
+    -------
+    direct_sun, door_sun : ndarray, shape (n,)
+        e-/s/pix per photon s-1 m-2 of the Sun, outside the field.
+    """
     sat, sun, los = _local_scene(R, Z, L, A)
     d_out, g_out = np.empty(R.size), np.empty(R.size)
     state_index = sorted(off.door_states_deg).index(state)
@@ -230,7 +291,17 @@ def _run_scenes(fn, tasks: list, workers: int, what: str, log=None) -> list:
 
 
 def mirror_symmetric(off) -> bool:
-    """PST(theta, phi) == PST(theta, -phi) and the door shade likewise (sampled check)."""
+    """PST(theta, phi) == PST(theta, -phi) and the door shade likewise (sampled check).
+
+    Parameters
+    ----------
+    off : OffFieldModel
+        The off-field transfer and Earth grid.
+
+    Returns
+    -------
+    bool
+    """
     th = np.r_[np.linspace(0.0, 89.0, 90), np.linspace(91.0, 180.0, 90)][:, None]  # 90: grazing, noise
     ph = np.linspace(0.0, 360.0, 73)[None, :]
     if not np.allclose(off.pst(th, ph), off.pst(th, 360.0 - ph), rtol=1e-9):
@@ -292,7 +363,38 @@ def build_earthshine_lut(
     constraints) the largest |table - direct| / (direct + floor), with ``floor`` the darkest
     sky background in the same units (so the error is a fraction of the total, and a
     pessimistic one).  ``workers`` threads share the scenes (one per core; the sums are
-    compiled, :mod:`straylight.sources.earthshine_kernel`)."""
+    compiled, :mod:`straylight.sources.earthshine_kernel`).
+
+    Parameters
+    ----------
+    off : OffFieldModel
+        The off-field transfer and Earth grid.
+    earth_radius_km : float
+        The Earth's radius, km.
+    radius_range_km : tuple of (float, float)
+        The orbit's smallest and largest geocentric radius, km.
+    settings : LUTSettings
+        The node steps.
+    floor : float
+        The darkest sky, e-/s/pix per photon s-1 m-2 of the Sun at 1 AU; 0: no validation
+        (the error is then NaN).
+    n_validation : int
+        Validation points.
+    avoidance_deg : tuple of float
+        Dark-limb, bright-limb and Sun avoidance angles, deg.
+    workers : int
+        Threads.
+
+    Returns
+    -------
+    EarthshineLUT
+        With ``validation_max_rel_error`` (a fraction of the total) and ``build_seconds``.
+
+    Raises
+    ------
+    InputError
+        When no line of sight is observable with ``avoidance_deg``.
+    """
     import time
 
     t_start = time.perf_counter()
@@ -357,7 +459,18 @@ class MoonlitSettings:
     angle, its azimuth from the Moon's about the vertical, and the roll (the angle about the
     line of sight from its upward vertical to the telescope's +x axis).  The defaults validate
     within the moonlit grid's share of the tolerance at full Moon (:func:`build_moonlit_lut`;
-    figures in docs/performance.md, measured by bench/run.py moonlit_grid)."""
+    figures in docs/performance.md, measured by bench/run.py moonlit_grid).
+
+    Attributes
+    ----------
+    moon_zenith_step_deg, los_zenith_step_deg, azimuth_step_deg, roll_step_deg : float
+        Node steps, deg, each within [0.5, 45].
+
+    Raises
+    ------
+    InputError
+        When a step is outside [0.5, 45] deg.
+    """
 
     moon_zenith_step_deg: float = 5.0
     los_zenith_step_deg: float = 4.0
@@ -372,7 +485,22 @@ class MoonlitSettings:
 
     def nodes(self, radius_km: float, earth_radius_km: float, symmetric: bool):
         """(Moon zenith, line-of-sight zenith, azimuth, roll) node arrays, deg.  Beyond the cap's
-        edge plus one step the Moon lights none of the visible cap (one node at 180)."""
+        edge plus one step the Moon lights none of the visible cap (one node at 180).
+
+        Parameters
+        ----------
+        radius_km : float
+            The orbit's smallest geocentric radius, km (sets the cap's edge).
+        earth_radius_km : float
+            The Earth's radius, km.
+        symmetric : bool
+            Whether the azimuth runs over 0-180 deg only (else 0-360).
+
+        Returns
+        -------
+        moon_zenith_deg, los_zenith_deg, azimuth_deg, roll_deg : ndarray
+            Ascending node arrays, deg.
+        """
         cap = np.degrees(np.arccos(earth_radius_km / radius_km))
 
         hz, hl = self.moon_zenith_step_deg, self.los_zenith_step_deg
@@ -445,12 +573,43 @@ def build_moonlit_lut(
     n_validation: int = 400,
     workers: int = 1,
 ) -> MoonlitLUT:
-    """The moonlit Earth's table on the Earth-cap ``grid``: tabulate, then validate at ``n_validation`` random points whose line of sight is at
-    least ``dark_limb_min_deg`` above the limb (any Moon, roll, radius in the orbit's range
-    and Moon distance from perigee to apogee): the largest |table - direct| x moon_max /
+    """The moonlit Earth's table on the Earth-cap ``grid``: tabulate, then validate at
+    ``n_validation`` random points whose line of sight is at least ``dark_limb_min_deg`` above
+    the limb (any Moon, roll, radius in the orbit's range and Moon distance from perigee to
+    apogee): the largest |table - direct| x moon_max /
     (direct x moon_max + floor), with ``moon_max`` the brightest lunar irradiance (full Moon
     at perigee) and ``floor`` the darkest sky, both per unit solar irradiance at 1 AU: an
-    error as a fraction of the total, at full Moon (a pessimistic one)."""
+    error as a fraction of the total, at full Moon (a pessimistic one).
+
+    Parameters
+    ----------
+    off : OffFieldModel
+        The off-field transfer and Earth grid.
+    earth_radius_km : float
+        The Earth's radius, km.
+    radius_range_km : tuple of (float, float)
+        The orbit's smallest and largest geocentric radius, km (built at their mean).
+    settings : MoonlitSettings
+        The node steps.
+    grid : tuple of (int, int)
+        (n_gamma, n_psi) of the coarse Earth-cap grid.
+    floor : float
+        The darkest sky, e-/s/pix per photon s-1 m-2 of the Sun at 1 AU; 0: no validation
+        (the error is then NaN).
+    moon_max : float
+        The brightest Moon's irradiance over the Sun's at 1 AU, dimensionless.
+    dark_limb_min_deg : float
+        The dark-limb avoidance angle, deg.
+    n_validation : int
+        Validation points.
+    workers : int
+        Threads.
+
+    Returns
+    -------
+    MoonlitLUT
+        With ``validation_max_rel_error`` (a fraction of the total) and ``build_seconds``.
+    """
     import time
 
     t_start = time.perf_counter()
@@ -502,7 +661,20 @@ def build_moonlit_lut(
 
 # -- the cache ------------------------------------------------------------------------------------
 def cache_path(prefix: str, key: str) -> Path:
-    """Where the table ``prefix`` with digest ``key`` is cached (it may not exist yet)."""
+    """Where the table ``prefix`` with digest ``key`` is cached (it may not exist yet).
+
+    Parameters
+    ----------
+    prefix : str
+        The table's kind (``"earthshine_lut"``, ``"moonlit_lut"``).
+    key : str
+        Its digest (:func:`lut_key`, :func:`moonlit_key`).
+
+    Returns
+    -------
+    Path
+        ``<cache dir>/<prefix>_<key>.npz``.
+    """
     return cache_dir() / f"{prefix}_{key}.npz"
 
 
@@ -529,7 +701,19 @@ def lut_key(
     floor: float = 0.0,
     avoidance_deg: tuple = (30.0, 80.0, 50.0),
 ) -> str:
-    """Digest of everything the table depends on (PST, door, cap grid, albedo, radii, nodes)."""
+    """Digest of everything the table depends on (PST, door, cap grid, albedo, radii, nodes).
+
+    Parameters
+    ----------
+    off, earth_radius_km, radius_range_km, settings, floor, avoidance_deg
+        As for :func:`build_earthshine_lut` (radii in km, floor in e-/s/pix per photon s-1 m-2
+        of the Sun at 1 AU, angles in deg).
+
+    Returns
+    -------
+    str
+        16 hex digits.
+    """
     return _digest(
         f"format {LUT_FORMAT}",
         off,
@@ -553,7 +737,19 @@ def moonlit_key(
     moon_max: float,
     dark_limb_min_deg: float,
 ) -> str:
-    """Digest of everything the moonlit table depends on."""
+    """Digest of everything the moonlit table depends on.
+
+    Parameters
+    ----------
+    off, earth_radius_km, radius_range_km, settings, grid, floor, moon_max, dark_limb_min_deg
+        As for :func:`build_moonlit_lut` (radii in km, floor in e-/s/pix per photon s-1 m-2 of
+        the Sun at 1 AU, moon_max dimensionless, angle in deg).
+
+    Returns
+    -------
+    str
+        16 hex digits.
+    """
     return _digest(
         f"moonlit format {MOONLIT_FORMAT}",
         off,
@@ -604,7 +800,27 @@ def load_or_build(
     workers: int = 1,
 ):
     """The table for these inputs from the cache, built (by ``workers`` threads) and stored
-    there if missing."""
+    there if missing.
+
+    Parameters
+    ----------
+    off, earth_radius_km, radius_range_km, settings, floor, avoidance_deg, workers
+        As for :func:`build_earthshine_lut`.
+    log : logging.Logger, optional
+        Announces a build as a warning; None: silent.
+
+    Returns
+    -------
+    lut : EarthshineLUT
+    path : Path
+        Its cache file.
+
+    Raises
+    ------
+    InputError
+        When the cached file is not a valid table, or the build's validation finds no
+        observable line of sight.
+    """
     key = lut_key(off, earth_radius_km, radius_range_km, settings, floor, avoidance_deg)
     expected = (
         LUT_BUILD_SECONDS_PER_NODE
@@ -643,7 +859,26 @@ def load_or_build_moonlit(
     log=None,
     workers: int = 1,
 ):
-    """The moonlit table for these inputs from the cache, built and stored there if missing."""
+    """The moonlit table for these inputs from the cache, built and stored there if missing.
+
+    Parameters
+    ----------
+    off, earth_radius_km, radius_range_km, settings, grid, floor, moon_max, dark_limb_min_deg, workers
+        As for :func:`build_moonlit_lut`.
+    log : logging.Logger, optional
+        Announces a build as a warning; None: silent.
+
+    Returns
+    -------
+    lut : MoonlitLUT
+    path : Path
+        Its cache file.
+
+    Raises
+    ------
+    InputError
+        When the cached file is not a valid table.
+    """
     key = moonlit_key(
         off, earth_radius_km, radius_range_km, settings, grid, floor, moon_max, dark_limb_min_deg
     )

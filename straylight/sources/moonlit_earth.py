@@ -26,7 +26,19 @@ class MoonlitEarth:
     """The moonlit Earth outside the field: its configuration, its table, its bound and its sum.
     ``sunlit``: a function returning the campaign's
     :class:`~straylight.sources.sunlit_earth.SunlitEarth` (whose table decides the path and
-    bounds this one; a function because the sunlit Earth counts this one's table in its build)."""
+    bounds this one; a function because the sunlit Earth counts this one's table in its build).
+
+    Parameters
+    ----------
+    context : SourceContext
+        The campaign's instrument as the sources see it.
+    policy : FidelityPolicy
+        The fidelity policy (tolerance, moonlit shares).
+    build_workers : int
+        Threads that build a missing table.
+    sunlit : callable, optional
+        ``sunlit() -> SunlitEarth``; needed by :meth:`rates`.
+    """
 
     def __init__(self, context: SourceContext, policy, build_workers: int = 1, sunlit=None):
         self.context, self.policy, self.build_workers, self.sunlit = context, policy, build_workers, sunlit
@@ -37,8 +49,13 @@ class MoonlitEarth:
         return tuple(int(n) for n in self.context.campaign.settings.models.earthshine.moonlit_grid)
 
     def settings(self):
-        """The table's :class:`~straylight.sources.earthshine_table_build.MoonlitSettings` from the config,
-        or None when the moonlit Earth is summed directly (moonlit_method = direct)."""
+        """The table's :class:`~straylight.sources.earthshine_table_build.MoonlitSettings` from
+        the config, or None when the moonlit Earth is summed directly (moonlit_method = direct).
+
+        Returns
+        -------
+        MoonlitSettings or None
+        """
         from straylight.sources.earthshine_table_build import MoonlitSettings
 
         es = self.context.campaign.settings.models.earthshine
@@ -54,7 +71,12 @@ class MoonlitEarth:
 
     def node_states(self) -> int:
         """How many (node, door state) pairs the table sums, each a coarse Earth-grid sum; 0
-        with models.earthshine.moonlit_method = direct."""
+        with models.earthshine.moonlit_method = direct.
+
+        Returns
+        -------
+        int
+        """
         from straylight.sources.earthshine_table_build import mirror_symmetric
 
         settings = self.settings()
@@ -87,7 +109,12 @@ class MoonlitEarth:
 
     def lut_path(self) -> Path | None:
         """Where the table of the configured settings is cached (it may not exist yet); None
-        when the moonlit Earth is summed directly."""
+        when the moonlit Earth is summed directly.
+
+        Returns
+        -------
+        Path or None
+        """
         from straylight.sources.earthshine_table_build import cache_path, moonlit_key
 
         settings = self.settings()
@@ -138,7 +165,24 @@ class MoonlitEarth:
         s-1 m-2 of the Moon at the Earth) at flat samples: the sunlit table's
         :meth:`~straylight.sources.earthshine_table.EarthshineLUT.moon_bound`; within 1 deg of the
         limb and below it, where the table has none, the whole cap fully lit at the PST's largest
-        value outside the field."""
+        value outside the field.
+
+        Parameters
+        ----------
+        sunlit_lut : EarthshineLUT
+            The sunlit table.
+        sat_km, moon_km : ndarray, shape (n, 3)
+            Geocentric ICRS positions of the satellite and the Moon, km.
+        los : ndarray, shape (n, 3)
+            Lines of sight, ICRS unit vectors.
+        runs : SceneRuns, optional
+            The samples' scene runs; None: found here.
+
+        Returns
+        -------
+        ndarray, shape (n,)
+            The bound, e-/s/pix per photon s-1 m-2 of the Moon at the Earth (finite).
+        """
         off, re_km = self.context.offfield, self.context.campaign.earth.radius_km
         bound = sunlit_lut.moon_bound(sat_km, moon_km, los, re_km, runs)
         no_bound = ~np.isfinite(bound)
@@ -164,7 +208,25 @@ class MoonlitEarth:
         e-/s/pix, a lower bound of its total) in every band, elsewhere the coarse grid's sum.  With the
         table, samples whose Moon zenith angle lies beyond its ``dark_moon_zenith_deg`` (no
         moonlit Earth in view: the table is 0 there) are left out from the start, bound and all:
-        they would add exactly 0."""
+        they would add exactly 0.
+
+        Parameters
+        ----------
+        samples : Samples
+            The batch of (time, pointing) samples (reads ``moon_lamp``, ``floor``, the
+            satellite, the Sun, the Moon, ``frame``, the door and ``runs``).
+        bands : sequence of str
+            Band names of the instrument (the skip needs the coefficient below its
+            share of the floor in every one).
+
+        Returns
+        -------
+        BandRates
+            ``per_lamp["earthshine_direct"]["moon_at_earth"]`` and
+            ``per_lamp["earthshine_door"]["moon_at_earth"]``: ndarrays of the samples' shape,
+            e-/s/pix per photon s-1 m-2 of the Moon's lamp; empty on the direct sum's path or
+            where every sample is skipped.
+        """
         sunlit_lut = self.sunlit().lut
         if sunlit_lut is None:
             return BandRates()
@@ -245,15 +307,26 @@ class MoonlitEarth:
         )
 
     def record(self, sunlit_table_runs: bool) -> str:
-        """How the moonlit Earth was summed, for a product's attributes."""
+        """How the moonlit Earth was summed, for a product's attributes.
+
+        Parameters
+        ----------
+        sunlit_table_runs : bool
+            Whether the sunlit Earth's table ran (else the direct sum carried the Moon's light).
+
+        Returns
+        -------
+        str
+        """
         if not sunlit_table_runs:
             return "summed directly"
         m = self.model
         return (
-            f"skipped where its bound < {self.policy.moonlit_skip_share:g} x tolerance x the sample's floor, else "
+            f"skipped where its bound < {self.policy.moonlit_skip_share:g} x tolerance x the "
+            "sample's floor, else "
             + (
-                f"from its table of the grid {list(self.grid)} sum (steps {m['lut_steps_deg']} deg, validated "
-                f"{m['lut_validation_max_rel_error']:.2g} of the total at full Moon)"
+                f"from its table of the grid {list(self.grid)} sum (steps {m['lut_steps_deg']} deg, "
+                f"validated {m['lut_validation_max_rel_error']:.2g} of the total at full Moon)"
                 if m["method"] == "lut"
                 else f"summed directly on grid {list(self.grid)}"
             )

@@ -16,10 +16,10 @@ albedo A lit by the Sun (radiance A/pi E_sun cos z_sun) or, on the night side, b
 EA1 = sum E_i Sp_i PST(theta_i, phi_i) (direct; Sp = 0 behind the aperture plane, theta > 90
 deg).  EA2 (door): each door block receives MP_i = sum_b L_b dOmega_b cos(incidence) from the
 Earth blocks in front of its inner face whose ray to it misses the telescope body
-(:meth:`OffFieldModel.door_lit_fraction`) and re-emits as a Lambertian of reflectance r; the aperture points j receive
-L_door A_i cos(e_ij) / d_ij^2 with PST(theta_ij, phi_ij), averaged over the aperture.  This is
-the paper's EA2 = sum_i MP_i r sum_j PST(theta_ij, phi_ij) / d_ij^2 with the block area, the
-emission cosine and 1/pi written out.  The sunlit and moonlit Earth's sources
+(:meth:`OffFieldModel.door_lit_fraction`) and re-emits as a Lambertian of reflectance r; the
+aperture points j receive L_door A_i cos(e_ij) / d_ij^2 with PST(theta_ij, phi_ij), averaged
+over the aperture.  This is the paper's EA2 = sum_i MP_i r sum_j PST(theta_ij, phi_ij) / d_ij^2
+with the block area, the emission cosine and 1/pi written out.  The sunlit and moonlit Earth's sources
 (:mod:`straylight.sources.sunlit_earth`, :mod:`straylight.sources.moonlit_earth`) call this sum or
 its tables (:mod:`straylight.sources.earthshine_table`).
 """
@@ -41,6 +41,29 @@ from straylight.util.gridinterp import LinearGrid
 
 @dataclass
 class EarthshineSettings:
+    """The Earth grid of the earthshine sum and the Earth's and door's reflection.
+
+    Attributes
+    ----------
+    n_gamma : int
+        Nadir-angle blocks of the visible cap (>= 2).
+    n_psi : int
+        Azimuth blocks (>= 4).
+    albedo : float
+        The Earth's grey Lambertian albedo, in [0, 1].
+    door_blocks : tuple of (int, int)
+        Blocks along and across the door plate.
+    door_reflectance : float
+        The door's inner face's Lambertian reflectance, in [0, 1].
+    n_aperture_door : int
+        Aperture points for the door-to-aperture path.
+
+    Raises
+    ------
+    ConfigError
+        When the grid is too coarse or the albedo or reflectance is outside [0, 1].
+    """
+
     n_gamma: int = 24  # nadir-angle blocks of the visible cap
     n_psi: int = 48  # azimuth blocks
     albedo: float = 0.30
@@ -62,7 +85,29 @@ class EarthshineSettings:
 @dataclass
 class OffFieldModel:
     """The off-field transfer of one instrument (PST, door, pixel, field radius) and its Earth
-    grid: e-/s/pix per photon s-1 m-2 at the aperture, band-independent."""
+    grid: e-/s/pix per photon s-1 m-2 at the aperture, band-independent.
+
+    Attributes
+    ----------
+    pst : PST
+        The point source transmittance PST(theta, phi).
+    door : Door
+        The door's geometry (its Sp tables per state).
+    door_states_deg : tuple of float
+        The door's allowed openings, deg.
+    pixel_area_m2 : float
+        Detector pixel area, m2.
+    pixel_etendue_m2_sr : float
+        Aperture area times pixel solid angle, m2 sr (the Earth seen inside the field).
+    field_radius_deg : float
+        Radius of the field of view, deg.
+    earthshine : EarthshineSettings
+        The Earth grid, albedo and door reflection.
+    moon_law : str
+        The Moon's phase law (:func:`~straylight.sources.bodies.moon_v_magnitude`).
+    moon_eclipse_factor : float
+        The eclipsed Moon's brightness over the uneclipsed one's, dimensionless.
+    """
 
     pst: PST
     door: Door
@@ -76,6 +121,7 @@ class OffFieldModel:
 
     @cached_property
     def door_tables(self) -> dict[float, DoorTable]:
+        """Door state (opening, deg) -> its Sp table over (theta, phi)."""
         return {s: self.door.table(s) for s in self.door_states_deg}
 
     @cached_property
@@ -97,7 +143,22 @@ class OffFieldModel:
 
     def door_factor(self, theta_deg, phi_deg, opening_deg) -> np.ndarray:
         """Sp for each sample's door state; the narrowest state when none is allowed (door 0);
-        0 for an opening that is none of the door states."""
+        0 for an opening that is none of the door states.
+
+        Parameters
+        ----------
+        theta_deg, phi_deg : array_like
+            Source directions in the telescope frame (angle from the line of sight, azimuth),
+            deg.
+        opening_deg : array_like
+            Each sample's door opening, deg; broadcast with the angles.
+
+        Returns
+        -------
+        ndarray
+            Sp, the door's unshaded fraction in [0, 1], of the broadcast shape (0 behind the
+            aperture plane, theta > 90 deg).
+        """
         th, ph, op = np.broadcast_arrays(
             np.asarray(theta_deg, float), np.asarray(phi_deg, float), np.asarray(opening_deg, float)
         )
@@ -117,7 +178,25 @@ class OffFieldModel:
         A source inside the field (theta <= field_radius_deg) adds nothing here: it is imaged
         as a point source with its own scattering halo and ghosts (:mod:`straylight.image.detector`),
         not spread as a uniform background (PST = 1 over every pixel); it is reported by
-        :meth:`~straylight.sources.bodies.InFieldBodies.find`."""
+        :meth:`~straylight.sources.bodies.InFieldBodies.find`.
+
+        Parameters
+        ----------
+        irradiance : array_like
+            E, the source's photon irradiance at the aperture, photons s-1 m-2 (1: the
+            transfer itself).
+        theta_deg, phi_deg : array_like
+            The source's direction in the telescope frame, deg.
+        earth_blocked : array_like of bool
+            True where the Earth hides the source (Se = 0).
+        opening_deg : array_like
+            Each sample's door opening, deg.
+
+        Returns
+        -------
+        ndarray
+            e-/s/pix (per photon s-1 m-2 for ``irradiance`` = 1), of the broadcast shape.
+        """
         in_field = np.asarray(theta_deg, float) <= self.field_radius_deg
         th, ph, blocked, op = np.broadcast_arrays(
             theta_deg, phi_deg, np.asarray(earth_blocked, bool) | in_field, opening_deg
@@ -201,7 +280,20 @@ class OffFieldModel:
         front (1).  The aperture plane cuts the blocks near theta = 90 deg, where Sp steps to 0;
         resolving the cut within the block keeps the Earth grid's sum converged there (a block
         counted whole or not at all made the 24 x 48 grid's sum 4-10 % off 85-88 deg from the
-        limb)."""
+        limb).
+
+        Parameters
+        ----------
+        cos_theta : ndarray
+            cos theta of the block's centre (its direction's z in the telescope frame).
+        span_gamma_z, span_psi_z : ndarray
+            The z components of the block's spans in nadir angle and azimuth, broadcastable.
+
+        Returns
+        -------
+        ndarray
+            The fraction in front, in [0, 1], of the broadcast shape.
+        """
         half = 0.5 * (np.abs(span_gamma_z) + np.abs(span_psi_z))
         with np.errstate(divide="ignore", invalid="ignore"):
             f = np.clip(0.5 + 0.5 * cos_theta / half, 0.0, 1.0)
@@ -220,7 +312,22 @@ class OffFieldModel:
 
     @staticmethod
     def lamp_cosines(points_km, sun_km, moon_km, earth_radius_km):
-        """cos(zenith angle) of the Sun and of the Moon at surface points, clipped at 0."""
+        """cos(zenith angle) of the Sun and of the Moon at surface points, clipped at 0.
+
+        Parameters
+        ----------
+        points_km : ndarray, shape (..., G, P, 3)
+            Geocentric ICRS surface points, km.
+        sun_km, moon_km : ndarray, shape (..., 3)
+            Geocentric ICRS positions of the Sun and the Moon, km (the Sun taken at infinity).
+        earth_radius_km : float
+            The Earth's radius, km.
+
+        Returns
+        -------
+        mu_sun, mu_moon : ndarray, shape (..., G, P)
+            cos(zenith angle), clipped at 0.
+        """
         n = points_km / earth_radius_km
         # the Sun is at 23,000 Earth radii: its direction is the same from every point (< 0.003 deg)
         mu_sun = np.maximum(dot(n, unit(sun_km)[..., None, None, :]), 0.0)
@@ -282,7 +389,20 @@ class OffFieldModel:
 
     def door_lit_fraction(self, state: float, theta_deg, phi_deg) -> np.ndarray | float:
         """F of :attr:`_door_lit_fraction` for door state ``state`` at directions (theta, phi),
-        deg (broadcast); 1.0 without a body."""
+        deg (broadcast); 1.0 without a body.
+
+        Parameters
+        ----------
+        state : float
+            The door state (opening), deg, one of :attr:`door_states_deg`.
+        theta_deg, phi_deg : array_like
+            Directions in the telescope frame, deg (theta clipped to [90, 180]).
+
+        Returns
+        -------
+        ndarray or float
+            The lit fraction in [0, 1], of the broadcast shape; 1.0 without a body.
+        """
         tables = self._door_lit_fraction
         if tables is None:
             return 1.0
@@ -293,7 +413,25 @@ class OffFieldModel:
         """Where the line of sight hits the Earth, its surface is imaged like any extended
         source: radiance x pixel etendue.  Returns (per unit solar irradiance, per unit lunar
         irradiance at the Earth), e-/s/pix per photon s-1 m-2, both lamps in one pass over the
-        samples that hit the Earth; 0 elsewhere."""
+        samples that hit the Earth; 0 elsewhere.
+
+        Parameters
+        ----------
+        sat_km : ndarray, shape (..., 3)
+            Geocentric ICRS satellite positions, km.
+        sun_km, moon_km : ndarray, shape (..., 3)
+            Geocentric ICRS positions of the Sun and the Moon, km.
+        frame : TelescopeFrame
+            The samples' telescope frames (``frame.z`` the line of sight).
+        earth_radius_km : float
+            The Earth's radius, km.
+
+        Returns
+        -------
+        per_sun, per_moon : ndarray
+            e-/s/pix per photon s-1 m-2 of the Sun and of the Moon at the Earth, of the
+            samples' broadcast shape.
+        """
         los = np.broadcast_to(frame.z, np.broadcast(np.asarray(sat_km), frame.z).shape)
         sat = np.broadcast_to(np.asarray(sat_km, float), los.shape)
         b = dot(sat, los)
@@ -318,7 +456,24 @@ class OffFieldModel:
         ``grid`` (n_gamma, n_psi) gives for any line of sight, lamp and roll: the whole cap
         fully lit (cos z = 1), at the PST's largest value outside the field, Sp = 1, times the
         grid's own solid angle (so the bound holds for the sum, not only for the integral).
-        ``runs``: the samples' scene runs when known."""
+        ``runs``: the samples' scene runs when known.
+
+        Parameters
+        ----------
+        sat_km : ndarray, shape (n, 3)
+            Geocentric ICRS satellite positions, km.
+        earth_radius_km : float
+            The Earth's radius, km.
+        grid : tuple of (int, int)
+            (n_gamma, n_psi) of the Earth-cap grid.
+        runs : SceneRuns, optional
+            The samples' scene runs; None: found here.
+
+        Returns
+        -------
+        ndarray, shape (n,)
+            The bound, e-/s/pix per photon s-1 m-2 of the lamp (writable).
+        """
         s = replace(self.earthshine, n_gamma=int(grid[0]), n_psi=int(grid[1]))
         # it depends on the satellite's radius alone: once per run of samples sharing the
         # satellite (a cube's time step)
@@ -359,7 +514,34 @@ class OffFieldModel:
         ``in_field=False`` leaves out the line of sight hitting the Earth; ``moon=False`` the
         moonlit terms (zeros), as the look-up table does (:mod:`straylight.sources.earthshine_table`);
         ``sun=False`` the sunlit ones (the table's path sums only the moonlit Earth directly);
-        ``grid`` = (n_gamma, n_psi) replaces the configured Earth-cap grid."""
+        ``grid`` = (n_gamma, n_psi) replaces the configured Earth-cap grid.
+
+        Parameters
+        ----------
+        sat_km : ndarray, shape (..., 3)
+            Geocentric ICRS satellite positions, km.
+        sun_km, moon_km : ndarray, shape (..., 3)
+            Geocentric ICRS positions of the Sun and the Moon, km.
+        frame : TelescopeFrame
+            The samples' telescope frames, axes (..., 3).
+        opening_deg : array_like
+            Each sample's door opening, deg.
+        earth_radius_km : float
+            The Earth's radius, km.
+        in_field : bool
+            Whether to add the Earth seen inside the field (:meth:`earth_in_field`).
+        moon, sun : bool
+            Whether to sum the moonlit and the sunlit terms (else zeros).
+        grid : tuple of (int, int), optional
+            (n_gamma, n_psi) of the Earth-cap grid; None: the configured one.
+
+        Returns
+        -------
+        dict of str to ndarray
+            ``direct_sun``, ``direct_moon``, ``door_sun``, ``door_moon``: arrays of the
+            samples' broadcast shape, e-/s/pix per photon s-1 m-2 of the lamp (the Sun at the
+            satellite, the Moon at the Earth).
+        """
         s = (
             self.earthshine
             if grid is None
@@ -482,7 +664,29 @@ class OffFieldModel:
         """The cap blocks of one scene (satellite, Sun, Moon: (3,) km) lit by either lamp: their
         directions from the satellite, their spans (:meth:`_cap_block_spans`), all (K, 3), and
         their luminance times solid angle per lamp, albedo / pi cos(zenith) dOmega (K, 2: Sun,
-        Moon; sr per unit irradiance)."""
+        Moon; sr per unit irradiance).
+
+        Parameters
+        ----------
+        sat, sun, moon : ndarray, shape (3,)
+            Geocentric ICRS positions of the satellite, the Sun and the Moon, km.
+        earth_radius_km : float
+            The Earth's radius, km.
+        s : EarthshineSettings, optional
+            The Earth grid; None: :attr:`earthshine`.
+        with_sun, with_moon : bool
+            Whether each lamp lights the cap (a lamp left out gives zeros).
+
+        Returns
+        -------
+        directions : ndarray, shape (K, 3)
+            Unit vectors from the satellite to the lit blocks, ICRS.
+        span_gamma, span_psi : ndarray, shape (K, 3)
+            The blocks' spans in nadir angle and in azimuth (dimensionless direction changes).
+        lum : ndarray, shape (K, 2)
+            albedo / pi cos(zenith) dOmega for the Sun and the Moon: radiance per unit
+            irradiance (sr-1) times solid angle (sr), dimensionless.
+        """
         s = s or self.earthshine
         d, d_omega, pts, mu_sun, mu_moon = self._lit_cap(
             sat, earth_radius_km, s, sun, moon, with_sun, with_moon
@@ -509,7 +713,29 @@ class OffFieldModel:
         """(direct, door) coefficients (M, J, 2: lit by the Sun, by the Moon), e-/s/pix per photon
         s-1 m-2 of the lamp, outside the field, for M lines of sight of one scene (``frame``'s
         axes broadcast to (M, 3)) and J door states each (``state_sel`` (M, J): indices into the
-        ascending door states, -1 for none, which gives 0)."""
+        ascending door states, -1 for none, which gives 0).
+
+        Parameters
+        ----------
+        sat, sun, moon : ndarray, shape (3,)
+            Geocentric ICRS positions of the satellite, the Sun and the Moon, km.
+        frame : TelescopeFrame
+            The lines of sight's frames, axes broadcastable to (M, 3).
+        earth_radius_km : float
+            The Earth's radius, km.
+        state_sel : ndarray of int, shape (M, J)
+            Indices into the ascending door states, -1 for none.
+        with_sun, with_moon : bool
+            Whether each lamp lights the cap.
+        s : EarthshineSettings, optional
+            The Earth grid; None: :attr:`earthshine`.
+
+        Returns
+        -------
+        direct, door : ndarray, shape (M, J, 2)
+            e-/s/pix per photon s-1 m-2 of the Sun (``[..., 0]``) and of the Moon at the Earth
+            (``[..., 1]``).
+        """
         blocks, span_g, span_p, lum = self.lit_cap_blocks(
             sat, sun, moon, earth_radius_km, s, with_sun, with_moon
         )
@@ -549,9 +775,10 @@ class OffFieldModel:
     def _kernel_tables(self):
         """What :func:`~straylight.sources.earthshine_kernel.cap_sums` reads, door states ascending:
         the door's inner normals (S, 3), the sum of the door's weights x pixel area per state
-        (times the reflectance: the door term's factor k), the PST's and the Sp tables' grids, and the lit-fraction tables'
-        grids with whether there is a body (else the lit fraction is 1) and their value in front
-        of the aperture plane (:func:`~straylight.sources.earthshine_kernel.cap_sums`)."""
+        (times the reflectance: the door term's factor k), the PST's and the Sp tables' grids,
+        and the lit-fraction tables' grids with whether there is a body (else the lit fraction
+        is 1) and their value in front of the aperture plane
+        (:func:`~straylight.sources.earthshine_kernel.cap_sums`)."""
         from straylight.sources.earthshine_kernel import GridPack
 
         states = sorted(self.door_tables)
@@ -582,7 +809,24 @@ class OffFieldModel:
         (3,), the lamp at infinity) whatever the telescope's roll and door, for lines of sight
         ``los`` (M, 3, unit) from one satellite: radiance albedo/pi cos(z_lamp), the PST at its
         maximum over phi (the larger neighbouring theta row), Sp = 1, summed over the cap's lit
-        blocks (compiled: :func:`~straylight.sources.earthshine_kernel.lamp_bound_sums`)."""
+        blocks (compiled: :func:`~straylight.sources.earthshine_kernel.lamp_bound_sums`).
+
+        Parameters
+        ----------
+        sat : ndarray, shape (3,)
+            Geocentric ICRS satellite position, km.
+        lamp_direction : ndarray, shape (3,)
+            Unit vector towards the lamp, ICRS.
+        los : ndarray, shape (M, 3)
+            Lines of sight, ICRS unit vectors.
+        earth_radius_km : float
+            The Earth's radius, km.
+
+        Returns
+        -------
+        ndarray, shape (M,)
+            The bound, e-/s/pix per photon s-1 m-2 of the lamp.
+        """
         from straylight.sources.earthshine_kernel import lamp_bound_sums
 
         s = self.earthshine
@@ -608,7 +852,30 @@ class OffFieldModel:
     def earthshine_terms(
         self, sat_km, sun_km, moon_km, frame, opening_deg, sun_irr, moon_irr_at_earth, earth_radius_km
     ) -> tuple[np.ndarray, np.ndarray]:
-        """(EA1 direct, EA2 via the door) in e-/s/pix for samples (leading shapes broadcast)."""
+        """(EA1 direct, EA2 via the door) in e-/s/pix for samples (leading shapes broadcast).
+
+        Parameters
+        ----------
+        sat_km : ndarray, shape (..., 3)
+            Geocentric ICRS satellite positions, km.
+        sun_km, moon_km : ndarray, shape (..., 3)
+            Geocentric ICRS positions of the Sun and the Moon, km.
+        frame : TelescopeFrame
+            The samples' telescope frames.
+        opening_deg : array_like
+            Each sample's door opening, deg.
+        sun_irr : array_like
+            The Sun's photon irradiance at the satellite in a band, photons s-1 m-2.
+        moon_irr_at_earth : array_like
+            The Moon's photon irradiance at the Earth in the band, photons s-1 m-2.
+        earth_radius_km : float
+            The Earth's radius, km.
+
+        Returns
+        -------
+        direct, door : ndarray
+            EA1 and EA2, e-/s/pix, of the samples' broadcast shape.
+        """
         c = self.earthshine_coefficients(sat_km, sun_km, moon_km, frame, opening_deg, earth_radius_km)
         return (
             c["direct_sun"] * sun_irr + c["direct_moon"] * moon_irr_at_earth,

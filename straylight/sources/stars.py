@@ -27,7 +27,19 @@ class StarTable:
     """Off-field stars: ``ra_deg, dec_deg, mag_ab`` are summed one by one through the exact
     transfer (Earth, door, PST(theta, phi)); the optional ``faint_*`` stars (fainter than the
     direct limit) enter as a smoothed map, the spherical convolution of their fluxes with the
-    azimuth-averaged PST, evaluated at each line of sight (no Earth or door blocking)."""
+    azimuth-averaged PST, evaluated at each line of sight (no Earth or door blocking).
+
+    Attributes
+    ----------
+    ra_deg, dec_deg : ndarray, shape (S,)
+        ICRS positions of the direct stars, deg.
+    mag_ab : dict of str to ndarray
+        Band -> AB magnitudes (S,), +inf where the star is not a direct star in that band.
+    faint_ra_deg, faint_dec_deg : ndarray, shape (F,)
+        ICRS positions of the faint stars, deg (empty: no faint-star map).
+    faint_mag_ab : dict of str to ndarray
+        Band -> AB magnitudes (F,) of the faint stars, +inf where not faint in that band.
+    """
 
     ra_deg: np.ndarray
     dec_deg: np.ndarray
@@ -45,6 +57,7 @@ class StarTable:
 
     @cached_property
     def faint_unit(self) -> np.ndarray:
+        """ICRS unit vectors of the faint stars (F, 3), computed once; (0, 3) without them."""
         from straylight.sky.vectors import radec_to_unit
 
         if not len(self.faint_ra_deg):
@@ -68,7 +81,18 @@ class StarCells:
     everywhere: np.ndarray  # (stars,) levels 0 .. everywhere - 1 count for the whole sky
 
     def cell_of(self, unit_vectors) -> np.ndarray:
-        """The sky cell of each unit vector (N, 3)."""
+        """The sky cell of each unit vector (N, 3).
+
+        Parameters
+        ----------
+        unit_vectors : ndarray, shape (N, 3)
+            ICRS unit vectors.
+
+        Returns
+        -------
+        ndarray of int, shape (N,)
+            HEALPix ring-order pixel indices at :attr:`nside`.
+        """
         from straylight.util.healpix import healpy
 
         hp = healpy()
@@ -80,7 +104,15 @@ class StarCells:
 class OffFieldStars:
     """The off-field stars' e-/s/pix per band (:meth:`rates`): the direct stars' (sample, star)
     pairs that count (:meth:`pairs`) and the faint stars' map (:meth:`faint_star_rates`).  The
-    skip's knobs are class attributes (a test may set them)."""
+    skip's knobs are class attributes (a test may set them).
+
+    Parameters
+    ----------
+    context : SourceContext
+        The campaign's instrument as the sources see it.
+    policy : FidelityPolicy
+        The fidelity policy (tolerance and the stars_skip share).
+    """
 
     def __init__(self, context: SourceContext, policy):
         self.context, self.policy = context, policy
@@ -88,14 +120,49 @@ class OffFieldStars:
     def rates(self, samples: Samples, bands) -> BandRates:
         """The stars' e-/s/pix per band, (bands, samples flattened): ``samples.stars``' direct
         pairs (skipped per sky cell against ``samples.floor_ratio``), then the faint map
-        (``samples.faint_rates`` when already computed; else computed here); zeros without stars."""
+        (``samples.faint_rates`` when already computed; else computed here); zeros without stars.
+
+        Parameters
+        ----------
+        samples : Samples
+            The batch of (time, pointing) samples (reads ``stars``, ``faint_rates``,
+            ``floor_ratio``, ``frame``, the satellite, the door and ``runs``).
+        bands : sequence of str
+            Band names of the instrument (a band missing from the star table's
+            magnitudes gets no direct stars).
+
+        Returns
+        -------
+        BandRates
+            ``per_band["stars"]``: ndarray, shape (bands, samples flattened), e-/s/pix.
+        """
         stars_e = self.e_per_s(samples, samples.stars, bands, samples.floor_ratio, samples.faint_rates)
         return BandRates(per_band={"stars": stars_e})
 
     def e_per_s(
         self, samples: Samples, stars: StarTable | None, bands, floor_ratio, faint_rates: dict | None = None
     ) -> np.ndarray:
-        """:meth:`rates`' array from its inputs: (bands, samples flattened) e-/s/pix."""
+        """:meth:`rates`' array from its inputs: (bands, samples flattened) e-/s/pix.
+
+        Parameters
+        ----------
+        samples : Samples
+            The batch of samples (reads ``frame``, the satellite, the door and ``runs``).
+        stars : StarTable or None
+            The off-field stars; None: no stars (zeros, unless ``faint_rates`` is given).
+        bands : sequence of str
+            Band names.
+        floor_ratio : float or ndarray
+            Each sample's floor over the darkest zodiacal light, >= 1 (the direct stars' skip).
+        faint_rates : dict of str to ndarray, optional
+            Band -> the faint stars' e-/s/pix at the samples' lines of sight, already computed;
+            None: computed here when ``stars`` has faint stars.
+
+        Returns
+        -------
+        ndarray, shape (len(bands), samples flattened)
+            e-/s/pix.
+        """
         shape = samples.shape
         star_pairs = (
             self.pairs(
@@ -140,7 +207,24 @@ class OffFieldStars:
         they are computed from (lines of sight, stars, fluxes, the PST table, the field and the
         kernel's :data:`FAINT_MAP_FORMAT`), and read back when the same map is asked again: a
         footprint's map (the cube's, a long sum) is the same for every campaign with the same
-        catalog and instrument."""
+        catalog and instrument.
+
+        Parameters
+        ----------
+        stars : StarTable
+            The star table (its faint stars).
+        los : ndarray, shape (..., 3)
+            Lines of sight, ICRS unit vectors.
+        bands : sequence of str
+            Band names; those without faint magnitudes are left out of the result.
+        saved : bool
+            Whether to keep the map on disk and read it back.
+
+        Returns
+        -------
+        dict of str to ndarray
+            Band -> e-/s/pix, of the lines of sight's shape (...).
+        """
         import hashlib
 
         los = np.asarray(los, float)
@@ -171,7 +255,21 @@ class OffFieldStars:
 
     def faint_star_map_saved(self, stars: StarTable, los, bands) -> bool:
         """Whether :meth:`faint_star_rates` (``saved=True``) finds the map of these lines of
-        sight kept on disk, so that asking for it reads a file instead of summing."""
+        sight kept on disk, so that asking for it reads a file instead of summing.
+
+        Parameters
+        ----------
+        stars : StarTable
+            The star table.
+        los : ndarray, shape (..., 3)
+            Lines of sight, ICRS unit vectors.
+        bands : sequence of str
+            Band names.
+
+        Returns
+        -------
+        bool
+        """
         flat, _, star_unit, flux, (ln_pst, slope), grid, area = self._faint_sum_inputs(stars, los, bands)
         return self._saved_faint_map(flat, star_unit, flux, ln_pst, slope, grid, area).exists()
 
@@ -211,7 +309,19 @@ class OffFieldStars:
         """Per direct star, (S,), its e-/s/pix at PST = 1 (Se = Sp = 1) as a fraction of the
         darkest zodiacal light, in the band where that fraction is largest: times the PST's
         bound at a line of sight (:meth:`~straylight.optics.pst.PST.tail_max`), an upper bound of the
-        star's share of any total in every band."""
+        star's share of any total in every band.
+
+        Parameters
+        ----------
+        stars : StarTable
+            The star table (its direct stars).
+
+        Returns
+        -------
+        ndarray, shape (S,)
+            Dimensionless ratio to the darkest zodiacal light (0 for a star in none of the
+            campaign's bands).
+        """
         rel = np.zeros(len(stars.ra_deg))
         for b in self.context.campaign.bands:
             if b in stars.mag_ab:
@@ -253,7 +363,17 @@ class OffFieldStars:
         Each cell's candidates are sorted by the number of levels that need them, so a level's
         candidates are a prefix of the cell's list.  A star that every cell needs at a level (a
         bright star against the darkest floors, or every star at a tiny tolerance) is listed
-        once for the whole sky there instead of in every cell.  Cached on the star table."""
+        once for the whole sky there instead of in every cell.  Cached on the star table.
+
+        Parameters
+        ----------
+        stars : StarTable
+            The star table (its direct stars).
+
+        Returns
+        -------
+        StarCells
+        """
         from straylight.util.healpix import healpy
 
         hp = healpy()
@@ -384,7 +504,31 @@ class OffFieldStars:
         the samples and ``(sample, star, transfer)``: flat sample index, star index, transfer.
 
         Where samples come in runs that share a satellite position (cube time steps) the Earth
-        test runs once per star and step (``runs``: the samples' scene runs when known)."""
+        test runs once per star and step (``runs``: the samples' scene runs when known).
+
+        Parameters
+        ----------
+        stars : StarTable
+            The star table (its direct stars).
+        frame : TelescopeFrame
+            The samples' telescope frames, axes (..., 3).
+        sat : ndarray, shape (..., 3)
+            Geocentric ICRS satellite positions, km.
+        door : array_like
+            Each sample's door opening, deg.
+        floor_ratio : float or array_like
+            Each sample's floor over the darkest zodiacal light, >= 1.
+        runs : SceneRuns, optional
+            The samples' scene runs; None: found here.
+
+        Returns
+        -------
+        shape : tuple
+            The samples' broadcast shape.
+        pairs : tuple of (ndarray, ndarray, ndarray), each shape (P,)
+            Flat sample index (int), star index (int) and transfer (e-/s/pix per photon s-1 m-2
+            of the star at the aperture).
+        """
         s_all = np.ascontiguousarray(stars.unit, dtype=float)  # (S, 3)
         cells = self.star_cells(stars)
         shape = np.broadcast_shapes(np.shape(frame.z)[:-1], np.shape(door), np.shape(sat)[:-1])
@@ -568,7 +712,24 @@ def _star_pairs_kernel(
 def load_offfield_stars(path, bands, mag_limit: float, faint_map: bool = False) -> StarTable:
     """Catalog stars (``stars_csst.parquet`` or any table with ra, dec, mag_<band>), split by
     :func:`split_stars`.  Positions are taken at the catalog epoch: proper motions move bright
-    stars by < 1 arcmin in a century, far below the PST's angular structure."""
+    stars by < 1 arcmin in a century, far below the PST's angular structure.
+
+    Parameters
+    ----------
+    path : str or Path
+        The catalog table.
+    bands : sequence of str
+        Band names to read (``V`` left out).
+    mag_limit : float
+        The direct stars' limit, AB mag (:func:`split_stars`).
+    faint_map : bool
+        Whether the fainter stars make the faint-star map.
+
+    Returns
+    -------
+    StarTable
+        Empty when no band but ``V`` is asked for.
+    """
     from straylight.catalog.star_table import read_star_columns
 
     bands = [b for b in bands if b != "V"]
@@ -583,7 +744,23 @@ def split_stars(ra_deg, dec_deg, mag_by_band: dict, mag_limit: float, faint_map:
     band only those brighter than the limit count; the others get +inf mag there).  With
     ``faint_map`` every other star enters the smoothed faint-star map
     (:meth:`OffFieldStars.faint_star_rates`), so each star counts exactly once in each band;
-    without it they are left out."""
+    without it they are left out.
+
+    Parameters
+    ----------
+    ra_deg, dec_deg : ndarray, shape (S,)
+        ICRS positions, deg.
+    mag_by_band : dict of str to ndarray
+        Band -> AB magnitudes (S,) (non-finite: no magnitude in that band).
+    mag_limit : float
+        The direct stars' limit, AB mag.
+    faint_map : bool
+        Whether the other stars make the faint-star map.
+
+    Returns
+    -------
+    StarTable
+    """
     bands = list(mag_by_band)
     mags = np.array([mag_by_band[b] for b in bands])  # (B, S)
     bright = mags <= mag_limit

@@ -30,14 +30,37 @@ class SunlitEarth:
     """The sunlit Earth's coefficients for a batch of samples (:meth:`rates`), by the model
     :attr:`model` picks.  ``moonlit``: the moonlit Earth, whose table the table path builds
     too (its build is counted in the estimate); ``build_workers``: threads that build a table
-    that is not cached (the result does not depend on it)."""
+    that is not cached (the result does not depend on it).
+
+    Parameters
+    ----------
+    context : SourceContext
+        The campaign's instrument as the sources see it.
+    policy : FidelityPolicy
+        The fidelity policy (tolerance, table shares, build-cost figures).
+    moonlit : MoonlitEarth
+        The moonlit Earth.
+    build_workers : int
+        Threads that build a missing table.
+    """
 
     def __init__(self, context: SourceContext, policy, moonlit, build_workers: int = 1):
         self.context, self.policy, self.moonlit, self.build_workers = context, policy, moonlit, build_workers
 
     def node_states(self, settings) -> int:
         """How many (node, door state) pairs the sunlit table with these
-        :class:`~straylight.sources.earthshine_table_build.LUTSettings` sums, each an Earth-grid sum."""
+        :class:`~straylight.sources.earthshine_table_build.LUTSettings` sums, each an Earth-grid
+        sum.
+
+        Parameters
+        ----------
+        settings : LUTSettings
+            The table's node steps.
+
+        Returns
+        -------
+        int
+        """
         from straylight.sources.earthshine_table_build import mirror_symmetric
 
         c = self.context.campaign
@@ -97,7 +120,12 @@ class SunlitEarth:
 
     def lut_path(self) -> Path:
         """Where the table of :attr:`choice`'s settings is cached (it may not exist yet): the
-        path :func:`~straylight.sources.earthshine_table_build.load_or_build` reads or writes."""
+        path :func:`~straylight.sources.earthshine_table_build.load_or_build` reads or writes.
+
+        Returns
+        -------
+        Path
+        """
         from straylight.sources.earthshine_table_build import cache_path, lut_key
 
         c = self.context
@@ -164,7 +192,24 @@ class SunlitEarth:
     def rates(self, samples: Samples, bands) -> BandRates:
         """The earthshine's coefficients on the ``sun`` and ``moon_at_earth`` lamps, direct
         (``earthshine_direct``) and via the door (``earthshine_door``), arrays of the samples'
-        shape (:meth:`coefficients`)."""
+        shape (:meth:`coefficients`).
+
+        Parameters
+        ----------
+        samples : Samples
+            The batch of (time, pointing) samples (reads the satellite, the Sun, the Moon,
+            ``frame``, the door and ``runs``).
+        bands : sequence of str
+            Band names of the instrument (unused: the coefficients are band-independent).
+
+        Returns
+        -------
+        BandRates
+            ``per_lamp["earthshine_direct"]`` and ``per_lamp["earthshine_door"]``, each with
+            ``"sun"`` (e-/s/pix per photon s-1 m-2 of the Sun at the satellite) and
+            ``"moon_at_earth"`` (e-/s/pix per photon s-1 m-2 of the Moon's lamp): ndarrays of
+            the samples' shape.
+        """
         c = self.coefficients(samples)
         return BandRates(
             per_lamp={
@@ -177,7 +222,21 @@ class SunlitEarth:
         """The earthshine coefficients (:data:`COEFFICIENTS`, arrays of the samples' shape).  The
         direct sum gives every term; the table gives the sunlit Earth, and of the moonlit Earth
         only the part inside the field (the rest: :meth:`MoonlitEarth.rates
-        <straylight.sources.moonlit_earth.MoonlitEarth.rates>`)."""
+        <straylight.sources.moonlit_earth.MoonlitEarth.rates>`).
+
+        Parameters
+        ----------
+        samples : Samples
+            The batch of samples (reads the satellite, the Sun, the Moon, ``frame``, the door
+            and ``runs``).
+
+        Returns
+        -------
+        dict of str to ndarray
+            :data:`COEFFICIENTS` -> array of the samples' shape: ``*_sun`` in e-/s/pix per
+            photon s-1 m-2 of the Sun at the satellite, ``*_moon`` per photon s-1 m-2 of the
+            Moon at the Earth.
+        """
         off, re_km = self.context.offfield, self.context.campaign.earth.radius_km
         sat, sun, moon, frame, door = (
             samples.satellite_km,
@@ -208,7 +267,14 @@ class SunlitEarth:
 
     def record(self) -> dict:
         """The model that ran and its Earth grid, for a product's attributes (JSON-able; the
-        build time left out: products' bytes must not vary run to run)."""
+        build time left out: products' bytes must not vary run to run).
+
+        Returns
+        -------
+        dict
+            :attr:`model`'s keys less the table object, build time and node states, with
+            ``earth_grid`` [n_gamma, n_psi], ``door_blocks`` and ``aperture_points_door``.
+        """
         es = {k: v for k, v in self.model.items() if k not in ("lut", "lut_build_seconds", "lut_node_states")}
         s = self.context.offfield.earthshine
         es["earth_grid"] = [s.n_gamma, s.n_psi]

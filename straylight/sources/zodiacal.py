@@ -53,7 +53,13 @@ def _data_path(name: str) -> Path:
 
 
 def icrs_to_ecliptic_matrix() -> np.ndarray:
-    """Rotation from ICRS (equatorial J2000) to the J2000 mean ecliptic."""
+    """Rotation from ICRS (equatorial J2000) to the J2000 mean ecliptic.
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+        The rotation matrix: ``ecliptic = M @ icrs``.
+    """
     ce, se = np.cos(OBLIQUITY_J2000_RAD), np.sin(OBLIQUITY_J2000_RAD)
     return np.array([[1.0, 0.0, 0.0], [0.0, ce, se], [0.0, -se, ce]])
 
@@ -68,7 +74,18 @@ def _ecliptic_lon_lat_deg(vectors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def ecliptic_lon_lat_deg(vectors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Ecliptic longitude [0, 360) and latitude (deg) of ICRS vectors (..., 3)."""
+    """Ecliptic longitude [0, 360) and latitude (deg) of ICRS vectors (..., 3).
+
+    Parameters
+    ----------
+    vectors : ndarray, shape (..., 3)
+        ICRS vectors (any length, any unit).
+
+    Returns
+    -------
+    lon_deg, lat_deg : ndarray, shape (...)
+        J2000 mean-ecliptic longitude in [0, 360) and latitude in [-90, 90], deg.
+    """
     lon, lat = _ecliptic_lon_lat_deg(vectors)
     return lon % 360.0, lat
 
@@ -78,7 +95,22 @@ def helioecliptic_coordinates(
 ) -> tuple[np.ndarray, np.ndarray]:
     """(|lambda - lambda_sun| in [0, 180], |beta| in [0, 90]) for lines of sight, deg (their
     longitudes' difference folded without a modulo); ``runs``: the samples' scene runs when
-    known (:class:`~straylight.sky.runs.SceneRuns`)."""
+    known (:class:`~straylight.sky.runs.SceneRuns`).
+
+    Parameters
+    ----------
+    los : ndarray, shape (..., 3)
+        Lines of sight, ICRS unit vectors.
+    sun_direction : ndarray, shape (..., 3)
+        Directions to the Sun from the satellite, ICRS unit vectors, broadcastable with ``los``.
+    runs : SceneRuns, optional
+        The samples' scene runs; None: found here.
+
+    Returns
+    -------
+    dlon_deg, beta_deg : ndarray, shape (...)
+        |helioecliptic longitude| in [0, 180] and |ecliptic latitude| in [0, 90], deg.
+    """
     rows = scene_rows(
         sun_direction, runs=runs
     )  # a cube's time step shares the Sun: its longitude once per step
@@ -98,12 +130,38 @@ def helioecliptic_coordinates(
 
 @dataclass(frozen=True)
 class LeinertTable:
+    """Leinert et al. (1998) Table 17: the zodiacal light's brightness at 500 nm over
+    helioecliptic longitude and ecliptic latitude.
+
+    Attributes
+    ----------
+    lon_deg : ndarray, shape (n_lon,)
+        |Helioecliptic longitude| nodes, deg (0-180).
+    lat_deg : ndarray, shape (n_lat,)
+        |Ecliptic latitude| nodes, deg (0-90).
+    values : ndarray, shape (n_lon, n_lat)
+        Brightness at 500 nm, 1e-8 W m-2 sr-1 um-1 (:data:`LEINERT_UNIT_W_M2_SR_UM`);
+        :data:`NO_DATA` where the table has none.
+    """
+
     lon_deg: np.ndarray  # helioecliptic longitude nodes
     lat_deg: np.ndarray  # ecliptic latitude nodes
     values: np.ndarray  # 1e-8 W m-2 sr-1 um-1, NO_DATA where missing
 
     @classmethod
     def load(cls, path: Path | None = None) -> "LeinertTable":
+        """Read the table from its CSV file.
+
+        Parameters
+        ----------
+        path : Path, optional
+            The CSV file (header ``lon_minus_sun_deg,beta_<deg>,...``; ``#`` comments); None: the packaged
+            ``leinert1998_table17.csv``.
+
+        Returns
+        -------
+        LeinertTable
+        """
         path = path or _data_path("leinert1998_table17.csv")
         rows = [ln for ln in Path(path).read_text().splitlines() if ln and not ln.startswith("#")]
         header = rows[0].split(",")
@@ -113,11 +171,13 @@ class LeinertTable:
 
     @cached_property
     def no_data(self) -> np.ndarray:
+        """Bool (n_lon, n_lat): the nodes where the table has no data."""
         return self.values >= NO_DATA
 
     @cached_property
     def filled(self) -> np.ndarray:
-        """No-data nodes replaced by the first valid value at higher latitude in their row."""
+        """(n_lon, n_lat), 1e-8 W m-2 sr-1 um-1: :attr:`values` with no-data nodes replaced by
+        the first valid value at higher latitude in their row."""
         v = self.values.copy()
         for i in range(v.shape[0]):
             for j in range(v.shape[1] - 1, -1, -1):
@@ -135,7 +195,23 @@ class LeinertTable:
 
     def brightness_500nm(self, dlon_deg, beta_deg) -> tuple[np.ndarray, np.ndarray]:
         """Brightness at 500 nm, W m-2 sr-1 um-1, and the no-data flag (any no-data node among
-        the sample's cell corners that carry weight), for |dlon|, |beta| in deg."""
+        the sample's cell corners that carry weight), for |dlon|, |beta| in deg.
+
+        Parameters
+        ----------
+        dlon_deg : array_like
+            Helioecliptic longitude, deg (its absolute value, clipped to [0, 180]).
+        beta_deg : array_like
+            Ecliptic latitude, deg (its absolute value, clipped to [0, 90]), broadcastable with
+            ``dlon_deg``.
+
+        Returns
+        -------
+        brightness : ndarray
+            Brightness at 500 nm, W m-2 sr-1 um-1, of the broadcast shape.
+        no_data : ndarray of bool
+            True where a weighted corner has no data (the value is then a lower bound).
+        """
         dlon = np.clip(np.abs(np.asarray(dlon_deg, dtype=float)), 0.0, 180.0)
         beta = np.clip(np.abs(np.asarray(beta_deg, dtype=float)), 0.0, 90.0)
         both = self._interp(dlon, beta)
@@ -144,12 +220,26 @@ class LeinertTable:
 
 @lru_cache(maxsize=1)
 def leinert_table() -> LeinertTable:
+    """The packaged Leinert (1998) Table 17, read once.
+
+    Returns
+    -------
+    LeinertTable
+    """
     return LeinertTable.load()
 
 
 @lru_cache(maxsize=1)
 def solar_spectrum() -> tuple[np.ndarray, np.ndarray]:
-    """ASTM E490-00a solar spectral irradiance at 1 AU: (wavelength A, W m-2 um-1)."""
+    """ASTM E490-00a solar spectral irradiance at 1 AU: (wavelength A, W m-2 um-1).
+
+    Returns
+    -------
+    wavelength_angstrom : ndarray, shape (n,)
+        Wavelengths, Angstrom.
+    irradiance : ndarray, shape (n,)
+        Spectral irradiance at 1 AU, W m-2 um-1.
+    """
     data = np.loadtxt(_data_path("e490_00a.dat"), comments="#")
     return data[:, 0] * 1.0e4, data[:, 1]
 
@@ -158,7 +248,12 @@ def solar_spectrum() -> tuple[np.ndarray, np.ndarray]:
 def leinert_colour_correction() -> tuple[np.ndarray, np.ndarray]:
     """Leinert Table 19 over the smoothed solar spectrum, normalised to 1 at 500 nm.
 
-    Returns (wavelength_um, factor) at the Table 19 wavelengths.
+    Returns
+    -------
+    wavelength_um : ndarray, shape (n,)
+        The Table 19 wavelengths, um.
+    factor : ndarray, shape (n,)
+        The colour correction, dimensionless, 1 at 500 nm.
     """
     lines = _data_path("leinert1998_table19.csv").read_text().splitlines()
     t19 = np.array(
@@ -179,7 +274,25 @@ def leinert_colour_correction() -> tuple[np.ndarray, np.ndarray]:
 
 @lru_cache(maxsize=4)
 def zodiacal_spectrum_shape(kind: str) -> tuple[np.ndarray, np.ndarray]:
-    """Relative zodiacal spectrum S(lambda)/S(500 nm): (wavelength A, dimensionless)."""
+    """Relative zodiacal spectrum S(lambda)/S(500 nm): (wavelength A, dimensionless).
+
+    Parameters
+    ----------
+    kind : str
+        One of :data:`SPECTRA`: ``"solar_leinert"`` or ``"hst"``.
+
+    Returns
+    -------
+    wavelength_angstrom : ndarray, shape (n,)
+        Wavelengths, Angstrom.
+    shape : ndarray, shape (n,)
+        The spectrum over its mean at 495-505 nm, dimensionless.
+
+    Raises
+    ------
+    ConfigError
+        When ``kind`` is not one of :data:`SPECTRA`.
+    """
     if kind == "solar_leinert":
         wl_a, sun = solar_spectrum()
         wl_cc, cc = leinert_colour_correction()
@@ -203,7 +316,19 @@ _BAND_FACTOR_CACHE: dict = {}
 
 @dataclass(frozen=True)
 class ZodiacalModel:
-    """Zodiacal light per band for one instrument."""
+    """Zodiacal light per band for one instrument.
+
+    Attributes
+    ----------
+    aperture_diameter_m : float
+        Telescope aperture diameter, m.
+    focal_length_m : float
+        Focal length, m.
+    pixel_size_m : float
+        Detector pixel pitch, m.
+    spectrum : str
+        The zodiacal spectrum, one of :data:`SPECTRA`.
+    """
 
     aperture_diameter_m: float
     focal_length_m: float
@@ -211,7 +336,25 @@ class ZodiacalModel:
     spectrum: str = "solar_leinert"
 
     def band_factors(self, band: Band) -> tuple[float, float]:
-        """For B_500 = 1 W m-2 sr-1 um-1: (photons s-1 m-2 sr-1 in band, AB mag/arcsec2)."""
+        """For B_500 = 1 W m-2 sr-1 um-1: (photons s-1 m-2 sr-1 in band, AB mag/arcsec2).
+
+        Parameters
+        ----------
+        band : Band
+            The band (throughput including QE); cached per band and spectrum.
+
+        Returns
+        -------
+        rate_sr : float
+            Photons s-1 m-2 sr-1 (electrons, the throughput including QE) per unit B_500.
+        mag : float
+            AB mag/arcsec2 of B_500 = 1 W m-2 sr-1 um-1.
+
+        Raises
+        ------
+        ConfigError
+            When the band reaches outside the spectrum's wavelength range.
+        """
         key = (band.name, band.origin, hash(np.asarray(band.throughput).tobytes()), self.spectrum)
         if key not in _BAND_FACTOR_CACHE:
             _BAND_FACTOR_CACHE[key] = self._band_factors(band)
@@ -231,17 +374,48 @@ class ZodiacalModel:
 
     @property
     def pixel_etendue_m2_sr(self) -> float:
-        """Aperture area times pixel solid angle: pi D^2 / 4 * (p / f)^2."""
+        """Aperture area times pixel solid angle: pi D^2 / 4 * (p / f)^2, m2 sr."""
         return np.pi * self.aperture_diameter_m**2 / 4.0 * (self.pixel_size_m / self.focal_length_m) ** 2
 
     @staticmethod
     def brightness_500nm(los: np.ndarray, sun_direction: np.ndarray, runs=None):
-        """Band-independent part: (B_500 in W m-2 sr-1 um-1, no-data flag) for the samples."""
+        """Band-independent part: (B_500 in W m-2 sr-1 um-1, no-data flag) for the samples.
+
+        Parameters
+        ----------
+        los : ndarray, shape (..., 3)
+            Lines of sight, ICRS unit vectors.
+        sun_direction : ndarray, shape (..., 3)
+            Directions to the Sun from the satellite, ICRS unit vectors, broadcastable with
+            ``los``.
+        runs : SceneRuns, optional
+            The samples' scene runs; None: found here.
+
+        Returns
+        -------
+        brightness : ndarray, shape (...)
+            B_500, W m-2 sr-1 um-1.
+        no_data : ndarray of bool, shape (...)
+            True where the table has no data near the Sun.
+        """
         dlon, beta = helioecliptic_coordinates(los, sun_direction, runs)
         return leinert_table().brightness_500nm(dlon, beta)
 
     def e_per_s_per_pix(self, band: Band, brightness_500nm) -> np.ndarray:
-        """e-/s/pixel in ``band`` for a 500 nm brightness B_500 (W m-2 sr-1 um-1)."""
+        """e-/s/pixel in ``band`` for a 500 nm brightness B_500 (W m-2 sr-1 um-1).
+
+        Parameters
+        ----------
+        band : Band
+            The band.
+        brightness_500nm : array_like
+            B_500, W m-2 sr-1 um-1.
+
+        Returns
+        -------
+        ndarray
+            e-/s/pix, of ``brightness_500nm``'s shape.
+        """
         return np.asarray(brightness_500nm) * self.band_factors(band)[0] * self.pixel_etendue_m2_sr
 
     def rates(
@@ -250,7 +424,28 @@ class ZodiacalModel:
         """(e-/s/pixel per band, (bands, samples flattened); the no-data flag, the samples' shape)
         for a batch of samples of ``shape``: the 500 nm brightness once, then each
         :class:`~straylight.optics.bandpass.Band` of ``bands``.  Never skipped: it is the floor
-        every skip bound is measured against."""
+        every skip bound is measured against.
+
+        Parameters
+        ----------
+        bands : list of Band
+            The bands.
+        los : ndarray, shape (..., 3)
+            Lines of sight, ICRS unit vectors.
+        sun_direction : ndarray, shape (..., 3)
+            Directions to the Sun from the satellite, ICRS unit vectors.
+        shape : tuple
+            The samples' shape (``los`` and ``sun_direction`` broadcast to it).
+        runs : SceneRuns, optional
+            The samples' scene runs; None: found here.
+
+        Returns
+        -------
+        e_per_s : ndarray, shape (len(bands), prod(shape))
+            e-/s/pix per band.
+        no_data : ndarray of bool, shape ``shape``
+            True where the table has no data near the Sun.
+        """
         b500, no_data = self.brightness_500nm(los, sun_direction, runs)
         e = np.empty((len(bands), int(np.prod(shape))))
         for ib, band in enumerate(bands):
@@ -260,8 +455,22 @@ class ZodiacalModel:
     def evaluate(self, band: Band, los: np.ndarray, sun_direction: np.ndarray) -> dict:
         """Zodiacal light for lines of sight and Sun directions (ICRS vectors, broadcast).
 
-        Returns dict with ``e_per_s_per_pix``, ``mag_per_arcsec2``, ``brightness_500nm_w_m2_sr_um``
-        and ``no_data`` (True where the table has no data near the Sun).
+        Parameters
+        ----------
+        band : Band
+            The band.
+        los : ndarray, shape (..., 3)
+            Lines of sight, ICRS unit vectors.
+        sun_direction : ndarray, shape (..., 3)
+            Directions to the Sun from the satellite, ICRS unit vectors.
+
+        Returns
+        -------
+        dict of str to ndarray
+            Arrays of the broadcast shape: ``e_per_s_per_pix`` (e-/s/pix),
+            ``mag_per_arcsec2`` (AB mag/arcsec2), ``brightness_500nm_w_m2_sr_um`` (B_500,
+            W m-2 sr-1 um-1) and ``no_data`` (bool, True where the table has no data near the
+            Sun).
         """
         b500, flag = self.brightness_500nm(los, sun_direction)
         rate_sr, mag_unit = self.band_factors(band)
@@ -283,7 +492,26 @@ class ZodiacalLight:
 
     def rates(self, samples, bands) -> BandRates:
         """e-/s/pix per band, (bands, samples flattened), and the ``zodiacal_no_data`` flag (True
-        where the Leinert table has no data near the Sun), of the samples' shape."""
+        where the Leinert table has no data near the Sun), of the samples' shape.
+
+        Parameters
+        ----------
+        samples : Samples
+            The batch of (time, pointing) samples (reads ``frame.z``, the Sun and the satellite, ``runs``).
+        bands : sequence of str
+            Band names of the instrument.
+
+        Returns
+        -------
+        BandRates
+            ``per_band["zodiacal"]``: ndarray, shape (bands, samples flattened), e-/s/pix;
+            ``extras["zodiacal_no_data"]``: bool ndarray of the samples' shape.
+
+        Raises
+        ------
+        ConfigError
+            When a band reaches outside the zodiacal spectrum's wavelength range.
+        """
         c = self.context
         e, no_data = c.zodiacal.rates(
             [c.band(name) for name in bands],
@@ -300,7 +528,19 @@ def zodiacal_model_from_instrument(
 ) -> ZodiacalModel:
     """The zodiacal model of the instrument's aperture, focal length and pixel, with the solar
     ``spectrum`` (models.zodiacal_spectrum).  ``instrument``: its typed settings, or its
-    mapping (:func:`~straylight.config.instrument.instrument_settings`)."""
+    mapping (:func:`~straylight.config.instrument.instrument_settings`).
+
+    Parameters
+    ----------
+    instrument : InstrumentSettings or dict
+        The instrument (aperture diameter and focal length in m, pixel size in um).
+    spectrum : str
+        The zodiacal spectrum, one of :data:`SPECTRA`.
+
+    Returns
+    -------
+    ZodiacalModel
+    """
     inst = instrument_settings(instrument)
     return ZodiacalModel(
         aperture_diameter_m=inst.telescope.aperture_diameter_m.value,
