@@ -6,6 +6,7 @@ files: pyproject.toml's package-data).  pyproject.toml's [tool.setuptools] takes
 list (packages.find, which only sees folders under straylight/) or a written one, not a found
 list with mapped packages added: hence this file.
 """
+
 from setuptools import find_packages, setup
 
 MAPPED = {"straylight._config": "config", "straylight._workflow": "workflow"}
