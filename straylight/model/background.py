@@ -391,20 +391,37 @@ def _check_into(into, n_samples: int, n_bands: int, outputs: tuple) -> None:
 def _floor_kernel(dense, coeff, scale, sun_at_1au, darkest, floor, ratio):
     """:meth:`BackgroundModel._floor` per sample: ``floor[band, sample]`` and ``ratio[sample]``:
     the per-band terms added in order, then each lamp's summed coefficient times the band's
-    solar irradiance at 1 AU times the lamp's scale, np.fmax's rule for NaN against ``darkest``."""
-    for i in range(floor.shape[1]):
+    solar irradiance at 1 AU times the lamp's scale, np.fmax's rule for NaN against ``darkest``.
+    Each band's row is built a term at a time (1-D loops the compiler vectorizes)."""
+    n, nb = floor.shape[1], sun_at_1au.shape[0]
+    for ib in range(nb):
+        row, s1 = floor[ib], sun_at_1au[ib]
+        for k in range(dense.shape[0]):
+            src = dense[k, ib]
+            if k == 0:
+                for i in range(n):
+                    row[i] = src[i]
+            else:
+                for i in range(n):
+                    row[i] += src[i]
+        for k in range(coeff.shape[0]):
+            c, sc = coeff[k], scale[k]
+            if k == 0 and dense.shape[0] == 0:
+                for i in range(n):
+                    row[i] = c[i] * (s1 * sc[i])
+            else:
+                for i in range(n):
+                    row[i] += c[i] * (s1 * sc[i])
+        if dense.shape[0] == 0 and coeff.shape[0] == 0:
+            row[:] = 0.0
+        d = darkest[ib]
+        for i in range(n):
+            f = row[i] if row[i] >= d else d  # np.fmax: NaN gives the darkest
+            row[i] = f
+    for i in range(n):
         smallest = np.inf
-        for ib in range(sun_at_1au.shape[0]):
-            s1 = sun_at_1au[ib]
-            partial = 0.0
-            for k in range(dense.shape[0]):
-                partial = dense[k, ib, i] if k == 0 else partial + dense[k, ib, i]
-            for k in range(coeff.shape[0]):
-                term = coeff[k, i] * (s1 * scale[k, i])
-                partial = term if (k == 0 and dense.shape[0] == 0) else partial + term
-            f = partial if partial >= darkest[ib] else darkest[ib]  # np.fmax: NaN gives the darkest
-            floor[ib, i] = f
-            q = f / darkest[ib]
+        for ib in range(nb):
+            q = floor[ib, i] / darkest[ib]
             if q < smallest:
                 smallest = q
         ratio[i] = smallest
