@@ -194,9 +194,11 @@ class BackgroundModel:
         sums, writes, n_rows = _sum_program(self.leaves, names)
         _band_components_kernel(
             terms.dense,
+            terms.n_dense,
             terms.dense_leaf,
             terms.dense_first,
             terms.coeff,
+            terms.n_coeff,
             terms.term_leaf,
             terms.term_lamp,
             terms.term_first,
@@ -236,16 +238,22 @@ class BackgroundModel:
                 for lamp, coeff in part.items():
                     lamp_sums[lamp] = coeff if lamp not in lamp_sums else lamp_sums[lamp] + coeff
         lamps = [lamp for lamp in LAMPS if lamp in lamp_sums]
-        coeff = _flat_rows([lamp_sums[lamp] for lamp in lamps], shape)
-        scale = _flat_rows([scales[lamp] for lamp in lamps], shape)
-        dense_arr = (
-            np.stack([np.asarray(d, float).reshape(len(bands), n) for d in dense])
-            if dense
-            else np.zeros((0, len(bands), n))
-        )
+        coeff = _rows([_flat(lamp_sums[lamp], shape) for lamp in lamps], (n,))
+        scale = _rows([_flat(scales[lamp], shape) for lamp in lamps], (n,))
+        dense_arr = _rows([np.asarray(d, float).reshape(len(bands), n) for d in dense], (len(bands), n))
         darkest = np.array([self.context.darkest_zodiacal_e_per_s(name) for name in bands], float)
         floor, ratio = np.empty((len(bands), n)), np.empty(n)
-        _floor_kernel(dense_arr, coeff, scale, np.asarray(sun_at_1au, float), darkest, floor, ratio)
+        _floor_kernel(
+            dense_arr,
+            len(dense),
+            coeff,
+            len(lamps),
+            scale,
+            np.asarray(sun_at_1au, float),
+            darkest,
+            floor,
+            ratio,
+        )
         return {name: floor[ib].reshape(shape) for ib, name in enumerate(bands)}, ratio.reshape(shape)
 
     def models_record(self) -> dict:
@@ -327,18 +335,30 @@ def _sum_program(leaves: tuple, names) -> tuple:
     return (np.array(sums, np.intp).reshape(-1, 3), np.array(writes, np.intp).reshape(-1, 2), n_rows + 1)
 
 
-def _flat_rows(arrays: list, shape) -> np.ndarray:
-    """float64 (len(arrays), prod(shape)): each array broadcast to ``shape`` and flattened."""
-    n = int(np.prod(shape))
-    out = np.empty((len(arrays), n))
-    for k, a in enumerate(arrays):
-        out[k] = np.broadcast_to(np.asarray(a, float), shape).ravel()
-    return out
+def _rows(arrays: list, shape: tuple) -> tuple:
+    """The arrays as a tuple for a compiled kernel: each float64, C-contiguous, writable, of
+    ``shape`` (broadcast, and copied only where it is not so already); an empty list gives one
+    zero array (the kernels take the count apart)."""
+    out = []
+    for a in arrays:
+        a = np.asarray(a, float)
+        if not (a.shape == tuple(shape) and a.flags.c_contiguous and a.flags.writeable):
+            a = np.ascontiguousarray(np.broadcast_to(a, shape))
+            a = a if a.flags.writeable else a.copy()
+        out.append(a)
+    return tuple(out) if out else (np.zeros(shape),)
+
+
+def _flat(a, shape: tuple) -> np.ndarray:
+    """``a`` broadcast to the samples' ``shape`` and flattened (a view where it can be)."""
+    a = np.asarray(a, float)
+    return a.reshape(-1) if a.shape == tuple(shape) else np.broadcast_to(a, shape).reshape(-1)
 
 
 class _Terms:
-    """The sources' rates as the band kernel's arrays: the per-band terms, (terms, bands,
-    samples), and the per-lamp coefficients, (terms, samples), each with the leaf (component or
+    """The sources' rates as the band kernel's arrays: the per-band terms, a tuple of (bands,
+    samples) arrays, and the per-lamp coefficients, a tuple of (samples,) arrays (views of the
+    sources' arrays where they can be), each with the leaf (component or
     part) it adds to and whether it is that leaf's first term (which sets it; the others add,
     per-band terms before per-lamp ones, lamps in :data:`LAMPS` order).  Coefficients of several
     sources for one leaf and lamp are added first, in registry order."""
@@ -359,19 +379,19 @@ class _Terms:
         keys = sorted(lamp_coeff, key=lambda k: (leaves.index(k[0]), LAMPS.index(k[1])))
         lamps = [lamp for lamp in LAMPS if any(k[1] == lamp for k in keys)]
         nb = dense[0].shape[0] if dense else 0
-        self.dense = (
-            np.stack([np.asarray(d, float).reshape(nb, n) for d in dense]) if dense else np.zeros((0, 1, n))
-        )
+        self.dense = _rows([np.asarray(d, float).reshape(nb, n) for d in dense], (nb, n))
+        self.n_dense = len(dense)
         self.dense_leaf = np.array(dense_leaf, np.intp)
         seen = set()
         self.dense_first = np.array([not (leaf in seen or seen.add(leaf)) for leaf in dense_leaf], np.bool_)
-        self.coeff = _flat_rows([lamp_coeff[k] for k in keys], shape)
+        self.coeff = _rows([_flat(lamp_coeff[k], shape) for k in keys], (n,))
+        self.n_coeff = len(keys)
         self.term_leaf = np.array([leaves.index(k[0]) for k in keys], np.intp)
         self.term_lamp = np.array([lamps.index(k[1]) for k in keys], np.intp)
         self.term_first = np.array(
             [not (leaf in seen or seen.add(leaf)) for leaf in self.term_leaf.tolist()], np.bool_
         )
-        self.scales = _flat_rows([scales[lamp] for lamp in lamps], shape)
+        self.scales = _rows([_flat(scales[lamp], shape) for lamp in lamps], (n,))
 
 
 def _check_into(into, n_samples: int, n_bands: int, outputs: tuple) -> None:
@@ -388,7 +408,7 @@ def _check_into(into, n_samples: int, n_bands: int, outputs: tuple) -> None:
 
 
 @njit(cache=True, nogil=True)
-def _floor_kernel(dense, coeff, scale, sun_at_1au, darkest, floor, ratio):
+def _floor_kernel(dense, n_dense, coeff, n_coeff, scale, sun_at_1au, darkest, floor, ratio):
     """:meth:`BackgroundModel._floor` per sample: ``floor[band, sample]`` and ``ratio[sample]``:
     the per-band terms added in order, then each lamp's summed coefficient times the band's
     solar irradiance at 1 AU times the lamp's scale, np.fmax's rule for NaN against ``darkest``.
@@ -396,23 +416,23 @@ def _floor_kernel(dense, coeff, scale, sun_at_1au, darkest, floor, ratio):
     n, nb = floor.shape[1], sun_at_1au.shape[0]
     for ib in range(nb):
         row, s1 = floor[ib], sun_at_1au[ib]
-        for k in range(dense.shape[0]):
-            src = dense[k, ib]
+        for k in range(n_dense):
+            src = dense[k][ib]
             if k == 0:
                 for i in range(n):
                     row[i] = src[i]
             else:
                 for i in range(n):
                     row[i] += src[i]
-        for k in range(coeff.shape[0]):
+        for k in range(n_coeff):
             c, sc = coeff[k], scale[k]
-            if k == 0 and dense.shape[0] == 0:
+            if k == 0 and n_dense == 0:
                 for i in range(n):
                     row[i] = c[i] * (s1 * sc[i])
             else:
                 for i in range(n):
                     row[i] += c[i] * (s1 * sc[i])
-        if dense.shape[0] == 0 and coeff.shape[0] == 0:
+        if n_dense == 0 and n_coeff == 0:
             row[:] = 0.0
         d = darkest[ib]
         for i in range(n):
@@ -435,9 +455,11 @@ KERNEL_BLOCK_SAMPLES = 256
 @njit(cache=True, nogil=True)
 def _band_components_kernel(
     dense,
+    n_dense,
     dense_row,
     dense_first,
     coeff,
+    n_coeff,
     term_row,
     term_lamp,
     term_first,
@@ -451,9 +473,10 @@ def _band_components_kernel(
     """Every band's components (e-/s/pix) per sample.
 
     Rows of values per band and sample: a row (a leaf: a component's part, or a component
-    without parts) is its per-band terms (``dense`` (terms, bands, samples), to row
-    ``dense_row``) then its lamp terms (``coeff[k, sample] * (sun_at_1au[band] *
-    scales[term_lamp[k], sample])``, to ``term_row``), the first setting it; then ``sums``
+    without parts) is its per-band terms (the first ``n_dense`` of the tuple ``dense`` of (bands,
+    samples) arrays, to row ``dense_row``) then its lamp terms (``coeff[k][sample] *
+    (sun_at_1au[band] * scales[term_lamp[k]][sample])``, the first ``n_coeff``, to ``term_row``),
+    the first setting it; then ``sums``
     (src, dst, first) add rows into others in order (parts into their component, components
     into the total), and ``writes`` (row, slot) copy row into ``out[slot, sample, band]`` (any
     float dtype and strides).  Each sample's arithmetic is fixed, so the float64 values do not
@@ -464,17 +487,17 @@ def _band_components_kernel(
     buf = np.zeros((n_rows, nb, blk))  # a row no term reaches stays 0
     for i0 in range(0, n, blk):
         m = min(blk, n - i0)
-        for k in range(dense.shape[0]):
+        for k in range(n_dense):
             for ib in range(nb):
-                src, row = dense[k, ib, i0 : i0 + m], buf[dense_row[k], ib]
+                src, row = dense[k][ib, i0 : i0 + m], buf[dense_row[k], ib]
                 if dense_first[k]:
                     for j in range(m):
                         row[j] = src[j]
                 else:
                     for j in range(m):
                         row[j] += src[j]
-        for k in range(coeff.shape[0]):
-            c, scale = coeff[k, i0 : i0 + m], scales[term_lamp[k], i0 : i0 + m]
+        for k in range(n_coeff):
+            c, scale = coeff[k][i0 : i0 + m], scales[term_lamp[k]][i0 : i0 + m]
             for ib in range(nb):
                 s1, row = sun_at_1au[ib], buf[term_row[k], ib]
                 if term_first[k]:
