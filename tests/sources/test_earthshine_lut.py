@@ -616,6 +616,7 @@ def test_cube_region_split_into_calls_gives_the_same_values(coarse, monkeypatch)
     """A region evaluated in several calls (a small SAMPLES_PER_EVALUATION) equals the region in
     one call, value for value: each sample depends on that sample alone."""
     import straylight.survey.cube_region as cube
+    from straylight.survey import cube_layout
     from straylight.survey.footprint import footprint_from_config
 
     c, cm, _ = coarse
@@ -626,7 +627,7 @@ def test_cube_region_split_into_calls_gives_the_same_values(coarse, monkeypatch)
         cube, "SAMPLES_PER_EVALUATION", 150
     )  # 7 steps of 60 pixels: calls of 1, 2, 2, 2 steps
     split = cube.compute_region(c, fp, t_slice, p_slice, model=cm)
-    for name in list(cube.CUBE_COMPONENTS) + ["total", "observable", "violations", "door_opening_deg"]:
+    for name in list(cube_layout.CUBE_COMPONENTS) + ["total", "observable", "violations", "door_opening_deg"]:
         np.testing.assert_array_equal(split[name].values, whole[name].values, err_msg=name)
     assert np.count_nonzero(whole["total"].values) == whole["total"].size
 
@@ -636,6 +637,7 @@ def test_cube_region_with_its_time_blocks_scene_gives_the_same_values(coarse):
     all its pixel blocks) equals one that computes its own; a scene at other times is refused."""
     import straylight.survey.cube_region as cube
     from straylight.sky.observing import scene
+    from straylight.survey import cube_layout
     from straylight.survey.footprint import footprint_from_config
 
     c, cm, _ = coarse
@@ -645,7 +647,7 @@ def test_cube_region_with_its_time_blocks_scene_gives_the_same_values(coarse):
     for p_slice in (slice(0, 40), slice(300, 340)):
         own = cube.compute_region(c, fp, t_slice, p_slice, model=cm)
         shared = cube.compute_region(c, fp, t_slice, p_slice, model=cm, scene=block_scene)
-        for name in list(cube.CUBE_COMPONENTS) + ["total", "observable", "door_opening_deg"]:
+        for name in list(cube_layout.CUBE_COMPONENTS) + ["total", "observable", "door_opening_deg"]:
             np.testing.assert_array_equal(shared[name].values, own[name].values, err_msg=name)
     with pytest.raises(ValueError, match="not at the region's"):
         cube.compute_region(c, fp, slice(1, 13, 4), slice(0, 40), model=cm, scene=block_scene)
