@@ -4,18 +4,25 @@ batch of samples (:class:`~straylight.sources.context.Samples`), and, for those 
 the scene's brighter light swamps them, the upper bound the skip is decided on.
 
 - ``zodiacal``: zodiacal light in the field (Leinert 1998 table), never skipped.
-- ``bodies``: the Sun (never skipped), the Moon and the planets (skipped on a PST bound), and
-  the same bodies inside the field, which the background leaves out (imaged as point sources);
-  the Moon's and planets' brightness laws and distances.
+- ``bodies``: the Sun (never skipped), the Moon (skipped on a PST bound), and the Sun, Moon and
+  planets inside the field, which the background leaves out (imaged as point sources).
+- ``planets``: the planets (skipped on a PST bound, like the Moon).
+- ``body_magnitudes``: the Moon's and planets' brightness laws and the Moon's distances.
 - ``stars``: off-field catalog stars, the bright ones pair by pair (skipped per sky cell on a
   bound), the faint ones as a smoothed map.
 - ``sunlit_earth``: the sunlit Earth (direct and via the door), its direct sum or its table.
 - ``moonlit_earth``: the moonlit Earth on the table's path (skipped on a bound, else a coarse
   grid, tabulated or summed).
-- ``earthshine_table``: the two earthshine tables, read and looked up (and the moonlit bound).
-- ``earthshine_table_build``: their nodes, build, validation against the direct sum and cache.
+- ``earthshine_table``: the sunlit Earth's table, read and looked up (and the moonlit bound).
+- ``moonlit_table``: the moonlit Earth's table, read and looked up.
+- ``earthshine_table_lookup``: what the two tables share (coordinates, interpolation, files).
+- ``earthshine_table_nodes``: the two tables' nodes and cache keys.
+- ``earthshine_table_build``, ``moonlit_table_build``: each table's build, validation against
+  the direct sum and cache.
 - ``offfield``: what the off-field sources share: the transfer (Se Sp PST x pixel area) and the
-  Earth-grid sum (the sunlit and moonlit Earth summed directly over the visible cap).
+  Earth-grid sum (the sunlit and moonlit Earth summed directly over the visible cap), which it
+  inherits from ``offfield_cap`` (the Earth grid's settings, the cap grid and its bound) and
+  ``offfield_earthshine`` (the sums).
 - ``photometry``: band photometry (solar and AB irradiances, magnitudes per arcsec2).
 - ``context``: the campaign's instrument as every source sees it, and the batch of samples.
 

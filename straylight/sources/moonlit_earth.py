@@ -2,7 +2,7 @@
 ~1e-5 of the sunlit Earth, so it is skipped where its upper bound (:meth:`MoonlitEarth.bound`)
 times the Moon's irradiance stays below the moonlit_earthshine_skip budget of the sample's
 floor, and elsewhere summed on a coarse Earth grid (models.earthshine.moonlit_grid), from its
-own table (:class:`~straylight.sources.earthshine_table.MoonlitLUT`, models.earthshine.moonlit_method
+own table (:class:`~straylight.sources.moonlit_table.MoonlitLUT`, models.earthshine.moonlit_method
 = lut, when it validates within the moonlit_earthshine_grid budget) or directly.  On the direct
 sum's path the sunlit Earth's grid carries the Moon's light too (:mod:`straylight.sources.sunlit_earth`)."""
 
@@ -16,7 +16,7 @@ import numpy as np
 
 from straylight.sky.frames import TelescopeFrame
 from straylight.sky.runs import rows_at, scene_rows
-from straylight.sources.bodies import MOON_PERIGEE_KM, moon_v_magnitude
+from straylight.sources.body_magnitudes import MOON_PERIGEE_KM, moon_v_magnitude
 from straylight.sources.context import Samples, SourceContext
 from straylight.sources.photometry import solar_like_fraction
 from straylight.sources.rates import BandRates
@@ -49,14 +49,14 @@ class MoonlitEarth:
         return tuple(int(n) for n in self.context.campaign.settings.models.earthshine.moonlit_grid)
 
     def settings(self):
-        """The table's :class:`~straylight.sources.earthshine_table_build.MoonlitSettings` from
+        """The table's :class:`~straylight.sources.earthshine_table_nodes.MoonlitSettings` from
         the config, or None when the moonlit Earth is summed directly (moonlit_method = direct).
 
         Returns
         -------
         MoonlitSettings or None
         """
-        from straylight.sources.earthshine_table_build import MoonlitSettings
+        from straylight.sources.earthshine_table_nodes import MoonlitSettings
 
         es = self.context.campaign.settings.models.earthshine
         if es.moonlit_method == "direct":
@@ -77,7 +77,7 @@ class MoonlitEarth:
         -------
         int
         """
-        from straylight.sources.earthshine_table_build import mirror_symmetric
+        from straylight.sources.earthshine_table_nodes import mirror_symmetric
 
         settings = self.settings()
         if settings is None:
@@ -88,7 +88,7 @@ class MoonlitEarth:
         return int(np.prod([a.size for a in nodes])) * len(c.offfield.door_states_deg)
 
     def _table_inputs(self, settings) -> tuple:
-        """The arguments of :func:`~straylight.sources.earthshine_table_build.load_or_build_moonlit` (and of
+        """The arguments of :func:`~straylight.sources.moonlit_table_build.load_or_build_moonlit` (and of
         its cache key) before the logger: the model, the Earth, the orbit, the settings, the grid,
         the darkest sky and the brightest Moon (full, at perigee) per unit solar irradiance at
         1 AU, and the dark-limb angle."""
@@ -115,7 +115,7 @@ class MoonlitEarth:
         -------
         Path or None
         """
-        from straylight.sources.earthshine_table_build import cache_path, moonlit_key
+        from straylight.sources.earthshine_table_nodes import cache_path, moonlit_key
 
         settings = self.settings()
         return (
@@ -132,7 +132,7 @@ class MoonlitEarth:
         total) is within the moonlit grid's share of the tolerance, else (or with 'direct') the
         coarse grid's direct sum.  Keys: method, lut, and for the table its file, validated error
         and steps."""
-        from straylight.sources.earthshine_table_build import load_or_build_moonlit
+        from straylight.sources.moonlit_table_build import load_or_build_moonlit
 
         settings = self.settings()
         if settings is None:

@@ -49,7 +49,7 @@ class SunlitEarth:
 
     def node_states(self, settings) -> int:
         """How many (node, door state) pairs the sunlit table with these
-        :class:`~straylight.sources.earthshine_table_build.LUTSettings` sums, each an Earth-grid
+        :class:`~straylight.sources.earthshine_table_nodes.LUTSettings` sums, each an Earth-grid
         sum.
 
         Parameters
@@ -61,7 +61,7 @@ class SunlitEarth:
         -------
         int
         """
-        from straylight.sources.earthshine_table_build import mirror_symmetric
+        from straylight.sources.earthshine_table_nodes import mirror_symmetric
 
         c = self.context.campaign
         r = c.orbit_radius_range_km
@@ -73,12 +73,12 @@ class SunlitEarth:
     def choice(self) -> dict:
         """Which model :attr:`model` will run, decided without building anything (``straylight
         plan`` reads it).  Keys: method ('lut' or 'direct'), requested (models.earthshine.method),
-        reason, settings (:class:`~straylight.sources.earthshine_table_build.LUTSettings`), node_states and
+        reason, settings (:class:`~straylight.sources.earthshine_table_nodes.LUTSettings`), node_states and
         build_seconds_estimate (the sunlit table's build plus the moonlit one's,
         moonlit_build_seconds_estimate, at the policy's cost figures; 0 for 'direct' by config).
         With 'auto' the table still falls back to the direct sum when its validated error,
         known once it is built, exceeds its share of the tolerance."""
-        from straylight.sources.earthshine_table_build import LUTSettings
+        from straylight.sources.earthshine_table_nodes import LUTSettings
 
         es = self.context.campaign.settings.models.earthshine
         method = es.method
@@ -126,7 +126,7 @@ class SunlitEarth:
         -------
         Path
         """
-        from straylight.sources.earthshine_table_build import cache_path, lut_key
+        from straylight.sources.earthshine_table_nodes import cache_path, lut_key
 
         c = self.context
         key = lut_key(

@@ -14,7 +14,8 @@ from straylight.config import campaign_from_dict
 from straylight.model import BackgroundModel
 from straylight.sky.frames import telescope_frame
 from straylight.sources.earthshine_table import EarthshineLUT
-from straylight.sources.earthshine_table_build import LUTSettings, build_earthshine_lut, lut_key
+from straylight.sources.earthshine_table_build import build_earthshine_lut
+from straylight.sources.earthshine_table_nodes import LUTSettings, lut_key
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
 from _samples import random_samples  # noqa: E402
@@ -354,7 +355,7 @@ def test_automatic_choice(coarse, campaign):
 def test_build_estimate_counts_both_tables(coarse):
     """The build's estimate (plan, the build's announcement): the sunlit table's (node, door
     state) pairs and the moonlit table's, each at its per-node figure (earthshine_lut.*_PER_NODE)."""
-    from straylight.sources import earthshine_table_build as lut_mod
+    from straylight.sources import earthshine_table_nodes as lut_mod
 
     c, _, _ = coarse
     raw = copy.deepcopy(c.config)
@@ -402,8 +403,8 @@ def test_moonlit_table_reproduces_the_coarse_sum_at_its_nodes(moonlit):
     """At a node (Moon zenith, line-of-sight zenith, azimuth, roll) the table returns the coarse
     grid's direct sum it stored, for every door state: the table's coordinates invert the
     scene it was built from (including the roll, measured from the upward vertical)."""
-    from straylight.sources.bodies import MOON_MEAN_DISTANCE_KM
-    from straylight.sources.earthshine_table_build import _moonlit_scene
+    from straylight.sources.body_magnitudes import MOON_MEAN_DISTANCE_KM
+    from straylight.sources.moonlit_table_build import _moonlit_scene
 
     c, cm, lut = moonlit
     off = cm.context.offfield
@@ -444,7 +445,7 @@ def test_moonlit_table_matches_the_coarse_sum_in_real_scenes(moonlit):
     the error taken at full Moon at perigee as a fraction of the total (the table's validation
     measure; its recorded validation, 400 random scenes, within the same share)."""
     from straylight.model import ERROR_BUDGET_SHARES
-    from straylight.sources.bodies import MOON_PERIGEE_KM, moon_v_magnitude
+    from straylight.sources.body_magnitudes import MOON_PERIGEE_KM, moon_v_magnitude
     from straylight.sources.photometry import solar_like_fraction
 
     c, cm, lut = moonlit
@@ -486,7 +487,7 @@ def test_moonlit_table_is_finite_at_the_singular_directions(moonlit):
 
 
 def test_moonlit_table_save_load_round_trip(moonlit, tmp_path):
-    from straylight.sources.earthshine_table import MoonlitLUT
+    from straylight.sources.moonlit_table import MoonlitLUT
 
     c, cm, lut = moonlit
     p = tmp_path / "m.npz"
@@ -509,7 +510,7 @@ def test_a_batch_of_time_steps_equals_each_step_alone(coarse):
     from straylight.sky.observing import scene
     from straylight.sky.runs import SceneRuns
     from straylight.sky.vectors import radec_to_unit
-    from straylight.sources.stars import split_stars
+    from straylight.sources.stars_table import split_stars
 
     c, cm, _ = coarse
     rng = np.random.default_rng(11)
