@@ -25,7 +25,7 @@ from straylight.sources.bodies import InFieldBodies, SolarBodySkip
 from straylight.sources.context import Samples, SourceContext
 from straylight.sources.photometry import magnitude_per_arcsec2
 from straylight.sources.rates import LAMPS
-from straylight.sources.stars import StarTable
+from straylight.sources.stars_table import StarTable
 
 
 class BackgroundModel:
@@ -118,7 +118,7 @@ class BackgroundModel:
         bodies_km : dict of str to array_like
             Body -> geocentric ICRS position (..., 3), km: at least the Sun and the Moon; each
             planet in it is a source where it can count
-            (:class:`~straylight.sources.bodies.Planets`).
+            (:class:`~straylight.sources.planets.Planets`).
         los : array_like, shape (..., 3)
             Unit lines of sight, ICRS.
         geometry : dict

@@ -138,7 +138,7 @@ def _moon(model):
 
 
 def _planets(model):
-    from straylight.sources.bodies import Planets
+    from straylight.sources.planets import Planets
 
     return Planets(model.context, model.body_skip)
 

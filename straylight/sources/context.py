@@ -17,7 +17,8 @@ from straylight.optics.door import door_from_instrument
 from straylight.optics.pst import load_pst
 from straylight.sky.frames import TelescopeFrame
 from straylight.sky.vectors import norm
-from straylight.sources.offfield import EarthshineSettings, OffFieldModel
+from straylight.sources.offfield import OffFieldModel
+from straylight.sources.offfield_cap import EarthshineSettings
 from straylight.sources.photometry import AU_KM, BandPhotometry
 from straylight.sources.zodiacal import ZodiacalModel, zodiacal_model_from_instrument
 
@@ -30,7 +31,7 @@ class Samples:
     (:func:`~straylight.sky.observing.observing_geometry`'s: the Sun's and the Moon's angles,
     the door's state), ``runs``: the samples' scene runs when the caller knows them
     (:class:`~straylight.sky.runs.SceneRuns`, e.g. a cube's time steps), else None;
-    ``stars``: the off-field stars (a :class:`~straylight.sources.stars.StarTable`, or None:
+    ``stars``: the off-field stars (a :class:`~straylight.sources.stars_table.StarTable`, or None:
     no stars); ``faint_rates``: the faint stars' map at these lines of sight, band -> e-/s/pix,
     when already computed.
 

@@ -24,7 +24,7 @@ import numpy as np
 
 from straylight.config import Campaign
 from straylight.model import BackgroundModel
-from straylight.sources.bodies import MOON_MEAN_DISTANCE_KM, moon_v_magnitude
+from straylight.sources.body_magnitudes import MOON_MEAN_DISTANCE_KM, moon_v_magnitude
 from straylight.survey.limits import SNR, survey_exposure
 
 

@@ -14,10 +14,11 @@ from straylight.optics.pst import PST, default_pst_grid, load_pst, write_pst_csv
 from straylight.sky.frames import TelescopeFrame, telescope_frame
 from straylight.sky.geometry import observing_geometry
 from straylight.sky.vectors import radec_to_unit
-from straylight.sources.bodies import moon_v_magnitude, planet_v_magnitude
-from straylight.sources.offfield import EarthshineSettings
+from straylight.sources.body_magnitudes import moon_v_magnitude, planet_v_magnitude
+from straylight.sources.offfield_cap import EarthshineSettings
 from straylight.sources.photometry import solar_like_fraction
-from straylight.sources.stars import OffFieldStars, StarTable
+from straylight.sources.stars import OffFieldStars
+from straylight.sources.stars_table import StarTable
 
 RE = 6378.137
 AU = 1.495978707e8
@@ -199,7 +200,7 @@ def test_all_planets_at_once_equal_meeus_per_planet():
     against Meeus (1998) ch. 41 written out per planet here (V(1,0), the phase polynomial and
     Saturn's ring term), at DE405 positions over a year: to 1e-12 mag."""
     from straylight.sky.ephemeris import BODIES, default_ephemeris
-    from straylight.sources.bodies import PLANET_V, SATURN_POLE_RA_DEC_DEG, planet_v_magnitudes
+    from straylight.sources.body_magnitudes import PLANET_V, SATURN_POLE_RA_DEC_DEG, planet_v_magnitudes
 
     planets = [b for b in BODIES if b in PLANET_V]
     pos = default_ephemeris().positions([f"2026-{m:02d}-15T00:00:00" for m in range(1, 13)])
@@ -308,7 +309,7 @@ def test_star_skipping_stays_within_its_budget(campaign, comp_model, exact_model
     from pathlib import Path
 
     from straylight.catalog.build import make_catalog
-    from straylight.sources.stars import split_stars
+    from straylight.sources.stars_table import split_stars
 
     sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
     from _samples import random_samples
@@ -401,7 +402,7 @@ def test_star_sky_cells_skip_within_the_budget_at_every_line_of_sight(
     import healpy as hp
 
     from straylight.catalog.build import make_catalog
-    from straylight.sources.stars import split_stars
+    from straylight.sources.stars_table import split_stars
 
     monkeypatch.setattr(OffFieldStars, "STAR_CELL_NSIDE", nside)
     monkeypatch.setattr(OffFieldStars, "STAR_PAIRS_PER_PASS", pairs_per_pass)

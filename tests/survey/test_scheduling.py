@@ -58,7 +58,7 @@ def test_moon_avoidance_angle_is_the_exact_threshold(model):
     g = t["min_moon_angle_deg_g"]
     assert np.all(np.diff(g) <= 0)  # a thinner Moon needs less distance
     assert g[0] > 40.0  # the paper's fixed 40 deg is not enough at full Moon for 10 % of the darkest sky
-    from straylight.sources.bodies import MOON_MEAN_DISTANCE_KM, moon_v_magnitude
+    from straylight.sources.body_magnitudes import MOON_MEAN_DISTANCE_KM, moon_v_magnitude
 
     limit = fraction * model.context.darkest_zodiacal_e_per_s("g")
     off = model.context.offfield

@@ -1,0 +1,414 @@
+"""The Earth-grid sums of earthshine (seed paper sect. 3.2): :class:`EarthshineSums`, the part
+of :class:`~straylight.sources.offfield.OffFieldModel` (which inherits it) that sums the sunlit
+and moonlit Earth over the cap grid of :class:`~straylight.sources.offfield_cap.EarthCapGrid`
+(the coefficients, a scene's lit blocks and sums, the lamp bound and the compiled kernel's
+tables).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from functools import cached_property
+
+import numpy as np
+
+from straylight.optics.door import door_state_index
+from straylight.sky.runs import shared_vectors
+from straylight.sky.vectors import dot, wrap_360_deg
+from straylight.sources.offfield_cap import EarthshineSettings
+
+__all__ = ["EarthshineSums"]
+
+
+class EarthshineSums:
+    """The earthshine sums' methods of :class:`~straylight.sources.offfield.OffFieldModel` (a
+    mixin: it reads the model's fields and the cap grid of
+    :class:`~straylight.sources.offfield_cap.EarthCapGrid`)."""
+
+    def earthshine_coefficients(
+        self,
+        sat_km,
+        sun_km,
+        moon_km,
+        frame,
+        opening_deg,
+        earth_radius_km,
+        in_field: bool = True,
+        moon: bool = True,
+        sun: bool = True,
+        grid: tuple[int, int] | None = None,
+    ) -> dict:
+        """Band-independent earthshine per unit photon irradiance of the Sun and of the Moon (at
+        the Earth): keys direct_sun, direct_moon, door_sun, door_moon, in e-/s/pix per
+        (photons s-1 m-2).  The albedo is grey, so a band's earthshine is
+        c_sun * E_sun,band + c_moon * E_moon,band; the geometry is computed once for all bands.
+        ``in_field=False`` leaves out the line of sight hitting the Earth; ``moon=False`` the
+        moonlit terms (zeros), as the look-up table does (:mod:`straylight.sources.earthshine_table`);
+        ``sun=False`` the sunlit ones (the table's path sums only the moonlit Earth directly);
+        ``grid`` = (n_gamma, n_psi) replaces the configured Earth-cap grid.
+
+        Parameters
+        ----------
+        sat_km : ndarray, shape (..., 3)
+            Geocentric ICRS satellite positions, km.
+        sun_km, moon_km : ndarray, shape (..., 3)
+            Geocentric ICRS positions of the Sun and the Moon, km.
+        frame : TelescopeFrame
+            The samples' telescope frames, axes (..., 3).
+        opening_deg : array_like
+            Each sample's door opening, deg.
+        earth_radius_km : float
+            The Earth's radius, km.
+        in_field : bool
+            Whether to add the Earth seen inside the field (:meth:`earth_in_field`).
+        moon, sun : bool
+            Whether to sum the moonlit and the sunlit terms (else zeros).
+        grid : tuple of (int, int), optional
+            (n_gamma, n_psi) of the Earth-cap grid; None: the configured one.
+
+        Returns
+        -------
+        dict of str to ndarray
+            ``direct_sun``, ``direct_moon``, ``door_sun``, ``door_moon``: arrays of the
+            samples' broadcast shape, e-/s/pix per photon s-1 m-2 of the lamp (the Sun at the
+            satellite, the Moon at the Earth).
+        """
+        s = (
+            self.earthshine
+            if grid is None
+            else replace(self.earthshine, n_gamma=int(grid[0]), n_psi=int(grid[1]))
+        )
+        one = shared_vectors(sat_km, sun_km, moon_km)
+        if one is not None:
+            out = self._earthshine_one_scene(*one, frame, opening_deg, earth_radius_km, moon, sun, s)
+            if in_field:
+                per_sun, per_moon = self.earth_in_field(sat_km, sun_km, moon_km, frame, earth_radius_km)
+                out["direct_sun"] = out["direct_sun"] + per_sun
+                out["direct_moon"] = out["direct_moon"] + per_moon
+            return out
+        d, d_omega, pts, mu_sun, mu_moon = self._lit_cap(
+            sat_km, earth_radius_km, s, sun_km, moon_km, sun, moon
+        )
+        lum_sun, lum_moon = s.albedo / np.pi * mu_sun, s.albedo / np.pi * mu_moon
+        dx = dot(d, frame.x[..., None, None, :])
+        dy = dot(d, frame.y[..., None, None, :])
+        dz = dot(d, frame.z[..., None, None, :])
+        theta = np.degrees(np.arctan2(np.hypot(dx, dy), dz))
+        phi = wrap_360_deg(np.degrees(np.arctan2(dy, dx)))
+        op = np.broadcast_to(np.asarray(opening_deg, float)[..., None, None], theta.shape)
+        # blocks inside the field are replaced by the in-field term (a grid block cannot resolve
+        # the 0.6 deg field, where the PST jumps to 1); a block the aperture plane cuts counts
+        # its part in front, at the door's Sp from in front (theta <= 90 deg)
+        span_g, span_p = self._cap_block_spans(sat_km, earth_radius_km, s)
+        front = self.front_fraction(
+            dz, dot(span_g, frame.z[..., None, None, :]), dot(span_p, frame.z[..., None, None, :])
+        )
+        w_direct = (
+            self.door_factor(np.minimum(theta, 90.0), phi, op)
+            * front
+            * self.pst(theta, phi)
+            * (theta > self.field_radius_deg)
+            * d_omega
+            * self.pixel_area_m2
+        )
+        out = {
+            "direct_sun": np.sum(lum_sun * w_direct, axis=(-2, -1)),
+            "direct_moon": np.sum(lum_moon * w_direct, axis=(-2, -1)),
+        }
+        if in_field:
+            per_sun, per_moon = self.earth_in_field(sat_km, sun_km, moon_km, frame, earth_radius_km)
+            out["direct_sun"] = out["direct_sun"] + per_sun
+            out["direct_moon"] = out["direct_moon"] + per_moon
+        # door path: irradiance on the door's inner face from the Earth blocks in front of it
+        door_sun = np.zeros(out["direct_sun"].shape)
+        door_moon = np.zeros(out["direct_sun"].shape)
+        states = sorted(self._door_weights)
+        state_of, known = door_state_index(states, opening_deg)
+        for i, state in enumerate(states):
+            _, n_in, w = self._door_weights[state]
+            sel = np.broadcast_to(known & (state_of == i), door_sun.shape)
+            if not np.any(sel):
+                continue
+            # d . n_in > 0: in front of the inner face; f: the share of the door the body leaves lit
+            cos_inc = np.maximum(dx * n_in[0] + dy * n_in[1] + dz * n_in[2], 0.0) * self.door_lit_fraction(
+                state, theta, phi
+            )
+            k = s.door_reflectance * np.sum(w) * self.pixel_area_m2
+            door_sun = np.where(sel, k * np.sum(lum_sun * d_omega * cos_inc, axis=(-2, -1)), door_sun)
+            door_moon = np.where(sel, k * np.sum(lum_moon * d_omega * cos_inc, axis=(-2, -1)), door_moon)
+        out["door_sun"], out["door_moon"] = door_sun, door_moon
+        return out
+
+    def _earthshine_one_scene(
+        self,
+        sat,
+        sun,
+        moon,
+        frame,
+        opening_deg,
+        earth_radius_km,
+        with_moon: bool,
+        with_sun: bool = True,
+        s: EarthshineSettings | None = None,
+    ) -> dict:
+        """earthshine_coefficients (without the in-field term) for many lines of sight sharing one
+        satellite, Sun and Moon (a time step of a survey cube): the Earth cap is gridded once,
+        its dark blocks (lit by neither lamp) dropped, and the sums over the rest compiled
+        (:func:`~straylight.sources.earthshine_kernel.cap_sums`).  Same sums as the general path,
+        so the same values up to rounding (tests/sources/test_offfield.py)."""
+        from straylight.sky.frames import TelescopeFrame
+
+        shape = np.broadcast_shapes(frame.z.shape[:-1], np.shape(opening_deg))
+        op = np.broadcast_to(np.asarray(opening_deg, float), shape).ravel()
+        state_of, known = door_state_index(sorted(self.door_tables), op)
+        frame = TelescopeFrame(
+            *(np.broadcast_to(a, shape + (3,)).reshape(-1, 3) for a in (frame.x, frame.y, frame.z))
+        )
+        direct, door = self.earthshine_scene_sums(
+            sat,
+            sun,
+            moon,
+            frame,
+            earth_radius_km,
+            np.where(known, state_of, -1)[:, None],
+            with_sun,
+            with_moon,
+            s,
+        )
+        return {
+            "direct_sun": direct[:, 0, 0].reshape(shape),
+            "direct_moon": direct[:, 0, 1].reshape(shape),
+            "door_sun": door[:, 0, 0].reshape(shape),
+            "door_moon": door[:, 0, 1].reshape(shape),
+        }
+
+    def lit_cap_blocks(
+        self,
+        sat,
+        sun,
+        moon,
+        earth_radius_km,
+        s: EarthshineSettings | None = None,
+        with_sun: bool = True,
+        with_moon: bool = True,
+    ):
+        """The cap blocks of one scene (satellite, Sun, Moon: (3,) km) lit by either lamp: their
+        directions from the satellite, their spans (:meth:`_cap_block_spans`), all (K, 3), and
+        their luminance times solid angle per lamp, albedo / pi cos(zenith) dOmega (K, 2: Sun,
+        Moon; sr per unit irradiance).
+
+        Parameters
+        ----------
+        sat, sun, moon : ndarray, shape (3,)
+            Geocentric ICRS positions of the satellite, the Sun and the Moon, km.
+        earth_radius_km : float
+            The Earth's radius, km.
+        s : EarthshineSettings, optional
+            The Earth grid; None: :attr:`earthshine`.
+        with_sun, with_moon : bool
+            Whether each lamp lights the cap (a lamp left out gives zeros).
+
+        Returns
+        -------
+        directions : ndarray, shape (K, 3)
+            Unit vectors from the satellite to the lit blocks, ICRS.
+        span_gamma, span_psi : ndarray, shape (K, 3)
+            The blocks' spans in nadir angle and in azimuth (dimensionless direction changes).
+        lum : ndarray, shape (K, 2)
+            albedo / pi cos(zenith) dOmega for the Sun and the Moon: radiance per unit
+            irradiance (sr-1) times solid angle (sr), dimensionless.
+        """
+        s = s or self.earthshine
+        d, d_omega, pts, mu_sun, mu_moon = self._lit_cap(
+            sat, earth_radius_km, s, sun, moon, with_sun, with_moon
+        )
+        lit = (mu_sun > 0) | (mu_moon > 0)
+        span_g, span_p = (
+            np.ascontiguousarray(v[lit]) for v in self._cap_block_spans(sat, earth_radius_km, s)
+        )
+        lum = s.albedo / np.pi * np.stack([mu_sun[lit], mu_moon[lit]], axis=-1) * d_omega[lit][:, None]
+        return np.ascontiguousarray(d[lit]), span_g, span_p, np.ascontiguousarray(lum)
+
+    def earthshine_scene_sums(
+        self,
+        sat,
+        sun,
+        moon,
+        frame,
+        earth_radius_km,
+        state_sel,
+        with_sun: bool = True,
+        with_moon: bool = True,
+        s: EarthshineSettings | None = None,
+    ):
+        """(direct, door) coefficients (M, J, 2: lit by the Sun, by the Moon), e-/s/pix per photon
+        s-1 m-2 of the lamp, outside the field, for M lines of sight of one scene (``frame``'s
+        axes broadcast to (M, 3)) and J door states each (``state_sel`` (M, J): indices into the
+        ascending door states, -1 for none, which gives 0).
+
+        Parameters
+        ----------
+        sat, sun, moon : ndarray, shape (3,)
+            Geocentric ICRS positions of the satellite, the Sun and the Moon, km.
+        frame : TelescopeFrame
+            The lines of sight's frames, axes broadcastable to (M, 3).
+        earth_radius_km : float
+            The Earth's radius, km.
+        state_sel : ndarray of int, shape (M, J)
+            Indices into the ascending door states, -1 for none.
+        with_sun, with_moon : bool
+            Whether each lamp lights the cap.
+        s : EarthshineSettings, optional
+            The Earth grid; None: :attr:`earthshine`.
+
+        Returns
+        -------
+        direct, door : ndarray, shape (M, J, 2)
+            e-/s/pix per photon s-1 m-2 of the Sun (``[..., 0]``) and of the Moon at the Earth
+            (``[..., 1]``).
+        """
+        blocks, span_g, span_p, lum = self.lit_cap_blocks(
+            sat, sun, moon, earth_radius_km, s, with_sun, with_moon
+        )
+        sel = np.ascontiguousarray(np.asarray(state_sel, np.intp))
+        n = sel.shape[0]
+        fx, fy, fz = (
+            np.ascontiguousarray(np.broadcast_to(a, (n, 3)), dtype=float) for a in (frame.x, frame.y, frame.z)
+        )
+        direct, door = np.zeros((n, sel.shape[1], 2)), np.zeros((n, sel.shape[1], 2))
+        if blocks.shape[0] and n:
+            from straylight.sources.earthshine_kernel import cap_sums
+
+            normals, door_weight, pst, sp, lit = self._kernel_tables
+            door_k = (s or self.earthshine).door_reflectance * door_weight
+            cap_sums(
+                fx,
+                fy,
+                fz,
+                blocks,
+                span_g,
+                span_p,
+                lum,
+                sel,
+                normals,
+                door_k,
+                float(self.field_radius_deg),
+                float(self.pixel_area_m2),
+                *pst,
+                *sp,
+                *lit,
+                direct,
+                door,
+            )
+        return direct, door
+
+    @cached_property
+    def _kernel_tables(self):
+        """What :func:`~straylight.sources.earthshine_kernel.cap_sums` reads, door states ascending:
+        the door's inner normals (S, 3), the sum of the door's weights x pixel area per state
+        (times the reflectance: the door term's factor k), the PST's and the Sp tables' grids,
+        and the lit-fraction tables' grids with whether there is a body (else the lit fraction
+        is 1) and their value in front of the aperture plane
+        (:func:`~straylight.sources.earthshine_kernel.cap_sums`)."""
+        from straylight.sources.earthshine_kernel import GridPack
+
+        states = sorted(self.door_tables)
+        normals = np.ascontiguousarray([self._door_weights[st][1] for st in states], dtype=float)
+        door_weight = np.array([np.sum(self._door_weights[st][2]) * self.pixel_area_m2 for st in states])
+        sp = GridPack([self.door_tables[st]._interp for st in states]).arrays()
+        lit_tables = self._door_lit_fraction
+        lit = sp if lit_tables is None else GridPack([lit_tables[st] for st in states]).arrays()
+        # the lit fraction in front of the aperture plane: its grid's first row (theta 90 deg),
+        # where that row's nodes are all equal (the body cannot shade a direction from there)
+        at_plane = np.full(len(states), -1.0)
+        if lit_tables is not None:
+            for i, st in enumerate(states):
+                grid = lit_tables[st]
+                row = np.asarray(grid._flat).reshape(grid.axes[0].nodes.size, -1)[0]
+                if np.ptp(row) == 0.0:
+                    at_plane[i] = float(row[0])
+        return (
+            normals,
+            door_weight,
+            GridPack([self.pst._interp]).arrays(),
+            sp,
+            (*lit, lit_tables is not None, at_plane),
+        )
+
+    def lamp_bound_one_scene(self, sat, lamp_direction, los, earth_radius_km) -> np.ndarray:
+        """Upper bound of the direct coefficient of a cap lit from ``lamp_direction`` (unit vector,
+        (3,), the lamp at infinity) whatever the telescope's roll and door, for lines of sight
+        ``los`` (M, 3, unit) from one satellite: radiance albedo/pi cos(z_lamp), the PST at its
+        maximum over phi (the larger neighbouring theta row), Sp = 1, summed over the cap's lit
+        blocks (compiled: :func:`~straylight.sources.earthshine_kernel.lamp_bound_sums`).
+
+        Parameters
+        ----------
+        sat : ndarray, shape (3,)
+            Geocentric ICRS satellite position, km.
+        lamp_direction : ndarray, shape (3,)
+            Unit vector towards the lamp, ICRS.
+        los : ndarray, shape (M, 3)
+            Lines of sight, ICRS unit vectors.
+        earth_radius_km : float
+            The Earth's radius, km.
+
+        Returns
+        -------
+        ndarray, shape (M,)
+            The bound, e-/s/pix per photon s-1 m-2 of the lamp.
+        """
+        from straylight.sources.earthshine_kernel import lamp_bound_sums
+
+        s = self.earthshine
+        sat = np.asarray(sat, float)
+        d, d_omega, pts = self._cap_grid(sat, earth_radius_km, s)
+        mu = np.maximum(dot(pts / earth_radius_km, np.asarray(lamp_direction, float)), 0.0)
+        lit = mu > 0
+        lum = s.albedo / np.pi * mu[lit] * d_omega[lit] * self.pixel_area_m2
+        out = np.zeros(len(los))
+        if lum.size:
+            row_max = np.ascontiguousarray(self.pst.values.max(axis=1))
+            lamp_bound_sums(
+                np.ascontiguousarray(los, dtype=float),
+                np.ascontiguousarray(d[lit]),
+                lum,
+                float(np.cos(np.radians(self.field_radius_deg))),
+                -np.cos(np.radians(self.pst.theta_deg)),
+                row_max,
+                out,
+            )
+        return out
+
+    def earthshine_terms(
+        self, sat_km, sun_km, moon_km, frame, opening_deg, sun_irr, moon_irr_at_earth, earth_radius_km
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(EA1 direct, EA2 via the door) in e-/s/pix for samples (leading shapes broadcast).
+
+        Parameters
+        ----------
+        sat_km : ndarray, shape (..., 3)
+            Geocentric ICRS satellite positions, km.
+        sun_km, moon_km : ndarray, shape (..., 3)
+            Geocentric ICRS positions of the Sun and the Moon, km.
+        frame : TelescopeFrame
+            The samples' telescope frames.
+        opening_deg : array_like
+            Each sample's door opening, deg.
+        sun_irr : array_like
+            The Sun's photon irradiance at the satellite in a band, photons s-1 m-2.
+        moon_irr_at_earth : array_like
+            The Moon's photon irradiance at the Earth in the band, photons s-1 m-2.
+        earth_radius_km : float
+            The Earth's radius, km.
+
+        Returns
+        -------
+        direct, door : ndarray
+            EA1 and EA2, e-/s/pix, of the samples' broadcast shape.
+        """
+        c = self.earthshine_coefficients(sat_km, sun_km, moon_km, frame, opening_deg, earth_radius_km)
+        return (
+            c["direct_sun"] * sun_irr + c["direct_moon"] * moon_irr_at_earth,
+            c["door_sun"] * sun_irr + c["door_moon"] * moon_irr_at_earth,
+        )
