@@ -22,13 +22,8 @@ from _results import write_results  # noqa: E402
 
 def main():
     from straylight.config import load_campaign
-    from straylight.image.detector import (
-        FocalPlane,
-        RenderSettings,
-        focal_plane_from_instrument,
-        pointing_wcs,
-        render_detector,
-    )
+    from straylight.image.detector import RenderSettings, render_detector
+    from straylight.image.focal_plane import FocalPlane, focal_plane_from_instrument, pointing_wcs
     from straylight.optics.ghosts import ghost_model_from_instrument
     from straylight.optics.scatter import scatter_model_from_instrument
 

@@ -32,7 +32,7 @@ def main():
     from straylight.catalog.sed import load_pickles
     from straylight.config import campaign_from_dict, load_campaign
     from straylight.model import BackgroundModel
-    from straylight.sources.stars import split_stars
+    from straylight.sources.stars_table import split_stars
 
     c = load_campaign()
     cm = BackgroundModel(c)

@@ -122,7 +122,7 @@ class SkyModel:
         key = tuple(bands)
         with self._stars_lock:
             if key not in self._stars:
-                from straylight.sources.stars import load_offfield_stars
+                from straylight.sources.stars_table import load_offfield_stars
 
                 sc = self.campaign.settings.stars
                 self._stars[key] = load_offfield_stars(

@@ -175,7 +175,7 @@ def test_a_file_without_the_optional_sections_takes_the_schema_defaults():
 
 
 def test_readers_give_the_same_objects_from_the_mapping_and_the_settings():
-    from straylight.image.detector import focal_plane_from_instrument
+    from straylight.image.focal_plane import focal_plane_from_instrument
     from straylight.optics.bandpass import load_band
     from straylight.optics.door import door_from_instrument
     from straylight.optics.ghosts import ghost_model_from_instrument

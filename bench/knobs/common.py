@@ -53,7 +53,7 @@ class Bench:
         self.n = len(obs)
 
     def stars(self, limit: float, faint: bool):
-        from straylight.sources.stars import split_stars
+        from straylight.sources.stars_table import split_stars
 
         return split_stars(
             self.catalog["ra"],

@@ -99,7 +99,9 @@ def cmd_image(args) -> int:
     out = check_out(args, args.out)
     from straylight.catalog.star_table import read_star_table
     from straylight.config import load_campaign
-    from straylight.image.detector import RenderSettings, focal_plane_from_instrument, write_fits
+    from straylight.image.detector import RenderSettings
+    from straylight.image.detector_fits import write_fits
+    from straylight.image.focal_plane import focal_plane_from_instrument
     from straylight.image.frame import cutout_window, frame_for_target, render_frame
     from straylight.optics.bandpass import load_band
     from straylight.sky.ephemeris import check_in_ephemeris
@@ -215,7 +217,7 @@ def _image_background(campaign, t, ra_deg: float, dec_deg: float, band: str, cat
     """Diffuse background (zodiacal, earthshine, Moon, Sun, planets, off-field stars) at the
     boresight and time, e-/s/pixel, through the pointing-table evaluation."""
     from straylight.sky.geometry import violation_names
-    from straylight.sources.stars import load_offfield_stars
+    from straylight.sources.stars_table import load_offfield_stars
     from straylight.survey.pointings import pointing_table
 
     stars = load_offfield_stars(

@@ -154,7 +154,7 @@ def cmd_sky(args) -> int:
     bands = _sky_bands(args.bands, campaign)
     stars = None
     if args.catalog:  # the cube's star model: stars brighter than stars.offfield_mag_limit
-        from straylight.sources.stars import load_offfield_stars
+        from straylight.sources.stars_table import load_offfield_stars
 
         stars = load_offfield_stars(
             args.catalog,

@@ -29,84 +29,24 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import signal
 
-from straylight.config import InstrumentSettings, instrument_settings, needed, pixel_scale_arcsec
 from straylight.errors import InputError
+from straylight.image.focal_plane import FocalPlane, pointing_wcs
 from straylight.optics.bandpass import Band
 from straylight.optics.ghosts import GhostModel
 from straylight.optics.scatter import ScatterModel, check_fluxes
-from straylight.sky.frames import telescope_frame
 from straylight.sky.vectors import radec_to_unit, unit
 
-
-@dataclass(frozen=True)
-class FocalPlane:
-    """The focal plane's layout: each detector ``nx`` x ``ny`` pixels of ``pixel_scale_arcsec``
-    (arcsec) and ``pixel_size_mm`` (mm), ``columns`` x ``rows`` detectors separated by ``gap_px``
-    pixels."""
-
-    nx: int
-    ny: int
-    pixel_scale_arcsec: float
-    pixel_size_mm: float
-    columns: int
-    rows: int
-    gap_px: float
-
-    @property
-    def n_detectors(self) -> int:
-        """Number of detectors, columns x rows."""
-        return self.columns * self.rows
-
-    def detector_offset_px(self, detector: int) -> tuple[float, float]:
-        """Centre of detector ``detector`` (0-based, row-major) from the optical axis, pixels."""
-        if not 0 <= detector < self.n_detectors:
-            raise InputError(f"--detector {detector}: must be within 0..{self.n_detectors - 1}")
-        row, col = divmod(detector, self.columns)
-        pitch_x, pitch_y = self.nx + self.gap_px, self.ny + self.gap_px
-        return ((col - (self.columns - 1) / 2) * pitch_x, (row - (self.rows - 1) / 2) * pitch_y)
-
-
-def focal_plane_from_instrument(instrument: InstrumentSettings | dict) -> FocalPlane:
-    """The focal plane of the instrument's ``detector`` section (CCD format, pixel, layout).
-    ``instrument``: its typed settings, or its mapping
-    (:func:`~straylight.config.instrument.instrument_settings`)."""
-    inst = instrument_settings(instrument)
-    d = inst.detector
-    nx = int(needed(d.nx_pixels, "detector.nx_pixels").value)
-    ny = int(needed(d.ny_pixels, "detector.ny_pixels").value)
-    if nx <= 0 or ny <= 0:
-        raise InputError(f"detector size {nx} x {ny}: must be positive")
-    return FocalPlane(
-        nx=nx,
-        ny=ny,
-        pixel_scale_arcsec=pixel_scale_arcsec(inst),
-        pixel_size_mm=d.pixel_size_um.value / 1000.0,
-        columns=int(needed(d.layout_columns, "detector.layout_columns").value),
-        rows=int(needed(d.layout_rows, "detector.layout_rows").value),
-        gap_px=needed(d.layout_gap_pixels, "detector.layout_gap_pixels").value,
-    )
-
-
-def pointing_wcs(ra_deg: float, dec_deg: float, sun_direction: np.ndarray, fp: FocalPlane, detector: int):
-    """Astropy WCS of one detector: TAN about the boresight, axes along the telescope frame."""
-    from astropy.wcs import WCS
-
-    z = radec_to_unit(ra_deg, dec_deg)
-    frame = telescope_frame(z, np.asarray(sun_direction, dtype=float))
-    a, d = np.radians(ra_deg), np.radians(dec_deg)
-    east = np.array([-np.sin(a), np.cos(a), 0.0])
-    north = np.array([-np.sin(d) * np.cos(a), -np.sin(d) * np.sin(a), np.cos(d)])
-    scale_deg = fp.pixel_scale_arcsec / 3600.0
-    cd = scale_deg * np.array([[frame.x @ east, frame.y @ east], [frame.x @ north, frame.y @ north]])
-    ox, oy = fp.detector_offset_px(detector)
-    w = WCS(naxis=2)
-    w.wcs.ctype = ["RA---TAN", "DEC--TAN"]
-    w.wcs.crval = [ra_deg % 360.0, dec_deg]
-    # boresight falls at pixel (centre - offset); FITS pixels are 1-based
-    w.wcs.crpix = [(fp.nx + 1) / 2.0 - ox, (fp.ny + 1) / 2.0 - oy]
-    w.wcs.cd = cd
-    w.wcs.cunit = ["deg", "deg"]
-    return w
+__all__ = [
+    "STRIP_ROWS",
+    "DetectorImage",
+    "RenderSettings",
+    "StarSelection",
+    "bodies_as_stars",
+    "paint_discs",
+    "render_detector",
+    "select_stars",
+    "star_fluxes_e_per_s",
+]
 
 
 def star_fluxes_e_per_s(mag_ab, band: Band, aperture_diameter_m: float) -> np.ndarray:
@@ -498,135 +438,3 @@ def bodies_as_stars(campaign, time, ra_deg: float, dec_deg: float, band: str) ->
         dec.append(float(np.degrees(np.arcsin(d[2]))))
     mags = [float(np.ravel(found[k]["mag_ab"][band])[0]) for k in names]
     return np.array(ra), np.array(dec), np.array(mags), names
-
-
-def sun_direction_at(campaign, time) -> np.ndarray:
-    """Unit vector from the satellite to the Sun at ``time`` (for the roll)."""
-    from straylight.sky.observing import scene
-
-    sc = scene(campaign.orbit, time)
-    return unit(sc.bodies_km["sun"][0] - sc.satellite_km[0])
-
-
-def boresight_for_target(
-    target_ra_deg: float,
-    target_dec_deg: float,
-    sun_direction,
-    fp: FocalPlane,
-    detector: int,
-    tol_arcsec: float = 1e-4,
-) -> tuple[float, float]:
-    """The boresight (RA, Dec, deg) that puts ``target`` on the centre of ``detector``.
-
-    The roll follows the Sun (:func:`pointing_wcs`), so the boresight is found by iteration:
-    move it by the offset still left between the chip centre and the target, until that offset
-    is below ``tol_arcsec``.  Converges in a few steps (the detector offsets are < 1 deg).
-    """
-    import astropy.units as u
-    from astropy.coordinates import SkyCoord
-
-    target = SkyCoord(target_ra_deg * u.deg, target_dec_deg * u.deg)
-    ra, dec = float(target_ra_deg), float(target_dec_deg)
-    for _ in range(20):
-        w = pointing_wcs(ra, dec, sun_direction, fp, detector)
-        c = w.pixel_to_world_values((fp.nx - 1) / 2.0, (fp.ny - 1) / 2.0)
-        centre = SkyCoord(float(c[0]) * u.deg, float(c[1]) * u.deg)
-        sep = centre.separation(target)
-        if sep.to_value(u.arcsec) < tol_arcsec:
-            break
-        bore = SkyCoord(ra * u.deg, dec * u.deg).directional_offset_by(centre.position_angle(target), sep)
-        ra, dec = float(bore.ra.deg), float(bore.dec.deg)
-    else:  # pragma: no cover - the map is a near-rigid rotation
-        raise InputError(f"cannot put RA {target_ra_deg}, Dec {target_dec_deg} on detector {detector}")
-    return ra, dec
-
-
-#: FITS image compression choices of :func:`write_fits` (``--compress``).
-COMPRESSIONS = ("gzip", "rice", "none")
-
-GHOST_UNITS = {
-    "star_index": ("", "row of the input star catalog"),
-    "path": ("", "ghost path 1-3 (seed paper sect. 4.2)"),
-    "x_pix": ("pix", "disc centre, 0-based chip column"),
-    "y_pix": ("pix", "disc centre, 0-based chip row"),
-    "radius_pix": ("pix", "disc radius"),
-    "e_per_s_per_pix": ("electron/s", "irradiance per chip pixel"),
-    "energy_e_per_s": ("electron/s", "energy in the disc"),
-}
-STAR_UNITS = {
-    "catalog_index": ("", "row of the input star catalog"),
-    "x_pix": ("pix", "0-based chip column"),
-    "y_pix": ("pix", "0-based chip row"),
-    "flux_e_per_s": ("electron/s", "star flux through the full aperture"),
-}
-
-
-def _table_hdu(columns: dict, units: dict, name: str):
-    """A FITS table with TUNITn (unit strings as written, e.g. ``electron/s``, which FITS readers
-    pass through) and each column's meaning as the TTYPEn comment."""
-    from astropy.io import fits
-    from astropy.table import Table
-
-    hdu = fits.BinTableHDU(Table(columns), name=name)
-    for i, c in enumerate(hdu.columns.names, start=1):
-        unit, desc = units.get(c, ("", ""))
-        if unit:
-            hdu.header[f"TUNIT{i}"] = unit
-        if desc:
-            hdu.header[f"TTYPE{i}"] = (c, desc[: 80 - 14 - len(c)])
-    return hdu
-
-
-def write_fits(
-    result: DetectorImage, path, provenance: dict, compress: str = "gzip", quantize_step: float | None = None
-) -> None:
-    """FITS: the image (e-/s per chip pixel) with WCS and provenance; GHOSTS and STARS tables
-    with a unit on every column.
-
-    ``compress``: ``gzip`` (GZIP_2 tile compression, lossless: no quantisation), ``rice``
-    (RICE_1 on values quantised to ``quantize_step`` e-/s/pixel; the error is at most half a
-    step) or ``none`` (plain primary image).  A compressed image sits in extension 1
-    (``SCI``); astropy and ``fitsio`` read it transparently.
-    """
-    from astropy.io import fits
-
-    from straylight.util.io import atomic_path
-
-    hdr = result.wcs.to_header()
-    hdr["BUNIT"] = ("electron/s", "per chip pixel; binned: mean of BIN x BIN")
-    for k, v in provenance.items():
-        key = k.upper()[:8]
-        hdr[key] = v if not isinstance(v, float) else float(v)
-    for k, v in result.meta.items():
-        hdr[k.upper()[:8]] = v
-    data = result.image_e_per_s_per_pix
-    if compress == "none":
-        hdus = [fits.PrimaryHDU(data, header=hdr)]
-    elif compress == "gzip":
-        hdr["COMPNOTE"] = "GZIP_2 lossless, no quantisation"
-        hdus = [
-            fits.PrimaryHDU(),
-            fits.CompImageHDU(data, header=hdr, name="SCI", compression_type="GZIP_2", quantize_level=0),
-        ]
-    elif compress == "rice":
-        step = float(quantize_step if quantize_step is not None else 1e-4)
-        if not (np.isfinite(step) and step > 0):
-            raise InputError(f"--quantize-step {quantize_step}: must be a positive number of e-/s/pixel")
-        hdr["QSTEP"] = (step, "e-/s/pixel quantisation step (error <= QSTEP/2)")
-        hdr["COMPNOTE"] = "RICE_1 on values quantised to QSTEP, lossy"
-        hdus = [
-            fits.PrimaryHDU(),
-            fits.CompImageHDU(
-                data,
-                header=hdr,
-                name="SCI",
-                compression_type="RICE_1",
-                quantize_level=-step,
-                quantize_method=1,
-            ),
-        ]
-    else:
-        raise InputError(f"--compress {compress!r}: one of {', '.join(COMPRESSIONS)}")
-    hdus += [_table_hdu(result.ghosts, GHOST_UNITS, "GHOSTS"), _table_hdu(result.stars, STAR_UNITS, "STARS")]
-    with atomic_path(path) as tmp:
-        fits.HDUList(hdus).writeto(tmp)

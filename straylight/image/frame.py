@@ -13,7 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from straylight.image import detector
-from straylight.image.detector import FocalPlane, RenderSettings, StarSelection
+from straylight.image.detector import RenderSettings, StarSelection
+from straylight.image.focal_plane import FocalPlane, boresight_for_target, sun_direction_at
 
 __all__ = ["TargetFrame", "cutout_window", "frame_for_target", "render_frame"]
 
@@ -110,9 +111,9 @@ def frame_for_target(
     aperture_m = campaign.instrument_settings.telescope.aperture_diameter_m.value
     ra, dec = star_ra_deg, star_dec_deg
     flux = detector.star_fluxes_e_per_s(star_mag_ab, band, aperture_m)
-    sun = detector.sun_direction_at(campaign, time)
+    sun = sun_direction_at(campaign, time)
     if center == "detector":
-        bore_ra, bore_dec = detector.boresight_for_target(
+        bore_ra, bore_dec = boresight_for_target(
             target_ra_deg, target_dec_deg, sun, focal_plane, detector_index
         )
     else:

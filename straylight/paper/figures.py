@@ -235,13 +235,11 @@ def detector_image_data(
     (``star_ra_deg``, ``star_dec_deg``), rendered by :func:`straylight.image.detector.render_detector`
     with every catalog star (``catalog``: ra, dec, mag_<band>) within reach: cores, halos and
     ghosts.  Returns the image and the profile of the centred star."""
-    from straylight.image.detector import (
+    from straylight.image.detector import RenderSettings, render_detector, star_fluxes_e_per_s
+    from straylight.image.focal_plane import (
         FocalPlane,
-        RenderSettings,
         focal_plane_from_instrument,
         pointing_wcs,
-        render_detector,
-        star_fluxes_e_per_s,
         sun_direction_at,
     )
     from straylight.optics.bandpass import load_band

@@ -52,12 +52,12 @@ def offfield_stars(campaign: Campaign, stars_path):
 
     Returns
     -------
-    straylight.sources.stars.StarTable or None
+    straylight.sources.stars_table.StarTable or None
         The off-field stars (bright ones, and the faint ones for the faint map), or None.
     """
     if stars_path is None:
         return None
-    from straylight.sources.stars import load_offfield_stars
+    from straylight.sources.stars_table import load_offfield_stars
 
     limit = float(campaign.config["stars"].get("offfield_mag_limit", 2.0))
     faint = bool(campaign.config["stars"].get("faint_map", True))
@@ -97,7 +97,7 @@ def compute_region(
         pixels (n_pixel).
     model : BackgroundModel, optional
         The campaign's model; None: built here.
-    stars : straylight.sources.stars.StarTable, optional
+    stars : straylight.sources.stars_table.StarTable, optional
         Off-field stars; None: the stars component is 0.
     faint_map : array_like, shape (n_pixel, n_band), optional
         The faint stars' map at these pixels, e-/s/pix; None: computed here (if ``stars``).
@@ -313,7 +313,7 @@ def faint_star_map(
         Run with no arguments in this process while the spawned ones start; None: nothing.
     model : BackgroundModel, optional
         This process's model; None: built here.
-    stars : straylight.sources.stars.StarTable, optional
+    stars : straylight.sources.stars_table.StarTable, optional
         The catalog's off-field stars; None: loaded from ``stars_path``.
 
     Returns

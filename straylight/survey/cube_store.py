@@ -84,7 +84,7 @@ def empty_cube(campaign: Campaign, fp: Footprint, times, model, stars_path=None,
         The campaign's model (its models record goes into the ``models`` attribute).
     stars_path : str or path-like, optional
         The star catalog; None: no stars (``stars_catalog`` is ``"none"``).
-    stars : straylight.sources.stars.StarTable, optional
+    stars : straylight.sources.stars_table.StarTable, optional
         The catalog's off-field stars (required when ``stars_path`` is given).
 
     Returns
@@ -234,7 +234,7 @@ def init_observability_store(campaign: Campaign, fp: Footprint, ephem: xr.Datase
 def init_limits_store(campaign: Campaign, cube, store) -> None:
     """Lay down limits.zarr's skeleton at ``store`` (metadata, coordinates, the products' codecs;
     no data chunks) from the cube's skeleton ``cube`` (:func:`empty_cube`): the variables,
-    attributes and chunks of :func:`straylight.survey.limits.limits_dataset` on the cube.  The
+    attributes and chunks of :func:`straylight.survey.limits_cube.limits_dataset` on the cube.  The
     cube's workers write each region's ``limiting_mag`` and ``observable``
     (:meth:`StoreArrays.write_region`); the limits rule adds the per-pixel summaries in
     :func:`publish_work_store`.
@@ -248,7 +248,7 @@ def init_limits_store(campaign: Campaign, cube, store) -> None:
     store : str or path-like
         The limits work store's path.
     """
-    from straylight.survey.limits import limits_dataset
+    from straylight.survey.limits_cube import limits_dataset
     from straylight.survey.storage import write_skeleton
 
     write_skeleton(limits_dataset(campaign, cube), store, campaign.config["storage"])
@@ -451,7 +451,7 @@ def publish_work_store(work_store, product, summaries: dict | None = None) -> No
         The product's path (replaced atomically).
     summaries : dict of str to array_like, optional
         Variable name to the whole array, written into the product only (the limits'
-        per-pixel summaries: :func:`~straylight.survey.limits.store_limit_summaries`); None: none.
+        per-pixel summaries: :func:`~straylight.survey.limits_cube.store_limit_summaries`); None: none.
     """
     import os
     import shutil

@@ -177,8 +177,8 @@ def pointing_table(
         ndarray of float, shape (n,), ICRS deg, already checked (:func:`read_pointings`).
     bands : list of str, optional
         Bands to evaluate; None: every band of the campaign.
-    stars : straylight.sources.stars.StarTable, optional
-        Off-field stars (:func:`straylight.sources.stars.load_offfield_stars`); None: stars = 0.
+    stars : straylight.sources.stars_table.StarTable, optional
+        Off-field stars (:func:`straylight.sources.stars_table.load_offfield_stars`); None: stars = 0.
     batch : int, optional
         Samples evaluated per vectorised call (bounds the memory).
     source : str, optional
@@ -351,7 +351,7 @@ def column_units(cols) -> dict:
 def background_table(campaign, t, ra_deg, dec_deg, bands, stars=None, source="", model=None):
     """:func:`straylight.sky_background`'s table for a loaded campaign and 1-D UTC times ``t`` with ICRS
     ``ra_deg``, ``dec_deg`` (deg) of the same length, already checked; ``stars`` as
-    :func:`straylight.sources.stars.load_offfield_stars` gives them (None: stars = 0); ``model``:
+    :func:`straylight.sources.stars_table.load_offfield_stars` gives them (None: stars = 0); ``model``:
     the campaign's warm :class:`~straylight.model.BackgroundModel`, if any.
 
     Parameters
@@ -364,7 +364,7 @@ def background_table(campaign, t, ra_deg, dec_deg, bands, stars=None, source="",
         ICRS pointing, deg (RA is wrapped to [0, 360)).
     bands : list of str
         Bands to evaluate (``"V"`` gets no limit column).
-    stars : straylight.sources.stars.StarTable, optional
+    stars : straylight.sources.stars_table.StarTable, optional
         Off-field stars; None: the stars component is 0.
     source : str, optional
         Name of the input used to prefix error messages.

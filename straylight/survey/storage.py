@@ -18,7 +18,7 @@ A bound holds against the values the writing step computed.  limits.zarr's ``lim
 computed by the cube's workers from the total they computed, before it is bit-rounded, so it is
 within its own bound of the limit of the computed total; its per-pixel summaries are computed
 from the stored ``limiting_mag``.  A limit computed from the stored background instead
-(``straylight.survey.limits.limits_dataset`` on a re-read background.zarr) carries the
+(``straylight.survey.limits_cube.limits_dataset`` on a re-read background.zarr) carries the
 background's propagated bound too: the limit's signal grows at most as the square root of the
 background, so a relative error e of the total moves the limit by at most
 2.5 / ln 10 * e / 2 mag (2.7e-4 mag at 10 bits; 1.8e-5 of a 15-mag limit).

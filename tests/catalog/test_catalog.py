@@ -428,7 +428,7 @@ def test_population_file_errors_name_the_file_and_column(tmp_path):
 
 def test_offfield_stars_keep_only_stars_brighter_than_the_limit_in_each_band(tmp_path):
     from straylight.catalog.gaia import write_parquet
-    from straylight.sources.stars import load_offfield_stars
+    from straylight.sources.stars_table import load_offfield_stars
 
     p = tmp_path / "cat.parquet"
     write_parquet(

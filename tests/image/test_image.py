@@ -7,13 +7,8 @@ import pytest
 from conftest import run_cli
 
 from straylight.errors import InputError
-from straylight.image.detector import (
-    FocalPlane,
-    RenderSettings,
-    focal_plane_from_instrument,
-    pointing_wcs,
-    render_detector,
-)
+from straylight.image.detector import RenderSettings, render_detector
+from straylight.image.focal_plane import FocalPlane, focal_plane_from_instrument, pointing_wcs
 from straylight.optics.ghosts import ghost_model_from_instrument
 from straylight.optics.scatter import scatter_model_from_instrument
 
@@ -145,7 +140,7 @@ def test_image_cli_end_to_end(tmp_path, campaign):
     from astropy.table import Table
     from astropy.wcs import WCS
 
-    from straylight.image.detector import sun_direction_at
+    from straylight.image.focal_plane import sun_direction_at
 
     fp = parts_fp = focal_plane_from_instrument(campaign.instrument)
     w = pointing_wcs(150.0, 30.0, sun_direction_at(campaign, "2026-01-01T00:50:00"), parts_fp, 12)
@@ -247,7 +242,7 @@ def test_bin_and_cutout_keep_units_and_wcs(parts):
 
 def test_boresight_puts_target_on_the_chip_centre(parts):
     """--center detector: the solved boresight's WCS maps the target to the chip's centre pixel."""
-    from straylight.image.detector import boresight_for_target
+    from straylight.image.focal_plane import boresight_for_target
 
     fp = parts[0]
     for det in (0, 12, 29):
@@ -277,7 +272,7 @@ def test_image_cli_star_bin_and_empty_field(tmp_path, campaign):
     from astropy.table import Table
 
     from straylight.catalog.build import default_catalog_path
-    from straylight.sources.stars import load_offfield_stars
+    from straylight.sources.stars_table import load_offfield_stars
     from straylight.survey.pointings import pointing_table
 
     out = tmp_path / "sirius.fits"

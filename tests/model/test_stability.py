@@ -12,7 +12,7 @@ from straylight.model import BackgroundModel
 from straylight.sky.geometry import observing_geometry
 from straylight.sky.observing import scene
 from straylight.sky.vectors import radec_to_unit
-from straylight.sources.stars import StarTable
+from straylight.sources.stars_table import StarTable
 
 COMPONENTS = ("zodiacal", "sun", "moon", "planets", "stars", "earthshine_direct", "earthshine_door", "total")
 
@@ -231,7 +231,7 @@ _FAINT_MAP_SCRIPT = """
 import sys
 import numpy as np
 from straylight.model import BackgroundModel
-from straylight.sources.stars import StarTable
+from straylight.sources.stars_table import StarTable
 from straylight.config import load_campaign
 rng = np.random.default_rng(5)
 n = 20000

@@ -115,7 +115,7 @@ def test_observability_from_the_cube_equals_its_own_geometry(cube_run, tmp_path)
 
 def test_faint_star_map_shared_among_processes_is_bit_identical(cube_run, campaign):
     """background_init sums the faint-star map on its processes, each a share of the pixels;
-    each pixel's sum runs over the stars on its own (stars._faint_star_kernel), so the same bits
+    each pixel's sum runs over the stars on its own (stars_faint._faint_star_kernel), so the same bits
     as one process."""
     from straylight.survey.cube_region import faint_star_map
     from straylight.survey.footprint import footprint_from_config
@@ -180,7 +180,7 @@ def test_fused_limits_equal_limits_dataset_within_the_propagated_bound(cube_run,
     limit) and float32's (< 4e-6 mag).  The per-pixel summaries are limits_dataset's of the stored
     limiting_mag, through the same codecs: identical, values and attributes."""
     from straylight.config import load_campaign
-    from straylight.survey.limits import limits_dataset
+    from straylight.survey.limits_cube import limits_dataset
     from straylight.survey.storage import write_zarr_atomic
 
     _, cfg, out = cube_run
@@ -217,7 +217,7 @@ def test_limit_summaries_on_processes_equal_the_published_ones(cube_run, monkeyp
     bit-rounded, so compared after the same rounding)."""
     from numcodecs import BitRound
 
-    from straylight.survey import limits as lm
+    from straylight.survey import limits_cube as lm
 
     _, _, out = cube_run
     work = out / "background_blocks" / "limits.zarr"

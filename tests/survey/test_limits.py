@@ -191,7 +191,8 @@ def test_never_observable_pixels_are_nan_in_zarr_and_unseen_in_fits(tmp_path):
     import xarray as xr
 
     from straylight.config import load_campaign
-    from straylight.survey.limits import limits_dataset, point_source_limit, write_limit_maps
+    from straylight.survey.limits import point_source_limit
+    from straylight.survey.limits_cube import limits_dataset, write_limit_maps
     from straylight.survey.storage import write_zarr_atomic
 
     c = load_campaign()
@@ -252,7 +253,7 @@ def test_limits_stream_over_chunks_with_the_eager_values(tmp_path):
     import xarray as xr
 
     from straylight.config import load_campaign
-    from straylight.survey.limits import limits_dataset
+    from straylight.survey.limits_cube import limits_dataset
 
     c = load_campaign()
     bands = list(c.bands)
@@ -298,7 +299,7 @@ def test_limit_summaries_equal_nanmax_and_nanmedian_over_observable_times(n_time
     pixel is never observable (or a band has no finite limit)."""
     import warnings
 
-    from straylight.survey.limits import limit_summaries
+    from straylight.survey.limits_cube import limit_summaries
 
     rng = np.random.default_rng(7)
     n_pix, n_band = 50, 3

@@ -12,7 +12,7 @@ from straylight.survey.cube_region import compute_region
 from straylight.survey.cube_store import init_store
 from straylight.survey.executors import write_region
 from straylight.survey.footprint import footprint_from_config
-from straylight.survey.limits import limits_dataset
+from straylight.survey.limits_cube import limits_dataset
 from straylight.survey.products import ephemeris_dataset, observability_dataset
 from straylight.survey.storage import (
     bitround,

@@ -20,7 +20,7 @@ def main(snakemake):
     from straylight.plots.report import limit_figures
     from straylight.survey.cube_layout import LIMITS_REGION_VARIABLES
     from straylight.survey.cube_store import publish_work_store
-    from straylight.survey.limits import store_limit_summaries, write_limit_maps
+    from straylight.survey.limits_cube import store_limit_summaries, write_limit_maps
     from straylight.util.io import atomic_path
 
     log = setup_logging(snakemake)
