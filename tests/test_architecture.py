@@ -288,3 +288,17 @@ def test_the_table_is_the_one_in_the_docs():
     rows = [line for line in doc.splitlines() if line.startswith("| ") and "`" in line.split("|")[1]]
     listed = [tuple(n.strip().strip("`") for n in row.split("|")[1].split(",")) for row in rows]
     assert listed == [tuple(n for n in layer) for layer in LAYERS]
+
+
+#: the longest a module of the library may be (issue: a module a newcomer can read at once)
+MAX_MODULE_LINES = 600
+
+
+def test_no_module_is_longer_than_the_limit():
+    """Every straylight/**/*.py has at most MAX_MODULE_LINES lines."""
+    long = {
+        str(p.relative_to(PACKAGE.parent)): n
+        for p in sorted(PACKAGE.rglob("*.py"))
+        if (n := len(p.read_text().splitlines())) > MAX_MODULE_LINES
+    }
+    assert long == {}

@@ -206,23 +206,22 @@ def _sky_bands(text, campaign) -> list[str] | None:
     return bands
 
 
-_SKY_COLUMNS = ("zodiacal", "earthshine", "moon", "sun", "planets", "stars", "total")
-
-
 def _sky_band_table(bands: dict) -> str:
     """The per-band lines of `straylight sky`: each component in e-/s/pixel (3 significant
-    digits) and in AB mag/arcsec2 (2 decimals), then the 5-sigma limit (AB mag)."""
-    head = (
-        f"  {'band':4s} {'unit':14s}" + "".join(f"{c:>11s}" for c in _SKY_COLUMNS) + f"{'5-sigma lim':>13s}"
-    )
+    digits) and in AB mag/arcsec2 (2 decimals), then the 5-sigma limit (AB mag); the
+    components are the registry's, then the total."""
+    from straylight.survey.pointings import table_components
+
+    columns = table_components()
+    head = f"  {'band':4s} {'unit':14s}" + "".join(f"{c:>11s}" for c in columns) + f"{'5-sigma lim':>13s}"
     lines = [head]
     for name, comp in bands.items():
-        rate = "".join(f"{comp[c]['e_per_s_per_pix']:>11.3g}" for c in _SKY_COLUMNS)
+        rate = "".join(f"{comp[c]['e_per_s_per_pix']:>11.3g}" for c in columns)
         mags = "".join(
             f"{comp[c]['mag_per_arcsec2']:>11.2f}"
             if comp[c]["mag_per_arcsec2"] is not None
             else f"{'-':>11s}"
-            for c in _SKY_COLUMNS
+            for c in columns
         )
         lim = f"{comp['limit_mag']:>9.2f} mag" if comp.get("limit_mag") is not None else f"{'-':>13s}"
         lines.append(f"  {name:4s} {'e-/s/pixel':14s}{rate}")

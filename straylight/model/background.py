@@ -60,8 +60,11 @@ class BackgroundModel:
         self.context = SourceContext(campaign)
         self.body_skip = SolarBodySkip(self.context, self.policy)
         self.in_field = InFieldBodies(self.context)
+        # the registry as it is now: a source registered later is not this model's
         self.entries = tuple(registry.SOURCES)
+        self.components = tuple(registry.COMPONENTS)
         self.leaves = registry.leaves()
+        self.outputs = registry.band_components()
         self._built = {}
         self.sources = {e.name: self.source(e.name) for e in self.entries}
 
@@ -162,7 +165,7 @@ class BackgroundModel:
         frame = telescope_frame(los, sun - sat) if frame is None else frame
         shape = geometry["sun_angle_deg"].shape
         n = int(np.prod(shape))
-        outputs = registry.band_components()
+        outputs = self.outputs
         if into is not None:  # checked before any work
             _check_into(into, n, len(bands), outputs)
         samples = Samples(sat, bodies_km, frame, geometry, runs, stars=stars, faint_rates=faint_rates)
@@ -191,7 +194,7 @@ class BackgroundModel:
             if into is not None
             else (outputs, np.empty((len(outputs), len(bands), n)).transpose(0, 2, 1))
         )  # band-major: each band's row contiguous
-        sums, writes, n_rows = _sum_program(self.leaves, names)
+        sums, writes, n_rows = _sum_program(self.components, self.leaves, names)
         _band_components_kernel(
             terms.dense,
             terms.n_dense,
@@ -318,19 +321,19 @@ class BackgroundModel:
         }
 
 
-def _sum_program(leaves: tuple, names) -> tuple:
+def _sum_program(components: tuple, leaves: tuple, names) -> tuple:
     """The band kernel's rows after the leaves (rows 0..len(leaves)-1): each component with
     parts gets a row, the total one; a component without parts is its leaf's row.  Returns
     (sums (k, 3): src row, dst row, whether it sets dst; writes (k, 2): row, index in
     ``names``, for the names asked; the number of rows)."""
     rows, sums, n_rows = {leaf: i for i, leaf in enumerate(leaves)}, [], len(leaves)
-    for c in registry.COMPONENTS:
+    for c in components:
         if c.parts:
             rows[c.name] = n_rows
             sums += [(rows[p], n_rows, k == 0) for k, (p, _) in enumerate(c.parts)]
             n_rows += 1
     rows[registry.TOTAL] = n_rows
-    sums += [(rows[c.name], n_rows, k == 0) for k, c in enumerate(registry.COMPONENTS)]
+    sums += [(rows[c.name], n_rows, k == 0) for k, c in enumerate(components)]
     writes = [(rows[name], k) for k, name in enumerate(names)]
     return (np.array(sums, np.intp).reshape(-1, 3), np.array(writes, np.intp).reshape(-1, 2), n_rows + 1)
 

@@ -106,9 +106,12 @@ class SourceEntry:
         Whether it may be skipped where its bound is below its share of the sample's floor
         (then evaluated after the sources that are never skipped, which make the floor).
     error_budget : tuple of str
-        The keys of :data:`~straylight.model.fidelity.ERROR_BUDGET_SHARES` its fast paths spend.
+        The keys of :data:`~straylight.model.fidelity.ERROR_BUDGET_SHARES` its fast paths spend
+        (declared here for the products' uncertainty; the policy holds the shares).
     parameters : tuple of str
-        The unmeasured model and instrument parameters its value rests on (config paths).
+        The unmeasured model and instrument parameters its value rests on (config paths),
+        declared for the calibration and the uncertainty carried into the products; nothing
+        reads them yet.
     """
 
     name: str
