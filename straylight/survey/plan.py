@@ -112,7 +112,7 @@ def pipeline_rate(campaign: Campaign) -> tuple[float, str]:
     source : str
         The config key or the module constant the rate comes from.
     """
-    configured = (campaign.config.get("compute") or {}).get("pipeline_samples_per_s_per_core")
+    configured = campaign.settings.compute.pipeline_samples_per_s_per_core
     if configured:
         return float(configured), "compute.pipeline_samples_per_s_per_core"
     return PIPELINE_SAMPLES_PER_S_PER_CORE, "straylight.survey.plan.PIPELINE_SAMPLES_PER_S_PER_CORE"
@@ -296,7 +296,7 @@ def estimated_cost(
         if choice["method"] == "direct":
             samples_s += speed_factor * n_eval * LUT_SAVED_SECONDS_PER_SAMPLE / cores
     fixed_s = speed_factor * PIPELINE_FIXED_SECONDS
-    faint = bool(campaign.config["stars"].get("faint_map", True))
+    faint = campaign.settings.stars.faint_map
     faint_s = speed_factor * FAINT_MAP_SECONDS_PER_PIXEL * int(fp.pixels.size) / cores if faint else 0.0
     wall_s = fixed_s + samples_s + build_s / cores
     return {
