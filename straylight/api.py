@@ -35,6 +35,8 @@ import numpy as np
 
 from straylight.errors import InputError
 
+__all__ = ["sky_background", "CampaignProducts", "to_mag_per_arcsec2", "open_campaign"]
+
 
 def sky_background(time, coord, bands=None, config=None, catalog=None):
     """Background, 5-sigma depth and observability at the given times and pointings.

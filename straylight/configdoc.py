@@ -7,6 +7,8 @@ from __future__ import annotations
 
 from straylight.config import CAMPAIGN_SCHEMA, load_schema
 
+__all__ = ["config_reference"]
+
 
 def _type(node: dict) -> str:
     if "enum" in node:

@@ -5,6 +5,8 @@ outside the ephemeris, a NaN coordinate).  The CLI prints its message and exits 
 without a traceback.  Any other exception is a bug and keeps its traceback.
 """
 
+__all__ = ["StraylightError", "ConfigError", "InputError", "EphemerisRangeError", "OutputError"]
+
 
 class StraylightError(Exception):
     """A user-facing error: the message names the file, field and value at fault."""

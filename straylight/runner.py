@@ -18,6 +18,8 @@ from pathlib import Path
 from straylight.errors import InputError
 from straylight.util.daskutil import available_cores
 
+__all__ = ["workflow_dir", "snakemake_command", "check_campaign", "run_campaign"]
+
 _CHECKOUT_WORKFLOW = Path(__file__).resolve().parents[1] / "workflow"
 _PACKAGED_WORKFLOW = Path(__file__).resolve().parent / "_workflow"
 

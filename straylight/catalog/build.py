@@ -42,6 +42,28 @@ from straylight.catalog.sed import (
 from straylight.errors import InputError
 from straylight.util.io import sha256_path
 
+__all__ = [
+    "FLAG_SDSS",
+    "FLAG_COLOUR_BEYOND_TEMPLATES",
+    "FLAG_TEFF_UNKNOWN",
+    "GAIA_FILTERS",
+    "SDSS_FILTERS",
+    "JC_FILTERS",
+    "STAR_COLUMNS",
+    "TemplatePhotometry",
+    "select_templates",
+    "cross_match_fill",
+    "read_population",
+    "build_catalog",
+    "round_trip",
+    "make_catalog",
+    "CATALOG_UNITS",
+    "write_catalog",
+    "catalog_for_campaign",
+    "default_catalog_path",
+    "ingest_many",
+]
+
 FLAG_SDSS = {"g": 1, "r": 2, "i": 4}
 FLAG_COLOUR_BEYOND_TEMPLATES = 8
 FLAG_TEFF_UNKNOWN = 64

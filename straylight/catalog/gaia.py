@@ -20,6 +20,19 @@ import numpy as np
 
 from straylight.errors import InputError
 
+__all__ = [
+    "REQUIRED",
+    "OPTIONAL",
+    "G_RANGE",
+    "SDSS_RELATIONS",
+    "sdss_from_gaia",
+    "IngestResult",
+    "ingest_file",
+    "GAIA_UNITS",
+    "parquet_units",
+    "write_parquet",
+]
+
 REQUIRED = ("source_id", "ra", "dec", "phot_g_mean_mag", "phot_bp_mean_mag", "phot_rp_mean_mag")
 OPTIONAL = ("pmra", "pmdec", "ref_epoch", "parallax")
 G_RANGE = (-2.0, 23.0)  # brightest star G ~ -1.6 (Sirius in Hipparcos-based G); DR2 limit ~21

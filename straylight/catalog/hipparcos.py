@@ -27,6 +27,21 @@ import numpy as np
 
 from straylight.errors import InputError
 
+__all__ = [
+    "HIPPARCOS_EPOCH_YR",
+    "V_MINUS_HP_COEFFS",
+    "V_MINUS_HP_VERIFIED_BV",
+    "VI_RANGE",
+    "FLAG_HP_TO_V_EXTRAPOLATED",
+    "FLAG_VI_RELATION_EXTRAPOLATED",
+    "hip2_path",
+    "v_minus_hp",
+    "read_hip2",
+    "gaia_like_from_hipparcos",
+    "hipparcos_stars",
+    "BRIGHT_STAR_HIP",
+]
+
 HIPPARCOS_EPOCH_YR = 1991.25
 V_MINUS_HP_COEFFS = (0.0, -0.304, 0.202, -0.107, 0.045)  # V - Hp = sum c_n b^n, ESA 1997
 V_MINUS_HP_VERIFIED_BV = (-0.2, 1.05)  # where Bessell (2000) Table 2 confirms it

@@ -34,6 +34,29 @@ import numpy as np
 
 from straylight.errors import InputError
 
+__all__ = [
+    "DATA",
+    "PICKLES_FILE",
+    "AB_MINUS_VEGA",
+    "TemplateLibrary",
+    "bin_average",
+    "magnitudes",
+    "ab_magnitudes",
+    "template_magnitudes",
+    "vega_magnitudes",
+    "DWARF_TEFF_FILE",
+    "SPECTRAL_CLASSES",
+    "DEJAGER_LATEST_M_SUBTYPE",
+    "parse_spectral_type",
+    "teff_scale",
+    "teff_from_spectral_type",
+    "NOMINAL_LOGG",
+    "load_pickles",
+    "PICKLES_TEFF_FILE",
+    "pickles_teff",
+    "load_btsettl",
+]
+
 DATA = Path(__file__).resolve().parents[1] / "data"
 PICKLES_FILE = DATA / "pickles1998_uvk_sed.fits"
 

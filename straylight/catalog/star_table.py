@@ -7,6 +7,8 @@ import numpy as np
 
 from straylight.errors import InputError
 
+__all__ = ["read_star_columns", "read_star_table"]
+
 
 def read_star_columns(path, bands) -> tuple[np.ndarray, np.ndarray, dict]:
     """Read ra, dec and mag_<band> for every band in one pass (Parquet, FITS, CSV, ECSV);

@@ -27,6 +27,8 @@ from straylight.sources.photometry import magnitude_per_arcsec2
 from straylight.sources.rates import LAMPS
 from straylight.sources.stars_table import StarTable
 
+__all__ = ["BackgroundModel", "KERNEL_BLOCK_SAMPLES"]
+
 
 class BackgroundModel:
     """The background of one campaign: its sources of light (built from

@@ -18,6 +18,8 @@ from straylight.sources.earthshine_table_nodes import (
     MOONLIT_LUT_BUILD_SECONDS_PER_NODE,
 )
 
+__all__ = ["ERROR_BUDGET_SHARES", "LUT_SAVED_SECONDS_PER_SAMPLE", "unobservable_samples", "FidelityPolicy"]
+
 #: Shares of models.tolerance (a fraction of the total) held by each fast path; they add up to 1.
 #: The earthshine table must validate within its share; the moonlit Earth has two: the samples
 #: skipped on its bound, and the coarse grid of the others (bench/run.py moonlit_grid measures

@@ -34,6 +34,18 @@ from scipy.special import erf
 from straylight.config import InstrumentSettings, instrument_settings
 from straylight.errors import ConfigError, InputError
 
+__all__ = [
+    "H_PLANCK",
+    "C_LIGHT",
+    "DIAGNOSTIC_BANDS",
+    "Band",
+    "parametric_curve",
+    "read_throughput_file",
+    "aperture_area_m2",
+    "zero_point_ab_mag",
+    "load_band",
+]
+
 H_PLANCK = 6.62607015e-34  # J s (exact, SI 2019)
 C_LIGHT = 299792458.0  # m / s (exact)
 DIAGNOSTIC_BANDS = ("V",)

@@ -37,6 +37,16 @@ from straylight.errors import ConfigError
 from straylight.sky.vectors import wrap_360_deg
 from straylight.util.gridinterp import LinearGrid
 
+__all__ = [
+    "door_length_from_paper",
+    "aperture_points",
+    "Door",
+    "DoorTable",
+    "behind_aperture_plane",
+    "door_state_index",
+    "door_from_instrument",
+]
+
 
 def door_length_from_paper(
     aperture_radius_m: float, opening_deg: float = 135.0, sun_cutoff_deg: float = 65.0

@@ -26,6 +26,8 @@ import numpy as np
 from straylight.config import InstrumentSettings, instrument_settings, needed
 from straylight.errors import ConfigError, InputError
 
+__all__ = ["GhostModel", "ghost_model_from_instrument"]
+
 
 @dataclass(frozen=True)
 class GhostModel:

@@ -32,6 +32,20 @@ from straylight.errors import ConfigError, InputError
 from straylight.sky.vectors import wrap_360_deg
 from straylight.util.gridinterp import AxisCells, LinearGrid
 
+__all__ = [
+    "DEFAULT_FIELD_RADIUS_DEG",
+    "TAIL_90_LOG10",
+    "DEFAULT_ANCHORS_DEG_LOG10",
+    "FIELD_EDGE_LOG10",
+    "FIELD_EDGE_WIDTH_DEG",
+    "DEFAULT_DOOR_SIDE_DEX",
+    "default_anchors",
+    "default_pst_grid",
+    "PST",
+    "load_pst",
+    "write_pst_csv",
+]
+
 #: radius of the default field (deg): the 1.1 deg2 field of view (seed paper sect. 1) as a disc,
 #: sqrt(1.1 / pi); :func:`load_pst` takes the instrument's own
 DEFAULT_FIELD_RADIUS_DEG = float(np.sqrt(1.1 / np.pi))

@@ -32,6 +32,15 @@ from scipy import integrate
 from straylight.config import InstrumentSettings, instrument_settings, needed
 from straylight.errors import ConfigError, InputError
 
+__all__ = [
+    "ARCSEC_RAD",
+    "GAUSS_EE80_FACTOR",
+    "HarveyBRDF",
+    "ScatterModel",
+    "scatter_model_from_instrument",
+    "check_fluxes",
+]
+
 ARCSEC_RAD = np.pi / 180.0 / 3600.0
 GAUSS_EE80_FACTOR = np.sqrt(2.0 * np.log(5.0))  # r80 = sigma * sqrt(2 ln 5)
 

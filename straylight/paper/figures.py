@@ -25,6 +25,24 @@ import numpy as np
 
 from straylight.config import Campaign, needed
 
+__all__ = [
+    "FIGURE_TIME",
+    "FIGURES",
+    "NUV_GHOST_EXAMPLE",
+    "FLAM_ARCSEC2_TABLE1",
+    "zodiacal_map_data",
+    "plot_zodiacal_map",
+    "scattering_data",
+    "plot_scattering",
+    "ghost_example_data",
+    "plot_ghosts",
+    "detector_image_data",
+    "plot_detector_image",
+    "make_figure",
+    "DETECTOR_STAR_RADEC_DEG",
+    "detector_catalog",
+]
+
 FIGURE_TIME = "2026-01-01T00:50:00"  # the paper's scenario time (sects. 3.3, 4.1)
 FIGURES = ("zodiacal-map", "scattering", "ghosts", "detector")
 # paper sect. 4.3: the NUV example's ghost parameters

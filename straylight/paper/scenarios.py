@@ -27,6 +27,19 @@ from straylight.model import BackgroundModel
 from straylight.sky.observing import sample_geometry, scene
 from straylight.sky.vectors import radec_to_unit
 
+__all__ = [
+    "SCENARIO_TIME",
+    "HST_BRIGHT_LIMB_LIMIT_DEG",
+    "LIMB_BIN_DEG",
+    "earthshine_scenario",
+    "sunlit_limb",
+    "read_hst_curve",
+    "binned_median_mag",
+    "crossing_angle_deg",
+    "hst_comparison",
+    "plot_earthshine_scenario",
+]
+
 SCENARIO_TIME = "2026-01-01T00:50:00"
 #: HST's own bright-limb limit in the sunlit region (paper sect. 3.3), deg
 HST_BRIGHT_LIMB_LIMIT_DEG = 20.0

@@ -23,6 +23,16 @@ from astropy.time import Time
 from straylight.errors import EphemerisRangeError, InputError
 from straylight.sky.timeutil import quiet_dubious_years, utc_to_tdb_jd
 
+__all__ = [
+    "BODIES",
+    "PLANETS",
+    "DE405_SPAN",
+    "DE405",
+    "radec_distance",
+    "default_ephemeris",
+    "check_in_ephemeris",
+]
+
 #: Bodies with a position relative to the Earth's centre, in the order used in products.
 BODIES = (
     "sun",

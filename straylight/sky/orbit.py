@@ -28,6 +28,18 @@ import numpy as np
 from straylight.errors import ConfigError, InputError
 from straylight.sky.timeutil import parse_utc
 
+__all__ = [
+    "TLE_EPOCH_WARN_DAYS",
+    "CIRCULAR_EPOCH_WARN_DAYS",
+    "EPOCH_WARNED_ENV",
+    "EarthModel",
+    "CircularOrbit",
+    "TLEOrbit",
+    "orbit_from_config",
+    "epoch_gap_warning",
+    "warn_if_epoch_far",
+]
+
 #: Days between a TLE's epoch and a campaign time beyond which we warn.  A TLE's mean elements
 #: put a low orbit within about a km at epoch, but SGP4 cannot predict the drag (solar activity),
 #: whose along-track error grows with time: after weeks it reaches the order of a minute of the

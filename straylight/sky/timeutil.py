@@ -24,6 +24,17 @@ from astropy.utils import iers
 
 from straylight.errors import ConfigError, InputError
 
+__all__ = [
+    "configure_offline",
+    "quiet_dubious_years",
+    "parse_utc",
+    "DTDB_DIRECT_MAX",
+    "DTDB_GRID_STEP_D",
+    "tdb_minus_tt_s",
+    "utc_to_tdb_jd",
+    "campaign_times",
+]
+
 _CONFIGURED = False
 
 

@@ -22,6 +22,8 @@ from straylight.sources.offfield_cap import EarthshineSettings
 from straylight.sources.photometry import AU_KM, BandPhotometry
 from straylight.sources.zodiacal import ZodiacalModel, zodiacal_model_from_instrument
 
+__all__ = ["Samples", "SourceContext"]
+
 
 @dataclass
 class Samples:

@@ -21,6 +21,8 @@ from straylight.sources.context import Samples, SourceContext
 from straylight.sources.photometry import solar_like_fraction
 from straylight.sources.rates import BandRates
 
+__all__ = ["MoonlitEarth"]
+
 
 class MoonlitEarth:
     """The moonlit Earth outside the field: its configuration, its table, its bound and its sum.

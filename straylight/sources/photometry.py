@@ -15,6 +15,15 @@ import numpy as np
 from straylight.optics.bandpass import Band
 from straylight.sources.zodiacal import solar_spectrum
 
+__all__ = [
+    "AU_KM",
+    "V_SUN_VEGA",
+    "solar_like_fraction",
+    "BandPhotometry",
+    "sky_zero_point_mag_per_arcsec2",
+    "magnitude_per_arcsec2",
+]
+
 AU_KM = 1.495978707e8
 V_SUN_VEGA = -26.76
 

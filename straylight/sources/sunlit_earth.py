@@ -21,6 +21,8 @@ import numpy as np
 from straylight.sources.context import Samples, SourceContext
 from straylight.sources.rates import BandRates
 
+__all__ = ["COEFFICIENTS", "SunlitEarth"]
+
 #: the keys of the earthshine coefficients (e-/s/pix per photon s-1 m-2 of the lamp): direct
 #: (EA1) and via the door (EA2), lit by the Sun and by the Moon
 COEFFICIENTS = ("direct_sun", "door_sun", "direct_moon", "door_moon")

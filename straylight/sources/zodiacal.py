@@ -41,6 +41,25 @@ from straylight.sky.vectors import unit
 from straylight.sources.rates import BandRates
 from straylight.util.gridinterp import LinearGrid
 
+__all__ = [
+    "NO_DATA",
+    "LEINERT_UNIT_W_M2_SR_UM",
+    "OBLIQUITY_J2000_RAD",
+    "ARCSEC2_PER_SR",
+    "SPECTRA",
+    "icrs_to_ecliptic_matrix",
+    "ecliptic_lon_lat_deg",
+    "helioecliptic_coordinates",
+    "LeinertTable",
+    "leinert_table",
+    "solar_spectrum",
+    "leinert_colour_correction",
+    "zodiacal_spectrum_shape",
+    "ZodiacalModel",
+    "ZodiacalLight",
+    "zodiacal_model_from_instrument",
+]
+
 NO_DATA = 1.0e6
 LEINERT_UNIT_W_M2_SR_UM = 1.0e-8
 OBLIQUITY_J2000_RAD = np.radians(84381.406 / 3600.0)  # IAU 2006 (Hilton et al. 2006)

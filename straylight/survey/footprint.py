@@ -9,6 +9,16 @@ import numpy as np
 
 from straylight.errors import ConfigError, InputError
 
+__all__ = [
+    "Footprint",
+    "pixel_block_length",
+    "pixel_centres",
+    "latitude_cut_mask",
+    "read_mask",
+    "footprint_from_config",
+    "footprint_from_store",
+]
+
 
 @dataclass
 class Footprint:

@@ -20,6 +20,21 @@ from straylight.sky.geometry import observing_geometry
 from straylight.sky.vectors import radec_to_unit
 from straylight.survey.footprint import Footprint
 
+__all__ = [
+    "evaluated_samples",
+    "CUBE_TABLE_SECONDS_PER_SAMPLE",
+    "CUBE_SCREEN_SECONDS_PER_SAMPLE",
+    "CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE",
+    "PRODUCT_BYTES_PER_SAMPLE",
+    "PIPELINE_FIXED_SECONDS",
+    "PIPELINE_SAMPLES_PER_S_PER_CORE",
+    "FAINT_MAP_SECONDS_PER_PIXEL",
+    "pipeline_rate",
+    "cube_compute_seconds",
+    "machine_speed",
+    "estimated_cost",
+]
+
 
 def evaluated_samples(campaign: Campaign, fp: Footprint, max_times: int = 144, max_pixels: int = 660) -> int:
     """How many samples the campaign's cube evaluates: every (time, pixel) one, or with

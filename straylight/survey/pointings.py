@@ -19,6 +19,17 @@ import numpy as np
 
 from straylight.errors import InputError
 
+__all__ = [
+    "table_components",
+    "ALIASES",
+    "read_pointings",
+    "check_radec",
+    "pointing_table",
+    "UNITS",
+    "column_units",
+    "background_table",
+]
+
 
 def table_components() -> tuple:
     """The per-band e-/s/pix columns of a pointing table: the registry's components and the

@@ -22,6 +22,8 @@ from straylight.sky.vectors import radec_to_unit
 from straylight.survey.footprint import Footprint, footprint_from_config
 from straylight.survey.timegrid import time_blocks
 
+__all__ = ["ephemeris_dataset", "footprint_products", "write_footprint_fits", "observability_dataset"]
+
 
 def _var(data, dims, units, long_name, **extra):
     attrs = {"units": units, "long_name": long_name}

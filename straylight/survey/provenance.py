@@ -24,6 +24,20 @@ from straylight._version import __version__, build_commit
 from straylight.config import CONFIG_DIR, PATH_KEYS
 from straylight.util.io import sha256_path
 
+__all__ = [
+    "PACKAGES",
+    "SOURCE_ROOT",
+    "RUN_ENV",
+    "LAUNCHER_ENV",
+    "PATHS_NOTE",
+    "versions",
+    "source_revision",
+    "RunInfo",
+    "snakemake_run",
+    "portable_path",
+    "provenance_record",
+]
+
 PACKAGES = (
     "straylight",
     "numpy",

@@ -27,6 +27,14 @@ from straylight.model import BackgroundModel
 from straylight.sources.body_magnitudes import MOON_MEAN_DISTANCE_KM, moon_v_magnitude
 from straylight.survey.limits import SNR, survey_exposure
 
+__all__ = [
+    "moon_avoidance_table",
+    "bright_limb_table",
+    "exposure_time_factor",
+    "exposure_factor_table",
+    "write_tables",
+]
+
 
 def _pst_max_over_phi(model: BackgroundModel, theta_deg: np.ndarray) -> np.ndarray:
     phi = np.linspace(0.0, 360.0, 145)

@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+__all__ = ["time_blocks"]
+
 
 def time_blocks(n_times: int, cadence_s: float, block_hours: float) -> list[tuple[int, int]]:
     """Split sample indices [0, n_times) into blocks of about ``block_hours``: (start, stop).

@@ -19,6 +19,15 @@ import numpy as np
 
 from straylight.errors import InputError
 
+__all__ = [
+    "MAX_SAMPLES",
+    "MAX_STEP_ORBIT_FRACTION",
+    "ALIAS_TOLERANCE",
+    "visibility",
+    "warn_if_step_aliases",
+    "plot_visibility",
+]
+
 #: more samples than this are refused (a year at 1 min is 525,960): ask for a coarser --step
 MAX_SAMPLES = 600_000
 #: steps longer than this fraction of the orbital period are warned about: an observable window

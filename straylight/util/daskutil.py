@@ -11,6 +11,23 @@ import signal
 import sys
 from contextlib import contextmanager
 
+__all__ = [
+    "WORKER_MALLOC_MMAP_THRESHOLD",
+    "WORKER_MALLOC_TRIM_THRESHOLD",
+    "available_cores",
+    "worker_environment",
+    "temporary_environment",
+    "spawned_pool",
+    "PARENT_POLL_SECONDS",
+    "die_with_parent",
+    "Stopped",
+    "kill_pool_workers",
+    "REPEATED_SIGNAL_SECONDS",
+    "stop_on_signals",
+    "exit_without_teardown",
+    "dask_rechunk_by_tasks",
+]
+
 #: glibc malloc settings for worker processes (bytes), see worker_environment
 WORKER_MALLOC_MMAP_THRESHOLD = 32 * 2**20
 WORKER_MALLOC_TRIM_THRESHOLD = 256 * 2**20

@@ -21,6 +21,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+__all__ = ["cell_of", "AxisCells", "LinearGrid"]
+
 
 @njit(cache=True, nogil=True, inline="always")
 def _bilinear(flat, b, ch, sa, sb, ta, tb):

@@ -14,6 +14,8 @@ from __future__ import annotations
 import sys
 import threading
 
+__all__ = ["load_without_plotting", "healpy"]
+
 _PLOTLESS = False  # set by load_without_plotting
 _LOCK = threading.Lock()
 

@@ -14,6 +14,8 @@ import tempfile
 from contextlib import contextmanager
 from pathlib import Path
 
+__all__ = ["check_output_path", "atomic_path", "write_json_atomic", "sha256_path", "cache_dir"]
+
 
 def check_output_path(
     path, flag: str = "--out", overwrite: bool = False, parents: bool = False, folder: bool = False
