@@ -93,6 +93,9 @@ def write_fits(
                 compression_type="RICE_1",
                 quantize_level=-step,
                 quantize_method=1,
+                # the dither's seed from the first tile's checksum, not the clock: the same image
+                # gives the same file
+                dither_seed=fits.hdu.compressed.DITHER_SEED_CHECKSUM,
             ),
         ]
     else:

@@ -34,6 +34,7 @@ __all__ = [
     "TOTAL",
     "band_components",
     "component_names",
+    "leaves",
     "long_names",
     "register",
 ]

@@ -35,6 +35,7 @@ import numpy as np
 from straylight.errors import OutputError
 from straylight.sky.geometry import violation_mask_attrs
 from straylight.survey import cube_layout
+from straylight.survey.bitround import stored_values
 from straylight.survey.cube_layout import (
     CUBE_PIXEL_VARIABLES,
     LIMITS_REGION_VARIABLES,
@@ -43,7 +44,6 @@ from straylight.survey.cube_layout import (
     cube_chunks,
 )
 from straylight.survey.limits import ZERO_POINT_NAME, zero_point_coord
-from straylight.survey.storage import stored_values
 
 if TYPE_CHECKING:  # xarray where a Dataset is made: a worker writing regions does without it
     import xarray as xr
@@ -351,7 +351,7 @@ class StoreArrays:
         """Write a computed region: ``region`` (name -> array) to the cube's store, its
         observability (``region``'s flags and ``angles``) to the observability store, ``limits``
         (:func:`region_limits`) to the limits store; each rounded as its array's attributes
-        record (:func:`~straylight.survey.storage.stored_values`).  OutputError when the file
+        record (:func:`~straylight.survey.bitround.stored_values`).  OutputError when the file
         system refuses (no space, no access): the time block's sentinel is then not written.
 
         Parameters

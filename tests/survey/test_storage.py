@@ -7,6 +7,7 @@ import pytest
 import xarray as xr
 
 from straylight.config import campaign_from_dict, deep_merge
+from straylight.survey.bitround import bitround, max_relative_error, recorded_keepbits, stored_values
 from straylight.survey.cube_layout import CUBE_BAND_VARIABLES
 from straylight.survey.cube_region import compute_region
 from straylight.survey.cube_store import init_store
@@ -14,14 +15,7 @@ from straylight.survey.executors import write_region
 from straylight.survey.footprint import footprint_from_config
 from straylight.survey.limits_cube import limits_dataset
 from straylight.survey.products import ephemeris_dataset, observability_dataset
-from straylight.survey.storage import (
-    bitround,
-    encoded,
-    max_relative_error,
-    recorded_keepbits,
-    stored_values,
-    write_zarr_atomic,
-)
+from straylight.survey.storage import encoded, write_zarr_atomic
 
 #: the storage requirements: stored values within 1e-3 relative of the computed ones, all
 #: products together at most 25 bytes per (time, pixel) sample
