@@ -1,4 +1,4 @@
-"""The benchmark suite in one command (issue #7):  python bench/run.py [--samples N] [--quick]
+"""The benchmark suite in one command:  python bench/run.py [--samples N] [--quick]
 
 For every approximation knob, the error of the whole background (all components, all seven
 bands) against a converged reference, against its cost, at random observable (time, pointing)

@@ -1,14 +1,14 @@
-"""Issue #7's goal figures against a run's summary."""
+"""The speed and accuracy goal's figures against a run's summary."""
 
 from __future__ import annotations
 
-#: issue #7's goal figures: samples/s/core (all bands), the largest error as a fraction of the
+#: the goal's figures: samples/s/core (all bands), the largest error as a fraction of the
 #: total background, and the speed-up over the direct path measured side by side
 GOAL_SAMPLES_PER_S_PER_CORE, GOAL_MAX_REL_ERROR, GOAL_SPEEDUP_OVER_DIRECT = 1e6, 0.01, 10.0
 
 
 def goal_check(summary: dict) -> dict:
-    """Issue #7's goal figures against this run's (the default path: the cube on the table
+    """The goal's figures against this run's (the default path: the cube on the table
     path, every sample evaluated, as production computes it): samples/s/core for all bands on
     the whole default campaign, time block by time block as its jobs compute it (the figure
     production runs at), its first time block, a single region and the day-spread batch; the

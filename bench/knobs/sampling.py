@@ -113,7 +113,7 @@ def time_cadence_rows(bench):
         )
         if step == 1:
             continue
-        # adaptive, as issue #7 describes it: drop the samples interpolation reproduces
+        # adaptive: drop the samples interpolation reproduces
         computed, adaptive = adaptive_in_time(full, obs, door, step, ADAPTIVE_CHECK_FRACTION)
         rel_a = np.abs(adaptive - full) / full
         err_a = float(np.max(np.where(obs[:, None, :], rel_a, 0.0)))

@@ -1,4 +1,4 @@
-"""The earthshine look-up table (issue #7 fast path) against the direct Earth-cap sum it
+"""The earthshine look-up table (the fast path) against the direct Earth-cap sum it
 tabulates, its moonlit-Earth bound, its cache, and the automatic choice from the tolerance.
 A coarse table (5 x 5 x 20 deg nodes, ~10 s to build) keeps the tests fast; the default table's
 error and cost are measured by bench/run.py."""

@@ -1,4 +1,4 @@
-"""5-sigma limiting magnitudes against the published CSST wide-survey depth (issue #6, check 3).
+"""5-sigma limiting magnitudes against the published CSST wide-survey depth.
 
 Published depth: Qu et al. 2023, MNRAS 519, 6499 (arXiv:2212.10804), abstract: "the point-source
 depth reaches 26.3 mag in the g band and 25.9 mag in the i band" for the 17,500 deg2 wide survey
@@ -52,7 +52,7 @@ RECONCILED_TOLERANCE_MAG = 0.2
 
 
 def test_default_zero_points_are_the_published_ones(campaign):
-    """Issue 35 item 6: the default bands' AB zero points (1 e-/s through the 2 m aperture) equal
+    """The default bands' AB zero points (1 e-/s through the 2 m aperture) equal
     the published CSST ones (g r i z; sim_csst_lens csst_setting.yaml, DATA.md) within 0.02 mag.
     The flat-top curve at the peak throughput gave g 26.51, r 26.15, i 25.83, z 25.85."""
     from straylight.optics.bandpass import aperture_area_m2, load_band, zero_point_ab_mag
@@ -117,7 +117,7 @@ def test_unpublished_zero_points_against_the_real_curves(campaign):
 
 
 def test_one_pixel_scale_for_rates_and_surface_brightness(campaign):
-    """Issue 35 item 7: the zodiacal light's e-/s/pixel (pixel etendue pi D^2/4 (p/f)^2) turned
+    """The zodiacal light's e-/s/pixel (pixel etendue pi D^2/4 (p/f)^2) turned
     back into mag/arcsec2 with the campaign's pixel scale gives the zodiacal model's own
     mag/arcsec2: both use p / f = 10 um / 28 m = 0.073665 arcsec (0.074 gave 0.0097 mag)."""
     from straylight.optics.bandpass import load_band
@@ -149,7 +149,7 @@ def _depth_with_published_assumptions(campaign, band):
 
 
 def test_depth_with_the_published_assumptions_reconciles_with_qu_2023(campaign):
-    """Issue 34 item 4: with the published sky (g 22.57, i 21.87 mag/arcsec2) and zero points,
+    """With the published sky (g 22.57, i 21.87 mag/arcsec2) and zero points,
     2 x 150 s, 5 e- read noise, 0.02 e-/s dark and EE80 in 0.15 arcsec, our noise model gives
     26.45 (g) and 25.99 (i) against Qu et al. 2023's 26.3 and 25.9: within 0.2 mag (the published
     depths' rounding and their unpublished aperture convention).  The sky, not the noise model,

@@ -1,4 +1,4 @@
-"""`straylight sky --input pointings --out table.parquet` (#8): values, and bad rows.
+"""`straylight sky --input pointings --out table.parquet`: values, and bad rows.
 
 Reference values: `straylight sky` for each row, one sample at a time."""
 

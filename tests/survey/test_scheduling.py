@@ -1,4 +1,4 @@
-"""Scheduling tables (issue #8 item 2): checked against independent evaluations of the same
+"""Scheduling tables: checked against independent evaluations of the same
 physics (the PST directly, the Earth-cap sum in a rotated scene, the 5-sigma equation solved
 numerically)."""
 

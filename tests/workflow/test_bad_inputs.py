@@ -1,4 +1,4 @@
-"""The bad-input corpus (tests/workflow/bad_inputs/cases.yaml, issue #9): every user mistake gives one
+"""The bad-input corpus (tests/workflow/bad_inputs/cases.yaml): every user mistake gives one
 clear line naming the file, field and value, with exit status 2 and nothing written or changed,
 or a quarantine with counted reasons; never a traceback, never a silently wrong product."""
 

@@ -1,4 +1,4 @@
-"""The benchmark's error-checked adaptive time sampling (bench/knobs/sampling.py, issue #7): what it
+"""The benchmark's error-checked adaptive time sampling (bench/knobs/sampling.py): what it
 computes and what it fills in, on series whose answer is known in closed form."""
 
 import sys
@@ -59,7 +59,7 @@ def test_a_spike_between_the_checks_is_missed():
 
 def test_goal_check_reads_the_production_figures_and_flags_each_goal():
     """bench/run.py's goal_check: the whole campaign's rate is the production figure, each goal
-    (issue #7: 1e6 samples/s/core, 1 % error, 10x the direct path) flagged on its own, and a
+    (the goal: 1e6 samples/s/core, 1 % error, 10x the direct path) flagged on its own, and a
     figure the run did not measure is None, not a pass."""
     from knobs.goal import goal_check
 

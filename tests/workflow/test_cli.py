@@ -76,7 +76,7 @@ def test_sky_gives_magnitudes_and_the_limit_in_text_and_json(campaign):
         assert bands[b]["limit_mag"] == pytest.approx(
             point_source_limit(tot["e_per_s_per_pix"], b, campaign), abs=1e-9
         )
-    # g dark sky 23.1-23.6 mag/arcsec2 and depth ~26.8 (issue 33, from the cube); the Moon adds a little here
+    # g dark sky 23.1-23.6 mag/arcsec2 and depth ~26.8 (from the cube); the Moon adds a little here
     assert 22.0 < bands["g"]["total"]["mag_per_arcsec2"] < 23.8 and 26.0 < bands["g"]["limit_mag"] < 27.2
     r = run_cli(*args)
     assert r.returncode == 0, r.stderr
@@ -129,7 +129,7 @@ def test_every_command_has_help(cmd):
     assert r.returncode == 0 and "usage" in r.stdout
 
 
-# -- output paths checked before any work (issue 33 item 5) --------------------------------------
+# -- output paths checked before any work ------------------------------------------------------
 OUTPUT_COMMANDS = [
     ("pst", "--write-default", "pst.csv"),
     ("catalog", "--out", "cat.parquet"),

@@ -1,4 +1,4 @@
-"""Faults while writing (issue #9): a disk that fills during a Zarr write.  The failure is one
+"""Faults while writing: a disk that fills during a Zarr write.  The failure is one
 clear error naming the store and region, finished time blocks keep their bytes, and re-running
 the failed block gives a store bit-identical to an uninterrupted run.  And kills: Snakemake
 killed in the middle of the cube leaves no process behind, and the resumed run's products are
