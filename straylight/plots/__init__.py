@@ -5,10 +5,13 @@
 * :mod:`~straylight.plots.series` - time series of chosen pointings over the first orbit and the
   whole campaign;
 * :mod:`~straylight.plots.report` - the depth table and the report's first page;
+* :mod:`~straylight.plots.overlays` - what the maps draw over the data: the ecliptic, the Galactic
+  plane, the Sun;
 * :mod:`~straylight.plots.common` - what they share: magnitudes, colour scales, saving.
 
-Maps are in the cube's HEALPix frame (ICRS); pixels outside the footprint are grey.  Values are
-shown as AB mag/arcsec2 (brighter = smaller), the unit planners compare with sky tables.
+Maps are in the cube's HEALPix frame (ICRS), RA increasing to the left; pixels outside the footprint
+are light grey.  Values are shown as AB mag/arcsec2 (brighter = smaller), the unit planners compare
+with sky tables; depths as AB mag.
 """
 
 __all__: list[str] = []

@@ -8,7 +8,16 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["FIGURE_DPI"]
+__all__ = [
+    "DEPTH_CMAP",
+    "DEPTH_PERCENTILES",
+    "FIGURE_DPI",
+    "MIN_COLOUR_SPAN_MAG",
+    "OUTSIDE_COLOUR",
+    "SKY_CMAP",
+    "SKY_PERCENTILES",
+    "band_colour_limits",
+]
 
 
 def _mag(ds, e_per_s, band: str, campaign):
@@ -51,11 +60,54 @@ def _tick_format(lo: float, hi: float, n: int = 4):
     return loc, FormatStrFormatter(f"%.{decimals}f")
 
 
-def _colour_range(values, percentiles=(2.0, 98.0), min_span: float = 0.01) -> tuple[float, float]:
-    """The range of the colour scale: the given percentiles of the finite values, widened
-    symmetrically to ``min_span`` where the values are nearly uniform."""
-    v = np.asarray(values, float)
-    v = v[np.isfinite(v)]
+#: The colour of the maps' pixels outside the footprint (or without a value: never observable, a
+#: component's 0), light grey: distinct from every colour of the colour scales below
+OUTSIDE_COLOUR = "0.82"
+#: The colour scales: the limiting-magnitude maps (deeper: brighter) and the background maps
+#: (brighter sky: yellow).  Neither has black at either end, so that a pixel clipped to the end of
+#: its scale never reads as a hole in the footprint.
+DEPTH_CMAP, SKY_CMAP = "plasma", "viridis_r"
+#: Percentiles of the in-footprint values that set a colour scale's ends; pixels beyond are drawn
+#: in the end colours (the colour bar's triangles).  Depth maps pile up within a few 0.01 mag of
+#: the dark-sky limit with a tail of a few per cent up to 1 mag shallower next to the Sun and the
+#: Moon: the 5th percentile keeps that tail from taking the whole scale (the default day's g band:
+#: 2nd percentile 25.65, 5th 26.33, median 26.54 mag).  Background maps span many magnitudes and
+#: are not piled up: their 2nd-98th percentile.
+DEPTH_PERCENTILES = (5.0, 99.5)
+SKY_PERCENTILES = (2.0, 98.0)
+#: The smallest span of a colour scale, mag: depths or sky brightnesses that differ by less are
+#: shown as (nearly) one colour rather than stretched over the whole scale.  0.1 mag of depth is
+#: 20 % of exposure time for a background-limited source, about the least a planner acts on.
+MIN_COLOUR_SPAN_MAG = 0.1
+
+
+def band_colour_limits(
+    maps, percentiles=DEPTH_PERCENTILES, min_span: float = MIN_COLOUR_SPAN_MAG
+) -> tuple[float, float]:
+    """One colour scale for every map of one band (a depth map's median and best, or the maps of
+    several times): the ``percentiles`` of all their in-footprint values together, widened
+    symmetrically to ``min_span`` where they are nearly uniform.
+
+    Parameters
+    ----------
+    maps : iterable of array_like
+        The band's maps (pixel values, or full HEALPix maps): non-finite values and healpy's
+        ``UNSEEN`` (outside the footprint) are left out.
+    percentiles : (float, float)
+        Lower and upper percentile (0-100) of the values pooled over ``maps``.
+    min_span : float
+        The smallest ``vmax - vmin``, in the maps' unit (mag).
+
+    Returns
+    -------
+    (float, float)
+        ``(vmin, vmax)`` in the maps' unit; (20, 30) if no map has a value.
+    """
+    from healpy import UNSEEN
+
+    pooled = [np.asarray(m, float).ravel() for m in maps]
+    v = np.concatenate(pooled) if pooled else np.empty(0)
+    v = v[np.isfinite(v) & (v != UNSEEN)]
     if v.size == 0:
         return 20.0, 30.0
     lo, hi = (float(x) for x in np.percentile(v, percentiles))

@@ -1,9 +1,12 @@
-"""All-sky Mollweide maps: the panel (healpy's projection, drawn once per page layout), the
-pages of every background component and the total per band at chosen times, and the best and
-median limiting-magnitude maps.
+"""All-sky Mollweide maps: the panel (healpy's projection, drawn once per page layout) with its
+graticule labelled in RA and Dec, the ecliptic, the Galactic plane and the Sun; the pages of every
+background component and the total per band at chosen times, and the limiting-magnitude maps.
 
-Maps are in the cube's HEALPix frame (ICRS); pixels outside the footprint are grey.  Values are
-shown as AB mag/arcsec2 (brighter = smaller), the unit planners compare with sky tables.
+Maps are in the cube's HEALPix frame (ICRS), centred on RA 0h with RA increasing to the left
+(East left, as the sky is seen from inside); pixels outside the footprint are light grey.
+Background values are shown as AB mag/arcsec2 (brighter = smaller), the unit planners compare
+with sky tables; depths as AB mag.  The maps of one band share one colour scale
+(:func:`~straylight.plots.common.band_colour_limits`): a colour means the same number on each.
 """
 
 from __future__ import annotations
@@ -13,16 +16,43 @@ from pathlib import Path
 
 import numpy as np
 
-from straylight.plots.common import _colour_range, _full_sky, _mag, _save, _tick_format
+from straylight.plots.common import (
+    DEPTH_CMAP,
+    DEPTH_PERCENTILES,
+    MIN_COLOUR_SPAN_MAG,
+    OUTSIDE_COLOUR,
+    SKY_CMAP,
+    SKY_PERCENTILES,
+    _full_sky,
+    _mag,
+    _save,
+    _tick_format,
+    band_colour_limits,
+)
+from straylight.plots.overlays import (
+    ECLIPTIC_STYLE,
+    GALACTIC_STYLE,
+    SUN_END_STYLE,
+    SUN_START_STYLE,
+    SUN_TRACK_STYLE,
+    ecliptic_radec_deg,
+    galactic_plane_radec_deg,
+    sun_radec_deg,
+    sun_track_times,
+)
 
 __all__ = [
+    "DEPTH_MAP_STATS",
     "GRATICULE_ALPHA",
     "GRATICULE_COLOUR",
     "GRATICULE_LW",
     "MOLLWEIDE_XSIZE",
     "MollweidePanel",
+    "ORIENTATION",
+    "depth_colour_limits",
     "limit_maps",
     "map_time_indices",
+    "overlay_legend",
     "sky_map_figures",
     "sky_maps",
 ]
@@ -52,22 +82,31 @@ def _mollweide_pixel_index(nside: int, nest: bool, xsize: int = MOLLWEIDE_XSIZE)
     return index
 
 
-#: The maps' graticule lines: colour, opacity, width (points)
+#: The maps' graticule lines: colour, opacity, width (points); spacing of the parallels and the
+#: meridians (deg); the labels' font size (points)
 GRATICULE_COLOUR, GRATICULE_ALPHA, GRATICULE_LW = "0.3", 0.5, 0.4
+GRATICULE_DPAR_DEG, GRATICULE_DMER_DEG = 30.0, 60.0
+GRATICULE_LABEL_SIZE = 7
 
 
 @lru_cache(maxsize=1)
-def _graticule_segments(dpar_deg: float = 30.0, dmer_deg: float = 60.0, step: int = 8) -> tuple:
-    """Healpy's Mollweide graticule (parallels every ``dpar_deg``, meridians every ``dmer_deg``) and
-    its border, as (line style, line width, colour, alpha, vertices) groups in the axes' data
-    coordinates: projected once by ``SphericalProjAxes.graticule`` on a scratch axes.  healpy
-    samples the lines every 0.1 deg; every ``step``-th vertex (and the last) is kept: vertices
-    ~1 page pixel apart on a 4-panel-wide page, the same curves as drawn."""
+def _graticule_segments(step: int = 8) -> tuple:
+    """Healpy's Mollweide graticule (parallels every ``GRATICULE_DPAR_DEG``, meridians every
+    ``GRATICULE_DMER_DEG``) and its border, as (line style, line width, colour, alpha, vertices)
+    groups in the axes' data coordinates: projected once by ``SphericalProjAxes.graticule`` on
+    a scratch axes.  healpy samples the lines every 0.1 deg; every ``step``-th vertex (and the
+    last) is kept: vertices ~1 page pixel apart on a 4-panel-wide page, the same curves as drawn."""
     import healpy.projaxes as PA
     from matplotlib.figure import Figure
 
     ax = PA.HpxMollweideAxes(Figure(), (0.0, 0.0, 1.0, 1.0), flipconv="astro")
-    ax.graticule(dpar=dpar_deg, dmer=dmer_deg, color=GRATICULE_COLOUR, alpha=GRATICULE_ALPHA, lw=GRATICULE_LW)
+    ax.graticule(
+        dpar=GRATICULE_DPAR_DEG,
+        dmer=GRATICULE_DMER_DEG,
+        color=GRATICULE_COLOUR,
+        alpha=GRATICULE_ALPHA,
+        lw=GRATICULE_LW,
+    )
     groups = {}
     for line in ax.lines:
         xy = line.get_xydata()
@@ -77,16 +116,38 @@ def _graticule_segments(dpar_deg: float = 30.0, dmer_deg: float = 60.0, step: in
     return tuple((*key, tuple(segs)) for key, segs in groups.items())
 
 
-class MollweidePanel:
-    """One Mollweide panel at subplot ``sub`` (rows, columns, index from 1) of ``fig``, laid out,
-    coloured and annotated as healpy's ``mollview(..., notext=True)`` with a 30/60-deg graticule,
-    and with ``unit`` a colour bar of a few rounded ticks with the unit below; :meth:`show` draws
-    a map in it, and may be called again for the next map (pages of the same layout share their
-    panels: making the axes and colour bars costs more than drawing a map)."""
+def _projected(proj, radec_deg) -> list:
+    """The line through ``radec_deg`` ((n, 2) RA, Dec in deg) in ``proj``'s plane, as the pieces
+    between its crossings of the map's edge (RA 12h): a list of (m, 2) vertex arrays."""
+    radec = np.atleast_2d(np.asarray(radec_deg, float))
+    x, y = proj.ang2xy(radec[:, 0], radec[:, 1], lonlat=True)
+    xy = np.column_stack([np.atleast_1d(x), np.atleast_1d(y)])
+    cuts = np.flatnonzero(np.abs(np.diff(xy[:, 0])) > 1.0) + 1
+    return np.split(xy, cuts)
 
-    def __init__(self, fig, sub: tuple, cmap: str, unit: str | None):
+
+def _colour_map(name: str):
+    """Colour scale ``name`` with the values beyond its range in its end colours (clipped, never
+    the background's) and pixels without a value in :data:`OUTSIDE_COLOUR`."""
+    from matplotlib import colormaps
+
+    cmap = colormaps[name]
+    return cmap.with_extremes(under=cmap(0.0), over=cmap(1.0), bad=OUTSIDE_COLOUR)
+
+
+class MollweidePanel:
+    """One Mollweide panel at subplot ``sub`` (rows, columns, index from 1) of ``fig``, laid out
+    as healpy's ``mollview(..., notext=True)`` (ICRS, centred on RA 0h, RA increasing to the
+    left) with a 30/60-deg graticule labelled in RA (hours) and Dec (deg), East and West marked,
+    and with ``overlays`` the ecliptic and the Galactic plane; with ``unit`` a colour bar of a few
+    rounded ticks, ``unit`` below.  :meth:`show` draws a map in it, and may be called again for
+    the next map (pages of the same layout share their panels: making the axes and colour bars
+    costs more than drawing a map)."""
+
+    def __init__(self, fig, sub: tuple, cmap: str, unit: str | None, overlays: bool = True):
         import healpy.projaxes as PA
         from matplotlib.collections import LineCollection
+        from matplotlib.lines import Line2D
 
         # mollview's subplot extent and margins (left, bottom, right, top), in figure fractions
         nrows, ncols, idx = sub
@@ -98,7 +159,7 @@ class MollweidePanel:
             1.0 / ncols - margins[2] - margins[0],
             1.0 / nrows - margins[3] - margins[1],
         )
-        self.fig, self.cmap, self.unit = fig, cmap, unit
+        self.fig, self.cmap, self.unit = fig, _colour_map(cmap), unit
         self.ax = PA.HpxMollweideAxes(fig, extent, flipconv="astro")
         # the axes are off (healpy): hidden x and y axes also spare the tick layout that placing
         # the title would otherwise make at every draw
@@ -110,73 +171,169 @@ class MollweidePanel:
                 LineCollection(segments, linestyles=style, linewidths=lw, colors=colour, alpha=alpha),
                 autolim=False,
             )
+        self._label_graticule()
         self.image = self.colour_bar = None
+        self.sun = ()
+        if overlays:
+            for radec, style in (
+                (ecliptic_radec_deg(), ECLIPTIC_STYLE),
+                (galactic_plane_radec_deg(), GALACTIC_STYLE),
+            ):
+                self.ax.add_collection(
+                    LineCollection(
+                        _projected(self.ax.proj, radec),
+                        colors=style["color"],
+                        linestyles=[style["linestyle"]],
+                        linewidths=style["linewidth"],
+                    ),
+                    autolim=False,
+                )
+            # the Sun's track, its start and its position (at the map's time, or the end)
+            self.sun = tuple(
+                self.ax.add_line(Line2D([], [], **style))
+                for style in (
+                    SUN_TRACK_STYLE,
+                    {**SUN_START_STYLE, "linestyle": "none"},
+                    {**SUN_END_STYLE, "linestyle": "none"},
+                )
+            )
 
-    def show(self, full_sky, nest: bool, title: str, vmin: float, vmax: float) -> "MollweidePanel":
-        """Draw ``full_sky`` (a full HEALPix map; ``UNSEEN`` grey) between ``vmin`` and ``vmax``:
-        the image is the cached pixel index of :func:`_mollweide_pixel_index` applied to it,
-        drawn with imshow."""
+    def _label_graticule(self) -> None:
+        """RA in hours on the equator at each meridian (the map's edge, 12h, left out), Dec in deg
+        left of the border at each parallel, E at the equator's left end (RA increases to the left,
+        towards East, as on the sky seen from inside)."""
+        import matplotlib.patheffects as pe
+
+        proj = self.ax.proj
+        kw = {"fontsize": GRATICULE_LABEL_SIZE, "color": "0.1", "clip_on": False}
+        halo = [pe.withStroke(linewidth=1.6, foreground="white")]
+        for ra in np.arange(0.0, 360.0, GRATICULE_DMER_DEG):
+            if ra == 180.0:
+                continue
+            x, y = proj.ang2xy(ra, 0.0, lonlat=True)
+            self.ax.text(x, y - 0.03, f"{ra / 15:.0f}h", ha="center", va="top", path_effects=halo, **kw)
+        for dec in np.arange(-90.0 + GRATICULE_DPAR_DEG, 90.0, GRATICULE_DPAR_DEG):
+            if dec == 0.0:
+                continue
+            x, y = proj.ang2xy(179.999, dec, lonlat=True)  # the parallel's left end
+            self.ax.text(x - 0.04, y, f"{dec:+.0f}°", ha="right", va="center", **kw)
+        self.ax.text(-2.04, 0.0, "E", ha="right", va="center", fontweight="bold", **kw)
+
+    def show(
+        self, full_sky, nest: bool, title: str, vmin: float, vmax: float, sun_radec_deg=None
+    ) -> "MollweidePanel":
+        """Draw ``full_sky`` (a full HEALPix map; ``UNSEEN`` and non-finite pixels light grey)
+        between ``vmin`` and ``vmax`` (values beyond in the end colours), and the Sun at
+        ``sun_radec_deg`` ((n, 2) RA, Dec in deg: one position, or a track from the first to
+        the last; None: no Sun): the image is the cached pixel index of
+        :func:`_mollweide_pixel_index` applied to the map, drawn with imshow inside the ellipse."""
         import healpy as hp
-        import healpy.projaxes as PA
+        from matplotlib.colors import Normalize
+        from matplotlib.patches import Ellipse
 
         m = np.asarray(full_sky, float)
         index = _mollweide_pixel_index(hp.npix2nside(m.size), bool(nest))
-        img = np.full(index.shape, -np.inf)  # outside the ellipse: healpy's background colour
+        img = np.full(index.shape, hp.UNSEEN)  # outside the ellipse: clipped away below
         img[index >= 0] = m[index[index >= 0]]
-        seen = np.isfinite(img) & ~hp.mask_bad(img)
-        cm, norm = PA.get_color_table(vmin, vmax, img[seen], cmap=self.cmap, badcolor="gray", bgcolor="white")
-        data = np.ma.masked_values(img, hp.UNSEEN)
+        data = np.ma.masked_array(img, mask=~np.isfinite(img) | hp.mask_bad(img))
+        norm = Normalize(vmin=vmin, vmax=vmax)
         if self.image is None:
             self.image = self.ax.imshow(
                 data,
                 extent=self.ax.proj.get_extent(),
-                cmap=cm,
+                cmap=self.cmap,
                 norm=norm,
                 interpolation="nearest",
                 origin="lower",
             )
+            # only the ellipse: the image's corners are no pixel of the sky
+            self.image.set_clip_path(Ellipse((0.0, 0.0), 4.0, 2.0, transform=self.ax.transData))
             # the limits after imshow, which sets them to the image's extent
             self.ax.set_xlim(-2.01, 2.01)
             self.ax.set_ylim(-1.01, 1.01)
         else:
             self.image.set_data(data)
-            self.image.set_cmap(cm)
             self.image.set_norm(norm)
+        self._show_sun(sun_radec_deg)
         self.ax.set_title(title)
         if self.unit is not None:
-            self._colour_bar(norm, vmin, vmax, cm.N)
+            self._colour_bar(norm, vmin, vmax)
         return self
 
-    def _colour_bar(self, norm, vmin: float, vmax: float, n_colours: int) -> None:
-        """Mollview's colour bar: ``n_colours`` solid steps between the limits, under the map."""
-        from matplotlib.cm import ScalarMappable
-        from matplotlib.colors import Normalize
+    def _show_sun(self, sun_radec_deg) -> None:
+        if not self.sun:
+            return
+        track, start, end = self.sun
+        if sun_radec_deg is None:
+            for line in self.sun:
+                line.set_data([], [])
+            return
+        pieces = _projected(self.ax.proj, sun_radec_deg)
+        xy = np.concatenate([p for piece in pieces for p in (piece, [[np.nan, np.nan]])])[:-1]
+        end.set_data(xy[-1:, 0], xy[-1:, 1])
+        several = len(xy) > 1
+        start.set_data(xy[:1, 0] if several else [], xy[:1, 1] if several else [])
+        track.set_data(xy[:, 0] if several else [], xy[:, 1] if several else [])
 
-        bounds = norm.inverse(np.linspace(0, 1, n_colours + 1))
-        values = np.linspace(norm.vmin, norm.vmax, n_colours)
-        bar_norm = Normalize(vmin=norm.vmin, vmax=norm.vmax)
+    def _colour_bar(self, norm, vmin: float, vmax: float) -> None:
+        """A colour bar under the map, with triangles for the values beyond its ends."""
+        from matplotlib.cm import ScalarMappable
+
         if self.colour_bar is None:
             self.colour_bar = self.fig.colorbar(
-                ScalarMappable(norm=bar_norm, cmap=self.cmap),
+                ScalarMappable(norm=norm, cmap=self.cmap),
                 ax=self.ax,
                 orientation="horizontal",
                 shrink=0.5,
                 aspect=25,
                 pad=0.05,
                 fraction=0.1,
-                boundaries=bounds,
-                values=values,
+                extend="both",
+                extendfrac=0.06,
             )
             self.colour_bar.ax.tick_params(labelsize=8)
-            self.colour_bar.ax.set_xlabel(self.unit, fontsize=9, labelpad=2)
+            self.colour_bar.ax.set_xlabel(self.unit, fontsize=8, labelpad=2)
         else:
-            # the new steps, then the norm: its change redraws the bar (and resets its ticks)
-            self.colour_bar.boundaries, self.colour_bar.values = bounds, values
-            self.colour_bar.mappable.set_norm(bar_norm)
+            # the norm's change redraws the bar (and resets its ticks)
+            self.colour_bar.mappable.set_norm(norm)
         self.colour_bar.solids.set_rasterized(True)
         loc, fmt = _tick_format(vmin, vmax)
         self.colour_bar.ax.xaxis.set_major_locator(loc)
         self.colour_bar.ax.xaxis.set_major_formatter(fmt)
+
+
+def overlay_legend(fig, sun: str, outside: str, y: float = 0.0):
+    """The page's legend of what the panels draw over the maps, centred under the panels (at
+    figure fraction ``y``): the ecliptic, the Galactic plane, the Sun (``sun``: ``"at"`` one
+    time, or ``"track"``: open at the start, filled at the end, the line between) and the colour
+    of pixels without a value, ``outside`` saying which."""
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    handles = [Line2D([], [], **ECLIPTIC_STYLE), Line2D([], [], **GALACTIC_STYLE)]
+    if sun == "track":
+        handles += [
+            Line2D([], [], linestyle="none", label="Sun at the start", **SUN_START_STYLE),
+            Line2D([], [], linestyle="none", label="Sun at the end (line: its track)", **SUN_END_STYLE),
+        ]
+    else:
+        handles.append(Line2D([], [], linestyle="none", label="Sun at the map's time", **SUN_END_STYLE))
+    handles.append(Patch(facecolor=OUTSIDE_COLOUR, edgecolor="0.5", linewidth=0.5, label=outside))
+    return fig.legend(
+        handles=handles,
+        loc="upper center",
+        bbox_to_anchor=(0.5, y),
+        ncol=len(handles),
+        fontsize=9,
+        frameon=False,
+    )
+
+
+#: What the maps' titles say of the projection and its orientation
+ORIENTATION = (
+    "ICRS Mollweide centred on RA 0h; RA in hours, increasing to the left (East, E), Dec in deg; "
+    "graticule every 30 deg in Dec and 4 h in RA"
+)
 
 
 def map_time_indices(ds, n_times: int = 2, times=()) -> list[int]:
@@ -196,43 +353,50 @@ def map_time_indices(ds, n_times: int = 2, times=()) -> list[int]:
 def sky_maps(ds, campaign, out_dir, time_indices, bands=None) -> list:
     """Per time (``time_indices`` into ``ds.time``, see :func:`map_time_indices`) and band (all,
     or ``bands``): a 2 x 4 page of Mollweide maps, one per component, the total and the
-    observability."""
+    observability, with the Sun at that time.  Each component of a band has one colour scale
+    over all the map times (:func:`~straylight.plots.common.band_colour_limits`)."""
+    from astropy.time import Time
+
     from straylight.survey import cube_layout
 
     nest = str(ds.attrs["healpix_ordering"]).upper() == "NESTED"
+    comps = list(cube_layout.CUBE_BAND_VARIABLES)
+    band_idx = {str(b): ib for ib, b in enumerate(ds["band"].values) if bands is None or str(b) in bands}
+    # every component at each map time, all bands, one read a time (each chunk decompressed once)
+    snaps = [ds[comps + ["observable"]].isel(time=it).compute() for it in time_indices]
+    times = Time(ds["time"].values[list(time_indices)].astype("datetime64[ns]"), scale="utc")
+    suns = sun_radec_deg(times)
+    # (band, component) -> e-/s/pix and AB mag/arcsec2 per map time; the colour scale over them
+    rates = {
+        (b, c): [np.asarray(s[c].isel(band=ib), float) for s in snaps]
+        for b, ib in band_idx.items()
+        for c in comps
+    }
+    mags = {(b, c): [_mag(ds, e, b, campaign) for e in rates[b, c]] for b, c in rates}
+    limits = {key: band_colour_limits(m, SKY_PERCENTILES) for key, m in mags.items()}
     written = []
     pages = {}  # number of component panels -> (figure, their panels, the observability panel)
-    for it in time_indices:
+    for k, (it, snap) in enumerate(zip(time_indices, snaps)):
         t = str(ds["time"].values[it])[:16]
-        # every component at this time, all bands, in one read (each chunk decompressed once)
-        snap = ds[list(cube_layout.CUBE_BAND_VARIABLES) + ["observable"]].isel(time=it).compute()
-        for ib, band in enumerate(ds["band"].values):
-            if bands is not None and str(band) not in bands:
-                continue
-            maps, zero = [], []
-            for comp in cube_layout.CUBE_BAND_VARIABLES:
-                e = np.asarray(snap[comp].isel(band=ib), float)
-                if not np.any(np.isfinite(e) & (e > 0)):
-                    zero.append(comp)  # no panel: say so in the title instead
-                    continue
-                maps.append((comp, e, _mag(ds, e, str(band), campaign)))
+        for band in band_idx:
+            # a component zero everywhere has no panel: the title says so instead
+            shown = [c for c in comps if np.any(np.isfinite(rates[band, c][k]) & (rates[band, c][k] > 0))]
+            zero = [c for c in comps if c not in shown]
             # the pages with as many panels share one figure, redrawn for each
-            if len(maps) not in pages:
-                pages[len(maps)] = _sky_page(len(maps))
-            fig, panels, obs_panel = pages[len(maps)]
-            for panel, (comp, e, mag) in zip(panels, maps):
-                lo, hi = _colour_range(mag)
-                panel.show(_full_sky(ds, mag), nest, comp, lo, hi)
-            obs_panel.show(_full_sky(ds, np.asarray(snap["observable"], float)), nest, "observable", 0, 1)
-            # models.unobservable_samples: skip leaves NaN where not observable (e: the total here)
-            # a component's 0 (blocked, or skipped below its share of the tolerance) has no magnitude
-            grey = "outside the footprint, or a component's 0" + (
-                ", or not evaluated (not observable)" if np.isnan(maps[-1][1]).any() else ""
-            )
+            if len(shown) not in pages:
+                pages[len(shown)] = _sky_page(len(shown))
+            fig, panels, obs_panel = pages[len(shown)]
+            for panel, comp in zip(panels, shown):
+                panel.show(
+                    _full_sky(ds, mags[band, comp][k]), nest, comp, *limits[band, comp], suns[k : k + 1]
+                )
+            obs = np.asarray(snap["observable"], float)
+            obs_panel.show(_full_sky(ds, obs), nest, "observable", 0, 1, suns[k : k + 1])
             note = f"; zero everywhere, not shown: {', '.join(zero)}" if zero else ""
             fig.suptitle(
-                f"{campaign.name}: band {band} at {t} UTC (ICRS Mollweide, graticule every 30 deg in Dec "
-                f"and 60 deg in RA; colours: 2nd-98th percentile per panel; grey: {grey}{note})",
+                f"{campaign.name}: background in band {band} at {t} UTC (AB mag/arcsec2){note}\n"
+                f"{ORIENTATION}\ncolours: each component's {_percentiles(SKY_PERCENTILES)} in this band "
+                "over all the map times (beyond: the end colours, the bar's triangles)",
                 fontsize=10,
             )
             written.append(
@@ -243,16 +407,16 @@ def sky_maps(ds, campaign, out_dir, time_indices, bands=None) -> list:
 
 def _sky_page(n_maps: int) -> tuple:
     """A sky-map page's figure (4 panels a row) with ``n_maps`` component panels and the
-    observability panel after them, with its legend: (figure, panels, observability panel)."""
+    observability panel after them, with the legends: (figure, panels, observability panel)."""
     from matplotlib import colormaps
     from matplotlib.figure import Figure
     from matplotlib.patches import Patch
 
     ncol = 4
     nrow = int(np.ceil((n_maps + 1) / ncol))
-    fig = Figure(figsize=(16, 3.3 * nrow))
+    fig = Figure(figsize=(16, 3.4 * nrow))
     panels = [
-        MollweidePanel(fig, (nrow, ncol, k + 1), "viridis_r", "AB mag/arcsec2 (brighter: yellow)")
+        MollweidePanel(fig, (nrow, ncol, k + 1), SKY_CMAP, "background, AB mag/arcsec2 (brighter: yellow)")
         for k in range(n_maps)
     ]
     obs_panel = MollweidePanel(fig, (nrow, ncol, n_maps + 1), "RdYlGn", None)
@@ -260,14 +424,14 @@ def _sky_page(n_maps: int) -> tuple:
         handles=[
             Patch(color=colormaps["RdYlGn"](1.0), label="observable"),
             Patch(color=colormaps["RdYlGn"](0.0), label="not observable"),
-            Patch(color="0.5", label="outside the footprint"),
         ],
         loc="upper center",
         bbox_to_anchor=(0.5, -0.02),
-        ncol=3,
+        ncol=2,
         fontsize=8,
         frameon=False,
     )
+    overlay_legend(fig, "at", "outside the footprint, or no value (a component's 0; not evaluated)")
     return fig, panels, obs_panel
 
 
@@ -299,31 +463,83 @@ def sky_map_figures(background_path, campaign, out_dir) -> list:
         return sky_maps(ds, campaign, out, times, bands)
 
 
+#: The per-pixel depth maps drawn, when the limits store has them (``limiting_mag_<stat>``,
+#: (pixel, band), AB mag): the median and best over the campaign, and the median at the
+#: assumption envelope's pessimistic and optimistic ends where the store carries them
+DEPTH_MAP_STATS = ("median", "best", "median_pessimistic", "median_optimistic")
+
+
+def depth_colour_limits(limits_ds) -> dict:
+    """One colour scale per band for all its depth maps (the ``limiting_mag_<stat>`` of
+    :data:`DEPTH_MAP_STATS` that ``limits_ds`` has): band -> (vmin, vmax), AB mag, from
+    :func:`~straylight.plots.common.band_colour_limits` over the maps' values together."""
+    names = [f"limiting_mag_{s}" for s in DEPTH_MAP_STATS if f"limiting_mag_{s}" in limits_ds]
+    return {
+        str(band): band_colour_limits(
+            [np.asarray(limits_ds[n].isel(band=ib), float) for n in names], DEPTH_PERCENTILES
+        )
+        for ib, band in enumerate(limits_ds["band"].values)
+    }
+
+
 def limit_maps(limits_ds, campaign, out_dir) -> list:
-    """Best and median 5-sigma limiting magnitude over the campaign, per band (Mollweide)."""
+    """Per depth statistic of :data:`DEPTH_MAP_STATS` that ``limits_ds`` has, a page of its
+    5-sigma limiting-magnitude maps over the campaign, one panel per band, each band on one
+    colour scale over all its depth maps (:func:`depth_colour_limits`), with the Sun's track over
+    the campaign.  Returns the paths written."""
     from matplotlib.figure import Figure
 
     nest = str(limits_ds.attrs.get("healpix_ordering", "RING")).upper() == "NESTED"
+    limits = depth_colour_limits(limits_ds)
+    times = campaign.times
+    sun = sun_radec_deg(sun_track_times(times))
+    span = f"{times[0].isot[:16]} to {times[-1].isot[:16]} UTC"
     written = []
-    for stat in ("best", "median"):
+    for stat in DEPTH_MAP_STATS:
         var = f"limiting_mag_{stat}"
         if var not in limits_ds:
             continue
-        fig = Figure(figsize=(16, 6.5))
-        for ib, band in enumerate(limits_ds["band"].values):
+        bands = [str(b) for b in limits_ds["band"].values]
+        nrow = int(np.ceil(len(bands) / 4))
+        fig = Figure(figsize=(16, 3.4 * nrow))
+        for ib, band in enumerate(bands):
             v = np.asarray(limits_ds[var].isel(band=ib), float)
-            # the bulk of the sky sits within a few 0.01 mag of the best; the shallow tail near the Sun
-            # and Moon would take the whole scale: the range is the 10th-99.9th percentile per band
-            lo, hi = _colour_range(v, (10.0, 99.9))
             med = float(np.nanmedian(v)) if np.isfinite(v).any() else float("nan")
-            MollweidePanel(fig, (2, 4, ib + 1), "magma", "AB mag (5 sigma), deeper: brighter").show(
-                _full_sky(limits_ds, v), nest, f"{band} (median {med:.2f})", lo, hi
+            MollweidePanel(fig, (nrow, 4, ib + 1), DEPTH_CMAP, _depth_unit(limits_ds, stat, ib)).show(
+                _full_sky(limits_ds, v),
+                nest,
+                f"{band}: median over the footprint {med:.2f}",
+                *limits[band],
+                sun,
             )
+        overlay_legend(fig, "track", "outside the footprint, or never observable")
         fig.suptitle(
-            f"{campaign.name}: {stat} 5-sigma point-source limit over the campaign (survey exposures; "
-            "colours: 10th-99.9th percentile per band, shallower pixels black; graticule 30/60 deg; "
-            "grey: outside the footprint or never observable)",
+            f"{campaign.name}: {stat.replace('_', ' ')} 5-sigma point-source limit over the campaign, "
+            f"{span} (AB mag; deeper: brighter)\n{ORIENTATION}\n"
+            f"colours: each band's {_percentiles(DEPTH_PERCENTILES)} over all its depth maps, at least "
+            f"{MIN_COLOUR_SPAN_MAG:g} mag (one scale for the band's maps; beyond: the end colours, the "
+            "bar's triangles)",
             fontsize=10,
         )
         written.append(_save(fig, Path(out_dir) / f"limits_{stat}.png"))
     return written
+
+
+def _depth_unit(limits_ds, stat: str, ib: int) -> str:
+    """A depth map's colour-bar label: what is shown, its unit and the band's survey exposures."""
+    exposures = ""
+    if "n_exposures" in limits_ds.coords and "exposure_s" in limits_ds.coords:
+        n, t = int(limits_ds["n_exposures"][ib]), float(limits_ds["exposure_s"][ib])
+        exposures = f", {n} x {t:g} s"
+    return f"{stat.replace('_', ' ')} 5σ point-source limit, AB mag{exposures}"
+
+
+def _percentiles(p) -> str:
+    """``(5.0, 99.5)`` as ``5th-99.5th percentile``."""
+
+    def ordinal(x: float) -> str:
+        n = f"{x:g}"
+        last = "" if n.endswith(("11", "12", "13")) else n[-1]
+        return n + {"1": "st", "2": "nd", "3": "rd"}.get(last, "th")
+
+    return f"{ordinal(p[0])}-{ordinal(p[1])} percentile"

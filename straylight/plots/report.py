@@ -1,6 +1,6 @@
 """The report's depth figures and first page: the limit maps with the depth table (median and best
-5-sigma depth and observable fraction per band), and the first page with that table, a guide to
-the figures and their thumbnails.
+5-sigma depth and observable fraction per band), and the first page: that table and the depth
+maps first, then a guide to the other figures and their thumbnails.
 """
 
 from __future__ import annotations
@@ -9,10 +9,14 @@ from pathlib import Path
 
 import numpy as np
 
-from straylight.plots.maps import limit_maps
+from straylight.plots.common import DEPTH_PERCENTILES, MIN_COLOUR_SPAN_MAG
+from straylight.plots.maps import _percentiles, limit_maps
 
 __all__ = [
     "DEPTH_TABLE",
+    "DEPTH_THUMBNAILS",
+    "OTHER_THUMBNAILS",
+    "REPORT_CATEGORIES",
     "THUMBNAILS",
     "depth_summary",
     "limit_figures",
@@ -102,11 +106,24 @@ def limit_figures(limits_path, campaign, out_dir) -> list:
     return written + [write_depth_table(rows, Path(out_dir) / DEPTH_TABLE)]
 
 
+#: The report's categories (Snakemake sorts them by name: the numbers set their order), as the
+#: workflow's report rules name them
+REPORT_CATEGORIES = (
+    "1. Depth: table and maps",
+    "2. Sky background maps",
+    "3. Time series",
+    "4. Scheduling tables",
+    "5. Provenance",
+    "6. Speed against accuracy",
+)
+
+
 def write_report_front(rows: dict, config: dict, path, figure_dirs=()) -> Path:
     """``path`` (the report's first page, RST rendered by Snakemake's Jinja): the campaign of
-    ``config`` (a validated campaign config: ``Campaign.config``, or the workflow's), the depth
-    table ``rows`` (:func:`read_depth_table`) and a guide to the figures, with thumbnails of
-    those found in ``figure_dirs`` (depth/, sky/ and series/ of the campaign's results)."""
+    ``config`` (a validated campaign config: ``Campaign.config``, or the workflow's), then the
+    depth table ``rows`` (:func:`read_depth_table`) and the depth maps, then a guide to the other
+    figures, with thumbnails of those found in ``figure_dirs`` (depth/, sky/ and series/ of the
+    campaign's results)."""
     from straylight.util.io import atomic_path
 
     c = config["campaign"]
@@ -123,9 +140,10 @@ def write_report_front(rows: dict, config: dict, path, figure_dirs=()) -> Path:
             f"     - {r['best_depth_mag']:.2f}",
             f"     - {100 * r['observable_fraction']:.1f} %",
         ]
-    text = f"""Stray-light and sky-background products of the campaign **{c["name"]}**
-({c["start"]} to {c["end"]} UTC, every {float(c["cadence_s"]):g} s) for the CSST survey camera
-(straylight; method of Xian et al., the seed paper).
+    dirs = [Path(d) for d in figure_dirs]
+    depth_cat, sky_cat, series_cat, sched_cat = REPORT_CATEGORIES[:4]
+    text = f"""Campaign **{c["name"]}**, {c["start"]} to {c["end"]} UTC, every {float(c["cadence_s"]):g} s:
+stray light and sky background for the CSST survey camera (straylight; method of Xian et al.).
 
 .. list-table:: 5-sigma point-source depth for the band's survey exposures (median over the footprint of each
    pixel's median over time; best: the deepest pixel at its best time), and the fraction of (time, pointing)
@@ -133,44 +151,55 @@ def write_report_front(rows: dict, config: dict, path, figure_dirs=()) -> Path:
    :header-rows: 1
 
 {chr(10).join(table)}
+{_thumbnails(dirs, DEPTH_THUMBNAILS, 1000)}
 
-**Figures** (in *Maps and time series*): ``limits_median`` and ``limits_best`` map the depth
-(``{DEPTH_TABLE}`` holds this table); ``sky_<band>_<time>`` show each background component at one
-time in AB mag/arcsec2 (components zero everywhere are listed in the title instead of drawn);
+**Reading the maps**: all-sky Mollweide in ICRS, centred on RA 0h, RA (hours) increasing to the left
+(East, marked E), Dec in degrees. Dashed: the ecliptic; dotted: the Galactic plane; yellow disc: the
+Sun (on the depth maps, open at the campaign's start and filled at its end). Light grey: outside the
+footprint or never observable. One colour scale per band for all its depth maps (its
+{_percentiles(DEPTH_PERCENTILES)}, at least {MIN_COLOUR_SPAN_MAG:g} mag wide); pixels beyond it take the
+end colours. ``{DEPTH_TABLE}`` holds the table above (*{depth_cat}*).
+
+**Other figures**: *{sky_cat}*: ``sky_<band>_<time>``, each background component at one time in AB
+mag/arcsec2 (components zero everywhere are listed in the title instead of drawn); *{series_cat}*:
 ``series_orbit_*`` and ``series_campaign_*`` follow three pointings in mag/arcsec2 (grey: not
-observable). **Scheduling tables** (CSV and PNG): the Moon angle and bright-limb elevation that
-keep stray light below a fraction of the darkest zodiacal light, and the exposure-time factor.
-Provenance (config, software versions, checksums) is in provenance.json.
+observable); *{sched_cat}* (CSV and PNG): the Moon angle and bright-limb elevation that keep stray
+light below a fraction of the darkest zodiacal light, and the exposure-time factor. Provenance
+(config, software versions, checksums) is in provenance.json.
 """
-    text += _thumbnails([Path(d) for d in figure_dirs])
+    text += _thumbnails(dirs, OTHER_THUMBNAILS, 560)
     path = Path(path)
     with atomic_path(path) as tmp:
         tmp.write_text(text)
     return path
 
 
-#: The figures shown on the report's first page as thumbnails (file-name prefix, caption).
-THUMBNAILS = (
+#: The figures shown on the report's first page as thumbnails (file-name prefix, caption): the
+#: depth maps under the depth table, full width; the others after the guide
+DEPTH_THUMBNAILS = (
     ("limits_median", "Median 5-sigma depth per band over the campaign (AB mag)."),
     ("limits_best", "Best 5-sigma depth per band (AB mag)."),
+)
+OTHER_THUMBNAILS = (
     ("sky_g_", "Every background component in g at the first map time (AB mag/arcsec2)."),
     (
         "series_orbit_",
         "One pointing over the first orbit, every band (AB mag/arcsec2; grey: not observable).",
     ),
 )
+THUMBNAILS = DEPTH_THUMBNAILS + OTHER_THUMBNAILS
 
 
-def _thumbnails(dirs: list, width_px: int = 560) -> str:
-    """RST figures of :data:`THUMBNAILS` found in ``dirs`` as embedded PNG thumbnails (data URIs:
-    the report is one self-contained file)."""
+def _thumbnails(dirs: list, which=THUMBNAILS, width_px: int = 560) -> str:
+    """RST figures of ``which`` (of :data:`THUMBNAILS`) found in ``dirs``, at most ``width_px``
+    wide, as embedded PNG (data URIs: the report is one self-contained file)."""
     import base64
     import io
 
     from PIL import Image
 
     parts = []
-    for prefix, caption in THUMBNAILS:
+    for prefix, caption in which:
         found = sorted(p for d in dirs for p in d.glob(f"{prefix}*.png"))
         if not found:
             continue
@@ -184,9 +213,16 @@ def _thumbnails(dirs: list, width_px: int = 560) -> str:
         lines = "\n".join("   " + b64[i : i + 76] for i in range(0, len(b64), 76))
         parts.append(
             f'.. raw:: html\n\n   <figure style="display:inline-block;margin:6px;vertical-align:top">\n'
-            f'   <img style="width:{img.width}px" alt="{found[0].stem}" '
+            f'   <img style="width:{img.width}px;max-width:100%" alt="{found[0].stem}" '
             f'src="data:image/png;base64,\n{lines}\n   ">\n'
             f'   <figcaption style="font-size:90%"><b>{found[0].stem}</b>: {caption} Full size in '
-            f"<i>Maps and time series</i>.</figcaption></figure>\n"
+            f"<i>{_category(prefix)}</i>.</figcaption></figure>\n"
         )
     return "\n" + "\n".join(parts) if parts else ""
+
+
+def _category(prefix: str) -> str:
+    """The report category holding the figures named ``prefix``*."""
+    if prefix.startswith("limits_"):
+        return REPORT_CATEGORIES[0]
+    return REPORT_CATEGORIES[1] if prefix.startswith("sky_") else REPORT_CATEGORIES[2]

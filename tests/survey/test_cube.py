@@ -672,7 +672,14 @@ def test_html_report_holds_maps_series_tables_and_provenance(cube_run):
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
     text = report.read_text(errors="replace")
     assert report.stat().st_size > 100_000
-    for needle in ("Maps and time series", "Scheduling tables", "Provenance", "sky_g_", "moon_avoidance"):
+    for needle in (
+        "1. Depth: table and maps",
+        "2. Sky background maps",
+        "4. Scheduling tables",
+        "5. Provenance",
+        "sky_g_",
+        "moon_avoidance",
+    ):
         assert needle in text, needle
     # the first page: the depth table (from summary.rst, rule report_front) and thumbnails of the
     # limit maps, a sky page and a series; the CSVs attached

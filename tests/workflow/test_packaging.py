@@ -383,5 +383,5 @@ def test_installed_run_makes_the_products_and_the_report(installed):
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
     text = (run / "report.html").read_text(errors="replace")
     assert (run / "report.html").stat().st_size > 100_000
-    for needle in ("Maps and time series", "Provenance", "median depth (AB mag)"):
+    for needle in ("1. Depth: table and maps", "5. Provenance", "median depth (AB mag)"):
         assert needle in text, needle

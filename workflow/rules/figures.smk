@@ -6,7 +6,7 @@ rule sky_maps:
         config=CONFIG_PATH,
     output:
         report(directory(f"{RESULTS}/sky"), patterns=["{name}.png"], caption="../report/plots.rst",
-               category="Maps and time series", labels={"figure": "{name}"}),
+               category="2. Sky background maps", labels={"figure": "{name}"}),
     params:
         store=f"{RESULTS}/background.zarr",
     priority: FIGURE_PRIORITY["sky_maps"]
@@ -26,7 +26,7 @@ rule time_series:
         config=CONFIG_PATH,
     output:
         report(directory(f"{RESULTS}/series"), patterns=["{name}.png"], caption="../report/plots.rst",
-               category="Maps and time series", labels={"figure": "{name}"}),
+               category="3. Time series", labels={"figure": "{name}"}),
     params:
         store=f"{RESULTS}/background.zarr",
     priority: FIGURE_PRIORITY["time_series"]
@@ -69,7 +69,7 @@ rule bench_charts:
     priority: -1
     output:
         report(directory(f"{RESULTS}/bench_charts"), patterns=["{name}.png"], caption="../report/bench.rst",
-               category="Speed against accuracy"),
+               category="6. Speed against accuracy"),
     conda:
         "../envs/straylight.yaml"
     log:

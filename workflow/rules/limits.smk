@@ -9,7 +9,7 @@ rule limits:
         limits=directory(f"{RESULTS}/limits.zarr"),
         maps=directory(f"{RESULTS}/maps"),
         depth=report(directory(f"{RESULTS}/depth"), patterns=["{name}.png", "{name}.csv"],
-                     caption="../report/plots.rst", category="Maps and time series", labels={"figure": "{name}"}),
+                     caption="../report/plots.rst", category="1. Depth: table and maps", labels={"figure": "{name}"}),
     params:
         lim_store=LIMITS_WORK_STORE,
     # processes of the per-pixel summaries (common.smk; lowered to --cores by Snakemake)
@@ -50,7 +50,7 @@ rule provenance:
         stars=f"{RESULTS}/stars_csst.parquet",
         observability=f"{RESULTS}/observability.zarr",
     output:
-        report(f"{RESULTS}/provenance.json", caption="../report/provenance.rst", category="Provenance"),
+        report(f"{RESULTS}/provenance.json", caption="../report/provenance.rst", category="5. Provenance"),
     params:
         store=f"{RESULTS}/background.zarr",
         # a RunInfo: not compared with the last run's params (a resumed or dry run keeps the record)

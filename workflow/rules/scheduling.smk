@@ -7,7 +7,7 @@ rule scheduling:
     priority: -1
     output:
         report(directory(f"{RESULTS}/scheduling"), patterns=["{name}.png", "{name}.csv"],
-               caption="../report/scheduling.rst", category="Scheduling tables", labels={"table": "{name}"}),
+               caption="../report/scheduling.rst", category="4. Scheduling tables", labels={"table": "{name}"}),
     conda:
         "../envs/straylight.yaml"
     log:
