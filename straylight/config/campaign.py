@@ -105,6 +105,7 @@ class Campaign:
             bright_limb_min_deg=av.bright_limb_min_deg.value,
             dark_limb_min_deg=av.dark_limb_min_deg.value,
             door_states=states,
+            limb_height_km=av.limb_height_km.value,
         )
 
     @property

@@ -149,12 +149,13 @@ class DoorGeometrySettings:
 @dataclass(frozen=True)
 class AvoidanceSettings:
     """``avoidance``: the smallest angles to the Sun, the Moon and the Earth's bright and dark
-    limbs, deg."""
+    limbs, deg, and the limb's height above the surface (the top of the atmosphere), km."""
 
     sun_min_deg: Parameter
     moon_min_deg: Parameter
     bright_limb_min_deg: Parameter
     dark_limb_min_deg: Parameter
+    limb_height_km: Parameter
 
 
 @dataclass(frozen=True)

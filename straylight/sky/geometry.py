@@ -62,13 +62,16 @@ class DoorState:
 
 @dataclass(frozen=True)
 class Constraints:
-    """Avoidance angles (deg) and door rules from the instrument config."""
+    """Avoidance angles (deg), door rules and the limb's height above the surface (km: the top
+    of the atmosphere the bright and dark limb angles are measured to) from the instrument
+    config."""
 
     sun_min_deg: float
     moon_min_deg: float
     bright_limb_min_deg: float
     dark_limb_min_deg: float
     door_states: tuple[DoorState, ...]
+    limb_height_km: float = 0.0
 
     def door_opening_deg(self, sun_angle_deg: np.ndarray) -> np.ndarray:
         """Door opening angle for the Sun's off-axis angle; 0 where no state is allowed.
@@ -187,7 +190,7 @@ def observing_geometry(
     bodies_km : body name -> (..., 3) geocentric position, km (must include 'sun' and 'moon').
     los : (..., 3) unit line-of-sight vectors.
     earth_radius_km : spherical Earth radius, km.
-    constraints : avoidance angles and door rules.
+    constraints : avoidance angles, door rules and the limb's height.
     frame : the samples' ``telescope_frame(los, sun - satellite)`` when the caller already has
         it (it is then not computed again).
     runs : the samples' scene runs when the caller knows them (:class:`SceneRuns`, e.g. a cube
@@ -197,6 +200,10 @@ def observing_geometry(
     -------
     dict of arrays of the broadcast sample shape: angles in deg (``*_deg``), booleans, the
     door opening (deg, 0 = not allowed), the violation bit mask and ``observable``.
+    ``earth_limb_angle_deg`` is the LOS's elevation above the solid Earth's limb;
+    ``bright_limb_angle_deg`` the angle to the nearest sunlit point of the Earth's disc and
+    ``dark_limb_angle_deg`` to the nearest dark point of its limb, both seen at the top of the
+    atmosphere (``constraints.limb_height_km``; :func:`~straylight.sky.limb.limb_geometry`).
     For every body: ``<body>_angle_deg`` (from the LOS, = the off-axis angle theta),
     ``<body>_phi_deg`` (azimuth in the telescope frame) and ``<body>_earth_blocked``.
     """
@@ -204,7 +211,9 @@ def observing_geometry(
     sun = bodies_km["sun"]
     if frame is None:
         frame = telescope_frame(los, sun - sat)
-    limb = limb_geometry(sat, frame.z, sun, earth_radius_km, runs=runs)
+    limb = limb_geometry(
+        sat, frame.z, sun, earth_radius_km, runs=runs, limb_height_km=constraints.limb_height_km
+    )
     rows = scene_rows(sat, *bodies_km.values(), runs=runs)
     out = _body_geometry(bodies_km, frame, earth_radius_km, rows)
     names = list(bodies_km)
