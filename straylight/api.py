@@ -45,7 +45,7 @@ def sky_background(time, coord, bands=None, config=None, catalog=None):
     ----------
     time : astropy.time.Time
         Observation time(s), any scale (converted to UTC); scalar or array.  Valid within the
-        DE405 ephemeris range (1600-12-21 to 2200-02-02); the satellite follows the campaign's
+        DE405 ephemeris range (1599-12-09 to 2201-02-20); the satellite follows the campaign's
         orbit (``config``), so for a circular orbit only times near its epoch are meaningful.
         A masked entry is refused (there is no time to compute at): drop or fill it first.
     coord : astropy.coordinates.SkyCoord

@@ -235,7 +235,7 @@ def test_a_time_outside_de405_is_one_error_without_erfa_warnings():
         with pytest.raises(
             straylight.InputError,
             match=r"time: sample 1 = 2300-01-01T00:00:00.000 is outside the "
-            r"DE405 range \(1600-12-21 to 2200-02-02\); 1 of 2 samples are outside it",
+            r"DE405 range \(1599-12-09 to 2201-02-20\); 1 of 2 samples are outside it",
         ):
             straylight.sky_background(t, SkyCoord(150.0, 30.0, unit="deg"), bands=["g"])
     assert not [w for w in caught if "dubious year" in str(w.message)]

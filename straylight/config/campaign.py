@@ -161,7 +161,7 @@ def _check_campaign(cfg: dict, source: str, sources: dict | None = None) -> None
         if not eph.jd_start <= jd <= eph.jd_end:
             raise ConfigError(
                 f"{src('campaign.' + key)}: campaign.{key} = {c[key]!r} is outside the DE405 range "
-                "(1600-12-21 to 2200-02-02)"
+                f"({eph.span})"
             )
     if cfg["orbit"]["model"] == "circular" and "circular" not in cfg["orbit"]:
         raise ConfigError(f"{src('orbit.model')}: orbit.model is 'circular' but orbit.circular is missing")

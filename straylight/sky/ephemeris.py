@@ -26,7 +26,6 @@ from straylight.sky.timeutil import quiet_dubious_years, utc_to_tdb_jd
 __all__ = [
     "BODIES",
     "PLANETS",
-    "DE405_SPAN",
     "DE405",
     "radec_distance",
     "default_ephemeris",
@@ -48,8 +47,14 @@ BODIES = (
 )
 PLANETS = BODIES[2:]
 
-#: the span of the JPL DE405 ephemeris, for messages (the exact bounds: DE405.jd_start, jd_end)
-DE405_SPAN = "1600-12-21 to 2200-02-02"
+
+def __getattr__(name: str):
+    """``DE405_SPAN``: the span of the JPL DE405 ephemeris as calendar dates, for messages
+    (:attr:`DE405.span` of the installed package; the exact bounds: DE405.jd_start, jd_end)."""
+    if name == "DE405_SPAN":
+        return default_ephemeris().span
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 # name in `BODIES` -> coefficient file of the de405 package (Earth-Moon barycentre is internal)
 _FILES = {b: f"jpl-{b}.npy" for b in BODIES}
@@ -66,7 +71,8 @@ class DE405:
 
     Notes
     -----
-    Validity: TDB Julian dates 2305424.5 to 2525008.5 (1600-12-21 to 2200-02-02); outside,
+    Validity: TDB Julian dates 2305424.5 to 2525008.5 (1599-12-09 to 2201-02-20, :attr:`span`,
+    from the package's constants ``jalpha`` and ``jomega``); outside,
     :class:`~straylight.errors.EphemerisRangeError`.  Accuracy is that of DE405 itself
     (inner planets ~ km, Moon ~ m over the modern era); evaluation adds < 1 mm.
     """
@@ -85,6 +91,13 @@ class DE405:
         self.au_km = self.constants["AU"]
         self._coefficients: dict[str, np.ndarray] = {}
 
+    @cached_property
+    def span(self) -> str:
+        """The ephemeris's span as TDB calendar dates, ``"YYYY-MM-DD to YYYY-MM-DD"``: the package's
+        bounds (constants ``jalpha``, ``jomega``, TDB Julian dates) through astropy's calendar."""
+        start, end = Time([self.jd_start, self.jd_end], format="jd", scale="tdb").iso
+        return f"{start[:10]} to {end[:10]}"
+
     # -- raw access -------------------------------------------------------------------------
     def coefficients(self, name: str) -> np.ndarray:
         """Chebyshev coefficient array of one body, (n_sets, 3, n_coeff), loaded once."""
@@ -102,7 +115,7 @@ class DE405:
             first = float(np.asarray(jd)[bad].ravel()[0])
             raise EphemerisRangeError(
                 f"time TDB JD {first:.5f} is outside the DE405 range "
-                f"{self.jd_start} to {self.jd_end} ({DE405_SPAN}); "
+                f"{self.jd_start} to {self.jd_end} ({self.span}); "
                 f"{int(bad.sum())} of {bad.size} times are out of range"
             )
 
@@ -226,4 +239,4 @@ def check_in_ephemeris(t: Time, field: str, given=None) -> None:
         value = given if given is not None else t.ravel()[i].isot if t.shape else t.isot
     where = f"{field}: sample {i}" if jd.size > 1 else field
     count = f"; {bad.size} of {jd.size} samples are outside it" if jd.size > 1 else ""
-    raise EphemerisRangeError(f"{where} = {value} is outside the DE405 range ({DE405_SPAN}){count}")
+    raise EphemerisRangeError(f"{where} = {value} is outside the DE405 range ({eph.span}){count}")

@@ -9,7 +9,11 @@ Published brightness laws:
   x (384400 km / d)^2; an eclipsed Moon (inside the Earth's shadow cylinder) is dimmed by
   models.moon_eclipse_factor.
 * Planets: V = V0 + 5 log10(r Delta) + phase terms (Meeus 1998, "Astronomical Algorithms",
-  2nd ed., ch. 41, after the Astronomical Almanac 1984), with Saturn's ring term; solar spectrum.
+  2nd ed., ch. 41, after the Astronomical Almanac 1984); solar spectrum.  Saturn's terms are
+  those of its ring: + 0.044 |Delta U| - 2.60 sin|B| + 1.25 sin^2 B, with B the Saturnicentric
+  latitude of the observer referred to the ring plane and Delta U the difference of the
+  Saturnicentric longitudes of the Sun and the observer in that plane (Meeus ch. 45), the ring
+  plane being Saturn's equator (its pole from the IAU WGCCRE, Archinal et al. 2018).
 """
 
 from __future__ import annotations
@@ -26,7 +30,9 @@ __all__ = [
     "MOON_PERIGEE_KM",
     "PLANET_V",
     "SATURN_POLE_RA_DEC_DEG",
+    "SATURN_RING_COEFFS",
     "moon_v_magnitude",
+    "saturn_ring_angles_deg",
     "planet_v_magnitude",
     "planet_v_magnitudes",
 ]
@@ -36,7 +42,12 @@ MOON_MEAN_DISTANCE_KM = 384400.0
 MOON_PERIGEE_KM = 356400.0
 #: the Moon's farthest apogee in 2000-2100, km (~406,700; Meeus 1998, ch. 50)
 MOON_APOGEE_KM = 406700.0
-SATURN_POLE_RA_DEC_DEG = (40.589, 83.537)  # IAU WGCCRE 2015 (Archinal et al. 2018)
+#: Saturn's north pole, ICRS RA and Dec at J2000, deg (IAU WGCCRE 2015, Archinal et al. 2018,
+#: Celest. Mech. Dyn. Astr. 130, 22, Table 2); its drift, -0.036 and -0.004 deg per century,
+#: moves B and Delta U by < 0.02 deg over 1950-2050 and is left out
+SATURN_POLE_RA_DEC_DEG = (40.589, 83.537)
+#: Saturn's ring coefficients (Meeus 1998 ch. 41): mag per deg of |Delta U|, per sin|B|, per sin^2 B
+SATURN_RING_COEFFS = (0.044, -2.60, 1.25)
 
 # Meeus (1998) ch. 41: V0 and phase coefficients (i in degrees)
 PLANET_V = {
@@ -138,8 +149,38 @@ def planet_v_magnitudes(names, planets_km, sun_km, observer_km) -> np.ndarray:
     v = v0 + 5.0 * np.log10(r * delta) + c1 * i + c2 * i**2 + c3 * i**3
     if "saturn" in names:
         k = list(names).index("saturn")
-        ra, de = np.radians(SATURN_POLE_RA_DEC_DEG)
-        pole = np.array([np.cos(de) * np.cos(ra), np.cos(de) * np.sin(ra), np.sin(de)])
-        sin_b = np.abs(dot(unit(observer - planet[k]), pole))
-        v[k] = v[k] - 2.60 * sin_b + 1.25 * sin_b**2
+        b_deg, delta_u_deg = saturn_ring_angles_deg(planet[k], sun, observer)
+        sin_b = np.sin(np.radians(np.abs(b_deg)))
+        cu, cb, cb2 = SATURN_RING_COEFFS
+        v[k] = v[k] + cu * delta_u_deg + cb * sin_b + cb2 * sin_b**2
     return v
+
+
+def saturn_ring_angles_deg(saturn_km, sun_km, observer_km) -> tuple[np.ndarray, np.ndarray]:
+    """Saturn's ring as seen by the observer (Meeus 1998 ch. 45): B and |Delta U|.
+
+    Parameters
+    ----------
+    saturn_km, sun_km, observer_km : ndarray, shape (..., 3)
+        Geocentric ICRS positions of Saturn, the Sun and the observer, km, broadcastable.
+
+    Returns
+    -------
+    b_deg : ndarray, shape (...)
+        The Saturnicentric latitude of the observer referred to the ring plane (Saturn's
+        equator, pole :data:`SATURN_POLE_RA_DEC_DEG`), deg, positive north.
+    delta_u_deg : ndarray, shape (...)
+        |Delta U|: the angle between the Sun's and the observer's directions from Saturn
+        projected on the ring plane (the difference of their Saturnicentric longitudes), deg,
+        in [0, 180].
+    """
+    ra, de = np.radians(SATURN_POLE_RA_DEC_DEG)
+    pole = np.array([np.cos(de) * np.cos(ra), np.cos(de) * np.sin(ra), np.sin(de)])
+    saturn = np.asarray(saturn_km, float)
+    to_observer = unit(np.asarray(observer_km, float) - saturn)
+    to_sun = unit(np.asarray(sun_km, float) - saturn)
+    sin_b = dot(to_observer, pole)
+    obs_in_plane = to_observer - sin_b[..., None] * pole
+    sun_in_plane = to_sun - dot(to_sun, pole)[..., None] * pole
+    delta_u = np.arctan2(norm(np.cross(obs_in_plane, sun_in_plane)), dot(obs_in_plane, sun_in_plane))
+    return np.degrees(np.arcsin(np.clip(sin_b, -1.0, 1.0))), np.degrees(delta_u)

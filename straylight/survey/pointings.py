@@ -247,8 +247,8 @@ def pointing_table(
         if out_of_range.size:
             i = int(out_of_range[0])
             raise InputError(
-                f"{source} row {i + 1}: time = {iso[i]} is outside the DE405 range (1600-12-21 to "
-                f"2200-02-02); {out_of_range.size} of {len(iso)} rows are out of range"
+                f"{source} row {i + 1}: time = {iso[i]} is outside the DE405 range ({eph.span}); "
+                f"{out_of_range.size} of {len(iso)} rows are out of range"
             )
     # the scene once per distinct time (a scheduler asks for many pointings at few times), before
     # the model: an orbit that cannot be propagated is refused before any table is read or built
