@@ -148,7 +148,10 @@ def test_csst_values_and_their_sources():
     assert (g.wavelength_min_nm, g.wavelength_max_nm, g.n_exposures, g.exposure_s) == (400.0, 550.0, 2, 150)
     assert g.zero_point_ab_mag == 26.23 and g.peak_throughput == 0.73  # sim_csst_lens; Wen et al. 2024
     assert g.throughput_wavelength_unit == "angstrom" and g.throughput_file is None  # schema default
-    assert s.bands["NUV"].zero_point_ab_mag is None and list(s.bands) == ["NUV", "u", "g", "r", "i", "z", "y"]
+    # NUV: the AB zero point of Wen et al. 2024's curve (csst.yaml), no longer None (flat top)
+    assert s.bands["NUV"].zero_point_ab_mag == 24.87
+    assert list(s.bands) == ["NUV", "u", "g", "r", "i", "z", "y"]
+    assert s.bands["y"].zero_point_ab_mag is None and s.bands["y"].zero_point_offset_mag.range == (-0.14, 0.0)
     with pytest.raises(dataclasses.FrozenInstanceError):
         s.telescope.focal_length_m = Parameter(1.0, "m", "x")
 

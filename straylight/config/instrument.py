@@ -62,10 +62,22 @@ class DetectorSettings:
 
 
 @dataclass(frozen=True)
+class ZeroPointOffset:
+    """``bands.<name>.zero_point_offset_mag``: an offset added to the band's AB zero point
+    (``value``, mag), its ``range`` [low, high] (the assumption envelope's ends) and ``source``."""
+
+    value: float
+    unit: str
+    range: tuple
+    source: str
+
+
+@dataclass(frozen=True)
 class BandSettings:
     """``bands.<name>``: the band's edges (nm), survey exposures (count, s), its throughput (a
     parametric curve's peak and edge width, nm, or a measured curve's file and wavelength unit)
-    and its published AB zero point (mag giving 1 e-/s through the aperture) with its source.
+    and its published AB zero point (mag giving 1 e-/s through the aperture) with its source, and
+    where none is published the zero point's offset range (:class:`ZeroPointOffset`).
 
     ``exposure_s`` keeps the file's number as written (integer or not): the limits' long name
     quotes it."""
@@ -80,6 +92,7 @@ class BandSettings:
     peak_throughput: float | None = None
     zero_point_ab_mag: float | None = None
     zero_point_source: str | None = None
+    zero_point_offset_mag: ZeroPointOffset | None = None
     throughput_file: str | None = None
 
 
@@ -269,6 +282,7 @@ __all__ = [
     "TelescopeSettings",
     "DetectorSettings",
     "BandSettings",
+    "ZeroPointOffset",
     "ScatteringSettings",
     "GhostBandSettings",
     "GhostSettings",

@@ -92,11 +92,27 @@ class EarthshineSection:
 
 
 @dataclass(frozen=True)
+class ZodiacalReddeningSection:
+    """``models.zodiacal_reddening``: Leinert et al. (1998) eq. 22's colour law,
+    f_co = 1 + a log10(lambda / 0.5 um), a per decade of wavelength below and above 0.5 um."""
+
+    blue_per_dex: float
+    red_per_dex: float
+
+    def as_tuple(self) -> tuple:
+        """``(blue_per_dex, red_per_dex)``, as :class:`~straylight.sources.zodiacal.ZodiacalModel`
+        takes them."""
+        return (self.blue_per_dex, self.red_per_dex)
+
+
+@dataclass(frozen=True)
 class ModelsSection:
-    """``models``: the zodiacal spectrum, the Moon's phase law and eclipse factor, the
-    earthshine, the tolerance (fraction of the total) and what unobservable samples get."""
+    """``models``: the zodiacal spectrum and its colour law, the Moon's phase law and eclipse
+    factor, the earthshine, the tolerance (fraction of the total) and what unobservable samples
+    get."""
 
     zodiacal_spectrum: str
+    zodiacal_reddening: ZodiacalReddeningSection
     moon_phase_law: str
     moon_eclipse_factor: float
     earthshine: EarthshineSection
@@ -229,6 +245,7 @@ __all__ = [
     "MoonlitLUTSteps",
     "EarthshineSection",
     "ModelsSection",
+    "ZodiacalReddeningSection",
     "ReportSection",
     "SchedulingSection",
     "StorageSection",

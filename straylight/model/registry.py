@@ -187,7 +187,12 @@ COMPONENTS = [
 _PST = "instrument pst (measured to 30 deg; the tail beyond is a model)"
 #: the sources of light, in the order they are evaluated and their terms added
 SOURCES = [
-    SourceEntry("zodiacal", "zodiacal", _zodiacal, parameters=("models.zodiacal_spectrum",)),
+    SourceEntry(
+        "zodiacal",
+        "zodiacal",
+        _zodiacal,
+        parameters=("models.zodiacal_spectrum", "models.zodiacal_reddening"),
+    ),
     SourceEntry("sun", "sun", _sun, parameters=(_PST, "instrument door_geometry")),
     SourceEntry(
         "moon",

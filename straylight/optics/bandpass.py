@@ -10,8 +10,10 @@ a speclite ``FilterResponse``.  Its source is, in order of preference:
    with error-function edges of 10-90 % width ``edge_width_nm``.
 
 Where the band gives ``zero_point_ab_mag`` (the AB magnitude giving 1 e-/s through the whole
-aperture, published for CSST g r i z), either curve is scaled so that its zero point is that one
-(:func:`zero_point_ab_mag`); the curve then gives the shape only.  A flat top at the peak
+aperture: published for CSST g r i z; for NUV and u that of Wen et al. 2024's curves), either
+curve is scaled so that its zero point is that one plus ``zero_point_offset_mag``'s value (0 by
+default; its range is the assumption envelope's) (:func:`zero_point_ab_mag`); the curve then
+gives the shape only.  A flat top at the peak
 throughput overstates a real band's mean (filter ripple, the CCD's QE slope), so unscaled it is
 0.1-0.6 mag too bright.
 
@@ -220,14 +222,17 @@ def load_band(instrument: InstrumentSettings | dict, name: str, instrument_dir: 
             raise ConfigError(f"bands.{name}: give peak_throughput (parametric model) or throughput_file")
         wl, t = parametric_curve(b.wavelength_min_nm, b.wavelength_max_nm, b.peak_throughput, b.edge_width_nm)
         origin = "parametric"
-    if b.zero_point_ab_mag is None:
+    offset = b.zero_point_offset_mag.value if b.zero_point_offset_mag is not None else 0.0
+    if b.zero_point_ab_mag is None and offset == 0.0:
         return Band(name, wl, t, origin)
-    # the curve's shape, scaled so that its AB zero point is the given one
+    # the curve's shape, scaled so that its AB zero point is the given one plus the offset
     own_zp = zero_point_ab_mag(Band(name, wl, t, origin), aperture_area_m2(inst))
-    scale = 10.0 ** (0.4 * (b.zero_point_ab_mag - own_zp))
+    target = (own_zp if b.zero_point_ab_mag is None else b.zero_point_ab_mag) + offset
+    scale = 10.0 ** (0.4 * (target - own_zp))
     if not 0 < scale * t.max() <= 1:
         raise ConfigError(
-            f"bands.{name}: zero_point_ab_mag = {b.zero_point_ab_mag} needs a peak throughput of "
-            f"{scale * t.max():.3g} (the curve's own zero point is {own_zp:.3f}); it must be within (0, 1]"
+            f"bands.{name}: an AB zero point of {target:.3f} (zero_point_ab_mag plus "
+            f"zero_point_offset_mag) needs a peak throughput of {scale * t.max():.3g} (the curve's "
+            f"own zero point is {own_zp:.3f}); it must be within (0, 1]"
         )
-    return Band(name, wl, t * scale, f"{origin} scaled to AB zero point {b.zero_point_ab_mag:.3f}")
+    return Band(name, wl, t * scale, f"{origin} scaled to AB zero point {target:.3f}")

@@ -98,9 +98,12 @@ class SourceContext:
 
     @cached_property
     def zodiacal(self) -> ZodiacalModel:
-        """The zodiacal-light model (models.zodiacal_spectrum)."""
+        """The zodiacal-light model (models.zodiacal_spectrum and zodiacal_reddening)."""
+        models = self.campaign.settings.models
         return zodiacal_model_from_instrument(
-            self.campaign.instrument_settings, self.campaign.settings.models.zodiacal_spectrum
+            self.campaign.instrument_settings,
+            models.zodiacal_spectrum,
+            models.zodiacal_reddening.as_tuple(),
         )
 
     @cached_property

@@ -7,13 +7,9 @@ has no data (marked 1e6); those nodes are filled with the nearest valid value at
 in the same longitude row (a lower bound, never an extrapolation) and every sample touching one
 is flagged ``no_data``.  The Sun-avoidance angle (50 deg) keeps survey pointings out of it.
 
-Spectrum: V(lambda) = B_500 * S(lambda) / S(500 nm), with S either
-
-* ``solar_leinert``: the ASTM E490 solar spectrum times Leinert's colour correction, i.e. the
-  ratio of Leinert's Table 19 zodiacal spectrum to the (50 nm smoothed) solar spectrum at the
-  Table 19 wavelengths, interpolated linearly in log(lambda) (the zodiacal light is slightly
-  redder than the Sun);
-* ``hst``: the HST/STScI zodiacal spectrum (``Zodi.fits``).
+Spectrum: V(lambda) = B_500 * S(lambda) / S(500 nm), S one of
+:data:`~straylight.sources.zodiacal_colour.SPECTRA` (``models.zodiacal_spectrum``; default the
+E490 Sun times Leinert et al. 1998's colour fit, :mod:`straylight.sources.zodiacal_colour`).
 
 Band integration and focal plane (paper eqs. 2-3): L = integral V(lambda) T(lambda) d lambda,
 E = L pi D^2 / (4 f^2); per pixel, photons s-1 = N_photon * pi D^2 / 4 * (p / f)^2, which is
@@ -39,6 +35,13 @@ from straylight.optics.bandpass import Band
 from straylight.sky.runs import scene_rows, tiled_period
 from straylight.sky.vectors import unit
 from straylight.sources.rates import BandRates
+from straylight.sources.zodiacal_colour import (
+    LEINERT_REDDENING_EPS90,
+    SPECTRA,
+    leinert_colour_correction,
+    solar_spectrum,
+    zodiacal_spectrum_shape,
+)
 from straylight.util.gridinterp import LinearGrid
 
 __all__ = [
@@ -64,7 +67,6 @@ NO_DATA = 1.0e6
 LEINERT_UNIT_W_M2_SR_UM = 1.0e-8
 OBLIQUITY_J2000_RAD = np.radians(84381.406 / 3600.0)  # IAU 2006 (Hilton et al. 2006)
 ARCSEC2_PER_SR = (180.0 / np.pi * 3600.0) ** 2
-SPECTRA = ("solar_leinert", "hst")
 
 
 def _data_path(name: str) -> Path:
@@ -248,88 +250,6 @@ def leinert_table() -> LeinertTable:
     return LeinertTable.load()
 
 
-@lru_cache(maxsize=1)
-def solar_spectrum() -> tuple[np.ndarray, np.ndarray]:
-    """ASTM E490-00a solar spectral irradiance at 1 AU: (wavelength A, W m-2 um-1).
-
-    Returns
-    -------
-    wavelength_angstrom : ndarray, shape (n,)
-        Wavelengths, Angstrom.
-    irradiance : ndarray, shape (n,)
-        Spectral irradiance at 1 AU, W m-2 um-1.
-    """
-    data = np.loadtxt(_data_path("e490_00a.dat"), comments="#")
-    return data[:, 0] * 1.0e4, data[:, 1]
-
-
-@lru_cache(maxsize=1)
-def leinert_colour_correction() -> tuple[np.ndarray, np.ndarray]:
-    """Leinert Table 19 over the smoothed solar spectrum, normalised to 1 at 500 nm.
-
-    Returns
-    -------
-    wavelength_um : ndarray, shape (n,)
-        The Table 19 wavelengths, um.
-    factor : ndarray, shape (n,)
-        The colour correction, dimensionless, 1 at 500 nm.
-    """
-    lines = _data_path("leinert1998_table19.csv").read_text().splitlines()
-    t19 = np.array(
-        [
-            [float(x) for x in ln.split(",")]
-            for ln in lines
-            if ln and not ln.startswith("#") and not ln.startswith("wavelength")
-        ]
-    )
-    wl_a, sun = solar_spectrum()
-    sun_smooth = np.array(
-        [np.mean(sun[(wl_a >= w * 1e4 - 250.0) & (wl_a <= w * 1e4 + 250.0)]) for w in t19[:, 0]]
-    )
-    ratio = t19[:, 1] / sun_smooth
-    i500 = int(np.argmin(np.abs(t19[:, 0] - 0.5)))
-    return t19[:, 0], ratio / ratio[i500]
-
-
-@lru_cache(maxsize=4)
-def zodiacal_spectrum_shape(kind: str) -> tuple[np.ndarray, np.ndarray]:
-    """Relative zodiacal spectrum S(lambda)/S(500 nm): (wavelength A, dimensionless).
-
-    Parameters
-    ----------
-    kind : str
-        One of :data:`SPECTRA`: ``"solar_leinert"`` or ``"hst"``.
-
-    Returns
-    -------
-    wavelength_angstrom : ndarray, shape (n,)
-        Wavelengths, Angstrom.
-    shape : ndarray, shape (n,)
-        The spectrum over its mean at 495-505 nm, dimensionless.
-
-    Raises
-    ------
-    ConfigError
-        When ``kind`` is not one of :data:`SPECTRA`.
-    """
-    if kind == "solar_leinert":
-        wl_a, sun = solar_spectrum()
-        wl_cc, cc = leinert_colour_correction()
-        factor = np.interp(np.log(wl_a / 1e4), np.log(wl_cc), cc)
-        s = sun * factor
-    elif kind == "hst":
-        from astropy.io import fits
-
-        with fits.open(_data_path("hst_zodi.fits")) as h:
-            wl_a = np.asarray(h[1].data["WAVELENGTH"], dtype=float)
-            s = np.asarray(h[1].data["FLUX"], dtype=float)
-    else:
-        raise ConfigError(f"zodiacal spectrum {kind!r} is not one of {SPECTRA}")
-    # normalise by the mean over 495-505 nm (the Leinert reference wavelength)
-    sel = (wl_a >= 4950.0) & (wl_a <= 5050.0)
-    return wl_a, s / np.mean(s[sel])
-
-
 _BAND_FACTOR_CACHE: dict = {}
 
 
@@ -347,12 +267,16 @@ class ZodiacalModel:
         Detector pixel pitch, m.
     spectrum : str
         The zodiacal spectrum, one of :data:`SPECTRA`.
+    reddening : tuple of float
+        ``(blue_per_dex, red_per_dex)``: Leinert et al. 1998 eq. 22's colour law, read by the
+        ``leinert_fit`` spectrum (:func:`~straylight.sources.zodiacal_colour.reddening_factor`).
     """
 
     aperture_diameter_m: float
     focal_length_m: float
     pixel_size_m: float
-    spectrum: str = "solar_leinert"
+    spectrum: str = "leinert_fit"
+    reddening: tuple = LEINERT_REDDENING_EPS90
 
     def band_factors(self, band: Band) -> tuple[float, float]:
         """For B_500 = 1 W m-2 sr-1 um-1: (photons s-1 m-2 sr-1 in band, AB mag/arcsec2).
@@ -360,7 +284,7 @@ class ZodiacalModel:
         Parameters
         ----------
         band : Band
-            The band (throughput including QE); cached per band and spectrum.
+            The band (throughput including QE); cached per band, spectrum and reddening.
 
         Returns
         -------
@@ -374,13 +298,19 @@ class ZodiacalModel:
         ConfigError
             When the band reaches outside the spectrum's wavelength range.
         """
-        key = (band.name, band.origin, hash(np.asarray(band.throughput).tobytes()), self.spectrum)
+        key = (
+            band.name,
+            band.origin,
+            hash(np.asarray(band.throughput).tobytes()),
+            self.spectrum,
+            tuple(self.reddening),
+        )
         if key not in _BAND_FACTOR_CACHE:
             _BAND_FACTOR_CACHE[key] = self._band_factors(band)
         return _BAND_FACTOR_CACHE[key]
 
     def _band_factors(self, band: Band) -> tuple[float, float]:
-        wl, shape = zodiacal_spectrum_shape(self.spectrum)
+        wl, shape = zodiacal_spectrum_shape(self.spectrum, tuple(self.reddening))
         lo, hi = band.wavelength_angstrom[0], band.wavelength_angstrom[-1]
         if wl[0] > lo or wl[-1] < hi:
             raise ConfigError(
@@ -543,7 +473,9 @@ class ZodiacalLight:
 
 
 def zodiacal_model_from_instrument(
-    instrument: InstrumentSettings | dict, spectrum: str = "solar_leinert"
+    instrument: InstrumentSettings | dict,
+    spectrum: str = "leinert_fit",
+    reddening: tuple = LEINERT_REDDENING_EPS90,
 ) -> ZodiacalModel:
     """The zodiacal model of the instrument's aperture, focal length and pixel, with the solar
     ``spectrum`` (models.zodiacal_spectrum).  ``instrument``: its typed settings, or its
@@ -555,6 +487,9 @@ def zodiacal_model_from_instrument(
         The instrument (aperture diameter and focal length in m, pixel size in um).
     spectrum : str
         The zodiacal spectrum, one of :data:`SPECTRA`.
+    reddening : tuple of float
+        ``(blue_per_dex, red_per_dex)`` of Leinert et al. 1998 eq. 22 (models.zodiacal_reddening),
+        read by ``leinert_fit``.
 
     Returns
     -------
@@ -566,4 +501,5 @@ def zodiacal_model_from_instrument(
         focal_length_m=inst.telescope.focal_length_m.value,
         pixel_size_m=inst.detector.pixel_size_um.value * 1e-6,
         spectrum=spectrum,
+        reddening=tuple(float(x) for x in reddening),
     )
