@@ -242,8 +242,16 @@ def _add_visibility(sub) -> None:
     v = sub.add_parser(
         "visibility", help="a target's background, 5-sigma limit and observable windows over time"
     )
-    v.add_argument("--ra", required=True, help="ICRS right ascension, deg")
-    v.add_argument("--dec", required=True, help="ICRS declination, deg")
+    v.add_argument("--ra", default=None, help="ICRS right ascension, deg")
+    v.add_argument("--dec", default=None, help="ICRS declination, deg")
+    v.add_argument(
+        "--targets",
+        default=None,
+        metavar="FILE",
+        help="CSV of targets (name, ra, dec in deg; ra and dec empty: the name is looked up among "
+        "the packaged fields and galaxies and the catalog's stars) instead of --ra/--dec: a summary "
+        "per target and month; --out FOLDER gets it and each target's windows and days",
+    )
     v.add_argument("--band", required=True, help="band (NUV u g r i z y)")
     v.add_argument("--start", default=None, help="UTC start, ISO 8601 (default: the campaign's start)")
     v.add_argument("--end", default=None, help="UTC end, exclusive (default: the campaign's end)")
@@ -262,7 +270,8 @@ def _add_visibility(sub) -> None:
     v.add_argument(
         "--out",
         default=None,
-        help="table of the samples (.csv or .ecsv); _windows and _days tables are written beside it",
+        help="table of the samples (.csv or .ecsv); _windows and _days tables are written beside it "
+        "(with --targets: a folder)",
     )
     v.add_argument(
         "--plot", default=None, help="figure of background and limit against time (.png, .pdf, .svg)"

@@ -287,10 +287,17 @@ def _sky_table(args, campaign, bands, stars) -> int:
 
 
 def cmd_visibility(args) -> int:
-    """``straylight visibility``: a target's background, limit and observable windows over time."""
+    """``straylight visibility``: a target's background, limit and observable windows over time
+    (``--targets FILE``: many targets, :func:`straylight.cli.targets.cmd_visibility_targets`)."""
     from straylight.config import load_campaign
     from straylight.survey.visibility import plot_visibility, visibility
 
+    if getattr(args, "targets", None) is not None:
+        from straylight.cli.targets import cmd_visibility_targets
+
+        return cmd_visibility_targets(args)
+    if args.ra is None or args.dec is None:
+        raise InputError("give --ra and --dec, or --targets FILE (a CSV of name, ra, dec)")
     ra_deg, dec_deg = checked_pointing(args)
     for path, flag, suffixes in (
         (args.out, "--out", (".csv", ".ecsv")),

@@ -24,6 +24,11 @@ __all__ = [
     "MAX_STEP_ORBIT_FRACTION",
     "ALIAS_TOLERANCE",
     "visibility",
+    "time_grid",
+    "observable_windows",
+    "period_starts",
+    "period_sums",
+    "daily_tables",
     "warn_if_step_aliases",
     "plot_visibility",
 ]
@@ -86,36 +91,12 @@ def visibility(
         Unparsable, out-of-ephemeris or reversed times, a non-positive step or one longer than
         the window, more than :data:`MAX_SAMPLES` samples, an unknown band.
     """
-    import astropy.units as u
     from astropy.table import QTable
-    from astropy.time import Time
 
-    from straylight.sky.ephemeris import check_in_ephemeris
-    from straylight.sky.timeutil import parse_utc
     from straylight.survey.pointings import background_table
 
-    if band not in campaign.bands:
-        raise InputError(f"--band: {band!r} is not one of {', '.join(campaign.bands)}")
-    t0, t1 = parse_utc(start, "--start"), parse_utc(end, "--end")
-    check_in_ephemeris(t0, "--start", start if isinstance(start, str) else None)
-    check_in_ephemeris(t1, "--end", end if isinstance(end, str) else None)
-    if not t1 > t0:
-        raise InputError(f"--end {t1.isot} must be after --start {t0.isot}")
-    if not (np.isfinite(step_s) and step_s > 0):
-        raise InputError(f"--step-min: must be > 0, got {step_s / 60.0}")
-    span_s = float((t1 - t0).to_value(u.s))
-    if step_s > span_s:
-        raise InputError(
-            f"--step-min {step_s / 60.0:g}: longer than the window --start {t0.isot[:19]} to --end "
-            f"{t1.isot[:19]} ({span_s / 60.0:g} min); use a step of at most that"
-        )
-    warn_if_step_aliases(step_s, float(campaign.orbit.period_s))
-    n = int(np.ceil(span_s / step_s - 1e-9))
-    if n > MAX_SAMPLES:
-        raise InputError(
-            f"--start/--end/--step-min: {n:,} samples, more than {MAX_SAMPLES:,}; use a larger --step-min"
-        )
-    t = t0 + np.arange(n) * step_s * u.s
+    t0, t, offset_s = time_grid(campaign, band, start, end, step_s)
+    n = len(t)
     sky = background_table(campaign, t, np.full(n, ra_deg), np.full(n, dec_deg), [band], source="visibility")
     samples = QTable(
         {
@@ -134,40 +115,223 @@ def visibility(
             "mag_zero_point": sky.meta["mag_zero_point"][band],
         },
     )
-    obs = np.asarray(samples["observable"], bool)
-    # runs of observable samples: each sample stands for [t, t + step), the last one cut at end
-    offset_s = np.minimum(np.arange(n + 1) * step_s, span_s)
-    edges = np.diff(np.concatenate([[0], obs.astype(np.int8), [0]]))
-    first, last = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
-    w_start = t[first] if first.size else Time([], format="isot", scale="utc")
-    w_end = t0 + offset_s[last] * u.s if last.size else Time([], format="isot", scale="utc")
-    windows = QTable(
-        {
-            "start": Time(w_start, format="isot", precision=0),
-            "end": Time(w_end, format="isot", precision=0),
-            "duration_h": ((offset_s[last] - offset_s[first]) / 3600.0) * u.h,
-        }
-    )
-    windows["duration_h"].info.format = ".2f"
-    day = np.array([s[:10] for s in t.isot])
-    days_u, idx = np.unique(day, return_inverse=True)
-    lim = np.asarray(samples["limit_mag"].value, float)
-    sample_h = np.diff(offset_s) / 3600.0  # the step, the last sample's cut at end
-    best = np.full(days_u.size, np.nan)
-    obs_h = np.bincount(idx, weights=obs * sample_h, minlength=days_u.size)
-    for k in np.unique(idx[obs]):
-        best[k] = lim[obs & (idx == k)].max()
-    days = QTable({"date": days_u, "observable_hours": obs_h * u.h, "limit_mag_best": best * u.mag})
-    days["observable_hours"].info.format = ".2f"
-    days["limit_mag_best"].info.format = ".3f"
+    obs = np.asarray(samples["observable"], bool)[None, :]
+    lim = np.asarray(samples["limit_mag"].value, float)[None, :]
+    windows = observable_windows(obs, t, t0, offset_s)[0]
+    days = daily_tables(obs, lim, t, offset_s, threshold_mag)[0]
+    return {"samples": samples, "windows": windows, "days": days}
+
+
+def time_grid(campaign, band: str, start, end, step_s: float, warn: bool = True):
+    """The sampling times of :func:`visibility` over ``[start, end)``, every ``step_s``, with its
+    checks (each refusal one line naming the option).
+
+    Parameters
+    ----------
+    campaign : straylight.config.Campaign
+        Loaded campaign (its bands and orbital period).
+    band : str
+        One of the campaign's bands.
+    start, end : str or astropy.time.Time
+        UTC times (ISO 8601 text or a scalar Time); ``end`` exclusive; both within DE405.
+    step_s : float
+        Sampling step, s.
+    warn : bool, optional
+        Log :func:`warn_if_step_aliases`' warning (False: a check made again later).
+
+    Returns
+    -------
+    t0 : astropy.time.Time
+        The start, UTC (scalar).
+    t : astropy.time.Time, shape (n,)
+        The samples' times, ``t0 + i * step``.
+    offset_s : ndarray, shape (n + 1,)
+        Each sample's start and the last one's end after ``t0``, s: sample i stands for
+        ``[offset_s[i], offset_s[i + 1])``, the last one cut at ``end``.
+
+    Raises
+    ------
+    InputError
+        Unparsable, out-of-ephemeris or reversed times, a non-positive step or one longer than
+        the window, more than :data:`MAX_SAMPLES` samples, an unknown band.
+    """
+    import astropy.units as u
+
+    from straylight.sky.ephemeris import check_in_ephemeris
+    from straylight.sky.timeutil import parse_utc
+
+    if band not in campaign.bands:
+        raise InputError(f"--band: {band!r} is not one of {', '.join(campaign.bands)}")
+    t0, t1 = parse_utc(start, "--start"), parse_utc(end, "--end")
+    check_in_ephemeris(t0, "--start", start if isinstance(start, str) else None)
+    check_in_ephemeris(t1, "--end", end if isinstance(end, str) else None)
+    if not t1 > t0:
+        raise InputError(f"--end {t1.isot} must be after --start {t0.isot}")
+    if not (np.isfinite(step_s) and step_s > 0):
+        raise InputError(f"--step-min: must be > 0, got {step_s / 60.0}")
+    span_s = float((t1 - t0).to_value(u.s))
+    if step_s > span_s:
+        raise InputError(
+            f"--step-min {step_s / 60.0:g}: longer than the window --start {t0.isot[:19]} to --end "
+            f"{t1.isot[:19]} ({span_s / 60.0:g} min); use a step of at most that"
+        )
+    if warn:
+        warn_if_step_aliases(step_s, float(campaign.orbit.period_s))
+    n = int(np.ceil(span_s / step_s - 1e-9))
+    if n > MAX_SAMPLES:
+        raise InputError(
+            f"--start/--end/--step-min: {n:,} samples, more than {MAX_SAMPLES:,}; use a larger --step-min"
+        )
+    t = t0 + np.arange(n) * step_s * u.s
+    return t0, t, np.minimum(np.arange(n + 1) * step_s, span_s)
+
+
+def observable_windows(obs, t, t0, offset_s) -> list:
+    """The observable windows of several pointings sampled at the same times: the runs of
+    observable samples, each sample standing for ``[offset_s[i], offset_s[i + 1])``.
+
+    Parameters
+    ----------
+    obs : ndarray of bool, shape (m, n)
+        Each pointing's observability at the n samples.
+    t : astropy.time.Time, shape (n,)
+        The samples' times (:func:`time_grid`).
+    t0 : astropy.time.Time
+        The start (scalar).
+    offset_s : ndarray, shape (n + 1,)
+        The samples' edges after ``t0``, s (:func:`time_grid`).
+
+    Returns
+    -------
+    list of astropy.table.QTable
+        Per pointing, one row per window: ``start``, ``end`` (UTC, to the second) and
+        ``duration_h`` (h).
+    """
+    import astropy.units as u
+    from astropy.table import QTable
+    from astropy.time import Time
+
+    obs = np.asarray(obs, bool)
+    pad = np.zeros((obs.shape[0], 1), np.int8)
+    edges = np.diff(np.concatenate([pad, obs.astype(np.int8), pad], axis=1), axis=1)
+    # row-major: by pointing, then in time; every run has one rise and one fall
+    k_rise, first = np.nonzero(edges == 1)
+    last = np.nonzero(edges == -1)[1]
+    empty = Time([], format="isot", scale="utc")
+    starts = Time(t[first], format="isot", precision=0) if first.size else empty
+    ends = Time(t0 + offset_s[last] * u.s, format="isot", precision=0) if last.size else empty
+    hours = (offset_s[last] - offset_s[first]) / 3600.0
+    bounds = np.searchsorted(k_rise, np.arange(obs.shape[0] + 1))
+    out = []
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        w = QTable({"start": starts[a:b], "end": ends[a:b], "duration_h": hours[a:b] * u.h})
+        w["duration_h"].info.format = ".2f"
+        out.append(w)
+    return out
+
+
+def period_starts(labels) -> tuple[np.ndarray, np.ndarray]:
+    """(the distinct labels in order, the index where each begins) of time-ordered labels, such
+    as each sample's UTC date: a period's samples are contiguous.
+
+    Parameters
+    ----------
+    labels : array_like of str, shape (n,)
+        One label per sample, equal labels adjacent.
+
+    Returns
+    -------
+    names : ndarray of str, shape (p,)
+        The periods' labels.
+    starts : ndarray of int, shape (p,)
+        The index of each period's first sample.
+    """
+    labels = np.asarray(labels)
+    new = np.ones(labels.size, bool)
+    new[1:] = labels[1:] != labels[:-1]
+    starts = np.flatnonzero(new)
+    return labels[starts], starts
+
+
+def period_sums(obs, lim, sample_h, starts, threshold_mag: float | None = None) -> dict:
+    """Per pointing and period: observable hours, the deepest limit and, with a threshold, the
+    observable hours with a limit at least that deep.
+
+    Parameters
+    ----------
+    obs : ndarray of bool, shape (m, n)
+        Observability of m pointings at n samples.
+    lim : ndarray of float, shape (m, n)
+        5-sigma limits, AB mag.
+    sample_h : ndarray, shape (n,)
+        Each sample's duration, h.
+    starts : ndarray of int, shape (p,)
+        Each period's first sample (:func:`period_starts`).
+    threshold_mag : float, optional
+        Limit, AB mag.
+
+    Returns
+    -------
+    dict of str to ndarray, each shape (m, p)
+        ``observable_hours`` (h), ``limit_mag_best`` (AB mag; NaN for a period never
+        observable) and, with a threshold, ``hours_deeper_than_threshold`` (h).
+    """
+    obs = np.asarray(obs, bool)
+    out = {"observable_hours": np.add.reduceat(obs * sample_h, starts, axis=1)}
+    best = np.maximum.reduceat(np.where(obs, lim, -np.inf), starts, axis=1)
+    out["limit_mag_best"] = np.where(best == -np.inf, np.nan, best)
     if threshold_mag is not None:
         deep = obs & (lim >= threshold_mag)
-        days["hours_deeper_than_threshold"] = (
-            np.bincount(idx, weights=deep * sample_h, minlength=days_u.size) * u.h
+        out["hours_deeper_than_threshold"] = np.add.reduceat(deep * sample_h, starts, axis=1)
+    return out
+
+
+def daily_tables(obs, lim, t, offset_s, threshold_mag: float | None = None) -> list:
+    """Per pointing, the UTC days of :func:`visibility`: observable hours, the deepest limit and,
+    with a threshold, the hours deeper than it.
+
+    Parameters
+    ----------
+    obs : ndarray of bool, shape (m, n)
+        Observability of m pointings at the n samples.
+    lim : ndarray of float, shape (m, n)
+        5-sigma limits, AB mag.
+    t : astropy.time.Time, shape (n,)
+        The samples' times (:func:`time_grid`).
+    offset_s : ndarray, shape (n + 1,)
+        The samples' edges, s (:func:`time_grid`).
+    threshold_mag : float, optional
+        Limit, AB mag; None: no such column.
+
+    Returns
+    -------
+    list of astropy.table.QTable
+        Per pointing, one row per UTC date: ``date`` (YYYY-MM-DD), ``observable_hours`` (h),
+        ``limit_mag_best`` (AB mag, NaN on a day never observable) and, with a threshold,
+        ``hours_deeper_than_threshold`` (h; the threshold in ``meta``).
+    """
+    import astropy.units as u
+    from astropy.table import QTable
+
+    dates, starts = period_starts(np.array([s[:10] for s in t.isot]))
+    sums = period_sums(obs, lim, np.diff(offset_s) / 3600.0, starts, threshold_mag)
+    out = []
+    for k in range(np.shape(obs)[0]):
+        days = QTable(
+            {
+                "date": dates,
+                "observable_hours": sums["observable_hours"][k] * u.h,
+                "limit_mag_best": sums["limit_mag_best"][k] * u.mag,
+            }
         )
-        days["hours_deeper_than_threshold"].info.format = ".2f"
-        days.meta["threshold_mag"] = float(threshold_mag)
-    return {"samples": samples, "windows": windows, "days": days}
+        days["observable_hours"].info.format = ".2f"
+        days["limit_mag_best"].info.format = ".3f"
+        if threshold_mag is not None:
+            days["hours_deeper_than_threshold"] = sums["hours_deeper_than_threshold"][k] * u.h
+            days["hours_deeper_than_threshold"].info.format = ".2f"
+            days.meta["threshold_mag"] = float(threshold_mag)
+        out.append(days)
+    return out
 
 
 def warn_if_step_aliases(step_s: float, period_s: float) -> str | None:
