@@ -211,7 +211,10 @@ class MollweidePanel:
             if ra == 180.0:
                 continue
             x, y = proj.ang2xy(ra, 0.0, lonlat=True)
-            self.ax.text(x, y - 0.03, f"{ra / 15:.0f}h", ha="center", va="top", path_effects=halo, **kw)
+            label = self.ax.text(
+                x, y - 0.03, f"{ra / 15:.0f}h", ha="center", va="top", path_effects=halo, **kw
+            )
+            label.set_in_layout(False)  # inside the ellipse: not measured for the page's tight box
         for dec in np.arange(-90.0 + GRATICULE_DPAR_DEG, 90.0, GRATICULE_DPAR_DEG):
             if dec == 0.0:
                 continue
@@ -302,10 +305,10 @@ class MollweidePanel:
         self.colour_bar.ax.xaxis.set_major_formatter(fmt)
 
 
-def overlay_legend(fig, sun: str, outside: str, y: float = 0.0):
+def overlay_legend(fig, sun: str, outside: str, y: float = -0.01):
     """The page's legend of what the panels draw over the maps, centred under the panels (at
     figure fraction ``y``): the ecliptic, the Galactic plane, the Sun (``sun``: ``"at"`` one
-    time, or ``"track"``: open at the start, filled at the end, the line between) and the colour
+    time, or ``"track"``: a ring at the start, a disc at the end, the line between) and the colour
     of pixels without a value, ``outside`` saying which."""
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
@@ -313,7 +316,7 @@ def overlay_legend(fig, sun: str, outside: str, y: float = 0.0):
     handles = [Line2D([], [], **ECLIPTIC_STYLE), Line2D([], [], **GALACTIC_STYLE)]
     if sun == "track":
         handles += [
-            Line2D([], [], linestyle="none", label="Sun at the start", **SUN_START_STYLE),
+            Line2D([], [], linestyle="none", label="Sun at the start (ring)", **SUN_START_STYLE),
             Line2D([], [], linestyle="none", label="Sun at the end (line: its track)", **SUN_END_STYLE),
         ]
     else:

@@ -35,7 +35,8 @@ GALACTIC_STYLE = {
     "label": "Galactic plane (b = 0)",
 }
 #: The Sun's marker (at the map's time, or at the end of a campaign) and, for maps over a
-#: campaign, its open marker at the start and its track between
+#: campaign, its track and a larger ring at the start (a ring around the disc where the Sun has
+#: moved less than its size, as in a campaign of a day)
 SUN_END_STYLE = {
     "marker": "o",
     "markersize": 7,
@@ -43,7 +44,7 @@ SUN_END_STYLE = {
     "markeredgecolor": "k",
     "markeredgewidth": 1.0,
 }
-SUN_START_STYLE = {**SUN_END_STYLE, "markerfacecolor": "white"}
+SUN_START_STYLE = {**SUN_END_STYLE, "markersize": 11, "markerfacecolor": "none", "markeredgewidth": 1.2}
 SUN_TRACK_STYLE = {"color": "k", "linewidth": 1.0}
 
 

@@ -15,6 +15,7 @@ from straylight.plots.maps import _percentiles, limit_maps
 __all__ = [
     "DEPTH_TABLE",
     "DEPTH_THUMBNAILS",
+    "FRONT_PAGE_STYLE",
     "OTHER_THUMBNAILS",
     "REPORT_CATEGORIES",
     "THUMBNAILS",
@@ -118,6 +119,21 @@ REPORT_CATEGORIES = (
 )
 
 
+#: The first page's layout (raw HTML in its RST): Snakemake's report centres the page vertically in
+#: a window-high box, so a page taller than the window has its top (the depth table) out of
+#: reach above the scroll, and holds it to 32 rem, too narrow for a page of maps.  Aligned to the
+#: top and up to 64 rem wide, the table and then the depth maps are the first thing a reader
+#: sees.  The style lives in the page's own HTML: it goes with the page when the reader opens
+#: another view.
+FRONT_PAGE_STYLE = """.. raw:: html
+
+   <style>
+   div.items-center.justify-center.h-screen.overflow-auto { align-items: flex-start; }
+   div.prose.max-w-lg { max-width: 64rem; }
+   </style>
+"""
+
+
 def write_report_front(rows: dict, config: dict, path, figure_dirs=()) -> Path:
     """``path`` (the report's first page, RST rendered by Snakemake's Jinja): the campaign of
     ``config`` (a validated campaign config: ``Campaign.config``, or the workflow's), then the
@@ -142,7 +158,8 @@ def write_report_front(rows: dict, config: dict, path, figure_dirs=()) -> Path:
         ]
     dirs = [Path(d) for d in figure_dirs]
     depth_cat, sky_cat, series_cat, sched_cat = REPORT_CATEGORIES[:4]
-    text = f"""Campaign **{c["name"]}**, {c["start"]} to {c["end"]} UTC, every {float(c["cadence_s"]):g} s:
+    text = f"""{FRONT_PAGE_STYLE}
+Campaign **{c["name"]}**, {c["start"]} to {c["end"]} UTC, every {float(c["cadence_s"]):g} s:
 stray light and sky background for the CSST survey camera (straylight; method of Xian et al.).
 
 .. list-table:: 5-sigma point-source depth for the band's survey exposures (median over the footprint of each
@@ -151,11 +168,11 @@ stray light and sky background for the CSST survey camera (straylight; method of
    :header-rows: 1
 
 {chr(10).join(table)}
-{_thumbnails(dirs, DEPTH_THUMBNAILS, 1000)}
+{_thumbnails(dirs, DEPTH_THUMBNAILS, 1500)}
 
 **Reading the maps**: all-sky Mollweide in ICRS, centred on RA 0h, RA (hours) increasing to the left
 (East, marked E), Dec in degrees. Dashed: the ecliptic; dotted: the Galactic plane; yellow disc: the
-Sun (on the depth maps, open at the campaign's start and filled at its end). Light grey: outside the
+Sun (on the depth maps, a ring at the campaign's start and a disc at its end). Light grey: outside the
 footprint or never observable. One colour scale per band for all its depth maps (its
 {_percentiles(DEPTH_PERCENTILES)}, at least {MIN_COLOUR_SPAN_MAG:g} mag wide); pixels beyond it take the
 end colours. ``{DEPTH_TABLE}`` holds the table above (*{depth_cat}*).
