@@ -137,12 +137,35 @@ class GhostSettings:
 
 
 @dataclass(frozen=True)
+class PSTTail:
+    """``pst.tail_log10_at_90deg``: log10 PST of the embedded default at 90 deg (``value``,
+    dex), its ``range`` [low, high] (the calibration's spread over orbital phases) and
+    ``source``."""
+
+    value: float
+    unit: str
+    range: tuple
+    source: str
+
+
+@dataclass(frozen=True)
+class PSTTailCalibration:
+    """``pst.tail_calibration``: HST's earthshine at its 20-deg limit (V mag/arcsec2) and the
+    crossing angle the tail is set to (deg)."""
+
+    hst_earthshine_v_mag_per_arcsec2: Parameter
+    crossing_limb_angle_deg: Parameter
+
+
+@dataclass(frozen=True)
 class PSTSettings:
     """``pst``: the PST matrix's file (relative to the instrument file; None: the embedded
-    default) and its source."""
+    default), its source, the default's tail at 90 deg and the tail's calibration reference."""
 
     file: str | None
     source: str
+    tail_log10_at_90deg: PSTTail
+    tail_calibration: PSTTailCalibration | None = None
 
 
 @dataclass(frozen=True)
@@ -286,6 +309,8 @@ __all__ = [
     "ScatteringSettings",
     "GhostBandSettings",
     "GhostSettings",
+    "PSTTail",
+    "PSTTailCalibration",
     "PSTSettings",
     "DoorGeometrySettings",
     "AvoidanceSettings",

@@ -35,6 +35,7 @@ from straylight.util.gridinterp import AxisCells, LinearGrid
 __all__ = [
     "DEFAULT_FIELD_RADIUS_DEG",
     "TAIL_90_LOG10",
+    "BEHIND_APERTURE_DROP_DEX",
     "DEFAULT_ANCHORS_DEG_LOG10",
     "FIELD_EDGE_LOG10",
     "FIELD_EDGE_WIDTH_DEG",
@@ -61,20 +62,26 @@ DEFAULT_FIELD_RADIUS_DEG = float(np.sqrt(1.1 / np.pi))
 #    edge and 30 deg would give 1e-4.2 at 5 deg; the baffle falls faster near the field);
 #  - 30 deg: 1e-6 (paper sect. 2.1: "30 deg separation from Earth's limb, where the PST value is
 #    approximately 1e-6");
-#  - 30-90 deg: the large-angle tail, one log-linear segment to TAIL_90_LOG10 at 90 deg, fixed by
-#    the paper's CSST-versus-HST conclusion (sect. 3.3): in the paper's scenario CSST's median
-#    earthshine falls to HST's at 20 deg from the bright limb (20.6 V mag/arcsec2, WFC3 IHB
-#    fig. 9.2) 70 deg from the bright limb; the Earth then fills theta 70-90 deg of the direct
-#    path, so this segment sets that crossing (straylight scenario; tests/sources/test_offfield.py);
+#  - 30-90 deg: the large-angle tail, one log-linear segment to the instrument's
+#    pst.tail_log10_at_90deg at 90 deg, fixed by the paper's CSST-versus-HST conclusion (sect.
+#    3.3): CSST's median earthshine falls to HST's at 20 deg from the bright limb (WFC3 IHB fig.
+#    9.2) 70 deg from the bright limb.  The paper does not give CSST's orbital phase, so the tail
+#    is the value at which the median over the satellite's sunlit orbital phases of that
+#    crossing is 70 deg (straylight.paper.tail_calibration, scripts/calibrate_pst_tail.py);
+#    the Earth fills theta from the limb angle to 90 deg of the direct path, so this segment
+#    sets the crossing;
 #  - theta > 90 deg: behind the aperture plane, the door's Sp is 0 (door.py): these values are
-#    never used by the direct path; they keep falling (to 10^-12.2 at 180 deg) so that the PST's
+#    never used by the direct path; they keep falling (3.6 dex over 90-180 deg) so that the PST's
 #    tail bounds (PST.tail_max, influence_radius_deg) stay tight.
-TAIL_90_LOG10 = -8.6
+#: log10 PST at 90 deg for callers without an instrument file: the value of csst.yaml's
+#: pst.tail_log10_at_90deg (tests/optics/test_pst_tail.py holds them equal)
+TAIL_90_LOG10 = -9.69
+#: drop of log10 PST from 90 to 180 deg (behind the aperture plane; never used by the direct path)
+BEHIND_APERTURE_DROP_DEX = 3.6
+#: the anchors the tail does not move: (theta deg, log10 PST)
 DEFAULT_ANCHORS_DEG_LOG10 = (
     (5.0, -5.0),
     (30.0, -6.0),
-    (90.0, TAIL_90_LOG10),
-    (180.0, TAIL_90_LOG10 - 3.6),
 )
 #: the field edge's step: PST 1 up to this far inside the field radius (deg), 1e-4 at the radius
 FIELD_EDGE_LOG10 = -4.0
@@ -84,17 +91,47 @@ FIELD_EDGE_WIDTH_DEG = 0.01
 DEFAULT_DOOR_SIDE_DEX = 0.3
 
 
-def default_anchors(field_radius_deg: float = DEFAULT_FIELD_RADIUS_DEG) -> np.ndarray:
-    """The default PST's anchors (theta deg, log10 PST) for a field of radius ``field_radius_deg``:
-    PST 1 in the field, the field stop's step to 1e-4 at its edge, then :data:`DEFAULT_ANCHORS_DEG_LOG10`."""
+def default_anchors(
+    field_radius_deg: float = DEFAULT_FIELD_RADIUS_DEG, tail_log10_at_90deg: float = TAIL_90_LOG10
+) -> np.ndarray:
+    """The default PST's anchors (theta deg, log10 PST).
+
+    Parameters
+    ----------
+    field_radius_deg : float
+        Radius of the field, deg.
+    tail_log10_at_90deg : float
+        log10 PST (azimuthal mean) at 90 deg, below the 30-deg anchor's -6 (the instrument's
+        ``pst.tail_log10_at_90deg``).
+
+    Returns
+    -------
+    ndarray, shape (n, 2)
+        PST 1 in the field, the field stop's step to 1e-4 at its edge,
+        :data:`DEFAULT_ANCHORS_DEG_LOG10`, the tail at 90 deg and
+        :data:`BEHIND_APERTURE_DROP_DEX` below it at 180 deg.
+
+    Raises
+    ------
+    ConfigError
+        For a field radius outside the anchors, or a tail not below the 30-deg anchor.
+    """
     r = float(field_radius_deg)
     if not FIELD_EDGE_WIDTH_DEG < r < DEFAULT_ANCHORS_DEG_LOG10[0][0]:
         raise ConfigError(
             f"detector.field_of_view_deg2: a field of radius {r:g} deg; the default PST needs "
             f"{FIELD_EDGE_WIDTH_DEG} < radius < {DEFAULT_ANCHORS_DEG_LOG10[0][0]} deg"
         )
+    tail = float(tail_log10_at_90deg)
+    if not (np.isfinite(tail) and tail < DEFAULT_ANCHORS_DEG_LOG10[-1][1]):
+        raise ConfigError(
+            f"pst.tail_log10_at_90deg: {tail_log10_at_90deg!r}; the default PST needs a finite value "
+            f"below the 30-deg anchor's {DEFAULT_ANCHORS_DEG_LOG10[-1][1]:g}"
+        )
     return np.array(
-        ((0.0, 0.0), (r - FIELD_EDGE_WIDTH_DEG, 0.0), (r, FIELD_EDGE_LOG10)) + DEFAULT_ANCHORS_DEG_LOG10
+        ((0.0, 0.0), (r - FIELD_EDGE_WIDTH_DEG, 0.0), (r, FIELD_EDGE_LOG10))
+        + DEFAULT_ANCHORS_DEG_LOG10
+        + ((90.0, tail), (180.0, tail - BEHIND_APERTURE_DROP_DEX))
     )
 
 
@@ -103,10 +140,30 @@ def default_pst_grid(
     phi_step_deg: float = 5.0,
     door_side_dex: float = DEFAULT_DOOR_SIDE_DEX,
     field_radius_deg: float = DEFAULT_FIELD_RADIUS_DEG,
+    tail_log10_at_90deg: float = TAIL_90_LOG10,
 ):
     """The embedded default PST on a (theta, phi) grid: (theta_deg, phi_deg, pst[theta, phi]);
-    its anchors: :func:`default_anchors` (assumptions with their sources beside them)."""
-    a = default_anchors(field_radius_deg)
+    its anchors: :func:`default_anchors` (assumptions with their sources beside them).
+
+    Parameters
+    ----------
+    theta_step_deg, phi_step_deg : float
+        Grid steps, deg (the anchors are nodes too).
+    door_side_dex : float
+        The door side's asymmetry, dex.
+    field_radius_deg : float
+        Radius of the field, deg.
+    tail_log10_at_90deg : float
+        log10 PST (azimuthal mean) at 90 deg.
+
+    Returns
+    -------
+    theta_deg : ndarray, shape (n_theta,)
+    phi_deg : ndarray, shape (n_phi,)
+    pst : ndarray, shape (n_theta, n_phi)
+        Dimensionless.
+    """
+    a = default_anchors(field_radius_deg, tail_log10_at_90deg)
     # the anchors and the asymmetry's break points are grid nodes: log10 PST is piecewise linear in
     # theta between them, so the bilinear interpolation is exact in theta (the field edge's step
     # is not smeared over a grid cell)
@@ -280,11 +337,31 @@ class PST:
         return self(np.asarray(theta_deg)[..., None], phi).mean(axis=-1)
 
 
-def load_pst(path: str | Path | None, field_radius_deg: float = DEFAULT_FIELD_RADIUS_DEG) -> PST:
-    """Read a PST matrix file (see module doc); ``None`` gives the embedded default for a field of
-    radius ``field_radius_deg`` (deg)."""
+def load_pst(
+    path: str | Path | None,
+    field_radius_deg: float = DEFAULT_FIELD_RADIUS_DEG,
+    tail_log10_at_90deg: float = TAIL_90_LOG10,
+) -> PST:
+    """Read a PST matrix file (see module doc).
+
+    Parameters
+    ----------
+    path : str, Path or None
+        The matrix file; None gives the embedded default.
+    field_radius_deg : float
+        Radius of the field, deg (the default's field stop).
+    tail_log10_at_90deg : float
+        log10 PST at 90 deg of the default (the instrument's ``pst.tail_log10_at_90deg``);
+        not used with a file.
+
+    Returns
+    -------
+    PST
+    """
     if path is None:
-        th, ph, v = default_pst_grid(field_radius_deg=field_radius_deg)
+        th, ph, v = default_pst_grid(
+            field_radius_deg=field_radius_deg, tail_log10_at_90deg=tail_log10_at_90deg
+        )
         return PST(th, ph, v, source="default (assumption, straylight.optics.pst.default_pst_grid)")
     p = Path(path)
     if not p.exists():

@@ -2,7 +2,8 @@
 
 :func:`earthshine_scenario` - sect. 3.3: at 2026-01-01 00:50 UTC, pointings on a grid RA 0-345 deg
 (15 deg steps) x Dec -75 to +75 deg (15 deg steps); CSST earthshine (direct + door) per band
-against the Earth-limb angle, for pointings in the sunlit region (nearest limb bright).
+against the bright-limb angle (the avoidance constraint's: to the nearest sunlit point of the
+disc at the top of the atmosphere), for pointings in the sunlit region (nearest limb bright).
 
 The HST comparison (:func:`hst_comparison`): HST's earthshine in V against the angle above the
 bright limb is read from a CSV file with columns ``limb_angle_deg, v_mag_per_arcsec2`` (e.g. the
@@ -35,6 +36,7 @@ __all__ = [
     "sunlit_limb",
     "read_hst_curve",
     "binned_median_mag",
+    "binned_median",
     "crossing_angle_deg",
     "hst_comparison",
     "plot_earthshine_scenario",
@@ -64,8 +66,9 @@ def earthshine_scenario(campaign: Campaign, time: str = SCENARIO_TIME, band: str
     -------
     dict
         Per pointing (arrays of shape (n,)): ``ra_deg``, ``dec_deg``, ``earth_limb_angle_deg``
-        (deg), ``limb_is_bright``, the earthshine (total, direct, via the door) in e-/s/pix, the
-        earthshine and the zodiacal light in AB mag/arcsec2; and ``band``, ``time``.
+        and ``bright_limb_angle_deg`` (deg), ``limb_is_bright``, the earthshine (total, direct,
+        via the door) in e-/s/pix, the earthshine and the zodiacal light in AB mag/arcsec2; and
+        ``band``, ``time``.
     """
     ra, dec = np.meshgrid(np.arange(0.0, 346.0, 15.0), np.arange(-75.0, 76.0, 15.0), indexing="ij")
     ra, dec = ra.ravel(), dec.ravel()
@@ -79,6 +82,7 @@ def earthshine_scenario(campaign: Campaign, time: str = SCENARIO_TIME, band: str
         "ra_deg": ra,
         "dec_deg": dec,
         "earth_limb_angle_deg": g["earth_limb_angle_deg"],
+        "bright_limb_angle_deg": g["bright_limb_angle_deg"],
         "limb_is_bright": g["limb_is_bright"],
         "earthshine_e_per_s_per_pix": comps["earthshine"],
         "earthshine_direct_e_per_s_per_pix": comps["earthshine_direct"],
@@ -127,8 +131,33 @@ def binned_median_mag(
     """CSST's median earthshine (mag/arcsec2) over the sunlit-limb pointings in bins of the limb
     angle: (bin centres, deg; medians; pointings per bin), bins without pointings left out."""
     sel = sunlit_limb(result)
-    limb = result["earth_limb_angle_deg"][sel]
-    mag = result["earthshine_mag_per_arcsec2"][sel]
+    return binned_median(
+        result["bright_limb_angle_deg"][sel], result["earthshine_mag_per_arcsec2"][sel], bin_deg
+    )
+
+
+def binned_median(limb_deg, mag, bin_deg: float = LIMB_BIN_DEG) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Medians of ``mag`` in bins of ``limb_deg`` over 0-180 deg.
+
+    Parameters
+    ----------
+    limb_deg : ndarray, shape (n,)
+        Limb angles, deg.
+    mag : ndarray, shape (n,)
+        Surface brightness, mag/arcsec2.
+    bin_deg : float
+        Bin width, deg.
+
+    Returns
+    -------
+    centres : ndarray
+        The centres of the bins that hold samples, deg.
+    medians : ndarray
+        Their medians, mag/arcsec2.
+    counts : ndarray of int
+        Their sample counts.
+    """
+    limb, mag = np.asarray(limb_deg, float), np.asarray(mag, float)
     edges = np.arange(0.0, 180.0 + bin_deg, bin_deg)
     which = np.digitize(limb, edges) - 1
     centres, medians, counts = [], [], []
@@ -195,7 +224,7 @@ def plot_earthshine_scenario(
     sel = sunlit_limb(result)
     fig, ax = plt.subplots(figsize=(7, 4.5))
     ax.scatter(
-        result["earth_limb_angle_deg"][sel],
+        result["bright_limb_angle_deg"][sel],
         result["earthshine_mag_per_arcsec2"][sel],
         s=12,
         label=f"CSST earthshine (direct + door), {result['band']}",
@@ -203,7 +232,7 @@ def plot_earthshine_scenario(
     centres, medians, _ = binned_median_mag(result)
     ax.plot(centres, medians, "b-", lw=1.5, label=f"CSST median ({LIMB_BIN_DEG:g} deg bins)")
     ax.scatter(
-        result["earth_limb_angle_deg"][sel],
+        result["bright_limb_angle_deg"][sel],
         result["zodiacal_mag_per_arcsec2"][sel],
         s=6,
         c="grey",

@@ -119,7 +119,7 @@ class SourceContext:
         fov_deg2 = needed(inst.detector.field_of_view_deg2, "detector.field_of_view_deg2").value
         field_radius_deg = float(np.sqrt(fov_deg2 / np.pi))
         return OffFieldModel(
-            pst=load_pst(pst_file, field_radius_deg),
+            pst=load_pst(pst_file, field_radius_deg, inst.pst.tail_log10_at_90deg.value),
             door=door_from_instrument(inst),
             door_states_deg=tuple(s.opening_deg for s in inst.door.states),
             pixel_area_m2=(inst.detector.pixel_size_um.value * 1e-6) ** 2,

@@ -956,9 +956,11 @@ HST_CURVE = SHARED_DATA / "hst_sky" / "wfc3_earthshine_v_vs_limb_angle.csv"
 def test_scenario_reaches_hsts_20_deg_earthshine_70_deg_from_the_bright_limb(paper_scenario, tmp_path):
     """Paper sect. 3.3: for CSST to see the earthshine HST sees at its 20 deg bright-limb limit,
     it must stay at least 70 deg from the bright limb.  HST's curve: the WFC3 Instrument
-    Handbook's fig. 9.2 (V, 20.6 mag/arcsec2 at 20 deg); the scenario's binned median CSST
-    earthshine (V) falls to it 70 +/- 5 deg from the bright limb with the default instrument
-    (measured 69.4 deg; the default PST's 30-90 deg tail is anchored on it)."""
+    Handbook's fig. 9.2 (V, 20.6 mag/arcsec2 at 20 deg).  The default PST's tail sets the median
+    crossing over the satellite's sunlit orbital phases to 70 deg (tests/optics/test_pst_tail.py);
+    the default orbit's phase, with the Sun 3.7 deg above the satellite's horizon, sees a dim
+    Earth and crosses earlier: 55.1 deg on the paper's grid with the direct sum at the calibrated
+    tail (docs/pst.md, "The tail over orbital phases"), asserted within 2 deg."""
     from straylight.paper.scenarios import hst_comparison, plot_earthshine_scenario
 
     if not HST_CURVE.exists():
@@ -968,7 +970,7 @@ def test_scenario_reaches_hsts_20_deg_earthshine_70_deg_from_the_bright_limb(pap
         )
     cmp = hst_comparison(paper_scenario, HST_CURVE)
     assert cmp["hst_v_mag_per_arcsec2"] == pytest.approx(20.6, abs=0.05)
-    assert cmp["csst_crossing_limb_angle_deg"] == pytest.approx(70.0, abs=5.0)
+    assert cmp["csst_crossing_limb_angle_deg"] == pytest.approx(55.1, abs=2.0)
     plot_earthshine_scenario(paper_scenario, tmp_path / "es.png", HST_CURVE, cmp)
     assert (tmp_path / "es.png").stat().st_size > 10000
 
