@@ -10,7 +10,10 @@ Pipeline (seed paper sect. 2.2 item 4, with the substitutions documented in docs
 3. Each star gets a template: the nearest template in Gaia BP - RP (a KD-tree over the templates'
    synthetic colours).  Hipparcos stars whose V - Ic lies outside the Johnson-Cousins -> Gaia
    relations are matched on V - Ic instead and take G, BP, RP from the template ("the SED route
-   decides").  With a user-supplied mock population (Teff, log g, [Fe/H], SDSS g r i, e.g. a
+   decides").  Hipparcos stars with a measured parallax take the luminosity class whose
+   template's M_V is nearest their own (:mod:`straylight.catalog.luminosity`: hip2.dat has no
+   spectral types); the others are matched among the dwarf-to-giant classes.  With a
+   user-supplied mock population (Teff, log g, [Fe/H], SDSS g r i, e.g. a
    Galaxia output) stars first take the parameters of the nearest mock star in (g - r, r - i),
    as the paper does, and then the template nearest in (Teff, log g, [Fe/H]) when the library
    has parameters (BT-Settl), else the colour match.
@@ -19,7 +22,8 @@ Pipeline (seed paper sect. 2.2 item 4, with the substitutions documented in docs
 
 Flags (bit mask): 1/2/4 SDSS g/r/i relation outside validity; 8 star colour beyond the template
 range by more than 0.05 mag; 16 Hipparcos Hp -> V outside the verified range; 32 Hipparcos V - Ic
-outside the Gaia relations (G, BP, RP from the template); 64 Teff unknown for the template.
+outside the Gaia relations (G, BP, RP from the template); 64 Teff unknown for the template;
+128 luminosity class from the parallax (M_V).
 """
 
 from __future__ import annotations
@@ -32,6 +36,7 @@ from scipy.spatial import cKDTree
 
 from straylight.catalog.gaia import sdss_from_gaia
 from straylight.catalog.hipparcos import FLAG_VI_RELATION_EXTRAPOLATED
+from straylight.catalog.luminosity import absolute_v_mag, choose_templates, template_abs_v_mag
 from straylight.catalog.sed import (
     AB_MINUS_VEGA,
     TemplateLibrary,
@@ -46,6 +51,9 @@ __all__ = [
     "FLAG_SDSS",
     "FLAG_COLOUR_BEYOND_TEMPLATES",
     "FLAG_TEFF_UNKNOWN",
+    "FLAG_CLASS_FROM_PARALLAX",
+    "CATALOG_BUILD_VERSION",
+    "ALL_CLASSES",
     "GAIA_FILTERS",
     "SDSS_FILTERS",
     "JC_FILTERS",
@@ -67,6 +75,11 @@ __all__ = [
 FLAG_SDSS = {"g": 1, "r": 2, "i": 4}
 FLAG_COLOUR_BEYOND_TEMPLATES = 8
 FLAG_TEFF_UNKNOWN = 64
+FLAG_CLASS_FROM_PARALLAX = 128
+#: the default catalog's build: part of its cache key, raised whenever the columns or the way
+#: they are derived change (so a cached catalog of an older build is never reused)
+CATALOG_BUILD_VERSION = 2
+ALL_CLASSES = ("V", "IV", "III", "II", "I")
 GAIA_FILTERS = ("gaiadr2-G", "gaiadr2-BP", "gaiadr2-RP")
 SDSS_FILTERS = ("sdss2010-u", "sdss2010-g", "sdss2010-r", "sdss2010-i", "sdss2010-z")
 JC_FILTERS = ("bessell-B", "bessell-V", "bessell-I")
@@ -103,6 +116,7 @@ class TemplatePhotometry:
         self.band_minus_g = {name: m - self.g_vega for name, m in bands.items()}
         self.tree_bp_rp = cKDTree(self.bp_rp[:, None])
         self.tree_v_i = cKDTree(self.v_i[:, None])
+        self.abs_v = template_abs_v_mag(library.template)  # NaN outside the Pickles library
 
 
 def select_templates(library: TemplateLibrary, classes) -> TemplateLibrary:
@@ -188,14 +202,19 @@ def build_catalog(
     stars: dict,
     band_responses: dict,
     library: TemplateLibrary | None = None,
-    template_classes=("V", "IV", "III"),
+    template_classes=ALL_CLASSES,
     population: dict | None = None,
     photometry: TemplatePhotometry | None = None,
+    parallax_snr_min: float | None = 5.0,
 ) -> dict:
     """CSST-band catalog columns for ``stars`` (the ingest's column layout, plus ``source`` and
-    optionally ``flags``, ``hip_v_mag`` and ``hip_v_i_mag`` for Hipparcos rows).
+    optionally ``flags``, ``hip_v_mag``, ``hip_v_i_mag``, ``parallax`` and ``parallax_error``
+    (mas) for Hipparcos rows).
 
-    ``band_responses``: band name -> speclite FilterResponse.  Returns a dict of columns.
+    ``band_responses``: band name -> speclite FilterResponse.  ``parallax_snr_min``: stars whose
+    parallax is at least this many times its error take their luminosity class from M_V
+    (:func:`straylight.catalog.luminosity.choose_templates`); None: colour alone.  Returns a
+    dict of columns.
     """
     if photometry is None:
         library = select_templates(library if library is not None else load_pickles(), template_classes)
@@ -208,14 +227,25 @@ def build_catalog(
     flags = np.asarray(stars.get("flags", np.zeros(n, np.int32)), np.int32).copy()
     bp_rp = bp - rp
 
-    # template by nearest BP - RP; Hipparcos stars outside the V - I relations by nearest V - Ic
-    _, idx = tp.tree_bp_rp.query(bp_rp[:, None], k=1) if n else (None, np.zeros(0, int))
-    idx = np.asarray(idx, int)
-    redo = (flags & FLAG_VI_RELATION_EXTRAPOLATED).astype(bool) & np.isfinite(
-        stars.get("hip_v_i_mag", np.full(n, np.nan))
+    # template by nearest BP - RP; Hipparcos stars outside the V - I relations by nearest V - Ic;
+    # the luminosity class from M_V where the parallax is measured
+    nan = np.full(n, np.nan)
+    abs_v = (
+        absolute_v_mag(
+            stars.get("hip_v_mag", nan),
+            stars.get("parallax", nan),
+            stars.get("parallax_error", nan),
+            parallax_snr_min,
+        )
+        if parallax_snr_min is not None
+        else nan
     )
+    redo = (flags & FLAG_VI_RELATION_EXTRAPOLATED).astype(bool) & np.isfinite(stars.get("hip_v_i_mag", nan))
+    idx, by_lum = choose_templates(tp.bp_rp, lib.luminosity_class, tp.abs_v, bp_rp, abs_v)
     if redo.any():
-        _, j = tp.tree_v_i.query(np.asarray(stars["hip_v_i_mag"], float)[redo][:, None], k=1)
+        j, by_lum[redo] = choose_templates(
+            tp.v_i, lib.luminosity_class, tp.abs_v, np.asarray(stars["hip_v_i_mag"], float)[redo], abs_v[redo]
+        )
         idx[redo] = j
         g[redo] = np.asarray(stars["hip_v_mag"], float)[redo] - tp.v_minus_g[j]
         bp[redo] = g[redo] + tp.bp_minus_g[j]
@@ -244,7 +274,9 @@ def build_catalog(
             p_tree = cKDTree(np.column_stack([lib.teff_k / 100.0, lib.logg_cgs, lib.feh_dex]))
             _, idx = p_tree.query(np.column_stack([teff / 100.0, logg, feh]), k=1)
             idx = np.asarray(idx, int)
+            by_lum[:] = False  # the mock population's parameters chose the template
     flags[~np.isfinite(teff)] |= FLAG_TEFF_UNKNOWN
+    flags[by_lum] |= FLAG_CLASS_FROM_PARALLAX
 
     out = {c: np.asarray(stars[c]) for c in ("source_id", "ra", "dec", "pmra", "pmdec", "ref_epoch")}
     out.update(
@@ -304,12 +336,14 @@ def make_catalog(
     g_limit_mag: float = 12.0,
     hipparcos: str = "fill",
     match_radius_arcsec: float = 2.0,
-    template_classes=("V", "IV", "III"),
+    template_classes=ALL_CLASSES,
     population: dict | None = None,
     library: TemplateLibrary | None = None,
     hip2_path=None,
+    parallax_snr_min: float | None = 5.0,
 ) -> tuple[dict, dict]:
-    """The full catalog from Gaia stars (ingested columns) and/or Hipparcos; returns (columns, summary)."""
+    """The full catalog from Gaia stars (ingested columns) and/or Hipparcos; returns (columns, summary).
+    ``parallax_snr_min``: see :func:`build_catalog`."""
     from straylight.catalog.hipparcos import hipparcos_stars
 
     library = select_templates(library if library is not None else load_pickles(), template_classes)
@@ -325,7 +359,9 @@ def make_catalog(
         if parts:
             fill = cross_match_fill(parts[0], hip, match_radius_arcsec)
             hip = {k: v[fill] for k, v in hip.items()}
-        cat = build_catalog(hip, band_responses, population=population, photometry=tp)
+        cat = build_catalog(
+            hip, band_responses, population=population, photometry=tp, parallax_snr_min=parallax_snr_min
+        )
         keep = np.isfinite(cat["phot_g_mean_mag"]) & (cat["phot_g_mean_mag"] <= g_limit_mag)
         parts.append({k: v[keep] for k, v in cat.items()})
         counts["hipparcos"] = int(keep.sum())
@@ -344,7 +380,7 @@ def make_catalog(
         "round_trip_bp_rp_mag": {
             k: rt[k] for k in ("median_abs_bp_rp_mag", "p90_abs_bp_rp_mag", "p99_abs_bp_rp_mag")
         },
-        "flag_counts": {str(b): int(((flags & b) != 0).sum()) for b in (1, 2, 4, 8, 16, 32, 64)},
+        "flag_counts": {str(b): int(((flags & b) != 0).sum()) for b in (1, 2, 4, 8, 16, 32, 64, 128)},
         "bands": sorted(band_responses),
     }
     return columns, summary
@@ -432,6 +468,7 @@ def catalog_for_campaign(campaign, gaia_stars: dict | None = None) -> tuple[dict
         template_classes=None if library is not None else tuple(sc.template_classes),
         population=population,
         library=library,
+        parallax_snr_min=float(sc.luminosity_parallax_snr_min),
     )
     metadata = {
         "straylight_version": __version__,
@@ -451,6 +488,7 @@ def catalog_for_campaign(campaign, gaia_stars: dict | None = None) -> tuple[dict
             "16": "Hipparcos Hp->V outside the verified B-V range",
             "32": "Hipparcos V-I outside the Gaia relations (photometry from the template)",
             "64": "template Teff unknown",
+            "128": "luminosity class from the Hipparcos parallax (M_V)",
         },
     }
     return columns, summary, metadata
@@ -468,7 +506,12 @@ def default_catalog_path(campaign) -> Path:
     settings = {k: v for k, v in campaign.config["stars"].items() if k != "gaia_files"}
     key = hashlib.sha256(
         json.dumps(
-            {"stars": settings, "instrument": campaign.instrument, "version": __version__},
+            {
+                "stars": settings,
+                "instrument": campaign.instrument,
+                "version": __version__,
+                "build": CATALOG_BUILD_VERSION,
+            },
             sort_keys=True,
             default=str,
         ).encode()

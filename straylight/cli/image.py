@@ -122,7 +122,7 @@ def cmd_image(args) -> int:
 
         catalog = default_catalog_path(campaign)
     band = load_band(inst, args.band, campaign.instrument_path.parent)
-    ra, dec, mag = read_star_table(catalog, args.band)
+    ra, dec, mag = read_star_table(catalog, args.band, epoch=t)  # at DATE-OBS: proper motions applied
     star_label = ""
     if args.star is not None:
         row = _resolve_star({"path": catalog}, _read_source_ids(catalog), args.star)

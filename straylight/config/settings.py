@@ -48,6 +48,7 @@ class StarsSection:
     hipparcos: str
     match_radius_arcsec: float
     template_classes: tuple
+    luminosity_parallax_snr_min: float
     population_file: str | None
     btsettl_files: tuple
     offfield_mag_limit: float
