@@ -115,6 +115,102 @@ class SkyModel:
             campaign, t, ra, dec, bands, self._stars_for(bands), source="sky_background", model=self.model
         )
 
+    def exposure_time(self, time, coord, mag_ab, snr=5.0, bands=None, n_exposures=None, observable_only=True):
+        """Total exposure time a point source needs to reach ``snr``, per sample and band, at the
+        background :meth:`background` gives (:mod:`straylight.survey.etc`: the 5-sigma limits'
+        CCD equation, EE80 aperture, read noise, dark current and zero points).
+
+        The time is split into the band's survey number of exposures (2; NUV and y 4) unless
+        ``n_exposures`` says otherwise; the read noise counts once per exposure.
+
+        Parameters
+        ----------
+        time : astropy.time.Time
+            Observation time(s), scalar or array (a window: ``t0 + np.arange(n) * step``).
+        coord : astropy.coordinates.SkyCoord
+            Pointing(s), any frame, broadcast against ``time``.
+        mag_ab : float or astropy.units.Quantity
+            Source AB magnitude, scalar (``mag`` or ``ABmag``).
+        snr : float
+            Signal-to-noise ratio to reach in the EE80 aperture (default 5).
+        bands : list of str or None
+            Survey bands (None: all; ``"V"`` has no survey exposures and is refused).
+        n_exposures : int, optional
+            Exposures the time is split into; None: each band's survey count.
+        observable_only : bool
+            True: NaN where a constraint is violated; False: computed there too (flagged), e.g.
+            50-80 deg from the bright limb, where the paper (sect. 1) suggests longer exposures.
+
+        Returns
+        -------
+        astropy.table.QTable
+            One row per sample and band (:func:`straylight.survey.etc.etc_table`): the
+            ``exposure_time`` (s; NaN where not observable unless ``observable_only`` is
+            False; ``observable`` and ``violations`` say why), ``n_exposures``, the background
+            per component and its total (e-/s/pix), the ``dominant`` component, the survey's
+            5-sigma ``limit_mag``; units and descriptions on every column.
+            :func:`straylight.survey.etc.etc_summary` gives the shortest, median and longest
+            over a window.
+
+        Raises
+        ------
+        straylight.InputError
+            Bad samples (:func:`checked_samples`), a bad magnitude, SNR or count, or a band
+            that is not a survey band; checked before anything is computed.
+
+        Examples
+        --------
+        >>> from astropy.time import Time
+        >>> from astropy.coordinates import SkyCoord
+        >>> sky = SkyModel()
+        >>> t = Time("2026-01-01T00:30:00", scale="utc")
+        >>> etc = sky.exposure_time(t, SkyCoord(150.0, 30.0, unit="deg"), 25.0, bands=["g"])
+        >>> bool(10 < etc["exposure_time"][0].value < 300)   # 25 mag is above the g limit
+        True
+        """
+        from straylight.survey.etc import checked_request
+
+        request = checked_request(mag_ab, snr=snr, n_exposures=n_exposures, observable_only=observable_only)
+        return self._etc(time, coord, bands, request)
+
+    def snr(self, time, coord, mag_ab, exposure_time, bands=None, n_exposures=None, observable_only=True):
+        """Signal-to-noise ratio a point source reaches in ``exposure_time`` (all exposures
+        together), per sample and band: the inverse of :meth:`exposure_time`, same model.
+
+        Parameters
+        ----------
+        time, coord, mag_ab, bands, n_exposures, observable_only
+            As :meth:`exposure_time`.
+        exposure_time : astropy.units.Quantity
+            Total exposure time (a time unit, scalar), split into the band's survey number of
+            exposures (or ``n_exposures``), read noise once per exposure.
+
+        Returns
+        -------
+        astropy.table.QTable
+            As :meth:`exposure_time`, with ``snr`` computed (NaN where not observable, unless
+            ``observable_only`` is False) and
+            ``exposure_time`` the one given.
+
+        Raises
+        ------
+        straylight.InputError
+            As :meth:`exposure_time`; an exposure time without a time unit or <= 0.
+        """
+        from straylight.survey.etc import checked_request
+
+        request = checked_request(
+            mag_ab, exposure_time=exposure_time, n_exposures=n_exposures, observable_only=observable_only
+        )
+        return self._etc(time, coord, bands, request)
+
+    def _etc(self, time, coord, bands, request):
+        """The exposure-time calculator's table for a checked request."""
+        from straylight.survey.etc import checked_bands, etc_table
+
+        bands = checked_bands(bands, self.campaign)
+        return etc_table(self.background(time, coord, bands), bands, self.campaign, request)
+
     def _stars_for(self, bands: list[str]):
         """The catalog's off-field stars for these bands (read once per band set), or None."""
         if self.catalog is None:

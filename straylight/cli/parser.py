@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import argparse
 
-from straylight.cli import campaign, image, paper, sky
+from straylight.cli import campaign, etc, image, paper, sky
 from straylight.cli._common import CONFIG_HELP, add_output_flags, finite_float
 
 __all__ = ["COMMANDS", "build_parser"]
@@ -281,6 +281,78 @@ def _add_visibility(sub) -> None:
     v.set_defaults(func=sky.cmd_visibility)
 
 
+def _add_etc(sub) -> None:
+    et = sub.add_parser(
+        "etc",
+        help="exposure time for a point source to reach an SNR (or the SNR of a time), per band",
+        description="Exposure time a point source of AB magnitude --mag needs to reach --snr in the "
+        "EE80 aperture, or with --exptime the SNR it reaches, at the background of that time and "
+        "pointing (as `straylight sky` gives it) and the survey's noise model (read noise, dark "
+        "current, zero points; the CCD equation of the 5-sigma limits).  The time is the total of "
+        "all exposures: it is split into the band's survey number of exposures (2; NUV and y 4, "
+        "as 2 x 150 s and 4 x 150 s) or --n-exp, the read noise counted once per exposure.  A "
+        "sample that is not observable gets no time or SNR.  With --end: every --step-min from "
+        "--time, and per band the shortest (or best), median and longest over the observable samples.",
+    )
+    et.add_argument("--ra", required=True, help="ICRS right ascension, deg")
+    et.add_argument("--dec", required=True, help="ICRS declination, deg")
+    et.add_argument("--time", required=True, help="UTC time, ISO 8601 (with --end: the window's start)")
+    et.add_argument("--end", default=None, help="UTC end of a window of times, exclusive")
+    et.add_argument(
+        "--step-min",
+        type=finite_float("--step-min"),
+        default=None,
+        help="with --end: sampling step, minutes (default: the campaign's cadence)",
+    )
+    et.add_argument("--mag", required=True, type=finite_float("--mag"), help="source AB magnitude")
+    what = et.add_mutually_exclusive_group()
+    what.add_argument(
+        "--snr",
+        type=finite_float("--snr"),
+        default=None,
+        help="SNR to reach (default 5): gives the exposure time",
+    )
+    what.add_argument(
+        "--exptime",
+        type=finite_float("--exptime"),
+        default=None,
+        help="total exposure time, s (all exposures): gives the SNR instead",
+    )
+    et.add_argument(
+        "--bands",
+        "--band",
+        dest="bands",
+        default=None,
+        help="comma-separated survey bands (default: all of NUV u g r i z y)",
+    )
+    et.add_argument(
+        "--n-exp",
+        type=int,
+        default=None,
+        help="exposures the time is split into (default: the band's survey count)",
+    )
+    et.add_argument(
+        "--catalog",
+        default=None,
+        help="star table (ra, dec, mag_<band>) for the off-field star term, as `straylight sky`; "
+        "without it stars = 0",
+    )
+    et.add_argument(
+        "--ignore-constraints",
+        action="store_true",
+        help="compute where a constraint is violated too (still flagged), e.g. 50-80 deg from the "
+        "bright limb, where the paper (sect. 1) suggests longer exposures; the window's summary "
+        "keeps to observable samples",
+    )
+    et.add_argument("--out", default=None, help="also write the per-sample table (.csv or .ecsv)")
+    add_output_flags(et)
+    et.add_argument("--config", default=None, help=CONFIG_HELP)
+    et.add_argument(
+        "--json", action="store_true", help="print JSON (samples, units and, with --end, the summary)"
+    )
+    et.set_defaults(func=etc.cmd_etc)
+
+
 def _add_config_doc(sub) -> None:
     cd = sub.add_parser("config-doc", help="print the campaign-config reference (Markdown) from the schema")
     cd.set_defaults(func=campaign.cmd_config_doc)
@@ -323,6 +395,7 @@ COMMANDS = (
     _add_schedule,
     _add_figure,
     _add_visibility,
+    _add_etc,
     _add_config_doc,
     _add_footprint,
     _add_run,

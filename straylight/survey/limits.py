@@ -21,10 +21,12 @@ __all__ = [
     "SNR",
     "ZERO_POINT_NAME",
     "SurveyExposure",
+    "aperture_noise_e2",
     "band_limits",
     "campaign_exposures",
     "point_source_limit",
     "sky_zero_points",
+    "source_rate_e_per_s",
     "survey_exposure",
     "zero_point_coord",
 ]
@@ -183,11 +185,57 @@ def point_source_limit(background_e_per_s_per_pix, band_name: str, campaign: Cam
     return _limit_mag(background_e_per_s_per_pix, survey_exposure(campaign, band_name))
 
 
+def aperture_noise_e2(background_e_per_s_per_pix, total_s, x: SurveyExposure, n_exposures=None):
+    """The CCD equation's variance in the EE80 aperture apart from the source's own shot noise,
+    N_b = N_pix (B T + D T + n RN^2), e-^2: sky + stray light, dark current, and the read noise
+    once per exposure.  The one noise model of the limits and of the exposure-time calculator
+    (:mod:`straylight.survey.etc`).
+
+    Parameters
+    ----------
+    background_e_per_s_per_pix : array_like of float, any shape
+        Sky + stray-light rate B, e-/s/pix.
+    total_s : float or array_like, broadcast against the background
+        Total exposure time T of all exposures, s.
+    x : SurveyExposure
+        The band's aperture (N_pix), dark current D (e-/s/pix) and read noise RN (e-).
+    n_exposures : int or array_like, optional
+        Exposures n the time is split into (read noise counted once each); None: the band's
+        survey count, ``x.n_exposures``.
+
+    Returns
+    -------
+    ndarray of float, broadcast shape
+        N_b, e-^2.
+    """
+    n = x.n_exposures if n_exposures is None else n_exposures
+    bkg = np.asarray(background_e_per_s_per_pix, dtype=float)
+    return x.n_pix * (bkg * total_s + x.dark_e_per_s * total_s + n * x.read_noise_e**2)
+
+
+def source_rate_e_per_s(mag_ab, x: SurveyExposure):
+    """Electrons per second a point source of AB magnitude ``mag_ab`` puts in the EE80 aperture:
+    EE_FRACTION x 10^(-0.4 m) x the band's AB mag-0 rate through the telescope.
+
+    Parameters
+    ----------
+    mag_ab : array_like of float
+        Source AB magnitude.
+    x : SurveyExposure
+        The band's zero point (``zero_point_e_per_s``).
+
+    Returns
+    -------
+    ndarray of float, shape of ``mag_ab``
+        Source rate in the aperture, e-/s.
+    """
+    return EE_FRACTION * x.zero_point_e_per_s * 10.0 ** (-0.4 * np.asarray(mag_ab, dtype=float))
+
+
 def _limit_mag(background_e_per_s_per_pix, x: SurveyExposure) -> np.ndarray:
     """5-sigma AB limiting magnitude for the exposures ``x`` at the background (e-/s/pix)."""
     t_tot = x.total_s
-    bkg = np.asarray(background_e_per_s_per_pix, dtype=float)
-    n_b = x.n_pix * (bkg * t_tot + x.dark_e_per_s * t_tot + x.n_exposures * x.read_noise_e**2)
+    n_b = aperture_noise_e2(background_e_per_s_per_pix, t_tot, x)
     s = (SNR**2 + np.sqrt(SNR**4 + 4 * SNR**2 * n_b)) / 2.0
     return -2.5 * np.log10(s / (EE_FRACTION * t_tot * x.zero_point_e_per_s))
 
