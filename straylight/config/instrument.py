@@ -213,6 +213,28 @@ class DoorSettings:
 
 
 @dataclass(frozen=True)
+class EnvelopeRange:
+    """One parameter's range in the assumption envelope: its dark and bright ends (``range``, in
+    ``unit``) and where they come from."""
+
+    range: tuple
+    unit: str
+    source: str
+
+
+@dataclass(frozen=True)
+class EnvelopeSettings:
+    """``envelope``: the ranges of the unmeasured parameters carried into the products
+    (:mod:`straylight.model.envelope`); None where the file gives no range."""
+
+    pst_tail_dex: EnvelopeRange | None = None
+    pst_tail_from_deg: Parameter | None = None
+    door_reflectance: EnvelopeRange | None = None
+    earth_albedo: EnvelopeRange | None = None
+    earth_albedo_spectra: tuple | None = None
+
+
+@dataclass(frozen=True)
 class InstrumentSettings:
     """An instrument file, typed: one field per key of config/schema/instrument.schema.yaml,
     built once from the validated file with the schema's defaults (:func:`instrument_settings`;
@@ -228,6 +250,7 @@ class InstrumentSettings:
     door: DoorSettings
     scattering: ScatteringSettings | None = None
     ghosts: GhostSettings | None = None
+    envelope: EnvelopeSettings | None = None
 
 
 @lru_cache(maxsize=1)
@@ -316,6 +339,8 @@ __all__ = [
     "AvoidanceSettings",
     "DoorStateSettings",
     "DoorSettings",
+    "EnvelopeRange",
+    "EnvelopeSettings",
     "InstrumentSettings",
     "instrument_settings",
     "needed",

@@ -90,6 +90,7 @@ class EarthshineSection:
     moonlit_lut: MoonlitLUTSteps
     method: str
     lut: EarthshineLUTSteps
+    albedo_spectrum: str
 
 
 @dataclass(frozen=True)

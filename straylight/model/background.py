@@ -208,7 +208,7 @@ class BackgroundModel:
             terms.term_lamp,
             terms.term_first,
             terms.scales,
-            sun_at_1au,
+            _irradiance(sun_at_1au, terms.factors),
             sums,
             writes,
             n_rows,
@@ -237,14 +237,20 @@ class BackgroundModel:
         sample.  One compiled pass (:func:`_floor_kernel`)."""
         n = int(np.prod(shape))
         dense = [r.per_band[p] for r in never_skipped for p in r.per_band]
+        # coefficients summed per lamp and per-band factor (a part's band_factors, e.g. the
+        # Earth's albedo): (lamp, factors or None) -> coefficient
         lamp_sums = {}
         for r in never_skipped:
-            for part in r.per_lamp.values():
-                for lamp, coeff in part.items():
-                    lamp_sums[lamp] = coeff if lamp not in lamp_sums else lamp_sums[lamp] + coeff
-        lamps = [lamp for lamp in LAMPS if lamp in lamp_sums]
-        coeff = _rows([_flat(lamp_sums[lamp], shape) for lamp in lamps], (n,))
-        scale = _rows([_flat(scales[lamp], shape) for lamp in lamps], (n,))
+            for part, by_lamp in r.per_lamp.items():
+                f = r.band_factors.get(part)
+                fkey = None if f is None else tuple(np.asarray(f, float).tolist())
+                for lamp, coeff in by_lamp.items():
+                    key = (lamp, fkey)
+                    lamp_sums[key] = coeff if key not in lamp_sums else lamp_sums[key] + coeff
+        keys = sorted(lamp_sums, key=lambda k: (LAMPS.index(k[0]), k[1] is not None, k[1] or ()))
+        coeff = _rows([_flat(lamp_sums[k], shape) for k in keys], (n,))
+        scale = _rows([_flat(scales[k[0]], shape) for k in keys], (n,))
+        irradiance = _irradiance(sun_at_1au, [k[1] for k in keys])
         dense_arr = _rows([np.asarray(d, float).reshape(len(bands), n) for d in dense], (len(bands), n))
         darkest = np.array([self.context.darkest_zodiacal_e_per_s(name) for name in bands], float)
         floor, ratio = np.empty((len(bands), n)), np.empty(n)
@@ -252,9 +258,9 @@ class BackgroundModel:
             dense_arr,
             len(dense),
             coeff,
-            len(lamps),
+            len(keys),
             scale,
-            np.asarray(sun_at_1au, float),
+            irradiance,
             darkest,
             floor,
             ratio,
@@ -372,11 +378,17 @@ class _Terms:
         n = int(np.prod(shape))
         dense, dense_leaf = [], []
         lamp_coeff = {}  # (leaf, lamp) -> coefficient
+        factors = {}  # leaf -> its per-band factor on its lamp terms
         for entry in entries:
             r = rates[entry.name]
             for part, values in r.per_band.items():
                 dense.append(values)
                 dense_leaf.append(leaves.index(part))
+            for part, f in r.band_factors.items():
+                f = np.asarray(f, float)
+                if part in factors and not np.array_equal(factors[part], f):
+                    raise ValueError(f"sources give {part!r} different band factors: {factors[part]}, {f}")
+                factors[part] = f
             for part, by_lamp in r.per_lamp.items():
                 for lamp, coeff in by_lamp.items():
                     key = (part, lamp)
@@ -397,6 +409,16 @@ class _Terms:
             [not (leaf in seen or seen.add(leaf)) for leaf in self.term_leaf.tolist()], np.bool_
         )
         self.scales = _rows([_flat(scales[lamp], shape) for lamp in lamps], (n,))
+        self.factors = [factors.get(k[0]) for k in keys]
+
+
+def _irradiance(sun_at_1au, factors: list) -> np.ndarray:
+    """(terms, bands) photon irradiance per unit lamp scale of each lamp term: the band's solar
+    irradiance at 1 AU times the term's per-band factor (None: 1; the product is then the
+    irradiance itself, bit for bit); one row of the irradiance when there is no term."""
+    s1 = np.asarray(sun_at_1au, float)
+    rows = [s1 if f is None else s1 * np.asarray(f, float) for f in factors] or [s1]
+    return np.ascontiguousarray(np.stack(rows))
 
 
 def _check_into(into, n_samples: int, n_bands: int, outputs: tuple) -> None:
@@ -413,14 +435,15 @@ def _check_into(into, n_samples: int, n_bands: int, outputs: tuple) -> None:
 
 
 @njit(cache=True, nogil=True)
-def _floor_kernel(dense, n_dense, coeff, n_coeff, scale, sun_at_1au, darkest, floor, ratio):
+def _floor_kernel(dense, n_dense, coeff, n_coeff, scale, irradiance, darkest, floor, ratio):
     """:meth:`BackgroundModel._floor` per sample: ``floor[band, sample]`` and ``ratio[sample]``:
-    the per-band terms added in order, then each lamp's summed coefficient times the band's
-    solar irradiance at 1 AU times the lamp's scale, np.fmax's rule for NaN against ``darkest``.
+    the per-band terms added in order, then each lamp term's summed coefficient times its
+    irradiance in the band (``irradiance[term, band]``: the solar irradiance at 1 AU times the
+    term's band factor) times the lamp's scale, np.fmax's rule for NaN against ``darkest``.
     Each band's row is built a term at a time (1-D loops the compiler vectorizes)."""
-    n, nb = floor.shape[1], sun_at_1au.shape[0]
+    n, nb = floor.shape[1], floor.shape[0]
     for ib in range(nb):
-        row, s1 = floor[ib], sun_at_1au[ib]
+        row = floor[ib]
         for k in range(n_dense):
             src = dense[k][ib]
             if k == 0:
@@ -430,7 +453,7 @@ def _floor_kernel(dense, n_dense, coeff, n_coeff, scale, sun_at_1au, darkest, fl
                 for i in range(n):
                     row[i] += src[i]
         for k in range(n_coeff):
-            c, sc = coeff[k], scale[k]
+            c, sc, s1 = coeff[k], scale[k], irradiance[k, ib]
             if k == 0 and n_dense == 0:
                 for i in range(n):
                     row[i] = c[i] * (s1 * sc[i])
@@ -469,7 +492,7 @@ def _band_components_kernel(
     term_lamp,
     term_first,
     scales,
-    sun_at_1au,
+    irradiance,
     sums,
     writes,
     n_rows,
@@ -480,14 +503,16 @@ def _band_components_kernel(
     Rows of values per band and sample: a row (a leaf: a component's part, or a component
     without parts) is its per-band terms (the first ``n_dense`` of the tuple ``dense`` of (bands,
     samples) arrays, to row ``dense_row``) then its lamp terms (``coeff[k][sample] *
-    (sun_at_1au[band] * scales[term_lamp[k]][sample])``, the first ``n_coeff``, to ``term_row``),
+    (irradiance[k, band] * scales[term_lamp[k]][sample])``, the first ``n_coeff``, to
+    ``term_row``; ``irradiance``: the band's solar irradiance at 1 AU times the term's band
+    factor),
     the first setting it; then ``sums``
     (src, dst, first) add rows into others in order (parts into their component, components
     into the total), and ``writes`` (row, slot) copy row into ``out[slot, sample, band]`` (any
     float dtype and strides).  Each sample's arithmetic is fixed, so the float64 values do not
     depend on batch size; the samples run in blocks of :data:`KERNEL_BLOCK_SAMPLES`, each term
     over a whole block at a time (1-D views in the inner loops: the compiler vectorizes them)."""
-    n, nb = out.shape[1], sun_at_1au.shape[0]
+    n, nb = out.shape[1], out.shape[2]
     blk = KERNEL_BLOCK_SAMPLES
     buf = np.zeros((n_rows, nb, blk))  # a row no term reaches stays 0
     for i0 in range(0, n, blk):
@@ -504,7 +529,7 @@ def _band_components_kernel(
         for k in range(n_coeff):
             c, scale = coeff[k][i0 : i0 + m], scales[term_lamp[k]][i0 : i0 + m]
             for ib in range(nb):
-                s1, row = sun_at_1au[ib], buf[term_row[k], ib]
+                s1, row = irradiance[k, ib], buf[term_row[k], ib]
                 if term_first[k]:
                     for j in range(m):
                         row[j] = c[j] * (s1 * scale[j])

@@ -29,6 +29,7 @@ __all__ = [
     "COMPONENTS",
     "SOURCES",
     "Component",
+    "Parameter",
     "Source",
     "SourceEntry",
     "TOTAL",
@@ -89,6 +90,28 @@ class Component:
 
 
 @dataclass(frozen=True)
+class Parameter:
+    """An unmeasured parameter a source's value rests on.
+
+    Attributes
+    ----------
+    name : str
+        Where it is configured (a config path, or the instrument file's section and key).
+    envelope : str
+        The key of the instrument's ``envelope`` section that gives its range, carried into the
+        products' pessimistic and optimistic depths (:mod:`straylight.model.envelope`); "" for a
+        parameter declared but not carried.
+    scales : tuple of str
+        The parts or components (of those the source adds to) the parameter scales linearly;
+        () for all of them.
+    """
+
+    name: str
+    envelope: str = ""
+    scales: tuple = ()
+
+
+@dataclass(frozen=True)
 class SourceEntry:
     """One source of light.
 
@@ -109,10 +132,11 @@ class SourceEntry:
     error_budget : tuple of str
         The keys of :data:`~straylight.model.fidelity.ERROR_BUDGET_SHARES` its fast paths spend
         (declared here for the products' uncertainty; the policy holds the shares).
-    parameters : tuple of str
-        The unmeasured model and instrument parameters its value rests on (config paths),
-        declared for the calibration and the uncertainty carried into the products; nothing
-        reads them yet.
+    parameters : tuple of (Parameter or str)
+        The unmeasured model and instrument parameters its value rests on; a :class:`Parameter`
+        with an ``envelope`` key is carried into the products' assumption envelope (the
+        components it scales, from ``adds_to`` and its ``scales``), a plain str (config path)
+        is declared only.
     """
 
     name: str
@@ -185,6 +209,14 @@ COMPONENTS = [
 ]
 
 _PST = "instrument pst (measured to 30 deg; the tail beyond is a model)"
+#: the PST's tail: scales every term whose light reaches the aperture beyond the tail's start
+#: only (where observable: the Sun, the Moon, the Earth); the planets and stars also shine
+#: through the measured part, so their dependence is declared, not carried
+_TAIL = Parameter(_PST, envelope="pst_tail")
+_ALBEDO = Parameter("models.earthshine.albedo, albedo_spectrum", envelope="earth_albedo")
+_DOOR_REFLECTANCE = Parameter(
+    "instrument door_geometry reflectance", envelope="door_reflectance", scales=("earthshine_door",)
+)
 #: the sources of light, in the order they are evaluated and their terms added
 SOURCES = [
     SourceEntry(
@@ -193,14 +225,14 @@ SOURCES = [
         _zodiacal,
         parameters=("models.zodiacal_spectrum", "models.zodiacal_reddening"),
     ),
-    SourceEntry("sun", "sun", _sun, parameters=(_PST, "instrument door_geometry")),
+    SourceEntry("sun", "sun", _sun, parameters=(_TAIL, "instrument door_geometry")),
     SourceEntry(
         "moon",
         "moon",
         _moon,
         skippable=True,
         error_budget=("moon_and_planets_skip",),
-        parameters=(_PST, "models.moon_phase_law", "models.moon_eclipse_factor"),
+        parameters=(_TAIL, "models.moon_phase_law", "models.moon_eclipse_factor"),
     ),
     SourceEntry(
         "planets",
@@ -223,7 +255,7 @@ SOURCES = [
         "earthshine",
         _sunlit_earth,
         error_budget=("earthshine_lut",),
-        parameters=(_PST, "models.earthshine.albedo", "instrument door_geometry reflectance"),
+        parameters=(_TAIL, _ALBEDO, _DOOR_REFLECTANCE),
     ),
     SourceEntry(
         "moonlit_earth",
@@ -231,7 +263,7 @@ SOURCES = [
         _moonlit_earth,
         skippable=True,
         error_budget=("moonlit_earthshine_skip", "moonlit_earthshine_grid"),
-        parameters=(_PST, "models.earthshine.albedo", "models.moon_phase_law"),
+        parameters=(_TAIL, _ALBEDO, _DOOR_REFLECTANCE, "models.moon_phase_law"),
     ),
 ]
 

@@ -200,9 +200,19 @@ class SourceContext:
     @cached_property
     def earthshine_floor(self) -> float:
         """The darkest sky background in earthshine-coefficient units (e-/s/pix per photon
-        s-1 m-2 of the Sun at 1 AU), over the instrument's bands: errors relative to it bound
-        errors relative to the total."""
-        return self.solar_floor(tuple(self.campaign.bands))
+        s-1 m-2 of the Sun at 1 AU), over the instrument's bands, each band's solar irradiance
+        times the Earth's band albedo over the grey one: errors relative to it bound errors
+        relative to the total."""
+        from straylight.sources.earth_albedo import earth_band_factors
+
+        bands = tuple(self.campaign.bands)
+        factors = earth_band_factors(self, bands)
+        if factors is None:
+            return self.solar_floor(bands)
+        return min(
+            self.darkest_zodiacal_e_per_s(b) / (self.photometry(b).sun_at_1au_photons_s_m2 * float(f))
+            for b, f in zip(bands, factors)
+        )
 
     def solar_floor(self, bands: tuple) -> float:
         """:attr:`earthshine_floor` over ``bands`` (cached per set of bands).

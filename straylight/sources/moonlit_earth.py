@@ -18,8 +18,10 @@ from straylight.sky.frames import TelescopeFrame
 from straylight.sky.runs import rows_at, scene_rows
 from straylight.sources.body_magnitudes import MOON_PERIGEE_KM, moon_v_magnitude
 from straylight.sources.context import Samples, SourceContext
+from straylight.sources.earth_albedo import earth_band_factors
 from straylight.sources.photometry import solar_like_fraction
 from straylight.sources.rates import BandRates
+from straylight.sources.sunlit_earth import EARTH_PARTS
 
 __all__ = ["MoonlitEarth"]
 
@@ -226,15 +228,21 @@ class MoonlitEarth:
         BandRates
             ``per_lamp["earthshine_direct"]["moon_at_earth"]`` and
             ``per_lamp["earthshine_door"]["moon_at_earth"]``: ndarrays of the samples' shape,
-            e-/s/pix per photon s-1 m-2 of the Moon's lamp; empty on the direct sum's path or
-            where every sample is skipped.
+            e-/s/pix per photon s-1 m-2 of the Moon's lamp, with the Earth's band factors
+            (``band_factors``, as the sunlit Earth's); empty on the direct sum's path or where
+            every sample is skipped.
         """
         sunlit_lut = self.sunlit().lut
         if sunlit_lut is None:
             return BandRates()
         moon_at_earth = samples.moon_lamp["at_earth"]
+        # the Earth's band albedo over the grey one: the skip compares the band's earthshine
+        factors = earth_band_factors(self.context, bands)
         moon_at_earth_unit = {
-            name: self.context.photometry(name).sun_at_1au_photons_s_m2 * moon_at_earth for name in bands
+            name: self.context.photometry(name).sun_at_1au_photons_s_m2
+            * (1.0 if factors is None else float(factors[i]))
+            * moon_at_earth
+            for i, name in enumerate(bands)
         }
         floor = samples.floor
         off, re_km = self.context.offfield, self.context.campaign.earth.radius_km
@@ -305,7 +313,8 @@ class MoonlitEarth:
             per_lamp={
                 "earthshine_direct": {"moon_at_earth": direct},
                 "earthshine_door": {"moon_at_earth": door},
-            }
+            },
+            band_factors={} if factors is None else {p: factors for p in EARTH_PARTS},
         )
 
     def record(self, sunlit_table_runs: bool) -> str:

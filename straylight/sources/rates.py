@@ -12,7 +12,10 @@ forms the background model adds in a fixed order:
   them in one compiled pass, so the sum's order, and its bits, do not depend on the batch.
 
 Coefficients of several sources for the same part and lamp are added before the product (the
-moonlit Earth's to the sunlit Earth's in-field Moon term), in registry order."""
+moonlit Earth's to the sunlit Earth's in-field Moon term), in registry order.  A part whose
+light is not the lamp's spectrum (the Earth's, reflected with its spectral albedo) gives a
+per-band factor on its lamp terms, ``band_factors``: in band ``b`` its coefficient is worth
+``sun_at_1au[b] * band_factors[part][b] * scale``."""
 
 from __future__ import annotations
 
@@ -45,11 +48,15 @@ class BandRates:
     extras : dict of str to ndarray
         Per-sample flags the source reports beside its rates (e.g. the zodiacal light's
         ``zodiacal_no_data``), of the samples' shape; the model passes them on as ``_<key>``.
+    band_factors : dict of str to ndarray
+        Product part -> factor (bands,) on its ``per_lamp`` terms in each band, dimensionless
+        (a part absent: 1); every source adding to a part gives it the same factors.
     """
 
     per_band: dict = field(default_factory=dict)
     per_lamp: dict = field(default_factory=dict)
     extras: dict = field(default_factory=dict)
+    band_factors: dict = field(default_factory=dict)
 
     def e_per_s(self, part: str, bands_sun_at_1au: np.ndarray, lamp_scales: dict, shape: tuple) -> np.ndarray:
         """Part ``part``'s e-/s/pix, (bands, samples flattened), from both forms.
@@ -72,6 +79,8 @@ class BandRates:
         """
         n = int(np.prod(shape))
         s1 = np.asarray(bands_sun_at_1au, float)[:, None]
+        if part in self.band_factors:
+            s1 = s1 * np.asarray(self.band_factors[part], float)[:, None]
         out = np.zeros((s1.shape[0], n))
         if part in self.per_band:
             out += self.per_band[part]

@@ -1,6 +1,8 @@
 """The sunlit Earth (paper sect. 3.2): earthshine reaching the aperture directly (EA1) and by
 the door's reflection (EA2), as coefficients in e-/s/pix per photon s-1 m-2 of the lamp's
-irradiance (the Sun's at the satellite, the Moon's at the Earth).
+irradiance (the Sun's at the satellite, the Moon's at the Earth), summed with the grey albedo
+and scaled in each band by the Earth's band albedo over it
+(:mod:`straylight.sources.earth_albedo`).
 
 Two ways side by side, chosen by models.earthshine.method and the fidelity policy: the direct
 sum over the Earth grid (:meth:`~straylight.sources.offfield.OffFieldModel.earthshine_coefficients`,
@@ -19,9 +21,13 @@ from pathlib import Path
 import numpy as np
 
 from straylight.sources.context import Samples, SourceContext
+from straylight.sources.earth_albedo import earth_band_factors
 from straylight.sources.rates import BandRates
 
-__all__ = ["COEFFICIENTS", "SunlitEarth"]
+__all__ = ["COEFFICIENTS", "EARTH_PARTS", "SunlitEarth"]
+
+#: the parts the Earth's light adds to (each scaled by the Earth's band albedo)
+EARTH_PARTS = ("earthshine_direct", "earthshine_door")
 
 #: the keys of the earthshine coefficients (e-/s/pix per photon s-1 m-2 of the lamp): direct
 #: (EA1) and via the door (EA2), lit by the Sun and by the Moon
@@ -202,7 +208,8 @@ class SunlitEarth:
             The batch of (time, pointing) samples (reads the satellite, the Sun, the Moon,
             ``frame``, the door and ``runs``).
         bands : sequence of str
-            Band names of the instrument (unused: the coefficients are band-independent).
+            Band names of the instrument (the coefficients are band-independent; the Earth's
+            band albedos give their factors).
 
         Returns
         -------
@@ -210,14 +217,18 @@ class SunlitEarth:
             ``per_lamp["earthshine_direct"]`` and ``per_lamp["earthshine_door"]``, each with
             ``"sun"`` (e-/s/pix per photon s-1 m-2 of the Sun at the satellite) and
             ``"moon_at_earth"`` (e-/s/pix per photon s-1 m-2 of the Moon's lamp): ndarrays of
-            the samples' shape.
+            the samples' shape, summed with the grey albedo; ``band_factors`` of both parts: the
+            band albedo over the grey one per band
+            (:func:`~straylight.sources.earth_albedo.earth_band_factors`; none for ``grey``).
         """
         c = self.coefficients(samples)
+        factors = earth_band_factors(self.context, bands)
         return BandRates(
             per_lamp={
                 "earthshine_direct": {"sun": c["direct_sun"], "moon_at_earth": c["direct_moon"]},
                 "earthshine_door": {"sun": c["door_sun"], "moon_at_earth": c["door_moon"]},
-            }
+            },
+            band_factors={} if factors is None else {p: factors for p in EARTH_PARTS},
         )
 
     def coefficients(self, samples: Samples) -> dict:

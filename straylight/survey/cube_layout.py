@@ -31,6 +31,7 @@ if TYPE_CHECKING:
 __all__ = [
     "CUBE_BAND_VARIABLES",  # noqa: F822 (module __getattr__: from the registry)
     "CUBE_COMPONENTS",  # noqa: F822 (module __getattr__: from the registry)
+    "CUBE_PART_VARIABLES",
     "CUBE_PIXEL_VARIABLES",
     "LIMITS_REGION_VARIABLES",
     "LONG_NAMES",  # noqa: F822 (module __getattr__: from the registry)
@@ -50,9 +51,19 @@ CUBE_PIXEL_VARIABLES = ("observable", "violations", "door_opening_deg")
 OBSERVABILITY_ANGLES = ("sun_angle_deg", "moon_angle_deg", "earth_limb_angle_deg")
 #: observability.zarr's data variables (straylight.survey.products.observability_dataset)
 OBSERVABILITY_VARIABLES = ("observable", "violations") + OBSERVABILITY_ANGLES + ("door_opening_deg",)
+#: parts of a component the cube stores beside it, (time, pixel, band) e-/s/pix: the earthshine
+#: via the door, which the assumption envelope scales apart from the direct earthshine
+#: (straylight.model.envelope; the direct part is the earthshine minus it)
+CUBE_PART_VARIABLES = ("earthshine_door",)
 #: limits.zarr's variables the cube's workers write, region by region
-#: (:func:`straylight.survey.cube_store.region_limits`)
-LIMITS_REGION_VARIABLES = ("limiting_mag", "observable")
+#: (:func:`straylight.survey.cube_store.region_limits`): the limits, the observability, and the
+#: limits at the assumption envelope's two ends (NaN where not observable)
+LIMITS_REGION_VARIABLES = (
+    "limiting_mag",
+    "observable",
+    "limiting_mag_pessimistic",
+    "limiting_mag_optimistic",
+)
 
 
 def __getattr__(name):

@@ -132,7 +132,8 @@ def compute_region(
 def _dims(name: str) -> tuple:
     """A cube variable's dims: (time, pixel, band) for the components and the total, else
     (time, pixel)."""
-    return ("time", "pixel", "band") if name in cube_layout.CUBE_BAND_VARIABLES else ("time", "pixel")
+    band_vars = cube_layout.CUBE_BAND_VARIABLES + cube_layout.CUBE_PART_VARIABLES
+    return ("time", "pixel", "band") if name in band_vars else ("time", "pixel")
 
 
 def region_values(
@@ -159,8 +160,9 @@ def region_values(
     Returns
     -------
     dict of str to ndarray
-        Each component of :data:`~straylight.survey.cube_layout.CUBE_BAND_VARIABLES` and
-        ``total``: float32, shape (n_time, n_pixel, n_band), e-/s/pix (views into one block);
+        Each component of :data:`~straylight.survey.cube_layout.CUBE_BAND_VARIABLES`,
+        ``total`` and each part of :data:`~straylight.survey.cube_layout.CUBE_PART_VARIABLES`:
+        float32, shape (n_time, n_pixel, n_band), e-/s/pix (views into one block);
         ``observable``: bool, (n_time, n_pixel); ``violations``: uint8 bit mask,
         (n_time, n_pixel); ``door_opening_deg``: float32 deg, (n_time, n_pixel).
 
@@ -184,7 +186,8 @@ def region_values(
         faint = model.stars.faint_star_rates(stars, los, campaign.bands)
     # one allocation for every component: numpy asks the kernel for huge pages on arrays of 4 MiB
     # or more (a default region's block is), fewer page faults than one array per component
-    names = cube_layout.CUBE_BAND_VARIABLES
+    # the components, the total and the parts the envelope scales apart (CUBE_PART_VARIABLES)
+    names = cube_layout.CUBE_BAND_VARIABLES + cube_layout.CUBE_PART_VARIABLES
     block = np.zeros((len(names), nt, npix, nb), np.float32)
     out = dict(zip(names, block))
     obs = np.zeros((nt, npix), bool)

@@ -99,13 +99,15 @@ def empty_cube(campaign: Campaign, fp: Footprint, times, model, stars_path=None,
     import dask.array as da
     import xarray as xr
 
+    from straylight.model.envelope import campaign_envelope
+
     nt, npix, nb = len(times), fp.pixels.size, len(campaign.bands)
     ch = cube_chunks(campaign, nt, npix)
     chunks3 = (ch["time"], ch["pixel"], ch["band"])
     chunks2 = (ch["time"], ch["pixel"])
     data = {}
     long_names = cube_layout.LONG_NAMES
-    for comp in cube_layout.CUBE_BAND_VARIABLES:
+    for comp in cube_layout.CUBE_BAND_VARIABLES + cube_layout.CUBE_PART_VARIABLES:
         data[comp] = xr.Variable(
             ("time", "pixel", "band"),
             da.zeros((nt, npix, nb), chunks=chunks3, dtype=np.float32),
@@ -152,9 +154,32 @@ def empty_cube(campaign: Campaign, fp: Footprint, times, model, stars_path=None,
             # which models ran and their error budget (the earthshine table is built here, once,
             # before the time-block jobs start)
             "models": json.dumps(model.models_record(), sort_keys=True),
+            # the Earth's band albedos, and the assumption envelope: each parameter's range, the
+            # parts it scales and its factors per band (limits.zarr's pessimistic and optimistic
+            # depths)
+            "earth_albedo": json.dumps(_earth_albedo_record(campaign, model), sort_keys=True),
+            "envelope": json.dumps(
+                campaign_envelope(campaign, context=model.context).attrs(), sort_keys=True
+            ),
         },
     )
     return ds
+
+
+def _earth_albedo_record(campaign: Campaign, model) -> dict:
+    """The Earth's albedo spectrum and its band albedos (JSON-able)."""
+    from straylight.sources.earth_albedo import band_albedo
+
+    es = campaign.settings.models.earthshine
+    bands = [model.context.band(b) for b in campaign.bands]
+    return {
+        "spectrum": es.albedo_spectrum,
+        "bond_albedo": float(es.albedo),
+        "band_albedo": {
+            b: band_albedo(band, es.albedo_spectrum, float(es.albedo))
+            for b, band in zip(campaign.bands, bands)
+        },
+    }
 
 
 def init_store(
@@ -292,13 +317,20 @@ def region_limits(campaign: Campaign, region) -> dict:
     -------
     dict of str to ndarray
         ``limiting_mag``: float32, shape (n_time, n_pixel, n_band), 5-sigma AB mag;
-        ``observable``: bool, shape (n_time, n_pixel).
+        ``observable``: bool, shape (n_time, n_pixel); ``limiting_mag_pessimistic`` and
+        ``limiting_mag_optimistic``: the limits at the assumption envelope's ends
+        (:func:`~straylight.survey.limits_envelope.envelope_limits`), float32 (n_time, n_pixel, n_band),
+        NaN where not observable.
     """
+    from straylight.model.envelope import campaign_envelope
     from straylight.survey.limits import band_limits, campaign_exposures
+    from straylight.survey.limits_envelope import envelope_limits
 
+    exposures = campaign_exposures(campaign)
     return {
-        "limiting_mag": band_limits(np.asarray(region["total"]), campaign_exposures(campaign)),
+        "limiting_mag": band_limits(np.asarray(region["total"]), exposures),
         "observable": np.asarray(region["observable"]),
+        **envelope_limits(campaign_envelope(campaign), region, exposures),
     }
 
 
@@ -326,7 +358,7 @@ def store_arrays(store, names=None) -> dict:
     from straylight.survey.storage import ChunkWriter
 
     group = zarr.open_group(str(store), mode="r+", use_consolidated=False)
-    names = names or cube_layout.CUBE_BAND_VARIABLES + CUBE_PIXEL_VARIABLES
+    names = names or cube_layout.CUBE_BAND_VARIABLES + cube_layout.CUBE_PART_VARIABLES + CUBE_PIXEL_VARIABLES
     return {name: ChunkWriter(group[name]) for name in names}
 
 

@@ -11,6 +11,11 @@ import numpy as np
 
 from straylight.config import Campaign
 from straylight.survey.limits import SNR, ZERO_POINT_NAME, band_limits, campaign_exposures, zero_point_coord
+from straylight.survey.limits_envelope import (
+    ENVELOPE_VARIABLES,
+    background_envelope_limits,
+    with_envelope,
+)
 from straylight.util.daskutil import dask_rechunk_by_tasks
 
 if TYPE_CHECKING:
@@ -21,6 +26,7 @@ __all__ = [
     "SUMMARY_PIXELS_PER_TASK",
     "SUMMARY_TASK_BYTES",
     "SUMMARY_VARIABLES",
+    "ENVELOPE_VARIABLES",
     "limit_summaries",
     "limits_dataset",
     "observable_fraction",
@@ -137,7 +143,12 @@ def _store_summary_task(store: str, pixels: slice) -> tuple:
     group = zarr.open_group(str(store), mode="r", use_consolidated=False)
     observable = read_region(group["observable"], (slice(None), pixels))
     best, median = limit_summaries(read_region(group["limiting_mag"], (slice(None), pixels)), observable)
-    return pixels, best, median, observable_fraction(observable)
+    envelope = {
+        median_name: limit_summaries(read_region(group[name], (slice(None), pixels)), observable)[1]
+        for name, median_name in ENVELOPE_VARIABLES.values()
+        if name in group
+    }
+    return pixels, best, median, observable_fraction(observable), envelope
 
 
 def store_limit_summaries(store, workers: int = 1) -> dict:
@@ -159,7 +170,10 @@ def store_limit_summaries(store, workers: int = 1) -> dict:
     -------
     dict of str to ndarray
         ``limiting_mag_best`` and ``limiting_mag_median``: float32, shape (n_pixel, n_band),
-        mag(AB), NaN where never observable; ``observable_fraction``: float32, shape (n_pixel,).
+        mag(AB), NaN where never observable; ``observable_fraction``: float32, shape (n_pixel,);
+        and where the store has the envelope's per-sample limits,
+        ``limiting_mag_median_pessimistic`` and ``limiting_mag_median_optimistic`` (pixel,
+        band), as the median.
     """
     import zarr
 
@@ -182,11 +196,17 @@ def store_limit_summaries(store, workers: int = 1) -> dict:
         "limiting_mag_median": np.full((n_pix, n_band), np.nan, np.float32),
         "observable_fraction": np.zeros(n_pix, np.float32),
     }
+    group = zarr.open_group(store, mode="r", use_consolidated=False)
+    for name, median_name in ENVELOPE_VARIABLES.values():
+        if name in group:
+            out[median_name] = np.full((n_pix, n_band), np.nan, np.float32)
 
     def keep(result):
-        pixels, best, median, frac = result
+        pixels, best, median, frac, envelope = result
         out["limiting_mag_best"][pixels], out["limiting_mag_median"][pixels] = best, median
         out["observable_fraction"][pixels] = frac
+        for name, values in envelope.items():
+            out[name][pixels] = values
 
     processes = min(summary_processes(n_time * n_pix * n_band, workers), len(tasks))
     if processes == 1:
@@ -262,6 +282,7 @@ def limits_dataset(campaign: Campaign, background, limiting_mag=None) -> "xr.Dat
     else:
         lim = limiting_mag
     observable = background["observable"]
+    envelope_lim = background_envelope_limits(campaign, background, bands, exposures)
     whole_times = {"time": -1, "pixel": SUMMARY_PIXELS_PER_TASK}
     lazy = lim.chunks is not None or observable.chunks is not None
     # dask's task rechunk, named: left to choose, dask imports distributed to look for a
@@ -284,7 +305,22 @@ def limits_dataset(campaign: Campaign, background, limiting_mag=None) -> "xr.Dat
     if observable.chunks is not None:  # the cube's pixel blocks, as the observable's
         with dask_rechunk_by_tasks():
             frac = frac.chunk({"pixel": observable.chunks[1]})
-    return _limits_product(
+    envelope = {}
+    for end, env_lim in envelope_lim.items():
+        with dask_rechunk_by_tasks():
+            env_t = env_lim.chunk(whole_times) if lazy else env_lim
+        med = xr.apply_ufunc(
+            best_and_median,
+            env_t,
+            obs_t,
+            input_core_dims=[["time"], ["time"]],
+            output_core_dims=[["stat"]],
+            dask="parallelized",
+            output_dtypes=[np.float32],
+            dask_gufunc_kwargs={"output_sizes": {"stat": 2}},
+        )
+        envelope[end] = (env_lim, med.isel(stat=1).transpose("pixel", "band"))
+    ds = _limits_product(
         campaign,
         background,
         lim,
@@ -294,6 +330,7 @@ def limits_dataset(campaign: Campaign, background, limiting_mag=None) -> "xr.Dat
         observable,
         exposures,
     )
+    return with_envelope(ds, envelope)
 
 
 def _limits_product(

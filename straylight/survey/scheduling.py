@@ -165,9 +165,13 @@ def bright_limb_table(
             )
             coeff[sel] = d + g
     out = {"sun_zenith_deg": zs}
-    for b in c.bands:
+    from straylight.sources.earth_albedo import earth_band_factors
+
+    albedo = earth_band_factors(model.context, tuple(c.bands))  # the Earth's band albedo / grey
+    for ib, b in enumerate(c.bands):
         limit = fraction * model.context.darkest_zodiacal_e_per_s(b)
         rate = coeff * model.context.photometry(b).sun_at_1au_photons_s_m2  # e-/s/pix, Sun at 1 AU
+        rate = rate if albedo is None else rate * float(albedo[ib])
         bad = ~(rate <= limit)  # too bright, or not allowed (NaN)
         allowed = ~np.isnan(coeff)
         need = np.full(zs.size, np.nan)

@@ -171,3 +171,30 @@ def test_configfile_in_another_folder_runs(tmp_path):
     assert r.returncode == 0, r.stdout + r.stderr
     m = hp.read_map(tmp_path / "results" / "tiny" / "footprint.fits")
     assert m.sum() == hp.nside2npix(4) // 3
+
+
+def test_depth_bounds_present_ordered_and_finite(tiny_run):
+    """limits.zarr's envelope medians (straylight.model.envelope): present with units and
+    long_name, finite wherever a pixel is observable (NaN elsewhere), and ordered pessimistic <=
+    median <= optimistic within the storage rounding (a brighter background gives a shallower
+    limit; storage.py: 2^-11 relative of ~26 mag); background.zarr records which parts each
+    envelope parameter scales; the spread map and sensitivity chart are in depth/."""
+    import json
+
+    out, _ = tiny_run
+    lim = xr.open_zarr(out / "limits.zarr")
+    med = lim["limiting_mag_median"].values
+    pess, opt = lim["limiting_mag_median_pessimistic"].values, lim["limiting_mag_median_optimistic"].values
+    for name in ("limiting_mag_median_pessimistic", "limiting_mag_median_optimistic"):
+        assert lim[name].attrs["units"] == "mag(AB)" and lim[name].attrs["long_name"], name
+    seen = lim["observable_fraction"].values > 0
+    assert seen.any()
+    for v in (pess, opt):
+        assert np.all(np.isfinite(v[seen])) and np.all(np.isnan(v[~seen]))
+    tol = 2.0**-11 * 30.0
+    assert np.all(pess[seen] <= med[seen] + tol) and np.all(med[seen] <= opt[seen] + tol)
+    assert np.nanmax(opt - pess) > 0.01  # the envelope has a width
+    env = json.loads(xr.open_zarr(out / "background.zarr").attrs["envelope"])
+    assert env["door_reflectance"]["scales"] == ["earthshine_door"]
+    assert (out / "depth" / "envelope_spread.png").exists()
+    assert (out / "depth" / "envelope_sensitivity.csv").exists()

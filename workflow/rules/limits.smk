@@ -12,6 +12,8 @@ rule limits:
                      caption="../report/plots.rst", category="1. Depth: table and maps", labels={"figure": "{name}"}),
     params:
         lim_store=LIMITS_WORK_STORE,
+        # the cube (complete once every part is): the envelope's sensitivity chart reads it
+        store=f"{RESULTS}/background.zarr",
     # processes of the per-pixel summaries (common.smk; lowered to --cores by Snakemake)
     threads: LIMITS_PROCESSES
     # before the sky maps: provenance waits for it (common.smk: FIGURE_PRIORITY)

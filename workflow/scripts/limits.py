@@ -17,6 +17,7 @@ def main(snakemake):
     import xarray as xr
     from _common import campaign, setup_logging
 
+    from straylight.plots.envelope import envelope_figures
     from straylight.plots.report import limit_figures
     from straylight.survey.cube_layout import LIMITS_REGION_VARIABLES
     from straylight.survey.cube_store import publish_work_store
@@ -33,6 +34,7 @@ def main(snakemake):
         maps = write_limit_maps(ds, tmp)
     with atomic_path(snakemake.output.depth) as tmp:
         figures = limit_figures(snakemake.output.limits, campaign(snakemake), tmp)
+        figures += envelope_figures(ds, snakemake.params.store, campaign(snakemake), tmp)
     for b in ds["band"].values:
         best = ds["limiting_mag_best"].sel(band=b).values
         seen = best[np.isfinite(best)]  # NaN: never observable
