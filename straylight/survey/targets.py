@@ -285,8 +285,8 @@ def write_targets(result: dict, out_dir) -> list[Path]:
     list of Path
         ``summary.csv`` (:func:`monthly_summary`), ``targets.csv`` (name, file stem, RA and
         Dec in deg, where the position comes from) and per target ``<name>_windows.csv`` and
-        ``<name>_days.csv`` (the name sanitized), as ``straylight visibility --out`` writes
-        them for one target.
+        ``<name>_days.csv`` (the name sanitized), the same text ``straylight visibility --out``
+        writes for one target.
     """
     from astropy.table import Table
 
@@ -299,7 +299,10 @@ def write_targets(result: dict, out_dir) -> list[Path]:
     def put(table, name):
         path = out / name
         with atomic_path(path) as tmp:
-            table.write(tmp, format="ascii.csv", overwrite=True)
+            if isinstance(table, Table):
+                table.write(tmp, format="ascii.csv", overwrite=True)
+            else:
+                tmp.write_text(table, encoding="utf-8")
         written.append(path)
 
     put(result["summary"], "summary.csv")
@@ -316,6 +319,27 @@ def write_targets(result: dict, out_dir) -> list[Path]:
         "targets.csv",
     )
     for f, w, d in zip(tg.files, result["windows"], result["days"]):
-        put(w, f"{f}_windows.csv")
-        put(d, f"{f}_days.csv")
+        put(_csv_text(w), f"{f}_windows.csv")
+        put(_csv_text(d), f"{f}_days.csv")
     return written
+
+
+def _csv_text(table) -> str:
+    """A windows or days table as the CSV astropy writes for it (its Time columns as ISO text,
+    its numbers in their display formats), each column formatted in one vectorised pass: astropy
+    formats a Time value at a time, slow for the thousands of windows of a year."""
+    from astropy.time import Time
+
+    cols = []
+    for name in table.colnames:
+        c = table[name]
+        if isinstance(c, Time):
+            cols.append(np.asarray(c.isot, dtype=str))
+        elif getattr(c.info, "format", None):
+            v = np.asarray(getattr(c, "value", c), float)
+            cols.append(np.char.mod(f"%{c.info.format}", v))
+        else:
+            cols.append(np.asarray(c, dtype=str))
+    lines = [",".join(table.colnames)]
+    lines += [",".join(row) for row in zip(*cols)]
+    return "\n".join(lines) + "\n"
