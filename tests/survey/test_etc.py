@@ -140,6 +140,20 @@ def test_dominant_component_and_rates_are_the_backgrounds(sky):
         assert etc[name].info.description, name
 
 
+def test_earthshine_dominates_near_the_bright_limb(sky):
+    """Observable at 84 deg from the Earth's limb on its day side (RA 348, Dec -24 at 01:20 UTC,
+    the constraint being 80 deg): the earthshine dominates in g, as the paper (sects. 1, 3.3)
+    says near the bright limb; the model gives ~94 %, asserted above 70 %.  The time for 25 mag
+    is then longer than at the dark pointing (at T0, where it is observable)."""
+    limb = sky.exposure_time(
+        Time("2026-01-01T01:20:00"), SkyCoord(348.0, -24.0, unit="deg"), 25.0, bands=["g"]
+    )
+    dark = sky.exposure_time(Time(T0), DARK, 25.0, bands=["g"])
+    assert bool(limb["observable"][0]) and limb["dominant"][0] == "earthshine"
+    assert float(limb["dominant_fraction"][0]) > 0.7 and dark["dominant"][0] == "zodiacal"
+    assert limb["exposure_time"][0] > 2 * dark["exposure_time"][0]
+
+
 def test_unobservable_samples_are_flagged_not_computed(sky):
     """Pointing at the Sun (2026-01-01: RA ~281.3, Dec ~-23.0): not observable, the sun
     constraint named, no exposure time nor SNR (NaN), the background still given."""
