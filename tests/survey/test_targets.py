@@ -176,3 +176,58 @@ def test_cli_targets_writes_summary_and_per_target_tables(tmp_path, default_tabl
     d = Table.read(out / "NGC_253_days.csv")
     assert d["observable_hours"][0] == pytest.approx(s["observable_hours_h"][1], abs=1e-9)
     assert "2026-01" in r.stdout and "my field" in r.stdout and "e-/s/pix" in r.stdout
+
+
+def test_per_target_tables_are_the_text_astropy_writes(tmp_path):
+    """The windows and days files (written column by column for speed) hold exactly the text
+    astropy's CSV writer gives for the same tables, NaN days and an empty window list included."""
+    import astropy.units as u
+    from astropy.time import Time
+
+    from straylight.survey.targets import _csv_text
+    from straylight.survey.visibility import daily_tables, observable_windows
+
+    t0 = Time("2026-01-31T18:00:00", scale="utc")
+    t = t0 + np.arange(150) * 600 * u.s
+    edges = np.minimum(np.arange(151) * 600.0, 149.5 * 600)  # the last sample cut at the end
+    rng = np.random.default_rng(3)
+    obs = rng.random((3, 150)) < 0.4
+    obs[2] = False
+    lim = 26 + rng.random((3, 150))
+    tables = observable_windows(obs, t, t0, edges) + daily_tables(obs, lim, t, edges, 26.5)
+    assert [len(x) for x in tables[:3]][2] == 0 and np.isnan(tables[5]["limit_mag_best"][0].value)
+    for k, table in enumerate(tables):
+        path = tmp_path / f"{k}.csv"
+        table.write(path, format="ascii.csv")
+        assert _csv_text(table) == path.read_text(), k
+
+
+def test_monthly_percentiles_are_numpys_on_spread_samples():
+    """On backgrounds that all differ (random, two months, some samples not observable), each
+    month's 10/50/90th percentiles equal numpy.percentile (linear interpolation) over that
+    month's observable samples, and a month with none gives NaN."""
+    import astropy.units as u
+    from astropy.time import Time
+
+    from straylight.survey.target_names import Targets
+    from straylight.survey.targets import monthly_summary
+
+    t = Time("2026-01-31T00:00:00", scale="utc") + np.arange(96) * 1800 * u.s  # to Feb 1 23:30
+    rng = np.random.default_rng(7)
+    obs = rng.random((2, 96)) < 0.6
+    obs[1, 48:] = False  # target 1 never observable in February
+    total = rng.lognormal(-2.0, 0.5, (2, 96))
+    lim = 26 + rng.random((2, 96))
+    tg = Targets(["a", "b"], ["a", "b"], np.array([1.0, 2.0]), np.array([3.0, 4.0]), ["input"] * 2)
+    s = monthly_summary(tg, "g", obs, lim, total, t, np.arange(97) * 1800.0)
+    month = np.array([x[:7] for x in t.isot])
+    for row in s:
+        k = tg.names.index(row["target"])
+        sel = obs[k] & (month == row["month_utc"])
+        for q in (10, 50, 90):
+            got = row[f"background_p{q}_e_per_s_per_pix"].value
+            if sel.any():
+                assert got == pytest.approx(np.percentile(total[k][sel], q), rel=1e-12)
+            else:
+                assert np.isnan(got)
+    assert np.isnan(s["limit_best_mag_ab"][3].value) and s["observable_hours_h"][3].value == 0.0
