@@ -186,7 +186,7 @@ def sensitivity_chart(result: dict, campaign, out_dir) -> list:
     from straylight.util.io import atomic_path
 
     bands, rows = result["bands"], result["rows"]
-    fig = Figure(figsize=(12, 4.6), dpi=FIGURE_DPI)
+    fig = Figure(figsize=(14, 4.6), dpi=FIGURE_DPI)
     ax = fig.add_subplot(111)
     width = 0.8 / max(len(rows), 1)
     colours = {}
@@ -204,7 +204,7 @@ def sensitivity_chart(result: dict, campaign, out_dir) -> list:
     ax.axhline(0.0, color="k", lw=0.8)
     ax.set_xticks(np.arange(len(bands)), bands)
     ax.set_ylabel("change of the median depth, mag (negative: shallower)")
-    ax.legend(fontsize=7, ncol=4, loc="lower left")
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     ax.set_title(
         f"{campaign.name}: median 5-sigma depth over the footprint, each envelope parameter alone at its "
         f"bright (pessimistic) and dark (optimistic) end ({result['times']} times read)",
