@@ -51,9 +51,9 @@ CUBE_PIXEL_VARIABLES = ("observable", "violations", "door_opening_deg")
 OBSERVABILITY_ANGLES = ("sun_angle_deg", "moon_angle_deg", "earth_limb_angle_deg")
 #: observability.zarr's data variables (straylight.survey.products.observability_dataset)
 OBSERVABILITY_VARIABLES = ("observable", "violations") + OBSERVABILITY_ANGLES + ("door_opening_deg",)
-#: parts of a component the cube stores beside it, (time, pixel, band) e-/s/pix: the earthshine
-#: via the door, which the assumption envelope scales apart from the direct earthshine
-#: (straylight.model.envelope; the direct part is the earthshine minus it)
+#: parts of a component the cube stores beside it, (time, pixel, band) e-/s/pix, where observable
+#: (NaN elsewhere): the earthshine via the door, which the assumption envelope scales apart from
+#: the direct earthshine (straylight.model.envelope; the direct part is the earthshine minus it)
 CUBE_PART_VARIABLES = ("earthshine_door",)
 #: limits.zarr's variables the cube's workers write, region by region
 #: (:func:`straylight.survey.cube_store.region_limits`): the limits, the observability, and the

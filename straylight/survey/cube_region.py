@@ -161,8 +161,9 @@ def region_values(
     -------
     dict of str to ndarray
         Each component of :data:`~straylight.survey.cube_layout.CUBE_BAND_VARIABLES`,
-        ``total`` and each part of :data:`~straylight.survey.cube_layout.CUBE_PART_VARIABLES`:
-        float32, shape (n_time, n_pixel, n_band), e-/s/pix (views into one block);
+        ``total`` and each part of :data:`~straylight.survey.cube_layout.CUBE_PART_VARIABLES`
+        (NaN where not observable): float32, shape (n_time, n_pixel, n_band), e-/s/pix (views
+        into one block);
         ``observable``: bool, (n_time, n_pixel); ``violations``: uint8 bit mask,
         (n_time, n_pixel); ``door_opening_deg``: float32 deg, (n_time, n_pixel).
 
@@ -230,6 +231,10 @@ def region_values(
         if angles is not None:
             for name in OBSERVABILITY_ANGLES:
                 angles[name][steps] = _by_step(g[name], k, npix)
+    # the parts the envelope scales apart are needed where observable only: NaN elsewhere, which
+    # the store compresses to almost nothing (the components stay everywhere)
+    for name in cube_layout.CUBE_PART_VARIABLES:
+        out[name][~obs] = np.nan
     return {**out, "observable": obs, "violations": viol, "door_opening_deg": door}
 
 

@@ -108,10 +108,15 @@ def empty_cube(campaign: Campaign, fp: Footprint, times, model, stars_path=None,
     data = {}
     long_names = cube_layout.LONG_NAMES
     for comp in cube_layout.CUBE_BAND_VARIABLES + cube_layout.CUBE_PART_VARIABLES:
+        part = comp in cube_layout.CUBE_PART_VARIABLES  # kept where observable only
         data[comp] = xr.Variable(
             ("time", "pixel", "band"),
             da.zeros((nt, npix, nb), chunks=chunks3, dtype=np.float32),
-            {"units": "electron / (s pixel)", "long_name": long_names[comp]},
+            {
+                "units": "electron / (s pixel)",
+                "long_name": long_names[comp]
+                + (", part of earthshine (NaN: not observable)" if part else ""),
+            },
         )
     data["observable"] = xr.Variable(
         ("time", "pixel"),

@@ -8,7 +8,7 @@ import xarray as xr
 
 from straylight.config import campaign_from_dict, deep_merge
 from straylight.survey.bitround import bitround, max_relative_error, recorded_keepbits, stored_values
-from straylight.survey.cube_layout import CUBE_BAND_VARIABLES
+from straylight.survey.cube_layout import CUBE_BAND_VARIABLES, CUBE_PART_VARIABLES
 from straylight.survey.cube_region import compute_region
 from straylight.survey.cube_store import init_store
 from straylight.survey.executors import write_region
@@ -116,9 +116,11 @@ def test_stored_products_within_their_bound(block):
                     diff = np.abs(stored[name].values - var.values)
                     assert np.nanmax(diff) <= 2.5e-4, (name, np.nanmax(diff))
                 checked += 1
-    # every float of the three products checked: the cube's seven band variables and door opening,
-    # the limits (per sample, best, median, observable fraction), the four angles
-    assert checked == len(CUBE_BAND_VARIABLES) + 1 + 4 + 4
+    # every float of the three products checked: the cube's seven band variables, its part via the
+    # door (CUBE_PART_VARIABLES) and door opening, the limits (per sample, best, median, observable
+    # fraction, and the assumption envelope's per-sample limits and medians at both ends:
+    # straylight.survey.limits_envelope), the four angles
+    assert checked == len(CUBE_BAND_VARIABLES) + len(CUBE_PART_VARIABLES) + 1 + 4 + 4 + 4
 
 
 def test_faint_star_map_stored_exactly(campaign):
@@ -247,7 +249,8 @@ def test_every_stored_float_keeps_only_its_bits(block):
                 stored.view(uint), expected.reshape(stored.shape).view(uint), err_msg=f"{product} {name}"
             )
             checked += 1
-    assert checked == len(CUBE_BAND_VARIABLES) + 1 + 4 + 4
+    # as above: the part via the door and the envelope's four limits variables added
+    assert checked == len(CUBE_BAND_VARIABLES) + len(CUBE_PART_VARIABLES) + 1 + 4 + 4 + 4
 
 
 def test_stored_values_rounds_as_the_attributes_record():
