@@ -24,7 +24,7 @@ import numpy as np
 
 __all__ = [
     "PERCENTILES",
-    "SUMMARY_BATCH",
+    "BATCH_SAMPLES",
     "targets_visibility",
     "monthly_summary",
     "format_summary",
@@ -33,8 +33,9 @@ __all__ = [
 
 #: the background's percentiles in the summary (over a month's observable samples)
 PERCENTILES = (10, 50, 90)
-#: samples evaluated per vectorised call (bounds the memory: about 2 kB a sample, one band)
-SUMMARY_BATCH = 65536
+#: samples evaluated per vectorised call: bounds the evaluation's working memory (larger batches are
+#: no faster; the peak is mostly the model and the columns kept for every sample)
+BATCH_SAMPLES = 16384
 
 
 def targets_visibility(
@@ -46,7 +47,7 @@ def targets_visibility(
     step_s: float,
     threshold_mag: float | None = None,
     model=None,
-    batch: int = SUMMARY_BATCH,
+    batch: int = BATCH_SAMPLES,
 ) -> dict:
     """Windows, days and the monthly summary of several targets sampled at the same times.
 
