@@ -72,20 +72,27 @@ def main(argv=None) -> int:
         if args.hst_curve:
             angle, mag = read_hst_curve(args.hst_curve)
             level = float(np.interp(HST_BRIGHT_LIMB_LIMIT_DEG, angle, mag))
-        tails = [float(x) for x in args.tails.split(",")]
+        try:
+            tails = [float(x) for x in args.tails.split(",")]
+        except ValueError:
+            raise ValueError(f"--tails: {args.tails!r} is not a comma-separated list of numbers") from None
     except (StraylightError, ValueError) as exc:
         print(f"calibrate_pst_tail: {exc}", file=sys.stderr)
         return 2
     t0 = time.perf_counter()
-    s = calibrate_tail(
-        campaign,
-        level,
-        target,
-        raan_step_deg=args.raan_step,
-        u_step_deg=args.u_step,
-        nside=args.nside,
-        tails_log10=tails,
-    )
+    try:
+        s = calibrate_tail(
+            campaign,
+            level,
+            target,
+            raan_step_deg=args.raan_step,
+            u_step_deg=args.u_step,
+            nside=args.nside,
+            tails_log10=tails,
+        )
+    except StraylightError as exc:  # the tails do not bracket the target
+        print(f"calibrate_pst_tail: {exc}", file=sys.stderr)
+        return 2
     d = default_phase_crossing(campaign, level, s["tail_log10_at_90deg"], nside=args.nside)
     d_before = default_phase_crossing(
         campaign, level, campaign.instrument_settings.pst.tail_log10_at_90deg.value, nside=args.nside

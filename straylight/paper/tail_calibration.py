@@ -1,31 +1,26 @@
 """The default PST's large-angle tail calibrated over the satellite's sunlit orbital phases
-(seed paper sect. 3.3).
+(seed paper sect. 3.3; docs/pst.md).
 
-The paper's scenario (2026-01-01 00:50 UTC, CSST and HST at the same pointings, RA 0-345 deg x
-Dec -75 to +75 deg, "situated within the sunlit region") does not give CSST's orbital phase.
-At that instant the satellite may be anywhere its orbit (the campaign's altitude and
-inclination) reaches, so the scenario is run over a grid of circular orbits: the ascending
-node (raan) and the argument of latitude u at the scenario's time, each on a uniform grid
-(uniform in time along an orbit, every node alike).
+The paper's scenario (2026-01-01 00:50 UTC, CSST and HST at the same pointings, "situated within
+the sunlit region") does not give CSST's orbital phase, so it is run over circular orbits of the
+campaign's altitude and inclination: the ascending node (raan) and the argument of latitude u at
+the scenario's time on uniform grids (uniform in time along an orbit, every node alike).
 
-* A phase is **sunlit** when the Sun is above the satellite's local horizontal: its zenith
-  angle at the satellite is below 90 deg, the satellite flies over the daylit hemisphere.
-* At each sunlit phase the pointings are HEALPix pixel centres with |Dec| <= 75 deg (the
-  paper's declination range, sampled evenly over the sky), and the sunlit-limb ones (nearest
-  limb bright, above it: :func:`~straylight.paper.scenarios.sunlit_limb`) are kept.
+* A phase is **sunlit** when the Sun is above the satellite's local horizontal (zenith angle
+  at the satellite < 90 deg).
+* Pointings: HEALPix pixel centres with |Dec| <= 75 deg (the paper's range, evenly over the
+  sky); the sunlit-limb ones (:func:`~straylight.paper.scenarios.sunlit_limb`) are kept.
 * CSST's earthshine (direct + door, V) is the direct sum over the Earth grid (the reference,
-  whatever ``models.earthshine.method`` says). Its median in 10-deg bins of the limb angle
-  falls to HST's earthshine at HST's 20-deg limit at the **crossing angle**
-  (:func:`~straylight.paper.scenarios.crossing_angle_deg`). It is NaN when the median never
-  falls that far.
+  whatever ``models.earthshine.method`` says). Where its median in 10-deg bins of the
+  bright-limb angle falls to HST's earthshine at HST's 20-deg limit is the **crossing angle**
+  (:func:`~straylight.paper.scenarios.crossing_angle_deg`; NaN if it never does).
 * **The rule:** the tail (log10 PST at 90 deg, log-linear from the 30-deg anchor) is the value
-  at which the median crossing over the sunlit phases is the paper's 70 deg. The crossings'
-  percentiles over the sunlit phases at that value are the spread the tail leaves. Phases
-  that never cross count as crossing beyond every finite angle.
+  at which the median crossing over the sunlit phases is the paper's 70 deg, a phase that
+  never crosses counting as beyond every angle. The crossings' percentiles at that value are
+  the spread the tail leaves.
 
-The earthshine is computed on a grid of tail values (all phases at once) and interpolated
-linearly in the tail between them, per pointing, in magnitudes. The crossing of every phase
-then follows for any tail, and so does the tail that meets the rule.
+The earthshine is computed at a few tails, all phases at once; each path is interpolated in log
+between them, so every phase's crossing follows for any tail, and so does the rule's tail.
 """
 
 from __future__ import annotations
@@ -36,6 +31,7 @@ import numpy as np
 
 from straylight.config import Campaign
 from straylight.config.loading import deep_merge
+from straylight.errors import ConfigError, InputError
 from straylight.paper.scenarios import (
     HST_BRIGHT_LIMB_LIMIT_DEG,
     LIMB_BIN_DEG,
@@ -137,22 +133,21 @@ def orbit_phases(
     -------
     PhaseGrid
         raan-major order (every u of the first node, then the next node).
+
+    Raises
+    ------
+    ConfigError
+        When the campaign's orbit is not circular.
     """
     base = campaign.orbit
     if not isinstance(base, CircularOrbit):
-        raise ValueError("the tail calibration needs a circular orbit (orbit.model: circular)")
+        raise ConfigError("orbit.model: the tail calibration needs a circular orbit (orbit.model: circular)")
     raan, u = np.meshgrid(
         np.arange(0.0, 360.0 - 1e-9, raan_step_deg), np.arange(0.0, 360.0 - 1e-9, u_step_deg), indexing="ij"
     )
     raan, u = raan.ravel(), u.ravel()
-    sat = np.array(
-        [
-            dataclasses.replace(
-                base, raan_deg=float(o), arg_latitude_deg=float(a), epoch=time
-            ).position_gcrs_km(time)
-            for o, a in zip(raan, u)
-        ]
-    ).reshape(-1, 3)
+    orbits = [dataclasses.replace(base, raan_deg=o, arg_latitude_deg=a, epoch=time) for o, a in zip(raan, u)]
+    sat = np.array([o.position_gcrs_km(time) for o in orbits]).reshape(-1, 3)
     sun = scene(base, time).bodies_km["sun"][0]
     return PhaseGrid(raan, u, sat, sun_zenith_at_satellite_deg(sat, sun), time)
 
@@ -204,13 +199,7 @@ def campaign_with_tail(campaign: Campaign, tail_log10_at_90deg: float) -> Campai
     )
 
 
-def phase_earthshine(
-    campaign: Campaign,
-    phases: PhaseGrid,
-    tails_log10,
-    nside: int,
-    band: str = "V",
-) -> dict:
+def phase_earthshine(campaign: Campaign, phases: PhaseGrid, tails_log10, nside: int, band: str = "V") -> dict:
     """CSST's earthshine at the sunlit-limb pointings of the sunlit phases, for each tail.
 
     Parameters
@@ -442,6 +431,11 @@ def calibrate_tail(
         (bins of 0-90 deg); ``median_crossing_by_tail``; ``variants`` (the crossings with the
         door path halved and with the Sun avoidance); and the inputs.  ``_result``,
         ``_crossings`` and ``_phases`` keep the arrays for figures.
+
+    Raises
+    ------
+    InputError
+        When the median crossings at ``tails_log10`` do not bracket ``target_deg``.
     """
     phases = orbit_phases(campaign, raan_step_deg, u_step_deg, time)
     grid = phase_earthshine(campaign, phases, tails_log10, nside, band)
@@ -449,7 +443,7 @@ def calibrate_tail(
     fine = np.round(np.arange(tails.min(), tails.max() + 1e-9, 0.01), 2)
     fine_med = np.array([_median_crossing(phase_crossings(grid, level_mag, t)["crossing_deg"]) for t in fine])
     if not (np.nanmin(fine_med) <= target_deg <= np.max(fine_med)):
-        raise ValueError(
+        raise InputError(
             f"median crossings {fine_med[0]:.1f}-{fine_med[-1]:.1f} deg at tails {tails.min()}-{tails.max()} "
             f"do not bracket {target_deg} deg: widen tails_log10"
         )
@@ -578,7 +572,7 @@ def default_phase_crossing(
     """
     base = campaign.orbit
     if not isinstance(base, CircularOrbit):
-        raise ValueError("the tail calibration needs a circular orbit (orbit.model: circular)")
+        raise ConfigError("orbit.model: the tail calibration needs a circular orbit (orbit.model: circular)")
     dt_s = float((scene(base, time).times[0] - base.epoch_time).to_value("s"))
     raan = (base.raan_deg + np.degrees(base.nodal_rate_rad_s * dt_s)) % 360.0
     u = (base.arg_latitude_deg + np.degrees(base.arg_latitude_rate_rad_s * dt_s)) % 360.0
