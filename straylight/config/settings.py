@@ -85,6 +85,7 @@ class EarthshineSection:
     n_psi: int
     door_blocks: tuple
     n_aperture_door: int
+    cut_block_split: int
     moonlit_grid: tuple
     moonlit_method: str
     moonlit_lut: MoonlitLUTSteps

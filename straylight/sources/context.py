@@ -132,6 +132,7 @@ class SourceContext:
                 door_blocks=es.door_blocks,
                 door_reflectance=inst.door_geometry.reflectance.value,
                 n_aperture_door=es.n_aperture_door,
+                cut_block_split=es.cut_block_split,
             ),
             moon_law=models.moon_phase_law,
             moon_eclipse_factor=float(models.moon_eclipse_factor),

@@ -8,7 +8,10 @@ d_k from the satellite, spans across the block, luminance-times-solid-angle L_kc
 
 * direct (EA1): sum_k L_kc PST(theta, phi) Sp_s(min(theta, 90), phi) front_k [theta > field]
   x pixel area, with theta, phi the block's direction in the telescope frame, front_k the part
-  of the block in front of the aperture plane (:meth:`OffFieldModel.front_fraction`);
+  of the block in front of the aperture plane (:meth:`OffFieldModel.front_fraction`); a block
+  the plane cuts is summed over its children, the blocks of the finer grid nested in it
+  (:meth:`OffFieldModel.cut_children`), each with its own angles, front part and luminance:
+  there Sp steps to 0 and the luminance changes fastest across a block (near the limb);
 * door (EA2): k_s sum_k L_kc max(d_k . n_s, 0) f_s(theta, phi), with n_s the door's inner normal,
   f_s the share of the door the telescope body leaves lit and k_s = reflectance x sum of the
   door's weights x pixel area, per door state s.
@@ -111,6 +114,10 @@ def cap_sums(
     door_k,
     field_radius_deg,
     pixel_area_m2,
+    child_dirs,
+    child_g,
+    child_p,
+    child_lum,
     p_lo,
     p_hi,
     p_uni,
@@ -171,6 +178,12 @@ def cap_sums(
         The field's radius, deg (blocks within it add no direct term).
     pixel_area_m2 : float
         Detector pixel area, m2.
+    child_dirs, child_g, child_p : ndarray, shape (K, S, 3)
+        Each block's S children's directions and spans (:meth:`OffFieldModel.cut_children`): a
+        block the aperture plane cuts is summed over them (S = 0: the block whole, its front
+        part linear in cos theta).
+    child_lum : ndarray, shape (K, S, C)
+        The children's luminance times solid angle per lamp, as ``lum``.
     p_lo, p_hi, p_uni, p_iw, p_nb, p_bc, p_nodes, p_nn, p_is, p_s0, p_val
         The PST's grid (:meth:`GridPack.arrays`; values: one row, the natural log of the PST,
         over (theta, phi) in deg).
@@ -189,6 +202,8 @@ def cap_sums(
     """
     n_los, n_sel = state_sel.shape
     n_blocks, n_lamps = lum.shape
+    n_child = child_dirs.shape[1]
+    acc = np.zeros((n_sel, n_lamps))
     direct[:] = 0.0
     door[:] = 0.0
     for m in range(n_los):
@@ -228,6 +243,49 @@ def cap_sums(
                 phi = math.atan2(dy, dx) * _DEG
                 if phi < 0.0:
                     phi += 360.0
+            if n_child > 1 and 0.0 < front < 1.0:
+                # the aperture plane cuts the block: its children's own angles, front parts and
+                # luminances give the direct term (the door's term below takes the block whole)
+                acc[:, :] = 0.0
+                for q in range(n_child):
+                    ux, uy, uz = child_dirs[k, q, 0], child_dirs[k, q, 1], child_dirs[k, q, 2]
+                    ex = x0 * ux + x1 * uy + x2 * uz
+                    ey = y0 * ux + y1 * uy + y2 * uz
+                    ez = z0 * ux + z1 * uy + z2 * uz
+                    cgz = abs(z0 * child_g[k, q, 0] + z1 * child_g[k, q, 1] + z2 * child_g[k, q, 2])
+                    cpz = abs(z0 * child_p[k, q, 0] + z1 * child_p[k, q, 1] + z2 * child_p[k, q, 2])
+                    ch = 0.5 * (cgz + cpz)
+                    if ch > 0.0:
+                        f_sub = min(max(0.5 + 0.5 * ez / ch, 0.0), 1.0)
+                    else:
+                        f_sub = 1.0 if ez > 0.0 else 0.0
+                    if not f_sub > 0.0:
+                        continue
+                    th = math.atan2(math.sqrt(ex * ex + ey * ey), ez) * _DEG
+                    if not th > field_radius_deg:
+                        continue
+                    ph = math.atan2(ey, ex) * _DEG
+                    if ph < 0.0:
+                        ph += 360.0
+                    i0, t0 = cell_of(0, th, p_lo, p_hi, p_uni, p_iw, p_nb, p_bc, p_nodes, p_nn, p_is)
+                    i1, t1 = cell_of(1, ph, p_lo, p_hi, p_uni, p_iw, p_nb, p_bc, p_nodes, p_nn, p_is)
+                    ws = (
+                        math.exp(_bilinear_at(p_val, 0, i0 * p_s0 + i1, p_s0, t0, t1)) * f_sub * pixel_area_m2
+                    )
+                    si0, st0 = cell_of(
+                        0, min(th, 90.0), d_lo, d_hi, d_uni, d_iw, d_nb, d_bc, d_nodes, d_nn, d_is
+                    )
+                    si1, st1 = cell_of(1, ph, d_lo, d_hi, d_uni, d_iw, d_nb, d_bc, d_nodes, d_nn, d_is)
+                    for j in range(n_sel):
+                        s = state_sel[m, j]
+                        if s >= 0:
+                            wj = ws * _bilinear_at(d_val, s, si0 * d_s0 + si1, d_s0, st0, st1)
+                            for c in range(n_lamps):
+                                acc[j, c] += child_lum[k, q, c] * wj
+                for j in range(n_sel):
+                    for c in range(n_lamps):
+                        direct[m, j, c] += acc[j, c]
+                in_view = False  # the direct term is done
             if in_view:
                 i0, t0 = cell_of(0, theta, p_lo, p_hi, p_uni, p_iw, p_nb, p_bc, p_nodes, p_nn, p_is)
                 i1, t1 = cell_of(1, phi, p_lo, p_hi, p_uni, p_iw, p_nb, p_bc, p_nodes, p_nn, p_is)

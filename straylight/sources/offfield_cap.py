@@ -51,6 +51,9 @@ class EarthshineSettings:
         The door's inner face's Lambertian reflectance, in [0, 1].
     n_aperture_door : int
         Aperture points for the door-to-aperture path.
+    cut_block_split : int
+        A block the aperture plane cuts is summed as cut_block_split x cut_block_split
+        sub-blocks in the direct term (1: whole, its front part linear in cos theta).
 
     Raises
     ------
@@ -64,12 +67,15 @@ class EarthshineSettings:
     door_blocks: tuple[int, int] = (24, 24)  # along x across the door plate
     door_reflectance: float = 0.05
     n_aperture_door: int = 256  # aperture points for the door-to-aperture path (128: 0.5 % of the total off)
+    cut_block_split: int = 4  # children per side of a block the aperture plane cuts (direct term)
 
     def __post_init__(self):
         if self.n_gamma < 2 or self.n_psi < 4:
             raise ConfigError(
                 f"earthshine grid {self.n_gamma} x {self.n_psi}: needs n_gamma >= 2, n_psi >= 4"
             )
+        if self.cut_block_split < 1:
+            raise ConfigError(f"earthshine cut_block_split = {self.cut_block_split}: must be >= 1")
         if not 0 <= self.albedo <= 1:
             raise ConfigError(f"earthshine albedo = {self.albedo}: must be within [0, 1]")
         if not 0 <= self.door_reflectance <= 1:

@@ -108,13 +108,19 @@ class EarthshineSums:
             * front
             * self.pst(theta, phi)
             * (theta > self.field_radius_deg)
-            * d_omega
-            * self.pixel_area_m2
         )
+        cut = (front > 0.0) & (front < 1.0) if s.cut_block_split > 1 else np.zeros(front.shape, bool)
+        w_direct = np.where(cut, 0.0, w_direct) * d_omega * self.pixel_area_m2
         out = {
             "direct_sun": np.sum(lum_sun * w_direct, axis=(-2, -1)),
             "direct_moon": np.sum(lum_moon * w_direct, axis=(-2, -1)),
         }
+        if np.any(cut):
+            cut_sun, cut_moon = self._cut_blocks_direct(
+                cut, sat_km, sun_km, moon_km, frame, op, earth_radius_km, s, sun, moon
+            )
+            out["direct_sun"] = out["direct_sun"] + cut_sun
+            out["direct_moon"] = out["direct_moon"] + cut_moon
         if in_field:
             per_sun, per_moon = self.earth_in_field(sat_km, sun_km, moon_km, frame, earth_radius_km)
             out["direct_sun"] = out["direct_sun"] + per_sun
@@ -138,6 +144,88 @@ class EarthshineSums:
             door_moon = np.where(sel, k * np.sum(lum_moon * d_omega * cos_inc, axis=(-2, -1)), door_moon)
         out["door_sun"], out["door_moon"] = door_sun, door_moon
         return out
+
+    def cut_children(
+        self, sat_km, sun_km, moon_km, earth_radius_km, s: EarthshineSettings, with_sun=True, with_moon=True
+    ):
+        """The cap grid's blocks split into their n x n children (n = ``s.cut_block_split``):
+        the blocks of the n G x n P grid, which nests in the G x P one (the same nadir-angle map
+        over n times the steps, n times the azimuths), grouped by parent.
+
+        Parameters
+        ----------
+        sat_km, sun_km, moon_km : ndarray, shape (..., 3)
+            Geocentric ICRS positions of the satellite, the Sun and the Moon, km.
+        earth_radius_km : float
+            The Earth's radius, km.
+        s : EarthshineSettings
+            The cap grid (G = ``s.n_gamma``, P = ``s.n_psi``) and the split n.
+        with_sun, with_moon : bool
+            Whether each lamp lights the cap (a lamp left out gives zeros).
+
+        Returns
+        -------
+        directions, span_gamma, span_psi : ndarray, shape (..., G, P, n * n, 3)
+            The children's unit directions from the satellite and spans (:meth:`_cap_block_spans`).
+        lum : ndarray, shape (..., G, P, n * n, 2)
+            albedo / pi cos(zenith) dOmega of each child for the Sun and the Moon (dimensionless).
+        """
+        n = int(s.cut_block_split)
+        fine = replace(s, n_gamma=n * s.n_gamma, n_psi=n * s.n_psi)
+        d, d_omega, pts, mu_sun, mu_moon = self._lit_cap(
+            sat_km, earth_radius_km, fine, sun_km, moon_km, with_sun, with_moon
+        )
+        span_g, span_p = self._cap_block_spans(sat_km, earth_radius_km, fine)
+        lum = fine.albedo / np.pi * np.stack([mu_sun, mu_moon], axis=-1) * d_omega[..., None]
+        lead = d.shape[:-3]
+
+        def nest(v):  # (..., nG, nP, k) -> (..., G, P, n n, k)
+            v = np.broadcast_to(v, lead + v.shape[-3:]).reshape(
+                lead + (s.n_gamma, n, s.n_psi, n, v.shape[-1])
+            )
+            return np.moveaxis(v, len(lead) + 2, len(lead) + 1).reshape(
+                lead + (s.n_gamma, s.n_psi, n * n, -1)
+            )
+
+        return nest(d), nest(span_g), nest(span_p), nest(lum)
+
+    def _cut_blocks_direct(
+        self, cut, sat_km, sun_km, moon_km, frame, op, earth_radius_km, s, with_sun, with_moon
+    ):
+        """The direct term (e-/s/pix per photon s-1 m-2 of the Sun, of the Moon; arrays of the
+        samples' shape) of the blocks the aperture plane cuts (``cut``, (..., G, P)), each summed
+        over its children (:meth:`cut_children`) with their own angles, Sp, PST and front part,
+        as :func:`~straylight.sources.earthshine_kernel.cap_sums` does."""
+        cd, cg, cp, cl = self.cut_children(sat_km, sun_km, moon_km, earth_radius_km, s, with_sun, with_moon)
+        shape = cut.shape
+        idx = np.nonzero(cut)
+        k = cd.shape[-2]
+
+        def at(v, tail):  # the cut blocks' rows of v broadcast to the blocks' shape + tail
+            return np.broadcast_to(v, shape + tail)[idx]
+
+        dk, gk, pk, lk = at(cd, (k, 3)), at(cg, (k, 3)), at(cp, (k, 3)), at(cl, (k, 2))
+        fx, fy, fz = (at(a[..., None, None, :], (3,))[:, None, :] for a in (frame.x, frame.y, frame.z))
+        ux, uy, uz = dot(dk, fx), dot(dk, fy), dot(dk, fz)
+        theta = np.degrees(np.arctan2(np.hypot(ux, uy), uz))
+        phi = wrap_360_deg(np.degrees(np.arctan2(uy, ux)))
+        front = self.front_fraction(uz, dot(gk, fz), dot(pk, fz))
+        opk = np.broadcast_to(np.broadcast_to(op, shape)[idx][:, None], theta.shape)
+        w = (
+            self.door_factor(np.minimum(theta, 90.0), phi, opk)
+            * front
+            * self.pst(theta, phi)
+            * (theta > self.field_radius_deg)
+            * self.pixel_area_m2
+        )
+        sample = (
+            np.ravel_multi_index(idx[:-2], shape[:-2]) if len(shape) > 2 else np.zeros(idx[0].size, np.intp)
+        )
+        size = int(np.prod(shape[:-2]))
+        return tuple(
+            np.bincount(sample, weights=np.sum(w * lk[..., c], axis=-1), minlength=size).reshape(shape[:-2])
+            for c in (0, 1)
+        )
 
     def _earthshine_one_scene(
         self,
@@ -191,11 +279,14 @@ class EarthshineSums:
         s: EarthshineSettings | None = None,
         with_sun: bool = True,
         with_moon: bool = True,
+        children: bool = False,
     ):
         """The cap blocks of one scene (satellite, Sun, Moon: (3,) km) lit by either lamp: their
         directions from the satellite, their spans (:meth:`_cap_block_spans`), all (K, 3), and
         their luminance times solid angle per lamp, albedo / pi cos(zenith) dOmega (K, 2: Sun,
-        Moon; sr per unit irradiance).
+        Moon; sr per unit irradiance); with ``children``, also each block's children
+        (:meth:`cut_children`: directions, spans (K, n n, 3), lum (K, n n, 2); n n = 0 where
+        ``cut_block_split`` is 1).
 
         Parameters
         ----------
@@ -207,6 +298,8 @@ class EarthshineSums:
             The Earth grid; None: :attr:`earthshine`.
         with_sun, with_moon : bool
             Whether each lamp lights the cap (a lamp left out gives zeros).
+        children : bool
+            Whether to return the blocks' children too.
 
         Returns
         -------
@@ -223,11 +316,22 @@ class EarthshineSums:
             sat, earth_radius_km, s, sun, moon, with_sun, with_moon
         )
         lit = (mu_sun > 0) | (mu_moon > 0)
+        kids = None
+        if children and s.cut_block_split > 1:
+            # a block dark at its centre may have lit children: kept for them (its own lum is 0)
+            kids = self.cut_children(sat, sun, moon, earth_radius_km, s, with_sun, with_moon)
+            lit = lit | np.any(kids[3] > 0, axis=(-2, -1))
         span_g, span_p = (
             np.ascontiguousarray(v[lit]) for v in self._cap_block_spans(sat, earth_radius_km, s)
         )
         lum = s.albedo / np.pi * np.stack([mu_sun[lit], mu_moon[lit]], axis=-1) * d_omega[lit][:, None]
-        return np.ascontiguousarray(d[lit]), span_g, span_p, np.ascontiguousarray(lum)
+        out = (np.ascontiguousarray(d[lit]), span_g, span_p, np.ascontiguousarray(lum))
+        if not children:
+            return out
+        if kids is None:
+            k = int(lit.sum())
+            return out + (np.zeros((k, 0, 3)), np.zeros((k, 0, 3)), np.zeros((k, 0, 3)), np.zeros((k, 0, 2)))
+        return out + tuple(np.ascontiguousarray(v[lit]) for v in kids)
 
     def earthshine_scene_sums(
         self,
@@ -267,8 +371,8 @@ class EarthshineSums:
             e-/s/pix per photon s-1 m-2 of the Sun (``[..., 0]``) and of the Moon at the Earth
             (``[..., 1]``).
         """
-        blocks, span_g, span_p, lum = self.lit_cap_blocks(
-            sat, sun, moon, earth_radius_km, s, with_sun, with_moon
+        blocks, span_g, span_p, lum, *kids = self.lit_cap_blocks(
+            sat, sun, moon, earth_radius_km, s, with_sun, with_moon, children=True
         )
         sel = np.ascontiguousarray(np.asarray(state_sel, np.intp))
         n = sel.shape[0]
@@ -294,6 +398,7 @@ class EarthshineSums:
                 door_k,
                 float(self.field_radius_deg),
                 float(self.pixel_area_m2),
+                *kids,
                 *pst,
                 *sp,
                 *lit,
