@@ -57,7 +57,8 @@ OBSERVABILITY_VARIABLES = ("observable", "violations") + OBSERVABILITY_ANGLES + 
 CUBE_PART_VARIABLES = ("earthshine_door",)
 #: limits.zarr's variables the cube's workers write, region by region
 #: (:func:`straylight.survey.cube_store.region_limits`): the limits, the observability, and the
-#: limits at the assumption envelope's two ends (NaN where not observable)
+#: limits at the assumption envelope's two ends (NaN where not observable; kept in the work store
+#: for their per-pixel medians, left out of the product)
 LIMITS_REGION_VARIABLES = (
     "limiting_mag",
     "observable",

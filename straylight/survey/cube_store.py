@@ -282,7 +282,9 @@ def init_limits_store(campaign: Campaign, cube, store) -> None:
     from straylight.survey.limits_cube import limits_dataset
     from straylight.survey.storage import write_skeleton
 
-    write_skeleton(limits_dataset(campaign, cube), store, campaign.config["storage"])
+    write_skeleton(
+        limits_dataset(campaign, cube, per_sample_envelope=True), store, campaign.config["storage"]
+    )
 
 
 def stored_faint_map(store) -> np.ndarray | None:
@@ -471,7 +473,7 @@ def region_write_error(stores: CubeStores, t_slice: slice, p_slice: slice, exc: 
     )
 
 
-def publish_work_store(work_store, product, summaries: dict | None = None) -> None:
+def publish_work_store(work_store, product, summaries: dict | None = None, drop=()) -> None:
     """A store the cube's workers filled (``work_store``: the observability or the limits one),
     its metadata consolidated, appears at ``product`` complete or not at all: its files
     hard-linked (copied where links fail), and ``summaries`` (name -> the whole array of a
@@ -490,6 +492,9 @@ def publish_work_store(work_store, product, summaries: dict | None = None) -> No
     summaries : dict of str to array_like, optional
         Variable name to the whole array, written into the product only (the limits'
         per-pixel summaries: :func:`~straylight.survey.limits_cube.store_limit_summaries`); None: none.
+    drop : sequence of str, optional
+        Variables of the work store left out of the product (the envelope's per-sample limits,
+        which only its per-pixel medians need).
     """
     import os
     import shutil
@@ -510,9 +515,21 @@ def publish_work_store(work_store, product, summaries: dict | None = None) -> No
     with atomic_path(product) as tmp:
         # every time block is done, so no chunk is being written: a *.partial file is a killed
         # writer's, never part of the store
-        shutil.copytree(
-            work_store, tmp, copy_function=link, ignore=shutil.ignore_patterns(f"*{PARTIAL_SUFFIX}")
-        )
+        partial = shutil.ignore_patterns(f"*{PARTIAL_SUFFIX}")
+        top = os.path.abspath(str(work_store))
+
+        def ignore(folder, names):
+            dropped = set(drop) if os.path.abspath(folder) == top else set()
+            return set(partial(folder, names)) | (dropped & set(names))
+
+        shutil.copytree(work_store, tmp, copy_function=link, ignore=ignore)
+        if drop:
+            # the group's metadata listed the dropped variables: its own copy (not a link to the
+            # work store's), consolidated again over what the product holds
+            meta = Path(tmp) / "zarr.json"
+            meta.unlink()
+            shutil.copy2(Path(work_store) / "zarr.json", meta)
+            zarr.consolidate_metadata(str(tmp))
         if summaries:
             group = zarr.open_group(str(tmp), mode="r+", use_consolidated=False)
             for name, values in summaries.items():

@@ -224,7 +224,9 @@ def store_limit_summaries(store, workers: int = 1) -> dict:
     return out
 
 
-def limits_dataset(campaign: Campaign, background, limiting_mag=None) -> "xr.Dataset":
+def limits_dataset(
+    campaign: Campaign, background, limiting_mag=None, envelope_limits=None, per_sample_envelope=False
+) -> "xr.Dataset":
     """(time, pixel, band) 5-sigma limits from background.zarr's ``total``, plus per-pixel
     campaign summaries over observable times (best, median) and the observable fraction.
     Pixels never observable get NaN in the summaries (the HEALPix FITS maps turn it into
@@ -251,6 +253,12 @@ def limits_dataset(campaign: Campaign, background, limiting_mag=None) -> "xr.Dat
         ``band`` coordinates and the HEALPix and campaign attributes.
     limiting_mag : xarray.DataArray, optional
         (time, pixel, band) limits already computed, mag(AB); None: computed from ``total``.
+    envelope_limits : dict, optional
+        The envelope's ends -> their (time, pixel, band) limits already computed (as a limits
+        work store holds them), mag(AB); None: computed from ``total`` and the parts.
+    per_sample_envelope : bool, optional
+        Whether the result holds the envelope's per-sample limits too (the limits work store's
+        skeleton: the cube's workers write them, the product keeps their medians only).
 
     Returns
     -------
@@ -282,7 +290,11 @@ def limits_dataset(campaign: Campaign, background, limiting_mag=None) -> "xr.Dat
     else:
         lim = limiting_mag
     observable = background["observable"]
-    envelope_lim = background_envelope_limits(campaign, background, bands, exposures)
+    envelope_lim = (
+        background_envelope_limits(campaign, background, bands, exposures)
+        if envelope_limits is None
+        else dict(envelope_limits)
+    )
     whole_times = {"time": -1, "pixel": SUMMARY_PIXELS_PER_TASK}
     lazy = lim.chunks is not None or observable.chunks is not None
     # dask's task rechunk, named: left to choose, dask imports distributed to look for a
@@ -330,7 +342,7 @@ def limits_dataset(campaign: Campaign, background, limiting_mag=None) -> "xr.Dat
         observable,
         exposures,
     )
-    return with_envelope(ds, envelope)
+    return with_envelope(ds, envelope, per_sample_envelope)
 
 
 def _limits_product(

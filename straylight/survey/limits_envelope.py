@@ -136,7 +136,7 @@ def background_envelope_limits(campaign: Campaign, background, bands, exposures)
     return out
 
 
-def with_envelope(ds, envelope: dict):
+def with_envelope(ds, envelope: dict, per_sample: bool = False):
     """limits.zarr's dataset with the envelope's per-sample limits and per-pixel medians.
 
     Parameters
@@ -145,21 +145,29 @@ def with_envelope(ds, envelope: dict):
         limits.zarr's dataset.
     envelope : dict
         end -> (per-sample limits (time, pixel, band), per-pixel medians (pixel, band)), mag(AB).
+    per_sample : bool
+        Whether to add the per-sample limits too (the work store's; the product keeps the
+        medians only).
 
     Returns
     -------
     xarray.Dataset
-        ``ds`` with :data:`ENVELOPE_VARIABLES`, units and long names.
+        ``ds`` with the medians of :data:`ENVELOPE_VARIABLES` (and the per-sample limits),
+        units and long names.
     """
     data = lambda v: getattr(v, "data", v)  # noqa: E731 - an xarray object's array, or the array
     for end, (lim, med) in envelope.items():
         name, median_name = ENVELOPE_VARIABLES[end]
         what = ENVELOPE_LONG_NAMES[end]
-        ds[name] = (
-            ("time", "pixel", "band"),
-            data(lim),
-            {"units": "mag(AB)", "long_name": f"5-sigma point-source limit, {what} (NaN: not observable)"},
-        )
+        if per_sample:
+            ds[name] = (
+                ("time", "pixel", "band"),
+                data(lim),
+                {
+                    "units": "mag(AB)",
+                    "long_name": f"5-sigma point-source limit, {what} (NaN: not observable)",
+                },
+            )
         ds[median_name] = (
             ("pixel", "band"),
             data(med),

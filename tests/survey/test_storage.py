@@ -118,9 +118,9 @@ def test_stored_products_within_their_bound(block):
                 checked += 1
     # every float of the three products checked: the cube's seven band variables, its part via the
     # door (CUBE_PART_VARIABLES) and door opening, the limits (per sample, best, median, observable
-    # fraction, and the assumption envelope's per-sample limits and medians at both ends:
+    # fraction, and the assumption envelope's medians at both ends:
     # straylight.survey.limits_envelope), the four angles
-    assert checked == len(CUBE_BAND_VARIABLES) + len(CUBE_PART_VARIABLES) + 1 + 4 + 4 + 4
+    assert checked == len(CUBE_BAND_VARIABLES) + len(CUBE_PART_VARIABLES) + 1 + 4 + 2 + 4
 
 
 def test_faint_star_map_stored_exactly(campaign):
@@ -249,8 +249,8 @@ def test_every_stored_float_keeps_only_its_bits(block):
                 stored.view(uint), expected.reshape(stored.shape).view(uint), err_msg=f"{product} {name}"
             )
             checked += 1
-    # as above: the part via the door and the envelope's four limits variables added
-    assert checked == len(CUBE_BAND_VARIABLES) + len(CUBE_PART_VARIABLES) + 1 + 4 + 4 + 4
+    # as above: the part via the door and the envelope's two medians added
+    assert checked == len(CUBE_BAND_VARIABLES) + len(CUBE_PART_VARIABLES) + 1 + 4 + 2 + 4
 
 
 def test_stored_values_rounds_as_the_attributes_record():
