@@ -42,10 +42,13 @@ from straylight.sky.vectors import any_perpendicular_xyz, dot, norm, unit, unit_
 __all__ = ["LimbGeometry", "earth_blocks", "limb_geometry"]
 
 #: points of the terminator's visible arc scanned per sample before the golden-section refinement
-_TERMINATOR_SCAN = 64
-#: golden-section steps after the scan: the bracket (two scan steps, at most 2 pi / 63 * 2 rad)
-#: shrinks by 0.618 a step to < 1e-7 rad
-_TERMINATOR_REFINE = 32
+#: (the cosine of the angle from the line of sight has at most two maxima along the circle, one
+#: of them at an end of the arc where it is not inside it)
+_TERMINATOR_SCAN = 16
+#: golden-section steps after the scan: the bracket (two scan steps, at most 4 pi / 15 rad, a
+#: few degrees from a low orbit) shrinks by 0.618 a step, to < 1e-4 of a step; the angle, at a
+#: maximum of its cosine, moves by its square
+_TERMINATOR_REFINE = 20
 
 
 def earth_blocks(satellite_km: np.ndarray, direction: np.ndarray, earth_radius_km: float) -> np.ndarray:
