@@ -1,4 +1,4 @@
-"""The cube's geometry compiled (issue #7): the library's numba kernels against the numpy forms
+"""The cube's geometry compiled: the library's numba kernels against the numpy forms
 they replaced, timed side by side on one core for one production region of the default
 campaign (72 steps x 660 pixels, 47,520 samples), with their largest differences.
 

@@ -46,7 +46,7 @@ def test_sky_background_equals_the_sky_command():
         assert sky[f"limit_mag_{b}"][0].to_value(u.mag) == pytest.approx(
             rec["bands"][b]["limit_mag"], abs=1e-6
         )
-    # g-band dark sky 23.1-23.6 mag/arcsec2 (issue 33, from the cube); this pointing has Moon light
+    # g-band dark sky 23.1-23.6 mag/arcsec2 (from the cube); this pointing has Moon light
     assert 21.5 < sky["total_mag_g"][0].value < 23.8
 
 

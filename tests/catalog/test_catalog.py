@@ -1,4 +1,4 @@
-"""Star catalog (#3): SED library, Hipparcos default, template matching, synthetic photometry, CLI.
+"""Star catalog: SED library, Hipparcos default, template matching, synthetic photometry, CLI.
 
 Reference numbers: the CDS Pickles (1998) spectra, the E490 solar spectrum, published solar
 colours and spectral-type Teff scales, each cited in its test."""
@@ -116,7 +116,7 @@ def test_g2v_template_has_solar_colours():
 
 
 def test_template_teff_follows_the_published_spectral_type_scales():
-    """Every template's Teff comes from its spectral type (issue #3, item 5).
+    """Every template's Teff comes from its spectral type.
 
     Dwarfs: Pecaut & Mamajek 2013 Table 5 (updated table v2024.05.15): G2V 5770 K, A0V 9700 K,
     M0V 3850 K; B57V (Pickles' B5-7 V) is B6V, 14500 K.  Giants: de Jager & Nieuwenhuijzen 1987
@@ -460,7 +460,7 @@ def test_offfield_stars_keep_only_stars_brighter_than_the_limit_in_each_band(tmp
     reason="../shared/data/csst_throughput (test-only real CSST curves) not present",
 )
 def test_g2v_magnitudes_through_the_default_and_the_real_curves(responses):
-    """Issue #3 item 6: a G2V star's AB magnitudes (normalised to G = 0) through the parametric
+    """A G2V star's AB magnitudes (normalised to G = 0) through the parametric
     default against the real CSST curves (Wen et al. 2024, test-only).  AB magnitudes do not depend
     on the throughput's level, only on its shape, so this is the colour error of the default."""
     from straylight.catalog.sed import load_pickles, template_magnitudes

@@ -1,4 +1,4 @@
-"""Off-field stray light: PST, door, point sources, earthshine (issue #4 checks).
+"""Off-field stray light: PST, door, point sources, earthshine.
 
 Reference numbers: the seed paper (sect. 1, 2.1, 2.2, 3.2, 3.3; Table 1), each quoted in its test,
 and closed-form geometry."""
@@ -1108,7 +1108,7 @@ def test_beyond_influence_radius_matches_the_radius_per_sample(grid):
 
 
 def test_planet_in_the_field_is_a_point_source_not_a_background(campaign, tmp_path):
-    """Issue 35 item 5: a planet inside the field is imaged like a star (its core, halo and
+    """A planet inside the field is imaged like a star (its core, halo and
     ghosts), so it adds nothing to the uniform background (PST = 1 over every pixel gave Jupiter
     11.4 e-/s/pixel in g, 47 times the zodiacal light); it is reported instead, with its V
     (Meeus 1998 ch. 41: Jupiter -2.67 on 2026-01-01, 9 days before opposition; the paper's
@@ -1158,7 +1158,7 @@ def test_planet_in_the_field_is_a_point_source_not_a_background(campaign, tmp_pa
 
 
 def test_paper_moon_rule_is_one_switch_away_and_its_difference(campaign):
-    """Issue 35 item 8: the paper's proportional phase rule (sect. 2.2) is
+    """The paper's proportional phase rule (sect. 2.2) is
     models.moon_phase_law: proportional; at phase angle 90 deg the default Krisciunas-Schaefer
     Moon is 1.85 mag (5.5x) fainter (docs/assumptions.md)."""
     from conftest import REPO

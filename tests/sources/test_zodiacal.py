@@ -163,7 +163,7 @@ def test_parametric_default_against_real_throughputs(campaign):
 
 
 def test_paper_zodiacal_colours_are_one_switch_away(campaign):
-    """Issue 35 item 8: the paper's HST zodiacal ratios (sect. 4.1) are models.zodiacal_spectrum:
+    """The paper's HST zodiacal ratios (sect. 4.1) are models.zodiacal_spectrum:
     hst; solar_leinert (E490 Sun with Leinert 1998's Table 19 points over the Sun's +/-25 nm
     mean, the former default) is fainter by NUV 0.457, r 0.103, i 0.197, z 0.224 mag and brighter
     in g by 0.036 (docs/assumptions.md; the default leinert_fit against hst:
