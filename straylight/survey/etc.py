@@ -507,29 +507,6 @@ def time_grid(start, end, step_s: float, period_s: float):
     InputError
         Unparsable, out-of-ephemeris or reversed times, a bad step, too many samples.
     """
-    import astropy.units as u
+    from straylight.survey.visibility import sampled_window
 
-    from straylight.sky.ephemeris import check_in_ephemeris
-    from straylight.sky.timeutil import parse_utc
-    from straylight.survey.visibility import MAX_SAMPLES, warn_if_step_aliases
-
-    t0, t1 = parse_utc(start, "--time"), parse_utc(end, "--end")
-    check_in_ephemeris(t0, "--time", start if isinstance(start, str) else None)
-    check_in_ephemeris(t1, "--end", end if isinstance(end, str) else None)
-    if not t1 > t0:
-        raise InputError(f"--end {t1.isot} must be after --time {t0.isot}")
-    if not (np.isfinite(step_s) and step_s > 0):
-        raise InputError(f"--step-min: must be > 0, got {step_s / 60.0:g}")
-    span_s = float((t1 - t0).to_value(u.s))
-    if step_s > span_s:
-        raise InputError(
-            f"--step-min {step_s / 60.0:g}: longer than the window --time {t0.isot[:19]} to --end "
-            f"{t1.isot[:19]} ({span_s / 60.0:g} min)"
-        )
-    n = int(np.ceil(span_s / step_s - 1e-9))
-    if n > MAX_SAMPLES:
-        raise InputError(
-            f"--time/--end/--step-min: {n:,} samples, more than {MAX_SAMPLES:,}; use a larger step"
-        )
-    warn_if_step_aliases(step_s, period_s)
-    return t0 + np.arange(n) * step_s * u.s
+    return sampled_window(start, end, step_s, period_s, start_field="--time")[1]

@@ -25,6 +25,7 @@ __all__ = [
     "ALIAS_TOLERANCE",
     "visibility",
     "time_grid",
+    "sampled_window",
     "observable_windows",
     "period_starts",
     "period_sums",
@@ -155,32 +156,67 @@ def time_grid(campaign, band: str, start, end, step_s: float, warn: bool = True)
         Unparsable, out-of-ephemeris or reversed times, a non-positive step or one longer than
         the window, more than :data:`MAX_SAMPLES` samples, an unknown band.
     """
+    if band not in campaign.bands:
+        raise InputError(f"--band: {band!r} is not one of {', '.join(campaign.bands)}")
+    period_s = float(campaign.orbit.period_s) if warn else None
+    return sampled_window(start, end, step_s, period_s)
+
+
+def sampled_window(start, end, step_s: float, period_s: float | None, start_field: str = "--start"):
+    """Times every ``step_s`` from ``start`` to ``end`` (exclusive), checked as a user's window.
+
+    Parameters
+    ----------
+    start, end : str or astropy.time.Time
+        UTC times (ISO 8601 text or a scalar Time); ``end`` exclusive; both within DE405.
+    step_s : float
+        Sampling step, s (> 0, at most ``end - start``).
+    period_s : float or None
+        The orbit's period, s: a step over a quarter of it is warned about
+        (:func:`warn_if_step_aliases`); None: no warning.
+    start_field : str, optional
+        The option that gave ``start``, for the messages.
+
+    Returns
+    -------
+    t0 : astropy.time.Time
+        The start, UTC (scalar).
+    t : astropy.time.Time, shape (n,)
+        ``t0 + i * step``, n = ceil((end - start) / step).
+    offset_s : ndarray, shape (n + 1,)
+        Each sample's start and the last one's end after ``t0``, s (the last one cut at ``end``).
+
+    Raises
+    ------
+    InputError
+        Unparsable, out-of-ephemeris or reversed times, a non-positive step or one longer than
+        the window, more than :data:`MAX_SAMPLES` samples.
+    """
     import astropy.units as u
 
     from straylight.sky.ephemeris import check_in_ephemeris
     from straylight.sky.timeutil import parse_utc
 
-    if band not in campaign.bands:
-        raise InputError(f"--band: {band!r} is not one of {', '.join(campaign.bands)}")
-    t0, t1 = parse_utc(start, "--start"), parse_utc(end, "--end")
-    check_in_ephemeris(t0, "--start", start if isinstance(start, str) else None)
+    t0, t1 = parse_utc(start, start_field), parse_utc(end, "--end")
+    check_in_ephemeris(t0, start_field, start if isinstance(start, str) else None)
     check_in_ephemeris(t1, "--end", end if isinstance(end, str) else None)
     if not t1 > t0:
-        raise InputError(f"--end {t1.isot} must be after --start {t0.isot}")
+        raise InputError(f"--end {t1.isot} must be after {start_field} {t0.isot}")
     if not (np.isfinite(step_s) and step_s > 0):
-        raise InputError(f"--step-min: must be > 0, got {step_s / 60.0}")
+        raise InputError(f"--step-min: must be > 0, got {step_s / 60.0:g}")
     span_s = float((t1 - t0).to_value(u.s))
     if step_s > span_s:
         raise InputError(
-            f"--step-min {step_s / 60.0:g}: longer than the window --start {t0.isot[:19]} to --end "
+            f"--step-min {step_s / 60.0:g}: longer than the window {start_field} {t0.isot[:19]} to --end "
             f"{t1.isot[:19]} ({span_s / 60.0:g} min); use a step of at most that"
         )
-    if warn:
-        warn_if_step_aliases(step_s, float(campaign.orbit.period_s))
+    if period_s is not None:
+        warn_if_step_aliases(step_s, period_s)
     n = int(np.ceil(span_s / step_s - 1e-9))
     if n > MAX_SAMPLES:
         raise InputError(
-            f"--start/--end/--step-min: {n:,} samples, more than {MAX_SAMPLES:,}; use a larger --step-min"
+            f"{start_field}/--end/--step-min: {n:,} samples, more than {MAX_SAMPLES:,}; "
+            "use a larger --step-min"
         )
     t = t0 + np.arange(n) * step_s * u.s
     return t0, t, np.minimum(np.arange(n + 1) * step_s, span_s)
