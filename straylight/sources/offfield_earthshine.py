@@ -17,6 +17,18 @@ from straylight.sky.runs import shared_vectors
 from straylight.sky.vectors import dot, wrap_360_deg
 from straylight.sources.offfield_cap import EarthshineSettings
 
+#: the children of cut blocks computed at once, bytes (their directions, spans and
+#: luminances in float64): bounds the direct sum's memory on fine grids and many samples
+CUT_CHILDREN_BYTES = 64 * 2**20
+
+
+class _Frame:
+    """Telescope axes of some samples (x, y, z: (M, 3) unit vectors)."""
+
+    def __init__(self, x, y, z):
+        self.x, self.y, self.z = x, y, z
+
+
 __all__ = ["EarthshineSums"]
 
 
@@ -195,7 +207,46 @@ class EarthshineSums:
         """The direct term (e-/s/pix per photon s-1 m-2 of the Sun, of the Moon; arrays of the
         samples' shape) of the blocks the aperture plane cuts (``cut``, (..., G, P)), each summed
         over its children (:meth:`cut_children`) with their own angles, Sp, PST and front part,
-        as :func:`~straylight.sources.earthshine_kernel.cap_sums` does."""
+        as :func:`~straylight.sources.earthshine_kernel.cap_sums` does.  The children of a
+        sample's whole grid are n^2 times its blocks, so the samples with a cut block go through
+        in groups of about :data:`CUT_CHILDREN_BYTES` of children each."""
+        shape = cut.shape
+        lead, (g, p) = shape[:-2], shape[-2:]
+        size = int(np.prod(lead))
+        flat_cut = cut.reshape(size, g, p)
+        rows = np.flatnonzero(flat_cut.any(axis=(1, 2)))
+        out_sun, out_moon = np.zeros(size), np.zeros(size)
+
+        def flat(v):  # a (..., 3) vector of the samples as (size, 3)
+            return np.broadcast_to(v, lead + (3,)).reshape(size, 3)
+
+        sat, sun, moon = flat(sat_km), flat(sun_km), flat(moon_km)
+        fx, fy, fz = flat(frame.x), flat(frame.y), flat(frame.z)
+        flat_op = np.broadcast_to(op, shape).reshape(size, g, p)
+        n = int(s.cut_block_split)
+        per_row = max(1, int(CUT_CHILDREN_BYTES // (g * p * n * n * 11 * 8)))
+        for start in range(0, rows.size, per_row):
+            r = rows[start : start + per_row]
+            part = _Frame(fx[r], fy[r], fz[r])
+            c_sun, c_moon = self._cut_rows_direct(
+                flat_cut[r],
+                sat[r],
+                sun[r],
+                moon[r],
+                part,
+                flat_op[r],
+                earth_radius_km,
+                s,
+                with_sun,
+                with_moon,
+            )
+            out_sun[r], out_moon[r] = c_sun, c_moon
+        return out_sun.reshape(lead), out_moon.reshape(lead)
+
+    def _cut_rows_direct(
+        self, cut, sat_km, sun_km, moon_km, frame, op, earth_radius_km, s, with_sun, with_moon
+    ):
+        """:meth:`_cut_blocks_direct` of samples in rows: ``cut`` (M, G, P), vectors (M, 3)."""
         cd, cg, cp, cl = self.cut_children(sat_km, sun_km, moon_km, earth_radius_km, s, with_sun, with_moon)
         shape = cut.shape
         idx = np.nonzero(cut)
