@@ -477,6 +477,8 @@ def catalog_for_campaign(campaign, gaia_stars: dict | None = None) -> tuple[dict
         # not depend on where the campaign runs (determinism check, tests/survey/test_cube.py)
         "config": campaign.path.name,
         "config_sha256": sha256_path(campaign.path),
+        # the stars section as the config holds it (with the schema's defaults): a record of
+        # the catalog's inputs, stored as JSON, not a setting read
         "stars_settings": campaign.config["stars"],
         "summary": summary,
         "magnitude_systems": "mag_<band>: AB through the instrument's throughput; G, BP, RP: Gaia DR2 Vega",
@@ -503,6 +505,8 @@ def default_catalog_path(campaign) -> Path:
     from straylight._version import __version__
     from straylight.util.io import cache_dir
 
+    # the raw sections, not the typed settings: the cache key is their JSON, which must not
+    # change when a settings class does
     settings = {k: v for k, v in campaign.config["stars"].items() if k != "gaia_files"}
     key = hashlib.sha256(
         json.dumps(

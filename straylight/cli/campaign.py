@@ -19,7 +19,7 @@ def cmd_footprint(args) -> int:
     from straylight.survey.footprint import footprint_from_config
 
     campaign = load_campaign(args.config)
-    fp = footprint_from_config(campaign.config["footprint"], campaign.path.parent)
+    fp = footprint_from_config(campaign.settings.footprint, campaign.path.parent)
     print(f"footprint: {fp.pixels.size} pixels at nside {fp.nside} ({fp.ordering}), {fp.area_deg2:.0f} deg2")
     return 0
 
@@ -33,7 +33,7 @@ def cmd_plan(args) -> int:
     from straylight.survey.timegrid import time_blocks
 
     campaign = load_campaign(args.config)
-    fp = footprint_from_config(campaign.config["footprint"], campaign.path.parent)
+    fp = footprint_from_config(campaign.settings.footprint, campaign.path.parent)
     c = campaign.settings.campaign
     nt, npix, nb = len(campaign.times), fp.pixels.size, len(campaign.bands)
     tb = time_blocks(nt, float(c.cadence_s), float(c.time_block_hours))

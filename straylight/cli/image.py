@@ -109,7 +109,7 @@ def cmd_image(args) -> int:
 
     target, cutout = _checked_image_args(args)
     campaign = load_campaign(args.config)
-    inst = campaign.instrument
+    inst = campaign.instrument_settings
     if args.band not in campaign.bands:
         raise InputError(f"--band: {args.band!r} is not one of {', '.join(campaign.bands)}")
     t = parse_utc(args.time, "--time")

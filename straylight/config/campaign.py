@@ -4,7 +4,6 @@ Earth, the avoidance constraints, the typed settings of both files)."""
 
 from __future__ import annotations
 
-import copy
 import os
 from dataclasses import dataclass
 from functools import cached_property
@@ -22,7 +21,7 @@ from straylight.config.loading import (
     load_schema,
     validate,
 )
-from straylight.config.settings import Settings, settings_from_config
+from straylight.config.settings import OrbitSection, Settings, orbit_settings, settings_from_config
 from straylight.errors import ConfigError, StraylightError
 
 
@@ -65,15 +64,17 @@ class Campaign:
         return EarthModel(radius_km=float(e["radius_km"]), gm_km3_s2=float(e["gm_km3_s2"]), j2=float(e["j2"]))
 
     @cached_property
+    def orbit_settings(self) -> OrbitSection:
+        """The config's ``orbit`` section, typed (:class:`OrbitSection`; a relative TLE file
+        resolved against the config's folder)."""
+        return orbit_settings(self.config["orbit"], self.path.parent)
+
+    @cached_property
     def orbit(self):
         """The satellite's orbit (circular or TLE; a relative TLE file is the config's)."""
-        from straylight.sky.orbit import orbit_from_config
+        from straylight.sky.orbit import orbit_from_settings
 
-        orbit_cfg = copy.deepcopy(self.config["orbit"])
-        tle = orbit_cfg.get("tle") or {}
-        if "file" in tle and not os.path.isabs(tle["file"]):
-            tle["file"] = str(self.path.parent / tle["file"])
-        return orbit_from_config(orbit_cfg, self.earth)
+        return orbit_from_settings(self.orbit_settings, self.earth)
 
     @cached_property
     def orbit_radius_range_km(self) -> tuple[float, float]:
@@ -171,12 +172,9 @@ def _check_campaign(cfg: dict, source: str, sources: dict | None = None) -> None
     # when the orbit is built)
     from straylight.sky.orbit import warn_if_epoch_far
 
-    orbit_cfg = copy.deepcopy(cfg["orbit"])
-    tle = orbit_cfg.get("tle") or {}
-    if "file" in tle and not os.path.isabs(tle["file"]):  # as Campaign.orbit resolves it
-        tle["file"] = str(Path(source).parent / tle["file"])
-    key = "orbit.circular.epoch" if orbit_cfg["model"] == "circular" else "orbit.tle"
-    warn_if_epoch_far(orbit_cfg, start, end, src(key))
+    orbit = orbit_settings(cfg["orbit"], Path(source).parent)  # as Campaign.orbit_settings
+    key = "orbit.circular.epoch" if orbit.model == "circular" else "orbit.tle"
+    warn_if_epoch_far(orbit, start, end, src(key))
 
 
 def load_campaign(path: str | os.PathLike | None = None, overrides: dict | None = None) -> Campaign:

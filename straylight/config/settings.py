@@ -1,14 +1,17 @@
 """The campaign's typed settings: every section of config/schema/config.schema.yaml but the
 Earth and the orbit, parsed once from the validated config with the schema's defaults
-(:func:`settings_from_config`); and :func:`_typed`, which builds any settings dataclass (the
-instrument's too) from its mapping."""
+(:func:`settings_from_config`); one section alone with the schema's defaults
+(:func:`section_settings`); the orbit's section (:func:`orbit_settings`); and :func:`_typed`,
+which builds any settings dataclass (the instrument's too) from its mapping."""
 
 from __future__ import annotations
 
 import dataclasses
 import functools
+import os
 import typing
 from dataclasses import dataclass
+from pathlib import Path
 
 from straylight.errors import ConfigError
 
@@ -161,6 +164,40 @@ class ComputeSection:
 
 
 @dataclass(frozen=True)
+class CircularOrbitSection:
+    """``orbit.circular``: the circular orbit's altitude (km), inclination, RAAN and argument of
+    latitude at epoch (deg), and its epoch (UTC, ISO text)."""
+
+    altitude_km: float
+    inclination_deg: float
+    raan_deg: float
+    arg_latitude_deg: float
+    epoch: str
+
+
+@dataclass(frozen=True)
+class TLESection:
+    """``orbit.tle``: a file holding a TLE (its path resolved against the config's folder by
+    :func:`orbit_settings`), or the two lines; the schema has no default for any of them, so
+    a key the config lacks is None."""
+
+    file: str | None = None
+    line1: str | None = None
+    line2: str | None = None
+
+
+@dataclass(frozen=True)
+class OrbitSection:
+    """``orbit``: the model (``circular`` or ``tle``) and its elements; the section the model
+    does not use may be absent (None).  Not a field of :class:`Settings`: the orbit is
+    :attr:`Campaign.orbit`, built from this (:func:`orbit_settings`)."""
+
+    model: str
+    circular: CircularOrbitSection | None = None
+    tle: TLESection | None = None
+
+
+@dataclass(frozen=True)
 class Settings:
     """A campaign's settings, typed: every section of config/schema/config.schema.yaml but the
     Earth and the orbit (:attr:`Campaign.earth`, :attr:`Campaign.orbit`) and the instrument's
@@ -240,6 +277,67 @@ def settings_from_config(config: dict) -> Settings:
     )
 
 
+def section_settings(name: str, node: dict | None):
+    """One section of the campaign config, typed, with the schema's defaults filled in: for a
+    caller that holds the section alone (a footprint or storage mapping written by hand), so
+    that the defaults are the schema's, as in :attr:`Campaign.settings`.
+
+    Parameters
+    ----------
+    name : str
+        A section of :class:`Settings` (``"footprint"``, ``"storage"``, ...).
+    node : dict or None
+        The section's mapping (not validated here; None: the schema's defaults alone).
+
+    Returns
+    -------
+    The section's settings dataclass (e.g. :class:`FootprintSection`).
+
+    Raises
+    ------
+    ConfigError
+        For a key the schema gives no default for and ``node`` lacks.
+    """
+    from straylight.config.loading import apply_defaults
+
+    schema = _campaign_schema()["properties"][name]
+    cls = typing.get_type_hints(Settings)[name]
+    return _typed(cls, apply_defaults(dict(node or {}), schema), name)
+
+
+@functools.lru_cache(maxsize=1)
+def _campaign_schema() -> dict:
+    """config/schema/config.schema.yaml, read once (callers copy what they fill in)."""
+    from straylight.config.loading import CAMPAIGN_SCHEMA, load_schema
+
+    return load_schema(CAMPAIGN_SCHEMA)
+
+
+def orbit_settings(node: dict, config_dir=None) -> OrbitSection:
+    """The config's ``orbit`` section, typed (:class:`OrbitSection`), a relative
+    ``orbit.tle.file`` resolved against ``config_dir``.
+
+    Parameters
+    ----------
+    node : dict
+        The validated ``orbit`` section.
+    config_dir : path-like or None
+        The campaign config's folder; None: a relative TLE file is left as written.
+
+    Returns
+    -------
+    OrbitSection
+        The orbit's model and elements.
+    """
+    orbit = _typed(OrbitSection, node, "orbit")
+    tle = orbit.tle
+    if tle is not None and tle.file is not None and config_dir is not None and not os.path.isabs(tle.file):
+        orbit = dataclasses.replace(
+            orbit, tle=dataclasses.replace(tle, file=str(Path(config_dir) / tle.file))
+        )
+    return orbit
+
+
 __all__ = [
     "CampaignSection",
     "FootprintSection",
@@ -253,6 +351,11 @@ __all__ = [
     "SchedulingSection",
     "StorageSection",
     "ComputeSection",
+    "CircularOrbitSection",
+    "TLESection",
+    "OrbitSection",
     "Settings",
     "settings_from_config",
+    "section_settings",
+    "orbit_settings",
 ]

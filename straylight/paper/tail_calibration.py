@@ -188,6 +188,8 @@ def campaign_with_tail(campaign: Campaign, tail_log10_at_90deg: float) -> Campai
     -------
     Campaign
     """
+    # the raw mapping, not the typed settings: a campaign is made from it with one value
+    # changed, and its typed settings parsed from that as from any instrument file
     inst = campaign.instrument
     tail = dict(inst.get("pst", {}).get("tail_log10_at_90deg") or {"unit": "dex", "source": "calibration"})
     tail["value"] = float(tail_log10_at_90deg)

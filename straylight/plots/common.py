@@ -33,7 +33,7 @@ def _mag(ds, e_per_s, band: str, campaign):
     from straylight.optics.bandpass import load_band
     from straylight.sources.photometry import magnitude_per_arcsec2
 
-    b = load_band(campaign.instrument, band, campaign.instrument_path.parent)
+    b = load_band(campaign.instrument_settings, band, campaign.instrument_path.parent)
     return magnitude_per_arcsec2(
         e_per_s, b, campaign.instrument_value("telescope", "aperture_diameter_m"), campaign.pixel_scale_arcsec
     )

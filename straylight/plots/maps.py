@@ -448,12 +448,12 @@ def sky_map_figures(background_path, campaign, out_dir) -> list:
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    rc = campaign.config["report"]
+    rc = campaign.settings.report
     # chunks=None: no dask (the figure rules run side by side; its threads only add overhead);
     # the arrays' own metadata (rule background may be consolidating it meanwhile)
     with xr.open_zarr(background_path, chunks=None, consolidated=False) as ds:
         cube_bands = [str(b) for b in ds["band"].values]
-        unknown = sorted(set(rc.get("sky_map_bands") or ()) - set(cube_bands))
+        unknown = sorted(set(rc.sky_map_bands or ()) - set(cube_bands))
         if unknown:
             from straylight.errors import ConfigError
 
@@ -461,8 +461,8 @@ def sky_map_figures(background_path, campaign, out_dir) -> list:
                 f"{campaign.path}: report.sky_map_bands: {', '.join(unknown)} not among the cube's "
                 f"bands {', '.join(cube_bands)}"
             )
-        bands = [b for b in cube_bands if b in set(rc.get("sky_map_bands") or cube_bands)]
-        times = map_time_indices(ds, int(rc["sky_map_times"]), rc.get("times") or ())
+        bands = [b for b in cube_bands if b in set(rc.sky_map_bands or cube_bands)]
+        times = map_time_indices(ds, int(rc.sky_map_times), rc.times)
         return sky_maps(ds, campaign, out, times, bands)
 
 

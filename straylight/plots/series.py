@@ -162,9 +162,9 @@ def time_series_figures(background_path, campaign, out_dir) -> list:
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    rc = campaign.config["report"]
+    rc = campaign.settings.report
     # chunks=None: no dask, the coordinates read as they are needed; the arrays' own metadata
     # (rule background may be consolidating it meanwhile)
     with xr.open_zarr(background_path, chunks=None, consolidated=False) as ds:
-        pixels = series_pixel_indices(ds, int(rc["series_pointings"]), rc.get("pointings") or ())
+        pixels = series_pixel_indices(ds, int(rc.series_pointings), rc.pointings)
         return time_series(ds, campaign, out, pixels, pointing_series(background_path, pixels))

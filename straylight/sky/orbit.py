@@ -35,7 +35,7 @@ __all__ = [
     "EarthModel",
     "CircularOrbit",
     "TLEOrbit",
-    "orbit_from_config",
+    "orbit_from_settings",
     "epoch_gap_warning",
     "warn_if_epoch_far",
 ]
@@ -241,29 +241,49 @@ class TLEOrbit:
         return np.moveaxis(xyz, 0, -1)
 
 
-def orbit_from_config(orbit_cfg: dict, earth: EarthModel):
-    """Build the orbit model named by ``orbit.model`` in the campaign config."""
-    model = orbit_cfg["model"]
-    if model == "circular":
-        c = orbit_cfg["circular"]
+def orbit_from_settings(orbit, earth: EarthModel):
+    """The orbit model named by the campaign's ``orbit.model``.
+
+    Parameters
+    ----------
+    orbit : straylight.config.settings.OrbitSection
+        The config's typed ``orbit`` section (a TLE file's path already resolved): ``model``,
+        ``circular`` (``altitude_km``, km; ``inclination_deg``, ``raan_deg``,
+        ``arg_latitude_deg``, deg; ``epoch``, UTC) or ``tle`` (``file``, or ``line1`` and
+        ``line2``).
+    earth : EarthModel
+        The Earth (radius, GM, J2) the circular orbit precesses about.
+
+    Returns
+    -------
+    CircularOrbit or TLEOrbit
+        The orbit.
+
+    Raises
+    ------
+    ConfigError
+        For an unknown model, or a TLE that cannot be read.
+    """
+    if orbit.model == "circular":
+        c = orbit.circular
         return CircularOrbit(
-            altitude_km=float(c["altitude_km"]),
-            inclination_deg=float(c["inclination_deg"]),
-            raan_deg=float(c["raan_deg"]),
-            arg_latitude_deg=float(c["arg_latitude_deg"]),
-            epoch=str(c["epoch"]),
+            altitude_km=float(c.altitude_km),
+            inclination_deg=float(c.inclination_deg),
+            raan_deg=float(c.raan_deg),
+            arg_latitude_deg=float(c.arg_latitude_deg),
+            epoch=str(c.epoch),
             earth=earth,
         )
-    if model == "tle":
-        return TLEOrbit(*_tle_lines(orbit_cfg.get("tle") or {}))
-    raise ConfigError(f"orbit.model: {model!r} is not one of 'circular', 'tle'")
+    if orbit.model == "tle":
+        return TLEOrbit(*_tle_lines(orbit.tle))
+    raise ConfigError(f"orbit.model: {orbit.model!r} is not one of 'circular', 'tle'")
 
 
-def _tle_lines(tle: dict) -> tuple[str, str, str]:
-    """(line 1, line 2, source) of the config's ``orbit.tle``: a file (its path absolute or as
-    the caller resolved it) or the two lines."""
-    if "file" in tle:
-        path = tle["file"]
+def _tle_lines(tle) -> tuple[str, str, str]:
+    """(line 1, line 2, source) of the config's typed ``orbit.tle`` (None when absent): a file
+    (its path absolute or as the caller resolved it) or the two lines."""
+    if tle is not None and tle.file is not None:
+        path = tle.file
         try:
             lines = [ln for ln in open(path, encoding="ascii").read().splitlines() if ln.strip()]
         except OSError as exc:
@@ -273,8 +293,8 @@ def _tle_lines(tle: dict) -> tuple[str, str, str]:
         if not ones or not twos:
             raise InputError(f"{path}: no TLE line pair (lines starting '1 ' and '2 ') found")
         return ones[0], twos[0], str(path)
-    if "line1" in tle and "line2" in tle:
-        return tle["line1"], tle["line2"], "orbit.tle"
+    if tle is not None and tle.line1 is not None and tle.line2 is not None:
+        return tle.line1, tle.line2, "orbit.tle"
     raise ConfigError("orbit.tle: give either 'file' or both 'line1' and 'line2'")
 
 
@@ -293,16 +313,17 @@ def epoch_gap_warning(what: str, epoch, start, end, limit_days: float, reason: s
     )
 
 
-def warn_if_epoch_far(orbit_cfg: dict, start, end, where: str) -> str | None:
+def warn_if_epoch_far(orbit, start, end, where: str) -> str | None:
     """Warn (one logged line) when the campaign [start, end] reaches farther from the orbit's
     epoch than :data:`TLE_EPOCH_WARN_DAYS` (a TLE) or :data:`CIRCULAR_EPOCH_WARN_DAYS` (a
     circular orbit); ``where`` (the config file) starts the line.  Once per run: a process that
     inherits :data:`EPOCH_WARNED_ENV` with this warning's key stays quiet.  Returns the warning.
 
-    ``orbit_cfg``: the config's ``orbit``, a TLE file's path already resolved.
+    ``orbit``: the config's typed ``orbit`` section (:func:`orbit_from_settings`), a TLE
+    file's path already resolved.
     """
-    if orbit_cfg["model"] == "circular":
-        epoch = parse_utc(orbit_cfg["circular"]["epoch"], "orbit.circular.epoch")
+    if orbit.model == "circular":
+        epoch = parse_utc(orbit.circular.epoch, "orbit.circular.epoch")
         msg = epoch_gap_warning(
             "orbit.circular.epoch",
             epoch,
@@ -314,7 +335,7 @@ def warn_if_epoch_far(orbit_cfg: dict, start, end, where: str) -> str | None:
             "orbit; set the epoch near the campaign",
         )
     else:
-        line1, line2, source = _tle_lines(orbit_cfg.get("tle") or {})
+        line1, line2, source = _tle_lines(orbit.tle)
         label = "orbit.tle epoch" if source == "orbit.tle" else f"orbit.tle ({source}) epoch"
         msg = epoch_gap_warning(
             label,

@@ -149,6 +149,8 @@ def empty_cube(campaign: Campaign, fp: Footprint, times, model, stars_path=None,
             "zodiacal_spectrum": campaign.settings.models.zodiacal_spectrum,
             "zodiacal_reddening_per_dex": list(campaign.settings.models.zodiacal_reddening.as_tuple()),
             "moon_phase_law": campaign.settings.models.moon_phase_law,
+            # the instrument file's own words, as written ("" where it has no pst section): a
+            # record of the file, like the provenance's copy of it, not a setting read
             "pst_source": str(campaign.instrument.get("pst", {}).get("source", "")),
             "stars_included": int(len(stars.ra_deg)) if stars_path else 0,
             "stars_in_faint_map": int(len(stars.faint_ra_deg)) if stars_path else 0,
@@ -230,7 +232,7 @@ def init_store(
     if faint is not None:
         ds["faint_star_map"] = faint
     # the products' codecs (bit-rounded floats); the faint map exactly, the time blocks read it
-    write_skeleton(ds, store, campaign.config["storage"], lossless=("faint_star_map",))
+    write_skeleton(ds, store, campaign.settings.storage, lossless=("faint_star_map",))
 
 
 def init_observability_store(campaign: Campaign, fp: Footprint, ephem: xr.Dataset, store) -> None:
@@ -258,7 +260,7 @@ def init_observability_store(campaign: Campaign, fp: Footprint, ephem: xr.Datase
 
     chunks = cube_chunks(campaign, ephem.sizes["time"], fp.pixels.size)
     write_skeleton(
-        observability_dataset(campaign, ephem, fp, chunks=chunks), store, campaign.config["storage"]
+        observability_dataset(campaign, ephem, fp, chunks=chunks), store, campaign.settings.storage
     )
 
 
@@ -282,9 +284,7 @@ def init_limits_store(campaign: Campaign, cube, store) -> None:
     from straylight.survey.limits_cube import limits_dataset
     from straylight.survey.storage import write_skeleton
 
-    write_skeleton(
-        limits_dataset(campaign, cube, per_sample_envelope=True), store, campaign.config["storage"]
-    )
+    write_skeleton(limits_dataset(campaign, cube, per_sample_envelope=True), store, campaign.settings.storage)
 
 
 def stored_faint_map(store) -> np.ndarray | None:

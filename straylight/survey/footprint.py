@@ -2,12 +2,17 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from straylight.errors import ConfigError, InputError
+
+if TYPE_CHECKING:
+    from straylight.config.settings import FootprintSection
 
 __all__ = [
     "Footprint",
@@ -209,16 +214,18 @@ def read_mask(path: str | Path, nside: int, nest: bool) -> np.ndarray:
     return m > 0.5
 
 
-def footprint_from_config(fp_cfg: dict, config_dir: Path | None = None) -> Footprint:
+def footprint_from_config(footprint: FootprintSection | Mapping, config_dir: Path | None = None) -> Footprint:
     """The footprint a config's ``footprint`` section describes: a mask file's pixels, or the
     Galactic and ecliptic latitude cuts (:func:`latitude_cut_mask`) without one.
 
     Parameters
     ----------
-    fp_cfg : dict
-        The ``footprint`` section: ``nside``; optional ``ordering`` (``"ring"``, the default,
-        or ``"nested"``), ``mask_file``, ``galactic_latitude_min_deg`` (deg, default 20) and
-        ``ecliptic_latitude_min_deg`` (deg, default 18).
+    footprint : FootprintSection or mapping
+        The typed ``footprint`` section (``campaign.settings.footprint``), or its mapping, typed
+        here with the schema's defaults for the keys it lacks
+        (:func:`~straylight.config.settings.section_settings`): ``nside``, ``ordering``
+        (``"ring"`` or ``"nested"``), ``mask_file``, ``galactic_latitude_min_deg`` and
+        ``ecliptic_latitude_min_deg`` (deg).
     config_dir : pathlib.Path, optional
         Folder a relative ``mask_file`` is resolved against; None: the working directory.
 
@@ -234,12 +241,15 @@ def footprint_from_config(fp_cfg: dict, config_dir: Path | None = None) -> Footp
     InputError
         When the mask file cannot be read (:func:`read_mask`).
     """
-    nside = int(fp_cfg["nside"])
-    ordering = fp_cfg.get("ordering", "ring")
+    if isinstance(footprint, Mapping):
+        from straylight.config.settings import section_settings
+
+        footprint = section_settings("footprint", footprint)
+    nside = int(footprint.nside)
+    ordering = footprint.ordering
     nest = ordering == "nested"
-    mask_file = fp_cfg.get("mask_file")
-    if mask_file:
-        p = Path(mask_file)
+    if footprint.mask_file:
+        p = Path(footprint.mask_file)
         if not p.is_absolute() and config_dir is not None:
             p = config_dir / p
         mask = read_mask(p, nside, nest)
@@ -247,8 +257,8 @@ def footprint_from_config(fp_cfg: dict, config_dir: Path | None = None) -> Footp
         mask = latitude_cut_mask(
             nside,
             nest,
-            float(fp_cfg.get("galactic_latitude_min_deg", 20.0)),
-            float(fp_cfg.get("ecliptic_latitude_min_deg", 18.0)),
+            float(footprint.galactic_latitude_min_deg),
+            float(footprint.ecliptic_latitude_min_deg),
         )
     pixels = np.flatnonzero(mask)
     if pixels.size == 0:

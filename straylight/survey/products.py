@@ -100,7 +100,7 @@ def ephemeris_dataset(campaign: Campaign) -> xr.Dataset:
         attrs={
             "campaign": campaign.name,
             "ephemeris": "JPL DE405 (PyPI de405), Chebyshev evaluation by straylight.sky.ephemeris",
-            "orbit_model": campaign.config["orbit"]["model"],
+            "orbit_model": campaign.orbit_settings.model,
             "cadence_s": float(campaign.settings.campaign.cadence_s),
         },
     )
@@ -129,7 +129,7 @@ def footprint_products(campaign: Campaign) -> tuple[Footprint, dict]:
     ConfigError, InputError
         As :func:`~straylight.survey.footprint.footprint_from_config`.
     """
-    fp = footprint_from_config(campaign.config["footprint"], campaign.path.parent)
+    fp = footprint_from_config(campaign.settings.footprint, campaign.path.parent)
     c = campaign.settings.campaign
     t_blocks = time_blocks(len(campaign.times), c.cadence_s, float(c.time_block_hours))
     p_blocks = fp.blocks(campaign.settings.footprint.pixel_block_size)

@@ -35,7 +35,9 @@ zarr-python's defaults (zstd, and vlen-utf8 for the band names).
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -46,6 +48,9 @@ from straylight.survey.bitround import (
     max_relative_error,
 )
 from straylight.util.io import atomic_path
+
+if TYPE_CHECKING:
+    from straylight.config.settings import StorageSection
 
 __all__ = [
     "BLOSC_BLOCK_BYTES",
@@ -59,13 +64,15 @@ __all__ = [
 ]
 
 
-def encoded(dataset, settings: dict, lossless: tuple = ()):
+def encoded(dataset, settings: StorageSection | Mapping, lossless: tuple = ()):
     """``dataset`` with its float data variables bit-rounded (:func:`bitround`; lazily for dask
     arrays) and the rounding recorded in their attributes, and the ``encoding`` dict that
     stores its data variables (``Dataset.to_zarr(..., encoding=...)``: blosc, lossless).
 
-    ``settings``: the campaign's ``storage`` section (``float_keepbits``: mantissa bits kept in
-    every float data variable, ``blosc_clevel``); ``lossless``: float data variables stored
+    ``settings``: the campaign's typed ``storage`` section (``float_keepbits``: mantissa bits
+    kept in every float data variable, ``magnitude_keepbits``, ``blosc_clevel``), or its mapping
+    (typed with the schema's defaults: :func:`~straylight.config.settings.section_settings`);
+    ``lossless``: float data variables stored
     exactly all the same (inputs a later step computes from).  Returns (a shallow copy of
     ``dataset``, encoding).
 
@@ -73,10 +80,11 @@ def encoded(dataset, settings: dict, lossless: tuple = ()):
     ----------
     dataset : xarray.Dataset
         The product (numpy- or dask-backed); left as it was.
-    settings : dict
-        The campaign's ``storage`` section: ``float_keepbits`` (int), optional
-        ``magnitude_keepbits`` (int, for variables whose units start with ``mag``; default
-        ``float_keepbits``), ``blosc_clevel`` (int).
+    settings : StorageSection or mapping
+        The campaign's ``storage`` section (``campaign.settings.storage``), or its mapping with
+        the schema's defaults for the keys it lacks: ``float_keepbits`` (int),
+        ``magnitude_keepbits`` (int, for variables whose units start with ``mag``),
+        ``blosc_clevel`` (int).
     lossless : tuple of str, optional
         Float data variables stored exactly.
 
@@ -89,9 +97,13 @@ def encoded(dataset, settings: dict, lossless: tuple = ()):
     encoding : dict of str to dict
         Variable name to its zarr encoding (``compressors``).
     """
-    keepbits = int(settings["float_keepbits"])
-    mag_keepbits = int(settings.get("magnitude_keepbits", keepbits))
-    level = int(settings["blosc_clevel"])
+    if isinstance(settings, Mapping):
+        from straylight.config.settings import section_settings
+
+        settings = section_settings("storage", settings)
+    keepbits = int(settings.float_keepbits)
+    mag_keepbits = int(settings.magnitude_keepbits)
+    level = int(settings.blosc_clevel)
     out = dataset.copy(deep=False)
     encoding = {}
     for name, var in out.data_vars.items():
@@ -162,7 +174,9 @@ def _codecs(dtype, lossless: bool, keepbits: int, level: int) -> tuple[dict, str
     return {"compressors": [blosc]}, f"bitround(keepbits={keepbits}) before writing + {pipeline}", error
 
 
-def write_zarr_atomic(dataset, path: str | os.PathLike, storage: dict | None = None) -> None:
+def write_zarr_atomic(
+    dataset, path: str | os.PathLike, storage: StorageSection | Mapping | None = None
+) -> None:
     """Write an xarray Dataset to a Zarr store at ``path`` atomically (consolidated metadata);
     with ``storage`` (a campaign's storage section) through the products' codecs
     (:func:`encoded`), else xarray's default (lossless) ones.
@@ -173,7 +187,7 @@ def write_zarr_atomic(dataset, path: str | os.PathLike, storage: dict | None = N
         The dataset to write.
     path : str or path-like
         The store's path (replaced atomically).
-    storage : dict, optional
+    storage : StorageSection or mapping, optional
         A campaign's ``storage`` section (:func:`encoded`); None: xarray's default encoding.
     """
     encoding = None
@@ -183,7 +197,9 @@ def write_zarr_atomic(dataset, path: str | os.PathLike, storage: dict | None = N
         dataset.to_zarr(tmp, mode="w", consolidated=True, encoding=encoding)
 
 
-def write_skeleton(dataset, store: str | os.PathLike, settings: dict, lossless: tuple = ()) -> None:
+def write_skeleton(
+    dataset, store: str | os.PathLike, settings: StorageSection | Mapping, lossless: tuple = ()
+) -> None:
     """Lay down a Zarr store for ``dataset`` through the products' codecs (:func:`encoded`):
     metadata, coordinates and the in-memory data variables written; the lazy (dask) data
     variables chunked as their dask arrays are and left empty, for writers to fill region by
@@ -196,7 +212,7 @@ def write_skeleton(dataset, store: str | os.PathLike, settings: dict, lossless: 
         The product's skeleton: lazy (dask) data variables are left unwritten.
     store : str or path-like
         The store's path (overwritten).
-    settings : dict
+    settings : StorageSection or mapping
         The campaign's ``storage`` section (:func:`encoded`).
     lossless : tuple of str, optional
         Float data variables stored exactly.
