@@ -301,16 +301,20 @@ def limits_dataset(
     # cluster (a slow import in every process that lays down a skeleton)
     with dask_rechunk_by_tasks():
         lim_t, obs_t = (lim.chunk(whole_times), observable.chunk(whole_times)) if lazy else (lim, observable)
-    summary = xr.apply_ufunc(
-        best_and_median,
-        lim_t,
-        obs_t,
-        input_core_dims=[["time"], ["time"]],
-        output_core_dims=[["stat"]],
-        dask="parallelized",
-        output_dtypes=[np.float32],
-        dask_gufunc_kwargs={"output_sizes": {"stat": 2}},
-    )
+
+    def summarise(limits):  # (time, pixel, band) -> (pixel, band, stat): best and median over time
+        return xr.apply_ufunc(
+            best_and_median,
+            limits,
+            obs_t,
+            input_core_dims=[["time"], ["time"]],
+            output_core_dims=[["stat"]],
+            dask="parallelized",
+            output_dtypes=[np.float32],
+            dask_gufunc_kwargs={"output_sizes": {"stat": 2}},
+        )
+
+    summary = summarise(lim_t)
     frac = xr.apply_ufunc(
         fraction, obs_t, input_core_dims=[["time"]], dask="parallelized", output_dtypes=[np.float32]
     )
@@ -321,17 +325,7 @@ def limits_dataset(
     for end, env_lim in envelope_lim.items():
         with dask_rechunk_by_tasks():
             env_t = env_lim.chunk(whole_times) if lazy else env_lim
-        med = xr.apply_ufunc(
-            best_and_median,
-            env_t,
-            obs_t,
-            input_core_dims=[["time"], ["time"]],
-            output_core_dims=[["stat"]],
-            dask="parallelized",
-            output_dtypes=[np.float32],
-            dask_gufunc_kwargs={"output_sizes": {"stat": 2}},
-        )
-        envelope[end] = (env_lim, med.isel(stat=1).transpose("pixel", "band"))
+        envelope[end] = (env_lim, summarise(env_t).isel(stat=1).transpose("pixel", "band"))
     ds = _limits_product(
         campaign,
         background,
