@@ -23,8 +23,9 @@ the tolerance, and elsewhere taken from a table of their own
 
 The table is built with the direct method's Earth-cap grid, validated against the direct sum
 and cached by :mod:`straylight.sources.earthshine_table_build`; this module holds the table
-object, its file (``save``, ``load``) and the look-up (the coordinates, interpolation and files
-it shares with the moonlit Earth's table: :mod:`straylight.sources.earthshine_table_lookup`).
+object and its look-up (the coordinates and interpolation it shares with the moonlit Earth's
+table: :mod:`straylight.sources.earthshine_table_lookup`; its file and dark runs:
+:class:`~straylight.sources.lamp_table.LampTable`).
 
 Validity: the Sun is taken at infinity (its direction from the satellite and from the Earth's
 centre differ by < 3e-6 rad).  Errors against the direct sum: bench/run.py (knob
@@ -43,13 +44,10 @@ from straylight.sky.runs import rows_at, scene_rows
 from straylight.sky.vectors import dot, norm, unit, unit_xyz
 from straylight.sources.earthshine_table_lookup import (
     _asinh_grids,
-    _beyond_dark_zenith,
-    _dark_lamp_zenith_deg,
     _lamp_coordinates,
-    _load_tables,
     _per_door_state,
-    _save_tables,
 )
+from straylight.sources.lamp_table import LampTable
 
 __all__ = ["EarthshineLUT"]
 
@@ -79,7 +77,7 @@ def _moon_bound_kernel(los, index, up, cos_limit, zi, table, neg_cos_nodes, door
 
 
 @dataclass
-class EarthshineLUT:
+class EarthshineLUT(LampTable):
     """The sunlit Earth's coefficients (direct through the PST and via the door, per unit solar
     irradiance, outside the field) tabulated over (radius, Sun zenith, line-of-sight zenith,
     azimuth from the Sun) per door state and interpolated linearly in asinh(c / scale), with the
@@ -98,6 +96,17 @@ class EarthshineLUT:
     scale: float  # asinh scale of the interpolation
     validation_max_rel_error: float = float("nan")  # against the direct sum: see build_earthshine_lut
     build_seconds: float = float("nan")
+
+    FILE_ARRAYS = ("radius_km", "sun_zenith_deg", "los_zenith_deg", "azimuth_deg", "moon_direct_bound")
+    FILE_META = {
+        "moon_door_bound": float,
+        "symmetric": bool,
+        "scale": float,
+        "validation_max_rel_error": float,
+        "build_seconds": float,
+    }
+    WHAT = "earthshine"
+    DARK_ZENITH = "dark_sun_zenith_deg"
 
     # -- evaluation -----------------------------------------------------------------------------
     def _interpolators(self):
@@ -187,25 +196,8 @@ class EarthshineLUT:
 
     @cached_property
     def dark_sun_zenith_deg(self) -> float:
-        """The Sun zenith angle beyond which the table is 0, deg (:func:`_dark_lamp_zenith_deg`)."""
-        return _dark_lamp_zenith_deg(
-            self.sun_zenith_deg, (*self.direct.values(), *self.door.values()), axis=1
-        )
-
-    def dark_runs(self, rows) -> np.ndarray:
-        """Per run of ``rows`` (scene runs of (satellite, Sun)): no sunlit Earth in view, the
-        table 0 (beyond :attr:`dark_sun_zenith_deg`).
-
-        Parameters
-        ----------
-        rows : SceneRuns
-            Scene runs of (satellite, Sun) positions, km.
-
-        Returns
-        -------
-        ndarray of bool, shape (runs,)
-        """
-        return _beyond_dark_zenith(rows, self.dark_sun_zenith_deg)
+        """The Sun zenith angle beyond which the table is 0, deg (every node from there on is 0)."""
+        return self._dark_zenith_deg(self.sun_zenith_deg, axis=1)
 
     def moon_bound(self, sat_km, moon_km, los, earth_radius_km: float, runs=None):
         """Upper bound of direct_moon + door_moon per unit lunar irradiance at the Earth: the
@@ -259,67 +251,3 @@ class EarthshineLUT:
             out,
         )
         return out.reshape(shape)
-
-    # -- storage --------------------------------------------------------------------------------
-    def save(self, path) -> None:
-        """Write the table to ``path``.
-
-        Parameters
-        ----------
-        path : str or Path
-            The .npz file, written atomically (its axes, one direct and one door table per door
-            state, and the metadata as JSON).
-        """
-        _save_tables(
-            path,
-            {
-                "radius_km": self.radius_km,
-                "sun_zenith_deg": self.sun_zenith_deg,
-                "los_zenith_deg": self.los_zenith_deg,
-                "azimuth_deg": self.azimuth_deg,
-                "moon_direct_bound": self.moon_direct_bound,
-            },
-            self.direct,
-            self.door,
-            {
-                "moon_door_bound": self.moon_door_bound,
-                "symmetric": self.symmetric,
-                "scale": self.scale,
-                "validation_max_rel_error": self.validation_max_rel_error,
-                "build_seconds": self.build_seconds,
-            },
-        )
-
-    @classmethod
-    def load(cls, path) -> "EarthshineLUT":
-        """Read a table :meth:`save` wrote.
-
-        Parameters
-        ----------
-        path : str or Path
-            A .npz file :meth:`save` wrote.
-
-        Returns
-        -------
-        EarthshineLUT
-
-        Raises
-        ------
-        InputError
-            When the file cannot be read or is not such a table.
-        """
-        z, meta, direct, door = _load_tables(path, "earthshine")
-        return cls(
-            z["radius_km"],
-            z["sun_zenith_deg"],
-            z["los_zenith_deg"],
-            z["azimuth_deg"],
-            direct,
-            door,
-            z["moon_direct_bound"],
-            float(meta["moon_door_bound"]),
-            bool(meta["symmetric"]),
-            float(meta["scale"]),
-            float(meta["validation_max_rel_error"]),
-            float(meta["build_seconds"]),
-        )

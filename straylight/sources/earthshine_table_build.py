@@ -5,10 +5,10 @@ Earth-cap sum of :class:`~straylight.sources.offfield.OffFieldModel` (compiled,
 :mod:`straylight.sources.earthshine_kernel`) at its nodes
 (:class:`~straylight.sources.earthshine_table_nodes.LUTSettings`).  The build runs one scene (the
 satellite's radius and the Sun's zenith angle, every line of sight of it) per task, in threads,
-with a progress bar (:func:`_run_scenes`, which the moonlit Earth's table,
-:mod:`straylight.sources.moonlit_table_build`, shares); then it validates the table against the
-direct sum at random off-node points and records the largest error as a fraction of the total,
-which ``models.earthshine.method: auto`` weighs against the tolerance.  A table is built once
+then validates the table against the direct sum at random off-node points and records the
+largest error as a fraction of the total, which ``models.earthshine.method: auto`` weighs
+against the tolerance (the steps the moonlit Earth's table shares:
+:func:`~straylight.sources.lamp_table.build_lamp_table`).  A table is built once
 per model and machine: it is cached under a digest of everything it depends on
 (:func:`load_or_build`).
 """
@@ -28,6 +28,7 @@ from straylight.sources.earthshine_table_nodes import (
     lut_key,
     mirror_symmetric,
 )
+from straylight.sources.lamp_table import build_lamp_table
 from straylight.sources.photometry import AU_KM
 
 __all__ = [
@@ -35,13 +36,6 @@ __all__ = [
     "sun_coefficients_direct",
     "load_or_build",
 ]
-
-
-def _asinh_scale(direct: dict, door: dict) -> float:
-    """The tables' asinh scale: the 1st percentile of their positive values (linear below it,
-    logarithmic above)."""
-    positive = np.concatenate([v[v > 0] for v in list(direct.values()) + list(door.values())])
-    return float(np.percentile(positive, 1)) if positive.size else 1e-30
 
 
 def _local_scene(R, Z, L, A):
@@ -123,48 +117,6 @@ def _sunlit_scene(
     )
     bound = off.lamp_bound_one_scene(sat[0], unit(sun[0]), los, earth_radius_km)
     return d[:, :, 0], g[:, :, 0], bound
-
-
-def _run_scenes(fn, tasks: list, workers: int, what: str, log=None) -> list:
-    """fn(*task) for every task (a scene each), in ``workers`` threads (the sums are compiled
-    and release the GIL), with a progress bar on standard error once it runs for more than a
-    few seconds.  Each task's result does not depend on the threads, so the table is the same
-    byte for byte whatever ``workers`` is."""
-    from concurrent.futures import ThreadPoolExecutor
-
-    from tqdm import tqdm
-
-    results = [None] * len(tasks)
-    import sys
-
-    tty = sys.stderr.isatty()
-    with tqdm(
-        total=len(tasks),
-        desc=what,
-        unit="scene",
-        delay=3.0,
-        mininterval=1.0 if tty else 60.0,
-        leave=not tty,
-        file=sys.stderr,
-    ) as bar:
-        if workers <= 1 or len(tasks) <= 1:
-            for i, t in enumerate(tasks):
-                results[i] = fn(*t)
-                bar.update()
-        else:
-            from concurrent.futures import as_completed
-
-            with ThreadPoolExecutor(max_workers=workers) as ex:
-                futures = {ex.submit(fn, *t): i for i, t in enumerate(tasks)}
-                try:
-                    for f in as_completed(futures):
-                        results[futures[f]] = f.result()
-                        bar.update()
-                except BaseException:  # Ctrl-C or a failed scene: the queued scenes are not run
-                    for f in futures:
-                        f.cancel()
-                    raise
-    return results
 
 
 def _observable_points(rr, earth_radius_km, symmetric, n, avoidance_deg):
@@ -250,12 +202,8 @@ def build_earthshine_lut(
     InputError
         When no line of sight is observable with ``avoidance_deg``.
     """
-    import time
-
-    t_start = time.perf_counter()
     s = settings
     symmetric = mirror_symmetric(off)
-    off._kernel_tables  # the door's tables once, before the threads share them
     rr = (
         np.linspace(radius_range_km[0], radius_range_km[1], s.n_radius)
         if s.n_radius > 1
@@ -269,16 +217,6 @@ def build_earthshine_lut(
         for r in rr
         for z in np.radians(zs)
     ]
-    results = _run_scenes(_sunlit_scene, tasks, workers, "earthshine table")
-    ascending = sorted(off.door_states_deg)
-    direct, door = {}, {}
-    for state in off.door_states_deg:
-        j = ascending.index(state)
-        direct[state] = np.stack([res[0][:, j] for res in results]).reshape(shape)
-        door[state] = np.stack([res[1][:, j] for res in results]).reshape(shape)
-    # moonlit-Earth bound over (radius, Moon zenith, line-of-sight zenith): the PST at its
-    # maximum over phi, Sp = 1, maximised over the azimuth nodes
-    bound = np.stack([res[2] for res in results]).reshape(shape).max(axis=-1)
     moon_door = (
         max(
             off.earthshine.door_reflectance * float(np.sum(w)) * off.pixel_area_m2
@@ -286,19 +224,25 @@ def build_earthshine_lut(
         )
         * off.earthshine.albedo
     )
-    scale = _asinh_scale(direct, door)
-    lut = EarthshineLUT(rr, zs, zl, az, direct, door, bound, moon_door, symmetric, scale)
+
+    def make(direct, door, scale, results):
+        # moonlit-Earth bound over (radius, Moon zenith, line-of-sight zenith): the PST at its
+        # maximum over phi, Sp = 1, maximised over the azimuth nodes
+        bound = np.stack([res[2] for res in results]).reshape(shape).max(axis=-1)
+        return EarthshineLUT(rr, zs, zl, az, direct, door, bound, moon_door, symmetric, scale)
+
     # validation at random off-node points of the observable region
     vr, vz, vl, va = _observable_points(rr, earth_radius_km, symmetric, n_validation, avoidance_deg)
-    errs = []
-    for state in off.door_states_deg:
+    sat_v, sun_v, los_v = _local_scene(vr, *np.radians([vz, vl, va]))
+
+    def error_at(lut, state):
         d_ref, g_ref = sun_coefficients_direct(off, vr, *np.radians([vz, vl, va]), state, earth_radius_km)
-        sat_v, sun_v, los_v = _local_scene(vr, *np.radians([vz, vl, va]))
         d_t, g_t = lut.sun_coefficients(sat_v, sun_v, los_v, np.full(n_validation, state))
-        errs.append(np.abs((d_t + g_t) - (d_ref + g_ref)) / (d_ref + g_ref + floor))
-    lut.validation_max_rel_error = float(np.max(errs)) if floor > 0 else float("nan")
-    lut.build_seconds = time.perf_counter() - t_start
-    return lut
+        return np.abs((d_t + g_t) - (d_ref + g_ref)) / (d_ref + g_ref + floor)
+
+    return build_lamp_table(
+        off, _sunlit_scene, tasks, shape, "earthshine table", make, error_at, floor, workers
+    )
 
 
 def load_or_build(

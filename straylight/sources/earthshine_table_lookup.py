@@ -1,32 +1,27 @@
-"""What the two earthshine look-up tables share: their coordinates, interpolation and files.
+"""What the two earthshine look-up tables share: their coordinates and interpolation.
 
 A sample's coordinates in a table (:func:`_lamp_coordinates`: the satellite's radius, the lamp's
 zenith angle, the line of sight's zenith angle and azimuth from the lamp, and for the moonlit
 Earth's table the roll; the vectors' components in one compiled pass), the interpolation in
 asinh(c / scale) with each sample read from its own door state's channels
 (:func:`_asinh_grids`, :func:`_per_door_state`), the lamp zenith angle beyond which a table is 0
-(:func:`_dark_lamp_zenith_deg`), and the tables' .npz files (:func:`_save_tables`,
-:func:`_load_tables`).  The tables are :class:`~straylight.sources.earthshine_table.EarthshineLUT`
-(the sunlit Earth) and :class:`~straylight.sources.moonlit_table.MoonlitLUT` (the moonlit Earth);
-this module has no public names.
+(:func:`_dark_lamp_zenith_deg`).  The tables are
+:class:`~straylight.sources.earthshine_table.EarthshineLUT` (the sunlit Earth) and
+:class:`~straylight.sources.moonlit_table.MoonlitLUT` (the moonlit Earth); their files are
+:class:`~straylight.sources.lamp_table.LampTable`'s.  This module has no public names.
 """
 
 from __future__ import annotations
 
-import json
-import os
-from pathlib import Path
-
 import numpy as np
 from numba import njit
 
-from straylight.errors import InputError
 from straylight.optics.door import door_state_index
 from straylight.sky.runs import scene_rows
 from straylight.sky.vectors import any_perpendicular_xyz, dot, norm, unit, unit_xyz
 from straylight.util.gridinterp import LinearGrid
 
-#: the tables' private helpers, for earthshine_table and moonlit_table only
+#: the tables' private helpers, for earthshine_table, moonlit_table and lamp_table only
 __all__: list[str] = []
 
 
@@ -54,31 +49,6 @@ def _per_door_state(interpolator: tuple, coords, opening_deg, shape, scale: floa
     if not np.all(known):
         both[~known] = 0.0
     return both[:, 0].reshape(shape), both[:, 1].reshape(shape)
-
-
-def _save_tables(path, axes: dict, direct: dict, door: dict, meta: dict) -> None:
-    """Axes, per-door-state tables and metadata to one .npz, atomically (concurrent builders
-    never share a temporary)."""
-    p = Path(path)
-    tmp = p.with_name(f"{p.stem}.{os.getpid()}.partial.npz")
-    arrays = dict(axes)
-    for s in direct:
-        arrays[f"direct_{s:g}"] = direct[s]
-        arrays[f"door_{s:g}"] = door[s]
-    np.savez(tmp, meta=np.array(json.dumps({"states": [float(s) for s in direct], **meta})), **arrays)
-    tmp.replace(p)
-
-
-def _load_tables(path, what: str):
-    """(arrays, metadata, direct, door) of a table :func:`_save_tables` wrote; InputError naming
-    the file when it is not one."""
-    try:
-        z = np.load(path, allow_pickle=False)
-        meta = json.loads(str(z["meta"]))
-        states = meta["states"]
-        return z, meta, {s: z[f"direct_{s:g}"] for s in states}, {s: z[f"door_{s:g}"] for s in states}
-    except (OSError, KeyError, ValueError) as exc:
-        raise InputError(f"{path}: not a valid {what} look-up table ({exc}); delete it to rebuild") from exc
 
 
 def _dark_lamp_zenith_deg(zenith_nodes_deg, tables, axis: int) -> float:

@@ -260,8 +260,10 @@ def cache_path(prefix: str, key: str) -> Path:
     return cache_dir() / f"{prefix}_{key}.npz"
 
 
-def _digest(prefix: str, off, items: tuple) -> str:
-    """16 hex digits of sha256 over ``prefix``, the PST, the door and Earth settings, and ``items``."""
+def _digest(prefix: str, off, earth_radius_km, radius_range_km, settings, *items) -> str:
+    """16 hex digits of sha256 over ``prefix``, the PST, the door and Earth settings, the Earth's
+    radius and the orbit's radii (km), the node ``settings``, and the table's own ``items``."""
+    items = (round(earth_radius_km, 6), tuple(round(r, 3) for r in radius_range_km), settings) + items
     h = hashlib.sha256(prefix.encode())
     h.update(np.ascontiguousarray(off.pst.values).tobytes())
     h.update(
@@ -299,13 +301,11 @@ def lut_key(
     return _digest(
         f"format {LUT_FORMAT}",
         off,
-        (
-            round(earth_radius_km, 6),
-            tuple(round(r, 3) for r in radius_range_km),
-            settings,
-            f"{floor:.6g}",
-            tuple(float(a) for a in avoidance_deg),
-        ),
+        earth_radius_km,
+        radius_range_km,
+        settings,
+        f"{floor:.6g}",
+        tuple(float(a) for a in avoidance_deg),
     )
 
 
@@ -335,15 +335,13 @@ def moonlit_key(
     return _digest(
         f"moonlit format {MOONLIT_FORMAT}",
         off,
-        (
-            round(earth_radius_km, 6),
-            tuple(round(r, 3) for r in radius_range_km),
-            settings,
-            tuple(int(g) for g in grid),
-            f"{floor:.6g}",
-            f"{moon_max:.6g}",
-            float(dark_limb_min_deg),
-        ),
+        earth_radius_km,
+        radius_range_km,
+        settings,
+        tuple(int(g) for g in grid),
+        f"{floor:.6g}",
+        f"{moon_max:.6g}",
+        float(dark_limb_min_deg),
     )
 
 

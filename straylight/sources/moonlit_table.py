@@ -7,7 +7,8 @@ tolerance, and elsewhere taken from a table of their own (:class:`MoonlitLUT`), 
 one angle more than the sunlit Earth's, the telescope's roll: it is set by the Sun, not by the
 Moon.  The table is interpolated as the sunlit Earth's is
 (:mod:`straylight.sources.earthshine_table_lookup`); it is built with the coarse Earth-cap grid,
-validated against the direct sum and cached by :mod:`straylight.sources.moonlit_table_build`.
+validated against the direct sum and cached by :mod:`straylight.sources.moonlit_table_build`;
+its file and dark runs are :class:`~straylight.sources.lamp_table.LampTable`'s.
 """
 
 from __future__ import annotations
@@ -17,21 +18,14 @@ from functools import cached_property
 
 import numpy as np
 
-from straylight.sources.earthshine_table_lookup import (
-    _asinh_grids,
-    _beyond_dark_zenith,
-    _dark_lamp_zenith_deg,
-    _lamp_coordinates,
-    _load_tables,
-    _per_door_state,
-    _save_tables,
-)
+from straylight.sources.earthshine_table_lookup import _asinh_grids, _lamp_coordinates, _per_door_state
+from straylight.sources.lamp_table import LampTable
 
 __all__ = ["MoonlitLUT"]
 
 
 @dataclass
-class MoonlitLUT:
+class MoonlitLUT(LampTable):
     """The moonlit Earth's coefficients (direct and via the door, per unit lunar irradiance at
     the Earth, outside the field) on the coarse Earth-cap ``grid`` the direct path sums
     (models.earthshine.moonlit_grid), tabulated over (Moon zenith, line-of-sight zenith,
@@ -52,6 +46,17 @@ class MoonlitLUT:
     validation_max_rel_error: float = float("nan")
     build_seconds: float = float("nan")
 
+    FILE_ARRAYS = ("moon_zenith_deg", "los_zenith_deg", "azimuth_deg", "roll_deg")
+    FILE_META = {
+        "symmetric": bool,
+        "scale": float,
+        "grid": tuple,
+        "validation_max_rel_error": float,
+        "build_seconds": float,
+    }
+    WHAT = "moonlit-Earth"
+    DARK_ZENITH = "dark_moon_zenith_deg"
+
     def _interpolators(self):
         if not hasattr(self, "_interp"):
             axes = (self.moon_zenith_deg, self.los_zenith_deg, self.azimuth_deg, self.roll_deg)
@@ -60,25 +65,8 @@ class MoonlitLUT:
 
     @cached_property
     def dark_moon_zenith_deg(self) -> float:
-        """The Moon zenith angle beyond which the table is 0, deg (:func:`_dark_lamp_zenith_deg`)."""
-        return _dark_lamp_zenith_deg(
-            self.moon_zenith_deg, (*self.direct.values(), *self.door.values()), axis=0
-        )
-
-    def dark_runs(self, rows) -> np.ndarray:
-        """Per run of ``rows`` (scene runs of (satellite, Moon)): no moonlit Earth in view, the
-        table 0 (beyond :attr:`dark_moon_zenith_deg`).
-
-        Parameters
-        ----------
-        rows : SceneRuns
-            Scene runs of (satellite, Moon) positions, km.
-
-        Returns
-        -------
-        ndarray of bool, shape (runs,)
-        """
-        return _beyond_dark_zenith(rows, self.dark_moon_zenith_deg)
+        """The Moon zenith angle beyond which the table is 0, deg (every node from there on is 0)."""
+        return self._dark_zenith_deg(self.moon_zenith_deg, axis=0)
 
     def coordinates(self, sat_km, moon_km, frame, runs=None):
         """(Moon zenith, line-of-sight zenith, azimuth from the Moon, roll) of samples, deg;
@@ -124,65 +112,4 @@ class MoonlitLUT:
         shape = zm.shape
         return _per_door_state(
             self._interpolators(), [v.ravel() for v in (zm, zeta, a, roll)], opening_deg, shape, self.scale
-        )
-
-    def save(self, path) -> None:
-        """Write the table to ``path``.
-
-        Parameters
-        ----------
-        path : str or Path
-            The .npz file, written atomically (its axes, one direct and one door table per door
-            state, and the metadata as JSON).
-        """
-        _save_tables(
-            path,
-            {
-                "moon_zenith_deg": self.moon_zenith_deg,
-                "los_zenith_deg": self.los_zenith_deg,
-                "azimuth_deg": self.azimuth_deg,
-                "roll_deg": self.roll_deg,
-            },
-            self.direct,
-            self.door,
-            {
-                "symmetric": self.symmetric,
-                "scale": self.scale,
-                "grid": list(self.grid),
-                "validation_max_rel_error": self.validation_max_rel_error,
-                "build_seconds": self.build_seconds,
-            },
-        )
-
-    @classmethod
-    def load(cls, path) -> "MoonlitLUT":
-        """Read a table :meth:`save` wrote.
-
-        Parameters
-        ----------
-        path : str or Path
-            A .npz file :meth:`save` wrote.
-
-        Returns
-        -------
-        MoonlitLUT
-
-        Raises
-        ------
-        InputError
-            When the file cannot be read or is not such a table.
-        """
-        z, meta, direct, door = _load_tables(path, "moonlit-Earth")
-        return cls(
-            z["moon_zenith_deg"],
-            z["los_zenith_deg"],
-            z["azimuth_deg"],
-            z["roll_deg"],
-            direct,
-            door,
-            bool(meta["symmetric"]),
-            float(meta["scale"]),
-            tuple(meta["grid"]),
-            float(meta["validation_max_rel_error"]),
-            float(meta["build_seconds"]),
         )

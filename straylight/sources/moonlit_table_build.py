@@ -4,7 +4,7 @@ The table (:class:`~straylight.sources.moonlit_table.MoonlitLUT`) holds the dire
 :class:`~straylight.sources.offfield.OffFieldModel` on the coarse Earth-cap grid at its nodes
 (:class:`~straylight.sources.earthshine_table_nodes.MoonlitSettings`), built one Moon zenith
 angle per task in threads as the sunlit Earth's table is
-(:mod:`straylight.sources.earthshine_table_build`), validated against the direct sum at random
+(:func:`~straylight.sources.lamp_table.build_lamp_table`), validated against the direct sum at random
 points (any Moon, roll, radius and Moon distance) and cached under a digest of everything it
 depends on (:func:`load_or_build_moonlit`).
 """
@@ -16,7 +16,6 @@ from dataclasses import replace
 import numpy as np
 
 from straylight.sources.body_magnitudes import MOON_APOGEE_KM, MOON_MEAN_DISTANCE_KM, MOON_PERIGEE_KM
-from straylight.sources.earthshine_table_build import _asinh_scale, _run_scenes
 from straylight.sources.earthshine_table_nodes import (
     MOONLIT_LUT_BUILD_SECONDS_PER_NODE,
     MoonlitSettings,
@@ -24,6 +23,7 @@ from straylight.sources.earthshine_table_nodes import (
     mirror_symmetric,
     moonlit_key,
 )
+from straylight.sources.lamp_table import build_lamp_table
 from straylight.sources.moonlit_table import MoonlitLUT
 
 __all__ = [
@@ -126,11 +126,7 @@ def build_moonlit_lut(
     MoonlitLUT
         With ``validation_max_rel_error`` (a fraction of the total) and ``build_seconds``.
     """
-    import time
-
-    t_start = time.perf_counter()
     symmetric = mirror_symmetric(off)
-    off._kernel_tables  # the door's tables once, before the threads share them
     r0 = 0.5 * (radius_range_km[0] + radius_range_km[1])
     zm, zl, az, roll = settings.nodes(float(radius_range_km[0]), earth_radius_km, symmetric)
     Zm, L, A, P = (
@@ -144,16 +140,11 @@ def build_moonlit_lut(
         (off, R[p], D[p], Zm[p], L[p], A[p], P[p], None, earth_radius_km, tuple(grid))
         for p in (slice(i * per_zm, (i + 1) * per_zm) for i in range(zm.size))
     ]
-    results = _run_scenes(_moon_coefficients_direct, tasks, workers, "moonlit-Earth table")
     shape = (zm.size, zl.size, az.size, roll.size)
-    ascending = sorted(off.door_states_deg)
-    direct, door = {}, {}
-    for state in off.door_states_deg:
-        j = ascending.index(state)
-        direct[state] = np.concatenate([res[0][:, j] for res in results]).reshape(shape)
-        door[state] = np.concatenate([res[1][:, j] for res in results]).reshape(shape)
-    scale = _asinh_scale(direct, door)
-    lut = MoonlitLUT(zm, zl, az, roll, direct, door, symmetric, scale, tuple(int(g) for g in grid))
+
+    def make(direct, door, scale, results):
+        return MoonlitLUT(zm, zl, az, roll, direct, door, symmetric, scale, tuple(int(g) for g in grid))
+
     rng = np.random.default_rng(20261122)
     n = n_validation
     limb = 90.0 + np.degrees(np.arccos(earth_radius_km / radius_range_km[0]))
@@ -165,14 +156,15 @@ def build_moonlit_lut(
     )
     va, vp = np.radians(rng.uniform(0.0, 360.0, n)), np.radians(rng.uniform(0.0, 360.0, n))
     sat_v, moon_v, frame_v = _moonlit_scene(vr, vd, vz, vl, va, vp)
-    errs = []
-    for state in off.door_states_deg:
+
+    def error_at(lut, state):
         d_ref, g_ref = _moon_coefficients_direct(off, vr, vd, vz, vl, va, vp, state, earth_radius_km, grid)
         d_t, g_t = lut.coefficients(sat_v, moon_v, frame_v, np.full(n, state))
-        errs.append(np.abs((d_t + g_t) - (d_ref + g_ref)) * moon_max / ((d_ref + g_ref) * moon_max + floor))
-    lut.validation_max_rel_error = float(np.max(errs)) if floor > 0 else float("nan")
-    lut.build_seconds = time.perf_counter() - t_start
-    return lut
+        return np.abs((d_t + g_t) - (d_ref + g_ref)) * moon_max / ((d_ref + g_ref) * moon_max + floor)
+
+    return build_lamp_table(
+        off, _moon_coefficients_direct, tasks, shape, "moonlit-Earth table", make, error_at, floor, workers
+    )
 
 
 def load_or_build_moonlit(
