@@ -22,6 +22,35 @@ def campaign():
     return load_campaign(REPO / "config" / "config.yaml")
 
 
+#: the real CSST throughput curves (Wen et al. 2024; test-only data, shared/data/DATA.md)
+THROUGHPUT = SHARED_DATA / "csst_throughput"
+
+
+@pytest.fixture(scope="session")
+def zero_point_less_real_curves_mag(campaign):
+    """Per band, the default instrument's AB zero point less that of the real CSST curve
+    (:data:`THROUGHPUT`), mag, both through the campaign's aperture; skips when the curves are
+    absent."""
+    from straylight.optics.bandpass import (
+        Band,
+        aperture_area_m2,
+        load_band,
+        read_throughput_file,
+        zero_point_ab_mag,
+    )
+
+    if not THROUGHPUT.exists():
+        pytest.skip("../shared/data/csst_throughput (test-only real CSST curves) not present")
+    area = aperture_area_m2(campaign.instrument)
+    d = {}
+    for b in campaign.bands:
+        wl, t = read_throughput_file(THROUGHPUT / f"csst_phot.{b.lower()}.fits")
+        d[b] = zero_point_ab_mag(load_band(campaign.instrument, b), area) - zero_point_ab_mag(
+            Band(b, wl, t, "file"), area
+        )
+    return d
+
+
 @pytest.fixture(scope="session")
 def default_tables():
     """The default campaign's earthshine tables in the session's cache (built once if missing), for

@@ -8,10 +8,9 @@ assumptions (sky, zero points, exposures, detector), not a tuned model.
 
 import numpy as np
 import pytest
-from conftest import SHARED_DATA
+from conftest import THROUGHPUT
 
 PUBLISHED_DEPTH_MAG = {"g": 26.3, "i": 25.9}  # Qu et al. 2023 abstract
-THROUGHPUT = SHARED_DATA / "csst_throughput"
 
 
 def _high_latitude_limits(campaign):
@@ -89,27 +88,13 @@ def test_a_measured_curve_is_scaled_to_the_given_zero_point(tmp_path, campaign):
 @pytest.mark.skipif(
     not THROUGHPUT.exists(), reason="../shared/data/csst_throughput (test-only real CSST curves) not present"
 )
-def test_unpublished_zero_points_against_the_real_curves(campaign):
+def test_unpublished_zero_points_against_the_real_curves(zero_point_less_real_curves_mag):
     """NUV, u and y have no published zero point: NUV's and u's are those of the real CSST curves
     (Wen et al. 2024; test-only; the flat top at the peak was +0.27 and +0.19 mag brighter), y's
     flat top at the peak equals its curve's: measured default - real = +0.002 (NUV), -0.003 (u),
     +0.004 (y) mag (docs/assumptions.md); and the published g r i z zero points sit 0.09 (g),
     0.14 (r), 0.11 (i), 0.00 (z) mag below the real curves'."""
-    from straylight.optics.bandpass import (
-        Band,
-        aperture_area_m2,
-        load_band,
-        read_throughput_file,
-        zero_point_ab_mag,
-    )
-
-    area = aperture_area_m2(campaign.instrument)
-    d = {}
-    for b in campaign.bands:
-        wl, t = read_throughput_file(THROUGHPUT / f"csst_phot.{b.lower()}.fits")
-        d[b] = zero_point_ab_mag(load_band(campaign.instrument, b), area) - zero_point_ab_mag(
-            Band(b, wl, t, "file"), area
-        )
+    d = zero_point_less_real_curves_mag
     print("AB zero point, default - real curves:", {b: round(v, 3) for b, v in d.items()})
     # NUV and u: config/instruments/csst.yaml's zero_point_ab_mag, Wen et al. 2024's curves'
     # zero points (24.868, 25.303) rounded to 0.01 mag; were +0.27 and +0.19 with the flat top

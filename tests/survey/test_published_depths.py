@@ -13,13 +13,12 @@ EE80 aperture.
 
 import numpy as np
 import pytest
-from conftest import REPO, SHARED_DATA
+from conftest import REPO, SHARED_DATA, THROUGHPUT
 
 PUBLISHED_DEPTH_MAG = {"NUV": 25.4, "u": 25.4, "g": 26.3, "r": 26.0, "i": 25.9, "z": 25.2, "y": 24.4}
 CALSN_ZODIACAL_V_MAG = 21.0  # calSN's default zodiacal light, V mag/arcsec2 (DATA.md)
 CALSN_EARTHSHINE_FRACTION = 0.5  # calSN's default: half of HST's "high" earthshine (DATA.md)
 EARTHSHINE = SHARED_DATA / "hst_sky" / "earthshine.fits"
-THROUGHPUT = SHARED_DATA / "csst_throughput"
 POLE_B500 = 77e-8  # W m-2 sr-1 um-1: Leinert et al. 1998 Table 17 at the ecliptic pole
 
 
@@ -135,26 +134,14 @@ def test_depth_with_calsn_sky_against_qu_2023_and_gong_2019(campaign):
 @pytest.mark.skipif(
     not THROUGHPUT.exists(), reason="../shared/data/csst_throughput (test-only real CSST curves) not present"
 )
-def test_nuv_and_u_zero_points_are_wen_2024s_and_the_offset_range_is_gri_zs_spread(campaign):
+def test_nuv_and_u_zero_points_are_wen_2024s_and_the_offset_range_is_gri_zs_spread(
+    campaign, zero_point_less_real_curves_mag
+):
     """NUV and u have no published zero point: the instrument file gives those of Wen et al.
     2024's curves (24.87, 25.30; the flat top at the peak gave 25.136 and 25.493).  The offset
     range [-0.14, 0] carried into the assumption envelope (NUV, u, y) is the spread of the
     published g r i z zero points below the same curves: -0.088, -0.144, -0.108, +0.003 mag."""
-    from straylight.optics.bandpass import (
-        Band,
-        aperture_area_m2,
-        load_band,
-        read_throughput_file,
-        zero_point_ab_mag,
-    )
-
-    area = aperture_area_m2(campaign.instrument)
-    d = {}
-    for b in campaign.bands:
-        wl, t = read_throughput_file(THROUGHPUT / f"csst_phot.{b.lower()}.fits")
-        d[b] = zero_point_ab_mag(load_band(campaign.instrument, b), area) - zero_point_ab_mag(
-            Band(b, wl, t, "file"), area
-        )
+    d = zero_point_less_real_curves_mag
     print("AB zero point, default - Wen et al. 2024:", {b: round(v, 3) for b, v in d.items()})
     for b in ("NUV", "u", "y"):
         assert abs(d[b]) < 0.005, b
