@@ -238,6 +238,26 @@ def _add_figure(sub) -> None:
     fg.set_defaults(func=paper.cmd_figure)
 
 
+def _add_time_window(p, start_flag: str, one_time: bool = False) -> None:
+    """The options of a window of sampled times, as
+    :func:`straylight.survey.visibility.sampled_window` checks them: its start ``start_flag``,
+    ``--end`` (exclusive) and ``--step-min``.  ``one_time`` (etc): the start is required, one time
+    without ``--end``; else (visibility) the window is the campaign's by default."""
+    if one_time:
+        p.add_argument(start_flag, required=True, help="UTC time, ISO 8601 (with --end: the window's start)")
+        end_help, step_help = "UTC end of a window of times, exclusive", "with --end: sampling step"
+    else:
+        p.add_argument(start_flag, default=None, help="UTC start, ISO 8601 (default: the campaign's start)")
+        end_help, step_help = "UTC end, exclusive (default: the campaign's end)", "sampling step"
+    p.add_argument("--end", default=None, help=end_help)
+    p.add_argument(
+        "--step-min",
+        type=finite_float("--step-min"),
+        default=None,
+        help=f"{step_help}, minutes (default: the campaign's cadence)",
+    )
+
+
 def _add_visibility(sub) -> None:
     v = sub.add_parser(
         "visibility", help="a target's background, 5-sigma limit and observable windows over time"
@@ -253,14 +273,7 @@ def _add_visibility(sub) -> None:
         "per target and month; --out FOLDER gets it and each target's windows and days",
     )
     v.add_argument("--band", required=True, help="band (NUV u g r i z y)")
-    v.add_argument("--start", default=None, help="UTC start, ISO 8601 (default: the campaign's start)")
-    v.add_argument("--end", default=None, help="UTC end, exclusive (default: the campaign's end)")
-    v.add_argument(
-        "--step-min",
-        type=finite_float("--step-min"),
-        default=None,
-        help="sampling step, minutes (default: the campaign's cadence)",
-    )
+    _add_time_window(v, "--start")
     v.add_argument(
         "--threshold",
         type=finite_float("--threshold"),
@@ -296,14 +309,7 @@ def _add_etc(sub) -> None:
     )
     et.add_argument("--ra", required=True, help="ICRS right ascension, deg")
     et.add_argument("--dec", required=True, help="ICRS declination, deg")
-    et.add_argument("--time", required=True, help="UTC time, ISO 8601 (with --end: the window's start)")
-    et.add_argument("--end", default=None, help="UTC end of a window of times, exclusive")
-    et.add_argument(
-        "--step-min",
-        type=finite_float("--step-min"),
-        default=None,
-        help="with --end: sampling step, minutes (default: the campaign's cadence)",
-    )
+    _add_time_window(et, "--time", one_time=True)
     et.add_argument("--mag", required=True, type=finite_float("--mag"), help="source AB magnitude")
     what = et.add_mutually_exclusive_group()
     what.add_argument(
