@@ -268,22 +268,15 @@ SOURCES = [
 ]
 
 
-def component_names(total: bool = False) -> tuple:
-    """The components' names, in the order they are added into the total (no parts): the
-    cube's (time, pixel, band) variables, the pointing tables' and ``straylight sky``'s
-    columns, the API's, with ``total=True``.
-
-    Parameters
-    ----------
-    total : bool
-        Whether :data:`TOTAL` follows them.
+def component_names() -> tuple:
+    """The components' names, in the order they are added into the total (no parts, no total).
 
     Returns
     -------
     tuple of str
-        The names of :data:`COMPONENTS` (then :data:`TOTAL`).
+        The names of :data:`COMPONENTS`.
     """
-    return tuple(c.name for c in COMPONENTS) + ((TOTAL,) if total else ())
+    return tuple(c.name for c in COMPONENTS)
 
 
 def band_components() -> tuple:

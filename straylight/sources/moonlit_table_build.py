@@ -11,8 +11,6 @@ depends on (:func:`load_or_build_moonlit`).
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 
 from straylight.sources.body_magnitudes import MOON_APOGEE_KM, MOON_MEAN_DISTANCE_KM, MOON_PERIGEE_KM
@@ -59,7 +57,7 @@ def _moon_coefficients_direct(off, R, D, Zm, L, A, P, state, earth_radius_km, gr
     groups = {}
     for i, key in enumerate(zip(R.tolist(), D.tolist(), Zm.tolist())):
         groups.setdefault(key, []).append(i)
-    es = replace(off.earthshine, n_gamma=int(grid[0]), n_psi=int(grid[1]))
+    es = off.cap_settings(grid)
     for idx in groups.values():
         idx = np.asarray(idx)
         sat, moon, frame = _moonlit_scene(R[idx], D[idx], Zm[idx], L[idx], A[idx], P[idx])

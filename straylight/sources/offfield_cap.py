@@ -87,6 +87,28 @@ class EarthCapGrid:
     (a mixin: it reads the model's ``pst``, ``door``, ``earthshine``, ``pixel_area_m2``,
     ``pixel_etendue_m2_sr`` and ``field_radius_deg``)."""
 
+    def cap_settings(self, grid: tuple[int, int] | None = None) -> EarthshineSettings:
+        """The Earth grid's settings: the configured ones (:attr:`earthshine`) with the
+        (n_gamma, n_psi) of ``grid`` in place of theirs.
+
+        Parameters
+        ----------
+        grid : tuple of (int, int), optional
+            (n_gamma, n_psi) of the Earth-cap grid; None: the configured one.
+
+        Returns
+        -------
+        EarthshineSettings
+
+        Raises
+        ------
+        ConfigError
+            When the grid is too coarse (:class:`EarthshineSettings`).
+        """
+        if grid is None:
+            return self.earthshine
+        return replace(self.earthshine, n_gamma=int(grid[0]), n_psi=int(grid[1]))
+
     @staticmethod
     def _cap_nadir_angles(sat_km, earth_radius_km, s: EarthshineSettings):
         """The cap grid's nadir angles gamma and their widths (rad, (..., G)): packed towards
@@ -337,7 +359,7 @@ class EarthCapGrid:
         ndarray, shape (n,)
             The bound, e-/s/pix per photon s-1 m-2 of the lamp (writable).
         """
-        s = replace(self.earthshine, n_gamma=int(grid[0]), n_psi=int(grid[1]))
+        s = self.cap_settings(grid)
         # it depends on the satellite's radius alone: once per run of samples sharing the
         # satellite (a cube's time step)
         rows = scene_rows(np.asarray(sat_km, float), runs=runs)

@@ -85,11 +85,7 @@ class EarthshineSums:
             samples' broadcast shape, e-/s/pix per photon s-1 m-2 of the lamp (the Sun at the
             satellite, the Moon at the Earth).
         """
-        s = (
-            self.earthshine
-            if grid is None
-            else replace(self.earthshine, n_gamma=int(grid[0]), n_psi=int(grid[1]))
-        )
+        s = self.cap_settings(grid)
         one = shared_vectors(sat_km, sun_km, moon_km)
         if one is not None:
             out = self._earthshine_one_scene(*one, frame, opening_deg, earth_radius_km, moon, sun, s)
