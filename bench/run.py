@@ -37,7 +37,6 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _results import write_results  # noqa: E402
 from knobs.common import (
-    COMPONENTS,
     DEFAULT,
     DEFAULT_STARS,
     REFERENCE,
@@ -130,9 +129,11 @@ def main(argv=None):
     def_stars = bench.stars(*DEFAULT_STARS)
     res_def, t_def = timed(lambda: bench.evaluate(def_model, def_stars))
     def_err = max_rel_error(res_def, ref, bench.bands)
+    from straylight.model import registry
+
     per_component = {
         c: max(float(np.max(np.abs(res_def[b][c] - ref[b][c]) / ref[b]["total"])) for b in bench.bands)
-        for c in COMPONENTS
+        for c in registry.component_names()
     }
     print(f"default:   {bench.n / t_def:9.0f} samples/s/core, max error {def_err:.2e} of the total")
     print(f"reference: {bench.n / t_ref:9.1f} samples/s/core, max error {ref_err:.2e} against a finer model")

@@ -297,8 +297,9 @@ def _empty_table(campaign, t, bands):
     """:meth:`SkyModel.background`'s table with no rows: the pointing table's columns, empty,
     through the same conversion to a QTable (so columns and units cannot differ from a computed
     one's)."""
+    from straylight.model import registry
     from straylight.survey.limits import sky_zero_points
-    from straylight.survey.pointings import _qtable, table_components
+    from straylight.survey.pointings import _qtable
 
     none = np.zeros(0)
     cols = {
@@ -314,7 +315,7 @@ def _empty_table(campaign, t, bands):
     }
     cols.update(observable=np.zeros(0, bool), violations=np.zeros(0, np.int64))
     for b in bands:
-        cols.update({f"{c}_{b}": none for c in table_components()})
+        cols.update({f"{c}_{b}": none for c in registry.component_names(total=True)})
         if b != "V":  # the diagnostic band has no limit
             cols[f"limit_mag_{b}"] = none
     return _qtable(cols, t, bands, sky_zero_points(campaign, bands), {})

@@ -95,8 +95,8 @@ def test_sky_maps_of_one_band_share_one_colour_scale_over_the_times(campaign, tm
     its values at all those times: a total 1 mag brighter at the second time shows brighter."""
     import healpy as hp
 
+    from straylight.model.registry import component_names
     from straylight.plots.maps import sky_maps
-    from straylight.survey.cube_layout import CUBE_BAND_VARIABLES
     from straylight.survey.limits import ZERO_POINT_NAME, zero_point_coord
 
     nside, pix = 4, np.arange(hp.nside2npix(4))
@@ -104,7 +104,7 @@ def test_sky_maps_of_one_band_share_one_colour_scale_over_the_times(campaign, tm
     first = 1.0 + rng.random(pix.size)
     rates = np.stack([first, first * 10**0.4])[:, :, None]  # (time, pixel, band g)
     ds = xr.Dataset(
-        {c: (("time", "pixel", "band"), rates) for c in CUBE_BAND_VARIABLES}
+        {c: (("time", "pixel", "band"), rates) for c in component_names(total=True)}
         | {"observable": (("time", "pixel"), np.ones(rates.shape[:2], bool))},
         coords={
             "time": np.array(["2026-01-01T00:00", "2026-01-01T12:00"], "datetime64[ns]"),

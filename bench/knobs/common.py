@@ -12,10 +12,6 @@ import numpy as np
 from _samples import random_samples
 
 RESULTS = Path(__file__).resolve().parents[1] / "results"
-from straylight.model.registry import component_names
-
-#: the model's components (straylight.model.registry), in the order they are added
-COMPONENTS = component_names()
 
 #: runs of each fast cube timing (tens of ms each), the best kept
 FAST_REPEATS = 7

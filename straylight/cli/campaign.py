@@ -27,7 +27,8 @@ def cmd_footprint(args) -> int:
 def cmd_plan(args) -> int:
     """``straylight plan``: the samples, products' size and wall time of a campaign before it runs."""
     from straylight.config import load_campaign
-    from straylight.survey.cube_layout import CUBE_BAND_VARIABLES, cube_chunks
+    from straylight.model import registry
+    from straylight.survey.cube_layout import cube_chunks
     from straylight.survey.footprint import footprint_from_config
     from straylight.survey.plan import PRODUCT_BYTES_PER_SAMPLE, estimated_cost
     from straylight.survey.timegrid import time_blocks
@@ -49,7 +50,7 @@ def cmd_plan(args) -> int:
     cores = args.cores or available_cores()
     cost = estimated_cost(campaign, fp, args.seconds_per_sample, speed["factor"] if speed else 1.0, cores)
     n = cost["samples"]
-    cube_bytes = n * nb * 4 * len(CUBE_BAND_VARIABLES) + n * 6
+    cube_bytes = n * nb * 4 * len(registry.component_names(total=True)) + n * 6
     limits_bytes = n * nb * 4 + n
     print(
         f"campaign {campaign.name}: {nt} times x {npix} pixels (nside {fp.nside}, {fp.area_deg2:.0f} deg2) "

@@ -210,9 +210,9 @@ def _sky_band_table(bands: dict) -> str:
     """The per-band lines of `straylight sky`: each component in e-/s/pixel (3 significant
     digits) and in AB mag/arcsec2 (2 decimals), then the 5-sigma limit (AB mag); the
     components are the registry's, then the total."""
-    from straylight.survey.pointings import table_components
+    from straylight.model import registry
 
-    columns = table_components()
+    columns = registry.component_names(total=True)
     head = f"  {'band':4s} {'unit':14s}" + "".join(f"{c:>11s}" for c in columns) + f"{'5-sigma lim':>13s}"
     lines = [head]
     for name, comp in bands.items():

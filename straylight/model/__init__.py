@@ -17,19 +17,12 @@ from straylight.model.fidelity import (
 )
 
 __all__ = [
-    "BAND_COMPONENTS",
     "BackgroundModel",
     "ERROR_BUDGET_SHARES",
     "FidelityPolicy",
     "LUT_BUILD_SECONDS_PER_NODE",
     "LUT_SAVED_SECONDS_PER_SAMPLE",
     "MOONLIT_LUT_BUILD_SECONDS_PER_NODE",
+    "registry",
     "unobservable_samples",
 ]
-
-
-def __getattr__(name):
-    # the per-band outputs as registered now (a source may be registered after import)
-    if name == "BAND_COMPONENTS":
-        return registry.band_components()
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -268,15 +268,22 @@ SOURCES = [
 ]
 
 
-def component_names() -> tuple:
-    """The components' names, in the order they are added into the total (no parts, no total).
+def component_names(total: bool = False) -> tuple:
+    """The components' names, in the order they are added into the total (no parts): the
+    cube's (time, pixel, band) variables, the pointing tables' and ``straylight sky``'s
+    columns, the API's, with ``total=True``.
+
+    Parameters
+    ----------
+    total : bool
+        Whether :data:`TOTAL` follows them.
 
     Returns
     -------
     tuple of str
-        The names of :data:`COMPONENTS`.
+        The names of :data:`COMPONENTS` (then :data:`TOTAL`).
     """
-    return tuple(c.name for c in COMPONENTS)
+    return tuple(c.name for c in COMPONENTS) + ((TOTAL,) if total else ())
 
 
 def band_components() -> tuple:

@@ -360,10 +360,10 @@ def sky_maps(ds, campaign, out_dir, time_indices, bands=None) -> list:
     over all the map times (:func:`~straylight.plots.common.band_colour_limits`)."""
     from astropy.time import Time
 
-    from straylight.survey import cube_layout
+    from straylight.model import registry
 
     nest = str(ds.attrs["healpix_ordering"]).upper() == "NESTED"
-    comps = list(cube_layout.CUBE_BAND_VARIABLES)
+    comps = list(registry.component_names(total=True))
     band_idx = {str(b): ib for ib, b in enumerate(ds["band"].values) if bands is None or str(b) in bands}
     # every component at each map time, all bands, one read a time (each chunk decompressed once)
     snaps = [ds[comps + ["observable"]].isel(time=it).compute() for it in time_indices]

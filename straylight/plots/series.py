@@ -33,15 +33,15 @@ def series_pixel_indices(ds, n_pointings: int = 3, pointings=()) -> list[int]:
 def pointing_series(background_path, pixel_indices) -> list[dict]:
     """Per pointing of ``pixel_indices`` (into the cube's ``pixel``), its whole series in the
     background cube at ``background_path``: name -> (time[, band]) array of every component,
-    the total (:data:`~straylight.survey.cube_layout.CUBE_BAND_VARIABLES`) and ``observable``.  Read
+    the total (:func:`~straylight.model.registry.component_names`) and ``observable``.  Read
     chunk by chunk in this thread (:func:`~straylight.survey.storage.read_region`)."""
     import zarr
 
-    from straylight.survey import cube_layout
+    from straylight.model import registry
     from straylight.survey.storage import read_region
 
     group = zarr.open_group(str(background_path), mode="r", use_consolidated=False)
-    names = list(cube_layout.CUBE_BAND_VARIABLES) + ["observable"]
+    names = list(registry.component_names(total=True)) + ["observable"]
     return [
         {n: read_region(group[n], (slice(None), slice(ip, ip + 1)))[:, 0] for n in names}
         for ip in pixel_indices
@@ -56,8 +56,9 @@ def time_series(ds, campaign, out_dir, pixel_indices, series: list[dict]) -> lis
     from matplotlib.patches import PathPatch
     from matplotlib.ticker import MaxNLocator
 
-    from straylight.survey import cube_layout
+    from straylight.model import registry
 
+    comps = registry.component_names(total=True)
     pix_idx = list(pixel_indices)
     t = ds["time"].values
     minutes = (t - t[0]) / np.timedelta64(1, "m")
@@ -73,7 +74,7 @@ def time_series(ds, campaign, out_dir, pixel_indices, series: list[dict]) -> lis
             for ax, band in zip(np.atleast_1d(axes), bands):
                 ib = bands.index(band)
                 zp = float(_mag(ds, np.array([1.0]), str(band), campaign)[0])  # mag/arcsec2 at 1 e-/s/pix
-                for k, comp in enumerate(cube_layout.CUBE_BAND_VARIABLES):
+                for k, comp in enumerate(comps):
                     y = np.asarray(sub[comp][:, ib], float)[sel]
                     if not np.any(y > 0):
                         continue  # zero all along: no line (listed in the title)
@@ -113,7 +114,7 @@ def time_series(ds, campaign, out_dir, pixel_indices, series: list[dict]) -> lis
                     va="center",
                     ha="left",
                 )
-            missing = [c for c in cube_layout.CUBE_BAND_VARIABLES if c not in shown]
+            missing = [c for c in comps if c not in shown]
             fig.legend(
                 handles=list(shown.values()),
                 loc="upper center",

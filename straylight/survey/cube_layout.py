@@ -1,7 +1,8 @@
 """The background cube's layout: its variables and how it is cut into regions.
 
-``background.zarr`` has dims (time, pixel, band): one float32 variable per component
-(:data:`CUBE_COMPONENTS`, e- s-1 pixel-1) plus ``total``; ``observable``, ``violations`` and
+``background.zarr`` has dims (time, pixel, band): one float32 variable per component and the
+total (``straylight.model.registry.component_names(total=True)``, e- s-1 pixel-1), and the
+parts of :data:`CUBE_PART_VARIABLES`; ``observable``, ``violations`` and
 ``door_opening_deg`` on (time, pixel).  It is chunked one time block
 (``campaign.time_block_hours``: :func:`cube_time_blocks`) x about ``footprint.pixel_block_size``
 pixels (equal blocks: :func:`~straylight.survey.footprint.pixel_block_length`) x all bands.  A
@@ -29,12 +30,9 @@ if TYPE_CHECKING:
     from straylight.survey.footprint import Footprint
 
 __all__ = [
-    "CUBE_BAND_VARIABLES",  # noqa: F822 (module __getattr__: from the registry)
-    "CUBE_COMPONENTS",  # noqa: F822 (module __getattr__: from the registry)
     "CUBE_PART_VARIABLES",
     "CUBE_PIXEL_VARIABLES",
     "LIMITS_REGION_VARIABLES",
-    "LONG_NAMES",  # noqa: F822 (module __getattr__: from the registry)
     "OBSERVABILITY_ANGLES",
     "OBSERVABILITY_VARIABLES",
     "CubeStores",
@@ -65,22 +63,6 @@ LIMITS_REGION_VARIABLES = (
     "limiting_mag_pessimistic",
     "limiting_mag_optimistic",
 )
-
-
-def __getattr__(name):
-    # the components' names and long names as the registry holds them now
-    # (straylight.model.registry; imported here, not at the top, which stays numpy-free)
-    from straylight.model import registry
-
-    if name == "CUBE_COMPONENTS":  # the components, in the order they add into the total
-        return registry.component_names()
-    if (
-        name == "CUBE_BAND_VARIABLES"
-    ):  # the cube's (time, pixel, band) variables: the components and the total
-        return registry.component_names() + (registry.TOTAL,)
-    if name == "LONG_NAMES":  # variable -> long_name of the (time, pixel, band) variables
-        return registry.long_names()
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def cube_time_blocks(campaign: Campaign, n_times: int) -> list[tuple[int, int]]:

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from straylight.model import registry
 from straylight.model.pointing import background_at
 from straylight.sky.runs import SceneRuns
 from straylight.sky.vectors import radec_to_unit
@@ -132,7 +133,7 @@ def compute_region(
 def _dims(name: str) -> tuple:
     """A cube variable's dims: (time, pixel, band) for the components and the total, else
     (time, pixel)."""
-    band_vars = cube_layout.CUBE_BAND_VARIABLES + cube_layout.CUBE_PART_VARIABLES
+    band_vars = registry.component_names(total=True) + cube_layout.CUBE_PART_VARIABLES
     return ("time", "pixel", "band") if name in band_vars else ("time", "pixel")
 
 
@@ -160,8 +161,8 @@ def region_values(
     Returns
     -------
     dict of str to ndarray
-        Each component of :data:`~straylight.survey.cube_layout.CUBE_BAND_VARIABLES`,
-        ``total`` and each part of :data:`~straylight.survey.cube_layout.CUBE_PART_VARIABLES`
+        Each component (:func:`~straylight.model.registry.component_names`), ``total`` and
+        each part of :data:`~straylight.survey.cube_layout.CUBE_PART_VARIABLES`
         (NaN where not observable): float32, shape (n_time, n_pixel, n_band), e-/s/pix (views
         into one block);
         ``observable``: bool, (n_time, n_pixel); ``violations``: uint8 bit mask,
@@ -188,7 +189,7 @@ def region_values(
     # one allocation for every component: numpy asks the kernel for huge pages on arrays of 4 MiB
     # or more (a default region's block is), fewer page faults than one array per component
     # the components, the total and the parts the envelope scales apart (CUBE_PART_VARIABLES)
-    names = cube_layout.CUBE_BAND_VARIABLES + cube_layout.CUBE_PART_VARIABLES
+    names = registry.component_names(total=True) + cube_layout.CUBE_PART_VARIABLES
     block = np.zeros((len(names), nt, npix, nb), np.float32)
     out = dict(zip(names, block))
     obs = np.zeros((nt, npix), bool)

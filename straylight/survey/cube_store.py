@@ -99,6 +99,7 @@ def empty_cube(campaign: Campaign, fp: Footprint, times, model, stars_path=None,
     import dask.array as da
     import xarray as xr
 
+    from straylight.model import registry
     from straylight.model.envelope import campaign_envelope
 
     nt, npix, nb = len(times), fp.pixels.size, len(campaign.bands)
@@ -106,8 +107,8 @@ def empty_cube(campaign: Campaign, fp: Footprint, times, model, stars_path=None,
     chunks3 = (ch["time"], ch["pixel"], ch["band"])
     chunks2 = (ch["time"], ch["pixel"])
     data = {}
-    long_names = cube_layout.LONG_NAMES
-    for comp in cube_layout.CUBE_BAND_VARIABLES + cube_layout.CUBE_PART_VARIABLES:
+    long_names = registry.long_names()
+    for comp in registry.component_names(total=True) + cube_layout.CUBE_PART_VARIABLES:
         part = comp in cube_layout.CUBE_PART_VARIABLES  # kept where observable only
         data[comp] = xr.Variable(
             ("time", "pixel", "band"),
@@ -362,10 +363,13 @@ def store_arrays(store, names=None) -> dict:
     """
     import zarr
 
+    from straylight.model import registry
     from straylight.survey.storage import ChunkWriter
 
     group = zarr.open_group(str(store), mode="r+", use_consolidated=False)
-    names = names or cube_layout.CUBE_BAND_VARIABLES + cube_layout.CUBE_PART_VARIABLES + CUBE_PIXEL_VARIABLES
+    names = (
+        names or registry.component_names(total=True) + cube_layout.CUBE_PART_VARIABLES + CUBE_PIXEL_VARIABLES
+    )
     return {name: ChunkWriter(group[name]) for name in names}
 
 

@@ -20,7 +20,6 @@ import numpy as np
 from straylight.errors import InputError
 
 __all__ = [
-    "table_components",
     "ALIASES",
     "read_pointings",
     "check_radec",
@@ -29,21 +28,6 @@ __all__ = [
     "column_units",
     "background_table",
 ]
-
-
-def table_components() -> tuple:
-    """The per-band e-/s/pix columns of a pointing table: the registry's components and the
-    total (:mod:`straylight.model.registry`).
-
-    Returns
-    -------
-    tuple of str
-        Component names in registry order, then ``"total"``; a table column is
-        ``<component>_<band>`` in e-/s/pix.
-    """
-    from straylight.model.registry import TOTAL, component_names
-
-    return component_names() + (TOTAL,)
 
 
 ALIASES = {"time": ("time", "utc", "time_utc"), "ra": ("ra", "ra_deg"), "dec": ("dec", "dec_deg")}
@@ -207,7 +191,8 @@ def pointing_table(
         ``moon_illuminated_fraction``, ``earth_limb_angle_deg``, ``limb_is_bright``,
         ``door_opening_deg``); ``planet_in_field`` (name, "" if none) and
         ``planet_in_field_v_mag`` (Vega V mag, NaN if none); per band ``b``:
-        ``<component>_<b>`` for :func:`table_components` in e-/s/pix,
+        ``<component>_<b>`` for the registry's components and the total
+        (:func:`~straylight.model.registry.component_names`) in e-/s/pix,
         ``total_mag_per_arcsec2_<b>`` in AB mag/arcsec2, and (except V) ``limit_mag_<b>``,
         the 5-sigma point-source limit in AB mag.
 
@@ -219,7 +204,7 @@ def pointing_table(
     """
     from astropy.time import Time
 
-    from straylight.model import BackgroundModel
+    from straylight.model import BackgroundModel, registry
     from straylight.model.pointing import background_at
     from straylight.sky.ephemeris import default_ephemeris
     from straylight.sky.observing import scene
@@ -277,7 +262,7 @@ def pointing_table(
         "door_opening_deg",
     )
     acc = {k: [] for k in geo_keys + ("planet_in_field", "planet_in_field_v_mag")}
-    components = table_components()
+    components = registry.component_names(total=True)
     acc.update({f"{c}_{b}": [] for b in bands for c in components})
     acc.update({f"total_mag_per_arcsec2_{b}": [] for b in bands})
     for a in range(0, n, batch):
@@ -347,7 +332,9 @@ def column_units(cols) -> dict:
         Column name to unit string (e.g. ``"deg"``, ``"electron / (s pixel)"``,
         ``"mag(AB) arcsec-2"``); unitless columns are absent.
     """
-    out, components = dict(UNITS), table_components()
+    from straylight.model import registry
+
+    out, components = dict(UNITS), registry.component_names(total=True)
     for k in cols:
         if k.startswith("total_mag_per_arcsec2_"):
             out[k] = "mag(AB) arcsec-2"
@@ -437,9 +424,9 @@ def _qtable(cols: dict, t, bands, zero_points: dict, models: dict):
     for name in ("sun_angle", "moon_angle", "earth_limb_angle", "door_opening"):
         columns[name] = u.Quantity(np.asarray(cols[f"{name}_deg"], float), u.deg)
         formats[name] = ".3f"
-    from straylight.model.registry import long_names
+    from straylight.model import registry
 
-    descriptions, components, long_name = {}, table_components(), long_names()
+    descriptions, components, long_name = {}, registry.component_names(total=True), registry.long_names()
     for b in bands:
         for c in components:
             columns[f"{c}_{b}"] = u.Quantity(np.asarray(cols[f"{c}_{b}"], float), rate)

@@ -10,12 +10,14 @@ import numpy as np
 import pytest
 
 from straylight.config import campaign_from_dict, deep_merge
-from straylight.model import BAND_COMPONENTS, ERROR_BUDGET_SHARES, BackgroundModel, FidelityPolicy
+from straylight.model import ERROR_BUDGET_SHARES, BackgroundModel, FidelityPolicy
+from straylight.model.registry import band_components
 from straylight.sky.geometry import observing_geometry
 from straylight.sky.observing import scene
 from straylight.sky.vectors import radec_to_unit
 
 SUMMED = ("zodiacal", "sun", "moon", "planets", "stars", "earthshine_direct", "earthshine_door")
+BAND_COMPONENTS = band_components()
 
 
 def test_total_is_the_sum_of_the_sources_in_every_band(campaign):

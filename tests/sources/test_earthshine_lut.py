@@ -621,7 +621,7 @@ def test_cube_region_split_into_calls_gives_the_same_values(coarse, monkeypatch)
     """A region evaluated in several calls (a small SAMPLES_PER_EVALUATION) equals the region in
     one call, value for value: each sample depends on that sample alone."""
     import straylight.survey.cube_region as cube
-    from straylight.survey import cube_layout
+    from straylight.model import registry
     from straylight.survey.footprint import footprint_from_config
 
     c, cm, _ = coarse
@@ -632,7 +632,7 @@ def test_cube_region_split_into_calls_gives_the_same_values(coarse, monkeypatch)
         cube, "SAMPLES_PER_EVALUATION", 150
     )  # 7 steps of 60 pixels: calls of 1, 2, 2, 2 steps
     split = cube.compute_region(c, fp, t_slice, p_slice, model=cm)
-    for name in list(cube_layout.CUBE_COMPONENTS) + ["total", "observable", "violations", "door_opening_deg"]:
+    for name in list(registry.component_names()) + ["total", "observable", "violations", "door_opening_deg"]:
         np.testing.assert_array_equal(split[name].values, whole[name].values, err_msg=name)
     assert np.count_nonzero(whole["total"].values) == whole["total"].size
 
@@ -641,8 +641,8 @@ def test_cube_region_with_its_time_blocks_scene_gives_the_same_values(coarse):
     """A pixel block given its time block's scene (cube.run_time_blocks computes it once for
     all its pixel blocks) equals one that computes its own; a scene at other times is refused."""
     import straylight.survey.cube_region as cube
+    from straylight.model import registry
     from straylight.sky.observing import scene
-    from straylight.survey import cube_layout
     from straylight.survey.footprint import footprint_from_config
 
     c, cm, _ = coarse
@@ -652,7 +652,7 @@ def test_cube_region_with_its_time_blocks_scene_gives_the_same_values(coarse):
     for p_slice in (slice(0, 40), slice(300, 340)):
         own = cube.compute_region(c, fp, t_slice, p_slice, model=cm)
         shared = cube.compute_region(c, fp, t_slice, p_slice, model=cm, scene=block_scene)
-        for name in list(cube_layout.CUBE_COMPONENTS) + ["total", "observable", "door_opening_deg"]:
+        for name in list(registry.component_names()) + ["total", "observable", "door_opening_deg"]:
             np.testing.assert_array_equal(shared[name].values, own[name].values, err_msg=name)
     with pytest.raises(ValueError, match="not at the region's"):
         cube.compute_region(c, fp, slice(1, 13, 4), slice(0, 40), model=cm, scene=block_scene)
@@ -664,11 +664,12 @@ def test_evaluate_into_a_given_array_writes_the_same_values(coarse):
     """BackgroundModel.evaluate(into=(names, array)) (the cube's float32 region) writes each
     asked-for component's values, in the order asked, the float64 ones of a plain call rounded
     to float32, and returns no other; an unknown name or a wrongly shaped array is refused."""
-    from straylight.model import BAND_COMPONENTS
+    from straylight.model.registry import band_components
     from straylight.sky.geometry import observing_geometry
     from straylight.sky.observing import scene
     from straylight.sky.vectors import radec_to_unit
 
+    BAND_COMPONENTS = band_components()
     c, cm, _ = coarse
     sc = scene(c.orbit, c.times[0:20:5])
     los = radec_to_unit(np.linspace(0.0, 350.0, 50), np.linspace(-60.0, 70.0, 50))
@@ -710,7 +711,7 @@ def test_cube_region_skipping_unobservable_samples_changes_no_observable_value(c
     """models.unobservable_samples: skip evaluates only the observable samples: they come out
     bit-identical to evaluating every sample, every other sample is NaN in every component, and
     the flags are the same."""
-    from straylight.survey.cube_layout import CUBE_COMPONENTS
+    from straylight.model.registry import component_names
     from straylight.survey.cube_region import compute_region
     from straylight.survey.footprint import footprint_from_config
 
@@ -726,7 +727,7 @@ def test_cube_region_skipping_unobservable_samples_changes_no_observable_value(c
     assert 200 < obs.sum() < 0.9 * obs.size  # both kinds of sample present
     for v in ("observable", "violations", "door_opening_deg"):
         np.testing.assert_array_equal(skip[v].values, every[v].values)
-    for comp in CUBE_COMPONENTS + ("total",):
+    for comp in component_names(total=True):
         np.testing.assert_array_equal(skip[comp].values[obs], every[comp].values[obs])
         assert np.all(np.isnan(skip[comp].values[~obs]))
     assert np.count_nonzero(every["moon"].values[obs]) > 0  # a skippable term was summed somewhere

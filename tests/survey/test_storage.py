@@ -7,8 +7,9 @@ import pytest
 import xarray as xr
 
 from straylight.config import campaign_from_dict, deep_merge
+from straylight.model.registry import component_names
 from straylight.survey.bitround import bitround, max_relative_error, recorded_keepbits, stored_values
-from straylight.survey.cube_layout import CUBE_BAND_VARIABLES, CUBE_PART_VARIABLES
+from straylight.survey.cube_layout import CUBE_PART_VARIABLES
 from straylight.survey.cube_region import compute_region
 from straylight.survey.cube_store import init_store
 from straylight.survey.executors import write_region
@@ -17,6 +18,8 @@ from straylight.survey.limits_cube import limits_dataset
 from straylight.survey.products import ephemeris_dataset, observability_dataset
 from straylight.survey.storage import encoded, write_zarr_atomic
 
+#: the cube's (time, pixel, band) variables: the registry's components and the total
+CUBE_BAND_VARIABLES = component_names(total=True)
 #: the storage requirements: stored values within 1e-3 relative of the computed ones, all
 #: products together at most 25 bytes per (time, pixel) sample
 REQUIRED_RELATIVE_ERROR = 1e-3
