@@ -40,12 +40,14 @@ __all__ = [
 #: bumped whenever the table's content or layout changes: part of the cache key
 LUT_FORMAT = 5
 
-#: The tables' build, in seconds on one core per (node, door state): the sunlit table's nodes
-#: each sum the full Earth grid, the moonlit table's its coarse grid (8 x 16 blocks).  The build
-#: is announced with the time they give, and ``straylight plan`` quotes it; a table records its
-#: own build time (``build_seconds``), and ``bench/pipeline.py --cold`` times both in a run.
-LUT_BUILD_SECONDS_PER_NODE = 0.028e-3
-MOONLIT_LUT_BUILD_SECONDS_PER_NODE = 0.006e-3
+#: The tables' build with its validation, CPU seconds per (node, door state) at the default
+#: config: the sunlit table's nodes each sum the full Earth grid, the moonlit table's its coarse
+#: grid, the blocks the aperture plane cuts split ``models.earthshine.cut_block_split`` times per
+#: side in both.  The build is announced with the time they give over the cores it runs on, and
+#: ``straylight plan`` quotes it.  Measured by ``bench/table_build.py`` (docs/performance.md);
+#: a change to the Earth grids, their split or the nodes wants them measured again.
+LUT_BUILD_SECONDS_PER_NODE = 0.042e-3
+MOONLIT_LUT_BUILD_SECONDS_PER_NODE = 0.009e-3
 
 
 @dataclass(frozen=True)
@@ -207,6 +209,24 @@ class MoonlitSettings:
             v = getattr(self, k)
             if not 0.5 <= v <= 45.0:
                 raise InputError(f"models.earthshine.moonlit_lut.{k} = {v}: must be within [0.5, 45] deg")
+
+    def node_count(self, radius_km: float, earth_radius_km: float, symmetric: bool = True) -> int:
+        """Nodes of the table (per door state), as :meth:`LUTSettings.node_count`.
+
+        Parameters
+        ----------
+        radius_km : float
+            The orbit's smallest geocentric radius, km (sets the cap's edge).
+        earth_radius_km : float
+            The Earth's radius, km.
+        symmetric : bool
+            Whether the azimuth runs over 0-180 deg only.
+
+        Returns
+        -------
+        int
+        """
+        return int(np.prod([a.size for a in self.nodes(radius_km, earth_radius_km, symmetric)]))
 
     def nodes(self, radius_km: float, earth_radius_km: float, symmetric: bool):
         """(Moon zenith, line-of-sight zenith, azimuth, roll) node arrays, deg.  Beyond the cap's

@@ -88,8 +88,8 @@ class MoonlitEarth:
             return 0
         c = self.context
         r = c.campaign.orbit_radius_range_km
-        nodes = settings.nodes(float(r[0]), c.campaign.earth.radius_km, mirror_symmetric(c.offfield))
-        return int(np.prod([a.size for a in nodes])) * len(c.offfield.door_states_deg)
+        nodes = settings.node_count(float(r[0]), c.campaign.earth.radius_km, mirror_symmetric(c.offfield))
+        return nodes * len(c.offfield.door_states_deg)
 
     def _table_inputs(self, settings) -> tuple:
         """The arguments of :func:`~straylight.sources.moonlit_table_build.load_or_build_moonlit` (and of

@@ -200,14 +200,7 @@ def load_or_build_moonlit(
     key = moonlit_key(
         off, earth_radius_km, radius_range_km, settings, grid, floor, moon_max, dark_limb_min_deg
     )
-    nodes = int(
-        np.prod(
-            [
-                a.size
-                for a in settings.nodes(float(radius_range_km[0]), earth_radius_km, mirror_symmetric(off))
-            ]
-        )
-    )
+    nodes = settings.node_count(float(radius_range_km[0]), earth_radius_km, mirror_symmetric(off))
     expected = MOONLIT_LUT_BUILD_SECONDS_PER_NODE * nodes * len(off.door_states_deg)
     return _cached(
         "moonlit_lut",
