@@ -50,8 +50,38 @@ LUT_BUILD_SECONDS_PER_NODE = 0.042e-3
 MOONLIT_LUT_BUILD_SECONDS_PER_NODE = 0.009e-3
 
 
+class _TableNodes:
+    """What the two tables' node settings share: counting their nodes (a subclass gives
+    ``nodes(radius_km, earth_radius_km, symmetric)``, the node arrays of its angles)."""
+
+    def radius_nodes(self) -> int:
+        """Nodes along the satellite's geocentric radius: 1 (the table is built at one radius)."""
+        return 1
+
+    def node_count(self, radius_km: float, earth_radius_km: float, symmetric: bool = True) -> int:
+        """Nodes of the table (per door state): its angles' nodes times :meth:`radius_nodes`;
+        ``symmetric``: the instrument mirror-symmetric about the lamp's vertical plane
+        (:func:`mirror_symmetric`: azimuth 0-180 deg, else 0-360).
+
+        Parameters
+        ----------
+        radius_km : float
+            The orbit's smallest geocentric radius, km (sets the cap's edge).
+        earth_radius_km : float
+            The Earth's radius, km.
+        symmetric : bool
+            Whether the azimuth runs over 0-180 deg only.
+
+        Returns
+        -------
+        int
+        """
+        sizes = [a.size for a in self.nodes(radius_km, earth_radius_km, symmetric)]
+        return int(np.prod(sizes)) * self.radius_nodes()
+
+
 @dataclass(frozen=True)
-class LUTSettings:
+class LUTSettings(_TableNodes):
     """Node spacing (deg).  The Sun's zenith angle is sampled at ``sun_zenith_step_deg`` where the
     terminator crosses the visible cap (60 deg to the cap's edge) and 2.5 times coarser above;
     beyond the cap's edge the cap is dark (one node at 180).  The line of sight's zenith angle at
@@ -86,25 +116,9 @@ class LUTSettings:
         if self.n_radius < 1:
             raise InputError(f"models.earthshine.lut.n_radius = {self.n_radius}: needs >= 1")
 
-    def node_count(self, radius_km: float, earth_radius_km: float, symmetric: bool = True) -> int:
-        """Nodes of the table (per door state); ``symmetric``: the instrument mirror-symmetric
-        about the Sun's vertical plane (:func:`mirror_symmetric`: azimuth 0-180 deg, else 0-360).
-
-        Parameters
-        ----------
-        radius_km : float
-            The orbit's smallest geocentric radius, km (sets the cap's edge).
-        earth_radius_km : float
-            The Earth's radius, km.
-        symmetric : bool
-            Whether the azimuth runs over 0-180 deg only.
-
-        Returns
-        -------
-        int
-        """
-        zs, zl, az = self.nodes(radius_km, earth_radius_km, symmetric)
-        return zs.size * zl.size * az.size * self.n_radius
+    def radius_nodes(self) -> int:
+        """Nodes along the satellite's geocentric radius: :attr:`n_radius`."""
+        return self.n_radius
 
     def nodes(self, radius_km: float, earth_radius_km: float, symmetric: bool):
         """(sun zenith, line-of-sight zenith, azimuth) node arrays, deg.
@@ -179,7 +193,7 @@ MOONLIT_FORMAT = 3
 
 
 @dataclass(frozen=True)
-class MoonlitSettings:
+class MoonlitSettings(_TableNodes):
     """Node spacing (deg) of the moonlit Earth's table.  Its coefficients depend on one angle
     more than the sunlit Earth's: the telescope's roll is set by the Sun, not by the lamp, so
     the table runs over the Moon's zenith angle at the satellite, the line of sight's zenith
@@ -209,24 +223,6 @@ class MoonlitSettings:
             v = getattr(self, k)
             if not 0.5 <= v <= 45.0:
                 raise InputError(f"models.earthshine.moonlit_lut.{k} = {v}: must be within [0.5, 45] deg")
-
-    def node_count(self, radius_km: float, earth_radius_km: float, symmetric: bool = True) -> int:
-        """Nodes of the table (per door state), as :meth:`LUTSettings.node_count`.
-
-        Parameters
-        ----------
-        radius_km : float
-            The orbit's smallest geocentric radius, km (sets the cap's edge).
-        earth_radius_km : float
-            The Earth's radius, km.
-        symmetric : bool
-            Whether the azimuth runs over 0-180 deg only.
-
-        Returns
-        -------
-        int
-        """
-        return int(np.prod([a.size for a in self.nodes(radius_km, earth_radius_km, symmetric)]))
 
     def nodes(self, radius_km: float, earth_radius_km: float, symmetric: bool):
         """(Moon zenith, line-of-sight zenith, azimuth, roll) node arrays, deg.  Beyond the cap's
