@@ -60,6 +60,92 @@ def default_tables():
     straylight.SkyModel()
 
 
+# -- the default campaign's earthshine tables: built while the tests that never read them run ---
+#: test modules (under tests/) that never read the default campaign's earthshine tables (the
+#: coarse tables of test_earthshine_lut.py are its own).  A module wrongly listed here costs time
+#: only: its test builds the tables itself, beside the background build, into the same file.
+TABLE_FREE_MODULES = frozenset(
+    {
+        "test_architecture.py",
+        "test_config.py",
+        "test_instrument_settings.py",
+        "test_plots.py",
+        "test_settings.py",
+        "catalog/test_catalog.py",
+        "catalog/test_gaia.py",
+        "catalog/test_luminosity_class.py",
+        "catalog/test_proper_motion.py",
+        "image/test_detector_fits.py",
+        "model/test_envelope.py",
+        "optics/test_pst_out_of_field.py",
+        "optics/test_pst_tail.py",
+        "optics/test_scatter_ghosts.py",
+        "paper/test_paper_figures.py",
+        "sky/test_bright_limb.py",
+        "sky/test_ephemeris.py",
+        "sky/test_ephemeris_span.py",
+        "sky/test_geometry.py",
+        "sky/test_orbit.py",
+        "sky/test_timeutil.py",
+        "sources/test_earth_grid_cut.py",
+        "sources/test_earthshine_lut.py",
+        "sources/test_saturn_rings.py",
+        "sources/test_zodiacal.py",
+        "sources/test_zodiacal_colour.py",
+        "survey/test_footprint.py",
+        "survey/test_provenance.py",
+        "survey/test_published_depths.py",
+        "util/test_daskutil.py",
+        "util/test_gridinterp.py",
+    }
+)
+#: the background build: the default campaign's model reading (so building) both its tables, at
+#: low priority, so that the tests running beside it keep their core
+_BUILD_DEFAULT_TABLES = (
+    "import os; os.nice(10); from straylight.config import load_campaign; "
+    "from straylight.model import BackgroundModel; BackgroundModel(load_campaign()).models_record()"
+)
+_table_build = None  # its Popen, until the first test that may read the tables has waited for it
+
+
+def _may_read_default_tables(item) -> bool:
+    try:
+        module = Path(item.path).resolve().relative_to(REPO / "tests").as_posix()
+    except ValueError:
+        return True
+    return module not in TABLE_FREE_MODULES
+
+
+def pytest_collection_modifyitems(config, items):
+    """In a session with tests of both kinds, the table-free modules run first (the order within
+    each kind kept) while the default tables (~2 min on both cores, once per session) are built
+    in a background process; the first test of another module waits for that build."""
+    global _table_build
+    free = [item for item in items if not _may_read_default_tables(item)]
+    if not free or len(free) == len(items) or config.option.collectonly:
+        return
+    items[:] = free + [item for item in items if _may_read_default_tables(item)]
+    _table_build = subprocess.Popen(
+        [sys.executable, "-c", _BUILD_DEFAULT_TABLES],
+        cwd=REPO,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+
+
+def pytest_runtest_setup(item):
+    global _table_build
+    if _table_build is not None and _may_read_default_tables(item):
+        _table_build.wait()  # a failed build is the test's to redo and report
+        _table_build = None
+
+
+def pytest_sessionfinish(session):
+    if _table_build is not None and _table_build.poll() is None:  # stopped early (-x, Ctrl-C)
+        _table_build.kill()
+        _table_build.wait()
+
+
 def run_cli(*args, cwd=REPO, timeout=120):
     """Run the CLI in a subprocess, as a user would; returns CompletedProcess."""
     env = dict(os.environ)
