@@ -159,6 +159,36 @@ def run_cli(*args, cwd=REPO, timeout=120):
     )
 
 
+def run_clis(*commands, cwd=REPO, timeout=120):
+    """Independent CLI commands (each a tuple of :func:`run_cli`'s arguments) run side by side,
+    each in its own subprocess as :func:`run_cli` runs one, so that they share the machine's
+    cores; returns their CompletedProcess in the order given.  A test using it asks for
+    ``default_tables`` (or its campaign's tables are cached): each command would build them."""
+    env = dict(os.environ)
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-m", "straylight.cli", *map(str, args)],
+            cwd=cwd,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            env=env,
+        )
+        for args in commands
+    ]
+    done = []
+    try:
+        for p in procs:
+            out, err = p.communicate(timeout=timeout)
+            done.append(subprocess.CompletedProcess(p.args, p.returncode, out, err))
+    finally:
+        for p in procs:
+            if p.poll() is None:  # a timeout: none is left running
+                p.kill()
+                p.communicate()
+    return done
+
+
 def tiny_config(tmp, name="tiny", campaign=None, footprint=None, compute=None):
     """A small campaign config (2 h at 10 min, nside 4) written to tmp; returns its path."""
     import yaml

@@ -7,7 +7,7 @@ import json
 import astropy.units as u
 import numpy as np
 import pytest
-from conftest import run_cli
+from conftest import run_cli, run_clis
 
 T0 = "2026-01-01T00:30:00"
 ARGS = ("etc", "--ra", "150", "--dec", "30", "--time", T0)
@@ -46,7 +46,10 @@ def test_etc_json_and_text_equal_the_api(tmp_path, default_tables):
 
     from straylight.skymodel import cached_sky_model
 
-    r = run_cli(*ARGS, "--mag", "25", "--bands", "g,NUV", "--json")
+    r, text = run_clis(  # side by side
+        (*ARGS, "--mag", "25", "--bands", "g,NUV", "--json"),
+        (*ARGS, "--mag", "25", "--bands", "g,NUV", "--out", tmp_path / "etc.ecsv"),
+    )
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
     api = cached_sky_model().exposure_time(
@@ -57,10 +60,9 @@ def test_etc_json_and_text_equal_the_api(tmp_path, default_tables):
     for row, ref in zip(out["samples"], api):
         assert row["exposure_time"] == pytest.approx(ref["exposure_time"].to_value(u.s), rel=1e-9)
         assert row["dominant"] == ref["dominant"] and row["n_exposures"] == ref["n_exposures"]
-    r = run_cli(*ARGS, "--mag", "25", "--bands", "g,NUV", "--out", tmp_path / "etc.ecsv")
-    assert r.returncode == 0, r.stderr
+    assert text.returncode == 0, text.stderr
     for ref in api:
-        line = next(ln for ln in r.stdout.splitlines() if ln.split()[:1] == [ref["band"]])
+        line = next(ln for ln in text.stdout.splitlines() if ln.split()[:1] == [ref["band"]])
         assert f"{ref['exposure_time'].value:.1f} s" in line
         assert f"{ref['n_exposures']} x {ref['single_exposure'].value:.1f} s" in line
         assert ref["dominant"] in line
@@ -83,18 +85,20 @@ def test_etc_window_summary_and_unobservable(default_tables):
     """A 3-h window at 10-min steps: 18 samples; the printed shortest g time is the minimum of
     the JSON's observable samples.  At the Sun: NOT observable, no time."""
     win = (*ARGS, "--end", "2026-01-01T03:30:00", "--step-min", "10", "--mag", "25.5", "--bands", "g")
-    r = run_cli(*win, "--json")
+    r, text, at_sun = run_clis(  # side by side
+        (*win, "--json"),
+        win,
+        ("etc", "--ra", "281.3", "--dec", "-23", "--time", T0, "--mag", "22", "--bands", "r"),
+    )
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
     times = [s["exposure_time"] for s in out["samples"] if s["observable"]]
     assert len(out["samples"]) == 18 and 0 < len(times) < 18
     assert out["summary"][0]["exposure_time_min"] == min(times)
-    r = run_cli(*win)
-    assert r.returncode == 0, r.stderr
-    assert "18 samples every 10 min" in r.stdout and f"{min(times):.1f} s" in r.stdout
-    r = run_cli("etc", "--ra", "281.3", "--dec", "-23", "--time", T0, "--mag", "22", "--bands", "r")
-    assert r.returncode == 0, r.stderr
-    assert "NOT observable" in r.stdout and "sun" in r.stdout
+    assert text.returncode == 0, text.stderr
+    assert "18 samples every 10 min" in text.stdout and f"{min(times):.1f} s" in text.stdout
+    assert at_sun.returncode == 0, at_sun.stderr
+    assert "NOT observable" in at_sun.stdout and "sun" in at_sun.stdout
 
 
 @pytest.mark.parametrize(

@@ -6,10 +6,10 @@ import json
 
 import numpy as np
 import pytest
-from conftest import run_cli
+from conftest import run_cli, run_clis
 
 
-def test_table_matches_single_sample_sky(tmp_path):
+def test_table_matches_single_sample_sky(tmp_path, default_tables):
     import pyarrow.parquet as pq
 
     rows = [
@@ -20,12 +20,19 @@ def test_table_matches_single_sample_sky(tmp_path):
     p = tmp_path / "pointings.csv"
     p.write_text("time,ra,dec\n" + "\n".join(f"{t},{r},{d}" for t, r, d in rows) + "\n")
     out = tmp_path / "table.parquet"
-    r = run_cli("sky", "--input", p, "--out", out, "--bands", "g,y")
+    # the table and each row's single-sample command, side by side
+    r, *singles = run_clis(
+        ("sky", "--input", p, "--out", out, "--bands", "g,y"),
+        *(
+            ("sky", "--time", tm, "--ra", ra, "--dec", dec, "--bands", "g,y", "--json")
+            for tm, ra, dec in rows
+        ),
+    )
     assert r.returncode == 0, r.stderr
     t = pq.read_table(out).to_pydict()
     assert len(t["time"]) == 3
-    for i, (tm, ra, dec) in enumerate(rows):
-        one = run_cli("sky", "--time", tm, "--ra", ra, "--dec", dec, "--bands", "g,y", "--json")
+    for i, one in enumerate(singles):
+        assert one.returncode == 0, one.stderr
         rec = json.loads(one.stdout)
         assert t["observable"][i] == rec["observable"]
         for b in ("g", "y"):

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import REPO, run_cli
+from conftest import REPO, run_cli, run_clis
 
 
 def test_ephem_json_matches_library():
@@ -58,12 +58,12 @@ def test_sky_json_has_the_documented_fields():
     assert out["observable"] == (out["violations"] == [])
 
 
-def test_sky_gives_magnitudes_and_the_limit_in_text_and_json(campaign):
+def test_sky_gives_magnitudes_and_the_limit_in_text_and_json(campaign, default_tables):
     """mag/arcsec2 = zero point - 2.5 log10(e-/s/pixel), the limit = limits.point_source_limit."""
     from straylight.survey.limits import point_source_limit, sky_zero_points
 
     args = ("sky", "--time", "2026-01-01T00:30:00", "--ra", "150", "--dec", "30", "--bands", "g,y")
-    r = run_cli(*args, "--json")
+    r, text = run_clis((*args, "--json"), args)  # side by side
     assert r.returncode == 0, r.stderr
     bands = json.loads(r.stdout)["bands"]
     zp = sky_zero_points(campaign, ["g", "y"])
@@ -78,10 +78,9 @@ def test_sky_gives_magnitudes_and_the_limit_in_text_and_json(campaign):
         )
     # g dark sky 23.1-23.6 mag/arcsec2 and depth ~26.8 (from the cube); the Moon adds a little here
     assert 22.0 < bands["g"]["total"]["mag_per_arcsec2"] < 23.8 and 26.0 < bands["g"]["limit_mag"] < 27.2
-    r = run_cli(*args)
-    assert r.returncode == 0, r.stderr
+    assert text.returncode == 0, text.stderr
     mag_line = next(
-        line for line in r.stdout.splitlines() if "mag/arcsec2" in line and "mag" in line.split()[-1]
+        line for line in text.stdout.splitlines() if "mag/arcsec2" in line and "mag" in line.split()[-1]
     )
     assert f"{bands['g']['total']['mag_per_arcsec2']:.2f}" in mag_line
     assert f"{bands['g']['limit_mag']:.2f} mag" in mag_line
