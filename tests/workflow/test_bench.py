@@ -101,8 +101,8 @@ def test_goal_check_reads_the_production_figures_and_flags_each_goal():
 
 
 def test_pipeline_bench_writes_its_figures(tmp_path):
-    """bench/pipeline.py end to end on a tiny campaign (2 hours at 10 minutes, nside 4, one
-    core, no kernel figure): the results file holds the wall-to-wall rate, each rule's time,
+    """bench/pipeline.py end to end on a tiny campaign (2 hours at 10 minutes, nside 4, two
+    cores, no kernel figure): the results file holds the wall-to-wall rate, each rule's time,
     peak memory and bytes per sample, consistent with each other (no timed assertion)."""
     import json
     import subprocess
@@ -120,7 +120,7 @@ def test_pipeline_bench_writes_its_figures(tmp_path):
             "--cadence-s",
             "600",
             "--cores",
-            "1",
+            "2",
             "--no-kernel",
             "--out",
             str(out),
