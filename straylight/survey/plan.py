@@ -104,8 +104,8 @@ PRODUCT_BYTES_PER_SAMPLE = 25.0
 #: grows with the samples.  Fitted to the bench/pipeline.py runs on 2 cores in
 #: docs/performance.md (1 day at nside 16, 3 days and a month at nside 32); the config's
 #: compute.pipeline_samples_per_s_per_core replaces the rate for another machine.
-PIPELINE_FIXED_SECONDS = 22.0
-PIPELINE_SAMPLES_PER_S_PER_CORE = 667_000.0
+PIPELINE_FIXED_SECONDS = 26.0
+PIPELINE_SAMPLES_PER_S_PER_CORE = 623_000.0
 #: A footprint's first campaign also sums its faint-star map (kept for later ones), seconds on one
 #: core per footprint pixel (bench/pipeline.py, the same runs).
 FAINT_MAP_SECONDS_PER_PIXEL = 3.0e-3
