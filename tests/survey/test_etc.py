@@ -143,15 +143,17 @@ def test_dominant_component_and_rates_are_the_backgrounds(sky):
 def test_earthshine_dominates_near_the_bright_limb(sky):
     """Observable at 84 deg from the Earth's limb on its day side (RA 348, Dec -24 at 01:20 UTC,
     the constraint being 80 deg): the earthshine dominates in g, as the paper (sects. 1, 3.3)
-    says near the bright limb; the model gives ~94 %, asserted above 70 %.  The time for 25 mag
-    is then longer than at the dark pointing (at T0, where it is observable)."""
+    says near the bright limb; the model gives ~87 % with the calibrated door (docs/pst.md),
+    asserted above 70 %.  The time for 25 mag is then longer than at the dark pointing (at T0,
+    where it is observable): the model gives 1.97 times it, asserted above 1.5 (with the sky
+    three times or more the zodiacal light and the time nearly proportional to the sky)."""
     limb = sky.exposure_time(
         Time("2026-01-01T01:20:00"), SkyCoord(348.0, -24.0, unit="deg"), 25.0, bands=["g"]
     )
     dark = sky.exposure_time(Time(T0), DARK, 25.0, bands=["g"])
     assert bool(limb["observable"][0]) and limb["dominant"][0] == "earthshine"
     assert float(limb["dominant_fraction"][0]) > 0.7 and dark["dominant"][0] == "zodiacal"
-    assert limb["exposure_time"][0] > 2 * dark["exposure_time"][0]
+    assert limb["exposure_time"][0] > 1.5 * dark["exposure_time"][0]
 
 
 def test_unobservable_samples_are_flagged_not_computed(sky):
