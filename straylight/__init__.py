@@ -7,6 +7,8 @@ Public API (small on purpose):
 * :class:`SkyModel` - the same from a model built once, for a scheduler's loop
   (``SkyModel(config).background(time, coord, bands)``).
 * :func:`open_campaign` - a finished campaign's products as xarray objects.
+* :class:`SkyMaps` - a finished campaign's compact sky (``sky_compact.zarr``): full-sky maps and
+  batches of (time, pixel) magnitudes and observability at memory speed, for schedulers.
 * :func:`load_campaign` - a validated campaign config with its orbit, Earth model, constraints.
 * :class:`DE405` - the JPL DE405 ephemeris, vectorised over times.
 * :func:`scene`, :func:`sample_geometry` - positions and the observing geometry of samples.
@@ -29,6 +31,7 @@ _LAZY = {
     "open_campaign": "straylight.api",
     "sky_background": "straylight.api",
     "SkyModel": "straylight.skymodel",
+    "SkyMaps": "straylight.survey.skymaps",
     "Campaign": "straylight.config",
     "load_campaign": "straylight.config",
     "BODIES": "straylight.sky.ephemeris",

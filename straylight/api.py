@@ -120,6 +120,8 @@ class CampaignProducts:
     * ``footprint`` - ``footprint.fits`` as a (pixel) DataArray of the footprint's HEALPix
       pixels (value 1), with ``nside`` and ``nest`` attributes.
     * ``provenance`` - ``provenance.json`` as a dict.
+    * ``compact`` - ``sky_compact.zarr`` as a :class:`straylight.SkyMaps`: the total background
+      per band in AB mag/arcsec2 and the observability, for fast look-ups.
     """
 
     def __init__(self, path):
@@ -189,6 +191,20 @@ class CampaignProducts:
                 "nest": int(nest),
             },
         )
+
+    @property
+    def compact(self):
+        """``sky_compact.zarr`` (:class:`straylight.SkyMaps`): total background per band, AB
+        mag/arcsec2, and observability; its chunks decoded on first use."""
+        from straylight.survey.compact import COMPACT_NAME
+        from straylight.survey.skymaps import SkyMaps
+
+        if COMPACT_NAME not in self._cache:
+            p = self.path / COMPACT_NAME
+            if not p.exists():
+                raise InputError(f"{p}: product missing (has the campaign finished?)")
+            self._cache[COMPACT_NAME] = SkyMaps(p)
+        return self._cache[COMPACT_NAME]
 
     @property
     def provenance(self) -> dict:

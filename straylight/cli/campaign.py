@@ -30,7 +30,7 @@ def cmd_plan(args) -> int:
     from straylight.model import registry
     from straylight.survey.cube_layout import cube_chunks
     from straylight.survey.footprint import footprint_from_config
-    from straylight.survey.plan import PRODUCT_BYTES_PER_SAMPLE, estimated_cost
+    from straylight.survey.plan import COMPACT_BYTES_PER_SAMPLE, PRODUCT_BYTES_PER_SAMPLE, estimated_cost
     from straylight.survey.timegrid import time_blocks
 
     campaign = load_campaign(args.config)
@@ -65,6 +65,10 @@ def cmd_plan(args) -> int:
         f"products on disk: {cost['product_bytes'] / 1e9:.2f} GB at {PRODUCT_BYTES_PER_SAMPLE:g} "
         f"bytes/sample (straylight.survey.plan.PRODUCT_BYTES_PER_SAMPLE); uncompressed: background.zarr "
         f"{cube_bytes / 1e9:.2f} GB, limits.zarr {limits_bytes / 1e9:.2f} GB"
+    )
+    print(
+        f"compact sky (sky_compact.zarr, besides): {cost['compact_bytes'] / 1e9:.3g} GB at "
+        f"{COMPACT_BYTES_PER_SAMPLE:g} bytes/sample (straylight.survey.plan.COMPACT_BYTES_PER_SAMPLE)"
     )
     if cost["earthshine_method"] == "lut":
         table = (

@@ -146,11 +146,13 @@ class SchedulingSection:
 
 @dataclass(frozen=True)
 class StorageSection:
-    """``storage``: the products' kept mantissa bits and Blosc level."""
+    """``storage``: the products' kept mantissa bits and Blosc level; the compact product's
+    magnitude step (mag)."""
 
     float_keepbits: int
     magnitude_keepbits: int
     blosc_clevel: int
+    compact_mag_step: float
 
 
 @dataclass(frozen=True)

@@ -26,6 +26,7 @@ __all__ = [
     "CUBE_SCREEN_SECONDS_PER_SAMPLE",
     "CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE",
     "PRODUCT_BYTES_PER_SAMPLE",
+    "COMPACT_BYTES_PER_SAMPLE",
     "PIPELINE_FIXED_SECONDS",
     "PIPELINE_SAMPLES_PER_S_PER_CORE",
     "FAINT_MAP_SECONDS_PER_PIXEL",
@@ -98,6 +99,10 @@ CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE = 2.6e-6
 #: docs/performance.md gives the measured figure).  The one figure `straylight plan` sizes a
 #: campaign's products with.
 PRODUCT_BYTES_PER_SAMPLE = 25.0
+#: Bytes on disk per (time, pixel) sample of the compact sky product (sky_compact.zarr: seven
+#: bands' magnitudes and the observability, straylight.survey.compact) at the default
+#: storage.compact_mag_step: the largest of bench/compact.py's campaigns (docs/performance.md).
+COMPACT_BYTES_PER_SAMPLE = 0.1
 #: The pipeline's wall time, `snakemake` to the last product, on N cores with the earthshine
 #: tables cached: PIPELINE_FIXED_SECONDS + samples / (PIPELINE_SAMPLES_PER_S_PER_CORE x N).  The
 #: fixed part is the jobs' start-up, the model's set-up, the figures and the report; the rest
@@ -278,7 +283,7 @@ def estimated_cost(
         (h); ``speed_factor``; ``cores``; ``pipeline_samples_per_s_per_core`` and
         ``pipeline_rate_source``; ``fixed_seconds``, ``samples_seconds``, ``wall_seconds``,
         ``faint_map_first_seconds`` (s, wall on ``cores``); ``pipeline_core_hours`` (h);
-        ``product_bytes`` (bytes on disk).
+        ``product_bytes``, ``compact_bytes`` (bytes on disk: the products, the compact sky).
     """
     from straylight.model import LUT_SAVED_SECONDS_PER_SAMPLE, BackgroundModel, unobservable_samples
 
@@ -334,4 +339,5 @@ def estimated_cost(
         "faint_map_first_seconds": faint_s,
         "pipeline_core_hours": wall_s * cores / 3600.0,
         "product_bytes": n * PRODUCT_BYTES_PER_SAMPLE,
+        "compact_bytes": n * COMPACT_BYTES_PER_SAMPLE,
     }

@@ -1,0 +1,257 @@
+"""The compact sky product, ``sky_compact.zarr``: every (time, pixel) sample's total background
+in AB mag/arcsec2 per band, quantised, with the observability, for schedulers and distribution.
+
+Its layout (Zarr v3; only codecs and data types of the Zarr v3 specification):
+
+* ``mag`` (time, pixel, band) uint16: round((m - ``add_offset``) / ``scale_factor``), m the
+  total background in AB mag/arcsec2 (``mag_zero_point - 2.5 log10(total)`` of background.zarr),
+  and ``_FillValue`` (65535) where the sample is not observable: the sky's value is kept only
+  where it can be observed, and the observability is exact (``mag != _FillValue``).  The CF
+  attributes ``scale_factor``, ``add_offset`` and ``_FillValue`` make xarray decode it to
+  magnitudes with NaN where not observable.  Stored transposed (band, pixel, time), so each
+  pixel's time series is contiguous and its repeated values compress, then blosc (bit shuffle,
+  zstd).  One chunk holds ``time_chunk`` times, every pixel and band.
+* ``observable`` (time, pixel) bool: the same mask, for readers of the product through xarray.
+* ``time`` (int64 seconds since the campaign's first time, CF ``units``), ``pixel`` (HEALPix
+  index), the band names in the attribute ``bands``.
+* The error of the quantised magnitude against background.zarr's total over the observable
+  samples, measured while writing, per band in the attributes ``error_rms_mag``,
+  ``error_p99_mag``, ``error_p999_mag``, ``error_max_mag`` (percentiles of the absolute error,
+  to the histogram's 1e-4 mag).
+
+The reader is :class:`straylight.survey.skymaps.SkyMaps`.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+from straylight.errors import InputError
+from straylight.util.io import atomic_path
+
+__all__ = [
+    "COMPACT_NAME",
+    "COMPACT_FORMAT",
+    "FILL",
+    "ADD_OFFSET_MAG",
+    "ERROR_BIN_MAG",
+    "compact_time_chunk",
+    "write_compact",
+    "store_bytes",
+]
+
+#: the product's folder name in results/<campaign>/
+COMPACT_NAME = "sky_compact.zarr"
+#: the layout's name and version, in the group's ``format`` attribute (the reader checks it)
+COMPACT_FORMAT = "straylight.sky_compact/1"
+#: the code of a sample that is not observable (uint16's largest)
+FILL = 65535
+#: magnitude of code 0: codes 0-65534 cover 0 to 655 mag at a 0.01 mag step (sky: 15-32 mag)
+ADD_OFFSET_MAG = 0.0
+#: width of the absolute-error histogram the percentiles are read from, mag
+ERROR_BIN_MAG = 1e-4
+_ERROR_BINS = 20_000  # up to 2 mag; larger errors fall in the last bin (and in error_max_mag)
+#: decoded bytes of one chunk at most (the reader decodes a chunk at a time)
+_CHUNK_BYTES = 64 * 2**20
+
+
+def compact_time_chunk(n_times: int, n_pixels: int, n_bands: int, cadence_s: float) -> int:
+    """Times per chunk: a day's, fewer if a chunk would decode to more than 64 MiB."""
+    day = max(1, round(86400.0 / float(cadence_s)))
+    fit = max(1, _CHUNK_BYTES // max(1, 2 * n_pixels * n_bands))
+    return int(max(1, min(day, fit, n_times)))
+
+
+def _codes(total, zero_point, observable, step: float) -> np.ndarray:
+    """uint16 codes of a block of background rates (time, pixel, band) e-/s/pix."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        mag = zero_point.astype(np.float32) - np.float32(2.5) * np.log10(total, dtype=np.float32)
+    q = np.rint((mag - np.float32(ADD_OFFSET_MAG)) * np.float32(1.0 / step))
+    bad = ~np.isfinite(q) & observable[..., None]
+    if bad.any():
+        raise InputError(f"background.zarr total: {int(bad.sum())} observable samples have no finite magnitude")
+    np.clip(q, 0, FILL - 1, out=q)
+    codes = q.astype(np.uint16)
+    codes[~observable] = FILL
+    return codes, mag
+
+
+class _ErrorTally:
+    """Per band: count, sum of squared errors, largest error and a histogram of |error|."""
+
+    def __init__(self, n_bands: int):
+        self.n = np.zeros(n_bands, np.int64)
+        self.sq = np.zeros(n_bands)
+        self.max = np.zeros(n_bands)
+        self.hist = np.zeros((n_bands, _ERROR_BINS), np.int64)
+
+    def add(self, codes, mag, observable, step: float) -> None:
+        err = (codes[observable].astype(np.float32) * np.float32(step) + np.float32(ADD_OFFSET_MAG)) - mag[
+            observable
+        ]  # (samples, band)
+        for b in range(err.shape[1]):
+            e = np.abs(err[:, b].astype(np.float64))
+            self.n[b] += e.size
+            self.sq[b] += float(np.dot(e, e))
+            if e.size:
+                self.max[b] = max(self.max[b], float(e.max()))
+                idx = np.minimum((e / ERROR_BIN_MAG).astype(np.int64), _ERROR_BINS - 1)
+                self.hist[b] += np.bincount(idx, minlength=_ERROR_BINS)
+
+    def percentile(self, q: float) -> np.ndarray:
+        """Upper edge of the bin holding the q-th percentile of |error|, per band (mag)."""
+        out = np.full(self.n.size, np.nan)
+        for b in range(self.n.size):
+            if self.n[b]:
+                k = int(np.searchsorted(np.cumsum(self.hist[b]), math.ceil(q / 100.0 * self.n[b])))
+                out[b] = (k + 1) * ERROR_BIN_MAG
+        return out
+
+
+def store_bytes(path) -> int:
+    """Bytes of every file under ``path``."""
+    return sum(f.stat().st_size for f in Path(path).rglob("*") if f.is_file())
+
+
+def write_compact(background, out, mag_step: float, clevel: int = 5, threads: int = 1) -> dict:
+    """Write ``sky_compact.zarr`` from a finished background.zarr, atomically.
+
+    Parameters
+    ----------
+    background : path
+        background.zarr (its ``total`` e-/s/pix, ``observable``, ``mag_zero_point``, ``time``,
+        ``pixel``, ``band`` and HEALPix attributes).
+    out : path
+        The compact store to write (replaced).
+    mag_step : float
+        Quantisation step, mag: every code is within ``mag_step / 2`` of the magnitude.
+    clevel : int, optional
+        blosc's compression level (zstd).
+    threads : int, optional
+        Threads encoding chunks side by side (numpy and blosc release the GIL).
+
+    Returns
+    -------
+    dict
+        ``samples`` (time x pixel), ``observable_samples``, ``bytes`` (on disk),
+        ``bytes_per_sample``, and per band (lists in ``bands`` order) ``error_rms_mag``,
+        ``error_p99_mag``, ``error_p999_mag``, ``error_max_mag``.
+    """
+    import xarray as xr
+    import zarr
+    from zarr.codecs import BloscCodec, TransposeCodec
+
+    if not 0.0 < float(mag_step) <= 1.0:
+        raise InputError(f"compact magnitude step {mag_step!r}: must be in (0, 1] mag")
+    step = float(mag_step)
+    bg = xr.open_zarr(background, chunks=None)
+    times = bg["time"].values.astype("datetime64[ns]")
+    pixels = bg["pixel"].values.astype(np.int64)
+    bands = [str(b) for b in bg["band"].values]
+    zp = bg["mag_zero_point"].values.astype(np.float64)
+    nt, npix, nb = times.size, pixels.size, len(bands)
+    dt = np.diff(times).astype(np.int64)
+    if nt > 1 and not np.all(dt == dt[0]):
+        raise InputError(f"{background}: the time grid is not uniform; the compact product needs one cadence")
+    cadence_ns = int(dt[0]) if nt > 1 else 1
+    tc = compact_time_chunk(nt, npix, nb, cadence_ns / 1e9)
+    start = np.datetime_as_string(times[0], unit="s")
+    total_arr = bg["total"].variable
+    obs_arr = bg["observable"].variable
+    tally = _ErrorTally(nb)
+    with atomic_path(out) as tmp:
+        root = zarr.open_group(str(tmp), mode="w", zarr_format=3)
+        blosc = BloscCodec(cname="zstd", clevel=int(clevel), shuffle="bitshuffle", typesize=2, blocksize=0)
+        mag = root.create_array(
+            "mag",
+            shape=(nt, npix, nb),
+            chunks=(tc, npix, nb),
+            dtype="uint16",
+            fill_value=FILL,
+            filters=[TransposeCodec(order=(2, 1, 0))],
+            compressors=[blosc],
+            dimension_names=("time", "pixel", "band"),
+        )
+        obs = root.create_array(
+            "observable",
+            shape=(nt, npix),
+            chunks=(tc, npix),
+            dtype="bool",
+            fill_value=False,
+            compressors=[BloscCodec(cname="zstd", clevel=int(clevel), shuffle="bitshuffle", typesize=1)],
+            dimension_names=("time", "pixel"),
+        )
+
+        def one(t0: int):
+            t1 = min(nt, t0 + tc)
+            ob = np.asarray(obs_arr[t0:t1].values, bool)
+            codes, m = _codes(np.asarray(total_arr[t0:t1].values), zp, ob, step)
+            mag[t0:t1] = codes
+            obs[t0:t1] = ob
+            return codes, m, ob
+
+        with ThreadPoolExecutor(max(1, int(threads))) as pool:
+            for codes, m, ob in pool.map(one, range(0, nt, tc)):
+                tally.add(codes, m, ob, step)
+        t = root.create_array("time", shape=(nt,), dtype="int64", dimension_names=("time",))
+        t[:] = (times - times[0]).astype("timedelta64[s]").astype(np.int64)
+        t.attrs.update(
+            units=f"seconds since {start}", calendar="proleptic_gregorian", long_name="time (UTC)"
+        )
+        p = root.create_array("pixel", shape=(npix,), dtype="int64", dimension_names=("pixel",))
+        p[:] = pixels
+        p.attrs.update(units="1", long_name="HEALPix pixel index")
+        rms = np.sqrt(tally.sq / np.maximum(tally.n, 1))
+        stats = {
+            "error_rms_mag": rms.tolist(),
+            "error_p99_mag": tally.percentile(99.0).tolist(),
+            "error_p999_mag": tally.percentile(99.9).tolist(),
+            "error_max_mag": tally.max.tolist(),
+        }
+        mag.attrs.update(
+            units="mag(AB)/arcsec2",
+            long_name="total sky background, quantised; _FillValue where not observable",
+            scale_factor=step,
+            add_offset=ADD_OFFSET_MAG,
+            _FillValue=FILL,
+            coordinates="time pixel",
+        )
+        obs.attrs.update(units="1", long_name="observable (every constraint met)")
+        root.attrs.update(
+            format=COMPACT_FORMAT,
+            title="straylight compact sky: total background per band, AB mag/arcsec2, where observable",
+            source=f"{Path(background).name}: mag_zero_point - 2.5 log10(total)",
+            bands=bands,
+            time_start=start,
+            cadence_s=cadence_ns / 1e9,
+            n_times=nt,
+            healpix_nside=int(bg.attrs.get("healpix_nside", 0)),
+            healpix_ordering=str(bg.attrs.get("healpix_ordering", "ring")),
+            mag_step=step,
+            error_reference="background.zarr total in AB mag/arcsec2, over the observable samples",
+            error_units="mag",
+            error_percentile_resolution_mag=ERROR_BIN_MAG,
+            error_samples=int(tally.n[0]) if nb else 0,
+            **{k: dict(zip(bands, v, strict=True)) for k, v in stats.items()},
+        )
+        zarr.consolidate_metadata(str(tmp))
+        nbytes = store_bytes(tmp)
+    n = nt * npix
+    return {
+        "bands": bands,
+        "samples": n,
+        "observable_samples": int(tally.n[0]) if nb else 0,
+        "bytes": nbytes,
+        "bytes_per_sample": nbytes / max(n, 1),
+        "time_chunk": tc,
+        **stats,
+    }
+
+
+def _default_threads() -> int:
+    return max(1, min(4, os.cpu_count() or 1))
