@@ -74,7 +74,9 @@ def _codes(total, zero_point, observable, step: float) -> np.ndarray:
     q = np.rint((mag - np.float32(ADD_OFFSET_MAG)) * np.float32(1.0 / step))
     bad = ~np.isfinite(q) & observable[..., None]
     if bad.any():
-        raise InputError(f"background.zarr total: {int(bad.sum())} observable samples have no finite magnitude")
+        raise InputError(
+            f"background.zarr total: {int(bad.sum())} observable samples have no finite magnitude"
+        )
     np.clip(q, 0, FILL - 1, out=q)
     codes = q.astype(np.uint16)
     codes[~observable] = FILL
@@ -200,9 +202,7 @@ def write_compact(background, out, mag_step: float, clevel: int = 5, threads: in
                 tally.add(codes, m, ob, step)
         t = root.create_array("time", shape=(nt,), dtype="int64", dimension_names=("time",))
         t[:] = (times - times[0]).astype("timedelta64[s]").astype(np.int64)
-        t.attrs.update(
-            units=f"seconds since {start}", calendar="proleptic_gregorian", long_name="time (UTC)"
-        )
+        t.attrs.update(units=f"seconds since {start}", calendar="proleptic_gregorian", long_name="time (UTC)")
         p = root.create_array("pixel", shape=(npix,), dtype="int64", dimension_names=("pixel",))
         p[:] = pixels
         p.attrs.update(units="1", long_name="HEALPix pixel index")

@@ -98,7 +98,9 @@ class SkyMaps:
         self.ordering = str(attrs["healpix_ordering"])
         self.mag_step = float(attrs["mag_step"])
         self.errors = {
-            k: dict(attrs[f"error_{k}_mag"]) for k in ("rms", "p99", "p999", "max") if f"error_{k}_mag" in attrs
+            k: dict(attrs[f"error_{k}_mag"])
+            for k in ("rms", "p99", "p999", "max")
+            if f"error_{k}_mag" in attrs
         }
         self._array = root["mag"]
         self._fill = FILL
@@ -233,7 +235,9 @@ class SkyMaps:
         i0, i1, w = self._grid_position(times)
         pix = np.asarray(pixels, dtype=np.int64)
         if pix.size and (pix.min() < 0 or pix.max() >= self._column.size):
-            raise InputError(f"pixels: HEALPix indices must be in 0..{self._column.size - 1} (nside {self.nside})")
+            raise InputError(
+                f"pixels: HEALPix indices must be in 0..{self._column.size - 1} (nside {self.nside})"
+            )
         col = self._column[pix]
         if np.any(col < 0):
             bad = np.ravel(pix)[np.flatnonzero(np.ravel(col) < 0)[0]]
