@@ -25,11 +25,11 @@ The reader is :class:`straylight.survey.skymaps.SkyMaps`.
 from __future__ import annotations
 
 import math
-import os
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
+from numba import njit
 
 from straylight.errors import InputError
 from straylight.util.io import atomic_path
@@ -67,20 +67,37 @@ def compact_time_chunk(n_times: int, n_pixels: int, n_bands: int, cadence_s: flo
     return int(max(1, min(day, fit, n_times)))
 
 
-def _codes(total, zero_point, observable, step: float) -> np.ndarray:
-    """uint16 codes of a block of background rates (time, pixel, band) e-/s/pix."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        mag = zero_point.astype(np.float32) - np.float32(2.5) * np.log10(total, dtype=np.float32)
-    q = np.rint((mag - np.float32(ADD_OFFSET_MAG)) * np.float32(1.0 / step))
-    bad = ~np.isfinite(q) & observable[..., None]
-    if bad.any():
-        raise InputError(
-            f"background.zarr total: {int(bad.sum())} observable samples have no finite magnitude"
-        )
-    np.clip(q, 0, FILL - 1, out=q)
-    codes = q.astype(np.uint16)
-    codes[~observable] = FILL
-    return codes, mag
+@njit(cache=True, nogil=True)
+def _encode_block(total, zero_point, observable, step, codes, n, sq, mx, hist):  # pragma: no cover
+    """Codes of a block of rates (time, pixel, band) e-/s/pix, and the tally of their error
+    against the magnitude (float64) over the observable samples: count, sum of squares, largest,
+    histogram of |error| in ERROR_BIN_MAG bins.  Returns the observable samples whose magnitude
+    is not finite."""
+    nt, npix, nb = total.shape
+    nbins = hist.shape[1]
+    bad = 0
+    for t in range(nt):
+        for p in range(npix):
+            if not observable[t, p]:
+                for b in range(nb):
+                    codes[t, p, b] = FILL
+                continue
+            for b in range(nb):
+                rate = np.float64(total[t, p, b])
+                if not rate > 0.0 or not np.isfinite(rate):
+                    bad += 1
+                    codes[t, p, b] = FILL - 1
+                    continue
+                mag = zero_point[b] - 2.5 * np.log10(rate)
+                q = np.rint((mag - ADD_OFFSET_MAG) / step)
+                q = min(max(q, 0.0), FILL - 1.0)
+                codes[t, p, b] = np.uint16(q)
+                e = abs(q * step + ADD_OFFSET_MAG - mag)
+                n[b] += 1
+                sq[b] += e * e
+                mx[b] = max(mx[b], e)
+                hist[b, min(int(e / ERROR_BIN_MAG), nbins - 1)] += 1
+    return bad
 
 
 class _ErrorTally:
@@ -92,18 +109,29 @@ class _ErrorTally:
         self.max = np.zeros(n_bands)
         self.hist = np.zeros((n_bands, _ERROR_BINS), np.int64)
 
-    def add(self, codes, mag, observable, step: float) -> None:
-        err = (codes[observable].astype(np.float32) * np.float32(step) + np.float32(ADD_OFFSET_MAG)) - mag[
-            observable
-        ]  # (samples, band)
-        for b in range(err.shape[1]):
-            e = np.abs(err[:, b].astype(np.float64))
-            self.n[b] += e.size
-            self.sq[b] += float(np.dot(e, e))
-            if e.size:
-                self.max[b] = max(self.max[b], float(e.max()))
-                idx = np.minimum((e / ERROR_BIN_MAG).astype(np.int64), _ERROR_BINS - 1)
-                self.hist[b] += np.bincount(idx, minlength=_ERROR_BINS)
+    def encode(self, total, zero_point, observable, step: float) -> np.ndarray:
+        """uint16 codes of a block of rates (time, pixel, band) e-/s/pix, tallied here."""
+        codes = np.empty(total.shape, np.uint16)
+        bad = _encode_block(
+            np.ascontiguousarray(total, dtype=np.float32),
+            np.asarray(zero_point, np.float64),
+            np.ascontiguousarray(observable, dtype=np.bool_),
+            float(step),
+            codes,
+            self.n,
+            self.sq,
+            self.max,
+            self.hist,
+        )
+        if bad:
+            raise InputError(f"background.zarr total: {bad} observable samples have no finite magnitude")
+        return codes
+
+    def merge(self, other: _ErrorTally) -> None:
+        self.n += other.n
+        self.sq += other.sq
+        self.max = np.maximum(self.max, other.max)
+        self.hist += other.hist
 
     def percentile(self, q: float) -> np.ndarray:
         """Upper edge of the bin holding the q-th percentile of |error|, per band (mag)."""
@@ -189,17 +217,17 @@ def write_compact(background, out, mag_step: float, clevel: int = 5, threads: in
             dimension_names=("time", "pixel"),
         )
 
-        def one(t0: int):
+        def one(t0: int) -> _ErrorTally:
             t1 = min(nt, t0 + tc)
             ob = np.asarray(obs_arr[t0:t1].values, bool)
-            codes, m = _codes(np.asarray(total_arr[t0:t1].values), zp, ob, step)
-            mag[t0:t1] = codes
+            part = _ErrorTally(nb)
+            mag[t0:t1] = part.encode(np.asarray(total_arr[t0:t1].values), zp, ob, step)
             obs[t0:t1] = ob
-            return codes, m, ob
+            return part
 
         with ThreadPoolExecutor(max(1, int(threads))) as pool:
-            for codes, m, ob in pool.map(one, range(0, nt, tc)):
-                tally.add(codes, m, ob, step)
+            for part in pool.map(one, range(0, nt, tc)):
+                tally.merge(part)
         t = root.create_array("time", shape=(nt,), dtype="int64", dimension_names=("time",))
         t[:] = (times - times[0]).astype("timedelta64[s]").astype(np.int64)
         t.attrs.update(units=f"seconds since {start}", calendar="proleptic_gregorian", long_name="time (UTC)")
@@ -251,7 +279,3 @@ def write_compact(background, out, mag_step: float, clevel: int = 5, threads: in
         "time_chunk": tc,
         **stats,
     }
-
-
-def _default_threads() -> int:
-    return max(1, min(4, os.cpu_count() or 1))
