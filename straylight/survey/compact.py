@@ -8,9 +8,11 @@ Its layout (Zarr v3; only codecs and data types of the Zarr v3 specification):
   and ``_FillValue`` (65535) where the sample is not observable: the sky's value is kept only
   where it can be observed, and the observability is exact (``mag != _FillValue``).  The CF
   attributes ``scale_factor``, ``add_offset`` and ``_FillValue`` make xarray decode it to
-  magnitudes with NaN where not observable.  Stored transposed (band, pixel, time), so each
-  pixel's time series is contiguous and its repeated values compress, then blosc (bit shuffle,
-  zstd).  One chunk holds ``time_chunk`` times, every pixel and band.
+  magnitudes with NaN where not observable.  Stored in (time, pixel, band) order, byte-shuffled
+  and zstd-compressed by blosc in blocks of 16 MiB: within a block, the next time's row of codes
+  mostly repeats the last one's (91 % of an observable sample's codes are unchanged 5 minutes
+  later at 0.02 mag, a month at nside 32), which zstd finds as long matches.  One chunk holds
+  about a day of times, every pixel and band (64 MiB decoded at most).
 * ``observable`` (time, pixel) bool: the same mask, for readers of the product through xarray.
 * ``time`` (int64 seconds since the campaign's first time, CF ``units``), ``pixel`` (HEALPix
   index), the band names in the attribute ``bands``.
@@ -58,6 +60,9 @@ ERROR_BIN_MAG = 1e-4
 _ERROR_BINS = 20_000  # up to 2 mag; larger errors fall in the last bin (and in error_max_mag)
 #: decoded bytes of one chunk at most (the reader decodes a chunk at a time)
 _CHUNK_BYTES = 64 * 2**20
+#: blosc's block: zstd finds repeats only within one (blosc's automatic blocks, ~256 KiB at level
+#: 5, stored the first 3 days of a month at nside 32 in 0.34 bytes per sample, 0.20 in 16 MiB blocks)
+_BLOCK_BYTES = 16 * 2**20
 
 
 def compact_time_chunk(n_times: int, n_pixels: int, n_bands: int, cadence_s: float) -> int:
@@ -174,7 +179,7 @@ def write_compact(background, out, mag_step: float, clevel: int = 5, threads: in
     """
     import xarray as xr
     import zarr
-    from zarr.codecs import BloscCodec, TransposeCodec
+    from zarr.codecs import BloscCodec
 
     if not 0.0 < float(mag_step) <= 1.0:
         raise InputError(f"compact magnitude step {mag_step!r}: must be in (0, 1] mag")
@@ -196,14 +201,15 @@ def write_compact(background, out, mag_step: float, clevel: int = 5, threads: in
     tally = _ErrorTally(nb)
     with atomic_path(out) as tmp:
         root = zarr.open_group(str(tmp), mode="w", zarr_format=3)
-        blosc = BloscCodec(cname="zstd", clevel=int(clevel), shuffle="bitshuffle", typesize=2, blocksize=0)
+        blosc = BloscCodec(
+            cname="zstd", clevel=int(clevel), shuffle="shuffle", typesize=2, blocksize=_BLOCK_BYTES
+        )
         mag = root.create_array(
             "mag",
             shape=(nt, npix, nb),
             chunks=(tc, npix, nb),
             dtype="uint16",
             fill_value=FILL,
-            filters=[TransposeCodec(order=(2, 1, 0))],
             compressors=[blosc],
             dimension_names=("time", "pixel", "band"),
         )
@@ -213,7 +219,11 @@ def write_compact(background, out, mag_step: float, clevel: int = 5, threads: in
             chunks=(tc, npix),
             dtype="bool",
             fill_value=False,
-            compressors=[BloscCodec(cname="zstd", clevel=int(clevel), shuffle="bitshuffle", typesize=1)],
+            compressors=[
+                BloscCodec(
+                    cname="zstd", clevel=int(clevel), shuffle="bitshuffle", typesize=1, blocksize=_BLOCK_BYTES
+                )
+            ],
             dimension_names=("time", "pixel"),
         )
 
