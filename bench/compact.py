@@ -156,16 +156,19 @@ def main(argv=None) -> dict:
 
         _, t_first, _ = timed(lambda: sky.map(random_times(1)[0]))
         _, t_load, c_load = timed(sky.load)
-        map_ms = []
+        map_ms, map_cpu_ms = [], []
         for t in random_times(200):
-            _, w, _ = timed(lambda t=t: sky.map(t))
+            _, w, c = timed(lambda t=t: sky.map(t))
             map_ms.append(1e3 * w)
+            map_cpu_ms.append(1e3 * c)
         it_pix = sky.pixels[rng.integers(0, npix, args.batch)]
         bt = random_times(args.batch)
-        batch_s = []
+        sky.values(bt[:10], it_pix[:10])  # the compiled gather loaded
+        batch_s, batch_cpu_s = [], []
         for _ in range(5):
-            _, w, _ = timed(lambda: sky.values(bt, it_pix))
+            _, w, c = timed(lambda: sky.values(bt, it_pix))
             batch_s.append(w)
+            batch_cpu_s.append(c)
         out["skymaps"] = {
             "open_s": t_open,
             "first_map_s": t_first,
@@ -173,15 +176,19 @@ def main(argv=None) -> dict:
             "decode_all_cpu_s": c_load,
             "map_ms_median": float(np.median(map_ms)),
             "map_ms_p90": float(np.percentile(map_ms, 90)),
+            "map_cpu_ms_median": float(np.median(map_cpu_ms)),
             "map_values_per_s": 12 * nside**2 * nb / (np.median(map_ms) / 1e3),
             "batch_samples": args.batch,
             "batch_s_median": float(np.median(batch_s)),
             "batch_values_per_s": args.batch * nb / float(np.median(batch_s)),
+            "batch_cpu_s_median": float(np.median(batch_cpu_s)),
+            "batch_values_per_cpu_s": args.batch * nb / float(np.median(batch_cpu_s)),
         }
         print(
             "SkyMaps: open {open_s:.3f} s; first map {first_map_s:.3f} s; decode all {decode_all_s:.2f} s; "
-            "map {map_ms_median:.2f} ms (p90 {map_ms_p90:.2f}); batch {batch_samples} samples in "
-            "{batch_s_median:.3f} s = {batch_values_per_s:.3g} values/s".format(**out["skymaps"])
+            "map {map_ms_median:.2f} ms (p90 {map_ms_p90:.2f}; CPU {map_cpu_ms_median:.2f}); batch "
+            "{batch_samples} samples in {batch_s_median:.3f} s = {batch_values_per_s:.3g} values/s (CPU "
+            "{batch_cpu_s_median:.3f} s = {batch_values_per_cpu_s:.3g} values/CPU-s)".format(**out["skymaps"])
         )
         year = tmp / "year.zarr"
         n_year = int(round(365.25 * 86400 / (cadence / np.timedelta64(1, "s"))))
@@ -203,12 +210,14 @@ def main(argv=None) -> dict:
             return zp.values[None, :] - 2.5 * np.log10(tot)
 
         xr_map()
-        xm = [timed(xr_map)[1] for _ in range(10)]
+        xm = [timed(xr_map) for _ in range(10)]
         ii = xr.DataArray(rng.integers(0, nt, args.xarray_batch), dims="s")
         pp = xr.DataArray(rng.integers(0, npix, args.xarray_batch), dims="s")
-        _, xb, _ = timed(lambda: bg["total"].isel(time=ii, pixel=pp).values)
+        _, xb, xb_cpu = timed(lambda: bg["total"].isel(time=ii, pixel=pp).values)
         out["xarray"] = {
-            "map_ms_median": 1e3 * float(np.median(xm)),
+            "map_ms_median": 1e3 * float(np.median([x[1] for x in xm])),
+            "map_cpu_ms_median": 1e3 * float(np.median([x[2] for x in xm])),
+            "batch_cpu_s": xb_cpu,
             "batch_samples": args.xarray_batch,
             "batch_s": xb,
             "batch_values_per_s": args.xarray_batch * nb / xb,
@@ -243,6 +252,7 @@ def main(argv=None) -> dict:
                 "map_cpu_s": sm_map_cpu,
                 "batch_samples": args.skymodel_batch,
                 "batch_s": sm_b,
+                "batch_cpu_s": sm_b_cpu,
                 "batch_values_per_s": args.skymodel_batch * nb / sm_b,
             }
             print(

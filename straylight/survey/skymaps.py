@@ -115,7 +115,10 @@ class SkyMaps:
         self._column = np.full(12 * self.nside**2, -1, dtype=np.int64)
         self._column[self.pixels] = np.arange(self.pixels.size)
         self._tc = int(self._array.chunks[0])
-        self._codes = None  # (time, pixel, band) uint16, filled chunk by chunk
+        # (time, pixel, band) uint16, filled chunk by chunk; up to 8 bands padded to 8 (a
+        # sample's codes in one 16-byte row)
+        self._codes = None
+        self._width = 8 if len(self.bands) <= 8 else len(self.bands)
         self._decoded = np.zeros(-(-n_times // self._tc), dtype=bool)
 
     def __repr__(self) -> str:
@@ -129,6 +132,8 @@ class SkyMaps:
             return np.arange(len(self.bands))
         if isinstance(bands, str):
             bands = [bands]
+        if not len(bands):
+            raise InputError("bands: empty (give at least one, or None for all)")
         unknown = [b for b in bands if b not in self.bands]
         if unknown:
             raise InputError(f"bands {unknown}: not in the product (bands: {', '.join(self.bands)})")
@@ -141,12 +146,12 @@ class SkyMaps:
 
     def _decode(self, chunks) -> None:
         if self._codes is None:  # virtual until a chunk is written into it
-            self._codes = np.empty(self._array.shape, dtype=np.uint16)
+            self._codes = np.empty(self._array.shape[:2] + (self._width,), dtype=np.uint16)
         for c in np.unique(chunks):
             if not self._decoded[c]:
                 t0 = int(c) * self._tc
                 t1 = min(self._codes.shape[0], t0 + self._tc)
-                self._codes[t0:t1] = self._array[t0:t1]
+                self._codes[t0:t1, :, : len(self.bands)] = self._array[t0:t1]
                 self._decoded[c] = True
 
     def _grid_position(self, times) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -167,9 +172,10 @@ class SkyMaps:
         return i0, i1, w
 
     def _magnitudes(self, c0, c1, w) -> SkyValues:
-        """Magnitudes from the codes at the two grid times (same shapes; w broadcast)."""
+        """Magnitudes (samples, bands) from the codes at the two grid times, and the samples'
+        observability (the fill is in every band or none); ``w`` (samples, 1) or scalar."""
         # on a grid time (w = 0) the later neighbour does not count
-        obs = (c0 != self._fill) & ((c1 != self._fill) | (w == 0))
+        obs = (c0[:, 0] != self._fill) & ((c1[:, 0] != self._fill) | (np.ravel(w) == 0))
         step = np.float32(self.mag_step)
         mag = c0.astype(np.float32)
         mag += (c1.astype(np.float32) - mag) * w
@@ -200,16 +206,13 @@ class SkyMaps:
         i0, i1, w = self._grid_position(time)
         i0, i1 = int(i0), int(i1)
         self._decode([i0 // self._tc, i1 // self._tc])
-        if b.size == len(self.bands):
-            c0, c1 = self._codes[i0], self._codes[i1]
-        else:
-            c0, c1 = self._codes[i0][:, b], self._codes[i1][:, b]
+        c0, c1 = self._codes[i0][:, b], self._codes[i1][:, b]
         mag, obs = self._magnitudes(c0, c1, w if i1 != i0 else np.float32(0.0))
         npix = self._column.size
         out = np.full((b.size, npix), np.nan, dtype=np.float32)
         out[:, self.pixels] = mag.T
         seen = np.zeros(npix, dtype=bool)
-        seen[self.pixels] = obs[:, 0]
+        seen[self.pixels] = obs
         return SkyValues(out, seen)
 
     def values(self, times, pixels, bands=None) -> SkyValues:
@@ -243,14 +246,26 @@ class SkyMaps:
             bad = np.ravel(pix)[np.flatnonzero(np.ravel(col) < 0)[0]]
             raise InputError(f"pixel {bad}: not in the product's footprint")
         i0, i1, w, col = (np.ravel(a) for a in np.broadcast_arrays(i0, i1, w, col))
-        self._decode(np.concatenate([np.unique(i0 // self._tc), np.unique(i1 // self._tc)]))
-        flat = self._codes.reshape(-1, len(self.bands))
+        if not self._decoded.all():
+            need = np.zeros(self._decoded.size, dtype=bool)
+            need[i0 // self._tc] = True
+            need[i1 // self._tc] = True
+            self._decode(np.flatnonzero(need))
+        from straylight.survey.skymaps_kernel import gather_interpolate
+
         npix = self.pixels.size
-        r0 = i0 * npix + col
-        r1 = i1 * npix + col
-        if b.size == len(self.bands):
-            c0, c1 = flat[r0], flat[r1]
-        else:
-            c0, c1 = flat[r0[:, None], b], flat[r1[:, None], b]
-        mag, obs = self._magnitudes(c0, c1, w[:, None])
-        return SkyValues(mag, obs[:, 0] if obs.shape[1] else np.zeros(r0.size, bool))
+        mag = np.empty((i0.size, b.size), dtype=np.float32)
+        obs = np.empty(i0.size, dtype=bool)
+        gather_interpolate(
+            self._codes.reshape(-1, self._width),
+            i0 * npix + col,
+            i1 * npix + col,
+            np.ascontiguousarray(w, dtype=np.float32),
+            b,
+            self._fill,
+            np.float32(self.mag_step),
+            self._offset,
+            mag,
+            obs,
+        )
+        return SkyValues(mag, obs)
