@@ -101,8 +101,8 @@ CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE = 2.6e-6
 PRODUCT_BYTES_PER_SAMPLE = 25.0
 #: Bytes on disk per (time, pixel) sample of the compact sky product (sky_compact.zarr: seven
 #: bands' magnitudes and the observability, straylight.survey.compact) at the default
-#: storage.compact_mag_step: the largest of bench/compact.py's campaigns (docs/performance.md).
-COMPACT_BYTES_PER_SAMPLE = 0.1
+#: storage.compact_mag_step: a month at nside 32 measured 0.171 (bench/compact.py, docs/performance.md).
+COMPACT_BYTES_PER_SAMPLE = 0.18
 #: The pipeline's wall time, `snakemake` to the last product, on N cores with the earthshine
 #: tables cached: PIPELINE_FIXED_SECONDS + samples / (PIPELINE_SAMPLES_PER_S_PER_CORE x N).  The
 #: fixed part is the jobs' start-up, the model's set-up, the figures and the report; the rest

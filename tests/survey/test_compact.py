@@ -128,3 +128,17 @@ def test_skymaps_values_and_maps_on_and_between_grid_times(compact_run):
         sky.values(times[:1], outside[:1])
     with pytest.raises(straylight.InputError, match="bands"):
         sky.map(times[0], bands=["V"])
+
+
+def test_plan_prices_the_compact_product():
+    """`straylight plan` on the default day (380,160 samples) prints the compact product's size:
+    the samples x plan.COMPACT_BYTES_PER_SAMPLE, the figure measured by bench/compact.py."""
+    from conftest import run_cli
+
+    from straylight.survey.plan import COMPACT_BYTES_PER_SAMPLE
+
+    r = run_cli("plan", "--cores", "2")
+    assert r.returncode == 0, r.stderr
+    expect = f"compact sky (sky_compact.zarr, besides): {380_160 * COMPACT_BYTES_PER_SAMPLE / 1e9:.3g} GB"
+    assert expect in r.stdout, r.stdout
+    assert 0.05 <= COMPACT_BYTES_PER_SAMPLE <= 0.5  # the product's budget (issue #55): <= 0.5
