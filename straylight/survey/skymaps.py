@@ -2,8 +2,8 @@
 
 Opening reads only the metadata and the coordinates; each time chunk is decoded (blosc, about a
 day of every pixel and band) the first time a look-up needs it and is kept in memory as its
-uint16 codes (2 bytes per sample and band: a month at nside 32, 0.64 GB for the seven bands),
-so later look-ups are numpy gathers.
+uint16 codes, up to 8 bands padded to 8 (16 bytes per sample: 0.73 GB for a month at nside 32),
+so later look-ups are a compiled gather (:mod:`straylight.survey.skymaps_kernel`).
 
 Between two grid times the magnitude is interpolated linearly in time, and a sample is
 observable only if it is at both neighbouring grid times (a constraint that starts or ends
