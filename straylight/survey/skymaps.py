@@ -44,6 +44,22 @@ def _datetime64_ns(times) -> np.ndarray:
     return np.asarray(values, dtype="datetime64[ns]").astype(np.int64)
 
 
+def _lazy_zeros(shape) -> np.ndarray:
+    """A uint16 array whose memory is taken only where it is written: an anonymous mapping
+    without a swap reservation (a year at nside 64 would be 34 GiB, which malloc refuses)."""
+    import mmap
+
+    nbytes = int(np.prod(shape)) * 2
+    if nbytes == 0:
+        return np.zeros(shape, dtype=np.uint16)
+    flags = mmap.MAP_PRIVATE | getattr(mmap, "MAP_ANONYMOUS", 0x20) | getattr(mmap, "MAP_NORESERVE", 0)
+    try:
+        buf = mmap.mmap(-1, nbytes, flags=flags)
+    except (OSError, ValueError, AttributeError):  # no such mapping here: an ordinary array
+        return np.empty(shape, dtype=np.uint16)
+    return np.frombuffer(buf, dtype=np.uint16).reshape(shape)
+
+
 class SkyMaps:
     """The total sky background per band, AB mag/arcsec2, and the observability of a finished
     campaign, read from its compact product (``results/<campaign>/sky_compact.zarr``).
@@ -145,8 +161,8 @@ class SkyMaps:
         return self
 
     def _decode(self, chunks) -> None:
-        if self._codes is None:  # virtual until a chunk is written into it
-            self._codes = np.empty(self._array.shape[:2] + (self._width,), dtype=np.uint16)
+        if self._codes is None:
+            self._codes = _lazy_zeros(self._array.shape[:2] + (self._width,))
         for c in np.unique(chunks):
             if not self._decoded[c]:
                 t0 = int(c) * self._tc
