@@ -48,13 +48,15 @@ def _lazy_zeros(shape) -> np.ndarray:
     """A uint16 array whose memory is taken only where it is written: an anonymous mapping
     without a swap reservation (a year at nside 64 would be 34 GiB, which malloc refuses)."""
     import mmap
+    import sys
 
     nbytes = int(np.prod(shape)) * 2
     if nbytes == 0:
         return np.zeros(shape, dtype=np.uint16)
-    flags = mmap.MAP_PRIVATE | getattr(mmap, "MAP_ANONYMOUS", 0x20) | getattr(mmap, "MAP_NORESERVE", 0)
     try:
-        buf = mmap.mmap(-1, nbytes, flags=flags)
+        # MAP_NORESERVE is Linux's 0x4000 (Python names it from 3.13 only)
+        noreserve = getattr(mmap, "MAP_NORESERVE", 0x4000 if sys.platform.startswith("linux") else 0)
+        buf = mmap.mmap(-1, nbytes, flags=mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS | noreserve)
     except (OSError, ValueError, AttributeError):  # no such mapping here: an ordinary array
         return np.empty(shape, dtype=np.uint16)
     return np.frombuffer(buf, dtype=np.uint16).reshape(shape)
