@@ -345,6 +345,7 @@ def test_installed_run_makes_the_products_and_the_report(installed):
         "background.zarr",
         "limits.zarr",
         "observability.zarr",
+        "sky_compact.zarr",
         "ephemeris.zarr",
         "footprint.fits",
         "stars_csst.parquet",
