@@ -29,6 +29,7 @@ Example (a dark-sky pointing in the default campaign's orbit)::
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -53,9 +54,10 @@ def sky_background(time, coord, bands=None, config=None, catalog=None):
     bands : list of str, optional
         Bands to evaluate (default: every band of the instrument); ``"V"`` is the Bessell V
         diagnostic band (no limit for it).
-    config : str or path, optional
+    config : str, path or mapping, optional
         Campaign config (default: the packaged ``config/config.yaml``) giving the orbit, the
-        instrument and the models.
+        instrument and the models; a file or a mapping holding only the keys it changes is
+        merged over the default config, as ``straylight run`` does.
     catalog : str or path, optional
         Star table (``ra``, ``dec``, ``mag_<band>``; e.g. ``results/<campaign>/stars_csst.parquet``)
         for the off-field star term, with the cube's selection (``stars.offfield_mag_limit``).
@@ -122,10 +124,29 @@ class CampaignProducts:
     * ``provenance`` - ``provenance.json`` as a dict.
     """
 
+    #: the products; a folder holding none of them is not a campaign's
+    PRODUCTS = (
+        "background.zarr",
+        "limits.zarr",
+        "observability.zarr",
+        "ephemeris.zarr",
+        "footprint.fits",
+        "provenance.json",
+    )
+
     def __init__(self, path):
+        if not isinstance(path, (str, os.PathLike)):
+            raise InputError(
+                f"path: expected a campaign results folder (str or path), got {type(path).__name__}"
+            )
         self.path = Path(path)
         if not self.path.is_dir():
             raise InputError(f"{self.path}: not a campaign results folder (expected results/<campaign>/)")
+        if not any((self.path / p).exists() for p in self.PRODUCTS):
+            raise InputError(
+                f"{self.path}: no campaign product in this folder (none of {', '.join(self.PRODUCTS)}); "
+                "expected results/<campaign>/ of a run"
+            )
         self._cache: dict = {}
 
     def _zarr(self, name):
@@ -306,7 +327,8 @@ def open_campaign(path) -> CampaignProducts:
     Raises
     ------
     straylight.InputError
-        The folder does not exist, or (on access) a product is missing.
+        ``path`` not a path, a folder that does not exist or holds none of the products, or (on
+        access) a product that is missing.
 
     Examples
     --------

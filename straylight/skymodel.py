@@ -24,9 +24,10 @@ class SkyModel:
 
     Parameters
     ----------
-    config : str or path, optional
+    config : str, path or mapping, optional
         Campaign config (default: the packaged ``config/config.yaml``): the orbit, the
-        instrument and the models.
+        instrument and the models; a file or a mapping holding only the keys it changes is
+        merged over the default config (:func:`straylight.config.load_campaign`).
     catalog : str or path, optional
         Star table (``ra``, ``dec``, ``mag_<band>``) for the off-field star term, read once per
         set of bands asked for; without it the ``stars`` component is 0.
@@ -209,7 +210,9 @@ class SkyModel:
         from straylight.survey.etc import checked_bands, etc_table
 
         bands = checked_bands(bands, self.campaign)
-        return etc_table(self.background(time, coord, bands), bands, self.campaign, request)
+        table = etc_table(self.background(time, coord, bands), bands, self.campaign, request)
+        _warn_magnitude(table, self.campaign)
+        return table
 
     def _stars_for(self, bands: list[str]):
         """The catalog's off-field stars for these bands (read once per band set), or None."""
@@ -225,6 +228,16 @@ class SkyModel:
                     self.catalog, bands, float(sc.offfield_mag_limit), sc.faint_map
                 )
             return self._stars[key]
+
+
+def _warn_magnitude(table, campaign) -> None:
+    """The ETC's warnings for a magnitude its noise model does not cover, one logged line each."""
+    import logging
+
+    from straylight.survey.etc import magnitude_warnings
+
+    for line in magnitude_warnings(table, campaign):
+        logging.getLogger(__name__).warning("warning: %s", line)
 
 
 def checked_samples(time, coord):
@@ -263,7 +276,7 @@ def checked_samples(time, coord):
         raise InputError(f"time: expected an astropy.time.Time, got {type(time).__name__}")
     if not isinstance(coord, SkyCoord):
         raise InputError(f"coord: expected an astropy.coordinates.SkyCoord, got {type(coord).__name__}")
-    icrs = coord.icrs
+    icrs = _icrs(coord)
     ra = np.asarray(icrs.ra.deg, float)
     dec = np.asarray(icrs.dec.deg, float)
     try:
@@ -280,6 +293,7 @@ def checked_samples(time, coord):
             f"time: sample {masked[0]} is masked ({masked.size} of {ra.size} samples): no time to "
             "compute at; drop or fill the masked entries"
         )
+    _check_raw_jd(time, shape)  # far outside DE405 (JD 1e10): our line, before ERFA fails to convert it
     with quiet_dubious_years():  # a time outside DE405 gets our line below, not ERFA's warnings first
         t = time.utc
         t = Time(
@@ -291,6 +305,56 @@ def checked_samples(time, coord):
     if t.size:
         check_in_ephemeris(t, "time")
     return t, ra, dec
+
+
+def _icrs(coord):
+    """``coord`` in ICRS, or InputError when its frame lacks what the conversion needs (an AltAz
+    frame without its location or time); a coordinate with a distance is taken as a direction,
+    said once per call."""
+    from astropy.coordinates import ConvertError
+
+    frame = coord.frame
+    if frame.name in ("altaz", "hadec"):  # local frames: the observer's place and time fix them
+        for attr, what in (("location", "an EarthLocation"), ("obstime", "a time")):
+            if getattr(frame, attr, None) is None:
+                raise InputError(
+                    f"coord: a {frame.name} coordinate has no {attr}: it needs {what} to be converted "
+                    f"to ICRS (SkyCoord(..., frame='{frame.name}', {attr}=...)), or give ICRS RA/Dec"
+                )
+    try:
+        icrs = coord.icrs
+    except (AttributeError, ValueError, TypeError, ConvertError) as exc:
+        text = " ".join(str(exc).split())
+        raise InputError(f"coord: cannot convert the {frame.name} coordinate to ICRS: {text}") from None
+    dist = icrs.spherical.distance
+    if dist.unit.physical_type == "length" and dist.size:
+        import logging
+
+        logging.getLogger(__name__).warning(
+            "warning: coord: has a distance (%s for the first sample): only its direction is used, "
+            "as seen from the frame's origin (the satellite's parallax is not applied); give a "
+            "direction without distance to silence this",
+            np.ravel(dist)[0],
+        )
+    return icrs
+
+
+def _check_raw_jd(time, shape) -> None:
+    """EphemerisRangeError for a time whose Julian date (in its own scale: within minutes of TDB)
+    is more than a day outside DE405 or not finite: converting such a time makes ERFA fail."""
+    from straylight.errors import EphemerisRangeError
+    from straylight.sky.ephemeris import default_ephemeris
+
+    eph = default_ephemeris()
+    jd = np.broadcast_to(np.asarray(time.jd1, float) + np.asarray(time.jd2, float), shape).ravel()
+    with np.errstate(invalid="ignore"):
+        bad = np.flatnonzero(~((jd >= eph.jd_start - 1.0) & (jd <= eph.jd_end + 1.0)))
+    if bad.size:
+        i = int(bad[0])
+        where = f"time: sample {i}" if jd.size > 1 else "time"
+        raise EphemerisRangeError(
+            f"{where} = JD {jd[i]:.10g} ({time.scale}) is outside the DE405 range ({eph.span})"
+        )
 
 
 def _empty_table(campaign, t, bands):
@@ -328,9 +392,18 @@ _MAX_CACHED_MODELS = 4
 
 
 def _file_key(path) -> tuple | None:
-    """(resolved path, modification time, size) of a file, so that an edited file gives a new model."""
+    """(resolved path, modification time, size) of a file, so that an edited file gives a new model;
+    a mapping's content (and the folder its relative paths are against)."""
     if path is None:
         return None
+    from collections.abc import Mapping
+
+    if isinstance(path, Mapping):
+        import json
+
+        return ("mapping", json.dumps(path, sort_keys=True, default=str), str(Path.cwd()))
+    if not isinstance(path, (str, os.PathLike)):
+        return ("object", id(path))  # refused by the loader, naming its type
     p = Path(path).resolve()
     try:
         st = os.stat(p)
@@ -346,8 +419,9 @@ def cached_sky_model(config=None, catalog=None) -> SkyModel:
 
     Parameters
     ----------
-    config : str or path, optional
-        Campaign config (None: the packaged ``config/config.yaml``).
+    config : str, path or mapping, optional
+        Campaign config (None: the packaged ``config/config.yaml``; a partial one is merged
+        over it).
     catalog : str or path, optional
         Star table for the off-field star term (None: stars = 0).
 

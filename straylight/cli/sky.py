@@ -314,6 +314,7 @@ def cmd_visibility(args) -> int:
     campaign = load_campaign(args.config)
     c = campaign.settings.campaign
     step_s = args.step_min * 60.0 if args.step_min is not None else float(c.cadence_s)
+    _warn_bright(ra_deg, dec_deg, args.start or c.start)
     res = visibility(
         campaign,
         ra_deg,
@@ -365,3 +366,13 @@ def cmd_visibility(args) -> int:
         plot_visibility(res, args.plot, args.threshold)
         print(args.plot)
     return 0
+
+
+def _warn_bright(ra_deg, dec_deg, start, names=None) -> None:
+    """A warning for each target that is a Hipparcos star (the stars carried to ``start``)."""
+    from straylight.sky.timeutil import parse_utc, quiet_dubious_years
+    from straylight.survey.bright_targets import warn_bright_targets
+
+    with quiet_dubious_years():
+        epoch = float(parse_utc(start, "--start").jyear)
+    warn_bright_targets(ra_deg, dec_deg, epoch, names)

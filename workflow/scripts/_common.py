@@ -49,7 +49,11 @@ def _job_error_hook(log):
 
     def hook(exc_type, exc, tb):
         from straylight.errors import StraylightError
+        from straylight.util.daskutil import exit_without_teardown
 
+        if isinstance(exc, KeyboardInterrupt):  # a Ctrl-C reaches every job: `straylight run` says it once
+            log.info("interrupted (SIGINT): stopped; the same command resumes the run")
+            exit_without_teardown(130)
         if isinstance(exc, StraylightError):
             line = str(exc)
         elif isinstance(exc, OSError) and exc.filename is not None and exc.errno in refusals:
