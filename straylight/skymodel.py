@@ -110,6 +110,11 @@ class SkyModel:
         unknown = [b for b in bands if b not in campaign.bands and b != "V"]
         if unknown:
             raise InputError(f"bands: unknown band {unknown[0]!r}; known: {', '.join(campaign.bands)}, V")
+        twice = [b for i, b in enumerate(bands) if b in bands[:i]]
+        if twice:
+            raise InputError(
+                f"bands: band {twice[0]!r} given twice ({', '.join(bands)}); give each band once"
+            )
         if not t.size:
             return _empty_table(campaign, t, bands)
         return background_table(
@@ -318,7 +323,7 @@ def _icrs(coord):
         for attr, what in (("location", "an EarthLocation"), ("obstime", "a time")):
             if getattr(frame, attr, None) is None:
                 raise InputError(
-                    f"coord: a {frame.name} coordinate has no {attr}: it needs {what} to be converted "
+                    f"coord: its {frame.name} frame has no {attr}: it needs {what} to be converted "
                     f"to ICRS (SkyCoord(..., frame='{frame.name}', {attr}=...)), or give ICRS RA/Dec"
                 )
     try:

@@ -203,6 +203,9 @@ def _sky_bands(text, campaign) -> list[str] | None:
     unknown = [b for b in bands if b not in known]
     if unknown:
         raise InputError(f"--bands: unknown band {unknown[0]!r}; valid bands: {', '.join(known)}")
+    twice = [b for i, b in enumerate(bands) if b in bands[:i]]
+    if twice:
+        raise InputError(f"--bands {text!r}: band {twice[0]!r} given twice; give each band once")
     return bands
 
 

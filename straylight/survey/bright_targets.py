@@ -16,9 +16,10 @@ import numpy as np
 
 __all__ = ["MATCH_RADIUS_ARCSEC", "bright_stars_at", "warn_bright_targets"]
 
-#: A target within this angle of a Hipparcos star (at the campaign's epoch) is that star: the
-#: catalogue's positions are good to milliarcseconds, a target given by hand to about an arcsecond.
-MATCH_RADIUS_ARCSEC = 10.0
+#: A target within this angle of a Hipparcos star (at the campaign's epoch) is on that star: a
+#: target given at a catalogue's J2000 position stays within it for all but the fastest stars
+#: (Sirius moved 35 arcsec in 2000-2026), and the star's halo reaches this far anyway.
+MATCH_RADIUS_ARCSEC = 60.0
 
 
 @functools.lru_cache(maxsize=1)
@@ -97,7 +98,7 @@ def warn_bright_targets(ra_deg, dec_deg, epoch_yr: float, names=None) -> list[st
         i = hit["index"]
         who = names[i] if names is not None else f"RA {ra_deg[i]:.4f} Dec {dec_deg[i]:+.4f}"
         lines.append(
-            f"{who}: is HIP {hit['hip']} (V = {hit['v_mag']:.2f}, "
+            f"{who}: on the star HIP {hit['hip']} (V = {hit['v_mag']:.2f}, "
             f"{hit['separation_arcsec']:.1f} arcsec away): "
             "the background and 5-sigma limits are the sky's at that pointing, without the star's own "
             "light, which is far brighter than the survey's depth"

@@ -132,7 +132,8 @@ def checked_bands(bands, campaign, field: str = "bands") -> list[str]:
     Raises
     ------
     InputError
-        An empty list, an unknown band, or ``"V"`` (a diagnostic band, no survey exposures).
+        An empty list, an unknown band, a band given twice, or ``"V"`` (a diagnostic band, no
+        survey exposures).
     """
     valid = list(campaign.bands)
     if bands is None:
@@ -147,6 +148,9 @@ def checked_bands(bands, campaign, field: str = "bands") -> list[str]:
             )
         if b not in valid:
             raise InputError(f"{field}: unknown band {b!r}; valid bands: {', '.join(valid)}")
+    twice = [b for i, b in enumerate(bands) if b in bands[:i]]
+    if twice:
+        raise InputError(f"{field}: band {twice[0]!r} given twice ({', '.join(bands)}); give each band once")
     return bands
 
 
