@@ -317,7 +317,6 @@ def cmd_visibility(args) -> int:
     campaign = load_campaign(args.config)
     c = campaign.settings.campaign
     step_s = args.step_min * 60.0 if args.step_min is not None else float(c.cadence_s)
-    _warn_bright(ra_deg, dec_deg, args.start or c.start)
     res = visibility(
         campaign,
         ra_deg,
@@ -328,6 +327,7 @@ def cmd_visibility(args) -> int:
         step_s,
         args.threshold,
     )
+    _warn_bright(ra_deg, dec_deg, args.start or c.start)  # the times checked by now
     s, w, d = res["samples"], res["windows"], res["days"]
     n_obs = int(np.sum(s["observable"]))
     print(
