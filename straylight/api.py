@@ -103,9 +103,10 @@ def sky_background(time, coord, bands=None, config=None, catalog=None):
     >>> len(sky), sky["zodiacal_r"].unit, sky["total_mag_r"].unit
     (3, Unit("electron / (pix s)"), Unit("mag / arcsec2"))
     """
-    from straylight.skymodel import cached_sky_model, checked_samples
+    from straylight.skymodel import cached_sky_model, checked_band_list, checked_samples
 
     checked_samples(time, coord)  # bad input refused before a model (or its tables) is built
+    checked_band_list(bands)
     return cached_sky_model(config, catalog).background(time, coord, bands)
 
 

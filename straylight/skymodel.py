@@ -16,7 +16,7 @@ import numpy as np
 
 from straylight.errors import InputError
 
-__all__ = ["SkyModel", "cached_sky_model", "checked_samples"]
+__all__ = ["SkyModel", "cached_sky_model", "checked_band_list", "checked_samples"]
 
 
 class SkyModel:
@@ -110,11 +110,7 @@ class SkyModel:
         unknown = [b for b in bands if b not in campaign.bands and b != "V"]
         if unknown:
             raise InputError(f"bands: unknown band {unknown[0]!r}; known: {', '.join(campaign.bands)}, V")
-        twice = [b for i, b in enumerate(bands) if b in bands[:i]]
-        if twice:
-            raise InputError(
-                f"bands: band {twice[0]!r} given twice ({', '.join(bands)}); give each band once"
-            )
+        checked_band_list(bands)
         if not t.size:
             return _empty_table(campaign, t, bands)
         return background_table(
@@ -233,6 +229,17 @@ class SkyModel:
                     self.catalog, bands, float(sc.offfield_mag_limit), sc.faint_map
                 )
             return self._stars[key]
+
+
+def checked_band_list(bands) -> None:
+    """InputError for a list of bands that names a band twice (the table's columns are named by
+    band), before any model is built; None (every band) passes."""
+    if bands is None or isinstance(bands, str):
+        return
+    bands = [str(b) for b in bands]
+    twice = [b for i, b in enumerate(bands) if b in bands[:i]]
+    if twice:
+        raise InputError(f"bands: band {twice[0]!r} given twice ({', '.join(bands)}); give each band once")
 
 
 def _warn_magnitude(table, campaign) -> None:
