@@ -327,7 +327,9 @@ def cmd_visibility(args) -> int:
         step_s,
         args.threshold,
     )
-    _warn_bright(ra_deg, dec_deg, args.start or c.start)  # the times checked by now
+    from straylight.survey.bright_targets import warn_bright_targets
+
+    warn_bright_targets(ra_deg, dec_deg, args.start or c.start)  # the times checked by now
     s, w, d = res["samples"], res["windows"], res["days"]
     n_obs = int(np.sum(s["observable"]))
     print(
@@ -369,13 +371,3 @@ def cmd_visibility(args) -> int:
         plot_visibility(res, args.plot, args.threshold)
         print(args.plot)
     return 0
-
-
-def _warn_bright(ra_deg, dec_deg, start, names=None) -> None:
-    """A warning for each target that is a Hipparcos star (the stars carried to ``start``)."""
-    from straylight.sky.timeutil import parse_utc, quiet_dubious_years
-    from straylight.survey.bright_targets import warn_bright_targets
-
-    with quiet_dubious_years():
-        epoch = float(parse_utc(start, "--start").jyear)
-    warn_bright_targets(ra_deg, dec_deg, epoch, names)

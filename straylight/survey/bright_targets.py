@@ -74,7 +74,7 @@ def _unit(ra_deg, dec_deg) -> np.ndarray:
     return np.stack([np.cos(dec) * np.cos(ra), np.cos(dec) * np.sin(ra), np.sin(dec)], axis=-1)
 
 
-def warn_bright_targets(ra_deg, dec_deg, epoch_yr: float, names=None) -> list[str]:
+def warn_bright_targets(ra_deg, dec_deg, epoch, names=None) -> list[str]:
     """Warn (one logged line each) for every target that is a Hipparcos star: its background and
     depth are the sky's around the star, not the star's own light.  Returns the warnings.
 
@@ -82,8 +82,8 @@ def warn_bright_targets(ra_deg, dec_deg, epoch_yr: float, names=None) -> list[st
     ----------
     ra_deg, dec_deg : array_like, shape (m,)
         The targets' ICRS position, deg.
-    epoch_yr : float
-        The campaign's epoch, Julian year.
+    epoch : float or str
+        The campaign's epoch: a Julian year, or a UTC time (ISO 8601 text, e.g. its start).
     names : list of str, optional
         The targets' names, for the messages (default: their positions).
 
@@ -92,9 +92,14 @@ def warn_bright_targets(ra_deg, dec_deg, epoch_yr: float, names=None) -> list[st
     list of str
         The warnings given.
     """
+    if isinstance(epoch, str):
+        from straylight.sky.timeutil import parse_utc, quiet_dubious_years
+
+        with quiet_dubious_years():
+            epoch = float(parse_utc(epoch, "start").jyear)
     ra_deg, dec_deg = np.atleast_1d(ra_deg), np.atleast_1d(dec_deg)
     lines = []
-    for hit in bright_stars_at(ra_deg, dec_deg, epoch_yr):
+    for hit in bright_stars_at(ra_deg, dec_deg, float(epoch)):
         i = hit["index"]
         who = names[i] if names is not None else f"RA {ra_deg[i]:.4f} Dec {dec_deg[i]:+.4f}"
         lines.append(

@@ -4,6 +4,21 @@ import logging
 import sys
 
 
+def _interrupted_hook(exc_type, exc, tb):
+    """Until setup_logging's hook: a Ctrl-C (it reaches every job: `straylight run` says it once)
+    ends the job with status 130 and no traceback, even while it imports; anything else as
+    Python reports it."""
+    if issubclass(exc_type, KeyboardInterrupt):
+        sys.stderr.flush()
+        import os
+
+        os._exit(130)
+    sys.__excepthook__(exc_type, exc, tb)
+
+
+sys.excepthook = _interrupted_hook  # set as the job imports this module, before the library
+
+
 def setup_logging(snakemake) -> logging.Logger:
     """The rule's logger (its log file and stderr), with the job's error hook; also the job's
     healpy, without plotting functions (straylight.util.healpix), and the job's death with
