@@ -319,10 +319,14 @@ def checked_samples(time, coord):
     return t, ra, dec
 
 
+#: set once the process has been told that a coordinate's distance is not used
+_DISTANCE_WARNED: list = []
+
+
 def _icrs(coord):
     """``coord`` in ICRS, or InputError when its frame lacks what the conversion needs (an AltAz
     frame without its location or time); a coordinate with a distance is taken as a direction,
-    said once per call."""
+    said once per process (a scheduler's loop is not flooded)."""
     from astropy.coordinates import ConvertError
 
     frame = coord.frame
@@ -339,8 +343,10 @@ def _icrs(coord):
         text = " ".join(str(exc).split())
         raise InputError(f"coord: cannot convert the {frame.name} coordinate to ICRS: {text}") from None
     dist = icrs.spherical.distance
-    if dist.unit.physical_type == "length" and dist.size:
+    if dist.unit.physical_type == "length" and dist.size and not _DISTANCE_WARNED:
         import logging
+
+        _DISTANCE_WARNED.append(True)
 
         logging.getLogger(__name__).warning(
             "warning: coord: has a distance (%s for the first sample): only its direction is used, "

@@ -71,12 +71,15 @@ def test_open_campaign_refuses_a_non_path_and_an_empty_folder(tmp_path):
     assert straylight.open_campaign(tmp_path).provenance == {}
 
 
-def test_a_coordinate_with_a_distance_is_taken_as_a_direction_said_once(caplog):
+def test_a_coordinate_with_a_distance_is_taken_as_a_direction_said_once(caplog, monkeypatch):
+    import straylight.skymodel as skymodel
     from straylight.skymodel import checked_samples
 
+    monkeypatch.setattr(skymodel, "_DISTANCE_WARNED", [])  # a fresh process's
     near = SkyCoord([10.0, 11.0] * u.deg, [20.0, 21.0] * u.deg, distance=[1000.0, 2000.0] * u.km)
     with caplog.at_level(logging.WARNING):
         _, ra, dec = checked_samples(T, near)
+        checked_samples(T, near)  # a scheduler's next call: not again
     said = [r.getMessage() for r in caplog.records if "has a distance" in r.getMessage()]
     assert len(said) == 1 and "1000.0 km" in said[0], said
     np.testing.assert_allclose(ra, [10.0, 11.0], atol=1e-9)  # the direction, unchanged
