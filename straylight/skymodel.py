@@ -359,20 +359,31 @@ def _icrs(coord):
 
 def _check_raw_jd(time, shape) -> None:
     """EphemerisRangeError for a time whose Julian date (in its own scale: within minutes of TDB)
-    is more than a day outside DE405 or not finite: converting such a time makes ERFA fail."""
+    is more than a day outside DE405 or not finite, before ERFA converts it (which fails far out,
+    JD 1e10); named as ISO text where astropy can write it, else by its Julian date."""
+    from astropy.time import Time
+
     from straylight.errors import EphemerisRangeError
     from straylight.sky.ephemeris import default_ephemeris
+    from straylight.sky.timeutil import quiet_dubious_years
 
     eph = default_ephemeris()
-    jd = np.broadcast_to(np.asarray(time.jd1, float) + np.asarray(time.jd2, float), shape).ravel()
+    jd1 = np.broadcast_to(np.asarray(time.jd1, float), shape).ravel()
+    jd2 = np.broadcast_to(np.asarray(time.jd2, float), shape).ravel()
+    jd = jd1 + jd2
     with np.errstate(invalid="ignore"):
         bad = np.flatnonzero(~((jd >= eph.jd_start - 1.0) & (jd <= eph.jd_end + 1.0)))
-    if bad.size:
-        i = int(bad[0])
-        where = f"time: sample {i}" if jd.size > 1 else "time"
-        raise EphemerisRangeError(
-            f"{where} = JD {jd[i]:.10g} ({time.scale}) is outside the DE405 range ({eph.span})"
-        )
+    if not bad.size:
+        return
+    i = int(bad[0])
+    try:
+        with quiet_dubious_years():
+            value = Time(jd1[i], jd2[i], format="jd", scale=time.scale).utc.isot
+    except Exception:  # noqa: BLE001 - ERFA (or astropy) cannot convert or write it: its Julian date
+        value = f"JD {jd[i]:.10g} ({time.scale})"
+    where = f"time: sample {i}" if jd.size > 1 else "time"
+    count = f"; {bad.size} of {jd.size} samples are outside it" if jd.size > 1 else ""
+    raise EphemerisRangeError(f"{where} = {value} is outside the DE405 range ({eph.span}){count}")
 
 
 def _empty_table(campaign, t, bands):

@@ -53,7 +53,9 @@ def test_altaz_without_location_is_refused(no_model):
 def test_a_time_far_outside_de405_is_refused_not_an_erfa_error(no_model):
     with pytest.raises(InputError, match=r"time = JD 1e\+10 \(utc\) is outside the DE405 range"):
         straylight.sky_background(Time(1e10, format="jd"), SkyCoord(10, 20, unit="deg"))
-    with pytest.raises(InputError, match=r"time: sample 1 = JD 1e\+10"):
+    with pytest.raises(
+        InputError, match=r"time: sample 1 = JD 1e\+10 \(utc\) .*; 1 of 2 samples are outside it"
+    ):
         straylight.sky_background(Time([2461041.5, 1e10], format="jd"), SkyCoord(10, 20, unit="deg"))
 
 

@@ -80,8 +80,6 @@ def _job_error_hook(log):
             sys.__excepthook__(exc_type, exc, tb)
             return
         log.error("error: %s", line)
-        from straylight.util.daskutil import exit_without_teardown
-
         exit_without_teardown(2)
 
     return hook
