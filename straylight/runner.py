@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -112,8 +113,8 @@ INTERRUPTED_EXIT = 130
 def run_campaign(config, cores: int | None = None, extra=(), argv=None) -> int:
     """Check the campaign ``config`` (one line on a mistake: :class:`~straylight.errors.StraylightError`),
     then run Snakemake on it in the current directory; returns Snakemake's exit status, or
-    :data:`INTERRUPTED_EXIT` after a Ctrl-C (one line on stderr: Snakemake stops its jobs, which
-    exit without a traceback; a re-run resumes).
+    :data:`INTERRUPTED_EXIT` after a Ctrl-C (Snakemake and its jobs stopped with SIGTERM, without
+    a traceback, and one line on stderr; a re-run resumes).
     ``argv``: the ``straylight`` command line, recorded in provenance.json."""
     if cores is not None and cores < 1:
         raise InputError(f"--cores must be at least 1, got {cores}")
@@ -125,19 +126,56 @@ def run_campaign(config, cores: int | None = None, extra=(), argv=None) -> int:
 
     env = dict(os.environ)
     env[LAUNCHER_ENV] = json.dumps(["straylight", *(argv if argv is not None else sys.argv[1:])])
-    proc = subprocess.Popen(cmd, env=env)
+    # Snakemake and its jobs in a session of their own: a Ctrl-C reaches this process alone, which
+    # stops them with SIGTERM (a job ends without a traceback wherever it is, even in Snakemake's
+    # preamble or its imports; the cube job stops cleanly), and says so in one line
+    proc = subprocess.Popen(cmd, env=env, start_new_session=True)
+    previous = _forward_signals(proc)
     try:
         return proc.wait()
-    except KeyboardInterrupt:  # Ctrl-C reached Snakemake too (same process group): let it stop its jobs
-        while True:
-            try:
-                proc.wait()
-                break
-            except KeyboardInterrupt:  # a further Ctrl-C while Snakemake stops: it has it too
-                continue
+    except KeyboardInterrupt:
+        _stop(proc)
         print(
             f"straylight run: interrupted; the finished products are kept in results/{campaign.name}/ "
             "and the same command resumes the run",
             file=sys.stderr,
         )
         return INTERRUPTED_EXIT
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+def _stop(proc) -> None:
+    """SIGTERM to Snakemake's process group (Snakemake and its jobs), then wait for it, a further
+    Ctrl-C meanwhile taken as the first."""
+    try:
+        os.killpg(proc.pid, signal.SIGTERM)
+    except (ProcessLookupError, PermissionError):  # gone already
+        pass
+    while True:
+        try:
+            proc.wait()
+            return
+        except KeyboardInterrupt:
+            continue
+
+
+def _forward_signals(proc) -> dict:
+    """SIGTERM and SIGHUP to this process (a scheduler's stop, the terminal closed) passed on to
+    Snakemake's process group as SIGTERM, since it has a session of its own; returns the previous
+    handlers (none outside the main thread)."""
+
+    def forward(signum, frame):
+        try:
+            os.killpg(proc.pid, signal.SIGTERM)
+        except (ProcessLookupError, PermissionError):
+            pass
+
+    previous = {}
+    for sig in (signal.SIGTERM, signal.SIGHUP):
+        try:
+            previous[sig] = signal.signal(sig, forward)
+        except ValueError:  # not the main thread: left as they are
+            break
+    return previous
