@@ -202,9 +202,9 @@ def _leaf_keys(node, prefix=""):
 MAPPING_SOURCE = "<config mapping>"
 
 
-def _layer(item) -> tuple[dict, Path, Path]:
+def _layer(item, resolve: bool = True) -> tuple[dict, Path, Path]:
     """(document, the name errors give it, the folder its relative paths are against) of a
-    config file or a mapping."""
+    config file or a mapping; ``resolve``: the file named by its absolute path, else as given."""
     from collections.abc import Mapping
 
     if isinstance(item, Mapping):
@@ -213,11 +213,11 @@ def _layer(item) -> tuple[dict, Path, Path]:
         raise ConfigError(
             f"config: expected a path to a campaign YAML file or a mapping, got {type(item).__name__}"
         )
-    f = Path(item).resolve()
+    f = Path(item).resolve() if resolve else Path(item)
     doc = _read_yaml(f, "campaign config")
     if not isinstance(doc, dict):
         raise ConfigError(f"{f}: campaign config must be a mapping, got {type(doc).__name__}")
-    return doc, f, f.parent
+    return doc, f, Path(item).resolve().parent
 
 
 def _resolve_layers(config: dict, layers) -> tuple[dict, dict]:
@@ -276,7 +276,7 @@ def merged_config(config=None, overrides: dict | None = None) -> tuple[dict, dic
         mapping.
     """
     items = [DEFAULT_CONFIG] if config is None else [DEFAULT_CONFIG, config]
-    layers = [_layer(item) for item in items]
+    layers = [_layer(item, resolve=False) for item in items]  # errors name the file as the user did
     merged: dict = {}
     for doc, _, _ in layers:
         merged = deep_merge(merged, doc)
