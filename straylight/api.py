@@ -29,6 +29,7 @@ Example (a dark-sky pointing in the default campaign's orbit)::
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -53,9 +54,10 @@ def sky_background(time, coord, bands=None, config=None, catalog=None):
     bands : list of str, optional
         Bands to evaluate (default: every band of the instrument); ``"V"`` is the Bessell V
         diagnostic band (no limit for it).
-    config : str or path, optional
+    config : str, path or mapping, optional
         Campaign config (default: the packaged ``config/config.yaml``) giving the orbit, the
-        instrument and the models.
+        instrument and the models; a file or a mapping holding only the keys it changes is
+        merged over the default config, as ``straylight run`` does.
     catalog : str or path, optional
         Star table (``ra``, ``dec``, ``mag_<band>``; e.g. ``results/<campaign>/stars_csst.parquet``)
         for the off-field star term, with the cube's selection (``stars.offfield_mag_limit``).
@@ -101,9 +103,10 @@ def sky_background(time, coord, bands=None, config=None, catalog=None):
     >>> len(sky), sky["zodiacal_r"].unit, sky["total_mag_r"].unit
     (3, Unit("electron / (pix s)"), Unit("mag / arcsec2"))
     """
-    from straylight.skymodel import cached_sky_model, checked_samples
+    from straylight.skymodel import cached_sky_model, checked_band_list, checked_samples
 
     checked_samples(time, coord)  # bad input refused before a model (or its tables) is built
+    checked_band_list(bands)
     return cached_sky_model(config, catalog).background(time, coord, bands)
 
 
@@ -124,10 +127,29 @@ class CampaignProducts:
       per band in AB mag/arcsec2 and the observability, for fast look-ups.
     """
 
+    #: the products; a folder holding none of them is not a campaign's
+    PRODUCTS = (
+        "background.zarr",
+        "limits.zarr",
+        "observability.zarr",
+        "ephemeris.zarr",
+        "footprint.fits",
+        "provenance.json",
+    )
+
     def __init__(self, path):
+        if not isinstance(path, (str, os.PathLike)):
+            raise InputError(
+                f"path: expected a campaign results folder (str or path), got {type(path).__name__}"
+            )
         self.path = Path(path)
         if not self.path.is_dir():
             raise InputError(f"{self.path}: not a campaign results folder (expected results/<campaign>/)")
+        if not any((self.path / p).exists() for p in self.PRODUCTS):
+            raise InputError(
+                f"{self.path}: no campaign product in this folder (none of {', '.join(self.PRODUCTS)}); "
+                "expected results/<campaign>/ of a run"
+            )
         self._cache: dict = {}
 
     def _zarr(self, name):
@@ -322,7 +344,8 @@ def open_campaign(path) -> CampaignProducts:
     Raises
     ------
     straylight.InputError
-        The folder does not exist, or (on access) a product is missing.
+        ``path`` not a path, a folder that does not exist or holds none of the products, or (on
+        access) a product that is missing.
 
     Examples
     --------

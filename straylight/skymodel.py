@@ -16,7 +16,7 @@ import numpy as np
 
 from straylight.errors import InputError
 
-__all__ = ["SkyModel", "cached_sky_model", "checked_samples"]
+__all__ = ["SkyModel", "cached_sky_model", "checked_band_list", "checked_samples"]
 
 
 class SkyModel:
@@ -24,9 +24,10 @@ class SkyModel:
 
     Parameters
     ----------
-    config : str or path, optional
+    config : str, path or mapping, optional
         Campaign config (default: the packaged ``config/config.yaml``): the orbit, the
-        instrument and the models.
+        instrument and the models; a file or a mapping holding only the keys it changes is
+        merged over the default config (:func:`straylight.config.load_campaign`).
     catalog : str or path, optional
         Star table (``ra``, ``dec``, ``mag_<band>``) for the off-field star term, read once per
         set of bands asked for; without it the ``stars`` component is 0.
@@ -109,6 +110,7 @@ class SkyModel:
         unknown = [b for b in bands if b not in campaign.bands and b != "V"]
         if unknown:
             raise InputError(f"bands: unknown band {unknown[0]!r}; known: {', '.join(campaign.bands)}, V")
+        checked_band_list(bands)
         if not t.size:
             return _empty_table(campaign, t, bands)
         return background_table(
@@ -209,7 +211,9 @@ class SkyModel:
         from straylight.survey.etc import checked_bands, etc_table
 
         bands = checked_bands(bands, self.campaign)
-        return etc_table(self.background(time, coord, bands), bands, self.campaign, request)
+        table = etc_table(self.background(time, coord, bands), bands, self.campaign, request)
+        _warn_magnitude(table, self.campaign)
+        return table
 
     def _stars_for(self, bands: list[str]):
         """The catalog's off-field stars for these bands (read once per band set), or None."""
@@ -225,6 +229,27 @@ class SkyModel:
                     self.catalog, bands, float(sc.offfield_mag_limit), sc.faint_map
                 )
             return self._stars[key]
+
+
+def checked_band_list(bands) -> None:
+    """InputError for a list of bands that names a band twice (the table's columns are named by
+    band), before any model is built; None (every band) passes."""
+    if bands is None or isinstance(bands, str):
+        return
+    bands = [str(b) for b in bands]
+    twice = [b for i, b in enumerate(bands) if b in bands[:i]]
+    if twice:
+        raise InputError(f"bands: band {twice[0]!r} given twice ({', '.join(bands)}); give each band once")
+
+
+def _warn_magnitude(table, campaign) -> None:
+    """The ETC's warnings for a magnitude its noise model does not cover, one logged line each."""
+    import logging
+
+    from straylight.survey.etc import magnitude_warnings
+
+    for line in magnitude_warnings(table, campaign):
+        logging.getLogger(__name__).warning("warning: %s", line)
 
 
 def checked_samples(time, coord):
@@ -263,7 +288,7 @@ def checked_samples(time, coord):
         raise InputError(f"time: expected an astropy.time.Time, got {type(time).__name__}")
     if not isinstance(coord, SkyCoord):
         raise InputError(f"coord: expected an astropy.coordinates.SkyCoord, got {type(coord).__name__}")
-    icrs = coord.icrs
+    icrs = _icrs(coord)
     ra = np.asarray(icrs.ra.deg, float)
     dec = np.asarray(icrs.dec.deg, float)
     try:
@@ -280,6 +305,7 @@ def checked_samples(time, coord):
             f"time: sample {masked[0]} is masked ({masked.size} of {ra.size} samples): no time to "
             "compute at; drop or fill the masked entries"
         )
+    _check_raw_jd(time, shape)  # far outside DE405 (JD 1e10): our line, before ERFA fails to convert it
     with quiet_dubious_years():  # a time outside DE405 gets our line below, not ERFA's warnings first
         t = time.utc
         t = Time(
@@ -291,6 +317,73 @@ def checked_samples(time, coord):
     if t.size:
         check_in_ephemeris(t, "time")
     return t, ra, dec
+
+
+#: set once the process has been told that a coordinate's distance is not used
+_DISTANCE_WARNED: list = []
+
+
+def _icrs(coord):
+    """``coord`` in ICRS, or InputError when its frame lacks what the conversion needs (an AltAz
+    frame without its location or time); a coordinate with a distance is taken as a direction,
+    said once per process (a scheduler's loop is not flooded)."""
+    from astropy.coordinates import ConvertError
+
+    frame = coord.frame
+    if frame.name in ("altaz", "hadec"):  # local frames: the observer's place and time fix them
+        for attr, what in (("location", "an EarthLocation"), ("obstime", "a time")):
+            if getattr(frame, attr, None) is None:
+                raise InputError(
+                    f"coord: its {frame.name} frame has no {attr}: it needs {what} to be converted "
+                    f"to ICRS (SkyCoord(..., frame='{frame.name}', {attr}=...)), or give ICRS RA/Dec"
+                )
+    try:
+        icrs = coord.icrs
+    except (AttributeError, ValueError, TypeError, ConvertError) as exc:
+        text = " ".join(str(exc).split())
+        raise InputError(f"coord: cannot convert the {frame.name} coordinate to ICRS: {text}") from None
+    dist = icrs.spherical.distance
+    if dist.unit.physical_type == "length" and dist.size and not _DISTANCE_WARNED:
+        import logging
+
+        _DISTANCE_WARNED.append(True)
+
+        logging.getLogger(__name__).warning(
+            "warning: coord: has a distance (%s for the first sample): only its direction is used, "
+            "as seen from the frame's origin (the satellite's parallax is not applied); give a "
+            "direction without distance to silence this",
+            np.ravel(dist)[0],
+        )
+    return icrs
+
+
+def _check_raw_jd(time, shape) -> None:
+    """EphemerisRangeError for a time whose Julian date (in its own scale: within minutes of TDB)
+    is more than a day outside DE405 or not finite, before ERFA converts it (which fails far out,
+    JD 1e10); named as ISO text where astropy can write it, else by its Julian date."""
+    from astropy.time import Time
+
+    from straylight.errors import EphemerisRangeError
+    from straylight.sky.ephemeris import default_ephemeris
+    from straylight.sky.timeutil import quiet_dubious_years
+
+    eph = default_ephemeris()
+    jd1 = np.broadcast_to(np.asarray(time.jd1, float), shape).ravel()
+    jd2 = np.broadcast_to(np.asarray(time.jd2, float), shape).ravel()
+    jd = jd1 + jd2
+    with np.errstate(invalid="ignore"):
+        bad = np.flatnonzero(~((jd >= eph.jd_start - 1.0) & (jd <= eph.jd_end + 1.0)))
+    if not bad.size:
+        return
+    i = int(bad[0])
+    try:
+        with quiet_dubious_years():
+            value = Time(jd1[i], jd2[i], format="jd", scale=time.scale).utc.isot
+    except Exception:  # noqa: BLE001 - ERFA (or astropy) cannot convert or write it: its Julian date
+        value = f"JD {jd[i]:.10g} ({time.scale})"
+    where = f"time: sample {i}" if jd.size > 1 else "time"
+    count = f"; {bad.size} of {jd.size} samples are outside it" if jd.size > 1 else ""
+    raise EphemerisRangeError(f"{where} = {value} is outside the DE405 range ({eph.span}){count}")
 
 
 def _empty_table(campaign, t, bands):
@@ -328,9 +421,18 @@ _MAX_CACHED_MODELS = 4
 
 
 def _file_key(path) -> tuple | None:
-    """(resolved path, modification time, size) of a file, so that an edited file gives a new model."""
+    """(resolved path, modification time, size) of a file, so that an edited file gives a new model;
+    a mapping's content (and the folder its relative paths are against)."""
     if path is None:
         return None
+    from collections.abc import Mapping
+
+    if isinstance(path, Mapping):
+        import json
+
+        return ("mapping", json.dumps(path, sort_keys=True, default=str), str(Path.cwd()))
+    if not isinstance(path, (str, os.PathLike)):
+        return ("object", id(path))  # refused by the loader, naming its type
     p = Path(path).resolve()
     try:
         st = os.stat(p)
@@ -346,8 +448,9 @@ def cached_sky_model(config=None, catalog=None) -> SkyModel:
 
     Parameters
     ----------
-    config : str or path, optional
-        Campaign config (None: the packaged ``config/config.yaml``).
+    config : str, path or mapping, optional
+        Campaign config (None: the packaged ``config/config.yaml``; a partial one is merged
+        over it).
     catalog : str or path, optional
         Star table for the off-field star term (None: stars = 0).
 

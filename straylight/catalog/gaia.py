@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from straylight.errors import InputError
+from straylight.util.io import without_bom
 
 __all__ = [
     "REQUIRED",
@@ -90,9 +91,9 @@ def _read_table(path: Path):
         if name.endswith((".fits", ".fits.gz", ".fit")):
             return Table.read(path, format="fits")
         if name.endswith((".ecsv", ".ecsv.gz")):
-            return Table.read(path, format="ascii.ecsv")
+            return Table.read(without_bom(path), format="ascii.ecsv")
         if name.endswith((".csv", ".csv.gz")):
-            return Table.read(path, format="ascii.csv", fill_values=[("", "0"), ("null", "0")])
+            return Table.read(without_bom(path), format="ascii.csv", fill_values=[("", "0"), ("null", "0")])
     except (EOFError, OSError) as exc:  # gzip: truncated stream or not gzip at all
         raise InputError(f"{path}: cannot read ({exc}); is the file truncated or not really gzip?") from exc
     except Exception as exc:

@@ -99,7 +99,10 @@ def read_star_columns(path, bands, epoch=None) -> tuple[np.ndarray, np.ndarray, 
         else:
             from astropy.table import Table
 
-            t = Table.read(p)
+            from straylight.util.io import without_bom
+
+            text_format = {".csv": "ascii.csv", ".ecsv": "ascii.ecsv"}.get(p.suffix.lower())
+            t = Table.read(without_bom(p), format=text_format) if text_format else Table.read(p)
             names = t.colnames
     except Exception as exc:
         raise InputError(f"{p}: cannot read star catalog ({exc})") from exc

@@ -45,6 +45,9 @@ def main(argv=None) -> int:
     except StraylightError as exc:
         print(f"straylight: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # Ctrl-C: one line, the shell's status for SIGINT, no traceback
+        print(f"straylight {args.command}: interrupted", file=sys.stderr)
+        return 130
     except BrokenPipeError:  # the reader (e.g. `| head`) stopped: not an error of ours
         import os
 

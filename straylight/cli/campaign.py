@@ -35,6 +35,11 @@ def cmd_plan(args) -> int:
 
     campaign = load_campaign(args.config)
     fp = footprint_from_config(campaign.settings.footprint, campaign.path.parent)
+    from straylight.survey.sizes import size_warning
+
+    large = size_warning(campaign, int(fp.pixels.size))  # before the times are built
+    if large:
+        print(f"warning: {large}", file=sys.stderr, flush=True)
     c = campaign.settings.campaign
     nt, npix, nb = len(campaign.times), fp.pixels.size, len(campaign.bands)
     tb = time_blocks(nt, float(c.cadence_s), float(c.time_block_hours))

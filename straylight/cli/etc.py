@@ -56,6 +56,9 @@ def cmd_etc(args) -> int:
     sky = cached_sky_model(args.config, args.catalog)
     background = sky.background(times, SkyCoord(ra_deg, dec_deg, unit="deg"), bands)
     table = etc_table(background, bands, sky.campaign, request)
+    from straylight.skymodel import _warn_magnitude
+
+    _warn_magnitude(table, sky.campaign)
     window = args.end is not None
     summary = etc_summary(table) if window else None
     if args.out:
@@ -187,7 +190,7 @@ def etc_text(table, summary, ra_deg: float, dec_deg: float, step_min: float | No
 
     def fmt(q):
         v = float(getattr(q, "value", q))
-        return "-" if not np.isfinite(v) else f"{v:.1f} s" if by_time else f"{v:.2f}"
+        return "-" if not np.isfinite(v) else _fmt_s(v) if by_time else _fmt_snr(v)
 
     for r in summary:
         lines.append(
@@ -196,6 +199,17 @@ def etc_text(table, summary, ra_deg: float, dec_deg: float, step_min: float | No
             f"{n_exp[r['band']]:>9d}  {_fmt_g(r['background_total'].value):>12s}  {r['dominant'] or '-'}"
         )
     return "\n".join(lines)
+
+
+def _fmt_s(v: float) -> str:
+    """A time in seconds, 0.1 s resolution between 0.1 s and 1e6 s, else 3 significant digits
+    (no "0.0 s" for a bright source, no 60 digits for a faint one)."""
+    return f"{v:.1f} s" if 0.1 <= v < 1e6 else f"{v:.3g} s"
+
+
+def _fmt_snr(v: float) -> str:
+    """An SNR to 0.01 between 0.01 and 1e6, else 3 significant digits."""
+    return f"{v:.2f}" if 0.01 <= v < 1e6 else f"{v:.3g}"
 
 
 def _fmt_g(v: float) -> str:
@@ -216,9 +230,9 @@ def _sample_lines(table, by_time: bool) -> list:
     for r in table:
         dom = f"{r['dominant']} ({100 * r['dominant_fraction']:.0f} %)"
         val = float(r["exposure_time"].value if by_time else r["snr"])
-        shown = "-" if not np.isfinite(val) else f"{val:.1f} s" if by_time else f"{val:.2f}"
+        shown = "-" if not np.isfinite(val) else _fmt_s(val) if by_time else _fmt_snr(val)
         one = r["single_exposure"].value
-        split = f"{r['n_exposures']} x " + (f"{one:.1f} s" if np.isfinite(one) else "-")
+        split = f"{r['n_exposures']} x " + (_fmt_s(one) if np.isfinite(one) else "-")
         lines.append(
             f"  {r['band']:<4s}  {_fmt_g(r['background_total'].value):>12s}  "
             f"{r['background_mag'].value:>11.2f}  "

@@ -12,7 +12,7 @@ import argparse
 from straylight.cli import campaign, etc, image, paper, sky
 from straylight.cli._common import CONFIG_HELP, add_output_flags, finite_float
 
-__all__ = ["COMMANDS", "build_parser"]
+__all__ = ["COMMANDS", "OneLineParser", "build_parser"]
 
 
 def _add_ephem(sub) -> None:
@@ -408,11 +408,22 @@ COMMANDS = (
 )
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line on stderr and exit status 2, as the
+    commands' own (no usage block): ``straylight sky: error: argument --dec: ...``."""
+
+    def error(self, message):
+        """Print ``message`` as one line and exit with status 2."""
+        text = " ".join(str(message).split())
+        self.exit(2, f"{self.prog}: error: {text} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    """The ``straylight`` parser: ``--version`` and one sub-parser per command of :data:`COMMANDS`."""
+    """The ``straylight`` parser: ``--version`` and one sub-parser per command of :data:`COMMANDS`
+    (each a :class:`OneLineParser`)."""
     from straylight import __version__
 
-    p = argparse.ArgumentParser(prog="straylight", description="CSST stray-light and sky-background pipeline")
+    p = OneLineParser(prog="straylight", description="CSST stray-light and sky-background pipeline")
     p.add_argument("--version", action="version", version=f"straylight {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
     for add in COMMANDS:

@@ -203,6 +203,9 @@ def _sky_bands(text, campaign) -> list[str] | None:
     unknown = [b for b in bands if b not in known]
     if unknown:
         raise InputError(f"--bands: unknown band {unknown[0]!r}; valid bands: {', '.join(known)}")
+    twice = [b for i, b in enumerate(bands) if b in bands[:i]]
+    if twice:
+        raise InputError(f"--bands {text!r}: band {twice[0]!r} given twice; give each band once")
     return bands
 
 
@@ -324,6 +327,9 @@ def cmd_visibility(args) -> int:
         step_s,
         args.threshold,
     )
+    from straylight.survey.bright_targets import warn_bright_targets
+
+    warn_bright_targets(ra_deg, dec_deg, args.start or c.start)  # the times checked by now
     s, w, d = res["samples"], res["windows"], res["days"]
     n_obs = int(np.sum(s["observable"]))
     print(

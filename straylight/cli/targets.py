@@ -46,6 +46,9 @@ def cmd_visibility_targets(args) -> int:
         return default_catalog_path(campaign)
 
     targets = read_targets(args.targets, catalog)
+    from straylight.survey.bright_targets import warn_bright_targets
+
+    warn_bright_targets(targets.ra_deg, targets.dec_deg, start, targets.names)
     if args.out is not None:
         check_out(args, args.out, "--out", folder=True)
     w0 = time.perf_counter()

@@ -47,6 +47,7 @@ from straylight.config.loading import (
     deep_merge,
     load_instrument,
     load_schema,
+    merged_config,
     resolve_config_files,
     validate,
 )
@@ -77,6 +78,7 @@ __all__ = [
     "load_campaign",
     "campaign_from_dict",
     "resolve_config_files",
+    "merged_config",
     "load_instrument",
     "validate",
     "StraylightError",

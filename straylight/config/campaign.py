@@ -12,13 +12,11 @@ from pathlib import Path
 from straylight.config.instrument import InstrumentSettings, instrument_settings, pixel_scale_arcsec
 from straylight.config.loading import (
     CAMPAIGN_SCHEMA,
-    DEFAULT_CONFIG,
-    _read_yaml,
     _source_of,
     apply_defaults,
-    deep_merge,
     load_instrument,
     load_schema,
+    merged_config,
     validate,
 )
 from straylight.config.settings import OrbitSection, Settings, orbit_settings, settings_from_config
@@ -177,18 +175,20 @@ def _check_campaign(cfg: dict, source: str, sources: dict | None = None) -> None
     warn_if_epoch_far(orbit, start, end, src(key))
 
 
-def load_campaign(path: str | os.PathLike | None = None, overrides: dict | None = None) -> Campaign:
-    """Load, validate and resolve a campaign config (default: ``config/config.yaml``).
+def load_campaign(config=None, overrides: dict | None = None) -> Campaign:
+    """Load, validate and resolve a campaign: the one loader of every entry point (the commands,
+    :class:`~straylight.SkyModel`, :func:`~straylight.sky_background`, ``straylight run``).
 
-    ``overrides`` is merged (recursively) over the file's content before validation.
+    ``config`` (a YAML file's path or a mapping; None: the default ``config/config.yaml``) is
+    merged over the default config, so it may hold only the keys it changes (as Snakemake merges
+    ``--configfile`` over the Snakefile's); ``overrides`` is merged (recursively) over both
+    before validation.  Errors name the file that set the key (``<config mapping>`` for a
+    mapping).  A :class:`Campaign` is returned as it is.
     """
-    path = Path(path) if path is not None else DEFAULT_CONFIG
-    raw = _read_yaml(path, "campaign config")
-    if not isinstance(raw, dict):
-        raise ConfigError(f"{path}: campaign config must be a mapping, got {type(raw).__name__}")
-    if overrides:
-        raw = deep_merge(raw, overrides)
-    return campaign_from_dict(raw, path)
+    if isinstance(config, Campaign) and not overrides:
+        return config
+    merged, sources, path = merged_config(config, overrides)
+    return campaign_from_dict(merged, path, sources)
 
 
 def campaign_from_dict(raw: dict, path: str | os.PathLike, sources: dict | None = None) -> Campaign:

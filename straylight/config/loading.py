@@ -198,23 +198,36 @@ def _leaf_keys(node, prefix=""):
             yield from _leaf_keys(v, key)
 
 
-def resolve_config_files(config: dict, files) -> tuple[dict, dict, Path]:
-    """A config merged from several files, as Snakemake merges its ``configfile:`` and each
-    ``--configfile`` (``files`` in increasing precedence): every relative file path of
-    :data:`PATH_KEYS` made absolute against the folder of the file that set it, and which file
-    set each key.  Returns (config, sources: dotted key -> file, the last file).
+#: The name errors give a config passed as a mapping (its relative paths are the current folder's)
+MAPPING_SOURCE = "<config mapping>"
 
-    The config is not validated here; :func:`campaign_from_dict` does it with ``sources``.
-    """
-    files = [Path(f).resolve() for f in files]
+
+def _layer(item, resolve: bool = True) -> tuple[dict, Path, Path]:
+    """(document, the name errors give it, the folder its relative paths are against) of a
+    config file or a mapping; ``resolve``: the file named by its absolute path, else as given."""
+    from collections.abc import Mapping
+
+    if isinstance(item, Mapping):
+        return dict(item), Path(MAPPING_SOURCE), Path.cwd()
+    if not isinstance(item, (str, os.PathLike)):
+        raise ConfigError(
+            f"config: expected a path to a campaign YAML file or a mapping, got {type(item).__name__}"
+        )
+    f = Path(item).resolve() if resolve else Path(item)
+    doc = _read_yaml(f, "campaign config")
+    if not isinstance(doc, dict):
+        raise ConfigError(f"{f}: campaign config must be a mapping, got {type(doc).__name__}")
+    return doc, f, Path(item).resolve().parent
+
+
+def _resolve_layers(config: dict, layers) -> tuple[dict, dict]:
+    """``config`` with each layer's relative file paths made absolute against the layer's folder,
+    and which layer set each key (see :func:`resolve_config_files`)."""
     out = copy.deepcopy(config)
     sources: dict[str, Path] = {}
-    for f in files:
-        doc = _read_yaml(f, "campaign config")
-        if not isinstance(doc, dict):
-            raise ConfigError(f"{f}: campaign config must be a mapping, got {type(doc).__name__}")
+    for doc, name, base in layers:
         for key in _leaf_keys(doc):
-            sources[key] = f
+            sources[key] = name
         for keys in PATH_KEYS:
             node = doc
             for k in keys:
@@ -227,11 +240,50 @@ def resolve_config_files(config: dict, files) -> tuple[dict, dict, Path]:
             if not isinstance(target, dict) or target.get(keys[-1]) != node:
                 continue  # a later file (or --config) set it; its own pass resolves it
 
-            def absolute(v, base=f.parent):
+            def absolute(v, base=base):
                 return str(base / v) if isinstance(v, str) and v and not os.path.isabs(v) else v
 
             target[keys[-1]] = [absolute(v) for v in node] if isinstance(node, list) else absolute(node)
-    return out, sources, files[-1]
+    return out, sources
+
+
+def resolve_config_files(config: dict, files) -> tuple[dict, dict, Path]:
+    """A config merged from several files, as Snakemake merges its ``configfile:`` and each
+    ``--configfile`` (``files`` in increasing precedence): every relative file path of
+    :data:`PATH_KEYS` made absolute against the folder of the file that set it, and which file
+    set each key.  Returns (config, sources: dotted key -> file, the last file).
+
+    The config is not validated here; :func:`campaign_from_dict` does it with ``sources``.
+    """
+    layers = [_layer(f) for f in files]
+    out, sources = _resolve_layers(config, layers)
+    return out, sources, layers[-1][1]
+
+
+def merged_config(config=None, overrides: dict | None = None) -> tuple[dict, dict, Path]:
+    """The campaign config every entry point runs: ``config`` (a YAML file's path, or a mapping;
+    None: the default config alone) merged over the default config (``config/config.yaml``), as
+    ``straylight run``'s Snakemake merges it, so a campaign file may hold only the keys it
+    changes; then ``overrides`` over both.  Each layer's relative file paths (:data:`PATH_KEYS`)
+    are made absolute against its own folder (a mapping's: the current folder).  Returns
+    (config, sources: dotted key -> the file that set it, the campaign's file: ``config``'s, or
+    :data:`MAPPING_SOURCE` for a mapping); not validated (:func:`campaign_from_dict` does it).
+
+    Raises
+    ------
+    ConfigError
+        A file that cannot be read or is not a mapping, or ``config`` neither a path nor a
+        mapping.
+    """
+    items = [DEFAULT_CONFIG] if config is None else [DEFAULT_CONFIG, config]
+    layers = [_layer(item, resolve=False) for item in items]  # errors name the file as the user did
+    merged: dict = {}
+    for doc, _, _ in layers:
+        merged = deep_merge(merged, doc)
+    if overrides:
+        merged = deep_merge(merged, overrides)
+    out, sources = _resolve_layers(merged, layers)
+    return out, sources, layers[-1][1]
 
 
 def deep_merge(base: dict, over: dict) -> dict:
@@ -258,5 +310,7 @@ __all__ = [
     "apply_defaults",
     "load_instrument",
     "resolve_config_files",
+    "merged_config",
+    "MAPPING_SOURCE",
     "deep_merge",
 ]

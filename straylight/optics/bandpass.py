@@ -35,6 +35,7 @@ from scipy.special import erf
 
 from straylight.config import InstrumentSettings, instrument_settings
 from straylight.errors import ConfigError, InputError
+from straylight.util.io import without_bom
 
 __all__ = [
     "H_PLANCK",
@@ -142,9 +143,9 @@ def read_throughput_file(
         if path.suffix.lower() in (".fits", ".fit", ".fz"):
             tab = Table.read(path, hdu=1)
         elif path.suffix.lower() == ".ecsv":
-            tab = Table.read(path, format="ascii.ecsv")
+            tab = Table.read(without_bom(path), format="ascii.ecsv")
         else:
-            tab = Table.read(path, format="ascii.csv", comment="#")
+            tab = Table.read(without_bom(path), format="ascii.csv", comment="#")
     except Exception as exc:
         raise InputError(f"{path}: cannot read throughput table ({exc})") from exc
     names = {n.lower(): n for n in tab.colnames}

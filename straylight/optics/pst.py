@@ -386,7 +386,9 @@ def load_pst(
                 )
         from astropy.table import Table
 
-        t = Table.read(p, format="ascii.ecsv" if suffix == ".ecsv" else "ascii.csv", comment="#")
+        from straylight.util.io import without_bom
+
+        t = Table.read(without_bom(p), format="ascii.ecsv" if suffix == ".ecsv" else "ascii.csv", comment="#")
     except InputError:
         raise
     except Exception as exc:

@@ -30,6 +30,7 @@ __all__ = [
     "MODES",
     "checked_bands",
     "checked_request",
+    "magnitude_warnings",
     "etc_summary",
     "etc_table",
     "snr_for_time",
@@ -39,6 +40,15 @@ __all__ = [
 
 #: the two questions: the time for a given SNR, or the SNR for a given time
 MODES = ("exposure_time", "snr")
+
+#: Mean source electrons per pixel of the EE80 aperture in one survey exposure above which the
+#: source is warned about: the order of a CCD's full well (~1e5 e- for 10-um pixels; the peak
+#: pixel holds more than the mean).  The noise model has no saturation: a warning threshold,
+#: not a model parameter.
+BRIGHT_E_PER_PIXEL = 1e5
+#: Total exposure times above which the time is warned about as out of reach: a day, longer
+#: than any visit (the observable windows last less than an orbit).  A warning threshold.
+LONG_EXPOSURE_S = 86400.0
 
 
 def snr_for_time(mag_ab, exposure_s, background_e_per_s_per_pix, x, n_exposures=None) -> np.ndarray:
@@ -122,7 +132,8 @@ def checked_bands(bands, campaign, field: str = "bands") -> list[str]:
     Raises
     ------
     InputError
-        An empty list, an unknown band, or ``"V"`` (a diagnostic band, no survey exposures).
+        An empty list, an unknown band, a band given twice, or ``"V"`` (a diagnostic band, no
+        survey exposures).
     """
     valid = list(campaign.bands)
     if bands is None:
@@ -137,6 +148,9 @@ def checked_bands(bands, campaign, field: str = "bands") -> list[str]:
             )
         if b not in valid:
             raise InputError(f"{field}: unknown band {b!r}; valid bands: {', '.join(valid)}")
+    twice = [b for i, b in enumerate(bands) if b in bands[:i]]
+    if twice:
+        raise InputError(f"{field}: band {twice[0]!r} given twice ({', '.join(bands)}); give each band once")
     return bands
 
 
@@ -397,6 +411,55 @@ def etc_table(background, bands, campaign, request: dict):
     ):
         out[k].info.format = f
     return out
+
+
+def magnitude_warnings(table, campaign) -> list[str]:
+    """Lines for a magnitude the noise model does not cover, per band of an :func:`etc_table`:
+    a source bright enough to fill a pixel in one survey exposure (mean electrons per pixel of
+    the EE80 aperture over :data:`BRIGHT_E_PER_PIXEL`; the model has no saturation), or an
+    exposure time over :data:`LONG_EXPOSURE_S` (a source far below the background, where the
+    CCD equation's perfect background subtraction does not hold).
+
+    Parameters
+    ----------
+    table : astropy.table.QTable
+        :func:`etc_table`'s result.
+    campaign : straylight.config.Campaign
+        The campaign it was computed with.
+
+    Returns
+    -------
+    list of str
+        One line per band and case, empty for an ordinary magnitude.
+    """
+    from straylight.survey.limits import campaign_exposures
+
+    if not len(table):
+        return []
+    bands = list(dict.fromkeys(str(b) for b in table["band"]))
+    mag, lines = table.meta["mag_ab"], []
+    for b, x in zip(bands, campaign_exposures(campaign, bands)):
+        rows = np.asarray(table["band"]) == b
+        per_pix = float(table["source_rate"][rows][0].value) * x.exposure_s / x.n_pix
+        if per_pix > BRIGHT_E_PER_PIXEL:
+            lines.append(
+                f"AB {mag:g} in {b}: {per_pix:.3g} e- per pixel (mean over the EE80 aperture) in one "
+                f"{x.exposure_s:g} s survey exposure, beyond a CCD's full well "
+                f"(~{BRIGHT_E_PER_PIXEL:.0e} e-): "
+                "the source saturates; the noise model has no saturation, so its figures do not hold"
+            )
+        t = np.asarray(table["exposure_time"][rows].value, float)
+        t = t[np.isfinite(t)]
+        if table.meta["mode"] == MODES[0] and t.size and t.min() > LONG_EXPOSURE_S:
+            limit = np.asarray(table["limit_mag"][rows].value, float)
+            below = mag - np.nanmax(limit) if np.isfinite(limit).any() else float("nan")
+            lines.append(
+                f"AB {mag:g} in {b}: {t.min():.3g} s at best, over a day: the source is "
+                f"{below:.1f} mag fainter than the survey's 5-sigma limit; the CCD equation assumes a "
+                "perfectly subtracted background (no flat-field or confusion floor), so no real "
+                "exposure reaches it"
+            )
+    return lines
 
 
 def etc_summary(table):

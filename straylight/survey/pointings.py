@@ -70,7 +70,9 @@ def read_pointings(path) -> dict:
     if fmt is None:
         raise InputError(f"{path}: unknown format; expected .csv, .ecsv, .parquet or .fits")
     try:
-        t = Table.read(path, format=fmt)
+        from straylight.util.io import without_bom
+
+        t = Table.read(without_bom(path) if fmt.startswith("ascii") else path, format=fmt)
     except Exception as exc:
         raise InputError(f"{path}: cannot read ({type(exc).__name__}: {exc})") from exc
     if len(t) == 0:

@@ -106,9 +106,53 @@ def sha256_path(path: str | Path) -> str:
     return h.hexdigest()
 
 
+#: The UTF-8 byte-order mark some programs (spreadsheets) start a CSV file with
+UTF8_BOM = b"\xef\xbb\xbf"
+
+
+def without_bom(path):
+    """``path`` as it is, or, for a file that starts with a UTF-8 byte-order mark (a CSV saved by
+    a spreadsheet), its text without the mark: what astropy's ASCII readers take in place of a
+    path (given the path, they read the mark into the first column's name).
+
+    Parameters
+    ----------
+    path : str or Path
+        A text table's file.
+
+    Returns
+    -------
+    str or Path
+        ``path``, or the file's text (with at least one newline, so astropy takes it as data).
+    """
+    try:
+        with open(path, "rb") as f:
+            head = f.read(len(UTF8_BOM))
+    except OSError:
+        return path  # the reader names the file it cannot read
+    if head != UTF8_BOM:
+        return path
+    text = Path(path).read_text(encoding="utf-8-sig")
+    return text if "\n" in text else text + "\n"
+
+
 def cache_dir() -> Path:
     """Where tables are kept: $STRAYLIGHT_CACHE, else $XDG_CACHE_HOME/straylight, else
-    ~/.cache/straylight.  Tables are named by the digest of everything they depend on."""
+    ~/.cache/straylight.  Tables are named by the digest of everything they depend on.
+
+    Raises InputError when the folder, or the nearest of its parents that exists, is not a
+    folder (``STRAYLIGHT_CACHE`` naming a file): before a table is built, not after."""
     if os.environ.get("STRAYLIGHT_CACHE"):
-        return Path(os.environ["STRAYLIGHT_CACHE"])
-    return Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "straylight"
+        path, where = Path(os.environ["STRAYLIGHT_CACHE"]), "STRAYLIGHT_CACHE"
+    else:
+        path = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "straylight"
+        where = "the table cache"
+    for p in (path, *path.parents):
+        if p.exists():
+            if not p.is_dir():
+                from straylight.errors import InputError
+
+                what = "is a file" if p == path else f"is under {p}, a file"
+                raise InputError(f"{where} = {path}: {what}, not a folder; point it to a folder")
+            break
+    return path

@@ -132,6 +132,8 @@ def test_bad_input(case, tmp_path, capsys, monkeypatch):
         assert len(message) == 1, err
         for fragment in expect["stderr_has"]:
             assert fragment in message[0], f"{fragment!r} not in {message[0]!r}"
+        if "stderr_lines" in expect:
+            assert len(err.strip().splitlines()) == expect["stderr_lines"], err
         assert _tree_digest(tmp_path) == before  # nothing written, nothing changed
     else:
         import pyarrow.parquet as pq

@@ -4,6 +4,21 @@ import logging
 import sys
 
 
+def _interrupted_hook(exc_type, exc, tb):
+    """Until setup_logging's hook: a Ctrl-C (it reaches every job: `straylight run` says it once)
+    ends the job with status 130 and no traceback, even while it imports; anything else as
+    Python reports it."""
+    if issubclass(exc_type, KeyboardInterrupt):
+        sys.stderr.flush()
+        import os
+
+        os._exit(130)
+    sys.__excepthook__(exc_type, exc, tb)
+
+
+sys.excepthook = _interrupted_hook  # set as the job imports this module, before the library
+
+
 def setup_logging(snakemake) -> logging.Logger:
     """The rule's logger (its log file and stderr), with the job's error hook; also the job's
     healpy, without plotting functions (straylight.util.healpix), and the job's death with
@@ -49,7 +64,11 @@ def _job_error_hook(log):
 
     def hook(exc_type, exc, tb):
         from straylight.errors import StraylightError
+        from straylight.util.daskutil import exit_without_teardown
 
+        if isinstance(exc, KeyboardInterrupt):  # a Ctrl-C reaches every job: `straylight run` says it once
+            log.info("interrupted (SIGINT): stopped; the same command resumes the run")
+            exit_without_teardown(130)
         if isinstance(exc, StraylightError):
             line = str(exc)
         elif isinstance(exc, OSError) and exc.filename is not None and exc.errno in refusals:
@@ -61,8 +80,6 @@ def _job_error_hook(log):
             sys.__excepthook__(exc_type, exc, tb)
             return
         log.error("error: %s", line)
-        from straylight.util.daskutil import exit_without_teardown
-
         exit_without_teardown(2)
 
     return hook
