@@ -69,7 +69,7 @@ class SkyModel:
         """The instrument's bands (``"V"``, the Bessell V diagnostic band, is accepted too)."""
         return list(self.campaign.bands)
 
-    def background(self, time, coord, bands=None):
+    def background(self, time, coord, bands=None, columns=None, dtype="float64"):
         """Background, 5-sigma depth and observability at the given times and pointings.
 
         Parameters, result and errors: :func:`straylight.sky_background` (without its
@@ -83,6 +83,10 @@ class SkyModel:
             Pointing(s), any frame; scalar or array, broadcast against ``time``.
         bands : list of str or None
             Bands to evaluate (None: every band of the instrument; ``"V"`` is accepted).
+        columns : list of str or None
+            The columns to return (None: all); fewer columns, less memory.
+        dtype : {"float64", "float32"}
+            Of the float columns (float32: half their memory, 7 significant digits).
 
         Returns
         -------
@@ -94,7 +98,13 @@ class SkyModel:
         Raises
         ------
         straylight.InputError
-            Bad samples (see :func:`checked_samples`), an unknown band or an empty list of bands.
+            Bad samples (see :func:`checked_samples`), an unknown band, an empty list of bands,
+            an unknown column or dtype.
+
+        Notes
+        -----
+        The samples are evaluated :data:`~straylight.survey.pointings.CHUNK_ROWS` at a time into
+        a table allocated once: the peak memory is the table plus one chunk's work (~0.2 GB).
         """
         from straylight.survey.pointings import background_table
 
@@ -109,10 +119,21 @@ class SkyModel:
         unknown = [b for b in bands if b not in campaign.bands and b != "V"]
         if unknown:
             raise InputError(f"bands: unknown band {unknown[0]!r}; known: {', '.join(campaign.bands)}, V")
+        empty = _empty_table(campaign, t[:0], bands)
+        columns, dtype = _checked_columns(columns, dtype, empty.colnames)
         if not t.size:
-            return _empty_table(campaign, t, bands)
+            return _empty_table(campaign, t, bands)[columns or empty.colnames]
         return background_table(
-            campaign, t, ra, dec, bands, self._stars_for(bands), source="sky_background", model=self.model
+            campaign,
+            t,
+            ra,
+            dec,
+            bands,
+            self._stars_for(bands),
+            source="sky_background",
+            model=self.model,
+            columns=columns,
+            dtype=dtype,
         )
 
     def exposure_time(self, time, coord, mag_ab, snr=5.0, bands=None, n_exposures=None, observable_only=True):
@@ -291,6 +312,20 @@ def checked_samples(time, coord):
     if t.size:
         check_in_ephemeris(t, "time")
     return t, ra, dec
+
+
+def _checked_columns(columns, dtype, names: list[str]):
+    """(the columns asked for, or None for all; the float dtype), InputError for an unknown one."""
+    if dtype not in ("float64", "float32", np.float64, np.float32):
+        raise InputError(f"dtype: {dtype!r}; expected 'float64' or 'float32'")
+    if columns is None:
+        return None, np.dtype(dtype)
+    if isinstance(columns, str) or not all(isinstance(c, str) for c in columns) or not len(columns):
+        raise InputError(f"columns: {columns!r}; expected a non-empty list of column names")
+    unknown = [c for c in columns if c not in names]
+    if unknown:
+        raise InputError(f"columns: unknown column {unknown[0]!r}; known: {', '.join(names)}")
+    return list(dict.fromkeys(columns)), np.dtype(dtype)
 
 
 def _empty_table(campaign, t, bands):
