@@ -365,7 +365,15 @@ def build_speed_factor(
     k = min(PROBE_SCENES_PER_WORKER * workers, zs.size)
     picks = np.radians(zs[np.linspace(0, zs.size - 1, k).round().astype(int)])
     off._kernel_tables  # noqa: B018  (the door's tables once, before the threads share them)
-    _sunlit_scene(off, float(rr[0]), float(picks[0]), zl[:1], az[:1], earth_radius_km)  # compiled
+    for z in picks[[0, -1]]:  # compiled (a day-side and a night-side scene, a few nodes) before timing
+        _sunlit_scene(
+            off,
+            float(rr[0]),
+            float(z),
+            zl[:: max(1, zl.size // 8)],
+            az[:: max(1, az.size // 8)],
+            earth_radius_km,
+        )
     t0 = time.perf_counter()
     with ThreadPoolExecutor(max_workers=workers) as ex:
         list(ex.map(lambda z: _sunlit_scene(off, float(rr[0]), float(z), zl, az, earth_radius_km), picks))
