@@ -104,7 +104,8 @@ class SkyModel:
         Notes
         -----
         The samples are evaluated :data:`~straylight.survey.pointings.CHUNK_ROWS` at a time into
-        a table allocated once: the peak memory is the table plus one chunk's work (~0.2 GB).
+        a table allocated once: the peak memory is the table plus one chunk's work and the samples'
+        copies (0.28 GB beyond the table for 2 million samples in one band).
         """
         from straylight.survey.pointings import background_table
 

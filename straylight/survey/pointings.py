@@ -379,8 +379,8 @@ def column_units(cols) -> dict:
 
 
 #: rows of the pointing table evaluated at a time by :func:`background_table` and ``straylight sky
-#: --input``: the work of one chunk (the scene, the model's scratch, its table) stays near 0.2 GB
-#: in seven bands, so the peak is the result plus about that at any batch size
+#: --input``: one chunk's work (the scene, the model's scratch, its table) is then a fixed
+#: amount beside the result, whatever the number of rows
 CHUNK_ROWS = 2**16
 
 
