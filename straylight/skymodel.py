@@ -321,7 +321,9 @@ def _checked_columns(columns, dtype, names: list[str]):
         raise InputError(f"dtype: {dtype!r}; expected 'float64' or 'float32'")
     if columns is None:
         return None, np.dtype(dtype)
-    if isinstance(columns, str) or not all(isinstance(c, str) for c in columns) or not len(columns):
+    if isinstance(columns, str) or not isinstance(columns, (list, tuple)) or not columns:
+        raise InputError(f"columns: {columns!r}; expected a non-empty list of column names")
+    if not all(isinstance(c, str) for c in columns):
         raise InputError(f"columns: {columns!r}; expected a non-empty list of column names")
     unknown = [c for c in columns if c not in names]
     if unknown:
