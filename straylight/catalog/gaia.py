@@ -213,9 +213,12 @@ def parquet_units(names, units: dict | None = None) -> dict:
     return out
 
 
-def write_parquet(columns: dict, path, metadata: dict | None = None, units: dict | None = None) -> None:
+def write_parquet(columns, path, metadata: dict | None = None, units=None) -> None:
     """Atomic Parquet write with optional key/value metadata; each column's unit (see
-    :func:`parquet_units`) goes in its field metadata under ``unit``."""
+    :func:`parquet_units`) goes in its field metadata under ``unit``.  ``columns``: a dict of
+    columns, or an iterable of such dicts (chunks of rows, each written as it comes, so only one
+    is held); ``metadata`` and ``units`` (a dict, or a function of the column names giving one)
+    are read when the first chunk has come."""
     import json
 
     import pyarrow as pa
@@ -223,15 +226,24 @@ def write_parquet(columns: dict, path, metadata: dict | None = None, units: dict
 
     from straylight.util.io import atomic_path
 
-    col_units = parquet_units(columns, units)
-    arrays = {k: np.asarray(v) for k, v in columns.items()}
-    table = pa.table(arrays)
-    table = table.cast(
-        pa.schema(
-            [f.with_metadata({"unit": col_units[f.name]}) if f.name in col_units else f for f in table.schema]
-        )
-    )
-    if metadata:
-        table = table.replace_schema_metadata({k: json.dumps(v) for k, v in metadata.items()})
+    chunks = [columns] if isinstance(columns, dict) else columns
     with atomic_path(path) as tmp:
-        pq.write_table(table, tmp)
+        writer = schema = None
+        try:
+            for cols in chunks:
+                table = pa.table({k: np.asarray(v) for k, v in cols.items()})
+                if schema is None:
+                    col_units = parquet_units(cols, units(list(cols)) if callable(units) else units)
+                    schema = pa.schema(
+                        [
+                            f.with_metadata({"unit": col_units[f.name]}) if f.name in col_units else f
+                            for f in table.schema
+                        ]
+                    )
+                    if metadata:
+                        schema = schema.with_metadata({k: json.dumps(v) for k, v in metadata.items()})
+                    writer = pq.ParquetWriter(tmp, schema)
+                writer.write_table(table.cast(schema))
+        finally:
+            if writer is not None:
+                writer.close()

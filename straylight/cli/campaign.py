@@ -53,7 +53,13 @@ def cmd_plan(args) -> int:
     from straylight.util.daskutil import available_cores
 
     cores = args.cores or available_cores()
-    cost = estimated_cost(campaign, fp, args.seconds_per_sample, speed["factor"] if speed else 1.0, cores)
+    if speed:
+        factor = speed["factor"]
+    else:  # this machine's speed and free cores now (a few seconds, kept a while in the table cache)
+        from straylight.survey.plan import probed_speed_factor
+
+        factor = probed_speed_factor(campaign, cores)
+    cost = estimated_cost(campaign, fp, args.seconds_per_sample, factor, cores)
     n = cost["samples"]
     cube_bytes = n * nb * 4 * len(registry.component_names(total=True)) + n * 6
     limits_bytes = n * nb * 4 + n
@@ -83,6 +89,22 @@ def cmd_plan(args) -> int:
             f"on {cores} core{'s' if cores > 1 else ''}, then kept for every later run"
         )
         print(f"earthshine: look-up tables ({cost['earthshine_reason']}); {table}")
+        for t in cost["tables"]:
+            state = (
+                "cached"
+                if t["cached"]
+                else f"not cached: ~{t['build_seconds'] / cores:.0f} s to build on {cores} core(s)"
+            )
+            print(f"  {t['name']} {t['path']}: {state}")
+            if not t["cached"] and t.get("other_radii_km"):
+                alt = ", ".join(
+                    f"{r - campaign.earth.radius_km:.0f}" for r in sorted(set(t["other_radii_km"]))
+                )
+                mine = sum(campaign.orbit_radius_range_km) / 2 - campaign.earth.radius_km
+                print(
+                    f"  (cached sunlit tables are for orbit altitudes {alt} km or other settings; this "
+                    f"orbit, {mine:.0f} km, needs its own: the tables are not interpolated in altitude)"
+                )
     else:
         print(f"earthshine: direct Earth-grid sum ({cost['earthshine_reason']})")
     per = (
@@ -111,6 +133,11 @@ def cmd_plan(args) -> int:
             f"this machine: {speed['samples']} cube samples on the direct sum took "
             f"{speed['measured_seconds']:.3f} s against the {speed['assumed_seconds']:.3f} s of the cost "
             f"figures (x{speed['factor']:.2f}); every figure above is scaled by it"
+        )
+    else:
+        print(
+            f"this machine now (its speed and free cores, probed on {cores} core{'s' if cores > 1 else ''}): "
+            f"x{factor:.2f} the cost figures' time; every figure above is scaled by it"
         )
     print(
         f"the cube's compute alone: {cost['compute_seconds'] / 3600:.3g} core-hours "

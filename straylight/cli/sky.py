@@ -244,7 +244,7 @@ def _sky_table(args, campaign, bands, stars) -> int:
     """``sky --input``: every row of a pointing table evaluated, written as Parquet."""
     from straylight.catalog.gaia import write_parquet
     from straylight.sky.timeutil import quiet_dubious_years
-    from straylight.survey.pointings import column_units, pointing_table, read_pointings
+    from straylight.survey.pointings import CHUNK_ROWS, column_units, pointing_chunks, read_pointings
 
     p = read_pointings(args.input)
     # a masked time (ECSV, Parquet, FITS Time columns) has no value to compute at: refused by row
@@ -255,20 +255,28 @@ def _sky_table(args, campaign, bands, stars) -> int:
             f"{len(p['time'])} rows are masked: fill or drop them"
         )
     models: dict = {}
-    with quiet_dubious_years():  # a time outside DE405 is refused in one line of ours, without ERFA's
-        cols = pointing_table(
-            campaign,
-            p,
-            bands,
-            stars,
-            source=str(args.input),
-            models=models,
-            model=lambda: _sky_model(args.config),
-        )
+    counts = {"rows": 0, "observable": 0}
+
+    def chunks():  # one chunk of rows evaluated, written and let go at a time (bounded memory)
+        with quiet_dubious_years():  # a time outside DE405 is refused in one line of ours, without ERFA's
+            for _, cols in pointing_chunks(
+                campaign,
+                p,
+                bands,
+                stars,
+                CHUNK_ROWS,
+                source=str(args.input),
+                models=models,
+                model=lambda: _sky_model(args.config),
+            ):
+                counts["rows"] += len(cols["time"])
+                counts["observable"] += int(np.sum(cols["observable"]))
+                yield cols
+
     from straylight import __version__
 
     write_parquet(
-        cols,
+        chunks(),
         args.out,
         {
             "straylight_version": __version__,
@@ -279,11 +287,10 @@ def _sky_table(args, campaign, bands, stars) -> int:
             "units": "components e-/s/pixel; total_mag_per_arcsec2 AB mag/arcsec2; "
             "limit_mag 5-sigma AB for the band's survey exposures",
         },
-        units=column_units(cols),
+        units=column_units,
     )
-    n_obs = int(np.sum(cols["observable"]))
     print(
-        f"{args.out}: {len(cols['time'])} pointings ({n_obs} observable), "
+        f"{args.out}: {counts['rows']} pointings ({counts['observable']} observable), "
         f"bands {', '.join(bands or campaign.bands)}"
     )
     return 0

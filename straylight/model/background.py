@@ -14,7 +14,6 @@ pointing is observable."""
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from straylight.config import Campaign
 from straylight.model import registry
@@ -26,6 +25,7 @@ from straylight.sources.context import Samples, SourceContext
 from straylight.sources.photometry import magnitude_per_arcsec2
 from straylight.sources.rates import LAMPS
 from straylight.sources.stars_table import StarTable
+from straylight.util.kernel_cache import njit
 
 __all__ = ["BackgroundModel", "KERNEL_BLOCK_SAMPLES"]
 

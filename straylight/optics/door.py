@@ -30,12 +30,12 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
-from numba import njit
 
 from straylight.config import InstrumentSettings, instrument_settings
 from straylight.errors import ConfigError
 from straylight.sky.vectors import wrap_360_deg
 from straylight.util.gridinterp import LinearGrid
+from straylight.util.kernel_cache import njit
 
 __all__ = [
     "door_length_from_paper",

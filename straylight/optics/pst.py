@@ -26,11 +26,11 @@ from functools import cached_property
 from pathlib import Path
 
 import numpy as np
-from numba import njit
 
 from straylight.errors import ConfigError, InputError
 from straylight.sky.vectors import wrap_360_deg
 from straylight.util.gridinterp import AxisCells, LinearGrid
+from straylight.util.kernel_cache import njit
 
 __all__ = [
     "DEFAULT_FIELD_RADIUS_DEG",

@@ -14,9 +14,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from straylight.sky.vectors import any_perpendicular_xyz, unit_xyz
+from straylight.util.kernel_cache import njit
 
 __all__ = ["TelescopeFrame", "telescope_frame"]
 

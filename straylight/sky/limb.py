@@ -33,11 +33,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from straylight.errors import InputError
 from straylight.sky.runs import SceneRuns, scene_rows
 from straylight.sky.vectors import any_perpendicular_xyz, dot, norm, unit, unit_xyz
+from straylight.util.kernel_cache import njit
 
 __all__ = ["LimbGeometry", "earth_blocks", "limb_geometry"]
 

@@ -8,7 +8,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+
+from straylight.util.kernel_cache import njit
 
 __all__ = ["SceneRuns", "rows_at", "scene_rows", "scene_runs", "shared_vectors", "tiled_period"]
 

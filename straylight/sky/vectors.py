@@ -10,9 +10,9 @@ the leading axes, so a (T, 1, 3) satellite position against (1, P, 3) pointing v
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from straylight.errors import InputError
+from straylight.util.kernel_cache import njit
 
 __all__ = [
     "angle_between_deg",

@@ -29,9 +29,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from straylight.util.gridinterp import cell_of
+from straylight.util.kernel_cache import njit
 
 __all__ = ["GridPack", "cap_sums", "lamp_bound_sums"]
 

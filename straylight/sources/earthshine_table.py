@@ -38,7 +38,6 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
-from numba import njit
 
 from straylight.sky.runs import rows_at, scene_rows
 from straylight.sky.vectors import dot, norm, unit, unit_xyz
@@ -48,6 +47,7 @@ from straylight.sources.earthshine_table_lookup import (
     _per_door_state,
 )
 from straylight.sources.lamp_table import LampTable
+from straylight.util.kernel_cache import njit
 
 __all__ = ["EarthshineLUT"]
 

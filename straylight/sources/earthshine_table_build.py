@@ -25,6 +25,7 @@ from straylight.sources.earthshine_table_nodes import (
     LUT_BUILD_SECONDS_PER_NODE,
     LUTSettings,
     _cached,
+    cache_path,
     lut_key,
     mirror_symmetric,
 )
@@ -33,6 +34,7 @@ from straylight.sources.photometry import AU_KM
 
 __all__ = [
     "build_earthshine_lut",
+    "build_speed_factor",
     "sun_coefficients_direct",
     "load_or_build",
 ]
@@ -283,6 +285,8 @@ def load_or_build(
         * settings.node_count(radius_range_km[0], earth_radius_km, mirror_symmetric(off))
         * len(off.door_states_deg)
     )
+    if log is not None and not cache_path("earthshine_lut", key).exists():  # this machine, now
+        expected *= build_speed_factor(off, earth_radius_km, radius_range_km, settings, workers)
     return _cached(
         "earthshine_lut",
         key,
@@ -301,3 +305,93 @@ def load_or_build(
         expected,
         workers,
     )
+
+
+#: a measured speed factor is reused this long while the load average stays within
+#: :data:`PROBE_LOAD_CHANGE` of the one it was measured at (s; runnable processes)
+PROBE_MAX_AGE_S = 900.0
+PROBE_LOAD_CHANGE = 0.5
+#: scenes the probe runs per worker thread (the table has ~150; each ~1 s on a core)
+PROBE_SCENES_PER_WORKER = 2
+
+
+def build_speed_factor(
+    off, earth_radius_km, radius_range_km, settings: LUTSettings | None, workers: int
+) -> float:
+    """The tables' build time on this machine now against :data:`LUT_BUILD_SECONDS_PER_NODE`
+    on ``workers`` free cores (> 1: slower, or fewer cores free): a few of the sunlit table's
+    scenes, spread over its Sun zenith angles, run in ``workers`` threads as the build runs
+    them (a few seconds), their wall time against the figure's.  Kept in the table cache
+    (``speed_probe.json``) and reused for :data:`PROBE_MAX_AGE_S` while the load average stays
+    within :data:`PROBE_LOAD_CHANGE`; 1.0 when it cannot be measured.
+
+    Parameters
+    ----------
+    off, earth_radius_km, radius_range_km, settings
+        As for :func:`build_earthshine_lut` (radii in km; settings None: the default nodes).
+    workers : int
+        Threads the build runs on.
+
+    Returns
+    -------
+    float
+        Measured wall time over the figure's on ``workers`` cores (dimensionless).
+    """
+    import json
+    import os
+    import time
+    from concurrent.futures import ThreadPoolExecutor
+
+    from straylight.util.io import cache_dir, write_json_atomic
+
+    workers = max(int(workers), 1)
+    path = cache_dir() / "speed_probe.json"
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else 0.0
+    try:
+        kept = json.loads(path.read_text())
+    except (OSError, ValueError):
+        kept = {}
+    entry = kept.get(str(workers))
+    if (
+        isinstance(entry, dict)
+        and 0 <= time.time() - entry.get("time", 0) < PROBE_MAX_AGE_S
+        and abs(load - entry.get("load", -99)) < PROBE_LOAD_CHANGE
+    ):
+        return float(entry["factor"])
+    settings = LUTSettings() if settings is None else settings
+    rr = np.array([0.5 * (radius_range_km[0] + radius_range_km[1])])
+    zs, zl, az = settings.nodes(float(radius_range_km[0]), earth_radius_km, mirror_symmetric(off))
+    zl, az = np.radians(zl), np.radians(az)
+    k = min(PROBE_SCENES_PER_WORKER * workers, zs.size)
+    picks = np.radians(zs[np.linspace(0, zs.size - 1, k).round().astype(int)])
+    off._kernel_tables  # noqa: B018  (the door's tables once, before the threads share them)
+    for z in picks[[0, -1]]:  # compiled (a day-side and a night-side scene, a few nodes) before timing
+        _sunlit_scene(
+            off,
+            float(rr[0]),
+            float(z),
+            zl[:: max(1, zl.size // 8)],
+            az[:: max(1, az.size // 8)],
+            earth_radius_km,
+        )
+
+    def timed(z):  # each scene's wall time in its thread (its share of the cores under the load)
+        t0 = time.perf_counter()
+        _sunlit_scene(off, float(rr[0]), float(z), zl, az, earth_radius_km)
+        return time.perf_counter() - t0
+
+    with ThreadPoolExecutor(max_workers=workers) as ex:
+        durations = list(ex.map(timed, picks))
+    # the build keeps every thread busy with ~150 scenes: its wall is the scenes' summed time over
+    # the threads (not the probe's own wall, where a thread waits for the slowest scene)
+    wall = float(np.sum(durations)) / workers
+    nodes = k * zl.size * az.size * len(off.door_states_deg)
+    factor = wall / (LUT_BUILD_SECONDS_PER_NODE * nodes / workers)
+    if not np.isfinite(factor) or factor <= 0:
+        return 1.0
+    kept[str(workers)] = {"factor": factor, "time": time.time(), "load": load, "wall_s": wall, "scenes": k}
+    try:
+        write_json_atomic(kept, path)
+    except OSError:
+        pass  # a read-only cache: measured again next time
+    return factor

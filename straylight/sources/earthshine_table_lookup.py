@@ -14,12 +14,12 @@ asinh(c / scale) with each sample read from its own door state's channels
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from straylight.optics.door import door_state_index
 from straylight.sky.runs import scene_rows
 from straylight.sky.vectors import any_perpendicular_xyz, dot, norm, unit, unit_xyz
 from straylight.util.gridinterp import LinearGrid
+from straylight.util.kernel_cache import njit
 
 #: the tables' private helpers, for earthshine_table, moonlit_table and lamp_table only
 __all__: list[str] = []

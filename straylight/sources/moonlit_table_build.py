@@ -18,6 +18,7 @@ from straylight.sources.earthshine_table_nodes import (
     MOONLIT_LUT_BUILD_SECONDS_PER_NODE,
     MoonlitSettings,
     _cached,
+    cache_path,
     mirror_symmetric,
     moonlit_key,
 )
@@ -202,6 +203,10 @@ def load_or_build_moonlit(
     )
     nodes = settings.node_count(float(radius_range_km[0]), earth_radius_km, mirror_symmetric(off))
     expected = MOONLIT_LUT_BUILD_SECONDS_PER_NODE * nodes * len(off.door_states_deg)
+    if log is not None and not cache_path("moonlit_lut", key).exists():  # this machine, now
+        from straylight.sources.earthshine_table_build import build_speed_factor
+
+        expected *= build_speed_factor(off, earth_radius_km, radius_range_km, None, workers)
     return _cached(
         "moonlit_lut",
         key,

@@ -7,7 +7,6 @@ off-field transfer, each skipped on its bound like the Moon
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from straylight.sky.ephemeris import PLANETS
 from straylight.sky.frames import TelescopeFrame
@@ -19,6 +18,7 @@ from straylight.sources.body_magnitudes import planet_v_magnitudes
 from straylight.sources.context import Samples, SourceContext
 from straylight.sources.photometry import solar_like_fraction
 from straylight.sources.rates import BandRates
+from straylight.util.kernel_cache import njit
 
 __all__ = ["Planets"]
 

@@ -10,11 +10,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from straylight.sky.limb import earth_blocks
 from straylight.sky.runs import scene_runs, tiled_period
 from straylight.sources.stars_table import StarTable
+from straylight.util.kernel_cache import njit
 
 __all__ = ["DirectStarPairs", "StarCells"]
 

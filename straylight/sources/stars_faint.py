@@ -9,9 +9,9 @@ from __future__ import annotations
 from functools import cached_property
 
 import numpy as np
-from numba import njit
 
 from straylight.sources.stars_table import StarTable
+from straylight.util.kernel_cache import njit
 
 __all__ = ["FAINT_MAP_FORMAT", "FaintStarMap"]
 

@@ -14,7 +14,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from straylight.util.kernel_cache import njit
 
 __all__ = [
     "COMPRESSION_ATTR",

@@ -33,6 +33,8 @@ __all__ = [
     "pipeline_rate",
     "cube_compute_seconds",
     "machine_speed",
+    "probed_speed_factor",
+    "needed_tables",
     "estimated_cost",
 ]
 
@@ -244,6 +246,72 @@ def machine_speed(
     return {"samples": n, "measured_seconds": best, "assumed_seconds": assumed, "factor": best / assumed}
 
 
+def probed_speed_factor(campaign: Campaign, cores: int) -> float:
+    """The time of this machine against the cost figures' now, on ``cores`` cores: the table build's
+    probe (:func:`~straylight.sources.earthshine_table_build.build_speed_factor`, a few of the
+    sunlit table's scenes in ``cores`` threads, a few seconds, cached), which sees both the
+    cores' speed and how much of them other processes leave free.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        Loaded campaign (its off-field model, Earth and orbit).
+    cores : int
+        Cores the run will use.
+
+    Returns
+    -------
+    float
+        Measured time over the figures' (> 1: slower).
+    """
+    from straylight.model import BackgroundModel
+    from straylight.sources.earthshine_table_build import build_speed_factor
+
+    model = BackgroundModel(campaign)
+    ctx = model.sunlit_earth.context
+    return build_speed_factor(
+        ctx.offfield,
+        campaign.earth.radius_km,
+        campaign.orbit_radius_range_km,
+        model.sunlit_earth.choice["settings"],
+        max(int(cores), 1),
+    )
+
+
+def needed_tables(model) -> list[dict]:
+    """The look-up tables a campaign's model reads, each with ``name``, ``path`` and ``cached``;
+    the sunlit table also with ``other_radii_km``: the orbit radii (km) of the sunlit tables
+    cached for other settings or orbits (a changed orbit altitude needs its own table).
+
+    Parameters
+    ----------
+    model : BackgroundModel
+        The campaign's model (nothing is built).
+
+    Returns
+    -------
+    list of dict
+    """
+    if model.sunlit_earth.choice["method"] != "lut":
+        return []
+    sunlit = model.sunlit_earth.lut_path()
+    others = []
+    for p in sorted(sunlit.parent.glob("earthshine_lut_*.npz")) if sunlit.parent.is_dir() else []:
+        if p != sunlit:
+            try:
+                with np.load(p) as z:
+                    others.append(float(np.mean(z["radius_km"])))
+            except (OSError, KeyError, ValueError):
+                continue
+    out = [
+        {"name": "sunlit-Earth table", "path": sunlit, "cached": sunlit.exists(), "other_radii_km": others}
+    ]
+    moonlit = model.moonlit_earth.lut_path()
+    if moonlit is not None:
+        out.append({"name": "moonlit-Earth table", "path": moonlit, "cached": moonlit.exists()})
+    return out
+
+
 def estimated_cost(
     campaign: Campaign,
     fp: Footprint,
@@ -279,7 +347,8 @@ def estimated_cost(
     dict
         ``samples``, ``evaluated_samples`` (int); ``unobservable_samples`` (``"skip"`` or
         ``"evaluate"``); ``earthshine_method``, ``earthshine_reason`` (str); ``table_cached``
-        (bool); ``table_build_seconds``, ``compute_seconds`` (s on one core); ``core_hours``
+        (bool); ``tables`` (:func:`needed_tables`, each with its ``build_seconds`` on one
+        core); ``table_build_seconds``, ``compute_seconds`` (s on one core); ``core_hours``
         (h); ``speed_factor``; ``cores``; ``pipeline_samples_per_s_per_core`` and
         ``pipeline_rate_source``; ``fixed_seconds``, ``samples_seconds``, ``wall_seconds``,
         ``faint_map_first_seconds`` (s, wall on ``cores``); ``pipeline_core_hours`` (h);
@@ -296,16 +365,16 @@ def estimated_cost(
         n, n_eval, choice["method"], skip, seconds_per_evaluated_sample, speed_factor
     )
     build_s, table_cached = 0.0, True
+    tables = needed_tables(model)
     if choice["method"] == "lut":  # the sunlit table and the moonlit one, each unless cached
         moonlit_s = choice["moonlit_build_seconds_estimate"]
-        sunlit_cached = model.sunlit_earth.lut_path().exists()
-        moonlit_path = model.moonlit_earth.lut_path()
-        moonlit_cached = moonlit_path is None or moonlit_path.exists()
+        sunlit_cached = tables[0]["cached"]
+        moonlit_cached = len(tables) < 2 or tables[1]["cached"]
         table_cached = sunlit_cached and moonlit_cached
-        build_s = speed_factor * (
-            (0.0 if sunlit_cached else choice["build_seconds_estimate"] - moonlit_s)
-            + (0.0 if moonlit_cached else moonlit_s)
-        )
+        tables[0]["build_seconds"] = speed_factor * (choice["build_seconds_estimate"] - moonlit_s)
+        if len(tables) > 1:
+            tables[1]["build_seconds"] = speed_factor * moonlit_s
+        build_s = sum(t["build_seconds"] for t in tables if not t["cached"])
     rate, rate_source = pipeline_rate(campaign)
     cores = max(int(cores), 1)
     if seconds_per_evaluated_sample is not None:
@@ -326,6 +395,7 @@ def estimated_cost(
         "earthshine_method": choice["method"],
         "earthshine_reason": choice["reason"],
         "table_cached": table_cached,
+        "tables": tables,
         "table_build_seconds": build_s,
         "compute_seconds": compute_s,
         "core_hours": (compute_s + build_s) / 3600.0,

@@ -24,6 +24,8 @@ __all__ = [
     "read_pointings",
     "check_radec",
     "pointing_table",
+    "pointing_chunks",
+    "CHUNK_ROWS",
     "UNITS",
     "column_units",
     "background_table",
@@ -204,39 +206,69 @@ def pointing_table(
         When a time cannot be parsed (the first bad row is named) or lies outside the DE405
         range.
     """
+    t_all, iso = _checked_times(pointings, source)
+    return _evaluate(campaign, pointings, t_all, iso, bands, stars, batch, models, model)[0]
+
+
+def _checked_times(pointings: dict, source: str):
+    """(the pointings' times as a UTC Time, whether they were given as text): text parsed and
+    checked against DE405 here, the first bad row named (an astropy Time is taken as checked)."""
     from astropy.time import Time
 
+    from straylight.sky.ephemeris import default_ephemeris
+    from straylight.sky.timeutil import parse_utc, utc_to_tdb_jd
+
+    if isinstance(pointings["time"], Time):  # the Python API's times: already parsed (and checked)
+        return parse_utc(pointings["time"], f"{source}: time").reshape(-1), False
+    iso = [str(v) for v in pointings["time"]]
+    try:
+        t_all = parse_utc(iso, f"{source}: time")
+    except InputError:  # find the first bad row to name it (one parse per row only on failure)
+        for i, v in enumerate(iso):
+            parse_utc(v, f"{source} row {i + 1}: time")
+        raise
+    eph = default_ephemeris()
+    jd1, jd2 = utc_to_tdb_jd(t_all)
+    jd = jd1 + jd2
+    out_of_range = np.flatnonzero((jd < eph.jd_start) | (jd > eph.jd_end))
+    if out_of_range.size:
+        i = int(out_of_range[0])
+        raise InputError(
+            f"{source} row {i + 1}: time = {iso[i]} is outside the DE405 range ({eph.span}); "
+            f"{out_of_range.size} of {len(iso)} rows are out of range"
+        )
+    return t_all, True
+
+
+def pointing_chunks(
+    campaign, pointings: dict, bands=None, stars=None, chunk_rows: int = 0, source="", models=None, model=None
+):
+    """:func:`pointing_table`'s columns ``chunk_rows`` rows at a time (0: all at once): a
+    generator of (row slice, columns of those rows), so that a caller writing or copying each
+    chunk holds one chunk's work at a time.  The times are parsed and checked first, for all
+    rows; the model is built (or ``model()`` called) once.  Each chunk's columns equal those
+    rows of one :func:`pointing_table` (every step is per sample or per distinct time)."""
+    t_all, iso = _checked_times(pointings, source)
+    n = len(t_all)
+    step = n if chunk_rows <= 0 else int(chunk_rows)
+    for a in range(0, n, max(step, 1)):
+        sl = slice(a, min(a + step, n))
+        part = {"time": t_all[sl], "ra": pointings["ra"][sl], "dec": pointings["dec"][sl]}
+        cols, model = _evaluate(campaign, part, t_all[sl], iso, bands, stars, 8192, models, model)
+        models = None  # recorded by the first chunk; its model serves the later ones
+        yield sl, cols
+
+
+def _evaluate(campaign, pointings, t_all, iso, bands, stars, batch, models, model) -> tuple:
+    """(:func:`pointing_table`'s columns, the model used) for times already parsed and checked
+    (``iso``: give them as text)."""
     from straylight.model import BackgroundModel, registry
     from straylight.model.pointing import background_at
-    from straylight.sky.ephemeris import default_ephemeris
     from straylight.sky.observing import scene
-    from straylight.sky.timeutil import parse_utc, utc_to_tdb_jd
     from straylight.sky.vectors import radec_to_unit
     from straylight.survey.limits import point_source_limit
 
     bands = list(bands or campaign.bands)
-    if isinstance(pointings["time"], Time):  # the Python API's times: already parsed (and checked)
-        t_all = parse_utc(pointings["time"], f"{source}: time").reshape(-1)
-        iso = None
-    else:
-        iso = [str(v) for v in pointings["time"]]
-        try:
-            t_all = parse_utc(iso, f"{source}: time")
-        except InputError:  # find the first bad row to name it (one parse per row only on failure)
-            for i, v in enumerate(iso):
-                parse_utc(v, f"{source} row {i + 1}: time")
-            raise
-    if iso is not None:
-        eph = default_ephemeris()
-        jd1, jd2 = utc_to_tdb_jd(t_all)
-        jd = jd1 + jd2
-        out_of_range = np.flatnonzero((jd < eph.jd_start) | (jd > eph.jd_end))
-        if out_of_range.size:
-            i = int(out_of_range[0])
-            raise InputError(
-                f"{source} row {i + 1}: time = {iso[i]} is outside the DE405 range ({eph.span}); "
-                f"{out_of_range.size} of {len(iso)} rows are out of range"
-            )
     # the scene once per distinct time (a scheduler asks for many pointings at few times), before
     # the model: an orbit that cannot be propagated is refused before any table is read or built
     first, inverse = _distinct_times(
@@ -249,7 +281,7 @@ def pointing_table(
     n = len(t_all)
     # a table's times as UTC ISO text (offsets resolved); the API's stay a Time (its table converts them)
     cols: dict = {
-        "time": t_all if iso is None else np.asarray(t_all.isot, dtype=object),
+        "time": np.asarray(t_all.isot, dtype=object) if iso else t_all,
         "ra_deg": pointings["ra"],
         "dec_deg": pointings["dec"],
     }
@@ -294,7 +326,7 @@ def pointing_table(
     for b in bands:
         if b != "V":
             cols[f"limit_mag_{b}"] = point_source_limit(cols[f"total_{b}"], b, campaign)
-    return cols
+    return cols, model
 
 
 def _distinct_times(jd1: np.ndarray, jd2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -348,11 +380,30 @@ def column_units(cols) -> dict:
     return out
 
 
-def background_table(campaign, t, ra_deg, dec_deg, bands, stars=None, source="", model=None):
+#: rows of the pointing table evaluated at a time by :func:`background_table` and ``straylight sky
+#: --input``: one chunk's work (the scene, the model's scratch, its table) is then a fixed
+#: amount beside the result, whatever the number of rows
+CHUNK_ROWS = 2**16
+
+
+def background_table(
+    campaign,
+    t,
+    ra_deg,
+    dec_deg,
+    bands,
+    stars=None,
+    source="",
+    model=None,
+    columns=None,
+    dtype=np.float64,
+    chunk_rows=None,
+):
     """:func:`straylight.sky_background`'s table for a loaded campaign and 1-D UTC times ``t`` with ICRS
     ``ra_deg``, ``dec_deg`` (deg) of the same length, already checked; ``stars`` as
     :func:`straylight.sources.stars_table.load_offfield_stars` gives them (None: stars = 0); ``model``:
-    the campaign's warm :class:`~straylight.model.BackgroundModel`, if any.
+    the campaign's warm :class:`~straylight.model.BackgroundModel`, if any.  Evaluated
+    ``chunk_rows`` rows at a time, each chunk copied into the result, which is allocated once.
 
     Parameters
     ----------
@@ -370,6 +421,12 @@ def background_table(campaign, t, ra_deg, dec_deg, bands, stars=None, source="",
         Name of the input used to prefix error messages.
     model : BackgroundModel or callable, optional
         The campaign's warm model, or a function returning it; None: one is built.
+    columns : list of str, optional
+        The columns kept (names of the full table's, already checked); None: all.
+    dtype : numpy float dtype, optional
+        Of the float columns (float64, or float32 for half the memory).
+    chunk_rows : int, optional
+        Rows evaluated at a time (None: :data:`CHUNK_ROWS`; 0: all at once).
 
     Returns
     -------
@@ -385,16 +442,58 @@ def background_table(campaign, t, ra_deg, dec_deg, bands, stars=None, source="",
     from straylight.survey.limits import sky_zero_points
 
     models: dict = {}
-    cols = pointing_table(
-        campaign,
-        {"time": t, "ra": np.asarray(ra_deg, float) % 360.0, "dec": np.asarray(dec_deg, float)},
-        bands,
-        stars,
-        source=source,
-        models=models,
-        model=model,
-    )
-    return _qtable(cols, t, bands, sky_zero_points(campaign, bands), models)
+    zero_points = sky_zero_points(campaign, bands)
+    pointings = {"time": t, "ra": np.asarray(ra_deg, float) % 360.0, "dec": np.asarray(dec_deg, float)}
+    chunk_rows = CHUNK_ROWS if chunk_rows is None else chunk_rows
+    out, n = None, len(t)
+    for sl, cols in pointing_chunks(campaign, pointings, bands, stars, chunk_rows, source, models, model):
+        part = _qtable(cols, t[sl], bands, zero_points, models)
+        del cols
+        if columns is not None:
+            part = part[list(columns)]  # in the order asked for
+        if out is None:
+            out = part if sl.stop == n and np.dtype(dtype) == np.float64 else _allocated_like(part, t, dtype)
+        if out is not part:
+            _copy_rows(out, part, sl)
+    return out
+
+
+def _allocated_like(part, t, dtype):
+    """A table of ``len(t)`` rows with ``part``'s columns, units, formats, descriptions and meta,
+    its float columns of ``dtype``, the others as they are (its ``time`` is ``t``'s already)."""
+    import astropy.units as u
+    from astropy.table import QTable
+    from astropy.time import Time
+
+    n, columns = len(t), {}
+    for name in part.colnames:
+        col = part[name]
+        if isinstance(col, Time):
+            columns[name] = Time(t, format="isot", precision=3)
+        elif isinstance(col, u.Quantity):
+            columns[name] = u.Quantity(np.empty(n, dtype), col.unit, copy=False)
+        else:
+            columns[name] = np.empty(n, np.asarray(col).dtype)
+    out = QTable(columns, copy=False, meta=part.meta)
+    for name in part.colnames:
+        out[name].info.format = part[name].info.format
+        out[name].info.description = part[name].info.description
+    return out
+
+
+def _copy_rows(out, part, sl: slice) -> None:
+    """``part``'s rows into ``out[sl]``; a text column widened first when ``part``'s is wider."""
+    from astropy.time import Time
+
+    for name in part.colnames:
+        col = part[name]
+        if isinstance(col, Time):
+            continue  # the result's times were set whole
+        dest = out[name]
+        if dest.dtype.kind == "U" and col.dtype.itemsize > dest.dtype.itemsize:
+            out.replace_column(name, np.asarray(dest).astype(col.dtype))
+            dest = out[name]
+        dest[sl] = col
 
 
 def _qtable(cols: dict, t, bands, zero_points: dict, models: dict):

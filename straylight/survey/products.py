@@ -94,8 +94,10 @@ def ephemeris_dataset(campaign: Campaign) -> xr.Dataset:
         },
         coords={
             "time": ("time", t.datetime64, {"long_name": "UTC sample time"}),
-            "body": ("body", np.array(BODIES)),
-            "xyz": ("xyz", np.array(["x", "y", "z"])),
+            # object arrays: Zarr v3's variable-length `string` type, as the other products' labels
+            # (numpy's fixed-width "<U" is zarr-python's FixedLengthUTF32, outside the v3 spec)
+            "body": ("body", np.array(BODIES, dtype=object)),
+            "xyz": ("xyz", np.array(["x", "y", "z"], dtype=object)),
         },
         attrs={
             "campaign": campaign.name,

@@ -19,7 +19,8 @@ phi periodic).  NaN inputs give NaN.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from straylight.util.kernel_cache import njit
 
 __all__ = ["cell_of", "AxisCells", "LinearGrid"]
 
