@@ -198,3 +198,28 @@ def test_depth_bounds_present_ordered_and_finite(tiny_run):
     assert env["door_reflectance"]["scales"] == ["earthshine_door"]
     assert (out / "depth" / "envelope_spread.png").exists()
     assert (out / "depth" / "envelope_sensitivity.csv").exists()
+
+
+def test_orbit_series_model_equals_the_cube_at_its_samples(tiny_run):
+    """The time series' first orbit is the model every minute (plots.series.model_series): at the
+    cube's own sample times (every 10 min) it gives the cube's values, every component in every
+    band, to models.tolerance (1 % of the total: the cube's fast paths against the pointwise
+    path) plus the stored values' 2^-11; and the same observability."""
+    from straylight.config import load_campaign
+    from straylight.model import registry
+    from straylight.plots.series import model_series, pointing_series, series_pixel_indices
+
+    out, cfg = tiny_run
+    campaign = load_campaign(cfg)
+    store = out / "background.zarr"
+    with xr.open_zarr(store, chunks=None, consolidated=False) as ds:
+        pixels = series_pixel_indices(ds, 1, [[150.0, 30.0]])
+        minutes = (ds["time"].values - ds["time"].values[0]) / np.timedelta64(1, "m")
+        (model,) = model_series(campaign, ds, pixels, minutes, out / "stars_csst.parquet")
+    (cube,) = pointing_series(store, pixels)
+    assert minutes.tolist() == [10.0 * i for i in range(12)]
+    np.testing.assert_array_equal(model["observable"], cube["observable"])
+    tol = float(campaign.config["models"]["tolerance"]) + 2.0**-11
+    for name in registry.component_names(total=True):
+        error = np.abs(model[name] - cube[name])
+        assert np.all(error <= tol * cube["total"] + 2.0**-11 * np.abs(cube[name])), name
