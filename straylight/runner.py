@@ -127,6 +127,8 @@ _PRINTING_ARGS = {
 }
 #: "3 of 17 steps (18%) done": a job finished
 _STEP_LINE = re.compile(r"^(\d+) of (\d+) steps \(\d+%\) done")
+#: the cube's rule in the "Job stats" table Snakemake prints first: its time blocks are in the run
+_CUBE_JOBS_LINE = re.compile(r"^background_blocks\s+\d+\s*$")
 
 
 def _prints_rather_than_runs(extra) -> bool:
@@ -144,11 +146,14 @@ class RunProgress:
         self.steps_done = 0
         self.steps_total = None  # known from Snakemake's first finished step
         self.nothing_to_do = False
+        self.cube_in_run = False  # the cube's jobs listed in Snakemake's job stats
 
     def read_line(self, line: str) -> None:
         """Take one line of Snakemake's log."""
         m = _STEP_LINE.match(line.strip())
-        if m:
+        if _CUBE_JOBS_LINE.match(line):
+            self.cube_in_run = True
+        elif m:
             self.steps_done, self.steps_total = int(m.group(1)), int(m.group(2))
         elif line.startswith("Nothing to be done"):
             self.nothing_to_do = True
@@ -161,9 +166,11 @@ class RunProgress:
             return 0
 
     def counts(self) -> tuple[int, int | None]:
-        """(units done, units in all or None while unknown): a step or a time block each."""
-        total = None if self.steps_total is None else self.steps_total + self.n_time_blocks
-        return self.steps_done + self.blocks_done(), total
+        """(units done, units in all or None while unknown): a step, or a time block of a run
+        that computes the cube, each."""
+        blocks = self.n_time_blocks if self.cube_in_run else 0
+        total = None if self.steps_total is None else self.steps_total + blocks
+        return self.steps_done + (self.blocks_done() if self.cube_in_run else 0), total
 
 
 def _size(path: Path) -> int:

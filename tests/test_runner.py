@@ -9,14 +9,21 @@ from straylight.runner import RunProgress
 
 
 def test_progress_counts_snakemake_steps_and_the_cubes_time_blocks(tmp_path):
-    progress = RunProgress(tmp_path, n_time_blocks=4)
-    progress.read_line("Select jobs to execute...\n")
-    assert progress.counts() == (0, None)  # the steps' total comes with the first finished one
     blocks = tmp_path / "work" / "background_blocks"
     blocks.mkdir(parents=True)
     for i in (0, 1):
         (blocks / f"block_{i}.json").write_text("{}")
     (blocks / "init.json").write_text("{}")  # not a time block
+    # a run without the cube (other targets): its steps only
+    progress = RunProgress(tmp_path, n_time_blocks=4)
+    progress.read_line("2 of 3 steps (67%) done\n")
+    assert progress.counts() == (2, 3)
+    # Snakemake's job stats list the cube's job: its 4 time blocks count, 2 of them done
+    progress = RunProgress(tmp_path, n_time_blocks=4)
+    for line in ("Job stats:\n", "job                  count\n", "background_blocks        1\n"):
+        progress.read_line(line)
+    progress.read_line("Select jobs to execute...\n")
+    assert progress.counts() == (2, None)  # the steps' total comes with the first finished one
     progress.read_line("3 of 9 steps (33%) done\n")
     assert progress.counts() == (3 + 2, 9 + 4)
     assert not progress.nothing_to_do
