@@ -34,7 +34,7 @@ def test_progress_counts_snakemake_steps_and_the_cubes_time_blocks(tmp_path):
 def test_quiet_run_prints_two_lines_and_logs_snakemake(tmp_path):
     """The footprint of a tiny campaign through Snakemake: on stderr (not a terminal: no bar) the
     log's place and the closing line only; Snakemake's lines in the log.  Before: Snakemake's
-    ~25 lines for this one job on the console, no log file."""
+    49 lines for this one job on the console, no log file."""
     cfg = tiny_config(tmp_path)
     r = run_cli("run", cfg, "--cores", "1", "results/tiny/footprint.fits", cwd=tmp_path, timeout=600)
     assert r.returncode == 0, r.stderr
