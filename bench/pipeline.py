@@ -230,7 +230,7 @@ def run_campaign(
             sys.stderr.write(log[-5000:])
             raise SystemExit(f"bench/pipeline.py: snakemake failed (exit {proc.returncode})")
         out = tmp / "results" / "bench"
-        init = json.loads((out / "background_blocks" / "init.json").read_text())
+        init = json.loads((out / "work" / "background_blocks" / "init.json").read_text())
         samples = int(init["times"]) * int(init["pixels"])
         products = {p: directory_bytes(out / p) for p in PRODUCTS}
         rules = rule_seconds(log)

@@ -5,6 +5,10 @@ own command line uses the same files), else the copy an installed package carrie
 ``straylight/_workflow`` (pyproject.toml maps ``workflow/`` to that package).  The run's folder is
 the current directory: the products go to ``./results/<campaign name>/``, Snakemake's state to
 ``./.snakemake/``, as a ``snakemake`` started there does.
+
+A run is quiet: a progress bar (Snakemake's steps and the cube's time blocks, with an ETA) and a
+closing line; Snakemake's own log goes to ``results/<campaign name>/work/logs/snakemake.log``
+(``verbose``, or Snakemake arguments that print rather than run, such as ``-n``: on the console).
 """
 
 from __future__ import annotations
@@ -12,8 +16,12 @@ from __future__ import annotations
 import json
 import os
 import signal
+import re
 import subprocess
 import sys
+import threading
+import time
+from collections import deque
 from pathlib import Path
 
 from straylight.errors import InputError
@@ -27,6 +35,7 @@ __all__ = [
     "check_results_folder",
     "warn_if_large",
     "run_campaign",
+    "RunProgress",
 ]
 
 _CHECKOUT_WORKFLOW = Path(__file__).resolve().parents[1] / "workflow"
@@ -110,12 +119,211 @@ def warn_if_large(campaign) -> str | None:
 INTERRUPTED_EXIT = 130
 
 
-def run_campaign(config, cores: int | None = None, extra=(), argv=None) -> int:
+#: Snakemake arguments that print something rather than run the campaign: their output is the
+#: point, so it goes to the console as Snakemake writes it
+_PRINTING_ARGS = {
+    "-n",
+    "--dry-run",
+    "--dryrun",
+    "--report",
+    "--lint",
+    "-l",
+    "--list",
+    "--list-rules",
+    "--lt",
+    "--list-target-rules",
+    "-S",
+    "--summary",
+    "-D",
+    "--detailed-summary",
+    "--dag",
+    "--rulegraph",
+    "--filegraph",
+    "--d3dag",
+    "-h",
+    "--help",
+    "--version",
+    "--lc",
+    "--list-changes",
+    "--list-code-changes",
+    "--list-input-changes",
+    "--list-params-changes",
+    "--print-compilation",
+    "--containerize",
+    "--unlock",
+    "--cleanup-metadata",
+    "--archive",
+    "-t",
+    "--touch",
+    "--delete-all-output",
+    "--delete-temp-output",
+    "--generate-unit-tests",
+}
+#: "3 of 17 steps (18%) done": a job finished
+_STEP_LINE = re.compile(r"^(\d+) of (\d+) steps \(\d+%\) done")
+#: the cube's rule in the "Job stats" table Snakemake prints first: its time blocks are in the run
+_CUBE_JOBS_LINE = re.compile(r"^background_blocks\s+\d+\s*$")
+
+
+def _prints_rather_than_runs(extra) -> bool:
+    return any(str(a).split("=", 1)[0] in _PRINTING_ARGS for a in extra)
+
+
+class RunProgress:
+    """What a quiet run shows: Snakemake's finished steps (from its log lines) plus the cube's
+    finished time blocks (their sentinels, ``work/background_blocks/block_<i>.json``), which
+    hold most of a long campaign's time."""
+
+    def __init__(self, results: Path, n_time_blocks: int):
+        self.sentinels = Path(results) / "work" / "background_blocks"
+        self.n_time_blocks = int(n_time_blocks)
+        self.steps_done = 0
+        self.steps_total = None  # known from Snakemake's first finished step
+        self.nothing_to_do = False
+        self.cube_in_run = False  # the cube's jobs listed in Snakemake's job stats
+
+    def read_line(self, line: str) -> None:
+        """Take one line of Snakemake's log."""
+        m = _STEP_LINE.match(line.strip())
+        if _CUBE_JOBS_LINE.match(line):
+            self.cube_in_run = True
+        elif m:
+            self.steps_done, self.steps_total = int(m.group(1)), int(m.group(2))
+        elif line.startswith("Nothing to be done"):
+            self.nothing_to_do = True
+
+    def blocks_done(self) -> int:
+        """The cube's time blocks done: their sentinels (0 while the folder is not there)."""
+        try:
+            return min(self.n_time_blocks, sum(1 for _ in self.sentinels.glob("block_*.json")))
+        except OSError:
+            return 0
+
+    def counts(self) -> tuple[int, int | None]:
+        """(units done, units in all or None while unknown): a step, or a time block of a run
+        that computes the cube, each."""
+        blocks = self.n_time_blocks if self.cube_in_run else 0
+        total = None if self.steps_total is None else self.steps_total + blocks
+        return self.steps_done + (self.blocks_done() if self.cube_in_run else 0), total
+
+
+def _size(path: Path) -> int:
+    if path.is_file():
+        return path.stat().st_size
+    return sum(f.stat().st_size for f in path.rglob("*") if f.is_file())
+
+
+def _products_line(results: Path) -> str:
+    """'14 products, 52.3 MB': the results folder's entries but its work/ folder."""
+    products = [p for p in results.iterdir() if p.name != "work" and not p.name.startswith(".")]
+    size = sum(_size(p) for p in products)
+    return f"{len(products)} products, {size / 1e6:.1f} MB"
+
+
+def _run_quietly(cmd, env, campaign) -> int:
+    """Run ``cmd`` (Snakemake) with its output in the results folder's work/logs/snakemake.log,
+    a progress bar on stderr and one closing line; on failure the log's error lines."""
+    from tqdm import tqdm
+
+    from straylight.survey.timegrid import time_blocks
+
+    c = campaign.settings.campaign
+    results = Path("results") / campaign.name
+    log_path = results / "work" / "logs" / "snakemake.log"
+    try:
+        log_path.parent.mkdir(parents=True, exist_ok=True)
+        log = open(log_path, "w", encoding="utf-8")  # noqa: SIM115 - closed below, after the reader
+    except OSError as exc:
+        raise InputError(f"{log_path}: cannot write the run's log ({exc.strerror or exc})") from None
+    from straylight.sky.timeutil import quiet_dubious_years
+
+    with quiet_dubious_years():  # the campaign checked: inside DE405
+        n_times = len(campaign.times)
+    n_blocks = len(time_blocks(n_times, float(c.cadence_s), float(c.time_block_hours)))
+    progress = RunProgress(results, n_blocks)
+    tail: deque[str] = deque(maxlen=400)
+    print(f"straylight run: campaign {campaign.name}, log in {log_path}", file=sys.stderr, flush=True)
+    start = time.monotonic()
+    proc = subprocess.Popen(
+        cmd,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        errors="replace",
+        start_new_session=True,  # a Ctrl-C reaches this process alone, which stops Snakemake (_stop)
+    )
+    previous = _forward_signals(proc)
+
+    def read():
+        for line in proc.stdout:
+            log.write(line)
+            log.flush()
+            tail.append(line.rstrip("\n"))
+            progress.read_line(line)
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    # disable=None: no bar where stderr is not a terminal (a pipe, a batch job's file)
+    bar = tqdm(total=None, unit="step", desc=campaign.name, file=sys.stderr, disable=None, leave=False)
+    interrupted = False
+    try:
+        while True:
+            try:
+                if proc.poll() is not None:
+                    break
+                done, total = progress.counts()
+                if total is not None and bar.total != total:
+                    bar.total = total
+                if done != bar.n:
+                    bar.update(done - bar.n)
+                else:
+                    bar.refresh()
+                time.sleep(0.5)
+            except KeyboardInterrupt:
+                interrupted = True
+                _stop(proc)
+        reader.join()
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        bar.close()
+        log.close()
+    wall = time.monotonic() - start
+    code = proc.returncode
+    if code == 0:
+        what = "already complete" if progress.nothing_to_do else f"done in {wall:.0f} s wall"
+        print(f"straylight run: {what}: {_products_line(results)} in {results}/", file=sys.stderr)
+    elif interrupted:
+        print(
+            f"straylight run: interrupted after {wall:.0f} s; the finished products are kept in "
+            f"{results}/ and the same command resumes the run",
+            file=sys.stderr,
+        )
+        return INTERRUPTED_EXIT
+    else:
+        lines = list(tail)
+        first = next(
+            (i for i, ln in enumerate(lines) if re.match(r"\s*(Error|Exception|\w+Error\b)", ln)), None
+        )
+        shown = lines[first:][:40] if first is not None else lines[-20:]
+        print("\n".join(shown), file=sys.stderr)
+        print(
+            f"straylight run: failed (Snakemake exit status {code}) after {wall:.0f} s; "
+            f"the whole log: {log_path}",
+            file=sys.stderr,
+        )
+    return code
+
+
+def run_campaign(config, cores: int | None = None, extra=(), argv=None, verbose: bool = False) -> int:
     """Check the campaign ``config`` (one line on a mistake: :class:`~straylight.errors.StraylightError`),
     then run Snakemake on it in the current directory; returns Snakemake's exit status, or
     :data:`INTERRUPTED_EXIT` after a Ctrl-C (Snakemake and its jobs stopped with SIGTERM, without
     a traceback, and one line on stderr; a re-run resumes).
-    ``argv``: the ``straylight`` command line, recorded in provenance.json."""
+    ``argv``: the ``straylight`` command line, recorded in provenance.json.  Quiet unless
+    ``verbose`` or ``extra`` asks Snakemake to print rather than run (``-n``, ``--report``):
+    a progress bar and a closing line, Snakemake's log in the results folder's work/logs/."""
     if cores is not None and cores < 1:
         raise InputError(f"--cores must be at least 1, got {cores}")
     campaign = check_campaign(config)
@@ -126,6 +334,8 @@ def run_campaign(config, cores: int | None = None, extra=(), argv=None) -> int:
 
     env = dict(os.environ)
     env[LAUNCHER_ENV] = json.dumps(["straylight", *(argv if argv is not None else sys.argv[1:])])
+    if not verbose and not _prints_rather_than_runs(extra):
+        return _run_quietly(cmd, env, campaign)
     # Snakemake and its jobs in a session of their own: a Ctrl-C reaches this process alone, which
     # stops them with SIGTERM (a job ends without a traceback wherever it is, even in Snakemake's
     # preamble or its imports; the cube job stops cleanly), and says so in one line

@@ -406,6 +406,8 @@ def _check_raw_jd(time, shape) -> None:
     where = f"time: sample {i}" if jd.size > 1 else "time"
     count = f"; {bad.size} of {jd.size} samples are outside it" if jd.size > 1 else ""
     raise EphemerisRangeError(f"{where} = {value} is outside the DE405 range ({eph.span}){count}")
+
+
 def _checked_columns(columns, dtype, names: list[str]):
     """(the columns asked for, or None for all; the float dtype), InputError for an unknown one."""
     if dtype not in ("float64", "float32", np.float64, np.float32):

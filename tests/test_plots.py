@@ -121,6 +121,88 @@ def test_sky_maps_of_one_band_share_one_colour_scale_over_the_times(campaign, tm
     assert totals[0][1] - totals[0][0] > 1.0  # spans both times' values, 1 mag apart
 
 
+def test_sky_map_colour_scale_comes_from_the_observable_pixels(campaign, tmp_path, monkeypatch):
+    """A quarter of the pixels unobservable and 10 mag brighter (near the Earth's limb, as the
+    earthshine there): each component's scale is the 2nd-98th percentile of the observable
+    pixels (22.3-23.3 mag here), not one whose bright end sits among the unobservable ones
+    (before: the scale ran from their ~12.6 mag, the observable sky one colour)."""
+    import healpy as hp
+
+    from straylight.model.registry import component_names
+    from straylight.plots.common import SKY_PERCENTILES
+    from straylight.plots.maps import sky_maps
+    from straylight.survey.limits import ZERO_POINT_NAME, zero_point_coord
+
+    nside, pix = 4, np.arange(hp.nside2npix(4))
+    zp = float(zero_point_coord(campaign, ["g"])[1][0])
+    rng = np.random.default_rng(11)
+    mags = 22.3 + rng.random(pix.size)  # the observable sky, AB mag/arcsec2
+    observable = np.arange(pix.size) % 4 != 0
+    mags[~observable] -= 10.0
+    rates = 10 ** (-0.4 * (mags - zp))[None, :, None]  # (time, pixel, band g), e-/s/pixel
+    ds = xr.Dataset(
+        {c: (("time", "pixel", "band"), rates) for c in component_names(total=True)}
+        | {"observable": (("time", "pixel"), observable[None, :])},
+        coords={
+            "time": np.array(["2026-01-01T00:00"], "datetime64[ns]"),
+            "pixel": pix,
+            "band": ["g"],
+            ZERO_POINT_NAME: zero_point_coord(campaign, ["g"]),
+        },
+        attrs={"healpix_nside": nside, "healpix_ordering": "RING"},
+    )
+    shown = _recorded_scales(monkeypatch)
+    sky_maps(ds, campaign, tmp_path, [0], ["g"])
+    expected = np.percentile(mags[observable], SKY_PERCENTILES)
+    for title in ("total", "earthshine"):
+        ((lo, hi),) = [(lo, hi) for t, lo, hi in shown if t == title]
+        assert (lo, hi) == pytest.approx(tuple(expected), abs=1e-9)
+        assert lo > 22.3 and hi < 23.3
+
+
+def test_time_series_legend_lists_only_the_curves_on_the_axes(campaign, tmp_path, monkeypatch):
+    """The y axis reaches 4 mag below the total's faintest value (plots.series): a component
+    6 mag below it is drawn off the axes all along and is not in the legend (the x label names
+    it), one 1 mag below it is; a zero one is neither.  Before: every non-zero component was in
+    the legend."""
+    from matplotlib.figure import Figure
+
+    from straylight.plots.series import time_series
+    from straylight.survey.limits import ZERO_POINT_NAME, zero_point_coord
+
+    n = 10
+    ds = xr.Dataset(
+        coords={
+            "time": np.datetime64("2026-01-01T00:00", "ns") + np.arange(n) * np.timedelta64(10, "m"),
+            "pixel": [0],
+            "band": ["g"],
+            "ra_deg": ("pixel", [150.0]),
+            "dec_deg": ("pixel", [30.0]),
+            ZERO_POINT_NAME: zero_point_coord(campaign, ["g"]),
+        },
+    )
+    ones = np.ones((n, 1))
+    series = {
+        "zodiacal": 0.5 * ones,
+        "sun": 0 * ones,
+        "moon": 10**-2.4 * ones,  # 6 mag below the total
+        "planets": 0 * ones,
+        "stars": 10**-0.4 * ones,  # 1 mag below it
+        "earthshine": 0.1 * ones,
+        "total": ones,
+        "observable": np.ones(n, bool),
+    }
+    labels, legend = [], Figure.legend
+
+    def record(self, *args, handles=(), **kwargs):
+        labels.append([h.get_label() for h in handles])
+        return legend(self, *args, handles=handles, **kwargs)
+
+    monkeypatch.setattr(Figure, "legend", record)
+    assert len(time_series(ds, campaign, tmp_path, [0], [series])) == 2
+    assert labels == [["zodiacal", "stars", "earthshine", "total"]] * 2
+
+
 def test_no_footprint_pixel_reads_as_a_hole(monkeypatch):
     """On a drawn depth panel, a footprint pixel shallower than the scale has the scale's first
     colour and a deeper one its last (clipped, as the colour bar's triangles say), never the

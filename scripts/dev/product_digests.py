@@ -1,7 +1,8 @@
 """Digests of a campaign's products, to check that a change leaves them bit-identical.
 
 Prints one line per product (and per array of a Zarr store): a SHA-256 of its decoded values,
-shape, dtype and attributes.  Provenance (commit, dates, command) and logs are left out.
+shape, dtype and attributes.  Provenance (commit, dates, command) and the run's work/ folder
+(logs, sentinels) are left out.
 
     python scripts/dev/product_digests.py results/default > before.txt
     ... change the code, run the campaign again ...
@@ -18,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 #: files whose content records when and by what the run was made, not what it computed
-SKIPPED = {"provenance.json", "plan.json", "background_summary.json"}
+SKIPPED = {"provenance.json", "plan.json"}
 
 
 def _digest_array(values: np.ndarray, attrs: dict) -> str:
@@ -56,10 +57,9 @@ def digests(root: Path):
     for path in sorted(root.rglob("*")):
         rel = path.relative_to(root)
         if (
-            "logs" in rel.parts
+            rel.parts[0] == "work"  # the run's working files: sentinels, work stores, logs
             or path.name.startswith(".")
             or path.name in SKIPPED
-            or (rel.parts[0] == "background_blocks" and path.suffix == ".json")
         ):
             continue
         if path.suffix == ".zarr" and path.is_dir():

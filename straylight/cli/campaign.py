@@ -234,4 +234,4 @@ def cmd_run(args) -> int:
     """``straylight run``: the campaign through Snakemake; returns Snakemake's exit status."""
     from straylight.runner import run_campaign
 
-    return run_campaign(args.config, args.cores, args.snakemake_args)
+    return run_campaign(args.config, args.cores, args.snakemake_args, verbose=args.verbose)

@@ -24,7 +24,12 @@ def _add_ephem(sub) -> None:
 
 
 def _add_sky(sub) -> None:
-    s = sub.add_parser("sky", help="geometry and observability of one pointing at one time")
+    s = sub.add_parser(
+        "sky",
+        help="the sky background of one pointing at one time: every component and the total "
+        "(e-/s/pixel, AB mag/arcsec2), the 5-sigma limit, geometry and observability; --input: "
+        "a table of pointings",
+    )
     s.add_argument("--time", default=None, help="UTC time, ISO 8601")
     s.add_argument("--ra", default=None, help="ICRS right ascension, deg, within [-360, 360]")
     s.add_argument("--dec", default=None, help="ICRS declination, deg, within [-90, 90]")
@@ -52,7 +57,11 @@ def _add_sky(sub) -> None:
 
 
 def _add_image(sub) -> None:
-    im = sub.add_parser("image", help="in-field stray-light image of one detector (FITS, e-/s/pixel)")
+    im = sub.add_parser(
+        "image",
+        help="in-field stray light of one detector (stars, planets, mirror scattering, ghosts) as "
+        "FITS, e-/s/pixel",
+    )
     im.add_argument(
         "--time", required=True, help="UTC time, ISO 8601, or with an offset (+08:00); sets the roll"
     )
@@ -130,7 +139,8 @@ def _add_image(sub) -> None:
 
 def _add_scenario(sub) -> None:
     sc = sub.add_parser(
-        "scenario", help="the paper's earthshine scenario (sect. 3.3) as a figure and a table"
+        "scenario",
+        help="the paper's CSST-versus-HST earthshine scenario (sect. 3.3) as a figure and a table",
     )
     sc.add_argument(
         "--out",
@@ -205,7 +215,9 @@ def _add_pst(sub) -> None:
 
 def _add_schedule(sub) -> None:
     sh = sub.add_parser(
-        "schedule", help="scheduling tables: Moon and bright-limb angles, exposure-time factor"
+        "schedule",
+        help="scheduling tables (CSV and PNG): Moon angle per lunar phase, bright-limb elevation per Sun "
+        "zenith angle, exposure-time factor",
     )
     sh.add_argument("--out", required=True, help="output folder (CSV and PNG per table)")
     sh.add_argument(
@@ -221,7 +233,11 @@ def _add_schedule(sub) -> None:
 
 
 def _add_figure(sub) -> None:
-    fg = sub.add_parser("figure", help="one of the paper's in-field figures (sects. 4.1-4.4) as a PNG")
+    fg = sub.add_parser(
+        "figure",
+        help="one of the paper's in-field figures as a PNG: zodiacal V map (4.1), mirror "
+        "scattering (4.2), NUV ghosts (4.3), a partial NUV detector image (4.4)",
+    )
     fg.add_argument(
         "name",
         choices=["zodiacal-map", "scattering", "ghosts", "detector"],
@@ -260,7 +276,9 @@ def _add_time_window(p, start_flag: str, one_time: bool = False) -> None:
 
 def _add_visibility(sub) -> None:
     v = sub.add_parser(
-        "visibility", help="a target's background, 5-sigma limit and observable windows over time"
+        "visibility",
+        help="a target's (or, with --targets, many targets') background, 5-sigma limit and "
+        "observable windows over time, and the days deeper than a threshold (tables, a plot)",
     )
     v.add_argument("--ra", default=None, help="ICRS right ascension, deg")
     v.add_argument("--dec", default=None, help="ICRS declination, deg")
@@ -365,7 +383,7 @@ def _add_config_doc(sub) -> None:
 
 
 def _add_footprint(sub) -> None:
-    f = sub.add_parser("footprint", help="print the survey footprint of a campaign")
+    f = sub.add_parser("footprint", help="the survey footprint of a campaign: pixels, nside and area")
     f.add_argument("--config", default=None, help=CONFIG_HELP)
     f.set_defaults(func=campaign.cmd_footprint)
 
@@ -374,8 +392,10 @@ def _add_run(sub) -> None:
     # arguments it does not know go to Snakemake (straylight.cli.main: parse_known_args)
     ru = sub.add_parser(
         "run",
-        help="run a campaign (the packaged workflow through Snakemake) in the current directory",
-        usage="straylight run CONFIG [--cores N] [Snakemake arguments: -n, --report report.html ...]",
+        help="run a campaign through Snakemake in the current directory: products in "
+        "./results/<campaign name>/, a progress bar, Snakemake's log in their work/logs/ "
+        "(-v: on the console)",
+        usage="straylight run CONFIG [--cores N] [-v] [Snakemake arguments: -n, --report report.html ...]",
     )
     ru.add_argument(
         "config", metavar="CONFIG", help="campaign config; products go to ./results/<campaign name>/"
@@ -385,6 +405,13 @@ def _add_run(sub) -> None:
         type=int,
         default=None,
         help="cores Snakemake may use (default: every CPU this process may run on)",
+    )
+    ru.add_argument(
+        "-v",
+        "--verbose",
+        action="store_true",
+        help="Snakemake's log on the console instead of the progress bar (it goes to "
+        "results/<campaign name>/work/logs/snakemake.log otherwise)",
     )
     ru.set_defaults(func=campaign.cmd_run, snakemake_args=[])
 

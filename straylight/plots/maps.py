@@ -357,7 +357,8 @@ def sky_maps(ds, campaign, out_dir, time_indices, bands=None) -> list:
     """Per time (``time_indices`` into ``ds.time``, see :func:`map_time_indices`) and band (all,
     or ``bands``): a 2 x 4 page of Mollweide maps, one per component, the total and the
     observability, with the Sun at that time.  Each component of a band has one colour scale
-    over all the map times (:func:`~straylight.plots.common.band_colour_limits`)."""
+    over all the map times (:func:`~straylight.plots.common.band_colour_limits`), from its
+    observable pixels (all, where none is observable); the others take the end colours."""
     from astropy.time import Time
 
     from straylight.model import registry
@@ -376,7 +377,14 @@ def sky_maps(ds, campaign, out_dir, time_indices, bands=None) -> list:
         for c in comps
     }
     mags = {(b, c): [_mag(ds, e, b, campaign) for e in rates[b, c]] for b, c in rates}
-    limits = {key: band_colour_limits(m, SKY_PERCENTILES) for key, m in mags.items()}
+    # the scale from the observable pixels (the unobservable ones near the Sun or the Earth are
+    # magnitudes brighter and would leave the observable sky one colour); none observable: all
+    seen = [np.asarray(s["observable"], bool) for s in snaps]
+    if not any(o.any() for o in seen):
+        seen = [np.ones_like(o) for o in seen]
+    limits = {
+        key: band_colour_limits([v[o] for v, o in zip(m, seen)], SKY_PERCENTILES) for key, m in mags.items()
+    }
     written = []
     pages = {}  # number of component panels -> (figure, their panels, the observability panel)
     for k, (it, snap) in enumerate(zip(time_indices, snaps)):
@@ -399,7 +407,8 @@ def sky_maps(ds, campaign, out_dir, time_indices, bands=None) -> list:
             fig.suptitle(
                 f"{campaign.name}: background in band {band} at {t} UTC (AB mag/arcsec2){note}\n"
                 f"{ORIENTATION}\ncolours: each component's {_percentiles(SKY_PERCENTILES)} in this band "
-                "over all the map times (beyond: the end colours, the bar's triangles)",
+                "over the observable pixels of all the map times (beyond: the end colours, the bar's "
+                "triangles)",
                 fontsize=10,
             )
             written.append(

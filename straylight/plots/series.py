@@ -1,5 +1,6 @@
 """Time series of chosen pointings: every component and the total per band against time, over
-the first orbit and over the whole campaign, in AB mag/arcsec2 with unobservable times shaded.
+the first orbit (the model evaluated every minute) and over the whole campaign (the cube's
+samples), in AB mag/arcsec2 with unobservable times shaded.
 """
 
 from __future__ import annotations
@@ -10,10 +11,23 @@ import numpy as np
 
 from straylight.plots.common import _mag, _save
 
-__all__ = ["ORBIT_MINUTES", "pointing_series", "series_pixel_indices", "time_series", "time_series_figures"]
+__all__ = [
+    "ORBIT_MINUTES",
+    "ORBIT_STEP_MINUTES",
+    "model_series",
+    "pointing_series",
+    "series_pixel_indices",
+    "time_series",
+    "time_series_figures",
+]
 
 
 ORBIT_MINUTES = 92.6  # ~400 km circular orbit: the first-orbit panel spans this long
+#: the first-orbit panel's step: the model evaluated this often (a campaign's cadence, 5-10 min,
+#: draws an orbit's Earth-limb passes with a handful of points)
+ORBIT_STEP_MINUTES = 1.0
+#: the time series' faint end: this far below the total's faintest value (mag), at most 32
+SERIES_DEPTH_MAG = 4.0
 
 
 def series_pixel_indices(ds, n_pointings: int = 3, pointings=()) -> list[int]:
@@ -48,10 +62,43 @@ def pointing_series(background_path, pixel_indices) -> list[dict]:
     ]
 
 
-def time_series(ds, campaign, out_dir, pixel_indices, series: list[dict]) -> list:
+def model_series(campaign, ds, pixel_indices, minutes, stars_path=None, model=None) -> list[dict]:
+    """Per pointing of ``pixel_indices`` (into ``ds.pixel``: its centre), the background model
+    at ``minutes`` after the cube's first time, in the cube's bands: name -> (time, band) array
+    of every component and the total (e-/s/pixel), ``observable`` (time,) and ``minutes``.
+    ``stars_path``: the campaign's star catalog (None: stars = 0); ``model``: a warm
+    :class:`~straylight.model.BackgroundModel` of ``campaign`` (None: one is built)."""
+    import astropy.units as u
+    from astropy.time import Time
+
+    from straylight.model import registry
+    from straylight.survey.cube_region import offfield_stars
+    from straylight.survey.pointings import background_table
+
+    bands = [str(b) for b in ds["band"].values]
+    minutes = np.asarray(minutes, float)
+    t = Time(np.datetime64(ds["time"].values[0], "ns"), scale="utc") + minutes * u.min
+    stars = offfield_stars(campaign, stars_path)
+    out = []
+    for ip in pixel_indices:
+        ra, dec = (np.full(minutes.size, float(ds[k].values[ip])) for k in ("ra_deg", "dec_deg"))
+        table = background_table(campaign, t, ra, dec, bands, stars, source="report.pointings", model=model)
+        sub = {
+            c: np.stack([np.asarray(table[f"{c}_{b}"].value, float) for b in bands], axis=1)
+            for c in registry.component_names(total=True)
+        }
+        sub["observable"] = np.asarray(table["observable"], bool)
+        sub["minutes"] = minutes
+        out.append(sub)
+    return out
+
+
+def time_series(ds, campaign, out_dir, pixel_indices, series: list[dict], orbit_series=None) -> list:
     """For the pointings ``pixel_indices`` (into ``ds.pixel``, see :func:`series_pixel_indices`)
     and their ``series`` (:func:`pointing_series`): total and components in each band against
-    time, over the first orbit and over the whole campaign; unobservable times shaded."""
+    time, over the first orbit (``orbit_series``, :func:`model_series`, if given; else the
+    cube's samples) and over the whole campaign; unobservable times shaded.  The legend lists
+    the curves that enter the axes; the x label names those that do not."""
     from matplotlib.figure import Figure
     from matplotlib.patches import PathPatch
     from matplotlib.ticker import MaxNLocator
@@ -63,44 +110,57 @@ def time_series(ds, campaign, out_dir, pixel_indices, series: list[dict]) -> lis
     t = ds["time"].values
     minutes = (t - t[0]) / np.timedelta64(1, "m")
     written = []
-    for ip, sub in zip(pix_idx, series):
+    orbit_series = orbit_series if orbit_series is not None else [None] * len(series)
+    for ip, sub, orbit in zip(pix_idx, series, orbit_series):
         ra, dec = float(ds["ra_deg"][ip]), float(ds["dec_deg"][ip])
-        obs = np.asarray(sub["observable"], bool)
-        for span, sel in (("orbit", minutes <= ORBIT_MINUTES), ("campaign", np.ones(minutes.size, bool))):
+        spans = [
+            ("orbit", orbit, orbit["minutes"]) if orbit is not None else ("orbit", sub, minutes),
+            ("campaign", sub, minutes),
+        ]
+        for span, values, x_all in spans:
+            sel = x_all <= ORBIT_MINUTES if span == "orbit" else np.ones(x_all.size, bool)
+            x = x_all[sel]
+            obs = np.asarray(values["observable"], bool)[sel]
             bands = list(ds["band"].values)
             fig = Figure(figsize=(10, 2.2 * len(bands)))
             axes = fig.subplots(len(bands), 1, sharex=True)
-            shown = {}
+            shown, nonzero = {}, set()
             for ax, band in zip(np.atleast_1d(axes), bands):
                 ib = bands.index(band)
                 zp = float(_mag(ds, np.array([1.0]), str(band), campaign)[0])  # mag/arcsec2 at 1 e-/s/pix
+                total = np.asarray(values["total"][:, ib], float)[sel]
+                tmag = zp - 2.5 * np.log10(total[total > 0]) if np.any(total > 0) else np.array([20.0])
+                # brighter up; the faint end a few magnitudes below the total's faintest value
+                faint, bright = (
+                    min(float(np.nanmax(tmag)) + SERIES_DEPTH_MAG, 32.0),
+                    float(np.nanmin(tmag)) - 1.0,
+                )
                 for k, comp in enumerate(comps):
-                    y = np.asarray(sub[comp][:, ib], float)[sel]
+                    y = np.asarray(values[comp][:, ib], float)[sel]
                     if not np.any(y > 0):
-                        continue  # zero all along: no line (listed in the title)
+                        continue  # zero all along: no line (listed in the x label)
+                    nonzero.add(comp)
                     mag = np.where(y > 0, zp - 2.5 * np.log10(np.where(y > 0, y, 1.0)), np.nan)
                     (line,) = ax.plot(
-                        minutes[sel],
+                        x,
                         mag,
                         lw=1.8 if comp == "total" else 1.0,
                         color="k" if comp == "total" else f"C{k}",
                         label=comp,
                     )
-                    shown[comp] = line
+                    if np.any(mag <= faint):  # enters the axes somewhere: in the legend
+                        shown.setdefault(comp, line)
                 # each run of unobservable samples, first to last sample, over the axes' height
                 # (an artist, not a patch: the data limits come from the lines)
                 ax.add_artist(
                     PathPatch(
-                        _span_path(minutes[sel], ~obs[sel]),
+                        _span_path(x, ~obs),
                         facecolor="0.88",
                         lw=0,
                         transform=ax.get_xaxis_transform(),
                     )
                 )
-                total = np.asarray(sub["total"][:, ib], float)[sel]
-                tmag = zp - 2.5 * np.log10(total[total > 0]) if np.any(total > 0) else np.array([20.0])
-                # brighter up; the faint end a few magnitudes below the total's faintest value
-                ax.set_ylim(min(float(np.nanmax(tmag)) + 4.0, 32.0), float(np.nanmin(tmag)) - 1.0)
+                ax.set_ylim(faint, bright)
                 ax.set_ylabel(f"{band}\nmag/arcsec2", fontsize=9)
                 ax.yaxis.set_major_locator(MaxNLocator(4, integer=True))
                 ax.grid(alpha=0.3, lw=0.5)
@@ -114,18 +174,26 @@ def time_series(ds, campaign, out_dir, pixel_indices, series: list[dict]) -> lis
                     va="center",
                     ha="left",
                 )
-            missing = [c for c in comps if c not in shown]
+            shown = {c: shown[c] for c in comps if c in shown}  # the registry's order
+            zero = [c for c in comps if c not in nonzero]
+            below = [c for c in comps if c in nonzero and c not in shown]
             fig.legend(
                 handles=list(shown.values()),
                 loc="upper center",
-                ncol=len(shown),
+                ncol=max(1, len(shown)),
                 fontsize=8,
                 bbox_to_anchor=(0.5, 0.965),
                 frameon=False,
             )
+            step = (
+                f"the model every {ORBIT_STEP_MINUTES:g} min"
+                if span == "orbit" and orbit is not None
+                else f"the cube's {float(campaign.settings.campaign.cadence_s) / 60:g}-min samples"
+            )
             np.atleast_1d(axes)[-1].set_xlabel(
-                f"minutes after {str(t[0])[:16]} UTC (grey: not observable)"
-                + (f"; zero all along, not drawn: {', '.join(missing)}" if missing else "")
+                f"minutes after {str(t[0])[:16]} UTC, {step} (grey: not observable)"
+                + (f"; below the axes all along: {', '.join(below)}" if below else "")
+                + (f"; zero all along: {', '.join(zero)}" if zero else "")
             )
             fig.suptitle(
                 f"{campaign.name}: pointing RA {ra:.1f}, Dec {dec:.1f} deg, {span} (AB mag/arcsec2, "
@@ -154,11 +222,12 @@ def _span_path(x, mask):
     return MplPath(verts.reshape(-1, 2), codes.astype(MplPath.code_type))
 
 
-def time_series_figures(background_path, campaign, out_dir) -> list:
+def time_series_figures(background_path, campaign, out_dir, stars_path=None) -> list:
     """The time series (:func:`time_series`) of the report's pointings (``report.pointings``,
-    else ``report.series_pointings`` spread over the footprint) in ``out_dir``, each pointing's
-    whole series read in one pass over its pixel's chunks (:func:`pointing_series`).  Returns
-    the paths written."""
+    else ``report.series_pointings`` spread over the footprint) in ``out_dir``: over the first
+    orbit the model every :data:`ORBIT_STEP_MINUTES` (:func:`model_series`, with the star
+    catalog at ``stars_path``), over the campaign each pointing's whole series in the cube, read
+    in one pass over its pixel's chunks (:func:`pointing_series`).  Returns the paths written."""
     import xarray as xr
 
     out = Path(out_dir)
@@ -168,4 +237,8 @@ def time_series_figures(background_path, campaign, out_dir) -> list:
     # (rule background may be consolidating it meanwhile)
     with xr.open_zarr(background_path, chunks=None, consolidated=False) as ds:
         pixels = series_pixel_indices(ds, int(rc.series_pointings), rc.pointings)
-        return time_series(ds, campaign, out, pixels, pointing_series(background_path, pixels))
+        t = ds["time"].values
+        span = min(ORBIT_MINUTES, float((t[-1] - t[0]) / np.timedelta64(1, "m")))
+        minutes = np.arange(0.0, span + 1e-9, ORBIT_STEP_MINUTES)
+        orbit = model_series(campaign, ds, pixels, minutes, stars_path)
+        return time_series(ds, campaign, out, pixels, pointing_series(background_path, pixels), orbit)

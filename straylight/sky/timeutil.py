@@ -27,6 +27,7 @@ from straylight.errors import ConfigError, InputError
 __all__ = [
     "configure_offline",
     "quiet_dubious_years",
+    "ignore_dubious_years",
     "parse_utc",
     "DTDB_DIRECT_MAX",
     "DTDB_GRID_STEP_D",
@@ -55,6 +56,21 @@ def configure_offline() -> None:
 configure_offline()
 
 
+#: ERFA's "dubious year" warning: the UTC of a year before 1960 or beyond its leap-second table
+#: (ERFA's Notes 3-5 of utctai, taiutc, d2dtf, dat), as erfa.core words it
+DUBIOUS_YEAR_MESSAGE = r'ERFA function "\w+" yielded \d+ of "dubious year \(Note \d+\)"'
+
+
+def ignore_dubious_years() -> None:
+    """Silence ERFA's "dubious year" warnings for the rest of the process: for a process whose
+    times are a validated campaign's (inside DE405; see :func:`quiet_dubious_years` for why they
+    are harmless there), such as the workflow's jobs and their worker processes.  Only that
+    category and message: every other warning still shows."""
+    import erfa
+
+    warnings.filterwarnings("ignore", message=DUBIOUS_YEAR_MESSAGE, category=erfa.ErfaWarning)
+
+
 @contextmanager
 def quiet_dubious_years():
     """Silence ERFA's "dubious year" warnings inside the block.
@@ -68,7 +84,7 @@ def quiet_dubious_years():
     import erfa
 
     with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", message=".*dubious year", category=erfa.ErfaWarning)
+        warnings.filterwarnings("ignore", message=DUBIOUS_YEAR_MESSAGE, category=erfa.ErfaWarning)
         yield
 
 

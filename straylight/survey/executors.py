@@ -312,6 +312,9 @@ def start_worker(campaign: Campaign, fp: Footprint, stores: CubeStores, stars_pa
         This process's state, prepared.
     """
     global _state
+    from straylight.sky.timeutil import ignore_dubious_years
+
+    ignore_dubious_years()  # a spawned process starts without the job's filters; the campaign is checked
     _state = WorkerState(campaign, fp, stores, stars_path).prepare()
     return _state
 
@@ -335,10 +338,12 @@ def start_worker_from_config(config: dict, config_path: str, stores: CubeStores,
         The star catalog (absolute path); None: stars = 0.
     """
     from straylight.config import campaign_from_dict
+    from straylight.sky.timeutil import ignore_dubious_years
     from straylight.survey.footprint import footprint_from_store
     from straylight.util.healpix import load_without_plotting
 
     load_without_plotting()  # the star cells' healpy: a worker draws nothing
+    ignore_dubious_years()  # the job's campaign, checked inside DE405 when the workflow was parsed
     campaign = campaign_from_dict(dict(config), config_path)
     fp = footprint_from_store(stores.cube)  # the skeleton's coordinates: no astropy frames, no cuts again
     start_worker(campaign, fp, stores, stars_path).warm_up()

@@ -406,7 +406,7 @@ def _limits_product(
     )
 
 
-def write_limit_maps(ds, out_dir) -> list:
+def write_limit_maps(ds, out_dir, end=None) -> list:
     """HEALPix FITS maps (healpy-readable): limit_best_<band>, limit_median_<band>,
     observable_fraction; healpy's UNSEEN outside the footprint and where ``ds`` has NaN (never
     observable), the HEALPix convention for a missing pixel.
@@ -418,12 +418,17 @@ def write_limit_maps(ds, out_dir) -> list:
         ``healpix_nside``, ``healpix_ordering`` and ``campaign`` attributes.
     out_dir : str or path-like
         Folder for the maps (created if missing).
+    end : str, astropy.time.Time or None
+        The campaign's end (``campaign.end``, UTC; its samples lie before it), written as
+        ``DATE-END``; None: the last time sample plus the grid's step.
 
     Returns
     -------
     list of pathlib.Path
         The FITS files written: ``limit_best_<band>.fits`` and ``limit_median_<band>.fits`` per
         band (mag(AB)), then ``observable_fraction.fits``; each a full-sky float32 map, ICRS.
+        A band's maps carry ``EXPTIME`` (the total survey exposure, s), ``NEXP`` exposures of
+        ``EXPONE`` s each, and every map ``DATE-BEG``/``DATE-END``: the campaign's start and end.
     """
     from pathlib import Path
 
@@ -441,10 +446,16 @@ def write_limit_maps(ds, out_dir) -> list:
 
     times = ds["time"].values
     iso = (lambda t: str(np.datetime_as_string(t, unit="s"))) if times.dtype.kind == "M" else str
+    if end is None:  # the grid's end: one step after its last sample
+        end = times.max() + (times[1] - times[0] if times.size > 1 else times[0] - times[0])
+    elif times.dtype.kind == "M":
+        from straylight.sky.timeutil import parse_utc
+
+        end = np.datetime64(parse_utc(end, "campaign.end").utc.datetime, "s")
     common = [
         ("CAMPAIGN", str(ds.attrs["campaign"])[:68], "straylight campaign name"),
-        ("DATE-BEG", iso(times.min()), "first campaign time (UTC)"),
-        ("DATE-END", iso(times.max()), "last campaign time (UTC)"),
+        ("DATE-BEG", iso(times.min()), "campaign start (UTC)"),
+        ("DATE-END", iso(end), "campaign end (UTC)"),
         ("NTIMES", int(times.size), "campaign time samples"),
     ]
 
@@ -457,8 +468,8 @@ def write_limit_maps(ds, out_dir) -> list:
             header += [
                 ("BAND", str(band), "CSST band"),
                 ("NEXP", int(b["n_exposures"]), "survey exposures per field"),
-                ("EXPTIME", float(b["exposure_s"]), "[s] one survey exposure"),
-                ("TEXPTIME", float(b["exposure_s"] * b["n_exposures"]), "[s] total survey exposure"),
+                ("EXPTIME", float(b["exposure_s"] * b["n_exposures"]), "[s] total survey exposure"),
+                ("EXPONE", float(b["exposure_s"]), "[s] one survey exposure"),
                 ("SNR", SNR, "S/N of the point-source limit (EE80)"),
             ]
         path = out_dir / f"{name}.fits"

@@ -165,7 +165,7 @@ def test_stars_rules_ingest_real_files_in_parallel_jobs(tmp_path):
         env={**os.environ, "PATH": f"{Path(sys.executable).parent}:{os.environ['PATH']}"},
     )
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
-    summary = json.loads((tmp_path / "results" / "stars" / "stars_gaia_summary.json").read_text())
+    summary = json.loads((tmp_path / "results" / "stars" / "work" / "stars_gaia_summary.json").read_text())
     rows = sum(f["rows"] for f in summary["files"])
     kept = sum(f["kept"] + f["fainter_than_limit"] for f in summary["files"])
     assert rows == 2 + 5 + 2 and kept + summary["quarantined"] == rows

@@ -47,3 +47,28 @@ def test_no_network_access(monkeypatch):
     monkeypatch.setattr(socket.socket, "connect", refuse)
     jd1, jd2 = utc_to_tdb_jd(["2026-06-01T00:00:00", "2150-01-01T00:00:00"])
     assert np.all(np.isfinite(jd1 + jd2))
+
+
+def test_ignore_dubious_years_silences_that_warning_only():
+    """ERFA's "dubious year" (UTC of 2200, beyond the leap-second table) is silenced; another
+    ERFA warning and a non-ERFA warning with the same words are not."""
+    import warnings
+
+    import erfa
+
+    from straylight.sky.timeutil import ignore_dubious_years
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        ignore_dubious_years()
+        _ = Time("2200-06-01T00:00:00", scale="utc").tai  # ERFA utctai: "dubious year (Note 3)"
+        warnings.warn('ERFA function "utctai" yielded 1 of "dubious year (Note 3)"', UserWarning)
+        warnings.warn('ERFA function "x" yielded 1 of "something else"', erfa.ErfaWarning)
+    assert [(w.category.__name__, str(w.message)) for w in caught] == [
+        ("UserWarning", 'ERFA function "utctai" yielded 1 of "dubious year (Note 3)"'),
+        ("ErfaWarning", 'ERFA function "x" yielded 1 of "something else"'),
+    ]
+    with warnings.catch_warnings(record=True) as caught:  # the reference: ERFA does warn there
+        warnings.simplefilter("always")
+        _ = Time("2200-06-01T00:00:00", scale="utc").tai
+    assert 'ERFA function "utctai" yielded 1 of "dubious year (Note 3)"' in [str(w.message) for w in caught]

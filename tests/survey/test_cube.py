@@ -199,7 +199,7 @@ def test_fused_limits_equal_limits_dataset_within_the_propagated_bound(cube_run,
     # the envelope's per-sample limits as the workers stored them in the limits work store (from
     # the region's unrounded parts, like limiting_mag: straylight/survey/limits_envelope.py); the
     # product keeps their medians only
-    with xr.open_zarr(out / "background_blocks" / "limits.zarr", consolidated=False) as work:
+    with xr.open_zarr(out / "work" / "background_blocks" / "limits.zarr", consolidated=False) as work:
         ends = {e: work[f"limiting_mag_{e}"].load() for e in ("pessimistic", "optimistic")}
     write_zarr_atomic(
         limits_dataset(c, background, limiting_mag=got["limiting_mag"], envelope_limits=ends),
@@ -225,7 +225,7 @@ def test_limit_summaries_on_processes_equal_the_published_ones(cube_run, monkeyp
     from straylight.survey import limits_cube as lm
 
     _, _, out = cube_run
-    work = out / "background_blocks" / "limits.zarr"
+    work = out / "work" / "background_blocks" / "limits.zarr"
     one = lm.store_limit_summaries(work, workers=1)
     monkeypatch.setattr(lm, "SUMMARY_BYTES_PER_PROCESS", 1024)
     two = lm.store_limit_summaries(work, workers=2)
@@ -281,13 +281,13 @@ def test_rerun_recomputes_only_what_is_missing(cube_run):
     from straylight.survey.provenance import sha256_path
 
     digest = sha256_path(before)
-    limits_work = out / "background_blocks" / "limits.zarr"
+    limits_work = out / "work" / "background_blocks" / "limits.zarr"
     limits_digests = (sha256_path(limits_work), sha256_path(out / "limits.zarr"))
     # as after a crash inside time block 1: its sentinel, the cube job's record and everything
     # downstream are missing
-    blocks = out / "background_blocks"
+    blocks = out / "work" / "background_blocks"
     (blocks / "block_1.json").unlink()
-    for p in ("background_summary.json", "provenance.json", "background_blocks/part_0.json"):
+    for p in ("work/background_summary.json", "provenance.json", "work/background_blocks/part_0.json"):
         (out / p).unlink()
     for d in ("limits.zarr", "maps"):
         shutil.rmtree(out / d)
@@ -305,7 +305,7 @@ def test_rerun_recomputes_only_what_is_missing(cube_run):
     # only the block that was not finished is recomputed: the others' sentinels are untouched
     assert {p: (blocks / p).stat().st_mtime_ns for p in finished} == finished
     assert (blocks / "block_1.json").exists()
-    log = (out / "logs" / "background_blocks_0.log").read_text()
+    log = (out / "work" / "logs" / "background_blocks_0.log").read_text()
     assert f"{len(finished)} of {len(finished) + 1} time blocks already done" in log
     assert sha256_path(out / "background.zarr") == digest  # recomputed block is bit-identical
     # and so are its limits (written before the block's sentinel) and the published limits.zarr
@@ -355,7 +355,7 @@ def test_dask_scheduler_address_gives_the_same_products(tmp_path, cube_run):
             env=env,
         )
         cfg = _config(tmp_path, name="cube", dask_scheduler=addr)
-        r = _run(tmp_path, cfg, "results/cube/background_summary.json")  # the cube only (relative to -d)
+        r = _run(tmp_path, cfg, "results/cube/work/background_summary.json")  # the cube only (relative to -d)
         assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
     finally:
         for p in (worker, sched):

@@ -229,8 +229,10 @@ def test_never_observable_pixels_are_nan_in_zarr_and_unseen_in_fits(tmp_path):
     h = fits.getheader(tmp_path / "maps" / "limit_best_g.fits", 1)
     b = c.instrument["bands"]["g"]
     assert (h["CAMPAIGN"], h["BAND"], h["NEXP"], h["NTIMES"]) == ("test", "g", b["n_exposures"], 4)
-    assert h["EXPTIME"] == b["exposure_s"] and h["TEXPTIME"] == b["exposure_s"] * b["n_exposures"]
-    assert h["DATE-BEG"] == "0" and h["DATE-END"] == "3"
+    # EXPTIME the total exposure the depth is for, EXPONE one exposure
+    assert h["EXPTIME"] == b["exposure_s"] * b["n_exposures"] and h["EXPONE"] == b["exposure_s"]
+    # DATE-END the grid's end (one step after the last sample, 3), not the last sample
+    assert h["DATE-BEG"] == "0" and h["DATE-END"] == "4"
     assert "BAND" not in fits.getheader(tmp_path / "maps" / "observable_fraction.fits", 1)
 
 

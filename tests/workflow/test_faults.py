@@ -145,7 +145,7 @@ def _snakemake_cmd(workdir, cfg, name):
     return base, base + [
         "--cores",
         "2",
-        f"results/{name}/background_summary.json",
+        f"results/{name}/work/background_summary.json",
         f"results/{name}/limits.zarr",
         "--rerun-incomplete",
         "-q",
@@ -218,7 +218,7 @@ def _run_until_a_block_is_done(cmd, out, output):
     snake = psutil.Process(proc.pid)
     deadline = time.monotonic() + 600
     try:
-        while not list((out / "background_blocks").glob("block_*.json")):
+        while not list((out / "work" / "background_blocks").glob("block_*.json")):
             assert proc.poll() is None, "the run ended before the cube finished a time block"
             assert time.monotonic() < deadline, "no time block done in 600 s"
             for p in snake.children(recursive=True):
@@ -297,7 +297,10 @@ def test_cube_job_stops_cleanly_on_a_signal(uninterrupted, signame):
     folder, cfg, _ = uninterrupted
     out = folder / "results" / "killed"
     # the cube redone in the uninterrupted run's folder (its products' digests already taken)
-    for p in [out / "background_blocks" / "part_0.json", *(out / "background_blocks").glob("block_*.json")]:
+    for p in [
+        out / "work" / "background_blocks" / "part_0.json",
+        *(out / "work" / "background_blocks").glob("block_*.json"),
+    ]:
         p.unlink(missing_ok=True)
     _, cmd = _snakemake_cmd(folder, cfg, "killed")
     cmd += ["--forcerun", "background_blocks"]  # its products downstream are there
@@ -312,13 +315,13 @@ def test_cube_job_stops_cleanly_on_a_signal(uninterrupted, signame):
     assert not left, left
     said = (folder / f"snakemake_{signame}.out").read_text()
     assert f"returned non-zero exit status {128 + sig}" in said, said[-3000:]
-    log = (out / "logs" / "background_blocks_0.log").read_text()
+    log = (out / "work" / "logs" / "background_blocks_0.log").read_text()
     assert f"stopped by {signame}: workers stopped" in log
     assert "chunk time" not in log.split(f"stopped by {signame}")[1]  # no region after the stop
-    assert not (out / "background_blocks" / "part_0.json").exists()
+    assert not (out / "work" / "background_blocks" / "part_0.json").exists()
     # every time block marked done has all its regions written (3 pixel blocks of 6 times each)
     regions = re.findall(r"chunk time (\d+):\d+ pixels", log)
-    done = sorted((out / "background_blocks").glob("block_*.json"))
+    done = sorted((out / "work" / "background_blocks").glob("block_*.json"))
     assert 1 <= len(done) < N_KILL_BLOCKS
     for sentinel in done:
         b = int(sentinel.stem.split("_")[1])
@@ -348,18 +351,18 @@ def test_snakemake_killed_mid_cube_leaves_no_process_and_resumes_bit_identical(u
     proc.wait()
     assert len(workers) == 2, [_cmdline(p) for p in seen.values()]
     time.sleep(1.0)  # the job's and its workers' stop
-    done_at_kill = sorted(p.name for p in (out / "background_blocks").glob("block_*.json"))
+    done_at_kill = sorted(p.name for p in (out / "work" / "background_blocks").glob("block_*.json"))
     orphans = _wait_gone(seen.values(), folder=tmp_path, seconds=9.0)
     assert not orphans, f"alive 10 s after Snakemake was killed: {orphans}"
     # and none went on writing meanwhile: no time block marked done since
-    assert sorted(p.name for p in (out / "background_blocks").glob("block_*.json")) == done_at_kill
+    assert sorted(p.name for p in (out / "work" / "background_blocks").glob("block_*.json")) == done_at_kill
     assert (
-        len(done_at_kill) < N_KILL_BLOCKS and not (out / "background_summary.json").exists()
+        len(done_at_kill) < N_KILL_BLOCKS and not (out / "work" / "background_summary.json").exists()
     )  # killed in the middle
 
     subprocess.run(base + ["--unlock", "-q"], capture_output=True, env=_env(), timeout=120)
     r = subprocess.run(cmd, capture_output=True, text=True, env=_env(), timeout=900)
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
-    assert "time blocks already done" in (out / "logs" / "background_blocks_0.log").read_text()
+    assert "time blocks already done" in (out / "work" / "logs" / "background_blocks_0.log").read_text()
     for product in KILL_PRODUCTS:
         assert sha256_path(out / product) == reference[product], product

@@ -341,6 +341,9 @@ def test_installed_run_makes_the_products_and_the_report(installed):
     )
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-5000:]
     out = run / "results" / "tiny"
+    # quiet: where the log is and the closing line (no bar: stderr is not a terminal)
+    assert r.stderr.splitlines()[-1].startswith("straylight run: done in ") and r.stderr.count("\n") == 2
+    assert "steps (100%) done" in (out / "work" / "logs" / "snakemake.log").read_text()
     for p in (
         "background.zarr",
         "limits.zarr",

@@ -128,6 +128,29 @@ def test_slurm_block_dry_run(clone):
     assert "background_blocks" in r.stdout + r.stderr
 
 
+def readme_products() -> set:
+    """The files and folders the README's products table names: every name of its first column
+    (first path component), and the file names in its content column (``stars_gaia.parquet``)."""
+    text = (REPO / "README.md").read_text().split("## What you get", 1)[1]
+    table = next(chunk for chunk in text.split("\n\n") if chunk.startswith("| product"))
+    rows = [ln.split("|") for ln in table.splitlines() if ln.startswith("| `")]
+    names = {n.split("/")[0] for row in rows for n in re.findall(r"`([^`]+)`", row[1])}
+    files = re.compile(r"[\w-]+\.(parquet|fits|json|zarr|csv|rst)")
+    return names | {n for row in rows for n in re.findall(r"`([^`]+)`", row[2]) if files.fullmatch(n)}
+
+
+@pytest.mark.slow
+def test_every_entry_of_the_results_folder_is_in_the_products_table(campaign_run):
+    """What a run leaves in results/<campaign>/ is a product the README lists, or in work/ (its
+    logs, sentinels and summaries); `.fits` beside a listed `.parquet` counts as listed."""
+    listed = readme_products()
+    assert {"background.zarr", "maps", "work", "sky", "series"} <= listed
+    stems = {Path(n).stem for n in listed}
+    entries = sorted(p.name for p in campaign_run.iterdir())
+    assert [e for e in entries if e not in listed and Path(e).stem not in stems] == []
+    assert (campaign_run / "work" / "logs" / "snakemake.log").is_file()  # straylight run's quiet log
+
+
 @pytest.mark.slow
 def test_tiny_campaign_products_follow_the_conventions(campaign_run):
     """CF flags on the violation mask, zero points with the cube, units in Parquet, FITS keywords."""
@@ -158,4 +181,6 @@ def test_tiny_campaign_products_follow_the_conventions(campaign_run):
         "2026-01-01T00:00:00",
         3,
     )
-    assert h["TEXPTIME"] == h["EXPTIME"] * h["NEXP"]
+    assert h["DATE-END"] == "2026-01-01T01:00:00"  # campaign.end, not the last sample (00:40)
+    assert h["EXPTIME"] == h["EXPONE"] * h["NEXP"]  # the total; the default: 2 x 150 s in g
+    assert h["EXPONE"] == 150 and h["NEXP"] == 2

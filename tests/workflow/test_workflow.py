@@ -262,3 +262,63 @@ def test_depth_bounds_present_ordered_and_finite(tiny_run):
     assert env["door_reflectance"]["scales"] == ["earthshine_door"]
     assert (out / "depth" / "envelope_spread.png").exists()
     assert (out / "depth" / "envelope_sensitivity.csv").exists()
+
+
+@pytest.mark.slow
+def test_orbit_series_model_equals_the_cube_at_its_samples(tmp_path):
+    """The time series' first orbit is the model every minute (plots.series.model_series): at the
+    cube's own sample times (every 10 min) it gives the cube's values, every component in every
+    band, to models.tolerance (1 % of the total: the cube's fast paths against the pointwise
+    path) plus the stored values' 2^-11; and the same observability.  The earthshine summed
+    directly (no table to build), the cube only."""
+    import yaml
+    from conftest import tiny_config
+
+    from straylight.config import load_campaign
+    from straylight.model import registry
+    from straylight.plots.series import model_series, pointing_series, series_pixel_indices
+
+    cfg = tiny_config(tmp_path)
+    raw = yaml.safe_load(cfg.read_text())
+    raw["models"]["earthshine"]["method"] = "direct"
+    cfg.write_text(yaml.safe_dump(raw))
+    r = snakemake(
+        "-s", str(REPO / "workflow" / "Snakefile"), "-d", str(tmp_path), "--configfile", str(cfg),
+        "--cores", "2", "results/tiny/work/background_summary.json",
+    )  # fmt: skip
+    assert r.returncode == 0, r.stderr[-3000:]
+    out = tmp_path / "results" / "tiny"
+    campaign = load_campaign(cfg)
+    store = out / "background.zarr"
+    with xr.open_zarr(store, chunks=None, consolidated=False) as ds:
+        pixels = series_pixel_indices(ds, 1, [[150.0, 30.0]])
+        minutes = (ds["time"].values - ds["time"].values[0]) / np.timedelta64(1, "m")
+        (model,) = model_series(campaign, ds, pixels, minutes, out / "stars_csst.parquet")
+    (cube,) = pointing_series(store, pixels)
+    assert minutes.tolist() == [10.0 * i for i in range(12)]
+    np.testing.assert_array_equal(model["observable"], cube["observable"])
+    tol = float(campaign.config["models"]["tolerance"]) + 2.0**-11
+    for name in registry.component_names(total=True):
+        error = np.abs(model[name] - cube[name])
+        assert np.all(error <= tol * cube["total"] + 2.0**-11 * np.abs(cube[name])), name
+
+
+def test_a_campaign_in_2200_parses_and_runs_without_erfas_dubious_year_warnings(tmp_path):
+    """2200 is inside DE405 and beyond ERFA's leap-second table: Snakemake's parse and the
+    ephemeris job print none of ERFA's "dubious year" warnings (before: some here; 152 for a whole
+    campaign), and a warning of another kind would still show."""
+    import yaml
+    from conftest import tiny_config
+
+    p = tiny_config(
+        tmp_path, name="y2200", campaign={"start": "2200-06-01T00:00:00", "end": "2200-06-01T01:00:00"}
+    )
+    cfg = yaml.safe_load(p.read_text())
+    cfg["orbit"]["circular"]["epoch"] = "2200-06-01T00:00:00"
+    p.write_text(yaml.safe_dump(cfg))
+    r = snakemake(
+        "-s", str(REPO / "workflow" / "Snakefile"), "-d", str(tmp_path), "--configfile", str(p),
+        "--cores", "1", "results/y2200/ephemeris.zarr",
+    )  # fmt: skip
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert "dubious year" not in r.stdout + r.stderr

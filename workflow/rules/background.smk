@@ -7,7 +7,7 @@ rule background_init:
         stars=f"{RESULTS}/stars_csst.parquet",
         ephemeris=f"{RESULTS}/ephemeris.zarr",
     output:
-        f"{RESULTS}/background_blocks/init.json",
+        f"{WORK}/background_blocks/init.json",
     params:
         store=f"{RESULTS}/background.zarr",
         obs_store=OBSERVABILITY_WORK_STORE,
@@ -35,11 +35,11 @@ rule background_blocks:
     computed total); a time block's sentinel
     (background_blocks/block_<i>.json) marks it done, so a re-run redoes only unfinished ones."""
     input:
-        f"{RESULTS}/background_blocks/init.json",
+        f"{WORK}/background_blocks/init.json",
         config=CONFIG_PATH,
         stars=f"{RESULTS}/stars_csst.parquet",
     output:
-        f"{RESULTS}/background_blocks/part_{{part}}.json",
+        f"{WORK}/background_blocks/part_{{part}}.json",
     params:
         store=f"{RESULTS}/background.zarr",
         obs_store=OBSERVABILITY_WORK_STORE,
@@ -65,7 +65,7 @@ rule background:
     input:
         CUBE_PARTS,
     output:
-        summary=f"{RESULTS}/background_summary.json",
+        summary=f"{WORK}/background_summary.json",
         observability=directory(f"{RESULTS}/observability.zarr"),
     params:
         store=f"{RESULTS}/background.zarr",

@@ -10,7 +10,12 @@ from straylight.survey.limits_cube import summary_processes as _summary_processe
 from straylight.survey.timegrid import time_blocks as _time_blocks
 from straylight.util.healpix import load_without_plotting as _load_healpy_without_plotting
 
+from straylight.sky.timeutil import ignore_dubious_years as _ignore_dubious_years
+
 _load_healpy_without_plotting()  # the parse's footprint needs healpy's pixel functions only
+# ERFA's "dubious year" warnings (a campaign beyond the leap-second table): harmless inside DE405,
+# which the campaign's check below enforces with a line of its own
+_ignore_dubious_years()
 
 # Snakemake lists the workflow's own configfile after the command line's --configfile ones,
 # but merges the latter over it: the files in increasing precedence.
@@ -25,13 +30,16 @@ _CAMPAIGN = _campaign_from_dict(_RESOLVED, CONFIG_PATH, _CONFIG_SOURCES)
 config.clear()
 config.update(_CAMPAIGN.config)  # absolute paths and the schema's defaults, as the scripts see it
 RESULTS = f"results/{config['campaign']['name']}"
-LOGS = f"{RESULTS}/logs"
+#: the run's working files (the cube's block sentinels and work stores, logs, run summaries): not
+#: products; everything else in RESULTS is in the README's products table
+WORK = f"{RESULTS}/work"
+LOGS = f"{WORK}/logs"
 #: the observability store the cube's workers fill, published as observability.zarr once every
 #: time block is done (rule background)
-OBSERVABILITY_WORK_STORE = f"{RESULTS}/background_blocks/observability.zarr"
+OBSERVABILITY_WORK_STORE = f"{WORK}/background_blocks/observability.zarr"
 #: the limits store the cube's workers fill (every sample's limit), published as limits.zarr with
 #: the per-pixel summaries added (rule limits)
-LIMITS_WORK_STORE = f"{RESULTS}/background_blocks/limits.zarr"
+LIMITS_WORK_STORE = f"{WORK}/background_blocks/limits.zarr"
 TIME_BLOCKS = list(
     range(
         len(
@@ -56,7 +64,7 @@ except WorkflowError:
     INIT_BUILD_PROCESSES = 1
 #: the cube jobs' outputs: every time block of the three stores written once all exist (the
 #: limits and the figures start from them, beside rule background)
-CUBE_PARTS = [f"{RESULTS}/background_blocks/part_{i}.json" for i in range(len(CUBE_JOBS))]
+CUBE_PARTS = [f"{WORK}/background_blocks/part_{i}.json" for i in range(len(CUBE_JOBS))]
 #: processes (cores) of rule limits' per-pixel summaries: 1 for a month at nside 32, 2 from a few
 #: GB of limits on (limits_cube.summary_processes); a core it does not need runs another rule
 _N_PIXELS = _footprint_from_config(config["footprint"], Path(CONFIG_PATH).parent).pixels.size

@@ -20,10 +20,11 @@ rule sky_maps:
 
 rule time_series:
     """Time series of the report's pointings: total and components per band over the first orbit
-    and the whole campaign."""
+    (the model every minute, with the star catalog) and the whole campaign (the cube)."""
     input:
         parts=CUBE_PARTS,
         config=CONFIG_PATH,
+        stars=f"{RESULTS}/stars_csst.parquet",
     output:
         report(directory(f"{RESULTS}/series"), patterns=["{name}.png"], caption="../report/plots.rst",
                category="3. Time series", labels={"figure": "{name}"}),
@@ -68,7 +69,7 @@ rule bench_charts:
     # off the products' critical path: run when a core is free
     priority: -1
     output:
-        report(directory(f"{RESULTS}/bench_charts"), patterns=["{name}.png"], caption="../report/bench.rst",
+        report(directory(f"{WORK}/bench_charts"), patterns=["{name}.png"], caption="../report/bench.rst",
                category="6. Speed against accuracy"),
     conda:
         "../envs/straylight.yaml"

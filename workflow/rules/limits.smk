@@ -46,7 +46,7 @@ rule provenance:
         config=CONFIG_PATH,
         limits=f"{RESULTS}/limits.zarr",
         maps=f"{RESULTS}/maps",
-        summary=f"{RESULTS}/background_summary.json",
+        summary=f"{WORK}/background_summary.json",
         ephemeris=f"{RESULTS}/ephemeris.zarr",
         footprint=f"{RESULTS}/footprint.fits",
         stars=f"{RESULTS}/stars_csst.parquet",

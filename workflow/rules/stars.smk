@@ -10,9 +10,9 @@ rule stars_ingest:
         gaia=lambda w: GAIA_FILES[int(w.index)],
         config=CONFIG_PATH,
     output:
-        stars=f"{RESULTS}/stars/gaia_{{index}}.parquet",
-        quarantine=f"{RESULTS}/stars/gaia_{{index}}_quarantine.parquet",
-        summary=f"{RESULTS}/stars/gaia_{{index}}_summary.json",
+        stars=f"{WORK}/stars/gaia_{{index}}.parquet",
+        quarantine=f"{WORK}/stars/gaia_{{index}}_quarantine.parquet",
+        summary=f"{WORK}/stars/gaia_{{index}}_summary.json",
     conda:
         "../envs/straylight.yaml"
     log:
@@ -24,11 +24,11 @@ rule stars_ingest:
 rule stars_gaia:
     """All ingested files merged (duplicates across files quarantined), with a summary."""
     input:
-        stars=expand(f"{RESULTS}/stars/gaia_{{index}}.parquet", index=range(len(GAIA_FILES))),
-        summaries=expand(f"{RESULTS}/stars/gaia_{{index}}_summary.json", index=range(len(GAIA_FILES))),
+        stars=expand(f"{WORK}/stars/gaia_{{index}}.parquet", index=range(len(GAIA_FILES))),
+        summaries=expand(f"{WORK}/stars/gaia_{{index}}_summary.json", index=range(len(GAIA_FILES))),
     output:
         stars=f"{RESULTS}/stars_gaia.parquet",
-        summary=f"{RESULTS}/stars_gaia_summary.json",
+        summary=f"{WORK}/stars_gaia_summary.json",
     conda:
         "../envs/straylight.yaml"
     log:
@@ -45,7 +45,7 @@ rule stars_catalog:
     output:
         parquet=f"{RESULTS}/stars_csst.parquet",
         fits=f"{RESULTS}/stars_csst.fits",
-        summary=f"{RESULTS}/stars_csst_summary.json",
+        summary=f"{WORK}/stars_csst_summary.json",
     conda:
         "../envs/straylight.yaml"
     log:

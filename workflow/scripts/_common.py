@@ -21,12 +21,14 @@ sys.excepthook = _interrupted_hook  # set as the job imports this module, before
 
 def setup_logging(snakemake) -> logging.Logger:
     """The rule's logger (its log file and stderr), with the job's error hook; also the job's
-    healpy, without plotting functions (straylight.util.healpix), and the job's death with
-    Snakemake (die_with_snakemake)."""
+    healpy, without plotting functions (straylight.util.healpix), the job's death with
+    Snakemake (die_with_snakemake), and ERFA's harmless "dubious year" warnings silenced."""
+    from straylight.sky.timeutil import ignore_dubious_years
     from straylight.util.healpix import load_without_plotting
 
     die_with_snakemake()
     load_without_plotting()
+    ignore_dubious_years()  # the campaign's times are inside DE405 (checked when the workflow was parsed)
     log_path = snakemake.log[0] if snakemake.log else None
     handlers = [logging.StreamHandler(sys.stderr)]
     if log_path:

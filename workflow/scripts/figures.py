@@ -11,7 +11,15 @@ from straylight.plots.maps import sky_map_figures  # noqa: E402
 from straylight.plots.series import time_series_figures  # noqa: E402
 
 log = setup_logging(snakemake)  # noqa: F821
-draw = {"sky_maps": sky_map_figures, "time_series": time_series_figures}[snakemake.rule]  # noqa: F821
-for p in draw(snakemake.params.store, campaign(snakemake), snakemake.output[0]):  # noqa: F821
+if snakemake.rule == "time_series":  # noqa: F821 - the first orbit through the model, with the stars
+    paths = time_series_figures(
+        snakemake.params.store,  # noqa: F821
+        campaign(snakemake),  # noqa: F821
+        snakemake.output[0],  # noqa: F821
+        stars_path=snakemake.input.stars,  # noqa: F821
+    )
+else:
+    paths = sky_map_figures(snakemake.params.store, campaign(snakemake), snakemake.output[0])  # noqa: F821
+for p in paths:
     log.info("wrote %s", p)
 end_job()
