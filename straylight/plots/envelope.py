@@ -85,9 +85,10 @@ def spread_maps(limits_ds, campaign, out_dir) -> list:
 
 def envelope_sensitivity(background_store, campaign, time_blocks: int = SENSITIVITY_TIME_BLOCKS) -> dict:
     """The median depth's change with each input of the depth budget alone at each end (the
-    others nominal), with every envelope parameter at once, and the budget's interval: per band, the median over the footprint of each pixel's
-    median limit over its observable times, minus the nominal one, over ``time_blocks`` of the
-    cube's time blocks evenly spread over the campaign.
+    others nominal), with every envelope parameter at once, and the budget's interval: per band,
+    the median over the footprint of each pixel's median limit over its observable times, minus
+    the nominal one, over ``time_blocks`` of the cube's time blocks evenly spread over the
+    campaign.
 
     Parameters
     ----------
@@ -112,8 +113,8 @@ def envelope_sensitivity(background_store, campaign, time_blocks: int = SENSITIV
 
     from straylight.model.envelope import ENDS, campaign_envelope
     from straylight.survey.limits import band_limits, campaign_exposures
-    from straylight.survey.limits_cube import limit_summaries
     from straylight.survey.limits_budget import BUDGET_VARIABLES, budget_limits, depth_budget, term_limits
+    from straylight.survey.limits_cube import limit_summaries
     from straylight.survey.limits_envelope import _part, envelope_limits
     from straylight.survey.storage import read_region
 
@@ -231,8 +232,9 @@ def sensitivity_chart(result: dict, campaign, out_dir) -> list:
     ax.set_ylabel("change of the median depth, mag (negative: shallower)")
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     ax.set_title(
-        f"{campaign.name}: median 5-sigma depth over the footprint, each input of the depth budget alone at its "
-        f"bright (pessimistic) and dark (optimistic) end ({result['times']} times read)",
+        f"{campaign.name}: median 5-sigma depth over the footprint, each input of the depth budget alone "
+        f"at its bright (pessimistic) and dark (optimistic) end, every envelope parameter at once (all) and "
+        f"the budget's 16th-84th percentile ({result['times']} times read)",
         fontsize=9,
     )
     out_dir = Path(out_dir)

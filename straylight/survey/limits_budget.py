@@ -116,9 +116,13 @@ def depth_budget(campaign, bands=None, context=None) -> tuple:
     terms = []
     for p in campaign_envelope(campaign, bands, context).parameters:
         if p.zero_point:
-            terms.append(BudgetTerm(p.key, (), _ones(n), (p.dark, p.bright), ({}, {}), p.range, p.unit, p.source))
+            terms.append(
+                BudgetTerm(p.key, (), _ones(n), (p.dark, p.bright), ({}, {}), p.range, p.unit, p.source)
+            )
         else:
-            terms.append(BudgetTerm(p.key, p.leaves, (p.dark, p.bright), zeros, ({}, {}), p.range, p.unit, p.source))
+            terms.append(
+                BudgetTerm(p.key, p.leaves, (p.dark, p.bright), zeros, ({}, {}), p.range, p.unit, p.source)
+            )
     spec = campaign.instrument_settings.depth_budget
     if spec is not None:
         terms += _instrument_terms(campaign, spec, bands)
@@ -138,7 +142,9 @@ def _instrument_terms(campaign, spec, bands) -> list:
             continue
         lo, hi = float(min(r.range)), float(max(r.range))
         out.append(
-            BudgetTerm(key, (), _ones(n), zeros, ({field: [lo] * n}, {field: [hi] * n}), r.range, r.unit, r.source)
+            BudgetTerm(
+                key, (), _ones(n), zeros, ({field: [lo] * n}, {field: [hi] * n}), r.range, r.unit, r.source
+            )
         )
     if spec.ee80_radius_arcsec:
         pix = campaign.pixel_scale_arcsec
@@ -157,7 +163,14 @@ def _instrument_terms(campaign, spec, bands) -> list:
         )
         out.append(
             BudgetTerm(
-                "ee80_radius_arcsec", (), _ones(n), zeros, ({"n_pix": lo}, {"n_pix": hi}), rng, "arcsec", "; ".join(sources)
+                "ee80_radius_arcsec",
+                (),
+                _ones(n),
+                zeros,
+                ({"n_pix": lo}, {"n_pix": hi}),
+                rng,
+                "arcsec",
+                "; ".join(sources),
             )
         )
     for key, leaf, per_band in (
@@ -292,7 +305,9 @@ def background_budget_limits(campaign, background, bands, exposures) -> dict:
     leaves = list(dict.fromkeys(leaf for t in terms for leaf in t.leaves))
     if not terms or not all(leaf in have or leaf == "earthshine_direct" for leaf in leaves):
         return {}
-    names = list(dict.fromkeys(["total"] + [n for n in (*leaves, "earthshine", "earthshine_door") if n in have]))
+    names = list(
+        dict.fromkeys(["total"] + [n for n in (*leaves, "earthshine", "earthshine_door") if n in have])
+    )
     out = {}
     for key, (name, _) in BUDGET_VARIABLES.items():
 
@@ -377,7 +392,10 @@ def with_budget(ds, budget: dict, shifts=None, per_sample: bool = False):
             ds[name] = (
                 ("time", "pixel", "band"),
                 data(lim),
-                {"units": "mag(AB)", "long_name": f"5-sigma point-source limit, {what} (NaN: not observable)"},
+                {
+                    "units": "mag(AB)",
+                    "long_name": f"5-sigma point-source limit, {what} (NaN: not observable)",
+                },
             )
         ds[median_name] = (
             ("pixel", "band"),

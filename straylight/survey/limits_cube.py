@@ -158,7 +158,9 @@ def _store_summary_task(store: str, pixels: slice) -> tuple:
     pess = ENVELOPE_VARIABLES["pessimistic"][0]
     if pess in group and SHIFT_PERCENTILES[90] in group:
         nominal = read_region(group["limiting_mag"], (slice(None), pixels))
-        envelope.update(shift_percentiles(read_region(group[pess], (slice(None), pixels)), nominal, observable))
+        envelope.update(
+            shift_percentiles(read_region(group[pess], (slice(None), pixels)), nominal, observable)
+        )
     return pixels, best, median, observable_fraction(observable), envelope
 
 

@@ -61,11 +61,15 @@ def test_read_noise_alone_moves_the_darkest_sky_depth_as_the_ccd_equation(campai
     ib = bands.index("g")
     x = campaign_exposures(campaign, bands)[ib]
     sky = np.full((1, len(bands)), 0.060)
-    nominal = _ccd_limit(0.060, x.total_s, x.n_exposures, 5.0, 0.02, 0.15, campaign.pixel_scale_arcsec, x.zero_point_e_per_s)
+    nominal = _ccd_limit(
+        0.060, x.total_s, x.n_exposures, 5.0, 0.02, 0.15, campaign.pixel_scale_arcsec, x.zero_point_e_per_s
+    )
     ex = campaign_exposures(campaign, bands)
     for end, rn in ((0, 4.0), (1, 6.0)):
         got = term_limits(terms["read_noise_e"], end, sky, {}, ex)[0, ib]
-        want = _ccd_limit(0.060, x.total_s, x.n_exposures, rn, 0.02, 0.15, campaign.pixel_scale_arcsec, x.zero_point_e_per_s)
+        want = _ccd_limit(
+            0.060, x.total_s, x.n_exposures, rn, 0.02, 0.15, campaign.pixel_scale_arcsec, x.zero_point_e_per_s
+        )
         print(f"read noise {rn} e-: {got - nominal:+.3f} mag")
         assert got == pytest.approx(want, abs=1e-6)
         assert abs(got - nominal) > 0.1
@@ -106,7 +110,12 @@ def test_budget_interval_is_the_quadrature_of_each_input_alone(campaign):
         tot = region["total"][..., ib][obs]
 
         def lim(sky=tot, rn=5.0, dark=0.02, r80=0.15, zp=0.0):
-            return _ccd_limit(sky * 10 ** (0.4 * zp), x.total_s, x.n_exposures, rn, dark, r80, pix, x.zero_point_e_per_s) + zp
+            return (
+                _ccd_limit(
+                    sky * 10 ** (0.4 * zp), x.total_s, x.n_exposures, rn, dark, r80, pix, x.zero_point_e_per_s
+                )
+                + zp
+            )
 
         m0 = lim()
         changes = []
@@ -116,7 +125,11 @@ def test_budget_interval_is_the_quadrature_of_each_input_alone(campaign):
             changes.append(lim(dark=dark) - m0)
         for r80 in spec.ee80_radius_arcsec[b].range:
             changes.append(lim(r80=r80) - m0)
-        for key, leaf in (("zodiacal_level", "zodiacal"), ("moon_level", "moon"), ("stars_pst_core", "stars")):
+        for key, leaf in (
+            ("zodiacal_level", "zodiacal"),
+            ("moon_level", "moon"),
+            ("stars_pst_core", "stars"),
+        ):
             r = getattr(spec, key)
             r = r[b] if isinstance(r, dict) else r
             for f in r.range:
@@ -195,5 +208,10 @@ def test_limits_dataset_carries_the_budget_with_units(campaign):
     assert np.all(lo[seen] < med[seen]) and np.all(med[seen] < hi[seen])
     p90, p99 = out["limiting_mag_shift_p90"].values, out["limiting_mag_shift_p99"].values
     assert np.all(p90[seen] <= 0) and np.all(p99[seen] <= p90[seen])
-    for name in ("limiting_mag_median_p16", "limiting_mag_median_p84", "limiting_mag_shift_p90", "limiting_mag_shift_p99"):
+    for name in (
+        "limiting_mag_median_p16",
+        "limiting_mag_median_p84",
+        "limiting_mag_shift_p90",
+        "limiting_mag_shift_p99",
+    ):
         assert out[name].attrs["units"] and len(out[name].attrs["long_name"]) > 20, name
