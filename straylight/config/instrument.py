@@ -235,6 +235,21 @@ class EnvelopeSettings:
 
 
 @dataclass(frozen=True)
+class DepthBudgetSettings:
+    """``depth_budget``: the ranges of the depth's unmeasured inputs besides the envelope's
+    (:mod:`straylight.survey.limits_budget`): read noise (e-), dark current (e-/s/pixel), per
+    band the EE80 radius (arcsec) and a factor on the zodiacal light, factors on the Moon's and
+    the off-field stars' light; None where the file gives no range."""
+
+    read_noise_e: EnvelopeRange | None = None
+    dark_current_e_per_s: EnvelopeRange | None = None
+    ee80_radius_arcsec: dict[str, EnvelopeRange] | None = None
+    zodiacal_level: dict[str, EnvelopeRange] | None = None
+    moon_level: EnvelopeRange | None = None
+    stars_pst_core: EnvelopeRange | None = None
+
+
+@dataclass(frozen=True)
 class InstrumentSettings:
     """An instrument file, typed: one field per key of config/schema/instrument.schema.yaml,
     built once from the validated file with the schema's defaults (:func:`instrument_settings`;
@@ -251,6 +266,7 @@ class InstrumentSettings:
     scattering: ScatteringSettings | None = None
     ghosts: GhostSettings | None = None
     envelope: EnvelopeSettings | None = None
+    depth_budget: DepthBudgetSettings | None = None
 
 
 @lru_cache(maxsize=1)
@@ -341,6 +357,7 @@ __all__ = [
     "DoorSettings",
     "EnvelopeRange",
     "EnvelopeSettings",
+    "DepthBudgetSettings",
     "InstrumentSettings",
     "instrument_settings",
     "needed",

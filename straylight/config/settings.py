@@ -246,8 +246,9 @@ def _value(v, hint, where: str):
     args = typing.get_args(hint)
     if v is not None and len(args) == 2 and type(None) in args:
         inner = next(a for a in args if a is not type(None))
-        if dataclasses.is_dataclass(inner):
+        if dataclasses.is_dataclass(inner) or typing.get_origin(inner) in (dict, tuple):
             hint = inner
+            args = typing.get_args(hint)
     if dataclasses.is_dataclass(hint):
         return _typed(hint, v or {}, where)
     origin = typing.get_origin(hint)

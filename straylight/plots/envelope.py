@@ -84,10 +84,11 @@ def spread_maps(limits_ds, campaign, out_dir) -> list:
 
 
 def envelope_sensitivity(background_store, campaign, time_blocks: int = SENSITIVITY_TIME_BLOCKS) -> dict:
-    """The median depth's change with each envelope parameter alone at each end (the others
-    nominal), and with all of them: per band, the median over the footprint of each pixel's
-    median limit over its observable times, minus the nominal one, over ``time_blocks`` of the
-    cube's time blocks evenly spread over the campaign.
+    """The median depth's change with each input of the depth budget alone at each end (the
+    others nominal), with every envelope parameter at once, and the budget's interval: per band,
+    the median over the footprint of each pixel's median limit over its observable times, minus
+    the nominal one, over ``time_blocks`` of the cube's time blocks evenly spread over the
+    campaign.
 
     Parameters
     ----------
@@ -102,20 +103,25 @@ def envelope_sensitivity(background_store, campaign, time_blocks: int = SENSITIV
     -------
     dict
         ``bands`` (list), ``nominal`` (band -> median depth, mag), ``rows``: list of
-        (parameter key, end, band -> change in median depth, mag; negative: shallower), the last
-        two for every parameter ("all"); ``times`` (how many times were read).
+        (input key, end, band -> change in median depth, mag; negative: shallower): every input
+        of the depth budget (:func:`~straylight.survey.limits_budget.depth_budget`, the
+        envelope's parameters among them) alone at each end, then every envelope parameter at
+        once ("all": pessimistic, optimistic) and the budget's central interval ("budget": p16,
+        p84); ``times`` (how many times were read).
     """
     import zarr
 
     from straylight.model.envelope import ENDS, campaign_envelope
     from straylight.survey.limits import band_limits, campaign_exposures
+    from straylight.survey.limits_budget import BUDGET_VARIABLES, budget_limits, depth_budget, term_limits
     from straylight.survey.limits_cube import limit_summaries
-    from straylight.survey.limits_envelope import envelope_limits
+    from straylight.survey.limits_envelope import _part, envelope_limits
     from straylight.survey.storage import read_region
 
     group = zarr.open_group(str(background_store), mode="r", use_consolidated=False)
     bands = [str(b) for b in group["band"][...]]
     env = campaign_envelope(campaign, bands)
+    terms = depth_budget(campaign, bands)
     exposures = campaign_exposures(campaign, bands)
     chunk = int(group["total"].chunks[0])
     n_time = int(group["total"].shape[0])
@@ -123,7 +129,8 @@ def envelope_sensitivity(background_store, campaign, time_blocks: int = SENSITIV
     pick = starts[
         np.unique(np.linspace(0, starts.size - 1, min(time_blocks, starts.size)).round().astype(int))
     ]
-    names = [n for n in ("total", "earthshine", "earthshine_door", *env.leaves) if n in group]
+    budget_leaves = [leaf for t in terms for leaf in t.leaves]
+    names = [n for n in ("total", "earthshine", "earthshine_door", *env.leaves, *budget_leaves) if n in group]
     names = list(dict.fromkeys(names))
     parts = {n: [] for n in names + ["observable"]}
     for t0 in pick:
@@ -145,11 +152,27 @@ def envelope_sensitivity(background_store, campaign, time_blocks: int = SENSITIV
 
     nominal = median_depth(np.where(obs[..., None], band_limits(region["total"], exposures), np.nan))
     rows = []
-    for key in [p.key for p in env.parameters] + ["all"]:
-        lims = envelope_limits(env if key == "all" else _only(env, key), region, exposures)
+    # every input of the depth budget alone at each end (the envelope's parameters among them)
+    where = np.nonzero(np.asarray(obs, bool))
+    tot = np.asarray(region["total"])[where]
+    leaves = list(dict.fromkeys(leaf for t in terms for leaf in t.leaves))
+    parts = {leaf: _part(region, leaf, where) for leaf in leaves}
+    for term in terms:
+        for i, end in enumerate(ENDS):
+            lim = np.full(np.shape(region["total"]), np.nan, np.float32)
+            lim[where] = term_limits(term, i, tot, parts, exposures)
+            change = median_depth(lim) - nominal
+            rows.append((term.key, end, dict(zip(bands, change.tolist()))))
+    if env.parameters:  # the envelope's ends: every parameter at once
+        lims = envelope_limits(env, region, exposures)
         for end in ENDS:
             change = median_depth(lims[f"limiting_mag_{end}"]) - nominal
-            rows.append((key, end, dict(zip(bands, change.tolist()))))
+            rows.append(("all", end, dict(zip(bands, change.tolist()))))
+    if terms:  # the budget's central interval
+        lims = budget_limits(terms, region, exposures)
+        for key, (name, _) in BUDGET_VARIABLES.items():
+            change = median_depth(lims[name]) - nominal
+            rows.append(("budget", key, dict(zip(bands, change.tolist()))))
     return {
         "bands": bands,
         "nominal": dict(zip(bands, nominal.tolist())),
@@ -183,6 +206,7 @@ def sensitivity_chart(result: dict, campaign, out_dir) -> list:
     list of pathlib.Path
         ``envelope_sensitivity.png`` and the table.
     """
+    from matplotlib import colormaps
     from matplotlib.figure import Figure
 
     from straylight.util.io import atomic_path
@@ -193,14 +217,14 @@ def sensitivity_chart(result: dict, campaign, out_dir) -> list:
     width = 0.8 / max(len(rows), 1)
     colours = {}
     for k, (key, end, d) in enumerate(rows):
-        c = colours.setdefault(key, f"C{len(colours)}")
+        c = colours.setdefault(key, colormaps["tab20"](2 * len(colours) % 20 + (len(colours) >= 10)))
         x = np.arange(len(bands)) + (k - (len(rows) - 1) / 2) * width
         ax.bar(
             x,
             [d[b] for b in bands],
             width,
             color=c,
-            alpha=1.0 if end == "pessimistic" else 0.45,
+            alpha=1.0 if end in ("pessimistic", "p16") else 0.45,
             label=f"{key}: {end}",
         )
     ax.axhline(0.0, color="k", lw=0.8)
@@ -208,8 +232,9 @@ def sensitivity_chart(result: dict, campaign, out_dir) -> list:
     ax.set_ylabel("change of the median depth, mag (negative: shallower)")
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     ax.set_title(
-        f"{campaign.name}: median 5-sigma depth over the footprint, each envelope parameter alone at its "
-        f"bright (pessimistic) and dark (optimistic) end ({result['times']} times read)",
+        f"{campaign.name}: median 5-sigma depth over the footprint, each input of the depth budget alone "
+        f"at its bright (pessimistic) and dark (optimistic) end, every envelope parameter at once (all) and "
+        f"the budget's 16th-84th percentile ({result['times']} times read)",
         fontsize=9,
     )
     out_dir = Path(out_dir)

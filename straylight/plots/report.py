@@ -52,6 +52,14 @@ def depth_summary(limits_ds, observable_fraction: float | None = None) -> dict:
             "best_depth_mag": float(np.nanmax(best)) if np.isfinite(best).any() else float("nan"),
             "observable_fraction": obs,
         }
+        # the depth budget's central interval of the median depth, where the product has it
+        for key in ("p16", "p84"):
+            name = f"limiting_mag_median_{key}"
+            if name in limits_ds:
+                v = np.asarray(limits_ds[name].isel(band=ib), float)
+                rows[str(band)][f"median_depth_{key}_mag"] = (
+                    float(np.nanmedian(v)) if np.isfinite(v).any() else float("nan")
+                )
     return rows
 
 
@@ -61,14 +69,19 @@ DEPTH_TABLE = "depth_summary.csv"
 
 def write_depth_table(rows: dict, path) -> Path:
     """The depth table ``rows`` of :func:`depth_summary` as CSV at ``path``: per band, the
-    median and best 5-sigma depth (AB mag) and the observable fraction of all samples."""
+    median and best 5-sigma depth (AB mag) and the observable fraction of all samples, then,
+    where the rows have them, the depth budget's 16th and 84th percentiles of the median depth
+    (AB mag)."""
     from straylight.util.io import atomic_path
 
     path = Path(path)
+    interval = all("median_depth_p16_mag" in r for r in rows.values()) and bool(rows)
+    extra = ",median_depth_p16_mag,median_depth_p84_mag" if interval else ""
     with atomic_path(path) as tmp:
-        lines = ["band,median_depth_mag,best_depth_mag,observable_fraction"]
+        lines = ["band,median_depth_mag,best_depth_mag,observable_fraction" + extra]
         lines += [
             f"{b},{r['median_depth_mag']:.2f},{r['best_depth_mag']:.2f},{r['observable_fraction']:.3f}"
+            + (f",{r['median_depth_p16_mag']:.2f},{r['median_depth_p84_mag']:.2f}" if interval else "")
             for b, r in rows.items()
         ]
         tmp.write_text("\n".join(lines) + "\n")
@@ -150,9 +163,14 @@ def write_report_front(rows: dict, config: dict, path, figure_dirs=()) -> Path:
         "     - observable fraction",
     ]
     for b, r in rows.items():
+        interval = (
+            f" ({r['median_depth_p16_mag']:.2f} - {r['median_depth_p84_mag']:.2f})"
+            if "median_depth_p16_mag" in r
+            else ""
+        )
         table += [
             f"   * - {b}",
-            f"     - {r['median_depth_mag']:.2f}",
+            f"     - {r['median_depth_mag']:.2f}{interval}",
             f"     - {r['best_depth_mag']:.2f}",
             f"     - {100 * r['observable_fraction']:.1f} %",
         ]
@@ -163,8 +181,8 @@ Campaign **{c["name"]}**, {c["start"]} to {c["end"]} UTC, every {float(c["cadenc
 stray light and sky background for the CSST survey camera (straylight; method of Xian et al.).
 
 .. list-table:: 5-sigma point-source depth for the band's survey exposures (median over the footprint of each
-   pixel's median over time; best: the deepest pixel at its best time), and the fraction of (time, pointing)
-   samples that are observable
+   pixel's median over time, in brackets its 16th - 84th percentile from the depth error budget; best: the
+   deepest pixel at its best time), and the fraction of (time, pointing) samples that are observable
    :header-rows: 1
 
 {chr(10).join(table)}

@@ -55,13 +55,16 @@ OBSERVABILITY_VARIABLES = ("observable", "violations") + OBSERVABILITY_ANGLES + 
 CUBE_PART_VARIABLES = ("earthshine_door",)
 #: limits.zarr's variables the cube's workers write, region by region
 #: (:func:`straylight.survey.cube_store.region_limits`): the limits, the observability, and the
-#: limits at the assumption envelope's two ends (NaN where not observable; kept in the work store
-#: for their per-pixel medians, left out of the product)
+#: limits at the assumption envelope's two ends and the depth budget's 16th and 84th percentiles
+#: (NaN where not observable; kept in the work store for their per-pixel medians, left out of the
+#: product)
 LIMITS_REGION_VARIABLES = (
     "limiting_mag",
     "observable",
     "limiting_mag_pessimistic",
     "limiting_mag_optimistic",
+    "limiting_mag_p16",
+    "limiting_mag_p84",
 )
 
 

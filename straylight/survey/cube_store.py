@@ -328,17 +328,21 @@ def region_limits(campaign: Campaign, region) -> dict:
         ``observable``: bool, shape (n_time, n_pixel); ``limiting_mag_pessimistic`` and
         ``limiting_mag_optimistic``: the limits at the assumption envelope's ends
         (:func:`~straylight.survey.limits_envelope.envelope_limits`), float32 (n_time, n_pixel, n_band),
-        NaN where not observable.
+        NaN where not observable; ``limiting_mag_p16`` and ``limiting_mag_p84``: the depth
+        budget's (:func:`~straylight.survey.limits_budget.budget_limits`), where it has inputs.
     """
     from straylight.model.envelope import campaign_envelope
     from straylight.survey.limits import band_limits, campaign_exposures
+    from straylight.survey.limits_budget import budget_limits, depth_budget
     from straylight.survey.limits_envelope import envelope_limits
 
     exposures = campaign_exposures(campaign)
+    terms = depth_budget(campaign)
     return {
         "limiting_mag": band_limits(np.asarray(region["total"]), exposures),
         "observable": np.asarray(region["observable"]),
         **envelope_limits(campaign_envelope(campaign), region, exposures),
+        **(budget_limits(terms, region, exposures) if terms else {}),
     }
 
 
@@ -449,8 +453,16 @@ def open_stores(stores: CubeStores) -> StoreArrays:
         stores,
         store_arrays(stores.cube),
         None if obs is None else store_arrays(obs, OBSERVABILITY_VARIABLES),
-        None if lim is None else store_arrays(lim, LIMITS_REGION_VARIABLES),
+        None if lim is None else store_arrays(lim, _present(lim, LIMITS_REGION_VARIABLES)),
     )
+
+
+def _present(store, names) -> tuple:
+    """Those of ``names`` the store at ``store`` holds (the budget's limits need its inputs)."""
+    import zarr
+
+    group = zarr.open_group(str(store), mode="r", use_consolidated=False)
+    return tuple(n for n in names if n in group)
 
 
 def region_write_error(stores: CubeStores, t_slice: slice, p_slice: slice, exc: OSError) -> OutputError:

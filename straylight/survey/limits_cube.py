@@ -11,6 +11,13 @@ import numpy as np
 
 from straylight.config import Campaign
 from straylight.survey.limits import SNR, ZERO_POINT_NAME, band_limits, campaign_exposures, zero_point_coord
+from straylight.survey.limits_budget import (
+    BUDGET_VARIABLES,
+    SHIFT_PERCENTILES,
+    background_budget_limits,
+    shift_percentiles,
+    with_budget,
+)
 from straylight.survey.limits_envelope import (
     ENVELOPE_VARIABLES,
     background_envelope_limits,
@@ -145,9 +152,15 @@ def _store_summary_task(store: str, pixels: slice) -> tuple:
     best, median = limit_summaries(read_region(group["limiting_mag"], (slice(None), pixels)), observable)
     envelope = {
         median_name: limit_summaries(read_region(group[name], (slice(None), pixels)), observable)[1]
-        for name, median_name in ENVELOPE_VARIABLES.values()
+        for name, median_name in (*ENVELOPE_VARIABLES.values(), *BUDGET_VARIABLES.values())
         if name in group
     }
+    pess = ENVELOPE_VARIABLES["pessimistic"][0]
+    if pess in group and SHIFT_PERCENTILES[90] in group:
+        nominal = read_region(group["limiting_mag"], (slice(None), pixels))
+        envelope.update(
+            shift_percentiles(read_region(group[pess], (slice(None), pixels)), nominal, observable)
+        )
     return pixels, best, median, observable_fraction(observable), envelope
 
 
@@ -173,7 +186,8 @@ def store_limit_summaries(store, workers: int = 1) -> dict:
         mag(AB), NaN where never observable; ``observable_fraction``: float32, shape (n_pixel,);
         and where the store has the envelope's per-sample limits,
         ``limiting_mag_median_pessimistic`` and ``limiting_mag_median_optimistic`` (pixel,
-        band), as the median.
+        band), as the median; where it has the budget's, ``limiting_mag_median_p16`` and
+        ``_p84``; and the pessimistic end's ``limiting_mag_shift_p90`` and ``_p99`` (mag).
     """
     import zarr
 
@@ -197,9 +211,12 @@ def store_limit_summaries(store, workers: int = 1) -> dict:
         "observable_fraction": np.zeros(n_pix, np.float32),
     }
     group = zarr.open_group(store, mode="r", use_consolidated=False)
-    for name, median_name in ENVELOPE_VARIABLES.values():
+    for name, median_name in (*ENVELOPE_VARIABLES.values(), *BUDGET_VARIABLES.values()):
         if name in group:
             out[median_name] = np.full((n_pix, n_band), np.nan, np.float32)
+    if ENVELOPE_VARIABLES["pessimistic"][0] in group and SHIFT_PERCENTILES[90] in group:
+        for name in SHIFT_PERCENTILES.values():
+            out[name] = np.full((n_pix, n_band), np.nan, np.float32)
 
     def keep(result):
         pixels, best, median, frac, envelope = result
@@ -225,7 +242,12 @@ def store_limit_summaries(store, workers: int = 1) -> dict:
 
 
 def limits_dataset(
-    campaign: Campaign, background, limiting_mag=None, envelope_limits=None, per_sample_envelope=False
+    campaign: Campaign,
+    background,
+    limiting_mag=None,
+    envelope_limits=None,
+    per_sample_envelope=False,
+    budget_limits=None,
 ) -> "xr.Dataset":
     """(time, pixel, band) 5-sigma limits from background.zarr's ``total``, plus per-pixel
     campaign summaries over observable times (best, median) and the observable fraction.
@@ -257,8 +279,13 @@ def limits_dataset(
         The envelope's ends -> their (time, pixel, band) limits already computed (as a limits
         work store holds them), mag(AB); None: computed from ``total`` and the parts.
     per_sample_envelope : bool, optional
-        Whether the result holds the envelope's per-sample limits too (the limits work store's
-        skeleton: the cube's workers write them, the product keeps their medians only).
+        Whether the result holds the envelope's and the budget's per-sample limits too (the
+        limits work store's skeleton: the cube's workers write them, the product keeps their
+        medians only).
+    budget_limits : dict, optional
+        The depth budget's ``p16``/``p84`` -> their (time, pixel, band) limits already computed,
+        mag(AB); None: computed from ``total`` and the parts
+        (:func:`~straylight.survey.limits_budget.background_budget_limits`).
 
     Returns
     -------
@@ -326,6 +353,42 @@ def limits_dataset(
         with dask_rechunk_by_tasks():
             env_t = env_lim.chunk(whole_times) if lazy else env_lim
         envelope[end] = (env_lim, summarise(env_t).isel(stat=1).transpose("pixel", "band"))
+    budget_lim = (
+        background_budget_limits(campaign, background, bands, exposures)
+        if budget_limits is None
+        else dict(budget_limits)
+    )
+    budget = {}
+    for key, b_lim in budget_lim.items():
+        with dask_rechunk_by_tasks():
+            b_t = b_lim.chunk(whole_times) if lazy else b_lim
+        budget[key] = (b_lim, summarise(b_t).isel(stat=1).transpose("pixel", "band"))
+    shifts = None
+    if "pessimistic" in envelope_lim:
+        with dask_rechunk_by_tasks():
+            pess_t = envelope_lim["pessimistic"].chunk(whole_times) if lazy else envelope_lim["pessimistic"]
+
+        def percentiles(pess, nominal, observable):  # (pixel, band, time) x2, (pixel, 1, time)
+            out = shift_percentiles(
+                np.moveaxis(pess, -1, 0), np.moveaxis(nominal, -1, 0), np.moveaxis(observable[:, 0, :], -1, 0)
+            )
+            return np.stack([out[SHIFT_PERCENTILES[q]] for q in sorted(SHIFT_PERCENTILES)], axis=-1)
+
+        stacked = xr.apply_ufunc(
+            percentiles,
+            pess_t,
+            lim_t,
+            obs_t,
+            input_core_dims=[["time"], ["time"], ["time"]],
+            output_core_dims=[["q"]],
+            dask="parallelized",
+            output_dtypes=[np.float32],
+            dask_gufunc_kwargs={"output_sizes": {"q": len(SHIFT_PERCENTILES)}},
+        )
+        shifts = {
+            SHIFT_PERCENTILES[q]: stacked.isel(q=i).transpose("pixel", "band")
+            for i, q in enumerate(sorted(SHIFT_PERCENTILES))
+        }
     ds = _limits_product(
         campaign,
         background,
@@ -336,7 +399,8 @@ def limits_dataset(
         observable,
         exposures,
     )
-    return with_envelope(ds, envelope, per_sample_envelope)
+    ds = with_envelope(ds, envelope, per_sample_envelope)
+    return with_budget(ds, budget, shifts, per_sample_envelope)
 
 
 def _limits_product(

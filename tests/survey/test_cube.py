@@ -196,13 +196,17 @@ def test_fused_limits_equal_limits_dataset_within_the_propagated_bound(cube_run,
     bound = 2.5 / np.log(10) * e_total / 2 + e_mag * np.abs(ref["limiting_mag"].values) + 4e-6
     assert np.all(np.isfinite(diff)) and np.all(diff <= bound), float((diff - bound).max())
     assert diff.max() > 0  # computed from different totals: not the same bits everywhere
-    # the envelope's per-sample limits as the workers stored them in the limits work store (from
-    # the region's unrounded parts, like limiting_mag: straylight/survey/limits_envelope.py); the
+    # the envelope's and the budget's per-sample limits as the workers stored them in the limits
+    # work store (from the region's unrounded parts, like limiting_mag:
+    # straylight/survey/limits_envelope.py, limits_budget.py); the
     # product keeps their medians only
     with xr.open_zarr(out / "work" / "background_blocks" / "limits.zarr", consolidated=False) as work:
         ends = {e: work[f"limiting_mag_{e}"].load() for e in ("pessimistic", "optimistic")}
+        budget = {k: work[f"limiting_mag_{k}"].load() for k in ("p16", "p84")}
     write_zarr_atomic(
-        limits_dataset(c, background, limiting_mag=got["limiting_mag"], envelope_limits=ends),
+        limits_dataset(
+            c, background, limiting_mag=got["limiting_mag"], envelope_limits=ends, budget_limits=budget
+        ),
         tmp_path / "ref.zarr",
         storage=c.config["storage"],
     )

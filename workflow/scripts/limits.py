@@ -21,14 +21,16 @@ def main(snakemake):
     from straylight.plots.report import limit_figures
     from straylight.survey.cube_layout import LIMITS_REGION_VARIABLES
     from straylight.survey.cube_store import publish_work_store
+    from straylight.survey.limits_budget import BUDGET_VARIABLES
     from straylight.survey.limits_cube import store_limit_summaries, write_limit_maps
     from straylight.survey.limits_envelope import ENVELOPE_VARIABLES
     from straylight.util.io import atomic_path
 
     log = setup_logging(snakemake)
     summaries = store_limit_summaries(snakemake.params.lim_store, workers=snakemake.threads)
-    # the envelope's per-sample limits stay in the work store: the product keeps their medians
-    per_sample = [name for name, _ in ENVELOPE_VARIABLES.values()]
+    # the envelope's and the budget's per-sample limits stay in the work store: the product keeps
+    # their medians
+    per_sample = [name for name, _ in (*ENVELOPE_VARIABLES.values(), *BUDGET_VARIABLES.values())]
     publish_work_store(snakemake.params.lim_store, snakemake.output.limits, summaries, drop=per_sample)
     # the maps and the log from the per-pixel summaries just written (small: pixel x band)
     with xr.open_zarr(snakemake.output.limits, consolidated=True, chunks=None) as written:
