@@ -14,6 +14,7 @@ from straylight.survey.cube_region import compute_region
 from straylight.survey.cube_store import init_store
 from straylight.survey.executors import write_region
 from straylight.survey.footprint import footprint_from_config
+from straylight.survey.limits_budget import BUDGET_VARIABLES, SHIFT_PERCENTILES
 from straylight.survey.limits_cube import limits_dataset
 from straylight.survey.products import ephemeris_dataset, observability_dataset
 from straylight.survey.storage import encoded, write_zarr_atomic
@@ -122,8 +123,10 @@ def test_stored_products_within_their_bound(block):
     # every float of the three products checked: the cube's seven band variables, its part via the
     # door (CUBE_PART_VARIABLES) and door opening, the limits (per sample, best, median, observable
     # fraction, and the assumption envelope's medians at both ends:
-    # straylight.survey.limits_envelope), the four angles
-    assert checked == len(CUBE_BAND_VARIABLES) + len(CUBE_PART_VARIABLES) + 1 + 4 + 2 + 4
+    # straylight.survey.limits_envelope; the depth budget's median p16/p84 and the pessimistic
+    # end's worst-hour shifts: straylight.survey.limits_budget), the four angles
+    n_budget = len(BUDGET_VARIABLES) + len(SHIFT_PERCENTILES)
+    assert checked == len(CUBE_BAND_VARIABLES) + len(CUBE_PART_VARIABLES) + 1 + 4 + 2 + n_budget + 4
 
 
 def test_faint_star_map_stored_exactly(campaign):
@@ -252,8 +255,9 @@ def test_every_stored_float_keeps_only_its_bits(block):
                 stored.view(uint), expected.reshape(stored.shape).view(uint), err_msg=f"{product} {name}"
             )
             checked += 1
-    # as above: the part via the door and the envelope's two medians added
-    assert checked == len(CUBE_BAND_VARIABLES) + len(CUBE_PART_VARIABLES) + 1 + 4 + 2 + 4
+    # as above: the part via the door, the envelope's two medians and the budget's four added
+    n_budget = len(BUDGET_VARIABLES) + len(SHIFT_PERCENTILES)
+    assert checked == len(CUBE_BAND_VARIABLES) + len(CUBE_PART_VARIABLES) + 1 + 4 + 2 + n_budget + 4
 
 
 def test_stored_values_rounds_as_the_attributes_record():

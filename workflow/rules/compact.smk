@@ -3,7 +3,7 @@ rule sky_compact:
     storage.compact_mag_step, with the observability, for schedulers (straylight.SkyMaps) and
     distribution; its error against background.zarr measured and recorded in its attributes."""
     input:
-        summary=f"{RESULTS}/background_summary.json",
+        summary=f"{WORK}/background_summary.json",
         config=CONFIG_PATH,
     output:
         directory(f"{RESULTS}/sky_compact.zarr"),
