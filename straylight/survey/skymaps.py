@@ -12,6 +12,7 @@ between them is not crossed); on a grid time both are the grid's.
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from pathlib import Path
 from typing import NamedTuple
 
@@ -44,22 +45,37 @@ def _datetime64_ns(times) -> np.ndarray:
     return np.asarray(values, dtype="datetime64[ns]").astype(np.int64)
 
 
-def _lazy_zeros(shape) -> np.ndarray:
-    """A uint16 array whose memory is taken only where it is written: an anonymous mapping
-    without a swap reservation (a year at nside 64 would be 34 GiB, which malloc refuses)."""
+def _lazy_zeros(shape):
+    """(a uint16 array whose memory is taken only where it is written, its mapping or None): an
+    anonymous mapping without a swap reservation (a year at nside 64 would be 34 GiB, which
+    malloc refuses), whose pages :func:`_release` gives back."""
     import mmap
     import sys
 
     nbytes = int(np.prod(shape)) * 2
     if nbytes == 0:
-        return np.zeros(shape, dtype=np.uint16)
+        return np.zeros(shape, dtype=np.uint16), None
     try:
         # MAP_NORESERVE is Linux's 0x4000 (Python names it from 3.13 only)
         noreserve = getattr(mmap, "MAP_NORESERVE", 0x4000 if sys.platform.startswith("linux") else 0)
         buf = mmap.mmap(-1, nbytes, flags=mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS | noreserve)
     except (OSError, ValueError, AttributeError):  # no such mapping here: an ordinary array
-        return np.empty(shape, dtype=np.uint16)
-    return np.frombuffer(buf, dtype=np.uint16).reshape(shape)
+        return np.empty(shape, dtype=np.uint16), None
+    return np.frombuffer(buf, dtype=np.uint16).reshape(shape), buf
+
+
+def _release(buf, start: int, stop: int) -> None:
+    """Give the whole pages of bytes [start, stop) of the mapping ``buf`` back to the system
+    (they read as zeros after); nothing where the mapping or madvise is missing."""
+    import mmap
+
+    if buf is None or not hasattr(mmap, "MADV_DONTNEED"):
+        return
+    page = mmap.PAGESIZE
+    first = -(-start // page) * page
+    last = (stop // page) * page
+    if last > first:
+        buf.madvise(mmap.MADV_DONTNEED, first, last - first)
 
 
 class SkyMaps:
@@ -70,6 +86,12 @@ class SkyMaps:
     ----------
     path : str or path-like
         ``sky_compact.zarr``, or a campaign's results folder holding it.
+    max_memory_gb : float, optional
+        The most memory the decoded codes may hold, GB (default 2). Look-ups decode the
+        product's time chunks (a day each) as they need them and keep them for later calls; past
+        this size the least recently used chunks are released, and a batch spanning more chunks
+        than fit is answered a group of chunks at a time. ``load()`` decodes everything whatever
+        this says.
 
     Attributes
     ----------
@@ -95,7 +117,7 @@ class SkyMaps:
     (1, 3072)
     """
 
-    def __init__(self, path):
+    def __init__(self, path, max_memory_gb: float = 2.0):
         import zarr
 
         from straylight.survey.compact import COMPACT_FORMAT, COMPACT_NAME, FILL
@@ -138,6 +160,16 @@ class SkyMaps:
         self._codes = None
         self._width = 8 if len(self.bands) <= 8 else len(self.bands)
         self._decoded = np.zeros(-(-n_times // self._tc), dtype=bool)
+        self._mapping = None
+        self._recent: OrderedDict[int, None] = OrderedDict()  # decoded chunks, least recent first
+        try:
+            budget = float(max_memory_gb) * 1e9
+        except (TypeError, ValueError):
+            budget = float("nan")
+        if not budget > 0:
+            raise InputError(f"max_memory_gb: {max_memory_gb!r}; expected a positive number of GB")
+        chunk_bytes = self._tc * self.pixels.size * self._width * 2
+        self._max_chunks = max(2, int(budget // max(chunk_bytes, 1)))
 
     def __repr__(self) -> str:
         return (
@@ -158,19 +190,59 @@ class SkyMaps:
         return np.array([self.bands.index(b) for b in bands], dtype=np.int64)
 
     def load(self) -> SkyMaps:
-        """Decode every chunk now (later look-ups decode nothing)."""
+        """Decode every chunk now (later look-ups decode nothing), whatever ``max_memory_gb``
+        says: 16 bytes a sample."""
+        self._max_chunks = max(self._max_chunks, int(self._decoded.size))
         self._decode(np.arange(self._decoded.size))
         return self
 
     def _decode(self, chunks) -> None:
+        """Decode ``chunks`` (time-chunk indices) not decoded yet, then release the least recently
+        used others while more than the memory budget's chunks are held."""
         if self._codes is None:
-            self._codes = _lazy_zeros(self._array.shape[:2] + (self._width,))
-        for c in np.unique(chunks):
+            self._codes, self._mapping = _lazy_zeros(self._array.shape[:2] + (self._width,))
+        wanted = [int(c) for c in np.unique(chunks)]
+        for c in wanted:
             if not self._decoded[c]:
-                t0 = int(c) * self._tc
+                t0 = c * self._tc
                 t1 = min(self._codes.shape[0], t0 + self._tc)
                 self._codes[t0:t1, :, : len(self.bands)] = self._array[t0:t1]
                 self._decoded[c] = True
+            self._recent[c] = None
+            self._recent.move_to_end(c)
+        keep = set(wanted)
+        for c in list(self._recent):
+            if len(self._recent) <= self._max_chunks:
+                break
+            if c not in keep:
+                self._forget(c)
+
+    def _forget(self, c: int) -> None:
+        """Release time chunk ``c``'s decoded codes."""
+        row = self.pixels.size * self._width * 2  # bytes a time step
+        t0 = c * self._tc
+        t1 = min(self._codes.shape[0], t0 + self._tc)
+        _release(self._mapping, t0 * row, t1 * row)
+        self._decoded[c] = False
+        del self._recent[c]
+
+    def _gather(self, i0, i1, w, col, b, mag, obs) -> None:
+        """The compiled gather into ``mag``, ``obs`` of samples whose chunks are decoded."""
+        from straylight.survey.skymaps_kernel import gather_interpolate
+
+        npix = self.pixels.size
+        gather_interpolate(
+            self._codes.reshape(-1, self._width),
+            i0 * npix + col,
+            i1 * npix + col,
+            np.ascontiguousarray(w, dtype=np.float32),
+            b,
+            self._fill,
+            np.float32(self.mag_step),
+            self._offset,
+            mag,
+            obs,
+        )
 
     def _grid_position(self, times) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """For each time: the grid index before it, after it, and the weight of the later one."""
@@ -264,26 +336,27 @@ class SkyMaps:
             bad = np.ravel(pix)[np.flatnonzero(np.ravel(col) < 0)[0]]
             raise InputError(f"pixel {bad}: not in the product's footprint")
         i0, i1, w, col = (np.ravel(a) for a in np.broadcast_arrays(i0, i1, w, col))
-        if not self._decoded.all():
-            need = np.zeros(self._decoded.size, dtype=bool)
-            need[i0 // self._tc] = True
-            need[i1 // self._tc] = True
-            self._decode(np.flatnonzero(need))
-        from straylight.survey.skymaps_kernel import gather_interpolate
-
-        npix = self.pixels.size
         mag = np.empty((i0.size, b.size), dtype=np.float32)
         obs = np.empty(i0.size, dtype=bool)
-        gather_interpolate(
-            self._codes.reshape(-1, self._width),
-            i0 * npix + col,
-            i1 * npix + col,
-            np.ascontiguousarray(w, dtype=np.float32),
-            b,
-            self._fill,
-            np.float32(self.mag_step),
-            self._offset,
-            mag,
-            obs,
-        )
+        chunk = i0 // self._tc
+        need = np.unique(np.concatenate([chunk, i1 // self._tc]))
+        if need.size <= self._max_chunks:
+            self._decode(need)
+            self._gather(i0, i1, w, col, b, mag, obs)
+            return SkyValues(mag, obs)
+        # more chunks than the memory holds: a group of them at a time (a sample's later grid
+        # time may lie in the chunk after its own)
+        order = np.argsort(chunk, kind="stable")
+        starts = np.unique(chunk)
+        per_group = max(1, self._max_chunks // 2)
+        sorted_chunk = chunk[order]
+        for g in range(0, starts.size, per_group):
+            lo, hi = starts[g], starts[min(g + per_group, starts.size) - 1]
+            a, z = np.searchsorted(sorted_chunk, [lo, hi + 1])
+            idx = order[a:z]
+            self._decode(np.unique(np.concatenate([chunk[idx], i1[idx] // self._tc])))
+            part_mag = np.empty((idx.size, b.size), dtype=np.float32)
+            part_obs = np.empty(idx.size, dtype=bool)
+            self._gather(i0[idx], i1[idx], w[idx], col[idx], b, part_mag, part_obs)
+            mag[idx], obs[idx] = part_mag, part_obs
         return SkyValues(mag, obs)

@@ -142,3 +142,52 @@ def test_plan_prices_the_compact_product():
     expect = f"compact sky (sky_compact.zarr, besides): {380_160 * COMPACT_BYTES_PER_SAMPLE / 1e9:.3g} GB"
     assert expect in r.stdout, r.stdout
     assert 0.05 <= COMPACT_BYTES_PER_SAMPLE <= 0.5  # the product's budget (issue #55): <= 0.5
+
+
+def test_skymaps_within_its_memory_budget_equals_the_whole_product(compact_run, tmp_path):
+    """SkyMaps with a memory budget of two time chunks: a random batch over every chunk is
+    answered a group of chunks at a time and equals the fully decoded product's answer exactly;
+    afterwards at most two chunks stay decoded (the others' pages given back)."""
+    import shutil
+
+    import zarr
+
+    import straylight
+
+    run, cube, observable, bg = compact_run
+    copy = tmp_path / "sky_compact.zarr"
+    shutil.copytree(
+        run / "sky_compact.zarr",
+        copy,
+        ignore=lambda d, names: ["mag"] if Path(d) == run / "sky_compact.zarr" else [],
+    )
+    mag = zarr.open_array(str(run / "sky_compact.zarr" / "mag"), mode="r")
+    data, attrs, dims = mag[:], dict(mag.attrs), mag.metadata.dimension_names
+    # the same codes in chunks of 6 time steps: 12 chunks over the 72 times
+    zarr.create_array(
+        store=str(copy),
+        name="mag",
+        data=data,
+        chunks=(6, *data.shape[1:]),
+        attributes=attrs,
+        dimension_names=dims,
+        fill_value=mag.fill_value,
+    )
+    zarr.consolidate_metadata(str(copy))  # the group's consolidated metadata names the new chunks
+    whole = straylight.SkyMaps(copy).load()
+    chunk_gb = 6 * whole.pixels.size * 8 * 2 / 1e9
+    bounded = straylight.SkyMaps(copy, max_memory_gb=2.5 * chunk_gb)
+    times, pixels = bg["time"].values, bg["pixel"].values
+    rng = np.random.default_rng(11)
+    t = times[0] + (rng.random(3000) * (times[-1] - times[0]).astype(np.int64)).astype("timedelta64[ns]")
+    p = pixels[rng.integers(0, pixels.size, 3000)]
+    m0, o0 = whole.values(t, p)
+    m1, o1 = bounded.values(t, p)
+    np.testing.assert_array_equal(o1, o0)
+    np.testing.assert_array_equal(m1, m0)
+    assert bounded._decoded.sum() <= 2 and len(bounded._recent) <= 2
+    for k in range(0, 72, 7):  # maps chunk after chunk: the same, within the budget
+        np.testing.assert_array_equal(bounded.map(times[k])[0], whole.map(times[k])[0])
+        assert bounded._decoded.sum() <= 2
+    with pytest.raises(straylight.InputError, match="max_memory_gb"):
+        straylight.SkyMaps(copy, max_memory_gb=0)
