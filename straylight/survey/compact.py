@@ -31,10 +31,10 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
-from numba import njit
 
 from straylight.errors import InputError
 from straylight.util.io import atomic_path
+from straylight.util.kernel_cache import njit
 
 __all__ = [
     "COMPACT_NAME",

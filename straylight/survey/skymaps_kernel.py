@@ -4,7 +4,8 @@ call, so that opening a product does not import numba)."""
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from straylight.util.kernel_cache import njit
 
 __all__ = ["gather_interpolate"]
 
