@@ -99,7 +99,11 @@ def test_a_cache_that_is_a_file_is_refused_before_a_table_build(tmp_path, monkey
     with pytest.raises(InputError, match=f"STRAYLIGHT_CACHE = {afile}: is a file, not a folder"):
         straylight.SkyModel(config={"campaign": {"name": "cachetest"}})
     monkeypatch.setenv("STRAYLIGHT_CACHE", str(afile / "below"))
-    code, _, err = _main(["sky", "--time", "2026-01-01T00:30:00", "--ra", 10, "--dec", 20], capsys)
+    # a campaign no earlier test has built a model of (the process keeps models by config)
+    cfg = tmp_path / "cachetest.yaml"
+    cfg.write_text("campaign: {name: cachetest_cli}\n")
+    argv = ["sky", "--config", cfg, "--time", "2026-01-01T00:30:00", "--ra", 10, "--dec", 20]
+    code, _, err = _main(argv, capsys)
     assert code == 2 and err.count("\n") == 1 and f"is under {afile}, a file" in err, err
 
 
