@@ -385,27 +385,11 @@ def with_budget(ds, budget: dict, shifts=None, per_sample: bool = False):
         ``ds`` with the variables, their units and long names.
     """
     data = lambda v: getattr(v, "data", v)  # noqa: E731 - an xarray object's array, or the array
+    from straylight.survey.limits_envelope import add_limit_pair
+
+    note = "; each input's range end one standard deviation, the changes added in quadrature"
     for key, (lim, med) in budget.items():
-        name, median_name = BUDGET_VARIABLES[key]
-        what = BUDGET_LONG_NAMES[key]
-        if per_sample:
-            ds[name] = (
-                ("time", "pixel", "band"),
-                data(lim),
-                {
-                    "units": "mag(AB)",
-                    "long_name": f"5-sigma point-source limit, {what} (NaN: not observable)",
-                },
-            )
-        ds[median_name] = (
-            ("pixel", "band"),
-            data(med),
-            {
-                "units": "mag(AB)",
-                "long_name": f"median limit over observable times, {what}; each input's range end "
-                "one standard deviation, the changes added in quadrature (NaN: never observable)",
-            },
-        )
+        add_limit_pair(ds, BUDGET_VARIABLES[key], BUDGET_LONG_NAMES[key], lim, med, per_sample, note)
     for q, name in SHIFT_PERCENTILES.items():
         if shifts is None or name not in shifts:
             continue

@@ -16,6 +16,7 @@ if TYPE_CHECKING:
 __all__ = [
     "ENVELOPE_LONG_NAMES",
     "ENVELOPE_VARIABLES",
+    "add_limit_pair",
     "background_envelope_limits",
     "envelope_limits",
     "with_envelope",
@@ -155,25 +156,43 @@ def with_envelope(ds, envelope: dict, per_sample: bool = False):
         ``ds`` with the medians of :data:`ENVELOPE_VARIABLES` (and the per-sample limits),
         units and long names.
     """
-    data = lambda v: getattr(v, "data", v)  # noqa: E731 - an xarray object's array, or the array
     for end, (lim, med) in envelope.items():
-        name, median_name = ENVELOPE_VARIABLES[end]
-        what = ENVELOPE_LONG_NAMES[end]
-        if per_sample:
-            ds[name] = (
-                ("time", "pixel", "band"),
-                data(lim),
-                {
-                    "units": "mag(AB)",
-                    "long_name": f"5-sigma point-source limit, {what} (NaN: not observable)",
-                },
-            )
-        ds[median_name] = (
-            ("pixel", "band"),
-            data(med),
-            {
-                "units": "mag(AB)",
-                "long_name": f"median limit over observable times, {what} (NaN: never observable)",
-            },
-        )
+        add_limit_pair(ds, ENVELOPE_VARIABLES[end], ENVELOPE_LONG_NAMES[end], lim, med, per_sample)
     return ds
+
+
+def add_limit_pair(ds, names, what: str, lim, med, per_sample: bool, median_note: str = ""):
+    """Add to ``ds`` one variant of the limits: its per-pixel median over observable times
+    (pixel, band) and, with ``per_sample``, its per-sample limits (time, pixel, band), mag(AB).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        limits.zarr's dataset (changed in place).
+    names : tuple of str
+        (the per-sample variable's name, the median's).
+    what : str
+        The variant, as the long names say it.
+    lim, med : array-like
+        The per-sample limits and the medians (xarray objects or arrays), mag(AB).
+    per_sample : bool
+        Whether to add the per-sample limits too.
+    median_note : str, optional
+        Added to the median's long name after ``what`` (how it is computed).
+    """
+    data = getattr(med, "data", med)
+    name, median_name = names
+    if per_sample:
+        ds[name] = (
+            ("time", "pixel", "band"),
+            getattr(lim, "data", lim),
+            {"units": "mag(AB)", "long_name": f"5-sigma point-source limit, {what} (NaN: not observable)"},
+        )
+    ds[median_name] = (
+        ("pixel", "band"),
+        data,
+        {
+            "units": "mag(AB)",
+            "long_name": f"median limit over observable times, {what}{median_note} (NaN: never observable)",
+        },
+    )
