@@ -298,8 +298,6 @@ def background_budget_limits(campaign, background, bands, exposures) -> dict:
     dict of str to xarray.DataArray
         float32 (time, pixel, band) mag(AB).
     """
-    import xarray as xr
-
     terms = depth_budget(campaign, bands)
     have = set(background.data_vars)
     leaves = list(dict.fromkeys(leaf for t in terms for leaf in t.leaves))
@@ -308,22 +306,14 @@ def background_budget_limits(campaign, background, bands, exposures) -> dict:
     names = list(
         dict.fromkeys(["total"] + [n for n in (*leaves, "earthshine", "earthshine_door") if n in have])
     )
-    out = {}
-    for key, (name, _) in BUDGET_VARIABLES.items():
+    from straylight.survey.limits_envelope import per_sample_from_background
 
-        def one(observable, *arrays, name=name):
-            observable = np.asarray(observable).reshape(np.shape(arrays[0])[:2] + (-1,))[..., 0]
-            region = dict(zip(names, arrays), observable=observable)
-            return budget_limits(terms, region, exposures)[name]
-
-        out[key] = xr.apply_ufunc(
-            one,
-            background["observable"],
-            *(background[n] for n in names),
-            dask="parallelized",
-            output_dtypes=[np.float32],
-        ).transpose("time", "pixel", "band")
-    return out
+    return {
+        key: per_sample_from_background(
+            background, names, lambda region, name=name: budget_limits(terms, region, exposures)[name]
+        )
+        for key, (name, _) in BUDGET_VARIABLES.items()
+    }
 
 
 def shift_percentiles(pessimistic, nominal, observable) -> dict:

@@ -17,6 +17,7 @@ __all__ = [
     "ENVELOPE_LONG_NAMES",
     "ENVELOPE_VARIABLES",
     "add_limit_pair",
+    "per_sample_from_background",
     "background_envelope_limits",
     "envelope_limits",
     "with_envelope",
@@ -108,8 +109,6 @@ def background_envelope_limits(campaign: Campaign, background, bands, exposures)
     dict of str to xarray.DataArray
         :data:`~straylight.model.envelope.ENDS` -> float32 (time, pixel, band) mag(AB).
     """
-    import xarray as xr
-
     from straylight.model.envelope import ENDS, campaign_envelope
 
     env = campaign_envelope(campaign, bands)
@@ -118,23 +117,48 @@ def background_envelope_limits(campaign: Campaign, background, bands, exposures)
     names = list(dict.fromkeys(names))
     if not env.parameters or not all(leaf in have or leaf == "earthshine_direct" for leaf in env.leaves):
         return {}
-    out = {}
-    for end in ENDS:
+    return {
+        end: per_sample_from_background(
+            background,
+            names,
+            lambda region, end=end: envelope_limits(env, region, exposures)[f"limiting_mag_{end}"],
+        )
+        for end in ENDS
+    }
 
-        def one(observable, *arrays, end=end):
-            # apply_ufunc broadcasts the (time, pixel) flags to the bands' dims: one column
-            observable = np.asarray(observable).reshape(np.shape(arrays[0])[:2] + (-1,))[..., 0]
-            region = dict(zip(names, arrays), observable=observable)
-            return envelope_limits(env, region, exposures)[f"limiting_mag_{end}"]
 
-        out[end] = xr.apply_ufunc(
-            one,
-            background["observable"],
-            *(background[n] for n in names),
-            dask="parallelized",
-            output_dtypes=[np.float32],
-        ).transpose("time", "pixel", "band")
-    return out
+def per_sample_from_background(background, names, limits_of):
+    """Per-sample limits (time, pixel, band) from a stored background, block by block.
+
+    Parameters
+    ----------
+    background : xarray.Dataset
+        background.zarr's dataset (dask-backed or not), with ``observable``.
+    names : list of str
+        Its variables each block's region holds (e-/s/pixel).
+    limits_of : callable
+        region (dict: name -> (time, pixel, band) array, ``observable`` -> (time, pixel)) ->
+        limits (time, pixel, band), mag(AB).
+
+    Returns
+    -------
+    xarray.DataArray
+        float32 limits, dims (time, pixel, band).
+    """
+    import xarray as xr
+
+    def one(observable, *arrays):
+        # apply_ufunc broadcasts the (time, pixel) flags to the bands' dims: one column
+        observable = np.asarray(observable).reshape(np.shape(arrays[0])[:2] + (-1,))[..., 0]
+        return limits_of(dict(zip(names, arrays), observable=observable))
+
+    return xr.apply_ufunc(
+        one,
+        background["observable"],
+        *(background[n] for n in names),
+        dask="parallelized",
+        output_dtypes=[np.float32],
+    ).transpose("time", "pixel", "band")
 
 
 def with_envelope(ds, envelope: dict, per_sample: bool = False):
