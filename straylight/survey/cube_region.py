@@ -229,14 +229,59 @@ def region_values(
         obs[steps], viol[steps], door[steps] = (
             _by_step(g[v], k, npix) for v in ("observable", "violations", "door_opening_deg")
         )
+        _envelope_ends(model, campaign, sc, steps, los_k, g, out, k, npix)
         if angles is not None:
             for name in OBSERVABILITY_ANGLES:
                 angles[name][steps] = _by_step(g[name], k, npix)
     # the parts the envelope scales apart are needed where observable only: NaN elsewhere, which
     # the store compresses to almost nothing (the components stay everywhere)
+    ends = bool(_end_models(model, campaign))
     for name in cube_layout.CUBE_PART_VARIABLES:
-        out[name][~obs] = np.nan
+        at_end = name.rpartition("_")[2] in ("optimistic", "pessimistic")
+        if at_end and not ends:  # no envelope.members: nothing re-evaluated
+            out[name][...] = np.nan
+        else:
+            out[name][~obs] = np.nan
     return {**out, "observable": obs, "violations": viol, "door_opening_deg": door}
+
+
+def _end_models(model, campaign) -> dict:
+    """The models at the assumption envelope's re-evaluated ends (end -> BackgroundModel;
+    {} without the instrument's ``envelope.members``), built once per model."""
+    cache = model.__dict__.get("_envelope_end_models")
+    if cache is None:
+        from straylight.model import BackgroundModel
+        from straylight.model.envelope import ENDS, end_campaign
+
+        env = campaign.instrument_settings.envelope
+        cache = {}
+        if env is not None and env.members is not None:
+            cache = {
+                e: BackgroundModel(end_campaign(campaign, e), build_workers=model.build_workers) for e in ENDS
+            }
+        model.__dict__["_envelope_end_models"] = cache
+    return cache
+
+
+def _envelope_ends(model, campaign, sc, steps, los_k, g, out, k, npix) -> None:
+    """The parts the envelope's members change, re-evaluated at each end at a batch's observable
+    samples, into ``out``'s ``<part>_<end>`` variables (NaN elsewhere)."""
+    from straylight.model.envelope import end_part_name, end_parts
+
+    models = _end_models(model, campaign)
+    sel = np.flatnonzero(np.asarray(g["observable"], bool))
+    if not models or not sel.size:
+        return
+    scene_of = np.repeat(np.arange(k), npix)[sel]
+    sat = np.take(sc.satellite_km[steps], scene_of, axis=0)
+    bodies = {b: np.take(v[steps], scene_of, axis=0) for b, v in sc.bodies_km.items()}
+    geom = {name: np.asarray(v)[sel] for name, v in g.items() if np.shape(v)[:1] == (k * npix,)}
+    los = np.take(los_k, sel, axis=0)
+    for end, end_model in models.items():
+        for leaf, v in end_parts(end_model, sat, bodies, los, geom, campaign.bands).items():
+            name = end_part_name(leaf, end)
+            if name in out:
+                out[name][steps].reshape(k * npix, -1)[sel] = v
 
 
 def _checked_scene(sc, times):

@@ -110,13 +110,19 @@ def empty_cube(campaign: Campaign, fp: Footprint, times, model, stars_path=None,
     long_names = registry.long_names()
     for comp in registry.component_names(total=True) + cube_layout.CUBE_PART_VARIABLES:
         part = comp in cube_layout.CUBE_PART_VARIABLES  # kept where observable only
+        leaf, _, end = comp.rpartition("_")
+        at_end = part and end in ("optimistic", "pessimistic")
         data[comp] = xr.Variable(
             ("time", "pixel", "band"),
             da.zeros((nt, npix, nb), chunks=chunks3, dtype=np.float32),
             {
                 "units": "electron / (s pixel)",
-                "long_name": long_names[comp]
-                + (", part of earthshine (NaN: not observable)" if part else ""),
+                "long_name": (
+                    f"{long_names[leaf]} at the assumption envelope's {end} end, re-evaluated "
+                    "(NaN: not observable, or no envelope.members)"
+                )
+                if at_end
+                else long_names[comp] + (", part of earthshine (NaN: not observable)" if part else ""),
             },
         )
     data["observable"] = xr.Variable(

@@ -66,14 +66,15 @@ def test_earth_albedo_range_is_ecss_zonal_model_over_csst_latitudes(campaign):
 
 
 def test_envelope_scales_the_declared_parts(campaign):
-    """The registry's declarations reach the envelope: the PST's tail scales the Sun, the Moon and
-    both earthshine parts, the door's reflectance the earthshine via the door only, the albedo
+    """The registry's declarations reach the envelope: the calibrated members (the PST's tail, the
+    door and the body) change the Sun, the Moon and both earthshine parts, the albedo
     both earthshine parts; the pessimistic factors are >= 1 >= the optimistic ones (the
     unpublished zero points' offsets <= 0 <= their optimistic ones)."""
     env = campaign_envelope(campaign)
     scales = {p.key: set(p.leaves) for p in env.parameters}
-    assert scales["pst_tail"] == {"sun", "moon", "earthshine_direct", "earthshine_door"}
-    assert scales["door_reflectance"] == {"earthshine_door"}
+    # the default instrument's tail, door and body are carried jointly (envelope.members), re-evaluated
+    assert scales["calibrated_members"] == {"sun", "moon", "earthshine_direct", "earthshine_door"}
+    assert "pst_tail" not in scales and "door_reflectance" not in scales
     assert scales["earth_albedo"] == {"earthshine_direct", "earthshine_door"}
     for p in env.parameters:
         if p.zero_point:  # offsets (mag): the pessimistic end the fainter zero point
