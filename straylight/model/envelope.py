@@ -31,7 +31,8 @@ times per-band factors, summed: no second evaluation.
   median crossing within a tolerance (scripts/envelope_members.py).  The model is re-evaluated
   at each (:func:`end_campaign`: the default PST with that tail, log-linear from the 30-deg
   anchor, so the change grows from zero at 30 deg to its full value at 90 deg), and the parts it
-  scales at the end are those of the re-evaluation (``<part>_<end>``: :func:`end_part_name`);
+  scales at the end are those of the re-evaluation, summed in :data:`MEMBER_GROUPS`
+  (``<group>_<end>``: :func:`end_part_name`);
   ``pst_tail`` and ``door_reflectance`` are then not carried apart.
 
 The optimistic end takes every parameter's dark end, the pessimistic end its bright end (for
@@ -48,6 +49,7 @@ from straylight.errors import ConfigError
 
 __all__ = [
     "ENDS",
+    "MEMBER_GROUPS",
     "MEMBER_LEAVES",
     "Envelope",
     "EnvelopeParameter",
@@ -62,6 +64,10 @@ ENDS = ("optimistic", "pessimistic")
 #: the parts the calibrated members change (the PST's tail: the Sun, the Moon and both
 #: earthshine paths; the door and the body: the earthshine via the door), re-evaluated at each end
 MEMBER_LEAVES = ("sun", "moon", "earthshine_direct", "earthshine_door")
+#: how the re-evaluated parts are kept at an end (the cube's ``<group>_<end>``): summed in groups
+#: that the other parameters scale alike (the albedo both earthshine paths, nothing the Sun and
+#: the Moon), so two variables per end instead of four
+MEMBER_GROUPS = {"earthshine": ("earthshine_direct", "earthshine_door"), "sun_moon": ("sun", "moon")}
 
 
 def end_part_name(leaf: str, end: str) -> str:
@@ -93,7 +99,8 @@ class EnvelopeParameter:
         every part and to the limit, and ``leaves`` is empty.
     reevaluated : bool
         Whether its ends are re-evaluations of the model (the calibrated members): then its
-        ``leaves`` at an end are the parts ``<leaf>_<end>`` (:func:`end_part_name`), and
+        ``leaves`` at an end are the groups ``<group>_<end>`` of :data:`MEMBER_GROUPS`
+        (:func:`end_part_name`), and
         ``dark`` and ``bright`` are ones.
     """
 
@@ -131,9 +138,8 @@ class Envelope:
         out = []
         for p in self.parameters:
             out += [leaf for leaf in p.leaves if leaf not in out]
-        for p in self.parameters:
-            if p.reevaluated:
-                out += [end_part_name(leaf, e) for e in ENDS for leaf in p.leaves]
+        if any(p.reevaluated for p in self.parameters):
+            out += [end_part_name(g, e) for e in ENDS for g in MEMBER_GROUPS]
         return tuple(dict.fromkeys(out))
 
     def _reevaluated(self, only=None) -> tuple:
@@ -217,14 +223,21 @@ class Envelope:
             e-/s/pix.
         """
         out = np.array(total, dtype=np.float64)
-        again = self._reevaluated(only)
-        for leaf, f in self.factors(end, only).items():
-            f = np.asarray(f, np.float64)
-            if leaf in again:  # the end's re-evaluated part, times the other parameters' factors
-                end_part = np.asarray(parts[end_part_name(leaf, end)], np.float64)
-                out += end_part * f - np.asarray(parts[leaf], np.float64)
-            else:
-                out += np.asarray(parts[leaf], np.float64) * (f - 1.0)
+        fac = self.factors(end, only)
+        done = set()
+        if self._reevaluated(only):
+            # the end's re-evaluated groups, times the other parameters' factors (alike in a group)
+            for group, leaves in MEMBER_GROUPS.items():
+                f = [np.asarray(fac.get(leaf, 1.0), np.float64) for leaf in leaves]
+                if not all(np.array_equal(x, f[0]) for x in f):
+                    raise ValueError(f"envelope: the parts of {group!r} are scaled unalike: {f}")
+                out += np.asarray(parts[end_part_name(group, end)], np.float64) * f[0]
+                for leaf in leaves:
+                    out -= np.asarray(parts[leaf], np.float64)
+                done.update(leaves)
+        for leaf, f in fac.items():
+            if leaf not in done:
+                out += np.asarray(parts[leaf], np.float64) * (np.asarray(f, np.float64) - 1.0)
         shift = self.zero_point_shift(end, only)
         if np.any(shift != 0):  # the band's throughput: every part
             out *= 10.0 ** (0.4 * shift)
@@ -250,7 +263,8 @@ class Envelope:
                 out[p.key] = {
                     "parameter": p.name,
                     "scales": list(p.leaves),
-                    "reevaluated": "the model re-evaluated at each end's values",
+                    "reevaluated": "the model re-evaluated at each end's values: background.zarr's "
+                    + ", ".join(f"{g}_<end>" for g in MEMBER_GROUPS),
                     "range": [float(v) for v in p.range],
                     "unit": p.unit,
                     "source": p.source,
@@ -550,9 +564,10 @@ def end_parts(end_model, sat_km, bodies_km, los, geometry, bands) -> dict:
     Returns
     -------
     dict of str to ndarray, shape (n, n_bands)
-        :data:`MEMBER_LEAVES` -> e-/s/pix.
+        :data:`MEMBER_GROUPS` -> the sum of the group's parts, e-/s/pix.
     """
     res = end_model.evaluate(sat_km, bodies_km, los, geometry, list(bands))
     return {
-        leaf: np.stack([np.asarray(res[b][leaf], float) for b in bands], axis=-1) for leaf in MEMBER_LEAVES
+        g: np.stack([sum(np.asarray(res[b][leaf], float) for leaf in leaves) for b in bands], axis=-1)
+        for g, leaves in MEMBER_GROUPS.items()
     }

@@ -52,12 +52,10 @@ OBSERVABILITY_VARIABLES = ("observable", "violations") + OBSERVABILITY_ANGLES + 
 #: parts of a component the cube stores beside it, (time, pixel, band) e-/s/pix, where observable
 #: (NaN elsewhere): the earthshine via the door, which the assumption envelope scales apart from
 #: the direct earthshine (straylight.model.envelope; the direct part is the earthshine minus it)
-#: and the parts the envelope's calibrated members change, re-evaluated at each end
-#: (``<part>_<end>``: straylight.model.envelope.end_part_name; NaN without members)
+#: and the parts the envelope's calibrated members change, re-evaluated at each end and summed
+#: in groups (``<group>_<end>``: straylight.model.envelope.MEMBER_GROUPS; NaN without members)
 CUBE_PART_VARIABLES = ("earthshine_door",) + tuple(
-    f"{leaf}_{end}"
-    for end in ("optimistic", "pessimistic")
-    for leaf in ("sun", "moon", "earthshine_direct", "earthshine_door")
+    f"{group}_{end}" for end in ("optimistic", "pessimistic") for group in ("earthshine", "sun_moon")
 )
 #: limits.zarr's variables the cube's workers write, region by region
 #: (:func:`straylight.survey.cube_store.region_limits`): the limits, the observability, and the

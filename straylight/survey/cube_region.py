@@ -278,8 +278,8 @@ def _envelope_ends(model, campaign, sc, steps, los_k, g, out, k, npix) -> None:
     geom = {name: np.asarray(v)[sel] for name, v in g.items() if np.shape(v)[:1] == (k * npix,)}
     los = np.take(los_k, sel, axis=0)
     for end, end_model in models.items():
-        for leaf, v in end_parts(end_model, sat, bodies, los, geom, campaign.bands).items():
-            name = end_part_name(leaf, end)
+        for group, v in end_parts(end_model, sat, bodies, los, geom, campaign.bands).items():
+            name = end_part_name(group, end)
             if name in out:
                 out[name][steps].reshape(k * npix, -1)[sel] = v
 

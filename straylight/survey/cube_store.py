@@ -118,8 +118,8 @@ def empty_cube(campaign: Campaign, fp: Footprint, times, model, stars_path=None,
             {
                 "units": "electron / (s pixel)",
                 "long_name": (
-                    f"{long_names[leaf]} at the assumption envelope's {end} end, re-evaluated "
-                    "(NaN: not observable, or no envelope.members)"
+                    f"{long_names.get(leaf, 'sun and moon')} at the assumption envelope's {end} end, "
+                    "re-evaluated (NaN: not observable, or no envelope.members)"
                 )
                 if at_end
                 else long_names[comp] + (", part of earthshine (NaN: not observable)" if part else ""),

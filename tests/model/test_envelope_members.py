@@ -17,6 +17,7 @@ import yaml
 from straylight.config import campaign_from_dict, deep_merge
 from straylight.model import BackgroundModel
 from straylight.model.envelope import (
+    MEMBER_GROUPS,
     MEMBER_LEAVES,
     Envelope,
     campaign_envelope,
@@ -106,6 +107,7 @@ def test_each_end_equals_the_model_reevaluated_through_the_config(evaluated, end
     ref, parts = evaluated["ends"][end]
     region = {leaf: _stack(nom, bands, leaf) for leaf in MEMBER_LEAVES}
     region.update({end_part_name(k, end): v for k, v in parts.items()})
+    assert set(parts) == set(MEMBER_GROUPS)
     total = _stack(nom, bands, "total") - sum(_stack(nom, bands, k) for k in NOT_CARRIED)
     got = members.scaled_total(total, region, end)
     want = _stack(ref, bands, "total") - sum(_stack(ref, bands, k) for k in NOT_CARRIED)
