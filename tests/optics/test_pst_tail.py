@@ -67,7 +67,7 @@ def test_sunlit_phases_cross_hsts_level_70_deg_from_the_bright_limb_in_the_media
 
 
 def test_no_parameter_depends_on_the_110_deg_rule(campaign, coarse_crossings):
-    """ "Every sunlit phase crosses within 110 deg" is a check of ours, not the paper's: it sets
+    """The rule "every sunlit phase crosses within 110 deg" is a check of ours, not the paper's: it sets
     nothing.  No instrument parameter's source cites it (the door's reflectance was once the
     largest round value meeting it); the door and the body come from their priors, the tail
     from the paper's median alone (docs/pst.md).  The latest crossing is a figure: across the
