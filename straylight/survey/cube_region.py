@@ -274,7 +274,8 @@ def _envelope_ends(model, campaign, sc, steps, los_k, g, out, k, npix) -> None:
         return
     scene_of = np.repeat(np.arange(k), npix)[sel]
     sat = np.take(sc.satellite_km[steps], scene_of, axis=0)
-    bodies = {b: np.take(v[steps], scene_of, axis=0) for b, v in sc.bodies_km.items()}
+    # the Sun and the Moon only: the planets and the stars are not among the members' parts
+    bodies = {b: np.take(sc.bodies_km[b][steps], scene_of, axis=0) for b in ("sun", "moon")}
     geom = {name: np.asarray(v)[sel] for name, v in g.items() if np.shape(v)[:1] == (k * npix,)}
     los = np.take(los_k, sel, axis=0)
     for end, end_model in models.items():
