@@ -31,6 +31,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "CUBE_PART_VARIABLES",
+    "is_envelope_end_part",
     "CUBE_PIXEL_VARIABLES",
     "LIMITS_REGION_VARIABLES",
     "OBSERVABILITY_ANGLES",
@@ -57,6 +58,14 @@ OBSERVABILITY_VARIABLES = ("observable", "violations") + OBSERVABILITY_ANGLES + 
 CUBE_PART_VARIABLES = ("earthshine_door",) + tuple(
     f"{group}_{end}" for end in ("optimistic", "pessimistic") for group in ("earthshine", "sun_moon")
 )
+
+
+def is_envelope_end_part(name: str) -> bool:
+    """Whether a cube variable is one of the envelope's re-evaluated groups (``<group>_<end>``,
+    the last of :data:`CUBE_PART_VARIABLES`): not a model output."""
+    return name in CUBE_PART_VARIABLES[1:]
+
+
 #: limits.zarr's variables the cube's workers write, region by region
 #: (:func:`straylight.survey.cube_store.region_limits`): the limits, the observability, and the
 #: limits at the assumption envelope's two ends (NaN where not observable; kept in the work store

@@ -190,6 +190,7 @@ def region_values(
     # or more (a default region's block is), fewer page faults than one array per component
     # the components, the total and the parts the envelope scales apart (CUBE_PART_VARIABLES)
     names = registry.component_names(total=True) + cube_layout.CUBE_PART_VARIABLES
+    n_model = len(names) - sum(cube_layout.is_envelope_end_part(n) for n in names)
     block = np.zeros((len(names), nt, npix, nb), np.float32)
     out = dict(zip(names, block))
     obs = np.zeros((nt, npix), bool)
@@ -212,7 +213,8 @@ def region_values(
         faint_k = None if faint is None else {b: np.tile(v, k) for b, v in faint.items()}
         # written straight into the region's float32 block: a view (the steps are consecutive,
         # so step and pixel merge into the batch's step-major samples)
-        into = (names, block[:, steps].reshape(len(names), k * npix, nb))
+        # (the envelope's re-evaluated groups, last, are not the model's: _envelope_ends fills them)
+        into = (names[:n_model], block[:n_model, steps].reshape(n_model, k * npix, nb))
         g, _ = background_at(
             model,
             sc.satellite_km[steps],
@@ -237,8 +239,7 @@ def region_values(
     # the store compresses to almost nothing (the components stay everywhere)
     ends = bool(_end_models(model, campaign))
     for name in cube_layout.CUBE_PART_VARIABLES:
-        at_end = name.rpartition("_")[2] in ("optimistic", "pessimistic")
-        if at_end and not ends:  # no envelope.members: nothing re-evaluated
+        if cube_layout.is_envelope_end_part(name) and not ends:  # no envelope.members: nothing re-evaluated
             out[name][...] = np.nan
         else:
             out[name][~obs] = np.nan
