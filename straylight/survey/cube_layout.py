@@ -31,6 +31,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "CUBE_PART_VARIABLES",
+    "ENVELOPE_END_VARIABLES",
     "is_envelope_end_part",
     "CUBE_PIXEL_VARIABLES",
     "LIMITS_REGION_VARIABLES",
@@ -53,17 +54,20 @@ OBSERVABILITY_VARIABLES = ("observable", "violations") + OBSERVABILITY_ANGLES + 
 #: parts of a component the cube stores beside it, (time, pixel, band) e-/s/pix, where observable
 #: (NaN elsewhere): the earthshine via the door, which the assumption envelope scales apart from
 #: the direct earthshine (straylight.model.envelope; the direct part is the earthshine minus it)
-#: and the parts the envelope's calibrated members change, re-evaluated at each end and summed
-#: in groups (``<group>_<end>``: straylight.model.envelope.MEMBER_GROUPS; NaN without members)
-CUBE_PART_VARIABLES = ("earthshine_door",) + tuple(
+CUBE_PART_VARIABLES = ("earthshine_door",)
+#: the parts the envelope's calibrated members change, re-evaluated at each end and summed in
+#: groups (``<group>_<end>``: straylight.model.envelope.MEMBER_GROUPS; NaN where not observable
+#: or without members): a region's workers compute them for the ends' limits (limits.zarr's
+#: pessimistic and optimistic depths); background.zarr does not keep them (its size)
+ENVELOPE_END_VARIABLES = tuple(
     f"{group}_{end}" for end in ("optimistic", "pessimistic") for group in ("earthshine", "sun_moon")
 )
 
 
 def is_envelope_end_part(name: str) -> bool:
-    """Whether a cube variable is one of the envelope's re-evaluated groups (``<group>_<end>``,
-    the last of :data:`CUBE_PART_VARIABLES`): not a model output."""
-    return name in CUBE_PART_VARIABLES[1:]
+    """Whether a region's variable is one of the envelope's re-evaluated groups
+    (:data:`ENVELOPE_END_VARIABLES`): not a model output, not stored."""
+    return name in ENVELOPE_END_VARIABLES
 
 
 #: limits.zarr's variables the cube's workers write, region by region

@@ -127,7 +127,9 @@ def compute_region(
 
         model = BackgroundModel(campaign)
     values = region_values(campaign, fp, t_slice, p_slice, model, stars, faint_map, scene, angles)
-    return xr.Dataset({name: (_dims(name), v) for name, v in values.items()})
+    return xr.Dataset(
+        {name: (_dims(name), v) for name, v in values.items() if not cube_layout.is_envelope_end_part(name)}
+    )
 
 
 def _dims(name: str) -> tuple:
@@ -163,8 +165,10 @@ def region_values(
     dict of str to ndarray
         Each component (:func:`~straylight.model.registry.component_names`), ``total`` and
         each part of :data:`~straylight.survey.cube_layout.CUBE_PART_VARIABLES`
-        (NaN where not observable): float32, shape (n_time, n_pixel, n_band), e-/s/pix (views
-        into one block);
+        (NaN where not observable) and of
+        :data:`~straylight.survey.cube_layout.ENVELOPE_END_VARIABLES` (the envelope's
+        re-evaluated ends, for the region's limits; not stored): float32, shape (n_time,
+        n_pixel, n_band), e-/s/pix (views into one block);
         ``observable``: bool, (n_time, n_pixel); ``violations``: uint8 bit mask,
         (n_time, n_pixel); ``door_opening_deg``: float32 deg, (n_time, n_pixel).
 
@@ -189,7 +193,11 @@ def region_values(
     # one allocation for every component: numpy asks the kernel for huge pages on arrays of 4 MiB
     # or more (a default region's block is), fewer page faults than one array per component
     # the components, the total and the parts the envelope scales apart (CUBE_PART_VARIABLES)
-    names = registry.component_names(total=True) + cube_layout.CUBE_PART_VARIABLES
+    names = (
+        registry.component_names(total=True)
+        + cube_layout.CUBE_PART_VARIABLES
+        + cube_layout.ENVELOPE_END_VARIABLES
+    )
     n_model = len(names) - sum(cube_layout.is_envelope_end_part(n) for n in names)
     block = np.zeros((len(names), nt, npix, nb), np.float32)
     out = dict(zip(names, block))
@@ -238,7 +246,7 @@ def region_values(
     # the parts the envelope scales apart are needed where observable only: NaN elsewhere, which
     # the store compresses to almost nothing (the components stay everywhere)
     ends = bool(_end_models(model, campaign))
-    for name in cube_layout.CUBE_PART_VARIABLES:
+    for name in cube_layout.CUBE_PART_VARIABLES + cube_layout.ENVELOPE_END_VARIABLES:
         if cube_layout.is_envelope_end_part(name) and not ends:  # no envelope.members: nothing re-evaluated
             out[name][...] = np.nan
         else:

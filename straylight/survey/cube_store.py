@@ -42,6 +42,7 @@ from straylight.survey.cube_layout import (
     OBSERVABILITY_VARIABLES,
     CubeStores,
     cube_chunks,
+    is_envelope_end_part,
 )
 from straylight.survey.limits import ZERO_POINT_NAME, zero_point_coord
 
@@ -110,19 +111,13 @@ def empty_cube(campaign: Campaign, fp: Footprint, times, model, stars_path=None,
     long_names = registry.long_names()
     for comp in registry.component_names(total=True) + cube_layout.CUBE_PART_VARIABLES:
         part = comp in cube_layout.CUBE_PART_VARIABLES  # kept where observable only
-        leaf, _, end = comp.rpartition("_")
-        at_end = part and end in ("optimistic", "pessimistic")
         data[comp] = xr.Variable(
             ("time", "pixel", "band"),
             da.zeros((nt, npix, nb), chunks=chunks3, dtype=np.float32),
             {
                 "units": "electron / (s pixel)",
-                "long_name": (
-                    f"{long_names.get(leaf, 'sun and moon')} at the assumption envelope's {end} end, "
-                    "re-evaluated (NaN: not observable, or no envelope.members)"
-                )
-                if at_end
-                else long_names[comp] + (", part of earthshine (NaN: not observable)" if part else ""),
+                "long_name": long_names[comp]
+                + (", part of earthshine (NaN: not observable)" if part else ""),
             },
         )
     data["observable"] = xr.Variable(
@@ -423,6 +418,8 @@ class StoreArrays:
         """
         try:
             for name, values in region.items():
+                if is_envelope_end_part(name):  # for the region's limits only, not stored
+                    continue
                 self.cube[name][t_slice, p_slice] = stored_values(values, self.cube[name].attrs)
             if self.observability is not None:
                 for name in OBSERVABILITY_VARIABLES:
