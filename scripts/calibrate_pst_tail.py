@@ -45,6 +45,22 @@ def _jsonable(v):
     return v
 
 
+def _checks(s: dict, level: float, hst_curve) -> dict:
+    """The independent checks of the earthshine's shape at the solution (none sets a parameter;
+    straylight.paper.earthshine_checks)."""
+    from straylight.paper.earthshine_checks import limb_profile, sect1_figures, shape_against_hst
+    from straylight.paper.scenarios import read_hst_curve
+
+    prof = limb_profile(s["_crossings"]["bins"], 0.0, 120.0)
+    out = {
+        "limb_profile": {k: v.tolist() for k, v in prof.items()},
+        "sect1": sect1_figures(prof, s["crossing_deg"], level),
+    }
+    if hst_curve:
+        out["hst_shape"] = shape_against_hst(prof, *read_hst_curve(hst_curve))
+    return out
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--config", default=None, help="campaign config (default config/config.yaml)")
@@ -100,6 +116,7 @@ def main(argv=None) -> int:
     s["default_phase"] = d
     s["default_phase_at_configured_tail"] = d_before
     s["configured_tail_log10_at_90deg"] = campaign.instrument_settings.pst.tail_log10_at_90deg.value
+    s["checks"] = _checks(s, level, args.hst_curve)
     s["seconds"] = round(time.perf_counter() - t0, 1)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -120,7 +137,11 @@ def main(argv=None) -> int:
     print(
         "crossings over sunlit phases (deg; inf: never): " + ", ".join(f"{k} {v:.1f}" for k, v in pc.items())
     )
-    print(f"phases that never cross: {s['never_crossing']} of {s['n_sunlit']}")
+    print(
+        f"phases that never cross: {s['never_crossing']} of {s['n_sunlit']}; "
+        f"latest crossing (a figure, sets nothing): {s['latest_crossing_deg']:.1f} deg"
+    )
+    print(f"checks (set nothing): {json.dumps(_jsonable(s['checks']))}")
     for name, v in s["variants"].items():
         print(
             f"variant {name}: median crossing {v['median_crossing_deg']:.1f} deg, "

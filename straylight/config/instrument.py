@@ -223,6 +223,29 @@ class EnvelopeRange:
 
 
 @dataclass(frozen=True)
+class EnvelopeMember:
+    """One end of the assumption envelope: the PST's tail (log10 PST at 90 deg, dex), the door's
+    reflectance and the body's radius (m) taken together, and the median crossing they give
+    (deg; the paper's 70 deg within the tolerance)."""
+
+    tail_log10_at_90deg: float
+    door_reflectance: float
+    body_radius_m: float
+    median_crossing_deg: float
+
+
+@dataclass(frozen=True)
+class EnvelopeMembers:
+    """``envelope.members``: the envelope's ends as joint values that keep the paper's median
+    crossing within ``tolerance_deg`` (scripts/envelope_members.py), and their source."""
+
+    tolerance_deg: Parameter
+    pessimistic: EnvelopeMember
+    optimistic: EnvelopeMember
+    source: str
+
+
+@dataclass(frozen=True)
 class EnvelopeSettings:
     """``envelope``: the ranges of the unmeasured parameters carried into the products
     (:mod:`straylight.model.envelope`); None where the file gives no range."""
@@ -232,6 +255,8 @@ class EnvelopeSettings:
     door_reflectance: EnvelopeRange | None = None
     earth_albedo: EnvelopeRange | None = None
     earth_albedo_spectra: tuple | None = None
+    body_radius_m: EnvelopeRange | None = None
+    members: EnvelopeMembers | None = None
 
 
 @dataclass(frozen=True)
@@ -356,6 +381,8 @@ __all__ = [
     "DoorStateSettings",
     "DoorSettings",
     "EnvelopeRange",
+    "EnvelopeMember",
+    "EnvelopeMembers",
     "EnvelopeSettings",
     "DepthBudgetSettings",
     "InstrumentSettings",

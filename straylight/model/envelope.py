@@ -26,6 +26,15 @@ times per-band factors, summed: no second evaluation.
   ``bands.<band>.zero_point_offset_mag`` range, where a band has one): a zero point fainter by
   dmag scales every part of the band by 10^(0.4 dmag) and shifts its limit by dmag.
 
+* ``calibrated_members`` (the instrument's ``envelope.members``): the PST's tail, the door's
+  reflectance and the body's radius taken together, at two joint values that keep the paper's
+  median crossing within a tolerance (scripts/envelope_members.py).  The model is re-evaluated
+  at each (:func:`end_campaign`: the default PST with that tail, log-linear from the 30-deg
+  anchor, so the change grows from zero at 30 deg to its full value at 90 deg), and the parts it
+  scales at the end are those of the re-evaluation, summed in :data:`MEMBER_GROUPS`
+  (``<group>_<end>``: :func:`end_part_name`);
+  ``pst_tail`` and ``door_reflectance`` are then not carried apart.
+
 The optimistic end takes every parameter's dark end, the pessimistic end its bright end (for
 the zero point: its faint end)."""
 
@@ -38,10 +47,32 @@ import numpy as np
 
 from straylight.errors import ConfigError
 
-__all__ = ["ENDS", "Envelope", "EnvelopeParameter", "campaign_envelope"]
+__all__ = [
+    "ENDS",
+    "MEMBER_GROUPS",
+    "MEMBER_LEAVES",
+    "Envelope",
+    "EnvelopeParameter",
+    "campaign_envelope",
+    "end_campaign",
+    "end_part_name",
+    "end_parts",
+]
 
 #: the envelope's ends: every parameter at its dark end, every parameter at its bright end
 ENDS = ("optimistic", "pessimistic")
+#: the parts the calibrated members change (the PST's tail: the Sun, the Moon and both
+#: earthshine paths; the door and the body: the earthshine via the door), re-evaluated at each end
+MEMBER_LEAVES = ("sun", "moon", "earthshine_direct", "earthshine_door")
+#: how the re-evaluated parts are kept at an end (the cube's ``<group>_<end>``): summed in groups
+#: that the other parameters scale alike (the albedo both earthshine paths, nothing the Sun and
+#: the Moon), so two variables per end instead of four
+MEMBER_GROUPS = {"earthshine": ("earthshine_direct", "earthshine_door"), "sun_moon": ("sun", "moon")}
+
+
+def end_part_name(leaf: str, end: str) -> str:
+    """The name of a part re-evaluated at an end of the envelope (a cube variable)."""
+    return f"{leaf}_{end}"
 
 
 @dataclass(frozen=True)
@@ -66,6 +97,11 @@ class EnvelopeParameter:
         Whether it is a zero point's offset: then ``dark`` and ``bright`` are the offsets (mag,
         per band) from the nominal zero point at the optimistic and pessimistic ends, applied to
         every part and to the limit, and ``leaves`` is empty.
+    reevaluated : bool
+        Whether its ends are re-evaluations of the model (the calibrated members): then its
+        ``leaves`` at an end are the groups ``<group>_<end>`` of :data:`MEMBER_GROUPS`
+        (:func:`end_part_name`), and
+        ``dark`` and ``bright`` are ones.
     """
 
     key: str
@@ -77,6 +113,7 @@ class EnvelopeParameter:
     unit: str
     source: str
     zero_point: bool = False
+    reevaluated: bool = False
 
 
 class Envelope:
@@ -96,10 +133,21 @@ class Envelope:
 
     @property
     def leaves(self) -> tuple:
-        """The parts some parameter scales, in the order first met."""
+        """The parts some parameter scales, in the order first met, then the parts re-evaluated
+        at the ends (:func:`end_part_name`)."""
         out = []
         for p in self.parameters:
             out += [leaf for leaf in p.leaves if leaf not in out]
+        if any(p.reevaluated for p in self.parameters):
+            out += [end_part_name(g, e) for e in ENDS for g in MEMBER_GROUPS]
+        return tuple(dict.fromkeys(out))
+
+    def _reevaluated(self, only=None) -> tuple:
+        """The re-evaluated parts (of the parameters ``only`` selects)."""
+        out = []
+        for p in self.parameters:
+            if p.reevaluated and (only is None or p.key == only):
+                out += [leaf for leaf in p.leaves if leaf not in out]
         return tuple(out)
 
     def factors(self, end: str, only=None) -> dict:
@@ -124,7 +172,7 @@ class Envelope:
         for p in self.parameters:
             if p.zero_point or (only is not None and p.key != only):
                 continue
-            f = p.dark if end == "optimistic" else p.bright
+            f = p.dark if end == "optimistic" else p.bright  # ones for a re-evaluated one
             for leaf in p.leaves:
                 out[leaf] = out.get(leaf, 1.0) * f
         return out
@@ -162,7 +210,8 @@ class Envelope:
         total : array_like, shape (..., n_bands)
             The nominal total, e-/s/pix.
         parts : mapping of str to array_like, shape (..., n_bands)
-            The nominal parts the envelope scales (:attr:`leaves`), e-/s/pix.
+            The nominal parts the envelope scales and those re-evaluated at the ends
+            (:attr:`leaves`), e-/s/pix.
         end : str
             One of :data:`ENDS`.
         only : str or None
@@ -174,8 +223,21 @@ class Envelope:
             e-/s/pix.
         """
         out = np.array(total, dtype=np.float64)
-        for leaf, f in self.factors(end, only).items():
-            out += np.asarray(parts[leaf], np.float64) * (np.asarray(f, np.float64) - 1.0)
+        fac = self.factors(end, only)
+        done = set()
+        if self._reevaluated(only):
+            # the end's re-evaluated groups, times the other parameters' factors (alike in a group)
+            for group, leaves in MEMBER_GROUPS.items():
+                f = [np.asarray(fac.get(leaf, 1.0), np.float64) for leaf in leaves]
+                if not all(np.array_equal(x, f[0]) for x in f):
+                    raise ValueError(f"envelope: the parts of {group!r} are scaled unalike: {f}")
+                out += np.asarray(parts[end_part_name(group, end)], np.float64) * f[0]
+                for leaf in leaves:
+                    out -= np.asarray(parts[leaf], np.float64)
+                done.update(leaves)
+        for leaf, f in fac.items():
+            if leaf not in done:
+                out += np.asarray(parts[leaf], np.float64) * (np.asarray(f, np.float64) - 1.0)
         shift = self.zero_point_shift(end, only)
         if np.any(shift != 0):  # the band's throughput: every part
             out *= 10.0 ** (0.4 * shift)
@@ -193,9 +255,21 @@ class Envelope:
         """
         out = {
             "ends": "pessimistic: every parameter at its bright end; optimistic: at its dark end; "
-            "each scales its parts linearly (the other parts unchanged)",
+            "each scales its parts linearly (the other parts unchanged), except a re-evaluated one, "
+            "whose parts at an end are the model's at that end's values",
         }
         for p in self.parameters:
+            if p.reevaluated:
+                out[p.key] = {
+                    "parameter": p.name,
+                    "scales": list(p.leaves),
+                    "reevaluated": "the model re-evaluated at each end's values: background.zarr's "
+                    + ", ".join(f"{g}_<end>" for g in MEMBER_GROUPS),
+                    "range": [float(v) for v in p.range],
+                    "unit": p.unit,
+                    "source": p.source,
+                }
+                continue
             out[p.key] = {
                 "parameter": p.name,
                 "scales": ["every part (the band's throughput); the limit by the offset"]
@@ -337,7 +411,17 @@ def campaign_envelope(campaign, bands=None, context=None) -> Envelope:
             from straylight.sources.context import SourceContext
 
             context = SourceContext(campaign)
-        for key, (name, leaves) in _declared().items():
+        # the members move the default PST's tail: with a PST file their tail would not apply
+        members = env.members if campaign.instrument_settings.pst.file is None else None
+        declared = _declared()
+        if members is not None:
+            leaves = tuple(
+                x for key in ("pst_tail", "door_reflectance") for x in declared.get(key, ("", ()))[1]
+            )
+            params.append(_members(campaign, members, tuple(dict.fromkeys(leaves)), bands))
+        for key, (name, leaves) in declared.items():
+            if members is not None and key in ("pst_tail", "door_reflectance"):
+                continue  # within the members
             spec = getattr(env, _BUILDERS.get(key, key), None)
             if spec is None:
                 continue
@@ -383,3 +467,107 @@ def _zero_point(campaign, bands) -> EnvelopeParameter | None:
         "; ".join(sources),
         True,
     )
+
+
+def _members(campaign, members, leaves, bands) -> EnvelopeParameter:
+    """The calibrated members as one re-evaluated parameter."""
+    ends = (members.optimistic, members.pessimistic)
+    tails = [m.tail_log10_at_90deg for m in ends]
+    return EnvelopeParameter(
+        "calibrated_members",
+        "instrument pst.tail_log10_at_90deg, door_geometry reflectance and body_radius_m, jointly "
+        "(envelope.members)",
+        leaves,
+        np.ones(len(bands)),
+        np.ones(len(bands)),
+        tuple(tails),
+        "dex (the tail at each end; the door and the body with it)",
+        f"optimistic {_describe(members.optimistic)}; pessimistic {_describe(members.pessimistic)}; "
+        f"median crossing within {members.tolerance_deg.value:g} deg of the paper's: {members.source}",
+        reevaluated=True,
+    )
+
+
+def _describe(m) -> str:
+    return (
+        f"tail {m.tail_log10_at_90deg:.2f} dex, door {m.door_reflectance:g}, body {m.body_radius_m:g} m "
+        f"(median crossing {m.median_crossing_deg:.1f} deg)"
+    )
+
+
+def end_campaign(campaign, end: str):
+    """``campaign`` with the instrument's tail, door reflectance and body radius at an end's
+    member (``envelope.members``): the model evaluated through it is the end's re-evaluation.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        The campaign.
+    end : str
+        One of :data:`ENDS`.
+
+    Returns
+    -------
+    Campaign
+
+    Raises
+    ------
+    ConfigError
+        When the instrument has no ``envelope.members``.
+    """
+    from straylight.config import Campaign
+    from straylight.config.loading import deep_merge
+
+    if end not in ENDS:
+        raise ValueError(f"envelope end {end!r}: one of {ENDS}")
+    env = campaign.instrument_settings.envelope
+    if env is None or env.members is None:
+        raise ConfigError("instrument envelope.members: needed for the envelope's re-evaluated ends")
+    m = getattr(env.members, end)
+    inst = campaign.instrument
+    src = f"envelope.members.{end}"
+
+    def q(section, key, value):
+        d = dict(inst.get(section, {}).get(key) or {})
+        d.update(value=float(value), source=src)
+        d.setdefault("unit", "1")
+        return d
+
+    change = {
+        "pst": {"tail_log10_at_90deg": q("pst", "tail_log10_at_90deg", m.tail_log10_at_90deg)},
+        "door_geometry": {
+            "reflectance": q("door_geometry", "reflectance", m.door_reflectance),
+            "body_radius_m": q("door_geometry", "body_radius_m", m.body_radius_m),
+        },
+    }
+    return Campaign(
+        config=campaign.config,
+        instrument=deep_merge(inst, change),
+        path=campaign.path,
+        instrument_path=campaign.instrument_path,
+    )
+
+
+def end_parts(end_model, sat_km, bodies_km, los, geometry, bands) -> dict:
+    """The parts the members change, evaluated by ``end_model`` (the model of
+    :func:`end_campaign`) at some samples.
+
+    Parameters
+    ----------
+    end_model : BackgroundModel
+        The model at the end.
+    sat_km, bodies_km, los, geometry
+        The samples, as :meth:`BackgroundModel.evaluate` takes them.
+    bands : sequence of str
+        Bands.
+
+    Returns
+    -------
+    dict of str to ndarray, shape (n, n_bands)
+        :data:`MEMBER_GROUPS` -> the sum of the group's parts, e-/s/pix.
+    """
+    res = end_model.evaluate(sat_km, bodies_km, los, geometry, list(bands))
+    return {
+        g: np.stack([sum(np.asarray(res[b][leaf], float) for leaf in leaves) for b in bands], axis=-1)
+        for g, leaves in MEMBER_GROUPS.items()
+    }

@@ -479,6 +479,7 @@ def calibrate_tail(
         "arg_latitude_deg": phases.arg_latitude_deg[lit],
         "sun_zenith_deg": phases.sun_zenith_deg[lit],
         "never_crossing": int(np.isnan(cr["crossing_deg"]).sum()),
+        "latest_crossing_deg": _percentiles(cr["crossing_deg"], (100,))["p100"],  # a figure: sets nothing
         "phase_tail_log10": own,
         "phase_tail_percentiles": _percentiles(own),
         "n_phases": int(phases.raan_deg.size),

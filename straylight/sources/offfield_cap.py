@@ -65,7 +65,7 @@ class EarthshineSettings:
     n_psi: int = 48  # azimuth blocks
     albedo: float = 0.30
     door_blocks: tuple[int, int] = (24, 24)  # along x across the door plate
-    door_reflectance: float = 0.02  # csst.yaml door_geometry.reflectance (calibrated, docs/pst.md)
+    door_reflectance: float = 0.02  # a bare default: SourceContext passes csst.yaml door_geometry.reflectance
     n_aperture_door: int = 256  # aperture points for the door-to-aperture path (128: 0.5 % of the total off)
     cut_block_split: int = 4  # children per side of a block the aperture plane cuts (direct term)
 

@@ -31,6 +31,8 @@ if TYPE_CHECKING:
 
 __all__ = [
     "CUBE_PART_VARIABLES",
+    "ENVELOPE_END_VARIABLES",
+    "is_envelope_end_part",
     "CUBE_PIXEL_VARIABLES",
     "LIMITS_REGION_VARIABLES",
     "OBSERVABILITY_ANGLES",
@@ -53,6 +55,21 @@ OBSERVABILITY_VARIABLES = ("observable", "violations") + OBSERVABILITY_ANGLES + 
 #: (NaN elsewhere): the earthshine via the door, which the assumption envelope scales apart from
 #: the direct earthshine (straylight.model.envelope; the direct part is the earthshine minus it)
 CUBE_PART_VARIABLES = ("earthshine_door",)
+#: the parts the envelope's calibrated members change, re-evaluated at each end and summed in
+#: groups (``<group>_<end>``: straylight.model.envelope.MEMBER_GROUPS; NaN where not observable
+#: or without members): a region's workers compute them for the ends' limits (limits.zarr's
+#: pessimistic and optimistic depths); background.zarr does not keep them (its size)
+ENVELOPE_END_VARIABLES = tuple(
+    f"{group}_{end}" for end in ("optimistic", "pessimistic") for group in ("earthshine", "sun_moon")
+)
+
+
+def is_envelope_end_part(name: str) -> bool:
+    """Whether a region's variable is one of the envelope's re-evaluated groups
+    (:data:`ENVELOPE_END_VARIABLES`): not a model output, not stored."""
+    return name in ENVELOPE_END_VARIABLES
+
+
 #: limits.zarr's variables the cube's workers write, region by region
 #: (:func:`straylight.survey.cube_store.region_limits`): the limits, the observability, and the
 #: limits at the assumption envelope's two ends and the depth budget's 16th and 84th percentiles

@@ -127,7 +127,9 @@ def compute_region(
 
         model = BackgroundModel(campaign)
     values = region_values(campaign, fp, t_slice, p_slice, model, stars, faint_map, scene, angles)
-    return xr.Dataset({name: (_dims(name), v) for name, v in values.items()})
+    return xr.Dataset(
+        {name: (_dims(name), v) for name, v in values.items() if not cube_layout.is_envelope_end_part(name)}
+    )
 
 
 def _dims(name: str) -> tuple:
@@ -163,8 +165,10 @@ def region_values(
     dict of str to ndarray
         Each component (:func:`~straylight.model.registry.component_names`), ``total`` and
         each part of :data:`~straylight.survey.cube_layout.CUBE_PART_VARIABLES`
-        (NaN where not observable): float32, shape (n_time, n_pixel, n_band), e-/s/pix (views
-        into one block);
+        (NaN where not observable) and of
+        :data:`~straylight.survey.cube_layout.ENVELOPE_END_VARIABLES` (the envelope's
+        re-evaluated ends, for the region's limits; not stored): float32, shape (n_time,
+        n_pixel, n_band), e-/s/pix (views into one block);
         ``observable``: bool, (n_time, n_pixel); ``violations``: uint8 bit mask,
         (n_time, n_pixel); ``door_opening_deg``: float32 deg, (n_time, n_pixel).
 
@@ -189,7 +193,12 @@ def region_values(
     # one allocation for every component: numpy asks the kernel for huge pages on arrays of 4 MiB
     # or more (a default region's block is), fewer page faults than one array per component
     # the components, the total and the parts the envelope scales apart (CUBE_PART_VARIABLES)
-    names = registry.component_names(total=True) + cube_layout.CUBE_PART_VARIABLES
+    names = (
+        registry.component_names(total=True)
+        + cube_layout.CUBE_PART_VARIABLES
+        + cube_layout.ENVELOPE_END_VARIABLES
+    )
+    n_model = len(names) - sum(cube_layout.is_envelope_end_part(n) for n in names)
     block = np.zeros((len(names), nt, npix, nb), np.float32)
     out = dict(zip(names, block))
     obs = np.zeros((nt, npix), bool)
@@ -212,7 +221,8 @@ def region_values(
         faint_k = None if faint is None else {b: np.tile(v, k) for b, v in faint.items()}
         # written straight into the region's float32 block: a view (the steps are consecutive,
         # so step and pixel merge into the batch's step-major samples)
-        into = (names, block[:, steps].reshape(len(names), k * npix, nb))
+        # (the envelope's re-evaluated groups, last, are not the model's: _envelope_ends fills them)
+        into = (names[:n_model], block[:n_model, steps].reshape(n_model, k * npix, nb))
         g, _ = background_at(
             model,
             sc.satellite_km[steps],
@@ -229,14 +239,59 @@ def region_values(
         obs[steps], viol[steps], door[steps] = (
             _by_step(g[v], k, npix) for v in ("observable", "violations", "door_opening_deg")
         )
+        _envelope_ends(model, campaign, sc, steps, los_k, g, out, k, npix)
         if angles is not None:
             for name in OBSERVABILITY_ANGLES:
                 angles[name][steps] = _by_step(g[name], k, npix)
     # the parts the envelope scales apart are needed where observable only: NaN elsewhere, which
     # the store compresses to almost nothing (the components stay everywhere)
-    for name in cube_layout.CUBE_PART_VARIABLES:
-        out[name][~obs] = np.nan
+    ends = bool(_end_models(model, campaign))
+    for name in cube_layout.CUBE_PART_VARIABLES + cube_layout.ENVELOPE_END_VARIABLES:
+        if cube_layout.is_envelope_end_part(name) and not ends:  # no envelope.members: nothing re-evaluated
+            out[name][...] = np.nan
+        else:
+            out[name][~obs] = np.nan
     return {**out, "observable": obs, "violations": viol, "door_opening_deg": door}
+
+
+def _end_models(model, campaign) -> dict:
+    """The models at the assumption envelope's re-evaluated ends (end -> BackgroundModel;
+    {} without the instrument's ``envelope.members``), built once per model."""
+    cache = model.__dict__.get("_envelope_end_models")
+    if cache is None:
+        from straylight.model import BackgroundModel
+        from straylight.model.envelope import ENDS, end_campaign
+
+        env = campaign.instrument_settings.envelope
+        cache = {}
+        if env is not None and env.members is not None:
+            cache = {
+                e: BackgroundModel(end_campaign(campaign, e), build_workers=model.build_workers) for e in ENDS
+            }
+        model.__dict__["_envelope_end_models"] = cache
+    return cache
+
+
+def _envelope_ends(model, campaign, sc, steps, los_k, g, out, k, npix) -> None:
+    """The parts the envelope's members change, re-evaluated at each end at a batch's observable
+    samples, into ``out``'s ``<part>_<end>`` variables (NaN elsewhere)."""
+    from straylight.model.envelope import end_part_name, end_parts
+
+    models = _end_models(model, campaign)
+    sel = np.flatnonzero(np.asarray(g["observable"], bool))
+    if not models or not sel.size:
+        return
+    scene_of = np.repeat(np.arange(k), npix)[sel]
+    sat = np.take(sc.satellite_km[steps], scene_of, axis=0)
+    # the Sun and the Moon only: the planets and the stars are not among the members' parts
+    bodies = {b: np.take(sc.bodies_km[b][steps], scene_of, axis=0) for b in ("sun", "moon")}
+    geom = {name: np.asarray(v)[sel] for name, v in g.items() if np.shape(v)[:1] == (k * npix,)}
+    los = np.take(los_k, sel, axis=0)
+    for end, end_model in models.items():
+        for group, v in end_parts(end_model, sat, bodies, los, geom, campaign.bands).items():
+            name = end_part_name(group, end)
+            if name in out:
+                out[name][steps].reshape(k * npix, -1)[sel] = v
 
 
 def _checked_scene(sc, times):

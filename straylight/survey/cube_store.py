@@ -42,6 +42,7 @@ from straylight.survey.cube_layout import (
     OBSERVABILITY_VARIABLES,
     CubeStores,
     cube_chunks,
+    is_envelope_end_part,
 )
 from straylight.survey.limits import ZERO_POINT_NAME, zero_point_coord
 
@@ -421,6 +422,8 @@ class StoreArrays:
         """
         try:
             for name, values in region.items():
+                if is_envelope_end_part(name):  # for the region's limits only, not stored
+                    continue
                 self.cube[name][t_slice, p_slice] = stored_values(values, self.cube[name].attrs)
             if self.observability is not None:
                 for name in OBSERVABILITY_VARIABLES:

@@ -71,6 +71,10 @@ class BudgetTerm:
         Its configured range (dark, bright), or per band.
     unit, source : str
         The range's unit and where it comes from.
+    reevaluated : bool
+        Whether its ends are the model's re-evaluation (the envelope's calibrated members): then
+        ``leaves`` are the parts it changes followed by their re-evaluated groups at each end
+        (:data:`~straylight.model.envelope.MEMBER_GROUPS`), and ``factors`` are ones.
     """
 
     key: str
@@ -81,6 +85,7 @@ class BudgetTerm:
     range: tuple
     unit: str
     source: str
+    reevaluated: bool = False
 
 
 def _ones(n):
@@ -105,7 +110,7 @@ def depth_budget(campaign, bands=None, context=None) -> tuple:
     tuple of BudgetTerm
         Empty without an envelope or a ``depth_budget`` section.
     """
-    from straylight.model.envelope import campaign_envelope
+    from straylight.model.envelope import ENDS, MEMBER_GROUPS, campaign_envelope, end_part_name
 
     bands = tuple(campaign.bands if bands is None else bands)
     cache = campaign.__dict__.setdefault("_depth_budget", {})
@@ -118,6 +123,11 @@ def depth_budget(campaign, bands=None, context=None) -> tuple:
         if p.zero_point:
             terms.append(
                 BudgetTerm(p.key, (), _ones(n), (p.dark, p.bright), ({}, {}), p.range, p.unit, p.source)
+            )
+        elif p.reevaluated:
+            groups = tuple(end_part_name(g, e) for e in ENDS for g in MEMBER_GROUPS)
+            terms.append(
+                BudgetTerm(p.key, p.leaves + groups, _ones(n), zeros, ({}, {}), p.range, p.unit, p.source, True)
             )
         else:
             terms.append(
@@ -216,9 +226,18 @@ def term_limits(term: BudgetTerm, end: int, total, parts, exposures) -> np.ndarr
     from straylight.survey.limits import _limit_mag
 
     out = np.array(total, dtype=np.float64)
-    f = term.factors[end]
-    for leaf in term.leaves:
-        out += np.asarray(parts[leaf], np.float64) * (np.asarray(f, np.float64) - 1.0)
+    if term.reevaluated:
+        # the end's re-evaluated groups replace the nominal parts they sum
+        from straylight.model.envelope import ENDS, MEMBER_GROUPS, end_part_name
+
+        for group, leaves in MEMBER_GROUPS.items():
+            out += np.asarray(parts[end_part_name(group, ENDS[end])], np.float64)
+            for leaf in leaves:
+                out -= np.asarray(parts[leaf], np.float64)
+    else:
+        f = term.factors[end]
+        for leaf in term.leaves:
+            out += np.asarray(parts[leaf], np.float64) * (np.asarray(f, np.float64) - 1.0)
     zp = np.asarray(term.zero_point[end], np.float64)
     if np.any(zp != 0):
         out *= 10.0 ** (0.4 * zp)
@@ -298,8 +317,13 @@ def background_budget_limits(campaign, background, bands, exposures) -> dict:
     dict of str to xarray.DataArray
         float32 (time, pixel, band) mag(AB).
     """
-    terms = depth_budget(campaign, bands)
     have = set(background.data_vars)
+    # the members' re-evaluated groups are the cube workers', not stored: their term is left out
+    terms = [
+        t
+        for t in depth_budget(campaign, bands)
+        if not t.reevaluated or all(leaf in have or leaf == "earthshine_direct" for leaf in t.leaves)
+    ]
     leaves = list(dict.fromkeys(leaf for t in terms for leaf in t.leaves))
     if not terms or not all(leaf in have or leaf == "earthshine_direct" for leaf in leaves):
         return {}

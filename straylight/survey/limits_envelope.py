@@ -113,6 +113,12 @@ def background_envelope_limits(campaign: Campaign, background, bands, exposures)
 
     env = campaign_envelope(campaign, bands)
     have = set(background.data_vars)
+    if not all(n in have or n == "earthshine_direct" for n in env.leaves):
+        # the members' re-evaluated ends are computed by the cube's workers, not stored: from a
+        # stored background the ends carry the other parameters only
+        from straylight.model.envelope import Envelope
+
+        env = Envelope([p for p in env.parameters if not p.reevaluated], env.bands)
     names = ["total"] + [n for n in (*env.leaves, "earthshine", "earthshine_door") if n in have]
     names = list(dict.fromkeys(names))
     if not env.parameters or not all(leaf in have or leaf == "earthshine_direct" for leaf in env.leaves):

@@ -259,7 +259,7 @@ def test_depth_bounds_present_ordered_and_finite(tiny_run):
     assert np.all(pess[seen] <= med[seen] + tol) and np.all(med[seen] <= opt[seen] + tol)
     assert np.nanmax(opt - pess) > 0.01  # the envelope has a width
     env = json.loads(xr.open_zarr(out / "background.zarr").attrs["envelope"])
-    assert env["door_reflectance"]["scales"] == ["earthshine_door"]
+    assert env["calibrated_members"]["scales"] == ["sun", "moon", "earthshine_direct", "earthshine_door"]
     assert (out / "depth" / "envelope_spread.png").exists()
     assert (out / "depth" / "envelope_sensitivity.csv").exists()
 
