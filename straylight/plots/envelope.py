@@ -126,7 +126,12 @@ def envelope_sensitivity(background_store, campaign, time_blocks: int = SENSITIV
         from straylight.model.envelope import Envelope
 
         env = Envelope([p for p in env.parameters if not p.reevaluated], env.bands)
-    terms = [t for t in depth_budget(campaign, bands) if not t.reevaluated or all(n in group for n in t.leaves[-4:])]
+    # the members' term needs their re-evaluated groups, which the store lacks: its row is left out
+    terms = [
+        t
+        for t in depth_budget(campaign, bands)
+        if not t.reevaluated or all(n in group or n == "earthshine_direct" for n in t.leaves)
+    ]
     exposures = campaign_exposures(campaign, bands)
     chunk = int(group["total"].chunks[0])
     n_time = int(group["total"].shape[0])

@@ -83,6 +83,10 @@ def _region(campaign, seed=3):
     region.update(earthshine=direct + door, earthshine_door=door)
     region["total"] = sum(region[k] for k in ("zodiacal", "sun", "moon", "planets", "stars", "earthshine"))
     region["observable"] = rng.uniform(size=shape[:2]) < 0.7
+    # the envelope members' re-evaluated groups at each end (what the cube's workers compute)
+    for end, scale in (("optimistic", (0.3, 1.0)), ("pessimistic", (1.0, 4.0))):
+        region[f"earthshine_{end}"] = region["earthshine"] * rng.uniform(*scale, shape)
+        region[f"sun_moon_{end}"] = (region["sun"] + region["moon"]) * rng.uniform(*scale, shape)
     return region
 
 
@@ -138,6 +142,18 @@ def test_budget_interval_is_the_quadrature_of_each_input_alone(campaign):
         parts = {"earthshine_direct": direct, "earthshine_door": region["earthshine_door"]}
         parts.update({k: region[k] for k in ("sun", "moon")})
         for p in env.parameters:
+            if p.reevaluated:  # the members: the end's re-evaluated groups replace the parts
+                for end in ("optimistic", "pessimistic"):
+                    sky = tot + sum(
+                        (
+                            region[f"{g}_{end}"] - region[g]
+                            if g == "earthshine"
+                            else region[f"{g}_{end}"] - parts["sun"] - parts["moon"]
+                        )[..., ib][obs]
+                        for g in ("earthshine", "sun_moon")
+                    )
+                    changes.append(lim(sky=sky) - m0)
+                continue
             for f in (p.dark, p.bright):
                 if p.zero_point:
                     changes.append(lim(zp=f[ib]) - m0)
