@@ -126,9 +126,8 @@ def depth_budget(campaign, bands=None, context=None) -> tuple:
             )
         elif p.reevaluated:
             groups = tuple(end_part_name(g, e) for e in ENDS for g in MEMBER_GROUPS)
-            terms.append(
-                BudgetTerm(p.key, p.leaves + groups, _ones(n), zeros, ({}, {}), p.range, p.unit, p.source, True)
-            )
+            term = (p.key, p.leaves + groups, _ones(n), zeros, ({}, {}), p.range, p.unit, p.source)
+            terms.append(BudgetTerm(*term, reevaluated=True))
         else:
             terms.append(
                 BudgetTerm(p.key, p.leaves, (p.dark, p.bright), zeros, ({}, {}), p.range, p.unit, p.source)
