@@ -133,6 +133,7 @@ def test_public_functions_document_their_parameters(part):
 
 
 def test_documented_names_reads_numpydoc():
-    doc = "Sum.\n\nParameters\n----------\nx, y : float\n    Values, m.\n*args\n    More.\n\nReturns\n-------\nfloat\n    m."
+    doc = "Sum.\n\nParameters\n----------\nx, y : float\n    Values, m.\n*args\n    More.\n\n"
+    doc += "Returns\n-------\nfloat\n    m."
     assert documented_names(doc) == ["x", "y", "args"]
     assert documented_names("Sum of ``x`` and ``y``.") is None

@@ -3,6 +3,9 @@ its fidelity policy (:class:`FidelityPolicy`: the tolerance, its shares, the fas
 
 Imports ``straylight.sources``, ``straylight.sky`` and ``straylight.config`` (the layers below it:
 docs/architecture.md); never ``straylight.survey``.
+
+Internal: not part of the public API (``straylight.__all__``; users evaluate the model through
+:class:`straylight.SkyModel`).  ``__all__`` below names what the layers above it use.
 """
 
 from straylight.model import registry
