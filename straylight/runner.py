@@ -128,13 +128,7 @@ def check_results_folder(campaign, workdir=None) -> Path:
 
 def warn_if_large(campaign) -> str | None:
     """The campaign's size warning (:func:`straylight.survey.sizes.size_warning`), logged as one
-    line before the run starts; returns it.
-
-    Parameters
-    ----------
-    campaign : Campaign
-        The campaign.
-    """
+    line before the run starts; returns it."""
     import logging
 
     from straylight.survey.footprint import footprint_from_config

@@ -43,6 +43,13 @@ COVERED = (
     "util/kernel_cache.py",
 )
 
+#: functions of covered parts left without the section for now: the survey's split (issue #54)
+#: rewrites their docstrings' last lines, so the section is added once it has merged
+PENDING = {
+    "straylight/plots/series.py pointing_series",
+    "straylight/runner.py warn_if_large",
+}
+
 #: the numpydoc section headers (a line of one of these, then a line of dashes)
 _SECTION = re.compile(r"^(\S[^\n]*)\n-{3,}$", re.M)
 
@@ -118,7 +125,7 @@ def problems(part: str) -> list[str]:
         if any(p.startswith("_") and p != "__init__.py" for p in rel.parts):
             continue
         for name, fn in public_functions(path):
-            if fn.name.startswith("_") or _overload(fn):
+            if fn.name.startswith("_") or _overload(fn) or f"{rel} {name}" in PENDING:
                 continue
             params = _parameters(fn)
             if not params:

@@ -58,15 +58,7 @@ def pointing_series(background_path, pixel_indices) -> list[dict]:
     """Per pointing of ``pixel_indices`` (into the cube's ``pixel``), its whole series in the
     background cube at ``background_path``: name -> (time[, band]) array of every component,
     the total (:func:`~straylight.model.registry.component_names`) and ``observable``.  Read
-    chunk by chunk in this thread (:func:`~straylight.survey.storage.read_region`).
-
-    Parameters
-    ----------
-    background_path : str or pathlib.Path
-        The background cube (Zarr).
-    pixel_indices : sequence of int
-        Indices into the cube's ``pixel``.
-    """
+    chunk by chunk in this thread (:func:`~straylight.survey.storage.read_region`)."""
     import zarr
 
     from straylight.model import registry
