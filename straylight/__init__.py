@@ -12,6 +12,14 @@ Public API (small on purpose):
 * :func:`load_campaign` - a validated campaign config with its orbit, Earth model, constraints.
 * :class:`DE405` - the JPL DE405 ephemeris, vectorised over times.
 * :func:`scene`, :func:`sample_geometry` - positions and the observing geometry of samples.
+* the errors: :class:`StraylightError` (a user's mistake, its message naming the file, field and
+  value) and its kinds :class:`ConfigError`, :class:`InputError`, :class:`EphemerisRangeError`,
+  :class:`OutputError`.
+
+These names (``__all__``) are the public surface, documented in the API reference (docs/api/).
+The sub-packages and modules are internal and may change between releases, with one exception:
+``straylight.config``, whose ``__all__`` names the loading functions and typed settings a
+program may use.  ``straylight.cli`` is the command line's (``straylight --help``).
 
 The names are imported when first used (PEP 562), so a process that needs one module of the
 package (a pipeline step, a worker) does not import astropy, numba and xarray for the others.
@@ -23,6 +31,7 @@ from straylight._version import __version__ as __version__
 from straylight.errors import ConfigError as ConfigError
 from straylight.errors import EphemerisRangeError as EphemerisRangeError
 from straylight.errors import InputError as InputError
+from straylight.errors import OutputError as OutputError
 from straylight.errors import StraylightError as StraylightError
 
 #: public name -> the module that defines it
@@ -40,7 +49,9 @@ _LAZY = {
     "scene": "straylight.sky.observing",
 }
 
-__all__ = sorted(["ConfigError", "EphemerisRangeError", "InputError", "StraylightError", *_LAZY])
+__all__ = sorted(
+    ["ConfigError", "EphemerisRangeError", "InputError", "OutputError", "StraylightError", *_LAZY]
+)
 
 
 def __getattr__(name: str):

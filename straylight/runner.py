@@ -52,7 +52,19 @@ def workflow_dir() -> Path:
 def snakemake_command(config, cores: int | None = None, extra=(), workdir=None) -> list[str]:
     """The Snakemake command that runs the campaign ``config`` in ``workdir`` (default: the
     current directory), resuming what a killed run left unfinished; ``extra`` arguments go to
-    Snakemake as they are (``-n``, ``--report report.html``, ...)."""
+    Snakemake as they are (``-n``, ``--report report.html``, ...).
+
+    Parameters
+    ----------
+    config : str or os.PathLike
+        The campaign's config file.
+    cores : int, optional
+        Snakemake's ``--cores`` (default: the cores this process may use).
+    extra : sequence of str, optional
+        Arguments passed to Snakemake as they are.
+    workdir : str or os.PathLike, optional
+        The folder Snakemake runs in (default: the current directory).
+    """
     workdir = Path(workdir) if workdir is not None else Path.cwd()
     cores = available_cores() if cores is None else cores
     # -P: not the current directory on sys.path, which Snakemake hands on to the jobs: a folder
@@ -79,7 +91,13 @@ def check_campaign(config):
     """The campaign Snakemake will run from ``config``: the file merged over the default config
     (the Snakefile's configfile; a campaign file may hold only the keys it changes), each file's
     relative paths against its own folder, validated.  A mistake raises
-    :class:`~straylight.errors.ConfigError` naming the file, key and value."""
+    :class:`~straylight.errors.ConfigError` naming the file, key and value.
+
+    Parameters
+    ----------
+    config : str or os.PathLike
+        The campaign's config file.
+    """
     from straylight.config import load_campaign
 
     return load_campaign(Path(config))
@@ -88,7 +106,15 @@ def check_campaign(config):
 def check_results_folder(campaign, workdir=None) -> Path:
     """``results/<campaign name>/`` under ``workdir`` (default: the current directory), refused in
     one line when it, or ``results``, exists as something other than a folder (Snakemake would
-    fail on it after its start-up, with a long traceback)."""
+    fail on it after its start-up, with a long traceback).
+
+    Parameters
+    ----------
+    campaign : Campaign
+        The campaign (its name).
+    workdir : str or os.PathLike, optional
+        The folder the run writes ``results/`` in (default: the current directory).
+    """
     workdir = Path(workdir) if workdir is not None else Path.cwd()
     out = workdir / "results" / campaign.name
     for p in (workdir / "results", out):
@@ -183,7 +209,13 @@ class RunProgress:
         self.cube_in_run = False  # the cube's jobs listed in Snakemake's job stats
 
     def read_line(self, line: str) -> None:
-        """Take one line of Snakemake's log."""
+        """Take one line of Snakemake's log.
+
+        Parameters
+        ----------
+        line : str
+            One line of Snakemake's log.
+        """
         m = _STEP_LINE.match(line.strip())
         if _CUBE_JOBS_LINE.match(line):
             self.cube_in_run = True
@@ -323,7 +355,21 @@ def run_campaign(config, cores: int | None = None, extra=(), argv=None, verbose:
     a traceback, and one line on stderr; a re-run resumes).
     ``argv``: the ``straylight`` command line, recorded in provenance.json.  Quiet unless
     ``verbose`` or ``extra`` asks Snakemake to print rather than run (``-n``, ``--report``):
-    a progress bar and a closing line, Snakemake's log in the results folder's work/logs/."""
+    a progress bar and a closing line, Snakemake's log in the results folder's work/logs/.
+
+    Parameters
+    ----------
+    config : str or os.PathLike
+        The campaign's config file.
+    cores : int, optional
+        Snakemake's ``--cores`` (default: the cores this process may use).
+    extra : sequence of str, optional
+        Arguments passed to Snakemake as they are.
+    argv : sequence of str, optional
+        The ``straylight`` command line, recorded in provenance.json.
+    verbose : bool, optional
+        Print Snakemake's log rather than a progress bar (default False).
+    """
     if cores is not None and cores < 1:
         raise InputError(f"--cores must be at least 1, got {cores}")
     campaign = check_campaign(config)

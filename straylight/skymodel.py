@@ -255,7 +255,13 @@ class SkyModel:
 
 def checked_band_list(bands) -> None:
     """InputError for a list of bands that names a band twice (the table's columns are named by
-    band), before any model is built; None (every band) passes."""
+    band), before any model is built; None (every band) passes.
+
+    Parameters
+    ----------
+    bands : sequence of str or None
+        Band names; None: every band.
+    """
     if bands is None or isinstance(bands, str):
         return
     bands = [str(b) for b in bands]

@@ -2,4 +2,9 @@
 templates and the catalog build by template matching and synthetic photometry.
 
 Imports ``straylight.optics.bandpass`` for the bands; nothing of the survey.
+
+Internal: not part of the public API (``straylight.__all__``); its modules may change between
+releases.  Users build a catalog with ``straylight catalog`` and read it as a table.
 """
+
+__all__: list[str] = []

@@ -121,7 +121,16 @@ class TemplatePhotometry:
 
 def select_templates(library: TemplateLibrary, classes) -> TemplateLibrary:
     """The library's templates of the luminosity classes ``classes`` (stars.template_classes;
-    empty or None: the whole library).  InputError when no template is of those classes."""
+    empty or None: the whole library).  InputError when no template is of those classes.
+
+    Parameters
+    ----------
+    library : TemplateLibrary
+        The template library.
+    classes : sequence of str or None
+        Luminosity classes to keep (``"V"``, ``"IV"``, ``"III"``, ``"II"``, ``"I"``); empty or None
+        keeps the whole library.
+    """
     if not classes:
         return library
     keep = np.isin(library.luminosity_class, list(classes))
@@ -134,7 +143,17 @@ def select_templates(library: TemplateLibrary, classes) -> TemplateLibrary:
 
 
 def cross_match_fill(gaia: dict, hip: dict, match_radius_arcsec: float) -> np.ndarray:
-    """Mask of Hipparcos stars without a Gaia counterpart within the radius (positions at J2015.5)."""
+    """Mask of Hipparcos stars without a Gaia counterpart within the radius (positions at J2015.5).
+
+    Parameters
+    ----------
+    gaia : dict of str to ndarray
+        Gaia catalog columns (``ra``, ``dec`` in deg at J2015.5).
+    hip : dict of str to ndarray
+        Hipparcos star columns (ingest layout, positions at J2015.5, deg).
+    match_radius_arcsec : float
+        Match radius, arcsec.
+    """
     if len(gaia["ra"]) == 0:
         return np.ones(len(hip["ra"]), bool)
     dt = 2015.5 - np.asarray(hip["ref_epoch"], float)
@@ -153,7 +172,13 @@ def cross_match_fill(gaia: dict, hip: dict, match_radius_arcsec: float) -> np.nd
 
 
 def read_population(path) -> dict:
-    """A mock population table (Teff, log g, [Fe/H], SDSS g r i), any format astropy reads."""
+    """A mock population table (Teff, log g, [Fe/H], SDSS g r i), any format astropy reads.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The population table's file.
+    """
     from astropy.table import Table
 
     try:
@@ -215,6 +240,26 @@ def build_catalog(
     parallax is at least this many times its error take their luminosity class from M_V
     (:func:`straylight.catalog.luminosity.choose_templates`); None: colour alone.  Returns a
     dict of columns.
+
+    Parameters
+    ----------
+    stars : dict of str to ndarray
+        The stars' columns in the ingest's layout (positions in deg, magnitudes in Vega mag).
+    band_responses : dict of str to speclite.filters.FilterResponse
+        Band name -> its response.
+    library : TemplateLibrary, optional
+        The SED templates (default: the Pickles library).
+    template_classes : sequence of str, optional
+        Luminosity classes of the templates used (default: all).
+    population : dict of str to ndarray, optional
+        A mock population (Teff in K, log g in dex cgs, [Fe/H] in dex, SDSS g r i in AB mag) whose
+        nearest colours give the templates' stellar parameters.
+    photometry : TemplatePhotometry, optional
+        The templates' colours when already computed (then ``library`` and ``template_classes`` are
+        not read).
+    parallax_snr_min : float or None, optional
+        Parallax over its error above which a star's luminosity class comes from M_V; None: colour
+        alone.
     """
     if photometry is None:
         library = select_templates(library if library is not None else load_pickles(), template_classes)
@@ -305,6 +350,13 @@ def round_trip(catalog: dict, photometry: TemplatePhotometry) -> dict:
     """Template synthetic BP - RP against the input (mag): per-star differences and summary.
 
     (G needs no check: every template is scaled to the star's G, so it holds by construction.)
+
+    Parameters
+    ----------
+    catalog : dict of str to ndarray
+        Catalog columns (:func:`build_catalog`).
+    photometry : TemplatePhotometry
+        The templates' colours the catalog was built with.
     """
     idx = _template_index(catalog["template"], photometry.library.template)
     d_bp_rp = photometry.bp_rp[idx] - (catalog["phot_bp_mean_mag"] - catalog["phot_rp_mean_mag"])
@@ -343,7 +395,32 @@ def make_catalog(
     parallax_snr_min: float | None = 5.0,
 ) -> tuple[dict, dict]:
     """The full catalog from Gaia stars (ingested columns) and/or Hipparcos; returns (columns, summary).
-    ``parallax_snr_min``: see :func:`build_catalog`."""
+    ``parallax_snr_min``: see :func:`build_catalog`.
+
+    Parameters
+    ----------
+    band_responses : dict of str to speclite.filters.FilterResponse
+        Band name -> its response.
+    gaia_stars : dict of str to ndarray, optional
+        Ingested Gaia columns (:func:`ingest_many`); None: Hipparcos alone.
+    g_limit_mag : float, optional
+        Faintest Gaia G kept, Vega mag (default 12).
+    hipparcos : {"fill", "all", "none"}, optional
+        Hipparcos stars where Gaia has none within ``match_radius_arcsec`` (``"fill"``, the
+        default), Hipparcos alone (``"all"``) or none.
+    match_radius_arcsec : float, optional
+        Gaia-Hipparcos match radius, arcsec (default 2).
+    template_classes : sequence of str, optional
+        Luminosity classes of the templates used (default: all).
+    population : dict of str to ndarray, optional
+        A mock population (:func:`read_population`).
+    library : TemplateLibrary, optional
+        The SED templates (default: the Pickles library).
+    hip2_path : str or pathlib.Path, optional
+        The Hipparcos ``hip2.dat`` (default: the packaged one).
+    parallax_snr_min : float or None, optional
+        See :func:`build_catalog`.
+    """
     from straylight.catalog.hipparcos import hipparcos_stars
 
     library = select_templates(library if library is not None else load_pickles(), template_classes)
@@ -404,7 +481,17 @@ CATALOG_UNITS = {
 
 
 def write_catalog(columns: dict, path, metadata: dict) -> None:
-    """Write the catalog as Parquet (.parquet) or FITS (.fits), atomically, with provenance."""
+    """Write the catalog as Parquet (.parquet) or FITS (.fits), atomically, with provenance.
+
+    Parameters
+    ----------
+    columns : dict of str to ndarray
+        Catalog columns.
+    path : str or pathlib.Path
+        The file to write; its suffix (``.parquet`` or ``.fits``) sets the format.
+    metadata : dict
+        Provenance written with it (key -> value).
+    """
     import json
     from pathlib import Path
 
@@ -440,7 +527,15 @@ def write_catalog(columns: dict, path, metadata: dict) -> None:
 
 
 def catalog_for_campaign(campaign, gaia_stars: dict | None = None) -> tuple[dict, dict, dict]:
-    """Catalog for a campaign's instrument and ``stars`` settings; returns (columns, summary, metadata)."""
+    """Catalog for a campaign's instrument and ``stars`` settings; returns (columns, summary, metadata).
+
+    Parameters
+    ----------
+    campaign : Campaign
+        The campaign (its instrument's bands and its ``stars`` settings).
+    gaia_stars : dict of str to ndarray, optional
+        Ingested Gaia columns (:func:`ingest_many`).
+    """
     from straylight._version import __version__
     from straylight.optics.bandpass import load_band
 
@@ -499,7 +594,13 @@ def catalog_for_campaign(campaign, gaia_stars: dict | None = None) -> tuple[dict
 def default_catalog_path(campaign) -> Path:
     """The campaign's default catalog (Hipparcos, ``straylight catalog`` without ``--input``),
     built once and kept in the table cache (:func:`straylight.util.io.cache_dir`) under a
-    key of the star settings, the instrument and the code version."""
+    key of the star settings, the instrument and the code version.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        The campaign (its instrument and ``stars`` settings).
+    """
     import hashlib
 
     from straylight._version import __version__
@@ -530,7 +631,15 @@ def default_catalog_path(campaign) -> Path:
 
 
 def ingest_many(paths, g_limit_mag: float) -> tuple[dict | None, dict | None, list]:
-    """Ingest several Gaia files; merge, dropping source_ids seen in an earlier file."""
+    """Ingest several Gaia files; merge, dropping source_ids seen in an earlier file.
+
+    Parameters
+    ----------
+    paths : sequence of str or pathlib.Path
+        Gaia files (CSV, ECSV, FITS, Parquet).
+    g_limit_mag : float
+        Faintest G kept, Vega mag.
+    """
     from straylight.catalog.gaia import ingest_file
 
     if not paths:

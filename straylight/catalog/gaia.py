@@ -47,7 +47,15 @@ SDSS_RELATIONS = {
 
 
 def sdss_from_gaia(g_mag, bp_rp) -> dict:
-    """SDSS g, r, i (and per-band validity flags and scatter) from G and BP - RP."""
+    """SDSS g, r, i (and per-band validity flags and scatter) from G and BP - RP.
+
+    Parameters
+    ----------
+    g_mag : array_like
+        Gaia G, Vega mag.
+    bp_rp : array_like
+        Gaia BP - RP, mag.
+    """
     g_mag, c = np.asarray(g_mag, float), np.asarray(bp_rp, float)
     out = {}
     for band, (coef, sigma, (lo, hi)) in SDSS_RELATIONS.items():
@@ -112,7 +120,15 @@ class IngestResult:
 
 
 def ingest_file(path: str | Path, g_limit: float) -> IngestResult:
-    """Read one Gaia file; keep G <= g_limit; quarantine bad rows with reasons."""
+    """Read one Gaia file; keep G <= g_limit; quarantine bad rows with reasons.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The Gaia file (CSV, ECSV, FITS, Parquet).
+    g_limit : float
+        Faintest G kept, Vega mag.
+    """
     path = Path(path)
     if not path.exists():
         raise InputError(f"{path}: Gaia input file does not exist")
@@ -200,7 +216,15 @@ GAIA_UNITS = {
 
 def parquet_units(names, units: dict | None = None) -> dict:
     """Each column's unit: ``units`` first, then the Gaia names, then a ``_deg`` suffix (deg) and
-    a ``mag_`` prefix (AB mag); columns without one (flags, ids, strings) get none."""
+    a ``mag_`` prefix (AB mag); columns without one (flags, ids, strings) get none.
+
+    Parameters
+    ----------
+    names : iterable of str
+        Column names.
+    units : dict of str to str, optional
+        Units given by the caller, column -> unit string; they win.
+    """
     out = {}
     for k in names:
         u = (units or {}).get(k) or GAIA_UNITS.get(k)
@@ -218,7 +242,19 @@ def write_parquet(columns, path, metadata: dict | None = None, units=None) -> No
     :func:`parquet_units`) goes in its field metadata under ``unit``.  ``columns``: a dict of
     columns, or an iterable of such dicts (chunks of rows, each written as it comes, so only one
     is held); ``metadata`` and ``units`` (a dict, or a function of the column names giving one)
-    are read when the first chunk has come."""
+    are read when the first chunk has come.
+
+    Parameters
+    ----------
+    columns : dict of str to ndarray or iterable of dict
+        The columns, or chunks of rows each a dict of columns.
+    path : str or pathlib.Path
+        The Parquet file.
+    metadata : dict, optional
+        Key/value metadata of the file (values JSON-encoded).
+    units : dict of str to str or callable, optional
+        Column units (see :func:`parquet_units`), or a function of the column names giving them.
+    """
     import json
 
     import pyarrow as pa

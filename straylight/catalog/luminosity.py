@@ -87,7 +87,13 @@ _BC_RANGES = (
 
 def bc_v_flower(teff_k) -> np.ndarray:
     """Bolometric correction BC_V (mag) at effective temperature ``teff_k`` (K, any shape):
-    Flower (1996) as corrected by Torres (2010, Table 1); NaN where Teff is NaN."""
+    Flower (1996) as corrected by Torres (2010, Table 1); NaN where Teff is NaN.
+
+    Parameters
+    ----------
+    teff_k : array_like
+        Effective temperature, K.
+    """
     log_t = np.log10(np.asarray(teff_k, float))
     out = np.full(log_t.shape, np.nan)
     lower = -np.inf
@@ -137,7 +143,13 @@ def template_abs_v_mag(names) -> np.ndarray:
     """M_V (mag) of Pickles templates from their frozen de Jager & Nieuwenhuijzen (1987) log L
     and log Teff (``data/pickles1998_template_luminosity.csv``) and :func:`bc_v_flower`; NaN
     where the relation gives none (giants and supergiants after M4).  Names the table lacks
-    (another library): NaN."""
+    (another library): NaN.
+
+    Parameters
+    ----------
+    names : sequence of str
+        Pickles template names (e.g. ``"G2V"``).
+    """
     table = _luminosity_table()
     log_l = np.array([table.get(str(n), (np.nan, np.nan))[0] for n in names], float)
     log_t = np.array([table.get(str(n), (np.nan, np.nan))[1] for n in names], float)

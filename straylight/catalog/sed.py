@@ -93,7 +93,13 @@ class TemplateLibrary:
         return len(self.template)
 
     def subset(self, mask) -> TemplateLibrary:
-        """The templates where ``mask`` (boolean or index array over the templates) selects, same grid."""
+        """The templates where ``mask`` (boolean or index array over the templates) selects, same grid.
+
+        Parameters
+        ----------
+        mask : ndarray of bool or int
+            Boolean mask or indices over the templates.
+        """
         mask = np.asarray(mask)
         return TemplateLibrary(
             self.name,
@@ -109,7 +115,19 @@ class TemplateLibrary:
 
 def bin_average(wavelength_angstrom, flam, centres_angstrom, step_angstrom) -> np.ndarray:
     """Mean of the piecewise-linear spectrum over bins of width ``step`` centred on ``centres``
-    (flux-conserving resampling)."""
+    (flux-conserving resampling).
+
+    Parameters
+    ----------
+    wavelength_angstrom : ndarray
+        The spectrum's wavelengths, Angstrom, increasing.
+    flam : ndarray
+        F_lambda on ``wavelength_angstrom`` (last axis), any unit.
+    centres_angstrom : ndarray
+        Bin centres, Angstrom.
+    step_angstrom : float
+        Bin width, Angstrom.
+    """
     wl, fl = np.asarray(wavelength_angstrom, float), np.asarray(flam, float)
     edges = np.concatenate([centres_angstrom - step_angstrom / 2, [centres_angstrom[-1] + step_angstrom / 2]])
     cum = np.concatenate([[0.0], np.cumsum(0.5 * (fl[1:] + fl[:-1]) * np.diff(wl))])
@@ -121,6 +139,15 @@ def magnitudes(wavelength_angstrom, flam, responses: dict) -> dict[str, np.ndarr
 
     ``flam`` in any F_lambda unit; magnitudes are relative (offset by one constant for all bands)
     unless ``flam`` is in erg s-1 cm-2 A-1.  A response reaching outside the grid raises.
+
+    Parameters
+    ----------
+    wavelength_angstrom : ndarray
+        Wavelength grid, Angstrom.
+    flam : ndarray
+        Spectra, F_lambda (last axis over ``wavelength_angstrom``).
+    responses : dict of str to speclite.filters.FilterResponse
+        Name -> response.
     """
     import astropy.units as u
 
@@ -138,7 +165,17 @@ def magnitudes(wavelength_angstrom, flam, responses: dict) -> dict[str, np.ndarr
 
 
 def ab_magnitudes(wavelength_angstrom, flam, filter_names) -> dict[str, np.ndarray]:
-    """AB magnitudes through speclite's named filters (e.g. ``sdss2010-g``); see :func:`magnitudes`."""
+    """AB magnitudes through speclite's named filters (e.g. ``sdss2010-g``); see :func:`magnitudes`.
+
+    Parameters
+    ----------
+    wavelength_angstrom : ndarray
+        Wavelength grid, Angstrom.
+    flam : ndarray
+        Spectra, F_lambda (last axis over ``wavelength_angstrom``).
+    filter_names : sequence of str
+        speclite filter names.
+    """
     return magnitudes(wavelength_angstrom, flam, {n: _filter(n) for n in filter_names})
 
 
@@ -150,12 +187,28 @@ def _filter(name: str):
 
 
 def template_magnitudes(library: TemplateLibrary, responses: dict) -> dict[str, np.ndarray]:
-    """AB magnitude of every template through each response (name -> speclite FilterResponse)."""
+    """AB magnitude of every template through each response (name -> speclite FilterResponse).
+
+    Parameters
+    ----------
+    library : TemplateLibrary
+        The templates.
+    responses : dict of str to speclite.filters.FilterResponse
+        Name -> response.
+    """
     return magnitudes(library.wavelength_angstrom, library.flam, responses)
 
 
 def vega_magnitudes(library: TemplateLibrary, filter_names) -> dict[str, np.ndarray]:
-    """Template magnitudes in the Vega system for filters with a known AB - Vega offset."""
+    """Template magnitudes in the Vega system for filters with a known AB - Vega offset.
+
+    Parameters
+    ----------
+    library : TemplateLibrary
+        The templates.
+    filter_names : sequence of str
+        speclite filter names with a known AB - Vega offset.
+    """
     ab = ab_magnitudes(library.wavelength_angstrom, library.flam, filter_names)
     return {n: ab[n] - AB_MINUS_VEGA[n] for n in filter_names}
 
@@ -171,7 +224,13 @@ _PICKLES_TYPE = re.compile(r"^[rw]?(?P<cls>[OBAFGKM])(?P<sub>\d+(?:\.\d+)?)(?P<l
 def parse_spectral_type(name: str) -> tuple[str, float, str]:
     """Spectral class, subtype and luminosity class of a Pickles template name: 'G2V' ->
     ('G', 2.0, 'V'); two digits are Pickles' subtype ranges ('B57V' is B5-7 V -> 6.0, 'K01II'
-    -> 0.5), except M10."""
+    -> 0.5), except M10.
+
+    Parameters
+    ----------
+    name : str
+        A Pickles template name (e.g. ``"G2V"``).
+    """
     m = _PICKLES_TYPE.match(str(name).strip())
     if not m:
         raise InputError(f"template {name!r}: not a spectral type like G2V, B57V or M10III")
@@ -204,7 +263,13 @@ def _type_code(spectral_class: str, subtype: float) -> float:
 
 
 def teff_scale(luminosity_class: str) -> str:
-    """Which published scale gives a luminosity class its Teff: "PM13" (class V) or "DJ87"."""
+    """Which published scale gives a luminosity class its Teff: "PM13" (class V) or "DJ87".
+
+    Parameters
+    ----------
+    luminosity_class : str
+        Luminosity class (``"V"``, ``"IV"``, ``"III"``, ``"II"``, ``"I"``).
+    """
     return "PM13" if luminosity_class == "V" else "DJ87"
 
 
@@ -216,7 +281,13 @@ def teff_from_spectral_type(names) -> np.ndarray:
     de Jager & Nieuwenhuijzen (1987, A&A 177, 217) 20-coefficient relation through PyAstronomy's
     ``SpecTypeDeJager`` (class I taken as Iab); it reproduces their tables to a few per cent.
     NaN for giants and supergiants later than M4 (see ``DEJAGER_LATEST_M_SUBTYPE``).  Needs
-    PyAstronomy (a test dependency; the product reads the frozen table, :func:`pickles_teff`)."""
+    PyAstronomy (a test dependency; the product reads the frozen table, :func:`pickles_teff`).
+
+    Parameters
+    ----------
+    names : sequence of str
+        Pickles template names.
+    """
     from PyAstronomy.pyasl import SpecTypeDeJager
 
     codes, teffs = _dwarf_teff_table()
@@ -267,7 +338,13 @@ PICKLES_TEFF_FILE = DATA / "pickles1998_template_teff.csv"
 def pickles_teff(names) -> np.ndarray:
     """The templates' Teff (K) frozen in ``data/pickles1998_template_teff.csv`` (written by
     ``scripts/dev/build_template_teff.py`` with :func:`teff_from_spectral_type`, so a run needs
-    no PyAstronomy; tests re-derive it).  NaN where the file has none."""
+    no PyAstronomy; tests re-derive it).  NaN where the file has none.
+
+    Parameters
+    ----------
+    names : sequence of str
+        Pickles template names.
+    """
     table = _read_teff_csv(PICKLES_TEFF_FILE, "template")
     missing = [n for n in names if n not in table]
     if missing:
@@ -288,6 +365,17 @@ def load_btsettl(
 
     Parameters come from the file name, e.g. ``lte058-4.5-0.0a+0.0.BT-Settl.7.dat.txt``
     (Teff 5800 K, log g 4.5, [M/H] 0.0).  Spectra are bin-averaged to a common grid.
+
+    Parameters
+    ----------
+    paths : sequence of str or pathlib.Path
+        BT-Settl spectra files.
+    wavelength_min_angstrom : float, optional
+        Start of the common grid, Angstrom (default 1500).
+    wavelength_max_angstrom : float, optional
+        End of the common grid, Angstrom (default 12000).
+    step_angstrom : float, optional
+        Step of the common grid, Angstrom (default 10).
     """
     from astropy.io import fits
 

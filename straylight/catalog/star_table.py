@@ -138,6 +138,16 @@ def read_star_columns(path, bands, epoch=None) -> tuple[np.ndarray, np.ndarray, 
 def read_star_table(path, band: str, epoch=None):
     """Read ra, dec (deg, ICRS) and mag_<band> (AB) columns (Parquet, FITS, CSV, ECSV), the
     positions carried to ``epoch`` (astropy Time) by proper motion when given
-    (:func:`read_star_columns`); clear errors otherwise."""
+    (:func:`read_star_columns`); clear errors otherwise.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The star table (Parquet, FITS, CSV, ECSV).
+    band : str
+        The band whose ``mag_<band>`` column is read (AB mag).
+    epoch : astropy.time.Time, optional
+        The epoch the positions are carried to by proper motion.
+    """
     ra, dec, mags = read_star_columns(path, [band], epoch=epoch)
     return ra, dec, mags[band]

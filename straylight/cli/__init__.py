@@ -8,6 +8,9 @@ the parser, one module per group of commands runs them: :mod:`.sky` (``ephem``, 
 
 User mistakes (bad config, time out of range, NaN coordinates) print one clear line on stderr
 and exit with status 2; no traceback.
+
+Internal: the command line's implementation; its functions are not a Python API (users call
+``straylight.cli.main`` only through the ``straylight`` command).
 """
 
 from __future__ import annotations

@@ -14,7 +14,13 @@ __all__ = ["cmd_catalog", "cmd_config_doc", "cmd_footprint", "cmd_plan", "cmd_ps
 
 
 def cmd_footprint(args) -> int:
-    """``straylight footprint``: the campaign's footprint in one line."""
+    """``straylight footprint``: the campaign's footprint in one line.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command's parsed arguments (:func:`straylight.cli.parser.build_parser`).
+    """
     from straylight.config import load_campaign
     from straylight.survey.footprint import footprint_from_config
 
@@ -25,7 +31,13 @@ def cmd_footprint(args) -> int:
 
 
 def cmd_plan(args) -> int:
-    """``straylight plan``: the samples, products' size and wall time of a campaign before it runs."""
+    """``straylight plan``: the samples, products' size and wall time of a campaign before it runs.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command's parsed arguments (:func:`straylight.cli.parser.build_parser`).
+    """
     from straylight.config import load_campaign
     from straylight.model import registry
     from straylight.survey.cube_layout import cube_chunks
@@ -156,7 +168,13 @@ def _duration(seconds: float) -> str:
 
 
 def cmd_catalog(args) -> int:
-    """``straylight catalog``: the bright-star catalog from Gaia files, or from Hipparcos."""
+    """``straylight catalog``: the bright-star catalog from Gaia files, or from Hipparcos.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command's parsed arguments (:func:`straylight.cli.parser.build_parser`).
+    """
     from straylight.catalog.build import catalog_for_campaign, ingest_many, write_catalog
     from straylight.catalog.gaia import write_parquet
     from straylight.config import load_campaign
@@ -193,7 +211,13 @@ def cmd_catalog(args) -> int:
 
 
 def cmd_pst(args) -> int:
-    """``straylight pst``: the embedded default PST written as CSV."""
+    """``straylight pst``: the embedded default PST written as CSV.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command's parsed arguments (:func:`straylight.cli.parser.build_parser`).
+    """
     from straylight.optics.pst import load_pst, write_pst_csv
 
     check_out(args, args.write_default, "--write-default")
@@ -205,7 +229,13 @@ def cmd_pst(args) -> int:
 
 
 def cmd_schedule(args) -> int:
-    """``straylight schedule``: the scheduling tables in a folder."""
+    """``straylight schedule``: the scheduling tables in a folder.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command's parsed arguments (:func:`straylight.cli.parser.build_parser`).
+    """
     from straylight.config import load_campaign
     from straylight.model import BackgroundModel
     from straylight.survey.scheduling import write_tables
@@ -223,7 +253,13 @@ def cmd_schedule(args) -> int:
 
 
 def cmd_config_doc(args) -> int:
-    """``straylight config-doc``: the campaign-config reference, Markdown, on stdout."""
+    """``straylight config-doc``: the campaign-config reference, Markdown, on stdout.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command's parsed arguments (:func:`straylight.cli.parser.build_parser`).
+    """
     from straylight.configdoc import config_reference
 
     sys.stdout.write(config_reference())
@@ -231,7 +267,13 @@ def cmd_config_doc(args) -> int:
 
 
 def cmd_run(args) -> int:
-    """``straylight run``: the campaign through Snakemake; returns Snakemake's exit status."""
+    """``straylight run``: the campaign through Snakemake; returns Snakemake's exit status.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command's parsed arguments (:func:`straylight.cli.parser.build_parser`).
+    """
     from straylight.runner import run_campaign
 
     return run_campaign(args.config, args.cores, args.snakemake_args, verbose=args.verbose)

@@ -14,7 +14,13 @@ __all__ = ["cmd_etc", "etc_text", "table_records"]
 
 
 def cmd_etc(args) -> int:
-    """``straylight etc``: exposure time for an SNR, or SNR for a time, per band."""
+    """``straylight etc``: exposure time for an SNR, or SNR for a time, per band.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command's parsed arguments (:func:`straylight.cli.parser.build_parser`).
+    """
     import astropy.units as u
     from astropy.coordinates import SkyCoord
 

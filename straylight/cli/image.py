@@ -95,7 +95,13 @@ def _checked_image_args(args) -> tuple[tuple[float, float] | None, list[int] | N
 
 
 def cmd_image(args) -> int:
-    """``straylight image``: render one detector around a target and write it as FITS."""
+    """``straylight image``: render one detector around a target and write it as FITS.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command's parsed arguments (:func:`straylight.cli.parser.build_parser`).
+    """
     out = check_out(args, args.out)
     from straylight.catalog.star_table import read_star_table
     from straylight.config import load_campaign

@@ -14,7 +14,13 @@ __all__ = ["cmd_figure", "cmd_scenario"]
 
 
 def cmd_scenario(args) -> int:
-    """``straylight scenario``: the paper's earthshine scenario as a figure and a table."""
+    """``straylight scenario``: the paper's earthshine scenario as a figure and a table.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command's parsed arguments (:func:`straylight.cli.parser.build_parser`).
+    """
     from astropy.table import Table
 
     from straylight.config import load_campaign
@@ -55,7 +61,13 @@ def cmd_scenario(args) -> int:
 
 
 def cmd_figure(args) -> int:
-    """``straylight figure``: one of the paper's in-field figures."""
+    """``straylight figure``: one of the paper's in-field figures.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command's parsed arguments (:func:`straylight.cli.parser.build_parser`).
+    """
     from straylight.config import load_campaign
     from straylight.paper.figures import make_figure
 

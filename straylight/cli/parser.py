@@ -440,7 +440,13 @@ class OneLineParser(argparse.ArgumentParser):
     commands' own (no usage block): ``straylight sky: error: argument --dec: ...``."""
 
     def error(self, message):
-        """Print ``message`` as one line and exit with status 2."""
+        """Print ``message`` as one line and exit with status 2.
+
+        Parameters
+        ----------
+        message : str
+            The error's text.
+        """
         text = " ".join(str(message).split())
         self.exit(2, f"{self.prog}: error: {text} (see {self.prog} --help)\n")
 

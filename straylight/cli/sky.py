@@ -14,7 +14,13 @@ __all__ = ["cmd_ephem", "cmd_sky", "cmd_visibility", "sky_record"]
 
 
 def cmd_ephem(args) -> int:
-    """``straylight ephem``: the bodies' geocentric positions at one time."""
+    """``straylight ephem``: the bodies' geocentric positions at one time.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command's parsed arguments (:func:`straylight.cli.parser.build_parser`).
+    """
     from straylight.sky.ephemeris import BODIES, default_ephemeris, radec_distance
     from straylight.sky.timeutil import parse_utc
 
@@ -134,7 +140,13 @@ def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None, stars=
 
 
 def cmd_sky(args) -> int:
-    """``straylight sky``: the geometry and background of one pointing, or of a table of them."""
+    """``straylight sky``: the geometry and background of one pointing, or of a table of them.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command's parsed arguments (:func:`straylight.cli.parser.build_parser`).
+    """
     from straylight.config import load_campaign
 
     if args.input:
@@ -298,7 +310,13 @@ def _sky_table(args, campaign, bands, stars) -> int:
 
 def cmd_visibility(args) -> int:
     """``straylight visibility``: a target's background, limit and observable windows over time
-    (``--targets FILE``: many targets, :func:`straylight.cli.targets.cmd_visibility_targets`)."""
+    (``--targets FILE``: many targets, :func:`straylight.cli.targets.cmd_visibility_targets`).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command's parsed arguments (:func:`straylight.cli.parser.build_parser`).
+    """
     from straylight.config import load_campaign
     from straylight.survey.visibility import plot_visibility, visibility
 

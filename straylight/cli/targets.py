@@ -13,7 +13,13 @@ __all__ = ["cmd_visibility_targets"]
 
 def cmd_visibility_targets(args) -> int:
     """Run ``straylight visibility --targets``: check everything before any work, evaluate all
-    targets together, print the summary and write the tables."""
+    targets together, print the summary and write the tables.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command's parsed arguments (:func:`straylight.cli.parser.build_parser`).
+    """
     from pathlib import Path
 
     from straylight.config import load_campaign

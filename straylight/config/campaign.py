@@ -127,7 +127,15 @@ class Campaign:
 
     def instrument_value(self, section: str, key: str) -> float:
         """The value of the instrument's parameter ``section.key`` (e.g. ``"telescope",
-        "aperture_diameter_m"``), in its unit."""
+        "aperture_diameter_m"``), in its unit.
+
+        Parameters
+        ----------
+        section : str
+            The instrument file's section (e.g. ``"telescope"``).
+        key : str
+            The parameter's key in that section (e.g. ``"aperture_diameter_m"``).
+        """
         return getattr(getattr(self.instrument_settings, section), key).value
 
 
@@ -184,6 +192,14 @@ def load_campaign(config=None, overrides: dict | None = None) -> Campaign:
     ``--configfile`` over the Snakefile's); ``overrides`` is merged (recursively) over both
     before validation.  Errors name the file that set the key (``<config mapping>`` for a
     mapping).  A :class:`Campaign` is returned as it is.
+
+    Parameters
+    ----------
+    config : str, os.PathLike, dict or Campaign, optional
+        A YAML file's path, a mapping, or a :class:`Campaign` (returned as it is); None: the default
+        ``config/config.yaml``.
+    overrides : dict, optional
+        Keys merged (recursively) over the config before validation.
     """
     if isinstance(config, Campaign) and not overrides:
         return config
@@ -194,7 +210,17 @@ def load_campaign(config=None, overrides: dict | None = None) -> Campaign:
 def campaign_from_dict(raw: dict, path: str | os.PathLike, sources: dict | None = None) -> Campaign:
     """Validate an already-loaded config dict (as Snakemake holds it); ``path`` locates files.
 
-    ``sources`` (from :func:`resolve_config_files`): errors name the file that set each key."""
+    ``sources`` (from :func:`resolve_config_files`): errors name the file that set each key.
+
+    Parameters
+    ----------
+    raw : dict
+        The config, already loaded and merged.
+    path : str or os.PathLike
+        The config file; relative file paths are resolved against its folder.
+    sources : dict, optional
+        Dotted key -> the file that set it (:func:`resolve_config_files`), named by errors.
+    """
     path = Path(path)
     schema = load_schema(CAMPAIGN_SCHEMA)
     validate(raw, schema, str(path), sources)

@@ -333,6 +333,11 @@ def instrument_settings(instrument: InstrumentSettings | Mapping) -> InstrumentS
     :func:`~straylight.config.load_instrument` returns it (validated; the schema's defaults are
     filled in here, on a copy).
 
+    Parameters
+    ----------
+    instrument : InstrumentSettings or Mapping
+        Typed settings (returned as they are), or an instrument mapping.
+
     Raises
     ------
     ConfigError
@@ -345,7 +350,15 @@ def instrument_settings(instrument: InstrumentSettings | Mapping) -> InstrumentS
 
 def needed(value, key: str):
     """``value``, an optional instrument setting a computation needs; a ConfigError naming the
-    instrument file's ``key`` when the file does not give it (None)."""
+    instrument file's ``key`` when the file does not give it (None).
+
+    Parameters
+    ----------
+    value : object or None
+        The setting's value.
+    key : str
+        The setting's key in the instrument file, named by the error.
+    """
     if value is None:
         raise ConfigError(f"instrument: {key} is needed here and the instrument file does not give it")
     return value
@@ -358,7 +371,13 @@ def pixel_scale_arcsec(instrument: InstrumentSettings | Mapping) -> float:
     """The one pixel scale, arcsec per pixel: pixel size / focal length (10 um / 28 m =
     0.07367 arcsec for CSST; published rounded as 0.074).  Rates (the pixel's etendue),
     surface brightness, apertures and the image WCS all use it.  ``instrument``: its typed
-    settings, or its mapping (:func:`instrument_settings`)."""
+    settings, or its mapping (:func:`instrument_settings`).
+
+    Parameters
+    ----------
+    instrument : InstrumentSettings or Mapping
+        The instrument's typed settings, or its mapping.
+    """
     inst = instrument_settings(instrument)
     p_m = inst.detector.pixel_size_um.value * 1e-6
     return p_m / inst.telescope.focal_length_m.value * ARCSEC_PER_RAD

@@ -62,7 +62,13 @@ def _yaml_problem(exc: yaml.YAMLError) -> str:
 
 
 def load_schema(path: Path) -> dict:
-    """A JSON schema (YAML) of ``config/schema/``, as a mapping."""
+    """A JSON schema (YAML) of ``config/schema/``, as a mapping.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The schema's file.
+    """
     return _read_yaml(path, "schema")
 
 
@@ -110,7 +116,19 @@ def validate(document: Any, schema: dict, source: str, sources: dict | None = No
     """Validate a loaded document against a JSON schema; raise ConfigError listing all faults.
 
     ``sources`` (dotted key -> file, see :func:`resolve_config_files`) names, for each fault,
-    the file that set the key; ``source`` otherwise."""
+    the file that set the key; ``source`` otherwise.
+
+    Parameters
+    ----------
+    document : object
+        The loaded document.
+    schema : dict
+        The JSON schema.
+    source : str
+        The document's file, named by errors when ``sources`` does not name one.
+    sources : dict, optional
+        Dotted key -> the file that set it (:func:`resolve_config_files`).
+    """
     import jsonschema
 
     cls = jsonschema.validators.validator_for(schema)
@@ -130,7 +148,15 @@ def validate(document: Any, schema: dict, source: str, sources: dict | None = No
 
 
 def apply_defaults(document: dict, schema: dict) -> dict:
-    """Fill in the schema's ``default`` values for missing optional keys (recursively)."""
+    """Fill in the schema's ``default`` values for missing optional keys (recursively).
+
+    Parameters
+    ----------
+    document : dict
+        The document, validated against ``schema``.
+    schema : dict
+        The JSON schema.
+    """
     out = copy.deepcopy(document)
 
     def fill(node, sch):
@@ -158,6 +184,11 @@ def _check_instrument(inst: dict, source: str) -> None:
 def load_instrument(path: str | os.PathLike) -> dict:
     """An instrument file, validated against its schema, as written (a mapping; its typed
     settings: :func:`straylight.config.instrument_settings`).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The instrument file (YAML).
 
     Raises
     ------
@@ -254,6 +285,13 @@ def resolve_config_files(config: dict, files) -> tuple[dict, dict, Path]:
     set each key.  Returns (config, sources: dotted key -> file, the last file).
 
     The config is not validated here; :func:`campaign_from_dict` does it with ``sources``.
+
+    Parameters
+    ----------
+    config : dict
+        The config merged from ``files``, as Snakemake holds it.
+    files : sequence of str or os.PathLike
+        The config files, in increasing precedence.
     """
     layers = [_layer(f) for f in files]
     out, sources = _resolve_layers(config, layers)
@@ -268,6 +306,13 @@ def merged_config(config=None, overrides: dict | None = None) -> tuple[dict, dic
     are made absolute against its own folder (a mapping's: the current folder).  Returns
     (config, sources: dotted key -> the file that set it, the campaign's file: ``config``'s, or
     :data:`MAPPING_SOURCE` for a mapping); not validated (:func:`campaign_from_dict` does it).
+
+    Parameters
+    ----------
+    config : str, os.PathLike or dict, optional
+        A YAML file's path, or a mapping; None: the default config alone.
+    overrides : dict, optional
+        Keys merged (recursively) over both.
 
     Raises
     ------
@@ -287,7 +332,15 @@ def merged_config(config=None, overrides: dict | None = None) -> tuple[dict, dic
 
 
 def deep_merge(base: dict, over: dict) -> dict:
-    """``over`` merged over a copy of ``base``, mappings recursively (other values replaced)."""
+    """``over`` merged over a copy of ``base``, mappings recursively (other values replaced).
+
+    Parameters
+    ----------
+    base : dict
+        The mapping merged over (not changed).
+    over : dict
+        The mapping whose values win.
+    """
     out = copy.deepcopy(base)
     for k, v in over.items():
         if isinstance(v, dict) and isinstance(out.get(k), dict):

@@ -267,6 +267,11 @@ def settings_from_config(config: dict) -> Settings:
     """:class:`Settings` from a campaign config validated and completed by the schema
     (:func:`apply_defaults`).
 
+    Parameters
+    ----------
+    config : dict
+        A campaign config, validated and completed by the schema.
+
     Raises
     ------
     ConfigError

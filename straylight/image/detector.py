@@ -50,7 +50,17 @@ __all__ = [
 
 
 def star_fluxes_e_per_s(mag_ab, band: Band, aperture_diameter_m: float) -> np.ndarray:
-    """e-/s of stars of AB magnitude ``mag_ab`` in ``band`` through the full aperture."""
+    """e-/s of stars of AB magnitude ``mag_ab`` in ``band`` through the full aperture.
+
+    Parameters
+    ----------
+    mag_ab : array_like
+        The stars' AB magnitudes in ``band``, mag.
+    band : Band
+        The band (throughput including QE).
+    aperture_diameter_m : float
+        The telescope's aperture diameter, m.
+    """
     m = np.asarray(mag_ab, dtype=float)
     if not np.all(np.isfinite(m)):
         i = int(np.flatnonzero(~np.isfinite(m))[0])
@@ -190,7 +200,31 @@ def select_stars(
     settings: RenderSettings,
 ) -> StarSelection:
     """Stars within the detector plus margin whose halo still exceeds the floor on the chip
-    (or that sit within the near-field radius of it).  Cheap: no image is made."""
+    (or that sit within the near-field radius of it).  Cheap: no image is made.
+
+    Parameters
+    ----------
+    ra_deg : float
+        The boresight's right ascension, ICRS, deg.
+    dec_deg : float
+        The boresight's declination, ICRS, deg.
+    star_ra_deg : ndarray
+        The catalog stars' right ascensions, ICRS, deg.
+    star_dec_deg : ndarray
+        The catalog stars' declinations, ICRS, deg.
+    star_flux_e_per_s : ndarray
+        The stars' detected rates through the full aperture, e-/s.
+    sun_direction : ndarray
+        Unit vector from the telescope to the Sun (ICRS axes), which sets the roll.
+    fp : FocalPlane
+        The focal plane.
+    detector : int
+        The detector's index (0-based, row-major).
+    scatter : ScatterModel
+        The star image (core and scattering halo).
+    settings : RenderSettings
+        The renderer's approximation knobs.
+    """
     s = settings
     flux = check_fluxes(star_flux_e_per_s, "star flux (e-/s)")
     wcs = pointing_wcs(ra_deg, dec_deg, sun_direction, fp, detector)
@@ -252,6 +286,39 @@ def render_detector(
     window is trimmed to a multiple of N.  The WCS follows the window and the binning.
     The chip is rendered in strips of :data:`STRIP_ROWS` rows, so memory does not grow with
     the chip's height; the result equals a whole-chip rendering to FFT round-off.
+
+    Parameters
+    ----------
+    ra_deg : float
+        The boresight's right ascension, ICRS, deg.
+    dec_deg : float
+        The boresight's declination, ICRS, deg.
+    star_ra_deg : ndarray
+        The catalog stars' right ascensions, ICRS, deg.
+    star_dec_deg : ndarray
+        The catalog stars' declinations, ICRS, deg.
+    star_flux_e_per_s : ndarray
+        The stars' detected rates through the full aperture, e-/s.
+    sun_direction : ndarray
+        Unit vector from the telescope to the Sun (ICRS axes), which sets the roll.
+    fp : FocalPlane
+        The focal plane.
+    detector : int
+        The detector's index (0-based, row-major).
+    scatter : ScatterModel
+        The star image (core and scattering halo).
+    ghosts : GhostModel or None
+        The band's ghosts; None: no ghosts.
+    chief_ray_angle_deg : float
+        The chief ray's angle of incidence on the detector, deg (sets the ghosts' offsets).
+    settings : RenderSettings, optional
+        The renderer's approximation knobs (default: :class:`RenderSettings`).
+    size_override : tuple of int, optional
+        (ny, nx): a smaller image at the same pixel scale (tests).
+    window : tuple of int, optional
+        (x0, y0, width, height), 0-based chip pixels: only that cutout is rendered.
+    bin_factor : int, optional
+        N: each image pixel is the mean of N x N chip pixels (default 1).
     """
     s = settings or RenderSettings()
     if s.far_bin < 1 or s.near_radius_px < 4:
@@ -390,7 +457,24 @@ def render_detector(
 def paint_discs(ny, nx, g, min_irr, rows=None, cols=None) -> np.ndarray:
     """Uniform discs; each holds exactly its energy over the pixels whose centres it covers
     (on the whole chip).  ``rows`` (y0, y1) and ``cols`` (x0, x1) restrict the returned array
-    to that part of the chip."""
+    to that part of the chip.
+
+    Parameters
+    ----------
+    ny : int
+        The chip's rows.
+    nx : int
+        The chip's columns.
+    g : dict of str to ndarray
+        The discs: ``x_pix``, ``y_pix`` (centres, chip pixels), ``radius_pix`` (chip pixels) and
+        ``energy_e_per_s`` (e-/s).
+    min_irr : float
+        Discs fainter than this mean irradiance, e-/s per pixel, are left out.
+    rows : tuple of int, optional
+        (y0, y1): the chip rows returned (default: all).
+    cols : tuple of int, optional
+        (x0, x1): the chip columns returned (default: all).
+    """
     ry0, ry1 = rows if rows is not None else (0, ny)
     rx0, rx1 = cols if cols is not None else (0, nx)
     out = np.zeros((ry1 - ry0, rx1 - rx0))
@@ -414,7 +498,21 @@ def paint_discs(ny, nx, g, min_irr, rows=None, cols=None) -> np.ndarray:
 def bodies_as_stars(campaign, time, ra_deg: float, dec_deg: float, band: str) -> tuple:
     """The Sun, Moon and planets inside the field at ``time`` as extra catalog stars:
     (ra_deg, dec_deg, mag_ab, names), arrays; a body in the field is a point source, left out of
-    the background (:meth:`~straylight.sources.bodies.InFieldBodies.find`)."""
+    the background (:meth:`~straylight.sources.bodies.InFieldBodies.find`).
+
+    Parameters
+    ----------
+    campaign : Campaign
+        The campaign (its orbit and instrument).
+    time : str or astropy.time.Time
+        The time (UTC).
+    ra_deg : float
+        The boresight's right ascension, ICRS, deg.
+    dec_deg : float
+        The boresight's declination, ICRS, deg.
+    band : str
+        The band's name.
+    """
     from straylight.sky.observing import sample_geometry, scene
     from straylight.sources.bodies import InFieldBodies
     from straylight.sources.context import SourceContext

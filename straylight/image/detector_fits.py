@@ -57,6 +57,19 @@ def write_fits(
     (RICE_1 on values quantised to ``quantize_step`` e-/s/pixel; the error is at most half a
     step) or ``none`` (plain primary image).  A compressed image sits in extension 1
     (``SCI``); astropy and ``fitsio`` read it transparently.
+
+    Parameters
+    ----------
+    result : DetectorImage
+        The rendered image.
+    path : str or pathlib.Path
+        The FITS file written.
+    provenance : dict
+        Header keywords recording how the image was made.
+    compress : {"gzip", "rice", "none"}, optional
+        The image's compression (default ``"gzip"``).
+    quantize_step : float, optional
+        With ``"rice"``: the quantisation step, e-/s/pixel.
     """
     from astropy.io import fits
 

@@ -43,7 +43,13 @@ class FocalPlane:
         return self.columns * self.rows
 
     def detector_offset_px(self, detector: int) -> tuple[float, float]:
-        """Centre of detector ``detector`` (0-based, row-major) from the optical axis, pixels."""
+        """Centre of detector ``detector`` (0-based, row-major) from the optical axis, pixels.
+
+        Parameters
+        ----------
+        detector : int
+            The detector's index (0-based, row-major).
+        """
         if not 0 <= detector < self.n_detectors:
             raise InputError(f"--detector {detector}: must be within 0..{self.n_detectors - 1}")
         row, col = divmod(detector, self.columns)
@@ -54,7 +60,13 @@ class FocalPlane:
 def focal_plane_from_instrument(instrument: InstrumentSettings | dict) -> FocalPlane:
     """The focal plane of the instrument's ``detector`` section (CCD format, pixel, layout).
     ``instrument``: its typed settings, or its mapping
-    (:func:`~straylight.config.instrument.instrument_settings`)."""
+    (:func:`~straylight.config.instrument.instrument_settings`).
+
+    Parameters
+    ----------
+    instrument : InstrumentSettings or dict
+        The instrument's typed settings, or its mapping.
+    """
     inst = instrument_settings(instrument)
     d = inst.detector
     nx = int(needed(d.nx_pixels, "detector.nx_pixels").value)
@@ -73,7 +85,21 @@ def focal_plane_from_instrument(instrument: InstrumentSettings | dict) -> FocalP
 
 
 def pointing_wcs(ra_deg: float, dec_deg: float, sun_direction: np.ndarray, fp: FocalPlane, detector: int):
-    """Astropy WCS of one detector: TAN about the boresight, axes along the telescope frame."""
+    """Astropy WCS of one detector: TAN about the boresight, axes along the telescope frame.
+
+    Parameters
+    ----------
+    ra_deg : float
+        The boresight's right ascension, ICRS, deg.
+    dec_deg : float
+        The boresight's declination, ICRS, deg.
+    sun_direction : ndarray
+        Unit vector from the telescope to the Sun (ICRS axes), which sets the roll.
+    fp : FocalPlane
+        The focal plane.
+    detector : int
+        The detector's index (0-based, row-major).
+    """
     from astropy.wcs import WCS
 
     z = radec_to_unit(ra_deg, dec_deg)
@@ -95,7 +121,15 @@ def pointing_wcs(ra_deg: float, dec_deg: float, sun_direction: np.ndarray, fp: F
 
 
 def sun_direction_at(campaign, time) -> np.ndarray:
-    """Unit vector from the satellite to the Sun at ``time`` (for the roll)."""
+    """Unit vector from the satellite to the Sun at ``time`` (for the roll).
+
+    Parameters
+    ----------
+    campaign : Campaign
+        The campaign (its orbit).
+    time : str or astropy.time.Time
+        The time (UTC).
+    """
     from straylight.sky.observing import scene
 
     sc = scene(campaign.orbit, time)
@@ -115,6 +149,21 @@ def boresight_for_target(
     The roll follows the Sun (:func:`pointing_wcs`), so the boresight is found by iteration:
     move it by the offset still left between the chip centre and the target, until that offset
     is below ``tol_arcsec``.  Converges in a few steps (the detector offsets are < 1 deg).
+
+    Parameters
+    ----------
+    target_ra_deg : float
+        The target's right ascension, ICRS, deg.
+    target_dec_deg : float
+        The target's declination, ICRS, deg.
+    sun_direction : ndarray
+        Unit vector from the telescope to the Sun (ICRS axes), which sets the roll.
+    fp : FocalPlane
+        The focal plane.
+    detector : int
+        The detector's index (0-based, row-major).
+    tol_arcsec : float, optional
+        The largest offset left between the chip's centre and the target, arcsec (default 1e-4).
     """
     import astropy.units as u
     from astropy.coordinates import SkyCoord

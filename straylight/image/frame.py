@@ -60,7 +60,15 @@ class TargetFrame:
     selection: StarSelection
 
     def pixel_of(self, ra_deg: float, dec_deg: float) -> tuple[float, float]:
-        """The 0-based chip pixel (x, y) of a sky position (deg, ICRS), on the chip or off it."""
+        """The 0-based chip pixel (x, y) of a sky position (deg, ICRS), on the chip or off it.
+
+        Parameters
+        ----------
+        ra_deg : float
+            Right ascension, ICRS, deg.
+        dec_deg : float
+            Declination, ICRS, deg.
+        """
         x, y = self.selection.wcs.world_to_pixel_values(ra_deg, dec_deg)
         return float(x), float(y)
 
@@ -150,7 +158,21 @@ def cutout_window(
 ) -> tuple[int, int, int, int] | None:
     """The window (x0, y0, width, height), 0-based chip pixels, of a ``width`` x ``height`` cutout
     centred on the pixel (``x_pix``, ``y_pix``) and clipped to the chip; None when the cutout
-    misses the chip."""
+    misses the chip.
+
+    Parameters
+    ----------
+    focal_plane : FocalPlane
+        The focal plane (the chip's size).
+    x_pix : float
+        The cutout's centre, 0-based chip column.
+    y_pix : float
+        The cutout's centre, 0-based chip row.
+    width : int
+        The cutout's width, pixels.
+    height : int
+        The cutout's height, pixels.
+    """
     window = (int(round(float(x_pix) - width / 2)), int(round(float(y_pix) - height / 2)), width, height)
     x0, y0 = max(window[0], 0), max(window[1], 0)
     if window[0] + width <= 0 or window[1] + height <= 0 or x0 >= focal_plane.nx or y0 >= focal_plane.ny:

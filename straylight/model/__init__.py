@@ -1,6 +1,9 @@
 """The background model (:class:`BackgroundModel`: each source's e-/s/pixel per band, added) and
 its fidelity policy (:class:`FidelityPolicy`: the tolerance, its shares, the fast paths).
 
+Internal: not part of the public API (``straylight.__all__``; users evaluate the model through
+:class:`straylight.SkyModel`).  ``__all__`` below names what the layers above it use.
+
 Imports ``straylight.sources``, ``straylight.sky`` and ``straylight.config`` (the layers below it:
 docs/architecture.md); never ``straylight.survey``.
 """

@@ -80,6 +80,14 @@ class Band:
         """Integral of F_lambda T(lambda) lambda / (h c) d lambda, photons s-1 m-2 (per sr if F is).
 
         ``flam_w_m2_um`` may have leading axes; the last axis matches ``wavelength_angstrom``.
+
+        Parameters
+        ----------
+        wavelength_angstrom : ndarray
+            Wavelength grid, Angstrom.
+        flam_w_m2_um : ndarray
+            Spectral irradiance F_lambda, W m-2 um-1 (per sr for a radiance), last axis over
+            ``wavelength_angstrom``.
         """
         wl = np.asarray(wavelength_angstrom, dtype=float)
         t = np.interp(wl, self.wavelength_angstrom, self.throughput, left=0.0, right=0.0)
@@ -87,7 +95,15 @@ class Band:
         return np.trapezoid(integrand, wl * 1e-4, axis=-1)
 
     def ab_magnitude(self, wavelength_angstrom: np.ndarray, flam_w_m2_um: np.ndarray) -> np.ndarray:
-        """AB magnitude of a spectrum (photon-weighted, as speclite and the SDSS/Gaia systems)."""
+        """AB magnitude of a spectrum (photon-weighted, as speclite and the SDSS/Gaia systems).
+
+        Parameters
+        ----------
+        wavelength_angstrom : ndarray
+            Wavelength grid, Angstrom.
+        flam_w_m2_um : ndarray
+            Spectral irradiance F_lambda, W m-2 um-1, last axis over ``wavelength_angstrom``.
+        """
         rate = self.photon_rate(wavelength_angstrom, flam_w_m2_um)
         with np.errstate(divide="ignore"):
             return -2.5 * np.log10(rate / self.ab_zero_point_photons_s_m2)
@@ -114,7 +130,21 @@ def _speclite_response(name, origin, wavelength, throughput):
 
 
 def parametric_curve(wavelength_min_nm, wavelength_max_nm, peak, edge_width_nm, step_nm=0.5):
-    """Flat-topped throughput with erf edges; zero at both ends of the returned grid."""
+    """Flat-topped throughput with erf edges; zero at both ends of the returned grid.
+
+    Parameters
+    ----------
+    wavelength_min_nm : float
+        The band's blue edge (half maximum), nm.
+    wavelength_max_nm : float
+        The band's red edge (half maximum), nm.
+    peak : float
+        The throughput on the flat top, dimensionless.
+    edge_width_nm : float
+        The 10-90 % rise of each erf edge, nm.
+    step_nm : float, optional
+        The grid's step, nm (default 0.5).
+    """
     if not (0 < peak <= 1):
         raise ConfigError(f"peak_throughput = {peak}: must be in (0, 1]")
     w = edge_width_nm / (2 * 0.9061938)  # erf: 10-90 % rise over 2 * 0.906 w * sqrt(2)/sqrt(2)
@@ -133,6 +163,13 @@ def read_throughput_file(
 
     Accepts CSV (first two numeric columns, or columns named like wavelength/throughput),
     ECSV and FITS tables (columns WAVELENGTH and SENSITIVITY/THROUGHPUT, case-insensitive).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The throughput file (CSV, ECSV, FITS).
+    wavelength_unit : str, optional
+        The file's wavelength unit, an astropy unit name (default ``"angstrom"``).
     """
     from astropy.table import Table
 
@@ -189,19 +226,43 @@ def read_throughput_file(
 def aperture_area_m2(instrument: InstrumentSettings | dict) -> float:
     """Unobstructed collecting area pi D^2 / 4 of the instrument's telescope, m2.
     ``instrument``: its typed settings, or its mapping
-    (:func:`~straylight.config.instrument.instrument_settings`)."""
+    (:func:`~straylight.config.instrument.instrument_settings`).
+
+    Parameters
+    ----------
+    instrument : InstrumentSettings or dict
+        The instrument's typed settings, or its mapping.
+    """
     return float(np.pi * instrument_settings(instrument).telescope.aperture_diameter_m.value ** 2 / 4.0)
 
 
 def zero_point_ab_mag(band: Band, aperture_area_m2_: float) -> float:
-    """AB magnitude of a point source giving 1 e-/s through ``band`` and the aperture."""
+    """AB magnitude of a point source giving 1 e-/s through ``band`` and the aperture.
+
+    Parameters
+    ----------
+    band : Band
+        The band.
+    aperture_area_m2_ : float
+        The collecting area, m2.
+    """
     return float(2.5 * np.log10(band.ab_zero_point_photons_s_m2 * aperture_area_m2_))
 
 
 def load_band(instrument: InstrumentSettings | dict, name: str, instrument_dir: Path | None = None) -> Band:
     """The band ``name`` of an instrument, or a diagnostic band (``V``).  ``instrument``: its
     typed settings, or its mapping (:func:`~straylight.config.instrument.instrument_settings`);
-    ``instrument_dir``: the folder a relative ``throughput_file`` is in."""
+    ``instrument_dir``: the folder a relative ``throughput_file`` is in.
+
+    Parameters
+    ----------
+    instrument : InstrumentSettings or dict
+        The instrument's typed settings, or its mapping.
+    name : str
+        The band's name (one of the instrument's, or ``"V"``).
+    instrument_dir : pathlib.Path, optional
+        The folder a relative ``throughput_file`` is in.
+    """
     if name == "V":
         import speclite.filters as sf
 

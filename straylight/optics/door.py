@@ -52,7 +52,17 @@ def door_length_from_paper(
     aperture_radius_m: float, opening_deg: float = 135.0, sun_cutoff_deg: float = 65.0
 ) -> float:
     """Door length L so that, opened to ``opening_deg``, it just hides the whole aperture from a
-    source at ``sun_cutoff_deg`` off axis in the door's azimuth."""
+    source at ``sun_cutoff_deg`` off axis in the door's azimuth.
+
+    Parameters
+    ----------
+    aperture_radius_m : float
+        The aperture's radius, m.
+    opening_deg : float, optional
+        The door's opening angle, deg (default 135).
+    sun_cutoff_deg : float, optional
+        The off-axis angle at which the door just hides the aperture, deg (default 65).
+    """
     beta = np.radians(180.0 - opening_deg)  # door elevation above the aperture plane
     denom = (np.tan(np.radians(sun_cutoff_deg)) - 1.0 / np.tan(beta)) * np.sin(beta)
     if denom <= 0:
@@ -64,7 +74,15 @@ def aperture_points(radius_m: float, n: int) -> np.ndarray:
     """N points (x, y) uniformly covering the aperture disc: a sunflower (Vogel) spiral of n/2
     points and its mirror image y -> -y, so that the door's shade keeps the mirror symmetry of
     the real door about the Sun's plane (phi -> -phi; a bare spiral broke it by up to 0.16 in
-    Sp, and the earthshine look-up table relies on it).  n = 1: the centre."""
+    Sp, and the earthshine look-up table relies on it).  n = 1: the centre.
+
+    Parameters
+    ----------
+    radius_m : float
+        The aperture's radius, m.
+    n : int
+        Number of points.
+    """
     if n < 1:
         raise ConfigError(f"door: n_aperture = {n} must be >= 1")
     if n == 1:
@@ -117,7 +135,13 @@ class Door:
             )
 
     def plate(self, opening_deg: float):
-        """Hinge point, unit vector along the door (from the hinge), unit vector along the hinge."""
+        """Hinge point, unit vector along the door (from the hinge), unit vector along the hinge.
+
+        Parameters
+        ----------
+        opening_deg : float
+            The door's opening angle, deg.
+        """
         a = np.radians(opening_deg)
         hinge = np.array([self.aperture_radius_m, 0.0, 0.0])
         along = np.array([-np.cos(a), 0.0, np.sin(a)])
@@ -126,7 +150,15 @@ class Door:
     def unshaded_fraction(self, directions: np.ndarray, opening_deg: float) -> np.ndarray:
         """Sp: fraction of the aperture that sees along ``directions`` (unit vectors, telescope
         frame, (..., 3)) past the door opened to ``opening_deg``.  Directions below the aperture
-        plane (z <= 0) cannot reach the aperture: Sp = 0 there."""
+        plane (z <= 0) cannot reach the aperture: Sp = 0 there.
+
+        Parameters
+        ----------
+        directions : ndarray
+            Unit directions in the telescope frame, shape (..., 3).
+        opening_deg : float
+            The door's opening angle, deg.
+        """
         d = np.asarray(directions, dtype=float)
         shape = d.shape[:-1]
         d = d.reshape(-1, 3)
@@ -156,7 +188,15 @@ class Door:
     def body_hits(self, points_m: np.ndarray, directions: np.ndarray) -> np.ndarray:
         """Whether the ray from each point (M, 3) along each direction (N, 3) (unit vectors,
         telescope frame, m) passes through the body: (N, M) bool.  The body is the solid cylinder
-        x^2 + y^2 < body_radius^2, -body_length < z < 0; no body (radius or length 0): all False."""
+        x^2 + y^2 < body_radius^2, -body_length < z < 0; no body (radius or length 0): all False.
+
+        Parameters
+        ----------
+        points_m : ndarray
+            Ray origins in the telescope frame, m, shape (M, 3).
+        directions : ndarray
+            Unit directions in the telescope frame, shape (N, 3).
+        """
         p = np.asarray(points_m, float)
         d = np.asarray(directions, float)
         if self.body_radius_m <= 0 or self.body_length_m <= 0:
@@ -229,7 +269,15 @@ class DoorTable:
     @staticmethod
     def coordinates(theta_deg, phi_deg):
         """The table's (theta, phi) of directions: theta clipped to 0-90 deg, phi wrapped to
-        0-360 deg (the caller zeroes theta > 90 deg: :func:`behind_aperture_plane`)."""
+        0-360 deg (the caller zeroes theta > 90 deg: :func:`behind_aperture_plane`).
+
+        Parameters
+        ----------
+        theta_deg : array_like
+            Off-axis angles, deg.
+        phi_deg : array_like
+            Azimuths, deg.
+        """
         th, ph = np.broadcast_arrays(np.asarray(theta_deg, float), np.asarray(phi_deg, float))
         return np.clip(th, 0.0, 90.0), wrap_360_deg(ph)
 
@@ -243,7 +291,13 @@ class DoorTable:
 
 def behind_aperture_plane(theta_deg) -> np.ndarray:
     """Whether directions at ``theta_deg`` off axis lie behind the aperture plane (theta > 90
-    deg; NaN: False), where Sp = 0."""
+    deg; NaN: False), where Sp = 0.
+
+    Parameters
+    ----------
+    theta_deg : array_like
+        Off-axis angles, deg.
+    """
     with np.errstate(invalid="ignore"):
         return np.asarray(theta_deg, float) > 90.0
 
@@ -253,7 +307,15 @@ def door_state_index(states_deg, opening_deg):
     an opening <= 0 (no state allowed) takes the narrowest state; an opening that is no state
     (or NaN) is flagged False (its index is then meaningless).  One compiled pass instead of
     numpy's searchsorted, where and compare (faster; docs/performance.md), as every sample's
-    door is looked up several times per evaluation."""
+    door is looked up several times per evaluation.
+
+    Parameters
+    ----------
+    states_deg : ndarray
+        The door's opening angles, deg, ascending.
+    opening_deg : array_like
+        Each sample's opening angle, deg (<= 0: no state allowed).
+    """
     states = np.ascontiguousarray(states_deg, dtype=float)
     if states.ndim != 1 or states.size == 0:
         raise ValueError(f"door states must be a non-empty 1-d sequence, got {states_deg!r}")
@@ -286,7 +348,13 @@ def door_from_instrument(instrument: InstrumentSettings | dict) -> Door:
     """The instrument's door (its ``door_geometry`` and aperture): without a length, the one
     :func:`door_length_from_paper` gives for the aperture; without a width, a square plate.
     ``instrument``: its typed settings, or its mapping
-    (:func:`~straylight.config.instrument.instrument_settings`)."""
+    (:func:`~straylight.config.instrument.instrument_settings`).
+
+    Parameters
+    ----------
+    instrument : InstrumentSettings or dict
+        The instrument's typed settings, or its mapping.
+    """
     inst = instrument_settings(instrument)
     g = inst.door_geometry
     r = inst.telescope.aperture_diameter_m.value / 2.0

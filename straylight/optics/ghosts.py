@@ -81,7 +81,15 @@ class GhostModel:
         )
 
     def centre_offsets_mm(self, theta_x_rad, theta_y_rad) -> np.ndarray:
-        """Offsets (3, 2, ...) of the ghost centres from the nominal image, mm."""
+        """Offsets (3, 2, ...) of the ghost centres from the nominal image, mm.
+
+        Parameters
+        ----------
+        theta_x_rad : array_like
+            The source's field angle along the detector's x axis, rad.
+        theta_y_rad : array_like
+            The source's field angle along the detector's y axis, rad.
+        """
         tx, ty = np.asarray(theta_x_rad, dtype=float), np.asarray(theta_y_rad, dtype=float)
         k = np.array([2 * self.d1_mm / self.n, 2 * self.d2_mm, 2 * self.d1_mm / self.n + 2 * self.d2_mm])
         k = k.reshape((3,) + (1,) * tx.ndim)
@@ -102,7 +110,15 @@ class GhostModel:
 def ghost_model_from_instrument(instrument: InstrumentSettings | dict, band: str) -> GhostModel:
     """The ghosts of ``band``: the instrument's ``ghosts`` section and the band's entry in it.
     ``instrument``: its typed settings, or its mapping
-    (:func:`~straylight.config.instrument.instrument_settings`)."""
+    (:func:`~straylight.config.instrument.instrument_settings`).
+
+    Parameters
+    ----------
+    instrument : InstrumentSettings or dict
+        The instrument's typed settings, or its mapping.
+    band : str
+        The band's name.
+    """
     g = needed(instrument_settings(instrument).ghosts, "ghosts")
     per = g.per_band.get(band)
     if per is None:

@@ -283,7 +283,13 @@ class PST:
     def tail_max(self, theta_deg) -> np.ndarray:
         """The PST's largest value over every phi at ``theta_deg`` or beyond (any shape): the
         interpolant is bounded by its cell's corners, so this bounds it everywhere from theta
-        out (from the node at or below theta)."""
+        out (from the node at or below theta).
+
+        Parameters
+        ----------
+        theta_deg : array_like
+            Off-axis angles, deg.
+        """
         th = np.clip(np.asarray(theta_deg, float), 0.0, 180.0)
         k = np.searchsorted(self.theta_deg, th, side="right") - 1
         return self._tail_max_reversed[::-1][k]
@@ -291,7 +297,13 @@ class PST:
     def influence_radius_deg(self, pst_limit) -> np.ndarray:
         """The smallest theta node beyond which the PST stays at or below ``pst_limit`` at every
         phi (array-valued): the interpolant is bounded by its cell's corners, so the bound holds
-        between nodes too.  180 where no node qualifies (the limit is below the PST's tail)."""
+        between nodes too.  180 where no node qualifies (the limit is below the PST's tail).
+
+        Parameters
+        ----------
+        pst_limit : array_like
+            PST values, dimensionless.
+        """
         # first node k with tail_max[k] <= limit (searchsorted on the reversed, increasing array)
         k = self.theta_deg.size - np.searchsorted(
             self._tail_max_reversed, np.asarray(pst_limit, float), side="right"
@@ -306,7 +318,15 @@ class PST:
         same flags as ``(theta >= radius) & (radius < 180)``, found in one compiled pass with
         no search (theta's node from a table of uniform bins, as gridinterp locates cells; the
         node's tail maximum against the limit), faster than numpy's searchsorted over the
-        nodes (docs/performance.md)."""
+        nodes (docs/performance.md).
+
+        Parameters
+        ----------
+        theta_deg : array_like
+            Off-axis angles, deg.
+        pst_limit : array_like
+            PST values, dimensionless, broadcast with ``theta_deg``.
+        """
         th, lim = np.broadcast_arrays(np.asarray(theta_deg, float), np.asarray(pst_limit, float))
         out = np.empty(th.size, np.bool_)
         ax, tail = self._node_finder
@@ -332,7 +352,13 @@ class PST:
 
     def azimuthal_mean(self, theta_deg) -> np.ndarray:
         """The PST averaged over azimuth (72 azimuths, 5 deg apart) at off-axis angles ``theta_deg``
-        (deg, any shape): dimensionless, of the shape of ``theta_deg``."""
+        (deg, any shape): dimensionless, of the shape of ``theta_deg``.
+
+        Parameters
+        ----------
+        theta_deg : array_like
+            Off-axis angles, deg.
+        """
         phi = np.linspace(0.0, 360.0, 73)[:-1]
         return self(np.asarray(theta_deg)[..., None], phi).mean(axis=-1)
 

@@ -73,7 +73,13 @@ class HarveyBRDF:
         return self.b0 * (1.0 + (np.sin(t) / self.l) ** 2) ** (self.s / 2.0)
 
     def tis(self, theta_max_rad: float = np.pi / 2) -> float:
-        """Total integrated scatter within theta_max (2 pi int BRDF cos sin dtheta)."""
+        """Total integrated scatter within theta_max (2 pi int BRDF cos sin dtheta).
+
+        Parameters
+        ----------
+        theta_max_rad : float, optional
+            The largest scattering angle integrated over, rad (default pi/2).
+        """
         # integrate in u = sin(theta): 2 pi int_0^{umax} b0 (1 + u^2/l^2)^(s/2) u du, analytic
         umax = np.sin(theta_max_rad)
         a = self.s / 2.0 + 1.0
@@ -107,7 +113,13 @@ class ScatterModel:
         return len(self.mirror_radii_m) * self.brdf.tis()
 
     def brdf_system(self, theta_rad) -> np.ndarray:
-        """BRDF_t(theta) = sum_i (R / r_i)^2 BRDF(theta R / r_i), sr-1."""
+        """BRDF_t(theta) = sum_i (R / r_i)^2 BRDF(theta R / r_i), sr-1.
+
+        Parameters
+        ----------
+        theta_rad : array_like
+            Scattering angles, rad.
+        """
         t = np.asarray(theta_rad, dtype=float)
         out = np.zeros_like(t)
         for r in self.mirror_radii_m:
@@ -116,7 +128,13 @@ class ScatterModel:
         return out
 
     def halo_profile_raw(self, d_m) -> np.ndarray:
-        """Paper eq. 8 per unit star power: BRDF_t(d / f) / f^2, m-2 (no taper)."""
+        """Paper eq. 8 per unit star power: BRDF_t(d / f) / f^2, m-2 (no taper).
+
+        Parameters
+        ----------
+        d_m : array_like
+            Distances from the image's centre on the focal plane, m.
+        """
         return self.brdf_system(np.asarray(d_m) / self.focal_length_m) / self.focal_length_m**2
 
     def _taper(self, d_m):
@@ -136,7 +154,13 @@ class ScatterModel:
         return self.tis_total - (raw - tapered)
 
     def halo_profile(self, d_m) -> np.ndarray:
-        """Scattering halo (paper eq. 8) with the near-field taper, per unit star power, m-2."""
+        """Scattering halo (paper eq. 8) with the near-field taper, per unit star power, m-2.
+
+        Parameters
+        ----------
+        d_m : array_like
+            Distances from the image's centre on the focal plane, m.
+        """
         return self.halo_profile_raw(d_m) * self._taper(d_m)
 
     @property
@@ -146,16 +170,34 @@ class ScatterModel:
         return self.ee80_radius_arcsec / GAUSS_EE80_FACTOR * ARCSEC_RAD * self.focal_length_m
 
     def core_profile(self, d_m) -> np.ndarray:
-        """Gaussian core carrying 1 - halo_power, m-2."""
+        """Gaussian core carrying 1 - halo_power, m-2.
+
+        Parameters
+        ----------
+        d_m : array_like
+            Distances from the image's centre on the focal plane, m.
+        """
         s = self.core_sigma_m
         return (1.0 - self.halo_power) * np.exp(-0.5 * (np.asarray(d_m) / s) ** 2) / (2 * np.pi * s * s)
 
     def profile(self, d_m) -> np.ndarray:
-        """Star image: core + halo, fraction of the star's power per m2."""
+        """Star image: core + halo, fraction of the star's power per m2.
+
+        Parameters
+        ----------
+        d_m : array_like
+            Distances from the image's centre on the focal plane, m.
+        """
         return self.core_profile(d_m) + self.halo_profile(d_m)
 
     def halo_energy_within(self, d_max_m: float) -> float:
-        """Fraction of the star's power in the halo within radius d_max (numerical)."""
+        """Fraction of the star's power in the halo within radius d_max (numerical).
+
+        Parameters
+        ----------
+        d_max_m : float
+            Radius on the focal plane, m.
+        """
         inner = min(d_max_m, self.blend_outer_arcsec * ARCSEC_RAD * self.focal_length_m)
         e_in, _ = integrate.quad(lambda d: 2 * np.pi * d * self.halo_profile(d), 0, inner, limit=200)
         if d_max_m <= inner:
@@ -173,7 +215,13 @@ class ScatterModel:
 def scatter_model_from_instrument(instrument: InstrumentSettings | dict) -> ScatterModel:
     """The instrument's star image: its ``scattering`` section, aperture, focal length and EE80
     radius.  ``instrument``: its typed settings, or its mapping
-    (:func:`~straylight.config.instrument.instrument_settings`)."""
+    (:func:`~straylight.config.instrument.instrument_settings`).
+
+    Parameters
+    ----------
+    instrument : InstrumentSettings or dict
+        The instrument's typed settings, or its mapping.
+    """
     inst = instrument_settings(instrument)
     sc = needed(inst.scattering, "scattering")
     return ScatterModel(

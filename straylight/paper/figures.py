@@ -64,7 +64,17 @@ def _pyplot():
 # -- sect. 4.1 ----------------------------------------------------------------------------------
 def zodiacal_map_data(campaign: Campaign, time: str = FIGURE_TIME, nside: int = 64) -> dict:
     """V-band zodiacal light (AB mag/arcsec2) on a HEALPix grid (ICRS, RING) seen from the
-    Earth's centre at ``time``; NaN where the Leinert table has no data (near the Sun)."""
+    Earth's centre at ``time``; NaN where the Leinert table has no data (near the Sun).
+
+    Parameters
+    ----------
+    campaign : Campaign
+        The campaign (its models and instrument).
+    time : str, optional
+        The time, UTC ISO (default :data:`FIGURE_TIME`).
+    nside : int, optional
+        The HEALPix grid's nside (default 64).
+    """
     import healpy as hp
 
     from straylight.optics.bandpass import load_band
@@ -89,7 +99,15 @@ def zodiacal_map_data(campaign: Campaign, time: str = FIGURE_TIME, nside: int = 
 
 def plot_zodiacal_map(d: dict, out_png) -> None:
     """Draw :func:`zodiacal_map_data`'s all-sky V-band zodiacal light (AB mag/arcsec2, Sun marked)
-    as a Mollweide map to the PNG ``out_png``."""
+    as a Mollweide map to the PNG ``out_png``.
+
+    Parameters
+    ----------
+    d : dict
+        :func:`zodiacal_map_data`'s result.
+    out_png : str or pathlib.Path
+        The PNG written.
+    """
     import healpy as hp
     from healpy import visufunc  # by name: a process may have loaded healpy without it (util.healpix)
 
@@ -116,7 +134,15 @@ def plot_zodiacal_map(d: dict, out_png) -> None:
 # -- sect. 4.2 ----------------------------------------------------------------------------------
 def scattering_data(campaign: Campaign, r_max_px: float = 1000.0) -> dict:
     """Star image against distance (pixels): PSF core, Harvey-Shack halo (paper eq. 8, four
-    mirrors), and their blend, each relative to the blend's peak; TIS per mirror."""
+    mirrors), and their blend, each relative to the blend's peak; TIS per mirror.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        The campaign (its instrument).
+    r_max_px : float, optional
+        The largest distance from the image's centre, pixels (default 1000).
+    """
     from straylight.optics.scatter import scatter_model_from_instrument
 
     sm = scatter_model_from_instrument(campaign.instrument_settings)
@@ -135,7 +161,15 @@ def scattering_data(campaign: Campaign, r_max_px: float = 1000.0) -> dict:
 
 def plot_scattering(d: dict, out_png) -> None:
     """Draw :func:`scattering_data`'s profiles (PSF core, mirror-scattering halo and their blend,
-    relative to the image's peak, against the distance in pixels, log-log) to the PNG ``out_png``."""
+    relative to the image's peak, against the distance in pixels, log-log) to the PNG ``out_png``.
+
+    Parameters
+    ----------
+    d : dict
+        :func:`scattering_data`'s result.
+    out_png : str or pathlib.Path
+        The PNG written.
+    """
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(7, 4.5))
     r = d["r_px"][1:]
@@ -170,7 +204,17 @@ def plot_scattering(d: dict, out_png) -> None:
 # -- sect. 4.3 ----------------------------------------------------------------------------------
 def ghost_example_data(campaign: Campaign, x_range_px=(-60, 260), half_height_px: int = 110) -> dict:
     """The NUV example's three ghost discs around a star (incidence 3.9 deg along +x), each
-    pixel's ghost irradiance relative to the star image's peak pixel."""
+    pixel's ghost irradiance relative to the star image's peak pixel.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        The campaign (its instrument's NUV ghosts).
+    x_range_px : tuple of int, optional
+        The image's columns from the star, pixels (default -60 to 260).
+    half_height_px : int, optional
+        The image's rows above and below the star, pixels (default 110).
+    """
     from straylight.optics.ghosts import GhostModel
     from straylight.optics.scatter import scatter_model_from_instrument
 
@@ -211,7 +255,15 @@ def ghost_example_data(campaign: Campaign, x_range_px=(-60, 260), half_height_px
 
 def plot_ghosts(d: dict, out_png) -> None:
     """Draw :func:`ghost_example_data`'s ghost image (log10 of the irradiance relative to the star
-    image's peak pixel) to the PNG ``out_png``."""
+    image's peak pixel) to the PNG ``out_png``.
+
+    Parameters
+    ----------
+    d : dict
+        :func:`ghost_example_data`'s result.
+    out_png : str or pathlib.Path
+        The PNG written.
+    """
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(8, 4.6))
     img = np.where(d["relative_to_peak"] > 0, d["relative_to_peak"], np.nan)
@@ -252,7 +304,27 @@ def detector_image_data(
     """A ``size_px`` square part of an NUV detector (``detector``) centred on the star at
     (``star_ra_deg``, ``star_dec_deg``), rendered by :func:`straylight.image.detector.render_detector`
     with every catalog star (``catalog``: ra, dec, mag_<band>) within reach: cores, halos and
-    ghosts.  Returns the image and the profile of the centred star."""
+    ghosts.  Returns the image and the profile of the centred star.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        The campaign (its orbit and instrument).
+    catalog : dict of str to ndarray
+        Star columns ``ra``, ``dec`` (ICRS, deg) and ``mag_<band>`` (AB mag).
+    star_ra_deg : float
+        The centred star's right ascension, ICRS, deg.
+    star_dec_deg : float
+        The centred star's declination, ICRS, deg.
+    time : str, optional
+        The time, UTC ISO (default :data:`FIGURE_TIME`), which sets the roll.
+    size_px : int, optional
+        The image's side, pixels (default 1024).
+    detector : int, optional
+        The detector's index (default 14).
+    band : str, optional
+        The band (default ``"NUV"``).
+    """
     from straylight.image.detector import RenderSettings, render_detector, star_fluxes_e_per_s
     from straylight.image.focal_plane import (
         FocalPlane,
@@ -308,7 +380,15 @@ def detector_image_data(
 
 
 def plot_detector_image(d: dict, out_png) -> None:
-    """Left: the image (stars, halos, ghosts); right: its ghosts alone (the painted discs)."""
+    """Left: the image (stars, halos, ghosts); right: its ghosts alone (the painted discs).
+
+    Parameters
+    ----------
+    d : dict
+        :func:`detector_image_data`'s result.
+    out_png : str or pathlib.Path
+        The PNG written.
+    """
     from straylight.image.detector import paint_discs
 
     plt = _pyplot()
@@ -342,7 +422,19 @@ def plot_detector_image(d: dict, out_png) -> None:
 
 
 def make_figure(name: str, campaign: Campaign, out_png: str | Path, catalog_path=None) -> dict:
-    """Compute and draw one figure; returns its data (for the printed summary)."""
+    """Compute and draw one figure; returns its data (for the printed summary).
+
+    Parameters
+    ----------
+    name : str
+        The figure, one of :data:`FIGURES`.
+    campaign : Campaign
+        The campaign.
+    out_png : str or pathlib.Path
+        The PNG written.
+    catalog_path : str or pathlib.Path, optional
+        A star table for the ``detector`` figure (default: the Hipparcos catalog).
+    """
     from straylight.errors import InputError
 
     out_png = Path(out_png)
@@ -372,7 +464,15 @@ DETECTOR_STAR_RADEC_DEG = (168.527, 20.524)  # delta Leo (Zosma, HIP 54872), ICR
 def detector_catalog(campaign: Campaign, catalog_path=None) -> tuple[dict, float, float]:
     """(catalog columns ra, dec, mag_NUV; the centred star's ra, dec): the user's catalog if
     given (its brightest NUV star is centred), else the Hipparcos catalog in the CSST bands
-    (:func:`straylight.catalog.build.catalog_for_campaign`) centred on delta Leo."""
+    (:func:`straylight.catalog.build.catalog_for_campaign`) centred on delta Leo.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        The campaign (its instrument and star settings).
+    catalog_path : str or pathlib.Path, optional
+        A star table with ``ra``, ``dec`` (deg) and ``mag_NUV`` (AB mag).
+    """
     if catalog_path is not None:
         from straylight.catalog.star_table import read_star_table
 

@@ -95,13 +95,25 @@ def earthshine_scenario(campaign: Campaign, time: str = SCENARIO_TIME, band: str
 
 
 def sunlit_limb(result: dict) -> np.ndarray:
-    """The scenario's pointings in the sunlit region: nearest limb bright, above it."""
+    """The scenario's pointings in the sunlit region: nearest limb bright, above it.
+
+    Parameters
+    ----------
+    result : dict
+        A scenario's result (``limb_is_bright``, ``earth_limb_angle_deg`` in deg).
+    """
     return result["limb_is_bright"] & (result["earth_limb_angle_deg"] > 0)
 
 
 def read_hst_curve(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     """HST's earthshine curve: (angle above the bright limb, deg; V mag/arcsec2), sorted by
-    angle, from a CSV with columns ``limb_angle_deg, v_mag_per_arcsec2``."""
+    angle, from a CSV with columns ``limb_angle_deg, v_mag_per_arcsec2``.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The CSV file.
+    """
     from astropy.table import Table
 
     p = Path(path)
@@ -129,7 +141,15 @@ def binned_median_mag(
     result: dict, bin_deg: float = LIMB_BIN_DEG
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """CSST's median earthshine (mag/arcsec2) over the sunlit-limb pointings in bins of the limb
-    angle: (bin centres, deg; medians; pointings per bin), bins without pointings left out."""
+    angle: (bin centres, deg; medians; pointings per bin), bins without pointings left out.
+
+    Parameters
+    ----------
+    result : dict
+        A scenario's result.
+    bin_deg : float, optional
+        The bins' width in limb angle, deg (default :data:`LIMB_BIN_DEG`).
+    """
     sel = sunlit_limb(result)
     return binned_median(
         result["bright_limb_angle_deg"][sel], result["earthshine_mag_per_arcsec2"][sel], bin_deg
@@ -173,7 +193,17 @@ def binned_median(limb_deg, mag, bin_deg: float = LIMB_BIN_DEG) -> tuple[np.ndar
 def crossing_angle_deg(centres_deg, median_mag, level_mag) -> float:
     """The limb angle (deg) at which the binned median earthshine first falls to ``level_mag``
     (becomes at least as faint), linear in magnitude between bin centres; NaN if it never does,
-    the first centre if it already is there."""
+    the first centre if it already is there.
+
+    Parameters
+    ----------
+    centres_deg : ndarray
+        Bin centres, limb angle, deg, increasing.
+    median_mag : ndarray
+        The binned median earthshine, mag/arcsec2.
+    level_mag : float
+        The level, mag/arcsec2.
+    """
     c, m = np.asarray(centres_deg, float), np.asarray(median_mag, float)
     fainter = np.flatnonzero(m >= level_mag)
     if fainter.size == 0:
@@ -187,7 +217,15 @@ def crossing_angle_deg(centres_deg, median_mag, level_mag) -> float:
 def hst_comparison(result: dict, hst_curve: str | Path) -> dict:
     """The paper's CSST-versus-HST comparison (sect. 3.3) for a scenario ``result`` (V band):
     HST's earthshine at its 20 deg limit, interpolated on the curve, and the limb angle at which
-    CSST's binned median earthshine falls to it."""
+    CSST's binned median earthshine falls to it.
+
+    Parameters
+    ----------
+    result : dict
+        A V-band scenario's result.
+    hst_curve : str or pathlib.Path
+        HST's earthshine curve (:func:`read_hst_curve`).
+    """
     angle, mag = read_hst_curve(hst_curve)
     if not angle[0] <= HST_BRIGHT_LIMB_LIMIT_DEG <= angle[-1]:
         raise InputError(
@@ -215,7 +253,19 @@ def plot_earthshine_scenario(
     result: dict, out_png: str | Path, hst_curve: str | Path | None = None, comparison: dict | None = None
 ) -> None:
     """The paper's fig. (sect. 3.3): CSST's earthshine against the bright-limb angle, its binned
-    median, the zodiacal light at the same pointings, and HST's curve when given."""
+    median, the zodiacal light at the same pointings, and HST's curve when given.
+
+    Parameters
+    ----------
+    result : dict
+        A scenario's result.
+    out_png : str or pathlib.Path
+        The PNG written.
+    hst_curve : str or pathlib.Path, optional
+        HST's earthshine curve (:func:`read_hst_curve`), drawn when given.
+    comparison : dict, optional
+        :func:`hst_comparison`'s result, marked when given.
+    """
     import matplotlib
 
     matplotlib.use("Agg")

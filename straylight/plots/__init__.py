@@ -12,6 +12,9 @@
 Maps are in the cube's HEALPix frame (ICRS), RA increasing to the left; pixels outside the footprint
 are light grey.  Values are shown as AB mag/arcsec2 (brighter = smaller), the unit planners compare
 with sky tables; depths as AB mag.
+
+Internal: not part of the public API (``straylight.__all__``); the workflow's report rules call
+it.
 """
 
 __all__: list[str] = []

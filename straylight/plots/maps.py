@@ -229,7 +229,23 @@ class MollweidePanel:
         between ``vmin`` and ``vmax`` (values beyond in the end colours), and the Sun at
         ``sun_radec_deg`` ((n, 2) RA, Dec in deg: one position, or a track from the first to
         the last; None: no Sun): the image is the cached pixel index of
-        :func:`_mollweide_pixel_index` applied to the map, drawn with imshow inside the ellipse."""
+        :func:`_mollweide_pixel_index` applied to the map, drawn with imshow inside the ellipse.
+
+        Parameters
+        ----------
+        full_sky : ndarray
+            A full HEALPix map (mag/arcsec2 or AB mag as the page shows).
+        nest : bool
+            Whether the map is in NESTED order.
+        title : str
+            The panel's title.
+        vmin : float
+            The value at the colour scale's bright end, in the map's unit.
+        vmax : float
+            The value at the colour scale's faint end, in the map's unit.
+        sun_radec_deg : ndarray, optional
+            The Sun's RA, Dec, deg, shape (n, 2): one position, or a track; None: no Sun.
+        """
         import healpy as hp
         from matplotlib.colors import Normalize
         from matplotlib.patches import Ellipse
@@ -309,7 +325,19 @@ def overlay_legend(fig, sun: str, outside: str, y: float = -0.01):
     """The page's legend of what the panels draw over the maps, centred under the panels (at
     figure fraction ``y``): the ecliptic, the Galactic plane, the Sun (``sun``: ``"at"`` one
     time, or ``"track"``: a ring at the start, a disc at the end, the line between) and the colour
-    of pixels without a value, ``outside`` saying which."""
+    of pixels without a value, ``outside`` saying which.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The page.
+    sun : {"at", "track"}
+        The Sun drawn at one time, or as a track.
+    outside : str
+        What the light grey pixels are (e.g. ``"outside the footprint"``).
+    y : float, optional
+        The legend's height, figure fraction (default -0.01).
+    """
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
@@ -341,7 +369,17 @@ ORIENTATION = (
 
 def map_time_indices(ds, n_times: int = 2, times=()) -> list[int]:
     """Indices into ``ds.time`` of the sky maps' times: the samples nearest ``times`` (UTC ISO)
-    if given, else ``n_times`` evenly spread over the campaign."""
+    if given, else ``n_times`` evenly spread over the campaign.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        The background cube (its ``time``).
+    n_times : int, optional
+        Number of evenly spread times when ``times`` is empty (default 2).
+    times : sequence of str, optional
+        UTC ISO times.
+    """
     if times:
         from straylight.sky.timeutil import parse_utc
 
@@ -358,7 +396,21 @@ def sky_maps(ds, campaign, out_dir, time_indices, bands=None) -> list:
     or ``bands``): a 2 x 4 page of Mollweide maps, one per component, the total and the
     observability, with the Sun at that time.  Each component of a band has one colour scale
     over all the map times (:func:`~straylight.plots.common.band_colour_limits`), from its
-    observable pixels (all, where none is observable); the others take the end colours."""
+    observable pixels (all, where none is observable); the others take the end colours.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        The background cube.
+    campaign : Campaign
+        The campaign.
+    out_dir : str or pathlib.Path
+        The folder the pages are written to.
+    time_indices : sequence of int
+        Indices into ``ds.time``.
+    bands : sequence of str, optional
+        The bands drawn (default: all).
+    """
     from astropy.time import Time
 
     from straylight.model import registry
@@ -452,7 +504,17 @@ def sky_map_figures(background_path, campaign, out_dir) -> list:
     ``out_dir``, at the report's map times (``report.times``, else ``report.sky_map_times``
     spread over the campaign) in its bands (``report.sky_map_bands``, else all): each time read
     once for all its bands.  Returns the paths written; ConfigError naming the config file for a
-    band the cube does not have."""
+    band the cube does not have.
+
+    Parameters
+    ----------
+    background_path : str or pathlib.Path
+        The background cube (Zarr).
+    campaign : Campaign
+        The campaign (its ``report`` settings).
+    out_dir : str or pathlib.Path
+        The folder the pages are written to.
+    """
     import xarray as xr
 
     out = Path(out_dir)
@@ -484,7 +546,13 @@ DEPTH_MAP_STATS = ("median", "best", "median_pessimistic", "median_optimistic")
 def depth_colour_limits(limits_ds) -> dict:
     """One colour scale per band for all its depth maps (the ``limiting_mag_<stat>`` of
     :data:`DEPTH_MAP_STATS` that ``limits_ds`` has): band -> (vmin, vmax), AB mag, from
-    :func:`~straylight.plots.common.band_colour_limits` over the maps' values together."""
+    :func:`~straylight.plots.common.band_colour_limits` over the maps' values together.
+
+    Parameters
+    ----------
+    limits_ds : xarray.Dataset
+        The limits product.
+    """
     names = [f"limiting_mag_{s}" for s in DEPTH_MAP_STATS if f"limiting_mag_{s}" in limits_ds]
     return {
         str(band): band_colour_limits(
@@ -498,7 +566,17 @@ def limit_maps(limits_ds, campaign, out_dir) -> list:
     """Per depth statistic of :data:`DEPTH_MAP_STATS` that ``limits_ds`` has, a page of its
     5-sigma limiting-magnitude maps over the campaign, one panel per band, each band on one
     colour scale over all its depth maps (:func:`depth_colour_limits`), with the Sun's track over
-    the campaign.  Returns the paths written."""
+    the campaign.  Returns the paths written.
+
+    Parameters
+    ----------
+    limits_ds : xarray.Dataset
+        The limits product.
+    campaign : Campaign
+        The campaign.
+    out_dir : str or pathlib.Path
+        The folder the pages are written to.
+    """
     from matplotlib.figure import Figure
 
     nest = str(limits_ds.attrs.get("healpix_ordering", "RING")).upper() == "NESTED"

@@ -63,7 +63,13 @@ def ecliptic_radec_deg(n_points: int = 721) -> np.ndarray:
     """ICRS RA, Dec (deg; shape (n_points, 2)) of the J2000 ecliptic (ecliptic latitude 0,
     longitude 0 to 360 deg), through astropy's ``BarycentricMeanEcliptic``: the plane the Sun
     moves in, within 0.01 deg over the decades the maps cover (the ecliptic itself precesses by
-    47 arcsec a century)."""
+    47 arcsec a century).
+
+    Parameters
+    ----------
+    n_points : int, optional
+        Number of points along the ecliptic (default 721: 0.5 deg apart).
+    """
     from astropy.coordinates import BarycentricMeanEcliptic
 
     lon = np.linspace(0.0, 360.0, n_points)
@@ -73,14 +79,26 @@ def ecliptic_radec_deg(n_points: int = 721) -> np.ndarray:
 @lru_cache(maxsize=4)
 def galactic_plane_radec_deg(n_points: int = 721) -> np.ndarray:
     """ICRS RA, Dec (deg; shape (n_points, 2)) of the Galactic plane (b = 0, l from 0 to 360 deg),
-    through astropy's ``Galactic`` frame."""
+    through astropy's ``Galactic`` frame.
+
+    Parameters
+    ----------
+    n_points : int, optional
+        Number of points along the plane (default 721: 0.5 deg apart).
+    """
     lon = np.linspace(0.0, 360.0, n_points)
     return _to_icrs_deg("galactic", lon, np.zeros_like(lon))
 
 
 def sun_radec_deg(times) -> np.ndarray:
     """The Sun's geocentric ICRS RA, Dec (deg; shape (n, 2)) at UTC ``times`` (ISO strings, an
-    astropy Time or UTC Julian dates; n of them), from the DE405 ephemeris the model uses."""
+    astropy Time or UTC Julian dates; n of them), from the DE405 ephemeris the model uses.
+
+    Parameters
+    ----------
+    times : str, sequence of str, astropy.time.Time or array_like
+        UTC times (ISO strings, a ``Time``, or UTC Julian dates, days).
+    """
     from straylight.sky.ephemeris import default_ephemeris, radec_distance
 
     sun = default_ephemeris().positions(times, bodies=("sun",))["sun"]
@@ -91,6 +109,14 @@ def sun_radec_deg(times) -> np.ndarray:
 def sun_track_times(times, n_max: int = 49):
     """At most ``n_max`` of ``times`` (an astropy Time, 1-D) evenly spread from the first to the
     last (both kept): enough for the Sun's track over a campaign to be a smooth line (the Sun
-    moves about 1 deg a day)."""
+    moves about 1 deg a day).
+
+    Parameters
+    ----------
+    times : astropy.time.Time
+        Times, 1-D.
+    n_max : int, optional
+        The most times returned (default 49).
+    """
     n = len(times)
     return times[np.unique(np.linspace(0, n - 1, min(n, max(int(n_max), 2))).round().astype(int))]

@@ -31,7 +31,15 @@ def depth_summary(limits_ds, observable_fraction: float | None = None) -> dict:
     """Per band: the median over the footprint of each pixel's median 5-sigma limit, the best
     pixel's best limit (AB mag), and the observable fraction of all (time, pixel) samples
     (``observable_fraction`` where the caller has counted it, else counted here from
-    ``limits_ds["observable"]``)."""
+    ``limits_ds["observable"]``).
+
+    Parameters
+    ----------
+    limits_ds : xarray.Dataset
+        The limits product.
+    observable_fraction : float, optional
+        The observable fraction of all samples, if counted by the caller.
+    """
     obs = observable_fraction
     if obs is None:
         # counted a pixel block at a time (an exact integer, so the same fraction as the mean of
@@ -71,7 +79,15 @@ def write_depth_table(rows: dict, path) -> Path:
     """The depth table ``rows`` of :func:`depth_summary` as CSV at ``path``: per band, the
     median and best 5-sigma depth (AB mag) and the observable fraction of all samples, then,
     where the rows have them, the depth budget's 16th and 84th percentiles of the median depth
-    (AB mag)."""
+    (AB mag).
+
+    Parameters
+    ----------
+    rows : dict
+        Band -> row (:func:`depth_summary`).
+    path : str or pathlib.Path
+        The CSV file.
+    """
     from straylight.util.io import atomic_path
 
     path = Path(path)
@@ -89,7 +105,13 @@ def write_depth_table(rows: dict, path) -> Path:
 
 
 def read_depth_table(path) -> dict:
-    """The rows :func:`write_depth_table` wrote (band -> the three numbers, as written)."""
+    """The rows :func:`write_depth_table` wrote (band -> the three numbers, as written).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The CSV file.
+    """
     import csv
 
     with open(path, newline="") as f:
@@ -98,7 +120,17 @@ def read_depth_table(path) -> dict:
 
 def limit_figures(limits_path, campaign, out_dir) -> list:
     """The limits' figures in ``out_dir``: the best and median limit maps (:func:`limit_maps`)
-    and the depth table (:data:`DEPTH_TABLE`, :func:`depth_summary`); the paths written."""
+    and the depth table (:data:`DEPTH_TABLE`, :func:`depth_summary`); the paths written.
+
+    Parameters
+    ----------
+    limits_path : str or pathlib.Path
+        The limits product (Zarr).
+    campaign : Campaign
+        The campaign.
+    out_dir : str or pathlib.Path
+        The folder the figures are written to.
+    """
     import xarray as xr
     import zarr
 
@@ -152,7 +184,19 @@ def write_report_front(rows: dict, config: dict, path, figure_dirs=()) -> Path:
     ``config`` (a validated campaign config: ``Campaign.config``, or the workflow's), then the
     depth table ``rows`` (:func:`read_depth_table`) and the depth maps, then a guide to the other
     figures, with thumbnails of those found in ``figure_dirs`` (depth/, sky/ and series/ of the
-    campaign's results)."""
+    campaign's results).
+
+    Parameters
+    ----------
+    rows : dict
+        The depth table (:func:`read_depth_table`).
+    config : dict
+        A validated campaign config.
+    path : str or pathlib.Path
+        The page written (RST).
+    figure_dirs : sequence of str or pathlib.Path, optional
+        Folders whose figures get thumbnails.
+    """
     from straylight.util.io import atomic_path
 
     c = config["campaign"]

@@ -32,7 +32,17 @@ SERIES_DEPTH_MAG = 4.0
 
 def series_pixel_indices(ds, n_pointings: int = 3, pointings=()) -> list[int]:
     """Indices into ``ds.pixel`` of the time series' pointings: the footprint pixels nearest
-    ``pointings`` ([ra, dec] deg) if given, else ``n_pointings`` pixels evenly spread."""
+    ``pointings`` ([ra, dec] deg) if given, else ``n_pointings`` pixels evenly spread.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        The background cube (its ``pixel``, ``ra``, ``dec``).
+    n_pointings : int, optional
+        Number of evenly spread pixels when ``pointings`` is empty (default 3).
+    pointings : sequence of (float, float), optional
+        Pointings as [RA, Dec], deg.
+    """
     if pointings:
         from straylight.sky.vectors import radec_to_unit
 
@@ -67,7 +77,23 @@ def model_series(campaign, ds, pixel_indices, minutes, stars_path=None, model=No
     at ``minutes`` after the cube's first time, in the cube's bands: name -> (time, band) array
     of every component and the total (e-/s/pixel), ``observable`` (time,) and ``minutes``.
     ``stars_path``: the campaign's star catalog (None: stars = 0); ``model``: a warm
-    :class:`~straylight.model.BackgroundModel` of ``campaign`` (None: one is built)."""
+    :class:`~straylight.model.BackgroundModel` of ``campaign`` (None: one is built).
+
+    Parameters
+    ----------
+    campaign : Campaign
+        The campaign.
+    ds : xarray.Dataset
+        The background cube.
+    pixel_indices : sequence of int
+        Indices into ``ds.pixel``.
+    minutes : array_like
+        Times after the cube's first time, min.
+    stars_path : str or pathlib.Path, optional
+        The campaign's star catalog (None: stars = 0).
+    model : BackgroundModel, optional
+        A warm model of ``campaign`` (None: one is built).
+    """
     import astropy.units as u
     from astropy.time import Time
 
@@ -98,7 +124,23 @@ def time_series(ds, campaign, out_dir, pixel_indices, series: list[dict], orbit_
     and their ``series`` (:func:`pointing_series`): total and components in each band against
     time, over the first orbit (``orbit_series``, :func:`model_series`, if given; else the
     cube's samples) and over the whole campaign; unobservable times shaded.  The legend lists
-    the curves that enter the axes; the x label names those that do not."""
+    the curves that enter the axes; the x label names those that do not.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        The background cube.
+    campaign : Campaign
+        The campaign.
+    out_dir : str or pathlib.Path
+        The folder the figures are written to.
+    pixel_indices : sequence of int
+        Indices into ``ds.pixel``.
+    series : list of dict
+        Each pointing's series (:func:`pointing_series`).
+    orbit_series : list of dict, optional
+        Each pointing's series over the first orbit (:func:`model_series`).
+    """
     from matplotlib.figure import Figure
     from matplotlib.patches import PathPatch
     from matplotlib.ticker import MaxNLocator
@@ -227,7 +269,19 @@ def time_series_figures(background_path, campaign, out_dir, stars_path=None) -> 
     else ``report.series_pointings`` spread over the footprint) in ``out_dir``: over the first
     orbit the model every :data:`ORBIT_STEP_MINUTES` (:func:`model_series`, with the star
     catalog at ``stars_path``), over the campaign each pointing's whole series in the cube, read
-    in one pass over its pixel's chunks (:func:`pointing_series`).  Returns the paths written."""
+    in one pass over its pixel's chunks (:func:`pointing_series`).  Returns the paths written.
+
+    Parameters
+    ----------
+    background_path : str or pathlib.Path
+        The background cube (Zarr).
+    campaign : Campaign
+        The campaign (its ``report`` settings).
+    out_dir : str or pathlib.Path
+        The folder the figures are written to.
+    stars_path : str or pathlib.Path, optional
+        The campaign's star catalog (None: stars = 0 over the first orbit).
+    """
     import xarray as xr
 
     out = Path(out_dir)

@@ -100,7 +100,13 @@ class DE405:
 
     # -- raw access -------------------------------------------------------------------------
     def coefficients(self, name: str) -> np.ndarray:
-        """Chebyshev coefficient array of one body, (n_sets, 3, n_coeff), loaded once."""
+        """Chebyshev coefficient array of one body, (n_sets, 3, n_coeff), loaded once.
+
+        Parameters
+        ----------
+        name : str
+            The body, one of :data:`BODIES` (e.g. ``"moon"``).
+        """
         if name not in _FILES:
             raise InputError(f"unknown body {name!r}; known: {', '.join(BODIES)}")
         if name not in self._coefficients:
@@ -163,6 +169,15 @@ class DE405:
         """Geocentric geometric positions, km, ICRS axes, for TDB Julian dates jd1 + jd2.
 
         Returns a dict body -> array of shape ``np.shape(jd1 + jd2) + (3,)``.
+
+        Parameters
+        ----------
+        jd1 : float or array_like
+            TDB Julian date, days (first part).
+        jd2 : float or array_like, optional
+            Second part of the TDB Julian date, days, broadcast with ``jd1``.
+        bodies : iterable of str, optional
+            The bodies to compute (default :data:`BODIES`).
         """
         jd1 = np.asarray(jd1, dtype=float)
         jd2 = np.asarray(jd2, dtype=float)
@@ -186,7 +201,15 @@ class DE405:
         return out
 
     def positions(self, times, bodies=BODIES) -> dict[str, np.ndarray]:
-        """Geocentric geometric positions (km, ICRS) for UTC times (ISO strings or Time)."""
+        """Geocentric geometric positions (km, ICRS) for UTC times (ISO strings or Time).
+
+        Parameters
+        ----------
+        times : str, sequence of str or astropy.time.Time
+            UTC times (ISO strings or a ``Time``), any shape.
+        bodies : iterable of str, optional
+            The bodies to compute (default :data:`BODIES`).
+        """
         jd1, jd2 = utc_to_tdb_jd(times)
         return self.positions_tdb(jd1, jd2, bodies)
 
@@ -198,7 +221,13 @@ class DE405:
 
 
 def radec_distance(position_km: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """RA (deg, [0, 360)), Dec (deg) and distance (km) of Cartesian ICRS vectors (..., 3)."""
+    """RA (deg, [0, 360)), Dec (deg) and distance (km) of Cartesian ICRS vectors (..., 3).
+
+    Parameters
+    ----------
+    position_km : ndarray
+        Cartesian ICRS vectors, km, shape (..., 3).
+    """
     x, y, z = np.moveaxis(np.asarray(position_km, dtype=float), -1, 0)
     rho = np.hypot(x, y)
     ra = np.degrees(np.arctan2(y, x)) % 360.0
@@ -223,6 +252,15 @@ def check_in_ephemeris(t: Time, field: str, given=None) -> None:
     ``field`` names the input (``--time``, ``time``); for several times the message names the
     first one out of range by its index (``sample i``).  ``given``: the text the user typed,
     quoted in place of the parsed time.
+
+    Parameters
+    ----------
+    t : astropy.time.Time
+        The time or times to check.
+    field : str
+        The input's name in the message (``--time``, ``time``).
+    given : str, optional
+        The text the user typed, quoted in the message in place of the parsed time.
 
     Raises
     ------

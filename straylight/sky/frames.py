@@ -30,7 +30,13 @@ class TelescopeFrame:
     z: np.ndarray
 
     def theta_phi_deg(self, direction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Off-axis angle theta in [0, 180] and azimuth phi in [0, 360) of a direction, deg."""
+        """Off-axis angle theta in [0, 180] and azimuth phi in [0, 360) of a direction, deg.
+
+        Parameters
+        ----------
+        direction : ndarray
+            Unit directions (ICRS axes), shape (..., 3) broadcastable with the frame's axes.
+        """
         d = np.asarray(direction, dtype=float)
         if d.ndim == 1:  # one direction for every frame (a body seen from a cube time step)
             shape = self.z.shape[:-1]
@@ -49,7 +55,17 @@ class TelescopeFrame:
         samples, the frames broadcast to it); (theta, phi) of shape (B,) + shape.  The direction's
         components in the frame in one compiled pass (:func:`_frame_components_kernel`, which
         reads each sample's direction from its run rather than a gathered (B, N, 3) array), the
-        arctangents in numpy (its SIMD arctan2 is faster than the compiled loop's libm call)."""
+        arctangents in numpy (its SIMD arctan2 is faster than the compiled loop's libm call).
+
+        Parameters
+        ----------
+        d_run : ndarray
+            Unit directions of B bodies per run of samples (ICRS axes), shape (B, R, 3).
+        index : ndarray of int
+            Each sample's run, shape (N,).
+        shape : tuple of int
+            The samples' shape (N samples; the frame's axes broadcast to it).
+        """
         frames = [
             np.ascontiguousarray(np.broadcast_to(a, tuple(shape) + (3,)).reshape(-1, 3), dtype=float)
             for a in (self.x, self.y, self.z)
@@ -93,6 +109,13 @@ def telescope_frame(los: np.ndarray, sun_direction: np.ndarray) -> TelescopeFram
 
     With the Sun exactly on or opposite the LOS the roll is undefined; the +X axis then falls
     back to celestial north projected on the focal plane, so the frame is always finite.
+
+    Parameters
+    ----------
+    los : ndarray
+        Unit lines of sight (ICRS axes), shape (..., 3).
+    sun_direction : ndarray
+        Unit direction to the Sun from the telescope (ICRS axes), broadcastable with ``los``.
     """
     los, sun_direction = np.broadcast_arrays(
         np.asarray(los, dtype=float), np.asarray(sun_direction, dtype=float)

@@ -78,6 +78,11 @@ class Constraints:
 
         States are tried from the widest opening down; a state is allowed when the Sun is
         beyond its minimum angle (``>`` or ``>=`` as the state says).
+
+        Parameters
+        ----------
+        sun_angle_deg : ndarray
+            The Sun's off-axis angle, deg.
         """
         s = np.asarray(sun_angle_deg, dtype=float)
         out = np.zeros_like(s)
@@ -98,6 +103,19 @@ class Constraints:
 
         Each constraint is violated strictly below its threshold: a pointing exactly at the
         avoidance angle is allowed (the paper gives minimum angles).
+
+        Parameters
+        ----------
+        sun_angle_deg : array_like
+            Angle between the line of sight and the Sun, deg.
+        moon_angle_deg : array_like
+            Angle between the line of sight and the Moon, deg.
+        bright_limb_angle_deg : array_like
+            Angle between the line of sight and the Earth's sunlit limb, deg.
+        dark_limb_angle_deg : array_like
+            Angle between the line of sight and the Earth's dark limb, deg.
+        earth_limb_angle_deg : array_like
+            Angle between the line of sight and the Earth's limb, deg (negative below it).
         """
         flags = np.zeros(np.broadcast(sun_angle_deg, moon_angle_deg).shape, dtype=np.uint8)
         flags |= np.where(np.asarray(sun_angle_deg) < self.sun_min_deg, VIOLATION_BITS["sun"], 0).astype(
@@ -119,7 +137,13 @@ class Constraints:
 
 
 def violation_names(flags: int) -> list[str]:
-    """Names of the constraints set in one violation bit mask."""
+    """Names of the constraints set in one violation bit mask.
+
+    Parameters
+    ----------
+    flags : int
+        A violation bit mask (:data:`VIOLATION_BITS`).
+    """
     return [name for name in VIOLATION_NAMES if int(flags) & VIOLATION_BITS[name]]
 
 
@@ -129,6 +153,15 @@ def moon_phase(sun_km: np.ndarray, moon_km: np.ndarray, observer_km: np.ndarray)
 
     The illuminated fraction of the disc is k = (1 + cos(alpha)) / 2 (Meeus 1998, eq. 48.1).
     Also returns the elongation Sun-observer-Moon (deg; 180 at full Moon, the paper's "phase").
+
+    Parameters
+    ----------
+    sun_km : ndarray
+        Geocentric position of the Sun, km, shape (..., 3).
+    moon_km : ndarray
+        Geocentric position of the Moon, km, shape (..., 3).
+    observer_km : ndarray
+        Geocentric position of the observer, km, shape (..., 3).
     """
     alpha = angle_between_deg(sun_km - moon_km, observer_km - moon_km)
     fraction = 0.5 * (1.0 + np.cos(np.radians(alpha)))
@@ -146,7 +179,21 @@ def body_geometry(
     """Each body's off-axis angle, azimuth and Earth test in the telescope ``frame`` (see
     :func:`observing_geometry`): ``<body>_angle_deg``, ``<body>_phi_deg`` and
     ``<body>_earth_blocked``, arrays of the samples' shape.  ``runs``: the samples' scene runs
-    when known (:class:`SceneRuns`)."""
+    when known (:class:`SceneRuns`).
+
+    Parameters
+    ----------
+    satellite_km : ndarray
+        Geocentric position of the telescope, km, shape (..., 3).
+    bodies_km : dict of str to ndarray
+        Geocentric position of each body, km, shape (..., 3).
+    frame : TelescopeFrame
+        The telescope frame of each sample.
+    earth_radius_km : float
+        The Earth's radius used for the Earth-blocking test, km.
+    runs : SceneRuns, optional
+        The samples' scene runs when known (found otherwise).
+    """
     sat = np.asarray(satellite_km, dtype=float)
     # a cube time step shares the satellite and the bodies: each body's direction once per step
     return _body_geometry(bodies_km, frame, earth_radius_km, scene_rows(sat, *bodies_km.values(), runs=runs))

@@ -34,7 +34,17 @@ class Scene:
 
 def scene(orbit: CircularOrbit | TLEOrbit, times, bodies=BODIES) -> Scene:
     """Satellite (from ``orbit``, e.g. a campaign's ``orbit``) and body positions (DE405) at
-    UTC times."""
+    UTC times.
+
+    Parameters
+    ----------
+    orbit : CircularOrbit or TLEOrbit
+        The telescope's orbit (e.g. a campaign's ``orbit``).
+    times : str, sequence of str or astropy.time.Time
+        UTC times, any shape.
+    bodies : iterable of str, optional
+        The bodies whose positions are computed (default :data:`BODIES`).
+    """
     t = parse_utc(times)
     t1 = t.reshape(-1) if t.shape else t.reshape((1,))
     jd1, jd2 = utc_to_tdb_jd(t1)
@@ -52,6 +62,22 @@ def sample_geometry(
 
     grid=True: every time against every pointing, arrays (T, P).
     grid=False: paired samples, time i with pointing i, arrays (N,).
+
+    Parameters
+    ----------
+    sc : Scene
+        The times' satellite and body positions (:func:`scene`).
+    ra_deg : array_like
+        Right ascension of the pointings, ICRS, deg.
+    dec_deg : array_like
+        Declination of the pointings, ICRS, deg.
+    earth_radius_km : float
+        The Earth's radius, km (a campaign's ``earth.radius_km``).
+    constraints : Constraints
+        The avoidance constraints (a campaign's ``constraints``).
+    grid : bool, optional
+        True (default): every time against every pointing, arrays (T, P); False: time i with
+        pointing i, arrays (N,).
     """
     los = radec_to_unit(ra_deg, dec_deg)
     los = np.atleast_2d(los)

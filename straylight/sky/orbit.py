@@ -148,7 +148,13 @@ class CircularOrbit:
         return self._epoch_time
 
     def position_gcrs_km(self, times) -> np.ndarray:
-        """Position (km, GCRS axes) for UTC times of any shape -> shape + (3,)."""
+        """Position (km, GCRS axes) for UTC times of any shape -> shape + (3,).
+
+        Parameters
+        ----------
+        times : str, sequence of str or astropy.time.Time
+            UTC times, any shape.
+        """
         t = parse_utc(times)
         dt_s = np.asarray((t - self._epoch_time).to_value("s"), dtype=float)
         raan = np.radians(self.raan_deg) + self.nodal_rate_rad_s * dt_s
@@ -215,7 +221,13 @@ class TLEOrbit:
         return float(2 * np.pi / self.satrec.no_kozai * 60.0)
 
     def position_teme_km(self, times) -> np.ndarray:
-        """SGP4 position in TEME, km, shape + (3,)."""
+        """SGP4 position in TEME, km, shape + (3,).
+
+        Parameters
+        ----------
+        times : str, sequence of str or astropy.time.Time
+            UTC times, any shape.
+        """
         t = parse_utc(times)
         jd1 = np.atleast_1d(np.asarray(t.jd1, dtype=float)).ravel()
         jd2 = np.atleast_1d(np.asarray(t.jd2, dtype=float)).ravel()
@@ -229,7 +241,13 @@ class TLEOrbit:
         return r.reshape(np.shape(t.jd1) + (3,))
 
     def position_gcrs_km(self, times) -> np.ndarray:
-        """Position in GCRS, km, shape + (3,) (TEME -> GCRS with astropy, offline IERS)."""
+        """Position in GCRS, km, shape + (3,) (TEME -> GCRS with astropy, offline IERS).
+
+        Parameters
+        ----------
+        times : str, sequence of str or astropy.time.Time
+            UTC times, any shape.
+        """
         from astropy import units as u
         from astropy.coordinates import GCRS, TEME, CartesianRepresentation
 
@@ -301,7 +319,23 @@ def _tle_lines(tle) -> tuple[str, str, str]:
 def epoch_gap_warning(what: str, epoch, start, end, limit_days: float, reason: str) -> str | None:
     """The warning for a campaign [start, end] whose farthest time is more than ``limit_days``
     from the orbit's ``epoch`` (Times), else None: ``what`` (e.g. ``orbit.tle epoch``), the
-    epoch, its gap to campaign.start and the largest gap, then ``reason``."""
+    epoch, its gap to campaign.start and the largest gap, then ``reason``.
+
+    Parameters
+    ----------
+    what : str
+        What the epoch is, first in the message (e.g. ``orbit.tle epoch``).
+    epoch : astropy.time.Time
+        The orbit's epoch.
+    start : astropy.time.Time
+        The campaign's start.
+    end : astropy.time.Time
+        The campaign's end.
+    limit_days : float
+        The largest gap that is not warned about, days.
+    reason : str
+        Why the gap matters, last in the message.
+    """
     to_start = float((start - epoch).to_value("day"))
     largest = max(abs(to_start), abs(float((end - epoch).to_value("day"))))
     if largest <= limit_days:
@@ -321,6 +355,17 @@ def warn_if_epoch_far(orbit, start, end, where: str) -> str | None:
 
     ``orbit``: the config's typed ``orbit`` section (:func:`orbit_from_settings`), a TLE
     file's path already resolved.
+
+    Parameters
+    ----------
+    orbit : OrbitSection
+        The config's typed ``orbit`` section, a TLE file's path already resolved.
+    start : str or astropy.time.Time
+        The campaign's start (UTC).
+    end : str or astropy.time.Time
+        The campaign's end (UTC).
+    where : str
+        What starts the logged line (the config file).
     """
     if orbit.model == "circular":
         epoch = parse_utc(orbit.circular.epoch, "orbit.circular.epoch")

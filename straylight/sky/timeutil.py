@@ -169,6 +169,13 @@ def tdb_minus_tt_s(tt_jd1: np.ndarray, tt_jd2: np.ndarray) -> np.ndarray:
     The full series is summed term by term for every time; for more than
     :data:`DTDB_DIRECT_MAX` times it is evaluated on a :data:`DTDB_GRID_STEP_D` grid and
     interpolated with a cubic spline (error < 1 ns, against ~1.7 ms amplitude).
+
+    Parameters
+    ----------
+    tt_jd1 : ndarray
+        TT Julian date, days (first part).
+    tt_jd2 : ndarray
+        TT Julian date, days (second part).
     """
     import erfa
 
@@ -191,6 +198,13 @@ def utc_to_tdb_jd(times, field: str = "time") -> tuple[np.ndarray, np.ndarray]:
 
     UTC -> TT by astropy (leap seconds); TT -> TDB by :func:`tdb_minus_tt_s`.  Two parts keep
     sub-microsecond precision over the whole DE405 range.
+
+    Parameters
+    ----------
+    times : str, sequence of str or astropy.time.Time
+        UTC times, any shape.
+    field : str, optional
+        The input's name in an error message (default ``"time"``).
     """
     with quiet_dubious_years():
         tt = parse_utc(times, field).tt
@@ -200,7 +214,17 @@ def utc_to_tdb_jd(times, field: str = "time") -> tuple[np.ndarray, np.ndarray]:
 
 
 def campaign_times(start, end, cadence_s: float) -> Time:
-    """UTC times start, start + cadence, ... strictly before end."""
+    """UTC times start, start + cadence, ... strictly before end.
+
+    Parameters
+    ----------
+    start : str or astropy.time.Time
+        The first time (UTC).
+    end : str or astropy.time.Time
+        The end (UTC), excluded.
+    cadence_s : float
+        The step between times, s.
+    """
     t0 = parse_utc(start, "campaign.start")
     t1 = parse_utc(end, "campaign.end")
     span_s = float((t1 - t0).to_value("s"))

@@ -28,7 +28,15 @@ __all__ = [
 
 
 def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Dot product over the last axis (of length 3), broadcasting."""
+    """Dot product over the last axis (of length 3), broadcasting.
+
+    Parameters
+    ----------
+    a : ndarray
+        Vectors, shape (..., 3).
+    b : ndarray
+        Vectors, shape (..., 3), broadcastable with ``a``.
+    """
     a, b = np.asarray(a), np.asarray(b)
     if a.shape[-1] != 3 or b.shape[-1] != 3:  # every caller's vectors are 3-vectors
         raise ValueError(f"dot: expected 3-vectors, got shapes {a.shape} and {b.shape}")
@@ -53,7 +61,13 @@ def norm(a: np.ndarray) -> np.ndarray:
 
 
 def unit(a: np.ndarray) -> np.ndarray:
-    """Unit vectors along the last axis (a zero vector stays zero)."""
+    """Unit vectors along the last axis (a zero vector stays zero).
+
+    Parameters
+    ----------
+    a : ndarray
+        Vectors, shape (..., 3), any unit.
+    """
     n = norm(a)[..., None]
     return np.divide(a, n, out=np.zeros(np.broadcast(a, n).shape), where=n > 0)
 
@@ -61,7 +75,13 @@ def unit(a: np.ndarray) -> np.ndarray:
 def wrap_360_deg(angle_deg) -> np.ndarray:
     """``np.mod(angle_deg, 360.0)``, the same values (-0.0 may stay -0.0), without its slow
     floating-point modulo where every angle already lies within (-360, 360) deg (an arctan2's,
-    or one already wrapped: then only its negatives move, by 360)."""
+    or one already wrapped: then only its negatives move, by 360).
+
+    Parameters
+    ----------
+    angle_deg : array_like
+        Angles, deg.
+    """
     a = np.asarray(angle_deg, dtype=float)
     if a.size and a.min() > -360.0 and a.max() < 360.0:  # NaN fails both: np.mod below
         return a if a.min() >= 0.0 else np.where(a < 0.0, a + 360.0, a)
@@ -69,13 +89,31 @@ def wrap_360_deg(angle_deg) -> np.ndarray:
 
 
 def angle_between_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Angle in degrees between vectors a and b (any lengths), stable at 0 and 180 deg."""
+    """Angle in degrees between vectors a and b (any lengths), stable at 0 and 180 deg.
+
+    Parameters
+    ----------
+    a : ndarray
+        Vectors, shape (..., 3), any length.
+    b : ndarray
+        Vectors, shape (..., 3), broadcastable with ``a``.
+    """
     a, b = np.broadcast_arrays(a, b)
     return np.degrees(np.arctan2(norm(np.cross(a, b)), dot(a, b)))
 
 
 def radec_to_unit(ra_deg, dec_deg, field: str = "pointing") -> np.ndarray:
-    """Unit vectors (..., 3) for RA/Dec in degrees; NaN or |Dec| > 90 raise InputError."""
+    """Unit vectors (..., 3) for RA/Dec in degrees; NaN or |Dec| > 90 raise InputError.
+
+    Parameters
+    ----------
+    ra_deg : array_like
+        Right ascension, deg.
+    dec_deg : array_like
+        Declination, deg, within [-90, 90].
+    field : str, optional
+        The input's name in an error message (default ``"pointing"``).
+    """
     ra = np.asarray(ra_deg, dtype=float)
     dec = np.asarray(dec_deg, dtype=float)
     if not np.all(np.isfinite(ra)):
@@ -99,7 +137,13 @@ def _any_perpendicular(v: np.ndarray) -> np.ndarray:
 @njit(cache=True, nogil=True)
 def unit_xyz(x, y, z):
     """:func:`unit` of one 3-vector inside a compiled kernel, the same arithmetic: a zero or
-    NaN vector gives the zero vector."""
+    NaN vector gives the zero vector.
+
+    Parameters
+    ----------
+    x, y, z : float
+        The vector's components, any unit.
+    """
     n = np.sqrt(x * x + y * y + z * z)
     if n > 0.0:
         return x / n, y / n, z / n
@@ -109,7 +153,13 @@ def unit_xyz(x, y, z):
 @njit(cache=True, nogil=True)
 def any_perpendicular_xyz(vx, vy, vz):
     """:func:`_any_perpendicular` of one unit vector inside a compiled kernel, the same
-    arithmetic: (px, py, pz, length), not yet normalised."""
+    arithmetic: (px, py, pz, length), not yet normalised.
+
+    Parameters
+    ----------
+    vx, vy, vz : float
+        The unit vector's components.
+    """
     px, py, pz = 0.0 - vz * vx, 0.0 - vz * vy, 1.0 - vz * vz
     n = np.sqrt(px * px + py * py + pz * pz)
     if n < 1e-6:
@@ -123,6 +173,13 @@ def perpendicular_towards(v: np.ndarray, target: np.ndarray) -> np.ndarray:
 
     Where target is (anti)parallel to v the projection vanishes and a fixed perpendicular
     (celestial north projected) is used instead, so the result is always finite.
+
+    Parameters
+    ----------
+    v : ndarray
+        Unit vectors, shape (..., 3).
+    target : ndarray
+        Vectors towards which the result points, shape (..., 3), broadcastable with ``v``.
     """
     v, target = np.broadcast_arrays(v, unit(target))
     p = target - dot(target, v)[..., None] * v

@@ -38,7 +38,31 @@ def _bilinear(flat, b, ch, sa, sb, ta, tb):
 def cell_of(k, x, lo, hi, uniform, inv_width, n_bins, bin_cell, nodes, n_nodes, inv_step):
     """(cell index, fraction within it) of ``x`` on axis ``k`` of the packed axes (see
     :class:`LinearGrid`): clipped to the axis; on an evenly spaced axis one multiplication, else
-    the bin's cell or the next (:class:`AxisCells`)."""
+    the bin's cell or the next (:class:`AxisCells`).
+
+    Parameters
+    ----------
+    k : int
+        The axis.
+    x : float
+        The coordinate on axis ``k``, in the axis' unit.
+    lo, hi : ndarray
+        Each axis' first and last node.
+    uniform : ndarray of bool
+        Whether each axis is evenly spaced.
+    inv_width : ndarray
+        Each axis' bins per unit of its coordinate.
+    n_bins : ndarray of int
+        Each axis' number of bins.
+    bin_cell : ndarray of int
+        Each axis' first cell of each bin, (axes, bins).
+    nodes : ndarray
+        Each axis' nodes, (axes, nodes), padded.
+    n_nodes : ndarray of int
+        Each axis' number of nodes.
+    inv_step : ndarray
+        Each axis' inverse node spacing per cell, (axes, nodes), padded.
+    """
     x = min(max(x, lo[k]), hi[k])
     last = n_nodes[k] - 2
     if uniform[k]:

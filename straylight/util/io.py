@@ -28,6 +28,19 @@ def check_output_path(
     ``folder``: ``path`` is an output folder, created here when its parent exists (or with
     ``parents``); an existing one's files are replaced only with ``overwrite``.  Raises
     :class:`~straylight.errors.InputError` naming ``flag`` and the path.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The output file or folder.
+    flag : str, optional
+        The option that gave it, named by the error (default ``"--out"``).
+    overwrite : bool, optional
+        Accept an existing file, or replace an existing folder's files (default False).
+    parents : bool, optional
+        Create missing parent folders (default False).
+    folder : bool, optional
+        ``path`` is an output folder (default False: a file).
     """
     from straylight.errors import InputError
 
@@ -68,7 +81,13 @@ def check_output_path(
 
 @contextmanager
 def atomic_path(final: str | os.PathLike):
-    """Yield a temporary path next to ``final``; on success move it into place."""
+    """Yield a temporary path next to ``final``; on success move it into place.
+
+    Parameters
+    ----------
+    final : str or os.PathLike
+        The path the result ends at.
+    """
     final = Path(final)
     final.parent.mkdir(parents=True, exist_ok=True)
     # temporaries of an earlier writer killed with SIGKILL (its `finally` never ran)
@@ -88,13 +107,27 @@ def atomic_path(final: str | os.PathLike):
 
 
 def write_json_atomic(obj, path: str | os.PathLike) -> None:
-    """Write ``obj`` as indented JSON to ``path`` through a temporary sibling renamed into place."""
+    """Write ``obj`` as indented JSON to ``path`` through a temporary sibling renamed into place.
+
+    Parameters
+    ----------
+    obj : object
+        A JSON-serialisable object.
+    path : str or os.PathLike
+        The file written.
+    """
     with atomic_path(path) as tmp:
         tmp.write_text(json.dumps(obj, indent=2, sort_keys=False) + "\n", encoding="utf-8")
 
 
 def sha256_path(path: str | Path) -> str:
-    """SHA-256 of a file, or of a directory tree (relative paths and file contents, sorted)."""
+    """SHA-256 of a file, or of a directory tree (relative paths and file contents, sorted).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        A file or a folder.
+    """
     p = Path(path)
     h = hashlib.sha256()
     if p.is_dir():

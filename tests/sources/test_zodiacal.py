@@ -74,8 +74,8 @@ def test_ecliptic_frame_matches_astropy():
     from straylight.sky.vectors import radec_to_unit
 
     lon, lat = ecliptic_lon_lat_deg(radec_to_unit(ra, dec))
-    # 0.18" measured: astropy adds the ICRS frame bias and the dynamical-equinox offset; the
-    # Leinert table's 5 deg nodes make that irrelevant, so 0.5" is the tolerance
+    # astropy adds the ICRS frame bias and the dynamical-equinox offset (a fraction of an arcsec);
+    # the Leinert table's 5 deg nodes make that irrelevant, so 0.5" is the tolerance
     assert np.max(np.abs((lon - c.lon.deg + 180) % 360 - 180)) * 3600 < 0.5
     assert np.max(np.abs(lat - c.lat.deg)) * 3600 < 0.5
 
@@ -158,7 +158,7 @@ def test_parametric_default_against_real_throughputs(campaign):
             f"pole zodiacal {zp:.4f} vs {zr:.4f} e-/s/pix"
         )
         worst = max(worst, abs(dzp))
-    # the flat-top default ignores the CCD's red QE roll-off: z is worst (+0.58 mag measured)
+    # the flat-top default ignores the CCD's red QE roll-off, so z differs most (by over half a mag)
     assert worst < 0.7
 
 
