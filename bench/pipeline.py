@@ -276,7 +276,7 @@ def kernel_figure() -> dict:
     from knobs.common import Bench
     from knobs.cube import production_region_rates
 
-    from straylight.catalog.build import write_catalog
+    from straylight.catalog.campaign_catalog import write_catalog
     from straylight.config import load_campaign
     from straylight.survey.footprint import footprint_from_config
 

@@ -58,13 +58,13 @@ def _recorded_scales(monkeypatch):
 
 
 def test_depth_maps_of_one_band_share_one_colour_scale(campaign, tmp_path, monkeypatch):
-    """The median and best depth pages (plots.maps.limit_maps) draw each band on one scale, that
+    """The median and best depth pages (plots.depth_maps.limit_maps) draw each band on one scale, that
     of both maps' values together: the best map 0.3 mag deeper than the median one still reads
     0.3 mag brighter on the same colour bar."""
     import healpy as hp
 
     from straylight.plots.common import DEPTH_PERCENTILES
-    from straylight.plots.maps import limit_maps
+    from straylight.plots.depth_maps import limit_maps
 
     nside, bands = 4, ["NUV", "g"]
     pix = np.arange(hp.nside2npix(nside))[::2]

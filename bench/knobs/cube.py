@@ -24,7 +24,7 @@ def cube_summary(catalog, time_step: int = 24, n_times: int = 12) -> dict:
     checked identical to the table path's."""
     import tempfile
 
-    from straylight.catalog.build import write_catalog
+    from straylight.catalog.campaign_catalog import write_catalog
     from straylight.config import load_campaign
     from straylight.survey.cube_region import compute_region, offfield_stars
     from straylight.survey.footprint import footprint_from_config

@@ -175,7 +175,7 @@ def cmd_catalog(args) -> int:
     args : argparse.Namespace
         The command's parsed arguments (:func:`straylight.cli.parser.build_parser`).
     """
-    from straylight.catalog.build import catalog_for_campaign, ingest_many, write_catalog
+    from straylight.catalog.campaign_catalog import catalog_for_campaign, ingest_many, write_catalog
     from straylight.catalog.gaia import write_parquet
     from straylight.config import load_campaign
 

@@ -124,7 +124,7 @@ def cmd_image(args) -> int:
     fp.detector_offset_px(args.detector)  # checks the index
     catalog = args.catalog
     if catalog is None:
-        from straylight.catalog.build import default_catalog_path
+        from straylight.catalog.campaign_catalog import default_catalog_path
 
         catalog = default_catalog_path(campaign)
     band = load_band(inst, args.band, campaign.instrument_path.parent)

@@ -47,7 +47,7 @@ def cmd_visibility_targets(args) -> int:
     )  # times, step and band refused before any work
 
     def catalog():
-        from straylight.catalog.build import default_catalog_path
+        from straylight.catalog.campaign_catalog import default_catalog_path
 
         return default_catalog_path(campaign)
 

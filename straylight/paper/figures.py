@@ -479,7 +479,7 @@ def detector_catalog(campaign: Campaign, catalog_path=None) -> tuple[dict, float
         ra, dec, mag = read_star_table(catalog_path, "NUV")
         k = int(np.argmin(mag))
         return {"ra": ra, "dec": dec, "mag_NUV": mag}, float(ra[k]), float(dec[k])
-    from straylight.catalog.build import catalog_for_campaign
+    from straylight.catalog.campaign_catalog import catalog_for_campaign
 
     cols, _, _ = catalog_for_campaign(campaign, None)
     ra, dec = np.asarray(cols["ra"], float), np.asarray(cols["dec"], float)

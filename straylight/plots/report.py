@@ -10,7 +10,8 @@ from pathlib import Path
 import numpy as np
 
 from straylight.plots.common import DEPTH_PERCENTILES, MIN_COLOUR_SPAN_MAG
-from straylight.plots.maps import _percentiles, limit_maps
+from straylight.plots.depth_maps import limit_maps
+from straylight.plots.maps import _percentiles
 
 __all__ = [
     "DEPTH_TABLE",

@@ -196,9 +196,9 @@ def init_store(
 ) -> None:
     """Write the skeleton (metadata and coordinates, no data chunks) to ``store``, and the
     faint-star map (computed here once for the whole campaign, on ``build_workers``
-    processes); an earthshine table the campaign needs is built here too, before the time
-    blocks start (``build_workers`` threads).  ``limits_store``: where the limits' skeleton
-    goes too (:func:`init_limits_store`; None: not laid down).
+    processes); an earthshine table the campaign needs (the envelope members' included) is built
+    here too, before the time blocks start (``build_workers`` threads).  ``limits_store``: where
+    the limits' skeleton goes too (:func:`init_limits_store`; None: not laid down).
 
     Parameters
     ----------
@@ -216,10 +216,13 @@ def init_store(
         limits.zarr's work store; None: not laid down.
     """
     from straylight.model import BackgroundModel
-    from straylight.survey.cube_region import faint_star_map, offfield_stars
+    from straylight.survey.cube_region import _end_models, faint_star_map, offfield_stars
     from straylight.survey.storage import write_skeleton
 
     model = BackgroundModel(campaign, build_workers=build_workers)
+    # the envelope members' tables too, here once on every core, not by each time block's worker
+    for end_model in _end_models(model, campaign).values():
+        end_model.models_record()
     stars = offfield_stars(campaign, stars_path)
 
     def skeleton():

@@ -271,7 +271,7 @@ def test_image_cli_star_bin_and_empty_field(tmp_path, campaign):
     from astropy.io import fits
     from astropy.table import Table
 
-    from straylight.catalog.build import default_catalog_path
+    from straylight.catalog.campaign_catalog import default_catalog_path
     from straylight.sources.stars_table import load_offfield_stars
     from straylight.survey.pointings import pointing_table
 

@@ -36,7 +36,7 @@ def test_packaged_fields_resolve_to_their_published_centres(tmp_path):
 def test_star_names_give_the_catalog_position_as_image_star_does(tmp_path, campaign):
     """A HIP number (three spellings) and an IAU name give the row `straylight image --star`
     finds in the campaign's default catalog (Sirius = HIP 32349, IAU WGSN list)."""
-    from straylight.catalog.build import default_catalog_path
+    from straylight.catalog.campaign_catalog import default_catalog_path
     from straylight.catalog.star_table import read_star_table
     from straylight.cli.image import _read_source_ids, _resolve_star
     from straylight.survey.target_names import read_targets

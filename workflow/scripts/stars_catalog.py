@@ -8,7 +8,7 @@ import pyarrow.parquet as pq  # noqa: E402
 from _common import campaign as campaign_from_snakemake  # noqa: E402
 from _common import end_job, setup_logging
 
-from straylight.catalog.build import catalog_for_campaign, write_catalog  # noqa: E402
+from straylight.catalog.campaign_catalog import catalog_for_campaign, write_catalog  # noqa: E402
 from straylight.util.io import write_json_atomic  # noqa: E402
 
 log = setup_logging(snakemake)  # noqa: F821
