@@ -102,11 +102,16 @@ TABLE_FREE_MODULES = frozenset(
         "util/test_gridinterp.py",
     }
 )
-#: the background build: the default campaign's model reading (so building) both its tables, at
-#: low priority, so that the tests running beside it keep their core
+#: the background build: the default campaign's model reading (so building) both its tables, then
+#: the assumption envelope's members' (every cube run reads them), at low priority, so that the
+#: tests running beside it keep their core
 _BUILD_DEFAULT_TABLES = (
     "import os; os.nice(10); from straylight.config import load_campaign; "
-    "from straylight.model import BackgroundModel; BackgroundModel(load_campaign()).models_record()"
+    "from straylight.model import BackgroundModel; "
+    "from straylight.model.envelope import ENDS, end_campaign; "
+    "c = load_campaign(); BackgroundModel(c).models_record(); "
+    "env = c.instrument_settings.envelope; "
+    "[BackgroundModel(end_campaign(c, e)).models_record() for e in ENDS if env and env.members]"
 )
 _table_build = None  # its Popen, until the first test that may read the tables has waited for it
 
