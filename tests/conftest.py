@@ -126,8 +126,8 @@ def _may_read_default_tables(item) -> bool:
 
 def pytest_collection_modifyitems(config, items):
     """In a session with tests of both kinds, the table-free modules run first (the order within
-    each kind kept) while the default tables (~2 min on both cores, once per session) are built
-    in a background process; the first test of another module waits for that build."""
+    each kind kept) while the default tables and the envelope members' (once per session) are
+    built in a background process; the first test of another module waits for that build."""
     global _table_build
     free = [item for item in items if not _may_read_default_tables(item)]
     if not free or len(free) == len(items) or config.option.collectonly:
