@@ -247,7 +247,14 @@ def test_provenance_records_checksums(cube_run):
     _, _, out = cube_run
     prov = json.loads((out / "provenance.json").read_text())
     assert prov["config"]["campaign"]["name"] == "cube"
-    for k in ("background.zarr", "limits.zarr", "maps", "ephemeris.zarr", "footprint.fits"):
+    for k in (
+        "background.zarr",
+        "limits.zarr",
+        "maps",
+        "ephemeris.zarr",
+        "footprint.fits",
+        "sky_compact.zarr",
+    ):
         assert len(prov["outputs_sha256"][k]) == 64
     assert len(prov["outputs_digest_sha256"]) == 64
     assert "numpy" in prov["versions"] and "config" in prov["inputs_sha256"]

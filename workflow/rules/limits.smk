@@ -51,6 +51,7 @@ rule provenance:
         footprint=f"{RESULTS}/footprint.fits",
         stars=f"{RESULTS}/stars_csst.parquet",
         observability=f"{RESULTS}/observability.zarr",
+        compact=f"{RESULTS}/sky_compact.zarr",
     output:
         report(f"{RESULTS}/provenance.json", caption="../report/provenance.rst", category="5. Provenance"),
     params:

@@ -19,6 +19,7 @@ outputs = {
     "footprint.fits": snakemake.input.footprint,  # noqa: F821
     "stars_csst.parquet": snakemake.input.stars,  # noqa: F821
     "observability.zarr": snakemake.input.observability,  # noqa: F821
+    "sky_compact.zarr": snakemake.input.compact,  # noqa: F821
 }
 # paths relative to the results folder (provenance.json's), the workflow's as straylight:workflow/...
 rec = provenance_record(
