@@ -53,11 +53,10 @@ def zero_point_less_real_curves_mag(campaign):
 
 @pytest.fixture(scope="session")
 def default_tables():
-    """The default campaign's earthshine tables in the session's cache (built once if missing), for
-    tests that read a command's whole output (a build prints its notice and progress)."""
-    import straylight
-
-    straylight.SkyModel()
+    """The default campaign's earthshine tables, the envelope members' included, in the session's
+    cache (built once if missing), for tests that read a command's whole output (a build prints
+    its notice and progress)."""
+    subprocess.run([sys.executable, "-c", _BUILD_DEFAULT_TABLES], cwd=REPO, check=True)
 
 
 # -- the default campaign's earthshine tables: built while the tests that never read them run ---

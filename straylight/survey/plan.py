@@ -279,9 +279,10 @@ def probed_speed_factor(campaign: Campaign, cores: int) -> float:
 
 
 def needed_tables(model) -> list[dict]:
-    """The look-up tables a campaign's model reads, each with ``name``, ``path`` and ``cached``;
-    the sunlit table also with ``other_radii_km``: the orbit radii (km) of the sunlit tables
-    cached for other settings or orbits (a changed orbit altitude needs its own table).
+    """The look-up tables a campaign's model reads, each with ``name``, ``path`` and ``cached``
+    (the assumption envelope's members' too: the cube re-evaluates the model at each); the
+    sunlit table also with ``other_radii_km``: the orbit radii (km) of the sunlit tables cached
+    for other settings or orbits (a changed orbit altitude needs its own table).
 
     Parameters
     ----------
@@ -294,6 +295,20 @@ def needed_tables(model) -> list[dict]:
     """
     if model.sunlit_earth.choice["method"] != "lut":
         return []
+    from straylight.model import BackgroundModel
+    from straylight.model.envelope import ENDS, end_campaign
+
+    out = _model_tables(model, "")
+    env = model.campaign.instrument_settings.envelope
+    if env is not None and env.members is not None:
+        for end in ENDS:
+            end_model = BackgroundModel(end_campaign(model.campaign, end))
+            out += _model_tables(end_model, f" (the envelope's {end} member)")
+    return out
+
+
+def _model_tables(model, label: str) -> list[dict]:
+    """One model's sunlit and moonlit tables (:func:`needed_tables`), names ending in ``label``."""
     sunlit = model.sunlit_earth.lut_path()
     others = []
     for p in sorted(sunlit.parent.glob("earthshine_lut_*.npz")) if sunlit.parent.is_dir() else []:
@@ -304,11 +319,16 @@ def needed_tables(model) -> list[dict]:
             except (OSError, KeyError, ValueError):
                 continue
     out = [
-        {"name": "sunlit-Earth table", "path": sunlit, "cached": sunlit.exists(), "other_radii_km": others}
+        {
+            "name": "sunlit-Earth table" + label,
+            "path": sunlit,
+            "cached": sunlit.exists(),
+            "other_radii_km": others,
+        }
     ]
     moonlit = model.moonlit_earth.lut_path()
     if moonlit is not None:
-        out.append({"name": "moonlit-Earth table", "path": moonlit, "cached": moonlit.exists()})
+        out.append({"name": "moonlit-Earth table" + label, "path": moonlit, "cached": moonlit.exists()})
     return out
 
 
@@ -366,14 +386,14 @@ def estimated_cost(
     )
     build_s, table_cached = 0.0, True
     tables = needed_tables(model)
-    if choice["method"] == "lut":  # the sunlit table and the moonlit one, each unless cached
+    if choice["method"] == "lut":  # each model's sunlit table and moonlit one, each unless cached
         moonlit_s = choice["moonlit_build_seconds_estimate"]
-        sunlit_cached = tables[0]["cached"]
-        moonlit_cached = len(tables) < 2 or tables[1]["cached"]
-        table_cached = sunlit_cached and moonlit_cached
-        tables[0]["build_seconds"] = speed_factor * (choice["build_seconds_estimate"] - moonlit_s)
-        if len(tables) > 1:
-            tables[1]["build_seconds"] = speed_factor * moonlit_s
+        table_cached = all(t["cached"] for t in tables)
+        for t in tables:
+            one = (
+                moonlit_s if t["name"].startswith("moonlit") else choice["build_seconds_estimate"] - moonlit_s
+            )
+            t["build_seconds"] = speed_factor * one
         build_s = sum(t["build_seconds"] for t in tables if not t["cached"])
     rate, rate_source = pipeline_rate(campaign)
     cores = max(int(cores), 1)

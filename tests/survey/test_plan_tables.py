@@ -20,9 +20,9 @@ def _config_at(tmp_path, altitude_km):
 
 
 def test_plan_lists_the_tables_and_another_orbit_altitude(tmp_path, default_tables):
-    """The default campaign: its sunlit and moonlit tables listed as cached.  The same at 450 km:
-    the sunlit table not cached, with its build time, and the cached one's altitude (400 km) named
-    beside this orbit's; the probe's factor printed and kept in the cache."""
+    """The default campaign: its sunlit and moonlit tables, and the envelope members', listed as
+    cached.  The same at 450 km: the sunlit table not cached, with its build time, and the cached
+    one's altitude (400 km) named beside this orbit's; the probe's factor printed and kept in the cache."""
     from straylight.util.io import cache_dir
 
     r = run_cli("plan", "--cores", "2", timeout=300)
@@ -31,7 +31,9 @@ def test_plan_lists_the_tables_and_another_orbit_altitude(tmp_path, default_tabl
     listed = [
         x for x in lines if x.startswith("  sunlit-Earth table") or x.startswith("  moonlit-Earth table")
     ]
-    assert len(listed) == 2 and all(x.endswith(": cached") for x in listed), r.stdout
+    # the nominal model's two and each envelope member's two (config/instruments/csst.yaml)
+    assert len(listed) == 6 and all(x.endswith(": cached") for x in listed), r.stdout
+    assert sum("(the envelope's pessimistic member)" in x for x in listed) == 2, r.stdout
     assert "its tables are cached" in r.stdout
     line = next(x for x in lines if x.startswith("this machine now"))
     factor = float(line.split(" x", 1)[1].split(" ", 1)[0])
