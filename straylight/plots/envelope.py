@@ -93,7 +93,9 @@ def envelope_sensitivity(background_store, campaign, time_blocks: int = SENSITIV
     Parameters
     ----------
     background_store : str or path-like
-        background.zarr (``total``, the parts the envelope scales, ``observable``).
+        background.zarr (``total``, the parts the envelope scales, ``observable``); the
+        envelope members' re-evaluated groups, which it does not store, are evaluated again at
+        the time blocks read (the campaign's model at each member's values).
     campaign : Campaign
         The campaign (envelope, exposures).
     time_blocks : int
@@ -111,7 +113,11 @@ def envelope_sensitivity(background_store, campaign, time_blocks: int = SENSITIV
     """
     import zarr
 
+    from straylight.model import BackgroundModel
     from straylight.model.envelope import ENDS, campaign_envelope
+    from straylight.survey.cube_layout import ENVELOPE_END_VARIABLES
+    from straylight.survey.cube_region import region_values
+    from straylight.survey.footprint import footprint_from_store
     from straylight.survey.limits import band_limits, campaign_exposures
     from straylight.survey.limits_budget import BUDGET_VARIABLES, budget_limits, depth_budget, term_limits
     from straylight.survey.limits_cube import limit_summaries
@@ -121,17 +127,7 @@ def envelope_sensitivity(background_store, campaign, time_blocks: int = SENSITIV
     group = zarr.open_group(str(background_store), mode="r", use_consolidated=False)
     bands = [str(b) for b in group["band"][...]]
     env = campaign_envelope(campaign, bands)
-    if not all(n in group for n in env.leaves if n != "earthshine_direct"):
-        # the members' re-evaluated ends are not in background.zarr (its size): their row is left out
-        from straylight.model.envelope import Envelope
-
-        env = Envelope([p for p in env.parameters if not p.reevaluated], env.bands)
-    # the members' term needs their re-evaluated groups, which the store lacks: its row is left out
-    terms = [
-        t
-        for t in depth_budget(campaign, bands)
-        if not t.reevaluated or all(n in group or n == "earthshine_direct" for n in t.leaves)
-    ]
+    terms = depth_budget(campaign, bands)
     exposures = campaign_exposures(campaign, bands)
     chunk = int(group["total"].chunks[0])
     n_time = int(group["total"].shape[0])
@@ -143,10 +139,19 @@ def envelope_sensitivity(background_store, campaign, time_blocks: int = SENSITIV
     names = [n for n in ("total", "earthshine", "earthshine_door", *env.leaves, *budget_leaves) if n in group]
     names = list(dict.fromkeys(names))
     parts = {n: [] for n in names + ["observable"]}
+    # the members' re-evaluated groups are the cube workers', not stored: evaluated again here
+    regroup = [n for n in ENVELOPE_END_VARIABLES if n in env.leaves and n not in group]
+    parts.update({n: [] for n in regroup})
+    model = BackgroundModel(campaign) if regroup else None
+    fp = footprint_from_store(background_store) if regroup else None
     for t0 in pick:
-        sl = (slice(int(t0), int(min(t0 + chunk, n_time))), slice(None))
-        for n in parts:
-            parts[n].append(read_region(group[n], sl))
+        t_slice = slice(int(t0), int(min(t0 + chunk, n_time)))
+        for n in names + ["observable"]:
+            parts[n].append(read_region(group[n], (t_slice, slice(None))))
+        if regroup:
+            again = region_values(campaign, fp, t_slice, slice(None), model)
+            for n in regroup:
+                parts[n].append(np.array(again[n]))
     region = {n: np.concatenate(v) for n, v in parts.items()}
     obs = region["observable"]
 
@@ -189,13 +194,6 @@ def envelope_sensitivity(background_store, campaign, time_blocks: int = SENSITIV
         "rows": rows,
         "times": int(obs.shape[0]),
     }
-
-
-def _only(env, key: str):
-    """The envelope with one parameter only."""
-    from straylight.model.envelope import Envelope
-
-    return Envelope([p for p in env.parameters if p.key == key], env.bands)
 
 
 def sensitivity_chart(result: dict, campaign, out_dir) -> list:
