@@ -92,10 +92,10 @@ TABLE_FREE_MODULES = frozenset(
         "sources/test_saturn_rings.py",
         "sources/test_zodiacal.py",
         "sources/test_zodiacal_colour.py",
-        "survey/test_footprint.py",
-        "survey/test_provenance.py",
-        "survey/test_published_depths.py",
-        "util/test_daskutil.py",
+        "cube/test_footprint.py",
+        "cube/test_provenance.py",
+        "limits/test_published_depths.py",
+        "test_execution.py",
         "util/test_gridinterp.py",
     }
 )

@@ -54,7 +54,7 @@ class BackgroundModel:
     ):
         self.campaign = campaign
         if build_workers is None:
-            from straylight.util.daskutil import available_cores
+            from straylight.execution import available_cores
 
             build_workers = available_cores()
         self.build_workers = build_workers

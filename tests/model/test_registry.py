@@ -107,10 +107,10 @@ def test_a_registered_source_reaches_the_cube_and_the_sky_record(glow):
     store's skeleton declares it; ``straylight sky``'s record lists it in every band."""
     from straylight.cli.sky import sky_record
     from straylight.config import load_campaign
+    from straylight.cube.footprint import footprint_from_config
+    from straylight.cube.region import compute_region
+    from straylight.cube.store import empty_cube
     from straylight.model import BackgroundModel
-    from straylight.survey.cube_region import compute_region
-    from straylight.survey.cube_store import empty_cube
-    from straylight.survey.footprint import footprint_from_config
 
     campaign = load_campaign()
     fp = footprint_from_config(campaign.config["footprint"])

@@ -137,7 +137,7 @@ def test_products_open_in_a_second_zarr_implementation(tiny_run):
 
 def test_cube_value_equals_sky_command(tiny_run):
     """An observability value equals `straylight sky` for the same time and pointing (to the
-    stored values' bound, straylight/survey/storage.py)."""
+    stored values' bound, straylight/storage/zarr_io.py)."""
     from conftest import sky_at
 
     out, cfg = tiny_run

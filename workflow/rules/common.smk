@@ -5,9 +5,9 @@ from snakemake.exceptions import WorkflowError
 
 from straylight.config import campaign_from_dict as _campaign_from_dict
 from straylight.config import resolve_config_files as _resolve_config_files
-from straylight.survey.footprint import footprint_from_config as _footprint_from_config
-from straylight.survey.limits_cube import summary_processes as _summary_processes
-from straylight.survey.timegrid import time_blocks as _time_blocks
+from straylight.cube.footprint import footprint_from_config as _footprint_from_config
+from straylight.limits.cube import summary_processes as _summary_processes
+from straylight.cube.timegrid import time_blocks as _time_blocks
 from straylight.util.healpix import load_without_plotting as _load_healpy_without_plotting
 
 from straylight.sky.timeutil import ignore_dubious_years as _ignore_dubious_years
