@@ -1,8 +1,8 @@
-"""Worker processes: their environment (threads, malloc settings), a pool of spawned ones, ending
-a process without the interpreter's teardown, and the hygiene of a process tree (a process that
-dies with its parent; SIGINT and SIGTERM stopping a pool's workers).
-The cube's region pool built on them (or on an existing Dask cluster, ``compute.dask_scheduler``) is
-:func:`straylight.cube.executors.region_pool`."""
+"""Execution policy, one layer above ``straylight.util``: worker processes' environment (threads,
+malloc settings), a pool of spawned ones, ending a process without the interpreter's teardown,
+and the hygiene of a process tree (a process that dies with its parent; SIGINT and SIGTERM
+stopping a pool's workers).  The cube's region pool built on them (or on an existing Dask
+cluster, ``compute.dask_scheduler``) is :func:`straylight.cube.executors.region_pool`."""
 
 from __future__ import annotations
 

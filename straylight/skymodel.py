@@ -430,7 +430,7 @@ def _empty_table(campaign, t, bands):
     one's)."""
     from straylight.limits.point_source import sky_zero_points
     from straylight.model import registry
-    from straylight.planning.pointings import _qtable
+    from straylight.planning.pointings import pointing_qtable
 
     none = np.zeros(0)
     cols = {
@@ -449,7 +449,7 @@ def _empty_table(campaign, t, bands):
         cols.update({f"{c}_{b}": none for c in registry.component_names(total=True)})
         if b != "V":  # the diagnostic band has no limit
             cols[f"limit_mag_{b}"] = none
-    return _qtable(cols, t, bands, sky_zero_points(campaign, bands), {})
+    return pointing_qtable(cols, t, bands, sky_zero_points(campaign, bands), {})
 
 
 _MODELS: dict = {}

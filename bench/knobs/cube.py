@@ -15,7 +15,7 @@ def cube_summary(catalog, time_step: int = 24, n_times: int = 12) -> dict:
     """The survey cube's access pattern: every footprint pixel of the default campaign at
     ``n_times`` times spread over its day, as compute_region runs it (the direct path one time
     step per evaluation, the Earth cap gridded once per step; the table path whole steps as one
-    batch, cube_region.SAMPLES_PER_EVALUATION), stars included.  Seconds per sample on one
+    batch, cube.region.SAMPLES_PER_EVALUATION), stars included.  Seconds per sample on one
     core (best of three for the direct earthshine sum, of :data:`FAST_REPEATS` for the look-up
     table, built once and cached), and the table path's largest difference from the direct path
     at observable samples, as a fraction of the total (the direct path's own error is the
@@ -97,7 +97,7 @@ def cube_summary(catalog, time_step: int = 24, n_times: int = 12) -> dict:
 
 def production_region_rates(base, fp, stars_path) -> dict:
     """The table path (every sample, and observable samples only) on what one task of a
-    production run computes (cube_run.run_time_blocks): one time block of consecutive steps
+    production run computes (cube.run.run_time_blocks): one time block of consecutive steps
     (campaign.time_block_hours, 72 at the default 5-minute cadence) x one pixel block
     (footprint.pixel_block_size, 660 by default), the day's first, with the star catalog at
     ``stars_path``; samples per second on one core, the best of :data:`FAST_REPEATS` after a

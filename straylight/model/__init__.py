@@ -2,7 +2,7 @@
 its fidelity policy (:class:`FidelityPolicy`: the tolerance, its shares, the fast paths).
 
 Imports ``straylight.sources``, ``straylight.sky`` and ``straylight.config`` (the layers below it:
-docs/architecture.md); never ``straylight.survey``.
+docs/architecture.md); never the layers above it (``storage``, ``limits``, ``cube``, ``planning``).
 """
 
 from straylight.model import registry

@@ -447,7 +447,7 @@ def background_table(
     chunk_rows = CHUNK_ROWS if chunk_rows is None else chunk_rows
     out, n = None, len(t)
     for sl, cols in pointing_chunks(campaign, pointings, bands, stars, chunk_rows, source, models, model):
-        part = _qtable(cols, t[sl], bands, zero_points, models)
+        part = pointing_qtable(cols, t[sl], bands, zero_points, models)
         del cols
         if columns is not None:
             part = part[list(columns)]  # in the order asked for
@@ -496,7 +496,7 @@ def _copy_rows(out, part, sl: slice) -> None:
         dest[sl] = col
 
 
-def _qtable(cols: dict, t, bands, zero_points: dict, models: dict):
+def pointing_qtable(cols: dict, t, bands, zero_points: dict, models: dict):
     """The pointing table's columns as a QTable with units (see :func:`straylight.sky_background`)."""
     import astropy.units as u
     from astropy.table import QTable

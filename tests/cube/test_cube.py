@@ -198,7 +198,7 @@ def test_fused_limits_equal_limits_dataset_within_the_propagated_bound(cube_run,
     assert diff.max() > 0  # computed from different totals: not the same bits everywhere
     # the envelope's and the budget's per-sample limits as the workers stored them in the limits
     # work store (from the region's unrounded parts, like limiting_mag:
-    # straylight/limits/envelope.py, limits_budget.py); the
+    # straylight/limits/envelope.py, budget.py); the
     # product keeps their medians only
     with xr.open_zarr(out / "work" / "background_blocks" / "limits.zarr", consolidated=False) as work:
         ends = {e: work[f"limiting_mag_{e}"].load() for e in ("pessimistic", "optimistic")}

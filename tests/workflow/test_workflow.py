@@ -241,7 +241,7 @@ def test_depth_bounds_present_ordered_and_finite(tiny_run):
     """limits.zarr's envelope medians (straylight.model.envelope): present with units and
     long_name, finite wherever a pixel is observable (NaN elsewhere), and ordered pessimistic <=
     median <= optimistic within the storage rounding (a brighter background gives a shallower
-    limit; storage.py: 2^-11 relative of ~26 mag); background.zarr records which parts each
+    limit; storage/zarr_io.py: 2^-11 relative of ~26 mag); background.zarr records which parts each
     envelope parameter scales; the spread map and sensitivity chart are in depth/."""
     import json
 

@@ -66,7 +66,7 @@ except WorkflowError:
 #: limits and the figures start from them, beside rule background)
 CUBE_PARTS = [f"{WORK}/background_blocks/part_{i}.json" for i in range(len(CUBE_JOBS))]
 #: processes (cores) of rule limits' per-pixel summaries: 1 for a month at nside 32, 2 from a few
-#: GB of limits on (limits_cube.summary_processes); a core it does not need runs another rule
+#: GB of limits on (limits.cube.summary_processes); a core it does not need runs another rule
 _N_PIXELS = _footprint_from_config(config["footprint"], Path(CONFIG_PATH).parent).pixels.size
 LIMITS_PROCESSES = _summary_processes(len(_CAMPAIGN.times) * _N_PIXELS * len(_CAMPAIGN.bands), 2)
 #: the order in which the jobs after the cube start when cores are few (higher first): the limits
