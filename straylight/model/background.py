@@ -64,6 +64,7 @@ class BackgroundModel:
         self.in_field = InFieldBodies(self.context)
         # the registry as it is now: a source registered later is not this model's
         self.entries = tuple(registry.SOURCES)
+        registry.check_config_paths(self.entries)
         self.components = tuple(registry.COMPONENTS)
         self.leaves = registry.leaves()
         self.outputs = registry.band_components()
