@@ -68,6 +68,7 @@ TABLE_FREE_MODULES = frozenset(
     {
         "test_architecture.py",
         "test_config.py",
+        "test_execution.py",
         "test_instrument_settings.py",
         "test_plots.py",
         "test_settings.py",
@@ -75,7 +76,10 @@ TABLE_FREE_MODULES = frozenset(
         "catalog/test_gaia.py",
         "catalog/test_luminosity_class.py",
         "catalog/test_proper_motion.py",
+        "cube/test_footprint.py",
+        "cube/test_provenance.py",
         "image/test_detector_fits.py",
+        "limits/test_published_depths.py",
         "model/test_envelope.py",
         "optics/test_pst_out_of_field.py",
         "optics/test_pst_tail.py",
@@ -92,10 +96,6 @@ TABLE_FREE_MODULES = frozenset(
         "sources/test_saturn_rings.py",
         "sources/test_zodiacal.py",
         "sources/test_zodiacal_colour.py",
-        "cube/test_footprint.py",
-        "cube/test_provenance.py",
-        "limits/test_published_depths.py",
-        "test_execution.py",
         "util/test_gridinterp.py",
     }
 )
