@@ -30,10 +30,10 @@ def main():
     import xarray as xr
 
     from straylight.config import campaign_from_dict, load_campaign
-    from straylight.survey.cube_run import run_time_blocks
-    from straylight.survey.cube_store import init_store
-    from straylight.survey.executors import Execution
-    from straylight.survey.footprint import footprint_from_config
+    from straylight.cube.executors import Execution
+    from straylight.cube.footprint import footprint_from_config
+    from straylight.cube.run import run_time_blocks
+    from straylight.cube.store import init_store
 
     base = load_campaign()
     raw = copy.deepcopy(base.config)

@@ -98,9 +98,9 @@ def main() -> int:
     from astropy.time import Time
 
     from straylight.config import load_campaign
+    from straylight.cube.footprint import footprint_from_config
     from straylight.sky.observing import scene
     from straylight.sky.vectors import radec_to_unit
-    from straylight.survey.footprint import footprint_from_config
 
     old = old_limb_module(a.before)
     campaign = load_campaign()

@@ -92,7 +92,7 @@ def main(argv=None) -> dict:
     import xarray as xr
 
     import straylight
-    from straylight.survey.compact import write_compact
+    from straylight.cube.compact import write_compact
 
     bg_path = args.results / "background.zarr"
     bg = xr.open_zarr(bg_path)

@@ -89,13 +89,13 @@ def theta_phi_numpy(frame, d):
 
 def main() -> int:
     from straylight.config import load_campaign
+    from straylight.cube.footprint import footprint_from_config
+    from straylight.cube.layout import cube_chunks
     from straylight.sky.frames import telescope_frame
     from straylight.sky.limb import limb_geometry
     from straylight.sky.observing import scene
     from straylight.sky.runs import scene_runs
     from straylight.sky.vectors import radec_to_unit, unit
-    from straylight.survey.cube_layout import cube_chunks
-    from straylight.survey.footprint import footprint_from_config
 
     campaign = load_campaign()
     fp = footprint_from_config(campaign.config["footprint"])

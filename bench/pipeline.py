@@ -15,7 +15,7 @@ length, nside and cadence changed, and writes to bench/results/pipeline.json:
 * the kernel's figure in the same run (bench/run.py's production_region_rates: the cube's
   compute alone on the default day's time blocks, one core), labelled as the kernel.
 
-straylight.survey.plan's PIPELINE_* figures are fitted to such runs.  Run:
+straylight.planning.plan's PIPELINE_* figures are fitted to such runs.  Run:
     python bench/pipeline.py --days 30 --nside 32            # a month at nside 32
     python bench/pipeline.py --days 3 --nside 32 --cold      # as on a fresh machine (empty table cache)
     python bench/pipeline.py --days 0.25 --nside 4 --no-kernel   # a smoke run, seconds
@@ -278,7 +278,7 @@ def kernel_figure() -> dict:
 
     from straylight.catalog.campaign_catalog import write_catalog
     from straylight.config import load_campaign
-    from straylight.survey.footprint import footprint_from_config
+    from straylight.cube.footprint import footprint_from_config
 
     base = load_campaign()
     fp = footprint_from_config(base.config["footprint"])

@@ -22,11 +22,11 @@ The cube's chunk I/O per region (``--regions DIR``, DIR a campaign's results dir
 month at nside 32 from bench/pipeline.py or the pipeline): some (time block, pixel block)
 regions' values of every (time, pixel) array of background.zarr, limits.zarr and
 observability.zarr (what a cube worker writes per region) written into empty copies of the
-stores (metadata only) through straylight.survey.storage.ChunkWriter and through zarr's public
+stores (metadata only) through straylight.storage.zarr_io.ChunkWriter and through zarr's public
 ``array[region] = values``, interleaved, the two copies' files compared byte for byte; and the
 chunk reads of the steps after the cube (the limits' per-pixel summaries: limiting_mag and
 observable over every time, one pixel block at a time; the time series: every band variable and
-observable over every time at one pixel) through straylight.survey.storage.read_region and
+observable over every time at one pixel) through straylight.storage.zarr_io.read_region and
 through zarr's ``array[region]``.  CPU and wall ms, best and median of ``--repeat``; writes
 bench/results/storage_regions.json.
 
@@ -135,7 +135,7 @@ def _write_uncompressed(reference_dir: Path, out_dir: Path) -> None:
 
 def _time_writes(reference_dir: Path, storage: dict, repeat: int, tmp: Path) -> dict:
     """ms and us per sample to write the reference's first background time block three ways."""
-    from straylight.survey.storage import encoded
+    from straylight.storage.zarr_io import encoded
 
     with _open(reference_dir / "background.zarr") as bg:
         step = int(bg["total"].chunks[0][0])
@@ -212,7 +212,7 @@ def _time_regions(results_dir: Path, repeat: int, n_time_blocks: int, tmp: Path)
     public API; per read pattern: through read_region and through zarr."""
     import zarr
 
-    from straylight.survey.storage import ChunkWriter, read_region
+    from straylight.storage.zarr_io import ChunkWriter, read_region
 
     arrays = _region_arrays(results_dir)
     src = {p: zarr.open_group(str(results_dir / p), mode="r", use_consolidated=False) for p in arrays}

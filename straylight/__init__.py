@@ -40,7 +40,7 @@ _LAZY = {
     "open_campaign": "straylight.api",
     "sky_background": "straylight.api",
     "SkyModel": "straylight.skymodel",
-    "SkyMaps": "straylight.survey.skymaps",
+    "SkyMaps": "straylight.cube.skymaps",
     "Campaign": "straylight.config",
     "load_campaign": "straylight.config",
     "BODIES": "straylight.sky.ephemeris",

@@ -5,7 +5,7 @@ editable: the last tag and the commits since, e.g. ``0.1.dev690+g93d51f5``, with
 the tree had uncommitted changes) and writes it to ``straylight/_scm_version.py``, which git does
 not track.  A source tree that was never installed has no such file: the installed
 distribution's metadata is asked, else the version is ``0+unknown``.  A run from a checkout
-records its exact commit separately (straylight.survey.provenance).
+records its exact commit separately (straylight.cube.provenance).
 """
 
 try:

@@ -3,7 +3,7 @@
 * :func:`sky_background` - every background component, the total, the 5-sigma limit and the
   observability of any (time, pointing), from astropy ``Time`` and ``SkyCoord``, as an astropy
   ``QTable`` with units.  It runs the per-pointing table code of ``straylight sky --input``
-  (:func:`straylight.survey.pointings.pointing_table`), vectorised over the samples, on a
+  (:func:`straylight.planning.pointings.pointing_table`), vectorised over the samples, on a
   :class:`~straylight.skymodel.SkyModel` kept warm per config and catalog (the first call
   builds it; later ones only compute).
 * :func:`open_campaign` - a finished campaign's products (``results/<campaign>/``) as xarray
@@ -227,8 +227,8 @@ class CampaignProducts:
     def compact(self):
         """``sky_compact.zarr`` (:class:`straylight.SkyMaps`): total background per band, AB
         mag/arcsec2, and observability; its chunks decoded on first use."""
-        from straylight.survey.compact import COMPACT_NAME
-        from straylight.survey.skymaps import SkyMaps
+        from straylight.cube.compact import COMPACT_NAME
+        from straylight.cube.skymaps import SkyMaps
 
         if COMPACT_NAME not in self._cache:
             p = self.path / COMPACT_NAME
@@ -300,7 +300,7 @@ def to_mag_per_arcsec2(rate, background=None):
     straylight.InputError
         No zero point found, or units other than e-/s/pixel.
     """
-    from straylight.survey.limits import ZERO_POINT_NAME
+    from straylight.limits.point_source import ZERO_POINT_NAME
 
     if ZERO_POINT_NAME in rate.coords:
         zp = rate.coords[ZERO_POINT_NAME]

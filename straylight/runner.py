@@ -25,7 +25,7 @@ from collections import deque
 from pathlib import Path
 
 from straylight.errors import InputError
-from straylight.util.daskutil import available_cores
+from straylight.execution import available_cores
 
 __all__ = [
     "INTERRUPTED_EXIT",
@@ -127,12 +127,12 @@ def check_results_folder(campaign, workdir=None) -> Path:
 
 
 def warn_if_large(campaign) -> str | None:
-    """The campaign's size warning (:func:`straylight.survey.sizes.size_warning`), logged as one
+    """The campaign's size warning (:func:`straylight.planning.sizes.size_warning`), logged as one
     line before the run starts; returns it."""
     import logging
 
-    from straylight.survey.footprint import footprint_from_config
-    from straylight.survey.sizes import size_warning
+    from straylight.cube.footprint import footprint_from_config
+    from straylight.planning.sizes import size_warning
 
     fp = footprint_from_config(campaign.settings.footprint, campaign.path.parent)
     msg = size_warning(campaign, int(fp.pixels.size))
@@ -257,7 +257,7 @@ def _run_quietly(cmd, env, campaign) -> int:
     a progress bar on stderr and one closing line; on failure the log's error lines."""
     from tqdm import tqdm
 
-    from straylight.survey.timegrid import time_blocks
+    from straylight.cube.timegrid import time_blocks
 
     c = campaign.settings.campaign
     results = Path("results") / campaign.name
@@ -376,7 +376,7 @@ def run_campaign(config, cores: int | None = None, extra=(), argv=None, verbose:
     check_results_folder(campaign)
     warn_if_large(campaign)
     cmd = snakemake_command(config, cores, extra)
-    from straylight.survey.provenance import LAUNCHER_ENV
+    from straylight.cube.provenance import LAUNCHER_ENV
 
     env = dict(os.environ)
     env[LAUNCHER_ENV] = json.dumps(["straylight", *(argv if argv is not None else sys.argv[1:])])

@@ -104,11 +104,11 @@ class SkyModel:
 
         Notes
         -----
-        The samples are evaluated :data:`~straylight.survey.pointings.CHUNK_ROWS` at a time into
+        The samples are evaluated :data:`~straylight.planning.pointings.CHUNK_ROWS` at a time into
         a table allocated once: the peak memory is the table plus one chunk's work and the samples'
         copies (0.28 GB beyond the table for 2 million samples in one band).
         """
-        from straylight.survey.pointings import background_table
+        from straylight.planning.pointings import background_table
 
         t, ra, dec = checked_samples(time, coord)
         campaign = self.campaign
@@ -141,7 +141,7 @@ class SkyModel:
 
     def exposure_time(self, time, coord, mag_ab, snr=5.0, bands=None, n_exposures=None, observable_only=True):
         """Total exposure time a point source needs to reach ``snr``, per sample and band, at the
-        background :meth:`background` gives (:mod:`straylight.survey.etc`: the 5-sigma limits'
+        background :meth:`background` gives (:mod:`straylight.planning.exposure_time`: the 5-sigma limits'
         CCD equation, EE80 aperture, read noise, dark current and zero points).
 
         The time is split into the band's survey number of exposures (2; NUV and y 4) unless
@@ -168,12 +168,12 @@ class SkyModel:
         Returns
         -------
         astropy.table.QTable
-            One row per sample and band (:func:`straylight.survey.etc.etc_table`): the
+            One row per sample and band (:func:`straylight.planning.exposure_time.etc_table`): the
             ``exposure_time`` (s; NaN where not observable unless ``observable_only`` is
             False; ``observable`` and ``violations`` say why), ``n_exposures``, the background
             per component and its total (e-/s/pix), the ``dominant`` component, the survey's
             5-sigma ``limit_mag``; units and descriptions on every column.
-            :func:`straylight.survey.etc.etc_summary` gives the shortest, median and longest
+            :func:`straylight.planning.exposure_time.etc_summary` gives the shortest, median and longest
             over a window.
 
         Raises
@@ -192,7 +192,7 @@ class SkyModel:
         >>> bool(10 < etc["exposure_time"][0].value < 300)   # 25 mag is above the g limit
         True
         """
-        from straylight.survey.etc import checked_request
+        from straylight.planning.exposure_time import checked_request
 
         request = checked_request(mag_ab, snr=snr, n_exposures=n_exposures, observable_only=observable_only)
         return self._etc(time, coord, bands, request)
@@ -221,7 +221,7 @@ class SkyModel:
         straylight.InputError
             As :meth:`exposure_time`; an exposure time without a time unit or <= 0.
         """
-        from straylight.survey.etc import checked_request
+        from straylight.planning.exposure_time import checked_request
 
         request = checked_request(
             mag_ab, exposure_time=exposure_time, n_exposures=n_exposures, observable_only=observable_only
@@ -230,7 +230,7 @@ class SkyModel:
 
     def _etc(self, time, coord, bands, request):
         """The exposure-time calculator's table for a checked request."""
-        from straylight.survey.etc import checked_bands, etc_table
+        from straylight.planning.exposure_time import checked_bands, etc_table
 
         bands = checked_bands(bands, self.campaign)
         table = etc_table(self.background(time, coord, bands), bands, self.campaign, request)
@@ -274,7 +274,7 @@ def _warn_magnitude(table, campaign) -> None:
     """The ETC's warnings for a magnitude its noise model does not cover, one logged line each."""
     import logging
 
-    from straylight.survey.etc import magnitude_warnings
+    from straylight.planning.exposure_time import magnitude_warnings
 
     for line in magnitude_warnings(table, campaign):
         logging.getLogger(__name__).warning("warning: %s", line)
@@ -434,9 +434,9 @@ def _empty_table(campaign, t, bands):
     """:meth:`SkyModel.background`'s table with no rows: the pointing table's columns, empty,
     through the same conversion to a QTable (so columns and units cannot differ from a computed
     one's)."""
+    from straylight.limits.point_source import sky_zero_points
     from straylight.model import registry
-    from straylight.survey.limits import sky_zero_points
-    from straylight.survey.pointings import _qtable
+    from straylight.planning.pointings import pointing_qtable
 
     none = np.zeros(0)
     cols = {
@@ -455,7 +455,7 @@ def _empty_table(campaign, t, bands):
         cols.update({f"{c}_{b}": none for c in registry.component_names(total=True)})
         if b != "V":  # the diagnostic band has no limit
             cols[f"limit_mag_{b}"] = none
-    return _qtable(cols, t, bands, sky_zero_points(campaign, bands), {})
+    return pointing_qtable(cols, t, bands, sky_zero_points(campaign, bands), {})
 
 
 _MODELS: dict = {}

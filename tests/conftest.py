@@ -67,6 +67,7 @@ TABLE_FREE_MODULES = frozenset(
     {
         "test_architecture.py",
         "test_config.py",
+        "test_execution.py",
         "test_instrument_settings.py",
         "test_plots.py",
         "test_settings.py",
@@ -74,7 +75,10 @@ TABLE_FREE_MODULES = frozenset(
         "catalog/test_gaia.py",
         "catalog/test_luminosity_class.py",
         "catalog/test_proper_motion.py",
+        "cube/test_footprint.py",
+        "cube/test_provenance.py",
         "image/test_detector_fits.py",
+        "limits/test_published_depths.py",
         "model/test_envelope.py",
         "model/test_envelope_members.py",
         "optics/test_pst_out_of_field.py",
@@ -94,10 +98,6 @@ TABLE_FREE_MODULES = frozenset(
         "sources/test_saturn_rings.py",
         "sources/test_zodiacal.py",
         "sources/test_zodiacal_colour.py",
-        "survey/test_footprint.py",
-        "survey/test_provenance.py",
-        "survey/test_published_depths.py",
-        "util/test_daskutil.py",
         "util/test_gridinterp.py",
     }
 )

@@ -88,9 +88,9 @@ def test_bad_input_raises_input_error():
 
 def test_zero_point_matches_the_library_conversion(campaign):
     """The stored zero point converts e-/s/pixel to the same mag/arcsec2 as offfield's function."""
+    from straylight.limits.point_source import sky_zero_points
     from straylight.optics.bandpass import load_band
     from straylight.sources.photometry import magnitude_per_arcsec2
-    from straylight.survey.limits import sky_zero_points
 
     zp = sky_zero_points(campaign)
     d = campaign.instrument_value("telescope", "aperture_diameter_m")
@@ -109,7 +109,7 @@ def test_open_campaign_and_mag_conversion(tmp_path, campaign):
     import xarray as xr
 
     import straylight
-    from straylight.survey.limits import ZERO_POINT_NAME, zero_point_coord
+    from straylight.limits.point_source import ZERO_POINT_NAME, zero_point_coord
 
     bands = campaign.bands
     rate = np.array([[[0.1, 1.0, 0.0, 10.0, 0.2, 0.3, 0.4]]], dtype=np.float32)[:, :, : len(bands)]

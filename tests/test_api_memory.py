@@ -48,7 +48,7 @@ def test_chunked_table_equals_one_chunk(monkeypatch):
     """5000 samples in chunks of 700 rows (the last one short) equal the same samples in one
     chunk, column by column and bit for bit, with the same units, formats and meta."""
     import straylight
-    from straylight.survey import pointings
+    from straylight.planning import pointings
 
     t, c = _samples(5000)
     sky = straylight.SkyModel()
@@ -68,7 +68,7 @@ def test_float32_and_a_subset_of_columns(monkeypatch):
     import astropy.units as u
 
     import straylight
-    from straylight.survey import pointings
+    from straylight.planning import pointings
 
     monkeypatch.setattr(pointings, "CHUNK_ROWS", 300)
     t, c = _samples(1000, seed=2)
@@ -91,7 +91,7 @@ def test_sky_input_in_chunks_equals_one_chunk(tmp_path, monkeypatch):
     import pyarrow.parquet as pq
 
     from straylight.cli import main
-    from straylight.survey import pointings
+    from straylight.planning import pointings
 
     t, c = _samples(2500, seed=3)
     csv = tmp_path / "p.csv"

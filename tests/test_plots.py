@@ -95,9 +95,9 @@ def test_sky_maps_of_one_band_share_one_colour_scale_over_the_times(campaign, tm
     its values at all those times: a total 1 mag brighter at the second time shows brighter."""
     import healpy as hp
 
+    from straylight.limits.point_source import ZERO_POINT_NAME, zero_point_coord
     from straylight.model.registry import component_names
     from straylight.plots.maps import sky_maps
-    from straylight.survey.limits import ZERO_POINT_NAME, zero_point_coord
 
     nside, pix = 4, np.arange(hp.nside2npix(4))
     rng = np.random.default_rng(7)
@@ -128,10 +128,10 @@ def test_sky_map_colour_scale_comes_from_the_observable_pixels(campaign, tmp_pat
     (before: the scale ran from their ~12.6 mag, the observable sky one colour)."""
     import healpy as hp
 
+    from straylight.limits.point_source import ZERO_POINT_NAME, zero_point_coord
     from straylight.model.registry import component_names
     from straylight.plots.common import SKY_PERCENTILES
     from straylight.plots.maps import sky_maps
-    from straylight.survey.limits import ZERO_POINT_NAME, zero_point_coord
 
     nside, pix = 4, np.arange(hp.nside2npix(4))
     zp = float(zero_point_coord(campaign, ["g"])[1][0])
@@ -167,8 +167,8 @@ def test_time_series_legend_lists_only_the_curves_on_the_axes(campaign, tmp_path
     the legend."""
     from matplotlib.figure import Figure
 
+    from straylight.limits.point_source import ZERO_POINT_NAME, zero_point_coord
     from straylight.plots.series import time_series
-    from straylight.survey.limits import ZERO_POINT_NAME, zero_point_coord
 
     n = 10
     ds = xr.Dataset(
@@ -451,8 +451,8 @@ def test_magnitudes_through_the_products_zero_point_equal_the_instruments(campai
     """The figures turn e-/s/pix into AB mag/arcsec2 through the store's mag_zero_point
     coordinate (limits.zero_point_coord) where it has one: the numbers the instrument's
     throughput gives (sources.photometry.magnitude_per_arcsec2), bit for bit."""
+    from straylight.limits.point_source import ZERO_POINT_NAME, zero_point_coord
     from straylight.plots.common import _mag
-    from straylight.survey.limits import ZERO_POINT_NAME, zero_point_coord
 
     bands = list(campaign.bands)
     rates = np.array([0.0, 1e-3, 0.37, 1.0, 25.0])

@@ -15,7 +15,7 @@ def cube_summary(catalog, time_step: int = 24, n_times: int = 12) -> dict:
     """The survey cube's access pattern: every footprint pixel of the default campaign at
     ``n_times`` times spread over its day, as compute_region runs it (the direct path one time
     step per evaluation, the Earth cap gridded once per step; the table path whole steps as one
-    batch, cube_region.SAMPLES_PER_EVALUATION), stars included.  Seconds per sample on one
+    batch, cube.region.SAMPLES_PER_EVALUATION), stars included.  Seconds per sample on one
     core (best of three for the direct earthshine sum, of :data:`FAST_REPEATS` for the look-up
     table, built once and cached), and the table path's largest difference from the direct path
     at observable samples, as a fraction of the total (the direct path's own error is the
@@ -26,8 +26,8 @@ def cube_summary(catalog, time_step: int = 24, n_times: int = 12) -> dict:
 
     from straylight.catalog.campaign_catalog import write_catalog
     from straylight.config import load_campaign
-    from straylight.survey.cube_region import compute_region, offfield_stars
-    from straylight.survey.footprint import footprint_from_config
+    from straylight.cube.footprint import footprint_from_config
+    from straylight.cube.region import compute_region, offfield_stars
 
     base = load_campaign()
     fp = footprint_from_config(base.config["footprint"])
@@ -97,7 +97,7 @@ def cube_summary(catalog, time_step: int = 24, n_times: int = 12) -> dict:
 
 def production_region_rates(base, fp, stars_path) -> dict:
     """The table path (every sample, and observable samples only) on what one task of a
-    production run computes (cube_run.run_time_blocks): one time block of consecutive steps
+    production run computes (cube.run.run_time_blocks): one time block of consecutive steps
     (campaign.time_block_hours, 72 at the default 5-minute cadence) x one pixel block
     (footprint.pixel_block_size, 660 by default), the day's first, with the star catalog at
     ``stars_path``; samples per second on one core, the best of :data:`FAST_REPEATS` after a
@@ -108,9 +108,9 @@ def production_region_rates(base, fp, stars_path) -> dict:
     time block of the campaign so, each the best of its own repeats: the whole default campaign's
     samples over the sum of its blocks' times (``campaign``; the first block alone could be a
     cheaper scene than the others)."""
+    from straylight.cube.layout import cube_chunks
+    from straylight.cube.region import compute_region, offfield_stars
     from straylight.sky.observing import scene
-    from straylight.survey.cube_layout import cube_chunks
-    from straylight.survey.cube_region import compute_region, offfield_stars
 
     stars = offfield_stars(base, stars_path)
     n_times = len(base.times)
@@ -166,7 +166,7 @@ def production_region_rates(base, fp, stars_path) -> dict:
 
 
 def plan_cost_model(base, fp, t_slice, cube: dict) -> dict:
-    """``straylight plan``'s figures (straylight.survey.plan.CUBE_*) against this run: the table path
+    """``straylight plan``'s figures (straylight.planning.plan.CUBE_*) against this run: the table path
     per sample; the skip mode's screen per sample (the Sun's and the Moon's geometry of every
     sample, timed here through plan.evaluated_samples on the same steps and pixels) and per
     observable sample (the rest of the skip run); then each of the four runs' seconds as the
@@ -174,7 +174,7 @@ def plan_cost_model(base, fp, t_slice, cube: dict) -> dict:
     from astropy.time import TimeDelta
 
     from straylight.config import campaign_from_dict, deep_merge
-    from straylight.survey import plan
+    from straylight.planning import plan
 
     steps = range(*t_slice.indices(len(base.times)))
     over = {

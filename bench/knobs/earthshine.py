@@ -80,9 +80,9 @@ def moonlit_grid_rows(bench, day: str = "2026-01-03", time_step: int = 24, n_tim
     (best of three; the table's build, once and cached, not included)."""
     from dataclasses import astuple
 
+    from straylight.cube.footprint import footprint_from_config
+    from straylight.cube.region import compute_region
     from straylight.sources.earthshine_table_nodes import MoonlitSettings
-    from straylight.survey.cube_region import compute_region
-    from straylight.survey.footprint import footprint_from_config
 
     base = bench.campaign
     fp = footprint_from_config(base.config["footprint"])

@@ -122,7 +122,7 @@ def catalog_for_campaign(campaign, gaia_stars: dict | None = None) -> tuple[dict
         "straylight_version": __version__,
         "campaign": campaign.name,
         # the file name and content digest, not the absolute path: the product's bytes must
-        # not depend on where the campaign runs (determinism check, tests/survey/test_cube.py)
+        # not depend on where the campaign runs (determinism check, tests/cube/test_cube.py)
         "config": campaign.path.name,
         "config_sha256": sha256_path(campaign.path),
         # the stars section as the config holds it (with the schema's defaults): a record of

@@ -68,7 +68,7 @@ def add_output_flags(parser) -> None:
 
 def checked_pointing(args) -> tuple[float, float]:
     """--ra/--dec checked by the rule the pointing table's rows obey (RA wrapped to [0, 360))."""
-    from straylight.survey.pointings import check_radec
+    from straylight.planning.pointings import check_radec
 
     ra, dec = check_radec([args.ra], [args.dec], names=("--ra", "--dec"))
     return float(ra[0]), float(dec[0])

@@ -22,7 +22,7 @@ def cmd_footprint(args) -> int:
         The command's parsed arguments (:func:`straylight.cli.parser.build_parser`).
     """
     from straylight.config import load_campaign
-    from straylight.survey.footprint import footprint_from_config
+    from straylight.cube.footprint import footprint_from_config
 
     campaign = load_campaign(args.config)
     fp = footprint_from_config(campaign.settings.footprint, campaign.path.parent)
@@ -39,15 +39,15 @@ def cmd_plan(args) -> int:
         The command's parsed arguments (:func:`straylight.cli.parser.build_parser`).
     """
     from straylight.config import load_campaign
+    from straylight.cube.footprint import footprint_from_config
+    from straylight.cube.layout import cube_chunks
+    from straylight.cube.timegrid import time_blocks
     from straylight.model import registry
-    from straylight.survey.cube_layout import cube_chunks
-    from straylight.survey.footprint import footprint_from_config
-    from straylight.survey.plan import COMPACT_BYTES_PER_SAMPLE, PRODUCT_BYTES_PER_SAMPLE, estimated_cost
-    from straylight.survey.timegrid import time_blocks
+    from straylight.planning.plan import COMPACT_BYTES_PER_SAMPLE, PRODUCT_BYTES_PER_SAMPLE, estimated_cost
 
     campaign = load_campaign(args.config)
     fp = footprint_from_config(campaign.settings.footprint, campaign.path.parent)
-    from straylight.survey.sizes import size_warning
+    from straylight.planning.sizes import size_warning
 
     large = size_warning(campaign, int(fp.pixels.size))  # before the times are built
     if large:
@@ -57,18 +57,18 @@ def cmd_plan(args) -> int:
     tb = time_blocks(nt, float(c.cadence_s), float(c.time_block_hours))
     speed = None
     if args.calibrate:
-        from straylight.survey.plan import machine_speed
+        from straylight.planning.plan import machine_speed
 
         speed = machine_speed(campaign, fp)
     if args.cores is not None and args.cores < 1:
         raise InputError(f"--cores {args.cores}: must be at least 1")
-    from straylight.util.daskutil import available_cores
+    from straylight.execution import available_cores
 
     cores = args.cores or available_cores()
     if speed:
         factor = speed["factor"]
     else:  # this machine's speed and free cores now (a few seconds, kept a while in the table cache)
-        from straylight.survey.plan import probed_speed_factor
+        from straylight.planning.plan import probed_speed_factor
 
         factor = probed_speed_factor(campaign, cores)
     cost = estimated_cost(campaign, fp, args.seconds_per_sample, factor, cores)
@@ -86,12 +86,12 @@ def cmd_plan(args) -> int:
     print(f"time blocks: {len(tb)}; chunks {cube_chunks(campaign, nt, npix)}")
     print(
         f"products on disk: {cost['product_bytes'] / 1e9:.2f} GB at {PRODUCT_BYTES_PER_SAMPLE:g} "
-        f"bytes/sample (straylight.survey.plan.PRODUCT_BYTES_PER_SAMPLE); uncompressed: background.zarr "
+        f"bytes/sample (straylight.planning.plan.PRODUCT_BYTES_PER_SAMPLE); uncompressed: background.zarr "
         f"{cube_bytes / 1e9:.2f} GB, limits.zarr {limits_bytes / 1e9:.2f} GB"
     )
     print(
         f"compact sky (sky_compact.zarr, besides): {cost['compact_bytes'] / 1e9:.3g} GB at "
-        f"{COMPACT_BYTES_PER_SAMPLE:g} bytes/sample (straylight.survey.plan.COMPACT_BYTES_PER_SAMPLE)"
+        f"{COMPACT_BYTES_PER_SAMPLE:g} bytes/sample (straylight.planning.plan.COMPACT_BYTES_PER_SAMPLE)"
     )
     if cost["earthshine_method"] == "lut":
         table = (
@@ -153,7 +153,7 @@ def cmd_plan(args) -> int:
         )
     print(
         f"the cube's compute alone: {cost['compute_seconds'] / 3600:.3g} core-hours "
-        f"(straylight.survey.plan.CUBE_*)"
+        f"(straylight.planning.plan.CUBE_*)"
     )
     return 0
 
@@ -238,7 +238,7 @@ def cmd_schedule(args) -> int:
     """
     from straylight.config import load_campaign
     from straylight.model import BackgroundModel
-    from straylight.survey.scheduling import write_tables
+    from straylight.planning.scheduling import write_tables
 
     check_out(args, args.out, folder=True)
     campaign = load_campaign(args.config)

@@ -25,9 +25,15 @@ def cmd_etc(args) -> int:
     from astropy.coordinates import SkyCoord
 
     from straylight.config import load_campaign
+    from straylight.planning.exposure_time import (
+        checked_bands,
+        checked_request,
+        etc_summary,
+        etc_table,
+        time_grid,
+    )
     from straylight.sky.ephemeris import check_in_ephemeris
     from straylight.sky.timeutil import parse_utc
-    from straylight.survey.etc import checked_bands, checked_request, etc_summary, etc_table, time_grid
 
     ra_deg, dec_deg = checked_pointing(args)
     exptime = None if args.exptime is None else args.exptime * u.s
@@ -152,9 +158,9 @@ def etc_text(table, summary, ra_deg: float, dec_deg: float, step_min: float | No
     Parameters
     ----------
     table : astropy.table.QTable
-        :func:`straylight.survey.etc.etc_table`'s result.
+        :func:`straylight.planning.exposure_time.etc_table`'s result.
     summary : astropy.table.QTable or None
-        :func:`straylight.survey.etc.etc_summary`'s result for a window, else None.
+        :func:`straylight.planning.exposure_time.etc_summary`'s result for a window, else None.
     ra_deg, dec_deg : float
         The pointing, deg (ICRS).
     step_min : float, optional

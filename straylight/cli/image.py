@@ -222,9 +222,9 @@ def cmd_image(args) -> int:
 def _image_background(campaign, t, ra_deg: float, dec_deg: float, band: str, catalog) -> dict:
     """Diffuse background (zodiacal, earthshine, Moon, Sun, planets, off-field stars) at the
     boresight and time, e-/s/pixel, through the pointing-table evaluation."""
+    from straylight.planning.pointings import pointing_table
     from straylight.sky.geometry import violation_names
     from straylight.sources.stars_table import load_offfield_stars
-    from straylight.survey.pointings import pointing_table
 
     stars = load_offfield_stars(
         catalog,

@@ -171,7 +171,7 @@ def _add_plan(sub) -> None:
         type=float,
         default=None,
         help="cost of one evaluated (time, pointing) sample, all bands, one core, on the "
-        "machine that will run (default: straylight.survey.plan's cost figures for the "
+        "machine that will run (default: straylight.planning.plan's cost figures for the "
         "earthshine model auto picks)",
     )
     how.add_argument(
@@ -256,7 +256,7 @@ def _add_figure(sub) -> None:
 
 def _add_time_window(p, start_flag: str, one_time: bool = False) -> None:
     """The options of a window of sampled times, as
-    :func:`straylight.survey.visibility.sampled_window` checks them: its start ``start_flag``,
+    :func:`straylight.planning.visibility.sampled_window` checks them: its start ``start_flag``,
     ``--end`` (exclusive) and ``--step-min``.  ``one_time`` (etc): the start is required, one time
     without ``--end``; else (visibility) the window is the campaign's by default."""
     if one_time:

@@ -57,6 +57,7 @@ def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None, stars=
     SkyModel's, as the API evaluates with), called once the scene is computed (an orbit that
     cannot be propagated is refused before any table is read or built), else one built for this
     sample."""
+    from straylight.limits.point_source import point_source_limit, sky_zero_points
     from straylight.model import BackgroundModel
     from straylight.model.pointing import background_at
     from straylight.model.registry import band_components
@@ -64,7 +65,6 @@ def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None, stars=
     from straylight.sky.geometry import violation_names
     from straylight.sky.observing import scene
     from straylight.sky.vectors import radec_to_unit
-    from straylight.survey.limits import point_source_limit, sky_zero_points
 
     sc = scene(campaign.orbit, time)
     model = model() if model is not None else BackgroundModel(campaign)
@@ -255,8 +255,8 @@ def _sky_model(config):
 def _sky_table(args, campaign, bands, stars) -> int:
     """``sky --input``: every row of a pointing table evaluated, written as Parquet."""
     from straylight.catalog.gaia import write_parquet
+    from straylight.planning.pointings import CHUNK_ROWS, column_units, pointing_chunks, read_pointings
     from straylight.sky.timeutil import quiet_dubious_years
-    from straylight.survey.pointings import CHUNK_ROWS, column_units, pointing_chunks, read_pointings
 
     p = read_pointings(args.input)
     # a masked time (ECSV, Parquet, FITS Time columns) has no value to compute at: refused by row
@@ -318,7 +318,7 @@ def cmd_visibility(args) -> int:
         The command's parsed arguments (:func:`straylight.cli.parser.build_parser`).
     """
     from straylight.config import load_campaign
-    from straylight.survey.visibility import plot_visibility, visibility
+    from straylight.planning.visibility import plot_visibility, visibility
 
     if getattr(args, "targets", None) is not None:
         from straylight.cli.targets import cmd_visibility_targets
@@ -352,7 +352,7 @@ def cmd_visibility(args) -> int:
         step_s,
         args.threshold,
     )
-    from straylight.survey.bright_targets import warn_bright_targets
+    from straylight.planning.bright_targets import warn_bright_targets
 
     warn_bright_targets(ra_deg, dec_deg, args.start or c.start)  # the times checked by now
     s, w, d = res["samples"], res["windows"], res["days"]

@@ -23,9 +23,9 @@ def cmd_visibility_targets(args) -> int:
     from pathlib import Path
 
     from straylight.config import load_campaign
-    from straylight.survey.target_names import read_targets
-    from straylight.survey.targets import format_summary, targets_visibility, write_targets
-    from straylight.survey.visibility import time_grid
+    from straylight.planning.target_names import read_targets
+    from straylight.planning.targets import format_summary, targets_visibility, write_targets
+    from straylight.planning.visibility import time_grid
 
     if args.ra is not None or args.dec is not None:
         raise InputError("give either --targets FILE or --ra/--dec, not both")
@@ -52,7 +52,7 @@ def cmd_visibility_targets(args) -> int:
         return default_catalog_path(campaign)
 
     targets = read_targets(args.targets, catalog)
-    from straylight.survey.bright_targets import warn_bright_targets
+    from straylight.planning.bright_targets import warn_bright_targets
 
     warn_bright_targets(targets.ra_deg, targets.dec_deg, start, targets.names)
     if args.out is not None:

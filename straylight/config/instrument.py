@@ -262,7 +262,7 @@ class EnvelopeSettings:
 @dataclass(frozen=True)
 class DepthBudgetSettings:
     """``depth_budget``: the ranges of the depth's unmeasured inputs besides the envelope's
-    (:mod:`straylight.survey.limits_budget`): read noise (e-), dark current (e-/s/pixel), per
+    (:mod:`straylight.limits.budget`): read noise (e-), dark current (e-/s/pixel), per
     band the EE80 radius (arcsec) and a factor on the zodiacal light, factors on the Moon's and
     the off-field stars' light; None where the file gives no range."""
 

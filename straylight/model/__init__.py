@@ -5,7 +5,7 @@ Internal: not part of the public API (``straylight.__all__``; users evaluate the
 :class:`straylight.SkyModel`).  ``__all__`` below names what the layers above it use.
 
 Imports ``straylight.sources``, ``straylight.sky`` and ``straylight.config`` (the layers below it:
-docs/architecture.md); never ``straylight.survey``.
+docs/architecture.md); never the layers above it (``storage``, ``limits``, ``cube``, ``planning``).
 """
 
 from straylight.model import registry

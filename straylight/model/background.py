@@ -54,7 +54,7 @@ class BackgroundModel:
     ):
         self.campaign = campaign
         if build_workers is None:
-            from straylight.util.daskutil import available_cores
+            from straylight.execution import available_cores
 
             build_workers = available_cores()
         self.build_workers = build_workers
@@ -64,6 +64,7 @@ class BackgroundModel:
         self.in_field = InFieldBodies(self.context)
         # the registry as it is now: a source registered later is not this model's
         self.entries = tuple(registry.SOURCES)
+        registry.check_config_paths(self.entries)
         self.components = tuple(registry.COMPONENTS)
         self.leaves = registry.leaves()
         self.outputs = registry.band_components()

@@ -1,7 +1,7 @@
 """The assumption envelope: the unmeasured parameters' ranges carried into the products.
 
 Each source declares the parameters its value rests on in the registry
-(:class:`~straylight.model.registry.Parameter`); one with an ``envelope`` key has a range in the
+(:class:`~straylight.model.registry.Assumption`); one with an ``envelope`` key has a range in the
 instrument file's ``envelope`` section.  Every parameter carried scales some parts of the
 background linearly, so the background at either end of the envelope is the computed parts
 times per-band factors, summed: no second evaluation.
@@ -84,7 +84,7 @@ class EnvelopeParameter:
     key : str
         Its key in the instrument file's ``envelope`` section.
     name : str
-        Where it is configured (the registry's :class:`~straylight.model.registry.Parameter`).
+        Where it is configured (the registry's :class:`~straylight.model.registry.Assumption`).
     leaves : tuple of str
         The background's parts (or components without parts) it scales.
     dark, bright : ndarray, shape (n_bands,)
@@ -306,7 +306,7 @@ def _declared() -> dict:
     out = {}
     for entry in registry.SOURCES:
         for p in entry.parameters:
-            if not isinstance(p, registry.Parameter) or not p.envelope:
+            if not isinstance(p, registry.Assumption) or not p.envelope:
                 continue
             leaves = tuple(p.scales) or _leaves_of(entry)
             name, known = out.get(p.envelope, (p.name, ()))

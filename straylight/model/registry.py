@@ -29,11 +29,12 @@ __all__ = [
     "COMPONENTS",
     "SOURCES",
     "Component",
-    "Parameter",
+    "Assumption",
     "Source",
     "SourceEntry",
     "TOTAL",
     "band_components",
+    "check_config_paths",
     "component_names",
     "leaves",
     "long_names",
@@ -90,13 +91,16 @@ class Component:
 
 
 @dataclass(frozen=True)
-class Parameter:
+class Assumption:
     """An unmeasured parameter a source's value rests on.
 
     Attributes
     ----------
     name : str
-        Where it is configured (a config path, or the instrument file's section and key).
+        What it is and where it is configured, as the products' envelope attributes name it.
+    config : tuple of str
+        Its settings, each a config path (:func:`check_config_paths`): ``models.earthshine.albedo``
+        in the campaign config, ``instrument.door_geometry.reflectance`` in the instrument file.
     envelope : str
         The key of the instrument's ``envelope`` section that gives its range, carried into the
         products' pessimistic and optimistic depths (:mod:`straylight.model.envelope`); "" for a
@@ -107,6 +111,7 @@ class Parameter:
     """
 
     name: str
+    config: tuple = ()
     envelope: str = ""
     scales: tuple = ()
 
@@ -132,11 +137,12 @@ class SourceEntry:
     error_budget : tuple of str
         The keys of :data:`~straylight.model.fidelity.ERROR_BUDGET_SHARES` its fast paths spend
         (declared here for the products' uncertainty; the policy holds the shares).
-    parameters : tuple of (Parameter or str)
-        The unmeasured model and instrument parameters its value rests on; a :class:`Parameter`
-        with an ``envelope`` key is carried into the products' assumption envelope (the
-        components it scales, from ``adds_to`` and its ``scales``), a plain str (config path)
-        is declared only.
+    parameters : tuple of (Assumption or str)
+        The unmeasured model and instrument parameters its value rests on; an
+        :class:`Assumption` with an ``envelope`` key is carried into the products' assumption
+        envelope (the components it scales, from ``adds_to`` and its ``scales``), a plain str
+        (a config path) is declared only.  Every config path is checked when a
+        :class:`~straylight.model.BackgroundModel` is built (:func:`check_config_paths`).
     """
 
     name: str
@@ -212,10 +218,19 @@ _PST = "instrument pst (measured to 30 deg; the tail beyond is a model)"
 #: the PST's tail: scales every term whose light reaches the aperture beyond the tail's start
 #: only (where observable: the Sun, the Moon, the Earth); the planets and stars also shine
 #: through the measured part, so their dependence is declared, not carried
-_TAIL = Parameter(_PST, envelope="pst_tail")
-_ALBEDO = Parameter("models.earthshine.albedo, albedo_spectrum", envelope="earth_albedo")
-_DOOR_REFLECTANCE = Parameter(
-    "instrument door_geometry reflectance", envelope="door_reflectance", scales=("earthshine_door",)
+_TAIL = Assumption(_PST, config=("instrument.pst.tail_log10_at_90deg",), envelope="pst_tail")
+#: the PST's curve, declared: the planets and stars shine through its measured part too
+_PST_CURVE = Assumption(_PST, config=("instrument.pst",))
+_ALBEDO = Assumption(
+    "models.earthshine.albedo, albedo_spectrum",
+    config=("models.earthshine.albedo", "models.earthshine.albedo_spectrum"),
+    envelope="earth_albedo",
+)
+_DOOR_REFLECTANCE = Assumption(
+    "instrument door_geometry reflectance",
+    config=("instrument.door_geometry.reflectance",),
+    envelope="door_reflectance",
+    scales=("earthshine_door",),
 )
 #: the sources of light, in the order they are evaluated and their terms added
 SOURCES = [
@@ -225,7 +240,7 @@ SOURCES = [
         _zodiacal,
         parameters=("models.zodiacal_spectrum", "models.zodiacal_reddening"),
     ),
-    SourceEntry("sun", "sun", _sun, parameters=(_TAIL, "instrument door_geometry")),
+    SourceEntry("sun", "sun", _sun, parameters=(_TAIL, "instrument.door_geometry")),
     SourceEntry(
         "moon",
         "moon",
@@ -240,7 +255,7 @@ SOURCES = [
         _planets,
         skippable=True,
         error_budget=("moon_and_planets_skip",),
-        parameters=(_PST,),
+        parameters=(_PST_CURVE,),
     ),
     SourceEntry(
         "stars",
@@ -248,7 +263,7 @@ SOURCES = [
         _stars,
         skippable=True,
         error_budget=("stars_skip",),
-        parameters=(_PST, "stars.template_classes"),
+        parameters=(_PST_CURVE, "stars.template_classes"),
     ),
     SourceEntry(
         "sunlit_earth",
@@ -266,6 +281,54 @@ SOURCES = [
         parameters=(_TAIL, _ALBEDO, _DOOR_REFLECTANCE, "models.moon_phase_law"),
     ),
 ]
+
+
+def _config_paths(entry: SourceEntry) -> tuple:
+    """The config paths a source's parameters name."""
+    paths = ()
+    for p in entry.parameters:
+        paths += (p,) if isinstance(p, str) else tuple(p.config)
+    return paths
+
+
+def check_config_paths(entries: Sequence[SourceEntry]) -> None:
+    """Every config path the sources' parameters name is a setting the schemas declare.
+
+    A path is dotted: ``models.earthshine.albedo`` is a key of the campaign config
+    (``config/schema/config.schema.yaml``), ``instrument.door_geometry.reflectance`` one of the
+    instrument file (``config/schema/instrument.schema.yaml``).
+
+    Parameters
+    ----------
+    entries : sequence of SourceEntry
+        The sources (:data:`SOURCES`, as a model takes them).
+
+    Raises
+    ------
+    straylight.errors.ConfigError
+        Naming the source, the path and the first key the schema does not declare.
+    """
+    from straylight.config.loading import CAMPAIGN_SCHEMA, INSTRUMENT_SCHEMA, load_schema
+    from straylight.errors import ConfigError
+
+    schemas = {}
+    for entry in entries:
+        for path in _config_paths(entry):
+            keys = path.split(".")
+            which = INSTRUMENT_SCHEMA if keys[0] == "instrument" else CAMPAIGN_SCHEMA
+            keys = keys[1:] if which is INSTRUMENT_SCHEMA else keys
+            if which not in schemas:
+                schemas[which] = load_schema(which)
+            node, done = schemas[which], []
+            for key in keys:
+                props = node.get("properties", {}) if isinstance(node, dict) else {}
+                if key not in props:
+                    where = ".".join(done) or "the top level"
+                    raise ConfigError(
+                        f"straylight/model/registry.py: source {entry.name!r} rests on {path!r}, "
+                        f"but {which.name} declares no key {key!r} in {where}"
+                    )
+                node, done = props[key], done + [key]
 
 
 def component_names(total: bool = False) -> tuple:

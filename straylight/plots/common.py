@@ -24,7 +24,7 @@ def _mag(ds, e_per_s, band: str, campaign):
     """AB mag/arcsec2 of ``e_per_s`` (e-/s/pix) in ``band``: through the product's own
     ``mag_zero_point`` coordinate where ``ds`` has it (the number a reader of the store uses,
     computed from the instrument as below), else from the campaign's instrument."""
-    from straylight.survey.limits import ZERO_POINT_NAME
+    from straylight.limits.point_source import ZERO_POINT_NAME
 
     if ZERO_POINT_NAME in ds.coords:  # photometry.magnitude_per_arcsec2 at the stored zero point
         zp = float(ds[ZERO_POINT_NAME].sel(band=band))

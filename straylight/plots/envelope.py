@@ -106,23 +106,23 @@ def envelope_sensitivity(background_store, campaign, time_blocks: int = SENSITIV
     dict
         ``bands`` (list), ``nominal`` (band -> median depth, mag), ``rows``: list of
         (input key, end, band -> change in median depth, mag; negative: shallower): every input
-        of the depth budget (:func:`~straylight.survey.limits_budget.depth_budget`, the
+        of the depth budget (:func:`~straylight.limits.budget.depth_budget`, the
         envelope's parameters among them) alone at each end, then every envelope parameter at
         once ("all": pessimistic, optimistic) and the budget's central interval ("budget": p16,
         p84); ``times`` (how many times were read).
     """
     import zarr
 
+    from straylight.cube.footprint import footprint_from_store
+    from straylight.cube.layout import ENVELOPE_END_VARIABLES
+    from straylight.cube.region import region_values
+    from straylight.limits.budget import BUDGET_VARIABLES, budget_limits, depth_budget, term_limits
+    from straylight.limits.cube import limit_summaries
+    from straylight.limits.envelope import _part, envelope_limits
+    from straylight.limits.point_source import band_limits, campaign_exposures
     from straylight.model import BackgroundModel
     from straylight.model.envelope import ENDS, campaign_envelope
-    from straylight.survey.cube_layout import ENVELOPE_END_VARIABLES
-    from straylight.survey.cube_region import region_values
-    from straylight.survey.footprint import footprint_from_store
-    from straylight.survey.limits import band_limits, campaign_exposures
-    from straylight.survey.limits_budget import BUDGET_VARIABLES, budget_limits, depth_budget, term_limits
-    from straylight.survey.limits_cube import limit_summaries
-    from straylight.survey.limits_envelope import _part, envelope_limits
-    from straylight.survey.storage import read_region
+    from straylight.storage.zarr_io import read_region
 
     group = zarr.open_group(str(background_store), mode="r", use_consolidated=False)
     bands = [str(b) for b in group["band"][...]]

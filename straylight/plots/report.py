@@ -135,7 +135,7 @@ def limit_figures(limits_path, campaign, out_dir) -> list:
     import xarray as xr
     import zarr
 
-    from straylight.survey.storage import read_region
+    from straylight.storage.zarr_io import read_region
 
     # the per-pixel summaries (pixel x band: small) read once, not once a band and map
     with xr.open_zarr(limits_path, chunks=None) as stored:

@@ -58,11 +58,11 @@ def pointing_series(background_path, pixel_indices) -> list[dict]:
     """Per pointing of ``pixel_indices`` (into the cube's ``pixel``), its whole series in the
     background cube at ``background_path``: name -> (time[, band]) array of every component,
     the total (:func:`~straylight.model.registry.component_names`) and ``observable``.  Read
-    chunk by chunk in this thread (:func:`~straylight.survey.storage.read_region`)."""
+    chunk by chunk in this thread (:func:`~straylight.storage.zarr_io.read_region`)."""
     import zarr
 
     from straylight.model import registry
-    from straylight.survey.storage import read_region
+    from straylight.storage.zarr_io import read_region
 
     group = zarr.open_group(str(background_path), mode="r", use_consolidated=False)
     names = list(registry.component_names(total=True)) + ["observable"]
@@ -97,9 +97,9 @@ def model_series(campaign, ds, pixel_indices, minutes, stars_path=None, model=No
     import astropy.units as u
     from astropy.time import Time
 
+    from straylight.cube.region import offfield_stars
     from straylight.model import registry
-    from straylight.survey.cube_region import offfield_stars
-    from straylight.survey.pointings import background_table
+    from straylight.planning.pointings import background_table
 
     bands = [str(b) for b in ds["band"].values]
     minutes = np.asarray(minutes, float)

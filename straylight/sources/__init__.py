@@ -34,5 +34,5 @@ pass.  The error a skip or a table may add is the fidelity policy's
 ``straylight.model``.
 
 Imports ``straylight.sky``, ``straylight.config``, ``straylight.optics``, ``straylight.catalog`` (star
-tables) and ``straylight.util``; never ``straylight.model`` or ``straylight.survey``.
+tables) and ``straylight.util``; never ``straylight.model`` or a layer above it.
 """

@@ -1,4 +1,4 @@
 """Small utilities with no physics: grid interpolation for the hot loops (``gridinterp``), atomic
-product writes, file digests and the table cache's folder (``io``), the worker processes' environment,
-pools and exit, and Dask clients (``daskutil``), healpy without its plotting functions
-(``healpix``).  Imports nothing of straylight but ``errors``."""
+product writes, file digests and the table cache's folder (``io``), healpy without its plotting
+functions (``healpix``).  The worker processes and Dask clients (execution policy) are
+``straylight.execution``, a layer above.  Imports nothing of straylight but ``errors``."""

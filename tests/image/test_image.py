@@ -272,8 +272,8 @@ def test_image_cli_star_bin_and_empty_field(tmp_path, campaign):
     from astropy.table import Table
 
     from straylight.catalog.campaign_catalog import default_catalog_path
+    from straylight.planning.pointings import pointing_table
     from straylight.sources.stars_table import load_offfield_stars
-    from straylight.survey.pointings import pointing_table
 
     out = tmp_path / "sirius.fits"
     r = run_cli(

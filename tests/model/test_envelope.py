@@ -181,8 +181,8 @@ def test_region_limits_at_the_ends_are_ordered_and_nan_where_not_observable(camp
     dark end, and the limit falls with the background), are finite where observable and NaN
     elsewhere; the pessimistic total is the members' re-evaluated groups (the earthshine times the
     albedo's factor, the Sun and the Moon as they are) plus the other parts (float64 rounding)."""
-    from straylight.survey.limits import band_limits, campaign_exposures
-    from straylight.survey.limits_envelope import envelope_limits
+    from straylight.limits.envelope import envelope_limits
+    from straylight.limits.point_source import band_limits, campaign_exposures
 
     env = campaign_envelope(campaign)
     rng = np.random.default_rng(7)

@@ -70,6 +70,36 @@ def test_register_refuses_a_taken_name_or_an_unknown_target():
     assert [s.name for s in registry.SOURCES][-1] == "moonlit_earth"  # nothing half-registered
 
 
+@pytest.mark.parametrize(
+    "path, missing",
+    [
+        ("models.earthshine.albedo_spectra", "no key 'albedo_spectra' in models.earthshine"),
+        ("instrument.door_geometry.reflectivity", "no key 'reflectivity' in door_geometry"),
+        ("instrument.pupil", "no key 'pupil' in the top level"),
+    ],
+)
+def test_a_wrong_config_path_fails_when_the_model_is_built(monkeypatch, path, missing):
+    """Every config path a source's parameters name is checked against the schemas when a
+    BackgroundModel is built: a misspelt one is a ConfigError naming the source, the path and
+    the key the schema lacks (the registry's own paths all pass)."""
+    from straylight.config import load_campaign
+    from straylight.errors import ConfigError
+    from straylight.model import BackgroundModel
+
+    registry.check_config_paths(registry.SOURCES)
+    monkeypatch.setattr(registry, "COMPONENTS", list(registry.COMPONENTS))
+    monkeypatch.setattr(registry, "SOURCES", list(registry.SOURCES))
+    wrong = registry.Assumption("a misspelt setting", config=(path,))
+    registry.register(
+        registry.SourceEntry("glow", "glow", lambda model: ConstantGlow(model.context), parameters=(wrong,)),
+        registry.Component("glow", "a constant test glow"),
+    )
+    with pytest.raises(ConfigError, match=f"source 'glow' rests on '{path}'") as err:
+        BackgroundModel(load_campaign(), build_workers=1)
+    assert missing in str(err.value)
+    assert "\n" not in str(err.value)
+
+
 def test_a_registered_source_reaches_the_sum_the_tables_and_the_api(glow):
     """With the dummy registered: the model returns its component and adds it into the total
     (exactly GLOW_E_PER_S more than without it at the same samples); the API's table (the
@@ -107,10 +137,10 @@ def test_a_registered_source_reaches_the_cube_and_the_sky_record(glow):
     store's skeleton declares it; ``straylight sky``'s record lists it in every band."""
     from straylight.cli.sky import sky_record
     from straylight.config import load_campaign
+    from straylight.cube.footprint import footprint_from_config
+    from straylight.cube.region import compute_region
+    from straylight.cube.store import empty_cube
     from straylight.model import BackgroundModel
-    from straylight.survey.cube_region import compute_region
-    from straylight.survey.cube_store import empty_cube
-    from straylight.survey.footprint import footprint_from_config
 
     campaign = load_campaign()
     fp = footprint_from_config(campaign.config["footprint"])

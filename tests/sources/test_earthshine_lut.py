@@ -237,9 +237,9 @@ def test_moonlit_earth_stays_within_its_share_of_the_tolerance(campaign):
     its brightest), against a 48 x 96 grid with nothing skipped; both runs share the same table,
     so the difference is the moonlit treatment alone.  Measured 3.9e-4 of the total (bench
     moonlit_grid row 6 x 12)."""
+    from straylight.cube.footprint import footprint_from_config
+    from straylight.cube.region import compute_region
     from straylight.model import ERROR_BUDGET_SHARES
-    from straylight.survey.cube_region import compute_region
-    from straylight.survey.footprint import footprint_from_config
 
     raw = copy.deepcopy(campaign.config)
     raw["campaign"].update(start="2026-01-03T00:00:00", end="2026-01-03T23:59:59")
@@ -569,11 +569,11 @@ def test_a_batch_of_time_steps_equals_each_step_alone(coarse):
 def test_cube_region_batches_steps_in_time_pixel_order(coarse):
     """compute_region on the table's path (its steps in one batch) puts each value at its own
     time and pixel: the same as evaluating each step alone."""
+    from straylight.cube.footprint import footprint_from_config
+    from straylight.cube.region import compute_region
     from straylight.sky.geometry import observing_geometry
     from straylight.sky.observing import scene
     from straylight.sky.vectors import radec_to_unit
-    from straylight.survey.cube_region import compute_region
-    from straylight.survey.footprint import footprint_from_config
 
     c, cm, _ = coarse
     fp = footprint_from_config(c.config["footprint"])
@@ -594,7 +594,7 @@ def test_cube_region_batches_steps_in_time_pixel_order(coarse):
 def test_step_batches_are_even_and_within_the_cap():
     """cube._step_batches: consecutive slices covering every step once, each within the cap
     (or one step where a step alone exceeds it), sizes within one step of each other."""
-    from straylight.survey.cube_region import _step_batches
+    from straylight.cube.region import _step_batches
 
     for n_steps, n_pixels, cap in [
         (72, 1024, 65536),
@@ -620,9 +620,9 @@ def test_step_batches_are_even_and_within_the_cap():
 def test_cube_region_split_into_calls_gives_the_same_values(coarse, monkeypatch):
     """A region evaluated in several calls (a small SAMPLES_PER_EVALUATION) equals the region in
     one call, value for value: each sample depends on that sample alone."""
-    import straylight.survey.cube_region as cube
+    import straylight.cube.region as cube
+    from straylight.cube.footprint import footprint_from_config
     from straylight.model import registry
-    from straylight.survey.footprint import footprint_from_config
 
     c, cm, _ = coarse
     fp = footprint_from_config(c.config["footprint"])
@@ -640,10 +640,10 @@ def test_cube_region_split_into_calls_gives_the_same_values(coarse, monkeypatch)
 def test_cube_region_with_its_time_blocks_scene_gives_the_same_values(coarse):
     """A pixel block given its time block's scene (cube.run_time_blocks computes it once for
     all its pixel blocks) equals one that computes its own; a scene at other times is refused."""
-    import straylight.survey.cube_region as cube
+    import straylight.cube.region as cube
+    from straylight.cube.footprint import footprint_from_config
     from straylight.model import registry
     from straylight.sky.observing import scene
-    from straylight.survey.footprint import footprint_from_config
 
     c, cm, _ = coarse
     fp = footprint_from_config(c.config["footprint"])
@@ -711,9 +711,9 @@ def test_cube_region_skipping_unobservable_samples_changes_no_observable_value(c
     """models.unobservable_samples: skip evaluates only the observable samples: they come out
     bit-identical to evaluating every sample, every other sample is NaN in every component, and
     the flags are the same."""
+    from straylight.cube.footprint import footprint_from_config
+    from straylight.cube.region import compute_region
     from straylight.model.registry import component_names
-    from straylight.survey.cube_region import compute_region
-    from straylight.survey.footprint import footprint_from_config
 
     c, cm, _ = coarse
     raw = copy.deepcopy(c.config)

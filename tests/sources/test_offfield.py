@@ -1115,9 +1115,9 @@ def test_planet_in_the_field_is_a_point_source_not_a_background(campaign, tmp_pa
     Table 1 quotes -2.9 at its brightest) and its band AB magnitude.  Just outside the field
     the PST applies as before."""
     from straylight.cli.sky import sky_record
+    from straylight.planning.pointings import pointing_table
     from straylight.sky.observing import scene
     from straylight.sky.vectors import unit
-    from straylight.survey.pointings import pointing_table
 
     t = "2026-01-01T00:50:00"
     sc = scene(campaign.orbit, t)

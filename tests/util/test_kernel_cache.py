@@ -14,7 +14,7 @@ from conftest import REPO
 
 #: the child: bitround's kernel run once; its cache hits and misses and the module's file
 _RUN = (
-    "import numpy as np, straylight.survey.bitround as b; "
+    "import numpy as np, straylight.storage.bitround as b; "
     "b.bitround(np.linspace(1, 2, 5), 10); s = b._bitround_bits.stats; "
     "print(sum(s.cache_hits.values()), sum(s.cache_misses.values()), b.__file__)"
 )
@@ -32,14 +32,14 @@ def _run(pythonpath, cache, **env):
 
 
 def test_a_second_install_reads_the_kernels_the_first_compiled(tmp_path):
-    """A first process compiles bitround's kernel into <cache>/numba/straylight/survey (a miss);
+    """A first process compiles bitround's kernel into <cache>/numba/straylight/storage (a miss);
     a copy of the package at another path (fresh files, another folder: numba's own cache, keyed
     by the folder, would miss) reads it (a hit, no miss).  With NUMBA_CACHE_DIR set, numba's
     locator is used and the table cache gets no kernel."""
     cache = tmp_path / "cache"
     first = _run(REPO, cache)
     assert first[:2] == (0, 1) and first[2].startswith(str(REPO))
-    files = list((cache / "numba" / "straylight" / "survey").glob("bitround._bitround_bits-*.nbi"))
+    files = list((cache / "numba" / "straylight" / "storage").glob("bitround._bitround_bits-*.nbi"))
     assert len(files) == 1
     copy = tmp_path / "install2"
     shutil.copytree(REPO / "straylight", copy / "straylight", ignore=shutil.ignore_patterns("__pycache__"))

@@ -175,9 +175,9 @@ def _always_observable(campaign, t, ra_deg, dec_deg, bands, stars=None, source="
 def test_visibility_windows_end_at_end(tmp_path, monkeypatch):
     """The last sample stands for [t, t + step) cut at --end: a window never runs past it, and the
     observable hours count only the time inside [start, end)."""
-    import straylight.survey.pointings as pointings
+    import straylight.planning.pointings as pointings
     from straylight.config import load_campaign
-    from straylight.survey.visibility import visibility
+    from straylight.planning.visibility import visibility
 
     monkeypatch.setattr(pointings, "background_table", _always_observable)
     campaign = load_campaign(tiny_config(tmp_path))
@@ -205,7 +205,7 @@ def test_visibility_step_against_the_orbit_warns(tmp_path, monkeypatch, capsys, 
     """Observability changes within an orbit (Earth occultation, the limbs): a step over a quarter
     period can miss a window, and one near a multiple of the period samples the same orbital phase
     each time (aliasing). One warning line; the command still runs."""
-    import straylight.survey.pointings as pointings
+    import straylight.planning.pointings as pointings
 
     monkeypatch.setattr(pointings, "background_table", _always_observable)
     cfg = tiny_config(tmp_path)

@@ -60,7 +60,7 @@ def test_sky_json_has_the_documented_fields():
 
 def test_sky_gives_magnitudes_and_the_limit_in_text_and_json(campaign, default_tables):
     """mag/arcsec2 = zero point - 2.5 log10(e-/s/pixel), the limit = limits.point_source_limit."""
-    from straylight.survey.limits import point_source_limit, sky_zero_points
+    from straylight.limits.point_source import point_source_limit, sky_zero_points
 
     args = ("sky", "--time", "2026-01-01T00:30:00", "--ra", "150", "--dec", "30", "--bands", "g,y")
     r, text = run_clis((*args, "--json"), args)  # side by side
@@ -237,7 +237,7 @@ def test_utc_offset_is_converted():
 
 
 def test_utc_offsets_in_a_pointing_table(tmp_path, campaign):
-    from straylight.survey.pointings import pointing_table, read_pointings
+    from straylight.planning.pointings import pointing_table, read_pointings
 
     p = tmp_path / "p.csv"
     p.write_text(

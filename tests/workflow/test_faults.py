@@ -10,11 +10,11 @@ import pytest
 from conftest import tiny_config
 
 from straylight.config import load_campaign
+from straylight.cube.footprint import footprint_from_config
+from straylight.cube.provenance import sha256_path
+from straylight.cube.run import run_time_blocks
+from straylight.cube.store import init_store
 from straylight.errors import OutputError
-from straylight.survey.cube_run import run_time_blocks
-from straylight.survey.cube_store import init_store
-from straylight.survey.footprint import footprint_from_config
-from straylight.survey.provenance import sha256_path
 
 
 @pytest.fixture(scope="module")
@@ -41,7 +41,7 @@ def _files(store):
 
 @pytest.mark.parametrize("fail_after_writes", [0, 2, 5, 11])
 def test_disk_full_during_a_zarr_write_then_rerun(small, tmp_path, monkeypatch, fail_after_writes):
-    import straylight.survey.storage as storage
+    import straylight.storage.zarr_io as storage
 
     _, c, fp, ref_digest = small
     store, done = tmp_path / "background.zarr", tmp_path / "done"
@@ -333,7 +333,7 @@ def test_snakemake_killed_mid_cube_leaves_no_process_and_resumes_bit_identical(u
     """SIGKILL Snakemake alone (not its process group: its jobs get no signal from the killer)
     while the cube's workers compute regions: within 10 s no process of the killed run is left
     (the cube job dies with Snakemake, its pool workers with the job:
-    util.daskutil.die_with_parent), none still writing to the stores a resumed run writes; the
+    execution.die_with_parent), none still writing to the stores a resumed run writes; the
     run resumed with the same command (after --unlock, as `make run` does) skips the finished
     time blocks and gives products bit-identical to an uninterrupted run's."""
     import signal

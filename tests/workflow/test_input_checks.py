@@ -126,8 +126,8 @@ def test_results_name_existing_as_a_file_is_refused_before_snakemake(tmp_path, m
 
 def test_a_csv_with_a_byte_order_mark_is_read_by_every_csv_reader(tmp_path):
     from straylight.catalog.star_table import read_star_columns
-    from straylight.survey.pointings import read_pointings
-    from straylight.survey.target_names import read_targets
+    from straylight.planning.pointings import read_pointings
+    from straylight.planning.target_names import read_targets
 
     bom = b"\xef\xbb\xbf"
     files = {
@@ -151,7 +151,7 @@ def test_plan_and_run_warn_of_a_huge_campaign_before_any_work(tmp_path, monkeypa
     25 bytes a sample is under the 20 GB threshold; over 2 h it is 35 GB and warned about."""
     import straylight.runner as runner
     from straylight.config import load_campaign
-    from straylight.survey.sizes import campaign_size, size_warning
+    from straylight.planning.sizes import campaign_size, size_warning
 
     cfg = tiny_config(tmp_path, campaign={"cadence_s": 0.001})
     c = load_campaign(cfg)
@@ -198,7 +198,7 @@ def test_etc_warns_outside_its_noise_model_and_prints_no_60_digits(caplog):
 
 
 def test_visibility_warns_of_a_target_on_a_bright_star(caplog):
-    from straylight.survey.bright_targets import bright_stars_at, warn_bright_targets
+    from straylight.planning.bright_targets import bright_stars_at, warn_bright_targets
 
     # Sirius at its J2000 position (SIMBAD: 101.2871553, -16.7161159): 35 arcsec from where its
     # proper motion (-546, -1223 mas/yr) carries it by 2026.0

@@ -160,7 +160,7 @@ def test_tiny_campaign_products_follow_the_conventions(campaign_run):
     from astropy.io import fits
 
     from straylight.config import load_campaign
-    from straylight.survey.limits import sky_zero_points
+    from straylight.limits.point_source import sky_zero_points
 
     run = campaign_run
     bg = xr.open_zarr(run / "background.zarr")

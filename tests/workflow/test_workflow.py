@@ -137,7 +137,7 @@ def test_products_open_in_a_second_zarr_implementation(tiny_run):
 
 def test_cube_value_equals_sky_command(tiny_run):
     """An observability value equals `straylight sky` for the same time and pointing (to the
-    stored values' bound, straylight/survey/storage.py)."""
+    stored values' bound, straylight/storage/zarr_io.py)."""
     from conftest import sky_at
 
     out, cfg = tiny_run
@@ -241,7 +241,7 @@ def test_depth_bounds_present_ordered_and_finite(tiny_run):
     """limits.zarr's envelope medians (straylight.model.envelope): present with units and
     long_name, finite wherever a pixel is observable (NaN elsewhere), and ordered pessimistic <=
     median <= optimistic within the storage rounding (a brighter background gives a shallower
-    limit; storage.py: 2^-11 relative of ~26 mag); background.zarr records which parts each
+    limit; storage/zarr_io.py: 2^-11 relative of ~26 mag); background.zarr records which parts each
     envelope parameter scales; the spread map and sensitivity chart are in depth/."""
     import json
 

@@ -5,9 +5,9 @@ from snakemake.exceptions import WorkflowError
 
 from straylight.config import campaign_from_dict as _campaign_from_dict
 from straylight.config import resolve_config_files as _resolve_config_files
-from straylight.survey.footprint import footprint_from_config as _footprint_from_config
-from straylight.survey.limits_cube import summary_processes as _summary_processes
-from straylight.survey.timegrid import time_blocks as _time_blocks
+from straylight.cube.footprint import footprint_from_config as _footprint_from_config
+from straylight.limits.cube import summary_processes as _summary_processes
+from straylight.cube.timegrid import time_blocks as _time_blocks
 from straylight.util.healpix import load_without_plotting as _load_healpy_without_plotting
 
 from straylight.sky.timeutil import ignore_dubious_years as _ignore_dubious_years
@@ -66,7 +66,7 @@ except WorkflowError:
 #: limits and the figures start from them, beside rule background)
 CUBE_PARTS = [f"{WORK}/background_blocks/part_{i}.json" for i in range(len(CUBE_JOBS))]
 #: processes (cores) of rule limits' per-pixel summaries: 1 for a month at nside 32, 2 from a few
-#: GB of limits on (limits_cube.summary_processes); a core it does not need runs another rule
+#: GB of limits on (limits.cube.summary_processes); a core it does not need runs another rule
 _N_PIXELS = _footprint_from_config(config["footprint"], Path(CONFIG_PATH).parent).pixels.size
 LIMITS_PROCESSES = _summary_processes(len(_CAMPAIGN.times) * _N_PIXELS * len(_CAMPAIGN.bands), 2)
 #: the order in which the jobs after the cube start when cores are few (higher first): the limits

@@ -28,7 +28,7 @@ rule limits:
 
 import sys
 
-from straylight.survey.provenance import snakemake_run as _snakemake_run
+from straylight.cube.provenance import snakemake_run as _snakemake_run
 
 try:
     _RUN_CORES = workflow.cores

@@ -45,11 +45,11 @@ def setup_logging(snakemake) -> logging.Logger:
 def die_with_snakemake() -> None:
     """SIGTERM to this job when Snakemake, its parent, dies (killed with SIGKILL, it cannot stop
     its jobs): the job stops instead of running on as an orphan, writing to the stores a resumed
-    run writes too (straylight.util.daskutil.die_with_parent; Snakemake runs a script job as its
+    run writes too (straylight.execution.die_with_parent; Snakemake runs a script job as its
     own child, the shell exec'ing python).  The job's pool workers die with the job in turn."""
     import signal
 
-    from straylight.util.daskutil import die_with_parent
+    from straylight.execution import die_with_parent
 
     die_with_parent(signal.SIGTERM)
 
@@ -66,7 +66,7 @@ def _job_error_hook(log):
 
     def hook(exc_type, exc, tb):
         from straylight.errors import StraylightError
-        from straylight.util.daskutil import exit_without_teardown
+        from straylight.execution import exit_without_teardown
 
         if isinstance(exc, KeyboardInterrupt):  # a Ctrl-C reaches every job: `straylight run` says it once
             log.info("interrupted (SIGINT): stopped; the same command resumes the run")
@@ -96,7 +96,7 @@ def campaign(snakemake):
 def end_job() -> None:
     """The job's last step: its process ends at once, without the interpreter's teardown of the
     modules it loaded (slow, and Snakemake waits for it before starting the next job);
-    the logs are flushed first (straylight.util.daskutil.exit_without_teardown)."""
-    from straylight.util.daskutil import exit_without_teardown
+    the logs are flushed first (straylight.execution.exit_without_teardown)."""
+    from straylight.execution import exit_without_teardown
 
     exit_without_teardown(0)

@@ -18,7 +18,7 @@ def main(snakemake):
     sys.path.insert(0, str(Path(snakemake.scriptdir)))
     from _common import die_with_snakemake
 
-    from straylight.util.daskutil import stop_on_signals
+    from straylight.execution import stop_on_signals
 
     die_with_snakemake()  # before the workers start: none is left behind by a killed Snakemake
     with stop_on_signals() as stopping:
@@ -29,7 +29,7 @@ def _run(snakemake, stopping):
     """The job's body; ``stopping``: the list of pools whose workers a SIGTERM or SIGINT kills."""
     from contextlib import nullcontext
 
-    from straylight.survey.cube_layout import CubeStores
+    from straylight.cube.layout import CubeStores
 
     stores = CubeStores(snakemake.params.store, snakemake.params.obs_store, snakemake.params.lim_store)
     stars_path = snakemake.input.stars
@@ -38,7 +38,7 @@ def _run(snakemake, stopping):
     if workers > 1 and not scheduler:
         # the pool's workers start first: they load the campaign and build the model while this
         # process imports and loads its own
-        from straylight.survey.executors import start_region_workers
+        from straylight.cube.executors import start_region_workers
 
         starting = start_region_workers(
             workers, dict(snakemake.config), snakemake.input.config, stores, stars_path
@@ -52,9 +52,9 @@ def _run(snakemake, stopping):
                 pool.submit(os.getpid)  # a process is spawned at a task's submission
         from _common import campaign, setup_logging
 
-        from straylight.survey.cube_run import run_time_blocks
-        from straylight.survey.executors import Execution
-        from straylight.survey.footprint import footprint_from_store
+        from straylight.cube.executors import Execution
+        from straylight.cube.footprint import footprint_from_store
+        from straylight.cube.run import run_time_blocks
         from straylight.util.io import write_json_atomic
 
         log = setup_logging(snakemake)
@@ -78,14 +78,14 @@ def _run(snakemake, stopping):
 
 
 if __name__ == "__main__":
-    from straylight.util.daskutil import Stopped
+    from straylight.execution import Stopped
 
     try:
         main(snakemake)  # noqa: F821 - injected by Snakemake
     except Stopped as stop:
         import logging
 
-        from straylight.util.daskutil import exit_without_teardown
+        from straylight.execution import exit_without_teardown
 
         logging.getLogger(f"straylight.{snakemake.rule}").error(  # noqa: F821
             "%s: workers stopped, unfinished time blocks not marked done; re-run to resume", stop

@@ -10,7 +10,7 @@ sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821 - injected by S
 import zarr  # noqa: E402
 from _common import end_job, setup_logging  # noqa: E402
 
-from straylight.survey.cube_store import publish_work_store  # noqa: E402
+from straylight.cube.store import publish_work_store  # noqa: E402
 from straylight.util.io import write_json_atomic  # noqa: E402
 
 log = setup_logging(snakemake)  # noqa: F821

@@ -15,11 +15,11 @@ def main(snakemake):
     import xarray as xr
     from _common import campaign, setup_logging
 
-    from straylight.survey.cube_layout import cube_chunks
-    from straylight.survey.cube_run import clear_block_sentinels
-    from straylight.survey.cube_store import init_observability_store, init_store
-    from straylight.survey.footprint import footprint_from_config
-    from straylight.util.daskutil import available_cores
+    from straylight.cube.footprint import footprint_from_config
+    from straylight.cube.layout import cube_chunks
+    from straylight.cube.run import clear_block_sentinels
+    from straylight.cube.store import init_observability_store, init_store
+    from straylight.execution import available_cores
     from straylight.util.io import write_json_atomic
 
     log = setup_logging(snakemake)

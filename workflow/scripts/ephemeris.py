@@ -7,8 +7,8 @@ from pathlib import Path
 sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821 - injected by Snakemake
 from _common import campaign, end_job, setup_logging  # noqa: E402
 
-from straylight.survey.products import ephemeris_dataset  # noqa: E402
-from straylight.survey.storage import write_zarr_atomic  # noqa: E402
+from straylight.cube.products import ephemeris_dataset  # noqa: E402
+from straylight.storage.zarr_io import write_zarr_atomic  # noqa: E402
 
 log = setup_logging(snakemake)  # noqa: F821
 t0 = time.perf_counter()

@@ -6,7 +6,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821 - injected by Snakemake
 from _common import campaign, end_job, setup_logging  # noqa: E402
 
-from straylight.survey.products import footprint_products, write_footprint_fits  # noqa: E402
+from straylight.cube.products import footprint_products, write_footprint_fits  # noqa: E402
 from straylight.util.io import write_json_atomic  # noqa: E402
 
 log = setup_logging(snakemake)  # noqa: F821

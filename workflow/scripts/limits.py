@@ -17,13 +17,13 @@ def main(snakemake):
     import xarray as xr
     from _common import campaign, setup_logging
 
+    from straylight.cube.layout import LIMITS_REGION_VARIABLES
+    from straylight.cube.store import publish_work_store
+    from straylight.limits.budget import BUDGET_VARIABLES
+    from straylight.limits.cube import store_limit_summaries, write_limit_maps
+    from straylight.limits.envelope import ENVELOPE_VARIABLES
     from straylight.plots.envelope import envelope_figures
     from straylight.plots.report import limit_figures
-    from straylight.survey.cube_layout import LIMITS_REGION_VARIABLES
-    from straylight.survey.cube_store import publish_work_store
-    from straylight.survey.limits_budget import BUDGET_VARIABLES
-    from straylight.survey.limits_cube import store_limit_summaries, write_limit_maps
-    from straylight.survey.limits_envelope import ENVELOPE_VARIABLES
     from straylight.util.io import atomic_path
 
     log = setup_logging(snakemake)

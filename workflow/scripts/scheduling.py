@@ -7,7 +7,7 @@ sys.path.insert(0, str(Path(snakemake.scriptdir)))  # noqa: F821 - injected by S
 from _common import campaign, end_job, setup_logging  # noqa: E402
 
 from straylight.model import BackgroundModel  # noqa: E402
-from straylight.survey.scheduling import write_tables  # noqa: E402
+from straylight.planning.scheduling import write_tables  # noqa: E402
 
 log = setup_logging(snakemake)  # noqa: F821
 c = campaign(snakemake)  # noqa: F821

@@ -1,4 +1,4 @@
-"""Snakemake adapter: rule `sky_compact` -> sky_compact.zarr (straylight.survey.compact)."""
+"""Snakemake adapter: rule `sky_compact` -> sky_compact.zarr (straylight.cube.compact)."""
 
 import sys
 from pathlib import Path
@@ -8,7 +8,7 @@ def main(snakemake):
     sys.path.insert(0, str(Path(snakemake.scriptdir)))
     from _common import campaign, setup_logging
 
-    from straylight.survey.compact import write_compact
+    from straylight.cube.compact import write_compact
 
     log = setup_logging(snakemake)
     settings = campaign(snakemake).settings.storage

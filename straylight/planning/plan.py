@@ -1,0 +1,433 @@
+"""Before a campaign runs: what it will cost (``straylight plan``).
+
+How many samples the cube evaluates (:func:`evaluated_samples`), the cube's compute at this
+code's measured per-sample figures (:func:`cube_compute_seconds`), the whole run wall to wall
+(a fixed part plus the samples at the pipeline's rate, :func:`pipeline_rate`, plus the
+earthshine tables' build when they are not cached), and the products' bytes
+(:data:`PRODUCT_BYTES_PER_SAMPLE`); :func:`estimated_cost` puts them together.  The figures
+are one reference machine's (docs/performance.md says how each is measured); :func:`machine_speed`
+scales them to this one.
+"""
+
+from __future__ import annotations
+
+import time as _time
+
+import numpy as np
+
+from straylight.config import Campaign
+from straylight.cube.footprint import Footprint
+from straylight.sky.geometry import observing_geometry
+from straylight.sky.vectors import radec_to_unit
+
+__all__ = [
+    "evaluated_samples",
+    "CUBE_TABLE_SECONDS_PER_SAMPLE",
+    "CUBE_SCREEN_SECONDS_PER_SAMPLE",
+    "CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE",
+    "PRODUCT_BYTES_PER_SAMPLE",
+    "COMPACT_BYTES_PER_SAMPLE",
+    "PIPELINE_FIXED_SECONDS",
+    "PIPELINE_SAMPLES_PER_S_PER_CORE",
+    "FAINT_MAP_SECONDS_PER_PIXEL",
+    "pipeline_rate",
+    "cube_compute_seconds",
+    "machine_speed",
+    "probed_speed_factor",
+    "needed_tables",
+    "estimated_cost",
+]
+
+
+def evaluated_samples(campaign: Campaign, fp: Footprint, max_times: int = 144, max_pixels: int = 660) -> int:
+    """How many samples the campaign's cube evaluates: every (time, pixel) one, or with
+    models.unobservable_samples: skip the observable ones, their fraction estimated from an
+    even subsample of at most ``max_times`` x ``max_pixels`` (deterministic: the same config
+    gives the same count on every machine; exact when the campaign is no bigger).  On the
+    default day (16.5 % observable) 144 x 660 of its 288 x 1320 samples give the fraction to
+    0.1 % of the samples; 48 x 256 erred by 2.4 % (every sixth step, 30 minutes apart, meets the
+    92-minute orbit in a pattern).
+
+    Parameters
+    ----------
+    campaign : Campaign
+        Loaded campaign (times, orbit, constraints, models).
+    fp : Footprint
+        The survey footprint.
+    max_times, max_pixels : int, optional
+        Most time steps and pixels of the subsample that estimates the observable fraction.
+
+    Returns
+    -------
+    int
+        Samples evaluated (time steps x pixels, or its estimated observable part).
+    """
+    from straylight.model import unobservable_samples
+    from straylight.sky.observing import scene
+
+    n = len(campaign.times) * int(fp.pixels.size)
+    if unobservable_samples(campaign) != "skip" or n == 0:
+        return n
+    t_idx = np.unique(
+        np.linspace(0, len(campaign.times) - 1, min(max_times, len(campaign.times))).round().astype(int)
+    )
+    p_idx = np.unique(np.linspace(0, fp.pixels.size - 1, min(max_pixels, fp.pixels.size)).round().astype(int))
+    sc = scene(campaign.orbit, campaign.times[t_idx])
+    los = radec_to_unit(fp.ra_deg[p_idx], fp.dec_deg[p_idx])
+    g = observing_geometry(
+        sc.satellite_km[:, None],
+        {b: sc.bodies_km[b][:, None] for b in ("sun", "moon")},
+        los[None],
+        campaign.earth.radius_km,
+        campaign.constraints,
+    )
+    return int(round(n * float(np.mean(g["observable"]))))
+
+
+#: The cube's compute on one reference core, all bands, per sample: the table path evaluating
+#: every sample, and with models.unobservable_samples: skip the screen (the Sun's and the Moon's
+#: geometry, every sample) and each observable sample evaluated (they cost more than the average
+#: sample: more moonlit-Earth sums and star pairs); the direct earthshine sum
+#: adds straylight.model.fidelity.LUT_SAVED_SECONDS_PER_SAMPLE per evaluated sample.  From
+#: ``bench/run.py --only cube`` on the default day, which prints them again as
+#: cube.plan_cost_model with its runs' predicted seconds against the measured ones.
+CUBE_TABLE_SECONDS_PER_SAMPLE = 1.2e-6
+CUBE_SCREEN_SECONDS_PER_SAMPLE = 0.26e-6
+CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE = 2.6e-6
+
+
+#: Bytes on disk per (time, pixel) sample of the whole product set (background.zarr, limits.zarr,
+#: observability.zarr), all bands: the compressed stores' budget (at most 25 bytes per sample;
+#: docs/performance.md gives the measured figure).  The one figure `straylight plan` sizes a
+#: campaign's products with.
+PRODUCT_BYTES_PER_SAMPLE = 25.0
+#: Bytes on disk per (time, pixel) sample of the compact sky product (sky_compact.zarr: seven
+#: bands' magnitudes and the observability, straylight.cube.compact) at the default
+#: storage.compact_mag_step: a month at nside 32 measured 0.171 (bench/compact.py, docs/performance.md).
+COMPACT_BYTES_PER_SAMPLE = 0.18
+#: The pipeline's wall time, `snakemake` to the last product, on N cores with the earthshine
+#: tables cached: PIPELINE_FIXED_SECONDS + samples / (PIPELINE_SAMPLES_PER_S_PER_CORE x N).  The
+#: fixed part is the jobs' start-up, the model's set-up, the figures and the report; the rest
+#: grows with the samples.  Fitted to the bench/pipeline.py runs on 2 cores in
+#: docs/performance.md (1 day at nside 16, 3 days and a month at nside 32); the config's
+#: compute.pipeline_samples_per_s_per_core replaces the rate for another machine.
+PIPELINE_FIXED_SECONDS = 26.0
+PIPELINE_SAMPLES_PER_S_PER_CORE = 623_000.0
+#: A footprint's first campaign also sums its faint-star map (kept for later ones), seconds on one
+#: core per footprint pixel (bench/pipeline.py, the same runs).
+FAINT_MAP_SECONDS_PER_PIXEL = 3.0e-3
+
+
+def pipeline_rate(campaign: Campaign) -> tuple[float, str]:
+    """The pipeline's samples/s/core beyond its fixed part and where it comes from: the config's
+    compute.pipeline_samples_per_s_per_core, else PIPELINE_SAMPLES_PER_S_PER_CORE.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        Loaded campaign.
+
+    Returns
+    -------
+    rate : float
+        Samples per second per core.
+    source : str
+        The config key or the module constant the rate comes from.
+    """
+    configured = campaign.settings.compute.pipeline_samples_per_s_per_core
+    if configured:
+        return float(configured), "compute.pipeline_samples_per_s_per_core"
+    return PIPELINE_SAMPLES_PER_S_PER_CORE, "straylight.planning.plan.PIPELINE_SAMPLES_PER_S_PER_CORE"
+
+
+def cube_compute_seconds(
+    samples: int,
+    evaluated: int,
+    earthshine_method: str,
+    skip: bool,
+    seconds_per_evaluated_sample: float | None = None,
+    speed_factor: float = 1.0,
+) -> float:
+    """Seconds on one core to compute a cube of ``samples`` (time, pixel) samples of which
+    ``evaluated`` are evaluated (all, or with ``skip`` the observable ones), with the sunlit
+    earthshine ``earthshine_method`` ('lut' or 'direct'), at the CUBE_* and
+    straylight.model.fidelity.LUT_SAVED_SECONDS_PER_SAMPLE figures above times ``speed_factor`` (this machine
+    against the one they were measured on, :func:`machine_speed`); or at
+    ``seconds_per_evaluated_sample`` per evaluated sample when given (another machine).
+
+    Parameters
+    ----------
+    samples : int
+        (time, pixel) samples of the cube.
+    evaluated : int
+        Samples evaluated (:func:`evaluated_samples`).
+    earthshine_method : str
+        ``"lut"`` or ``"direct"``.
+    skip : bool
+        Whether unobservable samples are skipped (adds the screen's cost per sample).
+    seconds_per_evaluated_sample : float, optional
+        s per evaluated sample replacing the figures; None: the figures.
+    speed_factor : float, optional
+        This machine's time against the reference machine's (> 1: slower).
+
+    Returns
+    -------
+    float
+        Compute time on one core, s.
+    """
+    from straylight.model import LUT_SAVED_SECONDS_PER_SAMPLE
+
+    if seconds_per_evaluated_sample is not None:
+        return evaluated * seconds_per_evaluated_sample
+    per_eval = CUBE_TABLE_SECONDS_PER_OBSERVABLE_SAMPLE if skip else CUBE_TABLE_SECONDS_PER_SAMPLE
+    if earthshine_method == "direct":
+        per_eval += LUT_SAVED_SECONDS_PER_SAMPLE
+    return speed_factor * (evaluated * per_eval + (samples * CUBE_SCREEN_SECONDS_PER_SAMPLE if skip else 0.0))
+
+
+def machine_speed(
+    campaign: Campaign, fp: Footprint, n_times: int = 4, n_pixels: int = 1320, repeats: int = 2
+) -> dict:
+    """The speed of this machine against the reference machine of the cost figures (CUBE_*,
+    fidelity.LUT_*, PIPELINE_*): ``n_times`` cube time steps spread over the
+    campaign at ~``n_pixels`` footprint pixels spread over it (one step, or a few hundred
+    pixels, weigh the per-step costs too much), on the direct earthshine sum, every sample
+    evaluated, without stars (a small part of that path's cost), best of ``repeats`` after a full-size
+    warm-up, against :func:`cube_compute_seconds` for it.  Returns the samples,
+    ``measured_seconds``, ``assumed_seconds`` and ``factor`` (measured / assumed: below 1 on a
+    faster machine).  One factor for every figure.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        Loaded campaign (its config is copied with the direct earthshine sum).
+    fp : Footprint
+        The survey footprint.
+    n_times : int, optional
+        Time steps timed, spread over the campaign.
+    n_pixels : int, optional
+        About this many footprint pixels timed, spread over the footprint.
+    repeats : int, optional
+        Timed repeats after the warm-up; the best is kept.
+
+    Returns
+    -------
+    dict
+        ``samples`` (int), ``measured_seconds`` and ``assumed_seconds`` (s), ``factor``
+        (measured / assumed; 1.0 with no samples).
+    """
+    from straylight.config import campaign_from_dict, deep_merge
+    from straylight.cube.region import compute_region
+    from straylight.model import BackgroundModel
+
+    direct = campaign_from_dict(
+        deep_merge(
+            campaign.config,
+            {"models": {"earthshine": {"method": "direct"}, "unobservable_samples": "evaluate"}},
+        ),
+        campaign.path,
+    )
+    model = BackgroundModel(direct)
+    nt = len(direct.times)
+    t_slice = slice(0, nt, max(1, nt // max(1, n_times)))
+    p_slice = slice(0, None, max(1, int(fp.pixels.size) // max(1, n_pixels)))
+    n = len(range(*t_slice.indices(nt))) * len(range(*p_slice.indices(int(fp.pixels.size))))
+    if n == 0:  # no time or no pixel: nothing to time, the figures stand
+        return {"samples": 0, "measured_seconds": 0.0, "assumed_seconds": 0.0, "factor": 1.0}
+    # warm-up at full size: door tables, bands, and glibc's mmap threshold, which rises only after
+    # the first large arrays are freed
+    compute_region(direct, fp, t_slice, p_slice, model=model)
+    best = np.inf
+    for _ in range(max(1, repeats)):
+        t0 = _time.perf_counter()
+        compute_region(direct, fp, t_slice, p_slice, model=model)
+        best = min(best, _time.perf_counter() - t0)
+    assumed = cube_compute_seconds(n, n, "direct", False)
+    return {"samples": n, "measured_seconds": best, "assumed_seconds": assumed, "factor": best / assumed}
+
+
+def probed_speed_factor(campaign: Campaign, cores: int) -> float:
+    """The time of this machine against the cost figures' now, on ``cores`` cores: the table build's
+    probe (:func:`~straylight.sources.earthshine_table_build.build_speed_factor`, a few of the
+    sunlit table's scenes in ``cores`` threads, a few seconds, cached), which sees both the
+    cores' speed and how much of them other processes leave free.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        Loaded campaign (its off-field model, Earth and orbit).
+    cores : int
+        Cores the run will use.
+
+    Returns
+    -------
+    float
+        Measured time over the figures' (> 1: slower).
+    """
+    from straylight.model import BackgroundModel
+    from straylight.sources.earthshine_table_build import build_speed_factor
+
+    model = BackgroundModel(campaign)
+    ctx = model.sunlit_earth.context
+    return build_speed_factor(
+        ctx.offfield,
+        campaign.earth.radius_km,
+        campaign.orbit_radius_range_km,
+        model.sunlit_earth.choice["settings"],
+        max(int(cores), 1),
+    )
+
+
+def needed_tables(model) -> list[dict]:
+    """The look-up tables a campaign's model reads, each with ``name``, ``path`` and ``cached``
+    (the assumption envelope's members' too: the cube re-evaluates the model at each); the
+    sunlit table also with ``other_radii_km``: the orbit radii (km) of the sunlit tables cached
+    for other settings or orbits (a changed orbit altitude needs its own table).
+
+    Parameters
+    ----------
+    model : BackgroundModel
+        The campaign's model (nothing is built).
+
+    Returns
+    -------
+    list of dict
+    """
+    if model.sunlit_earth.choice["method"] != "lut":
+        return []
+    from straylight.model import BackgroundModel
+    from straylight.model.envelope import ENDS, end_campaign
+
+    out = _model_tables(model, "")
+    env = model.campaign.instrument_settings.envelope
+    if env is not None and env.members is not None:
+        for end in ENDS:
+            end_model = BackgroundModel(end_campaign(model.campaign, end))
+            out += _model_tables(end_model, f" (the envelope's {end} member)")
+    return out
+
+
+def _model_tables(model, label: str) -> list[dict]:
+    """One model's sunlit and moonlit tables (:func:`needed_tables`), names ending in ``label``."""
+    sunlit = model.sunlit_earth.lut_path()
+    others = []
+    for p in sorted(sunlit.parent.glob("earthshine_lut_*.npz")) if sunlit.parent.is_dir() else []:
+        if p != sunlit:
+            try:
+                with np.load(p) as z:
+                    others.append(float(np.mean(z["radius_km"])))
+            except (OSError, KeyError, ValueError):
+                continue
+    out = [
+        {
+            "name": "sunlit-Earth table" + label,
+            "path": sunlit,
+            "cached": sunlit.exists(),
+            "other_radii_km": others,
+        }
+    ]
+    moonlit = model.moonlit_earth.lut_path()
+    if moonlit is not None:
+        out.append({"name": "moonlit-Earth table" + label, "path": moonlit, "cached": moonlit.exists()})
+    return out
+
+
+def estimated_cost(
+    campaign: Campaign,
+    fp: Footprint,
+    seconds_per_evaluated_sample: float | None = None,
+    speed_factor: float = 1.0,
+    cores: int = 2,
+) -> dict:
+    """What the campaign will cost before it runs, nothing built: its samples, the samples it
+    evaluates (:func:`evaluated_samples`), the sunlit earthshine model that will run
+    (SunlitEarth.choice), the tables' build when they are not cached yet (seconds on one core),
+    the cube's compute alone (:func:`cube_compute_seconds`, seconds on one core), and the whole
+    run wall to wall on ``cores`` cores: PIPELINE_FIXED_SECONDS, the samples at the pipeline's
+    rate (:func:`pipeline_rate`; on the direct sum its extra per evaluated sample added;
+    ``seconds_per_evaluated_sample`` replaces both), the build spread over the cores.  Every
+    figure but the products' bytes is times ``speed_factor`` (this machine against the cost
+    figures' reference machine, :func:`machine_speed`).
+
+    Parameters
+    ----------
+    campaign : Campaign
+        Loaded campaign.
+    fp : Footprint
+        The survey footprint.
+    seconds_per_evaluated_sample : float, optional
+        s per evaluated sample on one core replacing the figures; None: the figures.
+    speed_factor : float, optional
+        This machine's time against the reference machine's (> 1: slower).
+    cores : int, optional
+        Cores the pipeline runs on (at least 1).
+
+    Returns
+    -------
+    dict
+        ``samples``, ``evaluated_samples`` (int); ``unobservable_samples`` (``"skip"`` or
+        ``"evaluate"``); ``earthshine_method``, ``earthshine_reason`` (str); ``table_cached``
+        (bool); ``tables`` (:func:`needed_tables`, each with its ``build_seconds`` on one
+        core); ``table_build_seconds``, ``compute_seconds`` (s on one core); ``core_hours``
+        (h); ``speed_factor``; ``cores``; ``pipeline_samples_per_s_per_core`` and
+        ``pipeline_rate_source``; ``fixed_seconds``, ``samples_seconds``, ``wall_seconds``,
+        ``faint_map_first_seconds`` (s, wall on ``cores``); ``pipeline_core_hours`` (h);
+        ``product_bytes``, ``compact_bytes`` (bytes on disk: the products, the compact sky).
+    """
+    from straylight.model import LUT_SAVED_SECONDS_PER_SAMPLE, BackgroundModel, unobservable_samples
+
+    n = len(campaign.times) * int(fp.pixels.size)
+    n_eval = evaluated_samples(campaign, fp)
+    model = BackgroundModel(campaign)
+    choice = model.sunlit_earth.choice
+    skip = unobservable_samples(campaign) == "skip"
+    compute_s = cube_compute_seconds(
+        n, n_eval, choice["method"], skip, seconds_per_evaluated_sample, speed_factor
+    )
+    build_s, table_cached = 0.0, True
+    tables = needed_tables(model)
+    if choice["method"] == "lut":  # each model's sunlit table and moonlit one, each unless cached
+        moonlit_s = choice["moonlit_build_seconds_estimate"]
+        table_cached = all(t["cached"] for t in tables)
+        for t in tables:
+            one = (
+                moonlit_s if t["name"].startswith("moonlit") else choice["build_seconds_estimate"] - moonlit_s
+            )
+            t["build_seconds"] = speed_factor * one
+        build_s = sum(t["build_seconds"] for t in tables if not t["cached"])
+    rate, rate_source = pipeline_rate(campaign)
+    cores = max(int(cores), 1)
+    if seconds_per_evaluated_sample is not None:
+        samples_s = n_eval * seconds_per_evaluated_sample / cores
+    else:
+        # a configured rate is already that machine's: not scaled again
+        samples_s = (1.0 if rate_source.startswith("compute.") else speed_factor) * n / (rate * cores)
+        if choice["method"] == "direct":
+            samples_s += speed_factor * n_eval * LUT_SAVED_SECONDS_PER_SAMPLE / cores
+    fixed_s = speed_factor * PIPELINE_FIXED_SECONDS
+    faint = campaign.settings.stars.faint_map
+    faint_s = speed_factor * FAINT_MAP_SECONDS_PER_PIXEL * int(fp.pixels.size) / cores if faint else 0.0
+    wall_s = fixed_s + samples_s + build_s / cores
+    return {
+        "samples": n,
+        "evaluated_samples": n_eval,
+        "unobservable_samples": "skip" if skip else "evaluate",
+        "earthshine_method": choice["method"],
+        "earthshine_reason": choice["reason"],
+        "table_cached": table_cached,
+        "tables": tables,
+        "table_build_seconds": build_s,
+        "compute_seconds": compute_s,
+        "core_hours": (compute_s + build_s) / 3600.0,
+        "speed_factor": speed_factor,
+        "cores": cores,
+        "pipeline_samples_per_s_per_core": rate,
+        "pipeline_rate_source": rate_source,
+        "fixed_seconds": fixed_s,
+        "samples_seconds": samples_s,
+        "wall_seconds": wall_s,
+        "faint_map_first_seconds": faint_s,
+        "pipeline_core_hours": wall_s * cores / 3600.0,
+        "product_bytes": n * PRODUCT_BYTES_PER_SAMPLE,
+        "compact_bytes": n * COMPACT_BYTES_PER_SAMPLE,
+    }

@@ -1,0 +1,562 @@
+"""Per-pointing background table for a list of planned pointings and times.
+
+``straylight sky --input pointings.csv --out table.parquet``: each row of the input (columns
+``time`` (UTC ISO 8601), ``ra`` and ``dec`` (ICRS deg); ``ra_deg``/``dec_deg``/``utc`` accepted) gets
+its geometry, observability, every background component per band in e-/s/pixel, the total in
+AB mag/arcsec2 and the 5-sigma point-source limit for the band's survey exposures;
+``planet_in_field`` names the brightest Sun, Moon or planet inside the field ("" if none) and
+``planet_in_field_v_mag`` its V magnitude: such a body is a point source (imaged like a star),
+not part of the background components.  Samples are
+evaluated vectorised in batches (same code path as the cube), so thousands of rows take seconds.
+A bad row stops the run with the file, row, field and value; nothing is written.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from straylight.errors import InputError
+
+__all__ = [
+    "ALIASES",
+    "read_pointings",
+    "check_radec",
+    "pointing_table",
+    "pointing_chunks",
+    "CHUNK_ROWS",
+    "UNITS",
+    "column_units",
+    "background_table",
+]
+
+
+ALIASES = {"time": ("time", "utc", "time_utc"), "ra": ("ra", "ra_deg"), "dec": ("dec", "dec_deg")}
+
+
+def read_pointings(path) -> dict:
+    """Read and check a pointing table (the input of ``straylight sky``).
+
+    Column names are matched case-insensitively, with the aliases in ``ALIASES``; masked RA/Dec
+    entries become NaN and are then refused by :func:`check_radec`.
+
+    Parameters
+    ----------
+    path : str or path-like
+        ``.csv``, ``.ecsv``, ``.parquet`` or ``.fits`` table with a UTC time column (``time``,
+        ``utc`` or ``time_utc``; ISO 8601 text) and ICRS ``ra``/``ra_deg`` and ``dec``/``dec_deg``
+        in deg.
+
+    Returns
+    -------
+    dict
+        ``"time"``: ndarray, shape (n,), the time column's values as read (not yet parsed);
+        ``"ra"``: ndarray of float, shape (n,), RA wrapped to [0, 360) deg; ``"dec"``: ndarray of
+        float, shape (n,), Dec in deg.
+
+    Raises
+    ------
+    InputError
+        When the file is missing, has an unknown suffix, cannot be read, has no rows or lacks a
+        column, or a row's RA/Dec breaks :func:`check_radec`'s rule (the message names the row).
+    """
+    from astropy.table import Table
+
+    path = Path(path)
+    if not path.exists():
+        raise InputError(f"{path}: pointing table does not exist")
+    fmt = {".csv": "ascii.csv", ".ecsv": "ascii.ecsv", ".parquet": "parquet", ".fits": "fits"}.get(
+        path.suffix.lower()
+    )
+    if fmt is None:
+        raise InputError(f"{path}: unknown format; expected .csv, .ecsv, .parquet or .fits")
+    try:
+        from straylight.util.io import without_bom
+
+        t = Table.read(without_bom(path) if fmt.startswith("ascii") else path, format=fmt)
+    except Exception as exc:
+        raise InputError(f"{path}: cannot read ({type(exc).__name__}: {exc})") from exc
+    if len(t) == 0:
+        raise InputError(f"{path}: no rows")
+    cols = {c.lower(): c for c in t.colnames}
+    out = {}
+    for key, names in ALIASES.items():
+        found = next((cols[n] for n in names if n in cols), None)
+        if found is None:
+            raise InputError(
+                f"{path}: missing column {key!r} (accepted: {', '.join(names)}); "
+                f"found {', '.join(t.colnames)}"
+            )
+        out[key] = np.asarray(np.ma.filled(t[found], np.nan) if key != "time" else t[found])
+    out["ra"], out["dec"] = check_radec(out["ra"], out["dec"], lambda i: f"{path}: row {i + 1}: ")
+    return out
+
+
+def check_radec(ra, dec, where=lambda i: "", names=("ra", "dec")) -> tuple[np.ndarray, np.ndarray]:
+    """The rule every pointing obeys (table rows and the command line alike): RA and Dec are
+    numbers, finite, Dec within [-90, 90] deg, RA within [-360, 360] deg (a wrap is fine, 1e308
+    is a mistake).  Returns (RA wrapped to [0, 360), Dec) in deg as float arrays.
+
+    Parameters
+    ----------
+    ra, dec : array_like, shape (n,) or scalar
+        RA and Dec, deg (numbers or text convertible to float).
+    where : callable, optional
+        ``where(i)`` gives the prefix of the message for element ``i`` (e.g. the file and row);
+        default: no prefix.
+    names : tuple of str, optional
+        The field names used in messages (e.g. ``("--ra", "--dec")``).
+
+    Returns
+    -------
+    ra : ndarray of float, shape (n,)
+        RA wrapped to [0, 360), deg (a scalar input gives shape (1,)).
+    dec : ndarray of float, shape (n,)
+        Dec, deg.
+
+    Raises
+    ------
+    InputError
+        When a value is not a number, not finite, or out of range; the first bad element is named.
+    """
+    vals = {}
+    for key, name, v in (("ra", names[0], ra), ("dec", names[1], dec)):
+        v = np.atleast_1d(np.asarray(v, dtype=object) if not isinstance(v, np.ndarray) else v)
+        try:
+            arr = v.astype(float)
+        except (TypeError, ValueError):
+            bad = next(i for i, x in enumerate(v) if not _is_number(x))
+            raise InputError(f"{where(bad)}{name} = {str(v[bad])!r} is not a number") from None
+        bad = np.flatnonzero(~np.isfinite(arr))
+        if bad.size:
+            raise InputError(f"{where(bad[0])}{name} = {arr[bad[0]]} is not finite")
+        vals[key] = arr
+    bad = np.flatnonzero(np.abs(vals["dec"]) > 90.0)
+    if bad.size:
+        raise InputError(f"{where(bad[0])}{names[1]} = {vals['dec'][bad[0]]} outside [-90, 90] deg")
+    bad = np.flatnonzero(np.abs(vals["ra"]) > 360.0)
+    if bad.size:
+        raise InputError(f"{where(bad[0])}{names[0]} = {vals['ra'][bad[0]]} outside [-360, 360] deg")
+    return vals["ra"] % 360.0, vals["dec"]
+
+
+def _is_number(v) -> bool:
+    try:
+        float(v)
+        return True
+    except (TypeError, ValueError):
+        return False
+
+
+def pointing_table(
+    campaign,
+    pointings: dict,
+    bands=None,
+    stars=None,
+    batch: int = 8192,
+    source="",
+    models: dict | None = None,
+    model=None,
+) -> dict:
+    """Columns of the per-pointing background table (see the module docstring); ``models``, if
+    given, receives the record of which models ran and their error budget; ``model``: the
+    campaign's :class:`~straylight.model.BackgroundModel` when the caller keeps one warm, or a
+    function giving it, called once the scene is computed (else one is built for this table).
+    The satellite and the bodies are computed once per distinct time, for all of them at once;
+    the samples are evaluated ``batch`` at a time (:func:`~straylight.model.pointing.background_at`).
+
+    Parameters
+    ----------
+    campaign : straylight.config.campaign.Campaign
+        Loaded campaign (orbit, instrument, models, survey exposures).
+    pointings : dict
+        ``"time"``: UTC times, shape (n,), as ISO 8601 text (each parsed and checked against the
+        DE405 range here) or an :class:`astropy.time.Time` (already checked); ``"ra"``, ``"dec"``:
+        ndarray of float, shape (n,), ICRS deg, already checked (:func:`read_pointings`).
+    bands : list of str, optional
+        Bands to evaluate; None: every band of the campaign.
+    stars : straylight.sources.stars_table.StarTable, optional
+        Off-field stars (:func:`straylight.sources.stars_table.load_offfield_stars`); None: stars = 0.
+    batch : int, optional
+        Samples evaluated per vectorised call (bounds the memory).
+    source : str, optional
+        Name of the input (e.g. the file) used to prefix error messages.
+    models : dict, optional
+        If given, updated in place with the record of which models ran and their error budget.
+    model : BackgroundModel or callable, optional
+        The campaign's warm model, or a function returning it; None: one is built.
+
+    Returns
+    -------
+    dict of str to ndarray, each shape (n,)
+        ``time`` (UTC ISO text, or the given Time), ``ra_deg``, ``dec_deg`` (deg); geometry
+        (``observable``, ``violations`` bit mask, ``sun_angle_deg``, ``moon_angle_deg``,
+        ``moon_illuminated_fraction``, ``earth_limb_angle_deg``, ``limb_is_bright``,
+        ``door_opening_deg``); ``planet_in_field`` (name, "" if none) and
+        ``planet_in_field_v_mag`` (Vega V mag, NaN if none); per band ``b``:
+        ``<component>_<b>`` for the registry's components and the total
+        (:func:`~straylight.model.registry.component_names`) in e-/s/pix,
+        ``total_mag_per_arcsec2_<b>`` in AB mag/arcsec2, and (except V) ``limit_mag_<b>``,
+        the 5-sigma point-source limit in AB mag.
+
+    Raises
+    ------
+    InputError
+        When a time cannot be parsed (the first bad row is named) or lies outside the DE405
+        range.
+    """
+    t_all, iso = _checked_times(pointings, source)
+    return _evaluate(campaign, pointings, t_all, iso, bands, stars, batch, models, model)[0]
+
+
+def _checked_times(pointings: dict, source: str):
+    """(the pointings' times as a UTC Time, whether they were given as text): text parsed and
+    checked against DE405 here, the first bad row named (an astropy Time is taken as checked)."""
+    from astropy.time import Time
+
+    from straylight.sky.ephemeris import default_ephemeris
+    from straylight.sky.timeutil import parse_utc, utc_to_tdb_jd
+
+    if isinstance(pointings["time"], Time):  # the Python API's times: already parsed (and checked)
+        return parse_utc(pointings["time"], f"{source}: time").reshape(-1), False
+    iso = [str(v) for v in pointings["time"]]
+    try:
+        t_all = parse_utc(iso, f"{source}: time")
+    except InputError:  # find the first bad row to name it (one parse per row only on failure)
+        for i, v in enumerate(iso):
+            parse_utc(v, f"{source} row {i + 1}: time")
+        raise
+    eph = default_ephemeris()
+    jd1, jd2 = utc_to_tdb_jd(t_all)
+    jd = jd1 + jd2
+    out_of_range = np.flatnonzero((jd < eph.jd_start) | (jd > eph.jd_end))
+    if out_of_range.size:
+        i = int(out_of_range[0])
+        raise InputError(
+            f"{source} row {i + 1}: time = {iso[i]} is outside the DE405 range ({eph.span}); "
+            f"{out_of_range.size} of {len(iso)} rows are out of range"
+        )
+    return t_all, True
+
+
+def pointing_chunks(
+    campaign, pointings: dict, bands=None, stars=None, chunk_rows: int = 0, source="", models=None, model=None
+):
+    """:func:`pointing_table`'s columns ``chunk_rows`` rows at a time (0: all at once): a
+    generator of (row slice, columns of those rows), so that a caller writing or copying each
+    chunk holds one chunk's work at a time.  The times are parsed and checked first, for all
+    rows; the model is built (or ``model()`` called) once.  Each chunk's columns equal those
+    rows of one :func:`pointing_table` (every step is per sample or per distinct time)."""
+    t_all, iso = _checked_times(pointings, source)
+    n = len(t_all)
+    step = n if chunk_rows <= 0 else int(chunk_rows)
+    for a in range(0, n, max(step, 1)):
+        sl = slice(a, min(a + step, n))
+        part = {"time": t_all[sl], "ra": pointings["ra"][sl], "dec": pointings["dec"][sl]}
+        cols, model = _evaluate(campaign, part, t_all[sl], iso, bands, stars, 8192, models, model)
+        models = None  # recorded by the first chunk; its model serves the later ones
+        yield sl, cols
+
+
+def _evaluate(campaign, pointings, t_all, iso, bands, stars, batch, models, model) -> tuple:
+    """(:func:`pointing_table`'s columns, the model used) for times already parsed and checked
+    (``iso``: give them as text)."""
+    from straylight.limits.point_source import point_source_limit
+    from straylight.model import BackgroundModel, registry
+    from straylight.model.pointing import background_at
+    from straylight.sky.observing import scene
+    from straylight.sky.vectors import radec_to_unit
+
+    bands = list(bands or campaign.bands)
+    # the scene once per distinct time (a scheduler asks for many pointings at few times), before
+    # the model: an orbit that cannot be propagated is refused before any table is read or built
+    first, inverse = _distinct_times(
+        np.asarray(t_all.jd1, float).ravel(), np.asarray(t_all.jd2, float).ravel()
+    )
+    distinct = scene(campaign.orbit, t_all[first])
+    model = BackgroundModel(campaign) if model is None else model() if callable(model) else model
+    if models is not None:
+        models.update(model.models_record())
+    n = len(t_all)
+    # a table's times as UTC ISO text (offsets resolved); the API's stay a Time (its table converts them)
+    cols: dict = {
+        "time": np.asarray(t_all.isot, dtype=object) if iso else t_all,
+        "ra_deg": pointings["ra"],
+        "dec_deg": pointings["dec"],
+    }
+    geo_keys = (
+        "observable",
+        "violations",
+        "sun_angle_deg",
+        "moon_angle_deg",
+        "moon_illuminated_fraction",
+        "earth_limb_angle_deg",
+        "limb_is_bright",
+        "door_opening_deg",
+    )
+    acc = {k: [] for k in geo_keys + ("planet_in_field", "planet_in_field_v_mag")}
+    components = registry.component_names(total=True)
+    acc.update({f"{c}_{b}": [] for b in bands for c in components})
+    acc.update({f"total_mag_per_arcsec2_{b}": [] for b in bands})
+    for a in range(0, n, batch):
+        sl = slice(a, min(a + batch, n))
+        at = inverse[sl]
+        los = np.atleast_2d(radec_to_unit(pointings["ra"][sl], pointings["dec"][sl]))
+        g, res = background_at(
+            model, distinct.satellite_km, distinct.bodies_km, los, bands, scene_index=at, stars=stars
+        )
+        sat, bodies_km = distinct.satellite_km[at], {k: v[at] for k, v in distinct.bodies_km.items()}
+        for k in geo_keys:
+            acc[k].append(np.asarray(g[k]))
+        # the brightest Sun, Moon or planet inside the field (a point source, not in the background)
+        bodies = model.in_field.find(sat, bodies_km, los, g, [])
+        v_in = np.stack([np.where(v["in_field"], v["v_mag"], np.inf) for v in bodies.values()])
+        brightest = np.argmin(v_in, axis=0)
+        names = np.array(list(bodies), dtype=object)
+        found = np.isfinite(np.min(v_in, axis=0))
+        acc["planet_in_field"].append(np.where(found, names[brightest], ""))
+        acc["planet_in_field_v_mag"].append(np.where(found, np.min(v_in, axis=0), np.nan))
+        for b in bands:
+            for c in components:
+                acc[f"{c}_{b}"].append(np.asarray(res[b][c], float))
+            acc[f"total_mag_per_arcsec2_{b}"].append(np.asarray(res[b]["_mag"](res[b]["total"]), float))
+    for k, v in acc.items():
+        cols[k] = np.concatenate(v)
+    for b in bands:
+        if b != "V":
+            cols[f"limit_mag_{b}"] = point_source_limit(cols[f"total_{b}"], b, campaign)
+    return cols, model
+
+
+def _distinct_times(jd1: np.ndarray, jd2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(index of each distinct two-part Julian date, in increasing order; each sample's distinct
+    time): np.unique over the (jd1, jd2) pairs, by one lexsort."""
+    order = np.lexsort((jd2, jd1))
+    a, b = jd1[order], jd2[order]
+    new = np.ones(order.size, bool)
+    new[1:] = (a[1:] != a[:-1]) | (b[1:] != b[:-1])
+    inverse = np.empty(order.size, np.intp)
+    inverse[order] = np.cumsum(new) - 1
+    return order[new], inverse
+
+
+UNITS = {
+    "ra_deg": "deg",
+    "dec_deg": "deg",
+    "sun_angle_deg": "deg",
+    "moon_angle_deg": "deg",
+    "earth_limb_angle_deg": "deg",
+    "door_opening_deg": "deg",
+    "planet_in_field_v_mag": "mag(Vega V)",
+}
+
+
+def column_units(cols) -> dict:
+    """Units of the pointing table's columns (Parquet field metadata ``unit``).
+
+    Parameters
+    ----------
+    cols : iterable of str
+        Column names of a :func:`pointing_table`.
+
+    Returns
+    -------
+    dict of str to str
+        Column name to unit string (e.g. ``"deg"``, ``"electron / (s pixel)"``,
+        ``"mag(AB) arcsec-2"``); unitless columns are absent.
+    """
+    from straylight.model import registry
+
+    out, components = dict(UNITS), registry.component_names(total=True)
+    for k in cols:
+        if k.startswith("total_mag_per_arcsec2_"):
+            out[k] = "mag(AB) arcsec-2"
+        elif k.startswith("limit_mag_"):
+            out[k] = "mag(AB)"
+        elif k.rsplit("_", 1)[0] in components:
+            out[k] = "electron / (s pixel)"
+    out["moon_illuminated_fraction"] = "1"
+    return out
+
+
+#: rows of the pointing table evaluated at a time by :func:`background_table` and ``straylight sky
+#: --input``: one chunk's work (the scene, the model's scratch, its table) is then a fixed
+#: amount beside the result, whatever the number of rows
+CHUNK_ROWS = 2**16
+
+
+def background_table(
+    campaign,
+    t,
+    ra_deg,
+    dec_deg,
+    bands,
+    stars=None,
+    source="",
+    model=None,
+    columns=None,
+    dtype=np.float64,
+    chunk_rows=None,
+):
+    """:func:`straylight.sky_background`'s table for a loaded campaign and 1-D UTC times ``t`` with ICRS
+    ``ra_deg``, ``dec_deg`` (deg) of the same length, already checked; ``stars`` as
+    :func:`straylight.sources.stars_table.load_offfield_stars` gives them (None: stars = 0); ``model``:
+    the campaign's warm :class:`~straylight.model.BackgroundModel`, if any.  Evaluated
+    ``chunk_rows`` rows at a time, each chunk copied into the result, which is allocated once.
+
+    Parameters
+    ----------
+    campaign : straylight.config.campaign.Campaign
+        Loaded campaign.
+    t : astropy.time.Time, shape (n,)
+        UTC times, already checked.
+    ra_deg, dec_deg : array_like of float, shape (n,)
+        ICRS pointing, deg (RA is wrapped to [0, 360)).
+    bands : list of str
+        Bands to evaluate (``"V"`` gets no limit column).
+    stars : straylight.sources.stars_table.StarTable, optional
+        Off-field stars; None: the stars component is 0.
+    source : str, optional
+        Name of the input used to prefix error messages.
+    model : BackgroundModel or callable, optional
+        The campaign's warm model, or a function returning it; None: one is built.
+    columns : list of str, optional
+        The columns kept (names of the full table's, already checked); None: all.
+    dtype : numpy float dtype, optional
+        Of the float columns (float64, or float32 for half the memory).
+    chunk_rows : int, optional
+        Rows evaluated at a time (None: :data:`CHUNK_ROWS`; 0: all at once).
+
+    Returns
+    -------
+    astropy.table.QTable
+        ``n`` rows with the columns and ``meta`` that :func:`straylight.sky_background`
+        documents (rates in electron / (s pix), magnitudes in AB mag/arcsec2, angles in deg).
+
+    Raises
+    ------
+    InputError
+        As :func:`pointing_table`.
+    """
+    from straylight.limits.point_source import sky_zero_points
+
+    models: dict = {}
+    zero_points = sky_zero_points(campaign, bands)
+    pointings = {"time": t, "ra": np.asarray(ra_deg, float) % 360.0, "dec": np.asarray(dec_deg, float)}
+    chunk_rows = CHUNK_ROWS if chunk_rows is None else chunk_rows
+    out, n = None, len(t)
+    for sl, cols in pointing_chunks(campaign, pointings, bands, stars, chunk_rows, source, models, model):
+        part = pointing_qtable(cols, t[sl], bands, zero_points, models)
+        del cols
+        if columns is not None:
+            part = part[list(columns)]  # in the order asked for
+        if out is None:
+            out = part if sl.stop == n and np.dtype(dtype) == np.float64 else _allocated_like(part, t, dtype)
+        if out is not part:
+            _copy_rows(out, part, sl)
+    return out
+
+
+def _allocated_like(part, t, dtype):
+    """A table of ``len(t)`` rows with ``part``'s columns, units, formats, descriptions and meta,
+    its float columns of ``dtype``, the others as they are (its ``time`` is ``t``'s already)."""
+    import astropy.units as u
+    from astropy.table import QTable
+    from astropy.time import Time
+
+    n, columns = len(t), {}
+    for name in part.colnames:
+        col = part[name]
+        if isinstance(col, Time):
+            columns[name] = Time(t, format="isot", precision=3)
+        elif isinstance(col, u.Quantity):
+            columns[name] = u.Quantity(np.empty(n, dtype), col.unit, copy=False)
+        else:
+            columns[name] = np.empty(n, np.asarray(col).dtype)
+    out = QTable(columns, copy=False, meta=part.meta)
+    for name in part.colnames:
+        out[name].info.format = part[name].info.format
+        out[name].info.description = part[name].info.description
+    return out
+
+
+def _copy_rows(out, part, sl: slice) -> None:
+    """``part``'s rows into ``out[sl]``; a text column widened first when ``part``'s is wider."""
+    from astropy.time import Time
+
+    for name in part.colnames:
+        col = part[name]
+        if isinstance(col, Time):
+            continue  # the result's times were set whole
+        dest = out[name]
+        if dest.dtype.kind == "U" and col.dtype.itemsize > dest.dtype.itemsize:
+            out.replace_column(name, np.asarray(dest).astype(col.dtype))
+            dest = out[name]
+        dest[sl] = col
+
+
+def pointing_qtable(cols: dict, t, bands, zero_points: dict, models: dict):
+    """The pointing table's columns as a QTable with units (see :func:`straylight.sky_background`)."""
+    import astropy.units as u
+    from astropy.table import QTable
+    from astropy.time import Time
+
+    from straylight.sky.geometry import violation_names
+
+    rate, surf = _units()
+    door = np.asarray(cols["door_opening_deg"], float)
+    # the names once per distinct (constraint mask, door) pair
+    keys, inverse = np.unique(2 * np.asarray(cols["violations"], np.int64) + (door > 0), return_inverse=True)
+    names = np.array(
+        [",".join(violation_names(int(k) >> 1) + ([] if k & 1 else ["door"])) for k in keys] or [""],
+        dtype=str,
+    )
+    reasons = names[inverse.reshape(-1)] if door.size else np.zeros(0, dtype=str)
+    # the columns made first and the table once (adding them one by one costs more than computing them)
+    columns = {
+        "time": Time(t, format="isot", precision=3),
+        "ra": u.Quantity(np.asarray(cols["ra_deg"], float), u.deg),
+        "dec": u.Quantity(np.asarray(cols["dec_deg"], float), u.deg),
+        "observable": np.asarray(cols["observable"], bool),
+        "violations": reasons,
+    }
+    formats = {}
+    for name in ("sun_angle", "moon_angle", "earth_limb_angle", "door_opening"):
+        columns[name] = u.Quantity(np.asarray(cols[f"{name}_deg"], float), u.deg)
+        formats[name] = ".3f"
+    from straylight.model import registry
+
+    descriptions, components, long_name = {}, registry.component_names(total=True), registry.long_names()
+    for b in bands:
+        for c in components:
+            columns[f"{c}_{b}"] = u.Quantity(np.asarray(cols[f"{c}_{b}"], float), rate)
+            formats[f"{c}_{b}"] = ".3g"
+            descriptions[f"{c}_{b}"] = f"{long_name[c]}, band {b}"
+        for c in components:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                columns[f"{c}_mag_{b}"] = u.Quantity(
+                    zero_points[b] - 2.5 * np.log10(np.asarray(cols[f"{c}_{b}"], float)), surf
+                )
+            formats[f"{c}_mag_{b}"] = ".3f"
+        if f"limit_mag_{b}" in cols:
+            columns[f"limit_mag_{b}"] = u.Quantity(np.asarray(cols[f"limit_mag_{b}"], float), u.mag)
+            formats[f"limit_mag_{b}"] = ".3f"
+            descriptions[f"limit_mag_{b}"] = "5-sigma point-source limit, AB, survey exposures"
+    out = QTable(
+        columns,
+        copy=False,
+        meta={"mag_zero_point": {b: zero_points[b] * surf for b in bands}, "models": models},
+    )
+    for name, f in formats.items():
+        out[name].info.format = f
+    for name, d in descriptions.items():
+        out[name].info.description = d
+    return out
+
+
+def _units():
+    import astropy.units as u
+
+    rate = u.electron / (u.s * u.pix)
+    return rate, u.mag / u.arcsec**2
