@@ -27,7 +27,7 @@ def main(argv=None) -> int:
         "--hst-curve", default=None, help="HST earthshine curve CSV (its value at 20 deg is the level)"
     )
     p.add_argument("--tolerance", type=float, default=5.0, help="tolerance on the median crossing, deg")
-    p.add_argument("--doors", default="0.02,0.04,0.06", help="door reflectances, commas")
+    p.add_argument("--doors", default="0.014,0.02,0.05", help="door reflectances, commas")
     p.add_argument("--bodies", default="1.0,1.5,2.1", help="body radii (m), commas")
     p.add_argument("--raan-step", type=float, default=60.0)
     p.add_argument("--u-step", type=float, default=10.0)

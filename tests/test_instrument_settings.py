@@ -135,7 +135,7 @@ def test_csst_values_and_their_sources():
     nuv = s.ghosts.per_band["NUV"]
     assert nuv.R1 == 0.0093 and nuv.source == "seed paper sect. 4.3 NUV example"
     assert s.door_geometry.length_m.value == 2.4713 and s.door_geometry.length_m.source.startswith("derived")
-    assert s.door_geometry.reflectance.value == 0.04  # the black paint's prior (docs/pst.md)
+    assert s.door_geometry.reflectance.value == 0.02  # pi x the paint's measured BRDF (docs/pst.md)
     assert s.door_geometry.body_radius_m.value == 1.5  # the middle of 1.0-2.1 m (docs/pst.md)
     assert s.avoidance.sun_min_deg == Parameter(
         50.0, "deg", "seed paper sect. 1 (minimum 50 deg from the Sun)"
@@ -168,7 +168,7 @@ def test_a_file_without_the_optional_sections_takes_the_schema_defaults():
         del raw[key]
     del raw["bands"]["u"]["edge_width_nm"]
     s = instrument_settings(raw)
-    assert s.door_geometry.length_m is None and s.door_geometry.reflectance.value == 0.04
+    assert s.door_geometry.length_m is None and s.door_geometry.reflectance.value == 0.02
     assert (s.door_geometry.n_aperture.value, s.door_geometry.body_radius_m.value) == (256, 0.0)
     assert s.pst.file is None and s.scattering is None and s.bands["u"].edge_width_nm == 5.0
     d = door_from_instrument(s)

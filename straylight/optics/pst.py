@@ -75,7 +75,7 @@ DEFAULT_FIELD_RADIUS_DEG = float(np.sqrt(1.1 / np.pi))
 #    tail bounds (PST.tail_max, influence_radius_deg) stay tight.
 #: log10 PST at 90 deg for callers without an instrument file: the value of csst.yaml's
 #: pst.tail_log10_at_90deg (tests/optics/test_pst_tail.py holds them equal)
-TAIL_90_LOG10 = -9.65
+TAIL_90_LOG10 = -9.57
 #: drop of log10 PST from 90 to 180 deg (behind the aperture plane; never used by the direct path)
 BEHIND_APERTURE_DROP_DEX = 3.6
 #: the anchors the tail does not move: (theta deg, log10 PST)

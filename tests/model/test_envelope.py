@@ -171,7 +171,7 @@ def test_pessimistic_total_equals_a_full_evaluation_at_the_bright_end(tmp_path, 
     assert np.all(lhs[narrow] >= rhs[narrow] * (1 - 1e-9))
     # and the background moved: the check is not of an unchanged total
     before = np.asarray(res["total"], float) - sum(np.asarray(res[k], float) for k in not_carried)
-    assert np.max(rhs[wide] / before[wide]) > 1.1  # 1.19: the tail +0.43 dex, the door x1.5
+    assert np.max(rhs[wide] / before[wide]) > 1.1  # 1.14-1.17 (g, u, NUV): the tail +0.39 dex, the door x2.5
 
 
 def test_region_limits_at_the_ends_are_ordered_and_nan_where_not_observable(campaign):

@@ -42,9 +42,9 @@ def test_the_checks_set_nothing():
 
 
 def test_shape_against_hsts_curve_and_the_etc(profile):
-    """Over 20-90 deg the model's median falls 0.147 mag/deg, HST's WFC3 curve 0.128: 1.14x
+    """Over 20-90 deg the model's median falls 0.150 mag/deg, HST's WFC3 curve 0.128: 1.17x
     (within 0.15).  Near the limb it falls about twice as fast in log: the model's 24/38-deg
-    ratio is 5.8 and 38/50-deg 4.8 (+/-1), against HST's curve's 2.5 and 2.3 and the HST ETC's
+    ratio is 5.7 and 38/50-deg 4.6 (+/-1), against HST's curve's 2.5 and 2.3 and the HST ETC's
     ~2 and ~2 (docs/pst.md: a different baffle, and the limb defined at 100 km, not at the
     surface).  Skips without the test-only HST curve."""
     from straylight.paper.earthshine_checks import HST_ETC_RATIOS, shape_against_hst
@@ -57,12 +57,12 @@ def test_shape_against_hsts_curve_and_the_etc(profile):
     prof, _, _ = profile
     s = shape_against_hst(prof, *read_hst_curve(HST_CURVE))
     assert s["hst_slope_mag_per_deg"] == pytest.approx(0.128, abs=0.005)
-    assert s["slope_mag_per_deg"] == pytest.approx(0.147, abs=0.015)
-    assert s["slope_ratio"] == pytest.approx(1.14, abs=0.15)
+    assert s["slope_mag_per_deg"] == pytest.approx(0.150, abs=0.015)
+    assert s["slope_ratio"] == pytest.approx(1.17, abs=0.15)
     assert s["hst_curve_ratio_24_38"] == pytest.approx(2.5, abs=0.2)
     assert s["hst_curve_ratio_38_50"] == pytest.approx(2.3, abs=0.2)
-    assert s["ratio_24_38"] == pytest.approx(5.8, abs=1.0)
-    assert s["ratio_38_50"] == pytest.approx(4.8, abs=1.0)
+    assert s["ratio_24_38"] == pytest.approx(5.7, abs=1.0)
+    assert s["ratio_38_50"] == pytest.approx(4.6, abs=1.0)
     etc_24_38 = HST_ETC_RATIOS[24.0] / HST_ETC_RATIOS[38.0]
     assert (
         s["ratio_24_38"] / etc_24_38 > 2.0
@@ -72,19 +72,19 @@ def test_shape_against_hsts_curve_and_the_etc(profile):
 
 def test_the_papers_sect1_statements(profile):
     """Sect. 1's preliminary 80-deg bright-limb avoidance is conservative for about two thirds
-    of the sunlit phases (0.67 of them cross HST's level by 80 deg; the median at 70 by
+    of the sunlit phases (0.71 of them cross HST's level by 80 deg; the median at 70 by
     construction).  Its 50-80 deg range "where a longer exposure helps": at 80 deg the median
-    earthshine is 1.3-2.7x the zodiacal light (V 22.5-23.3), so a 2.3-3.7x exposure restores the
-    dark sky's depth; at 50 deg it is 83-173x, beyond what an exposure can make up: the model
+    earthshine is 1.2-2.4x the zodiacal light (V 22.5-23.3), so a 2.2-3.4x exposure restores the
+    dark sky's depth; at 50 deg it is 90-188x, beyond what an exposure can make up: the model
     puts that range at ~70-85 deg (docs/pst.md)."""
     from straylight.paper.earthshine_checks import sect1_figures
 
     prof, cr, level = profile
     f = sect1_figures(prof, cr["crossing_deg"], level)
-    assert f["share_crossing_by_80_deg"] == pytest.approx(0.67, abs=0.1)
+    assert f["share_crossing_by_80_deg"] == pytest.approx(0.71, abs=0.1)
     assert f["profile_mag_at"]["70"] == pytest.approx(level, abs=0.3)
     lo80, hi80 = f["earthshine_over_zodi"]["80"]
-    assert lo80 == pytest.approx(1.29, rel=0.3) and hi80 == pytest.approx(2.69, rel=0.3)
+    assert lo80 == pytest.approx(1.16, rel=0.3) and hi80 == pytest.approx(2.43, rel=0.3)
     lo50, hi50 = f["earthshine_over_zodi"]["50"]
-    assert lo50 == pytest.approx(83.0, rel=0.3) and hi50 == pytest.approx(173.0, rel=0.3)
+    assert lo50 == pytest.approx(90.0, rel=0.3) and hi50 == pytest.approx(188.0, rel=0.3)
     assert np.all(np.diff(prof["median_mag"][prof["centre_deg"] <= 85.0]) > 0)  # fainter outwards to 85 deg
