@@ -155,3 +155,38 @@ def test_two_million_samples_under_an_address_space_cap():
         [sys.executable, "-c", _CAPPED, "2000000"], capture_output=True, text=True, timeout=3600
     )
     assert r.returncode == 0 and r.stdout.startswith("ok"), r.stdout + r.stderr[-3000:]
+
+
+def test_memory_per_sample_is_the_tables_own(monkeypatch):
+    """Python allocations (tracemalloc) per added sample in one band: the call's peak grows by
+    the returned table's bytes per row (186: 21 float64 columns, the two-part time, the
+    observable flag and the uint8 violations mask) plus the samples' checked copies (UTC time
+    and RA/Dec, 32 bytes), within 40 bytes; nothing is left on the caller's Time or SkyCoord.
+    Before: the violations text alone was ~180 bytes a row (4-byte characters, as wide as the
+    longest list of names), and the caller's objects kept 48 bytes a row of cached views."""
+    import tracemalloc
+
+    import straylight
+    from straylight.survey import pointings
+
+    monkeypatch.setattr(pointings, "CHUNK_ROWS", 2**13)
+    sky = straylight.SkyModel()
+    sky.background(*_samples(1000, seed=5), bands=["g"])  # warm: tables, kernels, threads
+    peaks, rows = {}, {}
+    for n in (2**15, 2**16):  # whole chunks: the chunk's own work is the same in both
+        t, c = _samples(n, seed=6)
+        tracemalloc.start()
+        try:
+            before = tracemalloc.get_traced_memory()[0]
+            table = sky.background(t, c, bands=["g"])
+            after, peak = tracemalloc.get_traced_memory()
+            del table
+            left = tracemalloc.get_traced_memory()[0] - before  # held by t and c after the call
+        finally:
+            tracemalloc.stop()
+        peaks[n], rows[n] = peak - before, (after - before)
+        assert left < 1e6, left
+    per_row = (peaks[2**16] - peaks[2**15]) / 2**15
+    table_row = (rows[2**16] - rows[2**15]) / 2**15
+    assert table_row == pytest.approx(186, abs=8), (table_row, per_row)
+    assert per_row < table_row + 40, (per_row, table_row)
