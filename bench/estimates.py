@@ -26,7 +26,10 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _results import write_results  # noqa: E402
 
-DAYS3 = 'campaign: {name: days3, start: "2026-01-01T00:00:00", end: "2026-01-04T00:00:00"}\nfootprint: {nside: 32}\n'
+DAYS3 = (
+    'campaign: {name: days3, start: "2026-01-01T00:00:00", end: "2026-01-04T00:00:00"}\n'
+    "footprint: {nside: 32}\n"
+)
 
 
 def load() -> list[float]:
