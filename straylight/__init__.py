@@ -3,7 +3,8 @@
 Public API (small on purpose):
 
 * :func:`sky_background` - background components, total, 5-sigma depth and observability of any
-  (astropy ``Time``, ``SkyCoord``), as an astropy ``QTable`` with units.
+  (astropy ``Time``, ``SkyCoord``), as an astropy ``QTable`` with units;
+  :func:`violation_names` gives the names of its ``violations`` bit mask.
 * :class:`SkyModel` - the same from a model built once, for a scheduler's loop
   (``SkyModel(config).background(time, coord, bands)``).
 * :func:`open_campaign` - a finished campaign's products as xarray objects.
@@ -39,6 +40,7 @@ _LAZY = {
     "CampaignProducts": "straylight.api",
     "open_campaign": "straylight.api",
     "sky_background": "straylight.api",
+    "violation_names": "straylight.api",
     "SkyModel": "straylight.skymodel",
     "SkyMaps": "straylight.cube.skymaps",
     "Campaign": "straylight.config",

@@ -106,7 +106,7 @@ class SkyModel:
         -----
         The samples are evaluated :data:`~straylight.planning.pointings.CHUNK_ROWS` at a time into
         a table allocated once: the peak memory is the table plus one chunk's work and the samples'
-        copies (0.28 GB beyond the table for 2 million samples in one band).
+        copies (``python bench/api_memory.py``).
         """
         from straylight.planning.pointings import background_table
 
@@ -316,9 +316,7 @@ def checked_samples(time, coord):
         raise InputError(f"time: expected an astropy.time.Time, got {type(time).__name__}")
     if not isinstance(coord, SkyCoord):
         raise InputError(f"coord: expected an astropy.coordinates.SkyCoord, got {type(coord).__name__}")
-    icrs = _icrs(coord)
-    ra = np.asarray(icrs.ra.deg, float)
-    dec = np.asarray(icrs.dec.deg, float)
+    ra, dec = _icrs_radec_deg(coord)
     try:
         shape = np.broadcast_shapes(time.shape, ra.shape)
     except ValueError:
@@ -344,6 +342,7 @@ def checked_samples(time, coord):
         )
     if t.size:
         check_in_ephemeris(t, "time")
+        del t.cache  # its TT, kept by astropy, is 16 bytes a sample that nothing reads again
     return t, ra, dec
 
 
@@ -351,11 +350,12 @@ def checked_samples(time, coord):
 _DISTANCE_WARNED: list = []
 
 
-def _icrs(coord):
-    """``coord`` in ICRS, or InputError when its frame lacks what the conversion needs (an AltAz
-    frame without its location or time); a coordinate with a distance is taken as a direction,
-    said once per process (a scheduler's loop is not flooded)."""
-    from astropy.coordinates import ConvertError
+def _icrs_radec_deg(coord):
+    """(RA, Dec) in deg of ``coord`` in ICRS, or InputError when its frame lacks what the
+    conversion needs (an AltAz frame without its location or time); a coordinate with a distance
+    is taken as a direction, said once per process (a scheduler's loop is not flooded)."""
+    import astropy.units as u
+    from astropy.coordinates import ConvertError, SphericalRepresentation
 
     frame = coord.frame
     if frame.name in ("altaz", "hadec"):  # local frames: the observer's place and time fix them
@@ -370,7 +370,9 @@ def _icrs(coord):
     except (AttributeError, ValueError, TypeError, ConvertError) as exc:
         text = " ".join(str(exc).split())
         raise InputError(f"coord: cannot convert the {frame.name} coordinate to ICRS: {text}") from None
-    dist = icrs.spherical.distance
+    # from the coordinate's data, not the frame's cached views (kept on the caller's object)
+    sph = icrs.data.represent_as(SphericalRepresentation)
+    dist = sph.distance
     if dist.unit.physical_type == "length" and dist.size and not _DISTANCE_WARNED:
         import logging
 
@@ -382,7 +384,7 @@ def _icrs(coord):
             "direction without distance to silence this",
             np.ravel(dist)[0],
         )
-    return icrs
+    return np.asarray(sph.lon.to_value(u.deg), float), np.asarray(sph.lat.to_value(u.deg), float)
 
 
 def _check_raw_jd(time, shape) -> None:

@@ -148,10 +148,50 @@ _CAPPED = textwrap.dedent(
 @pytest.mark.slow
 def test_two_million_samples_under_an_address_space_cap():
     """Two million samples in one band under RLIMIT_AS = the process's address space after a warm
-    call + the result's size (~0.75 GB) + 0.5 GB, the bound of the chunked evaluation; before
-    it the call took ~0.75 GB beyond its result (max RSS 1.99 GB against 1.54 GB now, from 0.51
-    GB before the call) and failed here with MemoryError."""
+    call + the result's size (0.37 GB) + 0.5 GB, the bound of the chunked evaluation; before
+    it the call took ~0.75 GB beyond its result (max RSS 1.99 GB, from 0.51 GB before the call)
+    and failed here with MemoryError (bench/api_memory.py: max RSS 0.98 GB now, from 0.47 GB)."""
     r = subprocess.run(
         [sys.executable, "-c", _CAPPED, "2000000"], capture_output=True, text=True, timeout=3600
     )
     assert r.returncode == 0 and r.stdout.startswith("ok"), r.stdout + r.stderr[-3000:]
+
+
+def test_memory_per_sample_is_the_tables_own(monkeypatch):
+    """Python allocations (tracemalloc) per added sample in one band, between 32,768 and 65,536
+    samples (whole chunks, so one chunk's work cancels): the returned table is 186 bytes a row
+    (21 float64 columns, the two-part time, the observable flag and the uint8 violations mask),
+    within 8; the call's peak is the table's plus under 40 bytes a row (the samples' checked
+    copies: UTC time and RA/Dec, 32 bytes); after the call under 24 bytes a row is left (16 are
+    measured: the checked UTC time's arrays).  Before: the violations text alone was ~180 bytes a
+    row (4-byte characters, as wide as the longest list of names), and 48 bytes a row were left
+    after the call (the TT and spherical views astropy caches on the Time and SkyCoord)."""
+    import tracemalloc
+
+    import astropy.units as u
+    from astropy.time import Time
+
+    import straylight
+    from straylight.planning import pointings
+
+    monkeypatch.setattr(pointings, "CHUNK_ROWS", 2**13)
+    sky = straylight.SkyModel()
+    sky.background(*_samples(1000, seed=5), bands=["g"])  # warm: tables, kernels, threads
+    peaks, rows, left = {}, {}, {}
+    for n in (2**15, 2**16):
+        t, c = _samples(n, seed=6)
+        t = Time(T0, scale="utc") + (np.arange(n) % 64) * 10 * u.min  # 64 scenes: quick to compute
+        tracemalloc.start()
+        try:
+            before = tracemalloc.get_traced_memory()[0]
+            table = sky.background(t, c, bands=["g"])
+            after, peak = tracemalloc.get_traced_memory()
+            del table
+            left[n] = tracemalloc.get_traced_memory()[0] - before
+        finally:
+            tracemalloc.stop()
+        peaks[n], rows[n] = peak - before, after - before
+    per_row, table_row, left_row = ((d[2**16] - d[2**15]) / 2**15 for d in (peaks, rows, left))
+    assert table_row == pytest.approx(186, abs=8), (table_row, per_row, left_row)
+    assert per_row < table_row + 40, (per_row, table_row, left_row)
+    assert left_row < 24, (left_row, table_row, per_row)

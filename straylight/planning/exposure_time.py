@@ -285,6 +285,7 @@ def etc_table(background, bands, campaign, request: dict):
 
     from straylight.limits.point_source import campaign_exposures, source_rate_e_per_s
     from straylight.model.registry import component_names, long_names
+    from straylight.planning.pointings import violation_text
 
     comps = component_names()
     n, nb = len(background), len(bands)
@@ -336,7 +337,7 @@ def etc_table(background, bands, campaign, request: dict):
         "band": (np.tile(np.asarray(bands, dtype=str), n), None, "band"),
         "observable": (obs[idx], None, "the pointing meets every constraint at this time"),
         "violations": (
-            np.asarray(background["violations"], dtype=str)[idx],
+            violation_text(background["violations"])[idx],
             None,
             "violated constraints, comma-separated (empty when observable)",
         ),

@@ -443,7 +443,10 @@ def background_table(
 
     models: dict = {}
     zero_points = sky_zero_points(campaign, bands)
-    pointings = {"time": t, "ra": np.asarray(ra_deg, float) % 360.0, "dec": np.asarray(dec_deg, float)}
+    ra = np.asarray(ra_deg, float)
+    if ra.size and not (np.min(ra) >= 0.0 and np.max(ra) < 360.0):  # else no copy: x % 360 == x there
+        ra = ra % 360.0
+    pointings = {"time": t, "ra": ra, "dec": np.asarray(dec_deg, float)}
     chunk_rows = CHUNK_ROWS if chunk_rows is None else chunk_rows
     out, n = None, len(t)
     for sl, cols in pointing_chunks(campaign, pointings, bands, stars, chunk_rows, source, models, model):
@@ -496,30 +499,55 @@ def _copy_rows(out, part, sl: slice) -> None:
         dest[sl] = col
 
 
+def _table_violation_bits() -> dict:
+    from straylight.sky.geometry import VIOLATION_BITS
+
+    return {**VIOLATION_BITS, "door": 1 << len(VIOLATION_BITS)}
+
+
+#: the bits of :func:`straylight.sky_background`'s ``violations`` (uint8): the geometry's
+#: constraints and ``door`` (no allowed state of the aperture door)
+TABLE_VIOLATION_BITS = _table_violation_bits()
+VIOLATIONS_DESCRIPTION = "violated constraints, bit mask (0: observable): " + ", ".join(
+    f"{k}={v}" for k, v in TABLE_VIOLATION_BITS.items()
+)
+
+
+def violation_mask(flags, door_opening_deg) -> np.ndarray:
+    """The table's ``violations`` (uint8): the geometry's constraint ``flags`` with the ``door``
+    bit set where ``door_opening_deg`` is 0 (no allowed door state)."""
+    door = np.where(np.asarray(door_opening_deg) > 0, 0, TABLE_VIOLATION_BITS["door"])
+    return (np.asarray(flags, np.uint8) | door.astype(np.uint8)).astype(np.uint8, copy=False)
+
+
+def violation_text(mask) -> np.ndarray:
+    """The violated constraints' names, comma-separated ("" when none), of each ``violations``
+    bit mask of :func:`straylight.sky_background`'s table (the names once per distinct mask)."""
+    mask = np.asarray(mask, np.int64)
+    keys, inverse = np.unique(mask.ravel(), return_inverse=True)
+    names = [",".join(k for k, bit in TABLE_VIOLATION_BITS.items() if int(key) & bit) for key in keys]
+    return (
+        np.array(names or [""], dtype=str)[inverse].reshape(mask.shape)
+        if mask.size
+        else np.zeros(mask.shape, str)
+    )
+
+
 def pointing_qtable(cols: dict, t, bands, zero_points: dict, models: dict):
     """The pointing table's columns as a QTable with units (see :func:`straylight.sky_background`)."""
     import astropy.units as u
     from astropy.table import QTable
     from astropy.time import Time
 
-    from straylight.sky.geometry import violation_names
-
     rate, surf = _units()
-    door = np.asarray(cols["door_opening_deg"], float)
-    # the names once per distinct (constraint mask, door) pair
-    keys, inverse = np.unique(2 * np.asarray(cols["violations"], np.int64) + (door > 0), return_inverse=True)
-    names = np.array(
-        [",".join(violation_names(int(k) >> 1) + ([] if k & 1 else ["door"])) for k in keys] or [""],
-        dtype=str,
-    )
-    reasons = names[inverse.reshape(-1)] if door.size else np.zeros(0, dtype=str)
+    mask = violation_mask(cols["violations"], cols["door_opening_deg"])
     # the columns made first and the table once (adding them one by one costs more than computing them)
     columns = {
         "time": Time(t, format="isot", precision=3),
         "ra": u.Quantity(np.asarray(cols["ra_deg"], float), u.deg),
         "dec": u.Quantity(np.asarray(cols["dec_deg"], float), u.deg),
         "observable": np.asarray(cols["observable"], bool),
-        "violations": reasons,
+        "violations": mask,
     }
     formats = {}
     for name in ("sun_angle", "moon_angle", "earth_limb_angle", "door_opening"):
@@ -528,6 +556,7 @@ def pointing_qtable(cols: dict, t, bands, zero_points: dict, models: dict):
     from straylight.model import registry
 
     descriptions, components, long_name = {}, registry.component_names(total=True), registry.long_names()
+    descriptions["violations"] = VIOLATIONS_DESCRIPTION
     for b in bands:
         for c in components:
             columns[f"{c}_{b}"] = u.Quantity(np.asarray(cols[f"{c}_{b}"], float), rate)
@@ -546,7 +575,11 @@ def pointing_qtable(cols: dict, t, bands, zero_points: dict, models: dict):
     out = QTable(
         columns,
         copy=False,
-        meta={"mag_zero_point": {b: zero_points[b] * surf for b in bands}, "models": models},
+        meta={
+            "mag_zero_point": {b: zero_points[b] * surf for b in bands},
+            "violation_bits": dict(TABLE_VIOLATION_BITS),
+            "models": models,
+        },
     )
     for name, f in formats.items():
         out[name].info.format = f

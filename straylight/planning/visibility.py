@@ -94,7 +94,7 @@ def visibility(
     """
     from astropy.table import QTable
 
-    from straylight.planning.pointings import background_table
+    from straylight.planning.pointings import background_table, violation_text
 
     t0, t, offset_s = time_grid(campaign, band, start, end, step_s)
     n = len(t)
@@ -103,7 +103,7 @@ def visibility(
         {
             "time": sky["time"],
             "observable": sky["observable"],
-            "violations": sky["violations"],
+            "violations": violation_text(sky["violations"]),
             "total_e_per_s_per_pix": sky[f"total_{band}"],
             "total_mag_per_arcsec2": sky[f"total_mag_{band}"],
             "limit_mag": sky[f"limit_mag_{band}"],

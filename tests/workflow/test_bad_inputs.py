@@ -163,7 +163,7 @@ def _always_observable(campaign, t, ra_deg, dec_deg, bands, stars=None, source="
         {
             "time": t,
             "observable": np.ones(n, bool),
-            "violations": np.full(n, ""),
+            "violations": np.zeros(n, np.uint8),
             f"total_{b}": np.ones(n) * u.electron / (u.s * u.pix),
             f"total_mag_{b}": np.full(n, 22.0) * u.mag / u.arcsec**2,
             f"limit_mag_{b}": np.full(n, 26.0) * u.mag,
