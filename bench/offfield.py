@@ -25,7 +25,7 @@ def main():
     from straylight.config import load_campaign
     from straylight.model import BackgroundModel
     from straylight.sky.frames import telescope_frame
-    from straylight.sources.offfield_cap import EarthshineSettings
+    from straylight.sources.earthshine.grid import EarthshineSettings
     from straylight.sources.photometry import BandPhotometry
 
     c = load_campaign()

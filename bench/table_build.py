@@ -47,7 +47,7 @@ def main() -> int:
 
     from straylight.config import load_campaign
     from straylight.model import BackgroundModel
-    from straylight.sources import earthshine_table_nodes as nodes
+    from straylight.sources.earthshine import nodes as nodes
 
     campaign = load_campaign()
     model = BackgroundModel(campaign, build_workers=a.workers)

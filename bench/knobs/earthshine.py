@@ -80,7 +80,7 @@ def moonlit_grid_rows(bench, day: str = "2026-01-03", time_step: int = 24, n_tim
     (best of three; the table's build, once and cached, not included)."""
     from dataclasses import astuple
 
-    from straylight.sources.earthshine_table_nodes import MoonlitSettings
+    from straylight.sources.earthshine.nodes import MoonlitSettings
     from straylight.survey.cube_region import compute_region
     from straylight.survey.footprint import footprint_from_config
 

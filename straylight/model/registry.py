@@ -178,13 +178,13 @@ def _stars(model):
 
 
 def _sunlit_earth(model):
-    from straylight.sources.sunlit_earth import SunlitEarth
+    from straylight.sources.earthshine.sunlit import SunlitEarth
 
     return SunlitEarth(model.context, model.policy, model.source("moonlit_earth"), model.build_workers)
 
 
 def _moonlit_earth(model):
-    from straylight.sources.moonlit_earth import MoonlitEarth
+    from straylight.sources.earthshine.moonlit import MoonlitEarth
 
     return MoonlitEarth(
         model.context, model.policy, model.build_workers, sunlit=lambda: model.source("sunlit_earth")

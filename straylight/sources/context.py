@@ -18,7 +18,7 @@ from straylight.optics.pst import load_pst
 from straylight.sky.frames import TelescopeFrame
 from straylight.sky.vectors import norm
 from straylight.sources.offfield import OffFieldModel
-from straylight.sources.offfield_cap import EarthshineSettings
+from straylight.sources.earthshine.grid import EarthshineSettings
 from straylight.sources.photometry import AU_KM, BandPhotometry
 from straylight.sources.zodiacal import ZodiacalModel, zodiacal_model_from_instrument
 
@@ -204,7 +204,7 @@ class SourceContext:
         s-1 m-2 of the Sun at 1 AU), over the instrument's bands, each band's solar irradiance
         times the Earth's band albedo over the grey one: errors relative to it bound errors
         relative to the total."""
-        from straylight.sources.earth_albedo import earth_band_factors
+        from straylight.sources.earthshine.albedo import earth_band_factors
 
         bands = tuple(self.campaign.bands)
         factors = earth_band_factors(self, bands)

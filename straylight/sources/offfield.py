@@ -1,7 +1,7 @@
 """The off-field transfer every source outside the field goes through (seed paper sects. 2.2,
 3.1-3.2): :class:`OffFieldModel`, with the Earth-grid sum of earthshine it inherits from
-:class:`~straylight.sources.offfield_cap.EarthCapGrid` (the cap grid, its lit blocks, the door's
-view of it and the cap bound) and :class:`~straylight.sources.offfield_earthshine.EarthshineSums`
+:class:`~straylight.sources.earthshine.grid.EarthCapGrid` (the cap grid, its lit blocks, the door's
+view of it and the cap bound) and :class:`~straylight.sources.earthshine.sums.EarthshineSums`
 (the sums themselves).
 
 Point sources (paper eq. 14):  E_p = sum_i E_i Se_i Sp_i PST(theta_i, phi_i), with E_i the band
@@ -24,8 +24,8 @@ import numpy as np
 
 from straylight.optics.door import Door, DoorTable, behind_aperture_plane, door_state_index
 from straylight.optics.pst import PST
-from straylight.sources.offfield_cap import EarthCapGrid, EarthshineSettings
-from straylight.sources.offfield_earthshine import EarthshineSums
+from straylight.sources.earthshine.grid import EarthCapGrid, EarthshineSettings
+from straylight.sources.earthshine.sums import EarthshineSums
 from straylight.util.gridinterp import LinearGrid
 
 __all__ = ["OffFieldModel"]

@@ -13,9 +13,9 @@ import pytest
 from straylight.config import campaign_from_dict
 from straylight.model import BackgroundModel
 from straylight.sky.frames import telescope_frame
-from straylight.sources.earthshine_table import EarthshineLUT
-from straylight.sources.earthshine_table_build import build_earthshine_lut
-from straylight.sources.earthshine_table_nodes import LUTSettings, lut_key
+from straylight.sources.earthshine.sunlit_table import EarthshineLUT
+from straylight.sources.earthshine.sunlit_build import build_earthshine_lut
+from straylight.sources.earthshine.nodes import LUTSettings, lut_key
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
 from _samples import random_samples  # noqa: E402
@@ -72,7 +72,7 @@ def test_rotation_about_the_vertical_changes_nothing(coarse):
     sat, sun, los = sc.satellite_km[obs], sc.bodies_km["sun"][obs], los[obs]
     lut = info["lut"]
     r, zs, zl, a = lut.coordinates(sat, sun, los)
-    from straylight.sources.earthshine_table_build import sun_coefficients_direct
+    from straylight.sources.earthshine.sunlit_build import sun_coefficients_direct
 
     off = cm.context.offfield
     door = g["door_opening_deg"][obs]
@@ -358,7 +358,7 @@ def test_automatic_choice(coarse, campaign):
 def test_build_estimate_counts_both_tables(coarse):
     """The build's estimate (plan, the build's announcement): the sunlit table's (node, door
     state) pairs and the moonlit table's, each at its per-node figure (earthshine_lut.*_PER_NODE)."""
-    from straylight.sources import earthshine_table_nodes as lut_mod
+    from straylight.sources.earthshine import nodes as lut_mod
 
     c, _, _ = coarse
     raw = copy.deepcopy(c.config)
@@ -407,7 +407,7 @@ def test_moonlit_table_reproduces_the_coarse_sum_at_its_nodes(moonlit):
     grid's direct sum it stored, for every door state: the table's coordinates invert the
     scene it was built from (including the roll, measured from the upward vertical)."""
     from straylight.sources.body_magnitudes import MOON_MEAN_DISTANCE_KM
-    from straylight.sources.moonlit_table_build import _moonlit_scene
+    from straylight.sources.earthshine.moonlit_build import _moonlit_scene
 
     c, cm, lut = moonlit
     off = cm.context.offfield
@@ -491,7 +491,7 @@ def test_moonlit_table_is_finite_at_the_singular_directions(moonlit):
 
 
 def test_moonlit_table_save_load_round_trip(moonlit, tmp_path):
-    from straylight.sources.moonlit_table import MoonlitLUT
+    from straylight.sources.earthshine.moonlit_table import MoonlitLUT
 
     c, cm, lut = moonlit
     p = tmp_path / "m.npz"

@@ -15,7 +15,7 @@ from straylight.sky.frames import TelescopeFrame, telescope_frame
 from straylight.sky.geometry import observing_geometry
 from straylight.sky.vectors import radec_to_unit
 from straylight.sources.body_magnitudes import moon_v_magnitude, planet_v_magnitude
-from straylight.sources.offfield_cap import EarthshineSettings
+from straylight.sources.earthshine.grid import EarthshineSettings
 from straylight.sources.photometry import solar_like_fraction
 from straylight.sources.stars import OffFieldStars
 from straylight.sources.stars_table import StarTable

@@ -1,14 +1,14 @@
 """The sunlit Earth's look-up table: its build, its validation and its cache.
 
-The table (:class:`~straylight.sources.earthshine_table.EarthshineLUT`) holds the direct
+The table (:class:`~straylight.sources.earthshine.sunlit_table.EarthshineLUT`) holds the direct
 Earth-cap sum of :class:`~straylight.sources.offfield.OffFieldModel` (compiled,
-:mod:`straylight.sources.earthshine_kernel`) at its nodes
-(:class:`~straylight.sources.earthshine_table_nodes.LUTSettings`).  The build runs one scene (the
+:mod:`straylight.sources.earthshine.kernel`) at its nodes
+(:class:`~straylight.sources.earthshine.nodes.LUTSettings`).  The build runs one scene (the
 satellite's radius and the Sun's zenith angle, every line of sight of it) per task, in threads,
 then validates the table against the direct sum at random off-node points and records the
 largest error as a fraction of the total, which ``models.earthshine.method: auto`` weighs
 against the tolerance (the steps the moonlit Earth's table shares:
-:func:`~straylight.sources.lamp_table.build_lamp_table`).  A table is built once
+:func:`~straylight.sources.earthshine.table.build_lamp_table`).  A table is built once
 per model and machine: it is cached under a digest of everything it depends on
 (:func:`load_or_build`).
 """
@@ -20,8 +20,8 @@ import numpy as np
 from straylight.errors import InputError
 from straylight.sky.frames import telescope_frame
 from straylight.sky.vectors import unit
-from straylight.sources.earthshine_table import EarthshineLUT
-from straylight.sources.earthshine_table_nodes import (
+from straylight.sources.earthshine.sunlit_table import EarthshineLUT
+from straylight.sources.earthshine.nodes import (
     LUT_BUILD_SECONDS_PER_NODE,
     LUTSettings,
     _cached,
@@ -29,7 +29,7 @@ from straylight.sources.earthshine_table_nodes import (
     lut_key,
     mirror_symmetric,
 )
-from straylight.sources.lamp_table import build_lamp_table
+from straylight.sources.earthshine.table import build_lamp_table
 from straylight.sources.photometry import AU_KM
 
 __all__ = [
@@ -172,7 +172,7 @@ def build_earthshine_lut(
     constraints) the largest |table - direct| / (direct + floor), with ``floor`` the darkest
     sky background in the same units (so the error is a fraction of the total, and a
     pessimistic one).  ``workers`` threads share the scenes (one per core; the sums are
-    compiled, :mod:`straylight.sources.earthshine_kernel`).
+    compiled, :mod:`straylight.sources.earthshine.kernel`).
 
     Parameters
     ----------

@@ -2,9 +2,9 @@
 ~1e-5 of the sunlit Earth, so it is skipped where its upper bound (:meth:`MoonlitEarth.bound`)
 times the Moon's irradiance stays below the moonlit_earthshine_skip budget of the sample's
 floor, and elsewhere summed on a coarse Earth grid (models.earthshine.moonlit_grid), from its
-own table (:class:`~straylight.sources.moonlit_table.MoonlitLUT`, models.earthshine.moonlit_method
+own table (:class:`~straylight.sources.earthshine.moonlit_table.MoonlitLUT`, models.earthshine.moonlit_method
 = lut, when it validates within the moonlit_earthshine_grid budget) or directly.  On the direct
-sum's path the sunlit Earth's grid carries the Moon's light too (:mod:`straylight.sources.sunlit_earth`)."""
+sum's path the sunlit Earth's grid carries the Moon's light too (:mod:`straylight.sources.earthshine.sunlit`)."""
 
 from __future__ import annotations
 
@@ -18,10 +18,10 @@ from straylight.sky.frames import TelescopeFrame
 from straylight.sky.runs import rows_at, scene_rows
 from straylight.sources.body_magnitudes import MOON_PERIGEE_KM, moon_v_magnitude
 from straylight.sources.context import Samples, SourceContext
-from straylight.sources.earth_albedo import earth_band_factors
+from straylight.sources.earthshine.albedo import earth_band_factors
 from straylight.sources.photometry import solar_like_fraction
 from straylight.sources.rates import BandRates
-from straylight.sources.sunlit_earth import EARTH_PARTS
+from straylight.sources.earthshine.sunlit import EARTH_PARTS
 
 __all__ = ["MoonlitEarth"]
 
@@ -29,7 +29,7 @@ __all__ = ["MoonlitEarth"]
 class MoonlitEarth:
     """The moonlit Earth outside the field: its configuration, its table, its bound and its sum.
     ``sunlit``: a function returning the campaign's
-    :class:`~straylight.sources.sunlit_earth.SunlitEarth` (whose table decides the path and
+    :class:`~straylight.sources.earthshine.sunlit.SunlitEarth` (whose table decides the path and
     bounds this one; a function because the sunlit Earth counts this one's table in its build).
 
     Parameters
@@ -53,14 +53,14 @@ class MoonlitEarth:
         return tuple(int(n) for n in self.context.campaign.settings.models.earthshine.moonlit_grid)
 
     def settings(self):
-        """The table's :class:`~straylight.sources.earthshine_table_nodes.MoonlitSettings` from
+        """The table's :class:`~straylight.sources.earthshine.nodes.MoonlitSettings` from
         the config, or None when the moonlit Earth is summed directly (moonlit_method = direct).
 
         Returns
         -------
         MoonlitSettings or None
         """
-        from straylight.sources.earthshine_table_nodes import MoonlitSettings
+        from straylight.sources.earthshine.nodes import MoonlitSettings
 
         es = self.context.campaign.settings.models.earthshine
         if es.moonlit_method == "direct":
@@ -81,7 +81,7 @@ class MoonlitEarth:
         -------
         int
         """
-        from straylight.sources.earthshine_table_nodes import mirror_symmetric
+        from straylight.sources.earthshine.nodes import mirror_symmetric
 
         settings = self.settings()
         if settings is None:
@@ -92,7 +92,7 @@ class MoonlitEarth:
         return nodes * len(c.offfield.door_states_deg)
 
     def _table_inputs(self, settings) -> tuple:
-        """The arguments of :func:`~straylight.sources.moonlit_table_build.load_or_build_moonlit` (and of
+        """The arguments of :func:`~straylight.sources.earthshine.moonlit_build.load_or_build_moonlit` (and of
         its cache key) before the logger: the model, the Earth, the orbit, the settings, the grid,
         the darkest sky and the brightest Moon (full, at perigee) per unit solar irradiance at
         1 AU, and the dark-limb angle."""
@@ -119,7 +119,7 @@ class MoonlitEarth:
         -------
         Path or None
         """
-        from straylight.sources.earthshine_table_nodes import cache_path, moonlit_key
+        from straylight.sources.earthshine.nodes import cache_path, moonlit_key
 
         settings = self.settings()
         return (
@@ -136,7 +136,7 @@ class MoonlitEarth:
         total) is within the moonlit grid's share of the tolerance, else (or with 'direct') the
         coarse grid's direct sum.  Keys: method, lut, and for the table its file, validated error
         and steps."""
-        from straylight.sources.moonlit_table_build import load_or_build_moonlit
+        from straylight.sources.earthshine.moonlit_build import load_or_build_moonlit
 
         settings = self.settings()
         if settings is None:
@@ -167,7 +167,7 @@ class MoonlitEarth:
     def bound(self, sunlit_lut, sat_km, moon_km, los, runs=None) -> np.ndarray:
         """Upper bound of the moonlit Earth's coefficient (direct and door, e-/s/pix per photon
         s-1 m-2 of the Moon at the Earth) at flat samples: the sunlit table's
-        :meth:`~straylight.sources.earthshine_table.EarthshineLUT.moon_bound`; within 1 deg of the
+        :meth:`~straylight.sources.earthshine.sunlit_table.EarthshineLUT.moon_bound`; within 1 deg of the
         limb and below it, where the table has none, the whole cap fully lit at the PST's largest
         value outside the field.
 

@@ -2,13 +2,13 @@
 the door's reflection (EA2), as coefficients in e-/s/pix per photon s-1 m-2 of the lamp's
 irradiance (the Sun's at the satellite, the Moon's at the Earth), summed with the grey albedo
 and scaled in each band by the Earth's band albedo over it
-(:mod:`straylight.sources.earth_albedo`).
+(:mod:`straylight.sources.earthshine.albedo`).
 
 Two ways side by side, chosen by models.earthshine.method and the fidelity policy: the direct
 sum over the Earth grid (:meth:`~straylight.sources.offfield.OffFieldModel.earthshine_coefficients`,
 which lights each block by the Sun and the Moon in one pass, so the moonlit Earth comes with it),
-or the look-up table of that sum (:class:`~straylight.sources.earthshine_table.EarthshineLUT`,
-the Sun only; the moonlit Earth then adds its own, :mod:`straylight.sources.moonlit_earth`).
+or the look-up table of that sum (:class:`~straylight.sources.earthshine.sunlit_table.EarthshineLUT`,
+the Sun only; the moonlit Earth then adds its own, :mod:`straylight.sources.earthshine.moonlit`).
 ``auto`` takes the table whenever it validates within the earthshine_lut share of the
 tolerance."""
 
@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from straylight.sources.context import Samples, SourceContext
-from straylight.sources.earth_albedo import earth_band_factors
+from straylight.sources.earthshine.albedo import earth_band_factors
 from straylight.sources.rates import BandRates
 
 __all__ = ["COEFFICIENTS", "EARTH_PARTS", "SunlitEarth"]
@@ -57,7 +57,7 @@ class SunlitEarth:
 
     def node_states(self, settings) -> int:
         """How many (node, door state) pairs the sunlit table with these
-        :class:`~straylight.sources.earthshine_table_nodes.LUTSettings` sums, each an Earth-grid
+        :class:`~straylight.sources.earthshine.nodes.LUTSettings` sums, each an Earth-grid
         sum.
 
         Parameters
@@ -69,7 +69,7 @@ class SunlitEarth:
         -------
         int
         """
-        from straylight.sources.earthshine_table_nodes import mirror_symmetric
+        from straylight.sources.earthshine.nodes import mirror_symmetric
 
         c = self.context.campaign
         r = c.orbit_radius_range_km
@@ -81,12 +81,12 @@ class SunlitEarth:
     def choice(self) -> dict:
         """Which model :attr:`model` will run, decided without building anything (``straylight
         plan`` reads it).  Keys: method ('lut' or 'direct'), requested (models.earthshine.method),
-        reason, settings (:class:`~straylight.sources.earthshine_table_nodes.LUTSettings`), node_states and
+        reason, settings (:class:`~straylight.sources.earthshine.nodes.LUTSettings`), node_states and
         build_seconds_estimate (the sunlit table's build plus the moonlit one's,
         moonlit_build_seconds_estimate, at the policy's cost figures; 0 for 'direct' by config).
         With 'auto' the table still falls back to the direct sum when its validated error,
         known once it is built, exceeds its share of the tolerance."""
-        from straylight.sources.earthshine_table_nodes import LUTSettings
+        from straylight.sources.earthshine.nodes import LUTSettings
 
         es = self.context.campaign.settings.models.earthshine
         method = es.method
@@ -128,13 +128,13 @@ class SunlitEarth:
 
     def lut_path(self) -> Path:
         """Where the table of :attr:`choice`'s settings is cached (it may not exist yet): the
-        path :func:`~straylight.sources.earthshine_table_build.load_or_build` reads or writes.
+        path :func:`~straylight.sources.earthshine.sunlit_build.load_or_build` reads or writes.
 
         Returns
         -------
         Path
         """
-        from straylight.sources.earthshine_table_nodes import cache_path, lut_key
+        from straylight.sources.earthshine.nodes import cache_path, lut_key
 
         c = self.context
         key = lut_key(
@@ -150,9 +150,9 @@ class SunlitEarth:
     @cached_property
     def model(self) -> dict:
         """The model that runs (:attr:`choice`, the table built or loaded): keys method, lut
-        (the :class:`~straylight.sources.earthshine_table.EarthshineLUT` or None), reason, and for
+        (the :class:`~straylight.sources.earthshine.sunlit_table.EarthshineLUT` or None), reason, and for
         the table its file, validated error, build time, node states and steps."""
-        from straylight.sources.earthshine_table_build import load_or_build
+        from straylight.sources.earthshine.sunlit_build import load_or_build
 
         choice = self.choice
         if choice["method"] == "direct":
@@ -219,7 +219,7 @@ class SunlitEarth:
             ``"moon_at_earth"`` (e-/s/pix per photon s-1 m-2 of the Moon's lamp): ndarrays of
             the samples' shape, summed with the grey albedo; ``band_factors`` of both parts: the
             band albedo over the grey one per band
-            (:func:`~straylight.sources.earth_albedo.earth_band_factors`; none for ``grey``).
+            (:func:`~straylight.sources.earthshine.albedo.earth_band_factors`; none for ``grey``).
         """
         c = self.coefficients(samples)
         factors = earth_band_factors(self.context, bands)
@@ -235,7 +235,7 @@ class SunlitEarth:
         """The earthshine coefficients (:data:`COEFFICIENTS`, arrays of the samples' shape).  The
         direct sum gives every term; the table gives the sunlit Earth, and of the moonlit Earth
         only the part inside the field (the rest: :meth:`MoonlitEarth.rates
-        <straylight.sources.moonlit_earth.MoonlitEarth.rates>`).
+        <straylight.sources.earthshine.moonlit.MoonlitEarth.rates>`).
 
         Parameters
         ----------

@@ -2,7 +2,7 @@
 (:class:`EarthshineSettings`) and :class:`EarthCapGrid`, the part of
 :class:`~straylight.sources.offfield.OffFieldModel` (which inherits it) that lays the grid on
 the visible cap, lights its blocks, sees them from the door and bounds the sum; the sums are
-:class:`~straylight.sources.offfield_earthshine.EarthshineSums`.
+:class:`~straylight.sources.earthshine.sums.EarthshineSums`.
 
 Earthshine (paper sect. 3.2): the Earth cap seen from the satellite is split into n_gamma x
 n_psi blocks of solid angle sin(gamma) dgamma dpsi about nadir; each is a Lambertian reflector of
@@ -14,8 +14,8 @@ Earth blocks in front of its inner face whose ray to it misses the telescope bod
 aperture points j receive L_door A_i cos(e_ij) / d_ij^2 with PST(theta_ij, phi_ij), averaged
 over the aperture.  This is the paper's EA2 = sum_i MP_i r sum_j PST(theta_ij, phi_ij) / d_ij^2
 with the block area, the emission cosine and 1/pi written out.  The sunlit and moonlit Earth's sources
-(:mod:`straylight.sources.sunlit_earth`, :mod:`straylight.sources.moonlit_earth`) call this sum or
-its tables (:mod:`straylight.sources.earthshine_table`).
+(:mod:`straylight.sources.earthshine.sunlit`, :mod:`straylight.sources.earthshine.moonlit`) call this sum or
+its tables (:mod:`straylight.sources.earthshine.sunlit_table`).
 """
 
 from __future__ import annotations

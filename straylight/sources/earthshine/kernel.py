@@ -1,7 +1,7 @@
 """The Earth-cap sum of one scene, compiled: the inner loop of the direct earthshine
 (:meth:`~straylight.sources.offfield.OffFieldModel.earthshine_coefficients` for lines of sight
 sharing a satellite and lamps) and of the earthshine tables' builds
-(:mod:`straylight.sources.earthshine_table_build`, :mod:`straylight.sources.moonlit_table_build`).
+(:mod:`straylight.sources.earthshine.sunlit_build`, :mod:`straylight.sources.earthshine.moonlit_build`).
 
 For each line of sight m (its telescope frame x, y, z) and each lit cap block k (unit direction
 d_k from the satellite, spans across the block, luminance-times-solid-angle L_kc per lamp c):
