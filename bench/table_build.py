@@ -51,7 +51,7 @@ def main() -> int:
 
     campaign = load_campaign()
     model = BackgroundModel(campaign, build_workers=a.workers)
-    off = model.context.offfield
+    off = model.sunlit_earth.engine.grid
     nodes.mirror_symmetric(off)
     off._kernel_tables  # the model's set-up, not the build's
     moonlit, sunlit = model.source("moonlit_earth"), model.sunlit_earth

@@ -91,7 +91,7 @@ class Bench:
                 zip(("sun_zenith_step_deg", "los_zenith_step_deg", "azimuth_step_deg"), lut_steps)
             )
         cm = BackgroundModel(campaign_from_dict(raw, self.campaign.path))
-        off = cm.context.offfield
+        off = cm.sunlit_earth.engine.grid
         es = replace(
             off.earthshine,
             n_gamma=n_gamma,

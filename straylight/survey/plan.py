@@ -268,9 +268,8 @@ def probed_speed_factor(campaign: Campaign, cores: int) -> float:
     from straylight.sources.earthshine.sunlit_build import build_speed_factor
 
     model = BackgroundModel(campaign)
-    ctx = model.sunlit_earth.context
     return build_speed_factor(
-        ctx.offfield,
+        model.sunlit_earth.engine.grid,
         campaign.earth.radius_km,
         campaign.orbit_radius_range_km,
         model.sunlit_earth.choice["settings"],

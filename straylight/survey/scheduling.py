@@ -126,7 +126,7 @@ def bright_limb_table(
     from straylight.sources.earthshine.sunlit_build import sun_coefficients_direct
 
     c: Campaign = model.campaign
-    off = model.context.offfield
+    off = model.sunlit_earth.engine.grid
     re_km = c.earth.radius_km
     r = 0.5 * sum(c.orbit_radius_range_km)
     limb_zeta = 90.0 + np.degrees(np.arccos(re_km / r))

@@ -38,7 +38,7 @@ def _totals(campaign, samples, grid=None, split=None, tail=None):
     """Each band's total (e-/s/pix) at the samples, the earthshine summed directly on the
     default grid or ``grid`` (n_gamma, n_psi), with ``split`` and the PST's ``tail``."""
     cm = BackgroundModel(campaign)
-    off = cm.context.offfield
+    off = cm.sunlit_earth.engine.grid
     es = off.earthshine
     if grid is not None:
         es = replace(es, n_gamma=grid[0], n_psi=grid[1])

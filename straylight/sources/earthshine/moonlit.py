@@ -2,167 +2,89 @@
 ~1e-5 of the sunlit Earth, so it is skipped where its upper bound (:meth:`MoonlitEarth.bound`)
 times the Moon's irradiance stays below the moonlit_earthshine_skip budget of the sample's
 floor, and elsewhere summed on a coarse Earth grid (models.earthshine.moonlit_grid), from its
-own table (:class:`~straylight.sources.earthshine.moonlit_table.MoonlitLUT`, models.earthshine.moonlit_method
-= lut, when it validates within the moonlit_earthshine_grid budget) or directly.  On the direct
-sum's path the sunlit Earth's grid carries the Moon's light too (:mod:`straylight.sources.earthshine.sunlit`)."""
+own table (:class:`~straylight.sources.earthshine.moonlit_table.MoonlitLUT`,
+models.earthshine.moonlit_method = lut, when it validates within the moonlit_earthshine_grid
+budget) or directly.  On the direct sum's path the sunlit Earth's grid carries the Moon's light
+too (:mod:`straylight.sources.earthshine.sunlit`)."""
 
 from __future__ import annotations
 
-import logging
-from functools import cached_property
 from pathlib import Path
 
 import numpy as np
 
 from straylight.sky.frames import TelescopeFrame
 from straylight.sky.runs import rows_at, scene_rows
-from straylight.sources.body_magnitudes import MOON_PERIGEE_KM, moon_v_magnitude
 from straylight.sources.context import Samples, SourceContext
-from straylight.sources.earthshine.albedo import earth_band_factors
-from straylight.sources.photometry import solar_like_fraction
+from straylight.sources.earthshine.engine import EARTH_PARTS, Earthshine
 from straylight.sources.rates import BandRates
-from straylight.sources.earthshine.sunlit import EARTH_PARTS
 
 __all__ = ["MoonlitEarth"]
 
 
 class MoonlitEarth:
-    """The moonlit Earth outside the field: its configuration, its table, its bound and its sum.
-    ``sunlit``: a function returning the campaign's
-    :class:`~straylight.sources.earthshine.sunlit.SunlitEarth` (whose table decides the path and
-    bounds this one; a function because the sunlit Earth counts this one's table in its build).
+    """The moonlit Earth outside the field: its bound and its sum, over the engine's coarse grid
+    and tables (the sunlit table decides the path and bounds this one).
 
     Parameters
     ----------
-    context : SourceContext
-        The campaign's instrument as the sources see it.
-    policy : FidelityPolicy
-        The fidelity policy (tolerance, moonlit shares).
-    build_workers : int
-        Threads that build a missing table.
-    sunlit : callable, optional
-        ``sunlit() -> SunlitEarth``; needed by :meth:`rates`.
+    engine : Earthshine
+        The earthshine engine (Earth grid, tables) the sunlit Earth shares.
     """
 
-    def __init__(self, context: SourceContext, policy, build_workers: int = 1, sunlit=None):
-        self.context, self.policy, self.build_workers, self.sunlit = context, policy, build_workers, sunlit
+    def __init__(self, engine: Earthshine):
+        self.engine = engine
 
-    @cached_property
+    @property
+    def context(self) -> SourceContext:
+        """The campaign's instrument as the sources see it."""
+        return self.engine.context
+
+    @property
+    def policy(self):
+        """The fidelity policy (tolerance, moonlit shares)."""
+        return self.engine.policy
+
+    @property
     def grid(self) -> tuple[int, int]:
         """models.earthshine.moonlit_grid: (n_gamma, n_psi) of the coarse Earth grid."""
-        return tuple(int(n) for n in self.context.campaign.settings.models.earthshine.moonlit_grid)
+        return self.engine.moonlit_grid
 
     def settings(self):
-        """The table's :class:`~straylight.sources.earthshine.nodes.MoonlitSettings` from
-        the config, or None when the moonlit Earth is summed directly (moonlit_method = direct).
+        """:meth:`Earthshine.moonlit_settings
+        <straylight.sources.earthshine.engine.Earthshine.moonlit_settings>`.
 
         Returns
         -------
         MoonlitSettings or None
         """
-        from straylight.sources.earthshine.nodes import MoonlitSettings
-
-        es = self.context.campaign.settings.models.earthshine
-        if es.moonlit_method == "direct":
-            return None
-        steps = es.moonlit_lut
-        return MoonlitSettings(
-            float(steps.moon_zenith_step_deg),
-            float(steps.los_zenith_step_deg),
-            float(steps.azimuth_step_deg),
-            float(steps.roll_step_deg),
-        )
+        return self.engine.moonlit_settings()
 
     def node_states(self) -> int:
-        """How many (node, door state) pairs the table sums, each a coarse Earth-grid sum; 0
-        with models.earthshine.moonlit_method = direct.
+        """:meth:`Earthshine.moonlit_node_states
+        <straylight.sources.earthshine.engine.Earthshine.moonlit_node_states>`.
 
         Returns
         -------
         int
         """
-        from straylight.sources.earthshine.nodes import mirror_symmetric
-
-        settings = self.settings()
-        if settings is None:
-            return 0
-        c = self.context
-        r = c.campaign.orbit_radius_range_km
-        nodes = settings.node_count(float(r[0]), c.campaign.earth.radius_km, mirror_symmetric(c.offfield))
-        return nodes * len(c.offfield.door_states_deg)
-
-    def _table_inputs(self, settings) -> tuple:
-        """The arguments of :func:`~straylight.sources.earthshine.moonlit_build.load_or_build_moonlit` (and of
-        its cache key) before the logger: the model, the Earth, the orbit, the settings, the grid,
-        the darkest sky and the brightest Moon (full, at perigee) per unit solar irradiance at
-        1 AU, and the dark-limb angle."""
-        c = self.context
-        moon_max = float(
-            solar_like_fraction(moon_v_magnitude(0.0, MOON_PERIGEE_KM, c.offfield.moon_law, 180.0))
-        )
-        return (
-            c.offfield,
-            c.campaign.earth.radius_km,
-            c.campaign.orbit_radius_range_km,
-            settings,
-            self.grid,
-            c.earthshine_floor,
-            moon_max,
-            c.campaign.constraints.dark_limb_min_deg,
-        )
+        return self.engine.moonlit_node_states()
 
     def lut_path(self) -> Path | None:
-        """Where the table of the configured settings is cached (it may not exist yet); None
-        when the moonlit Earth is summed directly.
+        """Where the table is cached; None when the moonlit Earth is summed directly
+        (:meth:`~straylight.sources.earthshine.engine.Earthshine.moonlit_lut_path`).
 
         Returns
         -------
         Path or None
         """
-        from straylight.sources.earthshine.nodes import cache_path, moonlit_key
+        return self.engine.moonlit_lut_path()
 
-        settings = self.settings()
-        return (
-            None
-            if settings is None
-            else cache_path("moonlit_lut", moonlit_key(*self._table_inputs(settings)))
-        )
-
-    @cached_property
+    @property
     def model(self) -> dict:
-        """How the moonlit Earth is summed where its bound does not let it be skipped: 'lut', its
-        own table over (Moon zenith, line-of-sight zenith, azimuth from the Moon, roll) of the
-        coarse grid's sum, when its validated error (full Moon at perigee, a fraction of the
-        total) is within the moonlit grid's share of the tolerance, else (or with 'direct') the
-        coarse grid's direct sum.  Keys: method, lut, and for the table its file, validated error
-        and steps."""
-        from straylight.sources.earthshine.moonlit_build import load_or_build_moonlit
-
-        settings = self.settings()
-        if settings is None:
-            return {"method": "direct", "lut": None, "reason": "models.earthshine.moonlit_method = direct"}
-        lut, path = load_or_build_moonlit(
-            *self._table_inputs(settings), logging.getLogger("straylight"), self.build_workers
-        )
-        info = {
-            "lut_file": path.name,
-            "lut_validation_max_rel_error": lut.validation_max_rel_error,
-            "lut_steps_deg": [
-                settings.moon_zenith_step_deg,
-                settings.los_zenith_step_deg,
-                settings.azimuth_step_deg,
-                settings.roll_step_deg,
-            ],
-        }
-        if not self.policy.accepts_table("moonlit_earthshine_grid", lut.validation_max_rel_error):
-            return {
-                "method": "direct",
-                "lut": None,
-                **info,
-                "reason": f"table error {lut.validation_max_rel_error:.2g} > "
-                f"{self.policy.share('moonlit_earthshine_grid'):g} x the tolerance",
-            }
-        return {"method": "lut", "lut": lut, **info}
+        """How the moonlit Earth is summed where its bound does not let it be skipped
+        (:attr:`~straylight.sources.earthshine.engine.Earthshine.moonlit_model`)."""
+        return self.engine.moonlit_model
 
     def bound(self, sunlit_lut, sat_km, moon_km, los, runs=None) -> np.ndarray:
         """Upper bound of the moonlit Earth's coefficient (direct and door, e-/s/pix per photon
@@ -187,7 +109,7 @@ class MoonlitEarth:
         ndarray, shape (n,)
             The bound, e-/s/pix per photon s-1 m-2 of the Moon at the Earth (finite).
         """
-        off, re_km = self.context.offfield, self.context.campaign.earth.radius_km
+        off, re_km = self.engine.grid, self.context.campaign.earth.radius_km
         bound = sunlit_lut.moon_bound(sat_km, moon_km, los, re_km, runs)
         no_bound = ~np.isfinite(bound)
         if np.any(no_bound):  # the cap's bound only where needed (it grids each sample's cap)
@@ -232,12 +154,12 @@ class MoonlitEarth:
             (``band_factors``, as the sunlit Earth's); empty on the direct sum's path or where
             every sample is skipped.
         """
-        sunlit_lut = self.sunlit().lut
+        sunlit_lut = self.engine.sunlit_lut
         if sunlit_lut is None:
             return BandRates()
         moon_at_earth = samples.moon_lamp["at_earth"]
         # the Earth's band albedo over the grey one: the skip compares the band's earthshine
-        factors = earth_band_factors(self.context, bands)
+        factors = self.engine.band_factors(bands)
         moon_at_earth_unit = {
             name: self.context.photometry(name).sun_at_1au_photons_s_m2
             * (1.0 if factors is None else float(factors[i]))
@@ -245,7 +167,7 @@ class MoonlitEarth:
             for i, name in enumerate(bands)
         }
         floor = samples.floor
-        off, re_km = self.context.offfield, self.context.campaign.earth.radius_km
+        off, re_km = self.engine.grid, self.context.campaign.earth.radius_km
         shape, frame, runs, mlut = samples.shape, samples.frame, samples.runs, self.model["lut"]
         sat_b, sun_b, moon_b, los_b = (
             np.broadcast_to(np.asarray(v, float), shape + (3,)).reshape(-1, 3)

@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from straylight.sources.body_magnitudes import MOON_APOGEE_KM, MOON_MEAN_DISTANCE_KM, MOON_PERIGEE_KM
+from straylight.sources.earthshine.moonlit_table import MoonlitLUT
 from straylight.sources.earthshine.nodes import (
     MOONLIT_LUT_BUILD_SECONDS_PER_NODE,
     MoonlitSettings,
@@ -23,7 +24,6 @@ from straylight.sources.earthshine.nodes import (
     moonlit_key,
 )
 from straylight.sources.earthshine.table import build_lamp_table
-from straylight.sources.earthshine.moonlit_table import MoonlitLUT
 
 __all__ = [
     "build_moonlit_lut",

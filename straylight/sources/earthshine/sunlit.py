@@ -5,7 +5,7 @@ and scaled in each band by the Earth's band albedo over it
 (:mod:`straylight.sources.earthshine.albedo`).
 
 Two ways side by side, chosen by models.earthshine.method and the fidelity policy: the direct
-sum over the Earth grid (:meth:`~straylight.sources.offfield.OffFieldModel.earthshine_coefficients`,
+sum over the Earth grid (:meth:`~straylight.sources.earthshine.engine.EarthGrid.earthshine_coefficients`,
 which lights each block by the Sun and the Moon in one pass, so the moonlit Earth comes with it),
 or the look-up table of that sum (:class:`~straylight.sources.earthshine.sunlit_table.EarthshineLUT`,
 the Sun only; the moonlit Earth then adds its own, :mod:`straylight.sources.earthshine.moonlit`).
@@ -14,20 +14,15 @@ tolerance."""
 
 from __future__ import annotations
 
-import logging
-from functools import cached_property
 from pathlib import Path
 
 import numpy as np
 
 from straylight.sources.context import Samples, SourceContext
-from straylight.sources.earthshine.albedo import earth_band_factors
+from straylight.sources.earthshine.engine import EARTH_PARTS, Earthshine
 from straylight.sources.rates import BandRates
 
-__all__ = ["COEFFICIENTS", "EARTH_PARTS", "SunlitEarth"]
-
-#: the parts the Earth's light adds to (each scaled by the Earth's band albedo)
-EARTH_PARTS = ("earthshine_direct", "earthshine_door")
+__all__ = ["COEFFICIENTS", "SunlitEarth"]
 
 #: the keys of the earthshine coefficients (e-/s/pix per photon s-1 m-2 of the lamp): direct
 #: (EA1) and via the door (EA2), lit by the Sun and by the Moon
@@ -35,30 +30,27 @@ COEFFICIENTS = ("direct_sun", "door_sun", "direct_moon", "door_moon")
 
 
 class SunlitEarth:
-    """The sunlit Earth's coefficients for a batch of samples (:meth:`rates`), by the model
-    :attr:`model` picks.  ``moonlit``: the moonlit Earth, whose table the table path builds
-    too (its build is counted in the estimate); ``build_workers``: threads that build a table
-    that is not cached (the result does not depend on it).
+    """The sunlit Earth's coefficients for a batch of samples (:meth:`rates`), by the model the
+    engine picks (:attr:`Earthshine.sunlit_model
+    <straylight.sources.earthshine.engine.Earthshine.sunlit_model>`).
 
     Parameters
     ----------
-    context : SourceContext
-        The campaign's instrument as the sources see it.
-    policy : FidelityPolicy
-        The fidelity policy (tolerance, table shares, build-cost figures).
-    moonlit : MoonlitEarth
-        The moonlit Earth.
-    build_workers : int
-        Threads that build a missing table.
+    engine : Earthshine
+        The earthshine engine (Earth grid, tables) the moonlit Earth shares.
     """
 
-    def __init__(self, context: SourceContext, policy, moonlit, build_workers: int = 1):
-        self.context, self.policy, self.moonlit, self.build_workers = context, policy, moonlit, build_workers
+    def __init__(self, engine: Earthshine):
+        self.engine = engine
+
+    @property
+    def context(self) -> SourceContext:
+        """The campaign's instrument as the sources see it."""
+        return self.engine.context
 
     def node_states(self, settings) -> int:
-        """How many (node, door state) pairs the sunlit table with these
-        :class:`~straylight.sources.earthshine.nodes.LUTSettings` sums, each an Earth-grid
-        sum.
+        """:meth:`Earthshine.sunlit_node_states
+        <straylight.sources.earthshine.engine.Earthshine.sunlit_node_states>`.
 
         Parameters
         ----------
@@ -69,133 +61,34 @@ class SunlitEarth:
         -------
         int
         """
-        from straylight.sources.earthshine.nodes import mirror_symmetric
-
-        c = self.context.campaign
-        r = c.orbit_radius_range_km
-        return settings.node_count(r[0], c.earth.radius_km, mirror_symmetric(self.context.offfield)) * len(
-            self.context.offfield.door_states_deg
-        )
-
-    @cached_property
-    def choice(self) -> dict:
-        """Which model :attr:`model` will run, decided without building anything (``straylight
-        plan`` reads it).  Keys: method ('lut' or 'direct'), requested (models.earthshine.method),
-        reason, settings (:class:`~straylight.sources.earthshine.nodes.LUTSettings`), node_states and
-        build_seconds_estimate (the sunlit table's build plus the moonlit one's,
-        moonlit_build_seconds_estimate, at the policy's cost figures; 0 for 'direct' by config).
-        With 'auto' the table still falls back to the direct sum when its validated error,
-        known once it is built, exceeds its share of the tolerance."""
-        from straylight.sources.earthshine.nodes import LUTSettings
-
-        es = self.context.campaign.settings.models.earthshine
-        method = es.method
-        if method == "direct":
-            return {
-                "method": "direct",
-                "requested": method,
-                "reason": "models.earthshine.method = direct",
-                "settings": None,
-                "node_states": 0,
-                "build_seconds_estimate": 0.0,
-                "moonlit_build_seconds_estimate": 0.0,
-            }
-        steps = es.lut
-        settings = LUTSettings(
-            float(steps.sun_zenith_step_deg),
-            float(steps.los_zenith_step_deg),
-            float(steps.azimuth_step_deg),
-            int(steps.n_radius),
-        )
-        node_states = self.node_states(settings)
-        build_s, moonlit_s = self.policy.tables_build_seconds(node_states, self.moonlit.node_states())
-        chosen, reason = self.policy.earthshine_method(method)
-        return {
-            "method": chosen,
-            "requested": method,
-            "reason": reason,
-            "settings": settings,
-            "node_states": node_states,
-            "build_seconds_estimate": build_s,
-            "moonlit_build_seconds_estimate": moonlit_s,
-        }
+        return self.engine.sunlit_node_states(settings)
 
     @property
-    def avoidance_deg(self) -> tuple:
-        """The avoidance angles the table depends on (dark limb, bright limb, Sun), deg."""
-        k = self.context.campaign.constraints
-        return (k.dark_limb_min_deg, k.bright_limb_min_deg, k.sun_min_deg)
+    def choice(self) -> dict:
+        """Which model runs, decided without building anything
+        (:attr:`~straylight.sources.earthshine.engine.Earthshine.sunlit_choice`)."""
+        return self.engine.sunlit_choice
 
     def lut_path(self) -> Path:
-        """Where the table of :attr:`choice`'s settings is cached (it may not exist yet): the
-        path :func:`~straylight.sources.earthshine.sunlit_build.load_or_build` reads or writes.
+        """Where the table is cached
+        (:meth:`~straylight.sources.earthshine.engine.Earthshine.sunlit_lut_path`).
 
         Returns
         -------
         Path
         """
-        from straylight.sources.earthshine.nodes import cache_path, lut_key
+        return self.engine.sunlit_lut_path()
 
-        c = self.context
-        key = lut_key(
-            c.offfield,
-            c.campaign.earth.radius_km,
-            c.campaign.orbit_radius_range_km,
-            self.choice["settings"],
-            c.earthshine_floor,
-            self.avoidance_deg,
-        )
-        return cache_path("earthshine_lut", key)
-
-    @cached_property
+    @property
     def model(self) -> dict:
-        """The model that runs (:attr:`choice`, the table built or loaded): keys method, lut
-        (the :class:`~straylight.sources.earthshine.sunlit_table.EarthshineLUT` or None), reason, and for
-        the table its file, validated error, build time, node states and steps."""
-        from straylight.sources.earthshine.sunlit_build import load_or_build
-
-        choice = self.choice
-        if choice["method"] == "direct":
-            return {"method": "direct", "lut": None, "reason": choice["reason"]}
-        settings, c = choice["settings"], self.context
-        log = logging.getLogger("straylight")
-        lut, path = load_or_build(
-            c.offfield,
-            c.campaign.earth.radius_km,
-            c.campaign.orbit_radius_range_km,
-            settings,
-            c.earthshine_floor,
-            log,
-            avoidance_deg=self.avoidance_deg,
-            workers=self.build_workers,
-        )
-        info = {
-            "lut_file": str(path.name),
-            "lut_validation_max_rel_error": lut.validation_max_rel_error,
-            "lut_build_seconds": lut.build_seconds,
-            "lut_node_states": choice["node_states"],
-            "lut_steps_deg": [
-                settings.sun_zenith_step_deg,
-                settings.los_zenith_step_deg,
-                settings.azimuth_step_deg,
-            ],
-        }
-        share = self.policy.share("earthshine_lut")
-        if choice["requested"] == "auto" and not self.policy.accepts_table(
-            "earthshine_lut", lut.validation_max_rel_error
-        ):
-            reason = (
-                f"auto: table error {lut.validation_max_rel_error:.2g} > {share:g} x the tolerance "
-                f"{self.policy.tolerance:g}"
-            )
-            log.info("earthshine: %s: direct sum", reason)
-            return {"method": "direct", "lut": None, "reason": reason, **info}
-        return {"method": "lut", "lut": lut, "reason": choice["reason"], **info}
+        """The model that runs, the table built or loaded
+        (:attr:`~straylight.sources.earthshine.engine.Earthshine.sunlit_model`)."""
+        return self.engine.sunlit_model
 
     @property
     def lut(self):
         """The sunlit table when it runs, else None (the direct sum runs)."""
-        return self.model["lut"]
+        return self.engine.sunlit_lut
 
     def rates(self, samples: Samples, bands) -> BandRates:
         """The earthshine's coefficients on the ``sun`` and ``moon_at_earth`` lamps, direct
@@ -222,7 +115,7 @@ class SunlitEarth:
             (:func:`~straylight.sources.earthshine.albedo.earth_band_factors`; none for ``grey``).
         """
         c = self.coefficients(samples)
-        factors = earth_band_factors(self.context, bands)
+        factors = self.engine.band_factors(bands)
         return BandRates(
             per_lamp={
                 "earthshine_direct": {"sun": c["direct_sun"], "moon_at_earth": c["direct_moon"]},
@@ -250,7 +143,7 @@ class SunlitEarth:
             photon s-1 m-2 of the Sun at the satellite, ``*_moon`` per photon s-1 m-2 of the
             Moon at the Earth.
         """
-        off, re_km = self.context.offfield, self.context.campaign.earth.radius_km
+        off, re_km = self.engine.grid, self.context.campaign.earth.radius_km
         sat, sun, moon, frame, door = (
             samples.satellite_km,
             samples.sun_km,
@@ -289,7 +182,7 @@ class SunlitEarth:
             ``earth_grid`` [n_gamma, n_psi], ``door_blocks`` and ``aperture_points_door``.
         """
         es = {k: v for k, v in self.model.items() if k not in ("lut", "lut_build_seconds", "lut_node_states")}
-        s = self.context.offfield.earthshine
+        s = self.engine.grid.earthshine
         es["earth_grid"] = [s.n_gamma, s.n_psi]
         es["door_blocks"], es["aperture_points_door"] = list(s.door_blocks), s.n_aperture_door
         return es

@@ -20,7 +20,6 @@ import numpy as np
 from straylight.errors import InputError
 from straylight.sky.frames import telescope_frame
 from straylight.sky.vectors import unit
-from straylight.sources.earthshine.sunlit_table import EarthshineLUT
 from straylight.sources.earthshine.nodes import (
     LUT_BUILD_SECONDS_PER_NODE,
     LUTSettings,
@@ -29,6 +28,7 @@ from straylight.sources.earthshine.nodes import (
     lut_key,
     mirror_symmetric,
 )
+from straylight.sources.earthshine.sunlit_table import EarthshineLUT
 from straylight.sources.earthshine.table import build_lamp_table
 from straylight.sources.photometry import AU_KM
 
