@@ -6,7 +6,7 @@ folder, so the user's cache is untouched), each with ``--workers`` threads, the 
 and its door tables made before the clocks start.  Per table: its (node, door state) pairs, the
 process's CPU seconds (user + system, every thread) and wall seconds for the build with its
 validation, CPU seconds per pair, and the figure assumed
-(``earthshine_table_nodes.LUT_BUILD_SECONDS_PER_NODE``, ``MOONLIT_LUT_BUILD_SECONDS_PER_NODE``).
+(``earthshine.nodes.LUT_BUILD_SECONDS_PER_NODE``, ``MOONLIT_LUT_BUILD_SECONDS_PER_NODE``).
 CPU seconds, not wall, because the machine is shared: the wall depends on the load (recorded).
 
 Writes bench/results/table_build.json.

@@ -21,7 +21,7 @@ from straylight.sky.vectors import any_perpendicular_xyz, dot, norm, unit, unit_
 from straylight.util.gridinterp import LinearGrid
 from straylight.util.kernel_cache import njit
 
-#: the tables' private helpers, for earthshine_table, moonlit_table and lamp_table only
+#: the tables' private helpers, for sunlit_table, moonlit_table and table only
 __all__: list[str] = []
 
 

@@ -9,6 +9,7 @@ too (:mod:`straylight.sources.earthshine.sunlit`)."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +21,22 @@ from straylight.sources.earthshine.engine import EARTH_PARTS, Earthshine
 from straylight.sources.rates import BandRates
 
 __all__ = ["MoonlitEarth"]
+
+
+@dataclass
+class _Considered:
+    """The samples the moonlit Earth considers, flattened: satellite, Sun, Moon (km) and line of
+    sight (n, 3); door (deg) and floor (band -> e-/s/pix) (n,); their scene runs; ``cand``: their
+    flat indices among all samples (None: all)."""
+
+    sat: np.ndarray
+    sun: np.ndarray
+    moon: np.ndarray
+    los: np.ndarray
+    door: np.ndarray
+    floor: dict
+    runs: object
+    cand: np.ndarray | None
 
 
 class MoonlitEarth:
@@ -157,80 +174,25 @@ class MoonlitEarth:
         sunlit_lut = self.engine.sunlit_lut
         if sunlit_lut is None:
             return BandRates()
-        moon_at_earth = samples.moon_lamp["at_earth"]
         # the Earth's band albedo over the grey one: the skip compares the band's earthshine
         factors = self.engine.band_factors(bands)
         moon_at_earth_unit = {
             name: self.context.photometry(name).sun_at_1au_photons_s_m2
             * (1.0 if factors is None else float(factors[i]))
-            * moon_at_earth
+            * samples.moon_lamp["at_earth"]
             for i, name in enumerate(bands)
         }
-        floor = samples.floor
-        off, re_km = self.engine.grid, self.context.campaign.earth.radius_km
-        shape, frame, runs, mlut = samples.shape, samples.frame, samples.runs, self.model["lut"]
-        sat_b, sun_b, moon_b, los_b = (
-            np.broadcast_to(np.asarray(v, float), shape + (3,)).reshape(-1, 3)
-            for v in (samples.satellite_km, samples.sun_km, samples.moon_km, frame.z)
-        )
-        door_b = np.broadcast_to(np.asarray(samples.door_deg, float), shape).reshape(-1)
-        floor_b = {b: np.broadcast_to(floor[b], shape).reshape(-1) for b in moon_at_earth_unit}
-        cand = None  # the samples considered (flat indices; None: all)
-        if mlut is not None:
-            runs = scene_rows(sat_b, moon_b, runs=runs)  # found once here if not known
-            dark = mlut.dark_runs(runs)
-            if np.all(dark):
-                return BandRates()
-            if np.any(dark):
-                cand = np.flatnonzero(~np.take(dark, runs.index))
-                # (the Sun's rows serve the direct moonlit sum only, which has no dark test)
-                sat_b, moon_b, los_b = (np.take(v, cand, axis=0) for v in (sat_b, moon_b, los_b))
-                door_b = np.take(door_b, cand)
-                floor_b = {b: np.take(v, cand) for b, v in floor_b.items()}
-                runs = runs.at(cand)
-        bound = self.bound(sunlit_lut, sat_b, moon_b, los_b, runs)
-        need = np.zeros(bound.shape, bool)
-        for b, e_moon in moon_at_earth_unit.items():
-            e_moon = np.broadcast_to(e_moon, shape).reshape(-1)
-            need |= bound * (e_moon if cand is None else np.take(e_moon, cand)) > (
-                self.policy.moonlit_skip_share * self.policy.tolerance * floor_b[b]
-            )
-        if not np.any(need):
+        flat = self._considered(samples, moon_at_earth_unit)
+        if flat is None:
             return BandRates()
-        # a coarse grid is enough where a line of sight can be observable (>= the dark-limb angle
-        # above the limb).  Nearer the limb and below it no Earth grid converges (blocks next to
-        # the field edge meet the PST's jump), so the configured grid would cost several times
-        # more for numbers no better than indicative: the coarse grid runs there too.
-        at = np.flatnonzero(need)  # among the samples considered
-        sub = TelescopeFrame(
-            *(
-                rows_at(a, shape, at if cand is None else np.take(cand, at))
-                for a in (frame.x, frame.y, frame.z)
-            )
-        )
-        door_need = np.take(door_b, at)
-        if mlut is not None:  # the coarse grid's sum, tabulated
-            direct_moon, door_moon = mlut.coefficients(
-                np.take(sat_b, at, axis=0),
-                np.take(moon_b, at, axis=0),
-                sub,
-                door_need,
-                None if runs is None else runs.at(at),
-            )
-        else:
-            c = off.earthshine_coefficients(
-                *(np.take(v, at, axis=0) for v in (sat_b, sun_b, moon_b)),
-                sub,
-                door_need,
-                re_km,
-                in_field=False,
-                sun=False,
-                grid=self.grid,
-            )
-            direct_moon, door_moon = c["direct_moon"], c["door_moon"]
-        flat = np.unravel_index(at if cand is None else np.take(cand, at), shape)
+        at = self._needed(sunlit_lut, samples.shape, flat, moon_at_earth_unit)
+        if not at.size:
+            return BandRates()
+        direct_moon, door_moon = self._coarse_sum(samples, flat, at)
+        shape = samples.shape
+        rows = np.unravel_index(at if flat.cand is None else np.take(flat.cand, at), shape)
         direct, door = np.zeros(shape), np.zeros(shape)
-        direct[flat], door[flat] = direct_moon, door_moon
+        direct[rows], door[rows] = direct_moon, door_moon
         return BandRates(
             per_lamp={
                 "earthshine_direct": {"moon_at_earth": direct},
@@ -238,6 +200,78 @@ class MoonlitEarth:
             },
             band_factors={} if factors is None else {p: factors for p in EARTH_PARTS},
         )
+
+    def _considered(self, samples: Samples, bands) -> _Considered | None:
+        """The samples flattened, less (with the table) those whose Moon zenith angle lies beyond
+        its ``dark_moon_zenith_deg``; None when every sample is dark."""
+        shape, runs, mlut = samples.shape, samples.runs, self.model["lut"]
+        sat_b, sun_b, moon_b, los_b = (
+            np.broadcast_to(np.asarray(v, float), shape + (3,)).reshape(-1, 3)
+            for v in (samples.satellite_km, samples.sun_km, samples.moon_km, samples.frame.z)
+        )
+        door_b = np.broadcast_to(np.asarray(samples.door_deg, float), shape).reshape(-1)
+        floor_b = {b: np.broadcast_to(samples.floor[b], shape).reshape(-1) for b in bands}
+        cand = None  # the samples considered (flat indices; None: all)
+        if mlut is not None:
+            runs = scene_rows(sat_b, moon_b, runs=runs)  # found once here if not known
+            dark = mlut.dark_runs(runs)
+            if np.all(dark):
+                return None
+            if np.any(dark):
+                cand = np.flatnonzero(~np.take(dark, runs.index))
+                # (the Sun's rows serve the direct moonlit sum only, which has no dark test)
+                sat_b, moon_b, los_b = (np.take(v, cand, axis=0) for v in (sat_b, moon_b, los_b))
+                door_b = np.take(door_b, cand)
+                floor_b = {b: np.take(v, cand) for b, v in floor_b.items()}
+                runs = runs.at(cand)
+        return _Considered(sat_b, sun_b, moon_b, los_b, door_b, floor_b, runs, cand)
+
+    def _needed(self, sunlit_lut, shape: tuple, flat: _Considered, moon_at_earth_unit: dict) -> np.ndarray:
+        """Indices among the considered samples where :meth:`bound` times the Moon's light in
+        some band exceeds ``moonlit_skip_share`` x the tolerance x the sample's floor."""
+        bound = self.bound(sunlit_lut, flat.sat, flat.moon, flat.los, flat.runs)
+        need = np.zeros(bound.shape, bool)
+        for b, e_moon in moon_at_earth_unit.items():
+            e_moon = np.broadcast_to(e_moon, shape).reshape(-1)
+            need |= bound * (e_moon if flat.cand is None else np.take(e_moon, flat.cand)) > (
+                self.policy.moonlit_skip_share * self.policy.tolerance * flat.floor[b]
+            )
+        return np.flatnonzero(need)
+
+    def _coarse_sum(self, samples: Samples, flat: _Considered, at: np.ndarray) -> tuple:
+        """(direct, door) coefficients of the moonlit Earth on the coarse grid at the considered
+        samples ``at``, from its table or summed directly.
+
+        A coarse grid is enough where a line of sight can be observable (>= the dark-limb angle
+        above the limb).  Nearer the limb and below it no Earth grid converges (blocks next to
+        the field edge meet the PST's jump), so the configured grid would cost several times
+        more for numbers no better than indicative: the coarse grid runs there too."""
+        shape, frame, mlut = samples.shape, samples.frame, self.model["lut"]
+        sub = TelescopeFrame(
+            *(
+                rows_at(a, shape, at if flat.cand is None else np.take(flat.cand, at))
+                for a in (frame.x, frame.y, frame.z)
+            )
+        )
+        door_need = np.take(flat.door, at)
+        if mlut is not None:  # the coarse grid's sum, tabulated
+            return mlut.coefficients(
+                np.take(flat.sat, at, axis=0),
+                np.take(flat.moon, at, axis=0),
+                sub,
+                door_need,
+                None if flat.runs is None else flat.runs.at(at),
+            )
+        c = self.engine.grid.earthshine_coefficients(
+            *(np.take(v, at, axis=0) for v in (flat.sat, flat.sun, flat.moon)),
+            sub,
+            door_need,
+            self.context.campaign.earth.radius_km,
+            in_field=False,
+            sun=False,
+            grid=self.grid,
+        )
+        return c["direct_moon"], c["door_moon"]
 
     def record(self, sunlit_table_runs: bool) -> str:
         """How the moonlit Earth was summed, for a product's attributes.

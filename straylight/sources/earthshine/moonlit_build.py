@@ -1,7 +1,7 @@
 """The moonlit Earth's look-up table: its build, its validation and its cache.
 
 The table (:class:`~straylight.sources.earthshine.moonlit_table.MoonlitLUT`) holds the direct sum of
-:class:`~straylight.sources.offfield.OffFieldModel` on the coarse Earth-cap grid at its nodes
+:class:`~straylight.sources.earthshine.engine.EarthGrid` on the coarse Earth-cap grid at its nodes
 (:class:`~straylight.sources.earthshine.nodes.MoonlitSettings`), built one Moon zenith
 angle per task in threads as the sunlit Earth's table is
 (:func:`~straylight.sources.earthshine.table.build_lamp_table`), validated against the direct sum at random
@@ -98,7 +98,7 @@ def build_moonlit_lut(
 
     Parameters
     ----------
-    off : OffFieldModel
+    off : EarthGrid
         The off-field transfer and Earth grid.
     earth_radius_km : float
         The Earth's radius, km.

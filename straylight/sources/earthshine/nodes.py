@@ -170,7 +170,7 @@ def mirror_symmetric(off) -> bool:
 
     Parameters
     ----------
-    off : OffFieldModel
+    off : EarthGrid
         The off-field transfer and Earth grid.
 
     Returns

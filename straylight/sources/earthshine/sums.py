@@ -1,5 +1,5 @@
 """The Earth-grid sums of earthshine (seed paper sect. 3.2): :class:`EarthshineSums`, the part
-of :class:`~straylight.sources.offfield.OffFieldModel` (which inherits it) that sums the sunlit
+of :class:`~straylight.sources.earthshine.engine.EarthGrid` (which inherits it) that sums the sunlit
 and moonlit Earth over the cap grid of :class:`~straylight.sources.earthshine.grid.EarthCapGrid`
 (the coefficients, a scene's lit blocks and sums, the lamp bound and the compiled kernel's
 tables).
@@ -33,7 +33,7 @@ __all__ = ["EarthshineSums"]
 
 
 class EarthshineSums:
-    """The earthshine sums' methods of :class:`~straylight.sources.offfield.OffFieldModel` (a
+    """The earthshine sums' methods of :class:`~straylight.sources.earthshine.engine.EarthGrid` (a
     mixin: it reads the model's fields and the cap grid of
     :class:`~straylight.sources.earthshine.grid.EarthCapGrid`)."""
 

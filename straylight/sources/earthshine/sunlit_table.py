@@ -1,6 +1,6 @@
 """The sunlit Earth's look-up table, read and interpolated at samples.
 
-The sunlit-Earth coefficients of :meth:`OffFieldModel.earthshine_coefficients` (direct through
+The sunlit-Earth coefficients of :meth:`EarthGrid.earthshine_coefficients` (direct through
 the PST and via the door, per unit solar irradiance) depend on the scene only through
 four quantities, because the problem is symmetric under rotation about the local vertical:
 

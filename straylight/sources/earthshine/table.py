@@ -193,7 +193,7 @@ def build_lamp_table(
 
     Parameters
     ----------
-    off : OffFieldModel
+    off : EarthGrid
         The off-field transfer and Earth grid (its door states).
     scene : callable
         ``scene(*task)`` -> (direct, door, ...): arrays (the task's nodes, door states
