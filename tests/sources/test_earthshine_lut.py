@@ -303,10 +303,14 @@ def test_save_load_round_trip_and_cache_key(coarse, tmp_path, campaign):
         off.pst.values * np.where(off.pst.theta_deg > 60.0, 0.5, 1.0)[:, None],
     )
     assert k != lut_key(
-        replace(off, pst=darker), 6378.137, (6778.137, 6778.137), LUTSettings(5, 5, 20), 1e-20
+        replace(off, transfer=replace(off.transfer, pst=darker)),
+        6378.137,
+        (6778.137, 6778.137),
+        LUTSettings(5, 5, 20),
+        1e-20,
     )
     assert k != lut_key(
-        replace(off, door=replace(off.door, body_radius_m=1.5)),
+        replace(off, transfer=replace(off.transfer, door=replace(off.door, body_radius_m=1.5))),
         6378.137,
         (6778.137, 6778.137),
         LUTSettings(5, 5, 20),
