@@ -75,7 +75,9 @@ def model_with_grid(campaign, grid, split=None, tail=None):
         from straylight.optics.pst import load_pst
 
         pst = load_pst(None, off.field_radius_deg, float(tail))
-    cm.context.__dict__["offfield"] = replace(off, earthshine=es, pst=pst)  # before any source reads it
+    transfer = replace(off.transfer, pst=pst)
+    cm.context.__dict__["offfield"] = transfer  # before any source reads them
+    cm.sunlit_earth.engine.__dict__["grid"] = replace(off, transfer=transfer, earthshine=es)
     return cm
 
 
