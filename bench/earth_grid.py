@@ -64,7 +64,7 @@ def model_with_grid(campaign, grid, split=None, tail=None):
     raw = copy.deepcopy(campaign.config)
     raw["models"]["earthshine"]["method"] = "direct"
     cm = BackgroundModel(campaign_from_dict(raw, campaign.path))
-    off = cm.context.offfield
+    off = cm.sunlit_earth.engine.grid
     es = off.earthshine
     if grid is not None:
         es = replace(es, n_gamma=int(grid[0]), n_psi=int(grid[1]))
@@ -75,7 +75,9 @@ def model_with_grid(campaign, grid, split=None, tail=None):
         from straylight.optics.pst import load_pst
 
         pst = load_pst(None, off.field_radius_deg, float(tail))
-    cm.context.__dict__["offfield"] = replace(off, earthshine=es, pst=pst)  # before any source reads it
+    transfer = replace(off.transfer, pst=pst)
+    cm.context.__dict__["offfield"] = transfer  # before any source reads them
+    cm.sunlit_earth.engine.__dict__["grid"] = replace(off, transfer=transfer, earthshine=es)
     return cm
 
 
@@ -158,7 +160,7 @@ def main() -> int:
         cm = model_with_grid(campaign, a.grid, split, a.pst_tail)
         t0 = time.perf_counter()
         got = totals(cm, sat, bodies, los, g, bands, a.chunk)
-        es = cm.context.offfield.earthshine
+        es = cm.sunlit_earth.engine.grid.earthshine
         run = {
             "grid": [es.n_gamma, es.n_psi],
             "cut_block_split": es.cut_block_split,

@@ -25,7 +25,7 @@ def main():
     from straylight.config import load_campaign
     from straylight.model import BackgroundModel
     from straylight.sky.frames import telescope_frame
-    from straylight.sources.offfield_cap import EarthshineSettings
+    from straylight.sources.earthshine.grid import EarthshineSettings
     from straylight.sources.photometry import BandPhotometry
 
     c = load_campaign()
@@ -42,14 +42,14 @@ def main():
     t0 = time.perf_counter()
     out = cm.evaluate(sc.satellite_km, sc.bodies_km, los, g, ["g"])
     t_all = time.perf_counter() - t0
-    off = cm.context.offfield
+    off = cm.sunlit_earth.engine.grid
     frame = telescope_frame(los, sc.bodies_km["sun"] - sc.satellite_km)
     phot = BandPhotometry(cm.context.band("g"))
     sun_irr = np.full(n, phot.sun_at_1au_photons_s_m2)
     moon_irr = sun_irr * 10 ** (-0.4 * 14.0)
     results = {"samples": n, "band": "g", "all_terms_s_per_sample_one_band": t_all / n, "earthshine": {}}
     t0 = time.perf_counter()
-    off.point_source(
+    off.transfer.point_source(
         sun_irr, g["sun_angle_deg"], g["sun_phi_deg"], g["sun_earth_blocked"], g["door_opening_deg"]
     )
     results["point_source_s_per_sample"] = (time.perf_counter() - t0) / n

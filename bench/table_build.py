@@ -6,7 +6,7 @@ folder, so the user's cache is untouched), each with ``--workers`` threads, the 
 and its door tables made before the clocks start.  Per table: its (node, door state) pairs, the
 process's CPU seconds (user + system, every thread) and wall seconds for the build with its
 validation, CPU seconds per pair, and the figure assumed
-(``earthshine_table_nodes.LUT_BUILD_SECONDS_PER_NODE``, ``MOONLIT_LUT_BUILD_SECONDS_PER_NODE``).
+(``earthshine.nodes.LUT_BUILD_SECONDS_PER_NODE``, ``MOONLIT_LUT_BUILD_SECONDS_PER_NODE``).
 CPU seconds, not wall, because the machine is shared: the wall depends on the load (recorded).
 
 Writes bench/results/table_build.json.
@@ -47,11 +47,11 @@ def main() -> int:
 
     from straylight.config import load_campaign
     from straylight.model import BackgroundModel
-    from straylight.sources import earthshine_table_nodes as nodes
+    from straylight.sources.earthshine import nodes as nodes
 
     campaign = load_campaign()
     model = BackgroundModel(campaign, build_workers=a.workers)
-    off = model.context.offfield
+    off = model.sunlit_earth.engine.grid
     nodes.mirror_symmetric(off)
     off._kernel_tables  # the model's set-up, not the build's
     moonlit, sunlit = model.source("moonlit_earth"), model.sunlit_earth

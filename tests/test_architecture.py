@@ -306,3 +306,40 @@ def test_no_module_is_longer_than_the_limit():
         if (n := len(p.read_text().splitlines())) > MAX_MODULE_LINES
     }
     assert long == {}
+
+
+#: what the sources' base (straylight.sources.context: Samples, Source, SourceContext) may
+#: import from straylight.sources, directly or through them: shared modules, no source of light
+SOURCES_BASE_MAY_REACH = {
+    "straylight.sources",
+    "straylight.sources.context",
+    "straylight.sources.offfield",
+    "straylight.sources.photometry",
+    "straylight.sources.rates",
+}
+
+
+def test_the_sources_base_imports_no_source():
+    """Every source builds on straylight.sources.context; it reaches (transitively) only the
+    shared modules of SOURCES_BASE_MAY_REACH, never a source (the zodiacal floor is passed in)."""
+    edges = _module_edges()
+    reached, todo = set(), ["straylight.sources.context"]
+    while todo:
+        a = todo.pop()
+        for x, b in edges:
+            if x == a and b.startswith("straylight.sources") and b not in reached:
+                reached.add(b)
+                todo.append(b)
+    assert reached - SOURCES_BASE_MAY_REACH == set()
+
+
+def test_no_source_is_built_from_another():
+    """The registry's factories build a source from the model's context, policy and shared
+    parts (``model.shared``), never by asking the model for another source (``model.source``)."""
+    path = PACKAGE / "model" / "registry.py"
+    calls = [
+        f"model/registry.py:{node.lineno}"
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8")))
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr == "source"
+    ]
+    assert calls == []

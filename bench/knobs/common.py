@@ -91,7 +91,7 @@ class Bench:
                 zip(("sun_zenith_step_deg", "los_zenith_step_deg", "azimuth_step_deg"), lut_steps)
             )
         cm = BackgroundModel(campaign_from_dict(raw, self.campaign.path))
-        off = cm.context.offfield
+        off = cm.sunlit_earth.engine.grid
         es = replace(
             off.earthshine,
             n_gamma=n_gamma,
@@ -100,7 +100,9 @@ class Bench:
             n_aperture_door=n_aperture_door,
         )
         pst = off.pst if tuple(pst_step) == (0.5, 5.0) else PST(*default_pst_grid(*pst_step), source="bench")
-        cm.context.__dict__["offfield"] = replace(off, earthshine=es, pst=pst)  # before any source reads it
+        transfer = replace(off.transfer, pst=pst)
+        cm.context.__dict__["offfield"] = transfer  # before any source reads them
+        cm.sunlit_earth.engine.__dict__["grid"] = replace(off, transfer=transfer, earthshine=es)
         return cm
 
     def evaluate(self, cm, stars, sl=slice(None)):

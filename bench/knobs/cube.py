@@ -229,7 +229,7 @@ def auto_cost_model(lut_model, cube: dict) -> dict:
     """``straylight plan``'s two earthshine constants against this run: the seconds a cube sample
     saves on the table path (measured just now; fidelity.LUT_SAVED_SECONDS_PER_SAMPLE) and the
     table's build seconds per node and door state (as recorded when the cached table was built,
-    on whatever cores it had; earthshine_table_nodes.LUT_BUILD_SECONDS_PER_NODE), and after how many
+    on whatever cores it had; earthshine.nodes.LUT_BUILD_SECONDS_PER_NODE), and after how many
     samples a build is repaid.  A measured figure far from the assumed one means the constants
     want updating."""
     from straylight.model import fidelity as comp

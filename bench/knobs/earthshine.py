@@ -82,7 +82,7 @@ def moonlit_grid_rows(bench, day: str = "2026-01-03", time_step: int = 24, n_tim
 
     from straylight.cube.footprint import footprint_from_config
     from straylight.cube.region import compute_region
-    from straylight.sources.earthshine_table_nodes import MoonlitSettings
+    from straylight.sources.earthshine.nodes import MoonlitSettings
 
     base = bench.campaign
     fp = footprint_from_config(base.config["footprint"])

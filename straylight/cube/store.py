@@ -177,7 +177,7 @@ def empty_cube(campaign: Campaign, fp: Footprint, times, model, stars_path=None,
 
 def _earth_albedo_record(campaign: Campaign, model) -> dict:
     """The Earth's albedo spectrum and its band albedos (JSON-able)."""
-    from straylight.sources.earth_albedo import band_albedo
+    from straylight.sources.earthshine.albedo import band_albedo
 
     es = campaign.settings.models.earthshine
     bands = [model.context.band(b) for b in campaign.bands]

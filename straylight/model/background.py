@@ -25,6 +25,7 @@ from straylight.sources.context import Samples, SourceContext
 from straylight.sources.photometry import magnitude_per_arcsec2
 from straylight.sources.rates import LAMPS
 from straylight.sources.stars_table import StarTable
+from straylight.sources.zodiacal import campaign_zodiacal_model
 from straylight.util.kernel_cache import njit
 
 __all__ = ["BackgroundModel", "KERNEL_BLOCK_SAMPLES"]
@@ -59,7 +60,9 @@ class BackgroundModel:
             build_workers = available_cores()
         self.build_workers = build_workers
         self.policy = FidelityPolicy(campaign, moonlit_skip_share)
-        self.context = SourceContext(campaign)
+        self.context = SourceContext(
+            campaign, zodiacal_floor=campaign_zodiacal_model(campaign).darkest_e_per_s_per_pix
+        )
         self.body_skip = SolarBodySkip(self.context, self.policy)
         self.in_field = InFieldBodies(self.context)
         # the registry as it is now: a source registered later is not this model's
@@ -69,10 +72,30 @@ class BackgroundModel:
         self.leaves = registry.leaves()
         self.outputs = registry.band_components()
         self._built = {}
+        self._shared = {}
         self.sources = {e.name: self.source(e.name) for e in self.entries}
 
+    def shared(self, name: str, make):
+        """A part several sources share (the earthshine engine), ``make()`` on first use.
+
+        Parameters
+        ----------
+        name : str
+            The part's name.
+        make : callable
+            ``make() -> object``, called once per model.
+
+        Returns
+        -------
+        object
+            The part.
+        """
+        if name not in self._shared:
+            self._shared[name] = make()
+        return self._shared[name]
+
     def source(self, name: str):
-        """The source ``name`` of the registry, built on first use (a source may ask for another).
+        """The source ``name`` of the registry, built on first use.
 
         Parameters
         ----------

@@ -19,7 +19,7 @@ times per-band factors, summed: no second evaluation.
   together), over the configured value: scales the earthshine via the door.
 * ``earth_albedo``: the Earth's albedo level along the orbit over the grey albedo, times, per
   band, the spread of the published albedo spectra (``earth_albedo_spectra``, each at the same
-  Bond albedo) around the configured one (:mod:`straylight.sources.earth_albedo`): scales the
+  Bond albedo) around the configured one (:mod:`straylight.sources.earthshine.albedo`): scales the
   earthshine (sunlit and moonlit, direct and via the door).
 
 * ``zero_point``: a band's unpublished AB zero point (the instrument's
@@ -354,7 +354,7 @@ def _albedo(campaign, spec, bands, context):
     """(dark, bright) factors and (range, unit, source) of the Earth's albedo: the level's range
     over the grey albedo, times per band the published spectra's spread about the configured
     one."""
-    from straylight.sources.earth_albedo import band_albedo_factors
+    from straylight.sources.earthshine.albedo import band_albedo_factors
 
     es = campaign.settings.models.earthshine
     grey = float(es.albedo)

@@ -13,7 +13,7 @@ from functools import cached_property
 from straylight.config import Campaign
 
 # the tables' build per (node, door state) is given with the tables
-from straylight.sources.earthshine_table_nodes import (
+from straylight.sources.earthshine.nodes import (
     LUT_BUILD_SECONDS_PER_NODE,
     MOONLIT_LUT_BUILD_SECONDS_PER_NODE,
 )

@@ -20,10 +20,9 @@ docs/architecture.md gives the steps."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Protocol, Sequence
+from typing import Callable
 
-from straylight.sources.context import Samples
-from straylight.sources.rates import BandRates
+from straylight.sources.context import Source
 
 __all__ = [
     "COMPONENTS",
@@ -45,28 +44,6 @@ __all__ = [
 TOTAL = "total"
 #: the unit of every per-band component
 E_PER_S_PER_PIXEL = "electron / (s pixel)"
-
-
-class Source(Protocol):
-    """What the background model asks a source of light."""
-
-    def rates(self, samples: Samples, bands: Sequence[str]) -> BandRates:
-        """The source's e-/s/pix in each band at the samples.
-
-        Parameters
-        ----------
-        samples : Samples
-            The batch of (time, pointing) samples; a skippable source also reads its
-            ``floor`` and ``floor_ratio``, which the model sets before asking it.
-        bands : sequence of str
-            Band names of the instrument.
-
-        Returns
-        -------
-        BandRates
-            Per-band arrays (bands, samples) and/or per-lamp coefficients of the samples'
-            shape, keyed by the component (or part) the source adds to.
-        """
 
 
 @dataclass(frozen=True)
@@ -129,8 +106,8 @@ class SourceEntry:
         the source's :class:`~straylight.sources.rates.BandRates`), or one part of it.
     factory : callable
         ``factory(model) -> Source``; ``model`` is the :class:`BackgroundModel` being built
-        (its ``context``, ``policy``, ``build_workers``, and ``source(name)`` for another
-        source this one depends on).
+        (its ``context``, ``policy``, ``build_workers``, and ``shared(name, make)`` for a part
+        several sources share, built once; a source never reaches another).
     skippable : bool
         Whether it may be skipped where its bound is below its share of the sample's floor
         (then evaluated after the sources that are never skipped, which make the floor).
@@ -183,18 +160,23 @@ def _stars(model):
     return OffFieldStars(model.context, model.policy)
 
 
-def _sunlit_earth(model):
-    from straylight.sources.sunlit_earth import SunlitEarth
+def _earthshine(model):
+    """The earthshine engine the sunlit and the moonlit Earth share, built once per model."""
+    from straylight.sources.earthshine.engine import Earthshine
 
-    return SunlitEarth(model.context, model.policy, model.source("moonlit_earth"), model.build_workers)
+    return model.shared("earthshine", lambda: Earthshine(model.context, model.policy, model.build_workers))
+
+
+def _sunlit_earth(model):
+    from straylight.sources.earthshine.sunlit import SunlitEarth
+
+    return SunlitEarth(_earthshine(model))
 
 
 def _moonlit_earth(model):
-    from straylight.sources.moonlit_earth import MoonlitEarth
+    from straylight.sources.earthshine.moonlit import MoonlitEarth
 
-    return MoonlitEarth(
-        model.context, model.policy, model.build_workers, sunlit=lambda: model.source("sunlit_earth")
-    )
+    return MoonlitEarth(_earthshine(model))
 
 
 #: the per-band components, in the order they are added into the total

@@ -248,7 +248,7 @@ def machine_speed(
 
 def probed_speed_factor(campaign: Campaign, cores: int) -> float:
     """The time of this machine against the cost figures' now, on ``cores`` cores: the table build's
-    probe (:func:`~straylight.sources.earthshine_table_build.build_speed_factor`, a few of the
+    probe (:func:`~straylight.sources.earthshine.sunlit_build.build_speed_factor`, a few of the
     sunlit table's scenes in ``cores`` threads, a few seconds, cached), which sees both the
     cores' speed and how much of them other processes leave free.
 
@@ -265,12 +265,11 @@ def probed_speed_factor(campaign: Campaign, cores: int) -> float:
         Measured time over the figures' (> 1: slower).
     """
     from straylight.model import BackgroundModel
-    from straylight.sources.earthshine_table_build import build_speed_factor
+    from straylight.sources.earthshine.sunlit_build import build_speed_factor
 
     model = BackgroundModel(campaign)
-    ctx = model.sunlit_earth.context
     return build_speed_factor(
-        ctx.offfield,
+        model.sunlit_earth.engine.grid,
         campaign.earth.radius_km,
         campaign.orbit_radius_range_km,
         model.sunlit_earth.choice["settings"],

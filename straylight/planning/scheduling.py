@@ -123,10 +123,10 @@ def bright_limb_table(
         ``sun_zenith_deg`` (deg) and, per band, ``min_limb_elevation_deg_<band>`` (deg above
         the limb; inf and NaN as above).
     """
-    from straylight.sources.earthshine_table_build import sun_coefficients_direct
+    from straylight.sources.earthshine.sunlit_build import sun_coefficients_direct
 
     c: Campaign = model.campaign
-    off = model.context.offfield
+    off = model.sunlit_earth.engine.grid
     re_km = c.earth.radius_km
     r = 0.5 * sum(c.orbit_radius_range_km)
     limb_zeta = 90.0 + np.degrees(np.arccos(re_km / r))
@@ -165,7 +165,7 @@ def bright_limb_table(
             )
             coeff[sel] = d + g
     out = {"sun_zenith_deg": zs}
-    from straylight.sources.earth_albedo import earth_band_factors
+    from straylight.sources.earthshine.albedo import earth_band_factors
 
     albedo = earth_band_factors(model.context, tuple(c.bands))  # the Earth's band albedo / grey
     for ib, b in enumerate(c.bands):

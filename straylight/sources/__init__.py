@@ -10,21 +10,16 @@ the scene's brighter light swamps them, the upper bound the skip is decided on.
 - ``body_magnitudes``: the Moon's and planets' brightness laws and the Moon's distances.
 - ``stars``: off-field catalog stars, the bright ones pair by pair (skipped per sky cell on a
   bound), the faint ones as a smoothed map.
-- ``sunlit_earth``: the sunlit Earth (direct and via the door), its direct sum or its table.
-- ``moonlit_earth``: the moonlit Earth on the table's path (skipped on a bound, else a coarse
-  grid, tabulated or summed).
-- ``earthshine_table``: the sunlit Earth's table, read and looked up (and the moonlit bound).
-- ``moonlit_table``: the moonlit Earth's table, read and looked up.
-- ``earthshine_table_lookup``: what the two tables share (coordinates, interpolation, files).
-- ``earthshine_table_nodes``: the two tables' nodes and cache keys.
-- ``earthshine_table_build``, ``moonlit_table_build``: each table's build, validation against
-  the direct sum and cache.
-- ``offfield``: what the off-field sources share: the transfer (Se Sp PST x pixel area) and the
-  Earth-grid sum (the sunlit and moonlit Earth summed directly over the visible cap), which it
-  inherits from ``offfield_cap`` (the Earth grid's settings, the cap grid and its bound) and
-  ``offfield_earthshine`` (the sums).
+- ``earthshine``: the sunlit and moonlit Earth, a package: the Earth grid (``grid``, ``sums``,
+  the compiled ``kernel``), the Earth's band albedos (``albedo``), the look-up tables (``table``,
+  their base; ``sunlit_table``, ``moonlit_table``, their builds and shared ``lookup`` and
+  ``nodes``), the one engine both sources wrap (``engine``) and the two sources (``sunlit``,
+  ``moonlit``).
+- ``offfield``: the off-field transfer every source outside the field goes through (Se Sp PST x
+  pixel area).
 - ``photometry``: band photometry (solar and AB irradiances, magnitudes per arcsec2).
-- ``context``: the campaign's instrument as every source sees it, and the batch of samples.
+- ``context``: the base, importing no source: the batch of samples, the ``Source`` protocol, and
+  the campaign's instrument as every source sees it (the zodiacal floor passed in).
 
 Solar-spectrum sources (the Sun, Moon, planets, both Earths) give band-independent rates, in
 e-/s/pix per photon s-1 m-2 of the Sun at 1 AU (or of their lamp), that each band's solar

@@ -1,13 +1,16 @@
-"""What every source of light shares: the campaign, the off-field transfer (PST, door, Earth
-blocking: :class:`~straylight.sources.offfield.OffFieldModel`), each band's throughput and solar
-photometry, and the darkest sky every skip bound is measured against; and :class:`Samples`, the
-batch of (time, pointing) samples every source is asked about."""
+"""The base every source of light builds on, importing no source: :class:`Samples`, the batch of
+(time, pointing) samples every source is asked about; :class:`Source`, the one question it
+answers; and :class:`SourceContext`, what every source shares: the campaign, the off-field
+transfer (PST, door, Earth blocking: :class:`~straylight.sources.offfield.OffFieldModel`), each
+band's throughput and solar photometry, and the darkest sky every skip bound is measured against
+(the zodiacal floor, passed in by the model)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
+from typing import Callable, Protocol, Sequence
 
 import numpy as np
 
@@ -18,11 +21,10 @@ from straylight.optics.pst import load_pst
 from straylight.sky.frames import TelescopeFrame
 from straylight.sky.vectors import norm
 from straylight.sources.offfield import OffFieldModel
-from straylight.sources.offfield_cap import EarthshineSettings
-from straylight.sources.photometry import AU_KM, BandPhotometry
-from straylight.sources.zodiacal import ZodiacalModel, zodiacal_model_from_instrument
+from straylight.sources.photometry import AU_KM, BandPhotometry, pixel_etendue_m2_sr
+from straylight.sources.rates import BandRates
 
-__all__ = ["Samples", "SourceContext"]
+__all__ = ["Samples", "Source", "SourceContext"]
 
 
 @dataclass
@@ -82,40 +84,56 @@ class Samples:
         return (AU_KM / norm(self.sun_km - self.satellite_km)) ** 2
 
 
+class Source(Protocol):
+    """What the background model asks a source of light."""
+
+    def rates(self, samples: Samples, bands: Sequence[str]) -> BandRates:
+        """The source's e-/s/pix in each band at the samples.
+
+        Parameters
+        ----------
+        samples : Samples
+            The batch of (time, pointing) samples; a skippable source also reads its
+            ``floor`` and ``floor_ratio``, which the model sets before asking it.
+        bands : sequence of str
+            Band names of the instrument.
+
+        Returns
+        -------
+        BandRates
+            Per-band arrays (bands, samples) and/or per-lamp coefficients of the samples'
+            shape, keyed by the component (or part) the source adds to.
+        """
+
+
 @dataclass
 class SourceContext:
-    """One campaign's instrument as the sources see it: the off-field transfer, the zodiacal
-    model (for the darkest sky), the bands and their solar photometry.  Built once per model;
-    everything is cached.
+    """One campaign's instrument as the sources see it: the off-field transfer, the bands and
+    their solar photometry, and the darkest sky.  Built once per model; everything is cached.
 
     Attributes
     ----------
     campaign : Campaign
         The campaign (instrument, settings, bands, Earth and orbit).
+    zodiacal_floor : callable, optional
+        ``zodiacal_floor(band) -> float``: e-/s/pix of the darkest zodiacal light in a
+        :class:`~straylight.optics.bandpass.Band`
+        (:meth:`~straylight.sources.zodiacal.ZodiacalModel.darkest_e_per_s_per_pix`); None: a
+        context without floors (its bands and transfer only).
     """
 
     campaign: Campaign
-
-    @cached_property
-    def zodiacal(self) -> ZodiacalModel:
-        """The zodiacal-light model (models.zodiacal_spectrum and zodiacal_reddening)."""
-        models = self.campaign.settings.models
-        return zodiacal_model_from_instrument(
-            self.campaign.instrument_settings,
-            models.zodiacal_spectrum,
-            models.zodiacal_reddening.as_tuple(),
-        )
+    zodiacal_floor: Callable[[Band], float] | None = None
 
     @cached_property
     def offfield(self) -> OffFieldModel:
-        """The off-field transfer from the instrument (PST, door, pixel, field radius) and
-        models.earthshine's Earth grid, albedo and door reflection."""
+        """The off-field transfer from the instrument (PST, door, pixel, field radius) and the
+        models' Moon phase law and eclipse factor."""
         inst = self.campaign.instrument_settings
         pst_file = inst.pst.file
         if pst_file and not Path(pst_file).is_absolute():
             pst_file = self.campaign.instrument_path.parent / pst_file
         models = self.campaign.settings.models
-        es = models.earthshine
         fov_deg2 = needed(inst.detector.field_of_view_deg2, "detector.field_of_view_deg2").value
         field_radius_deg = float(np.sqrt(fov_deg2 / np.pi))
         return OffFieldModel(
@@ -123,17 +141,12 @@ class SourceContext:
             door=door_from_instrument(inst),
             door_states_deg=tuple(s.opening_deg for s in inst.door.states),
             pixel_area_m2=(inst.detector.pixel_size_um.value * 1e-6) ** 2,
-            pixel_etendue_m2_sr=self.zodiacal.pixel_etendue_m2_sr,
-            field_radius_deg=field_radius_deg,
-            earthshine=EarthshineSettings(
-                n_gamma=es.n_gamma,
-                n_psi=es.n_psi,
-                albedo=float(es.albedo),
-                door_blocks=es.door_blocks,
-                door_reflectance=inst.door_geometry.reflectance.value,
-                n_aperture_door=es.n_aperture_door,
-                cut_block_split=es.cut_block_split,
+            pixel_etendue_m2_sr=pixel_etendue_m2_sr(
+                inst.telescope.aperture_diameter_m.value,
+                inst.telescope.focal_length_m.value,
+                inst.detector.pixel_size_um.value * 1e-6,
             ),
+            field_radius_deg=field_radius_deg,
             moon_law=models.moon_phase_law,
             moon_eclipse_factor=float(models.moon_eclipse_factor),
         )
@@ -190,33 +203,16 @@ class SourceContext:
         float
             e-/s/pix.
         """
-        from straylight.sources.zodiacal import LEINERT_UNIT_W_M2_SR_UM, leinert_table
-
         cache = self.__dict__.setdefault("_darkest_zodiacal", {})
         if band not in cache:
-            b_min = float(np.min(leinert_table().filled)) * LEINERT_UNIT_W_M2_SR_UM
-            cache[band] = float(self.zodiacal.e_per_s_per_pix(self.band(band), b_min))
+            if self.zodiacal_floor is None:
+                raise ValueError("this source context was built without the zodiacal floor")
+            cache[band] = float(self.zodiacal_floor(self.band(band)))
         return cache[band]
 
-    @cached_property
-    def earthshine_floor(self) -> float:
-        """The darkest sky background in earthshine-coefficient units (e-/s/pix per photon
-        s-1 m-2 of the Sun at 1 AU), over the instrument's bands, each band's solar irradiance
-        times the Earth's band albedo over the grey one: errors relative to it bound errors
-        relative to the total."""
-        from straylight.sources.earth_albedo import earth_band_factors
-
-        bands = tuple(self.campaign.bands)
-        factors = earth_band_factors(self, bands)
-        if factors is None:
-            return self.solar_floor(bands)
-        return min(
-            self.darkest_zodiacal_e_per_s(b) / (self.photometry(b).sun_at_1au_photons_s_m2 * float(f))
-            for b, f in zip(bands, factors)
-        )
-
     def solar_floor(self, bands: tuple) -> float:
-        """:attr:`earthshine_floor` over ``bands`` (cached per set of bands).
+        """The darkest sky background over ``bands`` in units of the Sun's light (cached per set
+        of bands).
 
         Parameters
         ----------

@@ -1,8 +1,6 @@
 """The off-field transfer every source outside the field goes through (seed paper sects. 2.2,
-3.1-3.2): :class:`OffFieldModel`, with the Earth-grid sum of earthshine it inherits from
-:class:`~straylight.sources.offfield_cap.EarthCapGrid` (the cap grid, its lit blocks, the door's
-view of it and the cap bound) and :class:`~straylight.sources.offfield_earthshine.EarthshineSums`
-(the sums themselves).
+3.1-3.2): :class:`OffFieldModel`.  The Earth's grid over it is the earthshine's
+(:class:`~straylight.sources.earthshine.engine.EarthGrid`).
 
 Point sources (paper eq. 14):  E_p = sum_i E_i Se_i Sp_i PST(theta_i, phi_i), with E_i the band
 photon irradiance at the aperture (photons s-1 m-2), Se_i = 0 when the Earth hides the source
@@ -17,24 +15,22 @@ planets in :mod:`straylight.sources.bodies`, :mod:`straylight.sources.planets` a
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
 
 from straylight.optics.door import Door, DoorTable, behind_aperture_plane, door_state_index
 from straylight.optics.pst import PST
-from straylight.sources.offfield_cap import EarthCapGrid, EarthshineSettings
-from straylight.sources.offfield_earthshine import EarthshineSums
 from straylight.util.gridinterp import LinearGrid
 
 __all__ = ["OffFieldModel"]
 
 
 @dataclass
-class OffFieldModel(EarthCapGrid, EarthshineSums):
-    """The off-field transfer of one instrument (PST, door, pixel, field radius) and its Earth
-    grid: e-/s/pix per photon s-1 m-2 at the aperture, band-independent.
+class OffFieldModel:
+    """The off-field transfer of one instrument (PST, door, pixel, field radius): e-/s/pix per
+    photon s-1 m-2 at the aperture, band-independent.
 
     Attributes
     ----------
@@ -50,8 +46,6 @@ class OffFieldModel(EarthCapGrid, EarthshineSums):
         Aperture area times pixel solid angle, m2 sr (the Earth seen inside the field).
     field_radius_deg : float
         Radius of the field of view, deg.
-    earthshine : EarthshineSettings
-        The Earth grid, albedo and door reflection.
     moon_law : str
         The Moon's phase law (:func:`~straylight.sources.body_magnitudes.moon_v_magnitude`).
     moon_eclipse_factor : float
@@ -64,7 +58,6 @@ class OffFieldModel(EarthCapGrid, EarthshineSums):
     pixel_area_m2: float
     pixel_etendue_m2_sr: float = 0.0  # pi D^2 / 4 * (p / f)^2, for the Earth seen inside the field
     field_radius_deg: float = 0.59  # radius of the field of view, sqrt(FoV / pi); from the instrument
-    earthshine: EarthshineSettings = field(default_factory=EarthshineSettings)
     moon_law: str = "krisciunas_schaefer"
     moon_eclipse_factor: float = 1e-4
 

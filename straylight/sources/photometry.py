@@ -8,12 +8,13 @@ band-independent rates."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, lru_cache
+from importlib import resources
+from pathlib import Path
 
 import numpy as np
 
 from straylight.optics.bandpass import Band
-from straylight.sources.zodiacal import solar_spectrum
 
 __all__ = [
     "AU_KM",
@@ -22,10 +23,48 @@ __all__ = [
     "BandPhotometry",
     "sky_zero_point_mag_per_arcsec2",
     "magnitude_per_arcsec2",
+    "pixel_etendue_m2_sr",
+    "solar_spectrum",
 ]
 
 AU_KM = 1.495978707e8
 V_SUN_VEGA = -26.76
+
+
+@lru_cache(maxsize=1)
+def solar_spectrum() -> tuple[np.ndarray, np.ndarray]:
+    """ASTM E490-00a solar spectral irradiance at 1 AU: (wavelength A, W m-2 um-1).
+
+    Returns
+    -------
+    wavelength_angstrom : ndarray, shape (n,)
+        Wavelengths, Angstrom.
+    irradiance : ndarray, shape (n,)
+        Spectral irradiance at 1 AU, W m-2 um-1.
+    """
+    data = np.loadtxt(Path(resources.files("straylight") / "data" / "e490_00a.dat"), comments="#")
+    return data[:, 0] * 1.0e4, data[:, 1]
+
+
+def pixel_etendue_m2_sr(aperture_diameter_m: float, focal_length_m: float, pixel_size_m: float) -> float:
+    """Aperture area times pixel solid angle, pi D^2 / 4 * (p / f)^2: the etendue through which a
+    pixel sees an extended source (the zodiacal light, the Earth inside the field).
+
+    Parameters
+    ----------
+    aperture_diameter_m : float
+        The aperture's diameter D, m.
+    focal_length_m : float
+        The focal length f, m.
+    pixel_size_m : float
+        The pixel's side p, m.
+
+    Returns
+    -------
+    float
+        m2 sr.
+    """
+    return np.pi * aperture_diameter_m**2 / 4.0 * (pixel_size_m / focal_length_m) ** 2
 
 
 def solar_like_fraction(v_mag) -> np.ndarray:

@@ -34,6 +34,7 @@ from straylight.errors import ConfigError
 from straylight.optics.bandpass import Band
 from straylight.sky.runs import scene_rows, tiled_period
 from straylight.sky.vectors import unit
+from straylight.sources.photometry import pixel_etendue_m2_sr
 from straylight.sources.rates import BandRates
 from straylight.sources.zodiacal_colour import (
     LEINERT_REDDENING_EPS90,
@@ -61,6 +62,7 @@ __all__ = [
     "ZodiacalModel",
     "ZodiacalLight",
     "zodiacal_model_from_instrument",
+    "campaign_zodiacal_model",
 ]
 
 NO_DATA = 1.0e6
@@ -324,7 +326,7 @@ class ZodiacalModel:
     @property
     def pixel_etendue_m2_sr(self) -> float:
         """Aperture area times pixel solid angle: pi D^2 / 4 * (p / f)^2, m2 sr."""
-        return np.pi * self.aperture_diameter_m**2 / 4.0 * (self.pixel_size_m / self.focal_length_m) ** 2
+        return pixel_etendue_m2_sr(self.aperture_diameter_m, self.focal_length_m, self.pixel_size_m)
 
     @staticmethod
     def brightness_500nm(los: np.ndarray, sun_direction: np.ndarray, runs=None):
@@ -366,6 +368,24 @@ class ZodiacalModel:
             e-/s/pix, of ``brightness_500nm``'s shape.
         """
         return np.asarray(brightness_500nm) * self.band_factors(band)[0] * self.pixel_etendue_m2_sr
+
+    def darkest_e_per_s_per_pix(self, band: Band) -> float:
+        """e-/s/pixel in ``band`` at the darkest point of the Leinert (1998) table: the floor of
+        any total background (:class:`~straylight.sources.context.SourceContext`'s
+        ``zodiacal_floor``).
+
+        Parameters
+        ----------
+        band : Band
+            The band.
+
+        Returns
+        -------
+        float
+            e-/s/pix.
+        """
+        b_min = float(np.min(leinert_table().filled)) * LEINERT_UNIT_W_M2_SR_UM
+        return float(self.e_per_s_per_pix(band, b_min))
 
     def rates(
         self, bands: list, los: np.ndarray, sun_direction: np.ndarray, shape: tuple, runs=None
@@ -433,11 +453,18 @@ class ZodiacalModel:
 
 class ZodiacalLight:
     """The zodiacal light in the field as a source of the background: the campaign's
-    :class:`ZodiacalModel` (``context.zodiacal``) at the samples' lines of sight.  Never skipped:
-    it is the floor every skip bound is measured against."""
+    :class:`ZodiacalModel` (:attr:`model`) at the samples' lines of sight.  Never skipped: it is
+    the floor every skip bound is measured against.
+
+    Parameters
+    ----------
+    context : SourceContext
+        The campaign's instrument as the sources see it (its bands).
+    """
 
     def __init__(self, context):
         self.context = context
+        self.model = campaign_zodiacal_model(context.campaign)
 
     def rates(self, samples, bands) -> BandRates:
         """e-/s/pix per band, (bands, samples flattened), and the ``zodiacal_no_data`` flag (True
@@ -462,7 +489,7 @@ class ZodiacalLight:
             When a band reaches outside the zodiacal spectrum's wavelength range.
         """
         c = self.context
-        e, no_data = c.zodiacal.rates(
+        e, no_data = self.model.rates(
             [c.band(name) for name in bands],
             samples.frame.z,
             unit(samples.sun_km - samples.satellite_km),
@@ -502,4 +529,23 @@ def zodiacal_model_from_instrument(
         pixel_size_m=inst.detector.pixel_size_um.value * 1e-6,
         spectrum=spectrum,
         reddening=tuple(float(x) for x in reddening),
+    )
+
+
+def campaign_zodiacal_model(campaign) -> ZodiacalModel:
+    """The campaign's zodiacal model: its instrument with models.zodiacal_spectrum and
+    zodiacal_reddening.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        The campaign.
+
+    Returns
+    -------
+    ZodiacalModel
+    """
+    models = campaign.settings.models
+    return zodiacal_model_from_instrument(
+        campaign.instrument_settings, models.zodiacal_spectrum, models.zodiacal_reddening.as_tuple()
     )

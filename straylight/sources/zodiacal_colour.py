@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from straylight.errors import ConfigError
+from straylight.sources.photometry import solar_spectrum
 
 __all__ = [
     "SPECTRA",
@@ -47,21 +48,6 @@ LEINERT_REDDENING_EPS90 = (0.9, 0.6)
 
 def _data_path(name: str) -> Path:
     return Path(resources.files("straylight") / "data" / name)
-
-
-@lru_cache(maxsize=1)
-def solar_spectrum() -> tuple[np.ndarray, np.ndarray]:
-    """ASTM E490-00a solar spectral irradiance at 1 AU: (wavelength A, W m-2 um-1).
-
-    Returns
-    -------
-    wavelength_angstrom : ndarray, shape (n,)
-        Wavelengths, Angstrom.
-    irradiance : ndarray, shape (n,)
-        Spectral irradiance at 1 AU, W m-2 um-1.
-    """
-    data = np.loadtxt(_data_path("e490_00a.dat"), comments="#")
-    return data[:, 0] * 1.0e4, data[:, 1]
 
 
 def reddening_factor(wavelength_um, blue_per_dex: float, red_per_dex: float) -> np.ndarray:

@@ -1,5 +1,5 @@
 """The assumption envelope (straylight.model.envelope) and the Earth's spectral albedo
-(straylight.sources.earth_albedo).
+(straylight.sources.earthshine.albedo).
 
 Reference numbers: the band albedos against an independent integration of the embedded VPL
 spectrum (Robinson et al. 2011) times the E490 Sun times the band's throughput (numpy's trapezoid
@@ -42,7 +42,7 @@ def test_band_albedos_equal_an_independent_integration(campaign):
     integration within 1 % (the two interpolate on different grids); ozone makes NUV darker than
     half the Bond albedo, Rayleigh scattering makes u brighter than 1.3x it (the VPL spectrum)."""
     from straylight.sources.context import SourceContext
-    from straylight.sources.earth_albedo import band_albedo
+    from straylight.sources.earthshine.albedo import band_albedo
 
     ctx = SourceContext(campaign)
     grey = float(campaign.settings.models.earthshine.albedo)

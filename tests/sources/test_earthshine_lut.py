@@ -13,9 +13,9 @@ import pytest
 from straylight.config import campaign_from_dict
 from straylight.model import BackgroundModel
 from straylight.sky.frames import telescope_frame
-from straylight.sources.earthshine_table import EarthshineLUT
-from straylight.sources.earthshine_table_build import build_earthshine_lut
-from straylight.sources.earthshine_table_nodes import LUTSettings, lut_key
+from straylight.sources.earthshine.nodes import LUTSettings, lut_key
+from straylight.sources.earthshine.sunlit_build import build_earthshine_lut
+from straylight.sources.earthshine.sunlit_table import EarthshineLUT
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
 from _samples import random_samples  # noqa: E402
@@ -40,7 +40,7 @@ def test_table_reproduces_the_direct_sum_at_its_nodes(coarse):
     """At a node the table returns the direct sum it stored (to the asinh round trip)."""
     c, cm, info = coarse
     lut = info["lut"]
-    off = cm.context.offfield
+    off = cm.sunlit_earth.engine.grid
     r = lut.radius_km[0]
     iz, il, ia = 7, 10, 4
     z, l_, a = np.radians([lut.sun_zenith_deg[iz], lut.los_zenith_deg[il], lut.azimuth_deg[ia]])
@@ -72,9 +72,9 @@ def test_rotation_about_the_vertical_changes_nothing(coarse):
     sat, sun, los = sc.satellite_km[obs], sc.bodies_km["sun"][obs], los[obs]
     lut = info["lut"]
     r, zs, zl, a = lut.coordinates(sat, sun, los)
-    from straylight.sources.earthshine_table_build import sun_coefficients_direct
+    from straylight.sources.earthshine.sunlit_build import sun_coefficients_direct
 
-    off = cm.context.offfield
+    off = cm.sunlit_earth.engine.grid
     door = g["door_opening_deg"][obs]
     frame = telescope_frame(los, sun - sat)
     real = off.earthshine_coefficients(
@@ -189,7 +189,7 @@ def test_moonlit_bound_holds(coarse):
     sc, los, g = random_samples(c, 1500, seed=4)
     sat, sun, moon = sc.satellite_km, sc.bodies_km["sun"], sc.bodies_km["moon"]
     frame = telescope_frame(los, sun - sat)
-    co = cm.context.offfield.earthshine_coefficients(
+    co = cm.sunlit_earth.engine.grid.earthshine_coefficients(
         sat, sun, moon, frame, g["door_opening_deg"], c.earth.radius_km, in_field=False
     )
     bound = info["lut"].moon_bound(sat, moon, los, c.earth.radius_km)
@@ -218,11 +218,11 @@ def test_cap_bound_holds_for_any_line_of_sight(coarse):
             np.arccos(np.clip(np.sum(los * (sun - sat), axis=1) / np.linalg.norm(sun - sat, axis=1), -1, 1))
         )
     )
-    co = cm.context.offfield.earthshine_coefficients(
+    co = cm.sunlit_earth.engine.grid.earthshine_coefficients(
         sat, sun, moon, frame, door, c.earth.radius_km, in_field=False, sun=False, grid=cm.moonlit_earth.grid
     )
     bound = (
-        cm.context.offfield.earthshine_cap_bound(sat, c.earth.radius_km, cm.moonlit_earth.grid)
+        cm.sunlit_earth.engine.grid.earthshine_cap_bound(sat, c.earth.radius_km, cm.moonlit_earth.grid)
         + info["lut"].moon_door_bound
     )
     assert np.all(np.isfinite(bound)) and into.sum() > 400
@@ -281,7 +281,7 @@ def test_save_load_round_trip_and_cache_key(coarse, tmp_path, campaign):
     for s in lut.direct:
         assert np.array_equal(back.direct[s], lut.direct[s]) and np.array_equal(back.door[s], lut.door[s])
     assert back.validation_max_rel_error == lut.validation_max_rel_error
-    off = cm.context.offfield
+    off = cm.sunlit_earth.engine.grid
     k = lut_key(off, 6378.137, (6778.137, 6778.137), LUTSettings(5, 5, 20), 1e-20)
     assert k != lut_key(off, 6378.137, (6778.137, 6778.137), LUTSettings(5, 5, 10), 1e-20)
     from dataclasses import replace
@@ -303,10 +303,14 @@ def test_save_load_round_trip_and_cache_key(coarse, tmp_path, campaign):
         off.pst.values * np.where(off.pst.theta_deg > 60.0, 0.5, 1.0)[:, None],
     )
     assert k != lut_key(
-        replace(off, pst=darker), 6378.137, (6778.137, 6778.137), LUTSettings(5, 5, 20), 1e-20
+        replace(off, transfer=replace(off.transfer, pst=darker)),
+        6378.137,
+        (6778.137, 6778.137),
+        LUTSettings(5, 5, 20),
+        1e-20,
     )
     assert k != lut_key(
-        replace(off, door=replace(off.door, body_radius_m=1.5)),
+        replace(off, transfer=replace(off.transfer, door=replace(off.door, body_radius_m=1.5))),
         6378.137,
         (6778.137, 6778.137),
         LUTSettings(5, 5, 20),
@@ -325,11 +329,11 @@ def test_parallel_build_gives_the_same_table(coarse):
     c, cm, info = coarse
     k = c.constraints
     args = (
-        cm.context.offfield,
+        cm.sunlit_earth.engine.grid,
         c.earth.radius_km,
         c.orbit_radius_range_km,
         LUTSettings(**COARSE),
-        cm.context.earthshine_floor,
+        cm.sunlit_earth.engine.floor,
     )
     kw = {"avoidance_deg": (k.dark_limb_min_deg, k.bright_limb_min_deg, k.sun_min_deg)}
     two = build_earthshine_lut(*args, **kw, workers=2)
@@ -358,7 +362,7 @@ def test_automatic_choice(coarse, campaign):
 def test_build_estimate_counts_both_tables(coarse):
     """The build's estimate (plan, the build's announcement): the sunlit table's (node, door
     state) pairs and the moonlit table's, each at its per-node figure (earthshine_lut.*_PER_NODE)."""
-    from straylight.sources import earthshine_table_nodes as lut_mod
+    from straylight.sources.earthshine import nodes as lut_mod
 
     c, _, _ = coarse
     raw = copy.deepcopy(c.config)
@@ -407,10 +411,10 @@ def test_moonlit_table_reproduces_the_coarse_sum_at_its_nodes(moonlit):
     grid's direct sum it stored, for every door state: the table's coordinates invert the
     scene it was built from (including the roll, measured from the upward vertical)."""
     from straylight.sources.body_magnitudes import MOON_MEAN_DISTANCE_KM
-    from straylight.sources.moonlit_table_build import _moonlit_scene
+    from straylight.sources.earthshine.moonlit_build import _moonlit_scene
 
     c, cm, lut = moonlit
-    off = cm.context.offfield
+    off = cm.sunlit_earth.engine.grid
     r = np.array([np.mean(c.orbit_radius_range_km)])
     for iz, il, ia, ip in ((3, 5, 2, 4), (8, 12, 9, 17), (1, 20, 15, 11)):
         node = [
@@ -458,13 +462,13 @@ def test_moonlit_table_matches_the_coarse_sum_in_real_scenes(moonlit):
     sat, sun, moon = sc.satellite_km[obs], sc.bodies_km["sun"][obs], sc.bodies_km["moon"][obs]
     frame = telescope_frame(los[obs], sun - sat)
     door = g["door_opening_deg"][obs]
-    ref = cm.context.offfield.earthshine_coefficients(
+    ref = cm.sunlit_earth.engine.grid.earthshine_coefficients(
         sat, sun, moon, frame, door, c.earth.radius_km, in_field=False, sun=False, grid=cm.moonlit_earth.grid
     )
     d, gd = lut.coefficients(sat, moon, frame, door)
     moon_max = solar_like_fraction(moon_v_magnitude(0.0, MOON_PERIGEE_KM))
     direct = ref["direct_moon"] + ref["door_moon"]
-    err = np.abs(d + gd - direct) * moon_max / (direct * moon_max + cm.context.earthshine_floor)
+    err = np.abs(d + gd - direct) * moon_max / (direct * moon_max + cm.sunlit_earth.engine.floor)
     share = ERROR_BUDGET_SHARES["moonlit_earthshine_grid"] * cm.policy.tolerance
     print(
         f"moonlit table vs coarse sum at {obs.size} observable samples: {err.max():.2e} (validated "
@@ -491,7 +495,7 @@ def test_moonlit_table_is_finite_at_the_singular_directions(moonlit):
 
 
 def test_moonlit_table_save_load_round_trip(moonlit, tmp_path):
-    from straylight.sources.moonlit_table import MoonlitLUT
+    from straylight.sources.earthshine.moonlit_table import MoonlitLUT
 
     c, cm, lut = moonlit
     p = tmp_path / "m.npz"

@@ -15,7 +15,7 @@ from straylight.sky.frames import TelescopeFrame, telescope_frame
 from straylight.sky.geometry import observing_geometry
 from straylight.sky.vectors import radec_to_unit
 from straylight.sources.body_magnitudes import moon_v_magnitude, planet_v_magnitude
-from straylight.sources.offfield_cap import EarthshineSettings
+from straylight.sources.earthshine.grid import EarthshineSettings
 from straylight.sources.photometry import solar_like_fraction
 from straylight.sources.stars import OffFieldStars
 from straylight.sources.stars_table import StarTable
@@ -838,7 +838,7 @@ def test_direct_plus_faint_map_matches_every_star_summed_directly(campaign, comp
 # -- earthshine --------------------------------------------------------------------------------
 def test_uniform_lambertian_cap_matches_analytic_irradiance(comp_model):
     """Sum of L dOmega cos(gamma) over the cap grid = pi L sin^2(rho) within 0.5 %."""
-    off = comp_model.context.offfield
+    off = comp_model.sunlit_earth.engine.grid
     sat = np.array([RE + 400.0, 0.0, 0.0])
     s = EarthshineSettings(n_gamma=24, n_psi=48)
     d, d_omega, pts = off._cap_grid(sat, RE, s)
@@ -855,7 +855,7 @@ def _earthshine(
 ):
     import copy
 
-    off = copy.copy(comp_model.context.offfield)
+    off = copy.copy(comp_model.sunlit_earth.engine.grid)
     off.earthshine = EarthshineSettings(n_gamma=n_gamma, n_psi=n_psi)
     sat = np.array([[RE + 400.0, 0.0, 0.0]])
     rho = np.degrees(np.arcsin(RE / (RE + 400.0)))
@@ -1019,7 +1019,7 @@ def test_pst_file_formats(tmp_path, fmt):
 
 def test_band_independent_earthshine_equals_per_band(comp_model):
     """Coefficients x irradiance equal the direct per-band evaluation (linearity in the lamps)."""
-    off = comp_model.context.offfield
+    off = comp_model.sunlit_earth.engine.grid
     sat = np.array([[RE + 400.0, 0.0, 0.0]])
     los = np.array([[0.3, 0.9, 0.3]]) / np.linalg.norm([0.3, 0.9, 0.3])
     sun, moon = np.array([[AU, 0.2 * AU, 0.0]]), np.array([[-2e5, 3e5, 1e4]])
@@ -1036,7 +1036,7 @@ def test_band_independent_earthshine_equals_per_band(comp_model):
 def test_one_scene_earthshine_equals_per_sample_sum(comp_model, sun_x):
     """The cube's path (lines of sight sharing one satellite, Sun and Moon: cap gridded once,
     dark blocks dropped, matrix products) gives the per-sample general sum's values."""
-    off = comp_model.context.offfield
+    off = comp_model.sunlit_earth.engine.grid
     rng = np.random.default_rng(3)
     los = rng.normal(size=(300, 3))
     los /= np.linalg.norm(los, axis=1)[:, None]
@@ -1191,12 +1191,12 @@ def test_nothing_enters_the_direct_path_from_behind_the_aperture_plane(campaign,
     """Paper sect. 2.2: with the axis near the zenith earthshine enters through the door, not
     directly.  A source behind the aperture plane (theta > 90 deg) cannot light the aperture, so the
     direct path gives exactly 0 there (point sources and earthshine), whatever the PST's values."""
-    off = comp_model.context.offfield
+    off = comp_model.sunlit_earth.engine.grid
     th = np.array([90.001, 95.0, 120.0, 150.0, 179.0])
     for op in off.door_states_deg:
-        assert np.all(off.point_source(1.0, th, 180.0, np.zeros(th.size, bool), op) == 0.0)
+        assert np.all(off.transfer.point_source(1.0, th, 180.0, np.zeros(th.size, bool), op) == 0.0)
         assert np.all(off.door_factor(th, 90.0, op) == 0.0)
-    assert float(off.point_source(1.0, 89.0, 180.0, False, 135.0)) > 0.0  # in front of it: not 0
+    assert float(off.transfer.point_source(1.0, 89.0, 180.0, False, 135.0)) > 0.0  # in front of it: not 0
     # the axis at the zenith: the whole Earth (theta >= 110 deg) is behind the aperture plane
     sat, sun, los = _zenith_tilted_scene(0.0, 40.0)
     frame = telescope_frame(los, sun - sat)
@@ -1235,16 +1235,14 @@ def test_the_body_shades_the_door(comp_model, tilt_deg, sun_zenith_deg):
     where the anti-Sun Earth lights the door's inner face over the tube, the door term falls to
     0.34 (axis at the zenith), 0.61 and 0.68 (20 and 30 deg off it) of its unshaded value (the
     physics audit measured 0.48-0.86 with this smallest body at its geometries), and the
-    tabulated lit fraction (OffFieldModel.door_lit_fraction) gives the door-block-by-door-block
+    tabulated lit fraction (EarthGrid.door_lit_fraction) gives the door-block-by-door-block
     sum within 1 %."""
-    import copy
     import dataclasses
 
-    off = comp_model.context.offfield
+    off = comp_model.sunlit_earth.engine.grid
     assert (off.door.body_radius_m, off.door.body_length_m) == (1.0, 10.0)
-    bare = copy.copy(off)
-    bare.door = dataclasses.replace(off.door, body_radius_m=0.0)
-    bare.__dict__.pop("_door_lit_fraction", None)
+    bare_door = dataclasses.replace(off.door, body_radius_m=0.0)
+    bare = dataclasses.replace(off, transfer=dataclasses.replace(off.transfer, door=bare_door))
     sat, sun, los = _zenith_tilted_scene(tilt_deg, sun_zenith_deg)
     frame = telescope_frame(los, sun - sat)
     moon = np.array([[0.0, 0.0, 384400.0]])

@@ -180,4 +180,4 @@ def test_paper_zodiacal_colours_are_one_switch_away(campaign):
         band = load_band(campaign.instrument, b)
         assert solar.band_factors(band)[1] - hst.band_factors(band)[1] == pytest.approx(d, abs=0.005), b
     c = load_campaign(REPO / "config" / "config.yaml", overrides={"models": {"zodiacal_spectrum": "hst"}})
-    assert BackgroundModel(c).context.zodiacal.spectrum == "hst"
+    assert BackgroundModel(c).sources["zodiacal"].model.spectrum == "hst"

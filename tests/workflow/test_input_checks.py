@@ -90,7 +90,7 @@ def test_a_coordinate_with_a_distance_is_taken_as_a_direction_said_once(caplog, 
 
 # -- files and folders -------------------------------------------------------------------------
 def test_a_cache_that_is_a_file_is_refused_before_a_table_build(tmp_path, monkeypatch, capsys):
-    import straylight.sources.earthshine_table_nodes as nodes
+    import straylight.sources.earthshine.nodes as nodes
 
     afile = tmp_path / "cache"
     afile.write_text("not a folder")

@@ -6,9 +6,9 @@ Earth's table the roll; the vectors' components in one compiled pass), the inter
 asinh(c / scale) with each sample read from its own door state's channels
 (:func:`_asinh_grids`, :func:`_per_door_state`), the lamp zenith angle beyond which a table is 0
 (:func:`_dark_lamp_zenith_deg`).  The tables are
-:class:`~straylight.sources.earthshine_table.EarthshineLUT` (the sunlit Earth) and
-:class:`~straylight.sources.moonlit_table.MoonlitLUT` (the moonlit Earth); their files are
-:class:`~straylight.sources.lamp_table.LampTable`'s.  This module has no public names.
+:class:`~straylight.sources.earthshine.sunlit_table.EarthshineLUT` (the sunlit Earth) and
+:class:`~straylight.sources.earthshine.moonlit_table.MoonlitLUT` (the moonlit Earth); their files are
+:class:`~straylight.sources.earthshine.table.LampTable`'s.  This module has no public names.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from straylight.sky.vectors import any_perpendicular_xyz, dot, norm, unit, unit_
 from straylight.util.gridinterp import LinearGrid
 from straylight.util.kernel_cache import njit
 
-#: the tables' private helpers, for earthshine_table, moonlit_table and lamp_table only
+#: the tables' private helpers, for sunlit_table, moonlit_table and table only
 __all__: list[str] = []
 
 

@@ -1,6 +1,6 @@
 """The sunlit Earth's look-up table, read and interpolated at samples.
 
-The sunlit-Earth coefficients of :meth:`OffFieldModel.earthshine_coefficients` (direct through
+The sunlit-Earth coefficients of :meth:`EarthGrid.earthshine_coefficients` (direct through
 the PST and via the door, per unit solar irradiance) depend on the scene only through
 four quantities, because the problem is symmetric under rotation about the local vertical:
 
@@ -19,13 +19,13 @@ is not tabulated: it is one ray per sample and jumps at the limb, so it is evalu
 The moonlit-Earth coefficients are bounded (:meth:`EarthshineLUT.moon_bound`: the cap fully lit,
 PST at its azimuthal maximum, door fully open), skipped where the bound is below their share of
 the tolerance, and elsewhere taken from a table of their own
-(:class:`~straylight.sources.moonlit_table.MoonlitLUT`).
+(:class:`~straylight.sources.earthshine.moonlit_table.MoonlitLUT`).
 
 The table is built with the direct method's Earth-cap grid, validated against the direct sum
-and cached by :mod:`straylight.sources.earthshine_table_build`; this module holds the table
+and cached by :mod:`straylight.sources.earthshine.sunlit_build`; this module holds the table
 object and its look-up (the coordinates and interpolation it shares with the moonlit Earth's
-table: :mod:`straylight.sources.earthshine_table_lookup`; its file and dark runs:
-:class:`~straylight.sources.lamp_table.LampTable`).
+table: :mod:`straylight.sources.earthshine.lookup`; its file and dark runs:
+:class:`~straylight.sources.earthshine.table.LampTable`).
 
 Validity: the Sun is taken at infinity (its direction from the satellite and from the Earth's
 centre differ by < 3e-6 rad).  Errors against the direct sum: bench/run.py (knob
@@ -41,12 +41,12 @@ import numpy as np
 
 from straylight.sky.runs import rows_at, scene_rows
 from straylight.sky.vectors import dot, norm, unit, unit_xyz
-from straylight.sources.earthshine_table_lookup import (
+from straylight.sources.earthshine.lookup import (
     _asinh_grids,
     _lamp_coordinates,
     _per_door_state,
 )
-from straylight.sources.lamp_table import LampTable
+from straylight.sources.earthshine.table import LampTable
 from straylight.util.kernel_cache import njit
 
 __all__ = ["EarthshineLUT"]
@@ -82,7 +82,7 @@ class EarthshineLUT(LampTable):
     irradiance, outside the field) tabulated over (radius, Sun zenith, line-of-sight zenith,
     azimuth from the Sun) per door state and interpolated linearly in asinh(c / scale), with the
     moonlit Earth's bound (:meth:`moon_bound`).  Built and validated by
-    :func:`~straylight.sources.earthshine_table_build.build_earthshine_lut`."""
+    :func:`~straylight.sources.earthshine.sunlit_build.build_earthshine_lut`."""
 
     radius_km: np.ndarray
     sun_zenith_deg: np.ndarray

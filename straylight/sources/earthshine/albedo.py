@@ -1,6 +1,6 @@
 """The Earth's spectral albedo and its average through each band.
 
-The earthshine's coefficients (:mod:`straylight.sources.offfield_earthshine`, the tables) are
+The earthshine's coefficients (:mod:`straylight.sources.earthshine.sums`, the tables) are
 summed with the grey albedo ``models.earthshine.albedo`` (the Bond albedo, ~0.3); the Earth
 reflects sunlight (and moonlight) with an albedo A(lambda) that ozone darkens below 320 nm
 (the Hartley-Huggins bands) and Rayleigh scattering brightens near 340 nm.  The earthshine is

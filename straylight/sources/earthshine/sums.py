@@ -1,6 +1,6 @@
 """The Earth-grid sums of earthshine (seed paper sect. 3.2): :class:`EarthshineSums`, the part
-of :class:`~straylight.sources.offfield.OffFieldModel` (which inherits it) that sums the sunlit
-and moonlit Earth over the cap grid of :class:`~straylight.sources.offfield_cap.EarthCapGrid`
+of :class:`~straylight.sources.earthshine.engine.EarthGrid` (which inherits it) that sums the sunlit
+and moonlit Earth over the cap grid of :class:`~straylight.sources.earthshine.grid.EarthCapGrid`
 (the coefficients, a scene's lit blocks and sums, the lamp bound and the compiled kernel's
 tables).
 """
@@ -15,7 +15,7 @@ import numpy as np
 from straylight.optics.door import door_state_index
 from straylight.sky.runs import shared_vectors
 from straylight.sky.vectors import dot, wrap_360_deg
-from straylight.sources.offfield_cap import EarthshineSettings
+from straylight.sources.earthshine.grid import EarthshineSettings
 
 #: the children of cut blocks computed at once, bytes (their directions, spans and
 #: luminances in float64): bounds the direct sum's memory on fine grids and many samples
@@ -33,9 +33,9 @@ __all__ = ["EarthshineSums"]
 
 
 class EarthshineSums:
-    """The earthshine sums' methods of :class:`~straylight.sources.offfield.OffFieldModel` (a
+    """The earthshine sums' methods of :class:`~straylight.sources.earthshine.engine.EarthGrid` (a
     mixin: it reads the model's fields and the cap grid of
-    :class:`~straylight.sources.offfield_cap.EarthCapGrid`)."""
+    :class:`~straylight.sources.earthshine.grid.EarthCapGrid`)."""
 
     def earthshine_coefficients(
         self,
@@ -55,7 +55,7 @@ class EarthshineSums:
         (photons s-1 m-2).  The albedo is grey, so a band's earthshine is
         c_sun * E_sun,band + c_moon * E_moon,band; the geometry is computed once for all bands.
         ``in_field=False`` leaves out the line of sight hitting the Earth; ``moon=False`` the
-        moonlit terms (zeros), as the look-up table does (:mod:`straylight.sources.earthshine_table`);
+        moonlit terms (zeros), as the look-up table does (:mod:`straylight.sources.earthshine.sunlit_table`);
         ``sun=False`` the sunlit ones (the table's path sums only the moonlit Earth directly);
         ``grid`` = (n_gamma, n_psi) replaces the configured Earth-cap grid.
 
@@ -203,7 +203,7 @@ class EarthshineSums:
         """The direct term (e-/s/pix per photon s-1 m-2 of the Sun, of the Moon; arrays of the
         samples' shape) of the blocks the aperture plane cuts (``cut``, (..., G, P)), each summed
         over its children (:meth:`cut_children`) with their own angles, Sp, PST and front part,
-        as :func:`~straylight.sources.earthshine_kernel.cap_sums` does.  The children of a
+        as :func:`~straylight.sources.earthshine.kernel.cap_sums` does.  The children of a
         sample's whole grid are n^2 times its blocks, so the samples with a cut block go through
         in groups of about :data:`CUT_CHILDREN_BYTES` of children each."""
         shape = cut.shape
@@ -289,7 +289,7 @@ class EarthshineSums:
         """earthshine_coefficients (without the in-field term) for many lines of sight sharing one
         satellite, Sun and Moon (a time step of a survey cube): the Earth cap is gridded once,
         its dark blocks (lit by neither lamp) dropped, and the sums over the rest compiled
-        (:func:`~straylight.sources.earthshine_kernel.cap_sums`).  Same sums as the general path,
+        (:func:`~straylight.sources.earthshine.kernel.cap_sums`).  Same sums as the general path,
         so the same values up to rounding (tests/sources/test_offfield.py)."""
         from straylight.sky.frames import TelescopeFrame
 
@@ -428,7 +428,7 @@ class EarthshineSums:
         )
         direct, door = np.zeros((n, sel.shape[1], 2)), np.zeros((n, sel.shape[1], 2))
         if blocks.shape[0] and n:
-            from straylight.sources.earthshine_kernel import cap_sums
+            from straylight.sources.earthshine.kernel import cap_sums
 
             normals, door_weight, pst, sp, lit = self._kernel_tables
             door_k = (s or self.earthshine).door_reflectance * door_weight
@@ -456,13 +456,13 @@ class EarthshineSums:
 
     @cached_property
     def _kernel_tables(self):
-        """What :func:`~straylight.sources.earthshine_kernel.cap_sums` reads, door states ascending:
+        """What :func:`~straylight.sources.earthshine.kernel.cap_sums` reads, door states ascending:
         the door's inner normals (S, 3), the sum of the door's weights x pixel area per state
         (times the reflectance: the door term's factor k), the PST's and the Sp tables' grids,
         and the lit-fraction tables' grids with whether there is a body (else the lit fraction
         is 1) and their value in front of the aperture plane
-        (:func:`~straylight.sources.earthshine_kernel.cap_sums`)."""
-        from straylight.sources.earthshine_kernel import GridPack
+        (:func:`~straylight.sources.earthshine.kernel.cap_sums`)."""
+        from straylight.sources.earthshine.kernel import GridPack
 
         states = sorted(self.door_tables)
         normals = np.ascontiguousarray([self._door_weights[st][1] for st in states], dtype=float)
@@ -492,7 +492,7 @@ class EarthshineSums:
         (3,), the lamp at infinity) whatever the telescope's roll and door, for lines of sight
         ``los`` (M, 3, unit) from one satellite: radiance albedo/pi cos(z_lamp), the PST at its
         maximum over phi (the larger neighbouring theta row), Sp = 1, summed over the cap's lit
-        blocks (compiled: :func:`~straylight.sources.earthshine_kernel.lamp_bound_sums`).
+        blocks (compiled: :func:`~straylight.sources.earthshine.kernel.lamp_bound_sums`).
 
         Parameters
         ----------
@@ -510,7 +510,7 @@ class EarthshineSums:
         ndarray, shape (M,)
             The bound, e-/s/pix per photon s-1 m-2 of the lamp.
         """
-        from straylight.sources.earthshine_kernel import lamp_bound_sums
+        from straylight.sources.earthshine.kernel import lamp_bound_sums
 
         s = self.earthshine
         sat = np.asarray(sat, float)

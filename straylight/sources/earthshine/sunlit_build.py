@@ -1,14 +1,14 @@
 """The sunlit Earth's look-up table: its build, its validation and its cache.
 
-The table (:class:`~straylight.sources.earthshine_table.EarthshineLUT`) holds the direct
-Earth-cap sum of :class:`~straylight.sources.offfield.OffFieldModel` (compiled,
-:mod:`straylight.sources.earthshine_kernel`) at its nodes
-(:class:`~straylight.sources.earthshine_table_nodes.LUTSettings`).  The build runs one scene (the
+The table (:class:`~straylight.sources.earthshine.sunlit_table.EarthshineLUT`) holds the direct
+Earth-cap sum of :class:`~straylight.sources.earthshine.engine.EarthGrid` (compiled,
+:mod:`straylight.sources.earthshine.kernel`) at its nodes
+(:class:`~straylight.sources.earthshine.nodes.LUTSettings`).  The build runs one scene (the
 satellite's radius and the Sun's zenith angle, every line of sight of it) per task, in threads,
 then validates the table against the direct sum at random off-node points and records the
 largest error as a fraction of the total, which ``models.earthshine.method: auto`` weighs
 against the tolerance (the steps the moonlit Earth's table shares:
-:func:`~straylight.sources.lamp_table.build_lamp_table`).  A table is built once
+:func:`~straylight.sources.earthshine.table.build_lamp_table`).  A table is built once
 per model and machine: it is cached under a digest of everything it depends on
 (:func:`load_or_build`).
 """
@@ -20,8 +20,7 @@ import numpy as np
 from straylight.errors import InputError
 from straylight.sky.frames import telescope_frame
 from straylight.sky.vectors import unit
-from straylight.sources.earthshine_table import EarthshineLUT
-from straylight.sources.earthshine_table_nodes import (
+from straylight.sources.earthshine.nodes import (
     LUT_BUILD_SECONDS_PER_NODE,
     LUTSettings,
     _cached,
@@ -29,7 +28,8 @@ from straylight.sources.earthshine_table_nodes import (
     lut_key,
     mirror_symmetric,
 )
-from straylight.sources.lamp_table import build_lamp_table
+from straylight.sources.earthshine.sunlit_table import EarthshineLUT
+from straylight.sources.earthshine.table import build_lamp_table
 from straylight.sources.photometry import AU_KM
 
 __all__ = [
@@ -54,7 +54,7 @@ def sun_coefficients_direct(off, R, Z, L, A, state, earth_radius_km):
 
     Parameters
     ----------
-    off : OffFieldModel
+    off : EarthGrid
         The off-field transfer and Earth grid.
     R : ndarray, shape (n,)
         Satellite geocentric radius, km.
@@ -103,7 +103,7 @@ def _sunlit_scene(
     """One (radius, Sun zenith) scene of the sunlit table over every (line-of-sight zenith,
     azimuth) node (flattened, zenith-major): (direct, door) per unit solar irradiance, (nodes,
     door states ascending), and the moonlit Earth's direct bound with the Moon where the Sun is
-    (:meth:`OffFieldModel.lamp_bound_one_scene`), (nodes,)."""
+    (:meth:`EarthGrid.lamp_bound_one_scene`), (nodes,)."""
     L, A = (v.ravel() for v in np.meshgrid(los_zenith_rad, azimuth_rad, indexing="ij"))
     sat, sun, los = _local_scene(np.full(L.size, r_km), np.full(L.size, sun_zenith_rad), L, A)
     frame = telescope_frame(los, sun - sat)
@@ -166,17 +166,17 @@ def build_earthshine_lut(
     workers: int = 1,
 ) -> EarthshineLUT:
     """The sunlit Earth's table: tabulate ``off.earthshine_coefficients`` (an
-    :class:`OffFieldModel`), then validate:
+    :class:`~straylight.sources.earthshine.engine.EarthGrid`), then validate:
     at ``n_validation`` random points where a line of sight is observable (``avoidance_deg``:
     the minimum angles from the dark limb, the bright limb and the Sun, as the campaign's
     constraints) the largest |table - direct| / (direct + floor), with ``floor`` the darkest
     sky background in the same units (so the error is a fraction of the total, and a
     pessimistic one).  ``workers`` threads share the scenes (one per core; the sums are
-    compiled, :mod:`straylight.sources.earthshine_kernel`).
+    compiled, :mod:`straylight.sources.earthshine.kernel`).
 
     Parameters
     ----------
-    off : OffFieldModel
+    off : EarthGrid
         The off-field transfer and Earth grid.
     earth_radius_km : float
         The Earth's radius, km.

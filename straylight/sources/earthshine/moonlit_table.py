@@ -1,14 +1,14 @@
 """The moonlit Earth's look-up table, read and interpolated at samples.
 
 The moonlit-Earth coefficients are bounded
-(:meth:`~straylight.sources.earthshine_table.EarthshineLUT.moon_bound`: the cap fully lit, PST at
+(:meth:`~straylight.sources.earthshine.sunlit_table.EarthshineLUT.moon_bound`: the cap fully lit, PST at
 its azimuthal maximum, door fully open), skipped where the bound is below their share of the
 tolerance, and elsewhere taken from a table of their own (:class:`MoonlitLUT`), which runs over
 one angle more than the sunlit Earth's, the telescope's roll: it is set by the Sun, not by the
 Moon.  The table is interpolated as the sunlit Earth's is
-(:mod:`straylight.sources.earthshine_table_lookup`); it is built with the coarse Earth-cap grid,
-validated against the direct sum and cached by :mod:`straylight.sources.moonlit_table_build`;
-its file and dark runs are :class:`~straylight.sources.lamp_table.LampTable`'s.
+(:mod:`straylight.sources.earthshine.lookup`); it is built with the coarse Earth-cap grid,
+validated against the direct sum and cached by :mod:`straylight.sources.earthshine.moonlit_build`;
+its file and dark runs are :class:`~straylight.sources.earthshine.table.LampTable`'s.
 """
 
 from __future__ import annotations
@@ -18,8 +18,8 @@ from functools import cached_property
 
 import numpy as np
 
-from straylight.sources.earthshine_table_lookup import _asinh_grids, _lamp_coordinates, _per_door_state
-from straylight.sources.lamp_table import LampTable
+from straylight.sources.earthshine.lookup import _asinh_grids, _lamp_coordinates, _per_door_state
+from straylight.sources.earthshine.table import LampTable
 
 __all__ = ["MoonlitLUT"]
 
@@ -32,7 +32,7 @@ class MoonlitLUT(LampTable):
     azimuth from the Moon, roll) per door state and interpolated linearly in asinh(c / scale).
     The satellite's radius and the Moon's distance are fixed at the orbit's mean and the
     Moon's mean; the validation draws both over their ranges.  Built and validated by
-    :func:`~straylight.sources.earthshine_table_build.build_moonlit_lut`."""
+    :func:`~straylight.sources.earthshine.sunlit_build.build_moonlit_lut`."""
 
     moon_zenith_deg: np.ndarray
     los_zenith_deg: np.ndarray

@@ -7,8 +7,8 @@ angle and azimuth, and the roll), whether the instrument is mirror-symmetric abo
 vertical plane (:func:`mirror_symmetric`: the azimuth then runs over 0-180 deg only), the
 tables' formats and build times per node, and where a table is cached: under a digest of
 everything it depends on (:func:`cache_path`, :func:`lut_key`, :func:`moonlit_key`).  The
-builds are :mod:`straylight.sources.earthshine_table_build` (sunlit) and
-:mod:`straylight.sources.moonlit_table_build` (moonlit).
+builds are :mod:`straylight.sources.earthshine.sunlit_build` (sunlit) and
+:mod:`straylight.sources.earthshine.moonlit_build` (moonlit).
 """
 
 from __future__ import annotations
@@ -170,7 +170,7 @@ def mirror_symmetric(off) -> bool:
 
     Parameters
     ----------
-    off : OffFieldModel
+    off : EarthGrid
         The off-field transfer and Earth grid.
 
     Returns

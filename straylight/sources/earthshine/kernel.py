@@ -1,16 +1,16 @@
 """The Earth-cap sum of one scene, compiled: the inner loop of the direct earthshine
-(:meth:`~straylight.sources.offfield.OffFieldModel.earthshine_coefficients` for lines of sight
+(:meth:`~straylight.sources.earthshine.engine.EarthGrid.earthshine_coefficients` for lines of sight
 sharing a satellite and lamps) and of the earthshine tables' builds
-(:mod:`straylight.sources.earthshine_table_build`, :mod:`straylight.sources.moonlit_table_build`).
+(:mod:`straylight.sources.earthshine.sunlit_build`, :mod:`straylight.sources.earthshine.moonlit_build`).
 
 For each line of sight m (its telescope frame x, y, z) and each lit cap block k (unit direction
 d_k from the satellite, spans across the block, luminance-times-solid-angle L_kc per lamp c):
 
 * direct (EA1): sum_k L_kc PST(theta, phi) Sp_s(min(theta, 90), phi) front_k [theta > field]
   x pixel area, with theta, phi the block's direction in the telescope frame, front_k the part
-  of the block in front of the aperture plane (:meth:`OffFieldModel.front_fraction`); a block
+  of the block in front of the aperture plane (:meth:`EarthGrid.front_fraction`); a block
   the plane cuts is summed over its children, the blocks of the finer grid nested in it
-  (:meth:`OffFieldModel.cut_children`), each with its own angles, front part and luminance:
+  (:meth:`EarthGrid.cut_children`), each with its own angles, front part and luminance:
   there Sp steps to 0 and the luminance changes fastest across a block (near the limb);
 * door (EA2): k_s sum_k L_kc max(d_k . n_s, 0) f_s(theta, phi), with n_s the door's inner normal,
   f_s the share of the door the telescope body leaves lit and k_s = reflectance x sum of the
@@ -19,7 +19,7 @@ d_k from the satellite, spans across the block, luminance-times-solid-angle L_kc
 The look-ups are those of :class:`~straylight.util.gridinterp.LinearGrid` (clipped, bilinear),
 written for two axes; the PST is interpolated in its natural log, as :class:`~straylight.optics.pst.PST`.
 Each line of sight asks for one or more door states (``state_sel``, -1: none, which gives 0 for
-both terms, as :meth:`OffFieldModel.door_factor` does for an opening that is no state): the
+both terms, as :meth:`EarthGrid.door_factor` does for an opening that is no state): the
 table builds ask for every state at once, so the geometry and the PST are computed once per
 block and line of sight for all of them.
 """
@@ -164,7 +164,7 @@ def cap_sums(
         The lines of sight's telescope frames (unit vectors, ICRS).
     blocks, span_g, span_p : ndarray, shape (K, 3)
         The lit blocks' unit directions from the satellite and their spans in nadir angle and
-        azimuth (:meth:`OffFieldModel.lit_cap_blocks`).
+        azimuth (:meth:`EarthGrid.lit_cap_blocks`).
     lum : ndarray, shape (K, C)
         albedo / pi x cos(lamp zenith) x solid angle per lamp: radiance per unit irradiance
         (sr-1) times solid angle (sr), dimensionless.
@@ -179,7 +179,7 @@ def cap_sums(
     pixel_area_m2 : float
         Detector pixel area, m2.
     child_dirs, child_g, child_p : ndarray, shape (K, S, 3)
-        Each block's S children's directions and spans (:meth:`OffFieldModel.cut_children`): a
+        Each block's S children's directions and spans (:meth:`EarthGrid.cut_children`): a
         block the aperture plane cuts is summed over them (S = 0: the block whole, its front
         part linear in cos theta).
     child_lum : ndarray, shape (K, S, C)
@@ -344,7 +344,7 @@ def cap_sums(
 
 @njit(cache=True, nogil=True)
 def lamp_bound_sums(los, blocks, lum, cos_field, neg_cos_nodes, pst_row_max, out):
-    """:meth:`OffFieldModel.lamp_bound_one_scene`'s sum for lines of sight ``los`` (M, 3, unit)
+    """:meth:`EarthGrid.lamp_bound_one_scene`'s sum for lines of sight ``los`` (M, 3, unit)
     over blocks (K, 3) with ``lum`` (K,) = albedo / pi x cos(lamp zenith) x solid angle x pixel
     area: sum_k lum_k max(PST row maxima at the theta nodes either side of theta_k) over the
     blocks outside the field (cos theta < ``cos_field``), into ``out`` (M,).  In cosines: the

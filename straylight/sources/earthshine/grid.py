@@ -1,8 +1,8 @@
 """The Earth grid of the earthshine sum (seed paper sect. 3.2): its settings
 (:class:`EarthshineSettings`) and :class:`EarthCapGrid`, the part of
-:class:`~straylight.sources.offfield.OffFieldModel` (which inherits it) that lays the grid on
+:class:`~straylight.sources.earthshine.engine.EarthGrid` (which inherits it) that lays the grid on
 the visible cap, lights its blocks, sees them from the door and bounds the sum; the sums are
-:class:`~straylight.sources.offfield_earthshine.EarthshineSums`.
+:class:`~straylight.sources.earthshine.sums.EarthshineSums`.
 
 Earthshine (paper sect. 3.2): the Earth cap seen from the satellite is split into n_gamma x
 n_psi blocks of solid angle sin(gamma) dgamma dpsi about nadir; each is a Lambertian reflector of
@@ -10,12 +10,12 @@ albedo A lit by the Sun (radiance A/pi E_sun cos z_sun) or, on the night side, b
 EA1 = sum E_i Sp_i PST(theta_i, phi_i) (direct; Sp = 0 behind the aperture plane, theta > 90
 deg).  EA2 (door): each door block receives MP_i = sum_b L_b dOmega_b cos(incidence) from the
 Earth blocks in front of its inner face whose ray to it misses the telescope body
-(:meth:`OffFieldModel.door_lit_fraction`) and re-emits as a Lambertian of reflectance r; the
+(:meth:`EarthGrid.door_lit_fraction`) and re-emits as a Lambertian of reflectance r; the
 aperture points j receive L_door A_i cos(e_ij) / d_ij^2 with PST(theta_ij, phi_ij), averaged
 over the aperture.  This is the paper's EA2 = sum_i MP_i r sum_j PST(theta_ij, phi_ij) / d_ij^2
 with the block area, the emission cosine and 1/pi written out.  The sunlit and moonlit Earth's sources
-(:mod:`straylight.sources.sunlit_earth`, :mod:`straylight.sources.moonlit_earth`) call this sum or
-its tables (:mod:`straylight.sources.earthshine_table`).
+(:mod:`straylight.sources.earthshine.sunlit`, :mod:`straylight.sources.earthshine.moonlit`) call this sum or
+its tables (:mod:`straylight.sources.earthshine.sunlit_table`).
 """
 
 from __future__ import annotations
@@ -83,7 +83,7 @@ class EarthshineSettings:
 
 
 class EarthCapGrid:
-    """The Earth-cap grid's methods of :class:`~straylight.sources.offfield.OffFieldModel`
+    """The Earth-cap grid's methods of :class:`~straylight.sources.earthshine.engine.EarthGrid`
     (a mixin: it reads the model's ``pst``, ``door``, ``earthshine``, ``pixel_area_m2``,
     ``pixel_etendue_m2_sr`` and ``field_radius_deg``)."""
 

@@ -2,16 +2,16 @@
 
 Both tables hold, per door state, the direct and door coefficients of the Earth lit by a lamp
 (the Sun or the Moon) over a few angles, interpolated as
-:mod:`straylight.sources.earthshine_table_lookup` does.  :class:`LampTable` is their common
+:mod:`straylight.sources.earthshine.lookup` does.  :class:`LampTable` is their common
 base: their .npz file (``save``, ``load``: the axes and other arrays, one direct and one door
 table per door state, the scalars as JSON metadata) and the scene runs whose lamp lights no
 Earth in view (``dark_runs``).  :func:`build_lamp_table` holds the steps their builds share:
 the scenes run in threads with a progress bar (:func:`_run_scenes`), the per-door-state tables
 gathered, the asinh scale, and the validation's largest error and the build's time recorded.
-The tables are :class:`~straylight.sources.earthshine_table.EarthshineLUT` (built by
-:mod:`straylight.sources.earthshine_table_build`) and
-:class:`~straylight.sources.moonlit_table.MoonlitLUT` (built by
-:mod:`straylight.sources.moonlit_table_build`).
+The tables are :class:`~straylight.sources.earthshine.sunlit_table.EarthshineLUT` (built by
+:mod:`straylight.sources.earthshine.sunlit_build`) and
+:class:`~straylight.sources.earthshine.moonlit_table.MoonlitLUT` (built by
+:mod:`straylight.sources.earthshine.moonlit_build`).
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from typing import Callable, ClassVar
 import numpy as np
 
 from straylight.errors import InputError
-from straylight.sources.earthshine_table_lookup import _beyond_dark_zenith, _dark_lamp_zenith_deg
+from straylight.sources.earthshine.lookup import _beyond_dark_zenith, _dark_lamp_zenith_deg
 
 __all__ = ["LampTable", "build_lamp_table"]
 
@@ -193,7 +193,7 @@ def build_lamp_table(
 
     Parameters
     ----------
-    off : OffFieldModel
+    off : EarthGrid
         The off-field transfer and Earth grid (its door states).
     scene : callable
         ``scene(*task)`` -> (direct, door, ...): arrays (the task's nodes, door states

@@ -1,10 +1,10 @@
 """The moonlit Earth's look-up table: its build, its validation and its cache.
 
-The table (:class:`~straylight.sources.moonlit_table.MoonlitLUT`) holds the direct sum of
-:class:`~straylight.sources.offfield.OffFieldModel` on the coarse Earth-cap grid at its nodes
-(:class:`~straylight.sources.earthshine_table_nodes.MoonlitSettings`), built one Moon zenith
+The table (:class:`~straylight.sources.earthshine.moonlit_table.MoonlitLUT`) holds the direct sum of
+:class:`~straylight.sources.earthshine.engine.EarthGrid` on the coarse Earth-cap grid at its nodes
+(:class:`~straylight.sources.earthshine.nodes.MoonlitSettings`), built one Moon zenith
 angle per task in threads as the sunlit Earth's table is
-(:func:`~straylight.sources.lamp_table.build_lamp_table`), validated against the direct sum at random
+(:func:`~straylight.sources.earthshine.table.build_lamp_table`), validated against the direct sum at random
 points (any Moon, roll, radius and Moon distance) and cached under a digest of everything it
 depends on (:func:`load_or_build_moonlit`).
 """
@@ -14,7 +14,8 @@ from __future__ import annotations
 import numpy as np
 
 from straylight.sources.body_magnitudes import MOON_APOGEE_KM, MOON_MEAN_DISTANCE_KM, MOON_PERIGEE_KM
-from straylight.sources.earthshine_table_nodes import (
+from straylight.sources.earthshine.moonlit_table import MoonlitLUT
+from straylight.sources.earthshine.nodes import (
     MOONLIT_LUT_BUILD_SECONDS_PER_NODE,
     MoonlitSettings,
     _cached,
@@ -22,8 +23,7 @@ from straylight.sources.earthshine_table_nodes import (
     mirror_symmetric,
     moonlit_key,
 )
-from straylight.sources.lamp_table import build_lamp_table
-from straylight.sources.moonlit_table import MoonlitLUT
+from straylight.sources.earthshine.table import build_lamp_table
 
 __all__ = [
     "build_moonlit_lut",
@@ -98,7 +98,7 @@ def build_moonlit_lut(
 
     Parameters
     ----------
-    off : OffFieldModel
+    off : EarthGrid
         The off-field transfer and Earth grid.
     earth_radius_km : float
         The Earth's radius, km.
@@ -204,7 +204,7 @@ def load_or_build_moonlit(
     nodes = settings.node_count(float(radius_range_km[0]), earth_radius_km, mirror_symmetric(off))
     expected = MOONLIT_LUT_BUILD_SECONDS_PER_NODE * nodes * len(off.door_states_deg)
     if log is not None and not cache_path("moonlit_lut", key).exists():  # this machine, now
-        from straylight.sources.earthshine_table_build import build_speed_factor
+        from straylight.sources.earthshine.sunlit_build import build_speed_factor
 
         expected *= build_speed_factor(off, earth_radius_km, radius_range_km, None, workers)
     return _cached(
