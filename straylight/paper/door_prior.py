@@ -50,9 +50,9 @@ def door_incidence(
         (quantile -> the angle between the specular reflection and the direction from the
         door's centre to the aperture's centre, deg), ``pointings``.
     """
-    from straylight.sources.context import SourceContext
+    from straylight.model import BackgroundModel
 
-    off = SourceContext(campaign).offfield
+    off = BackgroundModel(campaign).sunlit_earth.engine.grid  # the Earth grid over the transfer
     s = off.cap_settings(None)
     ra, dec = scenario_pointings(nside)
     los_all = radec_to_unit(ra, dec)
