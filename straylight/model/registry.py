@@ -20,7 +20,7 @@ docs/architecture.md gives the steps."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, Sequence
 
 from straylight.sources.context import Source
 
