@@ -71,7 +71,20 @@ MEMBER_GROUPS = {"earthshine": ("earthshine_direct", "earthshine_door"), "sun_mo
 
 
 def end_part_name(leaf: str, end: str) -> str:
-    """The name of a part re-evaluated at an end of the envelope (a cube variable)."""
+    """The name of a part re-evaluated at an end of the envelope (a cube variable).
+
+    Parameters
+    ----------
+    leaf : str
+        The part or group (e.g. ``"earthshine"``, a :data:`MEMBER_GROUPS` key).
+    end : str
+        One of :data:`ENDS`.
+
+    Returns
+    -------
+    str
+        ``<leaf>_<end>``.
+    """
     return f"{leaf}_{end}"
 
 

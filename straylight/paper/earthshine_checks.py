@@ -54,7 +54,20 @@ def limb_profile(bins, lo_deg: float = 0.0, hi_deg: float = 180.0) -> dict:
 
 def profile_mag_at(profile: dict, angles_deg) -> np.ndarray:
     """The profile at ``angles_deg`` (deg), linear in magnitude between bin centres,
-    mag/arcsec2."""
+    mag/arcsec2.
+
+    Parameters
+    ----------
+    profile : dict
+        ``centre_deg`` (bin centres, deg) and ``median_mag`` (mag/arcsec2).
+    angles_deg : array_like
+        Bright-limb angles, deg.
+
+    Returns
+    -------
+    ndarray
+        mag/arcsec2.
+    """
     return np.interp(np.asarray(angles_deg, float), profile["centre_deg"], profile["median_mag"])
 
 

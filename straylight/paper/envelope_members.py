@@ -31,7 +31,19 @@ __all__ = ["campaign_with_body", "envelope_members"]
 
 
 def campaign_with_body(campaign: Campaign, body_radius_m: float) -> Campaign:
-    """A copy of ``campaign`` whose telescope body has radius ``body_radius_m`` (m)."""
+    """A copy of ``campaign`` whose telescope body has radius ``body_radius_m`` (m).
+
+    Parameters
+    ----------
+    campaign : Campaign
+        The campaign.
+    body_radius_m : float
+        The body's radius, m.
+
+    Returns
+    -------
+    Campaign
+    """
     inst = campaign.instrument
     body = dict(inst["door_geometry"]["body_radius_m"])
     body["value"] = float(body_radius_m)
