@@ -315,7 +315,7 @@ def _model_tables(model, label: str) -> list[dict]:
             try:
                 with np.load(p) as z:
                     others.append(float(np.mean(z["radius_km"])))
-            except (OSError, KeyError, ValueError):
+            except (OSError, EOFError, KeyError, ValueError):  # an unreadable cached table: not an altitude
                 continue
     out = [
         {

@@ -537,8 +537,9 @@ def test_plan_costs_the_model_that_runs(campaign, tmp_path, monkeypatch):
     without building anything: auto takes the tables for the default day as for three weeks;
     their build (1,840,841 nodes x 2 door states at LUT_BUILD_SECONDS_PER_NODE, the default
     table's node count, and the moonlit table's 534,375 x 2 at MOONLIT_LUT_BUILD_SECONDS_PER_NODE)
-    is counted while it is not cached, each table on its own; method: direct prices the direct
-    sum's extra per evaluated sample instead."""
+    is counted while it is not cached, each table on its own, for the nominal model and each of
+    the assumption envelope's two members (the same grids, so the same node counts); method:
+    direct prices the direct sum's extra per evaluated sample instead."""
     from straylight import model as comp
     from straylight.cube.footprint import footprint_from_config
     from straylight.planning import plan
@@ -551,7 +552,8 @@ def test_plan_costs_the_model_that_runs(campaign, tmp_path, monkeypatch):
     moonlit_s = (
         534_375 * 2 * comp.MOONLIT_LUT_BUILD_SECONDS_PER_NODE
     )  # (Moon zenith, zenith, azimuth, roll) nodes
-    assert day["table_build_seconds"] == pytest.approx(sunlit_s + moonlit_s, rel=1e-12)
+    sets = 3  # the nominal model's tables and each envelope member's (config envelope.members)
+    assert day["table_build_seconds"] == pytest.approx(sets * (sunlit_s + moonlit_s), rel=1e-12)
     assert day["compute_seconds"] == pytest.approx(380_160 * plan.CUBE_TABLE_SECONDS_PER_SAMPLE, rel=1e-12)
 
     def week(unobservable, method="auto"):
@@ -566,7 +568,7 @@ def test_plan_costs_the_model_that_runs(campaign, tmp_path, monkeypatch):
     evaluating = week("evaluate")
     assert (evaluating["samples"], evaluating["earthshine_method"]) == (N_DAYS * 380_160, "lut")
     assert not evaluating["table_cached"]
-    assert evaluating["table_build_seconds"] == pytest.approx(sunlit_s + moonlit_s, rel=1e-12)
+    assert evaluating["table_build_seconds"] == pytest.approx(sets * (sunlit_s + moonlit_s), rel=1e-12)
     assert evaluating["core_hours"] * 3600 == pytest.approx(
         N_DAYS * 380_160 * plan.CUBE_TABLE_SECONDS_PER_SAMPLE + evaluating["table_build_seconds"], rel=1e-12
     )
@@ -577,8 +579,12 @@ def test_plan_costs_the_model_that_runs(campaign, tmp_path, monkeypatch):
     week_model.sunlit_earth.lut_path().write_bytes(b"")  # only its existence is checked
     one_left = week("evaluate")
     assert not one_left["table_cached"]
-    assert one_left["table_build_seconds"] == pytest.approx(moonlit_s, rel=1e-12)
+    assert one_left["table_build_seconds"] == pytest.approx(
+        moonlit_s + (sets - 1) * (sunlit_s + moonlit_s), rel=1e-12
+    )
     week_model.moonlit_earth.lut_path().write_bytes(b"")
+    for t in week("evaluate")["tables"]:  # the members' too
+        t["path"].write_bytes(b"")
     assert week("evaluate")["table_cached"] and week("evaluate")["table_build_seconds"] == 0.0
     direct = week("skip", method="direct")
     assert 0.12 < direct["evaluated_samples"] / direct["samples"] < 0.2  # the default day: 16.5 %

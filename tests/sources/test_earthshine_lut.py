@@ -310,7 +310,12 @@ def test_save_load_round_trip_and_cache_key(coarse, tmp_path, campaign):
         1e-20,
     )
     assert k != lut_key(
-        replace(off, transfer=replace(off.transfer, door=replace(off.door, body_radius_m=1.5))),
+        replace(
+            off,
+            transfer=replace(
+                off.transfer, door=replace(off.door, body_radius_m=off.door.body_radius_m + 0.5)
+            ),
+        ),
         6378.137,
         (6778.137, 6778.137),
         LUTSettings(5, 5, 20),

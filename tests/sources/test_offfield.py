@@ -1239,7 +1239,11 @@ def test_the_body_shades_the_door(comp_model, tilt_deg, sun_zenith_deg):
     sum within 1 %."""
     import dataclasses
 
-    off = comp_model.sunlit_earth.engine.grid
+    grid = comp_model.sunlit_earth.engine.grid
+    # the smallest body of the prior range (the aperture's radius; config door_geometry.body_radius_m
+    # is 1.5 m), so that the figures below are this geometry's
+    small = dataclasses.replace(grid.door, body_radius_m=1.0)
+    off = dataclasses.replace(grid, transfer=dataclasses.replace(grid.transfer, door=small))
     assert (off.door.body_radius_m, off.door.body_length_m) == (1.0, 10.0)
     bare_door = dataclasses.replace(off.door, body_radius_m=0.0)
     bare = dataclasses.replace(off, transfer=dataclasses.replace(off.transfer, door=bare_door))
