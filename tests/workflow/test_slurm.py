@@ -95,6 +95,7 @@ LOCAL_CLUSTER_ARGS = (
     "background_init=prepare",
     "background=finish",
     "limits=finish",
+    "sky_compact=finish",
     "provenance=finish",
 )
 
