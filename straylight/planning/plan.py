@@ -297,26 +297,34 @@ def needed_tables(model) -> list[dict]:
     from straylight.model import BackgroundModel
     from straylight.model.envelope import ENDS, end_campaign
 
-    out = _model_tables(model, "")
+    radii = _cached_sunlit_radii_km(model.sunlit_earth.lut_path().parent)
+    out = _model_tables(model, "", radii)
     env = model.campaign.instrument_settings.envelope
     if env is not None and env.members is not None:
         for end in ENDS:
             end_model = BackgroundModel(end_campaign(model.campaign, end))
-            out += _model_tables(end_model, f" (the envelope's {end} member)")
+            out += _model_tables(end_model, f" (the envelope's {end} member)", radii)
     return out
 
 
-def _model_tables(model, label: str) -> list[dict]:
-    """One model's sunlit and moonlit tables (:func:`needed_tables`), names ending in ``label``."""
+def _cached_sunlit_radii_km(folder) -> dict:
+    """Each sunlit table cached in ``folder`` -> its mean orbit radius, km (read once: each file is
+    tens of MB); unreadable files are left out."""
+    radii = {}
+    for p in sorted(folder.glob("earthshine_lut_*.npz")) if folder.is_dir() else []:
+        try:
+            with np.load(p) as z:
+                radii[p] = float(np.mean(z["radius_km"]))
+        except (OSError, EOFError, KeyError, ValueError):  # an unreadable cached table: not an altitude
+            continue
+    return radii
+
+
+def _model_tables(model, label: str, radii_km: dict) -> list[dict]:
+    """One model's sunlit and moonlit tables (:func:`needed_tables`), names ending in ``label``;
+    ``radii_km``: the cached sunlit tables' orbit radii (:func:`_cached_sunlit_radii_km`)."""
     sunlit = model.sunlit_earth.lut_path()
-    others = []
-    for p in sorted(sunlit.parent.glob("earthshine_lut_*.npz")) if sunlit.parent.is_dir() else []:
-        if p != sunlit:
-            try:
-                with np.load(p) as z:
-                    others.append(float(np.mean(z["radius_km"])))
-            except (OSError, EOFError, KeyError, ValueError):  # an unreadable cached table: not an altitude
-                continue
+    others = [r for p, r in radii_km.items() if p != sunlit]
     out = [
         {
             "name": "sunlit-Earth table" + label,
