@@ -7,8 +7,11 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
-# tests keep their earthshine look-up tables to themselves (subprocesses inherit this)
-os.environ["STRAYLIGHT_CACHE"] = tempfile.mkdtemp(prefix="straylight-test-cache-")
+# tests keep their earthshine look-up tables to themselves (subprocesses inherit this), in a
+# fresh folder, or in STRAYLIGHT_TEST_CACHE where a developer names one that already holds them
+os.environ["STRAYLIGHT_CACHE"] = os.environ.get("STRAYLIGHT_TEST_CACHE") or tempfile.mkdtemp(
+    prefix="straylight-test-cache-"
+)
 SHARED_DATA = REPO.parent / "shared" / "data"
 # ISS TLE (public NORAD element set, 2008 example from the CelesTrak documentation)
 ISS_L1 = "1 25544U 98067A   08264.51782528 -.00002182  00000-0 -11606-4 0  2927"
