@@ -108,11 +108,13 @@ COMPACT_BYTES_PER_SAMPLE = 0.18
 #: The pipeline's wall time, `snakemake` to the last product, on N cores with the earthshine
 #: tables cached: PIPELINE_FIXED_SECONDS + samples / (PIPELINE_SAMPLES_PER_S_PER_CORE x N).  The
 #: fixed part is the jobs' start-up, the model's set-up, the figures and the report; the rest
-#: grows with the samples.  Fitted to the bench/pipeline.py runs on 2 cores in
-#: docs/performance.md (1 day at nside 16, 3 days and a month at nside 32); the config's
-#: compute.pipeline_samples_per_s_per_core replaces the rate for another machine.
+#: grows with the samples.  Both at the speed probe's reference (factor 1): the fixed part from
+#: the bench/pipeline.py runs on 2 cores (1 day at nside 16, 3 days at nside 32), the rate from a
+#: month at nside 32 with the envelope's members, 234.6 s on the idle 2 cores at a probed factor
+#: of 2.01 (docs/performance.md); the config's compute.pipeline_samples_per_s_per_core replaces
+#: the rate for another machine.
 PIPELINE_FIXED_SECONDS = 26.0
-PIPELINE_SAMPLES_PER_S_PER_CORE = 623_000.0
+PIPELINE_SAMPLES_PER_S_PER_CORE = 252_000.0
 #: A footprint's first campaign also sums its faint-star map (kept for later ones), seconds on one
 #: core per footprint pixel (bench/pipeline.py, the same runs).
 FAINT_MAP_SECONDS_PER_PIXEL = 3.0e-3
