@@ -22,7 +22,7 @@ from _results import write_results  # noqa: E402
 
 def main():
     from straylight.config import load_campaign
-    from straylight.image.detector import RenderSettings, render_detector
+    from straylight.image.detector import Aim, DetectorOptics, RenderSettings, Stars, render_detector
     from straylight.image.focal_plane import FocalPlane, focal_plane_from_instrument, pointing_wcs
     from straylight.optics.ghosts import ghost_model_from_instrument
     from straylight.optics.scatter import scatter_model_from_instrument
@@ -41,10 +41,14 @@ def main():
     ra, dec = w.pixel_to_world_values(xs, ys)
     flux = 10 ** rng.uniform(3, 8, n_stars)  # e-/s: G ~ 7-19 in g
     results = {"detector_px": [fp.ny, fp.nx], "n_stars": n_stars, "full_detector": {}, "cutout_error": {}}
+    aim = Aim(150.0, 30.0, sun, 12)
     for rn, b in ((128, 16), (128, 8), (64, 8)):
         t0 = time.perf_counter()
         r = render_detector(
-            150.0, 30.0, ra, dec, flux, sun, fp, 12, sc, gh, 3.9, RenderSettings(far_bin=b, near_radius_px=rn)
+            aim,
+            Stars(ra, dec, flux),
+            DetectorOptics(fp, sc, gh, 3.9),
+            RenderSettings(far_bin=b, near_radius_px=rn),
         )
         dt = time.perf_counter() - t0
         results["full_detector"][f"near_{rn}_far_bin_{b}_s"] = dt
@@ -60,34 +64,18 @@ def main():
     kw = dict(size_override=(n, n))
     for rn in (64, 128):
         ref = render_detector(
-            150.0,
-            30.0,
-            ra2,
-            dec2,
-            f2,
-            sun,
-            fp,
-            12,
-            sc,
-            None,
-            3.9,
+            aim,
+            Stars(ra2, dec2, f2),
+            DetectorOptics(fp, sc, None, 3.9),
             RenderSettings(far_bin=1, near_radius_px=rn, margin_arcsec=40.0),
             **kw,
         ).image_e_per_s_per_pix.astype(float)
         for b in (16, 8, 4, 2):
             t0 = time.perf_counter()
             im = render_detector(
-                150.0,
-                30.0,
-                ra2,
-                dec2,
-                f2,
-                sun,
-                fp,
-                12,
-                sc,
-                None,
-                3.9,
+                aim,
+                Stars(ra2, dec2, f2),
+                DetectorOptics(fp, sc, None, 3.9),
                 RenderSettings(far_bin=b, near_radius_px=rn, margin_arcsec=40.0),
                 **kw,
             ).image_e_per_s_per_pix.astype(float)

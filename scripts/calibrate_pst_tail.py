@@ -76,7 +76,7 @@ def main(argv=None) -> int:
 
     from straylight.config import load_campaign
     from straylight.errors import StraylightError
-    from straylight.paper.scenarios import HST_BRIGHT_LIMB_LIMIT_DEG, read_hst_curve
+    from straylight.paper.scenarios import HST_BRIGHT_LIMB_LIMIT_DEG, PhaseSampling, read_hst_curve
     from straylight.paper.tail_calibration import calibrate_tail, default_phase_crossing
     from straylight.paper.tail_figure import plot_tail_calibration
 
@@ -98,13 +98,7 @@ def main(argv=None) -> int:
     t0 = time.perf_counter()
     try:
         s = calibrate_tail(
-            campaign,
-            level,
-            target,
-            raan_step_deg=args.raan_step,
-            u_step_deg=args.u_step,
-            nside=args.nside,
-            tails_log10=tails,
+            campaign, level, target, PhaseSampling(args.raan_step, args.u_step, args.nside, tails)
         )
     except StraylightError as exc:  # the tails do not bracket the target
         print(f"calibrate_pst_tail: {exc}", file=sys.stderr)

@@ -39,7 +39,7 @@ def main(argv=None) -> int:
     from straylight.config import load_campaign
     from straylight.errors import StraylightError
     from straylight.paper.envelope_members import envelope_members
-    from straylight.paper.scenarios import HST_BRIGHT_LIMB_LIMIT_DEG, read_hst_curve
+    from straylight.paper.scenarios import HST_BRIGHT_LIMB_LIMIT_DEG, PhaseSampling, read_hst_curve
 
     try:
         campaign = load_campaign(args.config)
@@ -54,9 +54,8 @@ def main(argv=None) -> int:
         print(f"envelope_members: {exc}", file=sys.stderr)
         return 2
     t0 = time.perf_counter()
-    s = envelope_members(
-        campaign, level, target, args.tolerance, doors, bodies, args.raan_step, args.u_step, args.nside, tails
-    )
+    sampling = PhaseSampling(args.raan_step, args.u_step, args.nside, tails)
+    s = envelope_members(campaign, level, target, args.tolerance, doors, bodies, sampling)
     s["seconds"] = round(time.perf_counter() - t0, 1)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -262,11 +262,7 @@ def _run_quietly(cmd, env, campaign) -> int:
     c = campaign.settings.campaign
     results = Path("results") / campaign.name
     log_path = results / "work" / "logs" / "snakemake.log"
-    try:
-        log_path.parent.mkdir(parents=True, exist_ok=True)
-        log = open(log_path, "w", encoding="utf-8")  # noqa: SIM115 - closed below, after the reader
-    except OSError as exc:
-        raise InputError(f"{log_path}: cannot write the run's log ({exc.strerror or exc})") from None
+    log = _open_log(log_path)
     from straylight.sky.timeutil import quiet_dubious_years
 
     with quiet_dubious_years():  # the campaign checked: inside DE405
@@ -298,23 +294,8 @@ def _run_quietly(cmd, env, campaign) -> int:
     reader.start()
     # disable=None: no bar where stderr is not a terminal (a pipe, a batch job's file)
     bar = tqdm(total=None, unit="step", desc=campaign.name, file=sys.stderr, disable=None, leave=False)
-    interrupted = False
     try:
-        while True:
-            try:
-                if proc.poll() is not None:
-                    break
-                done, total = progress.counts()
-                if total is not None and bar.total != total:
-                    bar.total = total
-                if done != bar.n:
-                    bar.update(done - bar.n)
-                else:
-                    bar.refresh()
-                time.sleep(0.5)
-            except KeyboardInterrupt:
-                interrupted = True
-                _stop(proc)
+        interrupted = _follow(proc, progress, bar)
         reader.join()
     finally:
         for sig, handler in previous.items():
@@ -334,18 +315,51 @@ def _run_quietly(cmd, env, campaign) -> int:
         )
         return INTERRUPTED_EXIT
     else:
-        lines = list(tail)
-        first = next(
-            (i for i, ln in enumerate(lines) if re.match(r"\s*(Error|Exception|\w+Error\b)", ln)), None
-        )
-        shown = lines[first:][:40] if first is not None else lines[-20:]
-        print("\n".join(shown), file=sys.stderr)
-        print(
-            f"straylight run: failed (Snakemake exit status {code}) after {wall:.0f} s; "
-            f"the whole log: {log_path}",
-            file=sys.stderr,
-        )
+        _print_failure(list(tail), code, wall, log_path)
     return code
+
+
+def _open_log(log_path: Path):
+    """The run's log, opened for writing (its folder made); InputError when it cannot be."""
+    try:
+        log_path.parent.mkdir(parents=True, exist_ok=True)
+        return open(log_path, "w", encoding="utf-8")  # noqa: SIM115 - the caller closes it, after the reader
+    except OSError as exc:
+        raise InputError(f"{log_path}: cannot write the run's log ({exc.strerror or exc})") from None
+
+
+def _follow(proc, progress: RunProgress, bar) -> bool:
+    """Move ``bar`` with the run's progress every 0.5 s until ``proc`` ends; True when a Ctrl-C
+    stopped it (:func:`_stop`)."""
+    interrupted = False
+    while True:
+        try:
+            if proc.poll() is not None:
+                return interrupted
+            done, total = progress.counts()
+            if total is not None and bar.total != total:
+                bar.total = total
+            if done != bar.n:
+                bar.update(done - bar.n)
+            else:
+                bar.refresh()
+            time.sleep(0.5)
+        except KeyboardInterrupt:
+            interrupted = True
+            _stop(proc)
+
+
+def _print_failure(lines: list, code: int, wall: float, log_path: Path) -> None:
+    """A failed run's log lines from its first error (else its last 20), and the closing line
+    (``wall``: its wall seconds)."""
+    first = next((i for i, ln in enumerate(lines) if re.match(r"\s*(Error|Exception|\w+Error\b)", ln)), None)
+    shown = lines[first:][:40] if first is not None else lines[-20:]
+    print("\n".join(shown), file=sys.stderr)
+    print(
+        f"straylight run: failed (Snakemake exit status {code}) after {wall:.0f} s; "
+        f"the whole log: {log_path}",
+        file=sys.stderr,
+    )
 
 
 def run_campaign(config, cores: int | None = None, extra=(), argv=None, verbose: bool = False) -> int:

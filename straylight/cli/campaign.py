@@ -93,6 +93,13 @@ def cmd_plan(args) -> int:
         f"compact sky (sky_compact.zarr, besides): {cost['compact_bytes'] / 1e9:.3g} GB at "
         f"{COMPACT_BYTES_PER_SAMPLE:g} bytes/sample (straylight.planning.plan.COMPACT_BYTES_PER_SAMPLE)"
     )
+    _print_earthshine(cost, campaign, cores)
+    _print_wall_time(cost, args, cores, speed, factor)
+    return 0
+
+
+def _print_earthshine(cost: dict, campaign, cores: int) -> None:
+    """``straylight plan``'s lines on how earthshine is summed and its tables' build."""
     if cost["earthshine_method"] == "lut":
         table = (
             "its tables are cached"
@@ -119,6 +126,10 @@ def cmd_plan(args) -> int:
                 )
     else:
         print(f"earthshine: direct Earth-grid sum ({cost['earthshine_reason']})")
+
+
+def _print_wall_time(cost: dict, args, cores: int, speed, factor: float) -> None:
+    """``straylight plan``'s wall-time estimate, with the machine's speed factor it is scaled by."""
     per = (
         f"{args.seconds_per_sample * 1e3:.3g} ms per evaluated sample (--seconds-per-sample)"
         if args.seconds_per_sample is not None
@@ -155,7 +166,6 @@ def cmd_plan(args) -> int:
         f"the cube's compute alone: {cost['compute_seconds'] / 3600:.3g} core-hours "
         f"(straylight.planning.plan.CUBE_*)"
     )
-    return 0
 
 
 def _duration(seconds: float) -> str:

@@ -108,7 +108,7 @@ def cmd_image(args) -> int:
     from straylight.image.detector import RenderSettings
     from straylight.image.detector_fits import write_fits
     from straylight.image.focal_plane import focal_plane_from_instrument
-    from straylight.image.frame import cutout_window, frame_for_target, render_frame
+    from straylight.image.frame import StarCatalog, cutout_window, frame_for_target, render_frame
     from straylight.optics.bandpass import load_band
     from straylight.sky.ephemeris import check_in_ephemeris
     from straylight.sky.timeutil import parse_utc
@@ -138,26 +138,15 @@ def cmd_image(args) -> int:
         far_bin=args.far_bin, margin_arcsec=args.margin_arcsec, paint_ghosts=not args.no_ghosts
     )
     frame = frame_for_target(
-        campaign, t, target[0], target[1], band, ra, dec, mag, fp, args.detector, args.center, settings
+        campaign, t, target, band, StarCatalog(ra, dec, mag), args.detector, args.center, settings
     )
     if frame.body_names:
         print(
             "in the field, imaged as stars: "
             + ", ".join(f"{n} ({m:.2f} AB)" for n, m in zip(frame.body_names, frame.body_mag_ab))
         )
-    if frame.selection.index.size == 0:
-        where = "the chip's centre" if args.center == "detector" else "the boresight (in a gap between chips)"
-        msg = (
-            f"no star of {catalog} reaches detector {args.detector} (target RA {target[0]:.4f}, Dec "
-            f"{target[1]:+.4f} at {where}): the stray-light image is zero everywhere"
-        )
-        if not args.allow_empty:
-            print(
-                f"straylight: warning: {msg}; nothing written (pass --allow-empty to write it)",
-                file=sys.stderr,
-            )
-            return 1
-        print(f"straylight: warning: {msg}", file=sys.stderr)
+    if frame.selection.index.size == 0 and not _empty_field_allowed(args, catalog, target):
+        return 1
     window = None
     if cutout is not None:
         xt, yt = frame.pixel_of(target[0], target[1])
@@ -174,8 +163,37 @@ def cmd_image(args) -> int:
     result = render_frame(
         frame, inst, args.band, window, args.bin, background["total"] if background is not None else None
     )
+    prov = _provenance(args, t, (bore_ra, bore_dec), target, (catalog, campaign, band), background)
+    write_fits(result, out, prov, compress=args.compress, quantize_step=args.quantize_step)
+    _print_summary(out, result, args, frame, star_label, background)
+    return 0
+
+
+def _empty_field_allowed(args, catalog, target) -> bool:
+    """No star reaches the detector: warn; True with ``--allow-empty`` (the zero image is
+    written), else False (nothing is written)."""
+    where = "the chip's centre" if args.center == "detector" else "the boresight (in a gap between chips)"
+    msg = (
+        f"no star of {catalog} reaches detector {args.detector} (target RA {target[0]:.4f}, Dec "
+        f"{target[1]:+.4f} at {where}): the stray-light image is zero everywhere"
+    )
+    if not args.allow_empty:
+        print(
+            f"straylight: warning: {msg}; nothing written (pass --allow-empty to write it)",
+            file=sys.stderr,
+        )
+        return False
+    print(f"straylight: warning: {msg}", file=sys.stderr)
+    return True
+
+
+def _provenance(args, t, boresight, target, inputs, background) -> dict:
+    """The FITS header's provenance cards of ``straylight image``: ``boresight`` and ``target``
+    (RA, Dec) deg, ``inputs`` (catalog path, campaign, band), ``background`` (or None)."""
     from straylight import __version__
 
+    bore_ra, bore_dec = boresight
+    catalog, campaign, band = inputs
     prov = {
         "DATE-OBS": t.isot,
         "RA_PNT": bore_ra,
@@ -201,7 +219,12 @@ def cmd_image(args) -> int:
                 "BKG_NOTE": "diffuse bkg at RA/DEC_PNT, e-/s/pix",
             }
         )
-    write_fits(result, out, prov, compress=args.compress, quantize_step=args.quantize_step)
+    return prov
+
+
+def _print_summary(out, result, args, frame, star_label: str, background) -> None:
+    """``straylight image``'s closing line: the file, the image and what reached it."""
+    bore_ra, bore_dec = frame.boresight_ra_deg, frame.boresight_dec_deg
     img = result.image_e_per_s_per_pix
     centred = f", centred: {star_label}" if star_label else ""
     added = ""
@@ -216,7 +239,6 @@ def cmd_image(args) -> int:
         f"{len(result.ghosts['x_pix'])} ghost discs; max {img.max():.4g}, median {np.median(img):.4g} "
         f"e-/s/pix{added}"
     )
-    return 0
 
 
 def _image_background(campaign, t, ra_deg: float, dec_deg: float, band: str, catalog) -> dict:

@@ -179,7 +179,6 @@ def write_compact(background, out, mag_step: float, clevel: int = 5, threads: in
     """
     import xarray as xr
     import zarr
-    from zarr.codecs import BloscCodec
 
     if not 0.0 < float(mag_step) <= 1.0:
         raise InputError(f"compact magnitude step {mag_step!r}: must be in (0, 1] mag")
@@ -196,70 +195,14 @@ def write_compact(background, out, mag_step: float, clevel: int = 5, threads: in
     cadence_ns = int(dt[0]) if nt > 1 else 1
     tc = compact_time_chunk(nt, npix, nb, cadence_ns / 1e9)
     start = np.datetime_as_string(times[0], unit="s")
-    total_arr = bg["total"].variable
-    obs_arr = bg["observable"].variable
     tally = _ErrorTally(nb)
     with atomic_path(out) as tmp:
         root = zarr.open_group(str(tmp), mode="w", zarr_format=3)
-        blosc = BloscCodec(
-            cname="zstd", clevel=int(clevel), shuffle="shuffle", typesize=2, blocksize=_BLOCK_BYTES
-        )
-        mag = root.create_array(
-            "mag",
-            shape=(nt, npix, nb),
-            chunks=(tc, npix, nb),
-            dtype="uint16",
-            fill_value=FILL,
-            compressors=[blosc],
-            dimension_names=("time", "pixel", "band"),
-        )
-        obs = root.create_array(
-            "observable",
-            shape=(nt, npix),
-            chunks=(tc, npix),
-            dtype="bool",
-            fill_value=False,
-            compressors=[
-                BloscCodec(
-                    cname="zstd", clevel=int(clevel), shuffle="bitshuffle", typesize=1, blocksize=_BLOCK_BYTES
-                )
-            ],
-            dimension_names=("time", "pixel"),
-        )
-
-        def one(t0: int) -> _ErrorTally:
-            t1 = min(nt, t0 + tc)
-            ob = np.asarray(obs_arr[t0:t1].values, bool)
-            part = _ErrorTally(nb)
-            mag[t0:t1] = part.encode(np.asarray(total_arr[t0:t1].values), zp, ob, step)
-            obs[t0:t1] = ob
-            return part
-
-        with ThreadPoolExecutor(max(1, int(threads))) as pool:
-            for part in pool.map(one, range(0, nt, tc)):
-                tally.merge(part)
-        t = root.create_array("time", shape=(nt,), dtype="int64", dimension_names=("time",))
-        t[:] = (times - times[0]).astype("timedelta64[s]").astype(np.int64)
-        t.attrs.update(units=f"seconds since {start}", calendar="proleptic_gregorian", long_name="time (UTC)")
-        p = root.create_array("pixel", shape=(npix,), dtype="int64", dimension_names=("pixel",))
-        p[:] = pixels
-        p.attrs.update(units="1", long_name="HEALPix pixel index")
-        rms = np.sqrt(tally.sq / np.maximum(tally.n, 1))
-        stats = {
-            "error_rms_mag": rms.tolist(),
-            "error_p99_mag": tally.percentile(99.0).tolist(),
-            "error_p999_mag": tally.percentile(99.9).tolist(),
-            "error_max_mag": tally.max.tolist(),
-        }
-        mag.attrs.update(
-            units="mag(AB)/arcsec2",
-            long_name="total sky background, quantised; _FillValue where not observable",
-            scale_factor=step,
-            add_offset=ADD_OFFSET_MAG,
-            _FillValue=FILL,
-            coordinates="time pixel",
-        )
-        obs.attrs.update(units="1", long_name="observable (every constraint met)")
+        mag, obs = _create_arrays(root, (nt, npix, nb), tc, int(clevel))
+        _encode(bg, (mag, obs), zp, (step, tc), tally, threads)
+        _write_coordinates(root, times, pixels, start)
+        stats = _error_stats(tally)
+        _annotate_arrays(mag, obs, step)
         root.attrs.update(
             format=COMPACT_FORMAT,
             title="straylight compact sky: total background per band, AB mag/arcsec2, where observable",
@@ -288,4 +231,91 @@ def write_compact(background, out, mag_step: float, clevel: int = 5, threads: in
         "bytes_per_sample": nbytes / max(n, 1),
         "time_chunk": tc,
         **stats,
+    }
+
+
+def _encode(bg, arrays: tuple, zp, quantum: tuple, tally: _ErrorTally, threads: int) -> None:
+    """Encode ``bg``'s ``total`` (e-/s/pix) and ``observable`` into the compact ``arrays`` (mag,
+    observable), ``quantum`` = (mag step, chunk times) at a time in ``threads`` threads, the
+    quantisation errors merged into ``tally``; ``zp`` the bands' zero points, mag."""
+    mag, obs = arrays
+    step, tc = quantum
+    total_arr, obs_arr = bg["total"].variable, bg["observable"].variable
+    nt, nb = total_arr.shape[0], bg["band"].size
+
+    def one(t0: int) -> _ErrorTally:
+        t1 = min(nt, t0 + tc)
+        ob = np.asarray(obs_arr[t0:t1].values, bool)
+        part = _ErrorTally(nb)
+        mag[t0:t1] = part.encode(np.asarray(total_arr[t0:t1].values), zp, ob, step)
+        obs[t0:t1] = ob
+        return part
+
+    with ThreadPoolExecutor(max(1, int(threads))) as pool:
+        for part in pool.map(one, range(0, nt, tc)):
+            tally.merge(part)
+
+
+def _annotate_arrays(mag, obs, step: float) -> None:
+    """The compact arrays' CF attributes (``step``: the magnitude quantum, mag)."""
+    mag.attrs.update(
+        units="mag(AB)/arcsec2",
+        long_name="total sky background, quantised; _FillValue where not observable",
+        scale_factor=step,
+        add_offset=ADD_OFFSET_MAG,
+        _FillValue=FILL,
+        coordinates="time pixel",
+    )
+    obs.attrs.update(units="1", long_name="observable (every constraint met)")
+
+
+def _create_arrays(root, shape: tuple, tc: int, clevel: int) -> tuple:
+    """The compact store's ``mag`` (time, pixel, band) uint16 and ``observable`` (time, pixel)
+    bool arrays of ``shape`` (nt, npix, nb), chunked by ``tc`` times, blosc zstd at ``clevel``."""
+    from zarr.codecs import BloscCodec
+
+    nt, npix, nb = shape
+    blosc = BloscCodec(cname="zstd", clevel=clevel, shuffle="shuffle", typesize=2, blocksize=_BLOCK_BYTES)
+    mag = root.create_array(
+        "mag",
+        shape=(nt, npix, nb),
+        chunks=(tc, npix, nb),
+        dtype="uint16",
+        fill_value=FILL,
+        compressors=[blosc],
+        dimension_names=("time", "pixel", "band"),
+    )
+    obs = root.create_array(
+        "observable",
+        shape=(nt, npix),
+        chunks=(tc, npix),
+        dtype="bool",
+        fill_value=False,
+        compressors=[
+            BloscCodec(cname="zstd", clevel=clevel, shuffle="bitshuffle", typesize=1, blocksize=_BLOCK_BYTES)
+        ],
+        dimension_names=("time", "pixel"),
+    )
+    return mag, obs
+
+
+def _write_coordinates(root, times, pixels, start: str) -> None:
+    """The compact store's ``time`` (seconds since ``start``) and ``pixel`` coordinates."""
+    nt, npix = times.size, pixels.size
+    t = root.create_array("time", shape=(nt,), dtype="int64", dimension_names=("time",))
+    t[:] = (times - times[0]).astype("timedelta64[s]").astype(np.int64)
+    t.attrs.update(units=f"seconds since {start}", calendar="proleptic_gregorian", long_name="time (UTC)")
+    p = root.create_array("pixel", shape=(npix,), dtype="int64", dimension_names=("pixel",))
+    p[:] = pixels
+    p.attrs.update(units="1", long_name="HEALPix pixel index")
+
+
+def _error_stats(tally) -> dict:
+    """Per band (lists), the quantisation's RMS, 99th and 99.9th percentile and largest error, mag."""
+    rms = np.sqrt(tally.sq / np.maximum(tally.n, 1))
+    return {
+        "error_rms_mag": rms.tolist(),
+        "error_p99_mag": tally.percentile(99.0).tolist(),
+        "error_p999_mag": tally.percentile(99.9).tolist(),
+        "error_max_mag": tally.max.tolist(),
     }

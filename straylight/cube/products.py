@@ -180,6 +180,73 @@ def write_footprint_fits(fp: Footprint, path) -> None:
         )
 
 
+def _observability_from(g: dict, ephem: xr.Dataset, fp: Footprint, campaign: Campaign) -> xr.Dataset:
+    """observability.zarr's dataset from its (time, pixel) arrays ``g``, with its coordinates and
+    attributes."""
+    ds = xr.Dataset(
+        {
+            "observable": _var(
+                g["observable"], ("time", "pixel"), "1", "pointing satisfies every constraint"
+            ),
+            "violations": xr.Variable(("time", "pixel"), g["violations"], violation_mask_attrs()),
+            "sun_angle_deg": _var(g["sun_angle_deg"], ("time", "pixel"), "deg", "angle LOS-Sun"),
+            "moon_angle_deg": _var(g["moon_angle_deg"], ("time", "pixel"), "deg", "angle LOS-Moon"),
+            "earth_limb_angle_deg": _var(
+                g["earth_limb_angle_deg"], ("time", "pixel"), "deg", "LOS elevation above the Earth limb"
+            ),
+            "door_opening_deg": _var(
+                g["door_opening_deg"],
+                ("time", "pixel"),
+                "deg",
+                "aperture door opening (0 = no allowed state)",
+            ),
+        },
+        coords={
+            "time": ephem["time"],
+            "pixel": ("pixel", fp.pixels, {"long_name": "HEALPix pixel index"}),
+            "ra_deg": ("pixel", fp.ra_deg, {"units": "deg", "long_name": "ICRS RA of pixel centre"}),
+            "dec_deg": ("pixel", fp.dec_deg, {"units": "deg", "long_name": "ICRS Dec of pixel centre"}),
+        },
+        attrs={
+            "healpix_nside": fp.nside,
+            "healpix_ordering": fp.ordering.upper(),
+            "healpix_frame": "ICRS",
+            "campaign": campaign.name,
+        },
+    )
+    return ds
+
+
+def _chunked_arrays(geometry, dtypes: dict, edges: tuple, token: str) -> dict:
+    """Lazy (time, pixel) dask arrays, one per ``dtypes`` key, whose chunks (``edges``: time and
+    pixel chunk edges) are ``geometry(time slice, pixel slice)[key]``, each chunk's geometry
+    computed once for all the keys.  One graph built directly: a geometry task per chunk (its
+    key from ``token``, one token of the product's inputs, and the chunk's indices) and per
+    variable a getitem of it.  Delayed calls, from_delayed and block per chunk cost more to
+    build than the chunks to compute."""
+    import operator
+
+    import dask.array as da
+    from dask.highlevelgraph import HighLevelGraph
+
+    t_edges, p_edges = edges
+    blocks = [
+        ((i, j), slice(t0, t1), slice(p0, p1))
+        for i, (t0, t1) in enumerate(zip(t_edges[:-1], t_edges[1:]))
+        for j, (p0, p1) in enumerate(zip(p_edges[:-1], p_edges[1:]))
+    ]
+    geom_name = f"observability-geometry-{token}"
+    geom_layer = {(geom_name, *ij): (geometry, ts, ps) for ij, ts, ps in blocks}
+    chunk_sizes = (tuple(np.diff(t_edges).tolist()), tuple(np.diff(p_edges).tolist()))
+    g = {}
+    for k, dt in dtypes.items():
+        name = f"observability-{k}-{token}"
+        layer = {(name, *ij): (operator.getitem, (geom_name, *ij), k) for ij, _, _ in blocks}
+        graph = HighLevelGraph({geom_name: geom_layer, name: layer}, {geom_name: set(), name: {geom_name}})
+        g[k] = da.Array(graph, name, chunks=chunk_sizes, dtype=dt)
+    return g
+
+
 def observability_dataset(
     campaign: Campaign, ephem: xr.Dataset, fp: Footprint, chunks: dict | None = None
 ) -> xr.Dataset:
@@ -231,7 +298,6 @@ def observability_dataset(
         g = geometry(slice(None), slice(None))
     else:
         import dask
-        import dask.array as da
 
         nt, npix = sat_all.shape[0], los_all.shape[0]
         # geometry()'s dtypes, declared: a skeleton (background_init) computes no sample
@@ -242,13 +308,6 @@ def observability_dataset(
         }
         t_edges = list(range(0, nt, int(chunks["time"]))) + [nt]
         p_edges = list(range(0, npix, int(chunks["pixel"]))) + [npix]
-        # one graph built directly: a geometry task per chunk (its key from one token of the
-        # product's inputs and the chunk's indices) and per variable a getitem of it.  Delayed
-        # calls, from_delayed and block per chunk cost more to build than the chunks to compute.
-        import operator
-
-        from dask.highlevelgraph import HighLevelGraph
-
         token = dask.base.tokenize(
             sat_all,
             bodies_all,
@@ -258,51 +317,5 @@ def observability_dataset(
             t_edges,
             p_edges,
         )
-        blocks = [
-            ((i, j), slice(t0, t1), slice(p0, p1))
-            for i, (t0, t1) in enumerate(zip(t_edges[:-1], t_edges[1:]))
-            for j, (p0, p1) in enumerate(zip(p_edges[:-1], p_edges[1:]))
-        ]
-        geom_name = f"observability-geometry-{token}"
-        geom_layer = {(geom_name, *ij): (geometry, ts, ps) for ij, ts, ps in blocks}
-        chunk_sizes = (tuple(np.diff(t_edges).tolist()), tuple(np.diff(p_edges).tolist()))
-        g = {}
-        for k, dt in dtypes.items():
-            name = f"observability-{k}-{token}"
-            layer = {(name, *ij): (operator.getitem, (geom_name, *ij), k) for ij, _, _ in blocks}
-            graph = HighLevelGraph(
-                {geom_name: geom_layer, name: layer}, {geom_name: set(), name: {geom_name}}
-            )
-            g[k] = da.Array(graph, name, chunks=chunk_sizes, dtype=dt)
-    ds = xr.Dataset(
-        {
-            "observable": _var(
-                g["observable"], ("time", "pixel"), "1", "pointing satisfies every constraint"
-            ),
-            "violations": xr.Variable(("time", "pixel"), g["violations"], violation_mask_attrs()),
-            "sun_angle_deg": _var(g["sun_angle_deg"], ("time", "pixel"), "deg", "angle LOS-Sun"),
-            "moon_angle_deg": _var(g["moon_angle_deg"], ("time", "pixel"), "deg", "angle LOS-Moon"),
-            "earth_limb_angle_deg": _var(
-                g["earth_limb_angle_deg"], ("time", "pixel"), "deg", "LOS elevation above the Earth limb"
-            ),
-            "door_opening_deg": _var(
-                g["door_opening_deg"],
-                ("time", "pixel"),
-                "deg",
-                "aperture door opening (0 = no allowed state)",
-            ),
-        },
-        coords={
-            "time": ephem["time"],
-            "pixel": ("pixel", fp.pixels, {"long_name": "HEALPix pixel index"}),
-            "ra_deg": ("pixel", fp.ra_deg, {"units": "deg", "long_name": "ICRS RA of pixel centre"}),
-            "dec_deg": ("pixel", fp.dec_deg, {"units": "deg", "long_name": "ICRS Dec of pixel centre"}),
-        },
-        attrs={
-            "healpix_nside": fp.nside,
-            "healpix_ordering": fp.ordering.upper(),
-            "healpix_frame": "ICRS",
-            "campaign": campaign.name,
-        },
-    )
-    return ds
+        g = _chunked_arrays(geometry, dtypes, (t_edges, p_edges), token)
+    return _observability_from(g, ephem, fp, campaign)

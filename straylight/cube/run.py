@@ -15,7 +15,7 @@ import json
 import time as _time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 from straylight.cube.executors import Execution, region_pool
 from straylight.cube.layout import CubeStores, cube_pixel_blocks, cube_time_blocks
@@ -89,6 +89,69 @@ def clear_block_sentinels(done_dir) -> int:
     return removed
 
 
+class _BlockWork(NamedTuple):
+    """The time blocks :func:`run_time_blocks` has left to do: their indices, every time block's
+    (start, stop) time indices, the pixel blocks (slices), the stored faint-star map (None: no
+    stars) and the sentinels' folder."""
+
+    todo: list
+    time_blocks: list
+    pixel_blocks: list
+    faint: object
+    done_dir: object
+
+
+def _run_regions(campaign, fp, stores, stars_path, execution, work: _BlockWork, log) -> None:
+    """Run the regions of ``work``'s time blocks, each time block's sentinel written once all its
+    pixel blocks are (:func:`run_time_blocks`)."""
+    from concurrent.futures import FIRST_COMPLETED
+
+    from straylight.sky.observing import scene
+    from straylight.util.io import write_json_atomic
+
+    todo, tb, p_blocks, faint, done_dir = work
+    with region_pool(campaign, fp, stores, stars_path, execution) as (submit, wait):
+        # a bounded window of regions in flight: the next time block's scene is computed
+        # while the workers are busy, and memory does not grow with the campaign
+        window = 2 * max(1, int(execution.workers)) + 1
+        pending: dict = {}
+        left = {b: len(p_blocks) for b in todo}
+        started: dict = {}
+
+        def finish(done):
+            for fut in done:
+                b, ps, t_slice = pending.pop(fut)
+                seconds = fut.result()
+                if log is not None:
+                    log.info(
+                        "chunk time %d:%d pixels %d:%d done in %.2f s",
+                        t_slice.start,
+                        t_slice.stop,
+                        ps.start,
+                        ps.stop,
+                        seconds,
+                    )
+                left[b] -= 1
+                if left[b] == 0:
+                    n = (t_slice.stop - t_slice.start) * fp.pixels.size
+                    rep = BlockReport(b, len(p_blocks), n, _time.perf_counter() - started[b])
+                    write_json_atomic(rep.__dict__, block_sentinel(done_dir, b))
+
+        for b in todo:
+            t_slice = slice(*tb[b])
+            # the satellite's and the bodies' positions once per time block, shared by its
+            # pixel blocks (small: sent with each region)
+            sc = scene(campaign.orbit, campaign.times[t_slice])
+            started[b] = _time.perf_counter()
+            for ps in p_blocks:
+                while len(pending) >= window:
+                    finish(wait(list(pending), return_when=FIRST_COMPLETED)[0])
+                fut = submit(t_slice, ps, sc, None if faint is None else faint[ps])
+                pending[fut] = (b, ps, t_slice)
+        while pending:
+            finish(wait(list(pending), return_when=FIRST_COMPLETED)[0])
+
+
 def run_time_blocks(
     campaign: Campaign,
     fp: Footprint,
@@ -140,12 +203,8 @@ def run_time_blocks(
     OutputError
         When a region cannot be written (from the workers).
     """
-    from concurrent.futures import FIRST_COMPLETED
-
     from straylight.cube.store import stored_faint_map
-    from straylight.sky.observing import scene
     from straylight.storage.zarr_io import remove_partial_chunks
-    from straylight.util.io import write_json_atomic
 
     execution = execution or Execution()
     tb = cube_time_blocks(campaign, len(campaign.times))
@@ -170,44 +229,6 @@ def run_time_blocks(
     if log is not None and removed:
         log.info("removed %d half-written chunk files of an earlier run", removed)
     if todo:
-        with region_pool(campaign, fp, stores, stars_path, execution) as (submit, wait):
-            # a bounded window of regions in flight: the next time block's scene is computed
-            # while the workers are busy, and memory does not grow with the campaign
-            window = 2 * max(1, int(execution.workers)) + 1
-            pending: dict = {}
-            left = {b: len(p_blocks) for b in todo}
-            started: dict = {}
-
-            def finish(done):
-                for fut in done:
-                    b, ps, t_slice = pending.pop(fut)
-                    seconds = fut.result()
-                    if log is not None:
-                        log.info(
-                            "chunk time %d:%d pixels %d:%d done in %.2f s",
-                            t_slice.start,
-                            t_slice.stop,
-                            ps.start,
-                            ps.stop,
-                            seconds,
-                        )
-                    left[b] -= 1
-                    if left[b] == 0:
-                        n = (t_slice.stop - t_slice.start) * fp.pixels.size
-                        rep = BlockReport(b, len(p_blocks), n, _time.perf_counter() - started[b])
-                        write_json_atomic(rep.__dict__, block_sentinel(done_dir, b))
-
-            for b in todo:
-                t_slice = slice(*tb[b])
-                # the satellite's and the bodies' positions once per time block, shared by its
-                # pixel blocks (small: sent with each region)
-                sc = scene(campaign.orbit, campaign.times[t_slice])
-                started[b] = _time.perf_counter()
-                for ps in p_blocks:
-                    while len(pending) >= window:
-                        finish(wait(list(pending), return_when=FIRST_COMPLETED)[0])
-                    fut = submit(t_slice, ps, sc, None if faint is None else faint[ps])
-                    pending[fut] = (b, ps, t_slice)
-            while pending:
-                finish(wait(list(pending), return_when=FIRST_COMPLETED)[0])
+        work = _BlockWork(todo, tb, p_blocks, faint, done_dir)
+        _run_regions(campaign, fp, stores, stars_path, execution, work, log)
     return [BlockReport(**json.loads(block_sentinel(done_dir, b).read_text())) for b in blocks]

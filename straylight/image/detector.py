@@ -38,9 +38,12 @@ from straylight.sky.vectors import radec_to_unit, unit
 
 __all__ = [
     "STRIP_ROWS",
+    "Aim",
     "DetectorImage",
+    "DetectorOptics",
     "RenderSettings",
     "StarSelection",
+    "Stars",
     "bodies_as_stars",
     "paint_discs",
     "render_detector",
@@ -159,6 +162,38 @@ class DetectorImage:
     meta: dict = field(default_factory=dict)
 
 
+@dataclass(frozen=True)
+class Aim:
+    """Where a detector looks: the boresight (ICRS, deg), the Sun's direction (unit vector from
+    the telescope, ICRS axes: it sets the roll) and the detector (0-based, row-major)."""
+
+    ra_deg: float
+    dec_deg: float
+    sun_direction: np.ndarray
+    detector: int
+
+
+@dataclass(frozen=True)
+class Stars:
+    """Catalog stars: positions (ICRS, deg) and detected rates through the full aperture (e-/s)."""
+
+    ra_deg: np.ndarray
+    dec_deg: np.ndarray
+    flux_e_per_s: np.ndarray
+
+
+@dataclass(frozen=True)
+class DetectorOptics:
+    """What images a star on a detector: the focal plane, the star image (core and scattering
+    halo), the band's ghosts (None: no ghosts) and the chief ray's angle of incidence on the
+    detector in deg (it sets the ghosts' offsets)."""
+
+    fp: FocalPlane
+    scatter: ScatterModel
+    ghosts: GhostModel | None
+    chief_ray_angle_deg: float
+
+
 @dataclass
 class StarSelection:
     """The stars that reach a detector (see :func:`select_stars`): catalog indices, chip pixel
@@ -188,50 +223,31 @@ class StarSelection:
 
 
 def select_stars(
-    ra_deg,
-    dec_deg,
-    star_ra_deg,
-    star_dec_deg,
-    star_flux_e_per_s,
-    sun_direction,
-    fp: FocalPlane,
-    detector: int,
-    scatter: ScatterModel,
-    settings: RenderSettings,
+    aim: Aim, stars: Stars, fp: FocalPlane, scatter: ScatterModel, settings: RenderSettings
 ) -> StarSelection:
     """Stars within the detector plus margin whose halo still exceeds the floor on the chip
     (or that sit within the near-field radius of it).  Cheap: no image is made.
 
     Parameters
     ----------
-    ra_deg : float
-        The boresight's right ascension, ICRS, deg.
-    dec_deg : float
-        The boresight's declination, ICRS, deg.
-    star_ra_deg : ndarray
-        The catalog stars' right ascensions, ICRS, deg.
-    star_dec_deg : ndarray
-        The catalog stars' declinations, ICRS, deg.
-    star_flux_e_per_s : ndarray
-        The stars' detected rates through the full aperture, e-/s.
-    sun_direction : ndarray
-        Unit vector from the telescope to the Sun (ICRS axes), which sets the roll.
+    aim : Aim
+        The boresight, the Sun's direction (the roll) and the detector.
+    stars : Stars
+        The catalog stars and their detected rates through the full aperture, e-/s.
     fp : FocalPlane
         The focal plane.
-    detector : int
-        The detector's index (0-based, row-major).
     scatter : ScatterModel
         The star image (core and scattering halo).
     settings : RenderSettings
         The renderer's approximation knobs.
     """
     s = settings
-    flux = check_fluxes(star_flux_e_per_s, "star flux (e-/s)")
-    wcs = pointing_wcs(ra_deg, dec_deg, sun_direction, fp, detector)
+    flux = check_fluxes(stars.flux_e_per_s, "star flux (e-/s)")
+    wcs = pointing_wcs(aim.ra_deg, aim.dec_deg, aim.sun_direction, fp, aim.detector)
     wcs.pixel_shape = (fp.nx, fp.ny)
     ny, nx = fp.ny, fp.nx
     p_m = fp.pixel_size_mm / 1000.0
-    sra, sdec = np.asarray(star_ra_deg, float), np.asarray(star_dec_deg, float)
+    sra, sdec = np.asarray(stars.ra_deg, float), np.asarray(stars.dec_deg, float)
     if sra.size:
         cen = wcs.pixel_to_world_values((nx - 1) / 2.0, (ny - 1) / 2.0)
         cvec = radec_to_unit(float(cen[0]), float(cen[1]))
@@ -262,17 +278,9 @@ STRIP_ROWS = 512
 
 
 def render_detector(
-    ra_deg,
-    dec_deg,
-    star_ra_deg,
-    star_dec_deg,
-    star_flux_e_per_s,
-    sun_direction,
-    fp: FocalPlane,
-    detector: int,
-    scatter: ScatterModel,
-    ghosts: GhostModel | None,
-    chief_ray_angle_deg: float,
+    aim: Aim,
+    stars: Stars,
+    optics: DetectorOptics,
     settings: RenderSettings | None = None,
     size_override: tuple[int, int] | None = None,
     window: tuple[int, int, int, int] | None = None,
@@ -289,28 +297,12 @@ def render_detector(
 
     Parameters
     ----------
-    ra_deg : float
-        The boresight's right ascension, ICRS, deg.
-    dec_deg : float
-        The boresight's declination, ICRS, deg.
-    star_ra_deg : ndarray
-        The catalog stars' right ascensions, ICRS, deg.
-    star_dec_deg : ndarray
-        The catalog stars' declinations, ICRS, deg.
-    star_flux_e_per_s : ndarray
-        The stars' detected rates through the full aperture, e-/s.
-    sun_direction : ndarray
-        Unit vector from the telescope to the Sun (ICRS axes), which sets the roll.
-    fp : FocalPlane
-        The focal plane.
-    detector : int
-        The detector's index (0-based, row-major).
-    scatter : ScatterModel
-        The star image (core and scattering halo).
-    ghosts : GhostModel or None
-        The band's ghosts; None: no ghosts.
-    chief_ray_angle_deg : float
-        The chief ray's angle of incidence on the detector, deg (sets the ghosts' offsets).
+    aim : Aim
+        The boresight, the Sun's direction (the roll) and the detector.
+    stars : Stars
+        The catalog stars and their detected rates through the full aperture, e-/s.
+    optics : DetectorOptics
+        The focal plane, the star image, the ghosts and the chief ray's angle.
     settings : RenderSettings, optional
         The renderer's approximation knobs (default: :class:`RenderSettings`).
     size_override : tuple of int, optional
@@ -325,6 +317,7 @@ def render_detector(
         raise InputError(
             f"render settings far_bin={s.far_bin}, near_radius_px={s.near_radius_px} out of range"
         )
+    fp = optics.fp
     if size_override:
         fp = FocalPlane(
             size_override[1],
@@ -338,28 +331,73 @@ def render_detector(
     nb = int(bin_factor)
     if nb < 1:
         raise InputError(f"--bin {bin_factor}: must be a positive integer")
-    sel = select_stars(
-        ra_deg, dec_deg, star_ra_deg, star_dec_deg, star_flux_e_per_s, sun_direction, fp, detector, scatter, s
-    )
-    wcs, idx, x, y, f = sel.wcs, sel.index, sel.x_pix, sel.y_pix, sel.flux_e_per_s
+    sel = select_stars(aim, stars, fp, optics.scatter, s)
+    win = _window_in_chip(window, fp, nb)
+    far = _far_field(sel, fp, s, win)
+    gtab = _ghost_table(sel, fp, optics, aim.detector)
+    paint = gtab if optics.ghosts is not None and s.paint_ghosts and sel.index.size else None
+    out = _render_strips(sel, fp, _near_kernel(optics.scatter, s.near_radius_px, fp), far, paint, win, nb, s)
+    wcs = _output_wcs(sel.wcs, win if window is not None or nb > 1 else None, nb, out.shape)
+    stars_used = {
+        "catalog_index": sel.index,
+        "x_pix": sel.x_pix,
+        "y_pix": sel.y_pix,
+        "flux_e_per_s": sel.flux_e_per_s,
+    }
+    meta = {
+        "far_bin": s.far_bin,
+        "near_radius_px": s.near_radius_px,
+        "margin_arcsec": s.margin_arcsec,
+        "halo_floor": s.halo_floor_e_per_s_per_pix,
+        "bin": nb,
+        "cut_x0": win[0],
+        "cut_y0": win[1],
+    }
+    return DetectorImage(out, gtab, stars_used, wcs, meta=meta)
+
+
+def _output_wcs(wcs, win, nb: int, shape):
+    """The image's WCS: the chip's, moved to the window ``win`` (None: the chip, unbinned) and
+    binned by ``nb``, for an image of ``shape`` (rows, columns)."""
+    if win is not None:
+        wx0, wy0 = win[0], win[1]
+        wcs = wcs.deepcopy()
+        wcs.wcs.crpix = [(wcs.wcs.crpix[0] - wx0 - 0.5) / nb + 0.5, (wcs.wcs.crpix[1] - wy0 - 0.5) / nb + 0.5]
+        wcs.wcs.cd = wcs.wcs.cd * nb
+    wcs.pixel_shape = (shape[1], shape[0])
+    return wcs
+
+
+def _window_in_chip(window, fp: FocalPlane, nb: int) -> tuple[int, int, int, int]:
+    """(x0, y0, width, height), 0-based chip pixels: ``window`` (default the chip) clipped to the
+    chip and trimmed to a multiple of the binning ``nb``."""
     ny, nx = fp.ny, fp.nx
-    p_m = fp.pixel_size_mm / 1000.0
     wx0, wy0, ww, wh = window if window is not None else (0, 0, nx, ny)
     wx0, wy0 = max(int(wx0), 0), max(int(wy0), 0)
     ww, wh = min(int(ww), nx - wx0), min(int(wh), ny - wy0)
     ww, wh = ww - ww % nb, wh - wh % nb
     if ww <= 0 or wh <= 0:
         raise InputError(f"cutout {window} with --bin {nb}: no pixel of the {nx} x {ny} chip left")
+    return wx0, wy0, ww, wh
 
-    # near-field kernel, full resolution
-    rn = s.near_radius_px
+
+def _near_kernel(scatter: ScatterModel, rn: int, fp: FocalPlane) -> np.ndarray:
+    """The near-field kernel (core + halo, tapered to 0 between ``rn``/2 and ``rn`` pixels), full
+    resolution, fraction of a star's flux per pixel."""
+    p_m = fp.pixel_size_mm / 1000.0
     r_px = _radial_grid(rn)
     # float64: the core's peak is ~1e7 x the kernel's tail, beyond float32 FFT round-off
-    k_near = scatter.profile(r_px * p_m) * p_m * p_m * (1.0 - _taper_up(r_px, rn / 2, rn))
-    del r_px
+    return scatter.profile(r_px * p_m) * p_m * p_m * (1.0 - _taper_up(r_px, rn / 2, rn))
 
-    # far field, binned grid covering detector + the margin the kept stars need
-    b = s.far_bin
+
+def _far_field(sel: StarSelection, fp: FocalPlane, s: RenderSettings, win) -> tuple:
+    """The far field (the halo beyond ``near_radius_px``/2) convolved on a grid binned by
+    ``far_bin`` covering the chip and the margin the kept stars need, e-/s per fine pixel, with
+    the sparse bilinear weights back to the chip's rows and the window's columns."""
+    x, y, f = sel.x_pix, sel.y_pix, sel.flux_e_per_s
+    ny, nx = fp.ny, fp.nx
+    p_m = fp.pixel_size_mm / 1000.0
+    b, rn = s.far_bin, s.near_radius_px
     mpx = int(np.ceil(sel.used_margin_px))
     cny, cnx = int(np.ceil((ny + 2 * mpx) / b)) + 1, int(np.ceil((nx + 2 * mpx) / b)) + 1
     coarse_map = _deposit((cny, cnx), (x + mpx + 0.5) / b - 0.5, (y + mpx + 0.5) / b - 0.5, f)
@@ -376,40 +414,53 @@ def render_detector(
     far_coarse = signal.fftconvolve(coarse_map, k_far, mode="same") / (b * b)  # per fine pixel
     del k_far, coarse_map
     wy = _linear_upsample_matrix(ny, cny, mpx, b)
-    wx = _linear_upsample_matrix(nx, cnx, mpx, b)[wx0 : wx0 + ww]
+    wx = _linear_upsample_matrix(nx, cnx, mpx, b)[win[0] : win[0] + win[2]]
+    return far_coarse, wy, wx
 
-    # ghosts: the table of every disc; painted strip by strip below
-    gtab = {
-        k: np.zeros(0)
-        for k in ("star_index", "path", "x_pix", "y_pix", "radius_pix", "e_per_s_per_pix", "energy_e_per_s")
-    }
-    if ghosts is not None and idx.size:
-        ox, oy = fp.detector_offset_px(detector)
-        fx, fy = x - (nx - 1) / 2.0 + ox, y - (ny - 1) / 2.0 + oy  # focal-plane position from the axis
-        rr = np.hypot(fx, fy)
-        ux = np.where(rr > 0, fx / np.where(rr > 0, rr, 1), 1.0)
-        uy = np.where(rr > 0, fy / np.where(rr > 0, rr, 1), 0.0)
-        th = np.radians(chief_ray_angle_deg)
-        off = ghosts.centre_offsets_mm(th * ux, th * uy) / fp.pixel_size_mm  # (3, 2, n)
-        radii = ghosts.radii_mm() / fp.pixel_size_mm
-        # f is the detected rate (filter included): ghosts relative to the nominal image
-        irr = ghosts.irradiance_relative_to_image_per_mm2() * fp.pixel_size_mm**2
-        frac = ghosts.energy_relative_to_image()
-        rows = []
-        for k in range(3):
-            rows.append(
-                dict(
-                    star_index=idx,
-                    path=np.full(idx.size, k + 1),
-                    x_pix=x + off[k, 0],
-                    y_pix=y + off[k, 1],
-                    radius_pix=np.full(idx.size, radii[k]),
-                    e_per_s_per_pix=f * irr[k],
-                    energy_e_per_s=f * frac[k],
-                )
+
+def _ghost_table(sel: StarSelection, fp: FocalPlane, optics: DetectorOptics, detector: int) -> dict:
+    """The table of every ghost disc of the kept stars (column -> array; empty without ghosts)."""
+    idx, x, y, f = sel.index, sel.x_pix, sel.y_pix, sel.flux_e_per_s
+    ghosts = optics.ghosts
+    columns = ("star_index", "path", "x_pix", "y_pix", "radius_pix", "e_per_s_per_pix", "energy_e_per_s")
+    if ghosts is None or not idx.size:
+        return {k: np.zeros(0) for k in columns}
+    ny, nx = fp.ny, fp.nx
+    ox, oy = fp.detector_offset_px(detector)
+    fx, fy = x - (nx - 1) / 2.0 + ox, y - (ny - 1) / 2.0 + oy  # focal-plane position from the axis
+    rr = np.hypot(fx, fy)
+    ux = np.where(rr > 0, fx / np.where(rr > 0, rr, 1), 1.0)
+    uy = np.where(rr > 0, fy / np.where(rr > 0, rr, 1), 0.0)
+    th = np.radians(optics.chief_ray_angle_deg)
+    off = ghosts.centre_offsets_mm(th * ux, th * uy) / fp.pixel_size_mm  # (3, 2, n)
+    radii = ghosts.radii_mm() / fp.pixel_size_mm
+    # f is the detected rate (filter included): ghosts relative to the nominal image
+    irr = ghosts.irradiance_relative_to_image_per_mm2() * fp.pixel_size_mm**2
+    frac = ghosts.energy_relative_to_image()
+    rows = []
+    for k in range(3):
+        rows.append(
+            dict(
+                star_index=idx,
+                path=np.full(idx.size, k + 1),
+                x_pix=x + off[k, 0],
+                y_pix=y + off[k, 1],
+                radius_pix=np.full(idx.size, radii[k]),
+                e_per_s_per_pix=f * irr[k],
+                energy_e_per_s=f * frac[k],
             )
-        gtab = {c: np.concatenate([r[c] for r in rows]) for c in rows[0]}
+        )
+    return {c: np.concatenate([r[c] for r in rows]) for c in rows[0]}
 
+
+def _render_strips(sel, fp, k_near, far, paint, win, nb, s) -> np.ndarray:
+    """The window's image, float32, binned by ``nb``, rendered :data:`STRIP_ROWS` rows at a time:
+    near field (``k_near``) + far field (``far``: :func:`_far_field`) + ghost discs (``paint``: the
+    ghost table, None for none)."""
+    x, y, f = sel.x_pix, sel.y_pix, sel.flux_e_per_s
+    far_coarse, wy, wx = far
+    wx0, wy0, ww, wh = win
+    rn = s.near_radius_px
     out = np.zeros((wh // nb, ww // nb), dtype=np.float32)
     strip = max(nb, STRIP_ROWS // nb * nb)
     for y0 in range(wy0, wy0 + wh, strip):
@@ -421,37 +472,15 @@ def render_detector(
         part = signal.oaconvolve(grid, k_near, mode="same")[rn : rn + y1 - y0, rn : rn + ww]
         del grid
         part += (wx @ (wy[y0:y1] @ far_coarse).T).T
-        if ghosts is not None and s.paint_ghosts and idx.size:
+        if paint is not None:
             part += paint_discs(
-                ny, nx, gtab, s.ghost_min_e_per_s_per_pix, rows=(y0, y1), cols=(wx0, wx0 + ww)
+                fp.ny, fp.nx, paint, s.ghost_min_e_per_s_per_pix, rows=(y0, y1), cols=(wx0, wx0 + ww)
             )
         if nb > 1:
             part = part.reshape((y1 - y0) // nb, nb, ww // nb, nb).mean(axis=(1, 3))
         out[(y0 - wy0) // nb : (y1 - wy0) // nb] = part
         del part
-    del far_coarse
-
-    if window is not None or nb > 1:
-        wcs = wcs.deepcopy()
-        wcs.wcs.crpix = [(wcs.wcs.crpix[0] - wx0 - 0.5) / nb + 0.5, (wcs.wcs.crpix[1] - wy0 - 0.5) / nb + 0.5]
-        wcs.wcs.cd = wcs.wcs.cd * nb
-    wcs.pixel_shape = (out.shape[1], out.shape[0])
-    stars = {"catalog_index": idx, "x_pix": x, "y_pix": y, "flux_e_per_s": f}
-    return DetectorImage(
-        out,
-        gtab,
-        stars,
-        wcs,
-        meta={
-            "far_bin": b,
-            "near_radius_px": rn,
-            "margin_arcsec": s.margin_arcsec,
-            "halo_floor": s.halo_floor_e_per_s_per_pix,
-            "bin": nb,
-            "cut_x0": wx0,
-            "cut_y0": wy0,
-        },
-    )
+    return out
 
 
 def paint_discs(ny, nx, g, min_irr, rows=None, cols=None) -> np.ndarray:

@@ -9,6 +9,7 @@ an empty field or a cutout off the chip before :func:`render_frame` does the wor
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -16,7 +17,15 @@ from straylight.image import detector
 from straylight.image.detector import RenderSettings, StarSelection
 from straylight.image.focal_plane import FocalPlane, boresight_for_target, sun_direction_at
 
-__all__ = ["TargetFrame", "cutout_window", "frame_for_target", "render_frame"]
+__all__ = ["StarCatalog", "TargetFrame", "cutout_window", "frame_for_target", "render_frame"]
+
+
+class StarCatalog(NamedTuple):
+    """A star catalog read for a band: positions (ICRS, deg) and AB magnitudes in the band."""
+
+    ra_deg: np.ndarray
+    dec_deg: np.ndarray
+    mag_ab: np.ndarray
 
 
 @dataclass
@@ -59,6 +68,16 @@ class TargetFrame:
     settings: RenderSettings
     selection: StarSelection
 
+    @property
+    def aim(self) -> detector.Aim:
+        """The boresight, the Sun's direction and the detector."""
+        return detector.Aim(self.boresight_ra_deg, self.boresight_dec_deg, self.sun_direction, self.detector)
+
+    @property
+    def stars(self) -> detector.Stars:
+        """The sources: the catalog's stars, then the bodies in the field."""
+        return detector.Stars(self.star_ra_deg, self.star_dec_deg, self.star_flux_e_per_s)
+
     def pixel_of(self, ra_deg: float, dec_deg: float) -> tuple[float, float]:
         """The 0-based chip pixel (x, y) of a sky position (deg, ICRS), on the chip or off it.
 
@@ -76,32 +95,28 @@ class TargetFrame:
 def frame_for_target(
     campaign,
     time,
-    target_ra_deg: float,
-    target_dec_deg: float,
+    target_radec_deg: tuple[float, float],
     band,
-    star_ra_deg,
-    star_dec_deg,
-    star_mag_ab,
-    focal_plane: FocalPlane,
+    catalog: StarCatalog,
     detector_index: int,
     center: str = "detector",
     settings: RenderSettings | None = None,
 ) -> TargetFrame:
-    """Set up the frame of one detector aimed at a target; no image is made.
+    """Set up the frame of one detector of the campaign's focal plane aimed at a target; no
+    image is made.
 
     Parameters
     ----------
     campaign : straylight.config.Campaign
-        Its instrument (aperture, scattering) and orbit.
+        Its instrument (focal plane, aperture, scattering) and orbit.
     time : astropy.time.Time
         The time, scalar: the satellite's position, the bodies and the roll.
-    target_ra_deg, target_dec_deg : float
-        The target, deg (ICRS).
+    target_radec_deg : tuple of float
+        The target (RA, Dec), deg (ICRS).
     band : straylight.optics.bandpass.Band
         The band the stars' fluxes are integrated over.
-    star_ra_deg, star_dec_deg, star_mag_ab : array_like, shape (n,)
+    catalog : StarCatalog
         The catalog's stars: deg (ICRS) and AB magnitudes in ``band``.
-    focal_plane : FocalPlane
     detector_index : int
     center : {"detector", "boresight"}
         ``detector``: the target lands on the centre of the detector; ``boresight``: the target
@@ -113,12 +128,15 @@ def frame_for_target(
     -------
     TargetFrame
     """
+    from straylight.image.focal_plane import focal_plane_from_instrument
     from straylight.optics.scatter import scatter_model_from_instrument
 
     settings = settings or RenderSettings()
+    focal_plane = focal_plane_from_instrument(campaign.instrument_settings)
+    target_ra_deg, target_dec_deg = target_radec_deg
     aperture_m = campaign.instrument_settings.telescope.aperture_diameter_m.value
-    ra, dec = star_ra_deg, star_dec_deg
-    flux = detector.star_fluxes_e_per_s(star_mag_ab, band, aperture_m)
+    ra, dec = catalog.ra_deg, catalog.dec_deg
+    flux = detector.star_fluxes_e_per_s(catalog.mag_ab, band, aperture_m)
     sun = sun_direction_at(campaign, time)
     if center == "detector":
         bore_ra, bore_dec = boresight_for_target(
@@ -133,9 +151,8 @@ def frame_for_target(
         ra, dec = np.concatenate([ra, b_ra]), np.concatenate([dec, b_dec])
         flux = np.concatenate([flux, b_flux])
     scatter = scatter_model_from_instrument(campaign.instrument_settings)
-    sel = detector.select_stars(
-        bore_ra, bore_dec, ra, dec, flux, sun, focal_plane, detector_index, scatter, settings
-    )
+    aim = detector.Aim(bore_ra, bore_dec, sun, detector_index)
+    sel = detector.select_stars(aim, detector.Stars(ra, dec, flux), focal_plane, scatter, settings)
     return TargetFrame(
         bore_ra,
         bore_dec,
@@ -216,17 +233,14 @@ def render_frame(
 
     inst = instrument_settings(instrument)
     result = detector.render_detector(
-        frame.boresight_ra_deg,
-        frame.boresight_dec_deg,
-        frame.star_ra_deg,
-        frame.star_dec_deg,
-        frame.star_flux_e_per_s,
-        frame.sun_direction,
-        frame.focal_plane,
-        frame.detector,
-        frame.scatter,
-        ghost_model_from_instrument(inst, band_name),
-        needed(inst.ghosts, "ghosts").chief_ray_angle_deg.value,
+        frame.aim,
+        frame.stars,
+        detector.DetectorOptics(
+            frame.focal_plane,
+            frame.scatter,
+            ghost_model_from_instrument(inst, band_name),
+            needed(inst.ghosts, "ghosts").chief_ray_angle_deg.value,
+        ),
         frame.settings,
         window=window,
         bin_factor=bin_factor,

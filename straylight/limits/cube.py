@@ -23,8 +23,8 @@ from straylight.limits.envelope import (
     background_envelope_limits,
     with_envelope,
 )
+from straylight.limits.maps import write_limit_maps
 from straylight.limits.point_source import (
-    SNR,
     ZERO_POINT_NAME,
     band_limits,
     campaign_exposures,
@@ -247,6 +247,128 @@ def store_limit_summaries(store, workers: int = 1) -> dict:
     return out
 
 
+#: the summaries' chunks: every time of SUMMARY_PIXELS_PER_TASK pixels at a time
+_WHOLE_TIMES = {"time": -1, "pixel": SUMMARY_PIXELS_PER_TASK}
+
+
+def _best_and_median(lim, observable):  # (pixel, band, time), (pixel, 1, time) -> (pixel, band, 2)
+    best, median = limit_summaries(np.moveaxis(lim, -1, 0), np.moveaxis(observable[:, 0, :], -1, 0))
+    return np.stack([best, median], axis=-1)
+
+
+def _fraction(observable):  # (pixel, time) -> (pixel,)
+    return observable_fraction(np.moveaxis(observable, -1, 0))
+
+
+def _summarise(limits, obs_t):
+    """(time, pixel, band) limits, mag(AB) -> (pixel, band, stat): best and median over the
+    observable times (``obs_t``, chunked as ``limits``)."""
+    import xarray as xr
+
+    return xr.apply_ufunc(
+        _best_and_median,
+        limits,
+        obs_t,
+        input_core_dims=[["time"], ["time"]],
+        output_core_dims=[["stat"]],
+        dask="parallelized",
+        output_dtypes=[np.float32],
+        dask_gufunc_kwargs={"output_sizes": {"stat": 2}},
+    )
+
+
+def _envelope_and_budget(campaign: Campaign, background, exposures, given: tuple, chunked: tuple, lazy: bool):
+    """:func:`limits_dataset`'s envelope and budget: each end's and each budget percentile's
+    (limits, median) (:func:`_with_medians`) and the pessimistic end's shift percentiles (None
+    without it); ``given`` (envelope, budget limits) already computed or None, ``chunked`` the
+    nominal limits and the observable chunked for the summaries."""
+    bands = [str(b) for b in background["band"].values]
+    envelope_limits, budget_limits = given
+    lim_t, obs_t = chunked
+    envelope_lim = (
+        background_envelope_limits(campaign, background, bands, exposures)
+        if envelope_limits is None
+        else dict(envelope_limits)
+    )
+    envelope = _with_medians(envelope_lim, obs_t, lazy)
+    budget_lim = (
+        background_budget_limits(campaign, background, bands, exposures)
+        if budget_limits is None
+        else dict(budget_limits)
+    )
+    budget = _with_medians(budget_lim, obs_t, lazy)
+    shifts = None
+    if "pessimistic" in envelope_lim:
+        shifts = _shifts(envelope_lim["pessimistic"], lim_t, obs_t, lazy)
+    return envelope, budget, shifts
+
+
+def _nominal_limits(background, exposures):
+    """(time, pixel, band) limits, mag(AB), from background.zarr's ``total`` (e-/s/pix)."""
+    import xarray as xr
+
+    return xr.apply_ufunc(
+        lambda t: band_limits(t, exposures),
+        background["total"],
+        dask="parallelized",
+        output_dtypes=[np.float32],
+    )
+
+
+def _fraction_of_times(obs_t, chunks):
+    """(pixel,) the observable fraction of the times, float32; chunked as the cube's pixel
+    blocks (the observable's ``chunks``) when lazy."""
+    import xarray as xr
+
+    frac = xr.apply_ufunc(
+        _fraction, obs_t, input_core_dims=[["time"]], dask="parallelized", output_dtypes=[np.float32]
+    )
+    if chunks is not None:
+        with dask_rechunk_by_tasks():
+            frac = frac.chunk({"pixel": chunks[1]})
+    return frac
+
+
+def _with_medians(limits_by_key: dict, obs_t, lazy: bool) -> dict:
+    """Each key's (time, pixel, band) limits with their median over observable times (pixel, band)."""
+    out = {}
+    for key, key_lim in limits_by_key.items():
+        with dask_rechunk_by_tasks():
+            key_t = key_lim.chunk(_WHOLE_TIMES) if lazy else key_lim
+        out[key] = (key_lim, _summarise(key_t, obs_t).isel(stat=1).transpose("pixel", "band"))
+    return out
+
+
+def _shifts(pessimistic, lim_t, obs_t, lazy: bool) -> dict:
+    """The pessimistic end's shift percentiles (:data:`SHIFT_PERCENTILES`) -> (pixel, band), mag."""
+    import xarray as xr
+
+    with dask_rechunk_by_tasks():
+        pess_t = pessimistic.chunk(_WHOLE_TIMES) if lazy else pessimistic
+
+    def percentiles(pess, nominal, observable):  # (pixel, band, time) x2, (pixel, 1, time)
+        out = shift_percentiles(
+            np.moveaxis(pess, -1, 0), np.moveaxis(nominal, -1, 0), np.moveaxis(observable[:, 0, :], -1, 0)
+        )
+        return np.stack([out[SHIFT_PERCENTILES[q]] for q in sorted(SHIFT_PERCENTILES)], axis=-1)
+
+    stacked = xr.apply_ufunc(
+        percentiles,
+        pess_t,
+        lim_t,
+        obs_t,
+        input_core_dims=[["time"], ["time"], ["time"]],
+        output_core_dims=[["q"]],
+        dask="parallelized",
+        output_dtypes=[np.float32],
+        dask_gufunc_kwargs={"output_sizes": {"q": len(SHIFT_PERCENTILES)}},
+    )
+    return {
+        SHIFT_PERCENTILES[q]: stacked.isel(q=i).transpose("pixel", "band")
+        for i, q in enumerate(sorted(SHIFT_PERCENTILES))
+    }
+
+
 def limits_dataset(
     campaign: Campaign,
     background,
@@ -301,120 +423,38 @@ def limits_dataset(
         (pixel,) float32; ``observable`` (time, pixel); band coordinates ``mag_zero_point``
         (AB mag/arcsec2), ``n_exposures`` and ``exposure_s`` (s).
     """
-    import xarray as xr
-
     bands = [str(b) for b in background["band"].values]
     exposures = campaign_exposures(campaign, bands)
 
-    def best_and_median(lim, observable):  # (pixel, band, time), (pixel, 1, time) -> (pixel, band, 2)
-        best, median = limit_summaries(np.moveaxis(lim, -1, 0), np.moveaxis(observable[:, 0, :], -1, 0))
-        return np.stack([best, median], axis=-1)
-
-    def fraction(observable):  # (pixel, time) -> (pixel,)
-        return observable_fraction(np.moveaxis(observable, -1, 0))
-
-    if limiting_mag is None:
-        lim = xr.apply_ufunc(
-            lambda t: band_limits(t, exposures),
-            background["total"],
-            dask="parallelized",
-            output_dtypes=[np.float32],
-        )
-    else:
-        lim = limiting_mag
+    lim = _nominal_limits(background, exposures) if limiting_mag is None else limiting_mag
     observable = background["observable"]
-    envelope_lim = (
-        background_envelope_limits(campaign, background, bands, exposures)
-        if envelope_limits is None
-        else dict(envelope_limits)
-    )
-    whole_times = {"time": -1, "pixel": SUMMARY_PIXELS_PER_TASK}
     lazy = lim.chunks is not None or observable.chunks is not None
     # dask's task rechunk, named: left to choose, dask imports distributed to look for a
     # cluster (a slow import in every process that lays down a skeleton)
     with dask_rechunk_by_tasks():
-        lim_t, obs_t = (lim.chunk(whole_times), observable.chunk(whole_times)) if lazy else (lim, observable)
-
-    def summarise(limits):  # (time, pixel, band) -> (pixel, band, stat): best and median over time
-        return xr.apply_ufunc(
-            best_and_median,
-            limits,
-            obs_t,
-            input_core_dims=[["time"], ["time"]],
-            output_core_dims=[["stat"]],
-            dask="parallelized",
-            output_dtypes=[np.float32],
-            dask_gufunc_kwargs={"output_sizes": {"stat": 2}},
+        lim_t, obs_t = (
+            (lim.chunk(_WHOLE_TIMES), observable.chunk(_WHOLE_TIMES)) if lazy else (lim, observable)
         )
-
-    summary = summarise(lim_t)
-    frac = xr.apply_ufunc(
-        fraction, obs_t, input_core_dims=[["time"]], dask="parallelized", output_dtypes=[np.float32]
+    summary = _summarise(lim_t, obs_t)
+    frac = _fraction_of_times(obs_t, observable.chunks)
+    given = (envelope_limits, budget_limits)
+    envelope, budget, shifts = _envelope_and_budget(
+        campaign, background, exposures, given, (lim_t, obs_t), lazy
     )
-    if observable.chunks is not None:  # the cube's pixel blocks, as the observable's
-        with dask_rechunk_by_tasks():
-            frac = frac.chunk({"pixel": observable.chunks[1]})
-    envelope = {}
-    for end, env_lim in envelope_lim.items():
-        with dask_rechunk_by_tasks():
-            env_t = env_lim.chunk(whole_times) if lazy else env_lim
-        envelope[end] = (env_lim, summarise(env_t).isel(stat=1).transpose("pixel", "band"))
-    budget_lim = (
-        background_budget_limits(campaign, background, bands, exposures)
-        if budget_limits is None
-        else dict(budget_limits)
-    )
-    budget = {}
-    for key, b_lim in budget_lim.items():
-        with dask_rechunk_by_tasks():
-            b_t = b_lim.chunk(whole_times) if lazy else b_lim
-        budget[key] = (b_lim, summarise(b_t).isel(stat=1).transpose("pixel", "band"))
-    shifts = None
-    if "pessimistic" in envelope_lim:
-        with dask_rechunk_by_tasks():
-            pess_t = envelope_lim["pessimistic"].chunk(whole_times) if lazy else envelope_lim["pessimistic"]
-
-        def percentiles(pess, nominal, observable):  # (pixel, band, time) x2, (pixel, 1, time)
-            out = shift_percentiles(
-                np.moveaxis(pess, -1, 0), np.moveaxis(nominal, -1, 0), np.moveaxis(observable[:, 0, :], -1, 0)
-            )
-            return np.stack([out[SHIFT_PERCENTILES[q]] for q in sorted(SHIFT_PERCENTILES)], axis=-1)
-
-        stacked = xr.apply_ufunc(
-            percentiles,
-            pess_t,
-            lim_t,
-            obs_t,
-            input_core_dims=[["time"], ["time"], ["time"]],
-            output_core_dims=[["q"]],
-            dask="parallelized",
-            output_dtypes=[np.float32],
-            dask_gufunc_kwargs={"output_sizes": {"q": len(SHIFT_PERCENTILES)}},
-        )
-        shifts = {
-            SHIFT_PERCENTILES[q]: stacked.isel(q=i).transpose("pixel", "band")
-            for i, q in enumerate(sorted(SHIFT_PERCENTILES))
-        }
-    ds = _limits_product(
-        campaign,
-        background,
-        lim,
-        summary.isel(stat=0).transpose("pixel", "band"),
-        summary.isel(stat=1).transpose("pixel", "band"),
-        frac,
-        observable,
-        exposures,
-    )
+    ds = _limits_product(campaign, background, lim, summary, frac, observable, exposures)
     ds = with_envelope(ds, envelope, per_sample_envelope)
     return with_budget(ds, budget, shifts, per_sample_envelope)
 
 
 def _limits_product(
-    campaign: Campaign, background, lim, best, median, frac, observable, exposures
+    campaign: Campaign, background, lim, summary, frac, observable, exposures
 ) -> "xr.Dataset":
-    """limits.zarr's dataset (variables, coordinates and attributes) from its variables' data."""
+    """limits.zarr's dataset (variables, coordinates and attributes) from its variables' data
+    (``summary``: (pixel, band, stat), the best and the median limit)."""
     import xarray as xr
 
+    best = summary.isel(stat=0).transpose("pixel", "band")
+    median = summary.isel(stat=1).transpose("pixel", "band")
     bands = [str(b) for b in background["band"].values]
     inst = campaign.instrument_settings.bands
     desc = ", ".join(f"{b}: {inst[b].n_exposures} x {inst[b].exposure_s} s" for b in bands)
@@ -474,91 +514,3 @@ def _limits_product(
             k: background.attrs[k] for k in ("healpix_nside", "healpix_ordering", "healpix_frame", "campaign")
         },
     )
-
-
-def write_limit_maps(ds, out_dir, end=None) -> list:
-    """HEALPix FITS maps (healpy-readable): limit_best_<band>, limit_median_<band>,
-    observable_fraction; healpy's UNSEEN outside the footprint and where ``ds`` has NaN (never
-    observable), the HEALPix convention for a missing pixel.
-
-    Parameters
-    ----------
-    ds : xarray.Dataset
-        A :func:`limits_dataset` (eager or loaded): the summaries, ``pixel`` indices and the
-        ``healpix_nside``, ``healpix_ordering`` and ``campaign`` attributes.
-    out_dir : str or path-like
-        Folder for the maps (created if missing).
-    end : str, astropy.time.Time or None
-        The campaign's end (``campaign.end``, UTC; its samples lie before it), written as
-        ``DATE-END``; None: the last time sample plus the grid's step.
-
-    Returns
-    -------
-    list of pathlib.Path
-        The FITS files written: ``limit_best_<band>.fits`` and ``limit_median_<band>.fits`` per
-        band (mag(AB)), then ``observable_fraction.fits``; each a full-sky float32 map, ICRS.
-        A band's maps carry ``EXPTIME`` (the total survey exposure, s), ``NEXP`` exposures of
-        ``EXPONE`` s each, and every map ``DATE-BEG``/``DATE-END``: the campaign's start and end.
-    """
-    from pathlib import Path
-
-    from straylight.util.healpix import healpy
-    from straylight.util.io import atomic_path
-
-    hp = healpy()
-
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    nside = int(ds.attrs["healpix_nside"])
-    nest = ds.attrs["healpix_ordering"].upper() == "NESTED"
-    pix = ds["pixel"].values
-    written = []
-
-    times = ds["time"].values
-    iso = (lambda t: str(np.datetime_as_string(t, unit="s"))) if times.dtype.kind == "M" else str
-    if end is None:  # the grid's end: one step after its last sample
-        end = times.max() + (times[1] - times[0] if times.size > 1 else times[0] - times[0])
-    elif times.dtype.kind == "M":
-        from straylight.sky.timeutil import parse_utc
-
-        end = np.datetime64(parse_utc(end, "campaign.end").utc.datetime, "s")
-    common = [
-        ("CAMPAIGN", str(ds.attrs["campaign"])[:68], "straylight campaign name"),
-        ("DATE-BEG", iso(times.min()), "campaign start (UTC)"),
-        ("DATE-END", iso(end), "campaign end (UTC)"),
-        ("NTIMES", int(times.size), "campaign time samples"),
-    ]
-
-    def write(name, values, unit, band=None):
-        m = np.full(hp.nside2npix(nside), hp.UNSEEN, dtype=np.float32)
-        m[pix] = np.where(np.isnan(values), hp.UNSEEN, values)
-        header = list(common)
-        if band is not None:
-            b = ds.sel(band=band)
-            header += [
-                ("BAND", str(band), "CSST band"),
-                ("NEXP", int(b["n_exposures"]), "survey exposures per field"),
-                ("EXPTIME", float(b["exposure_s"] * b["n_exposures"]), "[s] total survey exposure"),
-                ("EXPONE", float(b["exposure_s"]), "[s] one survey exposure"),
-                ("SNR", SNR, "S/N of the point-source limit (EE80)"),
-            ]
-        path = out_dir / f"{name}.fits"
-        with atomic_path(path) as tmp:
-            hp.write_map(
-                str(tmp),
-                m,
-                nest=nest,
-                coord="C",
-                column_names=[name[:68].upper()],
-                column_units=[unit],
-                dtype=np.float32,
-                overwrite=True,
-                extra_header=header,
-            )
-        written.append(path)
-
-    for ib, b in enumerate(ds["band"].values):
-        write(f"limit_best_{b}", ds["limiting_mag_best"].values[:, ib], "mag(AB)", b)
-        write(f"limit_median_{b}", ds["limiting_mag_median"].values[:, ib], "mag(AB)", b)
-    write("observable_fraction", ds["observable_fraction"].values, "1")
-    return written

@@ -80,30 +80,8 @@ def door_incidence(
         d, d_omega, mu_sun = d[0], d_omega[0], mu_sun[0]  # (G, P, 3), (G, P)
         for state in off.door_states_deg:
             sel = opening == state
-            if not sel.any():
-                continue
-            q, n_in, w = off._door_weights[state]
-            centre = np.sum(q * w[:, None], axis=0) / np.sum(w)
-            to_ap = unit(-centre)
-            for m in np.flatnonzero(sel):
-                dx = dot(d, frame.x[m])
-                dy = dot(d, frame.y[m])
-                dz = dot(d, frame.z[m])  # noqa: E702
-                v = np.stack([dx, dy, dz], -1)  # block directions in the telescope frame
-                cos_inc = v @ n_in
-                theta = np.degrees(np.arctan2(np.hypot(dx, dy), dz))
-                phi = np.degrees(np.arctan2(dy, dx)) % 360.0
-                wt = mu_sun * d_omega * np.maximum(cos_inc, 0.0) * off.door_lit_fraction(state, theta, phi)
-                ok = wt > 0
-                if not ok.any():
-                    continue
-                k = -v[ok]  # propagation: from the Earth block towards the door
-                spec = k - 2.0 * (k @ n_in)[:, None] * n_in
-                a = acc.setdefault(state, [[], [], [], 0])
-                a[0].append(np.degrees(np.arccos(np.clip(cos_inc[ok], -1, 1))))
-                a[1].append(np.degrees(np.arccos(np.clip(spec @ to_ap, -1, 1))))
-                a[2].append(wt[ok])
-                a[3] += 1
+            if sel.any():
+                _add_state(acc, off, state, frame, np.flatnonzero(sel), (d, d_omega, mu_sun))
     out = {}
     for state, (inc, spec, wt, n) in acc.items():
         inc, spec, wt = np.concatenate(inc), np.concatenate(spec), np.concatenate(wt)
@@ -113,6 +91,36 @@ def door_incidence(
             "pointings": int(n),
         }
     return out
+
+
+def _add_state(acc: dict, off, state, frame, rows, cap: tuple) -> None:
+    """Add to ``acc[state]`` the incidence angles on the door's inner face (deg), the angles of
+    their specular reflections from the aperture (deg) and their weights, of the sunlit cap
+    ``cap`` (block directions, solid angles sr, cos of the Sun's zenith) at the lines of sight
+    ``rows`` of ``frame`` (the samples at door state ``state``)."""
+    d, d_omega, mu_sun = cap
+    q, n_in, w = off._door_weights[state]
+    centre = np.sum(q * w[:, None], axis=0) / np.sum(w)
+    to_ap = unit(-centre)
+    for m in rows:
+        dx = dot(d, frame.x[m])
+        dy = dot(d, frame.y[m])
+        dz = dot(d, frame.z[m])  # noqa: E702
+        v = np.stack([dx, dy, dz], -1)  # block directions in the telescope frame
+        cos_inc = v @ n_in
+        theta = np.degrees(np.arctan2(np.hypot(dx, dy), dz))
+        phi = np.degrees(np.arctan2(dy, dx)) % 360.0
+        wt = mu_sun * d_omega * np.maximum(cos_inc, 0.0) * off.door_lit_fraction(state, theta, phi)
+        ok = wt > 0
+        if not ok.any():
+            continue
+        k = -v[ok]  # propagation: from the Earth block towards the door
+        spec = k - 2.0 * (k @ n_in)[:, None] * n_in
+        a = acc.setdefault(state, [[], [], [], 0])
+        a[0].append(np.degrees(np.arccos(np.clip(cos_inc[ok], -1, 1))))
+        a[1].append(np.degrees(np.arccos(np.clip(spec @ to_ap, -1, 1))))
+        a[2].append(wt[ok])
+        a[3] += 1
 
 
 def _wquantiles(x, w, q) -> dict:

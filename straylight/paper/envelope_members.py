@@ -14,11 +14,13 @@ pessimistic end, the darkest the optimistic one.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from straylight.config import Campaign
 from straylight.config.loading import deep_merge
-from straylight.paper.scenarios import SCENARIO_TIME
+from straylight.paper.scenarios import PhaseSampling
 from straylight.paper.tail_calibration import (
     _log_lerp,
     _median_crossing,
@@ -28,6 +30,39 @@ from straylight.paper.tail_calibration import (
 )
 
 __all__ = ["campaign_with_body", "envelope_members"]
+
+
+def _body_door_members(grid: dict, level_mag: float, goals, far, member: tuple) -> list:
+    """The members of one body radius and door reflectance: at each goal the median crossing
+    brackets (deg), the tail (every 0.02 dex across ``grid``'s) that gives it, with the mean
+    earthshine (e-/s/pix) at the pointings ``far``; ``member`` (reflectance, its ratio to the
+    campaign's, body radius m)."""
+    r, scale, body = member
+    tails = grid["tails_log10"]
+    fine = np.round(np.arange(tails.min(), tails.max() + 1e-9, 0.02), 2)
+    med = np.array(
+        [_median_crossing(phase_crossings(grid, level_mag, t, scale)["crossing_deg"]) for t in fine]
+    )
+    out = []
+    for goal in goals:
+        if not (np.min(med) <= goal <= np.max(med[np.isfinite(med)], initial=-np.inf)):
+            continue
+        k = int(np.argmin(np.abs(med - goal)))
+        t = float(fine[k])
+        e = _log_lerp(tails, grid["direct_e_per_s_per_pix"], t) + scale * _log_lerp(
+            tails, grid["door_e_per_s_per_pix"], t
+        )
+        out.append(
+            {
+                "tail_log10_at_90deg": t,
+                "door_reflectance": r,
+                "body_radius_m": body,
+                "goal_deg": float(goal),
+                "median_crossing_deg": float(med[k]),
+                "observable_earthshine_e_per_s_per_pix": float(np.mean(e[far])),
+            }
+        )
+    return out
 
 
 def campaign_with_body(campaign: Campaign, body_radius_m: float) -> Campaign:
@@ -62,12 +97,8 @@ def envelope_members(
     tolerance_deg: float,
     doors,
     bodies_m,
-    raan_step_deg: float = 60.0,
-    u_step_deg: float = 10.0,
-    nside: int = 8,
-    tails_log10=(-8.5, -9.25, -10.0, -10.75, -11.5),
+    sampling: PhaseSampling = PhaseSampling(60.0, 10.0, 8, (-8.5, -9.25, -10.0, -10.75, -11.5)),
     observable_limb_deg: float = 80.0,
-    time: str = SCENARIO_TIME,
 ) -> dict:
     """The members and the ends.
 
@@ -83,7 +114,7 @@ def envelope_members(
         Door reflectances (dimensionless).
     bodies_m : sequence of float
         Body radii, m.
-    raan_step_deg, u_step_deg, nside, tails_log10, time
+    sampling : PhaseSampling
         As :func:`~straylight.paper.tail_calibration.calibrate_tail`.
     observable_limb_deg : float
         The bright-limb angle from which the members' earthshine is ranked, deg.
@@ -97,37 +128,16 @@ def envelope_members(
         pointings beyond ``observable_limb_deg``), ``pessimistic`` and ``optimistic`` (the
         brightest and darkest member), and the inputs.
     """
+    raan_step_deg, u_step_deg, nside, tails_log10, time = dataclasses.astuple(sampling)
     r0 = float(campaign.instrument_settings.door_geometry.reflectance.value)
     phases = orbit_phases(campaign, raan_step_deg, u_step_deg, time)
+    goals = (target_deg - tolerance_deg, target_deg, target_deg + tolerance_deg)
     members = []
     for body in bodies_m:
         grid = phase_earthshine(campaign_with_body(campaign, body), phases, tails_log10, nside)
-        tails = grid["tails_log10"]
-        fine = np.round(np.arange(tails.min(), tails.max() + 1e-9, 0.02), 2)
         far = grid["limb_angle_deg"] >= observable_limb_deg
         for r in doors:
-            scale = float(r) / r0
-            med = np.array(
-                [_median_crossing(phase_crossings(grid, level_mag, t, scale)["crossing_deg"]) for t in fine]
-            )
-            for goal in (target_deg - tolerance_deg, target_deg, target_deg + tolerance_deg):
-                if not (np.min(med) <= goal <= np.max(med[np.isfinite(med)], initial=-np.inf)):
-                    continue
-                k = int(np.argmin(np.abs(med - goal)))
-                t = float(fine[k])
-                e = _log_lerp(tails, grid["direct_e_per_s_per_pix"], t) + scale * _log_lerp(
-                    tails, grid["door_e_per_s_per_pix"], t
-                )
-                members.append(
-                    {
-                        "tail_log10_at_90deg": t,
-                        "door_reflectance": float(r),
-                        "body_radius_m": float(body),
-                        "goal_deg": float(goal),
-                        "median_crossing_deg": float(med[k]),
-                        "observable_earthshine_e_per_s_per_pix": float(np.mean(e[far])),
-                    }
-                )
+            members += _body_door_members(grid, level_mag, goals, far, (float(r), float(r) / r0, float(body)))
     brightness = [m["observable_earthshine_e_per_s_per_pix"] for m in members]
     return {
         "members": members,

@@ -325,7 +325,7 @@ def detector_image_data(
     band : str, optional
         The band (default ``"NUV"``).
     """
-    from straylight.image.detector import RenderSettings, render_detector, star_fluxes_e_per_s
+    from straylight.image.detector import Aim, RenderSettings, Stars, render_detector, star_fluxes_e_per_s
     from straylight.image.focal_plane import (
         FocalPlane,
         focal_plane_from_instrument,
@@ -333,8 +333,6 @@ def detector_image_data(
         sun_direction_at,
     )
     from straylight.optics.bandpass import load_band
-    from straylight.optics.ghosts import ghost_model_from_instrument
-    from straylight.optics.scatter import scatter_model_from_instrument
     from straylight.sky.timeutil import parse_utc
 
     inst = campaign.instrument_settings
@@ -352,17 +350,9 @@ def detector_image_data(
     band_ = load_band(inst, band, campaign.instrument_path.parent)
     flux = star_fluxes_e_per_s(catalog[f"mag_{band}"], band_, inst.telescope.aperture_diameter_m.value)
     res = render_detector(
-        ra0,
-        dec0,
-        catalog["ra"],
-        catalog["dec"],
-        flux,
-        sun,
-        fp,
-        detector,
-        scatter_model_from_instrument(inst),
-        ghost_model_from_instrument(inst, band),
-        needed(inst.ghosts, "ghosts").chief_ray_angle_deg.value,
+        Aim(ra0, dec0, sun, detector),
+        Stars(catalog["ra"], catalog["dec"], flux),
+        _detector_optics(inst, fp, band),
         RenderSettings(far_bin=4, margin_arcsec=600.0),
         size_override=(size_px, size_px),
     )
@@ -377,6 +367,20 @@ def detector_image_data(
         "detector": detector,
         "time": time,
     }
+
+
+def _detector_optics(inst, fp, band: str):
+    """The instrument's focal plane ``fp``, star image and ``band``'s ghosts for the renderer."""
+    from straylight.image.detector import DetectorOptics
+    from straylight.optics.ghosts import ghost_model_from_instrument
+    from straylight.optics.scatter import scatter_model_from_instrument
+
+    return DetectorOptics(
+        fp,
+        scatter_model_from_instrument(inst),
+        ghost_model_from_instrument(inst, band),
+        needed(inst.ghosts, "ghosts").chief_ray_angle_deg.value,
+    )
 
 
 def plot_detector_image(d: dict, out_png) -> None:

@@ -18,6 +18,7 @@ the comparison's scatter.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -32,6 +33,7 @@ __all__ = [
     "SCENARIO_TIME",
     "HST_BRIGHT_LIMB_LIMIT_DEG",
     "LIMB_BIN_DEG",
+    "PhaseSampling",
     "earthshine_scenario",
     "sunlit_limb",
     "read_hst_curve",
@@ -47,6 +49,20 @@ SCENARIO_TIME = "2026-01-01T00:50:00"
 HST_BRIGHT_LIMB_LIMIT_DEG = 20.0
 #: width of the limb-angle bins of CSST's median earthshine, deg
 LIMB_BIN_DEG = 10.0
+
+
+@dataclass(frozen=True)
+class PhaseSampling:
+    """How the tail's calibration samples the sunlit Earth: orbital phases every ``raan_step_deg``
+    in the node and ``u_step_deg`` in the argument of latitude (deg), pointings at HEALPix
+    ``nside``, the earthshine computed at the tails ``tails_log10`` (log10 PST at 90 deg, dex)
+    and interpolated between them, at ``time`` (UTC, ISO 8601)."""
+
+    raan_step_deg: float
+    u_step_deg: float
+    nside: int
+    tails_log10: tuple
+    time: str = SCENARIO_TIME
 
 
 def earthshine_scenario(campaign: Campaign, time: str = SCENARIO_TIME, band: str = "V") -> dict:
@@ -312,3 +328,26 @@ def plot_earthshine_scenario(
     fig.tight_layout()
     fig.savefig(out_png, dpi=120)
     plt.close(fig)
+
+
+def _median_crossing(crossing_deg) -> float:
+    """The median crossing, a phase that never crosses counting as beyond every angle."""
+    return _percentiles(crossing_deg, (50,))["p50"]
+
+
+def _percentiles(values, q=(5, 16, 50, 84, 95)) -> dict:
+    """Percentiles (numpy's linear) of ``values`` with NaN counted as +inf; next to an
+    infinite value, the nearer rank's value."""
+    x = np.sort(np.where(np.isnan(values), np.inf, np.asarray(values, float)))
+    out = {}
+    for k in q:
+        pos = k / 100.0 * (x.size - 1)
+        lo, hi = int(np.floor(pos)), int(np.ceil(pos))
+        a, b = x[lo], x[hi]
+        if a == b or hi == lo:
+            out[f"p{k}"] = float(a)
+        elif np.isfinite(a) and np.isfinite(b):
+            out[f"p{k}"] = float(a + (pos - lo) * (b - a))
+        else:  # next to an infinite value: the nearer rank
+            out[f"p{k}"] = float(a if pos - lo < 0.5 else b)
+    return out

@@ -36,6 +36,9 @@ from straylight.paper.scenarios import (
     HST_BRIGHT_LIMB_LIMIT_DEG,
     LIMB_BIN_DEG,
     SCENARIO_TIME,
+    PhaseSampling,
+    _median_crossing,
+    _percentiles,
     binned_median,
     crossing_angle_deg,
 )
@@ -360,38 +363,11 @@ def phase_crossings(
     }
 
 
-def _median_crossing(crossing_deg) -> float:
-    """The median crossing, a phase that never crosses counting as beyond every angle."""
-    return _percentiles(crossing_deg, (50,))["p50"]
-
-
-def _percentiles(values, q=(5, 16, 50, 84, 95)) -> dict:
-    """Percentiles (numpy's linear) of ``values`` with NaN counted as +inf; next to an
-    infinite value, the nearer rank's value."""
-    x = np.sort(np.where(np.isnan(values), np.inf, np.asarray(values, float)))
-    out = {}
-    for k in q:
-        pos = k / 100.0 * (x.size - 1)
-        lo, hi = int(np.floor(pos)), int(np.ceil(pos))
-        a, b = x[lo], x[hi]
-        if a == b or hi == lo:
-            out[f"p{k}"] = float(a)
-        elif np.isfinite(a) and np.isfinite(b):
-            out[f"p{k}"] = float(a + (pos - lo) * (b - a))
-        else:  # next to an infinite value: the nearer rank
-            out[f"p{k}"] = float(a if pos - lo < 0.5 else b)
-    return out
-
-
 def calibrate_tail(
     campaign: Campaign,
     level_mag: float,
     target_deg: float = PAPER_CROSSING_DEG,
-    raan_step_deg: float = 45.0,
-    u_step_deg: float = 10.0,
-    nside: int = 10,
-    tails_log10=(-9.0, -9.75, -10.5),
-    time: str = SCENARIO_TIME,
+    sampling: PhaseSampling = PhaseSampling(45.0, 10.0, 10, (-9.0, -9.75, -10.5)),
     band: str = "V",
     min_sun_angle_deg: float = 50.0,
 ) -> dict:
@@ -405,16 +381,11 @@ def calibrate_tail(
         HST's earthshine at its 20-deg limit, V mag/arcsec2.
     target_deg : float
         The median crossing the rule asks for, deg.
-    raan_step_deg, u_step_deg : float
-        The phase grid's steps, deg.
-    nside : int
-        HEALPix resolution of the pointings.
-    tails_log10 : sequence of float
-        Tails (log10 PST at 90 deg) the earthshine is computed at; the solution is interpolated
-        between them (each path log-linear in the tail), rounded to 0.01 dex, and computed
-        again there: the crossings reported are that computation's.
-    time : str
-        UTC, ISO 8601.
+    sampling : PhaseSampling
+        The phase grid's steps, the pointings' HEALPix resolution, the time and the tails the
+        earthshine is computed at; the solution is interpolated between them (each path
+        log-linear in the tail), rounded to 0.01 dex, and computed again there: the crossings
+        reported are that computation's.
     band : str
         Band name.
     min_sun_angle_deg : float
@@ -439,32 +410,12 @@ def calibrate_tail(
     InputError
         When the median crossings at ``tails_log10`` do not bracket ``target_deg``.
     """
+    raan_step_deg, u_step_deg, nside, tails_log10, time = dataclasses.astuple(sampling)
     phases = orbit_phases(campaign, raan_step_deg, u_step_deg, time)
     grid = phase_earthshine(campaign, phases, tails_log10, nside, band)
-    tails = grid["tails_log10"]
-    fine = np.round(np.arange(tails.min(), tails.max() + 1e-9, 0.01), 2)
-    fine_med = np.array([_median_crossing(phase_crossings(grid, level_mag, t)["crossing_deg"]) for t in fine])
-    if not (np.nanmin(fine_med) <= target_deg <= np.max(fine_med)):
-        raise InputError(
-            f"median crossings {fine_med[0]:.1f}-{fine_med[-1]:.1f} deg at tails {tails.min()}-{tails.max()} "
-            f"do not bracket {target_deg} deg: widen tails_log10"
-        )
-    tail = float(fine[int(np.argmin(np.abs(fine_med - target_deg)))])
+    tail, fine, fine_med = _fine_crossings(grid, level_mag, target_deg)
     res = phase_earthshine(campaign, phases, [tail], nside, band)
     cr = phase_crossings(res, level_mag, tail)
-    lit = cr["phase"]
-    _, own = phase_tails(grid, level_mag, target_deg)
-    variants = {}
-    for name, kw in (
-        ("door_path_halved", {"door_scale": 0.5}),
-        (f"sun_at_least_{min_sun_angle_deg:g}_deg", {"min_sun_angle_deg": min_sun_angle_deg}),
-    ):
-        v = phase_crossings(res, level_mag, tail, **kw)["crossing_deg"]
-        variants[name] = {
-            "median_crossing_deg": _median_crossing(v),
-            "crossing_percentiles_deg": _percentiles(v),
-            "never_crossing": int(np.isnan(v).sum()),
-        }
     return {
         "rule": (
             f"the median over sunlit orbital phases of the limb angle at which CSST's binned median "
@@ -474,6 +425,44 @@ def calibrate_tail(
         "tail_log10_at_90deg": tail,
         "median_crossing_deg": _median_crossing(cr["crossing_deg"]),
         "crossing_percentiles_deg": _percentiles(cr["crossing_deg"]),
+        **_phase_record(cr, phases, phase_tails(grid, level_mag, target_deg)[1]),
+        "median_crossing_by_tail": {
+            f"{t:.2f}": float(m) for t, m in zip(fine, fine_med) if abs(t * 4 - round(t * 4)) < 1e-6
+        },
+        "variants": _variants(res, level_mag, tail, min_sun_angle_deg),
+        "level_v_mag_per_arcsec2": float(level_mag),
+        "target_deg": float(target_deg),
+        "raan_step_deg": float(raan_step_deg),
+        "u_step_deg": float(u_step_deg),
+        "nside": int(nside),
+        "tails_computed_log10": grid["tails_log10"].tolist(),
+        "time": time,
+        "band": band,
+        "_result": res,
+        "_grid": grid,
+        "_crossings": cr,
+        "_phases": phases,
+    }
+
+
+def _fine_crossings(grid: dict, level_mag: float, target_deg: float) -> tuple:
+    """The tail (every 0.01 dex across ``grid``'s) whose median crossing is nearest
+    ``target_deg``, the tails and their median crossings (deg); InputError unbracketed."""
+    tails = grid["tails_log10"]
+    fine = np.round(np.arange(tails.min(), tails.max() + 1e-9, 0.01), 2)
+    fine_med = np.array([_median_crossing(phase_crossings(grid, level_mag, t)["crossing_deg"]) for t in fine])
+    if not (np.nanmin(fine_med) <= target_deg <= np.max(fine_med)):
+        raise InputError(
+            f"median crossings {fine_med[0]:.1f}-{fine_med[-1]:.1f} deg at tails {tails.min()}-{tails.max()} "
+            f"do not bracket {target_deg} deg: widen tails_log10"
+        )
+    return float(fine[int(np.argmin(np.abs(fine_med - target_deg)))]), fine, fine_med
+
+
+def _phase_record(cr: dict, phases: PhaseGrid, own) -> dict:
+    """Per sunlit phase its crossing (deg), orbit, Sun zenith and own tail (``own``), with counts."""
+    lit = cr["phase"]
+    return {
         "crossing_deg": cr["crossing_deg"],
         "raan_deg": phases.raan_deg[lit],
         "arg_latitude_deg": phases.arg_latitude_deg[lit],
@@ -486,23 +475,23 @@ def calibrate_tail(
         "n_sunlit": int(lit.size),
         "min_pointings_per_bin": int(cr["min_pointings_per_bin"].min()),
         "median_pointings_per_bin": float(np.median(np.concatenate([n[c < 90.0] for c, _, n in cr["bins"]]))),
-        "median_crossing_by_tail": {
-            f"{t:.2f}": float(m) for t, m in zip(fine, fine_med) if abs(t * 4 - round(t * 4)) < 1e-6
-        },
-        "variants": variants,
-        "level_v_mag_per_arcsec2": float(level_mag),
-        "target_deg": float(target_deg),
-        "raan_step_deg": float(raan_step_deg),
-        "u_step_deg": float(u_step_deg),
-        "nside": int(nside),
-        "tails_computed_log10": tails.tolist(),
-        "time": time,
-        "band": band,
-        "_result": res,
-        "_grid": grid,
-        "_crossings": cr,
-        "_phases": phases,
     }
+
+
+def _variants(res: dict, level_mag: float, tail: float, min_sun_angle_deg: float) -> dict:
+    """The crossings (deg) at ``tail`` with the door path halved and with the Sun avoidance."""
+    variants = {}
+    for name, kw in (
+        ("door_path_halved", {"door_scale": 0.5}),
+        (f"sun_at_least_{min_sun_angle_deg:g}_deg", {"min_sun_angle_deg": min_sun_angle_deg}),
+    ):
+        v = phase_crossings(res, level_mag, tail, **kw)["crossing_deg"]
+        variants[name] = {
+            "median_crossing_deg": _median_crossing(v),
+            "crossing_percentiles_deg": _percentiles(v),
+            "never_crossing": int(np.isnan(v).sum()),
+        }
+    return variants
 
 
 def phase_tails(result: dict, level_mag: float, target_deg: float = PAPER_CROSSING_DEG, step: float = 0.01):

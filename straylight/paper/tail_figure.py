@@ -37,17 +37,28 @@ def plot_tail_calibration(
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from straylight.paper.scenarios import read_hst_curve
+    fig, (a1, a2, a3) = plt.subplots(1, 3, figsize=(16, 4.8))
+    _crossing_panels(a1, a2, summary, default)
+    _earthshine_panel(a3, summary, hst_curve)
+    fig.suptitle(
+        f"PST tail over orbital phases, {summary['time']} UTC (seed paper sect. 3.3): median crossing "
+        f"{summary['median_crossing_deg']:.1f} deg",
+        fontsize=10,
+    )
+    fig.tight_layout()
+    fig.savefig(out_png, dpi=110)
+    plt.close(fig)
+
+
+def _crossing_panels(a1, a2, summary: dict, default: dict | None) -> None:
+    """The crossing angle (deg) against the argument of latitude (``a1``, a line per node) and
+    against the Sun's zenith angle at the satellite (``a2``)."""
+    import matplotlib.pyplot as plt
 
     cross = np.asarray(summary["crossing_deg"], float)
     shown = np.where(np.isnan(cross), _NEVER_DEG, cross)
     raan, u, zen = (np.asarray(summary[k]) for k in ("raan_deg", "arg_latitude_deg", "sun_zenith_deg"))
-    tail, target, level = (
-        summary["tail_log10_at_90deg"],
-        summary["target_deg"],
-        summary["level_v_mag_per_arcsec2"],
-    )
-    fig, (a1, a2, a3) = plt.subplots(1, 3, figsize=(16, 4.8))
+    target = summary["target_deg"]
     cmap = plt.get_cmap("twilight")
     step = summary.get("u_step_deg", 10.0)
     for o in np.unique(raan):
@@ -78,6 +89,18 @@ def plot_tail_calibration(
     a2.set_xlabel("Sun's zenith angle at the satellite (deg)")
     a2.set_title(f"sunlit phases: {cross.size}, never crossing: {int(never.sum())}", fontsize=9)
     a2.legend(fontsize=7)
+
+
+def _earthshine_panel(a3, summary: dict, hst_curve) -> None:
+    """The earthshine (V mag/arcsec2) against the limb angle at every sunlit phase, its
+    percentiles over the phases and HST's curve when given."""
+    from straylight.paper.scenarios import read_hst_curve
+
+    tail, target, level = (
+        summary["tail_log10_at_90deg"],
+        summary["target_deg"],
+        summary["level_v_mag_per_arcsec2"],
+    )
     bins = summary["_crossings"]["bins"]
     for c, m, _ in bins:
         a3.plot(c, m, "-", color="0.6", lw=0.4, alpha=0.5)
@@ -99,11 +122,3 @@ def plot_tail_calibration(
     a3.set_ylabel("earthshine, median in 10-deg bins (V mag/arcsec$^2$)")
     a3.set_title(f"CSST earthshine per sunlit phase, tail 10^{tail:.2f} at 90 deg", fontsize=9)
     a3.legend(fontsize=7)
-    fig.suptitle(
-        f"PST tail over orbital phases, {summary['time']} UTC (seed paper sect. 3.3): median crossing "
-        f"{summary['median_crossing_deg']:.1f} deg",
-        fontsize=10,
-    )
-    fig.tight_layout()
-    fig.savefig(out_png, dpi=110)
-    plt.close(fig)

@@ -341,6 +341,66 @@ def _model_tables(model, label: str, radii_km: dict) -> list[dict]:
     return out
 
 
+def _table_builds(tables: list, choice: dict, speed_factor: float) -> tuple:
+    """(seconds on one core to build the tables not cached, whether all are cached); each
+    table's ``build_seconds`` set (s on one core) when the sunlit Earth takes the tables."""
+    if choice["method"] != "lut":
+        return 0.0, True
+    # each model's sunlit table and moonlit one, each unless cached
+    moonlit_s = choice["moonlit_build_seconds_estimate"]
+    for t in tables:
+        one = moonlit_s if t["name"].startswith("moonlit") else choice["build_seconds_estimate"] - moonlit_s
+        t["build_seconds"] = speed_factor * one
+    return sum(t["build_seconds"] for t in tables if not t["cached"]), all(t["cached"] for t in tables)
+
+
+def _samples_seconds(
+    counts: tuple, method: str, rate: tuple, seconds_per_evaluated_sample, speed_factor, cores
+) -> float:
+    """The samples' wall seconds on ``cores``: ``counts`` (samples, evaluated samples) at the
+    pipeline's ``rate`` (samples/s/core, its source), plus on the direct sum (``method``) its
+    extra per evaluated sample; ``seconds_per_evaluated_sample`` (s on one core) replaces both."""
+    from straylight.model import LUT_SAVED_SECONDS_PER_SAMPLE
+
+    n, n_eval = counts
+    rate, rate_source = rate
+    if seconds_per_evaluated_sample is not None:
+        return n_eval * seconds_per_evaluated_sample / cores
+    # a configured rate is already that machine's: not scaled again
+    samples_s = (1.0 if rate_source.startswith("compute.") else speed_factor) * n / (rate * cores)
+    if method == "direct":
+        samples_s += speed_factor * n_eval * LUT_SAVED_SECONDS_PER_SAMPLE / cores
+    return samples_s
+
+
+def _pipeline_times(
+    campaign: Campaign, fp: Footprint, counts: tuple, method: str, build_s: float, options
+) -> dict:
+    """:func:`estimated_cost`'s wall times on the cores (s) and core-hours: the fixed part, the
+    samples (``counts``: samples, evaluated samples; ``method``: the sunlit Earth's), the
+    tables' build (``build_s``, s on one core) and the faint-star map; ``options``: (s per
+    evaluated sample or None, speed factor, cores)."""
+    seconds_per_evaluated_sample, speed_factor, cores = options
+    rate, rate_source = pipeline_rate(campaign)
+    samples_s = _samples_seconds(
+        counts, method, (rate, rate_source), seconds_per_evaluated_sample, speed_factor, cores
+    )
+    fixed_s = speed_factor * PIPELINE_FIXED_SECONDS
+    faint = campaign.settings.stars.faint_map
+    faint_s = speed_factor * FAINT_MAP_SECONDS_PER_PIXEL * int(fp.pixels.size) / cores if faint else 0.0
+    wall_s = fixed_s + samples_s + build_s / cores
+    return {
+        "cores": cores,
+        "pipeline_samples_per_s_per_core": rate,
+        "pipeline_rate_source": rate_source,
+        "fixed_seconds": fixed_s,
+        "samples_seconds": samples_s,
+        "wall_seconds": wall_s,
+        "faint_map_first_seconds": faint_s,
+        "pipeline_core_hours": wall_s * cores / 3600.0,
+    }
+
+
 def estimated_cost(
     campaign: Campaign,
     fp: Footprint,
@@ -383,7 +443,7 @@ def estimated_cost(
         ``faint_map_first_seconds`` (s, wall on ``cores``); ``pipeline_core_hours`` (h);
         ``product_bytes``, ``compact_bytes`` (bytes on disk: the products, the compact sky).
     """
-    from straylight.model import LUT_SAVED_SECONDS_PER_SAMPLE, BackgroundModel, unobservable_samples
+    from straylight.model import BackgroundModel, unobservable_samples
 
     n = len(campaign.times) * int(fp.pixels.size)
     n_eval = evaluated_samples(campaign, fp)
@@ -393,30 +453,9 @@ def estimated_cost(
     compute_s = cube_compute_seconds(
         n, n_eval, choice["method"], skip, seconds_per_evaluated_sample, speed_factor
     )
-    build_s, table_cached = 0.0, True
     tables = needed_tables(model)
-    if choice["method"] == "lut":  # each model's sunlit table and moonlit one, each unless cached
-        moonlit_s = choice["moonlit_build_seconds_estimate"]
-        table_cached = all(t["cached"] for t in tables)
-        for t in tables:
-            one = (
-                moonlit_s if t["name"].startswith("moonlit") else choice["build_seconds_estimate"] - moonlit_s
-            )
-            t["build_seconds"] = speed_factor * one
-        build_s = sum(t["build_seconds"] for t in tables if not t["cached"])
-    rate, rate_source = pipeline_rate(campaign)
-    cores = max(int(cores), 1)
-    if seconds_per_evaluated_sample is not None:
-        samples_s = n_eval * seconds_per_evaluated_sample / cores
-    else:
-        # a configured rate is already that machine's: not scaled again
-        samples_s = (1.0 if rate_source.startswith("compute.") else speed_factor) * n / (rate * cores)
-        if choice["method"] == "direct":
-            samples_s += speed_factor * n_eval * LUT_SAVED_SECONDS_PER_SAMPLE / cores
-    fixed_s = speed_factor * PIPELINE_FIXED_SECONDS
-    faint = campaign.settings.stars.faint_map
-    faint_s = speed_factor * FAINT_MAP_SECONDS_PER_PIXEL * int(fp.pixels.size) / cores if faint else 0.0
-    wall_s = fixed_s + samples_s + build_s / cores
+    build_s, table_cached = _table_builds(tables, choice, speed_factor)
+    options = (seconds_per_evaluated_sample, speed_factor, max(int(cores), 1))
     return {
         "samples": n,
         "evaluated_samples": n_eval,
@@ -429,14 +468,7 @@ def estimated_cost(
         "compute_seconds": compute_s,
         "core_hours": (compute_s + build_s) / 3600.0,
         "speed_factor": speed_factor,
-        "cores": cores,
-        "pipeline_samples_per_s_per_core": rate,
-        "pipeline_rate_source": rate_source,
-        "fixed_seconds": fixed_s,
-        "samples_seconds": samples_s,
-        "wall_seconds": wall_s,
-        "faint_map_first_seconds": faint_s,
-        "pipeline_core_hours": wall_s * cores / 3600.0,
+        **_pipeline_times(campaign, fp, (n, n_eval), choice["method"], build_s, options),
         "product_bytes": n * PRODUCT_BYTES_PER_SAMPLE,
         "compact_bytes": n * COMPACT_BYTES_PER_SAMPLE,
     }

@@ -7,6 +7,7 @@ door's reflectance, the Earth's albedo) at its dark end (optimistic) or bright e
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import numpy as np
@@ -113,58 +114,19 @@ def envelope_sensitivity(background_store, campaign, time_blocks: int = SENSITIV
     """
     import zarr
 
-    from straylight.cube.footprint import footprint_from_store
-    from straylight.cube.layout import ENVELOPE_END_VARIABLES
-    from straylight.cube.region import region_values
     from straylight.limits.budget import BUDGET_VARIABLES, budget_limits, depth_budget, term_limits
-    from straylight.limits.cube import limit_summaries
     from straylight.limits.envelope import _part, envelope_limits
     from straylight.limits.point_source import band_limits, campaign_exposures
-    from straylight.model import BackgroundModel
     from straylight.model.envelope import ENDS, campaign_envelope
-    from straylight.storage.zarr_io import read_region
 
     group = zarr.open_group(str(background_store), mode="r", use_consolidated=False)
     bands = [str(b) for b in group["band"][...]]
     env = campaign_envelope(campaign, bands)
     terms = depth_budget(campaign, bands)
     exposures = campaign_exposures(campaign, bands)
-    chunk = int(group["total"].chunks[0])
-    n_time = int(group["total"].shape[0])
-    starts = np.arange(0, n_time, chunk)
-    pick = starts[
-        np.unique(np.linspace(0, starts.size - 1, min(time_blocks, starts.size)).round().astype(int))
-    ]
-    budget_leaves = [leaf for t in terms for leaf in t.leaves]
-    names = [n for n in ("total", "earthshine", "earthshine_door", *env.leaves, *budget_leaves) if n in group]
-    names = list(dict.fromkeys(names))
-    parts = {n: [] for n in names + ["observable"]}
-    # the members' re-evaluated groups are the cube workers', not stored: evaluated again here
-    regroup = [n for n in ENVELOPE_END_VARIABLES if n in env.leaves and n not in group]
-    parts.update({n: [] for n in regroup})
-    model = BackgroundModel(campaign) if regroup else None
-    fp = footprint_from_store(background_store) if regroup else None
-    for t0 in pick:
-        t_slice = slice(int(t0), int(min(t0 + chunk, n_time)))
-        for n in names + ["observable"]:
-            parts[n].append(read_region(group[n], (t_slice, slice(None))))
-        if regroup:
-            again = region_values(campaign, fp, t_slice, slice(None), model)
-            for n in regroup:
-                parts[n].append(np.array(again[n]))
-    region = {n: np.concatenate(v) for n, v in parts.items()}
+    region = _sampled_region(background_store, campaign, group, (env, terms), time_blocks)
     obs = region["observable"]
-
-    def median_depth(lim) -> np.ndarray:
-        med = limit_summaries(lim, obs)[1]
-        with np.errstate(all="ignore"):
-            return np.array(
-                [
-                    np.nanmedian(med[:, ib]) if np.isfinite(med[:, ib]).any() else np.nan
-                    for ib in range(len(bands))
-                ]
-            )
-
+    median_depth = functools.partial(_median_depth, obs=obs, n_bands=len(bands))
     nominal = median_depth(np.where(obs[..., None], band_limits(region["total"], exposures), np.nan))
     rows = []
     # every input of the depth budget alone at each end (the envelope's parameters among them)
@@ -194,6 +156,56 @@ def envelope_sensitivity(background_store, campaign, time_blocks: int = SENSITIV
         "rows": rows,
         "times": int(obs.shape[0]),
     }
+
+
+def _median_depth(lim, obs, n_bands: int) -> np.ndarray:
+    """Per band, the median over the pixels of each pixel's median limit over its observable
+    times (``obs``), mag; NaN where no pixel is ever observable."""
+    from straylight.limits.cube import limit_summaries
+
+    med = limit_summaries(lim, obs)[1]
+    with np.errstate(all="ignore"):
+        return np.array(
+            [np.nanmedian(med[:, ib]) if np.isfinite(med[:, ib]).any() else np.nan for ib in range(n_bands)]
+        )
+
+
+def _sampled_region(background_store, campaign, group, inputs: tuple, time_blocks: int) -> dict:
+    """The background's variables :func:`envelope_sensitivity` reads (e-/s/pix, and
+    ``observable``) over at most ``time_blocks`` of its time blocks evenly spread, every
+    pixel; the envelope members' re-evaluated groups (``inputs``: envelope, budget terms),
+    which the store does not hold, evaluated again."""
+    from straylight.cube.footprint import footprint_from_store
+    from straylight.cube.layout import ENVELOPE_END_VARIABLES
+    from straylight.cube.region import region_values
+    from straylight.model import BackgroundModel
+    from straylight.storage.zarr_io import read_region
+
+    env, terms = inputs
+    chunk = int(group["total"].chunks[0])
+    n_time = int(group["total"].shape[0])
+    starts = np.arange(0, n_time, chunk)
+    pick = starts[
+        np.unique(np.linspace(0, starts.size - 1, min(time_blocks, starts.size)).round().astype(int))
+    ]
+    budget_leaves = [leaf for t in terms for leaf in t.leaves]
+    names = [n for n in ("total", "earthshine", "earthshine_door", *env.leaves, *budget_leaves) if n in group]
+    names = list(dict.fromkeys(names))
+    parts = {n: [] for n in names + ["observable"]}
+    # the members' re-evaluated groups are the cube workers', not stored: evaluated again here
+    regroup = [n for n in ENVELOPE_END_VARIABLES if n in env.leaves and n not in group]
+    parts.update({n: [] for n in regroup})
+    model = BackgroundModel(campaign) if regroup else None
+    fp = footprint_from_store(background_store) if regroup else None
+    for t0 in pick:
+        t_slice = slice(int(t0), int(min(t0 + chunk, n_time)))
+        for n in names + ["observable"]:
+            parts[n].append(read_region(group[n], (t_slice, slice(None))))
+        if regroup:
+            again = region_values(campaign, fp, t_slice, slice(None), model)
+            for n in regroup:
+                parts[n].append(np.array(again[n]))
+    return {n: np.concatenate(v) for n, v in parts.items()}
 
 
 def sensitivity_chart(result: dict, campaign, out_dir) -> list:

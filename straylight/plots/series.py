@@ -142,8 +142,6 @@ def time_series(ds, campaign, out_dir, pixel_indices, series: list[dict], orbit_
         Each pointing's series over the first orbit (:func:`model_series`).
     """
     from matplotlib.figure import Figure
-    from matplotlib.patches import PathPatch
-    from matplotlib.ticker import MaxNLocator
 
     from straylight.model import registry
 
@@ -170,52 +168,8 @@ def time_series(ds, campaign, out_dir, pixel_indices, series: list[dict], orbit_
             for ax, band in zip(np.atleast_1d(axes), bands):
                 ib = bands.index(band)
                 zp = float(_mag(ds, np.array([1.0]), str(band), campaign)[0])  # mag/arcsec2 at 1 e-/s/pix
-                total = np.asarray(values["total"][:, ib], float)[sel]
-                tmag = zp - 2.5 * np.log10(total[total > 0]) if np.any(total > 0) else np.array([20.0])
-                # brighter up; the faint end a few magnitudes below the total's faintest value
-                faint, bright = (
-                    min(float(np.nanmax(tmag)) + SERIES_DEPTH_MAG, 32.0),
-                    float(np.nanmin(tmag)) - 1.0,
-                )
-                for k, comp in enumerate(comps):
-                    y = np.asarray(values[comp][:, ib], float)[sel]
-                    if not np.any(y > 0):
-                        continue  # zero all along: no line (listed in the x label)
-                    nonzero.add(comp)
-                    mag = np.where(y > 0, zp - 2.5 * np.log10(np.where(y > 0, y, 1.0)), np.nan)
-                    (line,) = ax.plot(
-                        x,
-                        mag,
-                        lw=1.8 if comp == "total" else 1.0,
-                        color="k" if comp == "total" else f"C{k}",
-                        label=comp,
-                    )
-                    if np.any(mag <= faint):  # enters the axes somewhere: in the legend
-                        shown.setdefault(comp, line)
-                # each run of unobservable samples, first to last sample, over the axes' height
-                # (an artist, not a patch: the data limits come from the lines)
-                ax.add_artist(
-                    PathPatch(
-                        _span_path(x, ~obs),
-                        facecolor="0.88",
-                        lw=0,
-                        transform=ax.get_xaxis_transform(),
-                    )
-                )
-                ax.set_ylim(faint, bright)
-                ax.set_ylabel(f"{band}\nmag/arcsec2", fontsize=9)
-                ax.yaxis.set_major_locator(MaxNLocator(4, integer=True))
-                ax.grid(alpha=0.3, lw=0.5)
-                # the band's zero point: e-/s/pixel = 10^(-0.4 (mag - zp))
-                ax.text(
-                    1.005,
-                    0.5,
-                    f"zero point\n{zp:.2f}\n(1 e-/s/pix)",
-                    transform=ax.transAxes,
-                    fontsize=7,
-                    va="center",
-                    ha="left",
-                )
+                curves = {c: np.asarray(values[c][:, ib], float)[sel] for c in comps}
+                _draw_band(ax, x, curves, obs, (zp, band), (shown, nonzero))
             shown = {c: shown[c] for c in comps if c in shown}  # the registry's order
             zero = [c for c in comps if c not in nonzero]
             below = [c for c in comps if c in nonzero and c not in shown]
@@ -245,6 +199,56 @@ def time_series(ds, campaign, out_dir, pixel_indices, series: list[dict], orbit_
             fig.tight_layout(rect=(0, 0, 1, 0.95))
             written.append(_save(fig, Path(out_dir) / f"series_{span}_ra{ra:06.2f}_dec{dec:+06.2f}.png"))
     return written
+
+
+def _draw_band(ax, x, curves: dict, obs, band: tuple, found: tuple) -> None:
+    """One band's axes of :func:`time_series`: each component's curve (``curves``: component ->
+    e-/s/pix at minutes ``x``) in AB mag/arcsec2 through the band's zero point (``band``: zero
+    point, name), the unobservable runs (``obs`` False) shaded; ``found`` (shown, nonzero)
+    collects the lines that enter the axes and the components not zero all along."""
+    from matplotlib.patches import PathPatch
+    from matplotlib.ticker import MaxNLocator
+
+    zp, name = band
+    shown, nonzero = found
+    total = curves["total"]
+    tmag = zp - 2.5 * np.log10(total[total > 0]) if np.any(total > 0) else np.array([20.0])
+    # brighter up; the faint end a few magnitudes below the total's faintest value
+    faint, bright = (
+        min(float(np.nanmax(tmag)) + SERIES_DEPTH_MAG, 32.0),
+        float(np.nanmin(tmag)) - 1.0,
+    )
+    for k, (comp, y) in enumerate(curves.items()):
+        if not np.any(y > 0):
+            continue  # zero all along: no line (listed in the x label)
+        nonzero.add(comp)
+        mag = np.where(y > 0, zp - 2.5 * np.log10(np.where(y > 0, y, 1.0)), np.nan)
+        (line,) = ax.plot(
+            x,
+            mag,
+            lw=1.8 if comp == "total" else 1.0,
+            color="k" if comp == "total" else f"C{k}",
+            label=comp,
+        )
+        if np.any(mag <= faint):  # enters the axes somewhere: in the legend
+            shown.setdefault(comp, line)
+    # each run of unobservable samples, first to last sample, over the axes' height
+    # (an artist, not a patch: the data limits come from the lines)
+    ax.add_artist(PathPatch(_span_path(x, ~obs), facecolor="0.88", lw=0, transform=ax.get_xaxis_transform()))
+    ax.set_ylim(faint, bright)
+    ax.set_ylabel(f"{name}\nmag/arcsec2", fontsize=9)
+    ax.yaxis.set_major_locator(MaxNLocator(4, integer=True))
+    ax.grid(alpha=0.3, lw=0.5)
+    # the band's zero point: e-/s/pixel = 10^(-0.4 (mag - zp))
+    ax.text(
+        1.005,
+        0.5,
+        f"zero point\n{zp:.2f}\n(1 e-/s/pix)",
+        transform=ax.transAxes,
+        fontsize=7,
+        va="center",
+        ha="left",
+    )
 
 
 def _span_path(x, mask):

@@ -6,6 +6,8 @@ off-field transfer, each skipped on its bound like the Moon
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from straylight.sky.ephemeris import PLANETS
@@ -20,7 +22,22 @@ from straylight.sources.photometry import solar_like_fraction
 from straylight.sources.rates import BandRates
 from straylight.util.kernel_cache import njit
 
-__all__ = ["Planets"]
+__all__ = ["PlanetSamples", "Planets"]
+
+
+class PlanetSamples(NamedTuple):
+    """The samples the planets are summed at."""
+
+    satellite_km: np.ndarray
+    """Geocentric ICRS satellite positions, km, broadcastable to ``shape + (3,)``."""
+    frame: TelescopeFrame
+    """The samples' telescope frames."""
+    door_deg: np.ndarray
+    """The door's opening, deg, broadcastable to ``shape``."""
+    floor_ratio: np.ndarray
+    """Each sample's floor over the darkest zodiacal light, broadcastable to ``shape``."""
+    shape: tuple
+    """The samples' shape."""
 
 
 class Planets:
@@ -131,6 +148,7 @@ class Planets:
         fz = np.ascontiguousarray(np.broadcast_to(frame.z, shape + (3,)).reshape(-1, 3), dtype=float)
         near = _near_runs_kernel(fz, directions, np.ascontiguousarray(index, dtype=np.intp), cos_limit)
         flat_out = out.reshape(-1)  # a view: the sums land in out
+        samples = PlanetSamples(sat, frame, door, floor_ratio, shape)
         for i, p in enumerate(planets):
             near_i = np.flatnonzero(near[i])
             if near_i.size:  # added at the near samples only (elsewhere the planet adds 0)
@@ -138,13 +156,9 @@ class Planets:
                 flat_out[near_i] += (
                     self.transfer(
                         fraction_near,
-                        sat,
                         bodies_km[p],
-                        frame,
-                        door,
+                        samples,
                         bands,
-                        floor_ratio,
-                        shape,
                         near_i,
                         None if runs is None else runs.at(near_i),
                     )
@@ -153,17 +167,7 @@ class Planets:
         return out
 
     def transfer(
-        self,
-        fraction_near,
-        satellite_km,
-        planet_km,
-        frame,
-        door,
-        bands,
-        floor_ratio,
-        shape,
-        near,
-        runs_near=None,
+        self, fraction_near, planet_km, samples: PlanetSamples, bands, near, runs_near=None
     ) -> np.ndarray:
         """:meth:`SolarBodySkip.transfer` of a planet at the samples ``near`` (flat indices),
         there only, (len(near),); ``fraction_near``: its fraction of the Sun's irradiance there;
@@ -173,19 +177,12 @@ class Planets:
         ----------
         fraction_near : ndarray, shape (len(near),)
             The planet's irradiance over the Sun's at 1 AU at those samples, dimensionless.
-        satellite_km, planet_km : ndarray, shape (..., 3)
-            Geocentric ICRS positions of the satellite and the planet, km, broadcastable to
-            ``shape + (3,)``.
-        frame : TelescopeFrame
-            The samples' telescope frames.
-        door : ndarray
-            The door's opening, deg, broadcastable to ``shape``.
+        planet_km : ndarray, shape (..., 3)
+            Geocentric ICRS positions of the planet, km, broadcastable to ``samples.shape + (3,)``.
+        samples : PlanetSamples
+            The samples' satellite positions, frames, door openings, floors and shape.
         bands : sequence of str
             Band names.
-        floor_ratio : float or ndarray
-            Each sample's floor over the darkest zodiacal light, broadcastable to ``shape``.
-        shape : tuple
-            The samples' shape.
         near : ndarray of int, shape (m,)
             Flat indices of the samples to evaluate.
         runs_near : SceneRuns, optional
@@ -196,6 +193,7 @@ class Planets:
         ndarray, shape (m,)
             Transfer, e-/s/pix per photon s-1 m-2 at the aperture (0 where skipped or hidden).
         """
+        satellite_km, frame, door, floor_ratio, shape = samples
         sat, planet, fx, fy, fz = (
             rows_at(v, shape, near) for v in (satellite_km, planet_km, frame.x, frame.y, frame.z)
         )

@@ -8,6 +8,7 @@ with a compiled kernel (:func:`_star_pairs_kernel`).  :class:`DirectStarPairs` i
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -143,56 +144,20 @@ class DirectStarPairs:
         if key in cache:
             return cache[key]
         n_stars, n_levels = len(stars.ra_deg), self.STAR_FLOOR_LEVELS.size
-        rel = self.bound_scale(stars)
-        # a hair under the share, against the rounding of the sums
-        budget = self.policy.budget("stars_skip") * self.STAR_FLOOR_LEVELS * (1.0 - 1e-9)
         nside = self.STAR_CELL_NSIDE
         n_cells = hp.nside2npix(nside)
         centres = np.array(hp.pix2vec(nside, np.arange(n_cells))).T
-        # max_pixrad: the largest centre-to-corner distance; 1 % and 1e-9 rad over it for the
-        # curved edges and rounding (sampled: no point of a cell lies beyond 0.999 of it)
-        tail = self._cell_bound_table(1.01 * hp.max_pixrad(nside) + 1e-9)
-        per_cos = (tail.size - 1) / 2.0
-        # bins from STAR_BOUND_DEPTH_DEX below the smallest budget (the first bin gathers every
-        # smaller bound) to a dex over the largest (the last holds bounds no level skips)
-        per_dex = self.STAR_BOUND_BINS_PER_DEX
-        lo_dex = int(np.floor(np.log10(budget[0]))) - self.STAR_BOUND_DEPTH_DEX
-        n_bins = (int(np.ceil(np.log10(budget[-1]))) + 1 - lo_dex) * per_dex + 1
-        with np.errstate(divide="ignore"):
-            log_rel, log_tail = np.log10(rel), np.log10(tail)
+        bb = self._bound_bins(stars, hp.max_pixrad(nside))
         # a star whose bound exceeds a level's budget even at the far side of the sky is summed
         # at every line of sight there: its entries below that level are never listed
-        sure = np.count_nonzero(rel[:, None] * tail[0] > budget[None, :], axis=1)
+        sure = np.count_nonzero(bb.rel[:, None] * bb.tail[0] > bb.budget[None, :], axis=1)
         s_unit = stars.unit if n_stars else np.zeros((0, 3))
         everywhere = np.full(n_stars, n_levels, np.intp)  # levels at which every cell needs the star
         promoted = np.zeros(n_stars, bool)  # summed everywhere at every level: the lists outgrew the cap
         parts, n_entries = [], 0
-        block = max(1, (1 << 21) // max(n_stars, n_bins))  # cells at a time: arrays of ~2 million
+        block = max(1, (1 << 21) // max(n_stars, bb.n_bins))  # cells at a time: arrays of ~2 million
         for a in range(0, n_cells, block):
-            node = np.clip(
-                np.ceil((centres[a : a + block] @ s_unit.T + 1.0) * per_cos), 0, tail.size - 1
-            ).astype(np.intp)
-            bound = rel * tail[node]  # (c, S)
-            bins = np.clip(
-                np.floor((log_rel + log_tail[node]) * per_dex) - lo_dex * per_dex, 0, n_bins - 1
-            ).astype(np.intp)
-            rows = bins.shape[0]
-            sums = np.bincount(
-                (np.arange(rows)[:, None] * n_bins + bins).ravel(),
-                weights=bound.ravel(),
-                minlength=rows * n_bins,
-            ).reshape(rows, n_bins)
-            cum = np.cumsum(sums, axis=1)
-            # per level, the leading bins skipped; per bin, the levels that skip it not: a star's
-            # reach (the levels that need it, nested: 0 .. reach - 1) is its bin's
-            cut = np.stack([np.count_nonzero(cum <= lim, axis=1) for lim in budget], axis=1)  # (c, L)
-            reach_of_bin = np.cumsum(
-                np.bincount(
-                    (np.arange(rows)[:, None] * (n_bins + 1) + cut).ravel(), minlength=rows * (n_bins + 1)
-                ).reshape(rows, -1),
-                axis=1,
-            )
-            reach = np.take_along_axis(reach_of_bin, bins, axis=1)
+            reach = _block_reach(bb, centres[a : a + block], s_unit)
             if n_stars:
                 everywhere = np.minimum(everywhere, reach.min(axis=0))
             r, k = np.nonzero((reach > sure) & ~promoted)
@@ -201,22 +166,29 @@ class DirectStarPairs:
             if n_entries > self.STAR_CELL_ENTRIES:
                 parts = self._promote_to_whole_sky(parts, promoted, self.STAR_CELL_ENTRIES // 2)
                 n_entries = sum(p[0].size for p in parts)
-        cell, star, reach = (np.concatenate(x) for x in zip(*parts))
         everywhere[promoted] = n_levels
-        kept = reach > everywhere[star]  # entries the whole sky's list does not already hold
-        cell, star, reach = cell[kept], star[kept], reach[kept]
-        order = np.lexsort((-reach, cell))  # cell after cell, each by decreasing reach
-        cell, star, reach = cell[order], star[order], reach[order]
-        hist = np.bincount(cell * (n_levels + 1) + reach, minlength=n_cells * (n_levels + 1)).reshape(
-            n_cells, -1
-        )
-        counts = np.cumsum(hist[:, ::-1], axis=1)[:, ::-1][:, 1:]  # (cells, levels): reach > level
-        start = np.concatenate([[0], np.cumsum(counts[:, 0])[:-1]]).astype(np.intp)
-        sky_order = np.argsort(-everywhere, kind="stable")
-        sky_count = np.array([np.count_nonzero(everywhere > lv) for lv in range(n_levels)], np.intp)
-        cells = StarCells(nside, star.astype(np.int32), start, counts, sky_order, sky_count, everywhere)
+        cells = _cells_from_entries(parts, everywhere, n_cells, n_levels, nside)
         cache[key] = cells
         return cells
+
+    def _bound_bins(self, stars: StarTable, max_pixrad_rad: float) -> _BoundBins:
+        """:meth:`star_cells`' bounds and their bins, for cells of largest centre-to-corner
+        distance ``max_pixrad_rad``."""
+        rel = self.bound_scale(stars)
+        # a hair under the share, against the rounding of the sums
+        budget = self.policy.budget("stars_skip") * self.STAR_FLOOR_LEVELS * (1.0 - 1e-9)
+        # max_pixrad: the largest centre-to-corner distance; 1 % and 1e-9 rad over it for the
+        # curved edges and rounding (sampled: no point of a cell lies beyond 0.999 of it)
+        tail = self._cell_bound_table(1.01 * max_pixrad_rad + 1e-9)
+        per_cos = (tail.size - 1) / 2.0
+        # bins from STAR_BOUND_DEPTH_DEX below the smallest budget (the first bin gathers every
+        # smaller bound) to a dex over the largest (the last holds bounds no level skips)
+        per_dex = self.STAR_BOUND_BINS_PER_DEX
+        lo_dex = int(np.floor(np.log10(budget[0]))) - self.STAR_BOUND_DEPTH_DEX
+        n_bins = (int(np.ceil(np.log10(budget[-1]))) + 1 - lo_dex) * per_dex + 1
+        with np.errstate(divide="ignore"):
+            log_rel, log_tail = np.log10(rel), np.log10(tail)
+        return _BoundBins(rel, log_rel, tail, log_tail, per_cos, budget, per_dex, lo_dex, n_bins)
 
     #: :meth:`star_cells`' bounds: the cosine nodes of its PST table, and the bins (per dex,
     #: from this many dex below the smallest budget) whose sums decide which stars are skipped.
@@ -297,28 +269,12 @@ class DirectStarPairs:
             for a in (frame.z, frame.x, frame.y)
         )
         op = np.broadcast_to(np.asarray(door, float), shape).ravel()
-        # each sample's floor level: rounded down, so its budget is never too large
-        level = (
-            np.searchsorted(
-                self.STAR_FLOOR_LEVELS,
-                np.broadcast_to(np.asarray(floor_ratio, float), shape).ravel(),
-                side="right",
-            )
-            - 1
-        )
-        level = np.clip(level, 0, self.STAR_FLOOR_LEVELS.size - 1)
+        level = self._floor_level(floor_ratio, shape)
         re_km = self.context.campaign.earth.radius_km
         sat_b = np.broadcast_to(np.asarray(sat, float), shape + (3,))
         runs = scene_runs(sat_b, runs=runs)
         period = tiled_period(fz, runs)  # a cube batch: the same lines of sight at every time step
-        if runs is not None and runs.count * len(s_all) > self.STAR_PAIRS_PER_PASS:
-            runs = None  # many short runs of a deep catalog: the test per pair costs less memory
-        if runs is not None:  # the Earth test once per star and time step
-            star_blocked = earth_blocks(runs.vectors[0][:, None, :], s_all[None], re_km)  # (R, S)
-            run_index, sat_flat = runs.index, np.zeros((0, 3))
-        else:
-            star_blocked, run_index = np.zeros((0, 0), bool), np.zeros(0, np.intp)
-            sat_flat = np.ascontiguousarray(sat_b.reshape(-1, 3))
+        earth = self._earth_test(runs, s_all, sat_b, re_km)
         cell = cells.cell_of(fz) if period is None else np.tile(cells.cell_of(fz[:period]), len(fz) // period)
         n_cand = (
             cells.count[cell, level] + cells.sky_count[level]
@@ -329,40 +285,135 @@ class DirectStarPairs:
         while a < fz.shape[0]:  # passes of at most STAR_PAIRS_PER_PASS candidates (one sample at least)
             base = ends[a - 1] if a else 0
             b = max(int(np.searchsorted(ends, base + self.STAR_PAIRS_PER_PASS, side="right")), a + 1)
-            r, k, theta, phi = (
-                np.empty(int(ends[b - 1] - base), t) for t in (np.intp, np.intp, float, float)
-            )
-            n = _star_pairs_kernel(
-                a,
-                b,
-                fz,
-                fx,
-                fy,
-                s_all,
-                level,
-                cell,
-                cells.start,
-                cells.count,
-                cells.stars,
-                cells.sky_order,
-                cells.sky_count,
-                cells.everywhere,
-                star_blocked,
-                run_index,
-                sat_flat,
-                float(re_km),
-                float(self.context.offfield.field_radius_deg),
-                r,
-                k,
-                theta,
-                phi,
-            )
-            r, k, theta, phi = r[:n], k[:n], theta[:n], phi[:n]
-            parts.append((r, k, self.context.offfield.point_source(1.0, theta, phi, False, op[r])))
+            span = (a, b, int(ends[b - 1] - base))
+            parts.append(self._pass_pairs(span, (fz, fx, fy), s_all, (level, cell, cells), earth, op))
             a = b
         if not parts:
             return shape, (np.zeros(0, np.intp), np.zeros(0, np.intp), np.zeros(0))
         return shape, tuple(np.concatenate(x) for x in zip(*parts))
+
+    def _floor_level(self, floor_ratio, shape) -> np.ndarray:
+        """Each sample's floor level (index into :attr:`STAR_FLOOR_LEVELS`), flat: rounded down,
+        so its budget is never too large."""
+        level = (
+            np.searchsorted(
+                self.STAR_FLOOR_LEVELS,
+                np.broadcast_to(np.asarray(floor_ratio, float), shape).ravel(),
+                side="right",
+            )
+            - 1
+        )
+        return np.clip(level, 0, self.STAR_FLOOR_LEVELS.size - 1)
+
+    def _earth_test(self, runs, s_all, sat_b, re_km) -> tuple:
+        """What the pairs' kernel tests the Earth with: (star_blocked (R, S), run_index,
+        sat_flat (N, 3) km), once per star and scene run, or (empty, empty, the samples'
+        satellites) to test per pair."""
+        if runs is not None and runs.count * len(s_all) > self.STAR_PAIRS_PER_PASS:
+            runs = None  # many short runs of a deep catalog: the test per pair costs less memory
+        if runs is not None:  # the Earth test once per star and time step
+            star_blocked = earth_blocks(runs.vectors[0][:, None, :], s_all[None], re_km)  # (R, S)
+            return star_blocked, runs.index, np.zeros((0, 3))
+        return np.zeros((0, 0), bool), np.zeros(0, np.intp), np.ascontiguousarray(sat_b.reshape(-1, 3))
+
+    def _pass_pairs(self, span, los, s_all, where, earth, op) -> tuple:
+        """One pass of :meth:`pairs`: samples ``span`` = (first, end, candidates) with their
+        frames ``los`` (z, x, y), the stars ``s_all``, ``where`` (level, cell, cells) and
+        ``earth`` (:meth:`_earth_test`); (sample, star, transfer)."""
+        a, b, n_pairs = span
+        fz, fx, fy = los
+        level, cell, cells = where
+        star_blocked, run_index, sat_flat = earth
+        r, k, theta, phi = (np.empty(n_pairs, t) for t in (np.intp, np.intp, float, float))
+        n = _star_pairs_kernel(
+            a,
+            b,
+            fz,
+            fx,
+            fy,
+            s_all,
+            level,
+            cell,
+            cells.start,
+            cells.count,
+            cells.stars,
+            cells.sky_order,
+            cells.sky_count,
+            cells.everywhere,
+            star_blocked,
+            run_index,
+            sat_flat,
+            float(self.context.campaign.earth.radius_km),
+            float(self.context.offfield.field_radius_deg),
+            r,
+            k,
+            theta,
+            phi,
+        )
+        r, k, theta, phi = r[:n], k[:n], theta[:n], phi[:n]
+        return r, k, self.context.offfield.point_source(1.0, theta, phi, False, op[r])
+
+
+class _BoundBins(NamedTuple):
+    """:meth:`DirectStarPairs.star_cells`' bounds: each star's bound scale (``rel``) and the PST
+    table from the cell's nearest point (``tail``, over :attr:`STAR_BOUND_COS_NODES` cosines,
+    ``per_cos`` nodes per unit cosine), their log10, the budget per floor level, and the bins
+    (``per_dex`` per dex from ``lo_dex``, ``n_bins`` in all)."""
+
+    rel: np.ndarray
+    log_rel: np.ndarray
+    tail: np.ndarray
+    log_tail: np.ndarray
+    per_cos: float
+    budget: np.ndarray
+    per_dex: int
+    lo_dex: int
+    n_bins: int
+
+
+def _block_reach(bb: _BoundBins, centres: np.ndarray, s_unit: np.ndarray) -> np.ndarray:
+    """(cells, stars): the number of floor levels (from the lowest) that need each star at each
+    of the cells of unit ``centres`` (c, 3): at a level, the stars of the leading bins whose sum
+    stays within its budget are skipped."""
+    n_bins, per_dex, lo_dex = bb.n_bins, bb.per_dex, bb.lo_dex
+    node = np.clip(np.ceil((centres @ s_unit.T + 1.0) * bb.per_cos), 0, bb.tail.size - 1).astype(np.intp)
+    bound = bb.rel * bb.tail[node]  # (c, S)
+    bins = np.clip(
+        np.floor((bb.log_rel + bb.log_tail[node]) * per_dex) - lo_dex * per_dex, 0, n_bins - 1
+    ).astype(np.intp)
+    rows = bins.shape[0]
+    sums = np.bincount(
+        (np.arange(rows)[:, None] * n_bins + bins).ravel(),
+        weights=bound.ravel(),
+        minlength=rows * n_bins,
+    ).reshape(rows, n_bins)
+    cum = np.cumsum(sums, axis=1)
+    # per level, the leading bins skipped; per bin, the levels that skip it not: a star's
+    # reach (the levels that need it, nested: 0 .. reach - 1) is its bin's
+    cut = np.stack([np.count_nonzero(cum <= lim, axis=1) for lim in bb.budget], axis=1)  # (c, L)
+    reach_of_bin = np.cumsum(
+        np.bincount(
+            (np.arange(rows)[:, None] * (n_bins + 1) + cut).ravel(), minlength=rows * (n_bins + 1)
+        ).reshape(rows, -1),
+        axis=1,
+    )
+    return np.take_along_axis(reach_of_bin, bins, axis=1)
+
+
+def _cells_from_entries(parts, everywhere, n_cells: int, n_levels: int, nside: int) -> StarCells:
+    """:class:`StarCells` from the entries ``parts`` [(cell, star, reach)] and each star's levels
+    at which every cell needs it (``everywhere``)."""
+    cell, star, reach = (np.concatenate(x) for x in zip(*parts))
+    kept = reach > everywhere[star]  # entries the whole sky's list does not already hold
+    cell, star, reach = cell[kept], star[kept], reach[kept]
+    order = np.lexsort((-reach, cell))  # cell after cell, each by decreasing reach
+    cell, star, reach = cell[order], star[order], reach[order]
+    hist = np.bincount(cell * (n_levels + 1) + reach, minlength=n_cells * (n_levels + 1)).reshape(n_cells, -1)
+    counts = np.cumsum(hist[:, ::-1], axis=1)[:, ::-1][:, 1:]  # (cells, levels): reach > level
+    start = np.concatenate([[0], np.cumsum(counts[:, 0])[:-1]]).astype(np.intp)
+    sky_order = np.argsort(-everywhere, kind="stable")
+    sky_count = np.array([np.count_nonzero(everywhere > lv) for lv in range(n_levels)], np.intp)
+    return StarCells(nside, star.astype(np.int32), start, counts, sky_order, sky_count, everywhere)
 
 
 @njit(cache=True, nogil=True)

@@ -7,13 +7,14 @@ import pytest
 from conftest import run_cli
 
 from straylight.errors import InputError
-from straylight.image.detector import RenderSettings, render_detector
+from straylight.image.detector import Aim, DetectorOptics, RenderSettings, Stars, render_detector
 from straylight.image.focal_plane import FocalPlane, focal_plane_from_instrument, pointing_wcs
 from straylight.optics.ghosts import ghost_model_from_instrument
 from straylight.optics.scatter import scatter_model_from_instrument
 
 SUN = np.array([1.0, 0.0, 0.0])
 N = 768
+AIM = Aim(150.0, 30.0, SUN, 12)
 
 
 @pytest.fixture(scope="module")
@@ -34,7 +35,11 @@ def _render(parts, xy, flux, **kw):
     ra, dec = w.pixel_to_world_values(np.asarray(xy)[:, 0], np.asarray(xy)[:, 1])
     ghosts = kw.pop("ghosts", None)
     return render_detector(
-        150.0, 30.0, ra, dec, flux, SUN, fp, 12, sc, ghosts, 3.9, RenderSettings(**kw), size_override=(N, N)
+        Aim(150.0, 30.0, SUN, 12),
+        Stars(ra, dec, flux),
+        DetectorOptics(fp, sc, ghosts, 3.9),
+        RenderSettings(**kw),
+        size_override=(N, N),
     )
 
 
@@ -222,8 +227,10 @@ def test_bin_and_cutout_keep_units_and_wcs(parts):
     w = pointing_wcs(150.0, 30.0, SUN, small, 12)
     ra, dec = w.pixel_to_world_values(np.array([300.0]), np.array([500.0]))
     kw = dict(settings=RenderSettings(margin_arcsec=10.0), size_override=(N, N))
-    full = render_detector(150.0, 30.0, ra, dec, [1e6], SUN, fp, 12, sc, None, 3.9, **kw)
-    binned = render_detector(150.0, 30.0, ra, dec, [1e6], SUN, fp, 12, sc, None, 3.9, bin_factor=8, **kw)
+    full = render_detector(AIM, Stars(ra, dec, [1e6]), DetectorOptics(fp, sc, None, 3.9), **kw)
+    binned = render_detector(
+        AIM, Stars(ra, dec, [1e6]), DetectorOptics(fp, sc, None, 3.9), bin_factor=8, **kw
+    )
     assert binned.image_e_per_s_per_pix.shape == (N // 8, N // 8)
     assert binned.image_e_per_s_per_pix.astype(float).sum() * 64 == pytest.approx(
         full.image_e_per_s_per_pix.astype(float).sum(), rel=1e-5
@@ -231,7 +238,7 @@ def test_bin_and_cutout_keep_units_and_wcs(parts):
     x, y = binned.wcs.world_to_pixel_values(ra[0], dec[0])
     assert (float(x), float(y)) == pytest.approx(((300.0 + 0.5) / 8 - 0.5, (500.0 + 0.5) / 8 - 0.5), abs=1e-6)
     cut = render_detector(
-        150.0, 30.0, ra, dec, [1e6], SUN, fp, 12, sc, None, 3.9, window=(200, 450, 128, 96), **kw
+        AIM, Stars(ra, dec, [1e6]), DetectorOptics(fp, sc, None, 3.9), window=(200, 450, 128, 96), **kw
     )
     assert cut.image_e_per_s_per_pix.shape == (96, 128)
     ref = full.image_e_per_s_per_pix[450:546, 200:328].astype(float)

@@ -9,6 +9,7 @@ from conftest import run_cli
 from straylight.limits.point_source import point_source_limit
 from straylight.model import BackgroundModel
 from straylight.planning.scheduling import bright_limb_table, exposure_time_factor, moon_avoidance_table
+from straylight.sources.earthshine.sums import Bodies
 
 
 @pytest.fixture(scope="module")
@@ -95,9 +96,7 @@ def _rotated_scene_rate(campaign, model, sun_zenith_deg: float, elevation_deg: f
     bodies = {"sun": sun[None], "moon": (-1e6 * up)[None]}
     g = observing_geometry(sat[None], bodies, los[None], re, campaign.constraints)
     c = model.sunlit_earth.engine.grid.earthshine_coefficients(
-        sat[None],
-        sun[None],
-        bodies["moon"],
+        Bodies(sat[None], sun[None], bodies["moon"]),
         telescope_frame(los[None], sun[None] - sat[None]),
         g["door_opening_deg"],
         re,

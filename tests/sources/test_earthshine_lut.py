@@ -14,6 +14,7 @@ from straylight.config import campaign_from_dict
 from straylight.model import BackgroundModel
 from straylight.sky.frames import telescope_frame
 from straylight.sources.earthshine.nodes import LUTSettings, lut_key
+from straylight.sources.earthshine.sums import Bodies
 from straylight.sources.earthshine.sunlit_build import build_earthshine_lut
 from straylight.sources.earthshine.sunlit_table import EarthshineLUT
 
@@ -50,9 +51,7 @@ def test_table_reproduces_the_direct_sum_at_its_nodes(coarse):
     for state in off.door_states_deg:
         d, g = lut.sun_coefficients(sat, sun, los, np.array([state]))
         ref = off.earthshine_coefficients(
-            sat,
-            sun,
-            np.array([[0, 0, -1e9]]),
+            Bodies(sat, sun, np.array([[0, 0, -1e9]])),
             telescope_frame(los, sun - sat),
             np.array([state]),
             c.earth.radius_km,
@@ -78,7 +77,12 @@ def test_rotation_about_the_vertical_changes_nothing(coarse):
     door = g["door_opening_deg"][obs]
     frame = telescope_frame(los, sun - sat)
     real = off.earthshine_coefficients(
-        sat, sun, sc.bodies_km["moon"][obs], frame, door, c.earth.radius_km, in_field=False, moon=False
+        Bodies(sat, sun, sc.bodies_km["moon"][obs]),
+        frame,
+        door,
+        c.earth.radius_km,
+        in_field=False,
+        moon=False,
     )
     res = cm.evaluate(
         sat, {k: v[obs] for k, v in sc.bodies_km.items()}, los, {k: v[obs] for k, v in g.items()}, ["g"]
@@ -190,7 +194,7 @@ def test_moonlit_bound_holds(coarse):
     sat, sun, moon = sc.satellite_km, sc.bodies_km["sun"], sc.bodies_km["moon"]
     frame = telescope_frame(los, sun - sat)
     co = cm.sunlit_earth.engine.grid.earthshine_coefficients(
-        sat, sun, moon, frame, g["door_opening_deg"], c.earth.radius_km, in_field=False
+        Bodies(sat, sun, moon), frame, g["door_opening_deg"], c.earth.radius_km, in_field=False
     )
     bound = info["lut"].moon_bound(sat, moon, los, c.earth.radius_km)
     fin = np.isfinite(bound)
@@ -219,7 +223,13 @@ def test_cap_bound_holds_for_any_line_of_sight(coarse):
         )
     )
     co = cm.sunlit_earth.engine.grid.earthshine_coefficients(
-        sat, sun, moon, frame, door, c.earth.radius_km, in_field=False, sun=False, grid=cm.moonlit_earth.grid
+        Bodies(sat, sun, moon),
+        frame,
+        door,
+        c.earth.radius_km,
+        in_field=False,
+        sun=False,
+        grid=cm.moonlit_earth.grid,
     )
     bound = (
         cm.sunlit_earth.engine.grid.earthshine_cap_bound(sat, c.earth.radius_km, cm.moonlit_earth.grid)
@@ -435,9 +445,7 @@ def test_moonlit_table_reproduces_the_coarse_sum_at_its_nodes(moonlit):
         for state in off.door_states_deg:
             d, g = lut.coefficients(sat, moon, frame, np.array([state]))
             ref = off.earthshine_coefficients(
-                sat,
-                moon,
-                moon,
+                Bodies(sat, moon, moon),
                 frame,
                 np.array([state]),
                 c.earth.radius_km,
@@ -468,7 +476,13 @@ def test_moonlit_table_matches_the_coarse_sum_in_real_scenes(moonlit):
     frame = telescope_frame(los[obs], sun - sat)
     door = g["door_opening_deg"][obs]
     ref = cm.sunlit_earth.engine.grid.earthshine_coefficients(
-        sat, sun, moon, frame, door, c.earth.radius_km, in_field=False, sun=False, grid=cm.moonlit_earth.grid
+        Bodies(sat, sun, moon),
+        frame,
+        door,
+        c.earth.radius_km,
+        in_field=False,
+        sun=False,
+        grid=cm.moonlit_earth.grid,
     )
     d, gd = lut.coefficients(sat, moon, frame, door)
     moon_max = solar_like_fraction(moon_v_magnitude(0.0, MOON_PERIGEE_KM))

@@ -16,6 +16,7 @@ from straylight.sky.geometry import observing_geometry
 from straylight.sky.vectors import radec_to_unit
 from straylight.sources.body_magnitudes import moon_v_magnitude, planet_v_magnitude
 from straylight.sources.earthshine.grid import EarthshineSettings
+from straylight.sources.earthshine.sums import Bodies
 from straylight.sources.photometry import solar_like_fraction
 from straylight.sources.stars import OffFieldStars
 from straylight.sources.stars_table import StarTable
@@ -1024,7 +1025,7 @@ def test_band_independent_earthshine_equals_per_band(comp_model):
     los = np.array([[0.3, 0.9, 0.3]]) / np.linalg.norm([0.3, 0.9, 0.3])
     sun, moon = np.array([[AU, 0.2 * AU, 0.0]]), np.array([[-2e5, 3e5, 1e4]])
     frame = telescope_frame(los, sun - sat)
-    c = off.earthshine_coefficients(sat, sun, moon, frame, np.array([135.0]), RE)
+    c = off.earthshine_coefficients(Bodies(sat, sun, moon), frame, np.array([135.0]), RE)
     a, b = off.earthshine_terms(
         sat, sun, moon, frame, np.array([135.0]), np.array([3.0]), np.array([2.0]), RE
     )
@@ -1045,11 +1046,11 @@ def test_one_scene_earthshine_equals_per_sample_sum(comp_model, sun_x):
     sat, sun, moon = (np.broadcast_to(v, los.shape) for v in (sat1, sun1, moon1))
     frame = telescope_frame(los, sun - sat)
     door = rng.choice([135.0, 105.0, 0.0], size=300)
-    fast = off.earthshine_coefficients(sat, sun, moon, frame, door, RE)
+    fast = off.earthshine_coefficients(Bodies(sat, sun, moon), frame, door, RE)
     for i in range(0, 300, 7):
         fr = telescope_frame(los[i : i + 1], sun[i : i + 1] - sat[i : i + 1])
         ref = off.earthshine_coefficients(
-            sat[i : i + 1], sun[i : i + 1], moon[i : i + 1], fr, door[i : i + 1], RE
+            Bodies(sat[i : i + 1], sun[i : i + 1], moon[i : i + 1]), fr, door[i : i + 1], RE
         )
         for k in ref:
             assert float(fast[k][i]) == pytest.approx(float(ref[k][0]), rel=1e-9, abs=1e-300), (k, i)
@@ -1201,12 +1202,12 @@ def test_nothing_enters_the_direct_path_from_behind_the_aperture_plane(campaign,
     sat, sun, los = _zenith_tilted_scene(0.0, 40.0)
     frame = telescope_frame(los, sun - sat)
     moon = np.array([[0.0, 0.0, 384400.0]])
-    c = off.earthshine_coefficients(sat, sun, moon, frame, np.array([135.0]), RE)
+    c = off.earthshine_coefficients(Bodies(sat, sun, moon), frame, np.array([135.0]), RE)
     assert float(c["direct_sun"][0]) == 0.0
     # 15 deg off the zenith, the Earth from theta 95 deg: still nothing directly
     sat, sun, los = _zenith_tilted_scene(15.0, 40.0)
     frame = telescope_frame(los, sun - sat)
-    c = off.earthshine_coefficients(sat, sun, moon, frame, np.array([135.0]), RE)
+    c = off.earthshine_coefficients(Bodies(sat, sun, moon), frame, np.array([135.0]), RE)
     assert float(c["direct_sun"][0]) == 0.0
 
 
@@ -1250,9 +1251,11 @@ def test_the_body_shades_the_door(comp_model, tilt_deg, sun_zenith_deg):
     sat, sun, los = _zenith_tilted_scene(tilt_deg, sun_zenith_deg)
     frame = telescope_frame(los, sun - sat)
     moon = np.array([[0.0, 0.0, 384400.0]])
-    shaded = float(off.earthshine_coefficients(sat, sun, moon, frame, np.array([135.0]), RE)["door_sun"][0])
+    shaded = float(
+        off.earthshine_coefficients(Bodies(sat, sun, moon), frame, np.array([135.0]), RE)["door_sun"][0]
+    )
     unshaded = float(
-        bare.earthshine_coefficients(sat, sun, moon, frame, np.array([135.0]), RE)["door_sun"][0]
+        bare.earthshine_coefficients(Bodies(sat, sun, moon), frame, np.array([135.0]), RE)["door_sun"][0]
     )
     exact = _door_term_exact(off, sat, sun, los, 135.0, body=True)
     assert unshaded == pytest.approx(_door_term_exact(off, sat, sun, los, 135.0, body=False), rel=1e-9)

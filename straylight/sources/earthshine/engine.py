@@ -376,7 +376,7 @@ class Earthshine:
         nodes = settings.node_count(float(r[0]), c.earth.radius_km, mirror_symmetric(self.grid))
         return nodes * len(self.grid.door_states_deg)
 
-    def _moonlit_table_inputs(self, settings) -> tuple:
+    def _moonlit_table_inputs(self, settings):
         """The arguments of :func:`~straylight.sources.earthshine.moonlit_build.load_or_build_moonlit`
         (and of its cache key) before the logger: the grid, the Earth, the orbit, the settings,
         the coarse grid, the darkest sky and the brightest Moon (full, at perigee) per unit
@@ -385,7 +385,9 @@ class Earthshine:
         moon_max = float(
             solar_like_fraction(moon_v_magnitude(0.0, MOON_PERIGEE_KM, self.context.offfield.moon_law, 180.0))
         )
-        return (
+        from straylight.sources.earthshine.nodes import MoonlitInputs
+
+        return MoonlitInputs(
             self.grid,
             c.earth.radius_km,
             c.orbit_radius_range_km,
@@ -427,7 +429,7 @@ class Earthshine:
         if settings is None:
             return {"method": "direct", "lut": None, "reason": "models.earthshine.moonlit_method = direct"}
         lut, path = load_or_build_moonlit(
-            *self._moonlit_table_inputs(settings), logging.getLogger("straylight"), self.build_workers
+            self._moonlit_table_inputs(settings), logging.getLogger("straylight"), self.build_workers
         )
         info = {
             "lut_file": path.name,

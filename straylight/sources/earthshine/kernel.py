@@ -27,15 +27,107 @@ block and line of sight for all of them.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
 from straylight.util.gridinterp import cell_of
 from straylight.util.kernel_cache import njit
 
-__all__ = ["GridPack", "cap_sums", "lamp_bound_sums"]
+__all__ = [
+    "CapBlocks",
+    "DoorArrays",
+    "GridArrays",
+    "GridPack",
+    "OpticsArrays",
+    "Sightlines",
+    "cap_sums",
+    "lamp_bound_sums",
+]
 
 _DEG = 180.0 / math.pi
+
+
+class GridArrays(NamedTuple):
+    """A two-axis grid's cell finders (:func:`~straylight.util.gridinterp.cell_of`'s arrays, in
+    the axes' units: deg) and ``values`` (grids, nodes), for :func:`cap_sums`."""
+
+    lo: np.ndarray
+    hi: np.ndarray
+    uniform: np.ndarray
+    inv_width: np.ndarray
+    n_bins: np.ndarray
+    bin_cell: np.ndarray
+    nodes: np.ndarray
+    n_nodes: np.ndarray
+    inv_step: np.ndarray
+    stride0: int
+    values: np.ndarray
+
+
+class Sightlines(NamedTuple):
+    """The lines of sight :func:`cap_sums` sums for."""
+
+    x: np.ndarray
+    """Telescope frame x axes, (M, 3) unit vectors, ICRS."""
+    y: np.ndarray
+    """Telescope frame y axes, (M, 3)."""
+    z: np.ndarray
+    """Telescope frame z axes (the boresights), (M, 3)."""
+    state_sel: np.ndarray
+    """Door state indices (M, J) of int, ascending states (-1: none, which gives 0)."""
+
+
+class CapBlocks(NamedTuple):
+    """The lit cap blocks (:meth:`EarthGrid.lit_cap_blocks`) and their children
+    (:meth:`EarthGrid.cut_children`): a block the aperture plane cuts is summed over them."""
+
+    dirs: np.ndarray
+    """Unit directions from the satellite, (K, 3)."""
+    span_g: np.ndarray
+    """Spans in nadir angle, (K, 3) vectors."""
+    span_p: np.ndarray
+    """Spans in azimuth, (K, 3) vectors."""
+    lum: np.ndarray
+    """albedo / pi x cos(lamp zenith) x solid angle per lamp, (K, C), dimensionless (sr-1 x sr)."""
+    child_dirs: np.ndarray
+    """The children's directions, (K, S, 3) (S = 0: the block whole)."""
+    child_g: np.ndarray
+    """The children's nadir-angle spans, (K, S, 3)."""
+    child_p: np.ndarray
+    """The children's azimuth spans, (K, S, 3)."""
+    child_lum: np.ndarray
+    """The children's luminance times solid angle per lamp, (K, S, C), as ``lum``."""
+
+
+class OpticsArrays(NamedTuple):
+    """The telescope's part of :func:`cap_sums`."""
+
+    field_radius_deg: float
+    """The field's radius, deg (blocks within it add no direct term)."""
+    pixel_area_m2: float
+    """Detector pixel area, m2."""
+    pst: GridArrays
+    """The PST's grid: one row, the natural log of the PST over (theta, phi) in deg."""
+
+
+class DoorArrays(NamedTuple):
+    """The door's part of :func:`cap_sums`, per door state (S states, ascending)."""
+
+    normal: np.ndarray
+    """The door's inner normal per state, (S, 3), telescope frame."""
+    k: np.ndarray
+    """Reflectance x sum of the door's weights x pixel area per state, (S,), m2."""
+    sp: GridArrays
+    """The door's Sp grids, one row per state."""
+    lit: GridArrays
+    """The lit-fraction grids, one row per state."""
+    has_body: bool
+    """False: the lit fraction is 1 everywhere (``lit`` is not read)."""
+    lit_at_plane: np.ndarray
+    """(S,) the lit fraction at theta <= 90 deg (where the grid is clipped to its first row)
+    when that row is constant in phi, else -1: a direction in front of the aperture plane then
+    needs no angles for the door's term."""
 
 
 class GridPack:
@@ -68,16 +160,15 @@ class GridPack:
         self.stride0 = int(g0._strides[0])
         self.values = np.ascontiguousarray(np.stack([np.asarray(g._flat, float).ravel() for g in grids]))
 
-    def arrays(self) -> tuple:
-        """The arrays :func:`cap_sums` takes for this grid, in its argument order.
+    def arrays(self) -> GridArrays:
+        """The arrays :func:`cap_sums` takes for this grid.
 
         Returns
         -------
-        tuple
-            (lo, hi, uniform, inv_width, n_bins, bin_cell, nodes, n_nodes, inv_step, stride0,
-            values): the cell finders (in the axes' units) and ``values`` (grids, nodes).
+        GridArrays
+            The cell finders (in the axes' units) and ``values`` (grids, nodes).
         """
-        return (
+        return GridArrays(
             self.lo,
             self.hi,
             self.uniform,
@@ -101,105 +192,29 @@ def _bilinear_at(values, row, base, s0, ta, tb):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def cap_sums(
-    fx,
-    fy,
-    fz,
-    blocks,
-    span_g,
-    span_p,
-    lum,
-    state_sel,
-    door_normal,
-    door_k,
-    field_radius_deg,
-    pixel_area_m2,
-    child_dirs,
-    child_g,
-    child_p,
-    child_lum,
-    p_lo,
-    p_hi,
-    p_uni,
-    p_iw,
-    p_nb,
-    p_bc,
-    p_nodes,
-    p_nn,
-    p_is,
-    p_s0,
-    p_val,
-    d_lo,
-    d_hi,
-    d_uni,
-    d_iw,
-    d_nb,
-    d_bc,
-    d_nodes,
-    d_nn,
-    d_is,
-    d_s0,
-    d_val,
-    f_lo,
-    f_hi,
-    f_uni,
-    f_iw,
-    f_nb,
-    f_bc,
-    f_nodes,
-    f_nn,
-    f_is,
-    f_s0,
-    f_val,
-    has_body,
-    lit_at_plane,
-    direct,
-    door,
-):
+def cap_sums(los, cap, optics, door_arrays, direct, door):
     """The module's sums into ``direct`` and ``door`` (M, J, C), zeroed here.
 
     Parameters
     ----------
-    fx, fy, fz : ndarray, shape (M, 3)
-        The lines of sight's telescope frames (unit vectors, ICRS).
-    blocks, span_g, span_p : ndarray, shape (K, 3)
-        The lit blocks' unit directions from the satellite and their spans in nadir angle and
-        azimuth (:meth:`EarthGrid.lit_cap_blocks`).
-    lum : ndarray, shape (K, C)
-        albedo / pi x cos(lamp zenith) x solid angle per lamp: radiance per unit irradiance
-        (sr-1) times solid angle (sr), dimensionless.
-    state_sel : ndarray of int, shape (M, J)
-        Door state indices, ascending states (-1: none, which gives 0).
-    door_normal : ndarray, shape (S, 3)
-        The door's inner normal per state, telescope frame.
-    door_k : ndarray, shape (S,)
-        Reflectance x sum of the door's weights x pixel area per state, m2.
-    field_radius_deg : float
-        The field's radius, deg (blocks within it add no direct term).
-    pixel_area_m2 : float
-        Detector pixel area, m2.
-    child_dirs, child_g, child_p : ndarray, shape (K, S, 3)
-        Each block's S children's directions and spans (:meth:`EarthGrid.cut_children`): a
-        block the aperture plane cuts is summed over them (S = 0: the block whole, its front
-        part linear in cos theta).
-    child_lum : ndarray, shape (K, S, C)
-        The children's luminance times solid angle per lamp, as ``lum``.
-    p_lo, p_hi, p_uni, p_iw, p_nb, p_bc, p_nodes, p_nn, p_is, p_s0, p_val
-        The PST's grid (:meth:`GridPack.arrays`; values: one row, the natural log of the PST,
-        over (theta, phi) in deg).
-    d_lo, d_hi, d_uni, d_iw, d_nb, d_bc, d_nodes, d_nn, d_is, d_s0, d_val
-        The door's Sp grids, one row per state.
-    f_lo, f_hi, f_uni, f_iw, f_nb, f_bc, f_nodes, f_nn, f_is, f_s0, f_val
-        The lit-fraction grids, one row per state.
-    has_body : bool
-        False: the lit fraction is 1 everywhere (the f_* grids are not read).
-    lit_at_plane : ndarray, shape (S,)
-        The lit fraction at theta <= 90 deg (where the grid is clipped to its first row) when
-        that row is constant in phi, else -1: a direction in front of the aperture plane then
-        needs no angles for the door's term.
+    los : Sightlines
+        The lines of sight's telescope frames and door states.
+    cap : CapBlocks
+        The lit blocks and their children.
+    optics : OpticsArrays
+        The field's radius, the pixel area and the PST's grid.
+    door_arrays : DoorArrays
+        The door's normals, factors and grids per state.
     direct, door : ndarray, shape (M, J, C)
         Output: e-/s/pix per photon s-1 m-2 of each lamp, outside the field (EA1 and EA2).
     """
+    fx, fy, fz, state_sel = los
+    blocks, span_g, span_p, lum, child_dirs, child_g, child_p, child_lum = cap
+    field_radius_deg, pixel_area_m2, pst = optics
+    door_normal, door_k, sp, lit, has_body, lit_at_plane = door_arrays
+    p_lo, p_hi, p_uni, p_iw, p_nb, p_bc, p_nodes, p_nn, p_is, p_s0, p_val = pst
+    d_lo, d_hi, d_uni, d_iw, d_nb, d_bc, d_nodes, d_nn, d_is, d_s0, d_val = sp
+    f_lo, f_hi, f_uni, f_iw, f_nb, f_bc, f_nodes, f_nn, f_is, f_s0, f_val = lit
     n_los, n_sel = state_sel.shape
     n_blocks, n_lamps = lum.shape
     n_child = child_dirs.shape[1]

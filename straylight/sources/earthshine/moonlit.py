@@ -18,6 +18,7 @@ from straylight.sky.frames import TelescopeFrame
 from straylight.sky.runs import rows_at, scene_rows
 from straylight.sources.context import Samples, SourceContext
 from straylight.sources.earthshine.engine import EARTH_PARTS, Earthshine
+from straylight.sources.earthshine.sums import Bodies
 from straylight.sources.rates import BandRates
 
 __all__ = ["MoonlitEarth"]
@@ -263,7 +264,7 @@ class MoonlitEarth:
                 None if flat.runs is None else flat.runs.at(at),
             )
         c = self.engine.grid.earthshine_coefficients(
-            *(np.take(v, at, axis=0) for v in (flat.sat, flat.sun, flat.moon)),
+            Bodies(*(np.take(v, at, axis=0) for v in (flat.sat, flat.sun, flat.moon))),
             sub,
             door_need,
             self.context.campaign.earth.radius_km,

@@ -16,6 +16,7 @@ from __future__ import annotations
 import hashlib
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -29,6 +30,7 @@ __all__ = [
     "MOONLIT_LUT_BUILD_SECONDS_PER_NODE",
     "LOS_RISE_WIDTH_DEG",
     "LUTSettings",
+    "MoonlitInputs",
     "MoonlitSettings",
     "mirror_symmetric",
     "cache_path",
@@ -323,6 +325,25 @@ def lut_key(
         f"{floor:.6g}",
         tuple(float(a) for a in avoidance_deg),
     )
+
+
+class MoonlitInputs(NamedTuple):
+    """Everything the moonlit table depends on (in :func:`moonlit_key`'s order)."""
+
+    off: object
+    """The off-field transfer and Earth grid (an EarthGrid)."""
+    earth_radius_km: float
+    radius_range_km: tuple
+    """The orbit's smallest and largest geocentric radius, km."""
+    settings: MoonlitSettings
+    grid: tuple
+    """(n_gamma, n_psi) of the coarse Earth-cap grid."""
+    floor: float
+    """The darkest sky, e-/s/pix per photon s-1 m-2 of the Sun at 1 AU; 0: no validation."""
+    moon_max: float
+    """The brightest Moon's irradiance over the Sun's at 1 AU, dimensionless."""
+    dark_limb_min_deg: float = 30.0
+    """The dark-limb avoidance angle, deg."""
 
 
 def moonlit_key(

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 from functools import cached_property
+from typing import NamedTuple
 
 import numpy as np
 
@@ -29,7 +30,16 @@ class _Frame:
         self.x, self.y, self.z = x, y, z
 
 
-__all__ = ["EarthshineSums"]
+class Bodies(NamedTuple):
+    """Geocentric ICRS positions (km, (..., 3) or one scene's (3,)) of the satellite and of the
+    two lamps that light the Earth, the Sun and the Moon."""
+
+    sat_km: np.ndarray
+    sun_km: np.ndarray
+    moon_km: np.ndarray
+
+
+__all__ = ["Bodies", "EarthshineSums"]
 
 
 class EarthshineSums:
@@ -39,9 +49,7 @@ class EarthshineSums:
 
     def earthshine_coefficients(
         self,
-        sat_km,
-        sun_km,
-        moon_km,
+        bodies: Bodies,
         frame,
         opening_deg,
         earth_radius_km,
@@ -61,10 +69,8 @@ class EarthshineSums:
 
         Parameters
         ----------
-        sat_km : ndarray, shape (..., 3)
-            Geocentric ICRS satellite positions, km.
-        sun_km, moon_km : ndarray, shape (..., 3)
-            Geocentric ICRS positions of the Sun and the Moon, km.
+        bodies : Bodies
+            Geocentric ICRS positions of the satellite, the Sun and the Moon, km, (..., 3).
         frame : TelescopeFrame
             The samples' telescope frames, axes (..., 3).
         opening_deg : array_like
@@ -86,14 +92,27 @@ class EarthshineSums:
             satellite, the Moon at the Earth).
         """
         s = self.cap_settings(grid)
-        one = shared_vectors(sat_km, sun_km, moon_km)
-        if one is not None:
-            out = self._earthshine_one_scene(*one, frame, opening_deg, earth_radius_km, moon, sun, s)
-            if in_field:
-                per_sun, per_moon = self.earth_in_field(sat_km, sun_km, moon_km, frame, earth_radius_km)
-                out["direct_sun"] = out["direct_sun"] + per_sun
-                out["direct_moon"] = out["direct_moon"] + per_moon
-            return out
+        one = shared_vectors(*bodies)
+        if one is None:
+            return self._coefficients_general(
+                bodies, frame, opening_deg, earth_radius_km, s, (sun, moon), in_field
+            )
+        out = self._earthshine_one_scene(Bodies(*one), frame, opening_deg, earth_radius_km, moon, sun, s)
+        if in_field:
+            self._add_in_field(out, bodies, frame, earth_radius_km)
+        return out
+
+    def _add_in_field(self, out: dict, bodies: Bodies, frame, earth_radius_km) -> None:
+        """Add the Earth seen inside the field (:meth:`earth_in_field`) to ``out``'s direct terms."""
+        per_sun, per_moon = self.earth_in_field(*bodies, frame, earth_radius_km)
+        out["direct_sun"] = out["direct_sun"] + per_sun
+        out["direct_moon"] = out["direct_moon"] + per_moon
+
+    def _coefficients_general(self, bodies, frame, opening_deg, earth_radius_km, s, lamps, in_field) -> dict:
+        """:meth:`earthshine_coefficients` for samples that do not share one scene, over the whole
+        cap grid of each (``lamps``: whether the Sun and the Moon light it)."""
+        sat_km, sun_km, moon_km = bodies
+        sun, moon = lamps
         d, d_omega, pts, mu_sun, mu_moon = self._lit_cap(
             sat_km, earth_radius_km, s, sun_km, moon_km, sun, moon
         )
@@ -124,18 +143,25 @@ class EarthshineSums:
             "direct_moon": np.sum(lum_moon * w_direct, axis=(-2, -1)),
         }
         if np.any(cut):
-            cut_sun, cut_moon = self._cut_blocks_direct(
-                cut, sat_km, sun_km, moon_km, frame, op, earth_radius_km, s, sun, moon
-            )
+            cut_sun, cut_moon = self._cut_blocks_direct(cut, bodies, frame, op, earth_radius_km, s, lamps)
             out["direct_sun"] = out["direct_sun"] + cut_sun
             out["direct_moon"] = out["direct_moon"] + cut_moon
         if in_field:
-            per_sun, per_moon = self.earth_in_field(sat_km, sun_km, moon_km, frame, earth_radius_km)
-            out["direct_sun"] = out["direct_sun"] + per_sun
-            out["direct_moon"] = out["direct_moon"] + per_moon
-        # door path: irradiance on the door's inner face from the Earth blocks in front of it
-        door_sun = np.zeros(out["direct_sun"].shape)
-        door_moon = np.zeros(out["direct_sun"].shape)
+            self._add_in_field(out, bodies, frame, earth_radius_km)
+        lum_d_omega = (lum_sun * d_omega, lum_moon * d_omega)
+        out["door_sun"], out["door_moon"] = self._door_coefficients(
+            out["direct_sun"].shape, opening_deg, (dx, dy, dz, theta, phi), lum_d_omega, s
+        )
+        return out
+
+    def _door_coefficients(self, shape, opening_deg, angles, lum_d_omega, s) -> tuple:
+        """The door path of :meth:`_coefficients_general`: irradiance on the door's inner face from
+        the Earth blocks in front of it, (sun, moon) of ``shape``; ``angles`` (dx, dy, dz, theta
+        deg, phi deg) of the blocks in the telescope frame, ``lum_d_omega`` per lamp."""
+        dx, dy, dz, theta, phi = angles
+        lum_sun, lum_moon = lum_d_omega
+        door_sun = np.zeros(shape)
+        door_moon = np.zeros(shape)
         states = sorted(self._door_weights)
         state_of, known = door_state_index(states, opening_deg)
         for i, state in enumerate(states):
@@ -148,10 +174,9 @@ class EarthshineSums:
                 state, theta, phi
             )
             k = s.door_reflectance * np.sum(w) * self.pixel_area_m2
-            door_sun = np.where(sel, k * np.sum(lum_sun * d_omega * cos_inc, axis=(-2, -1)), door_sun)
-            door_moon = np.where(sel, k * np.sum(lum_moon * d_omega * cos_inc, axis=(-2, -1)), door_moon)
-        out["door_sun"], out["door_moon"] = door_sun, door_moon
-        return out
+            door_sun = np.where(sel, k * np.sum(lum_sun * cos_inc, axis=(-2, -1)), door_sun)
+            door_moon = np.where(sel, k * np.sum(lum_moon * cos_inc, axis=(-2, -1)), door_moon)
+        return door_sun, door_moon
 
     def cut_children(
         self, sat_km, sun_km, moon_km, earth_radius_km, s: EarthshineSettings, with_sun=True, with_moon=True
@@ -197,15 +222,14 @@ class EarthshineSums:
 
         return nest(d), nest(span_g), nest(span_p), nest(lum)
 
-    def _cut_blocks_direct(
-        self, cut, sat_km, sun_km, moon_km, frame, op, earth_radius_km, s, with_sun, with_moon
-    ):
+    def _cut_blocks_direct(self, cut, bodies: Bodies, frame, op, earth_radius_km, s, lamps):
         """The direct term (e-/s/pix per photon s-1 m-2 of the Sun, of the Moon; arrays of the
         samples' shape) of the blocks the aperture plane cuts (``cut``, (..., G, P)), each summed
         over its children (:meth:`cut_children`) with their own angles, Sp, PST and front part,
         as :func:`~straylight.sources.earthshine.kernel.cap_sums` does.  The children of a
         sample's whole grid are n^2 times its blocks, so the samples with a cut block go through
-        in groups of about :data:`CUT_CHILDREN_BYTES` of children each."""
+        in groups of about :data:`CUT_CHILDREN_BYTES` of children each; ``lamps``: whether the
+        Sun and the Moon light the cap."""
         shape = cut.shape
         lead, (g, p) = shape[:-2], shape[-2:]
         size = int(np.prod(lead))
@@ -216,7 +240,7 @@ class EarthshineSums:
         def flat(v):  # a (..., 3) vector of the samples as (size, 3)
             return np.broadcast_to(v, lead + (3,)).reshape(size, 3)
 
-        sat, sun, moon = flat(sat_km), flat(sun_km), flat(moon_km)
+        sat, sun, moon = (flat(v) for v in bodies)
         fx, fy, fz = flat(frame.x), flat(frame.y), flat(frame.z)
         flat_op = np.broadcast_to(op, shape).reshape(size, g, p)
         n = int(s.cut_block_split)
@@ -225,25 +249,14 @@ class EarthshineSums:
             r = rows[start : start + per_row]
             part = _Frame(fx[r], fy[r], fz[r])
             c_sun, c_moon = self._cut_rows_direct(
-                flat_cut[r],
-                sat[r],
-                sun[r],
-                moon[r],
-                part,
-                flat_op[r],
-                earth_radius_km,
-                s,
-                with_sun,
-                with_moon,
+                flat_cut[r], Bodies(sat[r], sun[r], moon[r]), part, flat_op[r], earth_radius_km, s, lamps
             )
             out_sun[r], out_moon[r] = c_sun, c_moon
         return out_sun.reshape(lead), out_moon.reshape(lead)
 
-    def _cut_rows_direct(
-        self, cut, sat_km, sun_km, moon_km, frame, op, earth_radius_km, s, with_sun, with_moon
-    ):
+    def _cut_rows_direct(self, cut, bodies: Bodies, frame, op, earth_radius_km, s, lamps):
         """:meth:`_cut_blocks_direct` of samples in rows: ``cut`` (M, G, P), vectors (M, 3)."""
-        cd, cg, cp, cl = self.cut_children(sat_km, sun_km, moon_km, earth_radius_km, s, with_sun, with_moon)
+        cd, cg, cp, cl = self.cut_children(*bodies, earth_radius_km, s, *lamps)
         shape = cut.shape
         idx = np.nonzero(cut)
         k = cd.shape[-2]
@@ -276,9 +289,7 @@ class EarthshineSums:
 
     def _earthshine_one_scene(
         self,
-        sat,
-        sun,
-        moon,
+        bodies: Bodies,
         frame,
         opening_deg,
         earth_radius_km,
@@ -300,9 +311,7 @@ class EarthshineSums:
             *(np.broadcast_to(a, shape + (3,)).reshape(-1, 3) for a in (frame.x, frame.y, frame.z))
         )
         direct, door = self.earthshine_scene_sums(
-            sat,
-            sun,
-            moon,
+            bodies,
             frame,
             earth_radius_km,
             np.where(known, state_of, -1)[:, None],
@@ -382,9 +391,7 @@ class EarthshineSums:
 
     def earthshine_scene_sums(
         self,
-        sat,
-        sun,
-        moon,
+        bodies: Bodies,
         frame,
         earth_radius_km,
         state_sel,
@@ -399,8 +406,8 @@ class EarthshineSums:
 
         Parameters
         ----------
-        sat, sun, moon : ndarray, shape (3,)
-            Geocentric ICRS positions of the satellite, the Sun and the Moon, km.
+        bodies : Bodies
+            Geocentric ICRS positions of the satellite, the Sun and the Moon, km, (3,) each.
         frame : TelescopeFrame
             The lines of sight's frames, axes broadcastable to (M, 3).
         earth_radius_km : float
@@ -419,7 +426,7 @@ class EarthshineSums:
             (``[..., 1]``).
         """
         blocks, span_g, span_p, lum, *kids = self.lit_cap_blocks(
-            sat, sun, moon, earth_radius_km, s, with_sun, with_moon, children=True
+            *bodies, earth_radius_km, s, with_sun, with_moon, children=True
         )
         sel = np.ascontiguousarray(np.asarray(state_sel, np.intp))
         n = sel.shape[0]
@@ -428,27 +435,15 @@ class EarthshineSums:
         )
         direct, door = np.zeros((n, sel.shape[1], 2)), np.zeros((n, sel.shape[1], 2))
         if blocks.shape[0] and n:
-            from straylight.sources.earthshine.kernel import cap_sums
+            from straylight.sources.earthshine.kernel import CapBlocks, Sightlines, cap_sums
 
-            normals, door_weight, pst, sp, lit = self._kernel_tables
-            door_k = (s or self.earthshine).door_reflectance * door_weight
+            optics, door_arrays = self._kernel_tables
+            door_k = (s or self.earthshine).door_reflectance * door_arrays.k
             cap_sums(
-                fx,
-                fy,
-                fz,
-                blocks,
-                span_g,
-                span_p,
-                lum,
-                sel,
-                normals,
-                door_k,
-                float(self.field_radius_deg),
-                float(self.pixel_area_m2),
-                *kids,
-                *pst,
-                *sp,
-                *lit,
+                Sightlines(fx, fy, fz, sel),
+                CapBlocks(blocks, span_g, span_p, lum, *kids),
+                optics,
+                door_arrays._replace(k=door_k),
                 direct,
                 door,
             )
@@ -457,12 +452,11 @@ class EarthshineSums:
     @cached_property
     def _kernel_tables(self):
         """What :func:`~straylight.sources.earthshine.kernel.cap_sums` reads, door states ascending:
-        the door's inner normals (S, 3), the sum of the door's weights x pixel area per state
-        (times the reflectance: the door term's factor k), the PST's and the Sp tables' grids,
-        and the lit-fraction tables' grids with whether there is a body (else the lit fraction
-        is 1) and their value in front of the aperture plane
-        (:func:`~straylight.sources.earthshine.kernel.cap_sums`)."""
-        from straylight.sources.earthshine.kernel import GridPack
+        the field's radius, the pixel area and the PST's grid
+        (:class:`~straylight.sources.earthshine.kernel.OpticsArrays`), and the door's
+        (:class:`~straylight.sources.earthshine.kernel.DoorArrays`) with ``k`` the sum of the
+        door's weights x pixel area per state, m2 (the door term's factor at unit reflectance)."""
+        from straylight.sources.earthshine.kernel import DoorArrays, GridPack, OpticsArrays
 
         states = sorted(self.door_tables)
         normals = np.ascontiguousarray([self._door_weights[st][1] for st in states], dtype=float)
@@ -479,13 +473,10 @@ class EarthshineSums:
                 row = np.asarray(grid._flat).reshape(grid.axes[0].nodes.size, -1)[0]
                 if np.ptp(row) == 0.0:
                     at_plane[i] = float(row[0])
-        return (
-            normals,
-            door_weight,
-            GridPack([self.pst._interp]).arrays(),
-            sp,
-            (*lit, lit_tables is not None, at_plane),
+        optics = OpticsArrays(
+            float(self.field_radius_deg), float(self.pixel_area_m2), GridPack([self.pst._interp]).arrays()
         )
+        return optics, DoorArrays(normals, door_weight, sp, lit, lit_tables is not None, at_plane)
 
     def lamp_bound_one_scene(self, sat, lamp_direction, los, earth_radius_km) -> np.ndarray:
         """Upper bound of the direct coefficient of a cap lit from ``lamp_direction`` (unit vector,
@@ -559,7 +550,7 @@ class EarthshineSums:
         direct, door : ndarray
             EA1 and EA2, e-/s/pix, of the samples' broadcast shape.
         """
-        c = self.earthshine_coefficients(sat_km, sun_km, moon_km, frame, opening_deg, earth_radius_km)
+        c = self.earthshine_coefficients(Bodies(sat_km, sun_km, moon_km), frame, opening_deg, earth_radius_km)
         return (
             c["direct_sun"] * sun_irr + c["direct_moon"] * moon_irr_at_earth,
             c["door_sun"] * sun_irr + c["door_moon"] * moon_irr_at_earth,

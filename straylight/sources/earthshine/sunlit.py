@@ -20,6 +20,7 @@ import numpy as np
 
 from straylight.sources.context import Samples, SourceContext
 from straylight.sources.earthshine.engine import EARTH_PARTS, Earthshine
+from straylight.sources.earthshine.sums import Bodies
 from straylight.sources.rates import BandRates
 
 __all__ = ["COEFFICIENTS", "SunlitEarth"]
@@ -153,7 +154,7 @@ class SunlitEarth:
         )
         shape, lut = samples.shape, self.lut
         if lut is None:
-            return off.earthshine_coefficients(sat, sun, moon, frame, door, re_km)
+            return off.earthshine_coefficients(Bodies(sat, sun, moon), frame, door, re_km)
         full = shape + (3,)
         sat_b, sun_b, moon_b = (np.broadcast_to(np.asarray(v, float), full) for v in (sat, sun, moon))
         d_sun, g_sun = lut.sun_coefficients(

@@ -28,8 +28,9 @@ from straylight.sources.earthshine.nodes import (
     lut_key,
     mirror_symmetric,
 )
+from straylight.sources.earthshine.sums import Bodies
 from straylight.sources.earthshine.sunlit_table import EarthshineLUT
-from straylight.sources.earthshine.table import build_lamp_table
+from straylight.sources.earthshine.table import TableScenes, build_lamp_table
 from straylight.sources.photometry import AU_KM
 
 __all__ = [
@@ -81,9 +82,7 @@ def sun_coefficients_direct(off, R, Z, L, A, state, earth_radius_km):
         idx = np.asarray(idx)
         frame = telescope_frame(los[idx], sun[idx] - sat[idx])
         d, g = off.earthshine_scene_sums(
-            sat[idx[0]],
-            sun[idx[0]],
-            _NO_MOON_KM,
+            Bodies(sat[idx[0]], sun[idx[0]], _NO_MOON_KM),
             frame,
             earth_radius_km,
             np.full((idx.size, 1), state_index),
@@ -109,9 +108,7 @@ def _sunlit_scene(
     frame = telescope_frame(los, sun - sat)
     n_states = len(off.door_states_deg)
     d, g = off.earthshine_scene_sums(
-        sat[0],
-        sun[0],
-        _NO_MOON_KM,
+        Bodies(sat[0], sun[0], _NO_MOON_KM),
         frame,
         earth_radius_km,
         np.broadcast_to(np.arange(n_states), (L.size, n_states)),
@@ -153,6 +150,25 @@ def _observable_points(rr, earth_radius_km, symmetric, n, avoidance_deg):
             )
         kept.append(tuple(v[ok] for v in p))
     return tuple(np.concatenate([k[i] for k in kept])[:n] for i in range(4))
+
+
+def _radius_nodes_km(radius_range_km, n_radius: int) -> np.ndarray:
+    """The table's geocentric radius nodes, km: ``n_radius`` across the range, or its middle."""
+    if n_radius > 1:
+        return np.linspace(radius_range_km[0], radius_range_km[1], n_radius)
+    return np.array([0.5 * (radius_range_km[0] + radius_range_km[1])])
+
+
+def _moon_door_factor(off) -> float:
+    """The largest door factor over the door states times the albedo: reflectance x sum of the
+    door's weights x pixel area (m2) x albedo, the moonlit door term's bound per unit irradiance."""
+    return (
+        max(
+            off.earthshine.door_reflectance * float(np.sum(w)) * off.pixel_area_m2
+            for _, _, w in off._door_weights.values()
+        )
+        * off.earthshine.albedo
+    )
 
 
 def build_earthshine_lut(
@@ -206,11 +222,7 @@ def build_earthshine_lut(
     """
     s = settings
     symmetric = mirror_symmetric(off)
-    rr = (
-        np.linspace(radius_range_km[0], radius_range_km[1], s.n_radius)
-        if s.n_radius > 1
-        else np.array([0.5 * (radius_range_km[0] + radius_range_km[1])])
-    )
+    rr = _radius_nodes_km(radius_range_km, s.n_radius)
     zs, zl, az = s.nodes(float(rr.min()), earth_radius_km, symmetric)
     shape = (rr.size, zs.size, zl.size, az.size)
     # one task per (radius, Sun zenith) scene: its cap grid once, every door state at once
@@ -219,13 +231,7 @@ def build_earthshine_lut(
         for r in rr
         for z in np.radians(zs)
     ]
-    moon_door = (
-        max(
-            off.earthshine.door_reflectance * float(np.sum(w)) * off.pixel_area_m2
-            for _, _, w in off._door_weights.values()
-        )
-        * off.earthshine.albedo
-    )
+    moon_door = _moon_door_factor(off)
 
     def make(direct, door, scale, results):
         # moonlit-Earth bound over (radius, Moon zenith, line-of-sight zenith): the PST at its
@@ -242,9 +248,8 @@ def build_earthshine_lut(
         d_t, g_t = lut.sun_coefficients(sat_v, sun_v, los_v, np.full(n_validation, state))
         return np.abs((d_t + g_t) - (d_ref + g_ref)) / (d_ref + g_ref + floor)
 
-    return build_lamp_table(
-        off, _sunlit_scene, tasks, shape, "earthshine table", make, error_at, floor, workers
-    )
+    scenes = TableScenes(_sunlit_scene, tasks, shape, "earthshine table")
+    return build_lamp_table(off, scenes, make, error_at, floor, workers)
 
 
 def load_or_build(

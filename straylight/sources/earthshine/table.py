@@ -21,14 +21,14 @@ import os
 import sys
 import time
 from pathlib import Path
-from typing import Callable, ClassVar
+from typing import Callable, ClassVar, NamedTuple
 
 import numpy as np
 
 from straylight.errors import InputError
 from straylight.sources.earthshine.lookup import _beyond_dark_zenith, _dark_lamp_zenith_deg
 
-__all__ = ["LampTable", "build_lamp_table"]
+__all__ = ["LampTable", "TableScenes", "build_lamp_table"]
 
 
 def _save_tables(path, axes: dict, direct: dict, door: dict, meta: dict) -> None:
@@ -184,9 +184,18 @@ def _run_scenes(fn, tasks: list, workers: int, what: str) -> list:
     return results
 
 
-def build_lamp_table(
-    off, scene, tasks: list, shape: tuple, what: str, make, error_at, floor: float, workers: int
-):
+class TableScenes(NamedTuple):
+    """The scenes a lamp's table is summed from: ``scene(*task)`` -> (direct, door, ...), arrays
+    (the task's nodes, door states ascending) per unit irradiance of the lamp, one task a scene
+    in the table's node order; the table's shape per door state; its name (progress bar)."""
+
+    scene: Callable
+    tasks: list
+    shape: tuple
+    what: str
+
+
+def build_lamp_table(off, scenes: TableScenes, make, error_at, floor: float, workers: int):
     """A table built and validated: ``scene(*task)`` for every task in ``workers`` threads (one
     scene a task, its nodes contiguous in the table's C order), the per-door-state tables
     gathered from the scenes, the table made, then validated state by state.
@@ -195,15 +204,8 @@ def build_lamp_table(
     ----------
     off : EarthGrid
         The off-field transfer and Earth grid (its door states).
-    scene : callable
-        ``scene(*task)`` -> (direct, door, ...): arrays (the task's nodes, door states
-        ascending), per unit irradiance of the lamp.
-    tasks : list of tuple
-        The scenes' arguments, in the table's node order.
-    shape : tuple of int
-        The table's shape per door state.
-    what : str
-        The table's name, for the progress bar.
+    scenes : TableScenes
+        The scene function, its tasks, the table's shape per door state and its name.
     make : callable
         ``make(direct, door, scale, results)`` -> the table (a :class:`LampTable`), with
         ``direct`` and ``door`` door state -> array of ``shape``, ``scale`` the asinh scale
@@ -224,7 +226,8 @@ def build_lamp_table(
     """
     t_start = time.perf_counter()
     off._kernel_tables  # the door's tables once, before the threads share them
-    results = _run_scenes(scene, tasks, workers, what)
+    shape = scenes.shape
+    results = _run_scenes(scenes.scene, scenes.tasks, workers, scenes.what)
     ascending = sorted(off.door_states_deg)
     direct, door = {}, {}
     for state in off.door_states_deg:
