@@ -189,7 +189,7 @@ def region_values(
     )
     if faint is None and stars is not None and len(stars.faint_ra_deg):
         # once per pixel, not per sample of a many-step batch (it depends on the line of sight only)
-        faint = model.stars.faint_star_rates(stars, los, campaign.bands)
+        faint = model.source("stars").faint_star_rates(stars, los, campaign.bands)
     # one allocation for every component: numpy asks the kernel for huge pages on arrays of 4 MiB
     # or more (a default region's block is), fewer page faults than one array per component
     # the components, the total and the parts the envelope scales apart (CUBE_PART_VARIABLES)
@@ -210,7 +210,7 @@ def region_values(
     # paid once per batch, not once per step.  The direct earthshine sum grids the Earth per
     # sample, so there one step per call bounds its memory (the star pairs bound their own:
     # OffFieldStars.STAR_PAIRS_PER_PASS).
-    max_samples = npix if model.sunlit_earth.model["lut"] is None else SAMPLES_PER_EVALUATION
+    max_samples = SAMPLES_PER_EVALUATION if model.uses_sunlit_table else npix
     skip_unobservable = unobservable_samples(campaign) == "skip"  # the campaign's, not the model's
     for steps in _step_batches(nt, npix, max_samples):
         k = steps.stop - steps.start
@@ -331,7 +331,7 @@ def _faint_rows(campaign: Campaign, fp: Footprint, model, stars, rows: slice) ->
     """The faint-star map at footprint pixels ``rows``, (pixel, band) e-/s/pix (0 in a band
     the catalog has no faint magnitudes in)."""
     los = radec_to_unit(fp.ra_deg[rows], fp.dec_deg[rows])
-    rates = model.stars.faint_star_rates(stars, los, campaign.bands, saved=True)
+    rates = model.source("stars").faint_star_rates(stars, los, campaign.bands, saved=True)
     values = np.zeros((los.shape[0], len(campaign.bands)))
     for i, band in enumerate(campaign.bands):
         if band in rates:
@@ -400,7 +400,7 @@ def faint_star_map(
     parts = [slice(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:])]
 
     def saved(rows):  # this part's sums kept on disk (read instead of summed)
-        return model.stars.faint_star_map_saved(
+        return model.source("stars").faint_star_map_saved(
             stars, radec_to_unit(fp.ra_deg[rows], fp.dec_deg[rows]), campaign.bands
         )
 

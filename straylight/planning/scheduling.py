@@ -38,7 +38,7 @@ __all__ = [
 
 def _pst_max_over_phi(model: BackgroundModel, theta_deg: np.ndarray) -> np.ndarray:
     phi = np.linspace(0.0, 360.0, 145)
-    return model.context.offfield.pst(np.asarray(theta_deg)[:, None], phi[None, :]).max(axis=1)
+    return model.offfield.pst(np.asarray(theta_deg)[:, None], phi[None, :]).max(axis=1)
 
 
 def moon_avoidance_table(
@@ -68,16 +68,16 @@ def moon_avoidance_table(
     theta = np.arange(0.0, 180.0 + theta_step_deg / 2, theta_step_deg)
     transfer = (
         _pst_max_over_phi(model, theta)
-        * model.context.offfield.pixel_area_m2
-        * (theta > model.context.offfield.field_radius_deg)
+        * model.offfield.pixel_area_m2
+        * (theta > model.offfield.field_radius_deg)
     )
     out = {"phase_angle_deg": phases, "illuminated_fraction": (1 + np.cos(np.radians(phases))) / 2}
     v = moon_v_magnitude(
-        phases, np.full(phases.size, MOON_MEAN_DISTANCE_KM), model.context.offfield.moon_law, 180.0 - phases
+        phases, np.full(phases.size, MOON_MEAN_DISTANCE_KM), model.offfield.moon_law, 180.0 - phases
     )
     for b in model.campaign.bands:
-        limit = fraction * model.context.darkest_zodiacal_e_per_s(b)
-        irr = model.context.photometry(b).solar_like_from_v(v)  # photons s-1 m-2
+        limit = fraction * model.darkest_zodiacal_e_per_s(b)
+        irr = model.photometry(b).solar_like_from_v(v)  # photons s-1 m-2
         rate = irr[:, None] * transfer[None, :]  # (phase, theta)
         # the smallest angle beyond which the Moon stays below the limit at every larger angle
         above = rate > limit
@@ -126,7 +126,7 @@ def bright_limb_table(
     from straylight.sources.earthshine.sunlit_build import sun_coefficients_direct
 
     c: Campaign = model.campaign
-    off = model.sunlit_earth.engine.grid
+    off = model.earth_grid
     re_km = c.earth.radius_km
     r = 0.5 * sum(c.orbit_radius_range_km)
     limb_zeta = 90.0 + np.degrees(np.arccos(re_km / r))
@@ -165,12 +165,10 @@ def bright_limb_table(
             )
             coeff[sel] = d + g
     out = {"sun_zenith_deg": zs}
-    from straylight.sources.earthshine.albedo import earth_band_factors
-
-    albedo = earth_band_factors(model.context, tuple(c.bands))  # the Earth's band albedo / grey
+    albedo = model.earth_band_factors(c.bands)  # the Earth's band albedo / grey
     for ib, b in enumerate(c.bands):
-        limit = fraction * model.context.darkest_zodiacal_e_per_s(b)
-        rate = coeff * model.context.photometry(b).sun_at_1au_photons_s_m2  # e-/s/pix, Sun at 1 AU
+        limit = fraction * model.darkest_zodiacal_e_per_s(b)
+        rate = coeff * model.photometry(b).sun_at_1au_photons_s_m2  # e-/s/pix, Sun at 1 AU
         rate = rate if albedo is None else rate * float(albedo[ib])
         bad = ~(rate <= limit)  # too bright, or not allowed (NaN)
         allowed = ~np.isnan(coeff)
@@ -252,7 +250,7 @@ def exposure_factor_table(model: BackgroundModel, ratios=(0.0, 0.01, 0.03, 0.1, 
     r = np.asarray(ratios, float)
     out = {"stray_to_zodiacal_ratio": r}
     for b in model.campaign.bands:
-        z = model.context.darkest_zodiacal_e_per_s(b)
+        z = model.darkest_zodiacal_e_per_s(b)
         out[f"exposure_time_factor_{b}"] = exposure_time_factor(r * z, z, b, model.campaign)
     return out
 
