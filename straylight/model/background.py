@@ -31,7 +31,7 @@ from straylight.sky.ephemeris import PLANETS
 from straylight.sky.frames import telescope_frame
 from straylight.sources.bodies import InFieldBodies, SolarBodySkip
 from straylight.sources.context import Samples, SourceContext
-from straylight.sources.photometry import magnitude_per_arcsec2
+from straylight.sources.photometry import magnitude_per_arcsec2, sky_zero_point_mag_per_arcsec2
 from straylight.sources.rates import LAMPS
 from straylight.sources.stars_table import StarTable
 from straylight.sources.zodiacal import campaign_zodiacal_model
@@ -176,6 +176,43 @@ class BackgroundModel:
         """
         return self.context.darkest_zodiacal_e_per_s(band)
 
+    def sky_zero_point(self, band: str) -> float:
+        """The band's AB surface-brightness zero point: the instrument's throughput, aperture and
+        pixel scale.
+
+        Parameters
+        ----------
+        band : str
+            The band's name.
+
+        Returns
+        -------
+        float
+            AB mag/arcsec2 at 1 e-/s/pix (mag/arcsec2 = zero point - 2.5 log10(e-/s/pix)).
+        """
+        aperture_d = self.campaign.instrument_settings.telescope.aperture_diameter_m.value
+        return sky_zero_point_mag_per_arcsec2(self.band(band), aperture_d, self.campaign.pixel_scale_arcsec)
+
+    def mag_per_arcsec2(self, e_per_s_per_pix, band: str):
+        """AB surface brightness of a uniform background (inf where zero).
+
+        Parameters
+        ----------
+        e_per_s_per_pix : array_like
+            Background rate, e-/s/pix.
+        band : str
+            The band's name.
+
+        Returns
+        -------
+        ndarray
+            AB mag/arcsec2, of ``e_per_s_per_pix``'s shape.
+        """
+        aperture_d = self.campaign.instrument_settings.telescope.aperture_diameter_m.value
+        return magnitude_per_arcsec2(
+            e_per_s_per_pix, self.band(band), aperture_d, self.campaign.pixel_scale_arcsec
+        )
+
     @property
     def offfield(self):
         """The off-field transfer (:class:`~straylight.sources.offfield.OffFieldModel`): the PST,
@@ -285,8 +322,7 @@ class BackgroundModel:
         dict
             Band -> {component: e-/s/pix, float64 array of the samples' shape, for every name
             of :func:`~straylight.model.registry.band_components` (or those of ``into``); and
-            ``_band`` (the Band), ``_mag`` (e-/s/pix -> AB mag/arcsec2) and ``_<flag>`` for each
-            flag a source reports (``_zodiacal_no_data``)}.
+            ``_<flag>`` for each flag a source reports (``_zodiacal_no_data``)}.
 
         Raises
         ------
@@ -347,15 +383,10 @@ class BackgroundModel:
             values,
         )
         extras = {f"_{k}": v for r in rates.values() for k, v in r.extras.items()}
-        aperture_d = self.campaign.instrument_settings.telescope.aperture_diameter_m.value
-        pix_arcsec = self.campaign.pixel_scale_arcsec
         out = {}
         for ib, name in enumerate(bands):
-            band = c.band(name)
             res = {comp: values[k, :, ib].reshape(shape) for k, comp in enumerate(names)}
-            res["_band"] = band
             res.update(extras)
-            res["_mag"] = lambda e, b=band: magnitude_per_arcsec2(e, b, aperture_d, pix_arcsec)
             out[name] = res
         return out
 
