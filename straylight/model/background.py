@@ -245,6 +245,48 @@ class BackgroundModel:
         """
         return self._earthshine.band_factors(tuple(bands))
 
+    def sunlit_earth_coefficients(
+        self, radius_km: float, sun_zenith_deg, los_zenith_deg, azimuth_deg, door_deg
+    ):
+        """The sunlit Earth's light outside the field (direct + via the door) per unit of the
+        Sun's irradiance at 1 AU, summed over the Earth grid, at a satellite ``radius_km`` from
+        the Earth's centre, in its local frame (the Sun and the line of sight by their zenith
+        angles and the azimuth between them); the Earth grey (see :meth:`earth_band_factors`).
+
+        Parameters
+        ----------
+        radius_km : float
+            The satellite's geocentric radius, km.
+        sun_zenith_deg, los_zenith_deg, azimuth_deg : ndarray
+            The Sun's and the line of sight's zenith angles and the azimuth of the line of
+            sight from the Sun's, deg, one shape.
+        door_deg : ndarray
+            The door's opening, deg (one of the instrument's states; another: NaN), same shape.
+
+        Returns
+        -------
+        ndarray
+            e-/s/pix per photon s-1 m-2 of the Sun at 1 AU, the inputs' shape.
+        """
+        from straylight.sources.earthshine.sunlit_build import sun_coefficients_direct
+
+        grid, re_km = self.earth_grid, self.campaign.earth.radius_km
+        coeff = np.full(np.shape(door_deg), np.nan)
+        for state in grid.door_states_deg:
+            sel = door_deg == state
+            if sel.any():
+                d, g = sun_coefficients_direct(
+                    grid,
+                    np.full(sel.sum(), radius_km),
+                    np.radians(sun_zenith_deg[sel]),
+                    np.radians(los_zenith_deg[sel]),
+                    np.radians(azimuth_deg[sel]),
+                    state,
+                    re_km,
+                )
+                coeff[sel] = d + g
+        return coeff
+
     @property
     def earthshine_choice(self) -> dict:
         """Which sunlit-earthshine model runs, decided without building anything: ``method``
