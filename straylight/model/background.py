@@ -332,9 +332,8 @@ class BackgroundModel:
         satellite_km : array_like, shape (..., 3)
             Geocentric ICRS satellite positions, km (broadcastable to the samples).
         bodies_km : dict of str to array_like
-            Body -> geocentric ICRS position (..., 3), km: at least the Sun and the Moon; each
-            planet in it is a source where it can count
-            (:class:`~straylight.sources.planets.Planets`).
+            Body -> geocentric ICRS position (..., 3), km: the Sun, the Moon and each planet
+            that is a source where it can count (:class:`~straylight.sources.planets.Planets`).
         los : array_like, shape (..., 3)
             Unit lines of sight, ICRS.
         geometry : dict
@@ -345,19 +344,17 @@ class BackgroundModel:
         stars : StarTable or None
             The off-field stars (None: stars = 0).
         faint_rates : dict or None
-            The faint stars' map at these lines of sight, band -> e-/s/pix (as
-            :meth:`~straylight.sources.stars.OffFieldStars.faint_star_rates` gives it), when
-            already computed.
+            The faint stars' map here, band -> e-/s/pix, when already computed
+            (:meth:`~straylight.sources.stars.OffFieldStars.faint_star_rates`).
         frame : TelescopeFrame or None
             The samples' ``telescope_frame(los, sun - satellite)``, when already computed.
         into : (sequence of str, ndarray) or None
             (component names, array (names, samples flattened, bands)), e.g. a cube region's
-            float32 block, that receives those components (the result's arrays are then views
-            of it, and the other components are not computed).
+            float32 block, receiving those components (the result's arrays are its views; no
+            other component is computed).
         runs : SceneRuns or None
-            The samples' scene runs when the caller knows them (e.g. a cube's time steps: runs
-            of samples that share the satellite and every body in ``bodies_km``), else found
-            where needed.
+            The samples' scene runs (sharing the satellite and every body) when the caller
+            knows them (a cube's time steps), else found where needed.
 
         Returns
         -------
@@ -371,59 +368,23 @@ class BackgroundModel:
         ValueError
             For an unknown name in ``into`` or an array of another shape.
         """
-        c = self.context
-        sat = np.asarray(satellite_km, float)
-        sun = bodies_km["sun"]
-        frame = telescope_frame(los, sun - sat) if frame is None else frame
         shape = geometry["sun_angle_deg"].shape
-        n = int(np.prod(shape))
-        outputs = self.outputs
+        n, outputs = int(np.prod(shape)), self.outputs
         if into is not None:  # checked before any work
             _check_into(into, n, len(bands), outputs)
+        sat = np.asarray(satellite_km, float)
+        frame = telescope_frame(los, bodies_km["sun"] - sat) if frame is None else frame
         samples = Samples(sat, bodies_km, frame, geometry, runs, stars=stars, faint_rates=faint_rates)
-        samples.moon_lamp = self.source("moon").lamp(samples)
-        scales = {
-            "sun": samples.sun_inverse_square,
-            "sun_at_1au": 1.0,
-            "moon_at_earth": samples.moon_lamp["at_earth"],
-        }
-        sun_at_1au = np.array([c.photometry(name).sun_at_1au_photons_s_m2 for name in bands])
-        rates = {}
-        # the sources never skipped make each sample's floor, which the skippable ones measure
-        # their skips against
-        for entry in self.entries:
-            if not entry.skippable:
-                rates[entry.name] = self.sources[entry.name].rates(samples, bands)
-        samples.floor, samples.floor_ratio = self._floor(
-            [rates[e.name] for e in self.entries if not e.skippable], scales, sun_at_1au, bands, shape
-        )
-        for entry in self.entries:
-            if entry.skippable:
-                rates[entry.name] = self.sources[entry.name].rates(samples, bands)
+        scales = self._lamp_scales(samples)
+        sun_at_1au = np.array([self.context.photometry(name).sun_at_1au_photons_s_m2 for name in bands])
+        rates = self._source_rates(samples, bands, scales, sun_at_1au)
         terms = _Terms(self.entries, self.leaves, rates, scales, shape)
         names, values = (
             into
             if into is not None
             else (outputs, np.empty((len(outputs), len(bands), n)).transpose(0, 2, 1))
         )  # band-major: each band's row contiguous
-        sums, writes, n_rows = _sum_program(self.components, self.leaves, names)
-        _band_components_kernel(
-            terms.dense,
-            terms.n_dense,
-            terms.dense_leaf,
-            terms.dense_first,
-            terms.coeff,
-            terms.n_coeff,
-            terms.term_leaf,
-            terms.term_lamp,
-            terms.term_first,
-            terms.scales,
-            _irradiance(sun_at_1au, terms.factors),
-            sums,
-            writes,
-            n_rows,
-            values,
-        )
+        _sum_terms(terms, sun_at_1au, _sum_program(self.components, self.leaves, names), values)
         extras = {f"_{k}": v for r in rates.values() for k, v in r.extras.items()}
         out = {}
         for ib, name in enumerate(bands):
@@ -431,6 +392,37 @@ class BackgroundModel:
             res.update(extras)
             out[name] = res
         return out
+
+    def _lamp_scales(self, samples: Samples) -> dict:
+        """Each lamp's scale at the samples (``samples.moon_lamp`` set): the Sun's inverse square
+        at the satellite, 1 at 1 AU, the Moon's at the Earth."""
+        samples.moon_lamp = self.source("moon").lamp(samples)
+        return {
+            "sun": samples.sun_inverse_square,
+            "sun_at_1au": 1.0,
+            "moon_at_earth": samples.moon_lamp["at_earth"],
+        }
+
+    def _source_rates(self, samples: Samples, bands, scales: dict, sun_at_1au: np.ndarray) -> dict:
+        """Each source's :class:`~straylight.sources.rates.BandRates` at the samples (source name
+        -> rates): the sources never skipped first, whose sum makes each sample's floor
+        (``samples.floor``, ``samples.floor_ratio``), which the skippable ones then measure their
+        skips against."""
+        rates = {}
+        for entry in self.entries:
+            if not entry.skippable:
+                rates[entry.name] = self.sources[entry.name].rates(samples, bands)
+        samples.floor, samples.floor_ratio = self._floor(
+            [rates[e.name] for e in self.entries if not e.skippable],
+            scales,
+            sun_at_1au,
+            bands,
+            samples.geometry["sun_angle_deg"].shape,
+        )
+        for entry in self.entries:
+            if entry.skippable:
+                rates[entry.name] = self.sources[entry.name].rates(samples, bands)
+        return rates
 
     def _floor(
         self, never_skipped: list, scales: dict, sun_at_1au: np.ndarray, bands, shape
@@ -532,3 +524,26 @@ class BackgroundModel:
                 "reference, knobs.json moonlit_grid for the moonlit grid's measured error",
             },
         }
+
+
+def _sum_terms(terms: _Terms, sun_at_1au: np.ndarray, program: tuple, values: np.ndarray) -> None:
+    """The band kernel over the sources' ``terms``: ``program`` (:func:`sum_program`'s sums,
+    writes and row count) into ``values`` (names, samples, bands), e-/s/pix."""
+    sums, writes, n_rows = program
+    _band_components_kernel(
+        terms.dense,
+        terms.n_dense,
+        terms.dense_leaf,
+        terms.dense_first,
+        terms.coeff,
+        terms.n_coeff,
+        terms.term_leaf,
+        terms.term_lamp,
+        terms.term_first,
+        terms.scales,
+        _irradiance(sun_at_1au, terms.factors),
+        sums,
+        writes,
+        n_rows,
+        values,
+    )
