@@ -17,7 +17,6 @@ import numpy as np
 
 from straylight.config import Campaign
 from straylight.model import registry
-from straylight.model.fidelity import ERROR_BUDGET_SHARES, FidelityPolicy
 from straylight.model._kernels import KERNEL_BLOCK_SAMPLES
 from straylight.model._kernels import Terms as _Terms
 from straylight.model._kernels import band_components_kernel as _band_components_kernel
@@ -27,6 +26,7 @@ from straylight.model._kernels import floor_kernel as _floor_kernel
 from straylight.model._kernels import irradiance as _irradiance
 from straylight.model._kernels import rows as _rows
 from straylight.model._kernels import sum_program as _sum_program
+from straylight.model.fidelity import ERROR_BUDGET_SHARES, FidelityPolicy
 from straylight.sky.ephemeris import PLANETS
 from straylight.sky.frames import telescope_frame
 from straylight.sources.bodies import InFieldBodies, SolarBodySkip
