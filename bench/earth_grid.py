@@ -64,7 +64,7 @@ def model_with_grid(campaign, grid, split=None, tail=None):
     raw = copy.deepcopy(campaign.config)
     raw["models"]["earthshine"]["method"] = "direct"
     cm = BackgroundModel(campaign_from_dict(raw, campaign.path))
-    off = cm.sunlit_earth.engine.grid
+    off = cm.earth_grid
     es = off.earthshine
     if grid is not None:
         es = replace(es, n_gamma=int(grid[0]), n_psi=int(grid[1]))
@@ -77,7 +77,7 @@ def model_with_grid(campaign, grid, split=None, tail=None):
         pst = load_pst(None, off.field_radius_deg, float(tail))
     transfer = replace(off.transfer, pst=pst)
     cm.context.__dict__["offfield"] = transfer  # before any source reads them
-    cm.sunlit_earth.engine.__dict__["grid"] = replace(off, transfer=transfer, earthshine=es)
+    cm.source("sunlit_earth").engine.__dict__["grid"] = replace(off, transfer=transfer, earthshine=es)
     return cm
 
 
@@ -160,7 +160,7 @@ def main() -> int:
         cm = model_with_grid(campaign, a.grid, split, a.pst_tail)
         t0 = time.perf_counter()
         got = totals(cm, sat, bodies, los, g, bands, a.chunk)
-        es = cm.sunlit_earth.engine.grid.earthshine
+        es = cm.earth_grid.earthshine
         run = {
             "grid": [es.n_gamma, es.n_psi],
             "cut_block_split": es.cut_block_split,

@@ -42,7 +42,7 @@ def main():
     t0 = time.perf_counter()
     out = cm.evaluate(sc.satellite_km, sc.bodies_km, los, g, ["g"])
     t_all = time.perf_counter() - t0
-    off = cm.sunlit_earth.engine.grid
+    off = cm.earth_grid
     frame = telescope_frame(los, sc.bodies_km["sun"] - sc.satellite_km)
     phot = BandPhotometry(cm.context.band("g"))
     sun_irr = np.full(n, phot.sun_at_1au_photons_s_m2)

@@ -51,10 +51,10 @@ def main() -> int:
 
     campaign = load_campaign()
     model = BackgroundModel(campaign, build_workers=a.workers)
-    off = model.sunlit_earth.engine.grid
+    off = model.earth_grid
     nodes.mirror_symmetric(off)
     off._kernel_tables  # the model's set-up, not the build's
-    moonlit, sunlit = model.source("moonlit_earth"), model.sunlit_earth
+    moonlit, sunlit = model.source("moonlit_earth"), model.source("sunlit_earth")
     out = {
         "workers": a.workers,
         "cut_block_split": int(off.earthshine.cut_block_split),

@@ -433,31 +433,27 @@ def _checked_columns(columns, dtype, names: list[str]):
 
 
 def _empty_table(campaign, t, bands):
-    """:meth:`SkyModel.background`'s table with no rows: the pointing table's columns, empty,
-    through the same conversion to a QTable (so columns and units cannot differ from a computed
-    one's)."""
+    """:meth:`SkyModel.background`'s table with no rows: an empty
+    :class:`~straylight.model.result.BackgroundResult`'s, through the same conversion to a QTable
+    (so columns and units cannot differ from a computed one's)."""
     from straylight.limits.point_source import sky_zero_points
     from straylight.model import registry
-    from straylight.planning.pointings import pointing_qtable
+    from straylight.model.result import GEOMETRY_COLUMNS, BackgroundResult
 
     none = np.zeros(0)
-    cols = {
-        k: none
-        for k in (
-            "ra_deg",
-            "dec_deg",
-            "sun_angle_deg",
-            "moon_angle_deg",
-            "earth_limb_angle_deg",
-            "door_opening_deg",
-        )
-    }
-    cols.update(observable=np.zeros(0, bool), violations=np.zeros(0, np.int64))
-    for b in bands:
-        cols.update({f"{c}_{b}": none for c in registry.component_names(total=True)})
-        if b != "V":  # the diagnostic band has no limit
-            cols[f"limit_mag_{b}"] = none
-    return pointing_qtable(cols, t, bands, sky_zero_points(campaign, bands), {})
+    geometry = {k: none for k in GEOMETRY_COLUMNS}
+    geometry.update(observable=np.zeros(0, bool), violations=np.zeros(0, np.int64))
+    empty = BackgroundResult(
+        bands=tuple(bands),
+        rates={b: {c: none for c in registry.component_names(total=True)} for b in bands},
+        geometry=geometry,
+        zero_points=sky_zero_points(campaign, bands),
+        limits={b: none for b in bands if b != "V"},  # the diagnostic band has no limit
+        time=t,
+        ra_deg=none,
+        dec_deg=none,
+    )
+    return empty.to_table()
 
 
 _MODELS: dict = {}

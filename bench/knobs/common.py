@@ -91,7 +91,7 @@ class Bench:
                 zip(("sun_zenith_step_deg", "los_zenith_step_deg", "azimuth_step_deg"), lut_steps)
             )
         cm = BackgroundModel(campaign_from_dict(raw, self.campaign.path))
-        off = cm.sunlit_earth.engine.grid
+        off = cm.earth_grid
         es = replace(
             off.earthshine,
             n_gamma=n_gamma,
@@ -102,7 +102,7 @@ class Bench:
         pst = off.pst if tuple(pst_step) == (0.5, 5.0) else PST(*default_pst_grid(*pst_step), source="bench")
         transfer = replace(off.transfer, pst=pst)
         cm.context.__dict__["offfield"] = transfer  # before any source reads them
-        cm.sunlit_earth.engine.__dict__["grid"] = replace(off, transfer=transfer, earthshine=es)
+        cm.source("sunlit_earth").engine.__dict__["grid"] = replace(off, transfer=transfer, earthshine=es)
         return cm
 
     def evaluate(self, cm, stars, sl=slice(None)):
@@ -123,14 +123,14 @@ def sweep(bench, ref, name, settings):
     rows = []
     for label, kwargs, stars in settings:
         cm = bench.model(**kwargs)
-        info = cm.sunlit_earth.model  # builds the look-up table if one is asked for (or loads it)
+        info = cm.source("sunlit_earth").model  # builds the look-up table if one is asked for (or loads it)
         res, dt = timed(lambda: bench.evaluate(cm, stars))
         err = max_rel_error(res, ref, bench.bands)
         row = {"setting": label, "max_rel_error": err, "seconds_per_sample": dt / bench.n}
         extra = ""
         if info["method"] == "lut":
             # the tables' own recorded build times: a cached table loads in milliseconds
-            mlut = cm.moonlit_earth.model["lut"]
+            mlut = cm.source("moonlit_earth").model["lut"]
             row["lut_build_seconds"] = info["lut"].build_seconds + (
                 mlut.build_seconds if mlut is not None else 0.0
             )
@@ -158,7 +158,7 @@ def cube_model(
     raw["models"].setdefault("earthshine", {}).update(earthshine or {})
     c = campaign_from_dict(raw, base.path)
     model = BackgroundModel(c, **model_kw)
-    model.sunlit_earth.model
+    model.source("sunlit_earth").model
     return c, model
 
 

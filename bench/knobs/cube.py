@@ -234,7 +234,7 @@ def auto_cost_model(lut_model, cube: dict) -> dict:
     want updating."""
     from straylight.model import fidelity as comp
 
-    es = lut_model.sunlit_earth.model
+    es = lut_model.source("sunlit_earth").model
     saved = 1.0 / cube["direct"]["samples_per_s_per_core"] - 1.0 / cube["lut"]["samples_per_s_per_core"]
     build = es["lut_build_seconds"] / es["lut_node_states"]
     out = {

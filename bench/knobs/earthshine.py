@@ -93,7 +93,7 @@ def moonlit_grid_rows(bench, day: str = "2026-01-03", time_step: int = 24, n_tim
         if steps:
             es["moonlit_lut"] = vars(MoonlitSettings(*steps))
         c, model = cube_model(base, {"start": f"{day}T00:00:00", "end": f"{day}T23:59:59"}, es, **kw)
-        model.moonlit_earth.model  # built (or loaded) before timing
+        model.source("moonlit_earth").model  # built (or loaded) before timing
         return timed(lambda: compute_region(c, fp, t_slice, slice(None), model=model), repeats=1 if kw else 3)
 
     ref, _ = run((48, 96), "direct", moonlit_skip_share=0.0)

@@ -56,85 +56,54 @@ def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None, stars=
     ``model``: a function giving the campaign's :class:`~straylight.model.BackgroundModel` (the
     SkyModel's, as the API evaluates with), called once the scene is computed (an orbit that
     cannot be propagated is refused before any table is read or built), else one built for this
-    sample."""
-    from straylight.limits.point_source import point_source_limit, sky_zero_points
+    sample.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        Loaded campaign.
+    time : str or astropy.time.Time
+        One UTC time.
+    ra_deg : float
+        ICRS right ascension, deg.
+    dec_deg : float
+        ICRS declination, deg.
+    bands : list of str, optional
+        Bands (None: the campaign's).
+    stars : StarTable, optional
+        The off-field stars (None: stars = 0).
+    model : callable, optional
+        ``model() -> BackgroundModel``; None: one is built.
+
+    Returns
+    -------
+    dict
+        JSON-ready: the sample, the satellite (GCRS km), the model's record and
+        :meth:`~straylight.model.result.BackgroundResult.to_record`'s entries.
+    """
     from straylight.model import BackgroundModel
-    from straylight.model.pointing import background_at
-    from straylight.model.registry import band_components
-    from straylight.sky.ephemeris import PLANETS
-    from straylight.sky.geometry import violation_names
+    from straylight.model.pointing import background_result
+    from straylight.planning.pointings import with_limits
     from straylight.sky.observing import scene
     from straylight.sky.vectors import radec_to_unit
 
     sc = scene(campaign.orbit, time)
     model = model() if model is not None else BackgroundModel(campaign)
     los = np.atleast_2d(radec_to_unit(np.array([ra_deg]), np.array([dec_deg])))
-    g1, comps = background_at(
-        model,
-        sc.satellite_km,
-        sc.bodies_km,
-        los,
-        bands or campaign.bands,
-        stars=stars,
-        geometry_bodies=tuple(sc.bodies_km),
+    bands = bands or campaign.bands
+    result = background_result(
+        model, sc, los, bands, stars=stars, in_field_bands=bands, geometry_bodies=tuple(sc.bodies_km)
     )
-    v = {k: np.asarray(a).ravel()[0] for k, a in g1.items()}
-    door = float(v["door_opening_deg"])
+    one = with_limits(result, campaign).to_record(0)
     record = {
         "time": sc.times[0].isot,
         "ra_deg": ra_deg,
         "dec_deg": dec_deg,
         "satellite_gcrs_km": [float(x) for x in sc.satellite_km[0]],
-        "geometry": {
-            "sun_angle_deg": float(v["sun_angle_deg"]),
-            "moon_angle_deg": float(v["moon_angle_deg"]),
-            "moon_phase_angle_deg": float(v["moon_phase_angle_deg"]),
-            "moon_illuminated_fraction": float(v["moon_illuminated_fraction"]),
-            "earth_limb_angle_deg": float(v["earth_limb_angle_deg"]),
-            "limb_is_bright": bool(v["limb_is_bright"]),
-            "bright_limb_angle_deg": float(v["bright_limb_angle_deg"]),
-            "dark_limb_angle_deg": float(v["dark_limb_angle_deg"]),
-            "zenith_angle_deg": float(v["zenith_angle_deg"]),
-            "door_opening_deg": door if door > 0 else None,
-            "sun_phi_deg": float(v["sun_phi_deg"]),
-            "moon_phi_deg": float(v["moon_phi_deg"]),
-            "moon_earth_blocked": bool(v["moon_earth_blocked"]),
-            "planet_angles_deg": {p: float(v[f"{p}_angle_deg"]) for p in PLANETS},
-        },
-        "observable": bool(v["observable"]),
-        "violations": violation_names(int(v["violations"])) + ([] if door > 0 else ["door"]),
-        "bands": {},
+        **{k: one[k] for k in ("geometry", "observable", "violations", "bands")},
+        "models": model.models_record(),
     }
-    record["models"] = model.models_record()
-    # bodies inside the field: point sources, left out of the background and listed here
-    in_field = model.in_field.find(sc.satellite_km, sc.bodies_km, los, g1, bands or campaign.bands)
-    record["in_field_point_sources"] = [
-        {
-            "body": k,
-            "angle_deg": float(np.ravel(v["angle_deg"])[0]),
-            "v_mag": float(np.ravel(v["v_mag"])[0]),
-            "mag_ab": {b: float(np.ravel(m)[0]) for b, m in v["mag_ab"].items()},
-        }
-        for k, v in in_field.items()
-        if bool(np.ravel(v["in_field"])[0])
-    ]
-    zero_points = sky_zero_points(campaign, list(comps))
-    for name, res in comps.items():
-        mag = res["_mag"]
-        entry = {}
-        for comp in band_components():
-            e = float(np.ravel(res[comp])[0])
-            m = float(np.ravel(mag(e))[0])
-            entry[comp] = {"e_per_s_per_pix": e, "mag_per_arcsec2": m if np.isfinite(m) else None}
-        entry["mag_zero_point"] = zero_points[name]
-        entry["limit_mag"] = (
-            float(point_source_limit(entry["total"]["e_per_s_per_pix"], name, campaign))
-            if name != "V"
-            else None
-        )
-        record["bands"][name] = entry
-    first = next(iter(comps.values()))
-    record["zodiacal_no_data_near_sun"] = bool(np.ravel(first["_zodiacal_no_data"])[0])
+    record.update({k: one[k] for k in ("in_field_point_sources", "zodiacal_no_data_near_sun")})
     record["stars_included"] = stars is not None
     return record
 

@@ -184,22 +184,8 @@ def region_values(
     sc = observing.scene(campaign.orbit, times) if scene is None else _checked_scene(scene, times)
     los = radec_to_unit(fp.ra_deg[p_slice], fp.dec_deg[p_slice])
     nt, npix, nb = len(times), los.shape[0], len(campaign.bands)
-    faint = (
-        None if faint_map is None else {b: np.asarray(faint_map)[:, i] for i, b in enumerate(campaign.bands)}
-    )
-    if faint is None and stars is not None and len(stars.faint_ra_deg):
-        # once per pixel, not per sample of a many-step batch (it depends on the line of sight only)
-        faint = model.stars.faint_star_rates(stars, los, campaign.bands)
-    # one allocation for every component: numpy asks the kernel for huge pages on arrays of 4 MiB
-    # or more (a default region's block is), fewer page faults than one array per component
-    # the components, the total and the parts the envelope scales apart (CUBE_PART_VARIABLES)
-    names = (
-        registry.component_names(total=True)
-        + cube_layout.CUBE_PART_VARIABLES
-        + cube_layout.ENVELOPE_END_VARIABLES
-    )
-    n_model = len(names) - sum(cube_layout.is_envelope_end_part(n) for n in names)
-    block = np.zeros((len(names), nt, npix, nb), np.float32)
+    faint = _faint_by_pixel(model, campaign, stars, faint_map, los)
+    names, n_model, block = _region_block(nt, npix, nb)
     out = dict(zip(names, block))
     obs = np.zeros((nt, npix), bool)
     viol = np.zeros((nt, npix), np.uint8)
@@ -210,32 +196,16 @@ def region_values(
     # paid once per batch, not once per step.  The direct earthshine sum grids the Earth per
     # sample, so there one step per call bounds its memory (the star pairs bound their own:
     # OffFieldStars.STAR_PAIRS_PER_PASS).
-    max_samples = npix if model.sunlit_earth.model["lut"] is None else SAMPLES_PER_EVALUATION
+    max_samples = SAMPLES_PER_EVALUATION if model.uses_sunlit_table else npix
     skip_unobservable = unobservable_samples(campaign) == "skip"  # the campaign's, not the model's
     for steps in _step_batches(nt, npix, max_samples):
         k = steps.stop - steps.start
-        # each step's scene repeated over its pixels: the samples' scene runs are the steps,
-        # known here, so no function scans every sample's vectors to find them again
-        runs = SceneRuns.steps(k, npix)
         los_k = np.broadcast_to(los[None], (k,) + los.shape).reshape(-1, 3)
-        faint_k = None if faint is None else {b: np.tile(v, k) for b, v in faint.items()}
         # written straight into the region's float32 block: a view (the steps are consecutive,
         # so step and pixel merge into the batch's step-major samples)
         # (the envelope's re-evaluated groups, last, are not the model's: _envelope_ends fills them)
         into = (names[:n_model], block[:n_model, steps].reshape(n_model, k * npix, nb))
-        g, _ = background_at(
-            model,
-            sc.satellite_km[steps],
-            {b: v[steps] for b, v in sc.bodies_km.items()},
-            los_k,
-            campaign.bands,
-            scene_index=np.repeat(np.arange(k), npix),
-            stars=stars,
-            faint_rates=faint_k,
-            runs=runs,
-            into=into,
-            observable_only=skip_unobservable,
-        )
+        g = _evaluate_steps(model, sc, steps, los_k, campaign.bands, (stars, faint), into, skip_unobservable)
         obs[steps], viol[steps], door[steps] = (
             _by_step(g[v], k, npix) for v in ("observable", "violations", "door_opening_deg")
         )
@@ -243,15 +213,74 @@ def region_values(
         if angles is not None:
             for name in OBSERVABILITY_ANGLES:
                 angles[name][steps] = _by_step(g[name], k, npix)
-    # the parts the envelope scales apart are needed where observable only: NaN elsewhere, which
-    # the store compresses to almost nothing (the components stay everywhere)
+    _mask_parts(model, campaign, out, obs)
+    return {**out, "observable": obs, "violations": viol, "door_opening_deg": door}
+
+
+def _evaluate_steps(
+    model, sc, steps: slice, los_k: np.ndarray, bands, stars: tuple, into: tuple, skip: bool
+) -> dict:
+    """The background at the time ``steps`` of scene ``sc`` x the region's pixels (``los_k``:
+    their lines of sight repeated per step) in ``bands``, written ``into`` (names, block view);
+    ``stars``: (the off-field stars, the faint map per pixel or None); ``skip``: the observable
+    samples only.  Returns the samples' observing geometry."""
+    k = steps.stop - steps.start
+    npix = los_k.shape[0] // k
+    stars, faint = stars
+    # each step's scene repeated over its pixels: the samples' scene runs are the steps,
+    # known here, so no function scans every sample's vectors to find them again
+    g, _ = background_at(
+        model,
+        sc.satellite_km[steps],
+        {b: v[steps] for b, v in sc.bodies_km.items()},
+        los_k,
+        bands,
+        scene_index=np.repeat(np.arange(k), npix),
+        stars=stars,
+        faint_rates=None if faint is None else {b: np.tile(v, k) for b, v in faint.items()},
+        runs=SceneRuns.steps(k, npix),
+        into=into,
+        observable_only=skip,
+    )
+    return g
+
+
+def _faint_by_pixel(model, campaign: Campaign, stars, faint_map, los: np.ndarray) -> dict | None:
+    """The faint stars' map at the region's pixels, band -> e-/s/pix (n_pixel,): ``faint_map``'s
+    columns, else summed here (once per pixel, not per sample of a many-step batch: it depends on
+    the line of sight only); None without faint stars."""
+    if faint_map is not None:
+        return {b: np.asarray(faint_map)[:, i] for i, b in enumerate(campaign.bands)}
+    if stars is not None and len(stars.faint_ra_deg):
+        return model.source("stars").faint_star_rates(stars, los, campaign.bands)
+    return None
+
+
+def _region_block(nt: int, npix: int, nb: int) -> tuple:
+    """(the names of the region's float32 variables, how many the model writes, one zeroed block
+    (names, time, pixel, band) for all): the components, the total, the parts the envelope
+    scales apart (CUBE_PART_VARIABLES) and its re-evaluated ends, last.  One allocation: numpy
+    asks the kernel for huge pages on arrays of 4 MiB or more (a default region's block is),
+    fewer page faults than one array per component."""
+    names = (
+        registry.component_names(total=True)
+        + cube_layout.CUBE_PART_VARIABLES
+        + cube_layout.ENVELOPE_END_VARIABLES
+    )
+    n_model = len(names) - sum(cube_layout.is_envelope_end_part(n) for n in names)
+    return names, n_model, np.zeros((len(names), nt, npix, nb), np.float32)
+
+
+def _mask_parts(model, campaign: Campaign, out: dict, obs: np.ndarray) -> None:
+    """The parts the envelope scales apart, needed where observable only: NaN elsewhere, which
+    the store compresses to almost nothing (the components stay everywhere); NaN everywhere for
+    the re-evaluated ends without the instrument's ``envelope.members``."""
     ends = bool(_end_models(model, campaign))
     for name in cube_layout.CUBE_PART_VARIABLES + cube_layout.ENVELOPE_END_VARIABLES:
-        if cube_layout.is_envelope_end_part(name) and not ends:  # no envelope.members: nothing re-evaluated
+        if cube_layout.is_envelope_end_part(name) and not ends:  # nothing re-evaluated
             out[name][...] = np.nan
         else:
             out[name][~obs] = np.nan
-    return {**out, "observable": obs, "violations": viol, "door_opening_deg": door}
 
 
 def _end_models(model, campaign) -> dict:
@@ -331,7 +360,7 @@ def _faint_rows(campaign: Campaign, fp: Footprint, model, stars, rows: slice) ->
     """The faint-star map at footprint pixels ``rows``, (pixel, band) e-/s/pix (0 in a band
     the catalog has no faint magnitudes in)."""
     los = radec_to_unit(fp.ra_deg[rows], fp.dec_deg[rows])
-    rates = model.stars.faint_star_rates(stars, los, campaign.bands, saved=True)
+    rates = model.source("stars").faint_star_rates(stars, los, campaign.bands, saved=True)
     values = np.zeros((los.shape[0], len(campaign.bands)))
     for i, band in enumerate(campaign.bands):
         if band in rates:
@@ -400,7 +429,7 @@ def faint_star_map(
     parts = [slice(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:])]
 
     def saved(rows):  # this part's sums kept on disk (read instead of summed)
-        return model.stars.faint_star_map_saved(
+        return model.source("stars").faint_star_map_saved(
             stars, radec_to_unit(fp.ra_deg[rows], fp.dec_deg[rows]), campaign.bands
         )
 

@@ -17,24 +17,35 @@ import numpy as np
 
 from straylight.config import Campaign
 from straylight.model import registry
+from straylight.model._kernels import KERNEL_BLOCK_SAMPLES
+from straylight.model._kernels import Terms as _Terms
+from straylight.model._kernels import band_components_kernel as _band_components_kernel
+from straylight.model._kernels import check_into as _check_into
+from straylight.model._kernels import flat as _flat
+from straylight.model._kernels import floor_kernel as _floor_kernel
+from straylight.model._kernels import irradiance as _irradiance
+from straylight.model._kernels import rows as _rows
+from straylight.model._kernels import sum_program as _sum_program
 from straylight.model.fidelity import ERROR_BUDGET_SHARES, FidelityPolicy
 from straylight.sky.ephemeris import PLANETS
 from straylight.sky.frames import telescope_frame
 from straylight.sources.bodies import InFieldBodies, SolarBodySkip
 from straylight.sources.context import Samples, SourceContext
-from straylight.sources.photometry import magnitude_per_arcsec2
+from straylight.sources.photometry import magnitude_per_arcsec2, sky_zero_point_mag_per_arcsec2
 from straylight.sources.rates import LAMPS
 from straylight.sources.stars_table import StarTable
 from straylight.sources.zodiacal import campaign_zodiacal_model
-from straylight.util.kernel_cache import njit
 
 __all__ = ["BackgroundModel", "KERNEL_BLOCK_SAMPLES"]
 
 
 class BackgroundModel:
     """The background of one campaign: its sources of light (built from
-    :data:`~straylight.model.registry.SOURCES`, ``sources[name]``, each also an attribute:
-    ``model.stars``) and its fidelity policy.
+    :data:`~straylight.model.registry.SOURCES`: :meth:`source`) and its fidelity policy; what
+    callers need of the instrument and the earthshine tables through its own methods
+    (:meth:`band`, :meth:`photometry`, :meth:`darkest_zodiacal_e_per_s`, :attr:`offfield`,
+    :attr:`earth_grid`, :meth:`earth_band_factors`, :attr:`earthshine_choice`,
+    :meth:`table_paths`, :attr:`uses_sunlit_table`).
 
     Parameters
     ----------
@@ -119,11 +130,187 @@ class BackgroundModel:
             self._built[name] = entry.factory(self)
         return self._built[name]
 
-    def __getattr__(self, name):
-        sources = self.__dict__.get("sources")
-        if sources is not None and name in sources:
-            return sources[name]
-        raise AttributeError(f"{type(self).__name__!r} has no attribute or source {name!r}")
+    # -- what callers need of the instrument, through the sources' shared context --------------
+    def band(self, name: str):
+        """The instrument's band ``name`` (throughput, zero points), loaded once.
+
+        Parameters
+        ----------
+        name : str
+            The band's name in the instrument settings.
+
+        Returns
+        -------
+        Band
+        """
+        return self.context.band(name)
+
+    def photometry(self, name: str):
+        """Band ``name``'s photometry: the Sun's photon irradiance at 1 AU through it (photons
+        s-1 m-2), AB and solar-like magnitudes to photons s-1 m-2.
+
+        Parameters
+        ----------
+        name : str
+            The band's name.
+
+        Returns
+        -------
+        BandPhotometry
+        """
+        return self.context.photometry(name)
+
+    def darkest_zodiacal_e_per_s(self, band: str) -> float:
+        """The zodiacal light at the darkest point of the Leinert (1998) table in ``band``: the
+        floor of any total background.
+
+        Parameters
+        ----------
+        band : str
+            The band's name.
+
+        Returns
+        -------
+        float
+            e-/s/pix.
+        """
+        return self.context.darkest_zodiacal_e_per_s(band)
+
+    def sky_zero_point(self, band: str) -> float:
+        """The band's AB surface-brightness zero point: the instrument's throughput, aperture and
+        pixel scale.
+
+        Parameters
+        ----------
+        band : str
+            The band's name.
+
+        Returns
+        -------
+        float
+            AB mag/arcsec2 at 1 e-/s/pix (mag/arcsec2 = zero point - 2.5 log10(e-/s/pix)).
+        """
+        aperture_d = self.campaign.instrument_settings.telescope.aperture_diameter_m.value
+        return sky_zero_point_mag_per_arcsec2(self.band(band), aperture_d, self.campaign.pixel_scale_arcsec)
+
+    def mag_per_arcsec2(self, e_per_s_per_pix, band: str):
+        """AB surface brightness of a uniform background (inf where zero).
+
+        Parameters
+        ----------
+        e_per_s_per_pix : array_like
+            Background rate, e-/s/pix.
+        band : str
+            The band's name.
+
+        Returns
+        -------
+        ndarray
+            AB mag/arcsec2, of ``e_per_s_per_pix``'s shape.
+        """
+        aperture_d = self.campaign.instrument_settings.telescope.aperture_diameter_m.value
+        return magnitude_per_arcsec2(
+            e_per_s_per_pix, self.band(band), aperture_d, self.campaign.pixel_scale_arcsec
+        )
+
+    @property
+    def offfield(self):
+        """The off-field transfer (:class:`~straylight.sources.offfield.OffFieldModel`): the PST,
+        the door, the pixel's area (m2), the field's radius (deg) and the Moon's phase law."""
+        return self.context.offfield
+
+    # -- the earthshine engine both Earths share -------------------------------------------------
+    @property
+    def _earthshine(self):
+        return self.source("sunlit_earth").engine
+
+    @property
+    def earth_grid(self):
+        """The Earth-cap grid over the off-field transfer that the earthshine sums over
+        (:class:`~straylight.sources.earthshine.grid.EarthGrid`; nothing built)."""
+        return self._earthshine.grid
+
+    def earth_band_factors(self, bands):
+        """The Earth's band albedo over the grey one in ``bands``.
+
+        Parameters
+        ----------
+        bands : sequence of str
+            Band names.
+
+        Returns
+        -------
+        ndarray or None
+            One factor per band, dimensionless; None for the grey spectrum.
+        """
+        return self._earthshine.band_factors(tuple(bands))
+
+    def sunlit_earth_coefficients(
+        self, radius_km: float, sun_zenith_deg, los_zenith_deg, azimuth_deg, door_deg
+    ):
+        """The sunlit Earth's light outside the field (direct + via the door) per unit of the
+        Sun's irradiance at 1 AU, summed over the Earth grid, at a satellite ``radius_km`` from
+        the Earth's centre, in its local frame (the Sun and the line of sight by their zenith
+        angles and the azimuth between them); the Earth grey (see :meth:`earth_band_factors`).
+
+        Parameters
+        ----------
+        radius_km : float
+            The satellite's geocentric radius, km.
+        sun_zenith_deg, los_zenith_deg, azimuth_deg : ndarray
+            The Sun's and the line of sight's zenith angles and the azimuth of the line of
+            sight from the Sun's, deg, one shape.
+        door_deg : ndarray
+            The door's opening, deg (one of the instrument's states; another: NaN), same shape.
+
+        Returns
+        -------
+        ndarray
+            e-/s/pix per photon s-1 m-2 of the Sun at 1 AU, the inputs' shape.
+        """
+        from straylight.sources.earthshine.sunlit_build import sun_coefficients_direct
+
+        grid, re_km = self.earth_grid, self.campaign.earth.radius_km
+        coeff = np.full(np.shape(door_deg), np.nan)
+        for state in grid.door_states_deg:
+            sel = door_deg == state
+            if sel.any():
+                d, g = sun_coefficients_direct(
+                    grid,
+                    np.full(sel.sum(), radius_km),
+                    np.radians(sun_zenith_deg[sel]),
+                    np.radians(los_zenith_deg[sel]),
+                    np.radians(azimuth_deg[sel]),
+                    state,
+                    re_km,
+                )
+                coeff[sel] = d + g
+        return coeff
+
+    @property
+    def earthshine_choice(self) -> dict:
+        """Which sunlit-earthshine model runs, decided without building anything: ``method``
+        (``"lut"`` or ``"direct"``), ``reason``, and for the table its ``settings``
+        (:class:`~straylight.sources.earthshine.nodes.LUTSettings`), node states and build-time
+        estimates (s on one core)."""
+        return self._earthshine.sunlit_choice
+
+    def table_paths(self) -> dict:
+        """Where the earthshine tables this model reads are cached (nothing built).
+
+        Returns
+        -------
+        dict
+            ``sunlit``: Path of the sunlit table; ``moonlit``: Path of the moonlit table, or
+            None where the moonlit Earth runs without one.
+        """
+        return {"sunlit": self._earthshine.sunlit_lut_path(), "moonlit": self._earthshine.moonlit_lut_path()}
+
+    @property
+    def uses_sunlit_table(self) -> bool:
+        """Whether the sunlit earthshine runs on its table (read, or built, now) rather than the
+        direct sum over the Earth grid per sample."""
+        return self._earthshine.sunlit_lut is not None
 
     def evaluate(
         self,
@@ -145,9 +332,8 @@ class BackgroundModel:
         satellite_km : array_like, shape (..., 3)
             Geocentric ICRS satellite positions, km (broadcastable to the samples).
         bodies_km : dict of str to array_like
-            Body -> geocentric ICRS position (..., 3), km: at least the Sun and the Moon; each
-            planet in it is a source where it can count
-            (:class:`~straylight.sources.planets.Planets`).
+            Body -> geocentric ICRS position (..., 3), km: the Sun, the Moon and each planet
+            that is a source where it can count (:class:`~straylight.sources.planets.Planets`).
         los : array_like, shape (..., 3)
             Unit lines of sight, ICRS.
         geometry : dict
@@ -158,98 +344,85 @@ class BackgroundModel:
         stars : StarTable or None
             The off-field stars (None: stars = 0).
         faint_rates : dict or None
-            The faint stars' map at these lines of sight, band -> e-/s/pix (as
-            :meth:`~straylight.sources.stars.OffFieldStars.faint_star_rates` gives it), when
-            already computed.
+            The faint stars' map here, band -> e-/s/pix, when already computed
+            (:meth:`~straylight.sources.stars.OffFieldStars.faint_star_rates`).
         frame : TelescopeFrame or None
             The samples' ``telescope_frame(los, sun - satellite)``, when already computed.
         into : (sequence of str, ndarray) or None
             (component names, array (names, samples flattened, bands)), e.g. a cube region's
-            float32 block, that receives those components (the result's arrays are then views
-            of it, and the other components are not computed).
+            float32 block, receiving those components (the result's arrays are its views; no
+            other component is computed).
         runs : SceneRuns or None
-            The samples' scene runs when the caller knows them (e.g. a cube's time steps: runs
-            of samples that share the satellite and every body in ``bodies_km``), else found
-            where needed.
+            The samples' scene runs (sharing the satellite and every body) when the caller
+            knows them (a cube's time steps), else found where needed.
 
         Returns
         -------
         dict
             Band -> {component: e-/s/pix, float64 array of the samples' shape, for every name
             of :func:`~straylight.model.registry.band_components` (or those of ``into``); and
-            ``_band`` (the Band), ``_mag`` (e-/s/pix -> AB mag/arcsec2) and ``_<flag>`` for each
-            flag a source reports (``_zodiacal_no_data``)}.
+            ``_<flag>`` for each flag a source reports (``_zodiacal_no_data``)}.
 
         Raises
         ------
         ValueError
             For an unknown name in ``into`` or an array of another shape.
         """
-        c = self.context
-        sat = np.asarray(satellite_km, float)
-        sun = bodies_km["sun"]
-        frame = telescope_frame(los, sun - sat) if frame is None else frame
         shape = geometry["sun_angle_deg"].shape
-        n = int(np.prod(shape))
-        outputs = self.outputs
+        n, outputs = int(np.prod(shape)), self.outputs
         if into is not None:  # checked before any work
             _check_into(into, n, len(bands), outputs)
+        sat = np.asarray(satellite_km, float)
+        frame = telescope_frame(los, bodies_km["sun"] - sat) if frame is None else frame
         samples = Samples(sat, bodies_km, frame, geometry, runs, stars=stars, faint_rates=faint_rates)
-        samples.moon_lamp = self.source("moon").lamp(samples)
-        scales = {
-            "sun": samples.sun_inverse_square,
-            "sun_at_1au": 1.0,
-            "moon_at_earth": samples.moon_lamp["at_earth"],
-        }
-        sun_at_1au = np.array([c.photometry(name).sun_at_1au_photons_s_m2 for name in bands])
-        rates = {}
-        # the sources never skipped make each sample's floor, which the skippable ones measure
-        # their skips against
-        for entry in self.entries:
-            if not entry.skippable:
-                rates[entry.name] = self.sources[entry.name].rates(samples, bands)
-        samples.floor, samples.floor_ratio = self._floor(
-            [rates[e.name] for e in self.entries if not e.skippable], scales, sun_at_1au, bands, shape
-        )
-        for entry in self.entries:
-            if entry.skippable:
-                rates[entry.name] = self.sources[entry.name].rates(samples, bands)
+        scales = self._lamp_scales(samples)
+        sun_at_1au = np.array([self.context.photometry(name).sun_at_1au_photons_s_m2 for name in bands])
+        rates = self._source_rates(samples, bands, scales, sun_at_1au)
         terms = _Terms(self.entries, self.leaves, rates, scales, shape)
         names, values = (
             into
             if into is not None
             else (outputs, np.empty((len(outputs), len(bands), n)).transpose(0, 2, 1))
         )  # band-major: each band's row contiguous
-        sums, writes, n_rows = _sum_program(self.components, self.leaves, names)
-        _band_components_kernel(
-            terms.dense,
-            terms.n_dense,
-            terms.dense_leaf,
-            terms.dense_first,
-            terms.coeff,
-            terms.n_coeff,
-            terms.term_leaf,
-            terms.term_lamp,
-            terms.term_first,
-            terms.scales,
-            _irradiance(sun_at_1au, terms.factors),
-            sums,
-            writes,
-            n_rows,
-            values,
-        )
+        _sum_terms(terms, sun_at_1au, _sum_program(self.components, self.leaves, names), values)
         extras = {f"_{k}": v for r in rates.values() for k, v in r.extras.items()}
-        aperture_d = self.campaign.instrument_settings.telescope.aperture_diameter_m.value
-        pix_arcsec = self.campaign.pixel_scale_arcsec
         out = {}
         for ib, name in enumerate(bands):
-            band = c.band(name)
             res = {comp: values[k, :, ib].reshape(shape) for k, comp in enumerate(names)}
-            res["_band"] = band
             res.update(extras)
-            res["_mag"] = lambda e, b=band: magnitude_per_arcsec2(e, b, aperture_d, pix_arcsec)
             out[name] = res
         return out
+
+    def _lamp_scales(self, samples: Samples) -> dict:
+        """Each lamp's scale at the samples (``samples.moon_lamp`` set): the Sun's inverse square
+        at the satellite, 1 at 1 AU, the Moon's at the Earth."""
+        samples.moon_lamp = self.source("moon").lamp(samples)
+        return {
+            "sun": samples.sun_inverse_square,
+            "sun_at_1au": 1.0,
+            "moon_at_earth": samples.moon_lamp["at_earth"],
+        }
+
+    def _source_rates(self, samples: Samples, bands, scales: dict, sun_at_1au: np.ndarray) -> dict:
+        """Each source's :class:`~straylight.sources.rates.BandRates` at the samples (source name
+        -> rates): the sources never skipped first, whose sum makes each sample's floor
+        (``samples.floor``, ``samples.floor_ratio``), which the skippable ones then measure their
+        skips against."""
+        rates = {}
+        for entry in self.entries:
+            if not entry.skippable:
+                rates[entry.name] = self.sources[entry.name].rates(samples, bands)
+        samples.floor, samples.floor_ratio = self._floor(
+            [rates[e.name] for e in self.entries if not e.skippable],
+            scales,
+            sun_at_1au,
+            bands,
+            samples.geometry["sun_angle_deg"].shape,
+        )
+        for entry in self.entries:
+            if entry.skippable:
+                rates[entry.name] = self.sources[entry.name].rates(samples, bands)
+        return rates
 
     def _floor(
         self, never_skipped: list, scales: dict, sun_at_1au: np.ndarray, bands, shape
@@ -258,7 +431,7 @@ class BackgroundModel:
         the sources never skipped, their per-band terms added, then for each lamp the sum of
         their coefficients times the lamp's irradiance, never below the band's darkest zodiacal
         light (nor NaN); and its smallest ratio to that darkest light over the bands, per
-        sample.  One compiled pass (:func:`_floor_kernel`)."""
+        sample.  One compiled pass (:func:`floor_kernel`)."""
         n = int(np.prod(shape))
         dense = [r.per_band[p] for r in never_skipped for p in r.per_band]
         # coefficients summed per lamp and per-band factor (a part's band_factors, e.g. the
@@ -304,9 +477,9 @@ class BackgroundModel:
         """
         sc = self.campaign.settings.stars
         policy, tolerance = self.policy, self.policy.tolerance
-        es = self.sunlit_earth.record()
+        es = self.source("sunlit_earth").record()
         shares, lut_runs = ERROR_BUDGET_SHARES, es["method"] == "lut"
-        moonlit = self.moonlit_earth
+        moonlit = self.source("moonlit_earth")
         return {
             "tolerance": tolerance,
             "earthshine": es,
@@ -353,225 +526,24 @@ class BackgroundModel:
         }
 
 
-def _sum_program(components: tuple, leaves: tuple, names) -> tuple:
-    """The band kernel's rows after the leaves (rows 0..len(leaves)-1): each component with
-    parts gets a row, the total one; a component without parts is its leaf's row.  Returns
-    (sums (k, 3): src row, dst row, whether it sets dst; writes (k, 2): row, index in
-    ``names``, for the names asked; the number of rows)."""
-    rows, sums, n_rows = {leaf: i for i, leaf in enumerate(leaves)}, [], len(leaves)
-    for c in components:
-        if c.parts:
-            rows[c.name] = n_rows
-            sums += [(rows[p], n_rows, k == 0) for k, (p, _) in enumerate(c.parts)]
-            n_rows += 1
-    rows[registry.TOTAL] = n_rows
-    sums += [(rows[c.name], n_rows, k == 0) for k, c in enumerate(components)]
-    writes = [(rows[name], k) for k, name in enumerate(names)]
-    return (np.array(sums, np.intp).reshape(-1, 3), np.array(writes, np.intp).reshape(-1, 2), n_rows + 1)
-
-
-def _rows(arrays: list, shape: tuple) -> tuple:
-    """The arrays as a tuple for a compiled kernel: each float64, C-contiguous, writable, of
-    ``shape`` (broadcast, and copied only where it is not so already); an empty list gives one
-    zero array (the kernels take the count apart)."""
-    out = []
-    for a in arrays:
-        a = np.asarray(a, float)
-        if not (a.shape == tuple(shape) and a.flags.c_contiguous and a.flags.writeable):
-            a = np.ascontiguousarray(np.broadcast_to(a, shape))
-            a = a if a.flags.writeable else a.copy()
-        out.append(a)
-    return tuple(out) if out else (np.zeros(shape),)
-
-
-def _flat(a, shape: tuple) -> np.ndarray:
-    """``a`` broadcast to the samples' ``shape`` and flattened (a view where it can be)."""
-    a = np.asarray(a, float)
-    return a.reshape(-1) if a.shape == tuple(shape) else np.broadcast_to(a, shape).reshape(-1)
-
-
-class _Terms:
-    """The sources' rates as the band kernel's arrays: the per-band terms, a tuple of (bands,
-    samples) arrays, and the per-lamp coefficients, a tuple of (samples,) arrays (views of the
-    sources' arrays where they can be), each with the leaf (component or
-    part) it adds to and whether it is that leaf's first term (which sets it; the others add,
-    per-band terms before per-lamp ones, lamps in :data:`LAMPS` order).  Coefficients of several
-    sources for one leaf and lamp are added first, in registry order."""
-
-    def __init__(self, entries, leaves: tuple, rates: dict, scales: dict, shape):
-        n = int(np.prod(shape))
-        dense, dense_leaf = [], []
-        lamp_coeff = {}  # (leaf, lamp) -> coefficient
-        factors = {}  # leaf -> its per-band factor on its lamp terms
-        for entry in entries:
-            r = rates[entry.name]
-            for part, values in r.per_band.items():
-                dense.append(values)
-                dense_leaf.append(leaves.index(part))
-            for part, f in r.band_factors.items():
-                f = np.asarray(f, float)
-                if part in factors and not np.array_equal(factors[part], f):
-                    raise ValueError(f"sources give {part!r} different band factors: {factors[part]}, {f}")
-                factors[part] = f
-            for part, by_lamp in r.per_lamp.items():
-                for lamp, coeff in by_lamp.items():
-                    key = (part, lamp)
-                    lamp_coeff[key] = coeff if key not in lamp_coeff else lamp_coeff[key] + coeff
-        keys = sorted(lamp_coeff, key=lambda k: (leaves.index(k[0]), LAMPS.index(k[1])))
-        lamps = [lamp for lamp in LAMPS if any(k[1] == lamp for k in keys)]
-        nb = dense[0].shape[0] if dense else 0
-        self.dense = _rows([np.asarray(d, float).reshape(nb, n) for d in dense], (nb, n))
-        self.n_dense = len(dense)
-        self.dense_leaf = np.array(dense_leaf, np.intp)
-        seen = set()
-        self.dense_first = np.array([not (leaf in seen or seen.add(leaf)) for leaf in dense_leaf], np.bool_)
-        self.coeff = _rows([_flat(lamp_coeff[k], shape) for k in keys], (n,))
-        self.n_coeff = len(keys)
-        self.term_leaf = np.array([leaves.index(k[0]) for k in keys], np.intp)
-        self.term_lamp = np.array([lamps.index(k[1]) for k in keys], np.intp)
-        self.term_first = np.array(
-            [not (leaf in seen or seen.add(leaf)) for leaf in self.term_leaf.tolist()], np.bool_
-        )
-        self.scales = _rows([_flat(scales[lamp], shape) for lamp in lamps], (n,))
-        self.factors = [factors.get(k[0]) for k in keys]
-
-
-def _irradiance(sun_at_1au, factors: list) -> np.ndarray:
-    """(terms, bands) photon irradiance per unit lamp scale of each lamp term: the band's solar
-    irradiance at 1 AU times the term's per-band factor (None: 1; the product is then the
-    irradiance itself, bit for bit); one row of the irradiance when there is no term."""
-    s1 = np.asarray(sun_at_1au, float)
-    rows = [s1 if f is None else s1 * np.asarray(f, float) for f in factors] or [s1]
-    return np.ascontiguousarray(np.stack(rows))
-
-
-def _check_into(into, n_samples: int, n_bands: int, outputs: tuple) -> None:
-    """ValueError unless ``into`` is (distinct names of ``outputs``, an array of shape (names,
-    samples, bands))."""
-    names, values = into
-    unknown = sorted(set(names) - set(outputs))
-    expected = (len(names), n_samples, n_bands)
-    if unknown or len(set(names)) != len(names) or np.shape(values) != expected:
-        raise ValueError(
-            f"into: components {tuple(names)} (unknown: {unknown}; each at most once) in an array of "
-            f"shape {np.shape(values)}, not (components, samples, bands) = {expected}"
-        )
-
-
-@njit(cache=True, nogil=True)
-def _floor_kernel(dense, n_dense, coeff, n_coeff, scale, irradiance, darkest, floor, ratio):
-    """:meth:`BackgroundModel._floor` per sample: ``floor[band, sample]`` and ``ratio[sample]``:
-    the per-band terms added in order, then each lamp term's summed coefficient times its
-    irradiance in the band (``irradiance[term, band]``: the solar irradiance at 1 AU times the
-    term's band factor) times the lamp's scale, np.fmax's rule for NaN against ``darkest``.
-    Each band's row is built a term at a time (1-D loops the compiler vectorizes)."""
-    n, nb = floor.shape[1], floor.shape[0]
-    for ib in range(nb):
-        row = floor[ib]
-        for k in range(n_dense):
-            src = dense[k][ib]
-            if k == 0:
-                for i in range(n):
-                    row[i] = src[i]
-            else:
-                for i in range(n):
-                    row[i] += src[i]
-        for k in range(n_coeff):
-            c, sc, s1 = coeff[k], scale[k], irradiance[k, ib]
-            if k == 0 and n_dense == 0:
-                for i in range(n):
-                    row[i] = c[i] * (s1 * sc[i])
-            else:
-                for i in range(n):
-                    row[i] += c[i] * (s1 * sc[i])
-        if n_dense == 0 and n_coeff == 0:
-            row[:] = 0.0
-        d = darkest[ib]
-        for i in range(n):
-            f = row[i] if row[i] >= d else d  # np.fmax: NaN gives the darkest
-            row[i] = f
-    for i in range(n):
-        smallest = np.inf
-        for ib in range(nb):
-            q = floor[ib, i] / darkest[ib]
-            if q < smallest:
-                smallest = q
-        ratio[i] = smallest
-
-
-#: samples per block of :func:`_band_components_kernel`: its scratch (values x bands x block
-#: float64) stays in the processor's cache while each term runs over the block in a simple loop
-KERNEL_BLOCK_SAMPLES = 256
-
-
-@njit(cache=True, nogil=True)
-def _band_components_kernel(
-    dense,
-    n_dense,
-    dense_row,
-    dense_first,
-    coeff,
-    n_coeff,
-    term_row,
-    term_lamp,
-    term_first,
-    scales,
-    irradiance,
-    sums,
-    writes,
-    n_rows,
-    out,
-):
-    """Every band's components (e-/s/pix) per sample.
-
-    Rows of values per band and sample: a row (a leaf: a component's part, or a component
-    without parts) is its per-band terms (the first ``n_dense`` of the tuple ``dense`` of (bands,
-    samples) arrays, to row ``dense_row``) then its lamp terms (``coeff[k][sample] *
-    (irradiance[k, band] * scales[term_lamp[k]][sample])``, the first ``n_coeff``, to
-    ``term_row``; ``irradiance``: the band's solar irradiance at 1 AU times the term's band
-    factor),
-    the first setting it; then ``sums``
-    (src, dst, first) add rows into others in order (parts into their component, components
-    into the total), and ``writes`` (row, slot) copy row into ``out[slot, sample, band]`` (any
-    float dtype and strides).  Each sample's arithmetic is fixed, so the float64 values do not
-    depend on batch size; the samples run in blocks of :data:`KERNEL_BLOCK_SAMPLES`, each term
-    over a whole block at a time (1-D views in the inner loops: the compiler vectorizes them)."""
-    n, nb = out.shape[1], out.shape[2]
-    blk = KERNEL_BLOCK_SAMPLES
-    buf = np.zeros((n_rows, nb, blk))  # a row no term reaches stays 0
-    for i0 in range(0, n, blk):
-        m = min(blk, n - i0)
-        for k in range(n_dense):
-            for ib in range(nb):
-                src, row = dense[k][ib, i0 : i0 + m], buf[dense_row[k], ib]
-                if dense_first[k]:
-                    for j in range(m):
-                        row[j] = src[j]
-                else:
-                    for j in range(m):
-                        row[j] += src[j]
-        for k in range(n_coeff):
-            c, scale = coeff[k][i0 : i0 + m], scales[term_lamp[k]][i0 : i0 + m]
-            for ib in range(nb):
-                s1, row = irradiance[k, ib], buf[term_row[k], ib]
-                if term_first[k]:
-                    for j in range(m):
-                        row[j] = c[j] * (s1 * scale[j])
-                else:
-                    for j in range(m):
-                        row[j] += c[j] * (s1 * scale[j])
-        for k in range(sums.shape[0]):
-            for ib in range(nb):
-                src, row = buf[sums[k, 0], ib], buf[sums[k, 1], ib]
-                if sums[k, 2]:
-                    for j in range(m):
-                        row[j] = src[j]
-                else:
-                    for j in range(m):
-                        row[j] += src[j]
-        for k in range(writes.shape[0]):
-            dst = out[writes[k, 1], i0 : i0 + m]
-            for ib in range(nb):
-                src = buf[writes[k, 0], ib]
-                for j in range(m):
-                    dst[j, ib] = src[j]
+def _sum_terms(terms: _Terms, sun_at_1au: np.ndarray, program: tuple, values: np.ndarray) -> None:
+    """The band kernel over the sources' ``terms``: ``program`` (:func:`sum_program`'s sums,
+    writes and row count) into ``values`` (names, samples, bands), e-/s/pix."""
+    sums, writes, n_rows = program
+    _band_components_kernel(
+        terms.dense,
+        terms.n_dense,
+        terms.dense_leaf,
+        terms.dense_first,
+        terms.coeff,
+        terms.n_coeff,
+        terms.term_leaf,
+        terms.term_lamp,
+        terms.term_first,
+        terms.scales,
+        _irradiance(sun_at_1au, terms.factors),
+        sums,
+        writes,
+        n_rows,
+        values,
+    )

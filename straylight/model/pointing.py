@@ -7,10 +7,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from straylight.model.result import BackgroundResult
 from straylight.sky.frames import TelescopeFrame, telescope_frame
 from straylight.sky.geometry import observing_geometry
 
-__all__ = ["background_at"]
+__all__ = ["background_at", "background_result"]
 
 
 def background_at(
@@ -125,3 +126,72 @@ def background_at(
         )
         values[:, sel] = part
     return g, {}
+
+
+def background_result(
+    model,
+    scene,
+    los,
+    bands,
+    scene_index=None,
+    stars=None,
+    in_field_bands=None,
+    geometry_bodies: tuple = ("sun", "moon"),
+) -> BackgroundResult:
+    """The background at flat samples as one :class:`~straylight.model.result.BackgroundResult`
+    (:func:`background_at`'s geometry and components, the bands' zero points, the flags the
+    sources report, and where asked the bodies inside the field).
+
+    Parameters
+    ----------
+    model : BackgroundModel
+        The campaign's model.
+    scene : Scene
+        The m distinct times' satellite and bodies (:func:`~straylight.sky.observing.scene`),
+        geocentric ICRS km.
+    los : ndarray, shape (n, 3)
+        Unit lines of sight, ICRS.
+    bands : sequence of str
+        Band names.
+    scene_index : ndarray of int, shape (n,), or None
+        Each sample's row of ``scene``; None: sample i at row i (m = n).
+    stars : StarTable or None
+        The off-field stars (None: stars = 0).
+    in_field_bands : sequence of str or None
+        Look for the Sun, the Moon and the planets inside the field, with their AB magnitudes
+        in these bands (an empty list: their V magnitudes only); None: not looked for.
+    geometry_bodies : tuple of str
+        The bodies whose angles the geometry reports (:func:`background_at`).
+
+    Returns
+    -------
+    BackgroundResult
+        Without times, pointing or limits (the caller's to give).
+    """
+    g, comps = background_at(
+        model,
+        scene.satellite_km,
+        scene.bodies_km,
+        los,
+        bands,
+        scene_index=scene_index,
+        stars=stars,
+        geometry_bodies=geometry_bodies,
+    )
+    first = next(iter(comps.values()))
+    in_field = {}
+    if in_field_bands is not None:
+
+        def rows(a):
+            return np.asarray(a) if scene_index is None else np.asarray(a)[scene_index]
+
+        bodies = {k: rows(v) for k, v in scene.bodies_km.items()}
+        in_field = model.in_field.find(rows(scene.satellite_km), bodies, los, g, list(in_field_bands))
+    return BackgroundResult(
+        bands=tuple(bands),
+        rates={b: {c: v for c, v in comps[b].items() if not c.startswith("_")} for b in bands},
+        geometry=g,
+        zero_points={b: model.sky_zero_point(b) for b in bands},
+        flags={k[1:]: v for k, v in first.items() if k.startswith("_")},
+        in_field=in_field,
+    )

@@ -52,7 +52,7 @@ def door_incidence(
     """
     from straylight.model import BackgroundModel
 
-    off = BackgroundModel(campaign).sunlit_earth.engine.grid  # the Earth grid over the transfer
+    off = BackgroundModel(campaign).earth_grid  # the Earth grid over the transfer
     s = off.cap_settings(None)
     ra, dec = scenario_pointings(nside)
     los_all = radec_to_unit(ra, dec)

@@ -93,7 +93,8 @@ def earthshine_scenario(campaign: Campaign, time: str = SCENARIO_TIME, band: str
     g = {k: np.asarray(v)[0] for k, v in g.items()}
     sat = np.broadcast_to(sc.satellite_km[0], (ra.size, 3))
     bodies = {k: np.broadcast_to(v[0], (ra.size, 3)) for k, v in sc.bodies_km.items()}
-    comps = BackgroundModel(campaign).evaluate(sat, bodies, radec_to_unit(ra, dec), g, [band])[band]
+    model = BackgroundModel(campaign)
+    comps = model.evaluate(sat, bodies, radec_to_unit(ra, dec), g, [band])[band]
     return {
         "ra_deg": ra,
         "dec_deg": dec,
@@ -103,8 +104,8 @@ def earthshine_scenario(campaign: Campaign, time: str = SCENARIO_TIME, band: str
         "earthshine_e_per_s_per_pix": comps["earthshine"],
         "earthshine_direct_e_per_s_per_pix": comps["earthshine_direct"],
         "earthshine_door_e_per_s_per_pix": comps["earthshine_door"],
-        "earthshine_mag_per_arcsec2": comps["_mag"](comps["earthshine"]),
-        "zodiacal_mag_per_arcsec2": comps["_mag"](comps["zodiacal"]),
+        "earthshine_mag_per_arcsec2": model.mag_per_arcsec2(comps["earthshine"], band),
+        "zodiacal_mag_per_arcsec2": model.mag_per_arcsec2(comps["zodiacal"], band),
         "band": band,
         "time": time,
     }

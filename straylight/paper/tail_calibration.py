@@ -258,7 +258,7 @@ def phase_earthshine(campaign: Campaign, phases: PhaseGrid, tails_log10, nside: 
                 np.broadcast_to(sat[a], (n, 3)), b, los[a:e], {k: v[a:e] for k, v in geom.items()}, [band]
             )[band]
             direct[t, a:e], door[t, a:e] = comps["earthshine_direct"], comps["earthshine_door"]
-            mag_of_one = float(comps["_mag"](np.array([1.0]))[0])
+            mag_of_one = float(model.mag_per_arcsec2(np.array([1.0]), band)[0])
     return {
         "phase": lit[li],
         "limb_angle_deg": geom["bright_limb_angle_deg"],

@@ -285,7 +285,7 @@ def etc_table(background, bands, campaign, request: dict):
 
     from straylight.limits.point_source import campaign_exposures, source_rate_e_per_s
     from straylight.model.registry import component_names, long_names
-    from straylight.planning.pointings import violation_text
+    from straylight.model.result import violation_text
 
     comps = component_names()
     n, nb = len(background), len(bands)

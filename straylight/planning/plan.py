@@ -271,10 +271,10 @@ def probed_speed_factor(campaign: Campaign, cores: int) -> float:
 
     model = BackgroundModel(campaign)
     return build_speed_factor(
-        model.sunlit_earth.engine.grid,
+        model.earth_grid,
         campaign.earth.radius_km,
         campaign.orbit_radius_range_km,
-        model.sunlit_earth.choice["settings"],
+        model.earthshine_choice["settings"],
         max(int(cores), 1),
     )
 
@@ -294,12 +294,12 @@ def needed_tables(model) -> list[dict]:
     -------
     list of dict
     """
-    if model.sunlit_earth.choice["method"] != "lut":
+    if model.earthshine_choice["method"] != "lut":
         return []
     from straylight.model import BackgroundModel
     from straylight.model.envelope import ENDS, end_campaign
 
-    radii = _cached_sunlit_radii_km(model.sunlit_earth.lut_path().parent)
+    radii = _cached_sunlit_radii_km(model.table_paths()["sunlit"].parent)
     out = _model_tables(model, "", radii)
     env = model.campaign.instrument_settings.envelope
     if env is not None and env.members is not None:
@@ -325,7 +325,8 @@ def _cached_sunlit_radii_km(folder) -> dict:
 def _model_tables(model, label: str, radii_km: dict) -> list[dict]:
     """One model's sunlit and moonlit tables (:func:`needed_tables`), names ending in ``label``;
     ``radii_km``: the cached sunlit tables' orbit radii (:func:`_cached_sunlit_radii_km`)."""
-    sunlit = model.sunlit_earth.lut_path()
+    paths = model.table_paths()
+    sunlit = paths["sunlit"]
     others = [r for p, r in radii_km.items() if p != sunlit]
     out = [
         {
@@ -335,7 +336,7 @@ def _model_tables(model, label: str, radii_km: dict) -> list[dict]:
             "other_radii_km": others,
         }
     ]
-    moonlit = model.moonlit_earth.lut_path()
+    moonlit = paths["moonlit"]
     if moonlit is not None:
         out.append({"name": "moonlit-Earth table" + label, "path": moonlit, "cached": moonlit.exists()})
     return out
@@ -448,7 +449,7 @@ def estimated_cost(
     n = len(campaign.times) * int(fp.pixels.size)
     n_eval = evaluated_samples(campaign, fp)
     model = BackgroundModel(campaign)
-    choice = model.sunlit_earth.choice
+    choice = model.earthshine_choice
     skip = unobservable_samples(campaign) == "skip"
     compute_s = cube_compute_seconds(
         n, n_eval, choice["method"], skip, seconds_per_evaluated_sample, speed_factor

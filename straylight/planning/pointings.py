@@ -18,6 +18,12 @@ from pathlib import Path
 import numpy as np
 
 from straylight.errors import InputError
+from straylight.model.result import (
+    TABLE_VIOLATION_BITS,
+    VIOLATIONS_DESCRIPTION,
+    violation_mask,
+    violation_text,
+)
 
 __all__ = [
     "ALIASES",
@@ -29,6 +35,11 @@ __all__ = [
     "UNITS",
     "column_units",
     "background_table",
+    "with_limits",
+    "TABLE_VIOLATION_BITS",
+    "VIOLATIONS_DESCRIPTION",
+    "violation_mask",
+    "violation_text",
 ]
 
 
@@ -207,7 +218,7 @@ def pointing_table(
         range.
     """
     t_all, iso = _checked_times(pointings, source)
-    return _evaluate(campaign, pointings, t_all, iso, bands, stars, batch, models, model)[0]
+    return _columns(_evaluate(campaign, pointings, t_all, bands, stars, batch, models, model)[0], iso)
 
 
 def _checked_times(pointings: dict, source: str):
@@ -247,24 +258,75 @@ def pointing_chunks(
     generator of (row slice, columns of those rows), so that a caller writing or copying each
     chunk holds one chunk's work at a time.  The times are parsed and checked first, for all
     rows; the model is built (or ``model()`` called) once.  Each chunk's columns equal those
-    rows of one :func:`pointing_table` (every step is per sample or per distinct time)."""
+    rows of one :func:`pointing_table` (every step is per sample or per distinct time).
+
+    Parameters
+    ----------
+    campaign, pointings, bands, stars, source, models, model
+        As :func:`pointing_table`.
+    chunk_rows : int, optional
+        Rows per chunk (0: all at once).
+
+    Yields
+    ------
+    slice, dict
+        The chunk's rows and its columns (:func:`pointing_table`'s).
+    """
     t_all, iso = _checked_times(pointings, source)
+    for sl, result in _result_chunks(campaign, pointings, t_all, bands, stars, chunk_rows, models, model):
+        yield sl, _columns(result, iso)
+
+
+def _result_chunks(campaign, pointings, t_all, bands, stars, chunk_rows, models, model):
+    """(row slice, :class:`~straylight.model.result.BackgroundResult` of those rows), ``chunk_rows``
+    rows at a time (0: all at once), for times already parsed and checked."""
     n = len(t_all)
     step = n if chunk_rows <= 0 else int(chunk_rows)
     for a in range(0, n, max(step, 1)):
         sl = slice(a, min(a + step, n))
-        part = {"time": t_all[sl], "ra": pointings["ra"][sl], "dec": pointings["dec"][sl]}
-        cols, model = _evaluate(campaign, part, t_all[sl], iso, bands, stars, 8192, models, model)
+        part = {"ra": pointings["ra"][sl], "dec": pointings["dec"][sl]}
+        result, model = _evaluate(campaign, part, t_all[sl], bands, stars, 8192, models, model)
         models = None  # recorded by the first chunk; its model serves the later ones
-        yield sl, cols
+        yield sl, result
 
 
-def _evaluate(campaign, pointings, t_all, iso, bands, stars, batch, models, model) -> tuple:
-    """(:func:`pointing_table`'s columns, the model used) for times already parsed and checked
-    (``iso``: give them as text)."""
+def _columns(result, iso: bool) -> dict:
+    """:func:`pointing_table`'s columns of a result (``iso``: its times as UTC ISO text; else the
+    Time as given)."""
+    cols = {"time": np.asarray(result.time.isot, dtype=object) if iso else result.time}
+    cols.update(result.columns())
+    return cols
+
+
+def with_limits(result, campaign):
+    """The result with each band's 5-sigma point-source limit at its total (every band but V).
+
+    Parameters
+    ----------
+    result : BackgroundResult
+        The background at the samples.
+    campaign : straylight.config.campaign.Campaign
+        Loaded campaign (the survey exposures, the instrument).
+
+    Returns
+    -------
+    BackgroundResult
+        With ``limits``: band -> AB mag (n,).
+    """
+    from dataclasses import replace
+
     from straylight.limits.point_source import point_source_limit
-    from straylight.model import BackgroundModel, registry
-    from straylight.model.pointing import background_at
+
+    limits = {b: point_source_limit(result.rates[b]["total"], b, campaign) for b in result.bands if b != "V"}
+    return replace(result, limits=limits)
+
+
+def _evaluate(campaign, pointings, t_all, bands, stars, batch, models, model) -> tuple:
+    """(the :class:`~straylight.model.result.BackgroundResult` at the pointings, with their
+    times, pointing and limits; the model used) for times already parsed and checked."""
+    from straylight.model import BackgroundModel
+    from straylight.model.pointing import background_result
+    from straylight.model.result import BackgroundResult
     from straylight.sky.observing import scene
     from straylight.sky.vectors import radec_to_unit
 
@@ -278,55 +340,14 @@ def _evaluate(campaign, pointings, t_all, iso, bands, stars, batch, models, mode
     model = BackgroundModel(campaign) if model is None else model() if callable(model) else model
     if models is not None:
         models.update(model.models_record())
-    n = len(t_all)
-    # a table's times as UTC ISO text (offsets resolved); the API's stay a Time (its table converts them)
-    cols: dict = {
-        "time": np.asarray(t_all.isot, dtype=object) if iso else t_all,
-        "ra_deg": pointings["ra"],
-        "dec_deg": pointings["dec"],
-    }
-    geo_keys = (
-        "observable",
-        "violations",
-        "sun_angle_deg",
-        "moon_angle_deg",
-        "moon_illuminated_fraction",
-        "earth_limb_angle_deg",
-        "limb_is_bright",
-        "door_opening_deg",
-    )
-    acc = {k: [] for k in geo_keys + ("planet_in_field", "planet_in_field_v_mag")}
-    components = registry.component_names(total=True)
-    acc.update({f"{c}_{b}": [] for b in bands for c in components})
-    acc.update({f"total_mag_per_arcsec2_{b}": [] for b in bands})
-    for a in range(0, n, batch):
-        sl = slice(a, min(a + batch, n))
-        at = inverse[sl]
+    parts = []
+    for a in range(0, len(t_all), batch):
+        sl = slice(a, min(a + batch, len(t_all)))
         los = np.atleast_2d(radec_to_unit(pointings["ra"][sl], pointings["dec"][sl]))
-        g, res = background_at(
-            model, distinct.satellite_km, distinct.bodies_km, los, bands, scene_index=at, stars=stars
-        )
-        sat, bodies_km = distinct.satellite_km[at], {k: v[at] for k, v in distinct.bodies_km.items()}
-        for k in geo_keys:
-            acc[k].append(np.asarray(g[k]))
-        # the brightest Sun, Moon or planet inside the field (a point source, not in the background)
-        bodies = model.in_field.find(sat, bodies_km, los, g, [])
-        v_in = np.stack([np.where(v["in_field"], v["v_mag"], np.inf) for v in bodies.values()])
-        brightest = np.argmin(v_in, axis=0)
-        names = np.array(list(bodies), dtype=object)
-        found = np.isfinite(np.min(v_in, axis=0))
-        acc["planet_in_field"].append(np.where(found, names[brightest], ""))
-        acc["planet_in_field_v_mag"].append(np.where(found, np.min(v_in, axis=0), np.nan))
-        for b in bands:
-            for c in components:
-                acc[f"{c}_{b}"].append(np.asarray(res[b][c], float))
-            acc[f"total_mag_per_arcsec2_{b}"].append(np.asarray(res[b]["_mag"](res[b]["total"]), float))
-    for k, v in acc.items():
-        cols[k] = np.concatenate(v)
-    for b in bands:
-        if b != "V":
-            cols[f"limit_mag_{b}"] = point_source_limit(cols[f"total_{b}"], b, campaign)
-    return cols, model
+        # the brightest Sun, Moon or planet inside the field: a point source, not in the background
+        parts.append(background_result(model, distinct, los, bands, inverse[sl], stars, in_field_bands=[]))
+    result = with_limits(BackgroundResult.concatenate(parts), campaign)
+    return result.at(t_all, pointings["ra"], pointings["dec"]), model
 
 
 def _distinct_times(jd1: np.ndarray, jd2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -439,19 +460,19 @@ def background_table(
     InputError
         As :func:`pointing_table`.
     """
-    from straylight.limits.point_source import sky_zero_points
+    from dataclasses import replace
 
     models: dict = {}
-    zero_points = sky_zero_points(campaign, bands)
     ra = np.asarray(ra_deg, float)
     if ra.size and not (np.min(ra) >= 0.0 and np.max(ra) < 360.0):  # else no copy: x % 360 == x there
         ra = ra % 360.0
     pointings = {"time": t, "ra": ra, "dec": np.asarray(dec_deg, float)}
     chunk_rows = CHUNK_ROWS if chunk_rows is None else chunk_rows
     out, n = None, len(t)
-    for sl, cols in pointing_chunks(campaign, pointings, bands, stars, chunk_rows, source, models, model):
-        part = pointing_qtable(cols, t[sl], bands, zero_points, models)
-        del cols
+    t_all, _ = _checked_times(pointings, source)
+    for sl, result in _result_chunks(campaign, pointings, t_all, bands, stars, chunk_rows, models, model):
+        part = replace(result, time=t[sl]).to_table(models)
+        del result
         if columns is not None:
             part = part[list(columns)]  # in the order asked for
         if out is None:
@@ -497,99 +518,3 @@ def _copy_rows(out, part, sl: slice) -> None:
             out.replace_column(name, np.asarray(dest).astype(col.dtype))
             dest = out[name]
         dest[sl] = col
-
-
-def _table_violation_bits() -> dict:
-    from straylight.sky.geometry import VIOLATION_BITS
-
-    return {**VIOLATION_BITS, "door": 1 << len(VIOLATION_BITS)}
-
-
-#: the bits of :func:`straylight.sky_background`'s ``violations`` (uint8): the geometry's
-#: constraints and ``door`` (no allowed state of the aperture door)
-TABLE_VIOLATION_BITS = _table_violation_bits()
-VIOLATIONS_DESCRIPTION = "violated constraints, bit mask (0: observable): " + ", ".join(
-    f"{k}={v}" for k, v in TABLE_VIOLATION_BITS.items()
-)
-
-
-def violation_mask(flags, door_opening_deg) -> np.ndarray:
-    """The table's ``violations`` (uint8): the geometry's constraint ``flags`` with the ``door``
-    bit set where ``door_opening_deg`` is 0 (no allowed door state)."""
-    door = np.where(np.asarray(door_opening_deg) > 0, 0, TABLE_VIOLATION_BITS["door"])
-    return (np.asarray(flags, np.uint8) | door.astype(np.uint8)).astype(np.uint8, copy=False)
-
-
-def violation_text(mask) -> np.ndarray:
-    """The violated constraints' names, comma-separated ("" when none), of each ``violations``
-    bit mask of :func:`straylight.sky_background`'s table (the names once per distinct mask)."""
-    mask = np.asarray(mask, np.int64)
-    keys, inverse = np.unique(mask.ravel(), return_inverse=True)
-    names = [",".join(k for k, bit in TABLE_VIOLATION_BITS.items() if int(key) & bit) for key in keys]
-    return (
-        np.array(names or [""], dtype=str)[inverse].reshape(mask.shape)
-        if mask.size
-        else np.zeros(mask.shape, str)
-    )
-
-
-def pointing_qtable(cols: dict, t, bands, zero_points: dict, models: dict):
-    """The pointing table's columns as a QTable with units (see :func:`straylight.sky_background`)."""
-    import astropy.units as u
-    from astropy.table import QTable
-    from astropy.time import Time
-
-    rate, surf = _units()
-    mask = violation_mask(cols["violations"], cols["door_opening_deg"])
-    # the columns made first and the table once (adding them one by one costs more than computing them)
-    columns = {
-        "time": Time(t, format="isot", precision=3),
-        "ra": u.Quantity(np.asarray(cols["ra_deg"], float), u.deg),
-        "dec": u.Quantity(np.asarray(cols["dec_deg"], float), u.deg),
-        "observable": np.asarray(cols["observable"], bool),
-        "violations": mask,
-    }
-    formats = {}
-    for name in ("sun_angle", "moon_angle", "earth_limb_angle", "door_opening"):
-        columns[name] = u.Quantity(np.asarray(cols[f"{name}_deg"], float), u.deg)
-        formats[name] = ".3f"
-    from straylight.model import registry
-
-    descriptions, components, long_name = {}, registry.component_names(total=True), registry.long_names()
-    descriptions["violations"] = VIOLATIONS_DESCRIPTION
-    for b in bands:
-        for c in components:
-            columns[f"{c}_{b}"] = u.Quantity(np.asarray(cols[f"{c}_{b}"], float), rate)
-            formats[f"{c}_{b}"] = ".3g"
-            descriptions[f"{c}_{b}"] = f"{long_name[c]}, band {b}"
-        for c in components:
-            with np.errstate(divide="ignore", invalid="ignore"):
-                columns[f"{c}_mag_{b}"] = u.Quantity(
-                    zero_points[b] - 2.5 * np.log10(np.asarray(cols[f"{c}_{b}"], float)), surf
-                )
-            formats[f"{c}_mag_{b}"] = ".3f"
-        if f"limit_mag_{b}" in cols:
-            columns[f"limit_mag_{b}"] = u.Quantity(np.asarray(cols[f"limit_mag_{b}"], float), u.mag)
-            formats[f"limit_mag_{b}"] = ".3f"
-            descriptions[f"limit_mag_{b}"] = "5-sigma point-source limit, AB, survey exposures"
-    out = QTable(
-        columns,
-        copy=False,
-        meta={
-            "mag_zero_point": {b: zero_points[b] * surf for b in bands},
-            "violation_bits": dict(TABLE_VIOLATION_BITS),
-            "models": models,
-        },
-    )
-    for name, f in formats.items():
-        out[name].info.format = f
-    for name, d in descriptions.items():
-        out[name].info.description = d
-    return out
-
-
-def _units():
-    import astropy.units as u
-
-    rate = u.electron / (u.s * u.pix)
-    return rate, u.mag / u.arcsec**2

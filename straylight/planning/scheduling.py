@@ -38,7 +38,7 @@ __all__ = [
 
 def _pst_max_over_phi(model: BackgroundModel, theta_deg: np.ndarray) -> np.ndarray:
     phi = np.linspace(0.0, 360.0, 145)
-    return model.context.offfield.pst(np.asarray(theta_deg)[:, None], phi[None, :]).max(axis=1)
+    return model.offfield.pst(np.asarray(theta_deg)[:, None], phi[None, :]).max(axis=1)
 
 
 def moon_avoidance_table(
@@ -68,16 +68,16 @@ def moon_avoidance_table(
     theta = np.arange(0.0, 180.0 + theta_step_deg / 2, theta_step_deg)
     transfer = (
         _pst_max_over_phi(model, theta)
-        * model.context.offfield.pixel_area_m2
-        * (theta > model.context.offfield.field_radius_deg)
+        * model.offfield.pixel_area_m2
+        * (theta > model.offfield.field_radius_deg)
     )
     out = {"phase_angle_deg": phases, "illuminated_fraction": (1 + np.cos(np.radians(phases))) / 2}
     v = moon_v_magnitude(
-        phases, np.full(phases.size, MOON_MEAN_DISTANCE_KM), model.context.offfield.moon_law, 180.0 - phases
+        phases, np.full(phases.size, MOON_MEAN_DISTANCE_KM), model.offfield.moon_law, 180.0 - phases
     )
     for b in model.campaign.bands:
-        limit = fraction * model.context.darkest_zodiacal_e_per_s(b)
-        irr = model.context.photometry(b).solar_like_from_v(v)  # photons s-1 m-2
+        limit = fraction * model.darkest_zodiacal_e_per_s(b)
+        irr = model.photometry(b).solar_like_from_v(v)  # photons s-1 m-2
         rate = irr[:, None] * transfer[None, :]  # (phase, theta)
         # the smallest angle beyond which the Moon stays below the limit at every larger angle
         above = rate > limit
@@ -123,13 +123,9 @@ def bright_limb_table(
         ``sun_zenith_deg`` (deg) and, per band, ``min_limb_elevation_deg_<band>`` (deg above
         the limb; inf and NaN as above).
     """
-    from straylight.sources.earthshine.sunlit_build import sun_coefficients_direct
-
     c: Campaign = model.campaign
-    off = model.sunlit_earth.engine.grid
-    re_km = c.earth.radius_km
     r = 0.5 * sum(c.orbit_radius_range_km)
-    limb_zeta = 90.0 + np.degrees(np.arccos(re_km / r))
+    limb_zeta = 90.0 + np.degrees(np.arccos(c.earth.radius_km / r))
     zs = np.concatenate(
         [
             np.arange(0.0, 90.0 - 1e-9, sun_zenith_step_deg),
@@ -140,58 +136,59 @@ def bright_limb_table(
     h = np.arange(0.0, 90.0 + elevation_step_deg / 2, elevation_step_deg)
     Z, A, H = np.meshgrid(zs, az, h, indexing="ij")
     L = limb_zeta - H
-    # angle between the line of sight and the Sun (both from the local vertical)
+    door = _door_opening_deg(_sun_angle_deg(Z, L, A), c.constraints)
+    coeff = model.sunlit_earth_coefficients(r, Z, L, A, door)  # NaN: no door state allowed
+    out = {"sun_zenith_deg": zs}
+    albedo = model.earth_band_factors(c.bands)  # the Earth's band albedo / grey
+    for ib, b in enumerate(c.bands):
+        limit = fraction * model.darkest_zodiacal_e_per_s(b)
+        rate = coeff * model.photometry(b).sun_at_1au_photons_s_m2  # e-/s/pix, Sun at 1 AU
+        rate = rate if albedo is None else rate * float(albedo[ib])
+        out[f"min_limb_elevation_deg_{b}"] = _lowest_clear_elevation(rate, limit, ~np.isnan(coeff), h)
+    return out
+
+
+def _sun_angle_deg(Z, L, A):
+    """The angle between the line of sight and the Sun, deg, from their zenith angles ``Z``
+    (Sun), ``L`` (line of sight) and the azimuth ``A`` between them (deg)."""
     cos_sun = np.cos(np.radians(Z)) * np.cos(np.radians(L)) + np.sin(np.radians(Z)) * np.sin(
         np.radians(L)
     ) * np.cos(np.radians(A))
-    sun_angle = np.degrees(np.arccos(np.clip(cos_sun, -1, 1)))
-    cons = c.constraints
-    door = np.zeros(Z.shape)
-    for st in sorted(cons.door_states, key=lambda s: s.sun_angle_min_deg):
+    return np.degrees(np.arccos(np.clip(cos_sun, -1, 1)))
+
+
+def _door_opening_deg(sun_angle, constraints):
+    """The door's opening (deg; 0: no state allowed) at each Sun angle (deg)."""
+    door = np.zeros(sun_angle.shape)
+    for st in sorted(constraints.door_states, key=lambda s: s.sun_angle_min_deg):
         ok = (sun_angle >= st.sun_angle_min_deg) if st.min_inclusive else (sun_angle > st.sun_angle_min_deg)
         door = np.where(ok, st.opening_deg, door)
-    coeff = np.full(Z.shape, np.nan)
-    for st in off.door_states_deg:
-        sel = door == st
-        if sel.any():
-            d, g = sun_coefficients_direct(
-                off,
-                np.full(sel.sum(), r),
-                np.radians(Z[sel]),
-                np.radians(L[sel]),
-                np.radians(A[sel]),
-                st,
-                re_km,
-            )
-            coeff[sel] = d + g
-    out = {"sun_zenith_deg": zs}
-    from straylight.sources.earthshine.albedo import earth_band_factors
+    return door
 
-    albedo = earth_band_factors(model.context, tuple(c.bands))  # the Earth's band albedo / grey
-    for ib, b in enumerate(c.bands):
-        limit = fraction * model.context.darkest_zodiacal_e_per_s(b)
-        rate = coeff * model.context.photometry(b).sun_at_1au_photons_s_m2  # e-/s/pix, Sun at 1 AU
-        rate = rate if albedo is None else rate * float(albedo[ib])
-        bad = ~(rate <= limit)  # too bright, or not allowed (NaN)
-        allowed = ~np.isnan(coeff)
-        need = np.full(zs.size, np.nan)
-        for i in range(zs.size):
-            worst = 0.0
-            for j in range(az.size):
-                if not allowed[i, j].any():
-                    continue
-                # the lowest allowed elevation from which every allowed, higher line of sight stays
-                # below the limit (inf: none within 90 deg of the limb).  The node above the last
-                # bright one can lie inside the Sun's avoidance cone: that is no answer (with the
-                # Sun overhead the cone starts 50 deg from the zenith, and every allowed line of
-                # sight below it is too bright).
-                k = np.flatnonzero(bad[i, j] & allowed[i, j])
-                if k.size:
-                    above = k[-1] + 1 + np.flatnonzero(allowed[i, j, k[-1] + 1 :])
-                    worst = max(worst, h[above[0]] if above.size else np.inf)
-            need[i] = worst if allowed[i].any() else np.nan
-        out[f"min_limb_elevation_deg_{b}"] = need
-    return out
+
+def _lowest_clear_elevation(rate, limit, allowed, h):
+    """Per Sun zenith (first axis of ``rate`` (zenith, azimuth, elevation), e-/s/pix): the
+    lowest allowed elevation (``h``, deg) from which every allowed, higher line of sight stays
+    below ``limit``, worst case over azimuth; inf where none within 90 deg of the limb, NaN
+    where no line of sight is allowed."""
+    bad = ~(rate <= limit)  # too bright, or not allowed (NaN)
+    need = np.full(rate.shape[0], np.nan)
+    for i in range(rate.shape[0]):
+        worst = 0.0
+        for j in range(rate.shape[1]):
+            if not allowed[i, j].any():
+                continue
+            # the lowest allowed elevation from which every allowed, higher line of sight stays
+            # below the limit (inf: none within 90 deg of the limb).  The node above the last
+            # bright one can lie inside the Sun's avoidance cone: that is no answer (with the
+            # Sun overhead the cone starts 50 deg from the zenith, and every allowed line of
+            # sight below it is too bright).
+            k = np.flatnonzero(bad[i, j] & allowed[i, j])
+            if k.size:
+                above = k[-1] + 1 + np.flatnonzero(allowed[i, j, k[-1] + 1 :])
+                worst = max(worst, h[above[0]] if above.size else np.inf)
+        need[i] = worst if allowed[i].any() else np.nan
+    return need
 
 
 def exposure_time_factor(
@@ -252,7 +249,7 @@ def exposure_factor_table(model: BackgroundModel, ratios=(0.0, 0.01, 0.03, 0.1, 
     r = np.asarray(ratios, float)
     out = {"stray_to_zodiacal_ratio": r}
     for b in model.campaign.bands:
-        z = model.context.darkest_zodiacal_e_per_s(b)
+        z = model.darkest_zodiacal_e_per_s(b)
         out[f"exposure_time_factor_{b}"] = exposure_time_factor(r * z, z, b, model.campaign)
     return out
 

@@ -94,7 +94,8 @@ def visibility(
     """
     from astropy.table import QTable
 
-    from straylight.planning.pointings import background_table, violation_text
+    from straylight.model.result import violation_text
+    from straylight.planning.pointings import background_table
 
     t0, t, offset_s = time_grid(campaign, band, start, end, step_s)
     n = len(t)

@@ -576,13 +576,13 @@ def test_plan_costs_the_model_that_runs(campaign, tmp_path, monkeypatch):
     week_model = comp.BackgroundModel(
         _campaign_with(campaign, {**WEEKS, "models": {"unobservable_samples": "evaluate"}})
     )
-    week_model.sunlit_earth.lut_path().write_bytes(b"")  # only its existence is checked
+    week_model.source("sunlit_earth").lut_path().write_bytes(b"")  # only its existence is checked
     one_left = week("evaluate")
     assert not one_left["table_cached"]
     assert one_left["table_build_seconds"] == pytest.approx(
         moonlit_s + (sets - 1) * (sunlit_s + moonlit_s), rel=1e-12
     )
-    week_model.moonlit_earth.lut_path().write_bytes(b"")
+    week_model.source("moonlit_earth").lut_path().write_bytes(b"")
     for t in week("evaluate")["tables"]:  # the members' too
         t["path"].write_bytes(b"")
     assert week("evaluate")["table_cached"] and week("evaluate")["table_build_seconds"] == 0.0

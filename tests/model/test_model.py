@@ -64,3 +64,23 @@ def test_auto_takes_the_table(campaign):
 def test_tolerance_is_read_from_the_campaign(campaign):
     tight = campaign_from_dict(deep_merge(campaign.config, {"models": {"tolerance": 0.002}}), campaign.path)
     assert FidelityPolicy(tight).budget("stars_skip") == pytest.approx(0.125 * 0.002, rel=1e-12)
+
+
+def test_the_model_has_no_getattr_and_answers_through_its_own_methods(campaign):
+    """No ``__getattr__``: a source is reached only by ``model.source(name)``, and what callers
+    need of the instrument and the tables comes from the model's own methods, equal to the
+    sources' values (the same objects, or the same numbers to the bit)."""
+    assert "__getattr__" not in vars(BackgroundModel)
+    model = BackgroundModel(campaign)
+    with pytest.raises(AttributeError):
+        model.stars  # noqa: B018
+    engine = model.source("sunlit_earth").engine
+    assert model.earth_grid is engine.grid
+    assert model.earthshine_choice["method"] == "lut"
+    paths = model.table_paths()
+    assert paths["sunlit"] == model.source("sunlit_earth").lut_path()
+    assert paths["moonlit"] == model.source("moonlit_earth").lut_path()
+    assert model.offfield is model.context.offfield
+    for b in campaign.bands:
+        assert model.darkest_zodiacal_e_per_s(b) == model.context.darkest_zodiacal_e_per_s(b) > 0
+        assert model.photometry(b).sun_at_1au_photons_s_m2 > 0

@@ -241,7 +241,7 @@ stars = StarTable(np.zeros(0), np.zeros(0), {}, faint_ra_deg=rng.uniform(0, 360,
                   faint_mag_ab={b: rng.uniform(6, 12, n) for b in BANDS})
 los = rng.normal(size=(602, 3))
 los /= np.linalg.norm(los, axis=1)[:, None]
-res = BackgroundModel(load_campaign()).stars.faint_star_rates(stars, los, list(BANDS))
+res = BackgroundModel(load_campaign()).source("stars").faint_star_rates(stars, los, list(BANDS))
 np.save(sys.argv[1], np.stack([res[b] for b in BANDS]))
 """
 

@@ -95,7 +95,7 @@ def _rotated_scene_rate(campaign, model, sun_zenith_deg: float, elevation_deg: f
     los = np.cos(zeta) * up + np.sin(zeta) * (np.cos(az) * east + np.sin(az) * north)
     bodies = {"sun": sun[None], "moon": (-1e6 * up)[None]}
     g = observing_geometry(sat[None], bodies, los[None], re, campaign.constraints)
-    c = model.sunlit_earth.engine.grid.earthshine_coefficients(
+    c = model.earth_grid.earthshine_coefficients(
         Bodies(sat[None], sun[None], bodies["moon"]),
         telescope_frame(los[None], sun[None] - sat[None]),
         g["door_opening_deg"],

@@ -38,7 +38,7 @@ def _totals(campaign, samples, grid=None, split=None, tail=None):
     """Each band's total (e-/s/pix) at the samples, the earthshine summed directly on the
     default grid or ``grid`` (n_gamma, n_psi), with ``split`` and the PST's ``tail``."""
     cm = BackgroundModel(campaign)
-    off = cm.sunlit_earth.engine.grid
+    off = cm.earth_grid
     es = off.earthshine
     if grid is not None:
         es = replace(es, n_gamma=grid[0], n_psi=grid[1])
@@ -47,7 +47,7 @@ def _totals(campaign, samples, grid=None, split=None, tail=None):
     pst = off.pst if tail is None else load_pst(None, off.field_radius_deg, tail)
     transfer = replace(off.transfer, pst=pst)
     cm.context.__dict__["offfield"] = transfer  # before any source reads them
-    cm.sunlit_earth.engine.__dict__["grid"] = replace(off, transfer=transfer, earthshine=es)
+    cm.source("sunlit_earth").engine.__dict__["grid"] = replace(off, transfer=transfer, earthshine=es)
     sat, bodies, los, g = samples
     r = cm.evaluate(sat, bodies, los, g, list(campaign.bands))
     return np.array([r[b]["total"] for b in campaign.bands])

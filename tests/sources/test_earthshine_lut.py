@@ -34,14 +34,14 @@ def _campaign(campaign, **earthshine):
 def coarse(campaign):
     c = _campaign(campaign, method="lut", lut=COARSE)
     cm = BackgroundModel(c)
-    return c, cm, cm.sunlit_earth.model
+    return c, cm, cm.source("sunlit_earth").model
 
 
 def test_table_reproduces_the_direct_sum_at_its_nodes(coarse):
     """At a node the table returns the direct sum it stored (to the asinh round trip)."""
     c, cm, info = coarse
     lut = info["lut"]
-    off = cm.sunlit_earth.engine.grid
+    off = cm.earth_grid
     r = lut.radius_km[0]
     iz, il, ia = 7, 10, 4
     z, l_, a = np.radians([lut.sun_zenith_deg[iz], lut.los_zenith_deg[il], lut.azimuth_deg[ia]])
@@ -73,7 +73,7 @@ def test_rotation_about_the_vertical_changes_nothing(coarse):
     r, zs, zl, a = lut.coordinates(sat, sun, los)
     from straylight.sources.earthshine.sunlit_build import sun_coefficients_direct
 
-    off = cm.sunlit_earth.engine.grid
+    off = cm.earth_grid
     door = g["door_opening_deg"][obs]
     frame = telescope_frame(los, sun - sat)
     real = off.earthshine_coefficients(
@@ -193,7 +193,7 @@ def test_moonlit_bound_holds(coarse):
     sc, los, g = random_samples(c, 1500, seed=4)
     sat, sun, moon = sc.satellite_km, sc.bodies_km["sun"], sc.bodies_km["moon"]
     frame = telescope_frame(los, sun - sat)
-    co = cm.sunlit_earth.engine.grid.earthshine_coefficients(
+    co = cm.earth_grid.earthshine_coefficients(
         Bodies(sat, sun, moon), frame, g["door_opening_deg"], c.earth.radius_km, in_field=False
     )
     bound = info["lut"].moon_bound(sat, moon, los, c.earth.radius_km)
@@ -222,17 +222,17 @@ def test_cap_bound_holds_for_any_line_of_sight(coarse):
             np.arccos(np.clip(np.sum(los * (sun - sat), axis=1) / np.linalg.norm(sun - sat, axis=1), -1, 1))
         )
     )
-    co = cm.sunlit_earth.engine.grid.earthshine_coefficients(
+    co = cm.earth_grid.earthshine_coefficients(
         Bodies(sat, sun, moon),
         frame,
         door,
         c.earth.radius_km,
         in_field=False,
         sun=False,
-        grid=cm.moonlit_earth.grid,
+        grid=cm.source("moonlit_earth").grid,
     )
     bound = (
-        cm.sunlit_earth.engine.grid.earthshine_cap_bound(sat, c.earth.radius_km, cm.moonlit_earth.grid)
+        cm.earth_grid.earthshine_cap_bound(sat, c.earth.radius_km, cm.source("moonlit_earth").grid)
         + info["lut"].moon_door_bound
     )
     assert np.all(np.isfinite(bound)) and into.sum() > 400
@@ -291,7 +291,7 @@ def test_save_load_round_trip_and_cache_key(coarse, tmp_path, campaign):
     for s in lut.direct:
         assert np.array_equal(back.direct[s], lut.direct[s]) and np.array_equal(back.door[s], lut.door[s])
     assert back.validation_max_rel_error == lut.validation_max_rel_error
-    off = cm.sunlit_earth.engine.grid
+    off = cm.earth_grid
     k = lut_key(off, 6378.137, (6778.137, 6778.137), LUTSettings(5, 5, 20), 1e-20)
     assert k != lut_key(off, 6378.137, (6778.137, 6778.137), LUTSettings(5, 5, 10), 1e-20)
     from dataclasses import replace
@@ -344,11 +344,11 @@ def test_parallel_build_gives_the_same_table(coarse):
     c, cm, info = coarse
     k = c.constraints
     args = (
-        cm.sunlit_earth.engine.grid,
+        cm.earth_grid,
         c.earth.radius_km,
         c.orbit_radius_range_km,
         LUTSettings(**COARSE),
-        cm.sunlit_earth.engine.floor,
+        cm.source("sunlit_earth").engine.floor,
     )
     kw = {"avoidance_deg": (k.dark_limb_min_deg, k.bright_limb_min_deg, k.sun_min_deg)}
     two = build_earthshine_lut(*args, **kw, workers=2)
@@ -363,14 +363,14 @@ def test_automatic_choice(coarse, campaign):
     """auto takes the table for one pointing as for a survey, unless the table's validated error
     exceeds its share of the tolerance (then the direct sum, with the reason)."""
     c, _, _ = coarse
-    coarse_auto = BackgroundModel(_campaign(campaign, method="auto", lut=COARSE)).sunlit_earth.model
+    coarse_auto = BackgroundModel(_campaign(campaign, method="auto", lut=COARSE)).source("sunlit_earth").model
     assert (
         coarse_auto["method"] == "direct" and "> 0.5 x the tolerance" in coarse_auto["reason"]
     )  # too coarse for 1 %
     raw = copy.deepcopy(c.config)
     raw["models"]["tolerance"] = 1.0
     raw["models"]["earthshine"]["method"] = "auto"
-    loose = BackgroundModel(campaign_from_dict(raw, c.path)).sunlit_earth.model
+    loose = BackgroundModel(campaign_from_dict(raw, c.path)).source("sunlit_earth").model
     assert loose["method"] == "lut"
 
 
@@ -384,11 +384,11 @@ def test_build_estimate_counts_both_tables(coarse):
     raw["models"]["earthshine"]["method"] = "auto"
     model = BackgroundModel(campaign_from_dict(raw, c.path))
     settings = LUTSettings(**COARSE)
-    n_nodes = model.sunlit_earth.node_states(settings)
+    n_nodes = model.source("sunlit_earth").node_states(settings)
     # the coarse table's nodes (LUTSettings.nodes: 18 Sun zenith x 36 line-of-sight zenith, 29 at
     # the coarse step and 7 over the rise above the aperture plane, x 10 azimuth) x 2 door states
     assert n_nodes == 18 * 36 * 10 * 2
-    moonlit_nodes = model.moonlit_earth.node_states()
+    moonlit_nodes = model.source("moonlit_earth").node_states()
     assert moonlit_nodes > 0
     both, moonlit = model.policy.tables_build_seconds(n_nodes, moonlit_nodes)
     assert moonlit == pytest.approx(lut_mod.MOONLIT_LUT_BUILD_SECONDS_PER_NODE * moonlit_nodes, rel=1e-12)
@@ -416,7 +416,7 @@ def test_lut_path_agrees_with_direct_within_its_validated_error(coarse, campaign
 @pytest.fixture(scope="module")
 def moonlit(coarse):
     c, cm, _ = coarse
-    info = cm.moonlit_earth.model
+    info = cm.source("moonlit_earth").model
     assert info["method"] == "lut", info.get("reason")
     return c, cm, info["lut"]
 
@@ -429,7 +429,7 @@ def test_moonlit_table_reproduces_the_coarse_sum_at_its_nodes(moonlit):
     from straylight.sources.earthshine.moonlit_build import _moonlit_scene
 
     c, cm, lut = moonlit
-    off = cm.sunlit_earth.engine.grid
+    off = cm.earth_grid
     r = np.array([np.mean(c.orbit_radius_range_km)])
     for iz, il, ia, ip in ((3, 5, 2, 4), (8, 12, 9, 17), (1, 20, 15, 11)):
         node = [
@@ -451,7 +451,7 @@ def test_moonlit_table_reproduces_the_coarse_sum_at_its_nodes(moonlit):
                 c.earth.radius_km,
                 in_field=False,
                 sun=False,
-                grid=cm.moonlit_earth.grid,
+                grid=cm.source("moonlit_earth").grid,
             )
             assert d[0] == pytest.approx(ref["direct_moon"][0], rel=1e-9, abs=1e-40)
             assert g[0] == pytest.approx(ref["door_moon"][0], rel=1e-9, abs=1e-40)
@@ -475,19 +475,19 @@ def test_moonlit_table_matches_the_coarse_sum_in_real_scenes(moonlit):
     sat, sun, moon = sc.satellite_km[obs], sc.bodies_km["sun"][obs], sc.bodies_km["moon"][obs]
     frame = telescope_frame(los[obs], sun - sat)
     door = g["door_opening_deg"][obs]
-    ref = cm.sunlit_earth.engine.grid.earthshine_coefficients(
+    ref = cm.earth_grid.earthshine_coefficients(
         Bodies(sat, sun, moon),
         frame,
         door,
         c.earth.radius_km,
         in_field=False,
         sun=False,
-        grid=cm.moonlit_earth.grid,
+        grid=cm.source("moonlit_earth").grid,
     )
     d, gd = lut.coefficients(sat, moon, frame, door)
     moon_max = solar_like_fraction(moon_v_magnitude(0.0, MOON_PERIGEE_KM))
     direct = ref["direct_moon"] + ref["door_moon"]
-    err = np.abs(d + gd - direct) * moon_max / (direct * moon_max + cm.sunlit_earth.engine.floor)
+    err = np.abs(d + gd - direct) * moon_max / (direct * moon_max + cm.source("sunlit_earth").engine.floor)
     share = ERROR_BUDGET_SHARES["moonlit_earthshine_grid"] * cm.policy.tolerance
     print(
         f"moonlit table vs coarse sum at {obs.size} observable samples: {err.max():.2e} (validated "

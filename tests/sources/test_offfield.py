@@ -357,7 +357,7 @@ def _star_skip_check(model, stars, frame, sat, door, floor_ratio, pairs):
     skipped = counts.copy()
     skipped[r, k] = False
     budget = ERROR_BUDGET_SHARES["stars_skip"] * model.policy.tolerance * floor_ratio
-    bound = model.stars.bound_scale(stars)[None] * model.context.offfield.pst.tail_max(theta)
+    bound = model.source("stars").bound_scale(stars)[None] * model.context.offfield.pst.tail_max(theta)
     used = np.sum(np.where(skipped, bound, 0.0), axis=1) / budget
     assert used.max() <= 1.0
     transfer = model.context.offfield.point_source(1.0, theta, phi, False, door[:, None])
@@ -420,7 +420,7 @@ def test_star_sky_cells_skip_within_the_budget_at_every_line_of_sight(
     door = rng.choice(comp_model.context.offfield.door_states_deg, n)
     floor_ratio = 10.0 ** rng.uniform(0.0, 7.5, n)  # every level, 1 to 4^11 and beyond
     floor_ratio[:100] = 1.0
-    shape, pairs = comp_model.stars.pairs(stars, frame, sat, door, floor_ratio)
+    shape, pairs = comp_model.source("stars").pairs(stars, frame, sat, door, floor_ratio)
     assert shape == (n,)
     used, counting = _star_skip_check(comp_model, stars, frame, sat, door, floor_ratio, pairs)
     # of the 427,474 pairs that count, 482-5682 are summed (nside 64-4); the skipped ones take
@@ -429,9 +429,9 @@ def test_star_sky_cells_skip_within_the_budget_at_every_line_of_sight(
     assert used > 0.2
     monkeypatch.setattr(OffFieldStars, "STAR_CELL_ENTRIES", list_entries)
     stars.__dict__.pop("_cells_cache")
-    cells = comp_model.stars.star_cells(stars)
+    cells = comp_model.source("stars").star_cells(stars)
     assert cells.stars.size <= list_entries
-    _, capped = comp_model.stars.pairs(stars, frame, sat, door, floor_ratio)
+    _, capped = comp_model.source("stars").pairs(stars, frame, sat, door, floor_ratio)
     _star_skip_check(comp_model, stars, frame, sat, door, floor_ratio, capped)
     got, ref = (
         set(zip(capped[0].tolist(), capped[1].tolist())),
@@ -445,7 +445,9 @@ def test_star_sky_cells_skip_within_the_budget_at_every_line_of_sight(
     # the darkest floor: it must be summed (its cell's list reaches it through the cell radius)
     m = 400
     mags = rng.uniform(-1.0, 3.0, m)
-    edge_scale = comp_model.stars.bound_scale(StarTable(np.zeros(m), np.zeros(m), {b: mags for b in bands}))
+    edge_scale = comp_model.source("stars").bound_scale(
+        StarTable(np.zeros(m), np.zeros(m), {b: mags for b in bands})
+    )
     from straylight.model import ERROR_BUDGET_SHARES
 
     limit = ERROR_BUDGET_SHARES["stars_skip"] * comp_model.policy.tolerance / edge_scale
@@ -468,7 +470,7 @@ def test_star_sky_cells_skip_within_the_budget_at_every_line_of_sight(
     sat = np.broadcast_to(-(RE + 400.0) * los[0], (m, 3))  # the Earth behind the first line of sight
     frame = telescope_frame(los, sun - sat)
     door = np.full(m, comp_model.context.offfield.door_states_deg[-1])
-    _, edge_pairs = comp_model.stars.pairs(edge, frame, sat, door, np.ones(m))
+    _, edge_pairs = comp_model.source("stars").pairs(edge, frame, sat, door, np.ones(m))
     _star_skip_check(comp_model, edge, frame, sat, door, np.ones(m), edge_pairs)
     own = edge_pairs[0] == edge_pairs[1]
     assert np.count_nonzero(own) > m / 3  # most constructed pairs count, and are summed
@@ -478,13 +480,13 @@ def test_star_cells_of_an_empty_catalog_and_of_no_candidates(campaign, comp_mode
     """No direct star: no cell has a candidate; a star too faint to reach any line of sight at
     the samples' floor: no pair, and the star term is exactly 0."""
     none = StarTable(np.zeros(0), np.zeros(0), {"g": np.zeros(0)})
-    cells = comp_model.stars.star_cells(none)
+    cells = comp_model.source("stars").star_cells(none)
     assert cells.count.sum() == 0
     faint = StarTable(np.array([10.0]), np.array([0.0]), {"g": np.array([25.0])})
     los = radec_to_unit(np.array([12.0, 40.0]), np.array([0.0, 0.0]))
     sat = np.array([[RE + 400.0, 0.0, 0.0]])
     frame = telescope_frame(los, np.array([0.0, 0.0, AU]) - sat)
-    shape, (r, k, t) = comp_model.stars.pairs(faint, frame, sat, 135.0, np.array([1.0, 1.0]))
+    shape, (r, k, t) = comp_model.source("stars").pairs(faint, frame, sat, 135.0, np.array([1.0, 1.0]))
     assert shape == (2,) and r.size == k.size == t.size == 0
 
 
@@ -622,7 +624,7 @@ def test_planet_angles_only_where_they_can_count_change_no_transfer(campaign, co
                 ["g", "z"],
                 floor_ratio=floor,
             )
-            lazy = comp_model.planets.fraction(
+            lazy = comp_model.source("planets").fraction(
                 sat, {"sun": sun, "venus": venus}, frame, door, ["g", "z"], floor, (n,)
             )
             assert np.array_equal(lazy, rule * frac)
@@ -676,7 +678,7 @@ def test_planets_together_are_the_sum_of_each_planets_per_sample_rule(campaign, 
                     )
                     * fraction
                 )
-            together = comp_model.planets.fraction(sat, bodies, frame, door, bands, floor, (n,))
+            together = comp_model.source("planets").fraction(sat, bodies, frame, door, bands, floor, (n,))
             np.testing.assert_array_equal(together, rule)
             assert 0 < np.count_nonzero(rule) < n
 
@@ -789,7 +791,7 @@ def test_faint_star_map_kept_on_disk_is_read_back_only_for_the_same_inputs(comp_
     ra, dec, mag = rng.uniform(0, 360, n), np.degrees(np.arcsin(rng.uniform(-1, 1, n))), rng.uniform(5, 9, n)
     los = rng.normal(size=(50, 3))
     los /= np.linalg.norm(los, axis=1)[:, None]
-    stars = comp_model.stars
+    stars = comp_model.source("stars")
     assert not stars.faint_star_map_saved(table(mag), los, ["g"])
     first = stars.faint_star_rates(table(mag), los, ["g"], saved=True)["g"]
     assert len(list(tmp_path.glob("faint_star_map_*.npy"))) == 1 and np.all(first > 0)
@@ -839,7 +841,7 @@ def test_direct_plus_faint_map_matches_every_star_summed_directly(campaign, comp
 # -- earthshine --------------------------------------------------------------------------------
 def test_uniform_lambertian_cap_matches_analytic_irradiance(comp_model):
     """Sum of L dOmega cos(gamma) over the cap grid = pi L sin^2(rho) within 0.5 %."""
-    off = comp_model.sunlit_earth.engine.grid
+    off = comp_model.earth_grid
     sat = np.array([RE + 400.0, 0.0, 0.0])
     s = EarthshineSettings(n_gamma=24, n_psi=48)
     d, d_omega, pts = off._cap_grid(sat, RE, s)
@@ -856,7 +858,7 @@ def _earthshine(
 ):
     import copy
 
-    off = copy.copy(comp_model.sunlit_earth.engine.grid)
+    off = copy.copy(comp_model.earth_grid)
     off.earthshine = EarthshineSettings(n_gamma=n_gamma, n_psi=n_psi)
     sat = np.array([[RE + 400.0, 0.0, 0.0]])
     rho = np.degrees(np.arcsin(RE / (RE + 400.0)))
@@ -1020,7 +1022,7 @@ def test_pst_file_formats(tmp_path, fmt):
 
 def test_band_independent_earthshine_equals_per_band(comp_model):
     """Coefficients x irradiance equal the direct per-band evaluation (linearity in the lamps)."""
-    off = comp_model.sunlit_earth.engine.grid
+    off = comp_model.earth_grid
     sat = np.array([[RE + 400.0, 0.0, 0.0]])
     los = np.array([[0.3, 0.9, 0.3]]) / np.linalg.norm([0.3, 0.9, 0.3])
     sun, moon = np.array([[AU, 0.2 * AU, 0.0]]), np.array([[-2e5, 3e5, 1e4]])
@@ -1037,7 +1039,7 @@ def test_band_independent_earthshine_equals_per_band(comp_model):
 def test_one_scene_earthshine_equals_per_sample_sum(comp_model, sun_x):
     """The cube's path (lines of sight sharing one satellite, Sun and Moon: cap gridded once,
     dark blocks dropped, matrix products) gives the per-sample general sum's values."""
-    off = comp_model.sunlit_earth.engine.grid
+    off = comp_model.earth_grid
     rng = np.random.default_rng(3)
     los = rng.normal(size=(300, 3))
     los /= np.linalg.norm(los, axis=1)[:, None]
@@ -1192,7 +1194,7 @@ def test_nothing_enters_the_direct_path_from_behind_the_aperture_plane(campaign,
     """Paper sect. 2.2: with the axis near the zenith earthshine enters through the door, not
     directly.  A source behind the aperture plane (theta > 90 deg) cannot light the aperture, so the
     direct path gives exactly 0 there (point sources and earthshine), whatever the PST's values."""
-    off = comp_model.sunlit_earth.engine.grid
+    off = comp_model.earth_grid
     th = np.array([90.001, 95.0, 120.0, 150.0, 179.0])
     for op in off.door_states_deg:
         assert np.all(off.transfer.point_source(1.0, th, 180.0, np.zeros(th.size, bool), op) == 0.0)
@@ -1240,7 +1242,7 @@ def test_the_body_shades_the_door(comp_model, tilt_deg, sun_zenith_deg):
     sum within 1 %."""
     import dataclasses
 
-    grid = comp_model.sunlit_earth.engine.grid
+    grid = comp_model.earth_grid
     # the smallest body of the prior range (the aperture's radius; config door_geometry.body_radius_m
     # is 1.5 m), so that the figures below are this geometry's
     small = dataclasses.replace(grid.door, body_radius_m=1.0)

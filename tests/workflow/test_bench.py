@@ -165,7 +165,7 @@ def test_the_bench_knobs_reach_the_model(campaign):
     bench.geometry = {k: v[obs] for k, v in g.items()}
     coarse = bench.model(n_gamma=8, n_psi=16, door_blocks=(4, 4), n_aperture_door=16)
     fine = bench.model(n_gamma=48, n_psi=96)
-    s = coarse.sunlit_earth.engine.grid.earthshine
+    s = coarse.earth_grid.earthshine
     assert (s.n_gamma, s.n_psi, tuple(s.door_blocks), s.n_aperture_door) == (8, 16, (4, 4), 16)
     es = [bench.evaluate(m, None)["g"]["earthshine_direct"] for m in (coarse, fine)]
     assert np.any(es[1] > 0)
