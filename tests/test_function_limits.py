@@ -24,7 +24,6 @@ _KERNEL_DECORATORS = {"njit", "jit", "vectorize", "guvectorize", "stencil", "cfu
 EXEMPT = {
     "catalog/build.py::build_catalog": (121, 7),
     "catalog/build.py::make_catalog": (79, 10),
-    "cli/sky.py::sky_record": (86, 7),
     "cli/sky.py::cmd_visibility": (88, 1),
     "cube/region.py::compute_region": (65, 9),
     "cube/region.py::region_values": (113, 9),
@@ -35,9 +34,7 @@ EXEMPT = {
     "planning/exposure_time.py::checked_request": (84, 6),
     "planning/exposure_time.py::etc_table": (162, 4),
     "planning/exposure_time.py::etc_summary": (82, 1),
-    "planning/pointings.py::_evaluate": (68, 9),
     "planning/pointings.py::background_table": (73, 11),
-    "planning/scheduling.py::bright_limb_table": (106, 6),
     "planning/scheduling.py::write_tables": (100, 3),
     "planning/targets.py::targets_visibility": (96, 9),
     "planning/targets.py::monthly_summary": (88, 8),
