@@ -7,8 +7,8 @@ unless the property says ``x-number-as-written``), ``integer`` an int, ``string`
 ``boolean`` a bool, an array a tuple, an object with ``x-class`` (directly, through ``$ref`` or
 ``allOf``) that class, an object whose entries are such objects (``additionalProperties``) a
 dict of them.  A field the schema may leave out (not required, or outside the section's own
-default) and that has no default is None when absent; an optional section without a default
-whose keys have defaults is built from those defaults.
+default) and that has no default of its own is None when absent (the dataclass's only
+defaults); an optional section without a default whose keys have defaults is built from them.
 
 :func:`typed` reads a mapping into a class and remembers, per object, the keys as written (and
 which were YAML integers), so that :func:`to_mapping` gives the same mapping back: the record
@@ -19,7 +19,8 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-from typing import Any, NamedTuple
+from collections import namedtuple
+from typing import Any
 
 from straylight.config.loading import apply_defaults
 from straylight.errors import ConfigError
@@ -28,16 +29,10 @@ from straylight.errors import ConfigError
 _LAYOUT = "_as_written"
 
 
-class FieldSpec(NamedTuple):
-    """How one schema property is read: ``kind`` (``class``, ``list_of``, ``map``, ``list``,
-    ``float``, ``plain``), the class of a nested object (or of a list's or a mapping's entries),
-    and whether an absent section is built from its schema's defaults (``schema``)."""
-
-    name: str
-    kind: str
-    cls: type | None
-    build_empty: bool
-    schema: dict | None
+#: how one schema property is read: ``kind`` (``class``, ``list_of``, ``map``, ``list``,
+#: ``float``, ``plain``), the class of a nested object (or of a list's or a mapping's entries),
+#: and whether an absent section is built from its ``schema``'s defaults (``build_empty``)
+FieldSpec = namedtuple("FieldSpec", "name kind cls build_empty schema")
 
 
 def _target(node: dict, root: dict) -> dict:
@@ -108,11 +103,8 @@ class _Generator:
         for key, sub in props.items():
             spec, hint = self.field(key, sub, f"{where}.{key}", key in optional)
             specs.append(spec)
-            default = sub.get("default") if not isinstance(sub.get("default"), (dict, list)) else None
-            if key in optional:
-                if spec.kind == "float" and isinstance(default, int) and not isinstance(default, bool):
-                    default = float(default)
-                default_fields.append((key, hint, dataclasses.field(default=default)))
+            if key in optional and "default" not in sub:  # None when absent
+                default_fields.append((key, hint, dataclasses.field(default=None)))
             else:
                 required_fields.append((key, hint))
         bases = tuple(b for b in (self.bases.get(name),) if b is not None)
