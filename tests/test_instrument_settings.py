@@ -188,7 +188,7 @@ def test_readers_give_the_same_objects_from_the_mapping_and_the_settings():
     from straylight.sources.zodiacal import zodiacal_model_from_instrument
 
     c = load_campaign()
-    raw, typed = c.instrument, c.instrument_settings
+    raw, typed = c.instrument_mapping(), c.instrument_settings
     assert instrument_settings(raw) == typed and instrument_settings(typed) is typed
     for reader in (
         door_from_instrument,

@@ -16,7 +16,6 @@ import pytest
 import straylight
 from straylight.config import (
     CAMPAIGN_SCHEMA,
-    DEFAULT_CONFIG,
     INSTRUMENT_SCHEMA,
     apply_defaults,
     instrument_settings,
@@ -108,9 +107,7 @@ def test_a_section_declared_again_in_the_code_is_found(tmp_path):
         "    compact_mag_step: float\n"
     )
     (tmp_path / "straylight" / "extra.py").write_text(storage)
-    (tmp_path / "straylight" / "config" / "more.py").write_text(
-        "class Knob:\n    gain: float\n"
-    )
+    (tmp_path / "straylight" / "config" / "more.py").write_text("class Knob:\n    gain: float\n")
     assert _second_declarations(tmp_path / "straylight") == [
         "straylight/config/more.py: class Knob declares fields in straylight.config",
         "straylight/extra.py: class StorageSection declares the keys of the schema's StorageSection",

@@ -30,12 +30,12 @@ def cube_summary(catalog, time_step: int = 24, n_times: int = 12) -> dict:
     from straylight.cube.region import compute_region, offfield_stars
 
     base = load_campaign()
-    fp = footprint_from_config(base.config["footprint"])
+    fp = footprint_from_config(base.settings.footprint)
     t_slice = slice(0, time_step * n_times, time_step)
     out = {
         "pixels": int(fp.pixels.size),
         "times": n_times,
-        "time_step_s": time_step * float(base.config["campaign"]["cadence_s"]),
+        "time_step_s": time_step * float(base.settings.campaign.cadence_s),
     }
     res, lut_model = {}, None
     with tempfile.TemporaryDirectory() as tmp:
@@ -182,11 +182,11 @@ def plan_cost_model(base, fp, t_slice, cube: dict) -> dict:
         "campaign": {
             "start": base.times[steps[0]].isot,
             "end": (base.times[steps[-1]] + TimeDelta(1, format="sec")).isot,
-            "cadence_s": steps.step * float(base.config["campaign"]["cadence_s"]),
+            "cadence_s": steps.step * float(base.settings.campaign.cadence_s),
         },
     }
     sub = campaign_from_dict(
-        deep_merge(base.config, over), base.path
+        deep_merge(base.config_mapping(), over), base.path
     )  # the same steps as a campaign of their own
     assert len(sub.times) == len(steps)
     _, screen = timed(

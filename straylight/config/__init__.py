@@ -55,8 +55,8 @@ from straylight.config.loading import (
 from straylight.config.settings import (
     CampaignSection,
     CircularOrbitSection,
-    EarthSection,
     ComputeSection,
+    EarthSection,
     EarthshineLUTSteps,
     EarthshineSection,
     FootprintSection,

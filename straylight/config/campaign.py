@@ -52,7 +52,14 @@ class Campaign:
     """
 
     def __init__(
-        self, config=None, instrument=None, path=None, instrument_path=None, *, settings=None, instrument_settings=None
+        self,
+        config=None,
+        instrument=None,
+        path=None,
+        instrument_path=None,
+        *,
+        settings=None,
+        instrument_settings=None,
     ):
         if (config is None) == (settings is None) or (instrument is None) == (instrument_settings is None):
             raise TypeError("Campaign: give the config or its settings, and the instrument or its settings")

@@ -153,7 +153,7 @@ def empty_cube(campaign: Campaign, fp: Footprint, times, model, stars_path=None,
             "moon_phase_law": campaign.settings.models.moon_phase_law,
             # the instrument file's own words, as written ("" where it has no pst section): a
             # record of the file, like the provenance's copy of it, not a setting read
-            "pst_source": str(campaign.instrument.get("pst", {}).get("source", "")),
+            "pst_source": str(campaign.instrument_mapping().get("pst", {}).get("source", "")),
             "stars_included": int(len(stars.ra_deg)) if stars_path else 0,
             "stars_in_faint_map": int(len(stars.faint_ra_deg)) if stars_path else 0,
             "stars_catalog": Path(stars_path).name if stars_path else "none",
