@@ -11,6 +11,7 @@ Run:  OMP_NUM_THREADS=1 python bench/stars.py
 
 from __future__ import annotations
 
+import copy
 import os
 import sys
 import time
@@ -77,7 +78,7 @@ def main():
     cm.evaluate(sat, bodies, los, g, bands)  # warm up: door tables and bands are built on first use
     base, t_base, _, _ = run(-99.0)  # no stars: the cost of everything else
     # the reference: every star with its exact transfer (tolerance 1e-12: no pair skipped on its bound)
-    raw = c.config_mapping()
+    raw = copy.deepcopy(c.config)
     raw["models"]["tolerance"] = 1e-12
     exact = BackgroundModel(campaign_from_dict(raw, c.path))
     exact.evaluate(sat, bodies, los, g, bands)

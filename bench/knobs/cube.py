@@ -30,12 +30,12 @@ def cube_summary(catalog, time_step: int = 24, n_times: int = 12) -> dict:
     from straylight.cube.region import compute_region, offfield_stars
 
     base = load_campaign()
-    fp = footprint_from_config(base.settings.footprint)
+    fp = footprint_from_config(base.config["footprint"])
     t_slice = slice(0, time_step * n_times, time_step)
     out = {
         "pixels": int(fp.pixels.size),
         "times": n_times,
-        "time_step_s": time_step * float(base.settings.campaign.cadence_s),
+        "time_step_s": time_step * float(base.config["campaign"]["cadence_s"]),
     }
     res, lut_model = {}, None
     with tempfile.TemporaryDirectory() as tmp:
