@@ -167,7 +167,7 @@ def settings_classes(schema: dict, module: str, bases: dict | None = None) -> di
     return {root.__name__: root, **gen.classes}
 
 
-def typed(cls, node: dict, where: str, written: dict | None = None):
+def typed(settings_class, node: dict, where: str, written: dict | None = None):
     """An instance of a generated class from a mapping with the schema's defaults filled in
     (``node``); ``written``: the mapping as written (``node`` by default), whose keys and YAML
     integers :func:`to_mapping` gives back.  Keys the class does not declare are ignored (the
@@ -175,7 +175,7 @@ def typed(cls, node: dict, where: str, written: dict | None = None):
 
     Parameters
     ----------
-    cls : type
+    settings_class : type
         A class of :func:`settings_classes`.
     node : dict
         The validated mapping, the schema's defaults filled in.
@@ -190,9 +190,9 @@ def typed(cls, node: dict, where: str, written: dict | None = None):
         For a key the schema requires and gives no default for, missing from ``node``.
     """
     written = node if not isinstance(written, dict) else written
-    fields = cls.__dataclass_fields__
+    fields = settings_class.__dataclass_fields__
     values = {}
-    for spec in cls.__field_specs__:
+    for spec in settings_class.__field_specs__:
         key = f"{where}.{spec.name}" if where else spec.name
         if spec.name in node:
             values[spec.name] = _value(spec, node[spec.name], key, written.get(spec.name))
@@ -200,7 +200,7 @@ def typed(cls, node: dict, where: str, written: dict | None = None):
             values[spec.name] = typed(spec.cls, apply_defaults({}, spec.schema), key, {})
         elif fields[spec.name].default is dataclasses.MISSING:
             raise ConfigError(f"{key}: missing (no default in the schema)")
-    obj = cls(**values)
+    obj = settings_class(**values)
     layout = tuple((k, type(v) is int) for k, v in written.items() if k in fields)
     object.__setattr__(obj, _LAYOUT, layout)
     return obj
