@@ -142,7 +142,7 @@ def test_a_key_added_to_the_schema_is_a_field():
 def test_an_object_without_a_class_name_is_refused():
     schema = copy.deepcopy(load_schema(CAMPAIGN_SCHEMA))
     del schema["properties"]["storage"]["x-class"]
-    with pytest.raises(ConfigError, match=r"schema: \.storage: an object with properties needs an x-class"):
+    with pytest.raises(ConfigError, match=r"schema: storage: an object with properties needs an x-class"):
         settings_classes(schema, __name__)
 
 

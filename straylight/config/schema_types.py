@@ -87,10 +87,14 @@ class _Generator:
     def cls(self, node: dict, where: str) -> type:
         name = node.get("x-class")
         if not name:
-            raise ConfigError(f"schema: {where}: an object with properties needs an x-class name")
+            raise ConfigError(
+                f"schema: {where or '<top level>'}: an object with properties needs an x-class name"
+            )
         props = node.get("properties") or {}
         if name in self.classes:
             known = self.classes[name]
+            if node is known.__schema__:  # one definition ($defs) referenced again
+                return known
             if set(known.__dataclass_fields__) != set(props):
                 raise ConfigError(f"schema: {where}: x-class {name} names other keys than its first use")
             known.__schema_paths__ += (where,)
@@ -101,7 +105,7 @@ class _Generator:
             optional |= set(props) - set(node["default"])
         specs, required_fields, default_fields = [], [], []
         for key, sub in props.items():
-            spec, hint = self.field(key, sub, f"{where}.{key}", key in optional)
+            spec, hint = self.field(key, sub, f"{where}.{key}" if where else key, key in optional)
             specs.append(spec)
             if key in optional and "default" not in sub:  # None when absent
                 default_fields.append((key, hint, dataclasses.field(default=None)))
