@@ -98,12 +98,12 @@ def test_stored_products_within_their_bound(block):
                 else whole
             )
             assert stored.attrs["float_max_relative_error"] == max(
-                max_relative_error(storage["float_keepbits"]),
+                max_relative_error(storage.float_keepbits),
                 *(stored[n].attrs["max_relative_error"] for n in stored.data_vars),
             ), product
             for name, var in computed.data_vars.items():
                 is_mag = str(var.attrs.get("units", "")).startswith("mag")
-                bits = storage["magnitude_keepbits" if is_mag else "float_keepbits"]
+                bits = storage.magnitude_keepbits if is_mag else storage.float_keepbits
                 bound = max_relative_error(bits)
                 attrs = stored[name].attrs
                 if var.dtype.kind != "f":  # bool and bit masks: lossless
