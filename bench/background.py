@@ -11,7 +11,6 @@ bench/results/background.json.  Run:  python bench/background.py
 
 from __future__ import annotations
 
-import copy
 import os
 import shutil
 import sys
@@ -36,11 +35,11 @@ def main():
     from straylight.cube.store import init_store
 
     base = load_campaign()
-    raw = copy.deepcopy(base.config)
+    raw = base.config_mapping()
     raw["campaign"].update(end="2026-01-01T06:00:00", time_block_hours=2)  # 3 blocks of 24 times
     raw["footprint"].update(pixel_block_size=330)  # 4 regions per block
     c = campaign_from_dict(raw, base.path)
-    fp = footprint_from_config(c.config["footprint"])
+    fp = footprint_from_config(c.settings.footprint)
     block_samples = len(c.times) // 3 * fp.pixels.size
     results = {"samples": 2 * block_samples, "bands": len(c.bands)}
     tmp = Path(tempfile.mkdtemp())

@@ -104,10 +104,10 @@ def main() -> int:
 
     old = old_limb_module(a.before)
     campaign = load_campaign()
-    fp = footprint_from_config({**campaign.config["footprint"], "nside": a.nside})
+    fp = footprint_from_config({**campaign.config_mapping()["footprint"], "nside": a.nside})
     los = radec_to_unit(fp.ra_deg, fp.dec_deg)
     re_km, k = campaign.earth.radius_km, campaign.constraints
-    start = Time(campaign.config["campaign"]["start"], scale="utc")
+    start = Time(campaign.settings.campaign.start, scale="utc")
     out = {
         "nside": a.nside,
         "pixels": int(los.shape[0]),

@@ -98,7 +98,7 @@ def main() -> int:
     from straylight.sky.vectors import radec_to_unit, unit
 
     campaign = load_campaign()
-    fp = footprint_from_config(campaign.config["footprint"])
+    fp = footprint_from_config(campaign.settings.footprint)
     ch = cube_chunks(campaign, len(campaign.times), int(fp.pixels.size))
     nt, npix = int(ch["time"]), int(ch["pixel"])
     sc = scene(campaign.orbit, campaign.times[:nt])

@@ -16,7 +16,6 @@ Writes bench/results/earth_grid.json.
 from __future__ import annotations
 
 import argparse
-import copy
 import sys
 import time
 from dataclasses import replace
@@ -43,7 +42,7 @@ def year_samples(campaign, n: int, seed: int = 20261127):
 
     rng = np.random.default_rng(seed)
     m = 12 * n
-    start = Time(campaign.config["campaign"]["start"], scale="utc")
+    start = Time(campaign.settings.campaign.start, scale="utc")
     sc = scene(campaign.orbit, start + np.sort(rng.uniform(0.0, 365.25, m)) * u.day)
     los = radec_to_unit(rng.uniform(0, 360, m), np.degrees(np.arcsin(rng.uniform(-1, 1, m))))
     g = observing_geometry(sc.satellite_km, sc.bodies_km, los, campaign.earth.radius_km, campaign.constraints)
@@ -61,7 +60,7 @@ def model_with_grid(campaign, grid, split=None, tail=None):
     from straylight.config import campaign_from_dict
     from straylight.model import BackgroundModel
 
-    raw = copy.deepcopy(campaign.config)
+    raw = campaign.config_mapping()
     raw["models"]["earthshine"]["method"] = "direct"
     cm = BackgroundModel(campaign_from_dict(raw, campaign.path))
     off = cm.earth_grid

@@ -281,7 +281,7 @@ def kernel_figure() -> dict:
     from straylight.cube.footprint import footprint_from_config
 
     base = load_campaign()
-    fp = footprint_from_config(base.config["footprint"])
+    fp = footprint_from_config(base.settings.footprint)
     with tempfile.TemporaryDirectory() as tmp:
         stars_path = Path(tmp) / "stars.parquet"
         write_catalog(Bench(1).catalog, stars_path, {})

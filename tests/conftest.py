@@ -44,11 +44,11 @@ def zero_point_less_real_curves_mag(campaign):
 
     if not THROUGHPUT.exists():
         pytest.skip("../shared/data/csst_throughput (test-only real CSST curves) not present")
-    area = aperture_area_m2(campaign.instrument)
+    area = aperture_area_m2(campaign.instrument_settings)
     d = {}
     for b in campaign.bands:
         wl, t = read_throughput_file(THROUGHPUT / f"csst_phot.{b.lower()}.fits")
-        d[b] = zero_point_ab_mag(load_band(campaign.instrument, b), area) - zero_point_ab_mag(
+        d[b] = zero_point_ab_mag(load_band(campaign.instrument_settings, b), area) - zero_point_ab_mag(
             Band(b, wl, t, "file"), area
         )
     return d

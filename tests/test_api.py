@@ -98,7 +98,7 @@ def test_zero_point_matches_the_library_conversion(campaign):
     d = campaign.instrument_value("telescope", "aperture_diameter_m")
     pix = campaign.pixel_scale_arcsec
     for b in campaign.bands:
-        band = load_band(campaign.instrument, b, campaign.instrument_path.parent)
+        band = load_band(campaign.instrument_settings, b, campaign.instrument_path.parent)
         # by definition: 1 e-/s/pixel is zp; 0.1 e-/s/pixel is 2.5 mag fainter
         assert magnitude_per_arcsec2(1.0, band, d, pix) == pytest.approx(zp[b], abs=1e-12)
         assert magnitude_per_arcsec2(0.1, band, d, pix) == pytest.approx(zp[b] + 2.5, abs=1e-12)

@@ -205,7 +205,7 @@ def test_report_bands_must_be_the_instruments(tmp_path):
         f"{p}: report.sky_map_bands = ['g', 'Q']: 'Q' is not a band of the instrument (NUV, u, g, r, i, z, y)"
     )
     cfg["report"] = {"sky_map_bands": ["g", "r"]}
-    assert load_campaign(write(tmp_path, cfg)).config["report"]["sky_map_bands"] == ["g", "r"]
+    assert load_campaign(write(tmp_path, cfg)).settings.report.sky_map_bands == ("g", "r")
 
 
 def _tle_with_epoch(epoch: str) -> tuple[str, str]:

@@ -1,8 +1,7 @@
-"""The instrument's typed settings (straylight.config.InstrumentSettings) against the schema they
-are read with: one field per schema key (so neither can gain a key the other lacks), a
-:class:`~straylight.config.Parameter` for every {value, unit, source} entry, no default in the
-code that the schema does not give, and the values of config/instruments/csst.yaml with the
-sources the file gives for them."""
+"""The instrument's typed settings (straylight.config.InstrumentSettings), generated from the
+schema, read against it: one field per schema key, a :class:`~straylight.config.Parameter` for
+every {value, unit, source} entry, None only where the schema may leave a key out, and the
+values of config/instruments/csst.yaml with the sources the file gives for them."""
 
 from __future__ import annotations
 
@@ -188,7 +187,7 @@ def test_readers_give_the_same_objects_from_the_mapping_and_the_settings():
     from straylight.sources.zodiacal import zodiacal_model_from_instrument
 
     c = load_campaign()
-    raw, typed = c.instrument, c.instrument_settings
+    raw, typed = c.instrument_mapping(), c.instrument_settings
     assert instrument_settings(raw) == typed and instrument_settings(typed) is typed
     for reader in (
         door_from_instrument,

@@ -395,7 +395,9 @@ def test_depth_table_round_trip_and_report_front(campaign, tmp_path):
     assert back["y"]["median_depth_mag"] == 24.85 and np.isnan(back["y"]["best_depth_mag"])
     Image.new("RGB", (80, 40), "red").save(depth / "limits_median.png")
     Image.new("RGB", (80, 40), "blue").save(sky / "sky_g_20260101T0000.png")
-    text = write_report_front(back, campaign.config, tmp_path / "summary.rst", [depth, sky]).read_text()
+    text = write_report_front(
+        back, campaign.config_mapping(), tmp_path / "summary.rst", [depth, sky]
+    ).read_text()
     assert "     - 26.53" in text and "     - 16.5 %" in text and "     - nan" in text
     shown = [line for line in text.splitlines() if "<b>" in line]
     assert [s.split("<b>")[1].split("</b>")[0] for s in shown] == ["limits_median", "sky_g_20260101T0000"]

@@ -73,13 +73,12 @@ class Bench:
         with these node steps instead of the direct sum (built on first use, cached);
         ``tolerance``: models.tolerance (with the direct sum it sizes only the bright stars'
         skipping on their bound; 1e-12 skips nothing)."""
-        import copy
 
         from straylight.config import campaign_from_dict
         from straylight.model import BackgroundModel
         from straylight.optics.pst import PST, default_pst_grid
 
-        raw = copy.deepcopy(self.campaign.config)
+        raw = self.campaign.config_mapping()
         if tolerance is not None:
             raw["models"]["tolerance"] = tolerance
         es = raw["models"]["earthshine"]
@@ -147,12 +146,11 @@ def cube_model(
     """A campaign from ``base`` with ``campaign``, ``models.earthshine`` and ``models``
     overrides, and its BackgroundModel for cube-sized runs, the earthshine table built or loaded
     before timing."""
-    import copy
 
     from straylight.config import campaign_from_dict
     from straylight.model import BackgroundModel
 
-    raw = copy.deepcopy(base.config)
+    raw = base.config_mapping()
     raw["campaign"].update(campaign or {})
     raw["models"].update(models or {})
     raw["models"].setdefault("earthshine", {}).update(earthshine or {})

@@ -182,11 +182,11 @@ def plan_cost_model(base, fp, t_slice, cube: dict) -> dict:
         "campaign": {
             "start": base.times[steps[0]].isot,
             "end": (base.times[steps[-1]] + TimeDelta(1, format="sec")).isot,
-            "cadence_s": steps.step * float(base.config["campaign"]["cadence_s"]),
+            "cadence_s": steps.step * float(base.settings.campaign.cadence_s),
         },
     }
     sub = campaign_from_dict(
-        deep_merge(base.config, over), base.path
+        deep_merge(base.config_mapping(), over), base.path
     )  # the same steps as a campaign of their own
     assert len(sub.times) == len(steps)
     _, screen = timed(

@@ -85,7 +85,7 @@ def moonlit_grid_rows(bench, day: str = "2026-01-03", time_step: int = 24, n_tim
     from straylight.sources.earthshine.nodes import MoonlitSettings
 
     base = bench.campaign
-    fp = footprint_from_config(base.config["footprint"])
+    fp = footprint_from_config(base.settings.footprint)
     t_slice = slice(0, time_step * n_times, time_step)
 
     def run(grid, method, steps=None, **kw):

@@ -127,7 +127,7 @@ def catalog_for_campaign(campaign, gaia_stars: dict | None = None) -> tuple[dict
         "config_sha256": sha256_path(campaign.path),
         # the stars section as the config holds it (with the schema's defaults): a record of
         # the catalog's inputs, stored as JSON, not a setting read
-        "stars_settings": campaign.config["stars"],
+        "stars_settings": campaign.config_mapping()["stars"],
         "summary": summary,
         "magnitude_systems": "mag_<band>: AB through the instrument's throughput; G, BP, RP: Gaia DR2 Vega",
         "flags": {
@@ -159,14 +159,14 @@ def default_catalog_path(campaign) -> Path:
     from straylight._version import __version__
     from straylight.util.io import cache_dir
 
-    # the raw sections, not the typed settings: the cache key is their JSON, which must not
-    # change when a settings class does
-    settings = {k: v for k, v in campaign.config["stars"].items() if k != "gaia_files"}
+    # the sections as written (the mappings the typed settings give back): the cache key is
+    # their JSON, which must not change when a settings class does
+    settings = {k: v for k, v in campaign.config_mapping()["stars"].items() if k != "gaia_files"}
     key = hashlib.sha256(
         json.dumps(
             {
                 "stars": settings,
-                "instrument": campaign.instrument,
+                "instrument": campaign.instrument_mapping(),
                 "version": __version__,
                 "build": CATALOG_BUILD_VERSION,
             },

@@ -8,7 +8,8 @@ file, the key path, the value and what is allowed, e.g.::
     config/config.yaml: campaign.cadence_s = -5: must be > 0
 
 Modules: :mod:`~straylight.config.loading` (reading, validating, defaults, merging config
-files), :mod:`~straylight.config.settings` (the campaign's typed settings),
+files), :mod:`~straylight.config.schema_types` (the typed settings' classes, generated from the
+schemas), :mod:`~straylight.config.settings` (the campaign's typed settings),
 :mod:`~straylight.config.instrument` (the instrument's typed settings and its pixel scale),
 :mod:`~straylight.config.campaign` (:class:`Campaign`, :func:`load_campaign`).  Every public
 name is importable from ``straylight.config``.
@@ -55,6 +56,7 @@ from straylight.config.settings import (
     CampaignSection,
     CircularOrbitSection,
     ComputeSection,
+    EarthSection,
     EarthshineLUTSteps,
     EarthshineSection,
     FootprintSection,
@@ -67,6 +69,7 @@ from straylight.config.settings import (
     StarsSection,
     StorageSection,
     TLESection,
+    config_mapping,
     orbit_settings,
     section_settings,
     settings_from_config,
@@ -94,6 +97,7 @@ __all__ = [
     "deep_merge",
     "Settings",
     "CampaignSection",
+    "EarthSection",
     "FootprintSection",
     "StarsSection",
     "EarthshineLUTSteps",
@@ -108,6 +112,7 @@ __all__ = [
     "TLESection",
     "OrbitSection",
     "settings_from_config",
+    "config_mapping",
     "section_settings",
     "orbit_settings",
     "InstrumentSettings",

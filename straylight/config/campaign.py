@@ -4,12 +4,13 @@ Earth, the avoidance constraints, the typed settings of both files)."""
 
 from __future__ import annotations
 
+import copy
 import os
-from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
 
-from straylight.config.instrument import InstrumentSettings, instrument_settings, pixel_scale_arcsec
+from straylight.config.instrument import instrument_settings as _instrument_settings
+from straylight.config.instrument import pixel_scale_arcsec
 from straylight.config.loading import (
     CAMPAIGN_SCHEMA,
     _source_of,
@@ -19,53 +20,117 @@ from straylight.config.loading import (
     merged_config,
     validate,
 )
-from straylight.config.settings import OrbitSection, Settings, orbit_settings, settings_from_config
+from straylight.config.schema_types import to_mapping
+from straylight.config.settings import OrbitSection, config_mapping, orbit_settings, settings_from_config
 from straylight.errors import ConfigError, StraylightError
 
 
-@dataclass
 class Campaign:
-    """A validated campaign: the raw config, the instrument and the derived models.
+    """A validated campaign: its typed settings (:attr:`settings`, every key of the campaign
+    config with the schema's defaults), its instrument's (:attr:`instrument_settings`), their
+    files, and the models derived from them.
 
-    ``config`` and ``instrument`` are the files' mappings as validated (the config with the
-    schema's defaults), kept as written for what records or hashes them (provenance, cache
-    keys); everything else reads :attr:`settings` and :attr:`instrument_settings`."""
+    Built from the typed settings, or from the validated mappings (``config``, ``instrument``:
+    read once into the settings).  The mappings, for what records or hashes them (provenance,
+    cache keys, the workers), are produced from the settings: :meth:`config_mapping`,
+    :meth:`instrument_mapping`.
 
-    config: dict
-    instrument: dict
-    path: Path
-    instrument_path: Path
+    Parameters
+    ----------
+    config : dict, optional
+        The validated config with the schema's defaults (or give ``settings``).
+    instrument : dict, optional
+        The validated instrument file, as written (or give ``instrument_settings``).
+    path : path-like
+        The campaign's config file.
+    instrument_path : path-like
+        The instrument file.
+    settings : Settings, optional
+        The campaign's typed settings.
+    instrument_settings : InstrumentSettings, optional
+        The instrument's typed settings.
+    """
+
+    def __init__(
+        self,
+        config=None,
+        instrument=None,
+        path=None,
+        instrument_path=None,
+        *,
+        settings=None,
+        instrument_settings=None,
+    ):
+        if (config is None) == (settings is None) or (instrument is None) == (instrument_settings is None):
+            raise TypeError("Campaign: give the config or its settings, and the instrument or its settings")
+        self.settings = settings if settings is not None else settings_from_config(config)
+        self.instrument_settings = (
+            instrument_settings if instrument_settings is not None else _instrument_settings(instrument)
+        )
+        self.path = Path(path)
+        self.instrument_path = Path(instrument_path)
+
+    def __eq__(self, other) -> bool:
+        if not isinstance(other, Campaign):
+            return NotImplemented
+        return (self.settings, self.instrument_settings, self.path, self.instrument_path) == (
+            other.settings,
+            other.instrument_settings,
+            other.path,
+            other.instrument_path,
+        )
+
+    def __repr__(self) -> str:
+        return f"Campaign({self.name!r}, path={str(self.path)!r})"
+
+    def config_mapping(self) -> dict:
+        """The campaign config as validated, with the schema's defaults, produced from
+        :attr:`settings` (the same mapping, keys in its order): for provenance, cache keys
+        and the workers."""
+        return copy.deepcopy(self._config_mapping)
+
+    def instrument_mapping(self) -> dict:
+        """The instrument file as written (without the schema's defaults), produced from
+        :attr:`instrument_settings`: for provenance and cache keys."""
+        return copy.deepcopy(self._instrument_mapping)
+
+    @cached_property
+    def _config_mapping(self) -> dict:
+        return config_mapping(self.settings)
+
+    @cached_property
+    def _instrument_mapping(self) -> dict:
+        return to_mapping(self.instrument_settings)
+
+    @property
+    def config(self) -> dict:
+        """:meth:`config_mapping` (kept for straylight.model.envelope, which builds a changed
+        campaign from it)."""
+        return self.config_mapping()
+
+    @property
+    def instrument(self) -> dict:
+        """:meth:`instrument_mapping` (kept for straylight.model.envelope)."""
+        return self.instrument_mapping()
 
     @property
     def name(self) -> str:
         """The campaign's name (campaign.name: its products' folder)."""
-        return self.config["campaign"]["name"]
-
-    @cached_property
-    def settings(self) -> "Settings":
-        """The campaign's sections, typed (:class:`Settings`): read ``settings.stars.faint_map``,
-        not the raw config."""
-        return settings_from_config(self.config)
-
-    @cached_property
-    def instrument_settings(self) -> InstrumentSettings:
-        """The instrument, typed (:class:`~straylight.config.instrument.InstrumentSettings`):
-        read ``instrument_settings.telescope.aperture_diameter_m.value``, not the raw mapping."""
-        return instrument_settings(self.instrument)
+        return self.settings.campaign.name
 
     @cached_property
     def earth(self):
         """The Earth's model (radius, GM, J2) of the config's ``earth`` section."""
         from straylight.sky.orbit import EarthModel
 
-        e = self.config["earth"]
-        return EarthModel(radius_km=float(e["radius_km"]), gm_km3_s2=float(e["gm_km3_s2"]), j2=float(e["j2"]))
+        e = self.settings.earth
+        return EarthModel(radius_km=float(e.radius_km), gm_km3_s2=float(e.gm_km3_s2), j2=float(e.j2))
 
     @cached_property
     def orbit_settings(self) -> OrbitSection:
         """The config's ``orbit`` section, typed (:class:`OrbitSection`; a relative TLE file
         resolved against the config's folder)."""
-        return orbit_settings(self.config["orbit"], self.path.parent)
+        return orbit_settings(self.settings.orbit, self.path.parent)
 
     @cached_property
     def orbit(self):
@@ -117,8 +182,8 @@ class Campaign:
         """The campaign's UTC sample times (astropy Time, 1-D)."""
         from straylight.sky.timeutil import campaign_times
 
-        c = self.config["campaign"]
-        return campaign_times(c["start"], c["end"], float(c["cadence_s"]))
+        c = self.settings.campaign
+        return campaign_times(c.start, c.end, float(c.cadence_s))
 
     @property
     def pixel_scale_arcsec(self) -> float:

@@ -242,7 +242,7 @@ def _campaign_key(campaign: Campaign) -> tuple:
     """What a campaign's model depends on: its configuration's content and its instrument file."""
     import json
 
-    return json.dumps(campaign.config, sort_keys=True, default=str), str(campaign.instrument_path)
+    return json.dumps(campaign.config_mapping(), sort_keys=True, default=str), str(campaign.instrument_path)
 
 
 def write_region(

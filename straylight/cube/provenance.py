@@ -299,7 +299,7 @@ def provenance_record(
     config_dir = Path(campaign.path).parent
     rec = {
         "campaign": campaign.name,
-        "config": _portable_config(campaign.config, config_dir, roots),
+        "config": _portable_config(campaign.config_mapping(), config_dir, roots),
         "config_file": portable_path(campaign.path, results, roots),
         "instrument_file": portable_path(campaign.instrument_path, config_dir, roots),
         "paths": PATHS_NOTE,

@@ -101,7 +101,6 @@ def empty_cube(campaign: Campaign, fp: Footprint, times, model, stars_path=None,
     import xarray as xr
 
     from straylight.model import registry
-    from straylight.model.envelope import campaign_envelope
 
     nt, npix, nb = len(times), fp.pixels.size, len(campaign.bands)
     ch = cube_chunks(campaign, nt, npix)
@@ -143,36 +142,42 @@ def empty_cube(campaign: Campaign, fp: Footprint, times, model, stars_path=None,
             "band": ("band", np.array(campaign.bands, dtype=object), {"long_name": "CSST band"}),
             ZERO_POINT_NAME: zero_point_coord(campaign, campaign.bands),
         },
-        attrs={
-            "campaign": campaign.name,
-            "healpix_nside": fp.nside,
-            "healpix_ordering": fp.ordering.upper(),
-            "healpix_frame": "ICRS",
-            "zodiacal_spectrum": campaign.settings.models.zodiacal_spectrum,
-            "zodiacal_reddening_per_dex": list(campaign.settings.models.zodiacal_reddening.as_tuple()),
-            "moon_phase_law": campaign.settings.models.moon_phase_law,
-            # the instrument file's own words, as written ("" where it has no pst section): a
-            # record of the file, like the provenance's copy of it, not a setting read
-            "pst_source": str(campaign.instrument.get("pst", {}).get("source", "")),
-            "stars_included": int(len(stars.ra_deg)) if stars_path else 0,
-            "stars_in_faint_map": int(len(stars.faint_ra_deg)) if stars_path else 0,
-            "stars_catalog": Path(stars_path).name if stars_path else "none",
-            "stars_offfield_mag_limit": float(campaign.settings.stars.offfield_mag_limit),
-            "stars_faint_map": int(campaign.settings.stars.faint_map),
-            "chunking": "time block x pixel block x all bands",
-            # which models ran and their error budget (the earthshine table is built here, once,
-            # before the time-block jobs start)
-            "models": json.dumps(model.models_record(), sort_keys=True),
-            # the Earth's band albedos, and the assumption envelope: each parameter's range, the
-            # parts it scales and its factors per band (limits.zarr's pessimistic and optimistic
-            # depths)
-            "earth_albedo": json.dumps(_earth_albedo_record(campaign, model), sort_keys=True),
-            "envelope": json.dumps(
-                campaign_envelope(campaign, context=model.context).attrs(), sort_keys=True
-            ),
-        },
+        attrs=_cube_attrs(campaign, fp, model, stars_path, stars),
     )
     return ds
+
+
+def _cube_attrs(campaign: Campaign, fp: Footprint, model, stars_path, stars) -> dict:
+    """The cube's attributes: its HEALPix grid, the campaign's model settings, the stars, the
+    models record, the Earth's albedo and the envelope (arguments as :func:`empty_cube`'s)."""
+    from straylight.model.envelope import campaign_envelope
+
+    return {
+        "campaign": campaign.name,
+        "healpix_nside": fp.nside,
+        "healpix_ordering": fp.ordering.upper(),
+        "healpix_frame": "ICRS",
+        "zodiacal_spectrum": campaign.settings.models.zodiacal_spectrum,
+        "zodiacal_reddening_per_dex": list(campaign.settings.models.zodiacal_reddening.as_tuple()),
+        "moon_phase_law": campaign.settings.models.moon_phase_law,
+        # the instrument file's own words, as written ("" where it has no pst section): a
+        # record of the file, like the provenance's copy of it, not a setting read
+        "pst_source": str(campaign.instrument_mapping().get("pst", {}).get("source", "")),
+        "stars_included": int(len(stars.ra_deg)) if stars_path else 0,
+        "stars_in_faint_map": int(len(stars.faint_ra_deg)) if stars_path else 0,
+        "stars_catalog": Path(stars_path).name if stars_path else "none",
+        "stars_offfield_mag_limit": float(campaign.settings.stars.offfield_mag_limit),
+        "stars_faint_map": int(campaign.settings.stars.faint_map),
+        "chunking": "time block x pixel block x all bands",
+        # which models ran and their error budget (the earthshine table is built here, once,
+        # before the time-block jobs start)
+        "models": json.dumps(model.models_record(), sort_keys=True),
+        # the Earth's band albedos, and the assumption envelope: each parameter's range, the
+        # parts it scales and its factors per band (limits.zarr's pessimistic and optimistic
+        # depths)
+        "earth_albedo": json.dumps(_earth_albedo_record(campaign, model), sort_keys=True),
+        "envelope": json.dumps(campaign_envelope(campaign, context=model.context).attrs(), sort_keys=True),
+    }
 
 
 def _earth_albedo_record(campaign: Campaign, model) -> dict:

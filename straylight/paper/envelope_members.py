@@ -79,11 +79,11 @@ def campaign_with_body(campaign: Campaign, body_radius_m: float) -> Campaign:
     -------
     Campaign
     """
-    inst = campaign.instrument
+    inst = campaign.instrument_mapping()
     body = dict(inst["door_geometry"]["body_radius_m"])
     body["value"] = float(body_radius_m)
     return Campaign(
-        config=campaign.config,
+        settings=campaign.settings,
         instrument=deep_merge(inst, {"door_geometry": {"body_radius_m": body}}),
         path=campaign.path,
         instrument_path=campaign.instrument_path,

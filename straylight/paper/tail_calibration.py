@@ -191,13 +191,13 @@ def campaign_with_tail(campaign: Campaign, tail_log10_at_90deg: float) -> Campai
     -------
     Campaign
     """
-    # the raw mapping, not the typed settings: a campaign is made from it with one value
+    # the file as written, not the typed settings: a campaign is made from it with one value
     # changed, and its typed settings parsed from that as from any instrument file
-    inst = campaign.instrument
+    inst = campaign.instrument_mapping()
     tail = dict(inst.get("pst", {}).get("tail_log10_at_90deg") or {"unit": "dex", "source": "calibration"})
     tail["value"] = float(tail_log10_at_90deg)
     return Campaign(
-        config=deep_merge(campaign.config, {"models": {"earthshine": {"method": "direct"}}}),
+        config=deep_merge(campaign.config_mapping(), {"models": {"earthshine": {"method": "direct"}}}),
         instrument=deep_merge(inst, {"pst": {"tail_log10_at_90deg": tail}}),
         path=campaign.path,
         instrument_path=campaign.instrument_path,

@@ -224,7 +224,7 @@ def machine_speed(
 
     direct = campaign_from_dict(
         deep_merge(
-            campaign.config,
+            campaign.config_mapping(),
             {"models": {"earthshine": {"method": "direct"}, "unobservable_samples": "evaluate"}},
         ),
         campaign.path,

@@ -182,7 +182,7 @@ FRONT_PAGE_STYLE = """.. raw:: html
 
 def write_report_front(rows: dict, config: dict, path, figure_dirs=()) -> Path:
     """``path`` (the report's first page, RST rendered by Snakemake's Jinja): the campaign of
-    ``config`` (a validated campaign config: ``Campaign.config``, or the workflow's), then the
+    ``config`` (a validated campaign config: ``Campaign.config_mapping()``, or the workflow's), then the
     depth table ``rows`` (:func:`read_depth_table`) and the depth maps, then a guide to the other
     figures, with thumbnails of those found in ``figure_dirs`` (depth/, sky/ and series/ of the
     campaign's results).

@@ -103,7 +103,7 @@ def test_observability_from_the_cube_equals_its_own_geometry(cube_run, tmp_path)
     fp, _ = footprint_products(c)
     with xr.open_zarr(out / "ephemeris.zarr") as ephem:
         write_zarr_atomic(
-            observability_dataset(c, ephem.load(), fp), tmp_path / "obs.zarr", storage=c.config["storage"]
+            observability_dataset(c, ephem.load(), fp), tmp_path / "obs.zarr", storage=c.settings.storage
         )
     with xr.open_zarr(out / "observability.zarr") as got, xr.open_zarr(tmp_path / "obs.zarr") as want:
         assert got["sun_angle_deg"].encoding["chunks"] == (
@@ -121,7 +121,7 @@ def test_faint_star_map_shared_among_processes_is_bit_identical(cube_run, campai
     from straylight.cube.region import faint_star_map
 
     _, _, out = cube_run
-    fp = footprint_from_config(campaign.config["footprint"], campaign.path.parent)
+    fp = footprint_from_config(campaign.settings.footprint, campaign.path.parent)
     one = faint_star_map(campaign, fp, out / "stars_csst.parquet", workers=1)
     two = faint_star_map(campaign, fp, out / "stars_csst.parquet", workers=2)
     assert one.dims == two.dims == ("pixel", "band") and np.all(one.values > 0)
@@ -208,7 +208,7 @@ def test_fused_limits_equal_limits_dataset_within_the_propagated_bound(cube_run,
             c, background, limiting_mag=got["limiting_mag"], envelope_limits=ends, budget_limits=budget
         ),
         tmp_path / "ref.zarr",
-        storage=c.config["storage"],
+        storage=c.settings.storage,
     )
     with xr.open_zarr(tmp_path / "ref.zarr") as want, xr.open_zarr(out / "limits.zarr") as stored:
         xr.testing.assert_identical(stored.load(), want.load())
@@ -385,7 +385,7 @@ def _campaign_with(campaign, over: dict):
     """``campaign`` with the config keys of ``over`` replaced (config.deep_merge), validated again."""
     from straylight.config import campaign_from_dict, deep_merge
 
-    return campaign_from_dict(deep_merge(campaign.config, over), campaign.path)
+    return campaign_from_dict(deep_merge(campaign.config_mapping(), over), campaign.path)
 
 
 #: three weeks of the default campaign (8.0 million samples)
@@ -404,7 +404,7 @@ def test_evaluated_samples_skipping_counts_the_observable_ones(campaign):
     from straylight.sky.observing import scene
     from straylight.sky.vectors import radec_to_unit
 
-    fp = footprint_from_config(campaign.config["footprint"])
+    fp = footprint_from_config(campaign.settings.footprint)
     n = len(campaign.times) * fp.pixels.size
     assert evaluated_samples(campaign, fp) == n == 380_160
     skipping = _campaign_with(campaign, {"models": {"unobservable_samples": "skip"}})
@@ -464,7 +464,7 @@ def test_pipeline_rate_from_config_else_the_packaged_figure(campaign):
         campaign,
         {"campaign": {"end": "2026-01-31T00:00:00"}, "compute": {"pipeline_samples_per_s_per_core": 2.5e5}},
     )
-    fp = footprint_from_config(month.config["footprint"])
+    fp = footprint_from_config(month.settings.footprint)
     for cores in (1, 2, 8):
         cost = plan.estimated_cost(month, fp, cores=cores)
         assert cost["earthshine_method"] == "lut"
@@ -485,7 +485,7 @@ def test_cycle_config_is_valid_and_planned_from_the_pipeline_figure():
     from straylight.config import load_campaign
 
     c = load_campaign(REPO / "config" / "cycle.yaml")
-    assert len(c.times) == 52_560 and c.config["footprint"]["nside"] == 64
+    assert len(c.times) == 52_560 and c.settings.footprint.nside == 64
     r = run_cli("plan", REPO / "config" / "cycle.yaml", timeout=300)
     assert r.returncode == 0, r.stderr
     assert "estimated wall time on " in r.stdout and "samples/s/core" in r.stdout
@@ -511,7 +511,7 @@ def test_machine_speed_and_its_factor(campaign, tmp_path, monkeypatch):
     from straylight.cube.footprint import footprint_from_config
     from straylight.planning import plan
 
-    fp = footprint_from_config(campaign.config["footprint"])
+    fp = footprint_from_config(campaign.settings.footprint)
     speed = plan.machine_speed(campaign, fp, n_times=1, n_pixels=66, repeats=1)
     assert speed["samples"] == 66  # every 20th of the 1320 pixels at the first step
     assert speed["assumed_seconds"] == pytest.approx(
@@ -545,7 +545,7 @@ def test_plan_costs_the_model_that_runs(campaign, tmp_path, monkeypatch):
     from straylight.planning import plan
 
     monkeypatch.setenv("STRAYLIGHT_CACHE", str(tmp_path))  # an empty cache: the table is not built
-    fp = footprint_from_config(campaign.config["footprint"])
+    fp = footprint_from_config(campaign.settings.footprint)
     day = plan.estimated_cost(campaign, fp)
     assert (day["samples"], day["evaluated_samples"], day["earthshine_method"]) == (380_160, 380_160, "lut")
     sunlit_s = 1_840_841 * 2 * comp.LUT_BUILD_SECONDS_PER_NODE
@@ -733,10 +733,10 @@ def test_cube_jobs_footprint_is_the_configs_bit_for_bit(cube_run):
 
     _, cfg, out = cube_run
     c = load_campaign(cfg)
-    ref = footprint_from_config(c.config["footprint"], c.path.parent)
+    ref = footprint_from_config(c.settings.footprint, c.path.parent)
     for fp in (
         footprint_from_store(out / "background.zarr"),
-        footprint_from_config({**c.config["footprint"], "mask_file": str(out / "footprint.fits")}),
+        footprint_from_config({**c.config_mapping()["footprint"], "mask_file": str(out / "footprint.fits")}),
     ):
         assert (fp.nside, fp.ordering) == (ref.nside, ref.ordering)
         for name in ("pixels", "ra_deg", "dec_deg"):

@@ -13,7 +13,7 @@ from straylight.errors import InputError
 
 def test_default_cuts_give_about_17500_deg2(campaign):
     """CSST wide survey ~17,500 deg2 (Gong et al. 2019); the default cuts give 17,700 at nside 16."""
-    fp = footprint_from_config(campaign.config["footprint"])
+    fp = footprint_from_config(campaign.settings.footprint)
     assert fp.area_deg2 == pytest.approx(17500, rel=0.03)
     # converged with resolution: nside 64 gives the same area within 1%
     m64 = latitude_cut_mask(64, False, 20.0, 18.0)
@@ -24,7 +24,7 @@ def test_pixels_satisfy_the_cuts(campaign):
     import astropy.units as u
     from astropy.coordinates import SkyCoord
 
-    fp = footprint_from_config(campaign.config["footprint"])
+    fp = footprint_from_config(campaign.settings.footprint)
     b = SkyCoord(fp.ra_deg * u.deg, fp.dec_deg * u.deg).galactic.b.deg
     assert np.all(np.abs(b) >= 20.0)
 

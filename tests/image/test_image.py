@@ -19,13 +19,13 @@ AIM = Aim(150.0, 30.0, SUN, 12)
 
 @pytest.fixture(scope="module")
 def parts(campaign):
-    fp = focal_plane_from_instrument(campaign.instrument)
+    fp = focal_plane_from_instrument(campaign.instrument_settings)
     small = FocalPlane(N, N, fp.pixel_scale_arcsec, fp.pixel_size_mm, fp.columns, fp.rows, fp.gap_px)
     return (
         fp,
         small,
-        scatter_model_from_instrument(campaign.instrument),
-        ghost_model_from_instrument(campaign.instrument, "g"),
+        scatter_model_from_instrument(campaign.instrument_settings),
+        ghost_model_from_instrument(campaign.instrument_settings, "g"),
     )
 
 
@@ -147,7 +147,7 @@ def test_image_cli_end_to_end(tmp_path, campaign):
 
     from straylight.image.focal_plane import sun_direction_at
 
-    fp = parts_fp = focal_plane_from_instrument(campaign.instrument)
+    fp = parts_fp = focal_plane_from_instrument(campaign.instrument_settings)
     w = pointing_wcs(150.0, 30.0, sun_direction_at(campaign, "2026-01-01T00:50:00"), parts_fp, 12)
     ra, dec = w.pixel_to_world_values(np.array([1000.0, 5000.0, 9000.0]), np.array([2000.0, 4000.0, 100.0]))
     cat = tmp_path / "stars.ecsv"
@@ -306,7 +306,7 @@ def test_image_cli_star_bin_and_empty_field(tmp_path, campaign):
         assert np.unravel_index(np.argmax(img), img.shape) == pytest.approx((9232 // 32, 9216 // 32), abs=2)
         hdr = h["SCI"].header
         assert hdr["STAR"] == "Sirius"
-        sc = campaign.config["stars"]
+        sc = campaign.config_mapping()["stars"]
         stars = load_offfield_stars(
             default_catalog_path(campaign),
             ["g"],

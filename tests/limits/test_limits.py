@@ -56,10 +56,10 @@ def test_default_zero_points_are_the_published_ones(campaign):
     The flat-top curve at the peak throughput gave g 26.51, r 26.15, i 25.83, z 25.85."""
     from straylight.optics.bandpass import aperture_area_m2, load_band, zero_point_ab_mag
 
-    area = aperture_area_m2(campaign.instrument)
+    area = aperture_area_m2(campaign.instrument_settings)
     assert area == pytest.approx(np.pi, rel=1e-12)  # D = 2 m
     for b, ref in PUBLISHED_ZERO_POINT_MAG.items():
-        zp = zero_point_ab_mag(load_band(campaign.instrument, b), area)
+        zp = zero_point_ab_mag(load_band(campaign.instrument_settings, b), area)
         print(f"{b}: AB zero point {zp:.3f}, published {ref:.2f}")
         assert zp == pytest.approx(ref, abs=0.02), b
 
@@ -67,14 +67,13 @@ def test_default_zero_points_are_the_published_ones(campaign):
 def test_a_measured_curve_is_scaled_to_the_given_zero_point(tmp_path, campaign):
     """zero_point_ab_mag scales a throughput_file's curve too (its shape kept): a triangle
     400-550 nm peaking at 0.5 gets the published g zero point, 26.23, exactly."""
-    import copy
 
     from straylight.optics.bandpass import aperture_area_m2, load_band, zero_point_ab_mag
 
     wl = np.linspace(400.0, 550.0, 151)
     t = 0.6 * np.clip((wl - 400.0) / 20.0, 0, 1) * np.clip((550.0 - wl) / 20.0, 0, 1)
     (tmp_path / "g.csv").write_text("wavelength,throughput\n" + "".join(f"{w},{v}\n" for w, v in zip(wl, t)))
-    inst = copy.deepcopy(campaign.instrument)
+    inst = campaign.instrument_mapping()
     g = inst["bands"]["g"]
     g.pop("peak_throughput")
     g.update(throughput_file=str(tmp_path / "g.csv"), throughput_wavelength_unit="nm")
@@ -113,9 +112,9 @@ def test_one_pixel_scale_for_rates_and_surface_brightness(campaign):
     from straylight.sources.zodiacal import zodiacal_model_from_instrument
 
     assert campaign.pixel_scale_arcsec == pytest.approx(10e-6 / 28.0 * 206264.806247, rel=1e-9)
-    zm = zodiacal_model_from_instrument(campaign.instrument)
+    zm = zodiacal_model_from_instrument(campaign.instrument_settings)
     for b in ("NUV", "g", "z"):
-        band = load_band(campaign.instrument, b)
+        band = load_band(campaign.instrument_settings, b)
         z = zm.evaluate(band, np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0]))
         back = magnitude_per_arcsec2(z["e_per_s_per_pix"], band, 2.0, campaign.pixel_scale_arcsec)
         assert float(np.ravel(back)[0]) == pytest.approx(float(np.ravel(z["mag_per_arcsec2"])[0]), abs=1e-9)
@@ -210,7 +209,7 @@ def test_never_observable_pixels_are_nan_in_zarr_and_unseen_in_fits(tmp_path):
         np.isnan(ds["limiting_mag_median"].values[1])
     )
     # through the products' codecs, as the limits rule writes it: NaN survives the bit rounding
-    write_zarr_atomic(ds, tmp_path / "limits.zarr", storage=c.config["storage"])
+    write_zarr_atomic(ds, tmp_path / "limits.zarr", storage=c.settings.storage)
     back = xr.open_zarr(tmp_path / "limits.zarr")
     assert (
         np.isnan(back["limiting_mag_best"].values[1]).all()
@@ -227,7 +226,7 @@ def test_never_observable_pixels_are_nan_in_zarr_and_unseen_in_fits(tmp_path):
     from astropy.io import fits
 
     h = fits.getheader(tmp_path / "maps" / "limit_best_g.fits", 1)
-    b = c.instrument["bands"]["g"]
+    b = c.instrument_mapping()["bands"]["g"]
     assert (h["CAMPAIGN"], h["BAND"], h["NEXP"], h["NTIMES"]) == ("test", "g", b["n_exposures"], 4)
     # EXPTIME the total exposure the depth is for, EXPONE one exposure
     assert h["EXPTIME"] == b["exposure_s"] * b["n_exposures"] and h["EXPONE"] == b["exposure_s"]

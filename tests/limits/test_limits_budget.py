@@ -23,11 +23,13 @@ def _pole_zodiacal(campaign, spectrum):
     from straylight.sources.zodiacal import icrs_to_ecliptic_matrix, zodiacal_model_from_instrument
 
     models = campaign.settings.models
-    zm = zodiacal_model_from_instrument(campaign.instrument, spectrum, models.zodiacal_reddening.as_tuple())
+    zm = zodiacal_model_from_instrument(
+        campaign.instrument_settings, spectrum, models.zodiacal_reddening.as_tuple()
+    )
     pole = icrs_to_ecliptic_matrix().T @ np.array([0.0, 0.0, 1.0])
     out = {}
     for b in campaign.bands:
-        band = load_band(campaign.instrument, b, campaign.instrument_path.parent)
+        band = load_band(campaign.instrument_settings, b, campaign.instrument_path.parent)
         out[b] = float(np.ravel(zm.evaluate(band, pole, np.array([1.0, 0.0, 0.0]))["e_per_s_per_pix"])[0])
     return out
 

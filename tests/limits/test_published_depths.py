@@ -37,7 +37,7 @@ def _e_per_s_per_pix(campaign, band, wl, flam_arcsec2):
     the campaign's pixel (arcsec2)."""
     from straylight.optics.bandpass import aperture_area_m2
 
-    area = aperture_area_m2(campaign.instrument)
+    area = aperture_area_m2(campaign.instrument_settings)
     return float(band.photon_rate(wl, flam_arcsec2)) * area * campaign.pixel_scale_arcsec**2
 
 
@@ -46,7 +46,7 @@ def _calsn_sky(campaign, band):
     from straylight.optics.bandpass import load_band
 
     wl_z, f_z = _flam_per_arcsec2(REPO / "straylight" / "data" / "hst_zodi.fits")
-    v = load_band(campaign.instrument, "V")
+    v = load_band(campaign.instrument_settings, "V")
     f_z = f_z * 10.0 ** (-0.4 * (CALSN_ZODIACAL_V_MAG - float(v.ab_magnitude(wl_z, f_z))))
     wl_e, f_e = _flam_per_arcsec2(EARTHSHINE)
     return (
@@ -69,7 +69,7 @@ def campaign_zodiacal(campaign):
 
     models = campaign.settings.models
     return zodiacal_model_from_instrument(
-        campaign.instrument, models.zodiacal_spectrum, models.zodiacal_reddening.as_tuple()
+        campaign.instrument_settings, models.zodiacal_spectrum, models.zodiacal_reddening.as_tuple()
     )
 
 
@@ -81,7 +81,7 @@ def _depths(campaign):
 
     out = {}
     for b in campaign.bands:
-        band = load_band(campaign.instrument, b, campaign.instrument_path.parent)
+        band = load_band(campaign.instrument_settings, b, campaign.instrument_path.parent)
         zodi, earth = _calsn_sky(campaign, band)
         out[b] = tuple(
             float(point_source_limit(sky, b, campaign))
@@ -161,17 +161,16 @@ def test_the_zero_point_offset_moves_the_band(campaign):
     """bands.<b>.zero_point_offset_mag's value is added to the band's zero point (the envelope
     evaluates its range's ends this way): NUV at -0.14 has the zero point 24.73, and its darkest-
     sky depth (read-noise limited: the source and the sky scale alike) moves by -0.140 mag."""
-    import copy
     import dataclasses
 
     from straylight.limits.point_source import _limit_mag, survey_exposure
     from straylight.optics.bandpass import aperture_area_m2, load_band, zero_point_ab_mag
 
-    inst = copy.deepcopy(campaign.instrument)
+    inst = campaign.instrument_mapping()
     inst["bands"]["NUV"]["zero_point_offset_mag"]["value"] = -0.14
     area = aperture_area_m2(inst)
     assert zero_point_ab_mag(load_band(inst, "NUV"), area) == pytest.approx(24.73, abs=1e-6)
-    band0 = load_band(campaign.instrument, "NUV")
+    band0 = load_band(campaign.instrument_settings, "NUV")
     band1 = load_band(inst, "NUV")
     x0 = survey_exposure(campaign, "NUV")
     x1 = dataclasses.replace(x0, zero_point_e_per_s=x0.zero_point_e_per_s * 10 ** (-0.4 * 0.14))
@@ -200,7 +199,7 @@ def test_the_single_input_that_closes_each_residual(campaign):
 
     found = {}
     for b in campaign.bands:
-        band = load_band(campaign.instrument, b, campaign.instrument_path.parent)
+        band = load_band(campaign.instrument_settings, b, campaign.instrument_path.parent)
         sky = sum(_calsn_sky(campaign, band))
         x = survey_exposure(campaign, b)
         pub = PUBLISHED_DEPTH_MAG[b]
@@ -224,8 +223,10 @@ def test_the_single_input_that_closes_each_residual(campaign):
     print(found)
     for b in "griz":
         kind, f = found[b]
-        dark = _darkest_sky(campaign, load_band(campaign.instrument, b, campaign.instrument_path.parent))
-        band = load_band(campaign.instrument, b, campaign.instrument_path.parent)
+        dark = _darkest_sky(
+            campaign, load_band(campaign.instrument_settings, b, campaign.instrument_path.parent)
+        )
+        band = load_band(campaign.instrument_settings, b, campaign.instrument_path.parent)
         calsn = sum(_calsn_sky(campaign, band))
         assert kind == "sky" and dark / calsn < f < 1.0, b
     for b in ("NUV", "u", "y"):

@@ -56,7 +56,7 @@ def test_band_albedos_equal_an_independent_integration(campaign):
 def test_earth_albedo_range_is_ecss_zonal_model_over_csst_latitudes(campaign):
     """ECSS-E-ST-10-04C annex F: a = 0.34 + a1 P1(sin lat) + 0.29 P2(sin lat), a1 = 0.10 cos(season),
     over |lat| <= the orbit's inclination: its extremes are the instrument's envelope range (0.01)."""
-    inc = np.radians(float(campaign.config["orbit"]["circular"]["inclination_deg"]))
+    inc = np.radians(float(campaign.settings.orbit.circular.inclination_deg))
     x = np.sin(np.linspace(-inc, inc, 2001))[:, None]
     a1 = 0.10 * np.cos(np.linspace(0, 2 * np.pi, 73))[None, :]
     a = 0.34 + a1 * x + 0.29 * 0.5 * (3 * x**2 - 1)

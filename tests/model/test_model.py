@@ -62,7 +62,9 @@ def test_auto_takes_the_table(campaign):
 
 
 def test_tolerance_is_read_from_the_campaign(campaign):
-    tight = campaign_from_dict(deep_merge(campaign.config, {"models": {"tolerance": 0.002}}), campaign.path)
+    tight = campaign_from_dict(
+        deep_merge(campaign.config_mapping(), {"models": {"tolerance": 0.002}}), campaign.path
+    )
     assert FidelityPolicy(tight).budget("stars_skip") == pytest.approx(0.125 * 0.002, rel=1e-12)
 
 

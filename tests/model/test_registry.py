@@ -143,7 +143,7 @@ def test_a_registered_source_reaches_the_cube_and_the_sky_record(glow):
     from straylight.model import BackgroundModel
 
     campaign = load_campaign()
-    fp = footprint_from_config(campaign.config["footprint"])
+    fp = footprint_from_config(campaign.settings.footprint)
     region = (campaign, fp, slice(0, 2), slice(0, 5))
     model = BackgroundModel(campaign, build_workers=1)
     with_glow = compute_region(*region, model=model)

@@ -215,7 +215,7 @@ def test_ghosts_as_the_marginal_ray_angle_goes_to_zero(campaign):
     from straylight.errors import InputError
     from straylight.optics.ghosts import ghost_model_from_instrument
 
-    g = ghost_model_from_instrument(campaign.instrument, "g")
+    g = ghost_model_from_instrument(campaign.instrument_settings, "g")
     fractions = g.energy_fractions()
     for u in (1e-3, 1e-6, 1e-9):
         gu = replace(g, u_rad=u)

@@ -15,7 +15,7 @@ PIXEL_M = 10e-6
 
 @pytest.fixture(scope="module")
 def model(campaign):
-    return scatter_model_from_instrument(campaign.instrument)
+    return scatter_model_from_instrument(campaign.instrument_settings)
 
 
 def test_paper_harvey_parameters_give_tis_of_2_percent():
@@ -123,4 +123,4 @@ def test_bad_ghost_parameters(campaign):
     with pytest.raises(ConfigError, match="r1 = 1.5"):
         GhostModel(5.0, 8.0, 1.46, 0.03, 1.5, 0.0093, 0.825, 0.825, 0.15)
     with pytest.raises(ConfigError, match="no entry for band 'V'"):
-        ghost_model_from_instrument(campaign.instrument, "V")
+        ghost_model_from_instrument(campaign.instrument_settings, "V")

@@ -27,7 +27,7 @@ def test_exposure_factor_reaches_the_nominal_depth(campaign, model):
     z = model.context.darkest_zodiacal_e_per_s(b)
     assert exposure_time_factor(0.0, z, b, campaign) == pytest.approx(1.0, rel=1e-12)
     m_lim = float(point_source_limit(z, b, campaign))
-    inst = campaign.instrument
+    inst = campaign.instrument_mapping()
     t_exp = float(inst["bands"][b]["exposure_s"])
     t_nom = int(inst["bands"][b]["n_exposures"]) * t_exp
     rn = campaign.instrument_value("detector", "read_noise_e")

@@ -25,7 +25,7 @@ COARSE = {"sun_zenith_step_deg": 5.0, "los_zenith_step_deg": 5.0, "azimuth_step_
 
 
 def _campaign(campaign, **earthshine):
-    raw = copy.deepcopy(campaign.config)
+    raw = campaign.config_mapping()
     raw["models"]["earthshine"].update(earthshine)
     return campaign_from_dict(raw, campaign.path)
 
@@ -251,7 +251,7 @@ def test_moonlit_earth_stays_within_its_share_of_the_tolerance(campaign):
     from straylight.cube.region import compute_region
     from straylight.model import ERROR_BUDGET_SHARES
 
-    raw = copy.deepcopy(campaign.config)
+    raw = campaign.config_mapping()
     raw["campaign"].update(start="2026-01-03T00:00:00", end="2026-01-03T23:59:59")
     raw["models"]["earthshine"].update(method="lut", lut=COARSE)
     # observable samples only (the error is taken there): each comes out bit-identical to
@@ -276,10 +276,10 @@ def test_moonlit_earth_stays_within_its_share_of_the_tolerance(campaign):
     share = ERROR_BUDGET_SHARES["moonlit_earthshine_skip"] + ERROR_BUDGET_SHARES["moonlit_earthshine_grid"]
     print(
         f"moonlit Earth, default treatment: {err:.2e} of the total at {obs.sum()} observable samples "
-        f"(share {share * campaign.config['models']['tolerance']:.1e})"
+        f"(share {share * campaign.settings.models.tolerance:.1e})"
     )
     assert obs.sum() > 500
-    assert 0.0 < err <= share * float(campaign.config["models"]["tolerance"])
+    assert 0.0 < err <= share * float(campaign.settings.models.tolerance)
 
 
 def test_save_load_round_trip_and_cache_key(coarse, tmp_path, campaign):
@@ -367,7 +367,7 @@ def test_automatic_choice(coarse, campaign):
     assert (
         coarse_auto["method"] == "direct" and "> 0.5 x the tolerance" in coarse_auto["reason"]
     )  # too coarse for 1 %
-    raw = copy.deepcopy(c.config)
+    raw = c.config_mapping()
     raw["models"]["tolerance"] = 1.0
     raw["models"]["earthshine"]["method"] = "auto"
     loose = BackgroundModel(campaign_from_dict(raw, c.path)).source("sunlit_earth").model
@@ -380,7 +380,7 @@ def test_build_estimate_counts_both_tables(coarse):
     from straylight.sources.earthshine import nodes as lut_mod
 
     c, _, _ = coarse
-    raw = copy.deepcopy(c.config)
+    raw = c.config_mapping()
     raw["models"]["earthshine"]["method"] = "auto"
     model = BackgroundModel(campaign_from_dict(raw, c.path))
     settings = LUTSettings(**COARSE)
@@ -599,7 +599,7 @@ def test_cube_region_batches_steps_in_time_pixel_order(coarse):
     from straylight.sky.vectors import radec_to_unit
 
     c, cm, _ = coarse
-    fp = footprint_from_config(c.config["footprint"])
+    fp = footprint_from_config(c.settings.footprint)
     t_slice, p_slice = slice(0, 30, 10), slice(100, 160)
     ds = compute_region(c, fp, t_slice, p_slice, model=cm)
     los = radec_to_unit(fp.ra_deg[p_slice], fp.dec_deg[p_slice])
@@ -648,7 +648,7 @@ def test_cube_region_split_into_calls_gives_the_same_values(coarse, monkeypatch)
     from straylight.model import registry
 
     c, cm, _ = coarse
-    fp = footprint_from_config(c.config["footprint"])
+    fp = footprint_from_config(c.settings.footprint)
     t_slice, p_slice = slice(0, 35, 5), slice(200, 260)
     whole = cube.compute_region(c, fp, t_slice, p_slice, model=cm)
     monkeypatch.setattr(
@@ -669,7 +669,7 @@ def test_cube_region_with_its_time_blocks_scene_gives_the_same_values(coarse):
     from straylight.sky.observing import scene
 
     c, cm, _ = coarse
-    fp = footprint_from_config(c.config["footprint"])
+    fp = footprint_from_config(c.settings.footprint)
     t_slice = slice(0, 12, 4)
     block_scene = scene(c.orbit, c.times[t_slice])
     for p_slice in (slice(0, 40), slice(300, 340)):
@@ -739,10 +739,10 @@ def test_cube_region_skipping_unobservable_samples_changes_no_observable_value(c
     from straylight.model.registry import component_names
 
     c, cm, _ = coarse
-    raw = copy.deepcopy(c.config)
+    raw = c.config_mapping()
     raw["models"]["unobservable_samples"] = "skip"
     c_skip = campaign_from_dict(raw, c.path)
-    fp = footprint_from_config(c.config["footprint"])
+    fp = footprint_from_config(c.settings.footprint)
     t_slice, p_slice = slice(0, 60, 6), slice(0, 400)
     every = compute_region(c, fp, t_slice, p_slice, model=cm)
     skip = compute_region(c_skip, fp, t_slice, p_slice, model=cm)

@@ -226,11 +226,10 @@ def comp_model(campaign):
 @pytest.fixture(scope="module")
 def exact_model(campaign):
     """Tolerance 1e-12: no star pair is skipped on its bound (every pair's exact transfer)."""
-    import copy
 
     from straylight.config import campaign_from_dict
 
-    raw = copy.deepcopy(campaign.config)
+    raw = campaign.config_mapping()
     raw["models"]["tolerance"] = 1e-12
     return BackgroundModel(campaign_from_dict(raw, campaign.path))
 

@@ -95,9 +95,9 @@ def test_v_band_at_the_ecliptic_pole(campaign):
     (Willmer 2018, ApJS 236, 47) and E_sun(500 nm) = 1.915e3 W m-2 um-1 (E490)."""
     expected = -26.76 - 2.5 * np.log10(77e-8 * (np.pi / 180 / 3600) ** 2 / 1.915e3)
     assert expected == pytest.approx(23.30, abs=0.01)
-    v = load_band(campaign.instrument, "V")
+    v = load_band(campaign.instrument_settings, "V")
     for spectrum in SPECTRA:
-        zm = zodiacal_model_from_instrument(campaign.instrument, spectrum)
+        zm = zodiacal_model_from_instrument(campaign.instrument_settings, spectrum)
         mag = float(np.ravel(zm.evaluate(v, POLE, np.array([1.0, 0, 0]))["mag_per_arcsec2"])[0])
         assert mag == pytest.approx(expected, abs=0.1), spectrum
 
@@ -107,9 +107,9 @@ def test_spectra_agree_and_bands_are_plausible(campaign):
     the near-IR); per-band levels at the pole print for the record."""
     out = {}
     for spectrum in SPECTRA:
-        zm = zodiacal_model_from_instrument(campaign.instrument, spectrum)
+        zm = zodiacal_model_from_instrument(campaign.instrument_settings, spectrum)
         out[spectrum] = {
-            b: zm.evaluate(load_band(campaign.instrument, b), POLE, np.array([1.0, 0, 0]))
+            b: zm.evaluate(load_band(campaign.instrument_settings, b), POLE, np.array([1.0, 0, 0]))
             for b in campaign.bands
         }
     for b in campaign.bands:
@@ -127,8 +127,8 @@ def test_spectra_agree_and_bands_are_plausible(campaign):
 
 def test_e_per_s_is_L_pi_D2_over_4f2_times_pixel_area(campaign):
     """Paper eq. 3 counted in photons: pixel rate = N * pi D^2/4 * (p/f)^2."""
-    zm = zodiacal_model_from_instrument(campaign.instrument)
-    band = load_band(campaign.instrument, "r")
+    zm = zodiacal_model_from_instrument(campaign.instrument_settings)
+    band = load_band(campaign.instrument_settings, "r")
     rate_sr, _ = zm.band_factors(band)
     z = zm.evaluate(band, POLE, np.array([1.0, 0, 0]))
     expected = 77e-8 * rate_sr * np.pi * 2.0**2 / (4 * 28.0**2) * (10e-6) ** 2
@@ -144,12 +144,12 @@ def test_parametric_default_against_real_throughputs(campaign):
     2024, test-only): AB zero points and the dark-sky zodiacal level per band."""
     from straylight.optics.bandpass import Band, read_throughput_file
 
-    zm = zodiacal_model_from_instrument(campaign.instrument)
+    zm = zodiacal_model_from_instrument(campaign.instrument_settings)
     worst = 0.0
     for b in campaign.bands:
         wl, t = read_throughput_file(SHARED_DATA / "csst_throughput" / f"csst_phot.{b.lower()}.fits")
         real = Band(b, wl, t, "file")
-        par = load_band(campaign.instrument, b)
+        par = load_band(campaign.instrument_settings, b)
         dzp = 2.5 * np.log10(par.ab_zero_point_photons_s_m2 / real.ab_zero_point_photons_s_m2)
         zr = float(np.ravel(zm.evaluate(real, POLE, np.array([1.0, 0, 0]))["e_per_s_per_pix"])[0])
         zp = float(np.ravel(zm.evaluate(par, POLE, np.array([1.0, 0, 0]))["e_per_s_per_pix"])[0])
@@ -173,11 +173,11 @@ def test_paper_zodiacal_colours_are_one_switch_away(campaign):
     from straylight.config import load_campaign
     from straylight.model import BackgroundModel
 
-    solar = zodiacal_model_from_instrument(campaign.instrument, "solar_leinert")
-    hst = zodiacal_model_from_instrument(campaign.instrument, "hst")
+    solar = zodiacal_model_from_instrument(campaign.instrument_settings, "solar_leinert")
+    hst = zodiacal_model_from_instrument(campaign.instrument_settings, "hst")
     expected = {"NUV": 0.457, "g": -0.036, "r": 0.103, "i": 0.197, "z": 0.224}
     for b, d in expected.items():
-        band = load_band(campaign.instrument, b)
+        band = load_band(campaign.instrument_settings, b)
         assert solar.band_factors(band)[1] - hst.band_factors(band)[1] == pytest.approx(d, abs=0.005), b
     c = load_campaign(REPO / "config" / "config.yaml", overrides={"models": {"zodiacal_spectrum": "hst"}})
     assert BackgroundModel(c).sources["zodiacal"].model.spectrum == "hst"

@@ -96,8 +96,8 @@ def test_band_rate_against_an_independent_integral(campaign):
     Leinert Table 17) against an independent integral: E490 x eq. 22 x the band's throughput,
     photons by lambda / (h c), Simpson's rule on the throughput's own grid, times the pixel
     etendue pi D^2 / 4 (p / f)^2.  Within 0.5 % (the integration grids differ)."""
-    band = load_band(campaign.instrument, "r")
-    zm = zodiacal_model_from_instrument(campaign.instrument, "leinert_fit")
+    band = load_band(campaign.instrument_settings, "r")
+    zm = zodiacal_model_from_instrument(campaign.instrument_settings, "leinert_fit")
     ours = float(np.ravel(zm.evaluate(band, POLE, SUN)["e_per_s_per_pix"])[0])
 
     wl_sun, sun = solar_spectrum()
@@ -111,7 +111,7 @@ def test_band_rate_against_an_independent_integral(campaign):
     print(f"r at the pole: ours {ours:.5f}, independent {independent:.5f} e-/s/pix")
     assert ours == pytest.approx(independent, rel=5e-3)
     # the former default (Table 19 points over the Sun's +/-25 nm mean) gave a different r rate
-    old = zodiacal_model_from_instrument(campaign.instrument, "solar_leinert")
+    old = zodiacal_model_from_instrument(campaign.instrument_settings, "solar_leinert")
     assert float(np.ravel(old.evaluate(band, POLE, SUN)["e_per_s_per_pix"])[0]) != pytest.approx(
         independent, rel=5e-3
     )
@@ -123,11 +123,11 @@ def test_the_law_against_the_papers_hst_ratios(campaign):
     u to y, and closer to them than the former default in r, i, z and y.  In NUV the default is
     0.50 mag fainter: HST's spectrum is bluer than the Sun below 0.35 um (1.24x at 0.3 um over
     +/-25 nm), Leinert's Table 19 and eq. 22 redder (0.79-0.80 at 0.3 um)."""
-    new = zodiacal_model_from_instrument(campaign.instrument, "leinert_fit")
-    old = zodiacal_model_from_instrument(campaign.instrument, "solar_leinert")
-    hst = zodiacal_model_from_instrument(campaign.instrument, "hst")
+    new = zodiacal_model_from_instrument(campaign.instrument_settings, "leinert_fit")
+    old = zodiacal_model_from_instrument(campaign.instrument_settings, "solar_leinert")
+    hst = zodiacal_model_from_instrument(campaign.instrument_settings, "hst")
     for b in campaign.bands:
-        band = load_band(campaign.instrument, b)
+        band = load_band(campaign.instrument_settings, b)
         d_new = new.band_factors(band)[1] - hst.band_factors(band)[1]
         d_old = old.band_factors(band)[1] - hst.band_factors(band)[1]
         print(f"{b:4s} leinert_fit - hst {d_new:+.3f}, solar_leinert - hst {d_old:+.3f} mag")

@@ -36,9 +36,9 @@ def block(campaign, tmp_path_factory):
     observability.zarr at those samples, as their rules write them.  Without the star catalog
     (built by a pipeline rule of its own): stars = 0."""
     c = campaign_from_dict(
-        deep_merge(campaign.config, {"footprint": {"pixel_block_size": 330}}), campaign.path
+        deep_merge(campaign.config_mapping(), {"footprint": {"pixel_block_size": 330}}), campaign.path
     )
-    fp = footprint_from_config(c.config["footprint"], c.path.parent)
+    fp = footprint_from_config(c.settings.footprint, c.path.parent)
     times, pixels = slice(0, 72), slice(0, 330)
     tmp = tmp_path_factory.mktemp("storage")
     init_store(c, fp, tmp / "background.zarr")
@@ -48,9 +48,9 @@ def block(campaign, tmp_path_factory):
         limits = limits_dataset(
             c, bg.isel(time=times, pixel=pixels).drop_vars("faint_star_map", errors="ignore").load()
         )
-    write_zarr_atomic(limits, tmp / "limits.zarr", storage=c.config["storage"])
+    write_zarr_atomic(limits, tmp / "limits.zarr", storage=c.settings.storage)
     observability = observability_dataset(c, ephemeris_dataset(c).isel(time=times), fp).isel(pixel=pixels)
-    write_zarr_atomic(observability, tmp / "observability.zarr", storage=c.config["storage"])
+    write_zarr_atomic(observability, tmp / "observability.zarr", storage=c.settings.storage)
     return {
         "campaign": c,
         "dir": tmp,
@@ -80,14 +80,14 @@ def _chunk_bytes(store) -> int:
 
 
 def test_bound_from_kept_bits(campaign):
-    bits = campaign.config["storage"]["float_keepbits"]
+    bits = campaign.settings.storage.float_keepbits
     # round to nearest keeps half a unit of the last kept mantissa bit: 2^-(bits + 1)
     assert max_relative_error(bits) == 2.0 ** -(bits + 1) <= REQUIRED_RELATIVE_ERROR
     assert max_relative_error(23) == 0.0 and max_relative_error(23, np.float64) == 2.0**-24
 
 
 def test_stored_products_within_their_bound(block):
-    storage = block["campaign"].config["storage"]
+    storage = block["campaign"].settings.storage
     checked = 0
     for product, computed in block["computed"].items():
         with xr.open_zarr(block["dir"] / product, consolidated=False) as whole:
@@ -98,12 +98,12 @@ def test_stored_products_within_their_bound(block):
                 else whole
             )
             assert stored.attrs["float_max_relative_error"] == max(
-                max_relative_error(storage["float_keepbits"]),
+                max_relative_error(storage.float_keepbits),
                 *(stored[n].attrs["max_relative_error"] for n in stored.data_vars),
             ), product
             for name, var in computed.data_vars.items():
                 is_mag = str(var.attrs.get("units", "")).startswith("mag")
-                bits = storage["magnitude_keepbits" if is_mag else "float_keepbits"]
+                bits = storage.magnitude_keepbits if is_mag else storage.float_keepbits
                 bound = max_relative_error(bits)
                 attrs = stored[name].attrs
                 if var.dtype.kind != "f":  # bool and bit masks: lossless
@@ -132,7 +132,7 @@ def test_stored_products_within_their_bound(block):
 def test_faint_star_map_stored_exactly(campaign):
     """The cube's time blocks read the faint-star map back as an input: stored lossless."""
     faint = xr.Dataset({"faint_star_map": (("pixel", "band"), np.random.default_rng(1).random((5, 3)))})
-    ds, enc = encoded(faint, campaign.config["storage"], lossless=("faint_star_map",))
+    ds, enc = encoded(faint, campaign.settings.storage, lossless=("faint_star_map",))
     assert "filters" not in enc["faint_star_map"] and ds["faint_star_map"].attrs["max_relative_error"] == 0.0
 
 
@@ -146,7 +146,7 @@ def test_too_few_bits_break_the_required_bound(block, tmp_path, bits):
     """The check above can fail: the same block with fewer mantissa bits than the config's
     exceeds the required 1e-3 (while staying within its own, looser, bound)."""
     computed = block["computed"]["background.zarr"][list(CUBE_BAND_VARIABLES)]
-    ds, enc = encoded(computed, {**block["campaign"].config["storage"], "float_keepbits": bits})
+    ds, enc = encoded(computed, {**block["campaign"].config_mapping()["storage"], "float_keepbits": bits})
     ds.to_zarr(tmp_path / "b.zarr", encoding=enc, consolidated=False)
     with xr.open_zarr(tmp_path / "b.zarr", consolidated=False) as stored:
         errs = [_max_relative_error(stored[v].values, computed[v].values) for v in CUBE_BAND_VARIABLES]
@@ -219,7 +219,7 @@ def test_bitround_in_place_or_on_a_copy():
 
 
 def test_keepbits_read_back_from_the_recorded_bound(campaign):
-    bits = campaign.config["storage"]["float_keepbits"]
+    bits = campaign.settings.storage.float_keepbits
     for keepbits in (0, 1, bits, 16, 22):
         assert recorded_keepbits({"max_relative_error": max_relative_error(keepbits)}) == keepbits
     assert recorded_keepbits({"max_relative_error": 0.0}) is None and recorded_keepbits({}) is None
@@ -284,8 +284,8 @@ def test_encoded_rounds_dask_data_chunk_by_chunk(campaign):
             )
         }
     )
-    out, enc = encoded(ds, campaign.config["storage"])
-    bits = campaign.config["storage"]["float_keepbits"]
+    out, enc = encoded(ds, campaign.settings.storage)
+    bits = campaign.settings.storage.float_keepbits
     assert out["a"].chunks == ds["a"].chunks and "filters" not in enc["a"]
     np.testing.assert_array_equal(
         out["a"].values.view(np.uint32), BitRound(bits).encode(values).view(np.uint32).reshape(values.shape)

@@ -28,7 +28,7 @@ def small(tmp_path_factory):
             footprint={"pixel_block_size": 40},
         )
     )
-    fp = footprint_from_config(c.config["footprint"], c.path.parent)
+    fp = footprint_from_config(c.settings.footprint, c.path.parent)
     ref = tmp / "reference.zarr"
     init_store(c, fp, ref)
     run_time_blocks(c, fp, ref, [0, 1], tmp / "reference_done")

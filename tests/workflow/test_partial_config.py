@@ -43,9 +43,9 @@ def test_the_loader_merges_a_partial_file_and_a_mapping_over_the_defaults(partia
     for c in (load_campaign(partial), load_campaign(PARTIAL), check_campaign(partial)):
         assert c.name == "partial"
         assert len(c.times) == 6  # 2 h at 20 min
-        assert c.config["footprint"]["nside"] == 4
+        assert c.settings.footprint.nside == 4
         for section in ("orbit", "earth", "instrument", "stars", "storage"):  # the defaults'
-            assert c.config[section] == default.config[section], section
+            assert c.config_mapping()[section] == default.config_mapping()[section], section
         assert c.bands == default.bands
     # run (Snakemake's merge, through check_campaign), the API and the commands: one config
     assert check_campaign(partial).config == load_campaign(partial).config == load_campaign(PARTIAL).config

@@ -339,7 +339,7 @@ def test_orbit_series_model_equals_the_cube_at_its_samples(tmp_path):
     (cube,) = pointing_series(store, pixels)
     assert minutes.tolist() == [10.0 * i for i in range(12)]
     np.testing.assert_array_equal(model["observable"], cube["observable"])
-    tol = float(campaign.config["models"]["tolerance"]) + 2.0**-11
+    tol = float(campaign.settings.models.tolerance) + 2.0**-11
     for name in registry.component_names(total=True):
         error = np.abs(model[name] - cube[name])
         assert np.all(error <= tol * cube["total"] + 2.0**-11 * np.abs(cube[name])), name

@@ -28,7 +28,7 @@ _RESOLVED, _CONFIG_SOURCES, CONFIG_PATH = _resolve_config_files(dict(config), _C
 CONFIG_PATH = str(CONFIG_PATH)
 _CAMPAIGN = _campaign_from_dict(_RESOLVED, CONFIG_PATH, _CONFIG_SOURCES)
 config.clear()
-config.update(_CAMPAIGN.config)  # absolute paths and the schema's defaults, as the scripts see it
+config.update(_CAMPAIGN.config_mapping())  # absolute paths and the schema's defaults, as the scripts see it
 RESULTS = f"results/{config['campaign']['name']}"
 #: the run's working files (the cube's block sentinels and work stores, logs, run summaries): not
 #: products; everything else in RESULTS is in the README's products table

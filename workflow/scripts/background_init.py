@@ -6,6 +6,7 @@ and the three stores are laid down afresh (no chunk of an earlier run is kept).
 The body is guarded by __main__: the faint-star map's worker processes are spawned and
 re-import the main module, which must then not run the job again."""
 
+import dataclasses
 import sys
 from pathlib import Path
 
@@ -27,7 +28,7 @@ def main(snakemake):
     # the footprint rule's mask (its product, this rule's input): the same pixels, without
     # recomputing the latitude cuts
     fp = footprint_from_config(
-        {**c.config["footprint"], "mask_file": str(Path(snakemake.input.mask).resolve())}
+        dataclasses.replace(c.settings.footprint, mask_file=str(Path(snakemake.input.mask).resolve()))
     )
     cleared = clear_block_sentinels(Path(snakemake.output[0]).parent)
     if cleared:

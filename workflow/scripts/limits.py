@@ -36,7 +36,7 @@ def main(snakemake):
     with xr.open_zarr(snakemake.output.limits, consolidated=True, chunks=None) as written:
         ds = written.drop_vars(list(LIMITS_REGION_VARIABLES), errors="ignore").load()
     with atomic_path(snakemake.output.maps) as tmp:
-        maps = write_limit_maps(ds, tmp, end=campaign(snakemake).config["campaign"]["end"])
+        maps = write_limit_maps(ds, tmp, end=campaign(snakemake).settings.campaign.end)
     with atomic_path(snakemake.output.depth) as tmp:
         figures = limit_figures(snakemake.output.limits, campaign(snakemake), tmp)
         figures += envelope_figures(ds, snakemake.params.store, campaign(snakemake), tmp)

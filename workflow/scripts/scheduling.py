@@ -11,7 +11,7 @@ from straylight.planning.scheduling import write_tables  # noqa: E402
 
 log = setup_logging(snakemake)  # noqa: F821
 c = campaign(snakemake)  # noqa: F821
-fraction = float(c.config["scheduling"]["fraction_of_zodiacal"])
+fraction = float(c.settings.scheduling.fraction_of_zodiacal)
 for p in write_tables(BackgroundModel(c), snakemake.output[0], fraction):  # noqa: F821
     log.info("wrote %s", p)
 end_job()

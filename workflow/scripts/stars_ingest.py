@@ -11,7 +11,7 @@ from straylight.util.io import write_json_atomic  # noqa: E402
 
 log = setup_logging(snakemake)  # noqa: F821
 c = campaign(snakemake)  # noqa: F821
-res = ingest_file(snakemake.input.gaia, float(c.config["stars"]["g_limit_mag"]))  # noqa: F821
+res = ingest_file(snakemake.input.gaia, float(c.settings.stars.g_limit_mag))  # noqa: F821
 write_parquet(res.stars, snakemake.output.stars, {"source_file": str(snakemake.input.gaia)})  # noqa: F821
 write_parquet(res.quarantine, snakemake.output.quarantine)  # noqa: F821
 write_json_atomic(res.summary, snakemake.output.summary)  # noqa: F821
