@@ -28,7 +28,6 @@ EXEMPT = {
     "cube/region.py::compute_region": (65, 9),
     "cube/region.py::region_values": (113, 9),
     "cube/region.py::_envelope_ends": (20, 9),
-    "cube/store.py::empty_cube": (106, 6),
     "model/background.py::BackgroundModel.evaluate": (125, 10),
     "model/pointing.py::background_at": (112, 12),
     "planning/exposure_time.py::checked_request": (84, 6),
