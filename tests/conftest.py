@@ -7,11 +7,24 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
-# tests keep their earthshine look-up tables to themselves (subprocesses inherit this), in a
-# fresh folder, or in STRAYLIGHT_TEST_CACHE where a developer names one that already holds them
-os.environ["STRAYLIGHT_CACHE"] = os.environ.get("STRAYLIGHT_TEST_CACHE") or tempfile.mkdtemp(
-    prefix="straylight-test-cache-"
-)
+
+
+def _session_cache() -> str:
+    """The folder of the session's earthshine look-up tables: STRAYLIGHT_TEST_CACHE where a
+    developer names one that already holds them; else a fresh one, shared by the pytest-xdist
+    workers of one run (``make test`` runs two)."""
+    if os.environ.get("STRAYLIGHT_TEST_CACHE"):
+        return os.environ["STRAYLIGHT_TEST_CACHE"]
+    run = os.environ.get("PYTEST_XDIST_TESTRUNUID")
+    if run:
+        path = Path(tempfile.gettempdir()) / f"straylight-test-cache-{run}"
+        path.mkdir(exist_ok=True)
+        return str(path)
+    return tempfile.mkdtemp(prefix="straylight-test-cache-")
+
+
+# tests keep their earthshine look-up tables to themselves (subprocesses inherit this)
+os.environ["STRAYLIGHT_CACHE"] = _session_cache()
 SHARED_DATA = REPO.parent / "shared" / "data"
 # ISS TLE (public NORAD element set, 2008 example from the CelesTrak documentation)
 ISS_L1 = "1 25544U 98067A   08264.51782528 -.00002182  00000-0 -11606-4 0  2927"
@@ -106,9 +119,13 @@ TABLE_FREE_MODULES = frozenset(
 )
 #: the background build: the default campaign's model reading (so building) both its tables, then
 #: the assumption envelope's members' (every cube run reads them), at low priority, so that the
-#: tests running beside it keep their core
+#: tests running beside it keep their core; one build at a time in the folder (the other xdist
+#: worker's waits, then reads them)
 _BUILD_DEFAULT_TABLES = (
-    "import os; os.nice(10); from straylight.config import load_campaign; "
+    "import fcntl, os; os.nice(10); "
+    "lock = open(os.path.join(os.environ['STRAYLIGHT_CACHE'], '.table-build.lock'), 'w'); "
+    "fcntl.flock(lock, fcntl.LOCK_EX); "
+    "from straylight.config import load_campaign; "
     "from straylight.model import BackgroundModel; "
     "from straylight.model.envelope import ENDS, end_campaign; "
     "c = load_campaign(); BackgroundModel(c).models_record(); "
