@@ -7,11 +7,24 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
-# tests keep their earthshine look-up tables to themselves (subprocesses inherit this), in a
-# fresh folder, or in STRAYLIGHT_TEST_CACHE where a developer names one that already holds them
-os.environ["STRAYLIGHT_CACHE"] = os.environ.get("STRAYLIGHT_TEST_CACHE") or tempfile.mkdtemp(
-    prefix="straylight-test-cache-"
-)
+
+
+def _session_cache() -> str:
+    """The folder of the session's earthshine look-up tables: STRAYLIGHT_TEST_CACHE where a
+    developer names one that already holds them; else a fresh one, shared by the pytest-xdist
+    workers of one run (``make test`` runs two)."""
+    if os.environ.get("STRAYLIGHT_TEST_CACHE"):
+        return os.environ["STRAYLIGHT_TEST_CACHE"]
+    run = os.environ.get("PYTEST_XDIST_TESTRUNUID")
+    if run:
+        path = Path(tempfile.gettempdir()) / f"straylight-test-cache-{run}"
+        path.mkdir(exist_ok=True)
+        return str(path)
+    return tempfile.mkdtemp(prefix="straylight-test-cache-")
+
+
+# tests keep their earthshine look-up tables to themselves (subprocesses inherit this)
+os.environ["STRAYLIGHT_CACHE"] = _session_cache()
 SHARED_DATA = REPO.parent / "shared" / "data"
 # ISS TLE (public NORAD element set, 2008 example from the CelesTrak documentation)
 ISS_L1 = "1 25544U 98067A   08264.51782528 -.00002182  00000-0 -11606-4 0  2927"
@@ -56,9 +69,8 @@ def zero_point_less_real_curves_mag(campaign):
 
 @pytest.fixture(scope="session")
 def default_tables():
-    """The default campaign's earthshine tables, the envelope members' included, in the session's
-    cache (built once if missing), for tests that read a command's whole output (a build prints
-    its notice and progress)."""
+    """The default campaign's earthshine tables in the session's cache (built once if missing), for
+    tests that read a command's whole output (a build prints its notice and progress)."""
     subprocess.run([sys.executable, "-c", _BUILD_DEFAULT_TABLES], cwd=REPO, check=True)
 
 
@@ -99,21 +111,20 @@ TABLE_FREE_MODULES = frozenset(
         "sources/test_earth_grid_cut.py",
         "sources/test_earthshine_lut.py",
         "sources/test_saturn_rings.py",
+        "sources/test_table_cache_lock.py",
         "sources/test_zodiacal.py",
         "sources/test_zodiacal_colour.py",
         "util/test_gridinterp.py",
     }
 )
-#: the background build: the default campaign's model reading (so building) both its tables, then
-#: the assumption envelope's members' (every cube run reads them), at low priority, so that the
-#: tests running beside it keep their core
+#: the background build: the default campaign's model reading (so building) both its tables, at
+#: low priority, so that the tests running beside it keep their core (one build of a table at a
+#: time: the other xdist worker's waits for it, then reads it).  The assumption envelope's
+#: members' tables are built by the first test that reads them: the tests' small campaigns sum
+#: their earthshine directly (:func:`tiny_config`)
 _BUILD_DEFAULT_TABLES = (
     "import os; os.nice(10); from straylight.config import load_campaign; "
-    "from straylight.model import BackgroundModel; "
-    "from straylight.model.envelope import ENDS, end_campaign; "
-    "c = load_campaign(); BackgroundModel(c).models_record(); "
-    "env = c.instrument_settings.envelope; "
-    "[BackgroundModel(end_campaign(c, e)).models_record() for e in ENDS if env and env.members]"
+    "from straylight.model import BackgroundModel; BackgroundModel(load_campaign()).models_record()"
 )
 _table_build = None  # its Popen, until the first test that may read the tables has waited for it
 
@@ -128,8 +139,8 @@ def _may_read_default_tables(item) -> bool:
 
 def pytest_collection_modifyitems(config, items):
     """In a session with tests of both kinds, the table-free modules run first (the order within
-    each kind kept) while the default tables and the envelope members' (once per session) are
-    built in a background process; the first test of another module waits for that build."""
+    each kind kept) while the default tables (once per session) are built in a background
+    process; the first test of another module waits for that build."""
     global _table_build
     free = [item for item in items if not _may_read_default_tables(item)]
     if not free or len(free) == len(items) or config.option.collectonly:
@@ -199,11 +210,15 @@ def run_clis(*commands, cwd=REPO, timeout=120):
     return done
 
 
-def tiny_config(tmp, name="tiny", campaign=None, footprint=None, compute=None):
-    """A small campaign config (2 h at 10 min, nside 4) written to tmp; returns its path."""
+def tiny_config(tmp, name="tiny", campaign=None, footprint=None, compute=None, earthshine_method="direct"):
+    """A small campaign config (2 h at 10 min, nside 4) written to tmp; returns its path.  Its
+    earthshine is summed directly by default: a few thousand samples cost seconds so, where the
+    look-up tables (the nominal model's and the envelope's two members') would cost minutes to
+    build; ``earthshine_method`` "auto" reads the default tables."""
     import yaml
 
     cfg = yaml.safe_load((REPO / "config" / "config.yaml").read_text())
+    cfg["models"]["earthshine"]["method"] = earthshine_method
     cfg["campaign"].update(name=name, end="2026-01-01T02:00:00", cadence_s=600, time_block_hours=1)
     cfg["campaign"].update(campaign or {})
     cfg["instrument"] = str(REPO / "config" / "instruments" / "csst.yaml")

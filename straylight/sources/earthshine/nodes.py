@@ -387,10 +387,30 @@ def _cached(
 ):
     """load(path) of the cached table ``prefix_key.npz``, else build(), saved there.  A build is
     announced once, as a warning (so a command with no logging set up shows it too), with its
-    expected time from ``expected_cpu_s`` (seconds on one core) over ``workers`` cores."""
+    expected time from ``expected_cpu_s`` (seconds on one core) over ``workers`` cores.  One
+    process at a time builds a table (a lock file beside it): another one that needs the same
+    table waits for that build and reads it."""
+    import fcntl
+
     path = cache_path(prefix, key)
     if path.exists():
         return load(path), path
+    try:  # before the build: a folder that cannot take the table fails now, not minutes later
+        path.parent.mkdir(parents=True, exist_ok=True)
+        lock = open(path.with_suffix(".lock"), "w")
+    except OSError as exc:
+        raise InputError(
+            f"STRAYLIGHT_CACHE = {path.parent}: cannot write the {what} table there ({exc.strerror})"
+        ) from exc
+    with lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes, or the process dies
+        if path.exists():  # built by the process that held the lock
+            return load(path), path
+        return _build_and_save(path, what, build, log, expected_cpu_s, workers), path
+
+
+def _build_and_save(path: Path, what: str, build, log, expected_cpu_s, workers: int):
+    """build() announced (as :func:`_cached` says) and saved at ``path``; the table."""
     if log is not None:
         eta = (
             f", ~{expected_cpu_s / max(workers, 1):.0f} s on {workers} core{'s' if workers > 1 else ''}"
@@ -401,6 +421,5 @@ def _cached(
             "building the %s look-up table once%s; later runs read it from %s", what, eta, path.parent
         )
     lut = build()
-    path.parent.mkdir(parents=True, exist_ok=True)
     lut.save(path)
-    return lut, path
+    return lut
