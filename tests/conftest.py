@@ -146,6 +146,7 @@ SLOW_MODULES = (
 
 
 def _module(item) -> str:
+    """The test module's path under tests/ ("" outside it)."""
     try:
         return Path(item.path).resolve().relative_to(REPO / "tests").as_posix()
     except ValueError:
@@ -153,11 +154,7 @@ def _module(item) -> str:
 
 
 def _may_read_default_tables(item) -> bool:
-    try:
-        module = Path(item.path).resolve().relative_to(REPO / "tests").as_posix()
-    except ValueError:
-        return True
-    return module not in TABLE_FREE_MODULES
+    return _module(item) not in TABLE_FREE_MODULES
 
 
 def pytest_collection_modifyitems(config, items):
