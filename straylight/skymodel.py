@@ -108,7 +108,7 @@ class SkyModel:
         a table allocated once: the peak memory is the table plus one chunk's work and the samples'
         copies (``python bench/api_memory.py``).
         """
-        from straylight.planning.pointings import background_table
+        from straylight.planning.pointings import TableLayout, background_table
 
         t, ra, dec = checked_samples(time, coord)
         campaign = self.campaign
@@ -126,18 +126,8 @@ class SkyModel:
         columns, dtype = _checked_columns(columns, dtype, empty.colnames)
         if not t.size:
             return _empty_table(campaign, t, bands)[columns or empty.colnames]
-        return background_table(
-            campaign,
-            t,
-            ra,
-            dec,
-            bands,
-            self._stars_for(bands),
-            source="sky_background",
-            model=self.model,
-            columns=columns,
-            dtype=dtype,
-        )
+        layout = TableLayout(None if columns is None else tuple(columns), dtype)
+        return background_table(campaign, t, ra, dec, bands, self._stars_for(bands), self.model, layout)
 
     def exposure_time(self, time, coord, mag_ab, snr=5.0, bands=None, n_exposures=None, observable_only=True):
         """Total exposure time a point source needs to reach ``snr``, per sample and band, at the

@@ -83,16 +83,17 @@ def sky_record(campaign, time, ra_deg: float, dec_deg: float, bands=None, stars=
     """
     from straylight.model import BackgroundModel
     from straylight.model.pointing import background_result
+    from straylight.model.samples import SampleBatch
     from straylight.planning.pointings import with_limits
     from straylight.sky.observing import scene
     from straylight.sky.vectors import radec_to_unit
 
     sc = scene(campaign.orbit, time)
     model = model() if model is not None else BackgroundModel(campaign)
-    los = np.atleast_2d(radec_to_unit(np.array([ra_deg]), np.array([dec_deg])))
+    samples = SampleBatch(sc, np.atleast_2d(radec_to_unit(np.array([ra_deg]), np.array([dec_deg]))))
     bands = bands or campaign.bands
     result = background_result(
-        model, sc, los, bands, stars=stars, in_field_bands=bands, geometry_bodies=tuple(sc.bodies_km)
+        model, samples, bands, stars=stars, in_field_bands=bands, geometry_bodies=tuple(sc.bodies_km)
     )
     one = with_limits(result, campaign).to_record(0)
     record = {

@@ -158,17 +158,12 @@ class WorkerState:
         kernels loaded) by computing one sample, so that the first region does not wait for it."""
         import numpy as np
 
-        from straylight.cube.region import region_values
+        from straylight.cube.region import RegionInputs, region_values
 
         # (the faint stars' map comes with each region: zeros here)
+        faint = np.zeros((1, len(self.campaign.bands)))
         region_values(
-            self.campaign,
-            self.fp,
-            slice(0, 1),
-            slice(0, 1),
-            self.model,
-            self.stars,
-            faint_map=np.zeros((1, len(self.campaign.bands))),
+            self.campaign, self.fp, slice(0, 1), slice(0, 1), self.model, RegionInputs(self.stars, faint)
         )
 
     def write_region(
@@ -209,7 +204,7 @@ class WorkerState:
         ValueError
             When ``scene`` is not at exactly the region's times.
         """
-        from straylight.cube.region import region_values
+        from straylight.cube.region import RegionInputs, region_values
         from straylight.cube.store import (
             open_stores,
             region_limits,
@@ -224,9 +219,8 @@ class WorkerState:
             faint = stored_faint_map(stores.cube)
             faint = None if faint is None else faint[p_slice]
         angles = None if stores.observability is None else {}
-        region = region_values(
-            self.campaign, self.fp, t_slice, p_slice, self.model, self.stars, faint, scene, angles
-        )
+        inputs = RegionInputs(self.stars, faint, scene)
+        region = region_values(self.campaign, self.fp, t_slice, p_slice, self.model, inputs, angles)
         lim = None if stores.limits is None else region_limits(self.campaign, region)
         try:
             arrays = self._arrays or open_stores(stores)

@@ -3,10 +3,11 @@ observability, at a time block's times x a pixel block's lines of sight.
 
 :func:`region_values` computes a region as numpy arrays (what a worker writes),
 :func:`compute_region` as a Dataset.  The steps of a region are evaluated together, as flat
-batches of samples (:func:`_step_batches`); with ``models.unobservable_samples: skip`` only the
-observable samples are evaluated (:func:`_evaluate_observable`).  The faint stars' map depends on
-the line of sight only, so the cube computes it once for the whole footprint
-(:func:`faint_star_map`) and every region reads its pixels.
+batches of samples (:func:`_step_batches`, each a
+:class:`~straylight.model.samples.SampleBatch`); with ``models.unobservable_samples: skip`` only
+the observable samples are evaluated (:func:`~straylight.model.pointing.background_at`).  The
+faint stars' map depends on the line of sight only, so the cube computes it once for the whole
+footprint (:func:`faint_star_map`) and every region reads its pixels.
 
 The model and the off-field stars are built by the caller, once for many regions
 (:class:`straylight.cube.executors.WorkerState` keeps them in a worker).
@@ -14,6 +15,7 @@ The model and the off-field stars are built by the caller, once for many regions
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -22,6 +24,8 @@ from straylight.cube import layout as cube_layout
 from straylight.cube.layout import OBSERVABILITY_ANGLES
 from straylight.model import registry
 from straylight.model.pointing import background_at
+from straylight.model.samples import SampleBatch
+from straylight.sky.observing import Scene
 from straylight.sky.runs import SceneRuns
 from straylight.sky.vectors import radec_to_unit
 
@@ -31,7 +35,14 @@ if TYPE_CHECKING:  # xarray where a Dataset is made: a worker computing regions 
     from straylight.config import Campaign
     from straylight.cube.footprint import Footprint
 
-__all__ = ["SAMPLES_PER_EVALUATION", "compute_region", "faint_star_map", "offfield_stars", "region_values"]
+__all__ = [
+    "SAMPLES_PER_EVALUATION",
+    "RegionInputs",
+    "compute_region",
+    "faint_star_map",
+    "offfield_stars",
+    "region_values",
+]
 
 #: samples per evaluation on the table path (whole time steps of a pixel block): large enough
 #: that numpy's per-call cost is paid rarely, a default production region in one call, small
@@ -65,27 +76,25 @@ def offfield_stars(campaign: Campaign, stars_path):
     return load_offfield_stars(stars_path, campaign.bands, limit, faint)
 
 
+@dataclass(frozen=True)
+class RegionInputs:
+    """What the caller of :func:`region_values` may already hold, computed once for many
+    regions: ``stars``, the off-field stars (:func:`offfield_stars`; None: stars = 0);
+    ``faint_map``, the faint stars' map at the region's pixels, (pixel, band) e-/s/pix, as
+    :func:`faint_star_map` gives it (None: computed here from ``stars``); ``scene``, the
+    satellite's and the bodies' positions at exactly the region's times
+    (:func:`straylight.sky.observing.scene`, shared by a time block's pixel blocks; None:
+    computed here)."""
+
+    stars: object = None
+    faint_map: np.ndarray | None = None
+    scene: Scene | None = None
+
+
 def compute_region(
-    campaign: Campaign,
-    fp: Footprint,
-    t_slice: slice,
-    p_slice: slice,
-    model=None,
-    stars=None,
-    faint_map=None,
-    scene=None,
-    angles: dict | None = None,
+    campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: slice, model=None, stars=None, scene=None
 ) -> xr.Dataset:
-    """Compute the cube values of times t_slice x pixels p_slice (numpy-backed Dataset);
-    ``model``: the campaign's BackgroundModel (None: built here); ``stars``: the off-field stars
-    (:func:`offfield_stars`; None: stars = 0); ``faint_map``: the faint stars' map at these
-    pixels, (pixel, band) e-/s/pix, as :func:`faint_star_map` gives it (None: computed here);
-    ``scene``: the satellite's and the bodies' positions at these times
-    (:func:`straylight.sky.observing.scene`), when already computed for another pixel block of
-    the same times (None: computed here); ``angles``: a dict that receives the samples' other
-    observability angles (:data:`~straylight.cube.layout.OBSERVABILITY_ANGLES`, (time,
-    pixel) float32 deg, the geometry the cube computes anyway; None: not kept).  ValueError if
-    ``scene`` is not at exactly these times.
+    """Compute the cube values of times t_slice x pixels p_slice (numpy-backed Dataset).
 
     Parameters
     ----------
@@ -99,14 +108,10 @@ def compute_region(
     model : BackgroundModel, optional
         The campaign's model; None: built here.
     stars : straylight.sources.stars_table.StarTable, optional
-        Off-field stars; None: the stars component is 0.
-    faint_map : array_like, shape (n_pixel, n_band), optional
-        The faint stars' map at these pixels, e-/s/pix; None: computed here (if ``stars``).
+        Off-field stars (:func:`offfield_stars`); None: the stars component is 0.
     scene : straylight.sky.observing.Scene, optional
-        Satellite and body positions at exactly these times; None: computed here.
-    angles : dict, optional
-        If given, filled with the :data:`~straylight.cube.layout.OBSERVABILITY_ANGLES`
-        arrays, float32 deg, shape (n_time, n_pixel).
+        Satellite and body positions at exactly these times, when already computed for another
+        pixel block of the same times; None: computed here.
 
     Returns
     -------
@@ -126,7 +131,7 @@ def compute_region(
         from straylight.model import BackgroundModel
 
         model = BackgroundModel(campaign)
-    values = region_values(campaign, fp, t_slice, p_slice, model, stars, faint_map, scene, angles)
+    values = region_values(campaign, fp, t_slice, p_slice, model, RegionInputs(stars, scene=scene))
     return xr.Dataset(
         {name: (_dims(name), v) for name, v in values.items() if not cube_layout.is_envelope_end_part(name)}
     )
@@ -145,20 +150,24 @@ def region_values(
     t_slice: slice,
     p_slice: slice,
     model,
-    stars=None,
-    faint_map=None,
-    scene=None,
+    inputs: RegionInputs | None = None,
     angles: dict | None = None,
 ) -> dict:
     """:func:`compute_region`'s variables as numpy arrays (name -> (time, pixel[, band]) array),
-    without the Dataset: what a worker writes.  ``model`` is required here.
+    without the Dataset: what a worker writes.
 
     Parameters
     ----------
-    campaign, fp, t_slice, p_slice, stars, faint_map, scene, angles
+    campaign, fp, t_slice, p_slice
         As :func:`compute_region`.
     model : BackgroundModel
-        The campaign's model (required).
+        The campaign's model.
+    inputs : RegionInputs, optional
+        The off-field stars, the faint stars' map at these pixels and the times' scene, where
+        the caller holds them (None: no stars, the scene computed here).
+    angles : dict, optional
+        If given, filled with the :data:`~straylight.cube.layout.OBSERVABILITY_ANGLES`
+        arrays, float32 deg, shape (n_time, n_pixel).
 
     Returns
     -------
@@ -175,23 +184,24 @@ def region_values(
     Raises
     ------
     ValueError
-        When ``scene`` is not at exactly the region's times.
+        When ``inputs.scene`` is not at exactly the region's times.
     """
     from straylight.model import unobservable_samples
     from straylight.sky import observing
 
+    inputs = RegionInputs() if inputs is None else inputs
     times = campaign.times[t_slice]
-    sc = observing.scene(campaign.orbit, times) if scene is None else _checked_scene(scene, times)
+    sc = (
+        observing.scene(campaign.orbit, times)
+        if inputs.scene is None
+        else _checked_scene(inputs.scene, times)
+    )
     los = radec_to_unit(fp.ra_deg[p_slice], fp.dec_deg[p_slice])
     nt, npix, nb = len(times), los.shape[0], len(campaign.bands)
-    faint = _faint_by_pixel(model, campaign, stars, faint_map, los)
+    faint = _faint_by_pixel(model, campaign, inputs.stars, inputs.faint_map, los)
     names, n_model, block = _region_block(nt, npix, nb)
     out = dict(zip(names, block))
-    obs = np.zeros((nt, npix), bool)
-    viol = np.zeros((nt, npix), np.uint8)
-    door = np.zeros((nt, npix), np.float32)
-    if angles is not None:
-        angles.update({k: np.zeros((nt, npix), np.float32) for k in OBSERVABILITY_ANGLES})
+    grid = _geometry_block(nt, npix, angles is not None)
     # Steps are evaluated together, as one flat batch of samples: numpy's per-call cost is then
     # paid once per batch, not once per step.  The direct earthshine sum grids the Earth per
     # sample, so there one step per call bounds its memory (the star pairs bound their own:
@@ -200,49 +210,49 @@ def region_values(
     skip_unobservable = unobservable_samples(campaign) == "skip"  # the campaign's, not the model's
     for steps in _step_batches(nt, npix, max_samples):
         k = steps.stop - steps.start
-        los_k = np.broadcast_to(los[None], (k,) + los.shape).reshape(-1, 3)
+        samples = _step_samples(sc, steps, los, faint)
         # written straight into the region's float32 block: a view (the steps are consecutive,
         # so step and pixel merge into the batch's step-major samples)
+        rows = {name: out[name][steps].reshape(k * npix, nb) for name in names}
         # (the envelope's re-evaluated groups, last, are not the model's: _envelope_ends fills them)
         into = (names[:n_model], block[:n_model, steps].reshape(n_model, k * npix, nb))
-        g = _evaluate_steps(model, sc, steps, los_k, campaign.bands, (stars, faint), into, skip_unobservable)
-        obs[steps], viol[steps], door[steps] = (
-            _by_step(g[v], k, npix) for v in ("observable", "violations", "door_opening_deg")
-        )
-        _envelope_ends(model, campaign, sc, steps, los_k, g, out, k, npix)
-        if angles is not None:
-            for name in OBSERVABILITY_ANGLES:
-                angles[name][steps] = _by_step(g[name], k, npix)
-    _mask_parts(model, campaign, out, obs)
-    return {**out, "observable": obs, "violations": viol, "door_opening_deg": door}
+        g, _ = background_at(model, samples, campaign.bands, inputs.stars, into, skip_unobservable)
+        _envelope_ends(model, campaign, samples, g, rows)
+        for name, values in grid.items():
+            values[steps] = _by_step(g[name], k, npix)
+    _mask_parts(model, campaign, out, grid["observable"])
+    if angles is not None:
+        angles.update({k: grid.pop(k) for k in OBSERVABILITY_ANGLES})
+    return {**out, **grid}
 
 
-def _evaluate_steps(
-    model, sc, steps: slice, los_k: np.ndarray, bands, stars: tuple, into: tuple, skip: bool
-) -> dict:
-    """The background at the time ``steps`` of scene ``sc`` x the region's pixels (``los_k``:
-    their lines of sight repeated per step) in ``bands``, written ``into`` (names, block view);
-    ``stars``: (the off-field stars, the faint map per pixel or None); ``skip``: the observable
-    samples only.  Returns the samples' observing geometry."""
-    k = steps.stop - steps.start
-    npix = los_k.shape[0] // k
-    stars, faint = stars
-    # each step's scene repeated over its pixels: the samples' scene runs are the steps,
-    # known here, so no function scans every sample's vectors to find them again
-    g, _ = background_at(
-        model,
-        sc.satellite_km[steps],
-        {b: v[steps] for b, v in sc.bodies_km.items()},
-        los_k,
-        bands,
-        scene_index=np.repeat(np.arange(k), npix),
-        stars=stars,
-        faint_rates=None if faint is None else {b: np.tile(v, k) for b, v in faint.items()},
-        runs=SceneRuns.steps(k, npix),
-        into=into,
-        observable_only=skip,
+def _geometry_block(nt: int, npix: int, with_angles: bool) -> dict:
+    """The region's (time, pixel) geometry, zeroed: ``observable`` (bool), ``violations``
+    (uint8), ``door_opening_deg`` (float32 deg) and with ``with_angles`` the
+    :data:`~straylight.cube.layout.OBSERVABILITY_ANGLES` (float32 deg)."""
+    grid = {
+        "observable": np.zeros((nt, npix), bool),
+        "violations": np.zeros((nt, npix), np.uint8),
+        "door_opening_deg": np.zeros((nt, npix), np.float32),
+    }
+    if with_angles:
+        grid.update({k: np.zeros((nt, npix), np.float32) for k in OBSERVABILITY_ANGLES})
+    return grid
+
+
+def _step_samples(sc: Scene, steps: slice, los: np.ndarray, faint: dict | None) -> SampleBatch:
+    """The region's samples at the time ``steps`` of scene ``sc``: each step's scene over every
+    pixel (``los``, (n_pixel, 3)), step-major, with the faint stars' map per pixel (band ->
+    e-/s/pix) where known.  The samples' scene runs are the steps, known here, so no function
+    scans every sample's vectors to find them again."""
+    k, npix = steps.stop - steps.start, los.shape[0]
+    return SampleBatch(
+        sc.rows(steps),
+        np.broadcast_to(los[None], (k,) + los.shape).reshape(-1, 3),
+        np.repeat(np.arange(k), npix),
+        SceneRuns.steps(k, npix),
+        None if faint is None else {b: np.tile(v, k) for b, v in faint.items()},
     )
-    return g
 
 
 def _faint_by_pixel(model, campaign: Campaign, stars, faint_map, los: np.ndarray) -> dict | None:
@@ -301,26 +311,26 @@ def _end_models(model, campaign) -> dict:
     return cache
 
 
-def _envelope_ends(model, campaign, sc, steps, los_k, g, out, k, npix) -> None:
+def _envelope_ends(model, campaign, samples: SampleBatch, g: dict, rows: dict) -> None:
     """The parts the envelope's members change, re-evaluated at each end at a batch's observable
-    samples, into ``out``'s ``<part>_<end>`` variables (NaN elsewhere)."""
+    samples (``g``: the batch's geometry), into the ``<part>_<end>`` variables' ``rows``
+    (name -> (samples, band) view; NaN elsewhere)."""
     from straylight.model.envelope import end_part_name, end_parts
 
     models = _end_models(model, campaign)
     sel = np.flatnonzero(np.asarray(g["observable"], bool))
     if not models or not sel.size:
         return
-    scene_of = np.repeat(np.arange(k), npix)[sel]
-    sat = np.take(sc.satellite_km[steps], scene_of, axis=0)
+    sat = np.take(samples.satellite_km, sel, axis=0)
     # the Sun and the Moon only: the planets and the stars are not among the members' parts
-    bodies = {b: np.take(sc.bodies_km[b][steps], scene_of, axis=0) for b in ("sun", "moon")}
-    geom = {name: np.asarray(v)[sel] for name, v in g.items() if np.shape(v)[:1] == (k * npix,)}
-    los = np.take(los_k, sel, axis=0)
+    bodies = {b: np.take(samples.body_km(b), sel, axis=0) for b in ("sun", "moon")}
+    geom = {name: np.asarray(v)[sel] for name, v in g.items() if np.shape(v)[:1] == (samples.n,)}
+    los = np.take(samples.los, sel, axis=0)
     for end, end_model in models.items():
         for group, v in end_parts(end_model, sat, bodies, los, geom, campaign.bands).items():
             name = end_part_name(group, end)
-            if name in out:
-                out[name][steps].reshape(k * npix, -1)[sel] = v
+            if name in rows:
+                rows[name][sel] = v
 
 
 def _checked_scene(sc, times):

@@ -320,8 +320,6 @@ class BackgroundModel:
         geometry,
         bands,
         stars: StarTable | None = None,
-        faint_rates: dict | None = None,
-        frame=None,
         into: tuple | None = None,
         runs=None,
     ) -> dict:
@@ -343,11 +341,6 @@ class BackgroundModel:
             Band names.
         stars : StarTable or None
             The off-field stars (None: stars = 0).
-        faint_rates : dict or None
-            The faint stars' map here, band -> e-/s/pix, when already computed
-            (:meth:`~straylight.sources.stars.OffFieldStars.faint_star_rates`).
-        frame : TelescopeFrame or None
-            The samples' ``telescope_frame(los, sun - satellite)``, when already computed.
         into : (sequence of str, ndarray) or None
             (component names, array (names, samples flattened, bands)), e.g. a cube region's
             float32 block, receiving those components (the result's arrays are its views; no
@@ -368,13 +361,38 @@ class BackgroundModel:
         ValueError
             For an unknown name in ``into`` or an array of another shape.
         """
-        shape = geometry["sun_angle_deg"].shape
+        sat = np.asarray(satellite_km, float)
+        frame = telescope_frame(los, bodies_km["sun"] - sat)
+        return self.evaluate_samples(Samples(sat, bodies_km, frame, geometry, runs, stars=stars), bands, into)
+
+    def evaluate_samples(self, samples: Samples, bands, into: tuple | None = None) -> dict:
+        """:meth:`evaluate` at samples as the sources read them (positions, telescope frame,
+        geometry, stars, the faint stars' map where known; e.g.
+        :meth:`~straylight.model.samples.SampleBatch.source_samples`).
+
+        Parameters
+        ----------
+        samples : Samples
+            The samples (their ``moon_lamp``, ``floor`` and ``floor_ratio`` are set here).
+        bands : sequence of str
+            Band names.
+        into : (sequence of str, ndarray) or None
+            As :meth:`evaluate`.
+
+        Returns
+        -------
+        dict
+            As :meth:`evaluate`.
+
+        Raises
+        ------
+        ValueError
+            For an unknown name in ``into`` or an array of another shape.
+        """
+        shape = samples.shape
         n, outputs = int(np.prod(shape)), self.outputs
         if into is not None:  # checked before any work
             _check_into(into, n, len(bands), outputs)
-        sat = np.asarray(satellite_km, float)
-        frame = telescope_frame(los, bodies_km["sun"] - sat) if frame is None else frame
-        samples = Samples(sat, bodies_km, frame, geometry, runs, stars=stars, faint_rates=faint_rates)
         scales = self._lamp_scales(samples)
         sun_at_1au = np.array([self.context.photometry(name).sun_at_1au_photons_s_m2 for name in bands])
         rates = self._source_rates(samples, bands, scales, sun_at_1au)

@@ -13,6 +13,7 @@ A bad row stops the run with the file, row, field and value; nothing is written.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -35,6 +36,7 @@ __all__ = [
     "UNITS",
     "column_units",
     "background_table",
+    "TableLayout",
     "with_limits",
     "TABLE_VIOLATION_BITS",
     "VIOLATIONS_DESCRIPTION",
@@ -218,7 +220,8 @@ def pointing_table(
         range.
     """
     t_all, iso = _checked_times(pointings, source)
-    return _columns(_evaluate(campaign, pointings, t_all, bands, stars, batch, models, model)[0], iso)
+    tables = _Tables(campaign, list(bands or campaign.bands), stars, model, models)
+    return _columns(tables.result(t_all, pointings["ra"], pointings["dec"], batch), iso)
 
 
 def _checked_times(pointings: dict, source: str):
@@ -273,21 +276,9 @@ def pointing_chunks(
         The chunk's rows and its columns (:func:`pointing_table`'s).
     """
     t_all, iso = _checked_times(pointings, source)
-    for sl, result in _result_chunks(campaign, pointings, t_all, bands, stars, chunk_rows, models, model):
+    tables = _Tables(campaign, list(bands or campaign.bands), stars, model, models)
+    for sl, result in tables.chunks(t_all, pointings["ra"], pointings["dec"], chunk_rows):
         yield sl, _columns(result, iso)
-
-
-def _result_chunks(campaign, pointings, t_all, bands, stars, chunk_rows, models, model):
-    """(row slice, :class:`~straylight.model.result.BackgroundResult` of those rows), ``chunk_rows``
-    rows at a time (0: all at once), for times already parsed and checked."""
-    n = len(t_all)
-    step = n if chunk_rows <= 0 else int(chunk_rows)
-    for a in range(0, n, max(step, 1)):
-        sl = slice(a, min(a + step, n))
-        part = {"ra": pointings["ra"][sl], "dec": pointings["dec"][sl]}
-        result, model = _evaluate(campaign, part, t_all[sl], bands, stars, 8192, models, model)
-        models = None  # recorded by the first chunk; its model serves the later ones
-        yield sl, result
 
 
 def _columns(result, iso: bool) -> dict:
@@ -321,45 +312,57 @@ def with_limits(result, campaign):
     return replace(result, limits=limits)
 
 
-def _evaluate(campaign, pointings, t_all, bands, stars, batch, models, model) -> tuple:
-    """(the :class:`~straylight.model.result.BackgroundResult` at the pointings, with their
-    times, pointing and limits; the model used) for times already parsed and checked."""
-    from straylight.model import BackgroundModel
-    from straylight.model.pointing import background_result
-    from straylight.model.result import BackgroundResult
-    from straylight.sky.observing import scene
-    from straylight.sky.vectors import radec_to_unit
+@dataclass
+class _Tables:
+    """What every chunk of one pointing table shares: the campaign, the bands, the off-field
+    stars (None: stars = 0), the model (a :class:`~straylight.model.BackgroundModel`, a function
+    giving it, or None: built here; made once, at the first chunk, after its scene) and the dict
+    that receives its record (None: not kept)."""
 
-    bands = list(bands or campaign.bands)
-    # the scene once per distinct time (a scheduler asks for many pointings at few times), before
-    # the model: an orbit that cannot be propagated is refused before any table is read or built
-    first, inverse = _distinct_times(
-        np.asarray(t_all.jd1, float).ravel(), np.asarray(t_all.jd2, float).ravel()
-    )
-    distinct = scene(campaign.orbit, t_all[first])
-    model = BackgroundModel(campaign) if model is None else model() if callable(model) else model
-    if models is not None:
-        models.update(model.models_record())
-    parts = []
-    for a in range(0, len(t_all), batch):
-        sl = slice(a, min(a + batch, len(t_all)))
-        los = np.atleast_2d(radec_to_unit(pointings["ra"][sl], pointings["dec"][sl]))
+    campaign: object
+    bands: list
+    stars: object = None
+    model: object = None
+    models: dict | None = None
+
+    def warm_model(self):
+        """The model, made (and its record kept) on the first call."""
+        from straylight.model import BackgroundModel
+
+        if self.model is None or callable(self.model):
+            self.model = BackgroundModel(self.campaign) if self.model is None else self.model()
+            if self.models is not None:
+                self.models.update(self.model.models_record())
+        return self.model
+
+    def result(self, t, ra_deg, dec_deg, batch: int = 8192):
+        """The :class:`~straylight.model.result.BackgroundResult` at UTC times ``t`` (parsed and
+        checked, (n,)) and ICRS pointings (deg, (n,)), with their times, pointing and limits:
+        one batch of samples (:meth:`~straylight.model.samples.SampleBatch.at_times`, the scene
+        once per distinct time) evaluated ``batch`` samples at a time."""
+        from straylight.model.pointing import background_result
+        from straylight.model.result import BackgroundResult
+        from straylight.model.samples import SampleBatch
+
+        # the scene before the model: an orbit that cannot be propagated is refused before any
+        # table is read or built
+        samples = SampleBatch.at_times(self.campaign.orbit, t, ra_deg, dec_deg)
+        model = self.warm_model()
         # the brightest Sun, Moon or planet inside the field: a point source, not in the background
-        parts.append(background_result(model, distinct, los, bands, inverse[sl], stars, in_field_bands=[]))
-    result = with_limits(BackgroundResult.concatenate(parts), campaign)
-    return result.at(t_all, pointings["ra"], pointings["dec"]), model
+        parts = [
+            background_result(model, samples[a : a + batch], self.bands, self.stars, in_field_bands=[])
+            for a in range(0, samples.n, batch)
+        ]
+        return with_limits(BackgroundResult.concatenate(parts), self.campaign).at(t, ra_deg, dec_deg)
 
-
-def _distinct_times(jd1: np.ndarray, jd2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(index of each distinct two-part Julian date, in increasing order; each sample's distinct
-    time): np.unique over the (jd1, jd2) pairs, by one lexsort."""
-    order = np.lexsort((jd2, jd1))
-    a, b = jd1[order], jd2[order]
-    new = np.ones(order.size, bool)
-    new[1:] = (a[1:] != a[:-1]) | (b[1:] != b[:-1])
-    inverse = np.empty(order.size, np.intp)
-    inverse[order] = np.cumsum(new) - 1
-    return order[new], inverse
+    def chunks(self, t, ra_deg, dec_deg, chunk_rows: int):
+        """(row slice, :meth:`result` of those rows), ``chunk_rows`` rows at a time (0: all at
+        once)."""
+        n = len(t)
+        step = n if chunk_rows <= 0 else int(chunk_rows)
+        for a in range(0, n, max(step, 1)):
+            sl = slice(a, min(a + step, n))
+            yield sl, self.result(t[sl], ra_deg[sl], dec_deg[sl])
 
 
 UNITS = {
@@ -407,76 +410,66 @@ def column_units(cols) -> dict:
 CHUNK_ROWS = 2**16
 
 
-def background_table(
-    campaign,
-    t,
-    ra_deg,
-    dec_deg,
-    bands,
-    stars=None,
-    source="",
-    model=None,
-    columns=None,
-    dtype=np.float64,
-    chunk_rows=None,
-):
+@dataclass(frozen=True)
+class TableLayout:
+    """How :func:`background_table` lays its table out: ``columns``, the columns kept (names of
+    the full table's, already checked; None: all, in its order); ``dtype``, of the float
+    columns (float64, or float32 for half the memory); ``chunk_rows``, the rows evaluated at a
+    time (None: :data:`CHUNK_ROWS`; 0: all at once)."""
+
+    columns: tuple | None = None
+    dtype: object = np.float64
+    chunk_rows: int | None = None
+
+
+def background_table(campaign, t, ra_deg, dec_deg, bands, stars=None, model=None, layout=None):
     """:func:`straylight.sky_background`'s table for a loaded campaign and 1-D UTC times ``t`` with ICRS
     ``ra_deg``, ``dec_deg`` (deg) of the same length, already checked; ``stars`` as
     :func:`straylight.sources.stars_table.load_offfield_stars` gives them (None: stars = 0); ``model``:
     the campaign's warm :class:`~straylight.model.BackgroundModel`, if any.  Evaluated
-    ``chunk_rows`` rows at a time, each chunk copied into the result, which is allocated once.
+    ``layout.chunk_rows`` rows at a time, each chunk copied into the result, which is allocated
+    once.
 
     Parameters
     ----------
     campaign : straylight.config.campaign.Campaign
         Loaded campaign.
     t : astropy.time.Time, shape (n,)
-        UTC times, already checked.
+        UTC times, already parsed and checked (read as they are).
     ra_deg, dec_deg : array_like of float, shape (n,)
         ICRS pointing, deg (RA is wrapped to [0, 360)).
     bands : list of str
         Bands to evaluate (``"V"`` gets no limit column).
     stars : straylight.sources.stars_table.StarTable, optional
         Off-field stars; None: the stars component is 0.
-    source : str, optional
-        Name of the input used to prefix error messages.
     model : BackgroundModel or callable, optional
         The campaign's warm model, or a function returning it; None: one is built.
-    columns : list of str, optional
-        The columns kept (names of the full table's, already checked); None: all.
-    dtype : numpy float dtype, optional
-        Of the float columns (float64, or float32 for half the memory).
-    chunk_rows : int, optional
-        Rows evaluated at a time (None: :data:`CHUNK_ROWS`; 0: all at once).
+    layout : TableLayout, optional
+        The columns kept, the float dtype, the rows evaluated at a time (None: every column,
+        float64, :data:`CHUNK_ROWS`).
 
     Returns
     -------
     astropy.table.QTable
         ``n`` rows with the columns and ``meta`` that :func:`straylight.sky_background`
         documents (rates in electron / (s pix), magnitudes in AB mag/arcsec2, angles in deg).
-
-    Raises
-    ------
-    InputError
-        As :func:`pointing_table`.
     """
-    from dataclasses import replace
-
+    layout = TableLayout() if layout is None else layout
     models: dict = {}
     ra = np.asarray(ra_deg, float)
     if ra.size and not (np.min(ra) >= 0.0 and np.max(ra) < 360.0):  # else no copy: x % 360 == x there
         ra = ra % 360.0
-    pointings = {"time": t, "ra": ra, "dec": np.asarray(dec_deg, float)}
-    chunk_rows = CHUNK_ROWS if chunk_rows is None else chunk_rows
+    chunk_rows = CHUNK_ROWS if layout.chunk_rows is None else layout.chunk_rows
     out, n = None, len(t)
-    t_all, _ = _checked_times(pointings, source)
-    for sl, result in _result_chunks(campaign, pointings, t_all, bands, stars, chunk_rows, models, model):
-        part = replace(result, time=t[sl]).to_table(models)
+    tables = _Tables(campaign, list(bands), stars, model, models)
+    for sl, result in tables.chunks(t, ra, np.asarray(dec_deg, float), chunk_rows):
+        part = result.to_table(models)
         del result
-        if columns is not None:
-            part = part[list(columns)]  # in the order asked for
+        if layout.columns is not None:
+            part = part[list(layout.columns)]  # in the order asked for
         if out is None:
-            out = part if sl.stop == n and np.dtype(dtype) == np.float64 else _allocated_like(part, t, dtype)
+            whole = sl.stop == n and np.dtype(layout.dtype) == np.float64
+            out = part if whole else _allocated_like(part, t, layout.dtype)
         if out is not part:
             _copy_rows(out, part, sl)
     return out

@@ -99,7 +99,7 @@ def visibility(
 
     t0, t, offset_s = time_grid(campaign, band, start, end, step_s)
     n = len(t)
-    sky = background_table(campaign, t, np.full(n, ra_deg), np.full(n, dec_deg), [band], source="visibility")
+    sky = background_table(campaign, t, np.full(n, ra_deg), np.full(n, dec_deg), [band])
     samples = QTable(
         {
             "time": sky["time"],

@@ -108,7 +108,7 @@ def model_series(campaign, ds, pixel_indices, minutes, stars_path=None, model=No
     out = []
     for ip in pixel_indices:
         ra, dec = (np.full(minutes.size, float(ds[k].values[ip])) for k in ("ra_deg", "dec_deg"))
-        table = background_table(campaign, t, ra, dec, bands, stars, source="report.pointings", model=model)
+        table = background_table(campaign, t, ra, dec, bands, stars, model=model)
         sub = {
             c: np.stack([np.asarray(table[f"{c}_{b}"].value, float) for b in bands], axis=1)
             for c in registry.component_names(total=True)

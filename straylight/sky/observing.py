@@ -17,19 +17,38 @@ from astropy.time import Time
 from straylight.sky.ephemeris import BODIES, default_ephemeris
 from straylight.sky.geometry import Constraints, observing_geometry
 from straylight.sky.orbit import CircularOrbit, TLEOrbit
-from straylight.sky.timeutil import parse_utc, utc_to_tdb_jd
+from straylight.sky.timeutil import parse_utc, quiet_dubious_years, tdb_minus_tt_s
 from straylight.sky.vectors import radec_to_unit
 
-__all__ = ["Scene", "sample_geometry", "scene"]
+__all__ = ["Scene", "sample_geometry", "scene", "scene_utc"]
 
 
 @dataclass
 class Scene:
-    """Positions at a set of times: satellite and bodies, geocentric GCRS/ICRS km, (T, 3)."""
+    """Positions at a set of times: satellite and bodies, geocentric GCRS/ICRS km, (T, 3);
+    ``times`` UTC (T,), and ``tdb_jd`` their TDB Julian dates (two parts, days, (T,) each) the
+    bodies were read at (None when not given)."""
 
     times: Time
     satellite_km: np.ndarray
     bodies_km: dict[str, np.ndarray]
+    tdb_jd: tuple | None = None
+
+    def rows(self, sl: slice) -> Scene:
+        """The scene at its times ``sl`` (views of its arrays).
+
+        Parameters
+        ----------
+        sl : slice
+            The times kept.
+
+        Returns
+        -------
+        Scene
+        """
+        tdb = None if self.tdb_jd is None else tuple(a[sl] for a in self.tdb_jd)
+        bodies = {b: v[sl] for b, v in self.bodies_km.items()}
+        return Scene(times=self.times[sl], satellite_km=self.satellite_km[sl], bodies_km=bodies, tdb_jd=tdb)
 
 
 def scene(orbit: CircularOrbit | TLEOrbit, times, bodies=BODIES) -> Scene:
@@ -46,11 +65,37 @@ def scene(orbit: CircularOrbit | TLEOrbit, times, bodies=BODIES) -> Scene:
         The bodies whose positions are computed (default :data:`BODIES`).
     """
     t = parse_utc(times)
-    t1 = t.reshape(-1) if t.shape else t.reshape((1,))
-    jd1, jd2 = utc_to_tdb_jd(t1)
+    return scene_utc(orbit, t.reshape(-1) if t.shape else t.reshape((1,)), bodies)
+
+
+def scene_utc(orbit: CircularOrbit | TLEOrbit, times: Time, bodies=BODIES) -> Scene:
+    """:func:`scene` at UTC times already parsed (a 1-D :class:`~astropy.time.Time` of scale
+    UTC), read as they are: converted to TDB here (UTC -> TT by astropy, TT -> TDB by
+    :func:`~straylight.sky.timeutil.tdb_minus_tt_s`, as
+    :func:`~straylight.sky.timeutil.utc_to_tdb_jd`) and given to the orbit as they are.
+
+    Parameters
+    ----------
+    orbit : CircularOrbit or TLEOrbit
+        The telescope's orbit.
+    times : astropy.time.Time, shape (T,)
+        UTC times.
+    bodies : iterable of str, optional
+        The bodies whose positions are computed (default :data:`BODIES`).
+
+    Returns
+    -------
+    Scene
+        With the times' TDB Julian dates.
+    """
+    with quiet_dubious_years():
+        tt = times.tt
+    jd1 = np.asarray(tt.jd1, dtype=float)
+    jd2 = np.asarray(tt.jd2, dtype=float)
+    jd2 = jd2 + tdb_minus_tt_s(jd1, jd2) / 86400.0
     bodies_km = default_ephemeris().positions_tdb(jd1, jd2, bodies)
-    sat = orbit.position_gcrs_km(t1)
-    return Scene(times=t1, satellite_km=sat, bodies_km=bodies_km)
+    sat = orbit.position_gcrs_km(times)
+    return Scene(times=times, satellite_km=sat, bodies_km=bodies_km, tdb_jd=(jd1, jd2))
 
 
 def sample_geometry(

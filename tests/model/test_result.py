@@ -13,6 +13,7 @@ import pytest
 from straylight.model import BackgroundModel
 from straylight.model.pointing import background_result
 from straylight.model.registry import component_names
+from straylight.model.samples import SampleBatch
 from straylight.planning.pointings import with_limits
 from straylight.sky.observing import scene
 from straylight.sky.vectors import radec_to_unit
@@ -29,7 +30,7 @@ def result(campaign):
     los = np.tile(radec_to_unit(ra, dec), (2, 1))
     index = np.repeat([0, 1], 4)
     bands = list(campaign.bands) + ["V"]
-    res = background_result(model, sc, los, bands, index, in_field_bands=bands)
+    res = background_result(model, SampleBatch(sc, los, index), bands, in_field_bands=bands)
     return with_limits(res, campaign).at(sc.times[index], np.tile(ra, 2), np.tile(dec, 2))
 
 

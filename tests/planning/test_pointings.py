@@ -74,12 +74,12 @@ def test_distinct_times_equal_numpys_unique_over_the_pairs():
     """pointing_table computes the scene once per distinct (jd1, jd2) pair: the same grouping as
     numpy's unique over the pairs (first index of each, and each sample's group), with repeats,
     equal jd1 and jd2 differing by one ulp."""
-    from straylight.planning.pointings import _distinct_times
+    from straylight.model.samples import distinct_times
 
     rng = np.random.default_rng(5)
     jd1 = rng.choice([2461041.5, 2461042.5, 2461043.5], 500)
     jd2 = rng.choice([0.0, 0.25, np.nextafter(0.25, 1.0), -0.125], 500)
-    first, inverse = _distinct_times(jd1, jd2)
+    first, inverse = distinct_times(jd1, jd2)
     pairs = np.stack([jd1, jd2], axis=-1)
     ref, ref_first, ref_inverse = np.unique(pairs, axis=0, return_index=True, return_inverse=True)
     np.testing.assert_array_equal(pairs[first], ref)
