@@ -59,9 +59,8 @@ def test_pointing_table_parses_text_once(monkeypatch, campaign):
     """``sky --input``'s times (text) are parsed once, and no Time made of them is parsed
     again: three calls, each on its own object (the text; the parsed times' range check; the
     orbit reading the distinct times)."""
-    from straylight.planning.pointings import pointing_table
-
     from straylight.config import campaign_from_dict, deep_merge
+    from straylight.planning.pointings import pointing_table
 
     ra, dec = np.array([10.0, 120.0, 250.0, 300.0]), np.array([-20.0, 5.0, 60.0, -75.0])
     direct = campaign_from_dict(deep_merge(campaign.config_mapping(), DIRECT), campaign.path)
