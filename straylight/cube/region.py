@@ -216,10 +216,10 @@ def region_values(
         rows = {name: out[name][steps].reshape(k * npix, nb) for name in names}
         # (the envelope's re-evaluated groups, last, are not the model's: _envelope_ends fills them)
         into = (names[:n_model], block[:n_model, steps].reshape(n_model, k * npix, nb))
-        g, _ = background_at(model, samples, campaign.bands, inputs.stars, into, skip_unobservable)
-        _envelope_ends(model, campaign, samples, g, rows)
-        for name, values in grid.items():
-            values[steps] = _by_step(g[name], k, npix)
+        result = background_at(model, samples, campaign.bands, inputs.stars, into, skip_unobservable)
+        _envelope_ends(model, campaign, samples, result.geometry, rows)
+        for name, values in result.on_grid((k, npix), grid).items():
+            grid[name][steps] = values
     _mask_parts(model, campaign, out, grid["observable"])
     if angles is not None:
         angles.update({k: grid.pop(k) for k in OBSERVABILITY_ANGLES})
@@ -359,11 +359,6 @@ def _step_batches(n_steps: int, n_pixels: int, max_samples: int) -> list[slice]:
     n_calls = -(-n_steps // steps_max)
     bounds = [n_steps * i // n_calls for i in range(n_calls + 1)] if n_calls else [0]
     return [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
-
-
-def _by_step(values, k: int, npix: int) -> np.ndarray:
-    """A batch's k * npix samples (step-major) as (k, npix)."""
-    return np.broadcast_to(values, (k * npix,)).reshape(k, npix)
 
 
 def _faint_rows(campaign: Campaign, fp: Footprint, model, stars, rows: slice) -> np.ndarray:

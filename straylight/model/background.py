@@ -84,6 +84,7 @@ class BackgroundModel:
         self.outputs = registry.band_components()
         self._built = {}
         self._shared = {}
+        self._zero_points = {}
         self.sources = {e.name: self.source(e.name) for e in self.entries}
 
     def shared(self, name: str, make):
@@ -192,6 +193,24 @@ class BackgroundModel:
         """
         aperture_d = self.campaign.instrument_settings.telescope.aperture_diameter_m.value
         return sky_zero_point_mag_per_arcsec2(self.band(band), aperture_d, self.campaign.pixel_scale_arcsec)
+
+    def sky_zero_points(self, bands) -> dict:
+        """:meth:`sky_zero_point` of each band, computed once per band and kept.
+
+        Parameters
+        ----------
+        bands : sequence of str
+            Band names.
+
+        Returns
+        -------
+        dict of str to float
+            Band -> AB mag/arcsec2 at 1 e-/s/pix.
+        """
+        for b in bands:
+            if b not in self._zero_points:
+                self._zero_points[b] = self.sky_zero_point(b)
+        return {b: self._zero_points[b] for b in bands}
 
     def mag_per_arcsec2(self, e_per_s_per_pix, band: str):
         """AB surface brightness of a uniform background (inf where zero).

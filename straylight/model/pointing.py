@@ -5,6 +5,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from straylight.model.result import BackgroundResult
@@ -22,7 +24,7 @@ def background_at(
     into: tuple | None = None,
     observable_only: bool = False,
     geometry_bodies: tuple = ("sun", "moon"),
-) -> tuple[dict, dict]:
+) -> BackgroundResult:
     """The observing geometry and the background at a batch of samples.
 
     Parameters
@@ -38,22 +40,22 @@ def background_at(
         The off-field stars (None: stars = 0).
     into : (sequence of str, ndarray) or None
         (component names, float array (names, n, bands)) that receives the components, as in
-        :meth:`~straylight.model.background.BackgroundModel.evaluate`.
+        :meth:`~straylight.model.background.BackgroundModel.evaluate` (the result's rates are
+        its views, of those components only).
     observable_only : bool
-        Evaluate the observable samples only; the others get NaN in every component (needs
-        ``into``).
+        Evaluate the observable samples only; the others get NaN in every component and False
+        in every flag (needs ``into``).
     geometry_bodies : tuple of str
         The bodies whose angles the geometry reports (the Sun and the Moon at least; the
         background finds the planets' own where they count).
 
     Returns
     -------
-    geometry : dict
-        :func:`~straylight.sky.geometry.observing_geometry`'s arrays (n,): angles in deg, the
-        door opening (deg), the violation mask, ``observable``.
-    components : dict
-        :meth:`~straylight.model.background.BackgroundModel.evaluate`'s: band -> component ->
-        e-/s/pix (n,); with ``observable_only``, an empty dict (the values are in ``into``).
+    BackgroundResult
+        The geometry (:func:`~straylight.sky.geometry.observing_geometry`'s arrays (n,):
+        angles in deg, the door opening (deg), the violation mask, ``observable``), the rates
+        (band -> component -> e-/s/pix (n,)), the flags the sources report and the bands'
+        zero points; without times, pointing, limits or bodies in the field.
     """
     campaign = model.campaign
     if observable_only and into is None:
@@ -68,16 +70,47 @@ def background_at(
         runs=samples.runs,
     )
     if not observable_only:
-        return g, model.evaluate_samples(samples.source_samples(g, stars), bands, into)
+        return _result(model, bands, g, model.evaluate_samples(samples.source_samples(g, stars), bands, into))
     names, values = into
     values[...] = np.nan
     sel = np.flatnonzero(g["observable"])
+    flags = {}
     if sel.size:
         part = np.empty((len(names), sel.size, len(bands)), values.dtype)
         geometry = {k: np.asarray(v)[sel] for k, v in g.items()}
-        model.evaluate_samples(samples.take(sel).source_samples(geometry, stars), bands, (names, part))
+        comps = model.evaluate_samples(
+            samples.take(sel).source_samples(geometry, stars), bands, (names, part)
+        )
         values[:, sel] = part
-    return g, {}
+        flags = {k: _scattered(v, sel, samples.n) for k, v in _flags(comps[bands[0]]).items()}
+    rates = {b: {c: values[k, :, ib] for k, c in enumerate(names)} for ib, b in enumerate(bands)}
+    return BackgroundResult(tuple(bands), rates, g, model.sky_zero_points(bands), flags=flags)
+
+
+def _flags(components: dict) -> dict:
+    """The flags among a band's :meth:`~straylight.model.background.BackgroundModel.evaluate`
+    entries (``_<flag>``), by name."""
+    return {k[1:]: v for k, v in components.items() if k.startswith("_")}
+
+
+def _scattered(values, sel: np.ndarray, n: int) -> np.ndarray:
+    """A flag at samples ``sel`` on all ``n`` samples (False elsewhere)."""
+    out = np.zeros(n, bool)
+    out[sel] = values
+    return out
+
+
+def _result(model, bands, geometry: dict, comps: dict) -> BackgroundResult:
+    """The :class:`~straylight.model.result.BackgroundResult` of an evaluation's ``comps``
+    (:meth:`~straylight.model.background.BackgroundModel.evaluate`'s) at samples of
+    ``geometry``."""
+    return BackgroundResult(
+        bands=tuple(bands),
+        rates={b: {c: v for c, v in comps[b].items() if not c.startswith("_")} for b in bands},
+        geometry=geometry,
+        zero_points=model.sky_zero_points(bands),
+        flags=_flags(comps[bands[0]]),
+    )
 
 
 def background_result(
@@ -88,10 +121,7 @@ def background_result(
     in_field_bands=None,
     geometry_bodies: tuple = ("sun", "moon"),
 ) -> BackgroundResult:
-    """The background at a batch of samples as one
-    :class:`~straylight.model.result.BackgroundResult` (:func:`background_at`'s geometry and
-    components, the bands' zero points, the flags the sources report, and where asked the bodies
-    inside the field).
+    """:func:`background_at`'s result, and where asked the bodies inside the field.
 
     Parameters
     ----------
@@ -114,18 +144,10 @@ def background_result(
     BackgroundResult
         Without times, pointing or limits (the caller's to give).
     """
-    g, comps = background_at(model, samples, bands, stars, geometry_bodies=geometry_bodies)
-    first = next(iter(comps.values()))
-    in_field = {}
-    if in_field_bands is not None:
-        in_field = model.in_field.find(
-            samples.satellite_km, samples.bodies_km, samples.los, g, list(in_field_bands)
-        )
-    return BackgroundResult(
-        bands=tuple(bands),
-        rates={b: {c: v for c, v in comps[b].items() if not c.startswith("_")} for b in bands},
-        geometry=g,
-        zero_points={b: model.sky_zero_point(b) for b in bands},
-        flags={k[1:]: v for k, v in first.items() if k.startswith("_")},
-        in_field=in_field,
+    result = background_at(model, samples, bands, stars, geometry_bodies=geometry_bodies)
+    if in_field_bands is None:
+        return result
+    in_field = model.in_field.find(
+        samples.satellite_km, samples.bodies_km, samples.los, result.geometry, list(in_field_bands)
     )
+    return replace(result, in_field=in_field)

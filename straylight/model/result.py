@@ -1,9 +1,10 @@
 """The background at a batch of (time, pointing) samples as one typed value
 (:class:`BackgroundResult`), and its three shapes: an astropy table with units
 (:meth:`~BackgroundResult.to_table`), an xarray Dataset whose variables carry ``units`` and
-``long_name`` (:meth:`~BackgroundResult.to_dataset`) and a JSON-ready record of one sample
-(:meth:`~BackgroundResult.to_record`).  ``straylight sky``, the pointing tables (the API's,
-visibility's, the targets' and the exposure-time calculator's) read it."""
+``long_name`` (:meth:`~BackgroundResult.to_dataset`), a JSON-ready record of one sample
+(:meth:`~BackgroundResult.to_record`) and a cube region's grid of samples
+(:meth:`~BackgroundResult.on_grid`).  ``straylight sky``, the pointing tables (the API's,
+visibility's, the targets' and the exposure-time calculator's) and the cube's regions read it."""
 
 from __future__ import annotations
 
@@ -175,6 +176,25 @@ class BackgroundResult:
         BackgroundResult
         """
         return replace(self, time=time, ra_deg=np.asarray(ra_deg), dec_deg=np.asarray(dec_deg))
+
+    def on_grid(self, shape: tuple, names) -> dict:
+        """Per-sample geometry on a grid of the samples (a cube region's time steps x pixels:
+        the samples step-major), as a cube stores it.
+
+        Parameters
+        ----------
+        shape : tuple of int
+            The grid's shape, its product ``n``.
+        names : iterable of str
+            Entries of the geometry (``observable``, ``violations``: the constraints' bit mask,
+            the angles and ``door_opening_deg`` in deg).
+
+        Returns
+        -------
+        dict of str to ndarray
+            Name -> array of ``shape`` (a view of the result's where it can be).
+        """
+        return {k: np.broadcast_to(self.geometry[k], (self.n,)).reshape(shape) for k in names}
 
     def mag_per_arcsec2(self, component: str, band: str) -> np.ndarray:
         """A component's surface brightness (inf where 0).
