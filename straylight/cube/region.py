@@ -187,15 +187,10 @@ def region_values(
         When ``inputs.scene`` is not at exactly the region's times.
     """
     from straylight.model import unobservable_samples
-    from straylight.sky import observing
 
     inputs = RegionInputs() if inputs is None else inputs
     times = campaign.times[t_slice]
-    sc = (
-        observing.scene(campaign.orbit, times)
-        if inputs.scene is None
-        else _checked_scene(inputs.scene, times)
-    )
+    sc = _region_scene(campaign, inputs.scene, times)
     los = radec_to_unit(fp.ra_deg[p_slice], fp.dec_deg[p_slice])
     nt, npix, nb = len(times), los.shape[0], len(campaign.bands)
     faint = _faint_by_pixel(model, campaign, inputs.stars, inputs.faint_map, los)
@@ -333,9 +328,14 @@ def _envelope_ends(model, campaign, samples: SampleBatch, g: dict, rows: dict) -
                 rows[name][sel] = v
 
 
-def _checked_scene(sc, times):
+def _region_scene(campaign, sc, times):
     """``sc`` if it is at exactly ``times`` (the same UTC Julian dates), else ValueError: a
-    scene from other times would put every body in the wrong place without a sign."""
+    scene from other times would put every body in the wrong place without a sign; None: the
+    scene computed here."""
+    if sc is None:
+        from straylight.sky import observing
+
+        return observing.scene(campaign.orbit, times)
     t = sc.times
     same = (
         len(t) == len(times)

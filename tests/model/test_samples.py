@@ -41,8 +41,9 @@ def _count_parses(monkeypatch) -> list:
 def test_sky_model_background_parses_each_time_once(monkeypatch):
     """SkyModel.background reads its Time once at the boundary and passes it down: parse_utc
     runs once per Time object, twice in all: the boundary's DE405 range check of the samples'
-    times, and the orbit reading the distinct times' Time (main ran it five times: the range
-    check, the pointing table, the scene, its TDB and the orbit, twice on one object)."""
+    times, and the orbit reading the distinct times' Time (before the sample batch it ran five
+    times on three objects: the range check and the pointing table on the samples' Time, the
+    scene on the distinct times', its TDB and the orbit on the scene's own)."""
     from straylight.skymodel import SkyModel
 
     sky = SkyModel(DIRECT)
