@@ -14,7 +14,6 @@ from astropy.coordinates import SkyCoord
 from astropy.time import Time
 
 import straylight.sky.timeutil as timeutil
-from straylight.model.samples import SampleBatch
 from straylight.sky.observing import scene
 from straylight.sky.vectors import radec_to_unit
 
@@ -75,6 +74,8 @@ def test_batch_positions_equal_the_scene_at_each_samples_time(campaign):
     """A batch at 4 samples of 2 distinct times holds a 2-row scene, and its positions and frame
     at each sample equal the scene computed at that sample's own time (exactly); its TDB Julian
     dates are utc_to_tdb_jd's; a subset (take) carries the same values."""
+    from straylight.model.samples import SampleBatch
+
     t = Time(TIMES, scale="utc")
     ra, dec = np.array([10.0, 120.0, 250.0, 300.0]), np.array([-20.0, 5.0, 60.0, -75.0])
     batch = SampleBatch.at_times(campaign.orbit, t, ra, dec)
@@ -98,6 +99,8 @@ def test_batch_positions_equal_the_scene_at_each_samples_time(campaign):
 @pytest.mark.parametrize("index", [None, np.array([0, 0, 1])])
 def test_a_slice_of_a_batch_is_its_samples(campaign, index):
     """batch[a:b] holds samples a..b-1: their times and lines of sight, on the same scene."""
+    from straylight.model.samples import SampleBatch
+
     sc = scene(campaign.orbit, ["2026-01-01T00:50:00", "2026-01-01T03:10:00", "2026-01-01T05:00:00"])
     los = radec_to_unit(np.array([10.0, 20.0, 30.0]), np.array([0.0, 10.0, 20.0]))
     batch = SampleBatch(sc, los, index)
