@@ -162,6 +162,10 @@ def _print_wall_time(cost: dict, args, cores: int, speed, factor: float) -> None
             f"this machine now (its speed and free cores, probed on {cores} core{'s' if cores > 1 else ''}): "
             f"x{factor:.2f} the cost figures' time; every figure above is scaled by it"
         )
+        print(
+            "  the wall times came within 30 % of measured runs at load 0 and 2 on 2 cores; this "
+            "machine's speed drifting (a shared or virtual machine) moves them as much (docs/performance.md)"
+        )
     print(
         f"the cube's compute alone: {cost['compute_seconds'] / 3600:.3g} core-hours "
         f"(straylight.planning.plan.CUBE_*)"
