@@ -45,7 +45,7 @@ def main():
     reps = 5
     t0 = time.perf_counter()
     for _ in range(reps):
-        build_catalog(hip, responses, photometry=tp)
+        build_catalog(hip, tp)
     dt = (time.perf_counter() - t0) / reps
     out["conversion_stars_per_s_per_core"] = len(hip["ra"]) / dt
     print(

@@ -28,6 +28,8 @@ outside the Gaia relations (G, BP, RP from the template); 64 Teff unknown for th
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -60,6 +62,7 @@ __all__ = [
     "read_population",
     "build_catalog",
     "round_trip",
+    "CatalogOptions",
     "make_catalog",
 ]
 
@@ -216,101 +219,43 @@ def _format(path) -> str | None:
 
 def build_catalog(
     stars: dict,
-    band_responses: dict,
-    library: TemplateLibrary | None = None,
-    template_classes=ALL_CLASSES,
+    photometry: TemplatePhotometry,
     population: dict | None = None,
-    photometry: TemplatePhotometry | None = None,
     parallax_snr_min: float | None = 5.0,
 ) -> dict:
     """CSST-band catalog columns for ``stars`` (the ingest's column layout, plus ``source`` and
     optionally ``flags``, ``hip_v_mag``, ``hip_v_i_mag``, ``parallax`` and ``parallax_error``
     (mas) for Hipparcos rows).
 
-    ``band_responses``: band name -> speclite FilterResponse.  ``parallax_snr_min``: stars whose
-    parallax is at least this many times its error take their luminosity class from M_V
-    (:func:`straylight.catalog.luminosity.choose_templates`); None: colour alone.  Returns a
-    dict of columns.
+    ``parallax_snr_min``: stars whose parallax is at least this many times its error take their
+    luminosity class from M_V (:func:`straylight.catalog.luminosity.choose_templates`); None:
+    colour alone.  Returns a dict of columns.
 
     Parameters
     ----------
     stars : dict of str to ndarray
         The stars' columns in the ingest's layout (positions in deg, magnitudes in Vega mag).
-    band_responses : dict of str to speclite.filters.FilterResponse
-        Band name -> its response.
-    library : TemplateLibrary, optional
-        The SED templates (default: the Pickles library).
-    template_classes : sequence of str, optional
-        Luminosity classes of the templates used (default: all).
+    photometry : TemplatePhotometry
+        The templates' colours and band magnitudes (the library and the instrument's bands).
     population : dict of str to ndarray, optional
         A mock population (Teff in K, log g in dex cgs, [Fe/H] in dex, SDSS g r i in AB mag) whose
         nearest colours give the templates' stellar parameters.
-    photometry : TemplatePhotometry, optional
-        The templates' colours when already computed (then ``library`` and ``template_classes`` are
-        not read).
     parallax_snr_min : float or None, optional
         Parallax over its error above which a star's luminosity class comes from M_V; None: colour
         alone.
     """
-    if photometry is None:
-        library = select_templates(library if library is not None else load_pickles(), template_classes)
-        photometry = TemplatePhotometry(library, band_responses)
     tp, lib = photometry, photometry.library
     n = len(stars["ra"])
-    g = np.asarray(stars["phot_g_mean_mag"], float).copy()
-    bp = np.asarray(stars["phot_bp_mean_mag"], float).copy()
-    rp = np.asarray(stars["phot_rp_mean_mag"], float).copy()
-    flags = np.asarray(stars.get("flags", np.zeros(n, np.int32)), np.int32).copy()
+    idx, by_lum, (g, bp, rp), flags = _template_choice(stars, tp, parallax_snr_min)
     bp_rp = bp - rp
-
-    # template by nearest BP - RP; Hipparcos stars outside the V - I relations by nearest V - Ic;
-    # the luminosity class from M_V where the parallax is measured
-    nan = np.full(n, np.nan)
-    abs_v = (
-        absolute_v_mag(
-            stars.get("hip_v_mag", nan),
-            stars.get("parallax", nan),
-            stars.get("parallax_error", nan),
-            parallax_snr_min,
-        )
-        if parallax_snr_min is not None
-        else nan
-    )
-    redo = (flags & FLAG_VI_RELATION_EXTRAPOLATED).astype(bool) & np.isfinite(stars.get("hip_v_i_mag", nan))
-    idx, by_lum = choose_templates(tp.bp_rp, lib.luminosity_class, tp.abs_v, bp_rp, abs_v)
-    if redo.any():
-        j, by_lum[redo] = choose_templates(
-            tp.v_i, lib.luminosity_class, tp.abs_v, np.asarray(stars["hip_v_i_mag"], float)[redo], abs_v[redo]
-        )
-        idx[redo] = j
-        g[redo] = np.asarray(stars["hip_v_mag"], float)[redo] - tp.v_minus_g[j]
-        bp[redo] = g[redo] + tp.bp_minus_g[j]
-        rp[redo] = g[redo] + tp.rp_minus_g[j]
-        bp_rp[redo] = bp[redo] - rp[redo]
     lo, hi = tp.bp_rp.min(), tp.bp_rp.max()
     flags[(bp_rp < lo - 0.05) | (bp_rp > hi + 0.05)] |= FLAG_COLOUR_BEYOND_TEMPLATES
-
     sdss = sdss_from_gaia(g, bp_rp)
     for b, bit in FLAG_SDSS.items():
         flags[~sdss[f"sdss_{b}_valid"]] |= bit
-
     teff, logg, feh = lib.teff_k[idx], lib.logg_cgs[idx], lib.feh_dex[idx]
     if population is not None and n:
-        pop_tree = cKDTree(
-            np.column_stack(
-                [population["sdss_g"] - population["sdss_r"], population["sdss_r"] - population["sdss_i"]]
-            )
-        )
-        _, k = pop_tree.query(
-            np.column_stack([sdss["sdss_g"] - sdss["sdss_r"], sdss["sdss_r"] - sdss["sdss_i"]]), k=1
-        )
-        teff, logg, feh = population["teff"][k], population["logg"][k], population["feh"][k]
-        has_params = np.isfinite(lib.teff_k)
-        if has_params.all() and not np.all(np.isnan(lib.logg_cgs)):
-            p_tree = cKDTree(np.column_stack([lib.teff_k / 100.0, lib.logg_cgs, lib.feh_dex]))
-            _, idx = p_tree.query(np.column_stack([teff / 100.0, logg, feh]), k=1)
-            idx = np.asarray(idx, int)
-            by_lum[:] = False  # the mock population's parameters chose the template
+        teff, logg, feh, idx = _population_match(population, lib, sdss, idx, by_lum)
     flags[~np.isfinite(teff)] |= FLAG_TEFF_UNKNOWN
     flags[by_lum] |= FLAG_CLASS_FROM_PARALLAX
 
@@ -335,6 +280,64 @@ def build_catalog(
     out["flags"] = flags
     out["source"] = np.asarray(stars.get("source", np.full(n, "gaia_dr2", dtype=object)), dtype=object)
     return out
+
+
+def _template_choice(stars: dict, tp: TemplatePhotometry, parallax_snr_min: float | None):
+    """Each star's template index, whether its luminosity class came from M_V (bool), its G,
+    BP, RP (Vega mag) and its flags: the template nearest in BP - RP; Hipparcos stars outside
+    the V - I relations by nearest V - Ic, their G, BP, RP then from the template's colours;
+    the class from M_V where the parallax is measured."""
+    lib = tp.library
+    n = len(stars["ra"])
+    g = np.asarray(stars["phot_g_mean_mag"], float).copy()
+    bp = np.asarray(stars["phot_bp_mean_mag"], float).copy()
+    rp = np.asarray(stars["phot_rp_mean_mag"], float).copy()
+    flags = np.asarray(stars.get("flags", np.zeros(n, np.int32)), np.int32).copy()
+    nan = np.full(n, np.nan)
+    abs_v = (
+        absolute_v_mag(
+            stars.get("hip_v_mag", nan),
+            stars.get("parallax", nan),
+            stars.get("parallax_error", nan),
+            parallax_snr_min,
+        )
+        if parallax_snr_min is not None
+        else nan
+    )
+    redo = (flags & FLAG_VI_RELATION_EXTRAPOLATED).astype(bool) & np.isfinite(stars.get("hip_v_i_mag", nan))
+    idx, by_lum = choose_templates(tp.bp_rp, lib.luminosity_class, tp.abs_v, bp - rp, abs_v)
+    if redo.any():
+        j, by_lum[redo] = choose_templates(
+            tp.v_i, lib.luminosity_class, tp.abs_v, np.asarray(stars["hip_v_i_mag"], float)[redo], abs_v[redo]
+        )
+        idx[redo] = j
+        g[redo] = np.asarray(stars["hip_v_mag"], float)[redo] - tp.v_minus_g[j]
+        bp[redo] = g[redo] + tp.bp_minus_g[j]
+        rp[redo] = g[redo] + tp.rp_minus_g[j]
+    return idx, by_lum, (g, bp, rp), flags
+
+
+def _population_match(population: dict, lib: TemplateLibrary, sdss: dict, idx, by_lum):
+    """Each star's (Teff K, log g dex, [Fe/H] dex, template index) from a mock population: the
+    parameters of the mock star nearest in (g - r, r - i), and when the library has parameters
+    the template nearest them (whose class then does not come from M_V: ``by_lum`` cleared in
+    place); else the templates ``idx`` stay."""
+    pop_tree = cKDTree(
+        np.column_stack(
+            [population["sdss_g"] - population["sdss_r"], population["sdss_r"] - population["sdss_i"]]
+        )
+    )
+    _, k = pop_tree.query(
+        np.column_stack([sdss["sdss_g"] - sdss["sdss_r"], sdss["sdss_r"] - sdss["sdss_i"]]), k=1
+    )
+    teff, logg, feh = population["teff"][k], population["logg"][k], population["feh"][k]
+    has_params = np.isfinite(lib.teff_k)
+    if has_params.all() and not np.all(np.isnan(lib.logg_cgs)):
+        p_tree = cKDTree(np.column_stack([lib.teff_k / 100.0, lib.logg_cgs, lib.feh_dex]))
+        _, idx = p_tree.query(np.column_stack([teff / 100.0, logg, feh]), k=1)
+        idx = np.asarray(idx, int)
+        by_lum[:] = False  # the mock population's parameters chose the template
+    return teff, logg, feh, idx
 
 
 def round_trip(catalog: dict, photometry: TemplatePhotometry) -> dict:
@@ -373,20 +376,42 @@ def _concat(parts: list[dict], keys) -> dict:
     return out
 
 
+@dataclass(frozen=True)
+class CatalogOptions:
+    """How :func:`make_catalog` assembles the catalog (the campaign's ``stars`` settings).
+
+    Attributes
+    ----------
+    g_limit_mag : float
+        Faintest G of the Hipparcos stars kept, Vega mag (Gaia's are cut when ingested).
+    hipparcos : {"fill", "all", "none"}
+        Hipparcos stars where Gaia has none within ``match_radius_arcsec`` (``"fill"``),
+        Hipparcos alone (``"all"``) or none.
+    match_radius_arcsec : float
+        Gaia-Hipparcos match radius, arcsec.
+    template_classes : sequence of str or None
+        Luminosity classes of the templates used (empty or None: the whole library).
+    parallax_snr_min : float or None
+        Parallax over its error above which a star's luminosity class comes from M_V
+        (:func:`build_catalog`); None: colour alone.
+    """
+
+    g_limit_mag: float = 12.0
+    hipparcos: str = "fill"
+    match_radius_arcsec: float = 2.0
+    template_classes: tuple | None = ALL_CLASSES
+    parallax_snr_min: float | None = 5.0
+
+
 def make_catalog(
     band_responses: dict,
     gaia_stars: dict | None = None,
-    g_limit_mag: float = 12.0,
-    hipparcos: str = "fill",
-    match_radius_arcsec: float = 2.0,
-    template_classes=ALL_CLASSES,
+    options: CatalogOptions | None = None,
     population: dict | None = None,
     library: TemplateLibrary | None = None,
     hip2_path=None,
-    parallax_snr_min: float | None = 5.0,
 ) -> tuple[dict, dict]:
     """The full catalog from Gaia stars (ingested columns) and/or Hipparcos; returns (columns, summary).
-    ``parallax_snr_min``: see :func:`build_catalog`.
 
     Parameters
     ----------
@@ -394,61 +419,65 @@ def make_catalog(
         Band name -> its response.
     gaia_stars : dict of str to ndarray, optional
         Ingested Gaia columns (:func:`ingest_many`); None: Hipparcos alone.
-    g_limit_mag : float, optional
-        Faintest Gaia G kept, Vega mag (default 12).
-    hipparcos : {"fill", "all", "none"}, optional
-        Hipparcos stars where Gaia has none within ``match_radius_arcsec`` (``"fill"``, the
-        default), Hipparcos alone (``"all"``) or none.
-    match_radius_arcsec : float, optional
-        Gaia-Hipparcos match radius, arcsec (default 2).
-    template_classes : sequence of str, optional
-        Luminosity classes of the templates used (default: all).
+    options : CatalogOptions, optional
+        The G limit, the Hipparcos rule, the match radius, the templates' classes and the
+        parallax threshold (default: :class:`CatalogOptions`'s defaults).
     population : dict of str to ndarray, optional
         A mock population (:func:`read_population`).
     library : TemplateLibrary, optional
         The SED templates (default: the Pickles library).
     hip2_path : str or pathlib.Path, optional
         The Hipparcos ``hip2.dat`` (default: the packaged one).
-    parallax_snr_min : float or None, optional
-        See :func:`build_catalog`.
     """
-    from straylight.catalog.hipparcos import hipparcos_stars
-
-    library = select_templates(library if library is not None else load_pickles(), template_classes)
+    options = options if options is not None else CatalogOptions()
+    library = select_templates(library if library is not None else load_pickles(), options.template_classes)
     tp = TemplatePhotometry(library, band_responses)
-    parts, counts = [], {}
-    if gaia_stars is not None and hipparcos != "all":
-        g = dict(gaia_stars)
-        g.setdefault("source", np.full(len(g["ra"]), "gaia_dr2", dtype=object))
-        parts.append(build_catalog(g, band_responses, population=population, photometry=tp))
-        counts["gaia_dr2"] = len(g["ra"])
-    if hipparcos in ("fill", "all") or gaia_stars is None:
-        hip = hipparcos_stars(hip2_path)
-        if parts:
-            fill = cross_match_fill(parts[0], hip, match_radius_arcsec)
-            hip = {k: v[fill] for k, v in hip.items()}
-        cat = build_catalog(
-            hip, band_responses, population=population, photometry=tp, parallax_snr_min=parallax_snr_min
-        )
-        keep = np.isfinite(cat["phot_g_mean_mag"]) & (cat["phot_g_mean_mag"] <= g_limit_mag)
-        parts.append({k: v[keep] for k, v in cat.items()})
-        counts["hipparcos"] = int(keep.sum())
+    parts, counts = _catalog_parts(tp, gaia_stars, options, population, hip2_path)
     if not parts:
         raise InputError("stars.hipparcos is 'none' and no Gaia file is given: the catalog would be empty")
     columns = _concat(parts, list(parts[0]))
     order = np.argsort(columns["phot_g_mean_mag"], kind="stable")
     columns = {k: v[order] for k, v in columns.items()}
+    return columns, _catalog_summary(columns, counts, tp, band_responses)
+
+
+def _catalog_parts(tp: TemplatePhotometry, gaia_stars, options: CatalogOptions, population, hip2_path):
+    """The Gaia stars' catalog columns, then the Hipparcos stars' (those without a Gaia
+    counterpart with ``"fill"``, down to the G limit), as the options say; and each part's
+    number of stars by source."""
+    from straylight.catalog.hipparcos import hipparcos_stars
+
+    parts, counts = [], {}
+    if gaia_stars is not None and options.hipparcos != "all":
+        g = dict(gaia_stars)
+        g.setdefault("source", np.full(len(g["ra"]), "gaia_dr2", dtype=object))
+        parts.append(build_catalog(g, tp, population=population))
+        counts["gaia_dr2"] = len(g["ra"])
+    if options.hipparcos in ("fill", "all") or gaia_stars is None:
+        hip = hipparcos_stars(hip2_path)
+        if parts:
+            fill = cross_match_fill(parts[0], hip, options.match_radius_arcsec)
+            hip = {k: v[fill] for k, v in hip.items()}
+        cat = build_catalog(hip, tp, population=population, parallax_snr_min=options.parallax_snr_min)
+        keep = np.isfinite(cat["phot_g_mean_mag"]) & (cat["phot_g_mean_mag"] <= options.g_limit_mag)
+        parts.append({k: v[keep] for k, v in cat.items()})
+        counts["hipparcos"] = int(keep.sum())
+    return parts, counts
+
+
+def _catalog_summary(columns: dict, counts: dict, tp: TemplatePhotometry, band_responses: dict) -> dict:
+    """The catalog's summary: stars (by source), the template library, the BP - RP round trip
+    (mag), each flag's count and the bands."""
     rt = round_trip(columns, tp)
     flags = columns["flags"]
-    summary = {
+    return {
         "stars": int(len(columns["ra"])),
         "by_source": counts,
-        "template_library": library.name,
-        "templates": int(len(library)),
+        "template_library": tp.library.name,
+        "templates": int(len(tp.library)),
         "round_trip_bp_rp_mag": {
             k: rt[k] for k in ("median_abs_bp_rp_mag", "p90_abs_bp_rp_mag", "p99_abs_bp_rp_mag")
         },
         "flag_counts": {str(b): int(((flags & b) != 0).sum()) for b in (1, 2, 4, 8, 16, 32, 64, 128)},
         "bands": sorted(band_responses),
     }
-    return columns, summary

@@ -9,7 +9,13 @@ from pathlib import Path
 
 import numpy as np
 
-from straylight.catalog.build import CATALOG_BUILD_VERSION, _concat, make_catalog, read_population
+from straylight.catalog.build import (
+    CATALOG_BUILD_VERSION,
+    CatalogOptions,
+    _concat,
+    make_catalog,
+    read_population,
+)
 from straylight.errors import InputError
 from straylight.util.io import sha256_path
 
@@ -107,16 +113,15 @@ def catalog_for_campaign(campaign, gaia_stars: dict | None = None) -> tuple[dict
     if sc.population_file:
         p = sc.population_file
         population = read_population(p if str(p).startswith("/") else base / p)
-    columns, summary = make_catalog(
-        responses,
-        gaia_stars=gaia_stars,
+    options = CatalogOptions(
         g_limit_mag=float(sc.g_limit_mag),
         hipparcos=sc.hipparcos,
         match_radius_arcsec=float(sc.match_radius_arcsec),
         template_classes=None if library is not None else tuple(sc.template_classes),
-        population=population,
-        library=library,
         parallax_snr_min=float(sc.luminosity_parallax_snr_min),
+    )
+    columns, summary = make_catalog(
+        responses, gaia_stars=gaia_stars, options=options, population=population, library=library
     )
     metadata = {
         "straylight_version": __version__,

@@ -297,18 +297,7 @@ def cmd_visibility(args) -> int:
     if args.ra is None or args.dec is None:
         raise InputError("give --ra and --dec, or --targets FILE (a CSV of name, ra, dec)")
     ra_deg, dec_deg = checked_pointing(args)
-    for path, flag, suffixes in (
-        (args.out, "--out", (".csv", ".ecsv")),
-        (args.plot, "--plot", (".png", ".pdf", ".svg")),
-    ):
-        if path is not None:
-            if Path(path).suffix.lower() not in suffixes:
-                raise InputError(f"{flag} {path}: must end in {' or '.join(suffixes)}")
-            check_out(args, path, flag)
-    if args.out:
-        stem, suffix = Path(args.out).with_suffix(""), Path(args.out).suffix
-        for extra in (f"{stem}_windows{suffix}", f"{stem}_days{suffix}"):
-            check_out(args, extra, "--out")
+    _check_visibility_outputs(args)
     campaign = load_campaign(args.config)
     c = campaign.settings.campaign
     step_s = args.step_min * 60.0 if args.step_min is not None else float(c.cadence_s)
@@ -325,6 +314,38 @@ def cmd_visibility(args) -> int:
     from straylight.planning.bright_targets import warn_bright_targets
 
     warn_bright_targets(ra_deg, dec_deg, args.start or c.start)  # the times checked by now
+    _print_visibility(res, ra_deg, dec_deg, args, step_s)
+    if args.out:
+        _write_visibility(res, Path(args.out))
+    else:
+        w = res["windows"]
+        print(w if len(w) else "  no observable window")
+    if args.plot:
+        plot_visibility(res, args.plot, args.threshold)
+        print(args.plot)
+    return 0
+
+
+def _check_visibility_outputs(args) -> None:
+    """--out (.csv or .ecsv, with its _windows and _days files) and --plot (.png, .pdf or
+    .svg) refused before any work when misnamed or already there."""
+    for path, flag, suffixes in (
+        (args.out, "--out", (".csv", ".ecsv")),
+        (args.plot, "--plot", (".png", ".pdf", ".svg")),
+    ):
+        if path is not None:
+            if Path(path).suffix.lower() not in suffixes:
+                raise InputError(f"{flag} {path}: must end in {' or '.join(suffixes)}")
+            check_out(args, path, flag)
+    if args.out:
+        stem, suffix = Path(args.out).with_suffix(""), Path(args.out).suffix
+        for extra in (f"{stem}_windows{suffix}", f"{stem}_days{suffix}"):
+            check_out(args, extra, "--out")
+
+
+def _print_visibility(res: dict, ra_deg: float, dec_deg: float, args, step_s: float) -> None:
+    """The visibility's summary lines: samples and windows, the observable samples' median
+    background (AB mag/arcsec2) and limits (AB mag), the days deeper than the threshold."""
     s, w, d = res["samples"], res["windows"], res["days"]
     n_obs = int(np.sum(s["observable"]))
     print(
@@ -346,23 +367,20 @@ def cmd_visibility(args) -> int:
             f"  days with the limit deeper than {args.threshold:.2f} mag: {len(deep)} of {len(d)}"
             + (f" ({', '.join(deep['date'][:10])}{', ...' if len(deep) > 10 else ''})" if len(deep) else "")
         )
-    if args.out:
-        out = Path(args.out)
-        fmt = "ascii.ecsv" if out.suffix.lower() == ".ecsv" else "ascii.csv"
-        stem = out.with_suffix("")
-        for table, path in (
-            (s, out),
-            (w, Path(f"{stem}_windows{out.suffix}")),
-            (d, Path(f"{stem}_days{out.suffix}")),
-        ):
-            from straylight.util.io import atomic_path
 
-            with atomic_path(path) as tmp:
-                table.write(tmp, format=fmt, overwrite=True)
-            print(path)
-    else:
-        print(w if len(w) else "  no observable window")
-    if args.plot:
-        plot_visibility(res, args.plot, args.threshold)
-        print(args.plot)
-    return 0
+
+def _write_visibility(res: dict, out: Path) -> None:
+    """The samples, windows and days as ``out`` and its ``_windows`` and ``_days`` files (ECSV
+    or CSV by the suffix), each path printed."""
+    from straylight.util.io import atomic_path
+
+    fmt = "ascii.ecsv" if out.suffix.lower() == ".ecsv" else "ascii.csv"
+    stem = out.with_suffix("")
+    for table, path in (
+        (res["samples"], out),
+        (res["windows"], Path(f"{stem}_windows{out.suffix}")),
+        (res["days"], Path(f"{stem}_days{out.suffix}")),
+    ):
+        with atomic_path(path) as tmp:
+            table.write(tmp, format=fmt, overwrite=True)
+        print(path)

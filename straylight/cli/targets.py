@@ -24,7 +24,7 @@ def cmd_visibility_targets(args) -> int:
 
     from straylight.config import load_campaign
     from straylight.planning.target_names import read_targets
-    from straylight.planning.targets import format_summary, targets_visibility, write_targets
+    from straylight.planning.targets import SampledWindow, format_summary, targets_visibility, write_targets
     from straylight.planning.visibility import time_grid
 
     if args.ra is not None or args.dec is not None:
@@ -58,9 +58,8 @@ def cmd_visibility_targets(args) -> int:
     if args.out is not None:
         check_out(args, args.out, "--out", folder=True)
     w0 = time.perf_counter()
-    res = targets_visibility(
-        campaign, targets, args.band, start, end, step_s, args.threshold, model=lambda: _model(args.config)
-    )
+    window = SampledWindow(start, end, step_s)
+    res = targets_visibility(campaign, targets, args.band, window, args.threshold, model=_model(args.config))
     wall, sec, n = time.perf_counter() - w0, res["seconds"], res["observable"].size
     print(
         f"{len(targets)} targets, band {args.band}: {res['observable'].shape[1]} samples each every "

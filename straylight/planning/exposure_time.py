@@ -199,23 +199,8 @@ def checked_request(
         A non-scalar or non-finite magnitude, a magnitude in another unit, both or neither of
         ``snr`` and ``exposure_time``, an exposure time without a time unit, a value <= 0.
     """
-    import astropy.units as u
-
     names = {k: (names or {}).get(k, k) for k in ("mag_ab", "snr", "exposure_time", "n_exposures")}
-    if isinstance(mag_ab, u.Quantity):
-        if mag_ab.unit not in (u.mag, u.ABmag, u.dimensionless_unscaled):
-            raise InputError(
-                f"{names['mag_ab']}: expected an AB magnitude (mag or ABmag), got unit {mag_ab.unit}"
-            )
-        mag_ab = mag_ab.value
-    if np.ndim(mag_ab) != 0:
-        raise InputError(f"{names['mag_ab']}: expected one magnitude, got shape {np.shape(mag_ab)}")
-    try:
-        mag = float(mag_ab)
-    except (TypeError, ValueError):
-        raise InputError(f"{names['mag_ab']}: expected a number, got {mag_ab!r}") from None
-    if not math.isfinite(mag):
-        raise InputError(f"{names['mag_ab']}: must be finite, got {mag_ab!r}")
+    mag = _checked_mag(mag_ab, names["mag_ab"])
     if (snr is None) == (exposure_time is None):
         raise InputError(
             f"give exactly one of {names['snr']} (for the exposure time) and {names['exposure_time']} "
@@ -223,16 +208,7 @@ def checked_request(
         )
     exposure_s = None
     if exposure_time is not None:
-        if not isinstance(exposure_time, u.Quantity) or exposure_time.unit.physical_type != "time":
-            raise InputError(
-                f"{names['exposure_time']}: expected a Quantity with a time unit (e.g. 300 * u.s), "
-                f"got {exposure_time!r}"
-            )
-        if np.ndim(exposure_time) != 0:
-            raise InputError(
-                f"{names['exposure_time']}: expected one time, got shape {np.shape(exposure_time)}"
-            )
-        exposure_s = _positive(names["exposure_time"], exposure_time.to_value(u.s))
+        exposure_s = _checked_exposure_s(exposure_time, names["exposure_time"])
     else:
         snr = _positive(names["snr"], snr)
     if n_exposures is not None:
@@ -248,6 +224,38 @@ def checked_request(
         "n_exposures": n_exposures,
         "observable_only": bool(observable_only),
     }
+
+
+def _checked_mag(mag_ab, name: str) -> float:
+    """One finite AB magnitude (a number, or a Quantity in mag or ABmag), as a float."""
+    import astropy.units as u
+
+    if isinstance(mag_ab, u.Quantity):
+        if mag_ab.unit not in (u.mag, u.ABmag, u.dimensionless_unscaled):
+            raise InputError(f"{name}: expected an AB magnitude (mag or ABmag), got unit {mag_ab.unit}")
+        mag_ab = mag_ab.value
+    if np.ndim(mag_ab) != 0:
+        raise InputError(f"{name}: expected one magnitude, got shape {np.shape(mag_ab)}")
+    try:
+        mag = float(mag_ab)
+    except (TypeError, ValueError):
+        raise InputError(f"{name}: expected a number, got {mag_ab!r}") from None
+    if not math.isfinite(mag):
+        raise InputError(f"{name}: must be finite, got {mag_ab!r}")
+    return mag
+
+
+def _checked_exposure_s(exposure_time, name: str) -> float:
+    """One positive time (a Quantity with a time unit), in s."""
+    import astropy.units as u
+
+    if not isinstance(exposure_time, u.Quantity) or exposure_time.unit.physical_type != "time":
+        raise InputError(
+            f"{name}: expected a Quantity with a time unit (e.g. 300 * u.s), got {exposure_time!r}"
+        )
+    if np.ndim(exposure_time) != 0:
+        raise InputError(f"{name}: expected one time, got shape {np.shape(exposure_time)}")
+    return _positive(name, exposure_time.to_value(u.s))
 
 
 def etc_table(background, bands, campaign, request: dict):
@@ -279,128 +287,134 @@ def etc_table(background, bands, campaign, request: dict):
         False, the computed quantity (``exposure_time``, or ``snr`` for a given time) is NaN.
         ``meta``: the request, each band's survey exposures and aperture pixels.
     """
-    import astropy.units as u
-    from astropy.table import QTable
-    from astropy.time import Time
-
-    from straylight.limits.point_source import campaign_exposures, source_rate_e_per_s
-    from straylight.model.registry import component_names, long_names
-    from straylight.model.result import violation_text
+    from straylight.limits.point_source import campaign_exposures
+    from straylight.model.registry import component_names
 
     comps = component_names()
-    n, nb = len(background), len(bands)
-    rate_unit = u.electron / (u.s * u.pix)
     obs = np.asarray(background["observable"], bool)
     computed = obs if request["observable_only"] else np.ones_like(obs)
-    cols: dict = {k: [] for k in ("snr", "exposure_s", "n_exp", "total", "mag", "dom", "frac", "src", "lim")}
-    per_comp = {c: [] for c in comps}
     exposures = campaign_exposures(campaign, bands)
-    for b, x in zip(bands, exposures):
-        total = np.asarray(background[f"total_{b}"].to_value(rate_unit), float)
-        stack = np.stack([np.asarray(background[f"{c}_{b}"].to_value(rate_unit), float) for c in comps])
-        n_exp = x.n_exposures if request["n_exposures"] is None else request["n_exposures"]
-        if request["mode"] == "snr":
-            exposure_s = np.full(n, request["exposure_s"])
-            snr = np.where(computed, snr_for_time(request["mag_ab"], exposure_s, total, x, n_exp), np.nan)
-        else:
-            snr = np.full(n, request["snr"])
-            exposure_s = np.where(computed, time_for_snr(request["mag_ab"], snr, total, x, n_exp), np.nan)
-        big = np.argmax(stack, axis=0) if n else np.zeros(0, int)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            cols["frac"].append(np.take_along_axis(stack, big[None], 0)[0] / total)
-        cols["dom"].append(np.asarray(comps)[big])
-        for key, v in (
-            ("snr", snr),
-            ("exposure_s", exposure_s),
-            ("n_exp", np.full(n, n_exp)),
-            ("total", total),
-            ("mag", background[f"total_mag_{b}"].value),
-            ("src", np.full(n, float(source_rate_e_per_s(request["mag_ab"], x)))),
-            ("lim", background[f"limit_mag_{b}"].value),
-        ):
-            cols[key].append(np.asarray(v))
-        for i, c in enumerate(comps):
-            per_comp[c].append(stack[i])
+    per_band = [_band_values(background, b, x, request, comps, computed) for b, x in zip(bands, exposures)]
+    columns = _etc_columns(background, bands, request, per_band, comps)
+    return _etc_qtable(columns, bands, exposures, request)
 
-    def interleave(parts):  # (band, sample) -> sample by sample, bands in order
+
+def _band_values(background, band: str, x, request: dict, comps, computed) -> dict:
+    """One band's values at every sample: ``snr``, ``exposure_s`` (s; NaN where not
+    ``computed``), ``n_exp``, ``total`` (e-/s/pix), ``mag`` (AB mag/arcsec2), ``dom`` and
+    ``frac`` (the largest component and its share), ``src`` (source e-/s in the aperture),
+    ``lim`` (AB mag) and ``stack`` (each component, e-/s/pix, (component, sample))."""
+    import astropy.units as u
+
+    from straylight.limits.point_source import source_rate_e_per_s
+
+    n = len(background)
+    rate_unit = u.electron / (u.s * u.pix)
+    total = np.asarray(background[f"total_{band}"].to_value(rate_unit), float)
+    stack = np.stack([np.asarray(background[f"{c}_{band}"].to_value(rate_unit), float) for c in comps])
+    n_exp = x.n_exposures if request["n_exposures"] is None else request["n_exposures"]
+    if request["mode"] == "snr":
+        exposure_s = np.full(n, request["exposure_s"])
+        snr = np.where(computed, snr_for_time(request["mag_ab"], exposure_s, total, x, n_exp), np.nan)
+    else:
+        snr = np.full(n, request["snr"])
+        exposure_s = np.where(computed, time_for_snr(request["mag_ab"], snr, total, x, n_exp), np.nan)
+    big = np.argmax(stack, axis=0) if n else np.zeros(0, int)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        frac = np.take_along_axis(stack, big[None], 0)[0] / total
+    out = {"frac": frac, "dom": np.asarray(comps)[big], "stack": stack}
+    for key, v in (
+        ("snr", snr),
+        ("exposure_s", exposure_s),
+        ("n_exp", np.full(n, n_exp)),
+        ("total", total),
+        ("mag", background[f"total_mag_{band}"].value),
+        ("src", np.full(n, float(source_rate_e_per_s(request["mag_ab"], x)))),
+        ("lim", background[f"limit_mag_{band}"].value),
+    ):
+        out[key] = np.asarray(v)
+    return out
+
+
+def _etc_columns(background, bands, request: dict, per_band: list, comps) -> dict:
+    """The table's columns, sample by sample and the bands in order: name -> (values, unit or
+    None, description)."""
+    import astropy.units as u
+    from astropy.time import Time
+
+    from straylight.model.registry import long_names
+    from straylight.model.result import violation_text
+
+    n, nb = len(background), len(bands)
+    rate_unit = u.electron / (u.s * u.pix)
+
+    def interleave(key, i=None):  # (band, sample) -> sample by sample, bands in order
+        parts = [v[key] if i is None else v[key][i] for v in per_band]
         return np.stack(parts, axis=1).reshape(n * nb) if n else np.zeros(0)
 
     idx = np.repeat(np.arange(n), nb)
     t = Time(background["time"][idx] if n else background["time"][:0], format="isot", precision=3)
-    exp = interleave(cols["exposure_s"])
-    n_exp = interleave(cols["n_exp"]).astype(np.int64)
+    exp = interleave("exposure_s")
+    n_exp = interleave("n_exp").astype(np.int64)
     lname = long_names()
+    obs, violated = np.asarray(background["observable"], bool), violation_text(background["violations"])
+    given = request["mode"] == "snr"
+    snr_text = "signal-to-noise ratio in the EE80 aperture" + (
+        " reached in exposure_time" if given else " asked for"
+    )
+    time_text = "total exposure time, all exposures" + (" (given)" if given else " to reach snr")
+    dominant_text = f"largest background component ({', '.join(comps)})"
     columns = {
         "time": (t, None, "UTC time of the sample"),
         "ra": (background["ra"][idx], None, "ICRS right ascension"),
         "dec": (background["dec"][idx], None, "ICRS declination"),
         "band": (np.tile(np.asarray(bands, dtype=str), n), None, "band"),
         "observable": (obs[idx], None, "the pointing meets every constraint at this time"),
-        "violations": (
-            violation_text(background["violations"])[idx],
-            None,
-            "violated constraints, comma-separated (empty when observable)",
-        ),
+        "violations": (violated[idx], None, "violated constraints, comma-separated (empty when observable)"),
         "mag_ab": (np.full(n * nb, request["mag_ab"]), u.mag, "source AB magnitude"),
-        "snr": (
-            interleave(cols["snr"]),
-            None,
-            "signal-to-noise ratio in the EE80 aperture"
-            + (" reached in exposure_time" if request["mode"] == "snr" else " asked for"),
-        ),
-        "exposure_time": (
-            exp,
-            u.s,
-            "total exposure time, all exposures"
-            + (" (given)" if request["mode"] == "snr" else " to reach snr"),
-        ),
+        "snr": (interleave("snr"), None, snr_text),
+        "exposure_time": (exp, u.s, time_text),
         "n_exposures": (n_exp, None, "exposures the time is split into (read noise once each)"),
         "single_exposure": (
             exp / n_exp if n else exp,
             u.s,
             "time of one exposure, exposure_time / n_exposures",
         ),
-        "background_total": (interleave(cols["total"]), rate_unit, lname["total"]),
-        "background_mag": (
-            interleave(cols["mag"]),
-            u.mag / u.arcsec**2,
-            "total background, AB surface brightness",
-        ),
-        "dominant": (
-            interleave(cols["dom"]).astype(str),
-            None,
-            f"largest background component ({', '.join(comps)})",
-        ),
-        "dominant_fraction": (interleave(cols["frac"]), None, "the dominant component's share of the total"),
+        "background_total": (interleave("total"), rate_unit, lname["total"]),
+        "background_mag": (interleave("mag"), u.mag / u.arcsec**2, "total background, AB surface brightness"),
+        "dominant": (interleave("dom").astype(str), None, dominant_text),
+        "dominant_fraction": (interleave("frac"), None, "the dominant component's share of the total"),
     }
-    for c in comps:
-        columns[f"background_{c}"] = (interleave(per_comp[c]), rate_unit, lname[c])
+    for i, c in enumerate(comps):
+        columns[f"background_{c}"] = (interleave("stack", i), rate_unit, lname[c])
     columns["source_rate"] = (
-        interleave(cols["src"]),
+        interleave("src"),
         u.electron / u.s,
         "source electrons per second in the EE80 aperture",
     )
     columns["limit_mag"] = (
-        interleave(cols["lim"]),
+        interleave("lim"),
         u.mag,
         "5-sigma point-source limit of the survey's exposures at this background, AB",
     )
+    return columns
+
+
+def _etc_qtable(columns: dict, bands, exposures, request: dict):
+    """The QTable of the columns (values with their units, descriptions, display formats),
+    with the request and each band's survey exposures and aperture pixels in its ``meta``."""
+    import astropy.units as u
+    from astropy.table import QTable
+
+    meta = {k: request[k] for k in ("mode", "observable_only", "mag_ab", "snr", "exposure_s")}
+    meta["survey_exposures"] = {b: f"{x.n_exposures} x {x.exposure_s:g} s" for b, x in zip(bands, exposures)}
+    meta["aperture_pixels"] = {b: x.n_pix for b, x in zip(bands, exposures)}
     out = QTable(
         {
             k: (v if unit is None or isinstance(v, u.Quantity) else u.Quantity(v, unit))
             for k, (v, unit, _) in columns.items()
         },
-        meta={
-            "mode": request["mode"],
-            "observable_only": request["observable_only"],
-            "mag_ab": request["mag_ab"],
-            "snr": request["snr"],
-            "exposure_s": request["exposure_s"],
-            "survey_exposures": {
-                b: f"{x.n_exposures} x {x.exposure_s:g} s" for b, x in zip(bands, exposures)
-            },
-            "aperture_pixels": {b: x.n_pix for b, x in zip(bands, exposures)},
-        },
+        meta=meta,
     )
     for k, (_, _, desc) in columns.items():
         out[k].info.description = desc
@@ -486,30 +500,8 @@ def etc_summary(table):
 
     by_time = table.meta["mode"] == "exposure_time"
     key = "exposure_time" if by_time else "snr"
-    rows = []
     bands = list(dict.fromkeys(np.asarray(table["band"], dtype=str)))
-    for b in bands:
-        sel = np.flatnonzero(
-            (np.asarray(table["band"], dtype=str) == b) & np.asarray(table["observable"], bool)
-        )
-        n_all = int(np.sum(np.asarray(table["band"], dtype=str) == b))
-        vals = np.asarray(u.Quantity(table[key]).value, float)[sel]
-        if sel.size:
-            best = sel[np.argmin(vals) if by_time else np.argmax(vals)]
-            row = (
-                b,
-                n_all,
-                sel.size,
-                float(np.min(vals) if by_time else np.max(vals)),
-                table["time"][best].isot,
-                float(np.median(vals)),
-                float(np.max(vals) if by_time else np.min(vals)),
-                float(table["background_total"][best].value),
-                str(table["dominant"][best]),
-            )
-        else:
-            row = (b, n_all, 0, np.nan, "", np.nan, np.nan, np.nan, "")
-        rows.append(row)
+    rows = [_summary_row(table, b, key, by_time) for b in bands]
     best_name, worst_name, when = (
         ("exposure_time_min", "exposure_time_max", "time_of_min")
         if by_time
@@ -545,6 +537,33 @@ def etc_summary(table):
     ):
         out[name].info.description = desc
     return out
+
+
+def _summary_row(table, band: str, key: str, by_time: bool) -> tuple:
+    """One band's summary row: band, samples, observable samples, the best value of ``key``
+    (the shortest time, s, or the highest SNR), its UTC time, the median, the worst, and the
+    total background (e-/s/pix) and dominant component at the best sample; NaN and "" when
+    the band is never observable."""
+    import astropy.units as u
+
+    in_band = np.asarray(table["band"], dtype=str) == band
+    sel = np.flatnonzero(in_band & np.asarray(table["observable"], bool))
+    n_all = int(np.sum(in_band))
+    vals = np.asarray(u.Quantity(table[key]).value, float)[sel]
+    if not sel.size:
+        return (band, n_all, 0, np.nan, "", np.nan, np.nan, np.nan, "")
+    best = sel[np.argmin(vals) if by_time else np.argmax(vals)]
+    return (
+        band,
+        n_all,
+        sel.size,
+        float(np.min(vals) if by_time else np.max(vals)),
+        table["time"][best].isot,
+        float(np.median(vals)),
+        float(np.max(vals) if by_time else np.min(vals)),
+        float(table["background_total"][best].value),
+        str(table["dominant"][best]),
+    )
 
 
 def time_grid(start, end, step_s: float, period_s: float):

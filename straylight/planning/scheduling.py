@@ -20,6 +20,8 @@ zodiacal sky a smaller angle or exposure factor suffices.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from straylight.config import Campaign
@@ -254,6 +256,17 @@ def exposure_factor_table(model: BackgroundModel, ratios=(0.0, 0.01, 0.03, 0.1, 
     return out
 
 
+class _TableSpec(NamedTuple):
+    """A scheduling table and how it is drawn: its columns, the x column's name, the y columns'
+    prefix (followed by the band) and the axes' labels (with their units)."""
+
+    columns: dict
+    x: str
+    prefix: str
+    xlabel: str
+    ylabel: str
+
+
 def write_tables(model: BackgroundModel, out_dir, fraction: float = 0.1) -> list:
     """The three tables as CSV and PNG in ``out_dir``; returns the written paths.
 
@@ -273,32 +286,24 @@ def write_tables(model: BackgroundModel, out_dir, fraction: float = 0.1) -> list
     """
     from pathlib import Path
 
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from astropy.table import Table
-
-    from straylight.util.io import atomic_path
-
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     tables = {
-        "moon_avoidance": (
+        "moon_avoidance": _TableSpec(
             moon_avoidance_table(model, fraction),
             "phase_angle_deg",
             "min_moon_angle_deg_",
             "lunar phase angle (deg; 0 = full)",
             "Moon angle needed (deg)",
         ),
-        "bright_limb": (
+        "bright_limb": _TableSpec(
             bright_limb_table(model, fraction),
             "sun_zenith_deg",
             "min_limb_elevation_deg_",
             "Sun zenith angle at the sub-satellite point (deg)",
             "elevation above the limb needed (deg)",
         ),
-        "exposure_factor": (
+        "exposure_factor": _TableSpec(
             exposure_factor_table(model),
             "stray_to_zodiacal_ratio",
             "exposure_time_factor_",
@@ -307,50 +312,78 @@ def write_tables(model: BackgroundModel, out_dir, fraction: float = 0.1) -> list
         ),
     }
     written = []
-    for name, (cols, x, prefix, xlabel, ylabel) in tables.items():
-        t = Table(cols)
-        t.meta["comments"] = [
-            f"straylight scheduling table {name}; fraction of the darkest zodiacal light: {fraction}"
-        ]
-        csv = out_dir / f"{name}.csv"
-        with atomic_path(csv) as tmp:
-            t.write(tmp, format="ascii.csv", overwrite=True)
-        fig, ax = plt.subplots(figsize=(6, 4))
-        for b in model.campaign.bands:
-            ax.plot(cols[x], cols[prefix + b], marker="o", ms=3, label=b)
-        if name == "exposure_factor":
-            ax.set_xscale("symlog", linthresh=0.01)
-        if name == "bright_limb":  # inf draws nothing: shade where no elevation works in some band
-            never = np.any([np.isinf(cols[prefix + b]) for b in model.campaign.bands], axis=0)
-            xs = np.asarray(cols[x], float)
-            mid = (xs[1:] + xs[:-1]) / 2  # each node's span reaches halfway to its neighbours
-            edges = np.concatenate(
-                [
-                    [xs[0] - (mid[0] - xs[0] if mid.size else 0.5)],
-                    mid,
-                    [xs[-1] + (xs[-1] - mid[-1] if mid.size else 0.5)],
-                ]
-            )
-            for k, i in enumerate(np.flatnonzero(never)):
-                ax.axvspan(
-                    edges[i],
-                    edges[i + 1],
-                    color="0.88",
-                    lw=0,
-                    label=None if k else "no elevation works (inf)",
-                )
-        ax.set_xlabel(xlabel)
-        ax.set_ylabel(ylabel)
-        ax.set_title(
-            f"{name.replace('_', ' ')} (stray light <= {fraction:g} x darkest zodiacal)"
-            if name != "exposure_factor"
-            else "exposure time to reach the nominal depth"
-        )
-        ax.legend(fontsize=7, ncol=2)
-        fig.tight_layout()
-        png = out_dir / f"{name}.png"
-        with atomic_path(png) as tmp:
-            fig.savefig(tmp, dpi=110, format="png")
-        plt.close(fig)
+    for name, spec in tables.items():
+        csv, png = out_dir / f"{name}.csv", out_dir / f"{name}.png"
+        _write_table_csv(csv, name, spec.columns, fraction)
+        _plot_table(png, name, spec, model.campaign.bands, fraction)
         written += [csv, png]
     return written
+
+
+def _write_table_csv(path, name: str, columns: dict, fraction: float) -> None:
+    """One table as CSV, its name and the fraction of the darkest zodiacal light in a comment."""
+    from astropy.table import Table
+
+    from straylight.util.io import atomic_path
+
+    t = Table(columns)
+    t.meta["comments"] = [
+        f"straylight scheduling table {name}; fraction of the darkest zodiacal light: {fraction}"
+    ]
+    with atomic_path(path) as tmp:
+        t.write(tmp, format="ascii.csv", overwrite=True)
+
+
+def _plot_table(path, name: str, spec: _TableSpec, bands, fraction: float) -> None:
+    """One table drawn as PNG: a line per band against its x column."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from straylight.util.io import atomic_path
+
+    cols, x, prefix = spec.columns, spec.x, spec.prefix
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for b in bands:
+        ax.plot(cols[x], cols[prefix + b], marker="o", ms=3, label=b)
+    if name == "exposure_factor":
+        ax.set_xscale("symlog", linthresh=0.01)
+    if name == "bright_limb":  # inf draws nothing: shade where no elevation works in some band
+        _shade_never(ax, spec, bands)
+    ax.set_xlabel(spec.xlabel)
+    ax.set_ylabel(spec.ylabel)
+    ax.set_title(
+        f"{name.replace('_', ' ')} (stray light <= {fraction:g} x darkest zodiacal)"
+        if name != "exposure_factor"
+        else "exposure time to reach the nominal depth"
+    )
+    ax.legend(fontsize=7, ncol=2)
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=110, format="png")
+    plt.close(fig)
+
+
+def _shade_never(ax, spec: _TableSpec, bands) -> None:
+    """Grey spans over the x nodes where some band's value is inf (no elevation works), each
+    node's span reaching halfway to its neighbours."""
+    cols, x, prefix = spec.columns, spec.x, spec.prefix
+    never = np.any([np.isinf(cols[prefix + b]) for b in bands], axis=0)
+    xs = np.asarray(cols[x], float)
+    mid = (xs[1:] + xs[:-1]) / 2  # each node's span reaches halfway to its neighbours
+    edges = np.concatenate(
+        [
+            [xs[0] - (mid[0] - xs[0] if mid.size else 0.5)],
+            mid,
+            [xs[-1] + (xs[-1] - mid[-1] if mid.size else 0.5)],
+        ]
+    )
+    for k, i in enumerate(np.flatnonzero(never)):
+        ax.axvspan(
+            edges[i],
+            edges[i + 1],
+            color="0.88",
+            lw=0,
+            label=None if k else "no elevation works (inf)",
+        )

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import time
 import warnings
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +26,7 @@ import numpy as np
 __all__ = [
     "PERCENTILES",
     "BATCH_SAMPLES",
+    "SampledWindow",
     "targets_visibility",
     "monthly_summary",
     "format_summary",
@@ -38,13 +40,28 @@ PERCENTILES = (10, 50, 90)
 BATCH_SAMPLES = 16384
 
 
+@dataclass(frozen=True)
+class SampledWindow:
+    """A UTC window and its sampling step (:func:`~straylight.planning.visibility.time_grid`).
+
+    Attributes
+    ----------
+    start, end : str or astropy.time.Time
+        UTC times (ISO 8601 text or a scalar Time); ``end`` exclusive.
+    step_s : float
+        Sampling step, s.
+    """
+
+    start: object
+    end: object
+    step_s: float
+
+
 def targets_visibility(
     campaign,
     targets,
     band: str,
-    start,
-    end,
-    step_s: float,
+    window: SampledWindow,
     threshold_mag: float | None = None,
     model=None,
     batch: int = BATCH_SAMPLES,
@@ -59,14 +76,12 @@ def targets_visibility(
         The targets (names, file names, ICRS RA/Dec in deg).
     band : str
         One of the campaign's bands.
-    start, end : str or astropy.time.Time
-        UTC times; ``end`` exclusive (:func:`~straylight.planning.visibility.time_grid`).
-    step_s : float
-        Sampling step, s.
+    window : SampledWindow
+        The UTC start and end (exclusive) and the sampling step, s.
     threshold_mag : float, optional
         Limit, AB mag: days and months get the observable hours with a limit at least this deep.
-    model : BackgroundModel or callable, optional
-        The campaign's warm model, or a function giving it; None: one is built.
+    model : BackgroundModel, optional
+        The campaign's warm model; None: one is built.
     batch : int, optional
         Samples per vectorised evaluation.
 
@@ -87,16 +102,39 @@ def targets_visibility(
     InputError
         As :func:`~straylight.planning.visibility.time_grid`.
     """
-    from astropy.time import Time
-
     from straylight.model import BackgroundModel
-    from straylight.planning.pointings import pointing_table
     from straylight.planning.visibility import daily_tables, observable_windows, time_grid
 
-    t0, t, offset_s = time_grid(campaign, band, start, end, step_s)
-    m, n = len(targets), len(t)
+    t0, t, offset_s = time_grid(campaign, band, window.start, window.end, window.step_s)
     # the model built (or its tables read) outside the evaluation's timing
-    model = BackgroundModel(campaign) if model is None else model() if callable(model) else model
+    model = BackgroundModel(campaign) if model is None else model
+    obs, total, lim, models, seconds = _evaluate_targets(campaign, targets, band, t, model, batch)
+    return {
+        "targets": targets,
+        "time": t,
+        "observable": obs,
+        "total_e_per_s_per_pix": total,
+        "limit_mag": lim,
+        "windows": observable_windows(obs, t, t0, offset_s),
+        "days": daily_tables(obs, lim, t, offset_s, threshold_mag),
+        "summary": monthly_summary(targets, band, obs, lim, total, t, offset_s, threshold_mag),
+        "band": band,
+        "step_s": float(window.step_s),
+        "threshold_mag": threshold_mag,
+        "models": models,
+        "seconds": seconds,
+    }
+
+
+def _evaluate_targets(campaign, targets, band: str, t, model, batch: int):
+    """Every target at every time ``t`` through the one evaluation path, timed: observable
+    (bool), the band's total background (e-/s/pix) and 5-sigma limit (AB mag), each (m, n);
+    the record of the models that ran; the evaluation's wall and CPU seconds."""
+    from astropy.time import Time
+
+    from straylight.planning.pointings import pointing_table
+
+    m, n = len(targets), len(t)
     w0, c0 = time.perf_counter(), time.process_time()
     # target-major flat samples: target k's time i is sample k * n + i
     times = Time(np.tile(t.jd1, m), np.tile(t.jd2, m), format="jd", scale="utc")
@@ -119,21 +157,7 @@ def targets_visibility(
     obs = np.asarray(cols["observable"], bool).reshape(m, n)
     total = np.asarray(cols[f"total_{band}"], float).reshape(m, n)
     lim = np.asarray(cols[f"limit_mag_{band}"], float).reshape(m, n)
-    return {
-        "targets": targets,
-        "time": t,
-        "observable": obs,
-        "total_e_per_s_per_pix": total,
-        "limit_mag": lim,
-        "windows": observable_windows(obs, t, t0, offset_s),
-        "days": daily_tables(obs, lim, t, offset_s, threshold_mag),
-        "summary": monthly_summary(targets, band, obs, lim, total, t, offset_s, threshold_mag),
-        "band": band,
-        "step_s": float(step_s),
-        "threshold_mag": threshold_mag,
-        "models": models,
-        "seconds": seconds,
-    }
+    return obs, total, lim, models, seconds
 
 
 def monthly_summary(targets, band, obs, lim, total, t, offset_s, threshold_mag=None):
@@ -181,18 +205,7 @@ def monthly_summary(targets, band, obs, lim, total, t, offset_s, threshold_mag=N
     ends = np.append(starts[1:], iso.size)
     m, p = obs.shape[0], months.size
     sums = period_sums(obs, lim, np.diff(offset_s) / 3600.0, starts, threshold_mag)
-    best_time = np.full((m, p), "", dtype=object)
-    pct = np.full((len(PERCENTILES), m, p), np.nan)
-    n_obs = np.zeros((m, p), np.int64)
-    for j, (a, b) in enumerate(zip(starts, ends)):
-        o = obs[:, a:b]
-        n_obs[:, j] = o.sum(axis=1)
-        k = np.argmax(np.where(o, lim[:, a:b], -np.inf), axis=1)
-        seen = n_obs[:, j] > 0
-        best_time[seen, j] = [s[:19] for s in iso[a + k[seen]]]
-        with warnings.catch_warnings():  # a target never observable in the month: NaN, no warning
-            warnings.simplefilter("ignore", RuntimeWarning)
-            pct[:, :, j] = np.nanpercentile(np.where(o, total[:, a:b], np.nan), PERCENTILES, axis=1)
+    n_obs, best_time, pct = _monthly_samples(obs, lim, total, iso, starts, ends)
     columns = {
         "target": np.repeat(np.asarray(targets.names, dtype=str), p),
         "ra_deg": np.repeat(np.asarray(targets.ra_deg, float), p) * u.deg,
@@ -212,6 +225,34 @@ def monthly_summary(targets, band, obs, lim, total, t, offset_s, threshold_mag=N
     for q, v in zip(PERCENTILES, pct):
         columns[f"background_p{q}_e_per_s_per_pix"] = v.ravel() * rate
     out = QTable(columns)
+    _set_summary_formats(out)
+    out.meta = {"band": band, "threshold_mag": threshold_mag, "percentiles": list(PERCENTILES)}
+    return out
+
+
+def _monthly_samples(obs, lim, total, iso, starts, ends):
+    """Per target and month (samples ``starts[j]`` to ``ends[j]``): the observable samples
+    (count), the deepest limit's UTC time (ISO to the second, "" when none) and the total
+    background's :data:`PERCENTILES` over the observable samples (e-/s/pix, NaN when none)."""
+    m, p = obs.shape[0], len(starts)
+    best_time = np.full((m, p), "", dtype=object)
+    pct = np.full((len(PERCENTILES), m, p), np.nan)
+    n_obs = np.zeros((m, p), np.int64)
+    for j, (a, b) in enumerate(zip(starts, ends)):
+        o = obs[:, a:b]
+        n_obs[:, j] = o.sum(axis=1)
+        k = np.argmax(np.where(o, lim[:, a:b], -np.inf), axis=1)
+        seen = n_obs[:, j] > 0
+        best_time[seen, j] = [s[:19] for s in iso[a + k[seen]]]
+        with warnings.catch_warnings():  # a target never observable in the month: NaN, no warning
+            warnings.simplefilter("ignore", RuntimeWarning)
+            pct[:, :, j] = np.nanpercentile(np.where(o, total[:, a:b], np.nan), PERCENTILES, axis=1)
+    return n_obs, best_time, pct
+
+
+def _set_summary_formats(out) -> None:
+    """The summary's display formats: positions to 1e-5 deg, hours to 0.01 h, limits to 1e-3
+    mag, backgrounds to 4 significant digits."""
     for name, f in (
         ("ra_deg", ".5f"),
         ("dec_deg", ".5f"),
@@ -222,8 +263,6 @@ def monthly_summary(targets, band, obs, lim, total, t, offset_s, threshold_mag=N
     ):
         if name in out.colnames:
             out[name].info.format = f
-    out.meta = {"band": band, "threshold_mag": threshold_mag, "percentiles": list(PERCENTILES)}
-    return out
 
 
 def format_summary(summary) -> str:

@@ -329,7 +329,7 @@ def test_cross_match_fills_only_stars_missing_from_gaia():
     assert cross_match_fill(gaia, {**hip, "pmra": np.zeros(3), "pmdec": np.zeros(3)}, 2.0)[0]
 
 
-def test_population_route_takes_parameters_of_the_nearest_mock_star(responses, photometry):
+def test_population_route_takes_parameters_of_the_nearest_mock_star(photometry):
     from straylight.catalog.build import build_catalog
 
     stars = {
@@ -354,7 +354,7 @@ def test_population_route_takes_parameters_of_the_nearest_mock_star(responses, p
         "sdss_r": np.array([s["sdss_r"][0], s["sdss_r"][1], 0.3]),
         "sdss_i": np.array([s["sdss_i"][0], s["sdss_i"][1], 0.5]),
     }
-    cat = build_catalog(stars, responses, population=pop, photometry=photometry)
+    cat = build_catalog(stars, photometry, population=pop)
     assert cat["teff"].tolist() == [5800.0, 3600.0]
     assert cat["feh"].tolist() == [0.1, -0.4]
 

@@ -34,7 +34,7 @@ def bright_catalog():
     hip = hipparcos_stars()
     keep = np.isin(hip["source_id"], list(BRIGHT))
     stars = {k: v[keep] for k, v in hip.items()}
-    return build_catalog(stars, responses, photometry=TemplatePhotometry(load_pickles(), responses))
+    return build_catalog(stars, TemplatePhotometry(load_pickles(), responses))
 
 
 def test_hip2_has_no_spectral_types():

@@ -89,14 +89,13 @@ def together(campaign, default_tables, tmp_path_factory):
     """Three targets (a packaged field, a position, a position near the ecliptic) over 2026-01-31
     18:00 to 2026-02-01 06:00 UTC at 10 min, so that the summary has two months."""
     from straylight.planning.target_names import read_targets
-    from straylight.planning.targets import targets_visibility
+    from straylight.planning.targets import SampledWindow, targets_visibility
 
     p = tmp_path_factory.mktemp("targets") / "t.csv"
     p.write_text("name,ra,dec\nCOSMOS,,\nNorth,150.0,30.0\nEcliptic,200.0,-10.0\n")
     t = read_targets(p)
-    return targets_visibility(
-        campaign, t, "g", "2026-01-31T18:00:00", "2026-02-01T06:00:00", 600.0, 26.6, batch=100
-    )
+    window = SampledWindow("2026-01-31T18:00:00", "2026-02-01T06:00:00", 600.0)
+    return targets_visibility(campaign, t, "g", window, 26.6, batch=100)
 
 
 def test_targets_together_equal_each_target_alone(together, campaign):
