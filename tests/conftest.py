@@ -75,24 +75,34 @@ def default_tables():
 
 
 # -- the default campaign's earthshine tables: built while the tests that never read them run ---
-#: test modules (under tests/) that never read the default campaign's earthshine tables (the
-#: coarse tables of test_earthshine_lut.py are its own).  A module wrongly listed here costs time
-#: only: its test builds the tables itself, beside the background build, into the same file.
+#: test modules (under tests/) that never read the default campaign's earthshine tables: their
+#: campaigns sum the earthshine directly (:func:`tiny_config`) or evaluate none, and they run
+#: while the tables are built.  The slow ones among them (campaigns run and killed, a SLURM
+#: cluster's polls) leave a core idle at times, which the background build, at low priority,
+#: takes.  test_earthshine_lut.py builds its own coarse sunlit tables but reads the default
+#: moonlit one: listed all the same, it builds that table itself or waits for it (one build of a
+#: table at a time), beside the background build.  A module wrongly listed here costs time only.
 TABLE_FREE_MODULES = frozenset(
     {
+        "test_api_reference.py",
         "test_architecture.py",
         "test_config.py",
         "test_execution.py",
+        "test_function_limits.py",
         "test_instrument_settings.py",
         "test_plots.py",
+        "test_runner.py",
         "test_settings.py",
         "catalog/test_catalog.py",
         "catalog/test_gaia.py",
         "catalog/test_luminosity_class.py",
         "catalog/test_proper_motion.py",
+        "cube/test_compact.py",
+        "cube/test_cube.py",
         "cube/test_footprint.py",
         "cube/test_provenance.py",
         "image/test_detector_fits.py",
+        "image/test_image.py",
         "limits/test_published_depths.py",
         "model/test_envelope.py",
         "model/test_envelope_members.py",
@@ -115,6 +125,11 @@ TABLE_FREE_MODULES = frozenset(
         "sources/test_zodiacal.py",
         "sources/test_zodiacal_colour.py",
         "util/test_gridinterp.py",
+        "util/test_kernel_cache.py",
+        "workflow/test_bench.py",
+        "workflow/test_faults.py",
+        "workflow/test_slurm.py",
+        "workflow/test_workflow.py",
     }
 )
 #: the background build: the default campaign's model reading (so building) both its tables, at
