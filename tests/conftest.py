@@ -176,7 +176,8 @@ def pytest_collection_modifyitems(config, items):
     """In a session with tests of both kinds, the table-free modules run first (the order within
     each kind kept, but for :data:`SLOW_MODULES` first) while the default tables (once per
     session) are built in a background process; the first test of another module waits for
-    that build."""
+    that build.  pytest-xdist hands the modules out in this order with --no-loadscope-reorder
+    (``make test``); without it, by their number of tests."""
     global _table_build
     # the slow modules first within each kind (a stable sort keeps the order of the others)
     items.sort(key=lambda item: _module(item) not in SLOW_MODULES)
