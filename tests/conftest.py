@@ -144,19 +144,20 @@ _BUILD_DEFAULT_TABLES = (
 _table_build = None  # its Popen, until the first test that may read the tables has waited for it
 
 
-#: test modules that take minutes (campaigns run, killed and resumed, a wheel installed): each
-#: kind's run first, so that the two workers of `make test` end together
+#: test modules that take minutes (campaigns run, killed and resumed, a wheel installed), the
+#: longest first: each kind's run first in this order, so that the two workers of `make test`
+#: end together
 SLOW_MODULES = (
-    "workflow/test_faults.py",
     "cube/test_cube.py",
-    "workflow/test_slurm.py",
+    "workflow/test_faults.py",
     "sources/test_earthshine_lut.py",
-    "workflow/test_packaging.py",
+    "workflow/test_slurm.py",
     "workflow/test_readme.py",
+    "workflow/test_packaging.py",
     "workflow/test_workflow.py",
     "workflow/test_bench.py",
-    "cube/test_compact.py",
     "image/test_image.py",
+    "cube/test_compact.py",
 )
 
 
@@ -179,8 +180,9 @@ def pytest_collection_modifyitems(config, items):
     that build.  pytest-xdist hands the modules out in this order with --no-loadscope-reorder
     (``make test``); without it, by their number of tests."""
     global _table_build
-    # the slow modules first within each kind (a stable sort keeps the order of the others)
-    items.sort(key=lambda item: _module(item) not in SLOW_MODULES)
+    # the slow modules first within each kind, in their order (a stable sort keeps the others')
+    rank = {m: i for i, m in enumerate(SLOW_MODULES)}
+    items.sort(key=lambda item: rank.get(_module(item), len(SLOW_MODULES)))
     free = [item for item in items if not _may_read_default_tables(item)]
     if not free or len(free) == len(items) or config.option.collectonly:
         return
