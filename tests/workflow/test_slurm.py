@@ -90,7 +90,6 @@ LOCAL_CLUSTER_ARGS = (
     "--jobs",
     "3",
     "--groups",
-    "ephemeris=prepare",
     "footprint=prepare",
     "stars_catalog=prepare",
     "background_init=prepare",
