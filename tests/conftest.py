@@ -102,7 +102,6 @@ TABLE_FREE_MODULES = frozenset(
         "cube/test_footprint.py",
         "cube/test_provenance.py",
         "image/test_detector_fits.py",
-        "image/test_image.py",
         "limits/test_published_depths.py",
         "model/test_envelope.py",
         "model/test_envelope_members.py",
