@@ -42,10 +42,12 @@ run: $(VENV)/.installed
 	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/snakemake --cores $(CORES) --rerun-incomplete
 
 # the whole suite, slow tests included (this is what CI runs), in TEST_WORKERS processes (a test
-# module's tests stay together in one; the slowest 25 tests are listed at the end)
+# module's tests stay together in one, the modules handed out in tests/conftest.py's order, not
+# pytest-xdist's by number of tests; the slowest 25 tests are listed at the end)
 TEST_WORKERS ?= 2
 test: $(VENV)/.installed-test
-	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile --durations=25
+	PATH="$(abspath $(BIN)):$$PATH" $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile \
+		--no-loadscope-reorder --durations=25
 
 # quick loop for development: skips tests marked slow
 test-fast: $(VENV)/.installed-test

@@ -75,21 +75,30 @@ def default_tables():
 
 
 # -- the default campaign's earthshine tables: built while the tests that never read them run ---
-#: test modules (under tests/) that never read the default campaign's earthshine tables (the
-#: coarse tables of test_earthshine_lut.py are its own).  A module wrongly listed here costs time
-#: only: its test builds the tables itself, beside the background build, into the same file.
+#: test modules (under tests/) that never read the default campaign's earthshine tables: their
+#: campaigns sum the earthshine directly (:func:`tiny_config`) or evaluate none, and they run
+#: while the tables are built.  The slow ones among them (campaigns run and killed, a SLURM
+#: cluster's polls) leave a core idle at times, which the background build, at low priority,
+#: takes.  test_earthshine_lut.py builds its own coarse sunlit tables but reads the default
+#: moonlit one: listed all the same, it builds that table itself or waits for it (one build of a
+#: table at a time), beside the background build.  A module wrongly listed here costs time only.
 TABLE_FREE_MODULES = frozenset(
     {
+        "test_api_reference.py",
         "test_architecture.py",
         "test_config.py",
         "test_execution.py",
+        "test_function_limits.py",
         "test_instrument_settings.py",
         "test_plots.py",
+        "test_runner.py",
         "test_settings.py",
         "catalog/test_catalog.py",
         "catalog/test_gaia.py",
         "catalog/test_luminosity_class.py",
         "catalog/test_proper_motion.py",
+        "cube/test_compact.py",
+        "cube/test_cube.py",
         "cube/test_footprint.py",
         "cube/test_provenance.py",
         "image/test_detector_fits.py",
@@ -115,6 +124,11 @@ TABLE_FREE_MODULES = frozenset(
         "sources/test_zodiacal.py",
         "sources/test_zodiacal_colour.py",
         "util/test_gridinterp.py",
+        "util/test_kernel_cache.py",
+        "workflow/test_bench.py",
+        "workflow/test_faults.py",
+        "workflow/test_slurm.py",
+        "workflow/test_workflow.py",
     }
 )
 #: the background build: the default campaign's model reading (so building) both its tables, at
@@ -129,19 +143,20 @@ _BUILD_DEFAULT_TABLES = (
 _table_build = None  # its Popen, until the first test that may read the tables has waited for it
 
 
-#: test modules that take minutes (campaigns run, killed and resumed, a wheel installed): each
-#: kind's run first, so that the two workers of `make test` end together
+#: test modules that take minutes (campaigns run, killed and resumed, a wheel installed), the
+#: longest first: each kind's run first in this order, so that the two workers of `make test`
+#: end together
 SLOW_MODULES = (
-    "workflow/test_faults.py",
     "cube/test_cube.py",
-    "workflow/test_slurm.py",
+    "workflow/test_faults.py",
     "sources/test_earthshine_lut.py",
-    "workflow/test_packaging.py",
+    "workflow/test_slurm.py",
     "workflow/test_readme.py",
+    "workflow/test_packaging.py",
     "workflow/test_workflow.py",
     "workflow/test_bench.py",
-    "cube/test_compact.py",
     "image/test_image.py",
+    "cube/test_compact.py",
 )
 
 
@@ -161,10 +176,12 @@ def pytest_collection_modifyitems(config, items):
     """In a session with tests of both kinds, the table-free modules run first (the order within
     each kind kept, but for :data:`SLOW_MODULES` first) while the default tables (once per
     session) are built in a background process; the first test of another module waits for
-    that build."""
+    that build.  pytest-xdist hands the modules out in this order with --no-loadscope-reorder
+    (``make test``); without it, by their number of tests."""
     global _table_build
-    # the slow modules first within each kind (a stable sort keeps the order of the others)
-    items.sort(key=lambda item: _module(item) not in SLOW_MODULES)
+    # the slow modules first within each kind, in their order (a stable sort keeps the others')
+    rank = {m: i for i, m in enumerate(SLOW_MODULES)}
+    items.sort(key=lambda item: rank.get(_module(item), len(SLOW_MODULES)))
     free = [item for item in items if not _may_read_default_tables(item)]
     if not free or len(free) == len(items) or config.option.collectonly:
         return

@@ -161,10 +161,10 @@ def _env():
 
 
 def _kill_campaign(folder):
-    """The kill tests' campaign in ``folder``: 12 hours at 10 min in one-hour time blocks, 12
+    """The kill tests' campaign in ``folder``: 6 hours at 10 min in one-hour time blocks, 6
     time blocks x 3 pixel blocks, on the converged Earth grid (96 x 192, 16 times the default's
-    cost per sample): the cube lasts well over 10 s after its first block, so that processes
-    a killed run left behind would still be running when the test looks."""
+    cost per sample): the cube lasts well over 10 s after its first block (five blocks more), so
+    that processes a killed run left behind would still be running when the test looks."""
     import yaml
     from conftest import tiny_config
 
@@ -172,7 +172,7 @@ def _kill_campaign(folder):
     path = tiny_config(
         folder,
         name="killed",
-        campaign={"end": "2026-01-01T12:00:00", "time_block_hours": 1},
+        campaign={"end": "2026-01-01T06:00:00", "time_block_hours": 1},
         footprint={"pixel_block_size": 30},
     )
     cfg = yaml.safe_load(path.read_text())
@@ -182,7 +182,7 @@ def _kill_campaign(folder):
 
 
 #: the kill tests' campaign's time blocks
-N_KILL_BLOCKS = 12
+N_KILL_BLOCKS = 6
 #: the products the cube's workers write, compared with an uninterrupted run's
 KILL_PRODUCTS = ("background.zarr", "observability.zarr", "limits.zarr", "maps")
 

@@ -307,30 +307,19 @@ def test_depth_bounds_present_ordered_and_finite(tiny_run):
 
 
 @pytest.mark.slow
-def test_orbit_series_model_equals_the_cube_at_its_samples(tmp_path):
+def test_orbit_series_model_equals_the_cube_at_its_samples(tiny_run):
     """The time series' first orbit is the model every minute (plots.series.model_series): at the
     cube's own sample times (every 10 min) it gives the cube's values, every component in every
     band, to models.tolerance (1 % of the total: the cube's fast paths against the pointwise
-    path) plus the stored values' 2^-11; and the same observability.  The earthshine summed
-    directly (no table to build), the cube only."""
-    import yaml
-    from conftest import tiny_config
-
+    path) plus the stored values' 2^-11; and the same observability.  The module's campaign (its
+    earthshine summed directly: no table to build)."""
     from straylight.config import load_campaign
     from straylight.model import registry
     from straylight.plots.series import model_series, pointing_series, series_pixel_indices
 
-    cfg = tiny_config(tmp_path)
-    raw = yaml.safe_load(cfg.read_text())
-    raw["models"]["earthshine"]["method"] = "direct"
-    cfg.write_text(yaml.safe_dump(raw))
-    r = snakemake(
-        "-s", str(REPO / "workflow" / "Snakefile"), "-d", str(tmp_path), "--configfile", str(cfg),
-        "--cores", "2", "results/tiny/work/background_summary.json",
-    )  # fmt: skip
-    assert r.returncode == 0, r.stderr[-3000:]
-    out = tmp_path / "results" / "tiny"
+    out, cfg = tiny_run
     campaign = load_campaign(cfg)
+    assert campaign.settings.models.earthshine.method == "direct"
     store = out / "background.zarr"
     with xr.open_zarr(store, chunks=None, consolidated=False) as ds:
         pixels = series_pixel_indices(ds, 1, [[150.0, 30.0]])
