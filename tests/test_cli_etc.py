@@ -120,6 +120,7 @@ def test_etc_bad_input_one_line_exit_2(extra, fragment):
     r = run_cli(*ARGS, *extra)
     assert r.returncode == 2
     assert fragment in r.stderr and "Traceback" not in r.stderr
+    assert "np.float" not in r.stderr  # the value as the user wrote it, not numpy's repr
 
 
 def test_etc_bad_time_and_pointing():

@@ -160,7 +160,7 @@ def _positive(name: str, value) -> float:
     except (TypeError, ValueError):
         raise InputError(f"{name}: expected a number, got {value!r}") from None
     if not (math.isfinite(v) and v > 0):
-        raise InputError(f"{name}: must be finite and > 0, got {value!r}")
+        raise InputError(f"{name}: must be finite and > 0, got {v:g}")
     return v
 
 
