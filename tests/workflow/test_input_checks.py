@@ -241,9 +241,13 @@ def test_ctrl_c_during_run_is_one_line_and_exit_130(tmp_path):
         time.sleep(0.2)
     assert job is not None, "no job started"
     time.sleep(3.0)  # the job's imports done: it computes
+    # the run's signal masks when the Ctrl-C comes (blocked, ignored, caught), for a failure's message
+    with open(f"/proc/{proc.pid}/status") as status:
+        masks = [line.strip() for line in status if line.startswith("Sig")]
+    running = [c.name() for c in psutil.Process(proc.pid).children(recursive=True)]
     os.killpg(proc.pid, signal.SIGINT)
     out, err = proc.communicate(timeout=300)
-    assert proc.returncode == 130, err[-3000:]
+    assert proc.returncode == 130, f"{masks}; running at the Ctrl-C: {running}\n{err[-3000:]}"
     assert "Traceback" not in out + err and "KeyboardInterrupt" not in out + err, err[-3000:]
     assert err.strip().splitlines()[-1].startswith("straylight run: interrupted"), err[-3000:]
     for log in (tmp_path / "results" / "tiny" / "work" / "logs").glob("*.log"):
