@@ -229,6 +229,9 @@ def test_ctrl_c_during_run_is_one_line_and_exit_130(tmp_path):
         stderr=subprocess.PIPE,
         text=True,
         start_new_session=True,  # its own process group, as a terminal's foreground job
+        # and Ctrl-C's default action, as a shell gives its foreground job (a suite started in the
+        # background, `make test &`, passes SIGINT down ignored)
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     deadline, job = time.monotonic() + 300, None
     while job is None and time.monotonic() < deadline and proc.poll() is None:
