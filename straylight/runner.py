@@ -14,6 +14,7 @@ closing line; Snakemake's own log goes to ``results/<campaign name>/work/logs/sn
 from __future__ import annotations
 
 import json
+import math
 import os
 import re
 import signal
@@ -36,6 +37,7 @@ __all__ = [
     "warn_if_large",
     "run_campaign",
     "RunProgress",
+    "SnakemakeGroup",
 ]
 
 _CHECKOUT_WORKFLOW = Path(__file__).resolve().parents[1] / "workflow"
@@ -272,16 +274,12 @@ def _run_quietly(cmd, env, campaign) -> int:
     tail: deque[str] = deque(maxlen=400)
     print(f"straylight run: campaign {campaign.name}, log in {log_path}", file=sys.stderr, flush=True)
     start = time.monotonic()
-    proc = subprocess.Popen(
-        cmd,
-        env=env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-        errors="replace",
-        start_new_session=True,  # a Ctrl-C reaches this process alone, which stops Snakemake (_stop)
+    snakemake = SnakemakeGroup()
+    previous = snakemake.forward_signals()
+    snakemake.start(
+        cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, errors="replace"
     )
-    previous = _forward_signals(proc)
+    proc = snakemake.proc
 
     def read():
         for line in proc.stdout:
@@ -295,8 +293,8 @@ def _run_quietly(cmd, env, campaign) -> int:
     # disable=None: no bar where stderr is not a terminal (a pipe, a batch job's file)
     bar = tqdm(total=None, unit="step", desc=campaign.name, file=sys.stderr, disable=None, leave=False)
     try:
-        interrupted = _follow(proc, progress, bar)
-        reader.join()
+        interrupted = _follow(snakemake, progress, bar)
+        snakemake.join_output(reader)
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
@@ -328,13 +326,13 @@ def _open_log(log_path: Path):
         raise InputError(f"{log_path}: cannot write the run's log ({exc.strerror or exc})") from None
 
 
-def _follow(proc, progress: RunProgress, bar) -> bool:
-    """Move ``bar`` with the run's progress every 0.5 s until ``proc`` ends; True when a Ctrl-C
-    stopped it (:func:`_stop`)."""
+def _follow(snakemake: SnakemakeGroup, progress: RunProgress, bar) -> bool:
+    """Move ``bar`` with the run's progress every 0.5 s until Snakemake ends; True when a Ctrl-C
+    stopped it (:meth:`SnakemakeGroup.stop`)."""
     interrupted = False
     while True:
         try:
-            if proc.poll() is not None:
+            if snakemake.proc.poll() is not None:
                 return interrupted
             done, total = progress.counts()
             if total is not None and bar.total != total:
@@ -346,7 +344,7 @@ def _follow(proc, progress: RunProgress, bar) -> bool:
             time.sleep(0.5)
         except KeyboardInterrupt:
             interrupted = True
-            _stop(proc)
+            snakemake.stop()
 
 
 def _print_failure(lines: list, code: int, wall: float, log_path: Path) -> None:
@@ -399,12 +397,13 @@ def run_campaign(config, cores: int | None = None, extra=(), argv=None, verbose:
     # Snakemake and its jobs in a session of their own: a Ctrl-C reaches this process alone, which
     # stops them with SIGTERM (a job ends without a traceback wherever it is, even in Snakemake's
     # preamble or its imports; the cube job stops cleanly), and says so in one line
-    proc = subprocess.Popen(cmd, env=env, start_new_session=True)
-    previous = _forward_signals(proc)
+    snakemake = SnakemakeGroup()
+    previous = snakemake.forward_signals()
     try:
-        return proc.wait()
+        snakemake.start(cmd, env=env)
+        return snakemake.proc.wait()
     except KeyboardInterrupt:
-        _stop(proc)
+        snakemake.stop()
         print(
             f"straylight run: interrupted; the finished products are kept in results/{campaign.name}/ "
             "and the same command resumes the run",
@@ -416,36 +415,74 @@ def run_campaign(config, cores: int | None = None, extra=(), argv=None, verbose:
             signal.signal(sig, handler)
 
 
-def _stop(proc) -> None:
-    """SIGTERM to Snakemake's process group (Snakemake and its jobs), then wait for it, a further
-    Ctrl-C meanwhile taken as the first."""
-    try:
-        os.killpg(proc.pid, signal.SIGTERM)
-    except (ProcessLookupError, PermissionError):  # gone already
-        pass
-    while True:
-        try:
-            proc.wait()
+#: seconds Snakemake's process group has to end after the SIGTERM that stops it, and to release
+#: the pipe of its log once Snakemake has ended, before what is left of it gets SIGKILL: a job
+#: stops within a second or two (its pools killed, its stores written through temporary files)
+STOP_GRACE_SECONDS = 30.0
+
+
+class SnakemakeGroup:
+    """Snakemake and its jobs, in a session (and process group) of their own: a Ctrl-C at the
+    terminal reaches ``straylight run`` alone, which stops the group with SIGTERM (:meth:`stop`),
+    then SIGKILL for whatever outlives :data:`STOP_GRACE_SECONDS`.  SIGTERM and SIGHUP to
+    ``straylight run`` (a scheduler's stop, the terminal closed) are passed on as SIGTERM
+    (:meth:`forward_signals`, set before :meth:`start` so that Snakemake starts with their
+    default actions even where this process was started with them ignored)."""
+
+    def __init__(self, grace_s: float = STOP_GRACE_SECONDS):
+        self.proc = None
+        self.grace_s = float(grace_s)
+
+    def start(self, cmd, **popen_kwargs) -> None:
+        """Start ``cmd`` (Snakemake) in a new session, ``popen_kwargs`` to :class:`subprocess.Popen`."""
+        self.proc = subprocess.Popen(cmd, start_new_session=True, **popen_kwargs)
+
+    def send(self, sig: int) -> None:
+        """``sig`` to every process of the group (none once they have all ended)."""
+        if self.proc is None:
             return
-        except KeyboardInterrupt:
-            continue
-
-
-def _forward_signals(proc) -> dict:
-    """SIGTERM and SIGHUP to this process (a scheduler's stop, the terminal closed) passed on to
-    Snakemake's process group as SIGTERM, since it has a session of its own; returns the previous
-    handlers (none outside the main thread)."""
-
-    def forward(signum, frame):
         try:
-            os.killpg(proc.pid, signal.SIGTERM)
-        except (ProcessLookupError, PermissionError):
+            os.killpg(self.proc.pid, sig)
+        except (ProcessLookupError, PermissionError):  # gone already
             pass
 
-    previous = {}
-    for sig in (signal.SIGTERM, signal.SIGHUP):
-        try:
-            previous[sig] = signal.signal(sig, forward)
-        except ValueError:  # not the main thread: left as they are
-            break
-    return previous
+    def stop(self) -> None:
+        """SIGTERM to the group, then wait for Snakemake (a further Ctrl-C meanwhile taken as
+        the first); SIGKILL to the group if Snakemake has not ended within the grace time."""
+        self.send(signal.SIGTERM)
+        deadline = time.monotonic() + self.grace_s
+        while True:
+            try:
+                self.proc.wait(timeout=max(0.0, deadline - time.monotonic()))
+                return
+            except subprocess.TimeoutExpired:
+                self.send(signal.SIGKILL)
+                deadline = math.inf
+            except KeyboardInterrupt:
+                continue
+
+    def join_output(self, reader: threading.Thread) -> None:
+        """Wait for ``reader``, the thread reading Snakemake's output, once Snakemake has ended:
+        the pipe closes when every process that holds it has ended, so a process of the group
+        still holding it after the grace time gets SIGKILL."""
+        reader.join(self.grace_s)
+        if reader.is_alive():
+            self.send(signal.SIGKILL)
+            reader.join(self.grace_s)
+
+    def forward_signals(self) -> dict:
+        """Pass SIGTERM and SIGHUP to this process on to the group as SIGTERM; returns the previous
+        handlers (none outside the main thread, where they are left as they are)."""
+
+        def forward(signum, frame):
+            if self.proc is None:  # before Snakemake starts: this process stops
+                raise SystemExit(128 + signum)
+            self.send(signal.SIGTERM)
+
+        previous = {}
+        for sig in (signal.SIGTERM, signal.SIGHUP):
+            try:
+                previous[sig] = signal.signal(sig, forward)
+            except ValueError:  # not the main thread
+                break
+        return previous

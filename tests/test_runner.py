@@ -68,3 +68,38 @@ def test_verbose_and_dry_runs_print_snakemakes_log(tmp_path, flag):
     r = run_cli("run", cfg, "--cores", "1", flag, "results/tiny/footprint.fits", cwd=tmp_path, timeout=600)
     assert r.returncode == 0, r.stderr
     assert "rule footprint" in r.stdout + r.stderr and "straylight run:" not in r.stderr
+
+
+@pytest.mark.parametrize("snakemake_ignores_sigterm", [True, False])
+def test_a_group_that_ignores_sigterm_is_killed_after_the_grace_time(snakemake_ignores_sigterm):
+    """A Snakemake that ignores the stop's SIGTERM, or a process of its group that does and keeps
+    the pipe of Snakemake's log open once Snakemake has ended, gets SIGKILL after the grace time:
+    `straylight run` never waits forever."""
+    import signal
+    import subprocess
+    import sys
+    import threading
+    import time
+
+    from straylight.runner import SnakemakeGroup
+
+    ignoring = "import signal, time; signal.signal(signal.SIGTERM, signal.SIG_IGN); "
+    child = ignoring + "print('child', flush=True); time.sleep(600)"
+    fake = (
+        ignoring if snakemake_ignores_sigterm else "import time; "
+    ) + f"import subprocess, sys; subprocess.Popen([sys.executable, '-c', {child!r}]); time.sleep(600)"
+    group = SnakemakeGroup(grace_s=1.0)
+    group.start([sys.executable, "-c", fake], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    lines = []
+    reader = threading.Thread(target=lambda: lines.extend(group.proc.stdout), daemon=True)
+    reader.start()
+    deadline = time.monotonic() + 60
+    while not lines and time.monotonic() < deadline:  # both started, SIGTERM ignored
+        time.sleep(0.1)
+    assert lines == ["child\n"]
+    start = time.monotonic()
+    group.stop()
+    group.join_output(reader)
+    expected = signal.SIGKILL if snakemake_ignores_sigterm else signal.SIGTERM
+    assert group.proc.returncode == -expected and not reader.is_alive()
+    assert time.monotonic() - start < 10.0  # two grace times of 1 s and the kills

@@ -2,6 +2,7 @@
 (the API: InputError or ConfigError), or accepted with one warning where the value is legal but
 surprising.  docs/reliability.md lists them with the bad-input corpus."""
 
+import contextlib
 import logging
 import os
 
@@ -222,6 +223,15 @@ def test_ctrl_c_during_run_is_one_line_and_exit_130(tmp_path):
 
     psutil = pytest.importorskip("psutil")
     cfg = tiny_config(tmp_path)
+
+    def as_a_terminals_foreground_job():
+        # Ctrl-C's and SIGTERM's default actions, none blocked, as a shell gives its foreground
+        # job (a suite started in the background, `make test &`, passes SIGINT down ignored; a
+        # harness may pass signals down blocked)
+        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+            signal.signal(sig, signal.SIG_DFL)
+        signal.pthread_sigmask(signal.SIG_SETMASK, set())
+
     proc = subprocess.Popen(
         [sys.executable, "-m", "straylight.cli", "run", str(cfg), "--cores", "2"],
         cwd=tmp_path,
@@ -229,9 +239,7 @@ def test_ctrl_c_during_run_is_one_line_and_exit_130(tmp_path):
         stderr=subprocess.PIPE,
         text=True,
         start_new_session=True,  # its own process group, as a terminal's foreground job
-        # and Ctrl-C's default action, as a shell gives its foreground job (a suite started in the
-        # background, `make test &`, passes SIGINT down ignored)
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+        preexec_fn=as_a_terminals_foreground_job,
     )
     deadline, job = time.monotonic() + 300, None
     while job is None and time.monotonic() < deadline and proc.poll() is None:
@@ -244,13 +252,37 @@ def test_ctrl_c_during_run_is_one_line_and_exit_130(tmp_path):
         time.sleep(0.2)
     assert job is not None, "no job started"
     time.sleep(3.0)  # the job's imports done: it computes
-    # the run's signal masks when the Ctrl-C comes (blocked, ignored, caught), for a failure's message
-    with open(f"/proc/{proc.pid}/status") as status:
-        masks = [line.strip() for line in status if line.startswith("Sig")]
-    running = [c.name() for c in psutil.Process(proc.pid).children(recursive=True)]
+
+    def signal_masks(pid):  # blocked, ignored, caught
+        try:
+            with open(f"/proc/{pid}/status") as status:
+                return [line.split()[1] for line in status if line.startswith(("SigBlk", "SigIgn", "SigCgt"))]
+        except OSError:
+            return "gone"
+
+    def tree():  # the run's processes: pid, name, state and signal masks
+        out = []
+        for c in psutil.Process(proc.pid).children(recursive=True):
+            try:
+                out.append((c.pid, c.name(), c.status(), signal_masks(c.pid)))
+            except psutil.NoSuchProcess:
+                pass
+        return out
+
+    # the processes when the Ctrl-C comes, for a failure's message
+    at_ctrl_c, masks = tree(), signal_masks(proc.pid)
     os.killpg(proc.pid, signal.SIGINT)
-    out, err = proc.communicate(timeout=300)
-    assert proc.returncode == 130, f"{masks}; running at the Ctrl-C: {running}\n{err[-3000:]}"
+    try:
+        # the run's SIGTERM to Snakemake's group, then SIGKILL after runner.STOP_GRACE_SECONDS (30)
+        out, err = proc.communicate(timeout=150)
+    except subprocess.TimeoutExpired:
+        left = tree()
+        for pid in [proc.pid] + [c[0] for c in left]:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGKILL)
+        out, err = proc.communicate()
+        pytest.fail(f"no end 150 s after the Ctrl-C; run {masks}, at the Ctrl-C {at_ctrl_c}, left {left}")
+    assert proc.returncode == 130, f"{masks}; running at the Ctrl-C: {at_ctrl_c}\n{err[-3000:]}"
     assert "Traceback" not in out + err and "KeyboardInterrupt" not in out + err, err[-3000:]
     assert err.strip().splitlines()[-1].startswith("straylight run: interrupted"), err[-3000:]
     for log in (tmp_path / "results" / "tiny" / "work" / "logs").glob("*.log"):
