@@ -130,6 +130,8 @@ def _print_earthshine(cost: dict, campaign, cores: int) -> None:
 
 def _print_wall_time(cost: dict, args, cores: int, speed, factor: float) -> None:
     """``straylight plan``'s wall-time estimate, with the machine's speed factor it is scaled by."""
+    from straylight.planning.plan import ESTIMATE_MEASURED_ERROR
+
     per = (
         f"{args.seconds_per_sample * 1e3:.3g} ms per evaluated sample (--seconds-per-sample)"
         if args.seconds_per_sample is not None
@@ -163,8 +165,9 @@ def _print_wall_time(cost: dict, args, cores: int, speed, factor: float) -> None
             f"x{factor:.2f} the cost figures' time; every figure above is scaled by it"
         )
         print(
-            "  the wall times came within 30 % of measured runs at load 0 and 2 on 2 cores; this "
-            "machine's speed drifting (a shared or virtual machine) moves them as much (docs/performance.md)"
+            f"  the wall times came within {ESTIMATE_MEASURED_ERROR:.0%} of measured runs at load 0 and 2 on "
+            "2 cores; this machine's speed drifting (a shared or virtual machine) moves them as much "
+            "(docs/performance.md)"
         )
     print(
         f"the cube's compute alone: {cost['compute_seconds'] / 3600:.3g} core-hours "

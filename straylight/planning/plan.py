@@ -118,6 +118,11 @@ PIPELINE_SAMPLES_PER_S_PER_CORE = 252_000.0
 #: A footprint's first campaign also sums its faint-star map (kept for later ones), seconds on one
 #: core per footprint pixel (bench/pipeline.py, the same runs).
 FAINT_MAP_SECONDS_PER_PIXEL = 3.0e-3
+#: The largest relative error of the wall-time estimates measured by bench/estimates.py
+#: (|estimate / measured - 1| of a default day, 3 days and a month at nside 32, at load 0 and 2 on
+#: 2 cores, and a default day with an empty table cache; bench/results/estimates.json): a measured
+#: bound on those runs, not a guarantee, since a shared machine's speed drifts as much.
+ESTIMATE_MEASURED_ERROR = 0.30
 
 
 def pipeline_rate(campaign: Campaign) -> tuple[float, str]:
