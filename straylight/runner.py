@@ -434,11 +434,25 @@ class SnakemakeGroup:
         self.grace_s = float(grace_s)
 
     def start(self, cmd, **popen_kwargs) -> None:
-        """Start ``cmd`` (Snakemake) in a new session, ``popen_kwargs`` to :class:`subprocess.Popen`."""
+        """Start ``cmd`` (Snakemake) in a new session.
+
+        Parameters
+        ----------
+        cmd : sequence of str
+            The command line.
+        **popen_kwargs
+            Passed to :class:`subprocess.Popen` (its output's pipes, its environment).
+        """
         self.proc = subprocess.Popen(cmd, start_new_session=True, **popen_kwargs)
 
     def send(self, sig: int) -> None:
-        """``sig`` to every process of the group (none once they have all ended)."""
+        """Send a signal to every process of the group (none once they have all ended).
+
+        Parameters
+        ----------
+        sig : int
+            The signal (``signal.SIGTERM``, ``signal.SIGKILL``).
+        """
         if self.proc is None:
             return
         try:
@@ -462,9 +476,15 @@ class SnakemakeGroup:
                 continue
 
     def join_output(self, reader: threading.Thread) -> None:
-        """Wait for ``reader``, the thread reading Snakemake's output, once Snakemake has ended:
-        the pipe closes when every process that holds it has ended, so a process of the group
-        still holding it after the grace time gets SIGKILL."""
+        """Wait for the thread reading Snakemake's output, once Snakemake has ended: the pipe
+        closes when every process that holds it has ended, so a process of the group still
+        holding it after the grace time gets SIGKILL.
+
+        Parameters
+        ----------
+        reader : threading.Thread
+            The thread reading Snakemake's output until its end.
+        """
         reader.join(self.grace_s)
         if reader.is_alive():
             self.send(signal.SIGKILL)
