@@ -1265,6 +1265,32 @@ def test_the_body_shades_the_door(comp_model, tilt_deg, sun_zenith_deg):
     assert 0.25 < shaded / unshaded < 0.95
 
 
+def test_door_lit_fraction_computes_the_bodys_rays_once_per_geometry(comp_model):
+    """The lit fraction's table is (~Door.body_hits) @ door weights over its direction grid, bit
+    for bit; a second grid of the same door (an envelope member, whose PST changes the weights
+    only) reuses the rays' hits instead of computing them again (grid._unblocked_rays)."""
+    import dataclasses
+
+    from straylight.sources.earthshine import grid as grid_module
+
+    grid = dataclasses.replace(comp_model.earth_grid)  # a fresh instance: nothing cached on it
+    theta, phi = np.arange(90.0, 180.5, 1.0), np.arange(0.0, 361.0, 2.0)
+    th, ph = np.meshgrid(np.radians(theta), np.radians(phi), indexing="ij")
+    dirs = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], axis=-1).reshape(-1, 3)
+    tables = grid._door_lit_fraction
+    assert len(tables) == len(grid._door_weights) >= 1
+    for state, (q, _, w) in grid._door_weights.items():
+        lit = np.concatenate(
+            [(~grid.door.body_hits(q, dirs[i : i + 2048])) @ w for i in range(0, len(dirs), 2048)]
+        )
+        np.testing.assert_array_equal(tables[state].values, (lit / np.sum(w)).reshape(th.shape))
+    hits = grid_module._unblocked_rays.cache_info().hits
+    again = dataclasses.replace(grid)._door_lit_fraction
+    assert grid_module._unblocked_rays.cache_info().hits == hits + len(tables)
+    for state in tables:
+        np.testing.assert_array_equal(again[state].values, tables[state].values)
+
+
 def test_body_hits_is_the_ray_cylinder_geometry():
     """Door.body_hits against hand-worked rays: the cylinder x^2 + y^2 < 1, -10 < z < 0."""
     d = Door(

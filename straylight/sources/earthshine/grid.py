@@ -21,7 +21,7 @@ its tables (:mod:`straylight.sources.earthshine.sunlit_table`).
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from functools import cached_property
+from functools import cached_property, lru_cache
 
 import numpy as np
 
@@ -266,9 +266,8 @@ class EarthCapGrid:
         )
         out = {}
         for state, (q, _, w) in self._door_weights.items():
-            lit = np.concatenate(
-                [(~self.door.body_hits(q, dirs[i : i + 2048])) @ w for i in range(0, len(dirs), 2048)]
-            )
+            unblocked = _unblocked_rays(self.door, q.tobytes(), dirs.tobytes())
+            lit = np.concatenate([chunk @ w for chunk in unblocked])
             out[state] = LinearGrid((theta, phi), (lit / np.sum(w)).reshape(th.shape))
         return out
 
@@ -378,3 +377,16 @@ class EarthCapGrid:
         th = self.pst.theta_deg
         first = max(int(np.searchsorted(th, self.field_radius_deg, side="right")) - 1, 0)
         return float(self.pst.values[first:].max())
+
+
+@lru_cache(maxsize=4)
+def _unblocked_rays(door, points_bytes: bytes, directions_bytes: bytes) -> tuple:
+    """Whether the ray from each door block (``points_bytes``: (M, 3) float64, m) along each
+    direction (``directions_bytes``: (N, 3) float64, unit) misses the telescope body
+    (:meth:`~straylight.optics.door.Door.body_hits`), in chunks of 2048 directions: a tuple of
+    (n, M) bool arrays.  Geometry alone, so the models of one process (the nominal one and the
+    envelope's members, whose door weights differ through the PST) compute it once: ~1.2 s and
+    ~19 MB for the default door's two states."""
+    q = np.frombuffer(points_bytes, float).reshape(-1, 3)
+    dirs = np.frombuffer(directions_bytes, float).reshape(-1, 3)
+    return tuple(~door.body_hits(q, dirs[i : i + 2048]) for i in range(0, len(dirs), 2048))
