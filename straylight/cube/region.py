@@ -39,6 +39,7 @@ __all__ = [
     "SAMPLES_PER_EVALUATION",
     "RegionInputs",
     "compute_region",
+    "envelope_end_values",
     "faint_star_map",
     "offfield_stars",
     "region_values",
@@ -219,6 +220,53 @@ def region_values(
     if angles is not None:
         angles.update({k: grid.pop(k) for k in OBSERVABILITY_ANGLES})
     return {**out, **grid}
+
+
+def envelope_end_values(campaign: Campaign, fp: Footprint, t_slice: slice, p_slice: slice, model) -> dict:
+    """The envelope's re-evaluated ends of a region alone, as :func:`region_values` gives them
+    (bit for bit: the same batches, geometry and member models), without the nominal model's
+    evaluation: for a reader of the cube, which stores the nominal parts but not these.
+
+    Parameters
+    ----------
+    campaign, fp, t_slice, p_slice
+        As :func:`compute_region`.
+    model : BackgroundModel
+        The campaign's model (its envelope members' models are built once on it).
+
+    Returns
+    -------
+    dict of str to ndarray
+        Each of :data:`~straylight.cube.layout.ENVELOPE_END_VARIABLES`: float32, shape (n_time,
+        n_pixel, n_band), e-/s/pix, NaN where not observable (everywhere without the
+        instrument's ``envelope.members``).
+    """
+    from straylight.sky.geometry import observing_geometry
+
+    times = campaign.times[t_slice]
+    sc = _region_scene(campaign, None, times)
+    los = radec_to_unit(fp.ra_deg[p_slice], fp.dec_deg[p_slice])
+    nt, npix, nb = len(times), los.shape[0], len(campaign.bands)
+    out = {n: np.full((nt, npix, nb), np.nan, np.float32) for n in cube_layout.ENVELOPE_END_VARIABLES}
+    if not _end_models(model, campaign):
+        return out
+    max_samples = SAMPLES_PER_EVALUATION if model.uses_sunlit_table else npix
+    for steps in _step_batches(nt, npix, max_samples):
+        k = steps.stop - steps.start
+        samples = _step_samples(sc, steps, los, None)
+        g = observing_geometry(  # as background_at finds it
+            samples.satellite_km,
+            {b: samples.body_km(b) for b in ("sun", "moon")},
+            samples.los,
+            model.campaign.earth.radius_km,
+            model.campaign.constraints,
+            frame=samples.frame,
+            runs=samples.runs,
+        )
+        _envelope_ends(
+            model, campaign, samples, g, {n: v[steps].reshape(k * npix, nb) for n, v in out.items()}
+        )
+    return out
 
 
 def _geometry_block(nt: int, npix: int, with_angles: bool) -> dict:

@@ -177,7 +177,7 @@ def _sampled_region(background_store, campaign, group, inputs: tuple, time_block
     which the store does not hold, evaluated again."""
     from straylight.cube.footprint import footprint_from_store
     from straylight.cube.layout import ENVELOPE_END_VARIABLES
-    from straylight.cube.region import region_values
+    from straylight.cube.region import envelope_end_values
     from straylight.model import BackgroundModel
     from straylight.storage.zarr_io import read_region
 
@@ -202,9 +202,9 @@ def _sampled_region(background_store, campaign, group, inputs: tuple, time_block
         for n in names + ["observable"]:
             parts[n].append(read_region(group[n], (t_slice, slice(None))))
         if regroup:
-            again = region_values(campaign, fp, t_slice, slice(None), model)
+            again = envelope_end_values(campaign, fp, t_slice, slice(None), model)
             for n in regroup:
-                parts[n].append(np.array(again[n]))
+                parts[n].append(again[n])
     return {n: np.concatenate(v) for n, v in parts.items()}
 
 

@@ -137,3 +137,24 @@ def test_the_former_step_tail_misses_the_reevaluation(evaluated):
     want = _stack(ref, bands, "total") - sum(_stack(ref, bands, k) for k in NOT_CARRIED)
     off = np.abs(step / want - 1.0) > 0.01
     assert off.mean() > 0.05
+
+
+def test_envelope_ends_alone_equal_the_regions_own(tmp_path):
+    """cube.region.envelope_end_values (what the limits job's sensitivity chart re-evaluates)
+    equals region_values' re-evaluated ends bit for bit, without evaluating the nominal model."""
+    from straylight.cube.footprint import footprint_from_config
+    from straylight.cube.layout import ENVELOPE_END_VARIABLES
+    from straylight.cube.region import envelope_end_values, region_values
+
+    raw_inst = yaml.safe_load((REPO / "config" / "instruments" / "csst.yaml").read_text())
+    campaign = _campaign(tmp_path, raw_inst, "region")
+    fp = footprint_from_config(campaign.settings.footprint, campaign.path.parent)
+    t_slice, p_slice = slice(3, 6), slice(0, 240)  # observable and unobservable samples
+    whole = region_values(campaign, fp, t_slice, p_slice, BackgroundModel(campaign, build_workers=1))
+    alone = envelope_end_values(campaign, fp, t_slice, p_slice, BackgroundModel(campaign, build_workers=1))
+    assert set(alone) == set(ENVELOPE_END_VARIABLES) and ENVELOPE_END_VARIABLES
+    for name in ENVELOPE_END_VARIABLES:
+        assert alone[name].dtype == np.float32 and alone[name].shape == whole[name].shape
+        np.testing.assert_array_equal(alone[name], whole[name], err_msg=name)
+    finite = np.isfinite(alone[ENVELOPE_END_VARIABLES[0]]).any(axis=-1)
+    assert 20 <= finite.sum() <= finite.size - 20 and (finite == whole["observable"]).all()
