@@ -19,15 +19,21 @@ from straylight.errors import OutputError
 
 @pytest.fixture(scope="module")
 def small(tmp_path_factory):
+    import yaml
+
     tmp = tmp_path_factory.mktemp("faults")
-    c = load_campaign(
-        tiny_config(
-            tmp,
-            name="faults",
-            campaign={"end": "2026-01-01T01:00:00", "time_block_hours": 0.5},
-            footprint={"pixel_block_size": 40},
-        )
+    path = tiny_config(
+        tmp,
+        name="faults",
+        campaign={"end": "2026-01-01T01:00:00", "time_block_hours": 0.5},
+        footprint={"pixel_block_size": 40},
     )
+    # the faults are the store's: a coarser Earth grid (a quarter of the default's direct sum)
+    # computes the same variables and chunks
+    cfg = yaml.safe_load(path.read_text())
+    cfg["models"]["earthshine"].update(n_gamma=12, n_psi=24)
+    path.write_text(yaml.safe_dump(cfg))
+    c = load_campaign(path)
     fp = footprint_from_config(c.settings.footprint, c.path.parent)
     ref = tmp / "reference.zarr"
     init_store(c, fp, ref)
