@@ -19,8 +19,6 @@ from straylight.errors import OutputError
 
 @pytest.fixture(scope="module")
 def small(tmp_path_factory):
-    import yaml
-
     tmp = tmp_path_factory.mktemp("faults")
     path = tiny_config(
         tmp,
@@ -30,10 +28,7 @@ def small(tmp_path_factory):
     )
     # the faults are the store's: a coarser Earth grid (a quarter of the default's direct sum)
     # computes the same variables and chunks
-    cfg = yaml.safe_load(path.read_text())
-    cfg["models"]["earthshine"].update(n_gamma=12, n_psi=24)
-    path.write_text(yaml.safe_dump(cfg))
-    c = load_campaign(path)
+    c = load_campaign(_with_earth_grid(path, 12, 24))
     fp = footprint_from_config(c.settings.footprint, c.path.parent)
     ref = tmp / "reference.zarr"
     init_store(c, fp, ref)
@@ -171,7 +166,6 @@ def _kill_campaign(folder):
     time blocks x 3 pixel blocks, on the converged Earth grid (96 x 192, 16 times the default's
     cost per sample): the cube lasts well over 10 s after its first block (five blocks more), so
     that processes a killed run left behind would still be running when the test looks."""
-    import yaml
     from conftest import tiny_config
 
     folder.mkdir()
@@ -181,8 +175,16 @@ def _kill_campaign(folder):
         campaign={"end": "2026-01-01T06:00:00", "time_block_hours": 1},
         footprint={"pixel_block_size": 30},
     )
+    return _with_earth_grid(path, 96, 192)
+
+
+def _with_earth_grid(path, n_gamma: int, n_psi: int):
+    """The campaign config at ``path`` with its earthshine summed directly on an Earth grid of
+    n_gamma x n_psi (rewritten in place); returns ``path``."""
+    import yaml
+
     cfg = yaml.safe_load(path.read_text())
-    cfg["models"]["earthshine"].update(n_gamma=96, n_psi=192, method="direct")
+    cfg["models"]["earthshine"].update(n_gamma=n_gamma, n_psi=n_psi, method="direct")
     path.write_text(yaml.safe_dump(cfg))
     return path
 
