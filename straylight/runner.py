@@ -276,32 +276,38 @@ def _run_quietly(cmd, env, campaign) -> int:
     start = time.monotonic()
     snakemake = SnakemakeGroup()
     previous = snakemake.forward_signals()
-    snakemake.start(
-        cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, errors="replace"
-    )
-    proc = snakemake.proc
 
-    def read():
+    def read(proc):
         for line in proc.stdout:
             log.write(line)
             log.flush()
             tail.append(line.rstrip("\n"))
             progress.read_line(line)
 
-    reader = threading.Thread(target=read, daemon=True)
-    reader.start()
-    # disable=None: no bar where stderr is not a terminal (a pipe, a batch job's file)
-    bar = tqdm(total=None, unit="step", desc=campaign.name, file=sys.stderr, disable=None, leave=False)
+    bar, reader, interrupted = None, None, False
     try:
+        snakemake.start(
+            cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, errors="replace"
+        )
+        reader = threading.Thread(target=read, args=(snakemake.proc,), daemon=True)
+        reader.start()
+        # disable=None: no bar where stderr is not a terminal (a pipe, a batch job's file)
+        bar = tqdm(total=None, unit="step", desc=campaign.name, file=sys.stderr, disable=None, leave=False)
         interrupted = _follow(snakemake, progress, bar)
         snakemake.join_output(reader)
+    except KeyboardInterrupt:  # a Ctrl-C before the run is followed: stopped all the same
+        interrupted = True
+        snakemake.stop()
+        if reader is not None:
+            snakemake.join_output(reader)
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-        bar.close()
+        if bar is not None:
+            bar.close()
         log.close()
     wall = time.monotonic() - start
-    code = proc.returncode
+    code = None if snakemake.proc is None else snakemake.proc.returncode
     if code == 0:
         what = "already complete" if progress.nothing_to_do else f"done in {wall:.0f} s wall"
         print(f"straylight run: {what}: {_products_line(results)} in {results}/", file=sys.stderr)
@@ -462,7 +468,10 @@ class SnakemakeGroup:
 
     def stop(self) -> None:
         """SIGTERM to the group, then wait for Snakemake (a further Ctrl-C meanwhile taken as
-        the first); SIGKILL to the group if Snakemake has not ended within the grace time."""
+        the first); SIGKILL to the group if Snakemake has not ended within the grace time.
+        Nothing before Snakemake has started."""
+        if self.proc is None:
+            return
         self.send(signal.SIGTERM)
         deadline = time.monotonic() + self.grace_s
         while True:
