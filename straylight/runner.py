@@ -422,8 +422,10 @@ def run_campaign(config, cores: int | None = None, extra=(), argv=None, verbose:
 
 
 #: seconds Snakemake's process group has to end after the SIGTERM that stops it, and to release
-#: the pipe of its log once Snakemake has ended, before what is left of it gets SIGKILL: a job
-#: stops within a second or two (its pools killed, its stores written through temporary files)
+#: the pipe of its log once Snakemake has ended, before what is left of it gets SIGKILL: three
+#: times the 10 s within which the cube job and its workers are gone after a SIGTERM
+#: (tests/workflow/test_faults.py::test_cube_job_stops_cleanly_on_a_signal); what SIGKILL cuts
+#: short is redone by a re-run (the stores are written through temporary files)
 STOP_GRACE_SECONDS = 30.0
 
 

@@ -23,7 +23,7 @@ import numpy as np
 from straylight.cube import layout as cube_layout
 from straylight.cube.layout import OBSERVABILITY_ANGLES
 from straylight.model import registry
-from straylight.model.pointing import background_at
+from straylight.model.pointing import background_at, sample_geometry
 from straylight.model.samples import SampleBatch
 from straylight.sky.observing import Scene
 from straylight.sky.runs import SceneRuns
@@ -202,7 +202,7 @@ def region_values(
     # paid once per batch, not once per step.  The direct earthshine sum grids the Earth per
     # sample, so there one step per call bounds its memory (the star pairs bound their own:
     # OffFieldStars.STAR_PAIRS_PER_PASS).
-    max_samples = SAMPLES_PER_EVALUATION if model.uses_sunlit_table else npix
+    max_samples = _samples_per_evaluation(model, npix)
     skip_unobservable = unobservable_samples(campaign) == "skip"  # the campaign's, not the model's
     for steps in _step_batches(nt, npix, max_samples):
         k = steps.stop - steps.start
@@ -241,8 +241,6 @@ def envelope_end_values(campaign: Campaign, fp: Footprint, t_slice: slice, p_sli
         n_pixel, n_band), e-/s/pix, NaN where not observable (everywhere without the
         instrument's ``envelope.members``).
     """
-    from straylight.sky.geometry import observing_geometry
-
     times = campaign.times[t_slice]
     sc = _region_scene(campaign, None, times)
     los = radec_to_unit(fp.ra_deg[p_slice], fp.dec_deg[p_slice])
@@ -250,23 +248,18 @@ def envelope_end_values(campaign: Campaign, fp: Footprint, t_slice: slice, p_sli
     out = {n: np.full((nt, npix, nb), np.nan, np.float32) for n in cube_layout.ENVELOPE_END_VARIABLES}
     if not _end_models(model, campaign):
         return out
-    max_samples = SAMPLES_PER_EVALUATION if model.uses_sunlit_table else npix
-    for steps in _step_batches(nt, npix, max_samples):
+    for steps in _step_batches(nt, npix, _samples_per_evaluation(model, npix)):
         k = steps.stop - steps.start
         samples = _step_samples(sc, steps, los, None)
-        g = observing_geometry(  # as background_at finds it
-            samples.satellite_km,
-            {b: samples.body_km(b) for b in ("sun", "moon")},
-            samples.los,
-            model.campaign.earth.radius_km,
-            model.campaign.constraints,
-            frame=samples.frame,
-            runs=samples.runs,
-        )
-        _envelope_ends(
-            model, campaign, samples, g, {n: v[steps].reshape(k * npix, nb) for n, v in out.items()}
-        )
+        rows = {n: v[steps].reshape(k * npix, nb) for n, v in out.items()}
+        _envelope_ends(model, campaign, samples, sample_geometry(model, samples), rows)
     return out
+
+
+def _samples_per_evaluation(model, npix: int) -> int:
+    """Samples per evaluation of a region: :data:`SAMPLES_PER_EVALUATION` on the table path; one
+    time step where the direct earthshine sum grids the Earth per sample (it bounds the memory)."""
+    return SAMPLES_PER_EVALUATION if model.uses_sunlit_table else npix
 
 
 def _geometry_block(nt: int, npix: int, with_angles: bool) -> dict:

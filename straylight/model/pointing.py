@@ -13,7 +13,7 @@ from straylight.model.result import BackgroundResult
 from straylight.model.samples import SampleBatch
 from straylight.sky.geometry import observing_geometry
 
-__all__ = ["background_at", "background_result"]
+__all__ = ["background_at", "background_result", "sample_geometry"]
 
 
 def background_at(
@@ -57,18 +57,9 @@ def background_at(
         (band -> component -> e-/s/pix (n,)), the flags the sources report and the bands'
         zero points; without times, pointing, limits or bodies in the field.
     """
-    campaign = model.campaign
     if observable_only and into is None:
         raise ValueError("observable_only needs into: the array the observable samples are written to")
-    g = observing_geometry(
-        samples.satellite_km,
-        {b: samples.body_km(b) for b in geometry_bodies},
-        samples.los,
-        campaign.earth.radius_km,
-        campaign.constraints,
-        frame=samples.frame,  # once for the geometry and the background
-        runs=samples.runs,
-    )
+    g = sample_geometry(model, samples, geometry_bodies)
     if not observable_only:
         return _result(model, bands, g, model.evaluate_samples(samples.source_samples(g, stars), bands, into))
     names, values = into
@@ -85,6 +76,38 @@ def background_at(
         flags = {k: _scattered(v, sel, samples.n) for k, v in _flags(comps[bands[0]]).items()}
     rates = {b: {c: values[k, :, ib] for k, c in enumerate(names)} for ib, b in enumerate(bands)}
     return BackgroundResult(tuple(bands), rates, g, model.sky_zero_points(bands), flags=flags)
+
+
+def sample_geometry(model, samples: SampleBatch, bodies: tuple = ("sun", "moon")) -> dict:
+    """The observing geometry of a batch of samples under the model's Earth and constraints
+    (:func:`~straylight.sky.geometry.observing_geometry`), the telescope frame the samples'
+    own (computed once for the geometry and the background).
+
+    Parameters
+    ----------
+    model : BackgroundModel
+        The campaign's model (its Earth radius and constraints).
+    samples : SampleBatch
+        The samples.
+    bodies : tuple of str
+        The bodies whose angles the geometry reports (the Sun and the Moon at least).
+
+    Returns
+    -------
+    dict
+        observing_geometry's arrays (n,): angles in deg, the door opening (deg), the violation
+        mask, ``observable``.
+    """
+    campaign = model.campaign
+    return observing_geometry(
+        samples.satellite_km,
+        {b: samples.body_km(b) for b in bodies},
+        samples.los,
+        campaign.earth.radius_km,
+        campaign.constraints,
+        frame=samples.frame,
+        runs=samples.runs,
+    )
 
 
 def _flags(components: dict) -> dict:

@@ -1274,16 +1274,15 @@ def test_door_lit_fraction_computes_the_bodys_rays_once_per_geometry(comp_model)
     from straylight.sources.earthshine import grid as grid_module
 
     grid = dataclasses.replace(comp_model.earth_grid)  # a fresh instance: nothing cached on it
-    theta, phi = np.arange(90.0, 180.5, 1.0), np.arange(0.0, 361.0, 2.0)
-    th, ph = np.meshgrid(np.radians(theta), np.radians(phi), indexing="ij")
-    dirs = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], axis=-1).reshape(-1, 3)
+    theta, phi, dirs = grid_module.lit_fraction_directions()
     tables = grid._door_lit_fraction
     assert len(tables) == len(grid._door_weights) >= 1
+    chunk = grid_module.RAY_CHUNK
     for state, (q, _, w) in grid._door_weights.items():
         lit = np.concatenate(
-            [(~grid.door.body_hits(q, dirs[i : i + 2048])) @ w for i in range(0, len(dirs), 2048)]
+            [(~grid.door.body_hits(q, dirs[i : i + chunk])) @ w for i in range(0, len(dirs), chunk)]
         )
-        np.testing.assert_array_equal(tables[state].values, (lit / np.sum(w)).reshape(th.shape))
+        np.testing.assert_array_equal(tables[state].values, (lit / np.sum(w)).reshape(theta.size, phi.size))
     hits = grid_module._unblocked_rays.cache_info().hits
     again = dataclasses.replace(grid)._door_lit_fraction
     assert grid_module._unblocked_rays.cache_info().hits == hits + len(tables)

@@ -258,17 +258,11 @@ class EarthCapGrid:
         (f = 1: the grid's clipped edge row).  None without a body."""
         if self.door.body_radius_m <= 0 or self.door.body_length_m <= 0:
             return None
-        theta = np.arange(90.0, 180.0 + 0.5, 1.0)
-        phi = np.arange(0.0, 360.0 + 1.0, 2.0)
-        th, ph = np.meshgrid(np.radians(theta), np.radians(phi), indexing="ij")
-        dirs = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], axis=-1).reshape(
-            -1, 3
-        )
+        theta, phi, _ = lit_fraction_directions()
         out = {}
         for state, (q, _, w) in self._door_weights.items():
-            unblocked = _unblocked_rays(self.door, q.tobytes(), dirs.tobytes())
-            lit = np.concatenate([chunk @ w for chunk in unblocked])
-            out[state] = LinearGrid((theta, phi), (lit / np.sum(w)).reshape(th.shape))
+            lit = np.concatenate([chunk @ w for chunk in _unblocked_rays(self.door, q.tobytes())])
+            out[state] = LinearGrid((theta, phi), (lit / np.sum(w)).reshape(theta.size, phi.size))
         return out
 
     def door_lit_fraction(self, state: float, theta_deg, phi_deg) -> np.ndarray | float:
@@ -379,14 +373,29 @@ class EarthCapGrid:
         return float(self.pst.values[first:].max())
 
 
+#: directions of the lit fraction's grid per body test (bounds its (directions, door blocks) arrays)
+RAY_CHUNK = 2048
+
+
+def lit_fraction_directions() -> tuple:
+    """The door's lit-fraction grid (:attr:`EarthCapGrid._door_lit_fraction`): theta 90-180 deg
+    (1 deg) and phi 0-360 deg (2 deg), deg, and their unit directions in the telescope frame,
+    (theta x phi, 3), theta-major."""
+    theta = np.arange(90.0, 180.0 + 0.5, 1.0)
+    phi = np.arange(0.0, 360.0 + 1.0, 2.0)
+    th, ph = np.meshgrid(np.radians(theta), np.radians(phi), indexing="ij")
+    dirs = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], axis=-1)
+    return theta, phi, dirs.reshape(-1, 3)
+
+
 @lru_cache(maxsize=4)
-def _unblocked_rays(door, points_bytes: bytes, directions_bytes: bytes) -> tuple:
+def _unblocked_rays(door, points_bytes: bytes) -> tuple:
     """Whether the ray from each door block (``points_bytes``: (M, 3) float64, m) along each
-    direction (``directions_bytes``: (N, 3) float64, unit) misses the telescope body
-    (:meth:`~straylight.optics.door.Door.body_hits`), in chunks of 2048 directions: a tuple of
-    (n, M) bool arrays.  Geometry alone, so the models of one process (the nominal one and the
-    envelope's members, whose door weights differ through the PST) compute it once: ~1.2 s and
-    ~19 MB for the default door's two states."""
+    direction of :func:`lit_fraction_directions` misses the telescope body
+    (:meth:`~straylight.optics.door.Door.body_hits`), in chunks of :data:`RAY_CHUNK` directions:
+    a tuple of (n, M) bool arrays.  Geometry alone, so the models of one process (the nominal one
+    and the envelope's members, whose door weights differ through the PST) compute it once: 1.2 s
+    and 19 MB for the default door's two states (16,471 directions x 576 blocks each)."""
     q = np.frombuffer(points_bytes, float).reshape(-1, 3)
-    dirs = np.frombuffer(directions_bytes, float).reshape(-1, 3)
-    return tuple(~door.body_hits(q, dirs[i : i + 2048]) for i in range(0, len(dirs), 2048))
+    dirs = lit_fraction_directions()[2]
+    return tuple(~door.body_hits(q, dirs[i : i + RAY_CHUNK]) for i in range(0, len(dirs), RAY_CHUNK))
